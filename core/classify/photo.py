@@ -1,0 +1,67 @@
+"""Bring a user's photo to the form the classifier works on.
+
+Photos arrive as ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA arrays, 8- or 16-bit
+(or 2-D grey). The classifier works on 8-bit RGB plus a mask of the pixels
+that carry data: fully transparent pixels (alpha 0) are *no data*, they are
+neither sampled for training nor given a class.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.errors import TerrathemeError
+
+
+def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Check a photo and convert it to 8-bit RGB plus a validity mask.
+
+    Parameters
+    ----------
+    photo : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) ndarray
+        uint8, uint16 (scaled so 65535 -> 255) or float in [0, 1].
+
+    Returns
+    -------
+    rgb : (H, W, 3) uint8 ndarray
+    valid : (H, W) bool ndarray or None
+        False where the alpha channel is 0 (transparent); None when every
+        pixel is valid (no alpha, or alpha all non-zero).
+
+    Raises
+    ------
+    TerrathemeError
+        Wrong number of dimensions or channels, no pixels, unsupported dtype,
+        or every pixel transparent.
+    """
+    arr = np.asarray(photo)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 2, 3, 4):
+        raise TerrathemeError(
+            f"photo has shape {arr.shape}; expected (H, W, 3) RGB or (H, W, 4) RGBA"
+        )
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise TerrathemeError(f"photo has no pixels (shape {arr.shape})")
+    # Scale the pixel type to 8 bits (16-bit: divide by 257, so 65535 -> 255).
+    if arr.dtype == np.uint8:
+        img8 = arr
+    elif arr.dtype == np.uint16:
+        img8 = ((arr.astype(np.uint32) + 128) // 257).astype(np.uint8)
+    elif np.issubdtype(arr.dtype, np.floating):
+        img8 = np.clip(np.nan_to_num(arr) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    else:
+        raise TerrathemeError(f"photo pixel type {arr.dtype} is not supported (uint8, uint16)")
+    # Split off alpha (grey + alpha has 2 channels, RGB + alpha 4).
+    channels = img8.shape[2]
+    valid = None
+    if channels in (2, 4):
+        valid = img8[:, :, -1] > 0
+        img8 = img8[:, :, :-1]
+        if not valid.any():
+            raise TerrathemeError("photo is fully transparent: no pixel to classify")
+        if valid.all():
+            valid = None
+    if img8.shape[2] == 1:
+        img8 = np.repeat(img8, 3, axis=2)
+    return np.ascontiguousarray(img8), valid

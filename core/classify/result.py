@@ -1,0 +1,40 @@
+"""The result of a classification: labels and a per-pixel confidence."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Classification:
+    """Per-pixel classes and how sure the classifier is of them.
+
+    Attributes
+    ----------
+    labels : (H, W) uint8 ndarray
+        Class values: the training masks' values for a supervised
+        classifier, ``1..K`` for an unsupervised one; 0 only where the photo
+        is transparent (no data).
+    confidence : (H, W) float32 ndarray
+        In [0, 1]: the winning class's share of the forest's votes
+        (supervised) or its posterior under the fitted mixture
+        (unsupervised); 0 where the photo is transparent.
+    classes : tuple of int
+        The class values the classifier can give, ascending.
+    """
+
+    labels: np.ndarray
+    confidence: np.ndarray
+    classes: tuple[int, ...]
+
+    @property
+    def n_classes(self) -> int:
+        """Number of classes the classifier knows (not all need appear)."""
+        return len(self.classes)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(H, W)`` of the photo."""
+        return self.labels.shape  # type: ignore[return-value]

@@ -1,0 +1,112 @@
+"""The index grid: theme numbers at grid vertices (Vyatkin & Romanyuk, DESIGN.md §1).
+
+A grid of ``(gh+1, gw+1)`` vertex indices with a cell of ``N x M`` texels
+(N columns, M rows) renders to a ``gw*N x gh*M`` texture. Compression grows
+with ``N*M``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import TerrathemeError
+
+MAX_THEMES = 256
+
+
+def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndarray:
+    """Check a vertex index array and return it as a C-contiguous uint8 array.
+
+    Parameters
+    ----------
+    indices : (gh+1, gw+1) integer array-like
+        Theme number at every grid vertex.
+    n_themes : int, optional
+        Number of themes in the library; every index must be below it.
+
+    Returns
+    -------
+    indices : (gh+1, gw+1) uint8 ndarray
+
+    Raises
+    ------
+    TerrathemeError
+        Not 2-D, fewer than 2 x 2 vertices (no cell), not integers, negative,
+        above 255, or naming a theme the library lacks.
+    """
+    arr = np.asarray(indices)
+    if arr.ndim != 2:
+        raise TerrathemeError(f"index grid must be 2-D (rows, columns), got shape {arr.shape}")
+    if arr.shape[0] < 2 or arr.shape[1] < 2:
+        raise TerrathemeError(
+            f"index grid needs at least 2 x 2 vertices (one cell), got {arr.shape[1]} x {arr.shape[0]}"
+        )
+    if arr.dtype.kind not in "iub":
+        if arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):
+            arr = arr.astype(np.int64)
+        else:
+            raise TerrathemeError(f"index grid must hold integers, got dtype {arr.dtype}")
+    if arr.size and int(arr.min()) < 0:
+        raise TerrathemeError(f"index grid has a negative index ({int(arr.min())})")
+    if arr.size and int(arr.max()) >= MAX_THEMES:
+        raise TerrathemeError(f"index grid has index {int(arr.max())}; at most {MAX_THEMES} themes")
+    if n_themes is not None and arr.size and int(arr.max()) >= n_themes:
+        bad = int(arr.max())
+        raise TerrathemeError(
+            f"index grid uses theme index {bad} but the library has only {n_themes} themes "
+            f"(0..{n_themes - 1})"
+        )
+    return np.ascontiguousarray(arr, dtype=np.uint8)
+
+
+def validate_cell(cell: object) -> tuple[int, int]:
+    """Check a cell size ``(N, M)``: N texel columns, M texel rows, both >= 1."""
+    try:
+        n, m = (int(v) for v in cell)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise TerrathemeError(f"cell size must be two integers (N, M), got {cell!r}") from exc
+    if n < 1 or m < 1:
+        raise TerrathemeError(f"cell size must be at least 1 x 1 texels, got {n} x {m}")
+    return n, m
+
+
+@dataclass(eq=False)
+class IndexGrid:
+    """Theme indices at grid vertices plus the cell size in texels.
+
+    Attributes
+    ----------
+    indices : (gh+1, gw+1) uint8 ndarray
+        ``indices[j, i]`` is the theme at vertex column ``i``, row ``j``
+        (row 0 at the top). Mutable in place: the editor paints into it.
+    cell : (int, int)
+        ``(N, M)``: texel columns and rows covered by one cell.
+    """
+
+    indices: np.ndarray
+    cell: tuple[int, int] = (16, 16)
+
+    def __post_init__(self) -> None:
+        self.indices = validate_indices(self.indices)
+        self.cell = validate_cell(self.cell)
+
+    @property
+    def cells_shape(self) -> tuple[int, int]:
+        """``(gh, gw)``: cell rows and columns."""
+        return self.indices.shape[0] - 1, self.indices.shape[1] - 1
+
+    @property
+    def texture_size(self) -> tuple[int, int]:
+        """``(width, height)`` in texels of the full-resolution render."""
+        gh, gw = self.cells_shape
+        return gw * self.cell[0], gh * self.cell[1]
+
+    def copy(self) -> IndexGrid:
+        return IndexGrid(self.indices.copy(), self.cell)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, IndexGrid):
+            return NotImplemented
+        return self.cell == other.cell and np.array_equal(self.indices, other.indices)

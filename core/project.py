@@ -1,0 +1,202 @@
+"""The project file: a thematic texture (grid + theme library + metadata) in one file.
+
+Format (``.ttproj``, version 1) — a ZIP archive, every member checked by its
+CRC-32 on reading:
+
+``manifest.json``
+    ``{"format": "terratheme-project", "version": 1, "cell": [N, M],
+    "grid_shape": [rows, cols], "themes": [{"name", "colour", "source",
+    "texture": "themes/000.npy"}, ...], "metadata": {...},
+    "layers": ["photo", "scribbles"]}``
+``grid.npy``
+    ``(gh+1, gw+1) uint8`` vertex indices (numpy ``.npy``, no pickles).
+``themes/KKK.npy``
+    ``(h, w, 3) uint8`` texture of theme ``KKK``.
+``photo.npy``, ``scribbles.npy`` (optional)
+    the source photo ``(H, W, 3) uint8`` and the scribble mask ``(H, W) uint8``.
+
+``metadata`` is free JSON: ``source_photo`` (path), ``georeference`` (the
+photo's GeoTIFF/CRS attributes), ``created_by``. Saving writes a temporary
+file and renames it; loading a damaged file raises ``CorruptFileError`` and a
+newer version ``UnsupportedVersionError``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from core.atomic import atomic_path
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.grid import IndexGrid, validate_indices
+from core.themes import Theme, ThemeLibrary
+
+FORMAT_NAME = "terratheme-project"
+FORMAT_VERSION = 1
+PROJECT_SUFFIX = ".ttproj"
+_LAYERS = ("photo", "scribbles")
+
+
+@dataclass(eq=False)
+class ThematicTexture:
+    """A thematic texture: the index grid, its theme library and metadata.
+
+    Attributes
+    ----------
+    grid : IndexGrid
+    library : ThemeLibrary
+        ``library[k]`` is the theme for index ``k``; every grid index must have one.
+    metadata : dict
+        JSON-serialisable: ``source_photo``, ``georeference``, ...
+    photo : (H, W, 3) uint8 ndarray or None
+        The source photo, kept for the editor's overlay and fidelity view.
+    scribbles : (H, W) uint8 ndarray or None
+        User scribbles for supervised classification (0 = unlabelled).
+    """
+
+    grid: IndexGrid
+    library: ThemeLibrary
+    metadata: dict = field(default_factory=dict)
+    photo: np.ndarray | None = None
+    scribbles: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if len(self.library) == 0:
+            raise TerrathemeError("a thematic texture needs at least one theme")
+        validate_indices(self.grid.indices, n_themes=len(self.library))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, ThematicTexture):
+            return NotImplemented
+
+        def same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+            return (a is None and b is None) or (
+                a is not None and b is not None and np.array_equal(a, b)
+            )
+
+        return (
+            self.grid == other.grid
+            and self.library == other.library
+            and self.metadata == other.metadata
+            and same(self.photo, other.photo)
+            and same(self.scribbles, other.scribbles)
+        )
+
+
+def _npy_bytes(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(arr), allow_pickle=False)
+    return buf.getvalue()
+
+
+def _load_npy(zf: zipfile.ZipFile, member: str, path: Path) -> np.ndarray:
+    try:
+        with zf.open(member) as fh:
+            return np.load(io.BytesIO(fh.read()), allow_pickle=False)
+    except KeyError as exc:
+        raise CorruptFileError(f"{path}: project lacks {member}") from exc
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise CorruptFileError(f"{path}: {member} is damaged ({exc})") from exc
+
+
+def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
+    """Write ``project`` to ``path`` (a ``.ttproj`` file) atomically."""
+    validate_indices(project.grid.indices, n_themes=len(project.library))
+    themes = []
+    members: dict[str, bytes] = {"grid.npy": _npy_bytes(project.grid.indices)}
+    for k, theme in enumerate(project.library):
+        member = f"themes/{k:03d}.npy"
+        members[member] = _npy_bytes(theme.texture)
+        themes.append(
+            {"name": theme.name, "colour": list(theme.colour), "source": theme.source,
+             "texture": member}
+        )
+    layers = []
+    for name in _LAYERS:
+        arr = getattr(project, name)
+        if arr is not None:
+            members[f"{name}.npy"] = _npy_bytes(arr)
+            layers.append(name)
+    manifest = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "cell": list(project.grid.cell),
+        "grid_shape": list(project.grid.indices.shape),
+        "themes": themes,
+        "metadata": project.metadata,
+        "layers": layers,
+    }
+    try:
+        manifest_text = json.dumps(manifest, indent=1)
+    except TypeError as exc:
+        raise TerrathemeError(f"project metadata is not JSON-serialisable: {exc}") from exc
+    with atomic_path(path) as tmp:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=6) as zf:
+            zf.writestr("manifest.json", manifest_text)
+            for member, data in members.items():
+                zf.writestr(member, data)
+
+
+def load_project(path: str | os.PathLike) -> ThematicTexture:
+    """Read a ``.ttproj`` file written by :func:`save_project`.
+
+    Raises
+    ------
+    TerrathemeError
+        Missing file.
+    CorruptFileError
+        Not a ZIP, a damaged member (CRC mismatch), a missing member, a grid
+        index without a theme.
+    UnsupportedVersionError
+        Written by a newer terratheme.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise TerrathemeError(f"{path}: no such project file")
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise CorruptFileError(f"{path}: not a terratheme project (damaged or not a ZIP)") from exc
+    with zf:
+        try:
+            manifest = json.loads(zf.read("manifest.json"))
+        except KeyError as exc:
+            raise CorruptFileError(f"{path}: not a terratheme project (no manifest)") from exc
+        except (json.JSONDecodeError, zipfile.BadZipFile, OSError, ValueError) as exc:
+            raise CorruptFileError(f"{path}: damaged manifest ({exc})") from exc
+        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+            raise CorruptFileError(f"{path}: not a terratheme project (wrong format tag)")
+        version = manifest.get("version")
+        if not isinstance(version, int) or version < 1:
+            raise CorruptFileError(f"{path}: bad format version {version!r}")
+        if version > FORMAT_VERSION:
+            raise UnsupportedVersionError(
+                f"{path}: written by a newer terratheme (project format {version}; "
+                f"this version reads up to {FORMAT_VERSION})"
+            )
+        try:
+            library = ThemeLibrary(
+                Theme(t["name"], tuple(t["colour"]), _load_npy(zf, t["texture"], path),
+                      source=t.get("source", ""))
+                for t in manifest["themes"]
+            )
+            indices = _load_npy(zf, "grid.npy", path)
+            grid = IndexGrid(indices, tuple(manifest["cell"]))
+            layers = {
+                name: _load_npy(zf, f"{name}.npy", path)
+                for name in manifest.get("layers", [])
+                if name in _LAYERS
+            }
+            return ThematicTexture(grid, library, dict(manifest.get("metadata", {})), **layers)
+        except (KeyError, TypeError) as exc:
+            raise CorruptFileError(f"{path}: damaged manifest (missing {exc})") from exc
+        except CorruptFileError:
+            raise
+        except TerrathemeError as exc:
+            raise CorruptFileError(f"{path}: {exc}") from exc

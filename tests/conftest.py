@@ -1,0 +1,43 @@
+"""Shared pytest fixtures.
+
+``shared_data`` points at ../shared/data (real photos and maps) and skips the
+test cleanly when the folder is absent, as on a user's checkout.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+
+
+@pytest.fixture(scope="session")
+def shared_dir() -> Path:
+    """../shared, or skip."""
+    if not SHARED.is_dir():
+        pytest.skip("../shared is absent (user checkout): real-data test skipped")
+    return SHARED
+
+
+@pytest.fixture(scope="session")
+def shared_data(shared_dir: Path) -> Path:
+    """../shared/data, or skip."""
+    data = shared_dir / "data"
+    if not data.is_dir():
+        pytest.skip("../shared/data is absent: real-data test skipped")
+    return data
+
+
+@pytest.fixture(scope="session")
+def shared_vectors(shared_dir: Path) -> Path:
+    """../shared/vectors, or skip."""
+    vec = shared_dir / "vectors"
+    if not vec.is_dir():
+        pytest.skip("../shared/vectors is absent: vector test skipped")
+    return vec
