@@ -41,7 +41,8 @@ def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndar
         raise TerrathemeError(f"index grid must be 2-D (rows, columns), got shape {arr.shape}")
     if arr.shape[0] < 2 or arr.shape[1] < 2:
         raise TerrathemeError(
-            f"index grid needs at least 2 x 2 vertices (one cell), got {arr.shape[1]} x {arr.shape[0]}"
+            "index grid needs at least 2 x 2 vertices (one cell), "
+            f"got {arr.shape[1]} x {arr.shape[0]}"
         )
     if arr.dtype.kind not in "iub":
         if arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):

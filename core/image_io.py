@@ -214,7 +214,8 @@ def write_image(
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(path))
         if out is None:
-            raise TerrathemeError(f"cannot write {path}: {oiio.geterror().strip() or 'unknown format'}")
+            why = oiio.geterror().strip() or "unknown format"
+            raise TerrathemeError(f"cannot write {path}: {why}")
         if not out.open(str(tmp), spec):
             raise TerrathemeError(f"cannot write {path}: {out.geterror().strip()}")
         ok = out.write_image(arr)

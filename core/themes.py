@@ -58,7 +58,9 @@ def _validate_colour(colour: object, name: str) -> tuple[int, int, int]:
     try:
         r, g, b = (int(c) for c in colour)  # type: ignore[union-attr]
     except (TypeError, ValueError) as exc:
-        raise TerrathemeError(f"{name}: display colour must be three integers, got {colour!r}") from exc
+        raise TerrathemeError(
+            f"{name}: display colour must be three integers, got {colour!r}"
+        ) from exc
     if not all(0 <= c <= 255 for c in (r, g, b)):
         raise TerrathemeError(f"{name}: display colour {colour!r} is outside 0..255")
     return r, g, b

@@ -1,0 +1,199 @@
+"""Per-pixel colour and texture features on a downscaled copy of the photo.
+
+The product's output is a coarse grid of themes, so features are computed on
+the photo area-averaged by ``scale`` (each *coarse pixel* is a ``scale x
+scale`` block of photo pixels) instead of on every photo pixel: 16x fewer
+samples at the default ``scale=4``, and the detail lost inside a block is kept
+as one feature, the block's standard deviation of lightness.
+
+Units are perceptual and fixed (CIE Lab, L in 0..100, a/b about -128..127),
+not standardised per photo: the unsupervised criterion relies on distances
+being in Delta-E units, so that a flat photo stays flat (DESIGN.md section 4).
+
+Feature sets
+------------
+``COLOUR``  : Lab of the coarse pixel (3 features).
+``DEFAULT`` : Lab, block lightness std, and for each sigma in ``sigmas``
+              (coarse pixels) the Gaussian-smoothed Lab (context), the local
+              lightness std ``sqrt(G*L^2 - (G*L)^2)`` and the gradient magnitude
+              of the smoothed lightness (3 + 1 + 5 * len(sigmas) features),
+              all with OpenCV filters.
+``SKIMAGE`` : scikit-image ``multiscale_basic_features`` (intensity, edges,
+              Hessian texture) on each Lab channel: the ilastik recipe.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from core.errors import TerrathemeError
+
+
+class FeatureSet(enum.Enum):
+    """Which features describe a coarse pixel."""
+
+    COLOUR = "colour"
+    DEFAULT = "default"
+    SKIMAGE = "skimage"
+
+
+@dataclass(frozen=True)
+class FeatureOptions:
+    """How features are computed.
+
+    Attributes
+    ----------
+    feature_set : FeatureSet
+    scale : int
+        Photo pixels per coarse pixel along each axis (1 = every pixel).
+    sigmas : tuple of float
+        Gaussian scales in coarse pixels for the DEFAULT set.
+    skimage_sigma_max : float
+        Largest scale (coarse pixels) for the SKIMAGE set (smallest is 1).
+    """
+
+    feature_set: FeatureSet = FeatureSet.DEFAULT
+    scale: int = 4
+    sigmas: tuple[float, ...] = (1.0, 2.0, 4.0, 8.0)
+    skimage_sigma_max: float = 16.0
+
+    def __post_init__(self) -> None:
+        if int(self.scale) != self.scale or self.scale < 1:
+            raise TerrathemeError(f"feature scale must be a whole number >= 1, not {self.scale}")
+        if any(s <= 0 for s in self.sigmas):
+            raise TerrathemeError(f"feature sigmas must be positive, not {self.sigmas}")
+
+    @property
+    def n_features(self) -> int:
+        """Length F of a feature vector."""
+        if self.feature_set is FeatureSet.COLOUR:
+            return 3
+        if self.feature_set is FeatureSet.DEFAULT:
+            return 3 + (1 if self.scale > 1 else 0) + 5 * len(self.sigmas)
+        # multiscale_basic_features: per channel, 4 (edges+intensity) ... computed from skimage
+        n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
+        return 3 * n_sig * 4
+
+    @property
+    def halo(self) -> int:
+        """Coarse pixels of context a feature needs on each side (tile overlap)."""
+        if self.feature_set is FeatureSet.COLOUR:
+            return 0
+        if self.feature_set is FeatureSet.DEFAULT:
+            return _radius(max(self.sigmas, default=0.0)) + 1
+        # scipy's gaussian_filter truncates at 4 sigma; Hessian adds 2 pixels
+        return int(math.ceil(4.0 * self.skimage_sigma_max)) + 2
+
+
+def _radius(sigma: float) -> int:
+    return int(math.ceil(3.0 * sigma))
+
+
+def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
+    # Explicit 3-sigma kernel, so the tile overlap (halo) is exact.
+    k = 2 * _radius(sigma) + 1
+    return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+
+
+def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
+    """Area-average an RGB photo by ``scale`` and convert it to CIE Lab.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    scale : int
+
+    Returns
+    -------
+    lab : (ceil(H/scale), ceil(W/scale), 3) float32 ndarray
+        L in 0..100, a and b about -128..127 (mean over each block).
+    block_std : same shape without the last axis, float32
+        Standard deviation of L inside each block (0 when ``scale == 1``).
+    """
+    h, w = rgb.shape[:2]
+    # Convert at full resolution with OpenCV's 8-bit Lab (L scaled to 0..255, a/b offset 128).
+    lab8 = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab).astype(np.float32)
+    lab8 *= np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
+    lab8 -= np.array([0.0, 128.0, 128.0], np.float32)
+    if scale == 1:
+        return lab8, np.zeros((h, w), np.float32)
+    # Pad to whole blocks by edge replication so block (i, j) covers rows i*s..i*s+s-1.
+    ph, pw = -h % scale, -w % scale
+    if ph or pw:
+        lab8 = cv2.copyMakeBorder(lab8, 0, ph, 0, pw, cv2.BORDER_REPLICATE)
+    hc, wc = (h + ph) // scale, (w + pw) // scale
+    # Block means of Lab and of L^2 (INTER_AREA at an integer factor is an exact block mean).
+    lab = cv2.resize(lab8, (wc, hc), interpolation=cv2.INTER_AREA)
+    l_sq = cv2.resize(lab8[:, :, 0] * lab8[:, :, 0], (wc, hc), interpolation=cv2.INTER_AREA)
+    block_std = np.sqrt(np.maximum(l_sq - lab[:, :, 0] ** 2, 0.0))
+    return lab, block_std.astype(np.float32)
+
+
+def features_from_lab(lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions) -> np.ndarray:
+    """Feature stack of a coarse Lab image.
+
+    Parameters
+    ----------
+    lab : (h, w, 3) float32 ndarray
+    block_std : (h, w) float32 ndarray
+    options : FeatureOptions
+
+    Returns
+    -------
+    features : (h, w, F) float32 ndarray, F = ``options.n_features``
+    """
+    fs = options.feature_set
+    if fs is FeatureSet.COLOUR:
+        return np.ascontiguousarray(lab, dtype=np.float32)
+    if fs is FeatureSet.SKIMAGE:
+        from skimage.feature import multiscale_basic_features
+
+        feats = multiscale_basic_features(
+            lab, channel_axis=-1, sigma_min=1.0, sigma_max=options.skimage_sigma_max,
+        )
+        return np.ascontiguousarray(feats, dtype=np.float32)
+    h, w = lab.shape[:2]
+    out = np.empty((h, w, options.n_features), np.float32)
+    out[:, :, :3] = lab
+    i = 3
+    if options.scale > 1:
+        out[:, :, i] = block_std
+        i += 1
+    lum = np.ascontiguousarray(lab[:, :, 0])
+    lum_sq = lum * lum
+    for sigma in options.sigmas:
+        # Context colour: Lab smoothed at this scale.
+        smooth = _blur(lab, sigma)
+        out[:, :, i : i + 3] = smooth
+        # Local lightness std: sqrt(G*L^2 - (G*L)^2).
+        mean_sq = _blur(lum_sq, sigma)
+        out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
+        # Edge strength: gradient magnitude of the smoothed lightness (Sobel, 1/8 normalised).
+        gx = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
+                       borderType=cv2.BORDER_REFLECT_101)
+        gy = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 0, 1, ksize=3, scale=0.125,
+                       borderType=cv2.BORDER_REFLECT_101)
+        out[:, :, i + 4] = cv2.magnitude(gx, gy)
+        i += 5
+    return out
+
+
+def compute_features(rgb: np.ndarray, options: FeatureOptions) -> np.ndarray:
+    """Features of one photo tile (whole tile, no overlap handling).
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    options : FeatureOptions
+
+    Returns
+    -------
+    features : (ceil(H/scale), ceil(W/scale), F) float32 ndarray
+    """
+    lab, block_std = coarse_lab(rgb, options.scale)
+    return features_from_lab(lab, block_std, options)

@@ -1,0 +1,175 @@
+"""Tile-by-tile prediction with overlap: memory bounded by the tile, no seams.
+
+The photo is cut into ``tile x tile`` cores (whole coarse pixels). Each core
+is read with a halo of context on every side, as wide as the features and the
+regularisation reach, so a coarse pixel's features and smoothed probabilities
+are the same as if the whole photo had been processed at once. Coarse class
+probabilities are upsampled bilinearly to photo pixels (coarse pixel centres
+at photo position ``(i + 0.5) * scale - 0.5``), and the arg-max gives the label.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from core.classify.features import FeatureOptions, coarse_lab, features_from_lab
+from core.classify.regularise import RegulariseOptions, regularise
+from core.classify.result import Classification
+from core.errors import TerrathemeError
+
+ProgressFn = Callable[[int, int], None]
+#: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32
+ProbabilityFn = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Window:
+    """One tile: its core (written) and outer (read) rectangles, photo pixels."""
+
+    y0: int
+    y1: int
+    x0: int
+    x1: int
+    oy0: int
+    oy1: int
+    ox0: int
+    ox1: int
+
+
+def tile_windows(height: int, width: int, tile: int, scale: int, halo: int) -> list[Window]:
+    """Cut a photo into tiles with overlap.
+
+    Parameters
+    ----------
+    height, width : int
+        Photo size in pixels.
+    tile : int
+        Core size in photo pixels (rounded down to a multiple of ``scale``).
+    scale : int
+        Photo pixels per coarse pixel.
+    halo : int
+        Overlap in coarse pixels.
+
+    Returns
+    -------
+    windows : list of Window, row-major
+    """
+    step = max(scale, (tile // scale) * scale)
+    pad = halo * scale
+    out = []
+    for y0 in range(0, height, step):
+        for x0 in range(0, width, step):
+            y1, x1 = min(y0 + step, height), min(x0 + step, width)
+            out.append(Window(y0, y1, x0, x1, max(0, y0 - pad), min(height, y1 + pad),
+                              max(0, x0 - pad), min(width, x1 + pad)))
+    return out
+
+
+def tile_features(
+    rgb: np.ndarray, win: Window, options: FeatureOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse Lab and features of a window's outer rectangle.
+
+    Returns
+    -------
+    lab : (h, w, 3) float32 ndarray
+    features : (h, w, F) float32 ndarray
+    """
+    lab, block_std = coarse_lab(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options.scale)
+    return lab, features_from_lab(lab, block_std, options)
+
+
+def iter_tile_features(
+    rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int
+) -> Iterator[tuple[Window, np.ndarray, np.ndarray]]:
+    """Yield ``(window, lab, features)`` for every tile of a photo."""
+    for win in tile_windows(rgb.shape[0], rgb.shape[1], tile, options.scale, halo):
+        lab, feats = tile_features(rgb, win, options)
+        yield win, lab, feats
+
+
+def _core_probabilities(probs: np.ndarray, win: Window, scale: int) -> np.ndarray:
+    """Upsample a tile's coarse probabilities to the photo pixels of its core.
+
+    Parameters
+    ----------
+    probs : (h, w, C) float32 ndarray over the window's outer rectangle
+
+    Returns
+    -------
+    probs : (y1 - y0, x1 - x0, C) float32 ndarray
+    """
+    if scale == 1:
+        return probs[win.y0 - win.oy0 : win.y1 - win.oy0, win.x0 - win.ox0 : win.x1 - win.ox0]
+    h, w, c = probs.shape
+    up = cv2.resize(probs, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR)
+    up = up.reshape(h * scale, w * scale, c)
+    return up[win.y0 - win.oy0 : win.y1 - win.oy0, win.x0 - win.ox0 : win.x1 - win.ox0]
+
+
+def predict_tiled(
+    rgb: np.ndarray,
+    valid: np.ndarray | None,
+    probability_fn: ProbabilityFn,
+    classes: tuple[int, ...],
+    features: FeatureOptions,
+    regularisation: RegulariseOptions,
+    tile: int,
+    progress: ProgressFn | None = None,
+) -> Classification:
+    """Classify a photo tile by tile.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    valid : (H, W) bool ndarray or None
+        Pixels with data; others get label 0 and confidence 0.
+    probability_fn : callable
+        ``(h, w, F) float32 -> (h, w, C) float32`` class probabilities.
+    classes : tuple of int
+        Class value of each probability channel.
+    features, regularisation : options
+    tile : int
+        Tile core size in photo pixels.
+    progress : callable, optional
+        Called with ``(tiles_done, tiles_total)``.
+
+    Returns
+    -------
+    Classification
+    """
+    if len(classes) == 0:
+        raise TerrathemeError("a classifier needs at least one class")
+    height, width = rgb.shape[:2]
+    scale = features.scale
+    # The overlap must cover the features' reach plus the regularisation's, plus one
+    # coarse pixel for the bilinear upsampling.
+    halo = features.halo + regularisation.halo + 1
+    windows = tile_windows(height, width, tile, scale, halo)
+    lut = np.asarray(classes, np.uint8)
+    labels = np.zeros((height, width), np.uint8)
+    confidence = np.zeros((height, width), np.float32)
+    for done, win in enumerate(windows, 1):
+        # Features over the tile and its halo, then per-coarse-pixel probabilities.
+        lab, feats = tile_features(rgb, win, features)
+        probs = probability_fn(feats).astype(np.float32, copy=False)
+        # Spatial regularisation on the coarse grid.
+        probs = regularise(probs, lab, regularisation)
+        # Back to photo pixels: arg-max class and its probability.
+        core = _core_probabilities(probs, win, scale)
+        best = np.argmax(core, axis=2)
+        labels[win.y0 : win.y1, win.x0 : win.x1] = lut[best]
+        confidence[win.y0 : win.y1, win.x0 : win.x1] = np.take_along_axis(
+            core, best[:, :, None], axis=2
+        )[:, :, 0]
+        if progress is not None:
+            progress(done, len(windows))
+    np.clip(confidence, 0.0, 1.0, out=confidence)
+    if valid is not None:
+        labels[~valid] = 0
+        confidence[~valid] = 0.0
+    return Classification(labels=labels, confidence=confidence, classes=tuple(classes))

@@ -1,0 +1,186 @@
+"""Editing tools as pure functions on a vertex index array.
+
+Each tool returns a :class:`Footprint`: the bounding slice of the vertices it
+covers and a boolean mask inside that slice. The edit model
+(:mod:`core.editing`) turns a footprint plus a theme number into an undo atom.
+
+Coordinates are in *vertex units*: ``(x, y)`` = (column, row) as floats, so
+vertex ``indices[j, i]`` sits at ``(i, j)``. The editor converts a cursor texel
+``(X, Y)`` to ``(X / N, Y / M)`` (DESIGN.md §1: texel ``X`` sits at grid
+position ``X / N``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+from skimage.segmentation import flood
+
+from core.errors import TerrathemeError
+
+
+@dataclass(frozen=True, eq=False)
+class Footprint:
+    """The vertices a tool covers.
+
+    Attributes
+    ----------
+    rows, cols : slice
+        Bounding slice into the ``(gh+1, gw+1)`` index array (step 1, in range).
+    mask : (rows.stop - rows.start, cols.stop - cols.start) bool ndarray
+        True for covered vertices.
+    """
+
+    rows: slice
+    cols: slice
+    mask: np.ndarray
+
+    @property
+    def empty(self) -> bool:
+        return self.mask.size == 0 or not bool(self.mask.any())
+
+    def full_mask(self, shape: tuple[int, int]) -> np.ndarray:
+        """The footprint as a whole-grid ``shape`` bool mask (for tests and small grids)."""
+        out = np.zeros(shape, dtype=bool)
+        out[self.rows, self.cols] = self.mask
+        return out
+
+
+class Connectivity(IntEnum):
+    """Neighbourhood of the flood fill: 4 (edges) or 8 (edges and corners)."""
+
+    FOUR = 1
+    EIGHT = 2
+
+
+def _empty() -> Footprint:
+    return Footprint(slice(0, 0), slice(0, 0), np.zeros((0, 0), dtype=bool))
+
+
+def _check_point(shape: tuple[int, int], point: tuple[float, float], what: str) -> None:
+    x, y = point
+    if not (np.isfinite(x) and np.isfinite(y)):
+        raise TerrathemeError(f"{what}: point ({x}, {y}) is not finite")
+
+
+def capsule_footprint(
+    shape: tuple[int, int],
+    p0: tuple[float, float],
+    p1: tuple[float, float],
+    radius: float,
+) -> Footprint:
+    """Vertices within ``radius`` of the segment ``p0``-``p1`` (one brush stroke segment).
+
+    A brush dab is a disc of ``radius`` vertex units; moving it along a segment
+    sweeps a capsule, so a fast mouse move leaves no gaps (the segment is
+    covered exactly, not by sampled dabs). The vertex nearest each end is
+    always covered, so a click with a tiny radius still paints one vertex.
+
+    Parameters
+    ----------
+    shape : (rows, cols)
+        Shape of the vertex index array.
+    p0, p1 : (x, y) floats in vertex units
+        Segment ends (equal for a single dab).
+    radius : float >= 0
+
+    Returns
+    -------
+    Footprint
+        Empty if the capsule misses the grid.
+    """
+    _check_point(shape, p0, "brush")
+    _check_point(shape, p1, "brush")
+    if not np.isfinite(radius) or radius < 0:
+        raise TerrathemeError(f"brush radius must be a finite number >= 0, got {radius}")
+    rows_n, cols_n = shape
+    a = np.array(p0, dtype=np.float64)
+    b = np.array(p1, dtype=np.float64)
+    # Bounding box of the capsule, clipped to the grid.
+    lo = np.floor(np.minimum(a, b) - radius - 0.5).astype(np.int64)
+    hi = np.ceil(np.maximum(a, b) + radius + 0.5).astype(np.int64) + 1
+    c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    c1, r1 = min(int(hi[0]), cols_n), min(int(hi[1]), rows_n)
+    if c0 >= c1 or r0 >= r1:
+        return _empty()
+    ys, xs = np.mgrid[r0:r1, c0:c1].astype(np.float64)
+    # Distance of every vertex to the segment: project onto it, clamp to its ends.
+    d = b - a
+    length2 = float(d @ d)
+    if length2 > 0.0:
+        t = np.clip(((xs - a[0]) * d[0] + (ys - a[1]) * d[1]) / length2, 0.0, 1.0)
+    else:
+        t = np.zeros_like(xs)
+    dx = xs - (a[0] + t * d[0])
+    dy = ys - (a[1] + t * d[1])
+    mask = dx * dx + dy * dy <= radius * radius + 1e-9
+    # The vertex nearest each end is always painted.
+    for px, py in (a, b):
+        ci, ri = int(np.floor(px + 0.5)), int(np.floor(py + 0.5))
+        if r0 <= ri < r1 and c0 <= ci < c1:
+            mask[ri - r0, ci - c0] = True
+    return Footprint(slice(r0, r1), slice(c0, c1), mask)
+
+
+def rect_footprint(
+    shape: tuple[int, int], p0: tuple[float, float], p1: tuple[float, float]
+) -> Footprint:
+    """Vertices inside the rectangle spanned by two corners (inclusive, any order).
+
+    Corners are rounded to the nearest vertex, so dragging from one vertex to
+    another fills both and everything between.
+    """
+    _check_point(shape, p0, "rectangle")
+    _check_point(shape, p1, "rectangle")
+    rows_n, cols_n = shape
+    xs = sorted(int(np.floor(v + 0.5)) for v in (p0[0], p1[0]))
+    ys = sorted(int(np.floor(v + 0.5)) for v in (p0[1], p1[1]))
+    c0, c1 = max(xs[0], 0), min(xs[1] + 1, cols_n)
+    r0, r1 = max(ys[0], 0), min(ys[1] + 1, rows_n)
+    if c0 >= c1 or r0 >= r1:
+        return _empty()
+    return Footprint(slice(r0, r1), slice(c0, c1), np.ones((r1 - r0, c1 - c0), dtype=bool))
+
+
+def nearest_vertex(shape: tuple[int, int], point: tuple[float, float]) -> tuple[int, int] | None:
+    """``(row, col)`` of the vertex nearest ``point``, or None outside the grid."""
+    _check_point(shape, point, "point")
+    ci, ri = int(np.floor(point[0] + 0.5)), int(np.floor(point[1] + 0.5))
+    if 0 <= ri < shape[0] and 0 <= ci < shape[1]:
+        return ri, ci
+    return None
+
+
+def flood_footprint(
+    indices: np.ndarray,
+    point: tuple[float, float],
+    connectivity: Connectivity = Connectivity.FOUR,
+) -> Footprint:
+    """The connected region of equal indices around the vertex nearest ``point``.
+
+    Uses :func:`skimage.segmentation.flood`; the fill stops at any other index.
+
+    Parameters
+    ----------
+    indices : (gh+1, gw+1) uint8 ndarray
+    point : (x, y) in vertex units
+    connectivity : Connectivity
+        FOUR (default) or EIGHT neighbours.
+    """
+    seed = nearest_vertex(indices.shape, point)
+    if seed is None:
+        return _empty()
+    region = flood(indices, seed, connectivity=int(connectivity))
+    # Crop the whole-grid mask to its bounding box.
+    rows = np.flatnonzero(region.any(axis=1))
+    cols = np.flatnonzero(region.any(axis=0))
+    rs, cs = slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
+    return Footprint(rs, cs, np.ascontiguousarray(region[rs, cs]))
+
+
+def eyedropper(indices: np.ndarray, point: tuple[float, float]) -> int | None:
+    """The theme index at the vertex nearest ``point`` (None outside the grid)."""
+    v = nearest_vertex(indices.shape, point)
+    return None if v is None else int(indices[v])

@@ -1,0 +1,329 @@
+"""Hilbert and Morton space-filling curves over an image (seed sfc_packing.txt, section 1).
+
+Orientation (DESIGN.md section 2 and ``vectors/sfc_8x8.json``): the curve runs
+over the enclosing ``2^n x 2^n`` square whose origin is the **bottom-left**
+texel of the image as displayed, so curve step 0 (the seed's step 1) is
+``(column 0, row H-1)``; the Hilbert curve's first move is upward. Steps that
+fall outside a non-square or non-power-of-two image are skipped but still
+counted: a step number is always the position on the full square's curve.
+
+Public coordinates are ``(cols, rows)`` with row 0 the **top** row of the image
+(numpy's ``image[rows, cols]``). Steps are 0-based ``uint64``; the seed's
+1-based numbers are ``step + 1`` (``one_based=True``). A 65536 x 65536 image
+has 2^32 steps, so 0-based steps fit ``uint32`` and 1-based ones do not.
+
+The whole-image scan (texel order along the curve) is cut into ``2^b x 2^b``
+blocks: the coarse curve orders the blocks, and each block is walked with one
+of four precomputed local patterns (:func:`block_plan`). The numba kernels in
+:mod:`core.sfc_scan` use that plan.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from core.errors import TerrathemeError
+
+MAX_SIDE = 65536
+#: log2 of the scan block side (64 x 64 texels per block, 4 Hilbert patterns).
+BLOCK_BITS = 6
+
+
+class Curve(enum.IntEnum):
+    """Curve type, as stored in the file header (seed Table 1)."""
+
+    HILBERT = 0
+    MORTON = 1
+
+    @classmethod
+    def parse(cls, value: str | int | Curve) -> Curve:
+        """``"hilbert"`` / ``"morton"`` (any case), an int code, or a Curve."""
+        if isinstance(value, Curve):
+            return value
+        if isinstance(value, str):
+            try:
+                return cls[value.strip().upper()]
+            except KeyError:
+                raise TerrathemeError(
+                    f"unknown curve {value!r}: use 'hilbert' or 'morton'"
+                ) from None
+        try:
+            return cls(int(value))
+        except ValueError:
+            raise TerrathemeError(f"unknown curve code {value!r}") from None
+
+
+def curve_order(width: int, height: int) -> int:
+    """Levels ``n`` of the enclosing ``2^n x 2^n`` square (0 for a 1 x 1 image).
+
+    Raises
+    ------
+    TerrathemeError
+        A side is not in ``1 .. 65536``.
+    """
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise TerrathemeError(f"image of {width} x {height} texels has no texels to scan")
+    if width > MAX_SIDE or height > MAX_SIDE:
+        raise TerrathemeError(
+            f"image of {width} x {height} texels exceeds the {MAX_SIDE} x {MAX_SIDE} limit"
+        )
+    return int(max(width, height) - 1).bit_length()
+
+
+# ---------------------------------------------------------------- square curves
+
+
+def hilbert_xy2d(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Hilbert step of ``(x, y)`` on the ``2^n`` square, ``y`` pointing up.
+
+    Parameters
+    ----------
+    x, y : (...) integer ndarrays
+        Coordinates in ``[0, 2^n)``, origin bottom-left.
+    n : int
+        Curve levels.
+
+    Returns
+    -------
+    d : (...) uint64 ndarray
+        0-based step (first move from (0, 0) goes to (0, 1): upward).
+    state : (...) uint8 ndarray
+        Orientation left after the ``n`` levels: bit 0 = swap x/y, bit 1 =
+        flip both (the transforms of Hacker's Delight / Wikipedia's ``rot``,
+        which commute, so two bits describe their composition).
+    """
+    x = np.asarray(x, dtype=np.int64).copy()
+    y = np.asarray(y, dtype=np.int64).copy()
+    d = np.zeros(np.broadcast(x, y).shape, dtype=np.uint64)
+    swap = np.zeros(d.shape, dtype=bool)
+    flip = np.zeros(d.shape, dtype=bool)
+    for level in range(n - 1, -1, -1):
+        # Quadrant bits at this level, in the current (rotated) frame.
+        rx = (x >> level) & 1
+        ry = (y >> level) & 1
+        # Quadrant number (3*rx) ^ ry gives the visiting order 0,1,2,3 = (0,0),(0,1),(1,1),(1,0).
+        d += ((3 * rx) ^ ry).astype(np.uint64) << np.uint64(2 * level)
+        # Rotate the lower bits: flip both if in quadrant (1,0), swap if ry == 0.
+        do_flip = (ry == 0) & (rx == 1)
+        x = np.where(do_flip, ~x, x)
+        y = np.where(do_flip, ~y, y)
+        do_swap = ry == 0
+        x, y = np.where(do_swap, y, x), np.where(do_swap, x, y)
+        flip ^= do_flip
+        swap ^= do_swap
+    return d, (swap.astype(np.uint8) | (flip.astype(np.uint8) << 1))
+
+
+def hilbert_d2xy(d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`hilbert_xy2d`: ``(x, y)`` (y up) of 0-based steps ``d``.
+
+    Returns
+    -------
+    x, y : (...) int64 ndarrays
+    """
+    t = np.asarray(d, dtype=np.uint64).astype(np.int64)
+    x = np.zeros(t.shape, dtype=np.int64)
+    y = np.zeros(t.shape, dtype=np.int64)
+    for level in range(n):
+        s = 1 << level
+        # The two step bits of this level give the quadrant.
+        rx = 1 & (t >> 1)
+        ry = 1 & (t ^ rx)
+        # Undo the rotation of the lower levels (Hacker's Delight, p. 284).
+        do_flip = (ry == 0) & (rx == 1)
+        x = np.where(do_flip, s - 1 - x, x)
+        y = np.where(do_flip, s - 1 - y, y)
+        do_swap = ry == 0
+        x, y = np.where(do_swap, y, x), np.where(do_swap, x, y)
+        x += s * rx
+        y += s * ry
+        t >>= 2
+    return x, y
+
+
+def morton_xy2d(x: np.ndarray, y: np.ndarray, n: int) -> np.ndarray:
+    """Morton (Z) step ``Z = sum((x_i + 2*y_i) * 4^i)`` (seed section 1), ``y`` up."""
+    x = np.asarray(x, dtype=np.uint64)
+    y = np.asarray(y, dtype=np.uint64)
+    return _spread(x) | (_spread(y) << np.uint64(1))
+
+
+def morton_d2xy(d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`morton_xy2d`: ``(x, y)`` int64 ndarrays, ``y`` up."""
+    d = np.asarray(d, dtype=np.uint64)
+    return _compact(d).astype(np.int64), _compact(d >> np.uint64(1)).astype(np.int64)
+
+
+def _spread(v: np.ndarray) -> np.ndarray:
+    """Insert a zero bit above each of the low 32 bits (magic-number bit spreading)."""
+    v = v & np.uint64(0xFFFFFFFF)
+    for shift, mask in ((16, 0x0000FFFF0000FFFF), (8, 0x00FF00FF00FF00FF),
+                        (4, 0x0F0F0F0F0F0F0F0F), (2, 0x3333333333333333),
+                        (1, 0x5555555555555555)):
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def _compact(v: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_spread`: keep every second bit."""
+    v = v & np.uint64(0x5555555555555555)
+    for shift, mask in ((1, 0x3333333333333333), (2, 0x0F0F0F0F0F0F0F0F),
+                        (4, 0x00FF00FF00FF00FF), (8, 0x0000FFFF0000FFFF),
+                        (16, 0x00000000FFFFFFFF)):
+        v = (v | (v >> np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+# ---------------------------------------------------------------- image coordinates
+
+
+def steps_of(
+    cols: np.ndarray, rows: np.ndarray, width: int, height: int, curve: str | Curve,
+    *, one_based: bool = False,
+) -> np.ndarray:
+    """Curve step of texels ``image[rows, cols]`` (row 0 = top row).
+
+    Parameters
+    ----------
+    cols, rows : (...) integer ndarrays or scalars
+        Texel coordinates inside the ``width x height`` image.
+    curve : "hilbert" | "morton" | Curve
+    one_based : bool
+        Return the seed's 1-based step numbers (int64) instead of 0-based uint64.
+
+    Returns
+    -------
+    steps : (...) uint64 (0-based) or int64 (1-based) ndarray
+    """
+    curve = Curve.parse(curve)
+    n = curve_order(width, height)
+    cols = np.asarray(cols, dtype=np.int64)
+    rows = np.asarray(rows, dtype=np.int64)
+    if cols.size and (cols.min() < 0 or cols.max() >= width
+                      or rows.min() < 0 or rows.max() >= height):
+        raise TerrathemeError(f"texel coordinates outside the {width} x {height} image")
+    yup = (height - 1) - rows
+    if curve is Curve.HILBERT:
+        d, _ = hilbert_xy2d(cols, yup, n)
+    else:
+        d = morton_xy2d(cols, yup, n)
+    return d.astype(np.int64) + 1 if one_based else d
+
+
+def texels_of(
+    steps: np.ndarray, width: int, height: int, curve: str | Curve, *, one_based: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Texel ``(cols, rows)`` of curve steps, and whether each lies inside the image.
+
+    Returns
+    -------
+    cols, rows : (...) int64 ndarrays
+        Row 0 = top row; meaningless where ``inside`` is False.
+    inside : (...) bool ndarray
+        False for steps of the enclosing square that the image does not cover.
+    """
+    curve = Curve.parse(curve)
+    n = curve_order(width, height)
+    d = np.asarray(steps, dtype=np.int64)
+    if one_based:
+        d = d - 1
+    if d.size and (d.min() < 0 or d.max() >= 4**n):
+        raise TerrathemeError(f"curve step outside 0 .. {4**n - 1} for a {2**n}^2 square")
+    x, yup = (hilbert_d2xy if curve is Curve.HILBERT else morton_d2xy)(d, n)
+    inside = (x < width) & (yup < height)
+    return x, (height - 1) - yup, inside
+
+
+def step_table(width: int, height: int, curve: str | Curve, *, one_based: bool = True) -> np.ndarray:
+    """Step of every texel as an image, like the vector file's ``hilbert_steps``.
+
+    Returns
+    -------
+    steps : (height, width) int64 ndarray (1-based by default)
+    """
+    rows, cols = np.mgrid[0:height, 0:width]
+    return steps_of(cols, rows, width, height, curve, one_based=True).astype(np.int64) - (
+        0 if one_based else 1
+    )
+
+
+# ---------------------------------------------------------------- block plan of a scan
+
+
+@dataclass(frozen=True)
+class BlockPlan:
+    """The blocks of ``2^b x 2^b`` texels that cover an image, in curve order.
+
+    Attributes
+    ----------
+    n, b : int
+        Curve levels of the square and of a block (``b <= n``).
+    bx, by : (nb,) int32 ndarrays
+        Block column and block row, ``by`` counted **up** from the bottom.
+    state : (nb,) uint8 ndarray
+        Local pattern of each block (index into ``patterns``).
+    first_step : (nb,) uint64 ndarray
+        0-based step of each block's first local step (``c * 4^b``).
+    patterns : (4, 4^b) uint16 ndarray
+        Local visiting order: entry ``i`` is ``(ly << b) | lx`` of local step ``i``, y up.
+    """
+
+    n: int
+    b: int
+    bx: np.ndarray
+    by: np.ndarray
+    state: np.ndarray
+    first_step: np.ndarray
+    patterns: np.ndarray
+
+
+@lru_cache(maxsize=8)
+def _patterns(b: int, curve: Curve) -> np.ndarray:
+    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated)."""
+    i = np.arange(4**b, dtype=np.uint64)
+    if curve is Curve.MORTON:
+        x, y = morton_d2xy(i, b)
+        one = ((y << b) | x).astype(np.uint16)
+        return np.ascontiguousarray(np.broadcast_to(one, (4, one.size)))
+    x, y = hilbert_d2xy(i, b)
+    out = np.empty((4, i.size), dtype=np.uint16)
+    side = (1 << b) - 1
+    for state in range(4):
+        # A block in state (swap, flip) is walked by T(d2xy(i)), T = swap^s o flip^f (self-inverse).
+        px, py = (side - x, side - y) if state & 2 else (x, y)
+        if state & 1:
+            px, py = py, px
+        out[state] = (py << b) | px
+    out.setflags(write=False)
+    return out
+
+
+def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
+    """Blocks of the enclosing square that meet the image, in curve order."""
+    curve = Curve.parse(curve)
+    n = curve_order(width, height)
+    b = min(n, BLOCK_BITS)
+    coarse = n - b
+    nbx = -(-width // (1 << b))
+    nby = -(-height // (1 << b))
+    # Coarse grid of blocks meeting the image (y up), then its coarse curve steps.
+    by, bx = np.mgrid[0:nby, 0:nbx]
+    bx = bx.ravel().astype(np.int64)
+    by = by.ravel().astype(np.int64)
+    if curve is Curve.HILBERT:
+        c, state = hilbert_xy2d(bx, by, coarse)
+    else:
+        c, state = morton_xy2d(bx, by, coarse), np.zeros(bx.shape, np.uint8)
+    order = np.argsort(c, kind="stable")
+    return BlockPlan(
+        n=n, b=b,
+        bx=bx[order].astype(np.int32), by=by[order].astype(np.int32),
+        state=state[order].astype(np.uint8),
+        first_step=c[order] << np.uint64(2 * b),
+        patterns=_patterns(b, curve),
+    )
