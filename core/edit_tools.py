@@ -115,7 +115,7 @@ def capsule_footprint(
         t = np.zeros_like(xs)
     dx = xs - (a[0] + t * d[0])
     dy = ys - (a[1] + t * d[1])
-    mask = dx * dx + dy * dy <= radius * radius + 1e-9
+    mask = dx * dx + dy * dy <= (radius + 1e-9) ** 2
     # The vertex nearest each end is always painted.
     for px, py in (a, b):
         ci, ri = int(np.floor(px + 0.5)), int(np.floor(py + 0.5))

@@ -27,6 +27,7 @@ import io
 import json
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -101,7 +102,7 @@ def _load_npy(zf: zipfile.ZipFile, member: str, path: Path) -> np.ndarray:
             return np.load(io.BytesIO(fh.read()), allow_pickle=False)
     except KeyError as exc:
         raise CorruptFileError(f"{path}: project lacks {member}") from exc
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise CorruptFileError(f"{path}: {member} is damaged ({exc})") from exc
 
 
@@ -168,7 +169,7 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
             manifest = json.loads(zf.read("manifest.json"))
         except KeyError as exc:
             raise CorruptFileError(f"{path}: not a terratheme project (no manifest)") from exc
-        except (json.JSONDecodeError, zipfile.BadZipFile, OSError, ValueError) as exc:
+        except (json.JSONDecodeError, zipfile.BadZipFile, OSError, ValueError, zlib.error) as exc:
             raise CorruptFileError(f"{path}: damaged manifest ({exc})") from exc
         if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
             raise CorruptFileError(f"{path}: not a terratheme project (wrong format tag)")

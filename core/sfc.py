@@ -182,6 +182,23 @@ def _compact(v: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------- image coordinates
 
 
+def hilbert_transposed(n: int) -> bool:
+    """Whether the image's Hilbert curve is the square curve with x and y swapped.
+
+    The square curve of :func:`hilbert_xy2d` always visits its quadrants
+    bottom-left, top-left, top-right, bottom-right, so its very first move is
+    upward only when ``n`` is odd (the seed's 8 x 8 figure). The image curve
+    keeps the first move upward for every size (DESIGN.md section 2) by
+    swapping x and y when ``n`` is even.
+    """
+    return n % 2 == 0
+
+
+def _upward(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    return (y, x) if hilbert_transposed(n) else (x, y)
+
+
+
 def steps_of(
     cols: np.ndarray, rows: np.ndarray, width: int, height: int, curve: str | Curve,
     *, one_based: bool = False,
@@ -209,7 +226,7 @@ def steps_of(
         raise TerrathemeError(f"texel coordinates outside the {width} x {height} image")
     yup = (height - 1) - rows
     if curve is Curve.HILBERT:
-        d, _ = hilbert_xy2d(cols, yup, n)
+        d, _ = hilbert_xy2d(*_upward(cols, yup, n), n)
     else:
         d = morton_xy2d(cols, yup, n)
     return d.astype(np.int64) + 1 if one_based else d
@@ -234,12 +251,17 @@ def texels_of(
         d = d - 1
     if d.size and (d.min() < 0 or d.max() >= 4**n):
         raise TerrathemeError(f"curve step outside 0 .. {4**n - 1} for a {2**n}^2 square")
-    x, yup = (hilbert_d2xy if curve is Curve.HILBERT else morton_d2xy)(d, n)
+    if curve is Curve.HILBERT:
+        x, yup = _upward(*hilbert_d2xy(d, n), n)
+    else:
+        x, yup = morton_d2xy(d, n)
     inside = (x < width) & (yup < height)
     return x, (height - 1) - yup, inside
 
 
-def step_table(width: int, height: int, curve: str | Curve, *, one_based: bool = True) -> np.ndarray:
+def step_table(
+    width: int, height: int, curve: str | Curve, *, one_based: bool = True
+) -> np.ndarray:
     """Step of every texel as an image, like the vector file's ``hilbert_steps``.
 
     Returns
@@ -304,8 +326,12 @@ def _patterns(b: int, curve: Curve) -> np.ndarray:
 
 
 def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
-    """Blocks of the enclosing square that meet the image, in curve order."""
-    curve = Curve.parse(curve)
+    """Blocks of the enclosing square that meet the image, in curve order (cached)."""
+    return _block_plan(int(width), int(height), Curve.parse(curve))
+
+
+@lru_cache(maxsize=16)
+def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
     n = curve_order(width, height)
     b = min(n, BLOCK_BITS)
     coarse = n - b
@@ -316,14 +342,17 @@ def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
     bx = bx.ravel().astype(np.int64)
     by = by.ravel().astype(np.int64)
     if curve is Curve.HILBERT:
-        c, state = hilbert_xy2d(bx, by, coarse)
+        c, state = hilbert_xy2d(*_upward(bx, by, n), coarse)
+        if hilbert_transposed(n):
+            # Transposed image curve: the local pattern is transposed too (swap bit).
+            state = state ^ np.uint8(1)
     else:
         c, state = morton_xy2d(bx, by, coarse), np.zeros(bx.shape, np.uint8)
     order = np.argsort(c, kind="stable")
-    return BlockPlan(
-        n=n, b=b,
+    arrays = dict(
         bx=bx[order].astype(np.int32), by=by[order].astype(np.int32),
-        state=state[order].astype(np.uint8),
-        first_step=c[order] << np.uint64(2 * b),
-        patterns=_patterns(b, curve),
+        state=state[order].astype(np.uint8), first_step=c[order] << np.uint64(2 * b),
     )
+    for a in arrays.values():
+        a.setflags(write=False)
+    return BlockPlan(n=n, b=b, patterns=_patterns(b, curve), **arrays)

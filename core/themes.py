@@ -90,7 +90,12 @@ class Theme:
         if not isinstance(self.name, str) or not self.name.strip():
             raise TerrathemeError(f"theme name must be a non-empty string, got {self.name!r}")
         object.__setattr__(self, "colour", _validate_colour(self.colour, self.name))
-        object.__setattr__(self, "texture", validate_texture(self.texture, name=self.name))
+        tex = validate_texture(self.texture, name=self.name)
+        if tex.flags.writeable or not tex.flags.owndata:
+            # A theme owns a read-only copy: its pixels never change behind its back.
+            tex = tex.copy()
+            tex.setflags(write=False)
+        object.__setattr__(self, "texture", tex)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Theme):

@@ -15,9 +15,11 @@ Feature sets
 ``COLOUR``  : Lab of the coarse pixel (3 features).
 ``DEFAULT`` : Lab, block lightness std, and for each sigma in ``sigmas``
               (coarse pixels) the Gaussian-smoothed Lab (context), the local
-              lightness std ``sqrt(G*L^2 - (G*L)^2)`` and the gradient magnitude
-              of the smoothed lightness (3 + 1 + 5 * len(sigmas) features),
-              all with OpenCV filters.
+              lightness std of the photo pixels ``sqrt(G*L^2 - (G*L)^2)``
+              (L^2 from the block variance plus the squared block mean) and the gradient magnitude
+              of the smoothed lightness, and (``hessian``) the two Hessian
+              eigenvalues of the smoothed lightness times sigma^2
+              (3 + 1 + 7 * len(sigmas) features), all with OpenCV filters.
 ``SKIMAGE`` : scikit-image ``multiscale_basic_features`` (intensity, edges,
               Hessian texture) on each Lab channel: the ilastik recipe.
 """
@@ -42,6 +44,19 @@ class FeatureSet(enum.Enum):
     SKIMAGE = "skimage"
 
 
+class Normalise(enum.Enum):
+    """Per-photo colour normalisation before the features (for photos of other dates)."""
+
+    NONE = "none"
+    LIGHTNESS = "lightness"  # L to a fixed mean and spread; a, b untouched
+    LAB = "lab"              # L, a and b each to a fixed mean and spread
+
+
+#: Lab mean and spread a normalised photo is mapped to (a typical orthophoto).
+REFERENCE_MEAN = np.array([50.0, 0.0, 8.0], np.float32)
+REFERENCE_STD = np.array([18.0, 6.0, 10.0], np.float32)
+
+
 @dataclass(frozen=True)
 class FeatureOptions:
     """How features are computed.
@@ -49,18 +64,26 @@ class FeatureOptions:
     Attributes
     ----------
     feature_set : FeatureSet
+    normalise : Normalise
+        Map each photo's Lab statistics (:func:`photo_statistics`) to a fixed
+        reference before computing features.
     scale : int
         Photo pixels per coarse pixel along each axis (1 = every pixel).
     sigmas : tuple of float
         Gaussian scales in coarse pixels for the DEFAULT set.
     skimage_sigma_max : float
         Largest scale (coarse pixels) for the SKIMAGE set (smallest is 1).
+    hessian : bool
+        DEFAULT set: add the two Hessian eigenvalues of the smoothed lightness
+        at each sigma (ridges, blobs).
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
+    normalise: Normalise = Normalise.NONE
     scale: int = 4
     sigmas: tuple[float, ...] = (1.0, 2.0, 4.0, 8.0)
     skimage_sigma_max: float = 16.0
+    hessian: bool = False
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -74,7 +97,8 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.COLOUR:
             return 3
         if self.feature_set is FeatureSet.DEFAULT:
-            return 3 + (1 if self.scale > 1 else 0) + 5 * len(self.sigmas)
+            per_sigma = 7 if self.hessian else 5
+            return 3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
         # multiscale_basic_features: per channel, 4 (edges+intensity) ... computed from skimage
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -134,7 +158,42 @@ def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
     return lab, block_std.astype(np.float32)
 
 
-def features_from_lab(lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions) -> np.ndarray:
+def photo_statistics(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """Lab mean and standard deviation of a photo (from at most ~1 Mpx, strided).
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    valid : (H, W) bool ndarray or None
+
+    Returns
+    -------
+    stats : (2, 3) float32 ndarray, rows mean and std (std floored at 1)
+    """
+    step = max(1, int(np.sqrt(rgb.shape[0] * rgb.shape[1] / 1e6)))
+    lab, _ = coarse_lab(rgb[::step, ::step], 1)
+    pix = lab.reshape(-1, 3)
+    if valid is not None:
+        pix = pix[valid[::step, ::step].ravel()]
+    return np.stack([pix.mean(0), np.maximum(pix.std(0), 1.0)]).astype(np.float32)
+
+
+def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
+                  mode: Normalise) -> tuple[np.ndarray, np.ndarray]:
+    """Map a photo's Lab statistics to the reference (Reinhard-style colour transfer)."""
+    if mode is Normalise.NONE:
+        return lab, block_std
+    gain = REFERENCE_STD / stats[1]
+    offset = REFERENCE_MEAN - stats[0] * gain
+    if mode is Normalise.LIGHTNESS:
+        gain[1:], offset[1:] = 1.0, 0.0
+    return (lab * gain + offset).astype(np.float32), (block_std * gain[0]).astype(np.float32)
+
+
+def features_from_lab(
+    lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
+    stats: np.ndarray | None = None,
+) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
     Parameters
@@ -142,11 +201,15 @@ def features_from_lab(lab: np.ndarray, block_std: np.ndarray, options: FeatureOp
     lab : (h, w, 3) float32 ndarray
     block_std : (h, w) float32 ndarray
     options : FeatureOptions
+    stats : (2, 3) float32 ndarray, optional
+        The whole photo's :func:`photo_statistics`, for ``options.normalise``.
 
     Returns
     -------
     features : (h, w, F) float32 ndarray, F = ``options.n_features``
     """
+    if stats is not None:
+        lab, block_std = normalise_lab(lab, block_std, stats, options.normalise)
     fs = options.feature_set
     if fs is FeatureSet.COLOUR:
         return np.ascontiguousarray(lab, dtype=np.float32)
@@ -165,12 +228,13 @@ def features_from_lab(lab: np.ndarray, block_std: np.ndarray, options: FeatureOp
         out[:, :, i] = block_std
         i += 1
     lum = np.ascontiguousarray(lab[:, :, 0])
-    lum_sq = lum * lum
+    # Second moment of the photo's lightness per block: block variance + block mean^2.
+    lum_sq = block_std * block_std + lum * lum
     for sigma in options.sigmas:
         # Context colour: Lab smoothed at this scale.
         smooth = _blur(lab, sigma)
         out[:, :, i : i + 3] = smooth
-        # Local lightness std: sqrt(G*L^2 - (G*L)^2).
+        # Local lightness std of the photo pixels: sqrt(G*L^2 - (G*L)^2).
         mean_sq = _blur(lum_sq, sigma)
         out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
         # Edge strength: gradient magnitude of the smoothed lightness (Sobel, 1/8 normalised).
@@ -180,6 +244,20 @@ def features_from_lab(lab: np.ndarray, block_std: np.ndarray, options: FeatureOp
                        borderType=cv2.BORDER_REFLECT_101)
         out[:, :, i + 4] = cv2.magnitude(gx, gy)
         i += 5
+        if options.hessian:
+            # Ridges and blobs (roads, buildings): Hessian eigenvalues, scale-normalised by sigma^2.
+            s2 = np.float32(sigma * sigma)
+            lxx = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 2, 0, ksize=3, scale=0.25,
+                            borderType=cv2.BORDER_REFLECT_101)
+            lyy = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 0, 2, ksize=3, scale=0.25,
+                            borderType=cv2.BORDER_REFLECT_101)
+            lxy = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 1, 1, ksize=3, scale=0.25,
+                            borderType=cv2.BORDER_REFLECT_101)
+            half_trace = 0.5 * (lxx + lyy)
+            root = np.sqrt(0.25 * (lxx - lyy) ** 2 + lxy * lxy)
+            out[:, :, i] = s2 * (half_trace + root)
+            out[:, :, i + 1] = s2 * (half_trace - root)
+            i += 2
     return out
 
 

@@ -26,7 +26,8 @@ def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     rgb : (H, W, 3) uint8 ndarray
     valid : (H, W) bool ndarray or None
         False where the alpha channel is 0 (transparent); None when every
-        pixel is valid (no alpha, or alpha all non-zero).
+        pixel is valid (no alpha, or alpha all non-zero). Transparent pixels
+        of ``rgb`` hold the colour of the nearest opaque pixel.
 
     Raises
     ------
@@ -62,6 +63,13 @@ def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
             raise TerrathemeError("photo is fully transparent: no pixel to classify")
         if valid.all():
             valid = None
+        else:
+            # Give transparent pixels the colour of the nearest opaque pixel, so their
+            # (meaningless) colour does not bleed into neighbours' smoothed features.
+            from scipy.ndimage import distance_transform_edt
+
+            _, (iy, ix) = distance_transform_edt(~valid, return_indices=True)
+            img8 = img8[iy, ix]
     if img8.shape[2] == 1:
         img8 = np.repeat(img8, 3, axis=2)
     return np.ascontiguousarray(img8), valid

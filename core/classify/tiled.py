@@ -70,9 +70,12 @@ def tile_windows(height: int, width: int, tile: int, scale: int, halo: int) -> l
 
 
 def tile_features(
-    rgb: np.ndarray, win: Window, options: FeatureOptions
+    rgb: np.ndarray, win: Window, options: FeatureOptions, stats: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Coarse Lab and features of a window's outer rectangle.
+
+    ``stats`` are the whole photo's Lab statistics, used when the options
+    normalise colour (see :func:`core.classify.features.photo_statistics`).
 
     Returns
     -------
@@ -80,15 +83,16 @@ def tile_features(
     features : (h, w, F) float32 ndarray
     """
     lab, block_std = coarse_lab(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options.scale)
-    return lab, features_from_lab(lab, block_std, options)
+    return lab, features_from_lab(lab, block_std, options, stats)
 
 
 def iter_tile_features(
-    rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int
+    rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int,
+    stats: np.ndarray | None = None,
 ) -> Iterator[tuple[Window, np.ndarray, np.ndarray]]:
     """Yield ``(window, lab, features)`` for every tile of a photo."""
     for win in tile_windows(rgb.shape[0], rgb.shape[1], tile, options.scale, halo):
-        lab, feats = tile_features(rgb, win, options)
+        lab, feats = tile_features(rgb, win, options, stats)
         yield win, lab, feats
 
 
@@ -120,6 +124,7 @@ def predict_tiled(
     regularisation: RegulariseOptions,
     tile: int,
     progress: ProgressFn | None = None,
+    stats: np.ndarray | None = None,
 ) -> Classification:
     """Classify a photo tile by tile.
 
@@ -137,6 +142,8 @@ def predict_tiled(
         Tile core size in photo pixels.
     progress : callable, optional
         Called with ``(tiles_done, tiles_total)``.
+    stats : (2, 3) float32 ndarray, optional
+        The photo's Lab statistics for colour normalisation.
 
     Returns
     -------
@@ -155,7 +162,7 @@ def predict_tiled(
     confidence = np.zeros((height, width), np.float32)
     for done, win in enumerate(windows, 1):
         # Features over the tile and its halo, then per-coarse-pixel probabilities.
-        lab, feats = tile_features(rgb, win, features)
+        lab, feats = tile_features(rgb, win, features, stats)
         probs = probability_fn(feats).astype(np.float32, copy=False)
         # Spatial regularisation on the coarse grid.
         probs = regularise(probs, lab, regularisation)

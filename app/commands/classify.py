@@ -1,0 +1,137 @@
+"""``terratheme classify``: label an orthophoto's pixels with themes.
+
+Unsupervised (k-means, K from the data or ``--themes K``) unless scribbles,
+training pairs or a saved model are given, in which case a random forest does
+the job (see :mod:`core.classify`).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "classify"
+HELP = "classify an orthophoto into themes (unsupervised, or from scribbles/label masks)"
+ORDER = 30
+
+
+def _themes(value: str) -> str | int:
+    if value == "auto":
+        return value
+    try:
+        k = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not 'auto' or a number") from None
+    if not 1 <= k <= 255:
+        raise argparse.ArgumentTypeError(f"--themes must be 1..255, not {k}")
+    return k
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the command's arguments."""
+    parser.add_argument("photo", metavar="PHOTO", help="orthophoto (PNG, JPEG, TIFF, EXR, ...)")
+    parser.add_argument("-o", "--output", metavar="LABELS.png", required=True,
+                        help="single-channel 8-bit label image, the photo's size")
+    parser.add_argument("--scribbles", metavar="MASK",
+                        help="brush strokes on PHOTO: 0 = unlabelled, k > 0 = class k")
+    parser.add_argument("--train", nargs=2, action="append", default=[],
+                        metavar=("PHOTO", "MASK"),
+                        help="another photo with its label mask (repeatable)")
+    parser.add_argument("--ignore", type=int, nargs="+", default=[], metavar="K",
+                        help="mask class values to treat as unlabelled (e.g. 6 7)")
+    parser.add_argument("--themes", type=_themes, default=None, metavar="auto|K",
+                        help="unsupervised: number of themes, or 'auto' (default)")
+    parser.add_argument("--confidence", metavar="CONF.png",
+                        help="write the per-pixel confidence (8-bit 0..255 for PNG/JPEG, "
+                             "float 0..1 for TIFF/EXR)")
+    parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
+    parser.add_argument("--model", metavar="M", help="classify with a saved classifier")
+
+
+def _read_mask(path: str):
+    import numpy as np
+
+    from core.errors import TerrathemeError
+    from core.image_io import read_image
+
+    mask = read_image(path)
+    if mask.shape[2] > 1:
+        if not all(np.array_equal(mask[:, :, 0], mask[:, :, c]) for c in range(1, mask.shape[2])):
+            raise TerrathemeError(
+                f"{path}: a label mask must be single-channel class values, "
+                f"not a {mask.shape[2]}-channel colour image"
+            )
+    mask = mask[:, :, 0]
+    if not np.issubdtype(mask.dtype, np.integer) or (mask.size and int(mask.max()) > 255):
+        raise TerrathemeError(f"{path}: label mask values must be whole numbers 0..255")
+    return mask.astype(np.uint8)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; returns the exit status."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from core.classify import (
+        Classifier,
+        SupervisedOptions,
+        classify_unsupervised,
+        train_classifier,
+    )
+    from core.errors import TerrathemeError
+    from core.image_io import read_image, write_image
+
+    supervised = bool(args.scribbles or args.train)
+    if args.model and supervised:
+        raise TerrathemeError("--model classifies with a saved model: do not combine it with "
+                              "--scribbles or --train")
+    if args.themes is not None and (supervised or args.model):
+        raise TerrathemeError("--themes is for unsupervised classification; the classes of "
+                              "--scribbles/--train/--model come from the masks")
+    if args.model_out and not supervised:
+        raise TerrathemeError("--model-out needs training data (--scribbles or --train)")
+
+    photo = read_image(args.photo)
+    # Read and train first, so input errors come before any progress bar is drawn.
+    if args.model:
+        model = Classifier.load(args.model)
+    elif supervised:
+        pairs = []
+        if args.scribbles:
+            pairs.append((photo, _read_mask(args.scribbles)))
+        for train_photo, train_mask in args.train:
+            pairs.append((read_image(train_photo), _read_mask(train_mask)))
+        model = train_classifier(pairs, SupervisedOptions(ignore_classes=tuple(args.ignore)))
+        if args.model_out:
+            model.save(args.model_out)
+    else:
+        model = None
+
+    bars: list = []
+
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            bars.append(tqdm(total=total, desc="classify", unit="tile", leave=False))
+        bars[0].n = done
+        bars[0].refresh()
+
+    try:
+        if model is not None:
+            result = model.predict(photo, progress=progress)
+        else:
+            themes = "auto" if args.themes is None else args.themes
+            result = classify_unsupervised(photo, themes=themes, progress=progress)
+    finally:
+        for bar in bars:
+            bar.close()
+
+    write_image(args.output, result.labels[:, :, None])
+    if args.confidence:
+        if args.confidence.lower().endswith((".tif", ".tiff", ".exr")):
+            conf = result.confidence
+        else:
+            conf = np.round(result.confidence * 255.0).astype(np.uint8)
+        write_image(args.confidence, conf[:, :, None])
+    counts = np.bincount(result.labels.ravel(), minlength=256)
+    shown = ", ".join(f"{k}: {counts[k] / result.labels.size:.1%}" for k in result.classes)
+    print(f"{args.output}: {len(result.classes)} classes ({shown})")
+    return 0

@@ -1,0 +1,208 @@
+"""``terratheme convert``: orthophoto -> thematic texture project, preview and packed index layer.
+
+Runs the whole pipeline of :mod:`core.convert` with a progress bar and
+writes, by default beside PROJECT: ``<stem>_preview.png`` (the render over
+the photo's extent; a world file beside it when the photo is a GeoTIFF) and
+``<stem>.ttpack`` (the vertex grid packed along a space-filling curve).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "convert"
+HELP = "turn an orthophoto into a thematic texture project (+ preview render, packed layer)"
+ORDER = 40
+
+
+def _cell(value: str) -> str | int:
+    if value == "auto":
+        return value
+    try:
+        n = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not 'auto' or a number") from None
+    if not 1 <= n <= 4096:
+        raise argparse.ArgumentTypeError(f"--cell must be 1..4096, not {n}")
+    return n
+
+
+def _agreement(value: str) -> float:
+    try:
+        t = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not a number") from None
+    if not 0.0 < t <= 1.0:
+        raise argparse.ArgumentTypeError(f"--target-agreement must be in (0, 1], not {t}")
+    return t
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the command's arguments."""
+    parser.add_argument("photo", metavar="PHOTO", help="orthophoto (PNG, JPEG, TIFF/GeoTIFF, EXR)")
+    parser.add_argument("project", metavar="PROJECT", help="output project file (.ttproj)")
+    parser.add_argument("--cell", type=_cell, default="auto", metavar="auto|N",
+                        help="cell size in texels, or 'auto' (default): the largest cell whose "
+                             "label view keeps --target-agreement of the photo's labels")
+    parser.add_argument("--themes", default="auto", metavar="auto|K|name,name,...",
+                        help="'auto' (default): as many themes as the photo needs, cut from it; "
+                             "K: that many; names: shipped themes (water,sand,town,...) matched "
+                             "to the classes by colour; 1=name,2=name: scribble classes by name")
+    parser.add_argument("--target-agreement", type=_agreement, default=0.9, metavar="T",
+                        help="share of pixels whose theme the grid must keep (default 0.9)")
+    parser.add_argument("--preview", metavar="PNG",
+                        help="preview render (default: PROJECT's stem + _preview.png)")
+    parser.add_argument("--packed", metavar="FILE",
+                        help="packed index layer (default: PROJECT's stem + .ttpack)")
+    parser.add_argument("--scribbles", metavar="MASK",
+                        help="brush strokes on PHOTO (0 = unlabelled, k > 0 = class k): "
+                             "supervised classification")
+    parser.add_argument("--model", metavar="M",
+                        help="classify with a saved classifier (terratheme classify --model-out)")
+    parser.add_argument("--tile", type=int, metavar="N",
+                        help="photos larger than memory: classify and vote tile by tile "
+                             "(N pixels a side; needs --model and a numeric --cell)")
+    parser.add_argument("--curve", metavar="PNG",
+                        help="also write the agreement / bytes vs cell size chart (cell auto)")
+
+
+def _read_mask(path: str):
+    import numpy as np
+
+    from core.errors import TerrathemeError
+    from core.image_io import read_image
+
+    mask = read_image(path)
+    if not np.issubdtype(mask.dtype, np.integer):
+        raise TerrathemeError(f"{path}: scribble mask must hold whole numbers 0..255")
+    if mask.shape[2] > 1 and any(
+        not np.array_equal(mask[:, :, 0], mask[:, :, c]) for c in range(1, mask.shape[2])
+    ):
+        raise TerrathemeError(f"{path}: scribble mask must be single-channel class values")
+    if mask.size and int(mask.max()) > 255:
+        raise TerrathemeError(f"{path}: scribble mask values must be 0..255")
+    return mask[:, :, 0].astype(np.uint8)
+
+
+def _curve_chart(choice, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from core.atomic import atomic_path
+
+    cells = [p.cell for p in choice.curve]
+    fig, ax = plt.subplots(figsize=(6, 3.6), dpi=110)
+    ax.plot(cells, [p.agreement for p in choice.curve], "o-", label="agreement")
+    ax.axhline(choice.target, color="grey", ls="--", lw=1, label=f"target {choice.target:g}")
+    ax.axvline(choice.cell[0], color="tab:green", lw=1, label=f"chosen cell {choice.cell[0]}")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("cell size (texels)")
+    ax.set_ylabel("label agreement")
+    ax2 = ax.twinx()
+    ax2.plot(cells, [p.grid_bytes for p in choice.curve], "s:", color="tab:red", label="bytes")
+    ax2.set_yscale("log")
+    ax2.set_ylabel("grid bytes (1 per vertex)")
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; returns the exit status."""
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from core.convert import ConvertOptions, convert_photo, parse_themes, read_photo, write_outputs
+    from core.errors import TerrathemeError
+
+    project = Path(args.project)
+    if project.suffix.lower() != ".ttproj":
+        raise TerrathemeError(f"{project}: the project file must end in .ttproj")
+    preview = args.preview or str(project.with_name(project.stem + "_preview.png"))
+    packed = args.packed or str(project.with_suffix(".ttpack"))
+    themes = parse_themes(args.themes)
+    # Output folders are made up front (the README's command writes into out/).
+    for out in (project, Path(preview), Path(packed), *([Path(args.curve)] if args.curve else [])):
+        out.parent.mkdir(parents=True, exist_ok=True)
+    if args.tile is not None:
+        return _run_tiled(args, project, preview, packed, themes)
+    model = None
+    if args.model:
+        from core.classify import Classifier
+
+        if args.scribbles:
+            raise TerrathemeError("--model and --scribbles both give the classes: pick one")
+        model = Classifier.load(args.model)
+    photo, meta = read_photo(args.photo)
+    scribbles = _read_mask(args.scribbles) if args.scribbles else None
+    if (scribbles is not None or model is not None) and isinstance(themes, int):
+        raise TerrathemeError("--themes K is for unsupervised classification; with --scribbles "
+                              "or --model the classes are given (use auto or 1=name,2=name)")
+    options = ConvertOptions(cell=args.cell, themes=themes,
+                             target_agreement=args.target_agreement)
+    with tqdm(total=100, desc="convert", unit="%", leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.n = min(100, done * 100 // max(total, 1))
+            bar.refresh()
+
+        result = convert_photo(photo, options, scribbles=scribbles, model=model, metadata=meta,
+                               progress=progress)
+        bar.set_description("write")
+        written = write_outputs(result.project, project, preview_path=preview,
+                                packed_path=packed)
+    if args.curve and result.choice is not None:
+        _curve_chart(result.choice, args.curve)
+        written["curve"] = Path(args.curve)
+    grid = result.project.grid
+    gh, gw = grid.cells_shape
+    h, w = photo.shape[:2]
+    names = ", ".join(result.project.library.names)
+    print(f"{project}: {len(result.project.library)} themes ({names}); cell {grid.cell[0]} x "
+          f"{grid.cell[1]} -> {gw + 1} x {gh + 1} vertices for the {w} x {h} photo; "
+          f"label agreement {result.agreement:.1%}")
+    _print_written(written)
+    return 0
+
+
+def _print_written(written) -> None:
+    for key, path in written.items():
+        if key != "project":
+            print(f"  {key}: {path}")
+
+
+def _run_tiled(args, project, preview, packed, themes) -> int:
+    """The bounded-memory path: tile by tile with a saved classifier."""
+    from tqdm import tqdm
+
+    from core.classify import Classifier
+    from core.convert import write_outputs
+    from core.convert_tiled import convert_file_tiled
+    from core.errors import TerrathemeError
+
+    if not args.model or args.cell == "auto" or args.scribbles:
+        raise TerrathemeError("--tile needs --model M and a numeric --cell N (no --scribbles: "
+                              "train the model with terratheme classify --model-out)")
+    if isinstance(themes, int) or args.tile < 16:
+        raise TerrathemeError("--tile: N must be >= 16 and --themes auto or class names")
+    model = Classifier.load(args.model)
+    names = None if themes == "auto" else themes
+    with tqdm(total=1, desc="convert (tiled)", unit="tile", leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total, bar.n = total, done
+            bar.refresh()
+
+        proj = convert_file_tiled(args.photo, model, args.cell, names=names, tile=args.tile,
+                                  progress=progress)
+        written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
+    gh, gw = proj.grid.cells_shape
+    print(f"{project}: {len(proj.library)} themes ({', '.join(proj.library.names)}); cell "
+          f"{args.cell} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)")
+    _print_written(written)
+    return 0

@@ -1,0 +1,49 @@
+"""``terratheme info IN``: header, palette and runs of a packed layer."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "info"
+HELP = "describe a packed layer (size, curve, palette, runs); --json for machines"
+ORDER = 52
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``terratheme info``."""
+    parser.add_argument("input", metavar="IN", help="packed layer file")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--runs", action="store_true",
+                        help="include the runs: S (1-based step of each run's last texel), P")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print what ``args.input`` holds."""
+    import json
+    import os
+
+    from core.packing import PackedLayer
+
+    layer = PackedLayer.load(args.input)
+    info = {
+        "width": layer.width,
+        "height": layer.height,
+        "curve": layer.curve.name.lower(),
+        "channels": layer.channels,
+        "identity_palette": layer.identity,
+        "palette": layer.palette.tolist(),
+        "run_count": layer.run_count,
+        "file_bytes": os.path.getsize(args.input),
+        "memory_bytes": layer.memory_bytes,
+    }
+    if args.runs:
+        info["S"] = layer.S.tolist()
+        info["P"] = layer.P.tolist()
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    for key, value in info.items():
+        if key in ("palette", "S", "P") and len(value) > 16:
+            value = f"{value[:16]} ... ({len(value)} entries)"
+        print(f"{key}: {value}")
+    return 0

@@ -1,0 +1,179 @@
+"""Classification on a worker thread, with progress and Cancel.
+
+The job runs the core classifier (unsupervised, or a random forest trained on
+the scribble layer) and converts its labels to a vertex grid
+(``core.labels_to_grid``) off the GUI thread; the window applies the result
+as one undoable step. Cancel is cooperative: the progress callback raises
+inside the classifier at its next tile, and a result that arrives after
+Cancel is dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from PySide6.QtCore import QObject, QThread, Signal
+
+from core.themes import Theme, ThemeLibrary
+
+#: display colours of new class themes (matplotlib's tab10, as 8-bit RGB)
+_QUALITATIVE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
+                (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
+
+
+class Mode(Enum):
+    UNSUPERVISED_MAP = "Unsupervised, map classes to the current themes"
+    UNSUPERVISED_NEW = "Unsupervised, new themes cut from the photo"
+    SCRIBBLES = "From scribbles (random forest)"
+
+
+_LIVE: set[QThread] = set()
+
+
+def keep_alive(thread: QThread) -> QThread:
+    """Hold a reference to a parentless worker thread until it finishes.
+
+    Workers have no Qt parent, so closing a window never destroys a thread
+    that is still running (Qt aborts the process when that happens).
+    """
+    _LIVE.add(thread)
+    thread.finished.connect(lambda: _LIVE.discard(thread))
+    return thread
+
+
+class Cancelled(Exception):
+    """Raised inside the classifier's progress callback after Cancel."""
+
+
+@dataclass
+class ClassifyResult:
+    """What the job hands back: the new grid indices and themes to append first."""
+
+    indices: np.ndarray
+    new_themes: list[Theme]
+    n_classes: int
+
+
+def _mean_lab(colours: np.ndarray) -> np.ndarray:
+    from skimage.color import rgb2lab
+
+    return rgb2lab(colours.reshape(-1, 1, 3).astype(np.float32) / 255.0).reshape(-1, 3)
+
+
+def class_means(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]) -> np.ndarray:
+    """Mean photo colour of every class: (K, 3) float (NaN-free; absent classes get grey)."""
+    rgb = photo[..., :3].reshape(-1, 3).astype(np.float64)
+    lab = labels.ravel()
+    out = np.full((len(classes), 3), 128.0)
+    for i, c in enumerate(classes):
+        sel = lab == c
+        if sel.any():
+            out[i] = rgb[sel].mean(axis=0)
+    return out
+
+
+def nearest_theme_lut(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
+                      library: ThemeLibrary) -> np.ndarray:
+    """Class value -> index of the theme whose mean texture colour is nearest (CIELAB)."""
+    theme_means = np.array([t.texture.reshape(-1, 3).mean(axis=0) for t in library])
+    a = _mean_lab(class_means(photo, labels, classes))
+    b = _mean_lab(theme_means)
+    nearest = np.argmin(((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=2), axis=1)
+    lut = np.zeros(256, dtype=np.int64)
+    for c, k in zip(classes, nearest, strict=True):
+        lut[c] = k
+    return lut
+
+
+def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
+                 taken: list[str]) -> tuple[list[Theme], np.ndarray]:
+    """Themes cut from the photo for every class (``core.photo_themes.themes_from_photo``).
+
+    Returns the themes (renamed where a name is taken, and given distinct
+    display colours so the index map reads well; the texture keeps the
+    photo's look) and the class -> position-in-that-list table.
+    """
+    from core.photo_themes import themes_from_photo
+
+    mapping = themes_from_photo(photo[..., :3], labels, classes=classes)
+    out = []
+    for i, theme in enumerate(mapping.library):
+        name = theme.name
+        while name.lower() in (t.lower() for t in taken):
+            name += "'"
+        taken.append(name)
+        colour = _QUALITATIVE[i % len(_QUALITATIVE)]
+        out.append(theme.with_(name=name, colour=colour))
+    return out, mapping.lut.astype(np.int64)
+
+
+def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | None,
+                       library: ThemeLibrary, cell: tuple[int, int], grid_shape: tuple[int, int],
+                       progress) -> ClassifyResult:
+    """Classify ``photo`` and convert the labels to a ``grid_shape`` vertex grid."""
+    from core.classify import classify_unsupervised, train_classifier
+    from core.errors import TerrathemeError
+    from core.labels_to_grid import labels_to_grid
+
+    if mode is Mode.SCRIBBLES:
+        if scribbles is None or not scribbles.any():
+            raise TerrathemeError("no scribbles: paint some with the Scribble tool (S) first")
+        result = train_classifier([(photo, scribbles)]).predict(photo, progress=progress)
+        # Scribble value v marks theme v - 1.
+        lut = np.clip(np.arange(256) - 1, 0, len(library) - 1)
+        new_themes: list[Theme] = []
+    else:
+        result = classify_unsupervised(photo, progress=progress)
+        labels, classes = result.labels, result.classes
+        if mode is Mode.UNSUPERVISED_MAP:
+            lut = nearest_theme_lut(photo, labels, classes, library)
+            new_themes = []
+        else:
+            new_themes, lut = class_themes(photo, labels, classes, list(library.names))
+            lut = lut + len(library)
+    grid = labels_to_grid(result.labels, cell, lut=lut)
+    if grid.indices.shape != grid_shape:
+        raise TerrathemeError(
+            f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
+            f"with cell {cell}; the project grid is {grid_shape}")
+    return ClassifyResult(grid.indices, new_themes, len(result.classes))
+
+
+class ClassifyJob(QThread):
+    """Runs :func:`run_classification` on its own thread.
+
+    Signals: ``progressed(done, total)``, ``succeeded(ClassifyResult)``,
+    ``failed(str)``; after :meth:`cancel` none but ``finished`` is emitted.
+    """
+
+    progressed = Signal(int, int)
+    succeeded = Signal(object)
+    failed = Signal(str)
+
+    def __init__(self, mode: Mode, photo, scribbles, library, cell, grid_shape,
+                 parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.args = (mode, photo, scribbles, ThemeLibrary(library), cell, grid_shape)
+        self.cancelled = False
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+    def _progress(self, done: int, total: int) -> None:
+        if self.cancelled:
+            raise Cancelled
+        self.progressed.emit(int(done), int(total))
+
+    def run(self) -> None:
+        try:
+            result = run_classification(*self.args, progress=self._progress)
+        except Cancelled:
+            return
+        except Exception as exc:  # reported in the window, never a crash
+            if not self.cancelled:
+                self.failed.emit(str(exc) or type(exc).__name__)
+            return
+        if not self.cancelled:
+            self.succeeded.emit(result)

@@ -1,0 +1,81 @@
+"""Opening the editor window from the command line (and for the screenshot)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from core.errors import TerrathemeError
+from core.project import PROJECT_SUFFIX
+
+
+def load_start_document(target: str | None, *, classify: bool):
+    """The document to open: a project, a new project over a photo, the sample or an empty one.
+
+    Returns ``(doc, wants_classification)``.
+    """
+    from app.editor.document import EditorDocument
+    from app.editor.newproject import empty_project, project_from_photo, sample_project_path
+
+    if target is None:
+        sample = sample_project_path()
+        if sample is not None:
+            return EditorDocument.open(sample), False
+        return EditorDocument(empty_project()), False
+    path = Path(target)
+    if not path.exists():
+        raise TerrathemeError(f"{path}: no such file")
+    if path.suffix.lower() == PROJECT_SUFFIX:
+        return EditorDocument.open(path), False
+    doc = EditorDocument(project_from_photo(path))
+    doc.fresh_from_photo = True
+    return doc, classify
+
+
+def run_editor(target: str | None, *, screenshot: str | None = None, classify: bool = True,
+               size: tuple[int, int] = (1400, 860), timeout_s: float = 300.0) -> int:
+    """Open the editor; with ``screenshot`` render the laid-out window to that PNG and exit."""
+    import sys
+
+    from PySide6.QtCore import QElapsedTimer, QEventLoop
+    from PySide6.QtWidgets import QApplication
+
+    from app.editor.classify_job import Mode
+    from app.editor.window import MainWindow
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("terratheme")
+    error = None
+    try:
+        doc, wants_classification = load_start_document(target, classify=classify)
+    except (TerrathemeError, OSError) as exc:
+        if screenshot is not None:
+            raise
+        # Interactive: open an empty project and say what went wrong in a dialog.
+        from app.editor.document import EditorDocument
+        from app.editor.newproject import empty_project
+
+        doc, wants_classification, error = EditorDocument(empty_project()), False, exc
+    win = MainWindow(doc)
+    win.resize(*size)
+    win.show()
+    if wants_classification:
+        win.start_classification(Mode.UNSUPERVISED_NEW)
+    if screenshot is None:
+        if error is not None:
+            win.show_error(f"Cannot open {target}:\n{error}")
+        return app.exec()
+    # Lay out, wait for a running classification (bounded), then grab the window.
+    timer = QElapsedTimer()
+    timer.start()
+    while win.job is not None and timer.elapsed() < timeout_s * 1000:
+        app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 50)
+    app.processEvents()
+    win.fit()
+    app.processEvents()
+    image = win.grab()
+    win.wait_for_jobs()
+    if not image.save(str(screenshot)):
+        raise TerrathemeError(f"cannot write the screenshot {screenshot}")
+    win.doc.undo_stack.setClean()
+    win.close()
+    return 0

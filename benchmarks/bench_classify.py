@@ -1,0 +1,425 @@
+"""Classification accuracy and speed on the real photos in ../shared/data.
+
+Run: ``.venv/bin/python benchmarks/bench_classify.py [scribbles] [across_tiles] [memory]``
+(all three by default, about 10-15 minutes on 2 busy cores; naming parts reruns
+only those and keeps the others from the last classify.json).
+Writes ``benchmarks/results/classify.json`` and ``classify.png``.
+
+(a) across tiles: Dubai, leave one satellite tile out (train on the photos of
+    five tiles, test on every photo of the sixth), classes 1-5 (6, 7 ignored);
+(b) scribbles: short strokes (3 px wide, 30 px long) inside eroded class
+    regions, <= 0.8% of the photo's pixels, train and test on the same photo:
+    12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop).
+
+Methods, all in the same run:
+  rf-default      random forest (cv2.ml) on DEFAULT features, 4x4 coarse pixels,
+                  Gaussian probability smoothing (the library default);
+  rf-superpixel   same, probabilities averaged over MSLIC superpixels;
+  rf-colour       random forest on coarse Lab only;
+  rf-scale8       DEFAULT features on 8x8 coarse pixels (same context in photo pixels);
+  ilastik         the ilastik recipe: random forest on Lab + scikit-image
+                  multiscale_basic_features (sigma 1..16) for every pixel, no
+                  regularisation. Too slow to predict whole photos in the time
+                  budget: it is trained on the same pixels and scored on 50,000
+                  random labelled pixels per photo; its Mpx/s is features + votes
+                  per pixel, measured. For (a) it runs on parts 001-003 of each tile
+                  (18 photos), and rf-default is reported on the same subset.
+  kmeans-colour   k-means on per-pixel Lab (K = number of classes), clusters
+                  mapped to classes by the majority true class (a: an oracle, an
+                  upper bound) or by the scribbles (b).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from core.classify import (  # noqa: E402
+    Classifier,
+    FeatureOptions,
+    FeatureSet,
+    Regularisation,
+    RegulariseOptions,
+    SupervisedOptions,
+    UnsupervisedOptions,
+    classify_unsupervised,
+)
+from core.classify.photo import prepare_photo  # noqa: E402
+from core.classify.supervised import _pair_samples, build_forest  # noqa: E402
+from core.classify.tiled import Window, tile_features  # noqa: E402
+from core.image_io import read_image  # noqa: E402
+
+DATA = REPO.parent / "shared" / "data"
+OUT = REPO / "benchmarks" / "results"
+RNG_SEED = 0
+ILASTIK_TEST_PIXELS = 50_000
+#: training samples per class for (a): cv2's forest trains on one core, keep folds short
+ACROSS_CAP = 6000
+
+METHODS = {
+    "rf-default": SupervisedOptions(),
+    "rf-superpixel": SupervisedOptions(
+        regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
+    "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),
+    "rf-scale8": SupervisedOptions(features=FeatureOptions(scale=8, sigmas=(0.5, 1.0, 2.0, 4.0))),
+}
+ILASTIK = SupervisedOptions(
+    features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
+    regularisation=RegulariseOptions(method=Regularisation.NONE),
+)
+KMEANS = UnsupervisedOptions(
+    features=FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
+    regularisation=RegulariseOptions(method=Regularisation.NONE),
+)
+
+
+def confusion(truth, pred, classes):
+    """(C, C) counts, rows = truth, over pixels whose truth is one of ``classes``."""
+    idx = {k: i for i, k in enumerate(classes)}
+    lut_t = np.full(256, -1, np.int64)
+    lut_p = np.full(256, -1, np.int64)
+    for k, i in idx.items():
+        lut_t[k] = i
+        lut_p[k] = i
+    t, p = lut_t[truth.ravel()], lut_p[pred.ravel()]
+    keep = (t >= 0) & (p >= 0)
+    c = len(classes)
+    return np.bincount(t[keep] * c + p[keep], minlength=c * c).reshape(c, c)
+
+
+def scores(cm, classes):
+    tp = np.diag(cm).astype(float)
+    union = cm.sum(0) + cm.sum(1) - tp
+    iou = np.where(union > 0, tp / np.maximum(union, 1), np.nan)
+    return {"oa": float(tp.sum() / max(cm.sum(), 1)),
+            "miou": float(np.nanmean(iou)),
+            "iou": {str(k): (None if np.isnan(v) else round(float(v), 4))
+                    for k, v in zip(classes, iou, strict=True)}}
+
+
+def load(folder, name, crop=None):
+    img = read_image(DATA / folder / "images" / name)
+    mask = read_image(DATA / folder / "masks" / (Path(name).stem + ".png"))[:, :, 0]
+    if crop:
+        img, mask = img[:crop, :crop], mask[:crop, :crop]
+    return np.ascontiguousarray(img[:, :, :3]), np.ascontiguousarray(mask)
+
+
+def whole_window(h, w):
+    return Window(0, h, 0, w, 0, h, 0, w)
+
+
+def ilastik_features(photo):
+    rgb, _ = prepare_photo(photo)
+    t = time.perf_counter()
+    _lab, feats = tile_features(rgb, whole_window(*rgb.shape[:2]), ILASTIK.features)
+    return feats, time.perf_counter() - t
+
+
+def ilastik_predict(model, feats, truth, classes, rng, seconds_feat):
+    """Votes on random labelled pixels -> (confusion, Mpx/s of features + votes)."""
+    cand = np.flatnonzero(np.isin(truth.ravel(), classes))
+    pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
+    x = feats.reshape(-1, feats.shape[2])[pick][None]
+    t = time.perf_counter()
+    probs = model.probabilities(x)[0]
+    dt = time.perf_counter() - t
+    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
+    per_px = seconds_feat / truth.size + dt / len(pick)
+    return confusion(truth.ravel()[pick], pred, classes), 1e-6 / per_px
+
+
+def kmeans_predict(photo, truth, classes, mapping_mask):
+    """k-means on colour, clusters -> classes by majority of ``mapping_mask`` (0 = unlabelled)."""
+    t = time.perf_counter()
+    res = classify_unsupervised(photo, themes=len(classes), options=KMEANS)
+    dt = time.perf_counter() - t
+    lut = np.zeros(256, np.uint8)
+    fallback = np.bincount(mapping_mask[np.isin(mapping_mask, classes)], minlength=256).argmax()
+    for c in res.classes:
+        hit = mapping_mask[(res.labels == c) & np.isin(mapping_mask, classes)]
+        lut[c] = np.bincount(hit, minlength=256).argmax() if hit.size else fallback
+    return confusion(truth, lut[res.labels], classes), truth.size / dt / 1e6
+
+
+def across_tiles(log):
+    classes = [1, 2, 3, 4, 5]
+    names = sorted(p.name for p in (DATA / "dubai" / "images").glob("*.jpg"))
+    tile_of = {n: int(n.split("t")[-1].split(".")[0]) for n in names}
+    subset = [n for n in names if int(n[11:14]) <= 3]
+    rng = np.random.default_rng(RNG_SEED)
+    # Per-photo training samples for each method, computed once.
+    samples = {m: {} for m in [*METHODS, "ilastik"]}
+    ila_feats = {}
+    for i, n in enumerate(names):
+        photo, mask = load("dubai", n)
+        for m, opts in METHODS.items():
+            samples[m][n] = _pair_samples(photo, mask, i, classes, opts)
+        if n in subset:
+            feats, secs = ilastik_features(photo)
+            sel = np.flatnonzero(np.isin(mask.ravel(), classes))
+            sel = rng.choice(sel, min(20000, len(sel)), replace=False)
+            samples["ilastik"][n] = (feats.reshape(-1, feats.shape[2])[sel], mask.ravel()[sel])
+            cand = np.flatnonzero(np.isin(mask.ravel(), classes))
+            pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
+            ila_feats[n] = (feats.reshape(-1, feats.shape[2])[pick], mask.ravel()[pick], secs,
+                            mask.size)
+            del feats
+        log(f"  features {i + 1}/{len(names)}")
+    per_photo = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour"]}
+    speed = {m: [0.0, 0.0] for m in per_photo}  # [pixels, seconds]
+    for tile in range(1, 7):
+        train = [n for n in names if tile_of[n] != tile]
+        test = [n for n in names if tile_of[n] == tile]
+        for m, opts in [*METHODS.items(), ("ilastik", ILASTIK)]:
+            pool = [n for n in train if n in samples[m]]
+            x, y = _capped(samples[m], pool, ACROSS_CAP, rng)
+            model = Classifier(build_forest(x, y, opts), tuple(np.unique(y)), opts)
+            for n in test:
+                if m == "ilastik":
+                    if n not in ila_feats:
+                        continue
+                    fx, fy, secs, npx = ila_feats[n]
+                    t = time.perf_counter()
+                    probs = model.probabilities(fx[None])[0]
+                    dt = time.perf_counter() - t
+                    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
+                    per_photo[m][n] = confusion(fy, pred, classes)
+                    speed[m][0] += npx
+                    speed[m][1] += secs + dt * npx / len(fx)
+                    continue
+                photo, mask = load("dubai", n)
+                t = time.perf_counter()
+                res = model.predict(photo)
+                speed[m][1] += time.perf_counter() - t
+                speed[m][0] += mask.size
+                per_photo[m][n] = confusion(mask, res.labels, classes)
+        for n in test:
+            photo, mask = load("dubai", n)
+            cm, mpxs = kmeans_predict(photo, mask, classes, mask)
+            per_photo["kmeans-colour"][n] = cm
+            speed["kmeans-colour"][0] += mask.size
+            speed["kmeans-colour"][1] += mask.size / mpxs / 1e6
+        log(f"  fold tile {tile} done")
+    out = {}
+    for m, cms in per_photo.items():
+        out[m] = scores(sum(cms.values()), classes)
+        out[m]["photos"] = len(cms)
+        out[m]["mpx_per_s"] = speed[m][0] / max(speed[m][1], 1e-9) / 1e6
+        sub = [cms[n] for n in subset if n in cms]
+        out[m]["subset_001_003"] = scores(sum(sub), classes)
+    return out
+
+
+def _capped(per_photo_samples, names, cap, rng):
+    xs, ys = [], []
+    for n in names:
+        x, y = per_photo_samples[n]
+        xs.append(x)
+        ys.append(y)
+    x, y = np.concatenate(xs), np.concatenate(ys).astype(np.int32)
+    keep = []
+    for k in np.unique(y):
+        idx = np.flatnonzero(y == k)
+        keep.append(rng.choice(idx, min(cap, len(idx)), replace=False))
+    keep = np.concatenate(keep)
+    return x[keep].astype(np.float32), y[keep]
+
+
+def simulate_scribbles(mask, classes, rng, budget=0.008, length=30, width=3):
+    """Short straight strokes inside eroded class regions, <= ``budget`` of the pixels."""
+    present = [k for k in classes if (mask == k).sum() > 0.002 * mask.size]
+    out = np.zeros_like(mask)
+    per_class = int(budget * mask.size / max(len(present), 1))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
+    for k in present:
+        region = cv2.erode((mask == k).astype(np.uint8), kernel).astype(bool)
+        ys, xs = np.nonzero(region)
+        if len(ys) == 0:
+            continue
+        painted = 0
+        for _ in range(400):
+            if painted >= per_class:
+                break
+            i = rng.integers(len(ys))
+            a = rng.uniform(0, np.pi)
+            dx, dy = np.cos(a) * length / 2, np.sin(a) * length / 2
+            canvas = np.zeros(mask.shape, np.uint8)
+            cv2.line(canvas, (int(xs[i] - dx), int(ys[i] - dy)),
+                     (int(xs[i] + dx), int(ys[i] + dy)), 1, width)
+            stroke = canvas.astype(bool) & region & (out == 0)
+            stroke_px = int(stroke.sum())
+            if painted + stroke_px > per_class:
+                continue
+            out[stroke] = k
+            painted += stroke_px
+    return out
+
+
+def scribbles(log):
+    sets = [("dubai", n, [1, 2, 3, 4, 5], None)
+            for n in sorted(p.name for p in (DATA / "dubai" / "images").glob("*.jpg"))
+            if n[11:14] in ("004", "005")]
+    sets += [("loveda", "loveda_0.png", [1, 2, 3, 4, 5, 6, 7], None),
+             ("loveda", "loveda_1.png", [1, 2, 3, 4, 5, 6, 7], None),
+             ("potsdam", "potsdam_2_10_0_0_512_512.png", [1, 2, 3, 4, 5, 6], None),
+             ("deepglobe", "6399_sat.jpg", [1, 2, 3, 4, 5, 6], 1536)]
+    rng = np.random.default_rng(RNG_SEED + 1)
+    results = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour"]}
+    speed = {m: [0.0, 0.0] for m in results}
+    coverage = {}
+    for folder, name, classes, crop in sets:
+        photo, mask = load(folder, name, crop)
+        scr = simulate_scribbles(mask, classes, rng)
+        coverage[name] = float((scr > 0).mean())
+        for m, opts in METHODS.items():
+            model = _train_one(photo, scr, opts)
+            t = time.perf_counter()
+            res = model.predict(photo)
+            speed[m][1] += time.perf_counter() - t
+            speed[m][0] += mask.size
+            results[m][name] = confusion(mask, res.labels, classes)
+        feats, secs = ilastik_features(photo)
+        sel = scr.ravel() > 0
+        x, y = feats.reshape(-1, feats.shape[2])[sel], scr.ravel()[sel].astype(np.int32)
+        model = Classifier(build_forest(x, y, ILASTIK), tuple(np.unique(y)), ILASTIK)
+        cm, mpxs = ilastik_predict(model, feats, mask, classes, rng, secs)
+        del feats
+        results["ilastik"][name] = cm
+        speed["ilastik"][0] += mask.size
+        speed["ilastik"][1] += mask.size / mpxs / 1e6
+        cm, mpxs = kmeans_predict(photo, mask, classes, scr)
+        results["kmeans-colour"][name] = cm
+        speed["kmeans-colour"][0] += mask.size
+        speed["kmeans-colour"][1] += mask.size / mpxs / 1e6
+        log(f"  scribbles {name}: {coverage[name]:.2%} of pixels")
+    out = {"coverage": coverage}
+    for m, per in results.items():
+        mious = {n: scores(cm, [k for k in _classes_of(sets, n)])["miou"] for n, cm in per.items()}
+        dubai = [cm for n, cm in per.items() if n.startswith("image_part")]
+        out[m] = {
+            "mean_miou_over_photos": float(np.mean(list(mious.values()))),
+            "miou_per_photo": {n: round(v, 4) for n, v in mious.items()},
+            "dubai_pooled": scores(sum(dubai), [1, 2, 3, 4, 5]),
+            "mpx_per_s": speed[m][0] / max(speed[m][1], 1e-9) / 1e6,
+        }
+    return out
+
+
+def _classes_of(sets, name):
+    return next(c for _f, n, c, _crop in sets if n == name)
+
+
+def _train_one(photo, scr, opts):
+    from core.classify import train_classifier
+
+    return train_classifier([(photo, scr)], opts)
+
+
+def memory(log):
+    """tracemalloc peak of rf-default predict on photos tiled from a Dubai sample."""
+    photo, mask = load("dubai", "image_part_004t4.jpg")
+    scr = simulate_scribbles(mask, [1, 2, 3, 4, 5], np.random.default_rng(5))
+    model = _train_one(photo, scr, SupervisedOptions())
+    out = {}
+    for size in (2048, 4096, 8192):
+        reps = (-(-size // photo.shape[0]), -(-size // photo.shape[1]), 1)
+        big = np.ascontiguousarray(np.tile(photo, reps)[:size, :size])
+        tracemalloc.start()
+        t = time.perf_counter()
+        res = model.predict(big)
+        dt = time.perf_counter() - t
+        _cur, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        outputs = res.labels.nbytes + res.confidence.nbytes
+        out[str(size)] = {"peak_mb": peak / 2**20, "outputs_mb": outputs / 2**20,
+                          "working_mb": (peak - outputs) / 2**20,
+                          "mpx_per_s": size * size / dt / 1e6}
+        log(f"  memory {size}: working {(peak - outputs) / 2**20:.0f} MB, "
+            f"{size * size / dt / 1e6:.1f} Mpx/s")
+        del big, res
+    return out
+
+
+def chart(result, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    panels = [("(a) Dubai across tiles, mIoU (pooled)", result["across_tiles"],
+               lambda r: r["miou"], 0.45),
+              ("(b) scribbles <= 1% of pixels, mean mIoU", result["scribbles"],
+               lambda r: r["mean_miou_over_photos"], 0.60)]
+    for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
+        for m, r in res.items():
+            if m == "coverage":
+                continue
+            ax.scatter(r["mpx_per_s"], get(r), s=60)
+            ax.annotate(m, (r["mpx_per_s"], get(r)), textcoords="offset points",
+                        xytext=(6, 4), fontsize=9)
+        ax.axhline(goal, color="grey", ls="--", lw=1)
+        ax.axvline(5.0, color="grey", ls=":", lw=1)
+        ax.set_xscale("log")
+        ax.set_xlabel("predict speed, Mpx/s (2 cores, log)")
+        ax.set_ylabel("mIoU")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+    fig.suptitle("terratheme classify: accuracy vs speed per feature set / classifier "
+                 "(dashed: goal mIoU, dotted: 5 Mpx/s)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> int:
+    if not DATA.is_dir():
+        print(f"{DATA} is absent: nothing to benchmark")
+        return 0
+    t0 = time.perf_counter()
+
+    def log(msg):
+        print(f"[{time.perf_counter() - t0:6.0f} s] {msg}", flush=True)
+
+    result = {"cv2_threads": cv2.getNumThreads()}
+    OUT.mkdir(parents=True, exist_ok=True)
+    parts = sys.argv[1:] or ["scribbles", "across_tiles", "memory"]
+    previous = OUT / "classify.json"
+    if len(parts) < 3 and previous.is_file():
+        result.update(json.loads(previous.read_text()))
+    for part, fn in (("scribbles", scribbles), ("across_tiles", across_tiles),
+                     ("memory", memory)):
+        if part in parts:
+            log(part)
+            result[part] = fn(log)
+            (OUT / "classify.partial.json").write_text(json.dumps(result, indent=1))
+    base = result["across_tiles"]["ilastik"]
+    result["ratios_vs_ilastik"] = {
+        m: {"speed": r["mpx_per_s"] / base["mpx_per_s"],
+            "miou_subset_gain": r["subset_001_003"]["miou"] - base["subset_001_003"]["miou"]}
+        for m, r in result["across_tiles"].items()
+    }
+    result["seconds"] = time.perf_counter() - t0
+    (OUT / "classify.partial.json").unlink(missing_ok=True)
+    (OUT / "classify.json").write_text(json.dumps(result, indent=1))
+    chart(result, OUT / "classify.png")
+    for part in ("across_tiles", "scribbles"):
+        for m, r in result[part].items():
+            if m == "coverage":
+                continue
+            miou = r.get("miou", r.get("mean_miou_over_photos"))
+            log(f"{part:12s} {m:14s} mIoU {miou:.3f}  {r['mpx_per_s']:.2f} Mpx/s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""The trained-classifier file: a zip holding ``meta.json`` and ``forest.yml``.
+
+``meta.json`` : ``{"format": "terratheme-classifier", "version": 1,
+"classes": [...], "options": {...}}`` (options as plain JSON, enums by value);
+``forest.yml`` : the OpenCV random forest as OpenCV's own YAML (absent when the
+model has a single class). Written atomically; a newer version raises
+UnsupportedVersionError, a damaged file CorruptFileError.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+from dataclasses import asdict
+from pathlib import Path
+
+import cv2
+
+from core.atomic import write_bytes_atomic
+from core.classify.features import FeatureOptions, FeatureSet, Normalise
+from core.classify.regularise import Regularisation, RegulariseOptions
+from core.classify.supervised import Classifier, SupervisedOptions
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+
+FORMAT = "terratheme-classifier"
+VERSION = 1
+
+
+def _options_to_json(options: SupervisedOptions) -> dict:
+    d = asdict(options)
+    d["features"]["feature_set"] = options.features.feature_set.value
+    d["features"]["normalise"] = options.features.normalise.value
+    d["regularisation"]["method"] = options.regularisation.method.value
+    return d
+
+
+def _options_from_json(d: dict) -> SupervisedOptions:
+    f = dict(d["features"])
+    f["feature_set"] = FeatureSet(f["feature_set"])
+    f["normalise"] = Normalise(f.get("normalise", "none"))
+    f["sigmas"] = tuple(f["sigmas"])
+    r = dict(d["regularisation"])
+    r["method"] = Regularisation(r["method"])
+    rest = {k: v for k, v in d.items() if k not in ("features", "regularisation")}
+    rest["ignore_classes"] = tuple(rest.get("ignore_classes", ()))
+    return SupervisedOptions(features=FeatureOptions(**f),
+                             regularisation=RegulariseOptions(**r), **rest)
+
+
+def save_classifier(model: Classifier, path: str | os.PathLike) -> None:
+    """Write ``model`` to ``path`` (atomic)."""
+    meta = {"format": FORMAT, "version": VERSION, "classes": list(model.classes),
+            "options": _options_to_json(model.options)}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("meta.json", json.dumps(meta, indent=1))
+        if model.forest is not None:
+            fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+            model.forest.write(fs)
+            zf.writestr("forest.yml", fs.releaseAndGetString())
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def load_classifier(path: str | os.PathLike) -> Classifier:
+    """Read a model written by :func:`save_classifier`.
+
+    Raises
+    ------
+    TerrathemeError
+        Missing file.
+    CorruptFileError
+        Not a classifier file, or damaged.
+    UnsupportedVersionError
+        Written by a newer version.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise TerrathemeError(f"{p}: no such model file")
+    try:
+        with zipfile.ZipFile(p) as zf:
+            meta = json.loads(zf.read("meta.json"))
+            forest_text = zf.read("forest.yml").decode() if "forest.yml" in zf.namelist() else None
+    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CorruptFileError(f"{p}: not a terratheme classifier file ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise CorruptFileError(f"{p}: not a terratheme classifier file")
+    if not isinstance(meta.get("version"), int) or meta["version"] > VERSION:
+        raise UnsupportedVersionError(
+            f"{p}: classifier file version {meta.get('version')} is newer than this "
+            f"terratheme reads ({VERSION})"
+        )
+    try:
+        options = _options_from_json(meta["options"])
+        classes = [int(c) for c in meta["classes"]]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
+    forest = None
+    if forest_text is not None:
+        try:
+            fs = cv2.FileStorage(forest_text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+            forest = cv2.ml.RTrees_create()
+            forest.read(fs.root())
+        except cv2.error as exc:
+            raise CorruptFileError(f"{p}: damaged forest ({str(exc).strip()[:80]})") from None
+        if not forest.isTrained():
+            raise CorruptFileError(f"{p}: damaged forest (not trained)")
+    if (forest is None) != (len(classes) == 1) or not classes:
+        raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
+    return Classifier(forest, classes, options)

@@ -1,0 +1,335 @@
+"""Supervised classes: a random forest (OpenCV ``cv2.ml.RTrees``) on the features.
+
+Training data are ``(photo, mask)`` pairs. A mask has the photo's size; 0 is
+*unlabelled* and ``k > 0`` is class ``k``. The same rule covers brush
+scribbles (mostly 0) and full label masks of other photos. Each coarse pixel
+(``scale x scale`` block, see :mod:`core.classify.features`) takes the class
+that covers most of its labelled pixels, so a one-pixel stroke still teaches
+the block it crosses. Classes listed in ``ignore_classes`` (e.g. Dubai's 6
+"Unlabeled" and 7) are treated as unlabelled.
+
+Samples are capped per class (``max_samples_per_class``, random, seeded) and,
+with ``balance``, the forest's class priors are set so every class weighs the
+same whatever its area, which is what a mean-IoU user wants from thin roads.
+
+Confidence is the winning class's share of the trees' votes (as ilastik and
+Orfeo ToolBox report it), after spatial regularisation.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from core.classify.features import FeatureOptions, Normalise, photo_statistics
+from core.classify.photo import prepare_photo
+from core.classify.regularise import RegulariseOptions
+from core.classify.result import Classification
+from core.classify.tiled import iter_tile_features, predict_tiled
+from core.errors import TerrathemeError
+
+
+@dataclass(frozen=True)
+class SupervisedOptions:
+    """Options of :func:`train_classifier`.
+
+    Attributes
+    ----------
+    features : FeatureOptions
+    regularisation : RegulariseOptions
+    ignore_classes : tuple of int
+        Mask values treated as unlabelled (besides 0).
+    n_trees : int
+        Trees in the forest.
+    max_depth : int
+        Depth limit of each tree.
+    min_samples : int
+        Smallest node that is still split.
+    active_vars : int
+        Features tried per split (0: ``sqrt(F)``).
+    max_samples_per_class : int
+        Cap on training samples of one class (over all pairs).
+    balance : bool
+        Equal class priors whatever the sample counts.
+    seed : int
+        Sampling and forest RNG seed.
+    tile : int
+        Tile core size in photo pixels.
+    """
+
+    features: FeatureOptions = field(default_factory=FeatureOptions)
+    regularisation: RegulariseOptions = field(default_factory=RegulariseOptions)
+    ignore_classes: tuple[int, ...] = ()
+    n_trees: int = 24
+    max_depth: int = 12
+    min_samples: int = 4
+    active_vars: int = 0
+    max_samples_per_class: int = 15000
+    balance: bool = True
+    seed: int = 0
+    tile: int = 2048
+
+    def __post_init__(self) -> None:
+        if self.n_trees < 1 or self.max_depth < 1 or self.max_samples_per_class < 1:
+            raise TerrathemeError(
+                "n_trees, max_depth and max_samples_per_class must be at least 1 "
+                f"(got {self.n_trees}, {self.max_depth}, {self.max_samples_per_class})"
+            )
+        if self.tile < 16:
+            raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
+
+
+def _check_mask(mask: np.ndarray, shape: tuple[int, int], index: int) -> np.ndarray:
+    m = np.asarray(mask)
+    if m.ndim == 3 and m.shape[2] == 1:
+        m = m[:, :, 0]
+    if m.ndim != 2:
+        raise TerrathemeError(
+            f"label mask {index}: shape {m.shape} is not single-channel (H, W)"
+        )
+    if m.shape != shape:
+        raise TerrathemeError(
+            f"label mask {index} is {m.shape[1]} x {m.shape[0]} pixels but its photo is "
+            f"{shape[1]} x {shape[0]}: a mask must have the photo's size"
+        )
+    if not np.issubdtype(m.dtype, np.integer):
+        raise TerrathemeError(f"label mask {index}: values must be integers, not {m.dtype}")
+    if m.size and (int(m.min()) < 0 or int(m.max()) > 255):
+        raise TerrathemeError(f"label mask {index}: class values must be 0..255")
+    return m.astype(np.uint8, copy=False)
+
+
+def coarse_mask(mask: np.ndarray, scale: int, classes: Iterable[int]) -> np.ndarray:
+    """Class of each coarse pixel: the class covering most of its labelled pixels.
+
+    Parameters
+    ----------
+    mask : (H, W) uint8 ndarray
+        0 = unlabelled.
+    scale : int
+    classes : iterable of int
+        Classes to keep (others count as unlabelled).
+
+    Returns
+    -------
+    coarse : (ceil(H/scale), ceil(W/scale)) uint8 ndarray, 0 = no label
+    """
+    h, w = mask.shape
+    hc, wc = -(-h // scale), -(-w // scale)
+    best_frac = np.zeros((hc, wc), np.float32)
+    coarse = np.zeros((hc, wc), np.uint8)
+    for k in classes:
+        hit = (mask == k).astype(np.float32)
+        if scale > 1:
+            # Zero padding: padded pixels are unlabelled; INTER_AREA gives the block share.
+            hit = np.pad(hit, ((0, hc * scale - h), (0, wc * scale - w)))
+            hit = cv2.resize(hit, (wc, hc), interpolation=cv2.INTER_AREA)
+        better = hit > best_frac
+        coarse[better] = k
+        best_frac[better] = hit[better]
+    return coarse
+
+
+def _stats(rgb, valid, fo: FeatureOptions):
+    return None if fo.normalise is Normalise.NONE else photo_statistics(rgb, valid)
+
+
+def _pair_samples(photo, mask, index, classes, options):
+    """Labelled coarse feature vectors of one pair -> (features (n, F), labels (n,))."""
+    rgb, valid = prepare_photo(photo)
+    m = _check_mask(mask, rgb.shape[:2], index)
+    if valid is not None:
+        m = np.where(valid, m, 0).astype(np.uint8)
+    fo, scale = options.features, options.features.scale
+    target = coarse_mask(m, scale, classes)
+    stats = _stats(rgb, valid, fo)
+    feats_out, labels_out = [], []
+    for win, _lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo, stats):
+        # Labelled coarse pixels of this tile's core.
+        cy0, cx0 = win.y0 // scale, win.x0 // scale
+        cy1, cx1 = -(-win.y1 // scale), -(-win.x1 // scale)
+        lab_core = target[cy0:cy1, cx0:cx1]
+        if not lab_core.any():
+            continue
+        oy, ox = cy0 - win.oy0 // scale, cx0 - win.ox0 // scale
+        core = feats[oy : oy + lab_core.shape[0], ox : ox + lab_core.shape[1]]
+        sel = lab_core > 0
+        feats_out.append(core[sel])
+        labels_out.append(lab_core[sel])
+    if not feats_out:
+        return np.zeros((0, fo.n_features), np.float32), np.zeros(0, np.uint8)
+    return np.concatenate(feats_out), np.concatenate(labels_out)
+
+
+def _mask_classes(pairs, ignore) -> list[int]:
+    found: set[int] = set()
+    for _photo, mask in pairs:
+        found.update(int(v) for v in np.unique(np.asarray(mask)))
+    return sorted(found - {0} - set(ignore))
+
+
+def collect_samples(
+    pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Training samples from photo/mask pairs, capped per class.
+
+    Returns
+    -------
+    features : (n, F) float32 ndarray
+    labels : (n,) int32 ndarray of class values
+    """
+    if len(pairs) == 0:
+        raise TerrathemeError("no training data: give at least one photo with a label mask")
+    for i, (photo, mask) in enumerate(pairs):
+        _check_mask(mask, np.asarray(photo).shape[:2], i)
+    classes = _mask_classes(pairs, options.ignore_classes)
+    if not classes:
+        raise TerrathemeError(
+            "the label masks name no class (all pixels 0 or ignored): paint at least one class"
+        )
+    rng = np.random.default_rng(options.seed)
+    cap = options.max_samples_per_class
+    per_class: dict[int, list[np.ndarray]] = {k: [] for k in classes}
+    for i, (photo, mask) in enumerate(pairs):
+        feats, labels = _pair_samples(photo, mask, i, classes, options)
+        for k in classes:
+            sel = feats[labels == k]
+            # Cap each pair's share so one big photo does not crowd out the others.
+            if len(sel) > cap:
+                sel = sel[rng.choice(len(sel), cap, replace=False)]
+            per_class[k].append(sel)
+    xs, ys = [], []
+    for k in classes:
+        sel = np.concatenate(per_class[k])
+        if len(sel) > cap:
+            sel = sel[rng.choice(len(sel), cap, replace=False)]
+        xs.append(sel)
+        ys.append(np.full(len(sel), k, np.int32))
+    x, y = np.concatenate(xs).astype(np.float32), np.concatenate(ys)
+    if len(y) == 0:
+        raise TerrathemeError("the labelled pixels are all transparent: nothing to train on")
+    return x, y
+
+
+class Classifier:
+    """A trained random forest and the options it was trained with.
+
+    Use :func:`train_classifier` to make one, :meth:`predict` to classify a
+    photo, :meth:`save` / :meth:`load` to keep it.
+    """
+
+    def __init__(self, forest: cv2.ml.RTrees | None, classes: Sequence[int],
+                 options: SupervisedOptions) -> None:
+        self.forest = forest
+        self.classes = tuple(int(c) for c in classes)
+        self.options = options
+
+    def probabilities(self, feats: np.ndarray) -> np.ndarray:
+        """Class probabilities (vote shares) of a coarse feature stack.
+
+        Parameters
+        ----------
+        feats : (h, w, F) float32 ndarray
+
+        Returns
+        -------
+        probs : (h, w, C) float32 ndarray, channel order ``self.classes``
+        """
+        h, w, f = feats.shape
+        if self.forest is None:
+            return np.ones((h, w, 1), np.float32)
+        votes = self.forest.getVotes(np.ascontiguousarray(feats.reshape(-1, f)), 0)
+        # Row 0 of getVotes holds the class value of each column.
+        order = [int(c) for c in votes[0]]
+        counts = votes[1:].astype(np.float32)
+        probs = np.zeros((h * w, len(self.classes)), np.float32)
+        for col, value in enumerate(order):
+            probs[:, self.classes.index(value)] = counts[:, col]
+        probs /= np.maximum(probs.sum(1, keepdims=True), 1.0)
+        return probs.reshape(h, w, len(self.classes))
+
+    def predict(self, photo: np.ndarray,
+                progress: Callable[[int, int], None] | None = None) -> Classification:
+        """Classify a photo.
+
+        Parameters
+        ----------
+        photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray
+        progress : callable, optional
+            ``(done, total)`` over tiles.
+
+        Returns
+        -------
+        Classification
+            labels (H, W) uint8 with the training masks' class values.
+        """
+        rgb, valid = prepare_photo(photo)
+        opts = self.options
+        return predict_tiled(rgb, valid, self.probabilities, self.classes, opts.features,
+                             opts.regularisation, opts.tile, progress,
+                             _stats(rgb, valid, opts.features))
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the model to a file (atomic); see :mod:`core.classify.model_file`."""
+        from core.classify.model_file import save_classifier
+
+        save_classifier(self, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Classifier:
+        """Read a model written by :meth:`save`."""
+        from core.classify.model_file import load_classifier
+
+        return load_classifier(path)
+
+
+def build_forest(x: np.ndarray, y: np.ndarray, options: SupervisedOptions) -> cv2.ml.RTrees:
+    """Train an OpenCV random forest on samples ``x`` (n, F) with class values ``y`` (n,)."""
+    classes, counts = np.unique(y, return_counts=True)
+    rt = cv2.ml.RTrees_create()
+    rt.setMaxDepth(options.max_depth)
+    rt.setMinSampleCount(options.min_samples)
+    rt.setActiveVarCount(options.active_vars)
+    rt.setCalculateVarImportance(False)
+    rt.setTermCriteria((cv2.TERM_CRITERIA_MAX_ITER, options.n_trees, 0))
+    if options.balance:
+        # Priors in ascending class order: each class's total weight becomes equal.
+        rt.setPriors((counts.max() / counts).astype(np.float32).reshape(1, -1))
+    cv2.setRNGSeed(options.seed)
+    rt.train(np.ascontiguousarray(x, np.float32), cv2.ml.ROW_SAMPLE, y.astype(np.int32))
+    return rt
+
+
+def train_classifier(
+    pairs_or_scribbles: Sequence[tuple[np.ndarray, np.ndarray]],
+    options: SupervisedOptions | None = None,
+) -> Classifier:
+    """Train a classifier from scribbles or full label masks.
+
+    Parameters
+    ----------
+    pairs_or_scribbles : sequence of (photo, mask)
+        photo (H, W, 3|4) uint8/uint16; mask (H, W) integer, 0 = unlabelled,
+        k > 0 = class k. Scribbles on the photo to classify and full masks of
+        other photos both fit.
+    options : SupervisedOptions, optional
+
+    Returns
+    -------
+    Classifier
+        With one class only, every pixel gets that class (confidence 1).
+
+    Raises
+    ------
+    TerrathemeError
+        No pairs, a mask of the wrong size or type, no labelled pixel.
+    """
+    opts = options or SupervisedOptions()
+    x, y = collect_samples(pairs_or_scribbles, opts)
+    classes = tuple(int(c) for c in np.unique(y))
+    forest = build_forest(x, y, opts) if len(classes) > 1 else None
+    return Classifier(forest, classes, opts)

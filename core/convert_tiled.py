@@ -1,0 +1,213 @@
+"""The vertex grid of a photo larger than memory: classify and vote tile by tile.
+
+Each tile job owns a block of grid vertices: it reads the pixels those
+vertices vote over (:func:`core.labels_to_grid.vertex_window`) plus
+``overlap`` pixels of context for the classifier's features, through
+:func:`core.image_io.read_region`; classifies them; maps classes to theme
+indices; crops the context away and votes (:func:`vote_vertices`). The grid
+is the only whole-image array (one byte per vertex), so peak memory is set by
+the tile size, not the photo size (``benchmarks/bench_convert.py``). The
+result equals :func:`core.labels_to_grid.vote_grid` on the whole label image
+whenever the classifier's output on a tile with ``overlap`` context equals
+its output on the whole photo there (tested with a per-pixel classifier).
+
+Jobs run serially or on Dask (:class:`core.tiled.Scheduler`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.grid import IndexGrid, validate_cell
+from core.image_io import image_info
+from core.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
+from core.tiled import Scheduler, TileWindow, run_tiles
+
+ClassifyFn = Callable[[np.ndarray], np.ndarray]
+
+
+def vertex_tiles(
+    size: tuple[int, int], cell: tuple[int, int], tile: int, overlap: int
+) -> dict[TileWindow, tuple[tuple[int, int], tuple[int, int]]]:
+    """Tile windows, each with the vertex block it owns.
+
+    Parameters
+    ----------
+    size : (W, H) photo size
+    cell : (N, M)
+    tile : int
+        About this many pixels per tile side (rounded to whole cells).
+    overlap : int
+        Context pixels read around each tile's vote window.
+
+    Returns
+    -------
+    {TileWindow: ((row0, row1), (col0, col1))}
+    """
+    w, h = size
+    n, m = cell
+    rows, cols = grid_shape_for(w, h, (n, m))
+    bc, br = max(1, int(tile) // n), max(1, int(tile) // m)
+    out = {}
+    for r0 in range(0, rows, br):
+        for c0 in range(0, cols, bc):
+            vr, vc = (r0, min(rows, r0 + br)), (c0, min(cols, c0 + bc))
+            x, y, ww, hh = vertex_window(vr, vc, (n, m), (w, h))
+            rx, ry = max(0, x - overlap), max(0, y - overlap)
+            rx1, ry1 = min(w, x + ww + overlap), min(h, y + hh + overlap)
+            out[TileWindow(x, y, ww, hh, rx, ry, rx1 - rx, ry1 - ry)] = (vr, vc)
+    return out
+
+
+def grid_from_file(
+    path: str | os.PathLike,
+    cell: tuple[int, int] | int,
+    classify: ClassifyFn,
+    *,
+    lut: Sequence[int] | np.ndarray | None = None,
+    tile: int = 1024,
+    overlap: int = 32,
+    scheduler: Scheduler = Scheduler.SERIAL,
+    progress: Callable[[int, int], None] | None = None,
+) -> IndexGrid:
+    """The vertex grid of an image file, classified and voted tile by tile.
+
+    Parameters
+    ----------
+    path : path-like
+        The photo; tiled TIFF/EXR read only the tiles a window touches.
+    cell : (N, M) or int
+    classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
+        Per-tile class values (e.g. ``lambda t: model.predict(t).labels``).
+    lut : (256,) int array-like, optional
+        Class value -> theme index (default: identity).
+    tile : int
+        Tile side in pixels (rounded to whole cells).
+    overlap : int
+        Context pixels around each tile (the classifier's feature support).
+    scheduler : Scheduler
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    IndexGrid
+    """
+    cell = (cell, cell) if isinstance(cell, int | np.integer) else tuple(cell)
+    n, m = validate_cell(cell)
+    if int(tile) < 1 or int(overlap) < 0:
+        raise TerrathemeError(f"tile must be >= 1 and overlap >= 0, got {tile} and {overlap}")
+    info = image_info(path)
+    size = (info.width, info.height)
+    table = None
+    if lut is not None:
+        table = np.asarray(lut)
+        if table.shape != (256,):
+            raise TerrathemeError(f"class-to-theme table must be 256 integers, got {table.shape}")
+        table = table.astype(np.uint8)
+    tiles = vertex_tiles(size, (n, m), tile, overlap)
+
+    def job(win: TileWindow, pixels: np.ndarray) -> np.ndarray:
+        # Classify with context, map to themes, crop to the vote window, vote.
+        labels = np.asarray(classify(pixels))
+        if labels.shape[:2] != pixels.shape[:2]:
+            raise TerrathemeError(
+                f"classifier returned {labels.shape} labels for a {pixels.shape[:2]} tile"
+            )
+        labels = labels.reshape(pixels.shape[:2]).astype(np.uint8)
+        if table is not None:
+            labels = table[labels]
+        core = labels[win.core_in_read]
+        vr, vc = tiles[win]
+        return vote_vertices(core, (win.x, win.y), size, (n, m), vr, vc)
+
+    rows, cols = grid_shape_for(info.width, info.height, (n, m))
+    grid = np.zeros((rows, cols), np.uint8)
+
+    def sink(win: TileWindow, block: np.ndarray) -> None:
+        (r0, r1), (c0, c1) = tiles[win]
+        grid[r0:r1, c0:c1] = block
+
+    run_tiles(path, job, sink, windows=list(tiles), scheduler=scheduler, progress=progress)
+    return IndexGrid(grid, (n, m))
+
+
+#: side of the centre window themes are cut from on the tiled path
+THEME_WINDOW = 2048
+
+
+def convert_file_tiled(
+    path: str | os.PathLike,
+    model,
+    cell: int,
+    *,
+    names: Sequence[str] | dict[int, str] | None = None,
+    tile: int = 1024,
+    overlap: int = 32,
+    scheduler: Scheduler = Scheduler.SERIAL,
+    progress: Callable[[int, int], None] | None = None,
+):
+    """A project for a photo larger than memory, with a trained classifier.
+
+    Parameters
+    ----------
+    path : path-like
+        The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
+    model : core.classify.Classifier
+        Gives the class values (``model.classes``).
+    cell : int
+        Square cell size (``cell="auto"`` needs the whole label map: use
+        :func:`core.convert.convert_photo` for photos that fit in memory).
+    names : list or {class: name}, optional
+        Shipped themes by name; default: themes cut from the centre
+        ``THEME_WINDOW``-pixel window of the photo (classes absent there get
+        a grey flat theme).
+    tile, overlap, scheduler, progress : see :func:`grid_from_file`
+
+    Returns
+    -------
+    project : ThematicTexture
+        Metadata: ``source_photo``, ``georeference``, ``photo_size``, ``classes``;
+        no photo layer (it does not fit in memory).
+    """
+    from core.georef import read_georeference
+    from core.image_io import read_region
+    from core.photo_themes import themes_by_name, themes_from_photo
+    from core.project import ThematicTexture
+
+    info = image_info(path)
+    # Themes from the centre window of the photo, classified by the model.
+    side_w, side_h = min(THEME_WINDOW, info.width), min(THEME_WINDOW, info.height)
+    x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
+    window = read_region(path, x0, y0, side_w, side_h)
+    win_result = model.predict(window)
+    from core.classify.photo import prepare_photo
+
+    rgb, _ = prepare_photo(window)
+    if names:
+        # Every class the model can give needs a name (list: in class order).
+        named = dict(names) if isinstance(names, dict) else dict(zip(model.classes, names,
+                                                                     strict=False))
+        missing = [c for c in model.classes if c not in named]
+        if missing or (not isinstance(names, dict) and len(names) != len(model.classes)):
+            raise TerrathemeError(
+                f"the classifier gives classes {list(model.classes)}: name each one "
+                f"({', '.join(f'{c}=name' for c in model.classes)})"
+            )
+        mapping = themes_by_name(rgb, win_result.labels, named)
+    else:
+        mapping = themes_from_photo(rgb, win_result.labels, classes=model.classes)
+    grid = grid_from_file(path, int(cell), lambda p: model.predict(p).labels, lut=mapping.lut,
+                          tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
+    meta = {
+        "source_photo": str(path), "created_by": "terratheme convert (tiled)",
+        "photo_size": [info.width, info.height],
+        "classes": {str(c): mapping.library[int(mapping.lut[c])].name for c in mapping.classes},
+    }
+    geo = read_georeference(path)
+    if geo:
+        meta["georeference"] = geo
+    return ThematicTexture(grid, mapping.library, meta)

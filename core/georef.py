@@ -1,0 +1,241 @@
+"""GeoTIFF georeference: read it from a photo, write it back onto outputs.
+
+The OpenImageIO 3.2 wheel used here reads and writes pixels of GeoTIFF files
+but exposes none of their georeference tags (measured on
+``data/geotiff/DRCOG_2020_*.tif``: its spec lists only ``tiff:Compression``,
+``tiff:PhotometricInterpretation``, ...; attributes named ``geotiff:*`` given
+to an ImageOutput are silently dropped). So:
+
+* reading: attributes OpenImageIO does expose under ``GeoTIFF:``/``geotiff:``
+  names are kept, and the GeoTIFF tags themselves are read with ``tifffile``
+  (a scikit-image dependency; metadata only, pixels still come through
+  OpenImageIO);
+* writing: the image is written by OpenImageIO (``core.image_io`` or a tiled
+  writer) and the tags are then added by appending a new first IFD that
+  holds every original entry plus the GeoTIFF ones (the TIFF 6.0 way to
+  extend a directory without moving pixel data). Classic TIFF and BigTIFF.
+* non-TIFF outputs (PNG previews) get an ESRI world file (``.pgw``) beside
+  them, computed from the pixel scale and tie point.
+
+The georeference is a plain JSON-ready ``dict`` (tag name -> list / str), so
+it travels in a project's ``metadata["georeference"]``.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from pathlib import Path
+
+from core.atomic import write_bytes_atomic
+from core.errors import CorruptFileError, TerrathemeError
+
+#: GeoTIFF / GDAL tags kept: code -> (name, TIFF type, struct code)
+GEO_TAGS = {
+    33550: ("ModelPixelScale", 12, "d"),
+    33922: ("ModelTiepoint", 12, "d"),
+    34264: ("ModelTransformation", 12, "d"),
+    34735: ("GeoKeyDirectory", 3, "H"),
+    34736: ("GeoDoubleParams", 12, "d"),
+    34737: ("GeoAsciiParams", 2, "s"),
+    42112: ("GDAL_METADATA", 2, "s"),
+    42113: ("GDAL_NODATA", 2, "s"),
+}
+_NAME_TO_CODE = {v[0]: k for k, v in GEO_TAGS.items()}
+_TIFF_SUFFIXES = (".tif", ".tiff")
+_PIXEL_IS_POINT_KEY = 1025
+
+
+def read_georeference(path: str | os.PathLike) -> dict:
+    """The georeference of an image file, or ``{}`` when it has none.
+
+    Returns
+    -------
+    georef : dict
+        ``{"ModelPixelScale": [sx, sy, sz], "ModelTiepoint": [i, j, k, x, y, z],
+        "GeoKeyDirectory": [...], "GeoAsciiParams": "...", ...}`` for the tags
+        present, plus ``"oiio": {name: value}`` for georeference attributes
+        OpenImageIO exposes itself.
+    """
+    import OpenImageIO as oiio
+
+    p = Path(path)
+    if not p.is_file():
+        raise TerrathemeError(f"{p}: no such file")
+    georef: dict = {}
+    inp = oiio.ImageInput.open(str(p))
+    if inp is None:
+        raise CorruptFileError(f"{p}: cannot read as an image ({oiio.geterror().strip()})")
+    try:
+        exposed = {
+            a.name: _jsonable(a.value)
+            for a in inp.spec().extra_attribs
+            if a.name.lower().startswith("geotiff:")
+        }
+        is_tiff = inp.format_name() == "tiff"
+    finally:
+        inp.close()
+    if exposed:
+        georef["oiio"] = exposed
+    if is_tiff:
+        georef.update(_read_geo_tags(p))
+    return georef
+
+
+def _jsonable(value: object) -> object:
+    if isinstance(value, tuple | list):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, bytes):
+        return value.decode("latin-1")
+    return value
+
+
+def _read_geo_tags(path: Path) -> dict:
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(path) as tif:
+            tags = tif.pages.first.tags
+            out = {}
+            for code, (name, _, _) in GEO_TAGS.items():
+                tag = tags.get(code)
+                if tag is not None:
+                    out[name] = _jsonable(tag.value)
+            return out
+    except (tifffile.TiffFileError, struct.error, ValueError) as exc:
+        raise CorruptFileError(f"{path}: damaged TIFF directory ({exc})") from exc
+
+
+def scale_georeference(georef: dict, sx: float, sy: float) -> dict:
+    """The georeference of an image resampled so one new pixel covers ``sx x sy`` old ones.
+
+    The tie point is kept on the raster's corner (pixel-is-area), so only the
+    pixel scale (or the affine transformation's linear part) changes.
+    """
+    out = dict(georef)
+    if "ModelPixelScale" in out:
+        px = list(out["ModelPixelScale"])
+        out["ModelPixelScale"] = [px[0] * sx, px[1] * sy, *px[2:]]
+    if "ModelTransformation" in out:
+        t = list(out["ModelTransformation"])
+        for r in range(4):
+            t[4 * r] *= sx
+            t[4 * r + 1] *= sy
+        out["ModelTransformation"] = t
+    return out
+
+
+def write_georeference(path: str | os.PathLike, georef: dict) -> list[Path]:
+    """Attach ``georef`` to an image file already written; returns the files changed or made.
+
+    TIFF files get the GeoTIFF tags in their first directory; other formats
+    get an ESRI world file beside them (``.pgw`` for PNG, ``.jgw`` for JPEG,
+    ``.wld`` otherwise). An empty georeference does nothing.
+    """
+    p = Path(path)
+    if not georef:
+        return []
+    if p.suffix.lower() in _TIFF_SUFFIXES:
+        add_tiff_tags(p, georef)
+        return [p]
+    world = world_file_lines(georef)
+    if world is None:
+        return []
+    ext = {".png": ".pgw", ".jpg": ".jgw", ".jpeg": ".jgw"}.get(p.suffix.lower(), ".wld")
+    target = p.with_suffix(ext)
+    write_bytes_atomic(target, ("\n".join(f"{v:.12g}" for v in world) + "\n").encode())
+    return [target]
+
+
+def world_file_lines(georef: dict) -> list[float] | None:
+    """The six numbers of an ESRI world file (A, D, B, E, C, F: centre of the top-left pixel)."""
+    keys = georef.get("GeoKeyDirectory") or []
+    point = any(
+        keys[i] == _PIXEL_IS_POINT_KEY and keys[i + 3] == 2 for i in range(4, len(keys) - 3, 4)
+    )
+    half = 0.0 if point else 0.5
+    if "ModelTransformation" in georef:
+        t = georef["ModelTransformation"]
+        a, b, c, d, e, f = t[0], t[1], t[3], t[4], t[5], t[7]
+        return [a, d, b, e, c + (a + b) * half, f + (d + e) * half]
+    if "ModelPixelScale" in georef and "ModelTiepoint" in georef:
+        sx, sy = georef["ModelPixelScale"][:2]
+        i, j, _, x, y, _ = georef["ModelTiepoint"][:6]
+        x0, y0 = x - i * sx, y + j * sy
+        return [sx, 0.0, 0.0, -sy, x0 + sx * half, y0 - sy * half]
+    return None
+
+
+def add_tiff_tags(path: str | os.PathLike, georef: dict) -> None:
+    """Add the GeoTIFF tags of ``georef`` to the first directory of a TIFF file, in place.
+
+    A new directory (old entries + GeoTIFF entries, sorted by tag) is appended
+    at the end of the file, then the header is pointed at it (the last write,
+    8 bytes at most: an interrupted call leaves the old directory in force).
+    Pixel data never moves and is never read, so any file size works.
+    """
+    p = Path(path)
+    with open(p, "r+b") as fh:
+        head = fh.read(16)
+        if head[:2] not in (b"II", b"MM"):
+            raise TerrathemeError(f"{p}: not a TIFF file")
+        bo = "<" if head[:2] == b"II" else ">"
+        magic = struct.unpack_from(bo + "H", head, 2)[0]
+        if magic == 42:
+            big, ptr_fmt, cnt_fmt, entry_size, hdr_ptr = False, "I", "H", 12, 4
+        elif magic == 43:
+            big, ptr_fmt, cnt_fmt, entry_size, hdr_ptr = True, "Q", "Q", 20, 8
+        else:
+            raise CorruptFileError(f"{p}: bad TIFF magic number {magic}")
+        inline = 8 if big else 4
+        ifd = struct.unpack_from(bo + ptr_fmt, head, hdr_ptr)[0]
+        # Read the first directory's raw entries (kept verbatim: their offsets stay valid).
+        fh.seek(ifd)
+        count = struct.unpack(bo + cnt_fmt, fh.read(struct.calcsize(cnt_fmt)))[0]
+        raw = fh.read(count * entry_size + struct.calcsize(ptr_fmt))
+        if len(raw) != count * entry_size + struct.calcsize(ptr_fmt):
+            raise CorruptFileError(f"{p}: truncated TIFF directory")
+        entries = {
+            struct.unpack_from(bo + "H", raw, e * entry_size)[0]:
+                raw[e * entry_size : (e + 1) * entry_size]
+            for e in range(count)
+        }
+        next_ifd = struct.unpack_from(bo + ptr_fmt, raw, count * entry_size)[0]
+        end = fh.seek(0, os.SEEK_END)
+        tail = bytearray(b"\0" if end % 2 else b"")
+        base = end
+        # Encode every GeoTIFF tag; values too long for the entry go after the file's end.
+        for name, value in georef.items():
+            code = _NAME_TO_CODE.get(name)
+            if code is None:
+                continue
+            _, ttype, fmt = GEO_TAGS[code]
+            if fmt == "s":
+                payload = str(value).encode("latin-1") + b"\0"
+                n = len(payload)
+            else:
+                vals = list(value)
+                payload = struct.pack(f"{bo}{len(vals)}{fmt}", *vals)
+                n = len(vals)
+            if len(payload) <= inline:
+                field = payload.ljust(inline, b"\0")
+            else:
+                if len(tail) % 2:
+                    tail += b"\0"
+                field = struct.pack(bo + ptr_fmt, base + len(tail))
+                tail += payload
+            entries[code] = struct.pack(bo + "HH" + ptr_fmt, code, ttype, n) + field
+        # Append the new directory (word-aligned), then point the header at it.
+        if len(tail) % 2:
+            tail += b"\0"
+        new_ifd = base + len(tail)
+        tail += struct.pack(bo + cnt_fmt, len(entries))
+        for code in sorted(entries):
+            tail += entries[code]
+        tail += struct.pack(bo + ptr_fmt, next_ifd)
+        if not big and base + len(tail) >= 1 << 32:
+            raise TerrathemeError(f"{p}: too large for classic TIFF after adding GeoTIFF tags")
+        fh.write(bytes(tail))
+        fh.flush()
+        fh.seek(hdr_ptr)
+        fh.write(struct.pack(bo + ptr_fmt, new_ifd))

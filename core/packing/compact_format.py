@@ -1,0 +1,160 @@
+"""The compact run payload: separated, entropy-coded streams (beyond the seed).
+
+The seed's interleaved varint pairs (section 2.4) are larger than PNG on real
+maps. Here the palette indices and the run lengths are two separate streams,
+each coded by whichever of these is smallest for the layer at hand (measured
+in ``benchmarks/bench_packing.py``):
+
+* ``MODEL``: the context-modelled range coder of :mod:`core.packing.range_coder`
+  (indices in the context of the two previous indices; lengths in the
+  context of their run's index);
+* ``ZSTD``: the raw stream (index bytes, or the seed's varints for the
+  lengths) through zstd level 19; it wins when a map repeats long stretches
+  of runs (DRCOG's lengths: 494,933 bytes against the model's 527,000), which
+  a dictionary coder finds and an order-0 context model does not. (xz was
+  measured too and never won: 496,153 bytes there, twice the time.)
+
+Layout::
+
+    u8   U - 1: number of palette indices used
+    U    the used indices, increasing (symbols are ranks in this list)
+    u8   codec of the index stream     u8  codec of the length stream
+    u64  bytes of the index stream     u64 bytes of the length stream
+    ...  index stream, then length stream
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+
+import numpy as np
+import zstandard
+
+from core.errors import CorruptFileError
+from core.packing import range_coder
+from core.packing.seed_format import decode_varint_stream, encode_varints
+
+_HEAD = struct.Struct("<BBQQ")
+
+
+class Codec(enum.IntEnum):
+    """Entropy stage of one stream."""
+
+    MODEL = 0
+    ZSTD = 1
+
+
+def _depth(n_used: int) -> int:
+    return max(1, int(n_used - 1).bit_length())
+
+
+def _model_symbols(sym: np.ndarray, n_used: int) -> bytes:
+    depth = _depth(n_used)
+    size = sym.size * depth * 3 // 8 + 64
+    while True:
+        out = np.empty(size, np.uint8)
+        used, over = range_coder.encode_symbols(sym, n_used, depth, n_used <= 16, out)
+        if not over:
+            return out[: int(used)].tobytes()
+        size *= 4
+
+
+def _model_lengths(lengths: np.ndarray, sym: np.ndarray, n_used: int) -> bytes:
+    size = lengths.size * 2 + 64
+    while True:
+        out = np.empty(size, np.uint8)
+        used, over = range_coder.encode_lengths(lengths, sym, n_used, out)
+        if not over:
+            return out[: int(used)].tobytes()
+        size *= 4
+
+
+def _general(raw: bytes) -> dict[Codec, bytes]:
+    return {Codec.ZSTD: zstandard.ZstdCompressor(level=19).compress(raw)}
+
+
+def encode_runs(lengths: np.ndarray, indices: np.ndarray, palette_size: int) -> bytes:
+    """Compact payload of runs (lengths >= 1, indices < palette_size)."""
+    indices = np.asarray(indices, dtype=np.uint8)
+    used = np.unique(indices)
+    rank = np.zeros(256, dtype=np.int64)
+    rank[used] = np.arange(used.size)
+    sym = rank[indices]
+    # Candidate encodings of each stream; keep the smallest.
+    p_opts = {Codec.MODEL: _model_symbols(sym, used.size), **_general(indices.tobytes())}
+    table, mask = encode_varints(lengths)
+    l_opts = {Codec.MODEL: _model_lengths(np.asarray(lengths, np.int64), sym, used.size),
+              **_general(table[mask].tobytes())}
+    p_codec = min(p_opts, key=lambda c: len(p_opts[c]))
+    l_codec = min(l_opts, key=lambda c: len(l_opts[c]))
+    head = bytes([used.size - 1]) + used.astype(np.uint8).tobytes()
+    head += _HEAD.pack(p_codec, l_codec, len(p_opts[p_codec]), len(l_opts[l_codec]))
+    return head + p_opts[p_codec] + l_opts[l_codec]
+
+
+def _inflate(data: bytes, name: str, what: str, limit: int) -> bytes:
+    try:
+        return zstandard.ZstdDecompressor().decompress(data, max_output_size=limit)
+    except zstandard.ZstdError as exc:
+        raise CorruptFileError(f"{name}: damaged {what} stream ({exc})") from None
+
+
+def decode_runs(
+    payload: bytes, count: int, palette_size: int, *, name: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`encode_runs`.
+
+    Returns
+    -------
+    lengths : (count,) int64 ndarray
+    indices : (count,) uint8 ndarray
+
+    Raises
+    ------
+    CorruptFileError
+        Truncated or inconsistent streams, unknown codec, impossible values.
+    """
+    if len(payload) < 1:
+        raise CorruptFileError(f"{name}: empty run payload")
+    n_used = payload[0] + 1
+    start = 1 + n_used + _HEAD.size
+    if len(payload) < start:
+        raise CorruptFileError(f"{name}: truncated run payload header")
+    used = np.frombuffer(payload, np.uint8, count=n_used, offset=1)
+    p_codec, l_codec, p_len, l_len = _HEAD.unpack_from(payload, 1 + n_used)
+    if p_codec not in Codec._value2member_map_ or l_codec not in Codec._value2member_map_:
+        raise CorruptFileError(f"{name}: unknown stream codec ({p_codec}, {l_codec})")
+    if start + p_len + l_len != len(payload):
+        raise CorruptFileError(f"{name}: stream sizes do not match the payload size")
+    if np.any(np.diff(used.astype(int)) <= 0):
+        raise CorruptFileError(f"{name}: used-index list is not increasing")
+    p_data = payload[start: start + p_len]
+    l_data = payload[start + p_len:]
+    # Palette indices first: the length model's contexts depend on them.
+    if p_codec == Codec.MODEL:
+        sym = np.empty(count, np.int64)
+        err = range_coder.decode_symbols(np.frombuffer(p_data, np.uint8), count, n_used,
+                                         _depth(n_used), n_used <= 16, sym)
+        if err:
+            raise CorruptFileError(f"{name}: damaged palette-index stream")
+        indices = used[sym]
+    else:
+        raw = _inflate(p_data, name, "palette-index", count + 1)
+        if len(raw) != count:
+            raise CorruptFileError(f"{name}: palette-index stream holds {len(raw)} of {count}")
+        indices = np.frombuffer(raw, np.uint8)
+        rank = np.full(256, -1, dtype=np.int64)
+        rank[used] = np.arange(n_used)
+        sym = rank[indices]
+        if sym.min() < 0:
+            raise CorruptFileError(f"{name}: palette index outside the used-index list")
+    if l_codec == Codec.MODEL:
+        lengths = np.empty(count, np.int64)
+        err = range_coder.decode_lengths(np.frombuffer(l_data, np.uint8), sym, n_used, lengths)
+        if err:
+            raise CorruptFileError(f"{name}: damaged run-length stream")
+    else:
+        raw = _inflate(l_data, name, "run-length", 5 * count + 1)
+        lengths = decode_varint_stream(raw, count, name=name)
+    return lengths, np.ascontiguousarray(indices, dtype=np.uint8)

@@ -1,0 +1,337 @@
+"""The packed index layer in memory (seed section 2.1): header, palette, runs.
+
+A :class:`PackedLayer` answers texel reads without unpacking (:meth:`lookup`),
+rebuilds the image (:meth:`unpack`) and saves to / loads from the two file
+encodings of :mod:`core.packing.container`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.packing.lookup import (
+    W_COUNT,
+    build_table,
+    lookup_batch,
+    lookup_batch_parallel,
+    scalar_lookup_function,
+    table_runs,
+)
+from core.packing.palette import PaletteReport
+from core.sfc import Curve, curve_order
+from core.sfc_scan import fill_runs, ranks_to_steps, steps_to_ranks
+
+_SCALAR: list = []
+
+
+def _scalar():
+    _SCALAR.append(scalar_lookup_function())
+    return _SCALAR[0]
+
+
+_SCALAR_TYPES = frozenset({int, np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
+#: Batches at least this large are looked up on all threads.
+PARALLEL_FROM = 1 << 16
+
+
+@dataclass(frozen=True, eq=False)
+class PackedLayer:
+    """An index layer as runs along a space-filling curve.
+
+    Build one with :func:`core.packing.pack`, :meth:`from_runs` or :meth:`load`.
+
+    Attributes
+    ----------
+    width, height : int
+        Size in texels.
+    curve : Curve
+    palette : (K, C) ndarray, uint8 or uint16
+        Colour of each palette index (``K <= 256``).
+    identity : bool
+        Single-channel index layer whose palette index is the pixel value.
+    squeeze : bool
+        The packed image was 2-D ``(H, W)``; :meth:`unpack` and :meth:`lookup`
+        then drop the channel axis like numpy indexing of that array would.
+    report : PaletteReport or None
+        What palette reduction changed, when it was used.
+    threads : int
+        Threads for batched lookups of at least ``PARALLEL_FROM`` texels
+        (1 = always serial; ``dataclasses.replace(layer, threads=1)``).
+    S, P : (R,) ndarrays
+        The seed's runs: 1-based step of each run's last texel, palette index.
+    """
+
+    width: int
+    height: int
+    curve: Curve
+    palette: np.ndarray
+    identity: bool
+    squeeze: bool
+    _data: np.ndarray = field(repr=False)
+    _scalars: list = field(repr=False)
+    report: PaletteReport | None = None
+    threads: int = 2
+
+    # ------------------------------------------------------------ construction
+
+    @classmethod
+    def from_runs(
+        cls, width: int, height: int, curve: str | Curve, steps: np.ndarray,
+        indices: np.ndarray, palette: np.ndarray, *, identity: bool = False,
+        squeeze: bool = False, report: PaletteReport | None = None, one_based: bool = False,
+    ) -> PackedLayer:
+        """A layer from its runs ``D_i = <S_i, P_i>`` (seed Table 3).
+
+        Parameters
+        ----------
+        steps : (R,) integer ndarray
+            Curve step of each run's last texel, strictly increasing; 0-based
+            unless ``one_based`` (the seed's numbering). The last one must be the
+            step of the image's last texel along the curve.
+        indices : (R,) integer ndarray
+            Palette index ``P_i`` of each run, ``< len(palette)``.
+        palette : (K,) or (K, C) ndarray, uint8 or uint16
+
+        Raises
+        ------
+        TerrathemeError
+            Runs that are not increasing, do not end at the image's last texel,
+            stop on a step outside the image, or use a palette index out of range.
+        """
+        curve = Curve.parse(curve)
+        n = curve_order(width, height)
+        steps = np.asarray(steps, dtype=np.int64) - (1 if one_based else 0)
+        indices = np.asarray(indices)
+        palette = np.asarray(palette)
+        if palette.ndim == 1:
+            palette = palette[:, None]
+        if palette.dtype not in (np.uint8, np.uint16):
+            # Plain integer palettes (e.g. Python lists) take the smallest fitting type.
+            if palette.dtype.kind not in "iu" or palette.min() < 0 or palette.max() > 65535:
+                raise TerrathemeError(
+                    f"palette of {palette.dtype}: uint8 or uint16 colours expected")
+            palette = palette.astype(np.uint8 if palette.max() < 256 else np.uint16)
+        if steps.ndim != 1 or steps.shape != indices.shape or steps.size == 0:
+            raise TerrathemeError(f"runs: {steps.shape} steps and {indices.shape} indices")
+        if not 1 <= palette.shape[0] <= 256 or palette.ndim != 2:
+            raise TerrathemeError(f"palette of shape {palette.shape}: 1 to 256 colours expected")
+        if indices.min() < 0 or indices.max() >= palette.shape[0]:
+            raise TerrathemeError(
+                f"palette index {int(indices.max())} out of range: the palette has "
+                f"{palette.shape[0]} colours"
+            )
+        if steps[0] < 0 or np.any(np.diff(steps) <= 0):
+            raise TerrathemeError("run steps must be strictly increasing and non-negative")
+        last = int(ranks_to_steps(np.array([width * height]), width, height, curve)[0])
+        if steps[-1] != last:
+            raise TerrathemeError(
+                f"the last run ends at step {int(steps[-1])}, but the image's last texel "
+                f"along the {curve.name.lower()} curve is step {last}"
+            )
+        # Every run must end on an image texel (round trip through ranks).
+        ranks = steps_to_ranks(steps.astype(np.uint32), width, height, curve)
+        if ranks.min() < 1:
+            raise TerrathemeError("a run ends on a curve step outside the image")
+        back = ranks_to_steps(ranks, width, height, curve)
+        if not np.array_equal(back.astype(np.int64), steps):
+            raise TerrathemeError("a run ends on a curve step outside the image")
+        data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
+        palette = np.ascontiguousarray(palette)
+        palette.setflags(write=False)
+        # What a scalar lookup returns for each palette index, ready-made (like image[y, x]).
+        scalars = list(palette[:, 0]) if squeeze else list(palette)
+        return cls(int(width), int(height), curve, palette, bool(identity), bool(squeeze),
+                   data, scalars, report)
+
+    @classmethod
+    def from_lengths(
+        cls, width: int, height: int, curve: str | Curve, lengths: np.ndarray,
+        indices: np.ndarray, palette: np.ndarray, **kwargs: object,
+    ) -> PackedLayer:
+        """A layer from run lengths in texels (the file's form, seed section 2.4).
+
+        Raises
+        ------
+        TerrathemeError
+            A zero length, or lengths that do not add up to ``width * height``.
+        """
+        lengths = np.asarray(lengths, dtype=np.int64)
+        if lengths.size == 0 or lengths.min() < 1:
+            raise TerrathemeError("run lengths must be at least 1")
+        ends = np.cumsum(lengths)
+        if ends[-1] != width * height:
+            raise TerrathemeError(
+                f"run lengths cover {int(ends[-1])} texels but the image has "
+                f"{width} x {height} = {width * height}"
+            )
+        steps = ranks_to_steps(ends, width, height, curve)
+        return cls.from_runs(width, height, curve, steps, indices, palette, **kwargs)
+
+    # ------------------------------------------------------------ the runs
+
+    @property
+    def run_count(self) -> int:
+        """Number of runs ``R``."""
+        return int(self._data[W_COUNT])
+
+    @property
+    def P(self) -> np.ndarray:  # noqa: N802 - the seed's name
+        """(R,) uint8 ndarray: palette index of each run (seed Table 3)."""
+        return table_runs(self._data)[1]
+
+    @property
+    def steps(self) -> np.ndarray:
+        """(R,) uint32 ndarray: 0-based curve step of each run's last texel."""
+        return table_runs(self._data)[0]
+
+    @property
+    def S(self) -> np.ndarray:  # noqa: N802 - the seed's name
+        """(R,) int64 ndarray: the seed's 1-based step of each run's last texel (Table 3)."""
+        return self.steps.astype(np.int64) + 1
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(R,) int64 ndarray: image texels in each run (the file's run lengths)."""
+        ends = steps_to_ranks(self.steps, self.width, self.height, self.curve)
+        return np.diff(ends, prepend=0)
+
+    @property
+    def channels(self) -> int:
+        """Colour channels of a texel (1, 3 or 4)."""
+        return int(self.palette.shape[1])
+
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes of the random-access structure (header, directory, one word per run)."""
+        return int(self._data.nbytes)
+
+    # ------------------------------------------------------------ reading texels
+
+    def lookup(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
+        """Texel values at columns ``xs`` and rows ``ys`` (row 0 = top), without unpacking.
+
+        Parameters
+        ----------
+        xs, ys : (...) integer ndarrays or ints, broadcast together
+
+        Returns
+        -------
+        values : (...) or (..., C) ndarray
+            The same as ``image[ys, xs]`` on the packed image.
+
+        Raises
+        ------
+        TerrathemeError
+            A coordinate outside the image.
+        """
+        if type(xs) in _SCALAR_TYPES and type(ys) in _SCALAR_TYPES:
+            # Scalar fast path: one compiled call with three arguments, a list lookup.
+            try:
+                idx = (_SCALAR[0] if _SCALAR else _scalar())(xs, ys, self._data)
+            except OverflowError:
+                idx = -1
+            if idx < 0:
+                raise TerrathemeError(self._outside(xs, ys))
+            return self._scalars[idx]
+        xs_arr = np.asarray(xs)
+        ys_arr = np.asarray(ys)
+        if xs_arr.dtype.kind not in "iu" or ys_arr.dtype.kind not in "iu":
+            raise TerrathemeError("texel coordinates must be integers")
+        xs_b, ys_b = np.broadcast_arrays(xs_arr, ys_arr)
+        shape = xs_b.shape
+        flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
+        flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
+        idx = np.empty(flat_x.size, dtype=np.uint8)
+        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
+            bad = lookup_batch_parallel(flat_x, flat_y, self._data, idx)
+            bad = -1 if bad == 0 else int(np.flatnonzero(
+                (flat_x < 0) | (flat_x >= self.width) | (flat_y < 0) | (flat_y >= self.height)
+            )[0])
+        else:
+            bad = lookup_batch(flat_x, flat_y, self._data, idx)
+        if bad >= 0:
+            raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
+        values = self.palette[idx]
+        if self.squeeze:
+            values = values[:, 0]
+        out = values.reshape(shape + values.shape[1:])
+        return out[()] if out.ndim == 0 else out
+
+    def _outside(self, x: int, y: int) -> str:
+        return f"texel ({int(x)}, {int(y)}) is outside the {self.width} x {self.height} layer"
+
+    def unpack(self, *, indices_only: bool = False) -> np.ndarray:
+        """The whole image back.
+
+        Parameters
+        ----------
+        indices_only : bool
+            Return the ``(H, W)`` uint8 palette-index image instead of colours.
+
+        Returns
+        -------
+        image : (H, W) or (H, W, C) ndarray
+            Same dtype and channel layout as the packed image.
+        """
+        steps, indices = table_runs(self._data)
+        idx = fill_runs(steps, indices, self.width, self.height, self.curve)
+        if indices_only:
+            return idx
+        if self.identity:
+            image = idx.astype(self.palette.dtype)
+            return image if self.squeeze else image[:, :, None]
+        image = self.palette[idx]
+        return image[:, :, 0] if self.squeeze else image
+
+    # ------------------------------------------------------------ files
+
+    def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:  # noqa: A002
+        """Write the layer atomically; ``format`` is ``"compact"`` or ``"seed"``.
+
+        Returns
+        -------
+        bytes_written : int
+        """
+        from core.atomic import write_bytes_atomic
+        from core.packing.container import encode_layer
+
+        data = encode_layer(self, format)
+        write_bytes_atomic(path, data)
+        return len(data)
+
+    def to_bytes(self, *, format: str = "compact") -> bytes:  # noqa: A002
+        """The file content :meth:`save` would write."""
+        from core.packing.container import encode_layer
+
+        return encode_layer(self, format)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> PackedLayer:
+        """Read a layer saved in either encoding.
+
+        Raises
+        ------
+        CorruptFileError
+            Truncated or damaged file, wrong magic number, bad checksum,
+            run lengths or palette indices that do not fit the header.
+        UnsupportedVersionError
+            A file from a newer format version.
+        """
+        from core.packing.container import decode_layer
+
+        p = os.fspath(path)
+        if not os.path.isfile(p):
+            raise TerrathemeError(f"{p}: no such file")
+        with open(p, "rb") as fh:
+            return decode_layer(fh.read(), name=p)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, *, name: str = "<bytes>") -> PackedLayer:
+        """Parse the content of a layer file."""
+        from core.packing.container import decode_layer
+
+        return decode_layer(data, name=name)

@@ -1,0 +1,254 @@
+"""Random access into runs without unpacking (seed section 2.3, ``getColor``).
+
+``(x, y) -> step s`` along the curve, then the first run whose last step is
+``>= s``. Beyond the seed, the binary search is made short and cache-resident
+by a **block directory**: the square's steps are cut into blocks of
+``2^shift`` steps, ``directory[k]`` is the first run whose last step lies in
+block ``k`` or later, and only the low ``shift`` bits of each run's last step
+are kept, packed with ``P`` in one 32-bit word, so a run costs 4 bytes in
+memory instead of the seed's 5, plus 4 bytes per directory block (about one
+per 8 runs). Everything lives in one ``uint32`` array so that a scalar call
+passes three arguments to the compiled kernel (numba's call overhead grows
+with the number of array arguments).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from core.errors import TerrathemeError
+
+# Hilbert state machine (2 bits: swap, flip-both): entry [state*4 + (x_bit*2 + y_bit)]
+# holds (digit << 2) | next_state, the table form of Hacker's Delight's xy2d.
+_TABLE = np.zeros(16, dtype=np.uint8)
+for _state in range(4):
+    for _xb in range(2):
+        for _yb in range(2):
+            _rx, _ry = (_xb ^ 1, _yb ^ 1) if _state & 2 else (_xb, _yb)
+            if _state & 1:
+                _rx, _ry = _ry, _rx
+            _digit = (3 * _rx) ^ _ry
+            _next = _state
+            if _ry == 0:
+                _next ^= 1 | (2 if _rx == 1 else 0)
+            _TABLE[_state * 4 + _xb * 2 + _yb] = (_digit << 2) | _next
+# Four levels at once: [state*256 + (x 4 bits)*16 + (y 4 bits)] -> (8-bit digits << 2) | state.
+_TABLE4 = np.zeros(1024, dtype=np.uint16)
+for _state in range(4):
+    for _x4 in range(16):
+        for _y4 in range(16):
+            _s, _d = _state, 0
+            for _lv in range(3, -1, -1):
+                _e = int(_TABLE[_s * 4 + ((_x4 >> _lv) & 1) * 2 + ((_y4 >> _lv) & 1)])
+                _d, _s = (_d << 2) | (_e >> 2), _e & 3
+            _TABLE4[_state * 256 + _x4 * 16 + _y4] = (_d << 2) | _s
+#: One-level table (16 entries) then four-level table (1024), as stored in a layer's data.
+HILBERT_TABLES = np.concatenate([_TABLE.astype(np.uint16), _TABLE4])
+HILBERT_TABLES.setflags(write=False)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def hilbert_step(x, y, n, tables):  # pragma: no cover - numba
+    """0-based Hilbert step of ``(x, y)`` (y up) on the ``2^n`` square (:data:`HILBERT_TABLES`)."""
+    d = np.uint64(0)
+    state = 0
+    level = n
+    # Leading levels one at a time until a multiple of four remain.
+    while level % 4 != 0:
+        level -= 1
+        e = tables[state * 4 + ((x >> level) & 1) * 2 + ((y >> level) & 1)]
+        d = (d << np.uint64(2)) | np.uint64(e >> 2)
+        state = e & 3
+    # Then four levels per table lookup.
+    while level > 0:
+        level -= 4
+        e = tables[16 + state * 256 + ((x >> level) & 15) * 16 + ((y >> level) & 15)]
+        d = (d << np.uint64(8)) | np.uint64(e >> 2)
+        state = e & 3
+    return d
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def morton_step(x, y):  # pragma: no cover - numba
+    """0-based Morton step ``sum((x_i + 2 y_i) 4^i)`` of ``(x, y)`` (y up)."""
+    return _spread(np.uint64(x)) | (_spread(np.uint64(y)) << np.uint64(1))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _spread(v):  # pragma: no cover - numba
+    v = (v | (v << np.uint64(16))) & np.uint64(0x0000FFFF0000FFFF)
+    v = (v | (v << np.uint64(8))) & np.uint64(0x00FF00FF00FF00FF)
+    v = (v | (v << np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    v = (v | (v << np.uint64(2))) & np.uint64(0x3333333333333333)
+    return (v | (v << np.uint64(1))) & np.uint64(0x5555555555555555)
+
+
+# Layout of the one uint32 array that holds a layer's random-access structure.
+HEAD_WORDS = 8
+W_WIDTH, W_HEIGHT, W_LEVELS, W_MORTON, W_SHIFT, W_DIR, W_RUNS, W_COUNT = range(HEAD_WORDS)
+TABLE_AT = HEAD_WORDS
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _step(x, row, data):  # pragma: no cover - numba
+    # Curve step of texel (x, row), row 0 = top; the caller checked the bounds.
+    y = np.int64(data[W_HEIGHT]) - 1 - row
+    if data[W_MORTON]:
+        return morton_step(x, y)
+    n = np.int64(data[W_LEVELS])
+    # Even level counts use the transposed square curve (core.sfc.hilbert_transposed).
+    if n % 2 == 0:
+        x, y = y, x
+    return hilbert_step(x, y, n, data[TABLE_AT:TABLE_AT + HILBERT_TABLES.size])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _search(data, s, lo, hi):  # pragma: no cover - numba
+    # Packed word of the first run in [lo, hi) whose low step bits are >= those of s
+    # (branch-free lower bound), or of run hi when there is none.
+    shift = np.uint64(data[W_SHIFT])
+    runs = np.int64(data[W_RUNS])
+    t = np.uint32(s & ((np.uint64(1) << shift) - np.uint64(1))) << np.uint32(8)
+    base = lo
+    m = hi - lo
+    while m > 1:
+        half = m >> 1
+        base = base + half if data[runs + base + half - 1] < t else base
+        m -= half
+    if m == 1 and data[runs + base] < t:
+        base += 1
+    return data[runs + base]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _inside(x, row, data):  # pragma: no cover - numba
+    return 0 <= x < np.int64(data[W_WIDTH]) and 0 <= row < np.int64(data[W_HEIGHT])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _find(x, row, data):  # pragma: no cover - numba
+    # Packed run word (low step bits << 8 | P) of texel (x, row), or -1 outside the image.
+    if not _inside(x, row, data):
+        return np.int64(-1)
+    s = _step(x, row, data)
+    # Directory block of the step, then a binary search over that block's runs only.
+    blk = np.int64(s >> np.uint64(data[W_SHIFT]))
+    d0 = np.int64(data[W_DIR])
+    return np.int64(_search(data, s, np.int64(data[d0 + blk]), np.int64(data[d0 + blk + 1])))
+
+
+@numba.njit(cache=True, nogil=True)
+def lookup_batch(xs, ys, data, out):  # pragma: no cover - numba
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
+
+    Works in chunks of 32: first every step and directory range of the chunk
+    (independent loads the CPU overlaps), then the short searches.
+    Returns the position of the first coordinate outside the image, or -1.
+    """
+    chunk = 32
+    steps = np.empty(chunk, np.uint64)
+    los = np.empty(chunk, np.int64)
+    his = np.empty(chunk, np.int64)
+    shift = np.uint64(data[W_SHIFT])
+    d0 = np.int64(data[W_DIR])
+    for c0 in range(0, xs.size, chunk):
+        c1 = min(xs.size, c0 + chunk)
+        for k in range(c0, c1):
+            x = np.int64(xs[k])
+            row = np.int64(ys[k])
+            if not _inside(x, row, data):
+                return k
+            s = _step(x, row, data)
+            blk = np.int64(s >> shift)
+            steps[k - c0] = s
+            los[k - c0] = np.int64(data[d0 + blk])
+            his[k - c0] = np.int64(data[d0 + blk + 1])
+        for k in range(c0, c1):
+            out[k] = _search(data, steps[k - c0], los[k - c0], his[k - c0]) & 255
+    return -1
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def lookup_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
+    """:func:`lookup_batch` over all cores; returns how many coordinates were outside."""
+    bad = 0
+    for k in numba.prange(xs.size):
+        word = _find(np.int64(xs[k]), np.int64(ys[k]), data)
+        if word < 0:
+            bad += 1
+            out[k] = 0
+        else:
+            out[k] = word & 255
+    return bad
+
+
+@numba.njit(cache=True, nogil=True)
+def lookup_one(x, y, data):  # pragma: no cover - numba
+    """Palette index of one texel, or -1 outside the image (three arguments: cheap to call)."""
+    word = _find(np.int64(x), np.int64(y), data)
+    return word if word < 0 else word & 255
+
+
+_SCALAR_CALL: list = []
+
+
+def scalar_lookup_function():
+    """:func:`lookup_one` compiled for ``(int64, int64, uint32[::1])``, called without dispatch.
+
+    numba's dispatcher works out the argument types on every call (about half
+    of a scalar lookup's cost); the compiled entry point of the one signature
+    a layer uses skips that.
+    """
+    if not _SCALAR_CALL:
+        sig = (numba.types.int64, numba.types.int64, numba.types.Array(numba.types.uint32, 1, "C"))
+        lookup_one.compile(sig)
+        _SCALAR_CALL.append(lookup_one.overloads[sig].entry_point)
+    return _SCALAR_CALL[0]
+
+
+def directory_shift(n: int, run_count: int) -> int:
+    """Block size (log2 steps) giving about one directory entry per 8 runs, at most 2^16."""
+    want = (1 << (2 * n)) * 8 / max(run_count, 1)
+    return int(min(16, 2 * n, max(0, int(np.ceil(np.log2(max(want, 1.0)))))))
+
+
+def build_table(
+    width: int, height: int, n: int, morton: bool, steps: np.ndarray, indices: np.ndarray
+) -> np.ndarray:
+    """The random-access structure of a layer, as one uint32 array.
+
+    Layout: 8 header words (width, height, levels, morton, shift, directory
+    offset, runs offset, run count), the 1040-entry Hilbert tables, the directory
+    (``2^(2n-shift) + 1`` words: ``directory[k]`` = first run whose last step is
+    ``>= k * 2^shift``), then one word per run: ``(step & (2^shift - 1)) << 8 | P``.
+
+    Returns
+    -------
+    data : (8 + 1040 + blocks + 1 + R,) uint32 ndarray
+    """
+    if steps.size >= 2**32 - 1:
+        raise TerrathemeError(f"{steps.size} runs: a layer holds at most 2^32 - 2 runs")
+    shift = directory_shift(n, steps.size)
+    blocks = ((1 << (2 * n)) >> shift) + 1
+    first = np.arange(blocks, dtype=np.uint64) << np.uint64(shift)
+    directory = np.searchsorted(steps.astype(np.uint64), first, side="left")
+    low = steps.astype(np.uint64) & np.uint64((1 << shift) - 1)
+    words = (low << np.uint64(8)) | np.asarray(indices, np.uint64)
+    dir_at = TABLE_AT + HILBERT_TABLES.size
+    runs_at = dir_at + blocks
+    head = [width, height, n, int(morton), shift, dir_at, runs_at, steps.size]
+    return np.concatenate([
+        np.array(head, np.uint32), HILBERT_TABLES.astype(np.uint32),
+        directory.astype(np.uint32), words.astype(np.uint32),
+    ])
+
+
+def table_runs(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`build_table`: 0-based steps (R,) uint32 and P (R,) uint8."""
+    shift = int(data[W_SHIFT])
+    directory = data[int(data[W_DIR]): int(data[W_RUNS])].astype(np.int64)
+    words = data[int(data[W_RUNS]):]
+    block = np.repeat(np.arange(directory.size - 1, dtype=np.uint64), np.diff(directory))
+    steps = (block << np.uint64(shift)) | (words >> np.uint32(8)).astype(np.uint64)
+    return steps.astype(np.uint32), (words & np.uint32(255)).astype(np.uint8)

@@ -1,0 +1,182 @@
+"""From an image to a palette and runs along a curve (seed sections 2.1-2.2).
+
+Two kinds of input:
+
+* a single-channel **index image** with values ``0 .. 255``: the palette index
+  is the pixel value itself (``P = value``; the palette is the identity
+  ``0 .. max``), as in the seed's Fig. 2 example;
+* any other image (RGB, RGBA, or single-channel values above 255) with at most
+  256 distinct colours: the palette lists the colours in order of first
+  appearance along the curve.
+
+More colours are refused unless palette reduction is asked for; the reduction
+(k-means, OpenCV) reports the colour error it made (seed section 2.5: "the
+image is first converted to 256 colours").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.sfc import Curve, curve_order
+from core.sfc_scan import scan_runs
+
+MAX_COLOURS = 256
+SUPPORTED_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))
+
+
+@dataclass(frozen=True)
+class PaletteReport:
+    """How much palette reduction changed an image.
+
+    Attributes
+    ----------
+    colours_before, colours_after : int
+        Distinct colours in the input and in the reduced image.
+    max_error, mean_error : float
+        Euclidean distance between original and reduced colours, in the
+        image's own units (0..255 for 8-bit), the maximum and mean over texels.
+    """
+
+    colours_before: int
+    colours_after: int
+    max_error: float
+    mean_error: float
+
+
+@dataclass(frozen=True)
+class Runs:
+    """An image as runs along a curve.
+
+    Attributes
+    ----------
+    steps : (R,) uint32 ndarray
+        0-based curve step of each run's last texel.
+    indices : (R,) uint8 ndarray
+        Palette index ``P`` of each run.
+    palette : (K, C) ndarray of the image dtype
+    identity : bool
+        True when ``P`` is the pixel value of a single-channel index image.
+    """
+
+    steps: np.ndarray
+    indices: np.ndarray
+    palette: np.ndarray
+    identity: bool
+
+
+def check_image(image: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Validate an input image; return it as ``(H, W, C)`` and whether it was 2-D.
+
+    Raises
+    ------
+    TerrathemeError
+        Empty image, more than 4 channels, a pixel type other than uint8/uint16,
+        or a side over 65536.
+    """
+    arr = np.asarray(image)
+    squeeze = arr.ndim == 2
+    if squeeze:
+        arr = arr[:, :, None]
+    if arr.ndim != 3:
+        raise TerrathemeError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
+    h, w, c = arr.shape
+    if h == 0 or w == 0:
+        raise TerrathemeError(f"image of {w} x {h} texels has no texels to pack")
+    if not 1 <= c <= 4:
+        raise TerrathemeError(f"image has {c} channels; 1 (index), 3 (RGB) or 4 (RGBA) expected")
+    if arr.dtype not in SUPPORTED_DTYPES:
+        raise TerrathemeError(
+            f"pixel type {arr.dtype} cannot be packed: index layers are uint8 or uint16"
+        )
+    curve_order(w, h)
+    return arr, squeeze
+
+
+def _pack_keys(arr: np.ndarray) -> np.ndarray:
+    """One integer per texel holding all its channels: (H, W) uint32 or uint64."""
+    bits = 8 * arr.dtype.itemsize
+    kind = np.uint32 if bits * arr.shape[2] <= 32 else np.uint64
+    keys = arr[:, :, 0].astype(kind)
+    for ch in range(1, arr.shape[2]):
+        keys |= arr[:, :, ch].astype(kind) << kind(bits * ch)
+    return keys
+
+
+def _unpack_keys(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndarray:
+    """Inverse of :func:`_pack_keys` for a few keys: (K,) -> (K, C)."""
+    bits = 8 * dtype.itemsize
+    mask = (1 << bits) - 1
+    keys = keys.astype(np.uint64)
+    cols = [(keys >> np.uint64(bits * ch)) & np.uint64(mask) for ch in range(channels)]
+    return np.stack(cols, axis=1).astype(dtype)
+
+
+def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
+    """Palette and runs of a checked ``(H, W, C)`` image with at most 256 colours.
+
+    Raises
+    ------
+    TerrathemeError
+        More than 256 distinct colours.
+    """
+    if arr.shape[2] == 1 and int(arr.max()) < MAX_COLOURS:
+        # Index image: P is the pixel value (seed Fig. 2).
+        steps, values = scan_runs(arr[:, :, 0].astype(np.uint8, copy=False), curve)
+        palette = np.arange(int(values.max()) + 1, dtype=arr.dtype)[:, None]
+        return Runs(steps, values, palette, identity=True)
+    # Colour image: runs of packed colours, then the palette in order of first appearance.
+    steps, values = scan_runs(_pack_keys(arr), curve)
+    uniq, first, inverse = np.unique(values, return_index=True, return_inverse=True)
+    if uniq.size > MAX_COLOURS:
+        raise TerrathemeError(
+            f"image has {uniq.size} colours, more than the {MAX_COLOURS} a packed layer holds: "
+            "reduce the palette (--reduce-palette / reduce_palette=True)"
+        )
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(uniq.size, dtype=np.uint8)
+    rank[order] = np.arange(uniq.size, dtype=np.uint8)
+    palette = _unpack_keys(uniq[order], arr.shape[2], arr.dtype)
+    return Runs(steps, rank[inverse.reshape(-1)], palette, identity=False)
+
+
+def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, PaletteReport]:
+    """Reduce a ``(H, W, C)`` image to at most 256 colours (k-means, OpenCV).
+
+    Images that already have at most 256 colours come back unchanged.
+
+    Returns
+    -------
+    reduced : (H, W, C) ndarray, same dtype
+    report : PaletteReport
+    """
+    import cv2
+
+    keys = _pack_keys(arr).reshape(-1)
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    colours = _unpack_keys(uniq, arr.shape[2], arr.dtype).astype(np.float32)
+    if uniq.size <= MAX_COLOURS:
+        return arr, PaletteReport(int(uniq.size), int(uniq.size), 0.0, 0.0)
+    # Cluster the distinct colours, weighted by repetition through a texel sample.
+    rng = np.random.default_rng(seed)
+    sample = inverse[rng.integers(0, inverse.size, size=min(inverse.size, 200_000))]
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 0.5)
+    cv2.setRNGSeed(seed)
+    _, _, centres = cv2.kmeans(colours[sample], MAX_COLOURS, None, criteria, 2,
+                               cv2.KMEANS_PP_CENTERS)
+    top = float(np.iinfo(arr.dtype).max)
+    centres = np.clip(np.rint(centres), 0, top)
+    # Map every distinct colour to its nearest centre.
+    from scipy.spatial import cKDTree
+
+    _, nearest = cKDTree(centres).query(colours)
+    mapped = centres[nearest]
+    error = np.linalg.norm(mapped - colours, axis=1)
+    per_texel = error[inverse]
+    reduced = mapped[inverse].astype(arr.dtype).reshape(arr.shape)
+    after = np.unique(mapped, axis=0).shape[0]
+    return reduced, PaletteReport(int(uniq.size), int(after), float(per_texel.max()),
+                                  float(per_texel.mean()))

@@ -1,0 +1,224 @@
+"""Adaptive binary range coder and the run models of the compact format (numba).
+
+The coder is the LZMA one (32-bit range, carry propagation through a cached
+byte) with 15-bit probabilities adapted by a shift. Two models sit on it:
+
+* palette indices ``P``: each symbol (a rank in the layer's used-symbol list)
+  is coded bit by bit down a binary tree whose node probabilities are chosen
+  by the two previous symbols (boundaries along a curve alternate ``A B A B``);
+* run lengths ``L``: the bit length ``e = floor(log2 L)`` down a 6-level tree in
+  the context of the run's own symbol, then the top 6 bits below the leading
+  one in a prefix tree per (symbol, e), and the remaining bits per (e, bit).
+
+Encoders return ``(bytes used, overflow)``; decoders return an error code
+(0 = fine, 1 = read past the end, 2 = impossible symbol or length) so damaged
+input never crashes.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+PROB_BITS = 15
+PROB_INIT = 1 << (PROB_BITS - 1)
+TOP = 1 << 24
+MANTISSA_TREE_BITS = 6
+P_RATE = 4
+L_RATE = 5
+
+# Encoder state slots: low, range, cache, cache_size, out position, overflow flag.
+_LOW, _RANGE, _CACHE, _CSIZE, _POS, _OVER = range(6)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _shift_low(st, out):  # pragma: no cover - numba
+    low = st[_LOW]
+    if low < np.uint64(0xFF000000) or low >= np.uint64(1 << 32):
+        carry = low >> np.uint64(32)
+        temp = st[_CACHE]
+        while True:
+            pos = st[_POS]
+            if pos < out.size:
+                out[pos] = np.uint8((temp + carry) & np.uint64(0xFF))
+            else:
+                st[_OVER] = 1
+            st[_POS] = pos + np.uint64(1)
+            temp = np.uint64(0xFF)
+            st[_CSIZE] -= np.uint64(1)
+            if st[_CSIZE] == 0:
+                break
+        st[_CACHE] = (low >> np.uint64(24)) & np.uint64(0xFF)
+    st[_CSIZE] += np.uint64(1)
+    st[_LOW] = (low & np.uint64(0x00FFFFFF)) << np.uint64(8)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _encode_bit(st, out, probs, k, bit, rate):  # pragma: no cover - numba
+    p = probs[k]
+    bound = (st[_RANGE] >> np.uint64(PROB_BITS)) * np.uint64(p)
+    if bit == 0:
+        st[_RANGE] = bound
+        probs[k] = p + (((1 << PROB_BITS) - p) >> rate)
+    else:
+        st[_LOW] += bound
+        st[_RANGE] -= bound
+        probs[k] = p - (p >> rate)
+    while st[_RANGE] < np.uint64(TOP):
+        st[_RANGE] <<= np.uint64(8)
+        _shift_low(st, out)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _decode_bit(dec, buf, probs, k, rate):  # pragma: no cover - numba
+    # dec: code, range, input position.
+    p = probs[k]
+    bound = (dec[1] >> np.uint64(PROB_BITS)) * np.uint64(p)
+    if dec[0] < bound:
+        dec[1] = bound
+        probs[k] = p + (((1 << PROB_BITS) - p) >> rate)
+        bit = 0
+    else:
+        dec[0] -= bound
+        dec[1] -= bound
+        probs[k] = p - (p >> rate)
+        bit = 1
+    while dec[1] < np.uint64(TOP):
+        dec[1] <<= np.uint64(8)
+        pos = dec[2]
+        byte = np.uint64(buf[pos]) if pos < buf.size else np.uint64(0)
+        dec[0] = ((dec[0] << np.uint64(8)) | byte) & np.uint64(0xFFFFFFFF)
+        dec[2] = pos + np.uint64(1)
+    return bit
+
+
+@numba.njit(cache=True, nogil=True)
+def _start_encoder():  # pragma: no cover - numba
+    st = np.zeros(6, np.uint64)
+    st[_RANGE] = np.uint64(0xFFFFFFFF)
+    st[_CSIZE] = 1
+    return st
+
+
+@numba.njit(cache=True, nogil=True)
+def _finish_encoder(st, out):  # pragma: no cover - numba
+    for _ in range(5):
+        _shift_low(st, out)
+    return st[_POS], st[_OVER]
+
+
+@numba.njit(cache=True, nogil=True)
+def _start_decoder(buf):  # pragma: no cover - numba
+    dec = np.zeros(3, np.uint64)
+    dec[1] = np.uint64(0xFFFFFFFF)
+    for i in range(5):
+        byte = np.uint64(buf[i]) if i < buf.size else np.uint64(0)
+        dec[0] = ((dec[0] << np.uint64(8)) | byte) & np.uint64(0xFFFFFFFF)
+    dec[2] = 5
+    return dec
+
+
+@numba.njit(cache=True, nogil=True)
+def encode_symbols(sym, n_used, depth, pair_context, out):  # pragma: no cover - numba
+    """Code palette-symbol ranks ``sym`` (< n_used) in the context of the previous two."""
+    nctx = n_used * n_used if pair_context else n_used
+    probs = np.full(nctx << depth, PROB_INIT, np.int64)
+    st = _start_encoder()
+    p1 = 0
+    p2 = 0
+    for i in range(sym.size):
+        base = ((p1 * n_used + p2) if pair_context else p1) << depth
+        node = 1
+        v = sym[i]
+        for b in range(depth - 1, -1, -1):
+            bit = (v >> b) & 1
+            _encode_bit(st, out, probs, base + node, bit, P_RATE)
+            node = node * 2 + bit
+        p2 = p1
+        p1 = v
+    return _finish_encoder(st, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_symbols(buf, count, n_used, depth, pair_context, sym):  # pragma: no cover - numba
+    """Inverse of :func:`encode_symbols`; returns an error code."""
+    nctx = n_used * n_used if pair_context else n_used
+    probs = np.full(nctx << depth, PROB_INIT, np.int64)
+    dec = _start_decoder(buf)
+    p1 = 0
+    p2 = 0
+    for i in range(count):
+        base = ((p1 * n_used + p2) if pair_context else p1) << depth
+        node = 1
+        for _ in range(depth):
+            node = node * 2 + _decode_bit(dec, buf, probs, base + node, P_RATE)
+        v = node - (1 << depth)
+        if v >= n_used:
+            return 2
+        sym[i] = v
+        p2 = p1
+        p1 = v
+    return 1 if dec[2] > buf.size + 4 else 0
+
+
+@numba.njit(cache=True, nogil=True)
+def encode_lengths(lengths, sym, n_used, out):  # pragma: no cover - numba
+    """Code run lengths (>= 1, < 2^33) in the context of each run's symbol rank."""
+    tb = MANTISSA_TREE_BITS
+    pe = np.full(n_used * 64, PROB_INIT, np.int64)
+    pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
+    pr = np.full(34 * 34, PROB_INIT, np.int64)
+    st = _start_encoder()
+    for i in range(lengths.size):
+        v = np.int64(lengths[i])
+        c = sym[i]
+        e = 0
+        while (v >> (e + 1)) > 0:
+            e += 1
+        # Bit length of the run, down a 6-level tree per symbol.
+        node = 1
+        for b in range(5, -1, -1):
+            bit = (e >> b) & 1
+            _encode_bit(st, out, pe, c * 64 + node, bit, L_RATE)
+            node = node * 2 + bit
+        # Bits below the leading one: a prefix tree for the top ones, then per position.
+        pref = 1
+        for b in range(e - 1, -1, -1):
+            bit = (v >> b) & 1
+            if e - 1 - b < tb:
+                _encode_bit(st, out, pm, ((c * 34 + e) << (tb + 1)) + pref, bit, L_RATE)
+                pref = pref * 2 + bit
+            else:
+                _encode_bit(st, out, pr, e * 34 + b, bit, L_RATE)
+    return _finish_encoder(st, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_lengths(buf, sym, n_used, lengths):  # pragma: no cover - numba
+    """Inverse of :func:`encode_lengths`; returns an error code."""
+    tb = MANTISSA_TREE_BITS
+    pe = np.full(n_used * 64, PROB_INIT, np.int64)
+    pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
+    pr = np.full(34 * 34, PROB_INIT, np.int64)
+    dec = _start_decoder(buf)
+    for i in range(sym.size):
+        c = sym[i]
+        node = 1
+        for _ in range(6):
+            node = node * 2 + _decode_bit(dec, buf, pe, c * 64 + node, L_RATE)
+        e = node - 64
+        if e > 32:
+            return 2
+        v = np.int64(1)
+        pref = 1
+        for b in range(e - 1, -1, -1):
+            if e - 1 - b < tb:
+                bit = _decode_bit(dec, buf, pm, ((c * 34 + e) << (tb + 1)) + pref, L_RATE)
+                pref = pref * 2 + bit
+            else:
+                bit = _decode_bit(dec, buf, pr, e * 34 + b, L_RATE)
+            v = (v << 1) | bit
+        lengths[i] = v
+        if dec[2] > buf.size + 4:
+            return 1
+    return 0

@@ -1,0 +1,129 @@
+"""Lookup in the prefiltered family (Kovalev & Tarasov, eqs. 5-9).
+
+Per pixel: the footprint of eqs. 2-4 gives ``H, L, tan`` and the axis it is
+tilted toward; the three copies around ``(log2 H, log2 L)`` are read with
+skew-corrected bilinear interpolation (eqs. 6-9) and blended by the
+mantissas of ``H`` and ``L`` (eq. 5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from core.perspective.footprint import TOWARD_U, footprint
+from core.perspective.sampling import add_bilinear, add_column_lerp, wrap_coord
+
+
+@njit(cache=True, inline="always")
+def _exponent_mantissa(x, lo, hi):
+    """``e = floor(log2 x)`` clamped to ``[lo, hi]`` and the mantissa without its
+    leading bit, ``M = x / 2^e - 1`` in ``[0, 1)`` (0 when clamped)."""
+    if x < 1.0:
+        return lo, 0.0
+    e = int(math.floor(math.log2(x)))
+    if e < lo:
+        return lo, 0.0
+    if e >= hi:
+        return hi, 0.0
+    m = x / (1 << e) - 1.0
+    if m < 0.0:
+        m = 0.0
+    if m >= 1.0:
+        m = 0.999999
+    return e, m
+
+
+@njit(cache=True, inline="always")
+def _read_copy(buf, table, size, k, over, lover, a, b, tan, toward, u, v, w, out):
+    """``out += w * R_i`` for copy ``(a, b)`` (eqs. 6-9); returns texels read."""
+    n = table.shape[1] - 1
+    # keep (a, b) inside the family: b <= a <= n, a - b <= k
+    if a > n:
+        a = n
+    if b > a:
+        b = a
+    if a - b > k:
+        b = a - k
+    i = a - b
+    if i == 0:
+        # lambda = 1: the ordinary mip level, plain bilinear
+        s = 1.0 / (1 << a)
+        r = size >> a
+        return add_bilinear(buf, table[0, a, b, 0], r, r, u * s, v * s, w, out)
+    # the copy whose prefiltered skew is nearest to tan
+    c = over * (1 << (i - 1))
+    q = c // 2
+    # nearest skew, ties away from 0 (so mirrored footprints pick mirrored copies)
+    j = int(math.floor(abs(tan) * 0.5 * c + 0.5))
+    if tan < 0.0:
+        j = -j
+    if j < -q:
+        j = -q
+    if j > q:
+        j = q
+    si = j + q
+    # the copy's lattice: `cols` samples along the long side, N >> b across
+    rows = size >> b
+    cols = min(size, (size >> a) * lover)
+    step = size / cols
+    # coordinates in the copy's frame: X along the long side, Y across
+    if toward == TOWARD_U:
+        x, y = u / step, v / (1 << b)
+    else:
+        x, y = v / step, u / (1 << b)
+    off = table[toward, a, b, si]
+    # rows of shift per column along the tilted side (lambda tan when not oversampled)
+    lam_tan = step / (1 << b) * tan
+    # eqs. 6-7: skew-corrected heights in the two neighbouring columns
+    xs = wrap_coord(x - 0.5, cols)
+    i0 = int(xs)
+    fx = xs - i0
+    i1 = i0 + 1
+    if i1 == cols:
+        i1 = 0
+    y1 = y - fx * lam_tan
+    y2 = y + (1.0 - fx) * lam_tan
+    # eqs. 8-9: linear down each column, then across
+    r = add_column_lerp(buf, off, rows, cols, i0, y1, w * (1.0 - fx), out)
+    r += add_column_lerp(buf, off, rows, cols, i1, y2, w * fx, out)
+    return r
+
+
+@njit(cache=True, parallel=True)
+def parallelogram_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy, valid, out):
+    """The seed's filter per pixel; derivatives in texels of the ``N x N``
+    texture (already scaled by the aperture). Returns texels read per pixel."""
+    p_count = u.shape[0]
+    reads = np.zeros(p_count, np.int32)
+    n = table.shape[1] - 1
+    for p in prange(p_count):
+        if not valid[p]:
+            continue
+        up = wrap_coord(u[p], size)
+        vp = wrap_coord(v[p], size)
+        # eqs. 3-4: footprint parameters
+        h, l, tan, toward = footprint(dux[p], dvx[p], duy[p], dvy[p])
+        # at most the texture along the long side, at most 2^k elongation
+        h = min(max(h, 1.0), float(size))
+        l = min(max(l, h / (1 << k), 1.0), h)
+        eh, mh = _exponent_mantissa(h, 0, n)
+        el, ml = _exponent_mantissa(l, 0, eh)
+        # eq. 5: three copies around (log2 H, log2 L), weights from the mantissas
+        if mh >= ml:
+            w1, w2, w3 = 1.0 - mh, ml, mh - ml
+            a3, b3 = eh + 1, el
+        else:
+            w1, w2, w3 = 1.0 - ml, mh, ml - mh
+            a3, b3 = eh, el + 1
+        r = _read_copy(buf, table, size, k, over, lover, eh, el, tan, toward, up, vp, w1, out[p])
+        if w2 > 0.0:
+            r += _read_copy(buf, table, size, k, over, lover, eh + 1, el + 1, tan, toward, up, vp,
+                            w2, out[p])
+        if w3 > 0.0:
+            r += _read_copy(buf, table, size, k, over, lover, a3, b3, tan, toward, up, vp,
+                            w3, out[p])
+        reads[p] = r
+    return reads

@@ -1,0 +1,287 @@
+"""Rendering a textured ground plane: the public entry points.
+
+``PreparedTexture`` prefilters a texture once (mip pyramid, the seed's
+family of copies) and renders any number of frames as the camera moves;
+``render_perspective`` is the one-call form.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.perspective.baselines import (
+    aniso_kernel,
+    bilinear_kernel,
+    nearest_kernel,
+    trilinear_kernel,
+)
+from core.perspective.ewa import EWA_LUT, ewa_kernel
+from core.perspective.family import ParallelogramFamily, build_family
+from core.perspective.lookup import parallelogram_kernel
+from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
+from core.perspective.options import FilterOptions, Method
+from core.perspective.reference import reference_kernel
+from core.perspective.texture import (
+    Pyramid,
+    as_float_texture,
+    build_pyramid,
+    power_of_two_square,
+)
+
+Progress = Callable[[int, int], None]
+
+#: rows rendered between two progress reports
+BAND_ROWS = 64
+#: largest frame side accepted
+MAX_FRAME_SIDE = 16384
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """A rendered frame.
+
+    Attributes
+    ----------
+    image : (h, w, C) float32 ndarray
+        C as in the texture; integer textures come out in [0, 1].
+    texel_reads : (h, w) int32 ndarray
+        Texels read for each pixel (0 for sky).
+    mapping : PlaneMapping
+        The eq. 1 coefficients used (in texels of the input).
+    """
+
+    image: np.ndarray
+    texel_reads: np.ndarray
+    mapping: PlaneMapping
+
+    @property
+    def mean_reads(self) -> float:
+        """Texels read per ground (non-sky) pixel."""
+        ground = self.texel_reads > 0
+        return float(self.texel_reads[ground].mean()) if ground.any() else 0.0
+
+
+def sky_vector(sky: tuple[float, ...], channels: int) -> np.ndarray:
+    """The sky colour as ``(channels,) float64`` (grey for 1 channel, opaque for 4)."""
+    s = [float(c) for c in sky]
+    if len(s) == channels:
+        return np.array(s)
+    if len(s) == 1:
+        return np.full(channels, s[0])
+    if channels == 1:
+        return np.array([float(np.mean(s[:3]))])
+    if channels == 4 and len(s) == 3:
+        return np.array([*s, 1.0])
+    if channels == 2 and len(s) >= 3:
+        return np.array([float(np.mean(s[:3])), 1.0])
+    raise TerrathemeError(f"sky colour has {len(s)} values for a {channels}-channel texture")
+
+
+def check_size(size: tuple[int, int]) -> tuple[int, int]:
+    """``(w, h)`` as ints, each in ``[1, MAX_FRAME_SIDE]``."""
+    try:
+        w, h = (int(s) for s in size)
+    except (TypeError, ValueError):
+        raise TerrathemeError(f"frame size must be (width, height), got {size!r}") from None
+    if not (1 <= w <= MAX_FRAME_SIDE and 1 <= h <= MAX_FRAME_SIDE):
+        raise TerrathemeError(f"frame size {w}x{h} must be within 1..{MAX_FRAME_SIDE} per side")
+    return w, h
+
+
+class PreparedTexture:
+    """A texture prefiltered for perspective rendering.
+
+    Parameters
+    ----------
+    texture : (h, w) or (h, w, C) ndarray, C in 1..4
+        Integer types are read as [0, 1]. Any size: the pyramid and the
+        family use it resampled to ``N x N``, ``N`` the next power of two.
+    options : FilterOptions
+        The default filter; the structures it needs are built now.
+    progress : callable(done, total) or None
+
+    Notes
+    -----
+    Structures for other methods are built on first use by :meth:`render`
+    and kept, so switching methods in a viewer costs one prefiltering each.
+    """
+
+    def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,
+                 progress: Progress | None = None) -> None:
+        self.options = options if options is not None else FilterOptions()
+        self.texture = as_float_texture(texture)
+        self.square, self.su, self.sv = power_of_two_square(self.texture)
+        self._pyramid: Pyramid | None = None
+        self._families: dict[tuple[int, int], ParallelogramFamily] = {}
+        self._ensure(self.options, progress)
+
+    @property
+    def channels(self) -> int:
+        return int(self.texture.shape[2])
+
+    @property
+    def texture_size(self) -> tuple[int, int]:
+        """``(width, height)`` of the input in texels."""
+        return int(self.texture.shape[1]), int(self.texture.shape[0])
+
+    @property
+    def pyramid(self) -> Pyramid:
+        if self._pyramid is None:
+            self._pyramid = build_pyramid(self.square)
+        return self._pyramid
+
+    def family(self, options: FilterOptions | None = None,
+               progress: Progress | None = None) -> ParallelogramFamily:
+        """The seed's prefiltered copies for ``options`` (built once, cached)."""
+        opt = options if options is not None else self.options
+        key = (opt.max_lambda_log2, opt.skew_oversampling, opt.long_oversampling)
+        if key not in self._families:
+            self._families[key] = build_family(self.square, *key, progress=progress)
+        return self._families[key]
+
+    def memory_bytes(self, options: FilterOptions | None = None) -> int:
+        """Bytes of texture data the method of ``options`` reads from."""
+        opt = options if options is not None else self.options
+        if opt.method == Method.PARALLELOGRAM:
+            return self.family(opt).nbytes
+        if opt.method in (Method.TRILINEAR, Method.ANISO, Method.EWA):
+            return self.pyramid.nbytes
+        return int(self.texture.nbytes)
+
+    def _ensure(self, opt: FilterOptions, progress: Progress | None = None) -> None:
+        if opt.method == Method.PARALLELOGRAM:
+            self.family(opt, progress)
+        elif opt.method in (Method.TRILINEAR, Method.ANISO, Method.EWA):
+            _ = self.pyramid
+
+    def mapping_for(self, view: PlaneMapping | Camera, size: tuple[int, int]) -> PlaneMapping:
+        """Eq. 1 coefficients for a mapping or a camera and a frame size."""
+        if isinstance(view, PlaneMapping):
+            return view
+        if isinstance(view, Camera):
+            return camera_mapping(view, size, self.texture_size)
+        raise TerrathemeError(f"view must be a PlaneMapping or a Camera, got {type(view).__name__}")
+
+    def render(self, view: PlaneMapping | Camera, size: tuple[int, int],
+               options: FilterOptions | None = None,
+               progress: Progress | None = None) -> RenderResult:
+        """Render a ``size = (w, h)`` frame of the plane.
+
+        Parameters
+        ----------
+        view : PlaneMapping or Camera
+        size : (w, h)
+        options : FilterOptions or None
+            Overrides the object's options for this frame.
+        progress : callable(done_rows, total_rows) or None
+
+        Returns
+        -------
+        RenderResult
+            ``image`` is ``(h, w, C) float32``; pixels with ``z <= 0`` are sky.
+        """
+        opt = options if options is not None else self.options
+        w, h = check_size(size)
+        mapping = self.mapping_for(view, (w, h))
+        self._ensure(opt)
+        sky = sky_vector(opt.sky, self.channels)
+        image = np.empty((h, w, self.channels), np.float32)
+        reads = np.zeros((h, w), np.int32)
+        for y0 in range(0, h, BAND_ROWS):
+            y1 = min(h, y0 + BAND_ROWS)
+            img_band, rd_band = self._render_band(mapping, opt, w, y0, y1, sky)
+            image[y0:y1] = img_band
+            reads[y0:y1] = rd_band
+            if progress is not None:
+                progress(y1, h)
+        return RenderResult(image, reads, mapping)
+
+    def _render_band(self, mapping: PlaneMapping, opt: FilterOptions, w: int, y0: int, y1: int,
+                     sky: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        bh = y1 - y0
+        c = self.channels
+        out = np.zeros((bh * w, c), np.float32)
+        m = opt.method
+        if m in (Method.NEAREST, Method.BILINEAR, Method.REFERENCE):
+            # these read the input texture itself
+            u, v, z, dux, dvx, duy, dvy = _grid(mapping, w, y0, y1)
+            valid = (z > 0) & np.isfinite(u) & np.isfinite(v)
+            tex = self.texture.reshape(-1, c)
+            rows, cols = self.texture.shape[:2]
+            if m == Method.NEAREST:
+                reads = nearest_kernel(tex, rows, cols, u, v, valid, out)
+            elif m == Method.BILINEAR:
+                reads = bilinear_kernel(tex, rows, cols, u, v, valid, out)
+            else:
+                reads = reference_kernel(
+                    tex, rows, cols, mapping.coefficients(), w, bh, y0, dux, dvx, duy, dvy,
+                    float(opt.reference_density), int(opt.reference_min_samples),
+                    int(opt.reference_max_samples), sky, out)
+                # the reference blends the sky per sub-sample
+                return out.reshape(bh, w, c), reads.reshape(bh, w)
+        else:
+            # the others read the N x N resampled texture
+            sq = mapping.scaled(self.su, self.sv)
+            u, v, z, dux, dvx, duy, dvy = _grid(sq, w, y0, y1)
+            valid = (z > 0) & np.isfinite(u) & np.isfinite(v)
+            if m != Method.EWA and opt.aperture != 1.0:
+                dux, dvx, duy, dvy = (d * opt.aperture for d in (dux, dvx, duy, dvy))
+            if m == Method.PARALLELOGRAM:
+                fam = self.family(opt)
+                reads = parallelogram_kernel(
+                    fam.buf, fam.table, fam.size, fam.max_lambda_log2, fam.skew_oversampling,
+                    fam.long_oversampling,
+                    u, v, dux, dvx, duy, dvy, valid, out)
+            else:
+                pyr = self.pyramid
+                if m == Method.TRILINEAR:
+                    reads = trilinear_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx,
+                                             duy, dvy, valid, out)
+                elif m == Method.ANISO:
+                    reads = aniso_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx, duy,
+                                         dvy, int(opt.max_anisotropy), valid, out)
+                else:
+                    reads = ewa_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx, duy,
+                                       dvy, float(opt.max_anisotropy), EWA_LUT, valid, out)
+        out[~valid] = sky.astype(np.float32)
+        return out.reshape(bh, w, c), reads.reshape(bh, w)
+
+
+def _grid(mapping: PlaneMapping, w: int, y0: int, y1: int) -> tuple[np.ndarray, ...]:
+    """Eqs. 1-2 at the pixel centres of rows ``[y0, y1)``, flattened (float64)."""
+    x = np.arange(w, dtype=np.float64) + 0.5
+    y = np.arange(y0, y1, dtype=np.float64) + 0.5
+    xx, yy = np.meshgrid(x, y)
+    u, v, z = mapping.evaluate(xx.ravel(), yy.ravel())
+    d = mapping.derivatives(u, v, z)
+    return (u, v, z, *d)
+
+
+def render_perspective(texture: np.ndarray | PreparedTexture, view: PlaneMapping | Camera,
+                       size: tuple[int, int] = (640, 360),
+                       options: FilterOptions | None = None,
+                       progress: Progress | None = None) -> np.ndarray:
+    """Render a texture on the ground plane in one call.
+
+    Parameters
+    ----------
+    texture : (h, w[, C]) ndarray or PreparedTexture
+        Pass a :class:`PreparedTexture` to reuse its prefiltering.
+    view : PlaneMapping or Camera
+    size : (w, h) frame size in pixels
+    options : FilterOptions or None (default: the parallelogram filter)
+
+    Returns
+    -------
+    (h, w, C) float32 ndarray
+    """
+    opt = options if options is not None else FilterOptions()
+    prepared = texture if isinstance(texture, PreparedTexture) else PreparedTexture(texture, opt)
+    return prepared.render(view, size, opt, progress).image
+
+
+__all__ = ["PreparedTexture", "RenderResult", "render_perspective", "sky_vector"]

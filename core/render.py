@@ -1,0 +1,345 @@
+"""The thematic-texture renderer (Vyatkin & Romanyuk, DESIGN.md §1).
+
+``render_cells`` turns a vertex index grid and a theme list into the full
+texture, or any ``region`` of it (exactly the crop of the full render);
+``render_labels`` gives the theme with the largest weight per texel (the
+converter's agreement measure); ``render_project`` renders a
+:class:`~core.project.ThematicTexture`, at reduced resolution for overviews
+(``core.render_overview``, which never renders full resolution first).
+
+Conventions (texel positions, exact integer weights and rounding, saddle
+rule) are documented in :mod:`core.render_rules`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from enum import Enum
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.grid import IndexGrid, validate_cell, validate_indices
+from core.render_rules import SaddleRule, cell_splits
+from core.themes import Theme, validate_texture
+
+if TYPE_CHECKING:
+    from core.project import ThematicTexture
+
+Progress = Callable[[int, int], None]
+
+
+class BlendMode(Enum):
+    """How the three themes of a triangle are mixed."""
+
+    #: the paper's weighted sum, exact integer weights rounded half up
+    LINEAR = "linear"
+    #: Heitz & Neyret (HPG 2018): variance-preserving blend of Gaussianised themes
+    HISTOGRAM = "histogram"
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """Options of :func:`render_cells`.
+
+    Attributes
+    ----------
+    blend : BlendMode
+    saddle : SaddleRule
+        How saddle cells (``A B / B A``) are split (``core.render_rules``).
+    threads : int
+        Row bands rendered in parallel; 0 = one per CPU.
+    """
+
+    blend: BlendMode = BlendMode.LINEAR
+    saddle: SaddleRule = SaddleRule.MINORITY
+    threads: int = 0
+
+
+_pool: ThreadPoolExecutor | None = None
+
+
+def _executor(threads: int) -> ThreadPoolExecutor:
+    global _pool
+    if _pool is None:
+        _pool = ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1),
+                                   thread_name_prefix="terratheme-render")
+    return _pool
+
+
+def _textures(themes: object) -> list[np.ndarray]:
+    """Validate a theme sequence (arrays or :class:`Theme`) into uint8 (h, w, 3) arrays."""
+    if themes is None or isinstance(themes, np.ndarray) and themes.ndim not in (1, 4):
+        raise TerrathemeError(
+            "themes must be a sequence of (h, w, 3) textures, one per index "
+            f"(got {'None' if themes is None else f'an array of shape {themes.shape}'})"
+        )
+    try:
+        items = list(themes)  # type: ignore[arg-type]
+    except TypeError as exc:
+        raise TerrathemeError(f"themes must be a sequence of textures, got {themes!r}") from exc
+    if not items:
+        raise TerrathemeError("no themes: need at least one (h, w, 3) texture")
+    out = []
+    for k, t in enumerate(items):
+        if isinstance(t, Theme):
+            out.append(t.texture)
+        else:
+            out.append(validate_texture(t, name=f"theme {k}"))
+    return out
+
+
+def prepare_grid(
+    grid: object, cell: object, n_themes: int | None
+) -> tuple[np.ndarray, tuple[int, int]]:
+    """Validate ``grid`` (array or :class:`IndexGrid`) and ``cell`` into ``(indices, (N, M))``."""
+    if isinstance(grid, IndexGrid):
+        if cell is None:
+            cell = grid.cell
+        grid = grid.indices
+    if cell is None:
+        raise TerrathemeError("cell size (N, M) is required with a plain index array")
+    indices = validate_indices(grid, n_themes=n_themes)
+    return indices, validate_cell(cell)
+
+
+def validate_region(region: object, size: tuple[int, int]) -> tuple[int, int, int, int]:
+    """Check ``region = (x, y, w, h)`` against the full texture ``size = (W, H)``."""
+    full_w, full_h = size
+    if region is None:
+        return 0, 0, full_w, full_h
+    try:
+        x, y, w, h = (int(v) for v in region)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise TerrathemeError(f"region must be four integers (x, y, w, h), got {region!r}") from exc
+    if w < 1 or h < 1:
+        raise TerrathemeError(f"region {w} x {h} is empty")
+    if x < 0 or y < 0 or x + w > full_w or y + h > full_h:
+        raise TerrathemeError(
+            f"region x={x} y={y} w={w} h={h} is outside the {full_w} x {full_h} texture"
+        )
+    return x, y, w, h
+
+
+def _bands(h: int, threads: int) -> list[tuple[int, int]]:
+    """Split ``h`` rows into bands: up to eight per thread (load balance), at least 8 rows each."""
+    n = max(1, min(threads * 8, h // 8))
+    edges = np.linspace(0, h, n + 1).astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def render_cells(
+    grid: object,
+    themes: Sequence[np.ndarray] | Sequence[Theme],
+    cell: tuple[int, int] | None = None,
+    region: tuple[int, int, int, int] | None = None,
+    *,
+    options: RenderOptions = RenderOptions(),  # noqa: B008 (frozen, immutable)
+    splits: np.ndarray | None = None,
+    progress: Progress | None = None,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Render a thematic texture (DESIGN.md §1, steps 1-3).
+
+    Parameters
+    ----------
+    grid : (gh+1, gw+1) integer array-like or IndexGrid
+        Theme index at every grid vertex (row 0 at the top).
+    themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
+        ``themes[k]`` for index ``k``; any size; sampled at global output
+        coordinates, wrapping.
+    cell : (N, M)
+        Texel columns and rows per cell (default: the IndexGrid's).
+    region : (x, y, w, h), optional
+        Render only this window of the full ``(gw*N, gh*M)`` texture; the
+        result equals the same crop of the full render exactly.
+    options : RenderOptions
+    splits : (gh, gw) uint8 ndarray, optional
+        Per-cell split (0 uniform, 1 main diagonal, 2 anti-diagonal) chosen by
+        the caller (e.g. from a photo); default ``cell_splits(grid, options.saddle)``.
+    progress : callable(done, total), optional
+    out : (h, w, 3) uint8 C-contiguous ndarray, optional
+        Render into this array (a viewport reusing its buffer skips the page
+        faults of a fresh allocation, which cost as much as a whole render).
+
+    Returns
+    -------
+    image : (h, w, 3) uint8 ndarray
+        ``(gh*M, gw*N, 3)`` for the full texture (``out`` when given).
+
+    Raises
+    ------
+    TerrathemeError
+        Bad grid (not 2-D, empty, negative, index without a theme), bad
+        themes (none, empty, not 3/4 channels), bad cell or region.
+    """
+    from core import render_kernel as rk
+    from core.render_pack import LUT_RANGE, pack_themes
+
+    textures = _textures(themes)
+    indices, (n, m) = prepare_grid(grid, cell, len(textures))
+    gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
+    rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
+    # Only the block of cells under the region (a viewport of a huge grid stays cheap).
+    cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
+    sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+    splits = _region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
+    hist = options.blend is BlendMode.HISTOGRAM
+    packed = pack_themes(textures, n, gaussian=hist)
+    if out is None:
+        out = np.empty((rh, rw, 3), dtype=np.uint8)
+    elif (not isinstance(out, np.ndarray) or out.shape != (rh, rw, 3) or out.dtype != np.uint8
+          or not out.flags.c_contiguous or not out.flags.writeable):
+        raise TerrathemeError(f"out must be a writeable C-contiguous ({rh}, {rw}, 3) uint8 array")
+    out2 = out.reshape(rh, rw * 3)
+    mag, sh = rk.division_magic(n * m)
+    small_table = 96 * n * m <= 8 << 20
+
+    def tables(r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
+        # Weight tables: cached for ordinary cells, only this band's rows for huge ones.
+        if small_table:
+            return rk.weight_tables(n, m)
+        return rk.weight_tables(n, m, np.unique((ry + np.arange(r0, r1)) % m))
+
+    def band(r0: int, r1: int) -> None:
+        # One row band; the kernels release the GIL so bands run in parallel.
+        if hist:
+            rk.histogram_rows(out2, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m, packed.flat,
+                              packed.gflat, packed.off, packed.stride, packed.th, packed.tw,
+                              packed.inv_lut, LUT_RANGE)
+        else:
+            rk.linear_rows(out2, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m, packed.flat,
+                           packed.off, packed.stride, packed.th, packed.tw, *tables(r0, r1),
+                           mag, sh)
+
+    threads = options.threads or (os.cpu_count() or 1)
+    if rw * rh < 1 << 16:
+        threads = 1
+    bands = _bands(rh, threads)
+    if threads == 1 or len(bands) == 1:
+        for i, (r0, r1) in enumerate(bands):
+            band(r0, r1)
+            if progress:
+                progress(i + 1, len(bands))
+        return out
+    futures = [_executor(threads).submit(band, r0, r1) for r0, r1 in bands]
+    for i, fut in enumerate(futures):
+        fut.result()
+        if progress:
+            progress(i + 1, len(futures))
+    return out
+
+
+def _check_splits(splits: object, indices: np.ndarray, rule: SaddleRule) -> np.ndarray:
+    """The per-cell splits: computed by ``rule``, or the caller's choice where a cell is mixed."""
+    auto = cell_splits(indices, rule)
+    if splits is None:
+        return auto
+    arr = np.asarray(splits)
+    if arr.shape != auto.shape or arr.dtype.kind not in "iu":
+        raise TerrathemeError(
+            f"splits must be a {auto.shape} integer array (0 auto, 1 main, 2 anti diagonal), "
+            f"got shape {arr.shape} dtype {arr.dtype}"
+        )
+    if arr.size and (arr.min() < 0 or arr.max() > 2):
+        raise TerrathemeError("splits values must be 0 (auto), 1 (main) or 2 (anti diagonal)")
+    # Uniform cells stay uniform; 0 elsewhere means "use the rule".
+    chosen = np.where((auto == 0) | (arr == 0), auto, arr)
+    return np.ascontiguousarray(chosen, dtype=np.uint8)
+
+
+def _region_splits(
+    indices: np.ndarray, splits: object, rule: SaddleRule, cells: tuple[int, int, int, int]
+) -> np.ndarray:
+    """Splits of cells ``cy0..cy1 x cx0..cx1`` only (the ring rule needs one more vertex around)."""
+    cy0, cy1, cx0, cx1 = cells
+    if splits is not None:
+        return np.ascontiguousarray(_check_splits(splits, indices, rule)[cy0 : cy1 + 1,
+                                                                         cx0 : cx1 + 1])
+    vy0, vx0 = max(cy0 - 1, 0), max(cx0 - 1, 0)
+    block = indices[vy0 : cy1 + 3, vx0 : cx1 + 3]
+    # Cells of the block at the grid border see the true border (nothing beyond it).
+    part = cell_splits(block, rule)
+    return np.ascontiguousarray(part[cy0 - vy0 : cy1 - vy0 + 1, cx0 - vx0 : cx1 - vx0 + 1])
+
+
+def render_labels(
+    grid: object,
+    cell: tuple[int, int] | None = None,
+    region: tuple[int, int, int, int] | None = None,
+    *,
+    n_themes: int | None = None,
+    saddle: SaddleRule = SaddleRule.MINORITY,
+    splits: np.ndarray | None = None,
+) -> np.ndarray:
+    """The theme with the largest total weight at every texel (the one-hot view of a render).
+
+    Corners carrying the same theme add their weights; ties go to the lower
+    theme index. Same texel convention and splits as :func:`render_cells`.
+
+    Returns
+    -------
+    labels : (h, w) uint8 ndarray
+    """
+    from core import render_kernel as rk
+
+    indices, (n, m) = prepare_grid(grid, cell, n_themes)
+    gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
+    rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
+    cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
+    sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+    splits = _region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
+    out = np.empty((rh, rw), dtype=np.uint8)
+    small_table = 96 * n * m <= 8 << 20
+
+    def band(r0: int, r1: int) -> None:
+        rows = None if small_table else np.unique((ry + np.arange(r0, r1)) % m)
+        rk.label_rows(out, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m,
+                      *rk.weight_tables(n, m, rows))
+
+    bands = _bands(rh, os.cpu_count() or 1)
+    if rw * rh < 1 << 16 or len(bands) == 1:
+        for r0, r1 in bands:
+            band(r0, r1)
+    else:
+        for fut in [_executor(2).submit(band, r0, r1) for r0, r1 in bands]:
+            fut.result()
+    return out
+
+
+def render_project(
+    project: ThematicTexture,
+    region: tuple[int, int, int, int] | None = None,
+    scale: float = 1.0,
+    *,
+    options: RenderOptions = RenderOptions(),  # noqa: B008
+    progress: Progress | None = None,
+) -> np.ndarray:
+    """Render a project's texture, or a reduced-resolution overview when ``scale < 1``.
+
+    Parameters
+    ----------
+    region : (x, y, w, h), optional
+        In full-resolution texels.
+    scale : float in (0, 1]
+        Output texels per full-resolution texel; below 1 the overview
+        renderer is used (it never renders full resolution first).
+
+    Returns
+    -------
+    image : (round(h*scale), round(w*scale), 3) uint8 ndarray
+    """
+    if not (0.0 < float(scale) <= 1.0):
+        raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
+    textures = project.library.textures
+    if float(scale) == 1.0:
+        return render_cells(project.grid.indices, textures, project.grid.cell, region,
+                            options=options, progress=progress)
+    from core.render_overview import render_overview
+
+    return render_overview(project.grid.indices, textures, project.grid.cell, region,
+                           scale=float(scale), saddle=options.saddle)

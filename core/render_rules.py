@@ -1,0 +1,149 @@
+"""How each cell is split and weighted (Vyatkin & Romanyuk, DESIGN.md §1).
+
+Conventions (the renderer, the label view and the tests all follow them):
+
+* **Texel positions.** Global texel column ``X`` sits at grid position
+  ``X / N`` and row ``Y`` at ``Y / M`` (the paper's ``x = xs/N``). Texel
+  ``(xs, ys)`` of a cell therefore has local coordinates ``x = xs/N``,
+  ``y = ys/M`` in ``[0, 1)``; the texel on a grid vertex reproduces that
+  vertex's theme exactly, and along a cell edge the weights are the linear
+  interpolation of the edge's two vertices whatever the split, so the render
+  has no seam or jump across cell edges.
+* **Exact integer weights.** With ``D = N*M``, ``X' = xs*M`` and
+  ``Y' = ys*N`` are integers and every barycentric weight times ``D`` is an
+  integer; the renderer rounds the exact rational blend half up:
+  ``out = floor((2 * sum(w_k * T_k) + D) / (2 * D))``.
+* **Splits** (``cell_splits``): ``UNIFORM`` (all four equal), ``MAIN``
+  (diagonal ``ind[0][0]``-``ind[1][1]``), ``ANTI`` (``ind[0][1]``-``ind[1][0]``).
+  The split follows the equal-ended diagonal. **Saddle** (``A B / B A``, both
+  diagonals equal-ended): the theme with *fewer* vertices in the ring of 12
+  vertices around the cell gets its diagonal, i.e. stays connected through
+  the cell (thin features such as roads and rivers stay unbroken; the
+  surrounding theme stays connected around them anyway); on a tie the lower
+  theme index connects. **No equal-ended diagonal** (three or four different
+  themes): the split is ``MAIN``, the paper's first branch.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import numpy as np
+
+UNIFORM, MAIN, ANTI = 0, 1, 2
+
+
+class SaddleRule(Enum):
+    """How a saddle cell ``A B / B A`` is split."""
+
+    #: connect the theme with fewer vertices in the 12-vertex ring (tie: lower index)
+    MINORITY = "minority"
+    #: always split along ``ind[0][0]``-``ind[1][1]`` (the paper's first branch)
+    MAIN = "main"
+
+
+def _ring_count(grid: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Count, for every cell, the ring vertices (4x4 block minus the 2x2 cell) equal to ``values``.
+
+    Parameters
+    ----------
+    grid : (gh+1, gw+1) uint8 ndarray
+    values : (gh, gw) uint8 ndarray
+        The theme to count per cell.
+
+    Returns
+    -------
+    count : (gh, gw) int32 ndarray
+        Vertices outside the grid are not counted.
+    """
+    gh, gw = grid.shape[0] - 1, grid.shape[1] - 1
+    # Pad with a value that matches nothing (256 does not fit uint8: use int16).
+    pad = np.full((gh + 3, gw + 3), -1, dtype=np.int16)
+    pad[1:-1, 1:-1] = grid
+    count = np.zeros((gh, gw), dtype=np.int32)
+    for dr in range(4):
+        for dc in range(4):
+            if dr in (1, 2) and dc in (1, 2):
+                continue
+            count += pad[dr : dr + gh, dc : dc + gw] == values
+    return count
+
+
+def cell_splits(grid: np.ndarray, rule: SaddleRule = SaddleRule.MINORITY) -> np.ndarray:
+    """The split of every cell: ``UNIFORM`` (0), ``MAIN`` (1) or ``ANTI`` (2).
+
+    Parameters
+    ----------
+    grid : (gh+1, gw+1) uint8 ndarray
+        Validated vertex indices.
+    rule : SaddleRule
+        How saddle cells are decided (module docstring).
+
+    Returns
+    -------
+    splits : (gh, gw) uint8 ndarray
+    """
+    a, b = grid[:-1, :-1], grid[:-1, 1:]
+    c, d = grid[1:, :-1], grid[1:, 1:]
+    main_eq = a == d
+    anti_eq = b == c
+    uniform = main_eq & anti_eq & (a == b)
+    splits = np.full(a.shape, MAIN, dtype=np.uint8)
+    # Only the anti-diagonal has equal ends.
+    splits[anti_eq & ~main_eq] = ANTI
+    # Saddle: both diagonals equal-ended with different themes.
+    saddle = main_eq & anti_eq & ~uniform
+    if rule is SaddleRule.MINORITY and saddle.any():
+        ca = _ring_count(grid, a)
+        cb = _ring_count(grid, b)
+        anti_wins = (cb < ca) | ((cb == ca) & (b < a))
+        splits[saddle & anti_wins] = ANTI
+    splits[uniform] = UNIFORM
+    return splits
+
+
+def corner_weights(
+    split: np.ndarray, xi: np.ndarray, yi: np.ndarray, d: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Integer barycentric weights (times ``D``) of the four cell corners (DESIGN.md §1 step 2).
+
+    Parameters
+    ----------
+    split : int ndarray
+        ``UNIFORM``/``MAIN``/``ANTI`` per texel (broadcastable).
+    xi, yi : int ndarray
+        ``xs*M`` and ``ys*N``: local coordinates times ``D`` (broadcastable).
+    d : int
+        ``N*M``.
+
+    Returns
+    -------
+    w00, w01, w10, w11 : int32 ndarrays
+        Weights of ``ind[0][0]``, ``ind[0][1]``, ``ind[1][0]``, ``ind[1][1]``;
+        they sum to ``d`` at every texel. Uniform cells put everything on
+        ``ind[0][0]``.
+    """
+    xi = np.asarray(xi, dtype=np.int32)
+    yi = np.asarray(yi, dtype=np.int32)
+    split = np.asarray(split)
+    shape = np.broadcast_shapes(split.shape, xi.shape, yi.shape)
+    xi, yi, split = (np.broadcast_to(v, shape) for v in (xi, yi, split))
+    zero = np.zeros(shape, dtype=np.int32)
+    main, anti = split == MAIN, split == ANTI
+    lower = xi <= yi  # MAIN: x <= y triangle
+    near = xi + yi <= d  # ANTI: x + y <= 1 triangle
+    # MAIN, x <= y: T10*(y-x) + T00*(1-y) + T11*x ; x > y: T01*(x-y) + T00*(1-x) + T11*y
+    m00 = np.where(lower, d - yi, d - xi)
+    m01 = np.where(lower, zero, xi - yi)
+    m10 = np.where(lower, yi - xi, zero)
+    m11 = np.where(lower, xi, yi)
+    # ANTI, x+y <= 1: T00*(1-x-y) + T01*x + T10*y ; else T11*(x+y-1) + T01*(1-y) + T10*(1-x)
+    a00 = np.where(near, d - xi - yi, zero)
+    a01 = np.where(near, xi, d - yi)
+    a10 = np.where(near, yi, d - xi)
+    a11 = np.where(near, zero, xi + yi - d)
+    w00 = np.where(main, m00, np.where(anti, a00, d)).astype(np.int32)
+    w01 = np.where(main, m01, np.where(anti, a01, 0)).astype(np.int32)
+    w10 = np.where(main, m10, np.where(anti, a10, 0)).astype(np.int32)
+    w11 = np.where(main, m11, np.where(anti, a11, 0)).astype(np.int32)
+    return w00, w01, w10, w11

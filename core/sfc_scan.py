@@ -1,0 +1,320 @@
+"""Whole-image scans along a curve: numba kernels over a :class:`core.sfc.BlockPlan`.
+
+Each kernel walks the blocks of the plan in curve order and, inside a block,
+one of the precomputed local patterns, skipping texels outside the image (seed
+section 2.2, ``Convert``). Blocks that lie wholly inside the image skip the
+bounds test. numba is used because the numpy equivalent (a full argsort of
+the step table, or a gather through a 4-byte-per-texel order array) costs
+several times more for a 9144^2 map (``benchmarks/bench_packing.py``).
+
+Steps are 0-based and returned as ``uint32`` (a 65536^2 square has 2^32 steps);
+ranks (how many image texels precede a texel along the curve) are ``int64``.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.sfc import BlockPlan, Curve, block_plan
+
+
+@numba.njit(cache=True, nogil=True)
+def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, values, count,
+                 cur, last):  # pragma: no cover - numba
+    # Resumable: stops before a block that might overflow ``steps``; returns where it stopped.
+    h, w = keys.shape
+    side = 1 << b
+    mask = side - 1
+    cap = steps.size
+    for j in range(j0, j1):
+        if cap - count <= side * side:
+            return count, j, cur, last
+        x0 = np.int64(bx[j]) * side
+        y0 = np.int64(by[j]) * side
+        st = state[j]
+        base = np.uint64(first_step[j])
+        full = x0 + side <= w and y0 + side <= h
+        for i in range(side * side):
+            p = np.int64(patterns[st, i])
+            x = x0 + (p & mask)
+            y = y0 + (p >> b)
+            if not full and (x >= w or y >= h):
+                continue
+            v = keys[h - 1 - y, x]
+            # A value change closes the current run at the previous texel's step.
+            if v != cur:
+                steps[count] = last
+                values[count] = cur
+                count += 1
+                cur = v
+            last = base + np.uint64(i)
+    return count, j1, cur, last
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_kernel(out, steps, values, b, bx, by, state, first_step, patterns, j0, j1,
+                 r):  # pragma: no cover - numba
+    # Blocks j0 .. j1-1; r = first run that ends at or after block j0's first step.
+    h, w = out.shape
+    side = 1 << b
+    mask = side - 1
+    for j in range(j0, j1):
+        x0 = np.int64(bx[j]) * side
+        y0 = np.int64(by[j]) * side
+        st = state[j]
+        base = np.uint64(first_step[j])
+        full = x0 + side <= w and y0 + side <= h
+        while np.uint64(steps[r]) < base:
+            r += 1
+        if full and np.uint64(steps[r]) >= base + np.uint64(side * side - 1):
+            # One run covers the whole block: fill its rectangle at once.
+            out[h - y0 - side: h - y0, x0: x0 + side] = values[r]
+            continue
+        for i in range(side * side):
+            p = np.int64(patterns[st, i])
+            x = x0 + (p & mask)
+            y = y0 + (p >> b)
+            if not full and (x >= w or y >= h):
+                continue
+            # Advance to the run whose last step is at or after this texel's step.
+            s = base + np.uint64(i)
+            while np.uint64(steps[r]) < s:
+                r += 1
+            out[h - 1 - y, x] = values[r]
+
+
+@numba.njit(cache=True, nogil=True)
+def _order_kernel(h, w, b, bx, by, state, patterns):  # pragma: no cover - numba
+    side = 1 << b
+    mask = side - 1
+    out = np.empty(h * w, np.int64)
+    k = 0
+    for j in range(bx.size):
+        x0 = np.int64(bx[j]) * side
+        y0 = np.int64(by[j]) * side
+        pat = patterns[state[j]]
+        full = x0 + side <= w and y0 + side <= h
+        for i in range(side * side):
+            p = np.int64(pat[i])
+            x = x0 + (p & mask)
+            y = y0 + (p >> b)
+            if not full and (x >= w or y >= h):
+                continue
+            out[k] = (h - 1 - y) * w + x
+            k += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _inside_count(h, w, x0, y0, side):  # pragma: no cover - numba
+    return (min(w, x0 + side) - x0) * (min(h, y0 + side) - y0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _ranks_to_steps_kernel(ends, h, w, b, bx, by, state, first_step, patterns):  # pragma: no cover
+    # ends[i]: number of image texels up to and including run i's last texel (1-based rank).
+    side = 1 << b
+    mask = side - 1
+    out = np.empty(ends.size, np.uint32)
+    r = 0
+    done = np.int64(0)
+    for j in range(bx.size):
+        if r >= ends.size:
+            break
+        x0 = np.int64(bx[j]) * side
+        y0 = np.int64(by[j]) * side
+        count = _inside_count(h, w, x0, y0, side)
+        base = np.uint64(first_step[j])
+        if count == side * side:
+            # Full block: the rank offset is the local step itself.
+            while r < ends.size and ends[r] <= done + count:
+                out[r] = base + np.uint64(ends[r] - done - 1)
+                r += 1
+        elif r < ends.size and ends[r] <= done + count:
+            # Partial block: walk its pattern once, counting image texels.
+            pat = patterns[state[j]]
+            seen = done
+            for i in range(side * side):
+                p = np.int64(pat[i])
+                if x0 + (p & mask) >= w or y0 + (p >> b) >= h:
+                    continue
+                seen += 1
+                while r < ends.size and ends[r] == seen:
+                    out[r] = base + np.uint64(i)
+                    r += 1
+        done += count
+    return out, r
+
+
+@numba.njit(cache=True, nogil=True)
+def _steps_to_ranks_kernel(steps, h, w, b, bx, by, state, first_step, patterns):  # pragma: no cover
+    side = 1 << b
+    mask = side - 1
+    out = np.full(steps.size, -1, np.int64)
+    r = 0
+    done = np.int64(0)
+    for j in range(bx.size):
+        x0 = np.int64(bx[j]) * side
+        y0 = np.int64(by[j]) * side
+        count = _inside_count(h, w, x0, y0, side)
+        base = np.uint64(first_step[j])
+        end = base + np.uint64(side * side)
+        # Steps in blocks that miss the image have no rank (-1).
+        while r < steps.size and np.uint64(steps[r]) < base:
+            r += 1
+        if count == side * side:
+            while r < steps.size and np.uint64(steps[r]) < end:
+                out[r] = done + np.int64(np.uint64(steps[r]) - base) + 1
+                r += 1
+        elif r < steps.size and np.uint64(steps[r]) < end:
+            pat = patterns[state[j]]
+            seen = done
+            for i in range(side * side):
+                p = np.int64(pat[i])
+                if x0 + (p & mask) < w and y0 + (p >> b) < h:
+                    seen += 1
+                while r < steps.size and np.uint64(steps[r]) == base + np.uint64(i):
+                    out[r] = seen
+                    r += 1
+        done += count
+    return out
+
+
+def _plan_args(plan: BlockPlan) -> tuple:
+    return (plan.b, plan.bx, plan.by, plan.state, plan.first_step, plan.patterns)
+
+
+def scan_runs(
+    keys: np.ndarray, curve: str | Curve, *, threads: int = 2
+) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of equal values along the curve (seed section 2.2, ``Convert``).
+
+    Parameters
+    ----------
+    keys : (H, W) integer ndarray
+        One value per texel (a palette index or a packed colour); row 0 = top.
+    threads : int
+        The blocks are split into this many contiguous stretches scanned at once
+        (the kernel releases the GIL); the stretches' runs are then stitched.
+
+    Returns
+    -------
+    steps : (R,) uint32 ndarray
+        0-based curve step of each run's last texel, strictly increasing.
+    values : (R,) ndarray of ``keys.dtype``
+        The value of each run; consecutive values differ.
+    """
+    keys = np.ascontiguousarray(keys)
+    plan = block_plan(keys.shape[1], keys.shape[0], curve)
+    nb = plan.bx.size
+    cuts = np.linspace(0, nb, max(1, min(int(threads), nb)) + 1).astype(int)
+    parts = [(int(a), int(z)) for a, z in zip(cuts[:-1], cuts[1:], strict=True) if z > a]
+
+    def one(part: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        j, j1 = part
+        cap = max(2 * (1 << 2 * plan.b), keys.size // (64 * len(parts)))
+        steps, values = np.empty(cap, np.uint32), np.empty(cap, keys.dtype)
+        count, cur, last = 0, keys[_first_texel(plan, j, keys.shape)], np.uint64(0)
+        while True:
+            count, j, cur, last = _runs_kernel(
+                keys, *_plan_args(plan), j, j1, steps, values, count, cur, last)
+            if j == j1:
+                break
+            # Out of room: double the run arrays and resume at block j.
+            steps = np.concatenate([steps, np.empty_like(steps)])
+            values = np.concatenate([values, np.empty_like(values)])
+        return (np.append(steps[:count], np.uint32(last)),
+                np.append(values[:count], values.dtype.type(cur)))
+
+    if len(parts) == 1:
+        results = [one(parts[0])]
+    else:
+        with ThreadPoolExecutor(len(parts)) as pool:
+            results = list(pool.map(one, parts))
+    steps = np.concatenate([r[0] for r in results])
+    values = np.concatenate([r[1] for r in results])
+    # Stitch: a run cut by a stretch boundary appears twice with one value; keep the later.
+    keep = np.append(values[1:] != values[:-1], True)
+    return (steps, values) if keep.all() else (steps[keep], values[keep])
+
+
+def _first_texel(plan: BlockPlan, j: int, shape: tuple[int, int]) -> tuple[int, int]:
+    """(row, col) of block ``j``'s first image texel along the curve."""
+    h, w = shape
+    pat = plan.patterns[plan.state[j]].astype(np.int64)
+    x = int(plan.bx[j]) * (1 << plan.b) + (pat & ((1 << plan.b) - 1))
+    y = int(plan.by[j]) * (1 << plan.b) + (pat >> plan.b)
+    i = int(np.argmax((x < w) & (y < h)))
+    return h - 1 - int(y[i]), int(x[i])
+
+
+def fill_runs(
+    steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
+    *, threads: int = 2,
+) -> np.ndarray:
+    """Inverse of :func:`scan_runs`: the ``(height, width)`` image of the runs' values.
+
+    ``steps[-1]`` must be the step of the image's last texel along the curve.
+    """
+    plan = block_plan(width, height, curve)
+    out = np.empty((height, width), dtype=values.dtype)
+    # Stretches of blocks filled at once; each starts at the run covering its first step.
+    cuts = np.linspace(0, plan.bx.size, max(1, min(threads, plan.bx.size)) + 1).astype(int)
+    firsts = np.searchsorted(steps, plan.first_step[np.minimum(cuts[:-1], plan.bx.size - 1)])
+
+    def one(k: int) -> None:
+        _fill_kernel(out, steps, values, *_plan_args(plan), int(cuts[k]), int(cuts[k + 1]),
+                     int(firsts[k]))
+
+    if cuts.size == 2:
+        one(0)
+    else:
+        with ThreadPoolExecutor(cuts.size - 1) as pool:
+            list(pool.map(one, range(cuts.size - 1)))
+    return out
+
+
+def scan_order(width: int, height: int, curve: str | Curve) -> np.ndarray:
+    """Texel order along the curve: flat row-major indices of every texel.
+
+    Returns
+    -------
+    order : (width * height,) int64 ndarray
+        ``image.reshape(-1)[order]`` is the image read along the curve.
+    """
+    plan = block_plan(width, height, curve)
+    return _order_kernel(height, width, plan.b, plan.bx, plan.by, plan.state, plan.patterns)
+
+
+def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:
+    """Curve steps of the texels with 1-based ranks ``ends`` (increasing, <= W*H).
+
+    Converts cumulative run lengths (the file's lengths) to the in-memory steps.
+
+    Returns
+    -------
+    steps : (R,) uint32 ndarray (0-based)
+    """
+    plan = block_plan(width, height, curve)
+    ends = np.ascontiguousarray(ends, dtype=np.int64)
+    out, done = _ranks_to_steps_kernel(ends, height, width, *_plan_args(plan))
+    if done != ends.size:
+        raise TerrathemeError(f"run ends beyond the {width} x {height} image's texels")
+    return out
+
+
+def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:
+    """1-based ranks (image texels up to and including each step) of increasing in-image steps.
+
+    Returns
+    -------
+    ranks : (R,) int64 ndarray
+        -1 for a step in a block that misses the image or past the last block.
+    """
+    plan = block_plan(width, height, curve)
+    steps = np.ascontiguousarray(steps, dtype=np.uint32)
+    return _steps_to_ranks_kernel(steps, height, width, *_plan_args(plan))

@@ -1,0 +1,182 @@
+"""Tiled reading and writing (bounded memory), Dask tile jobs, GeoTIFF georeference round trip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from core.errors import TerrathemeError
+from core.georef import read_georeference, scale_georeference, world_file_lines, write_georeference
+from core.image_io import image_info, read_image, read_region, write_image
+from core.tiled import (
+    Scheduler,
+    TiledImageWriter,
+    dask_image,
+    iter_tiles,
+    map_tiles,
+    run_tiles,
+    tile_windows,
+)
+
+GEOREF = {
+    "ModelPixelScale": [0.5, 0.5, 0.0],
+    "ModelTiepoint": [0.0, 0.0, 0.0, 1000.0, 2000.0, 0.0],
+    "GeoKeyDirectory": [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32640],
+    "GeoAsciiParams": "WGS 84 / UTM zone 40N|",
+    "GDAL_NODATA": "0",
+}
+
+
+def _ramp(h, w, c, dtype):
+    rng = np.random.default_rng(h * 31 + w)
+    info = np.iinfo(dtype) if np.dtype(dtype).kind in "iu" else None
+    if info is None:
+        return rng.random((h, w, c)).astype(dtype)
+    return rng.integers(0, int(info.max) + 1, (h, w, c), dtype=dtype)
+
+
+@pytest.mark.parametrize(
+    ("name", "dtype", "kw"),
+    [
+        ("big.tif", np.uint8, {"tile": 64, "bigtiff": True}),
+        ("deep.tif", np.uint16, {"tile": 32}),
+        ("hdr.exr", np.float32, {"tile": 32, "compression": "zip"}),
+    ],
+)
+def test_tiled_writer_and_windows_read_back_exactly(tmp_path, name, dtype, kw):
+    img = _ramp(150, 203, 3, dtype)
+    path = tmp_path / name
+    with TiledImageWriter(path, 203, 150, 3, dtype, **kw) as out:
+        for win in tile_windows(203, 150, kw["tile"] * 2):
+            out.write(win.x, win.y, img[win.y : win.y + win.h, win.x : win.x + win.w])
+    info = image_info(path)
+    assert info.tiled and (info.width, info.height, info.channels) == (203, 150, 3)
+    assert info.dtype == np.dtype(dtype)
+    assert np.array_equal(read_image(path), img)
+    for x, y, w, h in [(0, 0, 1, 1), (63, 31, 70, 90), (150, 100, 53, 50), (10, 149, 193, 1)]:
+        assert np.array_equal(read_region(path, x, y, w, h), img[y : y + h, x : x + w])
+    # Tiles with overlap: the core of each read window is the image's core.
+    cores = np.zeros_like(img)
+    for win, pix in iter_tiles(path, 48, overlap=5):
+        assert pix.shape == (win.rh, win.rw, 3)
+        assert np.array_equal(pix, img[win.ry : win.ry + win.rh, win.rx : win.rx + win.rw])
+        cores[win.y : win.y + win.h, win.x : win.x + win.w] = pix[win.core_in_read]
+    assert np.array_equal(cores, img)
+    if kw.get("bigtiff"):
+        assert path.read_bytes()[2] == 43  # BigTIFF magic
+
+
+def test_tile_windows_cover_once():
+    wins = tile_windows(10, 7, (4, 3), overlap=2)
+    hits = np.zeros((7, 10), int)
+    for w in wins:
+        hits[w.y : w.y + w.h, w.x : w.x + w.w] += 1
+        assert w.rx == max(0, w.x - 2) and w.rx + w.rw == min(10, w.x + w.w + 2)
+    assert (hits == 1).all()
+    assert len(wins) == 3 * 3
+
+
+@pytest.mark.parametrize("scheduler", [Scheduler.SERIAL, Scheduler.DASK])
+def test_map_tiles_with_overlap_equals_whole_image_filter(tmp_path, scheduler):
+    img = _ramp(97, 131, 1, np.uint8)
+    path = tmp_path / "photo.tif"
+    write_image(path, img, tile=32)
+    whole = ndimage.uniform_filter(img[..., 0].astype(np.float32), size=5, mode="nearest")
+
+    def box(pix):
+        return ndimage.uniform_filter(pix[..., 0].astype(np.float32), size=5, mode="nearest")
+
+    seen = []
+    tiled = map_tiles(path, box, tile=40, overlap=2, scheduler=scheduler,
+                      progress=lambda d, t: seen.append((d, t)))
+    assert np.allclose(tiled, whole, atol=1e-4)
+    assert seen[-1] == (12, 12)
+    # Too little overlap shows at the tile borders.
+    bad = map_tiles(path, box, tile=40, overlap=0)
+    assert not np.allclose(bad, whole, atol=1e-4)
+
+
+def test_map_tiles_into_tiled_writer(tmp_path):
+    img = _ramp(70, 90, 3, np.uint8)
+    src = tmp_path / "in.tif"
+    write_image(src, img)
+    dst = tmp_path / "out.tif"
+    with TiledImageWriter(dst, 90, 70, 3, np.uint8, tile=16) as out:
+        map_tiles(src, lambda p: 255 - p, tile=32, out=out)
+    assert np.array_equal(read_image(dst), 255 - img)
+
+
+def test_run_tiles_dask_matches_serial(tmp_path):
+    img = _ramp(64, 80, 3, np.uint8)
+    path = tmp_path / "in.png"
+    write_image(path, img)
+    sums = {}
+    for sched in Scheduler:
+        got = {}
+        n = run_tiles(path, lambda win, pix: int(pix.astype(np.int64).sum()),
+                      lambda win, s, got=got: got.__setitem__((win.x, win.y), s),
+                      tile=(30, 20), scheduler=sched, batch=3)
+        assert n == 3 * 4
+        sums[sched] = got
+    assert sums[Scheduler.SERIAL] == sums[Scheduler.DASK]
+    assert sum(sums[Scheduler.DASK].values()) == int(img.astype(np.int64).sum())
+
+
+def test_dask_image_equals_whole_read(tmp_path):
+    img = _ramp(50, 70, 3, np.uint16)
+    path = tmp_path / "in.tif"
+    write_image(path, img, tile=16)
+    arr = dask_image(path, chunk=24)
+    assert arr.shape == (50, 70, 3) and arr.dtype == np.uint16
+    assert np.array_equal(arr.compute(), img)
+
+
+def test_writer_errors(tmp_path):
+    with pytest.raises(TerrathemeError, match="no tiles"):
+        with TiledImageWriter(tmp_path / "x.png", 8, 8, 1):
+            pass
+    with pytest.raises(TerrathemeError, match="tile grid"):
+        with TiledImageWriter(tmp_path / "x.tif", 64, 64, 1, tile=16) as out:
+            out.write(3, 0, np.zeros((16, 16), np.uint8))
+    assert not (tmp_path / "x.tif").exists()  # nothing half-written
+    with pytest.raises(TerrathemeError, match="overlap"):
+        tile_windows(4, 4, 2, overlap=-1)
+    with pytest.raises(TerrathemeError, match="no pixels"):
+        tile_windows(0, 4, 2)
+
+
+def test_georeference_round_trip_tiff_and_bigtiff(tmp_path):
+    img = _ramp(40, 60, 3, np.uint8)
+    for name, kw in [("a.tif", {}), ("b.tif", {"tile": 16, "attributes": {"tiff:bigtiff": 1}})]:
+        path = tmp_path / name
+        write_image(path, img, **kw)
+        assert read_georeference(path) == {}
+        write_georeference(path, GEOREF)
+        assert read_georeference(path) == GEOREF
+        assert np.array_equal(read_image(path), img)  # pixels untouched
+
+
+def test_georeference_world_file_for_png(tmp_path):
+    path = tmp_path / "preview.png"
+    write_image(path, np.zeros((4, 4, 3), np.uint8))
+    (made,) = write_georeference(path, GEOREF)
+    assert made.suffix == ".pgw"
+    # Centre of the top-left pixel: corner (1000, 2000) plus half a 0.5-unit pixel.
+    assert [float(v) for v in made.read_text().split()] == [0.5, 0, 0, -0.5, 1000.25, 1999.75]
+    scaled = scale_georeference(GEOREF, 4, 4)
+    assert scaled["ModelPixelScale"] == [2.0, 2.0, 0.0]
+    assert world_file_lines(scaled)[4:] == [1001.0, 1999.0]
+
+
+def test_real_geotiff_georeference_kept(shared_data, tmp_path):
+    src = shared_data / "geotiff" / "DRCOG_2020_LULC_E2880000_N1680000.tif"
+    geo = read_georeference(src)
+    assert geo["ModelPixelScale"][:2] == [1.0, 1.0]
+    assert "GeoKeyDirectory" in geo and "GeoAsciiParams" in geo
+    window = read_region(src, 4096, 4096, 300, 200)
+    out = tmp_path / "crop.tif"
+    write_image(out, window)
+    write_georeference(out, geo)
+    assert read_georeference(out) == geo
+    assert np.array_equal(read_image(out), window)

@@ -1,0 +1,56 @@
+"""The tiled grid path equals the whole-image path."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.convert_tiled import grid_from_file, vertex_tiles
+from core.errors import TerrathemeError
+from core.image_io import write_image
+from core.labels_to_grid import vote_grid
+from core.tiled import Scheduler
+
+
+def _classes(pixels: np.ndarray) -> np.ndarray:
+    """A per-pixel classifier: the brightest channel, 1..3."""
+    return np.argmax(pixels[..., :3], axis=2).astype(np.uint8) + 1
+
+
+@pytest.mark.parametrize(("cell", "tile"), [((8, 8), 64), ((5, 7), 40), ((16, 4), 33), (1, 17)])
+def test_tiled_grid_equals_whole_vote(tmp_path, cell, tile):
+    rng = np.random.default_rng(7)
+    coarse = rng.integers(0, 256, (12, 15, 3), dtype=np.uint8)
+    img = np.kron(coarse, np.ones((9, 9, 1), np.uint8))[:101, :131]
+    img = np.clip(img.astype(int) + rng.integers(-40, 40, img.shape), 0, 255).astype(np.uint8)
+    path = tmp_path / "photo.tif"
+    write_image(path, img, tile=32)
+    whole = vote_grid(_classes(img), cell if isinstance(cell, tuple) else (cell, cell))
+    lut = np.arange(256)
+    lut[3] = 1  # merge two classes, as a theme mapping may
+    want = vote_grid(lut.astype(np.uint8)[_classes(img)], cell if isinstance(cell, tuple)
+                     else (cell, cell))
+    for sched in Scheduler:
+        got = grid_from_file(path, cell, _classes, tile=tile, overlap=3, scheduler=sched)
+        assert np.array_equal(got.indices, whole)
+    assert np.array_equal(grid_from_file(path, cell, _classes, lut=lut, tile=tile).indices, want)
+
+
+def test_vertex_tiles_own_each_vertex_once():
+    tiles = vertex_tiles((50, 30), (4, 3), 12, 5)
+    hits = np.zeros((11, 14), int)
+    for win, ((r0, r1), (c0, c1)) in tiles.items():
+        hits[r0:r1, c0:c1] += 1
+        assert 0 <= win.rx <= win.x and win.x + win.w <= win.rx + win.rw <= 50
+    assert (hits == 1).all()
+
+
+def test_errors(tmp_path):
+    path = tmp_path / "p.png"
+    write_image(path, np.zeros((8, 8, 3), np.uint8))
+    with pytest.raises(TerrathemeError, match="returned"):
+        grid_from_file(path, 4, lambda p: np.zeros((2, 2), np.uint8))
+    with pytest.raises(TerrathemeError, match="overlap"):
+        grid_from_file(path, 4, _classes, overlap=-1)
+    with pytest.raises(TerrathemeError, match="256 integers"):
+        grid_from_file(path, 4, _classes, lut=[0, 1])

@@ -1,0 +1,199 @@
+"""Make the shipped theme library: ``themes/*.png`` + ``themes/themes.json``.
+
+Run: ``.venv/bin/python themes/make_themes.py [--dubai ../shared/data/dubai]``
+
+* Photo themes (sand, town, grass) are cut from the Dubai aerial
+  photos (Humans in the Loop, CC0 1.0; see themes/README.md): for each class
+  the script picks the window whose mask is purest for that class, then
+  makes it tileable with :func:`core.tileable.make_tileable`.
+* Procedural themes (water, forest, crop field, rock, road, snow) are synthesised
+  from spectrally filtered noise, which is periodic by construction (FFT),
+  and periodic Gaussian filters (``mode="wrap"``): seamless without a fade.
+
+Everything is seeded, so a re-run reproduces the same files. Every theme
+must pass :func:`core.tileable.seam_score` (the script checks it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from core.atomic import write_bytes_atomic  # noqa: E402
+from core.image_io import read_image, write_image  # noqa: E402
+from core.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
+
+SIZE = 256
+
+
+def spectral_noise(rng: np.random.Generator, size: int, beta: float) -> np.ndarray:
+    """(size, size) float periodic noise with a 1/f^beta spectrum, zero mean, unit std."""
+    white = np.fft.fft2(rng.standard_normal((size, size)))
+    f = np.hypot(*np.meshgrid(np.fft.fftfreq(size), np.fft.fftfreq(size)))
+    f[0, 0] = 1.0
+    out = np.real(np.fft.ifft2(white / f**beta))
+    return (out - out.mean()) / out.std()
+
+
+def colourise(v: np.ndarray, lo: tuple, hi: tuple) -> np.ndarray:
+    """Map values in [0, 1] onto the colour ramp lo -> hi; (h, w, 3) float."""
+    v = np.clip(v, 0, 1)[..., None]
+    return np.asarray(lo, float) * (1 - v) + np.asarray(hi, float) * v
+
+
+def to_u8(img: np.ndarray) -> np.ndarray:
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def forest(rng: np.random.Generator) -> np.ndarray:
+    """Tree crowns: random bright discs with shadows on a dark canopy, wrapping."""
+    crowns = np.zeros((SIZE, SIZE))
+    yy, xx = np.mgrid[0:SIZE, 0:SIZE]
+    for _ in range(260):
+        cx, cy, r = rng.uniform(0, SIZE), rng.uniform(0, SIZE), rng.uniform(4, 9)
+        dx = (xx - cx + SIZE / 2) % SIZE - SIZE / 2
+        dy = (yy - cy + SIZE / 2) % SIZE - SIZE / 2
+        d = np.hypot(dx + 0.35 * r, dy + 0.35 * r) / r  # lit from the top left
+        crowns = np.maximum(crowns, np.clip(1 - d, 0, 1) ** 0.6 * rng.uniform(0.6, 1.0))
+    fine = spectral_noise(rng, SIZE, 0.6)
+    v = 0.15 + 0.75 * crowns + 0.06 * fine
+    return to_u8(colourise(v, (12, 38, 18), (70, 130, 55)))
+
+
+def crop_field(rng: np.random.Generator) -> np.ndarray:
+    """Parallel crop rows (period divides the tile) with patchy ripeness."""
+    yy = np.mgrid[0:SIZE, 0:SIZE][0]
+    rows = 0.5 + 0.5 * np.cos(2 * np.pi * yy * 32 / SIZE)
+    patch = spectral_noise(rng, SIZE, 1.8)
+    fine = spectral_noise(rng, SIZE, 0.5)
+    v = 0.45 + 0.25 * rows + 0.12 * patch + 0.05 * fine
+    base = colourise(v, (95, 110, 40), (205, 190, 95))
+    return to_u8(base)
+
+
+def rock(rng: np.random.Generator) -> np.ndarray:
+    """Grey fractal rock with darker cracks."""
+    v = spectral_noise(rng, SIZE, 1.3)
+    ridges = np.abs(spectral_noise(rng, SIZE, 1.6))
+    cracks = np.clip(1 - ridges / 0.12, 0, 1)
+    g = 0.5 + 0.14 * v + 0.05 * spectral_noise(rng, SIZE, 0.3) - 0.25 * cracks
+    return to_u8(colourise(g, (40, 38, 36), (205, 200, 190)))
+
+
+def road(rng: np.random.Generator) -> np.ndarray:
+    """Asphalt: dark grey with fine aggregate and faint wear patches."""
+    fine = spectral_noise(rng, SIZE, 0.2)
+    wear = spectral_noise(rng, SIZE, 2.0)
+    g = 0.45 + 0.08 * fine + 0.06 * wear
+    return to_u8(colourise(g, (35, 36, 40), (140, 140, 145)))
+
+
+def snow(rng: np.random.Generator) -> np.ndarray:
+    """Wind-blown snow: bright blue-white with soft drifts."""
+    drift = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 1.5), (1, 6), mode="wrap")
+    g = 0.75 + 0.1 * drift / drift.std() + 0.02 * spectral_noise(rng, SIZE, 0.2)
+    return to_u8(colourise(g, (150, 165, 190), (255, 255, 255)))
+
+
+def _window_sums(a: np.ndarray, size: int) -> np.ndarray:
+    """Sum of ``a`` over every ``size`` x ``size`` window, stepping by 8 (integral image)."""
+    ii = np.pad(a.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    s = ii[size:, size:] - ii[:-size, size:] - ii[size:, :-size] + ii[:-size, :-size]
+    return s[::8, ::8]
+
+
+def best_window(
+    dubai: Path, cls: int, size: int, greenness: float = 0.0
+) -> tuple[np.ndarray, str, float]:
+    """The photo window that is purest for mask class ``cls`` (plus a greenness bonus)."""
+    best = (-np.inf, None, "", 0.0)
+    for mpath in sorted(glob.glob(str(dubai / "masks" / "*.png"))):
+        mask = read_image(mpath)[..., 0] == cls
+        if mask.shape[0] < size or mask.shape[1] < size or mask.mean() < 0.05:
+            continue
+        frac = _window_sums(mask.astype(np.int64), size) / size**2
+        score = frac.copy()
+        if greenness:
+            photo = read_image(_photo_of(mpath), dtype=np.uint8)[..., :3].astype(np.float64)
+            excess = photo[..., 1] - 0.5 * (photo[..., 0] + photo[..., 2])
+            # Among windows at least 90 % pure, prefer the greenest.
+            score = np.where(frac >= 0.9, frac + greenness * _window_sums(excess, size) / size**2,
+                             -np.inf)
+        j, i = np.unravel_index(np.argmax(score), score.shape)
+        if score[j, i] > best[0]:
+            best = (float(score[j, i]), (j * 8, i * 8), mpath, float(frac[j, i]))
+    _, (y, x), mpath, purity = best
+    photo = _photo_of(mpath)
+    img = read_image(photo, dtype=np.uint8)[y : y + size, x : x + size, :3]
+    return img, f"{photo.name} x={x} y={y} {size}x{size}", purity
+
+
+def _photo_of(mask_path: str) -> Path:
+    return Path(mask_path.replace("/masks/", "/images/")).with_suffix(".jpg")
+
+
+def water(rng: np.random.Generator) -> np.ndarray:
+    """Open water: deep blue with wind ripples and soft swell."""
+    ripples = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 0.8), (0.6, 2.5), mode="wrap")
+    swell = spectral_noise(rng, SIZE, 2.2)
+    g = 0.45 + 0.12 * ripples / ripples.std() + 0.12 * swell
+    return to_u8(colourise(g, (10, 35, 80), (70, 130, 185)))
+
+
+PHOTO = [
+    ("sand", 2, 0.0, (225, 200, 140), "bare land / desert sand (Dubai photo, made tileable)"),
+    ("town", 1, 0.0, (200, 60, 60), "buildings and roofs (Dubai photo, made tileable)"),
+    ("grass", 4, 0.02, (120, 200, 80), "grass and low vegetation (Dubai photo, made tileable)"),
+]
+PROCEDURAL = [
+    ("water", water, (40, 90, 200), "open water (procedural)"),
+    ("forest", forest, (20, 110, 40), "tree canopy (procedural)"),
+    ("crop field", crop_field, (230, 210, 60), "crop rows (procedural)"),
+    ("rock", rock, (130, 130, 130), "bare rock (procedural)"),
+    ("road", road, (60, 60, 60), "asphalt (procedural)"),
+    ("snow", snow, (240, 240, 250), "snow (procedural)"),
+]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dubai", default=str(HERE.parents[1] / "shared" / "data" / "dubai"))
+    args = ap.parse_args()
+    dubai = Path(args.dubai)
+    entries, credits = [], []
+    rng = np.random.default_rng(20261123)
+    for name, cls, green, colour, desc in PHOTO:
+        if not (dubai / "masks").is_dir():
+            raise SystemExit(f"{dubai}: Dubai photos not found (needed for photo themes)")
+        patch, where, purity = best_window(dubai, cls, SIZE, green)
+        tex = make_tileable(patch)
+        entries.append((name, colour, tex, desc))
+        credits.append(f"{name}: {where} (class purity {purity:.2f})")
+    for name, fn, colour, desc in PROCEDURAL:
+        entries.append((name, colour, fn(rng), desc))
+    meta = []
+    for name, colour, tex, desc in entries:
+        score = seam_score(tex)
+        if score > SEAM_THRESHOLD:
+            raise SystemExit(f"{name}: seam score {score:.2f} above {SEAM_THRESHOLD}")
+        file = name.replace(" ", "_") + ".png"
+        write_image(HERE / file, tex)
+        meta.append({"name": name, "colour": list(colour), "file": file, "description": desc})
+        print(f"{name:12s} {file:16s} seam {score:.2f}")
+    text = json.dumps({"version": 1, "themes": meta}, indent=1) + "\n"
+    write_bytes_atomic(HERE / "themes.json", text.encode())
+    write_bytes_atomic(HERE / "photo_sources.txt", ("\n".join(credits) + "\n").encode())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
