@@ -12,11 +12,11 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
     12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop).
 
 Methods, all in the same run:
-  rf-default      random forest (cv2.ml) on DEFAULT features, 4x4 coarse pixels,
+  rf-default      random forest (cv2.ml) on DEFAULT features, 8x8 coarse pixels,
                   Gaussian probability smoothing (the library default);
   rf-superpixel   same, probabilities averaged over MSLIC superpixels;
   rf-colour       random forest on coarse Lab only;
-  rf-scale8       DEFAULT features on 8x8 coarse pixels (same context in photo pixels);
+  rf-scale4       DEFAULT features on 4x4 coarse pixels (same context in photo pixels);
   ilastik         the ilastik recipe: random forest on Lab + scikit-image
                   multiscale_basic_features (sigma 1..16) for every pixel, no
                   regularisation. Too slow to predict whole photos in the time
@@ -24,9 +24,13 @@ Methods, all in the same run:
                   random labelled pixels per photo; its Mpx/s is features + votes
                   per pixel, measured. For (a) it runs on parts 001-003 of each tile
                   (18 photos), and rf-default is reported on the same subset.
-  kmeans-colour   k-means on per-pixel Lab (K = number of classes), clusters
-                  mapped to classes by the majority true class (a: an oracle, an
-                  upper bound) or by the scribbles (b).
+  kmeans-colour   k-means on Lab. (a): 10 clusters fitted to the training tiles'
+                  coarse Lab, each named by its majority class there, applied per
+                  pixel to the unseen tile. (b): K = number of classes, fitted on the
+                  photo, clusters named by the scribbles they hold.
+  kmeans-oracle   (a) only: K-means per test photo (K = 5), clusters named by the
+                  test photo's own true mask -- an upper bound colour clustering
+                  cannot reach without labels, not a competitor.
 """
 
 from __future__ import annotations
@@ -42,6 +46,9 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
 
 from core.classify import (  # noqa: E402
     Classifier,
@@ -53,6 +60,7 @@ from core.classify import (  # noqa: E402
     UnsupervisedOptions,
     classify_unsupervised,
 )
+from core.classify.features import coarse_lab  # noqa: E402
 from core.classify.photo import prepare_photo  # noqa: E402
 from core.classify.supervised import _pair_samples, build_forest  # noqa: E402
 from core.classify.tiled import Window, tile_features  # noqa: E402
@@ -64,13 +72,15 @@ RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000
 #: training samples per class for (a): cv2's forest trains on one core, keep folds short
 ACROSS_CAP = 6000
+#: clusters of the k-means-on-colour baseline trained on other tiles
+KMEANS_CLUSTERS = 10
 
 METHODS = {
     "rf-default": SupervisedOptions(),
     "rf-superpixel": SupervisedOptions(
         regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
     "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),
-    "rf-scale8": SupervisedOptions(features=FeatureOptions(scale=8, sigmas=(0.5, 1.0, 2.0, 4.0))),
+    "rf-scale4": SupervisedOptions(features=FeatureOptions(scale=4, sigmas=(1.0, 2.0, 4.0, 8.0))),
 }
 ILASTIK = SupervisedOptions(
     features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
@@ -80,30 +90,6 @@ KMEANS = UnsupervisedOptions(
     features=FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
     regularisation=RegulariseOptions(method=Regularisation.NONE),
 )
-
-
-def confusion(truth, pred, classes):
-    """(C, C) counts, rows = truth, over pixels whose truth is one of ``classes``."""
-    idx = {k: i for i, k in enumerate(classes)}
-    lut_t = np.full(256, -1, np.int64)
-    lut_p = np.full(256, -1, np.int64)
-    for k, i in idx.items():
-        lut_t[k] = i
-        lut_p[k] = i
-    t, p = lut_t[truth.ravel()], lut_p[pred.ravel()]
-    keep = (t >= 0) & (p >= 0)
-    c = len(classes)
-    return np.bincount(t[keep] * c + p[keep], minlength=c * c).reshape(c, c)
-
-
-def scores(cm, classes):
-    tp = np.diag(cm).astype(float)
-    union = cm.sum(0) + cm.sum(1) - tp
-    iou = np.where(union > 0, tp / np.maximum(union, 1), np.nan)
-    return {"oa": float(tp.sum() / max(cm.sum(), 1)),
-            "miou": float(np.nanmean(iou)),
-            "iou": {str(k): (None if np.isnan(v) else round(float(v), 4))
-                    for k, v in zip(classes, iou, strict=True)}}
 
 
 def load(folder, name, crop=None):
@@ -151,6 +137,30 @@ def kmeans_predict(photo, truth, classes, mapping_mask):
     return confusion(truth, lut[res.labels], classes), truth.size / dt / 1e6
 
 
+class ColourKMeans:
+    """k-means on Lab fitted to training samples, each cluster named by its majority class."""
+
+    def __init__(self, lab, labels, k):
+        cv2.setRNGSeed(RNG_SEED)
+        criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
+        _, assign, self.centres = cv2.kmeans(lab.astype(np.float32), k, None, criteria, 3,
+                                              cv2.KMEANS_PP_CENTERS)
+        assign = assign.ravel()
+        self.lut = np.array([np.bincount(labels[assign == c], minlength=256).argmax()
+                             if (assign == c).any() else 0 for c in range(k)], np.uint8)
+
+    def classify(self, photo, truth, classes):
+        """Per-pixel nearest centre -> (confusion, seconds)."""
+        t = time.perf_counter()
+        rgb, _ = prepare_photo(photo)
+        lab, _ = coarse_lab(rgb, 1)
+        flat = lab.reshape(-1, 3)
+        c = self.centres
+        d2 = (flat * flat).sum(1)[:, None] - 2.0 * flat @ c.T + (c * c).sum(1)[None]
+        pred = self.lut[d2.argmin(1)].reshape(truth.shape)
+        return confusion(truth, pred, classes), time.perf_counter() - t
+
+
 def across_tiles(log):
     classes = [1, 2, 3, 4, 5]
     names = sorted(p.name for p in (DATA / "dubai" / "images").glob("*.jpg"))
@@ -175,7 +185,7 @@ def across_tiles(log):
                             mask.size)
             del feats
         log(f"  features {i + 1}/{len(names)}")
-    per_photo = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour"]}
+    per_photo = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour", "kmeans-oracle"]}
     speed = {m: [0.0, 0.0] for m in per_photo}  # [pixels, seconds]
     for tile in range(1, 7):
         train = [n for n in names if tile_of[n] != tile]
@@ -203,12 +213,19 @@ def across_tiles(log):
                 speed[m][1] += time.perf_counter() - t
                 speed[m][0] += mask.size
                 per_photo[m][n] = confusion(mask, res.labels, classes)
+        # k-means on the training tiles' coarse Lab, clusters -> majority class there.
+        x, y = _capped(samples["rf-colour"], train, ACROSS_CAP, rng)
+        kmeans_trained = ColourKMeans(x, y, KMEANS_CLUSTERS)
         for n in test:
             photo, mask = load("dubai", n)
             cm, mpxs = kmeans_predict(photo, mask, classes, mask)
+            per_photo["kmeans-oracle"][n] = cm
+            speed["kmeans-oracle"][0] += mask.size
+            speed["kmeans-oracle"][1] += mask.size / mpxs / 1e6
+            cm, secs = kmeans_trained.classify(photo, mask, classes)
             per_photo["kmeans-colour"][n] = cm
             speed["kmeans-colour"][0] += mask.size
-            speed["kmeans-colour"][1] += mask.size / mpxs / 1e6
+            speed["kmeans-colour"][1] += secs
         log(f"  fold tile {tile} done")
     out = {}
     for m, cms in per_photo.items():
@@ -233,36 +250,6 @@ def _capped(per_photo_samples, names, cap, rng):
         keep.append(rng.choice(idx, min(cap, len(idx)), replace=False))
     keep = np.concatenate(keep)
     return x[keep].astype(np.float32), y[keep]
-
-
-def simulate_scribbles(mask, classes, rng, budget=0.008, length=30, width=3):
-    """Short straight strokes inside eroded class regions, <= ``budget`` of the pixels."""
-    present = [k for k in classes if (mask == k).sum() > 0.002 * mask.size]
-    out = np.zeros_like(mask)
-    per_class = int(budget * mask.size / max(len(present), 1))
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
-    for k in present:
-        region = cv2.erode((mask == k).astype(np.uint8), kernel).astype(bool)
-        ys, xs = np.nonzero(region)
-        if len(ys) == 0:
-            continue
-        painted = 0
-        for _ in range(400):
-            if painted >= per_class:
-                break
-            i = rng.integers(len(ys))
-            a = rng.uniform(0, np.pi)
-            dx, dy = np.cos(a) * length / 2, np.sin(a) * length / 2
-            canvas = np.zeros(mask.shape, np.uint8)
-            cv2.line(canvas, (int(xs[i] - dx), int(ys[i] - dy)),
-                     (int(xs[i] + dx), int(ys[i] + dy)), 1, width)
-            stroke = canvas.astype(bool) & region & (out == 0)
-            stroke_px = int(stroke.sum())
-            if painted + stroke_px > per_class:
-                continue
-            out[stroke] = k
-            painted += stroke_px
-    return out
 
 
 def scribbles(log):

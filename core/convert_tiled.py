@@ -29,6 +29,12 @@ from core.tiled import Scheduler, TileWindow, run_tiles
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 
+#: context pixels around each tile. The random forest of ``core.classify`` sees
+#: features up to 4 x 16 photo pixels away plus its smoothing: on a 2048^2 mosaic of
+#: Dubai photos (cell 16, tile 1024) the tiled grid differed from the whole-image grid
+#: in 21 of 16641 vertices with 32 pixels of context, 2 with 64 and none with 128.
+DEFAULT_OVERLAP = 128
+
 
 def vertex_tiles(
     size: tuple[int, int], cell: tuple[int, int], tile: int, overlap: int
@@ -70,7 +76,7 @@ def grid_from_file(
     *,
     lut: Sequence[int] | np.ndarray | None = None,
     tile: int = 1024,
-    overlap: int = 32,
+    overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ) -> IndexGrid:
@@ -146,7 +152,7 @@ def convert_file_tiled(
     *,
     names: Sequence[str] | dict[int, str] | None = None,
     tile: int = 1024,
-    overlap: int = 32,
+    overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ):

@@ -49,4 +49,6 @@ def test_supervised_is_well_formed(photo, seed):
         [2, 5], max(1, mask.size // 10))
     res = train_classifier([(photo, mask)]).predict(photo)
     _well_formed(res, photo)
-    assert set(res.classes) == set(np.unique(mask)) - {0}
+    # A coarse pixel takes the majority class of its labelled pixels, so a class painted
+    # only where another one wins can drop out, never appear from nowhere.
+    assert res.classes and set(res.classes) <= set(np.unique(mask)) - {0}

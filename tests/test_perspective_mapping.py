@@ -147,6 +147,7 @@ def test_bad_mappings_are_clear_errors():
         (dict(aperture=0), "aperture"),
         (dict(skew_oversampling=3), "skew_oversampling"),
         (dict(long_oversampling=0), "long_oversampling"),
+        (dict(long_probes=3), "long_probes"),
         (dict(sky=()), "sky"),
         (dict(reference_min_samples=8, reference_max_samples=4), "reference_min_samples"),
     ],

@@ -163,7 +163,8 @@ def run(args: argparse.Namespace) -> int:
     gh, gw = grid.cells_shape
     h, w = photo.shape[:2]
     names = ", ".join(result.project.library.names)
-    print(f"{project}: {len(result.project.library)} themes ({names}); cell {grid.cell[0]} x "
+    k = len(result.project.library)
+    print(f"{project}: {k} theme{'s' if k != 1 else ''} ({names}); cell {grid.cell[0]} x "
           f"{grid.cell[1]} -> {gw + 1} x {gh + 1} vertices for the {w} x {h} photo; "
           f"label agreement {result.agreement:.1%}")
     _print_written(written)
@@ -202,7 +203,8 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
                                   progress=progress)
         written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
     gh, gw = proj.grid.cells_shape
-    print(f"{project}: {len(proj.library)} themes ({', '.join(proj.library.names)}); cell "
+    k = len(proj.library)
+    print(f"{project}: {k} theme{'s' if k != 1 else ''} ({', '.join(proj.library.names)}); cell "
           f"{args.cell} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)")
     _print_written(written)
     return 0

@@ -228,6 +228,17 @@ class Classifier:
         self.classes = tuple(int(c) for c in classes)
         self.options = options
 
+    @property
+    def context_pixels(self) -> int:
+        """Photo pixels of context a label needs on each side.
+
+        Classifying a photo piece by piece, each piece starting at a multiple
+        of ``options.features.scale`` and read with at least this overlap (and
+        ``features.normalise`` off), gives the same labels as the whole photo.
+        """
+        fo, reg = self.options.features, self.options.regularisation
+        return (fo.halo + reg.halo + 1) * fo.scale
+
     def probabilities(self, feats: np.ndarray) -> np.ndarray:
         """Class probabilities (vote shares) of a coarse feature stack.
 

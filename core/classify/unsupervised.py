@@ -44,8 +44,9 @@ class UnsupervisedOptions:
     Attributes
     ----------
     features : FeatureOptions
-        Default: one smoothing scale (sigma 1 coarse pixel). Larger scales
-        blur class borders into bands that k-means would take for themes.
+        Default: 4x4 coarse pixels and one smoothing scale (sigma 1 coarse
+        pixel). Larger scales blur class borders into bands that k-means
+        would take for themes.
     regularisation : RegulariseOptions
     max_themes : int
         Upper bound on K for ``themes="auto"``.
@@ -68,7 +69,7 @@ class UnsupervisedOptions:
     """
 
     features: FeatureOptions = field(
-        default_factory=lambda: FeatureOptions(sigmas=(1.0,), hessian=False)
+        default_factory=lambda: FeatureOptions(scale=4, sigmas=(1.0,), hessian=False)
     )
     regularisation: RegulariseOptions = field(default_factory=RegulariseOptions)
     max_themes: int = 8

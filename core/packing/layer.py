@@ -255,9 +255,13 @@ class PackedLayer:
             bad = lookup_batch(flat_x, flat_y, self._data, idx)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
-        values = self.palette[idx]
-        if self.squeeze:
-            values = values[:, 0]
+        if self.identity:
+            # Index layer: the palette index is the value; no colour gather needed.
+            values = idx.astype(self.palette.dtype, copy=False)
+            values = values if self.squeeze else values[:, None]
+        else:
+            values = self.palette[idx]
+            values = values[:, 0] if self.squeeze else values
         out = values.reshape(shape + values.shape[1:])
         return out[()] if out.ndim == 0 else out
 

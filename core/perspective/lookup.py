@@ -127,3 +127,50 @@ def parallelogram_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, 
                             w3, out[p])
         reads[p] = r
     return reads
+
+
+@njit(cache=True, parallel=True)
+def two_probe_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy, valid, out):
+    """Variant of eq. 5 along the long side: instead of blending the copies
+    ``H = 2^e`` and ``2^(e+1)`` by the mantissa, read copy ``2^e`` twice,
+    centred ``+-(H - 2^e)/2`` along the tilted long side, so the two boxes
+    span exactly ``H`` (a trapezoid; exact at both powers of two). Across,
+    ``L`` is blended by its mantissa as in eq. 5. 8 or 16 texel reads."""
+    p_count = u.shape[0]
+    reads = np.zeros(p_count, np.int32)
+    n = table.shape[1] - 1
+    for p in prange(p_count):
+        if not valid[p]:
+            continue
+        up = wrap_coord(u[p], size)
+        vp = wrap_coord(v[p], size)
+        # eqs. 3-4: footprint parameters
+        h, l, tan, toward = footprint(dux[p], dvx[p], duy[p], dvy[p])
+        # at most the texture along the long side, at most 2^(k+1) elongation
+        h = min(max(h, 1.0), float(size))
+        l = min(max(l, h / (2 << k), 1.0), h)
+        eh, mh = _exponent_mantissa(h, 0, n)
+        el, ml = _exponent_mantissa(l, 0, eh)
+        if eh - el > k:
+            el, ml = eh - k, 0.0
+        # probe offsets along the long side (1, tan) or (tan, 1)
+        d = 0.5 * mh * (1 << eh)
+        if toward == TOWARD_U:
+            du, dv = d, d * tan
+        else:
+            du, dv = d * tan, d
+        # one probe when H is a power of two, else two
+        nprobe = 1 if d == 0.0 else 2
+        wp = 1.0 / nprobe
+        r = 0
+        for q in range(nprobe):
+            sgn = 0.0 if nprobe == 1 else (2.0 * q - 1.0)
+            pu = up + sgn * du
+            pv = vp + sgn * dv
+            r += _read_copy(buf, table, size, k, over, lover, eh, el, tan, toward, pu, pv,
+                            wp * (1.0 - ml), out[p])
+            if ml > 0.0:
+                r += _read_copy(buf, table, size, k, over, lover, eh, el + 1, tan, toward, pu,
+                                pv, wp * ml, out[p])
+        reads[p] = r
+    return reads

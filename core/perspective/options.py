@@ -57,6 +57,12 @@ class FilterOptions:
         Default 4: with the seed's lattice, edges across the long side show
         the bilinear ripple of a too coarse lattice (about 4 dB lost, see
         benchmarks/results/perspective.json).
+    long_probes : int
+        ``PARALLELOGRAM`` only. 1: the seed's eq. 5, three copies blended by
+        the mantissas of ``H`` and ``L`` (12 reads). 2: two probes of the
+        copy below ``H`` spanning exactly ``H`` along the long side (4-16
+        reads, see :func:`core.perspective.lookup.two_probe_kernel`); default,
+        measured 0.5-1.3 dB closer to the reference at grazing angles.
     sky : tuple of float
         Colour of pixels above the horizon (``z <= 0``), in the texture's
         value scale (integers are read as [0, 1]).
@@ -72,6 +78,7 @@ class FilterOptions:
     aperture: float = 1.0
     skew_oversampling: int = 2
     long_oversampling: int = 4
+    long_probes: int = 2
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
     reference_density: float = 2.0
     reference_min_samples: int = 4
@@ -96,6 +103,8 @@ class FilterOptions:
             s = int(val)
             if s != val or s < 1 or s > 16 or s & (s - 1):
                 raise TerrathemeError(f"{name} must be a power of two in [1, 16], got {val}")
+        if self.long_probes not in (1, 2):
+            raise TerrathemeError(f"long_probes must be 1 or 2, got {self.long_probes}")
         if len(self.sky) == 0 or not all(math.isfinite(c) for c in self.sky):
             raise TerrathemeError(f"sky colour must be finite numbers, got {self.sky}")
         if not (self.reference_density > 0 and math.isfinite(self.reference_density)):

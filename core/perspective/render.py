@@ -21,7 +21,7 @@ from core.perspective.baselines import (
 )
 from core.perspective.ewa import EWA_LUT, ewa_kernel
 from core.perspective.family import ParallelogramFamily, build_family
-from core.perspective.lookup import parallelogram_kernel
+from core.perspective.lookup import parallelogram_kernel, two_probe_kernel
 from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
 from core.perspective.options import FilterOptions, Method
 from core.perspective.reference import reference_kernel
@@ -232,7 +232,8 @@ class PreparedTexture:
                 dux, dvx, duy, dvy = (d * opt.aperture for d in (dux, dvx, duy, dvy))
             if m == Method.PARALLELOGRAM:
                 fam = self.family(opt)
-                reads = parallelogram_kernel(
+                kernel = two_probe_kernel if opt.long_probes == 2 else parallelogram_kernel
+                reads = kernel(
                     fam.buf, fam.table, fam.size, fam.max_lambda_log2, fam.skew_oversampling,
                     fam.long_oversampling,
                     u, v, dux, dvx, duy, dvy, valid, out)
