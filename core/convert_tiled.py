@@ -148,9 +148,10 @@ THEME_WINDOW = 2048
 def convert_file_tiled(
     path: str | os.PathLike,
     model,
-    cell: int,
+    cell: int | str,
     *,
     names: Sequence[str] | dict[int, str] | None = None,
+    target_agreement: float = 0.9,
     tile: int = 1024,
     overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler = Scheduler.SERIAL,
@@ -164,9 +165,11 @@ def convert_file_tiled(
         The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
     model : core.classify.Classifier
         Gives the class values (``model.classes``).
-    cell : int
-        Square cell size (``cell="auto"`` needs the whole label map: use
-        :func:`core.convert.convert_photo` for photos that fit in memory).
+    cell : int or "auto"
+        Square cell size; "auto" chooses it on the centre window's labels
+        (:func:`core.labels_to_grid.choose_cell_size`, ``target_agreement``):
+        an estimate from ``THEME_WINDOW``^2 pixels, recorded as such in the
+        metadata (``cell_choice["measured_on"]``).
     names : list or {class: name}, optional
         Shipped themes by name; default: themes cut from the centre
         ``THEME_WINDOW``-pixel window of the photo (classes absent there get
@@ -206,6 +209,13 @@ def convert_file_tiled(
         mapping = themes_by_name(rgb, win_result.labels, named)
     else:
         mapping = themes_from_photo(rgb, win_result.labels, classes=model.classes)
+    choice = None
+    if cell == "auto":
+        # Cell size from the agreement curve of the centre window (an estimate).
+        from core.labels_to_grid import apply_lut, choose_cell_size
+
+        choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement)
+        cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), lambda p: model.predict(p).labels, lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
     meta = {
@@ -213,6 +223,9 @@ def convert_file_tiled(
         "photo_size": [info.width, info.height],
         "classes": {str(c): mapping.library[int(mapping.lut[c])].name for c in mapping.classes},
     }
+    if choice is not None:
+        meta["cell_choice"] = {**choice.as_dict(),
+                               "measured_on": [x0, y0, side_w, side_h]}
     geo = read_georeference(path)
     if geo:
         meta["georeference"] = geo

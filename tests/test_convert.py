@@ -214,9 +214,12 @@ def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
     assert tiled.metadata["georeference"]["ModelTiepoint"][3:5] == [10.0, 20.0]
     assert tiled.photo is None and whole.photo is not None
     assert (tmp_path / "tiled.ttpack").is_file() and (tmp_path / "tiled_preview.png").is_file()
-    # The tiled path needs a model and a numeric cell.
+    # The tiled path needs a model; with cell auto it estimates on the centre window.
     assert _run([photo, tmp_path / "t2.ttproj", "--tile", "64", "--cell", "8"]) == 2
-    assert _run([photo, tmp_path / "t2.ttproj", *common[:2], "--tile", "64"]) == 2
+    assert _run([photo, tmp_path / "t3.ttproj", *common[:2], "--tile", "64"]) == 0
+    auto = load_project(tmp_path / "t3.ttproj")
+    assert auto.metadata["cell_choice"]["measured_on"] == [0, 0, 200, 150]
+    assert auto.grid.cell[0] == auto.metadata["cell_choice"]["cell"][0] >= 8
 
 
 def test_one_class_scribbles_and_float_exr(tmp_path):

@@ -108,3 +108,14 @@ def test_write_bytes_atomic_into_missing_folder_is_a_clear_error(tmp_path):
         write_bytes_atomic(tmp_path / "no" / "x.bin", b"1")
     write_bytes_atomic(tmp_path / "x.bin", b"1")
     assert Path(tmp_path / "x.bin").read_bytes() == b"1"
+
+
+def test_atomic_output_gets_ordinary_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        write_bytes_atomic(tmp_path / "x.bin", b"1")
+    finally:
+        os.umask(umask)
+    assert (tmp_path / "x.bin").stat().st_mode & 0o777 == 0o644

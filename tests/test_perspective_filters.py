@@ -213,6 +213,17 @@ def test_prepared_texture_is_reused_across_frames():
     assert pt.memory_bytes() == fam.nbytes
 
 
+@pytest.mark.parametrize("method", [Method.PARALLELOGRAM, Method.TRILINEAR, Method.EWA])
+def test_eight_bit_textures_store_eight_bit_copies(method):
+    tex = _random_texture(32, 32)
+    opt = FilterOptions(method=method)
+    p8, pf = PreparedTexture(tex, opt), PreparedTexture(tex.astype(np.float32) / 255, opt)
+    assert p8.memory_bytes() * 4 == pf.memory_bytes()
+    cam = Camera(height=6, pitch=10, yaw=20)
+    a, b = p8.render(cam, (30, 20)).image, pf.render(cam, (30, 20)).image
+    assert np.abs(a - b).max() <= 0.5 / 255 + 1e-6
+
+
 def test_non_power_of_two_texture_is_resampled_up():
     tex = _random_texture(3, 5).astype(np.float32) / 255
     sq, su, sv = power_of_two_square(tex)

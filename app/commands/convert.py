@@ -61,7 +61,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="classify with a saved classifier (terratheme classify --model-out)")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
-                             "(N pixels a side; needs --model and a numeric --cell)")
+                             "(N pixels a side; needs --model; --cell auto is estimated on the "
+                             "central 2048 x 2048 window)")
     parser.add_argument("--curve", metavar="PNG",
                         help="also write the agreement / bytes vs cell size chart (cell auto)")
 
@@ -186,9 +187,9 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
     from core.convert_tiled import convert_file_tiled
     from core.errors import TerrathemeError
 
-    if not args.model or args.cell == "auto" or args.scribbles:
-        raise TerrathemeError("--tile needs --model M and a numeric --cell N (no --scribbles: "
-                              "train the model with terratheme classify --model-out)")
+    if not args.model or args.scribbles:
+        raise TerrathemeError("--tile needs --model M (no --scribbles: train the model with "
+                              "terratheme classify --model-out)")
     if isinstance(themes, int) or args.tile < 16:
         raise TerrathemeError("--tile: N must be >= 16 and --themes auto or class names")
     model = Classifier.load(args.model)
@@ -200,11 +201,11 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
             bar.refresh()
 
         proj = convert_file_tiled(args.photo, model, args.cell, names=names, tile=args.tile,
-                                  progress=progress)
+                                  target_agreement=args.target_agreement, progress=progress)
         written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
     gh, gw = proj.grid.cells_shape
     k = len(proj.library)
     print(f"{project}: {k} theme{'s' if k != 1 else ''} ({', '.join(proj.library.names)}); cell "
-          f"{args.cell} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)")
+          f"{proj.grid.cell[0]} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)")
     _print_written(written)
     return 0

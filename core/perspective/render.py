@@ -8,7 +8,7 @@ family of copies) and renders any number of frames as the camera moves;
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -108,11 +108,18 @@ class PreparedTexture:
     -----
     Structures for other methods are built on first use by :meth:`render`
     and kept, so switching methods in a viewer costs one prefiltering each.
+    For ``uint8`` / ``uint16`` textures the prefiltered data (pyramid, family)
+    is stored in that type (filtered in floating point, then rounded), a
+    quarter / half of the float32 memory.
     """
 
     def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,
                  progress: Progress | None = None) -> None:
         self.options = options if options is not None else FilterOptions()
+        dt = np.asarray(texture).dtype
+        # prefiltered data keeps 8 or 16 bits when the input has them
+        self._store = dt if dt in (np.dtype(np.uint8), np.dtype(np.uint16)) else None
+        self._scale = 1.0 / np.iinfo(dt).max if self._store is not None else 1.0
         self.texture = as_float_texture(texture)
         self.square, self.su, self.sv = power_of_two_square(self.texture)
         self._pyramid: Pyramid | None = None
@@ -128,10 +135,18 @@ class PreparedTexture:
         """``(width, height)`` of the input in texels."""
         return int(self.texture.shape[1]), int(self.texture.shape[0])
 
+    def _stored(self, buf: np.ndarray) -> np.ndarray:
+        """Prefiltered texels in the storage type (rounded), ``(T, C)``."""
+        if self._store is None:
+            return buf
+        top = np.iinfo(self._store).max
+        return np.ascontiguousarray(np.clip(np.rint(buf * top), 0, top).astype(self._store))
+
     @property
     def pyramid(self) -> Pyramid:
         if self._pyramid is None:
-            self._pyramid = build_pyramid(self.square)
+            pyr = build_pyramid(self.square)
+            self._pyramid = replace(pyr, buf=self._stored(pyr.buf))
         return self._pyramid
 
     def family(self, options: FilterOptions | None = None,
@@ -140,7 +155,8 @@ class PreparedTexture:
         opt = options if options is not None else self.options
         key = (opt.max_lambda_log2, opt.skew_oversampling, opt.long_oversampling)
         if key not in self._families:
-            self._families[key] = build_family(self.square, *key, progress=progress)
+            fam = build_family(self.square, *key, progress=progress)
+            self._families[key] = replace(fam, buf=self._stored(fam.buf))
         return self._families[key]
 
     def memory_bytes(self, options: FilterOptions | None = None) -> int:
@@ -248,6 +264,9 @@ class PreparedTexture:
                 else:
                     reads = ewa_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx, duy,
                                        dvy, float(opt.max_anisotropy), EWA_LUT, valid, out)
+            if self._scale != 1.0:
+                # integer storage back to [0, 1]
+                out *= np.float32(self._scale)
         out[~valid] = sky.astype(np.float32)
         return out.reshape(bh, w, c), reads.reshape(bh, w)
 
