@@ -344,17 +344,16 @@ def chart(result, path):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
-    panels = [("(a) Dubai across tiles, mIoU (pooled)", result["across_tiles"],
-               lambda r: r["miou"], 0.45),
+    panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
+               result["across_tiles"], lambda r: r["subset_001_003"]["miou"], 0.45),
               ("(b) scribbles <= 1% of pixels, mean mIoU", result["scribbles"],
                lambda r: r["mean_miou_over_photos"], 0.60)]
     for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
-        for m, r in res.items():
-            if m == "coverage":
-                continue
-            ax.scatter(r["mpx_per_s"], get(r), s=60)
-            ax.annotate(m, (r["mpx_per_s"], get(r)), textcoords="offset points",
-                        xytext=(6, 4), fontsize=9)
+        markers = "osDv^P*X"
+        for i, (m, r) in enumerate(r for r in res.items() if r[0] != "coverage"):
+            ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
+                       color=f"C{i}", label=m)
+        ax.legend(fontsize=8, loc="lower left")
         ax.axhline(goal, color="grey", ls="--", lw=1)
         ax.axvline(5.0, color="grey", ls=":", lw=1)
         ax.set_xscale("log")

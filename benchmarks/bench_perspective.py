@@ -185,7 +185,9 @@ def chart(rows, textures, path: Path) -> None:
     for ax, tname in zip(np.atleast_1d(axes), textures, strict=True):
         for mname in METHODS:
             pts = [x for x in rows if x["texture"] == tname and x["method"] == mname]
-            ax.plot([p["ms_per_frame"] for p in pts], [p["psnr_db"] for p in pts], "o",
+            star = mname.startswith("parallelogram")
+            ax.plot([p["ms_per_frame"] for p in pts], [p["psnr_db"] for p in pts],
+                    "*" if star else "o", markersize=11 if star else 6,
                     color=colours[mname], label=mname, alpha=0.85)
             for p in pts:
                 ax.annotate(f"{p['pitch']:g}°", (p["ms_per_frame"], p["psnr_db"]),

@@ -329,3 +329,22 @@ def test_cli_errors_exit_2(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["perspective", str(src), str(tmp_path / "o.png"), "--camera", "4,12"])
     assert exc.value.code == 2
+
+
+def test_cli_renders_a_project(tmp_path):
+    from core.grid import IndexGrid
+    from core.project import ThematicTexture, save_project
+    from core.render import render_project
+    from core.themes import ThemeLibrary, flat_theme
+
+    lib = ThemeLibrary([flat_theme("field", (200, 180, 40)), flat_theme("water", (20, 60, 200))])
+    grid = IndexGrid(np.array([[0, 1, 0], [1, 0, 1], [0, 0, 1]], np.uint8), (8, 8))
+    project = ThematicTexture(grid, lib)
+    path, out = tmp_path / "tiny.ttproj", tmp_path / "out.png"
+    save_project(path, project)
+    texture = render_project(project)
+    h, w = texture.shape[:2]
+    rc = main(["perspective", str(path), str(out), "--method", "nearest", "--size", f"{w}x{h}",
+               "--mapping", "1,0,0,0,1,0,0,0,1"])
+    assert rc == 0
+    np.testing.assert_array_equal(read_image(out), texture)

@@ -161,8 +161,29 @@ class ParallelogramFamily:
         return self.buf[off : off + rows * cols].reshape(rows, cols, -1)
 
 
+def _layout(nsz: int, k: int, skew_oversampling: int, long_oversampling: int):
+    """Where every copy goes: ``(table, total_texels, jobs)``, jobs being
+    ``(toward, a, b, s, tan, offset)`` in build order."""
+    n = int(nsz).bit_length() - 1
+    smax = skew_count(k, skew_oversampling) if k > 0 else 1
+    table = np.full((2, n + 1, n + 1, smax), -1, np.int64)
+    jobs = []
+    offset = 0
+    for toward in (0, 1):
+        for b in range(n + 1):
+            for a in range(b, min(n, b + k) + 1):
+                if a == b and toward == 1:
+                    continue
+                for s, tan in enumerate(skew_values(a - b, skew_oversampling)):
+                    table[toward, a, b, s] = offset
+                    jobs.append((toward, a, b, s, float(tan), offset))
+                    offset += (nsz >> b) * copy_columns(nsz, a, long_oversampling)
+    return table, offset, jobs
+
+
 def build_family(square: np.ndarray, max_lambda_log2: int, skew_oversampling: int = 1,
-                 long_oversampling: int = 1, progress=None) -> ParallelogramFamily:
+                 long_oversampling: int = 1, progress=None,
+                 dtype: np.dtype | type = np.float32) -> ParallelogramFamily:
     """Prefilter the family of copies.
 
     Parameters
@@ -175,36 +196,35 @@ def build_family(square: np.ndarray, max_lambda_log2: int, skew_oversampling: in
     long_oversampling : int
         Power of two multiplying the seed's resolution along the long side.
     progress : callable(done, total) or None
+    dtype : float32, uint8 or uint16
+        Storage type; integer types hold ``round(value * max)`` (values in [0, 1]).
+        Copies are filtered in floating point and written straight into one
+        preallocated buffer, so the peak memory is the family plus one copy.
     """
     nsz = square.shape[0]
     n = int(nsz).bit_length() - 1
     k = max(0, min(int(max_lambda_log2), n))
-    smax = skew_count(k, skew_oversampling) if k > 0 else 1
-    table = np.full((2, n + 1, n + 1, smax), -1, np.int64)
-    parts: list[np.ndarray] = []
-    offset = 0
-    total = 2 * (n + 1)
-    done = 0
-    for toward in (0, 1):
-        # copies tilted toward V are copies tilted toward U of the transpose
-        g = square if toward == 0 else np.ascontiguousarray(square.transpose(1, 0, 2))
-        for b in range(n + 1):
-            if b > 0:
-                # box across the long side: average 2^b rows
-                g = np.ascontiguousarray(box_halve(g, axis0=True, axis1=False))
-            for a in range(b, min(n, b + k) + 1):
-                i = a - b
-                if i == 0 and toward == 1:
-                    continue
-                # one copy per skew: the box along the tilted long side
-                for s, tan in enumerate(skew_values(i, skew_oversampling)):
-                    copy = skewed_box(g, a, b, float(tan), copy_columns(nsz, a, long_oversampling))
-                    table[toward, a, b, s] = offset
-                    flat = copy.reshape(-1, copy.shape[2])
-                    parts.append(flat)
-                    offset += flat.shape[0]
-            done += 1
-            if progress is not None:
-                progress(done, total)
-    buf = np.ascontiguousarray(np.concatenate(parts, axis=0))
+    dt = np.dtype(dtype)
+    top = float(np.iinfo(dt).max) if dt.kind == "u" else None
+    table, total_texels, jobs = _layout(nsz, k, skew_oversampling, long_oversampling)
+    buf = np.empty((total_texels, square.shape[2]), dt)
+    g = None
+    current = (-1, -1)
+    for done, (toward, a, b, _s, tan, offset) in enumerate(jobs, start=1):
+        if current != (toward, b):
+            # copies tilted toward V are copies tilted toward U of the transpose
+            g = square if toward == 0 else np.ascontiguousarray(square.transpose(1, 0, 2))
+            # box across the long side: average 2^b rows
+            for _ in range(b):
+                g = box_halve(g, axis0=True, axis1=False)
+            g = np.ascontiguousarray(g, dtype=np.float32)
+            current = (toward, b)
+        # one copy: the box along the tilted long side
+        copy = skewed_box(g, a, b, tan, copy_columns(nsz, a, long_oversampling))
+        flat = copy.reshape(-1, copy.shape[2])
+        if top is not None:
+            flat = np.clip(np.rint(flat * top), 0, top)
+        buf[offset : offset + flat.shape[0]] = flat
+        if progress is not None:
+            progress(done, len(jobs))
     return ParallelogramFamily(buf, table, nsz, k, skew_oversampling, long_oversampling)

@@ -3,7 +3,9 @@
 Per pixel: the footprint of eqs. 2-4 gives ``H, L, tan`` and the axis it is
 tilted toward; the three copies around ``(log2 H, log2 L)`` are read with
 skew-corrected bilinear interpolation (eqs. 6-9) and blended by the
-mantissas of ``H`` and ``L`` (eq. 5).
+mantissas of ``H`` and ``L`` (eq. 5): :func:`parallelogram_kernel`.
+:func:`two_probe_kernel` replaces eq. 5's blend along ``H`` by two probes of
+one copy (measured closer to the box-filtered reference).
 """
 
 from __future__ import annotations
@@ -135,7 +137,8 @@ def two_probe_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy,
     ``H = 2^e`` and ``2^(e+1)`` by the mantissa, read copy ``2^e`` twice,
     centred ``+-(H - 2^e)/2`` along the tilted long side, so the two boxes
     span exactly ``H`` (a trapezoid; exact at both powers of two). Across,
-    ``L`` is blended by its mantissa as in eq. 5. 8 or 16 texel reads."""
+    ``L`` is blended by its mantissa as in eq. 5. 4 to 16 texel reads.
+    Selected by ``FilterOptions(long_probes=2)`` (the default)."""
     p_count = u.shape[0]
     reads = np.zeros(p_count, np.int32)
     n = table.shape[1] - 1
@@ -162,6 +165,8 @@ def two_probe_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy,
         # one probe when H is a power of two, else two
         nprobe = 1 if d == 0.0 else 2
         wp = 1.0 / nprobe
+        # the wider base must stay within the copy's height (L <= H)
+        cross_ok = el + 1 <= eh
         r = 0
         for q in range(nprobe):
             sgn = 0.0 if nprobe == 1 else (2.0 * q - 1.0)
@@ -169,8 +174,12 @@ def two_probe_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy,
             pv = vp + sgn * dv
             r += _read_copy(buf, table, size, k, over, lover, eh, el, tan, toward, pu, pv,
                             wp * (1.0 - ml), out[p])
-            if ml > 0.0:
+            if ml > 0.0 and cross_ok:
                 r += _read_copy(buf, table, size, k, over, lover, eh, el + 1, tan, toward, pu,
                                 pv, wp * ml, out[p])
+        if ml > 0.0 and not cross_ok:
+            # nearly square footprint: blend toward the next mip level (eq. 5's R2)
+            r += _read_copy(buf, table, size, k, over, lover, eh + 1, el + 1, tan, toward, up,
+                            vp, ml, out[p])
         reads[p] = r
     return reads

@@ -155,8 +155,9 @@ class PreparedTexture:
         opt = options if options is not None else self.options
         key = (opt.max_lambda_log2, opt.skew_oversampling, opt.long_oversampling)
         if key not in self._families:
-            fam = build_family(self.square, *key, progress=progress)
-            self._families[key] = replace(fam, buf=self._stored(fam.buf))
+            dtype = self._store if self._store is not None else np.float32
+            self._families[key] = build_family(self.square, *key, progress=progress,
+                                               dtype=dtype)
         return self._families[key]
 
     def memory_bytes(self, options: FilterOptions | None = None) -> int:
