@@ -13,7 +13,11 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 
 Methods, all in the same run:
   rf-default      random forest (cv2.ml) on DEFAULT features, 8x8 coarse pixels,
-                  Gaussian probability smoothing (the library default);
+                  Gaussian probability smoothing (the library default; for (b) with
+                  the scribble default prior correction, core/classify/prior.py);
+  rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
+  rf-position     (b) only: rf-default plus the coarse pixel's position in the photo
+                  (FeatureOptions.position; legitimate for a model of one photo);
   rf-superpixel   same, probabilities averaged over MSLIC superpixels;
   rf-colour       random forest on coarse Lab only;
   rf-scale4       DEFAULT features on 4x4 coarse pixels (same context in photo pixels);
@@ -81,6 +85,11 @@ METHODS = {
         regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
     "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),
     "rf-scale4": SupervisedOptions(features=FeatureOptions(scale=4, sigmas=(1.0, 2.0, 4.0, 8.0))),
+}
+#: methods of the scribble part only (the across-tiles part trains on full masks)
+SCRIBBLE_METHODS = {
+    "rf-noprior": SupervisedOptions(prior_power=0.0),
+    "rf-position": SupervisedOptions(features=FeatureOptions(position=True)),
 }
 ILASTIK = SupervisedOptions(
     features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
@@ -261,14 +270,16 @@ def scribbles(log):
              ("potsdam", "potsdam_2_10_0_0_512_512.png", [1, 2, 3, 4, 5, 6], None),
              ("deepglobe", "6399_sat.jpg", [1, 2, 3, 4, 5, 6], 1536)]
     rng = np.random.default_rng(RNG_SEED + 1)
-    results = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour"]}
+    methods = {"rf-default": METHODS["rf-default"], **SCRIBBLE_METHODS,
+               **{m: o for m, o in METHODS.items() if m != "rf-default"}}
+    results = {m: {} for m in [*methods, "ilastik", "kmeans-colour"]}
     speed = {m: [0.0, 0.0] for m in results}
     coverage = {}
     for folder, name, classes, crop in sets:
         photo, mask = load(folder, name, crop)
         scr = simulate_scribbles(mask, classes, rng)
         coverage[name] = float((scr > 0).mean())
-        for m, opts in METHODS.items():
+        for m, opts in methods.items():
             model = _train_one(photo, scr, opts)
             t = time.perf_counter()
             res = model.predict(photo)
@@ -348,11 +359,14 @@ def chart(result, path):
                result["across_tiles"], lambda r: r["subset_001_003"]["miou"], 0.45),
               ("(b) scribbles <= 1% of pixels, mean mIoU", result["scribbles"],
                lambda r: r["mean_miou_over_photos"], 0.60)]
+    # One colour and marker per method in both panels.
+    names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res if m != "coverage"))
+    markers = "osDv^P*Xhd"
     for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
-        markers = "osDv^P*X"
-        for i, (m, r) in enumerate(r for r in res.items() if r[0] != "coverage"):
+        for m, r in ((m, r) for m, r in res.items() if m != "coverage"):
+            i = names.index(m)
             ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
-                       color=f"C{i}", label=m)
+                       color=f"C{i % 10}", label=m)
         ax.legend(fontsize=8, loc="lower left")
         ax.axhline(goal, color="grey", ls="--", lw=1)
         ax.axvline(5.0, color="grey", ls=":", lw=1)

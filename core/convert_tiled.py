@@ -145,26 +145,93 @@ def grid_from_file(
 THEME_WINDOW = 2048
 
 
+#: pieces per side of the grid of windows an unsupervised model is fitted on
+SAMPLE_GRID = 4
+
+
+def sample_pieces(path: str | os.PathLike, budget: int | None = None,
+                  grid: int = SAMPLE_GRID) -> list[np.ndarray]:
+    """Full-resolution windows spread over a photo, to fit unsupervised themes on.
+
+    The whole photo when it has at most ``budget``^2 pixels; otherwise a
+    ``grid x grid`` array of windows of side ``budget // grid``, each centred
+    in its cell of the photo, read one by one (``budget``^2 pixels in all), so
+    themes found anywhere in the photo are sampled, at the resolution the
+    tiles are classified at (a downscaled overview would change the texture
+    features).
+
+    Parameters
+    ----------
+    path : path-like
+    budget : int, optional
+        Side of the pixel budget (default ``THEME_WINDOW``).
+    grid : int
+
+    Returns
+    -------
+    pieces : list of (h, w, C) ndarrays
+    """
+    from core.image_io import read_region
+
+    budget = THEME_WINDOW if budget is None else int(budget)
+    info = image_info(path)
+    w, h = info.width, info.height
+    if w * h <= budget * budget:
+        return [read_region(path, 0, 0, w, h)]
+    side_w, side_h = min(w, budget // grid), min(h, budget // grid)
+    pieces = []
+    for gy in range(grid):
+        for gx in range(grid):
+            # Centre of cell (gx, gy) of a grid x grid division of the photo.
+            x0 = min(w - side_w, max(0, (2 * gx + 1) * w // (2 * grid) - side_w // 2))
+            y0 = min(h - side_h, max(0, (2 * gy + 1) * h // (2 * grid) - side_h // 2))
+            pieces.append(read_region(path, x0, y0, side_w, side_h))
+    return pieces
+
+
+def fit_unsupervised_file(path: str | os.PathLike, themes: str | int = "auto",
+                          names: Sequence[str] | None = None):
+    """Unsupervised themes fitted on :func:`sample_pieces` of a photo file.
+
+    With a list of theme ``names`` and ``themes="auto"``, K never exceeds the
+    number of names (as :func:`core.convert.convert_photo` does).
+
+    Returns
+    -------
+    core.classify.UnsupervisedModel
+    """
+    from core.classify import fit_unsupervised
+
+    pieces = sample_pieces(path)
+    model = fit_unsupervised(pieces, themes=themes)
+    if names and themes == "auto" and len(model.classes) > len(names):
+        model = fit_unsupervised(pieces, themes=len(names))
+    return model
+
+
 def convert_file_tiled(
     path: str | os.PathLike,
     model,
     cell: int | str,
     *,
     names: Sequence[str] | dict[int, str] | None = None,
+    themes: str | int = "auto",
     target_agreement: float = 0.9,
     tile: int = 1024,
     overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ):
-    """A project for a photo larger than memory, with a trained classifier.
+    """A project for a photo larger than memory, with a trained classifier or unsupervised.
 
     Parameters
     ----------
     path : path-like
         The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
-    model : core.classify.Classifier
-        Gives the class values (``model.classes``).
+    model : core.classify.Classifier, core.classify.UnsupervisedModel or None
+        Gives the class values (``model.classes``). None: unsupervised themes
+        fitted on windows spread over the photo (:func:`fit_unsupervised_file`),
+        the same themes in every tile.
     cell : int or "auto"
         Square cell size; "auto" chooses it on the centre window's labels
         (:func:`core.labels_to_grid.choose_cell_size`, ``target_agreement``):
@@ -173,7 +240,9 @@ def convert_file_tiled(
     names : list or {class: name}, optional
         Shipped themes by name; default: themes cut from the centre
         ``THEME_WINDOW``-pixel window of the photo (classes absent there get
-        a grey flat theme).
+        a grey flat theme). Unsupervised: a list, assigned to the themes by colour.
+    themes : "auto" or int
+        Unsupervised (``model`` None) only: K from the data or that many themes.
     tile, overlap, scheduler, progress : see :func:`grid_from_file`
 
     Returns
@@ -188,6 +257,23 @@ def convert_file_tiled(
     from core.project import ThematicTexture
 
     info = image_info(path)
+    if model is None:
+        # Unsupervised: fit k-means on full-resolution windows spread over the photo.
+        if isinstance(names, dict):
+            raise TerrathemeError("unsupervised themes are assigned by colour: give theme names "
+                                  "as a list, or class=name pairs with a trained model")
+        model = fit_unsupervised_file(path, themes, names)
+        if names and len(names) < len(model.classes):
+            raise TerrathemeError(f"{len(model.classes)} themes were asked for but only "
+                                  f"{len(names)} names given")
+        overlap = max(overlap, model.context_pixels)
+    elif themes != "auto":
+        raise TerrathemeError("themes K is for unsupervised classification; a trained model "
+                              "gives its own classes")
+    elif getattr(model.options.features, "position", False):
+        # Each tile would see its own positions, not the photo's.
+        raise TerrathemeError("this classifier uses pixel positions (features.position): it "
+                              "only classifies the whole photo it was trained on, not tiles")
     # Themes from the centre window of the photo, classified by the model.
     side_w, side_h = min(THEME_WINDOW, info.width), min(THEME_WINDOW, info.height)
     x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
@@ -196,7 +282,11 @@ def convert_file_tiled(
     from core.classify.photo import prepare_photo
 
     rgb, _ = prepare_photo(window)
-    if names:
+    unsupervised = not hasattr(model, "forest")
+    if names and unsupervised:
+        # Names are assigned to the unsupervised themes by colour.
+        mapping = themes_by_name(rgb, win_result.labels, list(names))
+    elif names:
         # Every class the model can give needs a name (list: in class order).
         named = dict(names) if isinstance(names, dict) else dict(zip(model.classes, names,
                                                                      strict=False))

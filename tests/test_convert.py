@@ -214,8 +214,10 @@ def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
     assert tiled.metadata["georeference"]["ModelTiepoint"][3:5] == [10.0, 20.0]
     assert tiled.photo is None and whole.photo is not None
     assert (tmp_path / "tiled.ttpack").is_file() and (tmp_path / "tiled_preview.png").is_file()
-    # The tiled path needs a model; with cell auto it estimates on the centre window.
-    assert _run([photo, tmp_path / "t2.ttproj", "--tile", "64", "--cell", "8"]) == 2
+    # Without a model the tiled path is unsupervised (tests/test_convert_tiled_unsupervised.py);
+    # with cell auto it estimates on the centre window.
+    assert _run([photo, tmp_path / "t2.ttproj", "--tile", "64", "--cell", "8"]) == 0
+    assert load_project(tmp_path / "t2.ttproj").grid.indices.shape == whole.grid.indices.shape
     assert _run([photo, tmp_path / "t3.ttproj", *common[:2], "--tile", "64"]) == 0
     auto = load_project(tmp_path / "t3.ttproj")
     assert auto.metadata["cell_choice"]["measured_on"] == [0, 0, 200, 150]

@@ -304,6 +304,19 @@ def test_cli_identity_mapping_nearest_round_trips(tmp_path):
     np.testing.assert_array_equal(read_image(out), tex)
 
 
+def test_cli_max_texture_downscales_and_keeps_the_view_in_input_texels(tmp_path):
+    # 2 x 2 blocks of one value: area-averaging to half size keeps every block.
+    small = _random_texture(4, 6)
+    big = np.repeat(np.repeat(small, 2, axis=0), 2, axis=1)
+    src, out = tmp_path / "tex.png", tmp_path / "out.png"
+    write_image(src, big)
+    # the identity mapping of the big texture, sampled at every other pixel
+    rc = main(["perspective", str(src), str(out), "--method", "nearest", "--size", "6x4",
+               "--mapping", "2,0,0,0,2,0,0,0,1", "--max-texture", "6"])
+    assert rc == 0
+    np.testing.assert_array_equal(read_image(out), small)
+
+
 def test_cli_camera_renders_every_method(tmp_path):
     src = tmp_path / "tex.png"
     write_image(src, _random_texture(16, 16))

@@ -61,7 +61,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="classify with a saved classifier (terratheme classify --model-out)")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
-                             "(N pixels a side; needs --model; --cell auto is estimated on the "
+                             "(N pixels a side; with --model or unsupervised, themes fitted on "
+                             "windows spread over the photo; --cell auto is estimated on the "
                              "central 2048 x 2048 window)")
     parser.add_argument("--curve", metavar="PNG",
                         help="also write the agreement / bytes vs cell size chart (cell auto)")
@@ -179,7 +180,7 @@ def _print_written(written) -> None:
 
 
 def _run_tiled(args, project, preview, packed, themes) -> int:
-    """The bounded-memory path: tile by tile with a saved classifier."""
+    """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
     from tqdm import tqdm
 
     from core.classify import Classifier
@@ -187,21 +188,28 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
     from core.convert_tiled import convert_file_tiled
     from core.errors import TerrathemeError
 
-    if not args.model or args.scribbles:
-        raise TerrathemeError("--tile needs --model M (no --scribbles: train the model with "
-                              "terratheme classify --model-out)")
-    if isinstance(themes, int) or args.tile < 16:
-        raise TerrathemeError("--tile: N must be >= 16 and --themes auto or class names")
-    model = Classifier.load(args.model)
-    names = None if themes == "auto" else themes
+    if args.scribbles:
+        raise TerrathemeError("--tile does not take --scribbles: train a model with "
+                              "terratheme classify --model-out and give --model M, or omit "
+                              "both for unsupervised themes")
+    if args.tile < 16:
+        raise TerrathemeError(f"--tile: N must be >= 16, not {args.tile}")
+    if args.model and isinstance(themes, int):
+        raise TerrathemeError("--themes K is for unsupervised classification; with --model "
+                              "the classes are given (use auto or 1=name,2=name)")
+    # Without --model: unsupervised themes fitted on windows spread over the photo.
+    model = Classifier.load(args.model) if args.model else None
+    names = None if isinstance(themes, str | int) else themes
+    k = themes if isinstance(themes, int) else "auto"
     with tqdm(total=1, desc="convert (tiled)", unit="tile", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
             bar.total, bar.n = total, done
             bar.refresh()
 
-        proj = convert_file_tiled(args.photo, model, args.cell, names=names, tile=args.tile,
-                                  target_agreement=args.target_agreement, progress=progress)
+        proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
+                                  tile=args.tile, target_agreement=args.target_agreement,
+                                  progress=progress)
         written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
     gh, gw = proj.grid.cells_shape
     k = len(proj.library)

@@ -54,12 +54,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
                       "x, y in pixels, pixel centres at +0.5)")
     parser.add_argument("--max-anisotropy", type=float, default=16.0,
                         help="largest footprint elongation honoured (default 16)")
+    parser.add_argument("--max-texture", type=int, default=4096, metavar="TEXELS",
+                        help="downscale a larger texture to this many texels on its long "
+                        "side first (the parallelogram family costs about 145 bytes per RGB "
+                        "texel; default 4096); camera and mapping stay in input texels")
 
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
+    from core.errors import TerrathemeError
     from core.image_io import read_image, write_image
     from core.perspective import Camera, FilterOptions, Method, PlaneMapping, PreparedTexture
 
@@ -71,12 +76,30 @@ def run(args: argparse.Namespace) -> int:
         texture = render_project(load_project(args.input))
     else:
         texture = read_image(args.input)
+    # a texture too large for the prefiltered family is area-averaged down first
+    if args.max_texture < 1:
+        raise TerrathemeError(f"--max-texture must be at least 1, got {args.max_texture}")
+    s = min(1.0, args.max_texture / max(texture.shape[:2]))
+    if s < 1.0:
+        import cv2
+
+        full = texture.shape
+        size = (max(1, round(full[1] * s)), max(1, round(full[0] * s)))
+        texture = cv2.resize(texture, size, interpolation=cv2.INTER_AREA).reshape(
+            size[1], size[0], full[2])
+        sx, sy = size[0] / full[1], size[1] / full[0]
+        print(f"note: texture {full[1]} x {full[0]} downscaled to {size[0]} x {size[1]} "
+              "(--max-texture)")
+    else:
+        sx = sy = 1.0
     if args.camera is not None:
         c = args.camera
-        x, y = (c[4], c[5]) if len(c) == 6 else (None, None)
-        view = Camera(height=c[0], pitch=c[1], yaw=c[2], fov=c[3], x=x, y=y)
+        x, y = (c[4] * sx, c[5] * sy) if len(c) == 6 else (None, None)
+        view = Camera(height=c[0] * sx, pitch=c[1], yaw=c[2], fov=c[3], x=x, y=y)
     else:
-        view = PlaneMapping.from_sequence(args.mapping)
+        au, bu, cu, av, bv, cv, az, bz, cz = args.mapping
+        view = PlaneMapping.from_sequence(
+            [au * sx, bu * sx, cu * sx, av * sy, bv * sy, cv * sy, az, bz, cz])
     options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
     prepared = PreparedTexture(texture, options)
     with tqdm(total=args.size[1], desc="perspective", unit="row", leave=False) as bar:

@@ -3,6 +3,8 @@
 Public API (stable; used by ``terratheme classify`` and ``convert``):
 
 * :func:`classify_unsupervised` -- k-means themes, K chosen from the data;
+* :func:`fit_unsupervised` -> :class:`UnsupervisedModel` (``predict``) -- the
+  same themes fitted on a sample (or pieces of a big photo), applied per tile;
 * :func:`train_classifier` -> :class:`Classifier` (``predict``, ``save``,
   ``Classifier.load``) -- random forest from scribbles or label masks;
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
@@ -10,14 +12,20 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
 photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
-(smoothing / superpixels), ``unsupervised``, ``supervised``, ``model_file``.
+(smoothing / superpixels), ``unsupervised`` (K criterion), ``unsupervised_model``,
+``supervised``, ``model_file``.
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
 from core.classify.supervised import Classifier, SupervisedOptions, train_classifier
-from core.classify.unsupervised import UnsupervisedOptions, classify_unsupervised
+from core.classify.unsupervised import UnsupervisedOptions
+from core.classify.unsupervised_model import (
+    UnsupervisedModel,
+    classify_unsupervised,
+    fit_unsupervised,
+)
 
 __all__ = [
     "Classification",
@@ -28,7 +36,9 @@ __all__ = [
     "Regularisation",
     "RegulariseOptions",
     "SupervisedOptions",
+    "UnsupervisedModel",
     "UnsupervisedOptions",
     "classify_unsupervised",
+    "fit_unsupervised",
     "train_classifier",
 ]

@@ -1,7 +1,8 @@
 """The trained-classifier file: a zip holding ``meta.json`` and ``forest.yml``.
 
 ``meta.json`` : ``{"format": "terratheme-classifier", "version": 1,
-"classes": [...], "options": {...}}`` (options as plain JSON, enums by value);
+"classes": [...], "options": {...}, "class_weights": [...]}`` (options as plain
+JSON, enums by value; class weights only when the model has a prior correction);
 ``forest.yml`` : the OpenCV random forest as OpenCV's own YAML (absent when the
 model has a single class). Written atomically; a newer version raises
 UnsupportedVersionError, a damaged file CorruptFileError.
@@ -53,6 +54,8 @@ def save_classifier(model: Classifier, path: str | os.PathLike) -> None:
     """Write ``model`` to ``path`` (atomic)."""
     meta = {"format": FORMAT, "version": VERSION, "classes": list(model.classes),
             "options": _options_to_json(model.options)}
+    if model.class_weights is not None:
+        meta["class_weights"] = list(model.class_weights)
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("meta.json", json.dumps(meta, indent=1))
@@ -94,6 +97,11 @@ def load_classifier(path: str | os.PathLike) -> Classifier:
     try:
         options = _options_from_json(meta["options"])
         classes = [int(c) for c in meta["classes"]]
+        weights = meta.get("class_weights")
+        weights = None if weights is None else [float(v) for v in weights]
+        if weights is not None and (len(weights) != len(classes)
+                                    or not all(v >= 0 for v in weights)):
+            raise ValueError(f"{len(weights)} class weights for {len(classes)} classes")
     except (KeyError, TypeError, ValueError) as exc:
         raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
     forest = None
@@ -108,4 +116,4 @@ def load_classifier(path: str | os.PathLike) -> Classifier:
             raise CorruptFileError(f"{p}: damaged forest (not trained)")
     if (forest is None) != (len(classes) == 1) or not classes:
         raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
-    return Classifier(forest, classes, options)
+    return Classifier(forest, classes, options, weights)

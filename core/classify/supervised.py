@@ -12,8 +12,13 @@ Samples are capped per class (``max_samples_per_class``, random, seeded) and,
 with ``balance``, the forest's class priors are set so every class weighs the
 same whatever its area, which is what a mean-IoU user wants from thin roads.
 
+Scribbles (one photo, under ``prior.SCRIBBLE_SHARE`` of it labelled) also get a
+class-prior correction by default (:mod:`core.classify.prior`): the photo's
+class shares are estimated from the forest's outputs on it, and the votes
+reweighted, since a user paints about as much of a rare class as of a common one.
+
 Confidence is the winning class's share of the trees' votes (as ilastik and
-Orfeo ToolBox report it), after spatial regularisation.
+Orfeo ToolBox report it), after the prior weights and spatial regularisation.
 """
 
 from __future__ import annotations
@@ -27,6 +32,12 @@ import numpy as np
 
 from core.classify.features import FeatureOptions, Normalise, photo_statistics
 from core.classify.photo import prepare_photo
+from core.classify.prior import (
+    photo_probabilities,
+    predicted_shares,
+    prior_power_for,
+    prior_weights,
+)
 from core.classify.regularise import RegulariseOptions
 from core.classify.result import Classification
 from core.classify.tiled import iter_tile_features, predict_tiled
@@ -59,6 +70,12 @@ class SupervisedOptions:
         Sampling and forest RNG seed.
     tile : int
         Tile core size in photo pixels.
+    prior_power : float or None
+        Class-prior correction (:mod:`core.classify.prior`): the votes are
+        weighted by ``(estimated share / training share) ** prior_power``.
+        0 = off; None = ``prior.SCRIBBLE_PRIOR_POWER`` when training from
+        scribbles (one photo, under ``prior.SCRIBBLE_SHARE`` of its pixels
+        labelled), else off.
     """
 
     features: FeatureOptions = field(default_factory=FeatureOptions)
@@ -72,8 +89,11 @@ class SupervisedOptions:
     balance: bool = True
     seed: int = 0
     tile: int = 2048
+    prior_power: float | None = None
 
     def __post_init__(self) -> None:
+        if self.prior_power is not None and not 0.0 <= self.prior_power <= 1.0:
+            raise TerrathemeError(f"prior_power must be in 0..1 or None, not {self.prior_power}")
         if self.n_trees < 1 or self.max_depth < 1 or self.max_samples_per_class < 1:
             raise TerrathemeError(
                 "n_trees, max_depth and max_samples_per_class must be at least 1 "
@@ -223,10 +243,17 @@ class Classifier:
     """
 
     def __init__(self, forest: cv2.ml.RTrees | None, classes: Sequence[int],
-                 options: SupervisedOptions) -> None:
+                 options: SupervisedOptions,
+                 class_weights: Sequence[float] | None = None) -> None:
         self.forest = forest
         self.classes = tuple(int(c) for c in classes)
         self.options = options
+        #: per-class vote weights (prior correction), ``classes`` order; None = all 1
+        self.class_weights = None if class_weights is None else tuple(
+            float(v) for v in class_weights)
+        if self.class_weights is not None and len(self.class_weights) != len(self.classes):
+            raise TerrathemeError(f"{len(self.class_weights)} class weights for "
+                                  f"{len(self.classes)} classes")
 
     @property
     def context_pixels(self) -> int:
@@ -260,7 +287,12 @@ class Classifier:
         probs = np.zeros((h * w, len(self.classes)), np.float32)
         for col, value in enumerate(order):
             probs[:, self.classes.index(value)] = counts[:, col]
-        probs /= np.maximum(probs.sum(1, keepdims=True), 1.0)
+        if self.class_weights is not None:
+            # Prior correction (core.classify.prior): reweight, then renormalise.
+            probs *= np.asarray(self.class_weights, np.float32)[None, :]
+            probs /= np.maximum(probs.sum(1, keepdims=True), 1e-12)
+        else:
+            probs /= np.maximum(probs.sum(1, keepdims=True), 1.0)
         return probs.reshape(h, w, len(self.classes))
 
     def predict(self, photo: np.ndarray,
@@ -341,6 +373,17 @@ def train_classifier(
     """
     opts = options or SupervisedOptions()
     x, y = collect_samples(pairs_or_scribbles, opts)
-    classes = tuple(int(c) for c in np.unique(y))
+    classes, counts = np.unique(y, return_counts=True)
     forest = build_forest(x, y, opts) if len(classes) > 1 else None
-    return Classifier(forest, classes, opts)
+    model = Classifier(forest, classes, opts)
+    power = prior_power_for(pairs_or_scribbles, opts.prior_power, opts.ignore_classes)
+    if forest is not None and power > 0:
+        # Class shares of the scribbled photo from the forest's votes on it, as weights.
+        rgb, valid = prepare_photo(pairs_or_scribbles[0][0])
+        probs = photo_probabilities(rgb, valid, model.probabilities, opts.features, opts.tile,
+                                    _stats(rgb, valid, opts.features))
+        train = np.full(len(classes), 1.0 / len(classes)) if opts.balance else counts / len(y)
+        weights = prior_weights(predicted_shares(probs), train, power)
+        model.class_weights = tuple(float(v) for v in weights)
+    return model
+

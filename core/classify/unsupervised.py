@@ -19,6 +19,9 @@ features in fixed Delta-E-like units, see :mod:`core.classify.features`):
 Themes are numbered 1..K by decreasing area. Confidence is the winning
 theme's posterior under an isotropic Gaussian mixture with the centres as
 means, the theme areas as weights and the pooled within-theme variance.
+
+This module holds the options, the sampling and the choice of K; fitting a
+reusable model and classifying with it is :mod:`core.classify.unsupervised_model`.
 """
 
 from __future__ import annotations
@@ -30,10 +33,8 @@ import cv2
 import numpy as np
 
 from core.classify.features import FeatureOptions, FeatureSet
-from core.classify.photo import prepare_photo
 from core.classify.regularise import RegulariseOptions
-from core.classify.result import Classification
-from core.classify.tiled import iter_tile_features, predict_tiled
+from core.classify.tiled import iter_tile_features
 from core.errors import TerrathemeError
 
 
@@ -102,11 +103,12 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
     """
     f = options.n_features
     if options.feature_set is not FeatureSet.DEFAULT:
-        return np.ones(f, np.float32)
+        # Position features (if any) never count: themes are colours, not places.
+        return (np.arange(f) < options.n_image_features).astype(np.float32)
     # The unsmoothed coarse-pixel features (Lab, block std) are noisy on texture: weight 0.
     w = np.zeros(f, np.float32)
     start = 3 + (1 if options.scale > 1 else 0)
-    w[start:] = 1.0 / np.sqrt(len(options.sigmas))
+    w[start : options.n_image_features] = 1.0 / np.sqrt(len(options.sigmas))
     return w
 
 
@@ -179,7 +181,7 @@ def colour_columns(options: FeatureOptions) -> np.ndarray:
     if options.feature_set is FeatureSet.COLOUR:
         return np.arange(3)
     if options.feature_set is FeatureSet.SKIMAGE:
-        return np.arange(options.n_features)
+        return np.arange(options.n_image_features)
     start = 3 + (1 if options.scale > 1 else 0)
     per_sigma = 7 if options.hessian else 5
     return np.concatenate([start + per_sigma * i + np.arange(3)
@@ -261,7 +263,7 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
     return centres[order].astype(np.float32), sizes[order], float(within)
 
 
-def _posterior_fn(centres: np.ndarray, sizes: np.ndarray, within: float,
+def posterior_fn(centres: np.ndarray, sizes: np.ndarray, within: float,
                   weights: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """Gaussian-mixture posterior of each theme for a coarse feature stack."""
     k, f = centres.shape
@@ -281,45 +283,3 @@ def _posterior_fn(centres: np.ndarray, sizes: np.ndarray, within: float,
         return p.reshape(h, w, k).astype(np.float32)
 
     return probs
-
-
-def classify_unsupervised(
-    photo: np.ndarray,
-    *,
-    themes: str | int = "auto",
-    options: UnsupervisedOptions | None = None,
-    progress: Callable[[int, int], None] | None = None,
-) -> Classification:
-    """Split a photo into themes without training data.
-
-    Parameters
-    ----------
-    photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray
-        Transparent pixels (alpha 0) get label 0.
-    themes : "auto" or int
-        "auto": K from the data (module docstring); an int: that many themes
-        (fewer if the photo has fewer distinct pixels).
-    options : UnsupervisedOptions, optional
-    progress : callable, optional
-        ``(done, total)`` over the prediction tiles.
-
-    Returns
-    -------
-    Classification
-        labels (H, W) uint8 in 1..K (1 = largest theme), confidence (H, W) float32.
-    """
-    opts = options or UnsupervisedOptions()
-    if themes != "auto":
-        if isinstance(themes, bool) or not isinstance(themes, int | np.integer) or not (
-            1 <= int(themes) <= 255
-        ):
-            raise TerrathemeError(f"themes must be 'auto' or a number 1..255, not {themes!r}")
-    rgb, valid = prepare_photo(photo)
-    # Sample features over the photo, fit k-means with the chosen K.
-    samples = sample_features(rgb, valid, opts)
-    centres, sizes, within = choose_themes(samples, opts, themes)
-    # Predict every pixel tile by tile with the mixture posterior.
-    fn = _posterior_fn(centres, sizes, within, feature_weights(opts.features))
-    classes = tuple(range(1, len(centres) + 1))
-    return predict_tiled(rgb, valid, fn, classes, opts.features, opts.regularisation,
-                         opts.tile, progress)

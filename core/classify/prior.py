@@ -1,0 +1,141 @@
+"""Class-prior correction of a forest trained from scribbles (transductive step).
+
+A user paints about the same amount of every class, so a forest trained on
+scribbles believes every class is equally common, and (with
+``SupervisedOptions.balance``) is even told so. On the photo itself, roads
+or buildings may cover 5% and bare land 60%: the forest then over-predicts
+the rare classes, which costs mean IoU on the common ones.
+
+Scribbles are painted on the photo that is classified, so the photo's own
+class shares ``pi_k`` can be estimated from the forest's outputs on it:
+"classify and count" (Forman 2008), the share of the photo's coarse pixels
+whose arg-max class is ``k``. The posteriors are then adjusted to these
+priors as in Saerens, Latinne & Decaestecker (2002, eq. 2.4): multiplied by
+the class weights ``(pi_k / t_k) ** power`` (``t_k``: the training priors)
+and renormalised. ``power = 1`` is the paper's full adjustment; the
+benchmark (bench_classify.py, scribble part, 16 photos) found ``0.5`` best:
+the forest's vote shares are not calibrated posteriors, and the full
+adjustment over-suppresses small classes. The paper's EM estimate of
+``pi`` (eq. 2.9-2.10) scored within noise of classify-and-count on the
+benchmark (mean mIoU 0.559 vs 0.549) but drifts when a forest trained on a
+handful of samples is unsure (three flat stripes with one stroke each got
+weights 1 : 0.57 : 0.82), so the robust count is used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from core.classify.features import FeatureOptions
+from core.classify.tiled import iter_tile_features
+
+#: a single mask labelling less than this share of its photo is taken for scribbles
+SCRIBBLE_SHARE = 0.5
+#: default correction for scribbles (benchmark: benchmarks/results/classify.json,
+#: scribbles "rf-default" vs "rf-noprior")
+SCRIBBLE_PRIOR_POWER = 0.5
+#: coarse pixels of the photo the priors are estimated on (strided, at most)
+PRIOR_SAMPLES = 200_000
+
+
+def prior_power_for(pairs: Sequence[tuple[np.ndarray, np.ndarray]], power: float | None,
+                    ignore_classes: Sequence[int] = ()) -> float:
+    """The correction to apply: ``power`` if given, else ``SCRIBBLE_PRIOR_POWER`` for scribbles.
+
+    Scribbles are one ``(photo, mask)`` pair with under ``SCRIBBLE_SHARE`` of
+    the mask labelled (non-zero, not ignored); full label masks get 0 (off):
+    they hold their photos' true class shares already.
+    """
+    if power is not None:
+        return float(power)
+    if len(pairs) != 1:
+        return 0.0
+    mask = np.asarray(pairs[0][1])
+    labelled = (mask > 0) & ~np.isin(mask, tuple(ignore_classes))
+    return SCRIBBLE_PRIOR_POWER if labelled.mean() < SCRIBBLE_SHARE else 0.0
+
+
+def predicted_shares(probs: np.ndarray) -> np.ndarray:
+    """Share of samples whose most probable class is each class ("classify and count").
+
+    Parameters
+    ----------
+    probs : (n, C) float ndarray
+        Classifier posteriors of n samples of the photo.
+
+    Returns
+    -------
+    shares : (C,) float64 ndarray, sums to 1 (uniform when n = 0)
+    """
+    c = probs.shape[1]
+    if len(probs) == 0:
+        return np.full(c, 1.0 / c)
+    return np.bincount(np.argmax(probs, axis=1), minlength=c) / len(probs)
+
+
+def prior_weights(shares: np.ndarray, train_priors: np.ndarray, power: float) -> np.ndarray:
+    """Class weights ``(pi_k / t_k) ** power`` (Saerens et al. 2002, eq. 2.4), max 1.
+
+    Parameters
+    ----------
+    shares : (C,) float ndarray
+        Estimated class shares ``pi`` of the photo.
+    train_priors : (C,) float ndarray
+        Class priors ``t`` the classifier was trained with.
+    power : float
+        0..1; 0 gives all ones.
+
+    Returns
+    -------
+    weights : (C,) float64 ndarray in (0, 1]
+    """
+    # A class the photo seems not to have keeps a small weight (it was scribbled).
+    ratio = np.maximum(np.asarray(shares, np.float64), 1e-3) / np.asarray(train_priors, float)
+    weights = ratio ** float(power)
+    return weights / weights.max()
+
+
+def photo_probabilities(
+    rgb: np.ndarray, valid: np.ndarray | None, probability_fn: Callable[[np.ndarray], np.ndarray],
+    features: FeatureOptions, tile: int, stats: np.ndarray | None = None,
+    max_samples: int = PRIOR_SAMPLES,
+) -> np.ndarray:
+    """Posteriors of (at most ``max_samples``) coarse pixels of a photo, tile by tile.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    valid : (H, W) bool ndarray or None
+    probability_fn : callable, (h, w, F) float32 -> (h, w, C) float32
+    features : FeatureOptions
+    tile : int
+    stats : (2, 3) float32 ndarray, optional (colour normalisation)
+
+    Returns
+    -------
+    probs : (n, C) float32 ndarray
+    """
+    scale = features.scale
+    h, w = rgb.shape[:2]
+    n_coarse = (-(-h // scale)) * (-(-w // scale))
+    stride = max(1, int(np.sqrt(n_coarse / max_samples)))
+    out = []
+    for win, _lab, feats in iter_tile_features(rgb, features, tile, features.halo, stats):
+        # This tile's core, on a global grid of every stride-th coarse row/column.
+        gy0, gx0 = win.y0 // scale, win.x0 // scale
+        cy, cx = gy0 - win.oy0 // scale, gx0 - win.ox0 // scale
+        ch, cw = -(-(win.y1 - win.y0) // scale), -(-(win.x1 - win.x0) // scale)
+        ry, rx = (-gy0) % stride, (-gx0) % stride
+        core = feats[cy + ry : cy + ch : stride, cx + rx : cx + cw : stride]
+        if core.size == 0:
+            continue
+        probs = probability_fn(np.ascontiguousarray(core))
+        if valid is not None:
+            # Keep coarse pixels whose top-left photo pixel has data.
+            rows = np.minimum((np.arange(gy0 + ry, gy0 + ch, stride) * scale), h - 1)
+            cols = np.minimum((np.arange(gx0 + rx, gx0 + cw, stride) * scale), w - 1)
+            probs = probs[valid[np.ix_(rows, cols)]]
+        out.append(probs.reshape(-1, probs.shape[-1]))
+    return np.concatenate(out).astype(np.float32)
