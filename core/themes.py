@@ -172,6 +172,12 @@ class ThemeLibrary(Sequence[Theme]):
         self._themes.append(theme)
         return len(self._themes) - 1
 
+    def remove_last(self) -> Theme:
+        """Remove and return the last theme (the inverse of :meth:`append`)."""
+        if not self._themes:
+            raise TerrathemeError("the theme library is empty")
+        return self._themes.pop()
+
     def replace(self, k: int, theme: Theme) -> None:
         """Put ``theme`` at index ``k`` (rename, recolour or retexture a theme)."""
         old = self[k]

@@ -131,6 +131,25 @@ def test_theme_rename_and_recolour_are_undoable(window):
         doc.change_theme(1, old.with_(name="Grass"), "rename")
 
 
+def test_adding_a_theme_is_undoable(window):
+    doc = window.doc
+    before = list(doc.texture.library)
+    tex = np.full((4, 4, 3), 7, np.uint8)
+    k = doc.add_theme(Theme("snow", (250, 250, 250), tex))
+    assert k == 3 and doc.texture.library[3].name == "snow"
+    assert window.palette_widget.list.count() == 4
+    doc.undo_stack.undo()
+    assert list(doc.texture.library) == before
+    assert window.palette_widget.list.count() == 3
+    doc.undo_stack.redo()
+    assert doc.texture.library.names == ["grass", "water", "sand", "snow"]
+    from core.errors import TerrathemeError
+
+    with pytest.raises(TerrathemeError, match="already in the library"):
+        doc.add_theme(Theme("Snow", (1, 1, 1), tex))
+    assert doc.undo_stack.count() == 1
+
+
 def test_save_open_round_trip(window, tmp_path):
     doc = window.doc
     doc.commit(doc.session.fill_rect((1, 1), (4, 3), 2), "rect")
@@ -196,6 +215,11 @@ def test_classification_from_the_menu_fills_the_grid(window, qtbot):
     assert doc.undo_stack.count() == 1
     doc.undo_stack.undo()
     assert not doc.texture.grid.indices.any()
+    # One undo step takes back the grid and the themes the classification added.
+    assert doc.texture.library.names == ["grass", "water", "sand"]
+    doc.undo_stack.redo()
+    redone = doc.texture.grid.indices
+    assert len(doc.texture.library) >= 5 and redone[0, 1] != redone[0, -2]
 
 
 def test_classification_can_be_cancelled(window, qtbot):

@@ -72,3 +72,18 @@ class ScribbleCommand(QUndoCommand):
     def undo(self) -> None:
         self.atom.revert(self.doc.texture.scribbles)
         self.doc.scribblesChanged.emit()
+
+
+class AddThemeCommand(QUndoCommand):
+    """Append a theme to the library; undo removes it again."""
+
+    def __init__(self, doc: EditorDocument, theme: Theme, text: str) -> None:
+        super().__init__(text)
+        self.doc = doc
+        self.theme = theme
+
+    def redo(self) -> None:
+        self.doc.append_theme(self.theme)
+
+    def undo(self) -> None:
+        self.doc.remove_last_theme()

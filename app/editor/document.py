@@ -16,7 +16,7 @@ import numpy as np
 from PySide6.QtCore import QObject, QRectF, Signal
 from PySide6.QtGui import QUndoStack
 
-from app.editor.commands import AtomCommand, ThemeCommand
+from app.editor.commands import AddThemeCommand, AtomCommand, ThemeCommand
 from app.editor.imaging import Pyramid
 from core.edit_fidelity import fidelity_map, heat_colours
 from core.edit_preview import RenderPreview
@@ -133,10 +133,29 @@ class EditorDocument(QObject):
         self.undo_stack.push(ThemeCommand(self, k, theme, text))
 
     def add_theme(self, theme: Theme) -> int:
-        """Append a theme (not undoable: the grid never refers to it until painted)."""
+        """Append a theme as one undo step; returns its index."""
+        # Check first, so a refused theme leaves nothing on the undo stack.
+        if theme.name.lower() in (n.lower() for n in self.texture.library.names):
+            raise TerrathemeError(f"a theme called {theme.name!r} is already in the library")
+        self.undo_stack.push(AddThemeCommand(self, theme, f"add theme {theme.name}"))
+        return len(self.texture.library) - 1
+
+    def append_theme(self, theme: Theme) -> int:
+        """Append a theme (no undo; see AddThemeCommand)."""
         k = self.texture.library.append(theme)
         self.libraryChanged.emit()
         return k
+
+    def remove_last_theme(self) -> Theme:
+        """Remove the last theme (no undo); refused while the grid still uses it."""
+        last = len(self.texture.library) - 1
+        if last == 0 or int(self.texture.grid.indices.max()) >= last:
+            raise TerrathemeError(
+                f"theme {self.texture.library[last].name!r} is still painted on the grid"
+            )
+        theme = self.texture.library.remove_last()
+        self.libraryChanged.emit()
+        return theme
 
     # -- scribbles (training strokes for supervised classification) ----------
     def scribble_segment(self, a: tuple[float, float], b: tuple[float, float], radius: float,

@@ -252,9 +252,14 @@ class MenuMixin:
             self.set_document(EditorDocument(fresh_classified(doc.texture, result)))
             self.statusBar().showMessage(f"classified into {result.n_classes} themes", 6000)
             return
-        for theme in result.new_themes:
-            doc.add_theme(theme)
-        doc.commit(doc.session.replace_all(result.indices), "classification")
+        # New themes and the new grid are one undo step.
+        doc.undo_stack.beginMacro("classification")
+        try:
+            for theme in result.new_themes:
+                doc.add_theme(theme)
+            doc.commit(doc.session.replace_all(result.indices), "classification")
+        finally:
+            doc.undo_stack.endMacro()
         self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
 
     def _job_finished(self, job: ClassifyJob) -> None:
