@@ -30,6 +30,9 @@ class AtomCommand(QUndoCommand):
         if self._first:
             self._first = False
             return
+        self._apply()
+
+    def _apply(self) -> None:
         self.doc.session.apply(self.atom)
 
     def undo(self) -> None:
@@ -53,19 +56,10 @@ class ThemeCommand(QUndoCommand):
         self.doc.set_theme(self.k, self.old)
 
 
-class ScribbleCommand(QUndoCommand):
+class ScribbleCommand(AtomCommand):
     """A stroke in the scribble layer (already applied when pushed)."""
 
-    def __init__(self, doc: EditorDocument, atom: Atom, text: str) -> None:
-        super().__init__(text)
-        self.doc = doc
-        self.atom = atom
-        self._first = True
-
-    def redo(self) -> None:
-        if self._first:
-            self._first = False
-            return
+    def _apply(self) -> None:
         self.atom.apply(self.doc.texture.scribbles)
         self.doc.scribblesChanged.emit()
 
