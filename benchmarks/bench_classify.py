@@ -16,6 +16,7 @@ Methods, all in the same run:
                   Gaussian probability smoothing (the library default; for (b) with
                   the scribble default prior correction, core/classify/prior.py);
   rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
+  rf-prior1       (b) only: rf-default with the full prior correction (prior_power=1);
   rf-position     (b) only: rf-default plus the coarse pixel's position in the photo
                   (FeatureOptions.position; legitimate for a model of one photo);
   rf-superpixel   same, probabilities averaged over MSLIC superpixels;
@@ -52,6 +53,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
+from classify_chart import chart  # noqa: E402
 from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
 
 from core.classify import (  # noqa: E402
@@ -89,6 +91,7 @@ METHODS = {
 #: methods of the scribble part only (the across-tiles part trains on full masks)
 SCRIBBLE_METHODS = {
     "rf-noprior": SupervisedOptions(prior_power=0.0),
+    "rf-prior1": SupervisedOptions(prior_power=1.0),
     "rf-position": SupervisedOptions(features=FeatureOptions(position=True)),
 }
 ILASTIK = SupervisedOptions(
@@ -346,39 +349,6 @@ def memory(log):
             f"{size * size / dt / 1e6:.1f} Mpx/s")
         del big, res
     return out
-
-
-def chart(result, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
-    panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
-               result["across_tiles"], lambda r: r["subset_001_003"]["miou"], 0.45),
-              ("(b) scribbles <= 1% of pixels, mean mIoU", result["scribbles"],
-               lambda r: r["mean_miou_over_photos"], 0.60)]
-    # One colour and marker per method in both panels.
-    names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res if m != "coverage"))
-    markers = "osDv^P*Xhd"
-    for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
-        for m, r in ((m, r) for m, r in res.items() if m != "coverage"):
-            i = names.index(m)
-            ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
-                       color=f"C{i % 10}", label=m)
-        ax.legend(fontsize=8, loc="lower left")
-        ax.axhline(goal, color="grey", ls="--", lw=1)
-        ax.axvline(5.0, color="grey", ls=":", lw=1)
-        ax.set_xscale("log")
-        ax.set_xlabel("predict speed, Mpx/s (2 cores, log)")
-        ax.set_ylabel("mIoU")
-        ax.set_title(title, fontsize=10)
-        ax.grid(alpha=0.3)
-    fig.suptitle("terratheme classify: accuracy vs speed per feature set / classifier "
-                 "(dashed: goal mIoU, dotted: 5 Mpx/s)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
 
 
 def main() -> int:

@@ -11,7 +11,7 @@ import pytest
 
 from core.classify import Classifier, FeatureOptions, SupervisedOptions, train_classifier
 from core.classify.features import position_features
-from core.classify.prior import predicted_shares, prior_weights
+from core.classify.prior import SCRIBBLE_PRIOR_POWER, predicted_shares, prior_weights
 from core.errors import CorruptFileError, TerrathemeError
 
 COLOURS = {1: (40, 110, 40), 2: (60, 80, 170), 3: (200, 185, 150)}
@@ -59,8 +59,11 @@ def test_prior_weights_by_hand():
 def test_scribbles_get_weights_from_the_photos_class_areas():
     img, truth = stripes()
     model = train_classifier([(img, strokes(truth))])
-    # Equal scribbles per class, areas 60 / 30 / 10 %: weights ~ sqrt of the area ratios.
-    np.testing.assert_allclose(model.class_weights, [1.0, np.sqrt(0.5), np.sqrt(1 / 6)],
+    # Equal scribbles per class, areas 60 / 30 / 10 %: weights = area ratios ** power.
+    expect = np.array([1.0, 0.5, 1 / 6]) ** SCRIBBLE_PRIOR_POWER
+    np.testing.assert_allclose(model.class_weights, expect, atol=0.05)
+    half = train_classifier([(img, strokes(truth))], SupervisedOptions(prior_power=0.5))
+    np.testing.assert_allclose(half.class_weights, [1.0, np.sqrt(0.5), np.sqrt(1 / 6)],
                                atol=0.05)
     res = model.predict(img)
     inner = np.abs(np.arange(200)[None, :] - np.array([[120], [180]])).min(0) > 8

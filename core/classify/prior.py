@@ -12,14 +12,17 @@ class shares ``pi_k`` can be estimated from the forest's outputs on it:
 whose arg-max class is ``k``. The posteriors are then adjusted to these
 priors as in Saerens, Latinne & Decaestecker (2002, eq. 2.4): multiplied by
 the class weights ``(pi_k / t_k) ** power`` (``t_k``: the training priors)
-and renormalised. ``power = 1`` is the paper's full adjustment; the
-benchmark (bench_classify.py, scribble part, 16 photos) found ``0.5`` best:
-the forest's vote shares are not calibrated posteriors, and the full
-adjustment over-suppresses small classes. The paper's EM estimate of
-``pi`` (eq. 2.9-2.10) scored within noise of classify-and-count on the
-benchmark (mean mIoU 0.559 vs 0.549) but drifts when a forest trained on a
-handful of samples is unsure (three flat stripes with one stroke each got
-weights 1 : 0.57 : 0.82), so the robust count is used.
+and renormalised. ``power = 1`` is the paper's full adjustment. The
+default for scribbles is ``0.5``: on the benchmark photos (bench_classify.py,
+scribble part, 16 photos, one scribble draw) mean mIoU went 0.510 -> 0.549 /
+0.558 / 0.562 for powers 0.5 / 0.75 / 1, but the full adjustment erases a
+thin class whose area is small (a road in heavy shadow,
+tests/test_classify_stability.py), and the forest's vote shares are not
+calibrated posteriors to begin with. The paper's EM estimate of
+``pi`` (eq. 2.9-2.10) scored the same within noise (0.559 at power 0.5,
+0.554 at 0.75) but drifts when a forest trained on a handful of samples is
+unsure (three flat stripes with one stroke each got weights 1 : 0.57 : 0.82),
+so the robust count is used.
 """
 
 from __future__ import annotations
