@@ -132,6 +132,33 @@ def test_family_memory_is_accounted():
     assert fam.nbytes == texels * 3 * 4
 
 
+def test_oversampled_family_memory_is_accounted():
+    # N = 16, k = 2, seed skews, long_oversampling = 2: a copy (a, b) holds
+    # (N >> b) rows and min(N >> b, 2 (N >> a)) columns, skews 1, 2, 6 (both
+    # orientations) for a - b = 0, 1, 2. By hand, per b:
+    # b=0: 1*16*16 + 2*16*16 + 6*16*8 = 1536; b=1: 1*8*8 + 2*8*8 + 6*8*4 = 384;
+    # b=2: 1*4*4 + 2*4*4 + 6*4*2 = 96; b=3: 1*2*2 + 2*2*2 = 12; b=4: 1
+    fam = build_family(np.zeros((16, 16, 3), np.float32), 2, 1, 2, dtype=np.uint8)
+    assert fam.texel_count == 1536 + 384 + 96 + 12 + 1
+    assert fam.nbytes == 2029 * 3
+
+
+def test_oversampled_family_keeps_mip_levels_for_square_footprints():
+    # lambda = 1 copies are not oversampled (columns never closer than L), so
+    # they are the 2^a x 2^a block means and a square footprint reads them exactly
+    tex = _random_texture(16, 16, 1).astype(np.float32) / 255
+    fam = build_family(tex, 2, 1, 4)
+    for a in range(5):
+        r = 16 >> a
+        want = tex.reshape(r, 1 << a, r, 1 << a).mean(axis=(1, 3))
+        np.testing.assert_allclose(fam.copy(0, a, a, 0)[:, :, 0], want, atol=1e-6)
+    # U = 2x, V = 2y: footprint 2 x 2 texels centred on the 2 x 2 blocks
+    img = render_perspective(tex, PlaneMapping(2, 0, 0, 0, 2, 0, 0, 0, 1), (8, 8),
+                             FilterOptions(long_oversampling=4))
+    np.testing.assert_allclose(img[:, :, 0], tex.reshape(8, 2, 8, 2).mean(axis=(1, 3)),
+                               atol=1e-5)
+
+
 def test_skew_sets():
     np.testing.assert_allclose(skew_values(1), [0.0])
     np.testing.assert_allclose(skew_values(2), [-1.0, 0.0, 1.0])

@@ -56,7 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="largest footprint elongation honoured (default 16)")
     parser.add_argument("--max-texture", type=int, default=4096, metavar="TEXELS",
                         help="downscale a larger texture to this many texels on its long "
-                        "side first (the parallelogram family costs about 145 bytes per RGB "
+                        "side first (the parallelogram family costs about 43 bytes per RGB "
                         "texel; default 4096); camera and mapping stay in input texels")
 
 

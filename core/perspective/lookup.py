@@ -69,7 +69,7 @@ def _read_copy(buf, table, size, k, over, lover, a, b, tan, toward, u, v, w, out
     si = j + q
     # the copy's lattice: `cols` samples along the long side, N >> b across
     rows = size >> b
-    cols = min(size, (size >> a) * lover)
+    cols = min(size >> b, (size >> a) * lover)
     step = size / cols
     # coordinates in the copy's frame: X along the long side, Y across
     if toward == TOWARD_U:

@@ -49,14 +49,16 @@ class FilterOptions:
         Applies to ``PARALLELOGRAM``, ``TRILINEAR`` and ``ANISO``.
     skew_oversampling : int
         Power of two: how many times more skews per ``lambda`` level than the
-        seed's ``lambda`` (1 = the seed). More skews, more memory. Default 2
-        (measured: skew errors dominate at 1).
+        seed's ``lambda`` (1 = the seed). More skews, more memory. Default 1:
+        2 doubles the family for 0.1-0.2 dB (benchmarks/results/perspective.json,
+        ``parallelogram-dense``).
     long_oversampling : int
         Power of two: how many times more samples along a copy's long side
-        than the seed's ``N/H`` (1 = the seed). More samples, more memory.
-        Default 4: with the seed's lattice, edges across the long side show
-        the bilinear ripple of a too coarse lattice (about 4 dB lost, see
-        benchmarks/results/perspective.json).
+        than the seed's ``N/H`` (1 = the seed), never closer than ``L`` apart.
+        More samples, more memory. Default 2: with the seed's lattice, edges
+        across the long side show the bilinear ripple of a too coarse lattice
+        (about 3 dB lost); 4 gains another 1-2 dB on the checkerboard for 1.7x
+        the memory. Defaults cost 43 bytes per RGB uint8 texel (mip pyramid: 4).
     long_probes : int
         ``PARALLELOGRAM`` only. 1: the seed's eq. 5, three copies blended by
         the mantissas of ``H`` and ``L`` (12 reads). 2: two probes of the
@@ -76,8 +78,8 @@ class FilterOptions:
     method: Method = Method.PARALLELOGRAM
     max_anisotropy: float = 16.0
     aperture: float = 1.0
-    skew_oversampling: int = 2
-    long_oversampling: int = 4
+    skew_oversampling: int = 1
+    long_oversampling: int = 2
     long_probes: int = 2
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
     reference_density: float = 2.0
