@@ -26,6 +26,7 @@ import dataclasses
 import json
 import sys
 import time
+import timeit
 from pathlib import Path
 
 import cv2
@@ -49,12 +50,7 @@ RNG = np.random.default_rng(7)
 
 def best_of(fn, repeat: int = 3) -> float:
     """Smallest wall time of ``repeat`` calls, seconds."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
+    return min(timeit.repeat(fn, number=1, repeat=repeat))
 
 
 def quadtree_bytes(img: np.ndarray) -> int:

@@ -28,7 +28,7 @@ import json
 import statistics
 import sys
 import tempfile
-import time
+import timeit
 from pathlib import Path
 
 import cv2
@@ -63,12 +63,8 @@ def esa_grid(size: int) -> tuple[np.ndarray, list[np.ndarray], list[str]]:
 
 
 def best_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
+    """Smallest wall time of ``repeat`` calls, seconds."""
+    return min(timeit.repeat(fn, number=1, repeat=repeat))
 
 
 # ---------------------------------------------------------------- peers
