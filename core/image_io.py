@@ -20,7 +20,8 @@ import OpenImageIO as oiio
 from core.atomic import atomic_path
 from core.errors import CorruptFileError, TerrathemeError
 
-_DTYPE_TO_OIIO = {
+#: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
+OIIO_PIXEL_TYPES = {
     np.dtype(np.uint8): oiio.UINT8,
     np.dtype(np.uint16): oiio.UINT16,
     np.dtype(np.uint32): oiio.UINT32,
@@ -66,7 +67,7 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
 
 
 def _np_dtype(spec: oiio.ImageSpec) -> np.dtype:
-    for dt, td in _DTYPE_TO_OIIO.items():
+    for dt, td in OIIO_PIXEL_TYPES.items():
         if spec.format == oiio.TypeDesc(td):
             return dt
     return np.dtype(np.float32)
@@ -116,7 +117,7 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None) 
     try:
         spec = inp.spec()
         want = np.dtype(dtype) if dtype is not None else _np_dtype(spec)
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, _DTYPE_TO_OIIO.get(want, oiio.FLOAT))
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, OIIO_PIXEL_TYPES.get(want, oiio.FLOAT))
         if pixels is None or inp.has_error:
             raise CorruptFileError(f"{path}: damaged or truncated image ({inp.geterror().strip()})")
     finally:
@@ -148,7 +149,7 @@ def read_region(
                 f"{spec.width} x {spec.height} image"
             )
         want = np.dtype(dtype) if dtype is not None else _np_dtype(spec)
-        fmt = _DTYPE_TO_OIIO.get(want, oiio.FLOAT)
+        fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
         if spec.tile_width > 0:
             tw, th = spec.tile_width, spec.tile_height
             x0, y0 = (x // tw) * tw, (y // th) * th
@@ -200,11 +201,11 @@ def write_image(
         raise TerrathemeError(f"cannot write {path}: image shape {arr.shape} has no pixels")
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8) * 255
-    if arr.dtype not in _DTYPE_TO_OIIO:
+    if arr.dtype not in OIIO_PIXEL_TYPES:
         arr = arr.astype(np.float32)
     arr = np.ascontiguousarray(arr)
     h, w, c = arr.shape
-    spec = oiio.ImageSpec(w, h, c, _DTYPE_TO_OIIO[arr.dtype])
+    spec = oiio.ImageSpec(w, h, c, OIIO_PIXEL_TYPES[arr.dtype])
     if tile:
         spec.tile_width = spec.tile_height = int(tile)
     if compression:

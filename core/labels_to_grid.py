@@ -274,15 +274,10 @@ def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = N
         n_strips = max(1, int(max_pixels) // (w * _STRIP))
         starts = np.linspace(0, h - _STRIP, n_strips).astype(int)
         strips = [(int(y), _STRIP) for y in np.unique(starts)]
-    n, m = grid.cell
     same = total = 0
     for y, sh in strips:
-        # Render the strip from the vertex rows it needs plus one ring row each side (the
-        # saddle rule looks one vertex beyond a cell), so the result equals the full render.
-        r0 = max(0, y // m - 1)
-        r1 = min(grid.indices.shape[0], (y + sh - 1) // m + 3)
-        sub = IndexGrid(grid.indices[r0:r1], grid.cell)
-        view = render_labels(sub, region=(0, y - r0 * m, w, sh))
+        # A region render touches only the vertex rows under it (an exact crop of the full view).
+        view = render_labels(grid, region=(0, y, w, sh))
         same += int(np.count_nonzero(view == labels[y : y + sh]))
         total += w * sh
     return same / total

@@ -29,7 +29,7 @@ import OpenImageIO as oiio
 
 from core.atomic import atomic_path
 from core.errors import TerrathemeError
-from core.image_io import _DTYPE_TO_OIIO, image_info, read_region
+from core.image_io import OIIO_PIXEL_TYPES, image_info, read_region
 
 ProgressFn = Callable[[int, int], None]
 
@@ -304,11 +304,11 @@ class TiledImageWriter:
     ) -> None:
         self.path = Path(path)
         self.dtype = np.dtype(dtype)
-        if self.dtype not in _DTYPE_TO_OIIO:
+        if self.dtype not in OIIO_PIXEL_TYPES:
             raise TerrathemeError(f"cannot write {path}: pixel type {self.dtype} not supported")
         if width < 1 or height < 1 or channels < 1:
             raise TerrathemeError(f"cannot write {path}: {width} x {height} x {channels} is empty")
-        self.spec = oiio.ImageSpec(width, height, channels, _DTYPE_TO_OIIO[self.dtype])
+        self.spec = oiio.ImageSpec(width, height, channels, OIIO_PIXEL_TYPES[self.dtype])
         self.spec.tile_width = self.spec.tile_height = int(tile)
         if compression:
             self.spec.attribute("compression", compression)
