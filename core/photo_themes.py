@@ -2,10 +2,15 @@
 
 *Cut from the photo* (DESIGN.md §4, "themes cut from the photo itself and
 made tileable"): for every class, the square window that lies (almost)
-entirely inside the class region and has the lowest colour variance in CIE
-Lab (the most homogeneous patch: least texture energy and no mixture with a
-neighbouring class) is cut out and made tileable with
-:func:`core.tileable.make_tileable`. Window means and variances at every
+entirely inside the class region and whose pixels lie closest, in mean
+squared CIE Lab distance, to the class's mean colour is cut out and made
+tileable with
+:func:`core.tileable.make_tileable`. That distance is the window's colour
+variance plus the squared distance of its mean from the class mean, so the
+patch is both homogeneous (least texture energy, no mixture with a
+neighbouring class) and representative: variance alone prefers the darkest,
+flattest corner of a class (deep water, shadow), whose colour is not the
+class's. Window means and variances at every
 position come from box filters (``cv2.boxFilter``), so the search costs a few
 passes over the photo per size tried. Sizes shrink from ``PatchOptions.size``
 until a window fits; a class with no window of ``min_size`` inside it (a few
@@ -50,11 +55,16 @@ class PatchOptions:
         Smallest patch side tried; below it the class gets a flat theme.
     inside : float
         Share of the patch's pixels that must carry the class.
+    representative : bool
+        True: score windows by the mean squared Lab distance of their pixels
+        from the class's mean colour. False: by their Lab variance alone (the
+        most homogeneous window, whatever its colour).
     """
 
     size: int = 128
     min_size: int = 16
     inside: float = 0.97
+    representative: bool = True
 
 
 @dataclass(frozen=True)
@@ -110,12 +120,17 @@ def find_patch(
     -------
     (x, y, size) or None
         Top-left corner and side of the window with at least ``options.inside``
-        of its pixels in the class and the lowest summed Lab variance;
-        ``None`` when not even a ``min_size`` window fits.
+        of its pixels in the class and the lowest score (see
+        :class:`PatchOptions`); ``None`` when not even a ``min_size`` window
+        fits.
     """
     h, w = mask.shape
     m = mask.astype(np.float32)
     lab2 = lab * lab
+    # The class's mean Lab colour, which representative windows stay close to.
+    target = None
+    if options.representative and mask.any():
+        target = lab[mask].reshape(-1, 3).mean(axis=0)
     # Sizes tried: from the largest that fits down to min_size, shrinking by 3/4.
     size = min(options.size, h, w)
     sizes = []
@@ -129,6 +144,9 @@ def find_patch(
         mean = cv2.boxFilter(lab, -1, k, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
         sq = cv2.boxFilter(lab2, -1, k, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
         var = (sq - mean * mean).sum(axis=2)
+        # Mean squared distance to the class colour = variance + |window mean - class mean|^2.
+        if target is not None:
+            var = var + ((mean - target) ** 2).sum(axis=2)
         # Only windows inside the photo whose pixels are (almost) all in the class.
         ok = np.zeros((h, w), bool)
         ok[: h - size + 1, : w - size + 1] = True

@@ -45,6 +45,25 @@ def test_find_patch_picks_the_calm_square_inside_the_class():
     assert x1 + s1 <= 64
 
 
+def test_find_patch_prefers_the_class_colour_over_a_flat_dark_corner():
+    import cv2
+
+    # One class: mostly mid-grey with mild noise, plus a flat black 40 x 40 corner.
+    rng = np.random.default_rng(1)
+    photo = np.clip(128 + rng.normal(0, 6, (96, 96, 3)), 0, 255).astype(np.uint8)
+    photo[:40, :40] = 0
+    lab = cv2.cvtColor(photo.astype(np.float32) / 255, cv2.COLOR_RGB2LAB)
+    mask = np.ones((96, 96), bool)
+    opts = PatchOptions(size=32, min_size=8)
+    # Variance alone picks the flat black corner ...
+    x, y, s = find_patch(lab, mask, PatchOptions(size=32, min_size=8, representative=False))
+    assert x + s <= 40 and y + s <= 40
+    # ... the representative score a grey window that misses the corner entirely.
+    x, y, s = find_patch(lab, mask, opts)
+    assert s == 32 and (x >= 40 or y >= 40)
+    assert photo[y : y + s, x : x + s].mean() > 100
+
+
 def test_find_patch_shrinks_then_gives_up():
     lab = np.zeros((50, 50, 3), np.float32)
     mask = np.zeros((50, 50), bool)
