@@ -1,7 +1,7 @@
 """Classification accuracy and speed on the real photos in ../shared/data.
 
 Run: ``.venv/bin/python benchmarks/bench_classify.py [scribbles] [across_tiles] [memory]``
-(all three by default, about 10-15 minutes on 2 busy cores; naming parts reruns
+(all three by default, about 7-15 minutes on 2 busy cores; naming parts reruns
 only those and keeps the others from the last classify.json).
 Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 
@@ -12,11 +12,17 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
     12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop).
 
 Methods, all in the same run:
-  rf-default      random forest (cv2.ml) on DEFAULT features, 8x8 coarse pixels,
-                  Gaussian probability smoothing (the library default; for (b) with
-                  the scribble default prior correction, core/classify/prior.py);
+  rf-default      random forest (cv2.ml) on DEFAULT features with Hessian eigenvalues,
+                  8x8 coarse pixels, edge-aware confidence-weighted regularisation
+                  (Regularisation.EDGE, core/classify/regularise.py) -- the library
+                  default; for (b) also the scribble defaults: prior correction at
+                  power 0.75 (core/classify/prior.py) and strokes grown by one ring of
+                  same-colour coarse pixels (core/classify/samples.py);
+  rf-smooth       the previous default: no Hessian, Gaussian probability smoothing,
+                  (b) prior power 0.5 and no growing;
   rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
   rf-prior1       (b) only: rf-default with the full prior correction (prior_power=1);
+  rf-nogrow       (b) only: rf-default without growing the strokes (grow_colour=0);
   rf-position     (b) only: rf-default plus the coarse pixel's position in the photo
                   (FeatureOptions.position; legitimate for a model of one photo);
   rf-superpixel   same, probabilities averaged over MSLIC superpixels;
@@ -44,6 +50,7 @@ import json
 import sys
 import time
 import tracemalloc
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -83,16 +90,22 @@ KMEANS_CLUSTERS = 10
 
 METHODS = {
     "rf-default": SupervisedOptions(),
+    "rf-smooth": SupervisedOptions(features=FeatureOptions(), regularisation=RegulariseOptions(
+        method=Regularisation.SMOOTH)),
     "rf-superpixel": SupervisedOptions(
         regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
     "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),
-    "rf-scale4": SupervisedOptions(features=FeatureOptions(scale=4, sigmas=(1.0, 2.0, 4.0, 8.0))),
+    "rf-scale4": SupervisedOptions(features=FeatureOptions(
+        scale=4, sigmas=(1.0, 2.0, 4.0, 8.0), hessian=True)),
 }
+#: scribble-part options of the previous default (rf-smooth) beyond METHODS'
+SMOOTH_SCRIBBLES = {"prior_power": 0.5, "grow_colour": 0.0}
 #: methods of the scribble part only (the across-tiles part trains on full masks)
 SCRIBBLE_METHODS = {
     "rf-noprior": SupervisedOptions(prior_power=0.0),
     "rf-prior1": SupervisedOptions(prior_power=1.0),
-    "rf-position": SupervisedOptions(features=FeatureOptions(position=True)),
+    "rf-nogrow": SupervisedOptions(grow_colour=0.0),
+    "rf-position": SupervisedOptions(features=FeatureOptions(position=True, hessian=True)),
 }
 ILASTIK = SupervisedOptions(
     features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
@@ -275,6 +288,7 @@ def scribbles(log):
     rng = np.random.default_rng(RNG_SEED + 1)
     methods = {"rf-default": METHODS["rf-default"], **SCRIBBLE_METHODS,
                **{m: o for m, o in METHODS.items() if m != "rf-default"}}
+    methods["rf-smooth"] = replace(methods["rf-smooth"], **SMOOTH_SCRIBBLES)
     results = {m: {} for m in [*methods, "ilastik", "kmeans-colour"]}
     speed = {m: [0.0, 0.0] for m in results}
     coverage = {}

@@ -8,6 +8,7 @@ def chart(result, path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
     panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
@@ -16,16 +17,19 @@ def chart(result, path):
                lambda r: r["mean_miou_over_photos"], 0.60)]
     # One colour and marker per method in both panels.
     names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res if m != "coverage"))
-    markers = "osDv^P*Xhd"
+    markers = "osDv^P*Xhd<>p8H"
+    colours = plt.get_cmap("tab20").colors
     for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
         for m, r in ((m, r) for m, r in res.items() if m != "coverage"):
             i = names.index(m)
             ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
-                       color=f"C{i % 10}", label=m)
-        ax.legend(fontsize=8, loc="lower left")
+                       color=colours[i % len(colours)], label=m,
+                       edgecolor="black" if m == "rf-default" else "none")
+        ax.legend(fontsize=7, loc="lower left", ncol=2)
         ax.axhline(goal, color="grey", ls="--", lw=1)
         ax.axvline(5.0, color="grey", ls=":", lw=1)
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("predict speed, Mpx/s (2 cores, log)")
         ax.set_ylabel("mIoU")
         ax.set_title(title, fontsize=10)

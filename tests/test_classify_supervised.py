@@ -174,7 +174,7 @@ def test_bad_options_are_clear_errors():
 
 def test_pieces_with_the_context_overlap_match_the_whole_photo():
     rng = np.random.default_rng(7)
-    img = np.kron(rng.integers(0, 3, (8, 20)), np.ones((24, 24), int))
+    img = np.kron(rng.integers(0, 3, (8, 30)), np.ones((24, 24), int))
     photo = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.uint8)[img]
     photo = np.clip(photo + rng.normal(0, 6, photo.shape), 0, 255).astype(np.uint8)
     mask = np.zeros(img.shape, np.uint8)
@@ -183,8 +183,8 @@ def test_pieces_with_the_context_overlap_match_the_whole_photo():
     whole = model.predict(photo).labels
     ctx = model.context_pixels
     assert ctx % model.options.features.scale == 0
-    assert 0 < ctx < 240
-    # Left piece: columns 0..239 read with ctx columns of context to the right.
-    left = model.predict(photo[:, : 240 + ctx]).labels[:, :240]
-    right = model.predict(photo[:, 240 - ctx :]).labels[:, ctx:]
+    assert 0 < ctx < 360
+    # Left piece: columns 0..359 read with ctx columns of context to the right.
+    left = model.predict(photo[:, : 360 + ctx]).labels[:, :360]
+    right = model.predict(photo[:, 360 - ctx :]).labels[:, ctx:]
     np.testing.assert_array_equal(np.hstack([left, right]), whole)

@@ -12,8 +12,9 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
 photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
-(smoothing / superpixels), ``unsupervised`` (K criterion), ``unsupervised_model``,
-``supervised``, ``model_file``.
+(smoothing / superpixels / edge-aware averaging), ``unsupervised`` (K criterion),
+``unsupervised_model``, ``supervised``, ``samples`` (training samples from masks and
+scribbles), ``prior`` (class-prior correction), ``model_file``.
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise

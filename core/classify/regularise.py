@@ -9,6 +9,16 @@ final arg-max (a soft majority vote):
 ``SUPERPIXEL`` : average of the probabilities over each manifold-SLIC superpixel
                  (``cv2.ximgproc`` MSLIC, Liu et al. 2016) of the coarse Lab image,
                  so regions follow the photo's edges.
+``EDGE``       : edge-aware, confidence-weighted averaging (:func:`edge_aware_probabilities`):
+                 the domain-transform filter of Gastal & Oliveira (2011, normalised
+                 convolution, ``cv2.ximgproc`` DTFilter) with the coarse Lab image as
+                 guide averages each class's probability among neighbours of similar
+                 colour only, each neighbour weighted by how sure the forest is of it
+                 (a cheap stand-in for a dense CRF). Unsure coarse pixels -- the mixed
+                 ones along region borders, textures the strokes never covered -- take
+                 the class of sure pixels of their own colour region. The supervised
+                 default; bench_classify.py: across tiles mIoU 0.469 -> 0.489 (with the
+                 Hessian features), and part of the scribble gain 0.521 -> 0.553.
 ``NONE``       : per-pixel decisions.
 """
 
@@ -30,6 +40,15 @@ class Regularisation(enum.Enum):
     NONE = "none"
     SMOOTH = "smooth"
     SUPERPIXEL = "superpixel"
+    EDGE = "edge"
+
+
+#: EDGE: weight of a pixel the forest is torn on (margin 0), against 1 + this for a sure one
+EDGE_WEIGHT_FLOOR = 0.05
+#: EDGE: iterations of the domain-transform filter (Gastal & Oliveira 2011 use 3)
+EDGE_ITERATIONS = 3
+#: EDGE: weight of the block lightness std (texture, L units) in the guide, beside L, a, b
+EDGE_TEXTURE_WEIGHT = 1.0
 
 
 @dataclass(frozen=True)
@@ -45,18 +64,30 @@ class RegulariseOptions:
         SUPERPIXEL: SLIC region size in coarse pixels.
     ruler : float
         SUPERPIXEL: SLIC compactness (higher = squarer superpixels).
+    edge_sigma_spatial : float
+        EDGE: spatial reach in coarse pixels (the filter's sigma_s).
+    edge_sigma_colour : float
+        EDGE: colour difference (Lab units, summed over L, a, b) across which
+        averaging fades (the filter's sigma_r).
     """
 
     method: Regularisation = Regularisation.SMOOTH
     sigma: float = 1.0
     region_size: int = 6
     ruler: float = 10.0
+    edge_sigma_spatial: float = 8.0
+    edge_sigma_colour: float = 10.0
 
     def __post_init__(self) -> None:
         if self.sigma <= 0 or self.region_size < 2:
             raise TerrathemeError(
                 f"regularisation sigma must be > 0 and region size >= 2 "
                 f"(got {self.sigma}, {self.region_size})"
+            )
+        if self.edge_sigma_spatial <= 0 or self.edge_sigma_colour <= 0:
+            raise TerrathemeError(
+                f"edge regularisation sigmas must be > 0 "
+                f"(got {self.edge_sigma_spatial}, {self.edge_sigma_colour})"
             )
 
     @property
@@ -66,7 +97,23 @@ class RegulariseOptions:
             return int(math.ceil(3.0 * self.sigma))
         if self.method is Regularisation.SUPERPIXEL:
             return 2 * self.region_size
+        if self.method is Regularisation.EDGE:
+            return edge_reach(self.edge_sigma_spatial) + 1
         return 0
+
+
+def edge_reach(sigma_spatial: float, iterations: int = EDGE_ITERATIONS) -> int:
+    """Farthest a coarse pixel's value travels along one axis in the EDGE filter.
+
+    Gastal & Oliveira (2011, section 4 and eq. 14): iteration ``i`` of ``N``
+    is a box filter of radius ``sqrt(3) * sigma_i`` in the transformed domain,
+    ``sigma_i = sigma_s * sqrt(3) * 2**(N - i) / sqrt(4**N - 1)``; transformed
+    distances are never shorter than pixel distances (eq. 11), so the sum of
+    the radii bounds the reach in pixels (21.2 for ``sigma_s = 8``).
+    """
+    radii = [3.0 * sigma_spatial * 2.0 ** (iterations - i) / math.sqrt(4.0**iterations - 1.0)
+             for i in range(1, iterations + 1)]
+    return int(math.ceil(sum(radii)))
 
 
 def smooth_probabilities(probs: np.ndarray, sigma: float) -> np.ndarray:
@@ -132,15 +179,69 @@ def average_over_segments(probs: np.ndarray, segments: np.ndarray) -> np.ndarray
     return means[seg].reshape(h, w, c)
 
 
-def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions) -> np.ndarray:
+def edge_aware_probabilities(probs: np.ndarray, lab: np.ndarray, sigma_spatial: float,
+                             sigma_colour: float, texture: np.ndarray | None = None) -> np.ndarray:
+    """Confidence-weighted, edge-aware average of the class probability maps.
+
+    ``out_k = DT(w * p_k) / DT(w)`` (normalised convolution), where ``DT`` is
+    the domain-transform filter guided by ``lab`` (Gastal & Oliveira 2011,
+    NC mode) and ``w`` = the margin between a pixel's two most probable
+    classes + ``EDGE_WEIGHT_FLOOR``; rows are renormalised to sum to 1.
+
+    Parameters
+    ----------
+    probs : (h, w, C) float32 ndarray
+        Rows sum to 1.
+    lab : (h, w, 3) float32 ndarray
+        The coarse Lab image (guide).
+    sigma_spatial, sigma_colour : float
+        Coarse pixels and Lab units (see :class:`RegulariseOptions`).
+    texture : (h, w) float32 ndarray, optional
+        Block lightness std of each coarse pixel, a fourth guide channel
+        (times ``EDGE_TEXTURE_WEIGHT``): regions of equal mean colour but
+        different texture are kept apart too.
+
+    Returns
+    -------
+    refined : (h, w, C) float32 ndarray, rows sum to 1
+    """
+    h, w, c = probs.shape
+    if c == 1 or h * w == 1:
+        return probs
+    # Confidence of each coarse pixel: the forest's margin between its best two classes.
+    top2 = np.partition(probs, c - 2, axis=2)[:, :, c - 2 :]
+    weight = (top2[:, :, 1] - top2[:, :, 0] + EDGE_WEIGHT_FLOOR).astype(np.float32)
+    # Guide: Lab, plus texture when given.
+    guide = np.ascontiguousarray(lab, np.float32)
+    if texture is not None:
+        guide = np.ascontiguousarray(np.dstack([guide, texture * EDGE_TEXTURE_WEIGHT]),
+                                     np.float32)
+    # One domain transform of the guide, applied to the weight and each weighted class map.
+    flt = cv2.ximgproc.createDTFilter(guide, sigma_spatial,
+                                      sigma_colour, cv2.ximgproc.DTF_NC, EDGE_ITERATIONS)
+    den = flt.filter(weight).reshape(h, w)
+    out = np.empty_like(probs, dtype=np.float32)
+    for k in range(c):
+        out[:, :, k] = flt.filter(np.ascontiguousarray(probs[:, :, k] * weight)).reshape(h, w)
+    out /= np.maximum(den, 1e-12)[:, :, None]
+    # Keep the rows on the simplex (rounding).
+    np.maximum(out, 0.0, out=out)
+    out /= np.maximum(out.sum(2, keepdims=True), 1e-12)
+    return out
+
+
+def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions,
+               texture: np.ndarray | None = None) -> np.ndarray:
     """Apply the chosen regularisation to coarse probability maps.
 
     Parameters
     ----------
     probs : (h, w, C) float32 ndarray
     lab : (h, w, 3) float32 ndarray
-        The coarse Lab image (used by SUPERPIXEL).
+        The coarse Lab image (used by SUPERPIXEL and EDGE).
     options : RegulariseOptions
+    texture : (h, w) float32 ndarray, optional
+        Block lightness std (used by EDGE, see :func:`edge_aware_probabilities`).
 
     Returns
     -------
@@ -151,4 +252,7 @@ def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions) -
     if options.method is Regularisation.SUPERPIXEL:
         segments = superpixel_labels(lab, options.region_size, options.ruler)
         return average_over_segments(probs, segments)
+    if options.method is Regularisation.EDGE:
+        return edge_aware_probabilities(probs, lab, options.edge_sigma_spatial,
+                                        options.edge_sigma_colour, texture)
     return probs

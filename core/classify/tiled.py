@@ -82,9 +82,24 @@ def tile_features(
     lab : (h, w, 3) float32 ndarray
     features : (h, w, F) float32 ndarray
     """
+    lab, _block_std, feats = tile_arrays(rgb, win, options, stats)
+    return lab, feats
+
+
+def tile_arrays(
+    rgb: np.ndarray, win: Window, options: FeatureOptions, stats: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`tile_features` plus the block lightness std (texture) of each coarse pixel.
+
+    Returns
+    -------
+    lab : (h, w, 3) float32 ndarray
+    block_std : (h, w) float32 ndarray
+    features : (h, w, F) float32 ndarray
+    """
     lab, block_std = coarse_lab(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options.scale)
     feats = features_from_lab(lab, block_std, options, stats)
-    return lab, with_position(feats, (win.oy0, win.ox0), rgb.shape[:2], options)
+    return lab, block_std, with_position(feats, (win.oy0, win.ox0), rgb.shape[:2], options)
 
 
 def iter_tile_features(
@@ -163,10 +178,10 @@ def predict_tiled(
     confidence = np.zeros((height, width), np.float32)
     for done, win in enumerate(windows, 1):
         # Features over the tile and its halo, then per-coarse-pixel probabilities.
-        lab, feats = tile_features(rgb, win, features, stats)
+        lab, block_std, feats = tile_arrays(rgb, win, features, stats)
         probs = probability_fn(feats).astype(np.float32, copy=False)
         # Spatial regularisation on the coarse grid.
-        probs = regularise(probs, lab, regularisation)
+        probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
         core = _core_probabilities(probs, win, scale)
         best = np.argmax(core, axis=2)
