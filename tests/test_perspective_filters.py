@@ -180,7 +180,7 @@ def test_parallelogram_equals_box_over_pixel_when_footprint_is_a_copy(along_v):
     np.testing.assert_allclose(img, want, atol=1e-5)
 
 
-@pytest.mark.parametrize("over", [dict(SEED), {}])
+@pytest.mark.parametrize("over", [dict(SEED), {}, dict(skew_blend=True)])
 @pytest.mark.parametrize("coefs", [
     (1.0, 2.0, 0.3, 0.0, 8.0, 0.1, 0.0, 0.0, 1.0),  # skew toward V
     (6.0, 0.0, 0.2, 3.0, 1.0, 0.4, 0.0, 0.0, 1.0),  # skew toward U

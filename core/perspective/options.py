@@ -42,7 +42,16 @@ class FilterOptions:
         Largest footprint elongation honoured (GPU/pbrt style clamp); longer
         footprints are widened across. For ``PARALLELOGRAM`` it also decides
         how many skewed copies are prefiltered: ``lambda = H/L`` up to the
-        next power of two. ``ANISO`` takes at most this many probes.
+        next power of two, ``2^k`` (the two-probe lookup honours ``2^(k+1)``).
+        The clamp acts on the pixel's own footprint, like EWA's, and a
+        footprint longer than the wrapping texture (near the horizon) is read
+        as one texture length widened across by the same factor (same area;
+        its turns lie side by side): before, ``H`` was cut to ``N`` first, so
+        the horizon rows read a thin band instead of nearly the texture's
+        mean (up to 20x EWA's error there); fixing it gained 0.9-1.2 dB on the
+        thematic texture at pitches 2.5-10 (0 on the checkerboard; benchmarks/
+        results/perspective.json).
+        ``ANISO`` takes at most this many probes.
     aperture : float
         Scale of the pixel footprint fed to the filters (1.0 = the pixel's
         own parallelogram of eq. 2; the seed's 2 x 2-pixel filter is 2.0).
@@ -64,7 +73,20 @@ class FilterOptions:
         the mantissas of ``H`` and ``L`` (12 reads). 2: two probes of the
         copy below ``H`` spanning exactly ``H`` along the long side (4-16
         reads, see :func:`core.perspective.lookup.two_probe_kernel`); default,
-        measured 0.5-1.3 dB closer to the reference at grazing angles.
+        measured 0.5-1.3 dB closer to the reference at grazing angles. Where
+        the long side is under 2 texels and the footprint anisotropic, copy
+        ``2^0`` is the bare texture, so the probes sit at ``+-sigma`` of the
+        pixel's box along the long side: another 0.3-0.7 dB on the
+        checkerboard and 0.6-1.3 dB on the thematic texture at pitches <= 20
+        for 7.6-8.5 reads instead of 5.7-7.2 (the ``H < 1`` pixels were a
+        single bilinear read before).
+    skew_blend : bool
+        ``PARALLELOGRAM`` only. Interpolate between the two prefiltered skews
+        around the footprint's ``tan`` (linear in ``tan``, as eq. 5 is in
+        ``H`` and ``L``) instead of reading the nearest one. Measured +0.3 to
+        +0.6 dB at pitches <= 20 on both textures for 9-11.5 reads instead of
+        7.6-8.5 and about 1.1x the time; default off (the default already
+        beats EWA by 1.3-5.3 dB with fewer reads).
     sky : tuple of float
         Colour of pixels above the horizon (``z <= 0``), in the texture's
         value scale (integers are read as [0, 1]).
@@ -81,6 +103,7 @@ class FilterOptions:
     skew_oversampling: int = 1
     long_oversampling: int = 2
     long_probes: int = 2
+    skew_blend: bool = False
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
     reference_density: float = 2.0
     reference_min_samples: int = 4
@@ -107,6 +130,8 @@ class FilterOptions:
                 raise TerrathemeError(f"{name} must be a power of two in [1, 16], got {val}")
         if self.long_probes not in (1, 2):
             raise TerrathemeError(f"long_probes must be 1 or 2, got {self.long_probes}")
+        if not isinstance(self.skew_blend, bool):
+            raise TerrathemeError(f"skew_blend must be True or False, got {self.skew_blend!r}")
         if len(self.sky) == 0 or not all(math.isfinite(c) for c in self.sky):
             raise TerrathemeError(f"sky colour must be finite numbers, got {self.sky}")
         if not (self.reference_density > 0 and math.isfinite(self.reference_density)):

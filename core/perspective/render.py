@@ -253,7 +253,7 @@ class PreparedTexture:
                 reads = kernel(
                     fam.buf, fam.table, fam.size, fam.max_lambda_log2, fam.skew_oversampling,
                     fam.long_oversampling,
-                    u, v, dux, dvx, duy, dvy, valid, out)
+                    u, v, dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
             else:
                 pyr = self.pyramid
                 if m == Method.TRILINEAR:
