@@ -7,15 +7,39 @@ import pytest
 
 from core.errors import TerrathemeError
 from core.themes import SHIPPED_THEMES_DIR, shipped_theme_library
-from core.tileable import SEAM_THRESHOLD, TileableOptions, make_tileable, seam_score
+from core.tile_quality import lowfreq_score, repeat_score
+from core.tileable import (
+    SEAM_THRESHOLD,
+    FlattenMode,
+    SeamMethod,
+    TileableOptions,
+    flatten_trend,
+    make_tileable,
+    periodic_component,
+    seam_score,
+)
+
+METHODS = list(SeamMethod)
 
 
-def _ramp_patch(seed: int = 0) -> np.ndarray:
+def _ramp_patch(seed: int = 0, h: int = 64, w: int = 80) -> np.ndarray:
     """A patch that does not tile: a strong gradient plus noise."""
     rng = np.random.default_rng(seed)
-    yy, xx = np.mgrid[0:64, 0:80]
+    yy, xx = np.mgrid[0:h, 0:w]
     base = np.stack([xx * 3, yy * 3, (xx + yy) * 1.5], axis=-1)
     return np.clip(base + rng.normal(0, 6, base.shape), 0, 255).astype(np.uint8)
+
+
+def _periodic_patch(n: int = 32) -> np.ndarray:
+    """Tiles exactly: seeded noise keeping only waves of 5 to 10 periods per tile (FFT)."""
+    rng = np.random.default_rng(1)
+    k = np.hypot(*np.meshgrid(np.fft.fftfreq(n) * n, np.fft.fftfreq(n) * n))
+    spec = np.fft.fft2(rng.standard_normal((n, n))) * ((k >= 5) & (k <= 10))
+    base = np.real(np.fft.ifft2(spec))
+    base = 128 + 40 * base / base.std()
+    return np.clip(np.rint(np.stack([base, base * 0.8, base * 0.5 + 40], -1)), 0, 255).astype(
+        np.uint8
+    )
 
 
 def test_seam_score_by_hand() -> None:
@@ -42,34 +66,115 @@ def test_seam_score_flat_and_errors() -> None:
         seam_score(np.zeros((8, 8), np.uint8))
 
 
-@pytest.mark.parametrize("histogram", [True, False])
-def test_make_tileable_removes_seam(histogram: bool) -> None:
-    patch = _ramp_patch()
-    assert seam_score(patch) > 3 * SEAM_THRESHOLD
-    tile = make_tileable(patch, TileableOptions(histogram=histogram))
+@pytest.mark.parametrize("method", METHODS)
+def test_periodic_input_comes_back_unchanged(method: SeamMethod) -> None:
+    patch = _periodic_patch()
+    assert seam_score(patch) < 1.2
+    out = make_tileable(patch, TileableOptions(method=method, flatten=0.0))
+    np.testing.assert_array_equal(out, patch)
+    # Flattening (sigma 4) passes waves of >= 5 periods per 32 texels almost whole: their
+    # blur keeps at most exp(-2 pi^2 16 (5/32)^2) = 0.0004 of them.
+    out = make_tileable(patch, TileableOptions(method=method))
+    assert np.abs(out.astype(int) - patch).max() <= 1
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("shape", [(64, 80), (20, 36), (4, 4)])
+def test_make_tileable_removes_seam_and_keeps_shape(method: SeamMethod, shape) -> None:
+    patch = _ramp_patch(h=shape[0], w=shape[1])
+    tile = make_tileable(patch, TileableOptions(method=method))
     assert tile.shape == patch.shape and tile.dtype == np.uint8
-    assert seam_score(tile) < SEAM_THRESHOLD
-    # The centre keeps the original texels (weight 1 there).
-    np.testing.assert_allclose(tile[28:36, 36:44].astype(int), patch[28:36, 36:44], atol=1)
+    if min(shape) >= 20:
+        assert seam_score(patch) > 3 * SEAM_THRESHOLD
+        # The wrap edge now steps like the interior next to it.
+        assert 0.4 < seam_score(tile) < SEAM_THRESHOLD
 
 
-def test_make_tileable_histogram_keeps_contrast() -> None:
+def test_periodic_component_by_hand() -> None:
+    # A ramp u = 3x along x (n = 16 columns). Moisan: the periodic Laplacian of p equals
+    # the free (inside-only) Laplacian of u: +3 at column 0, -3 at column n-1, 0 elsewhere.
+    # So p is linear with slope d inside and wrap step w, where d - w = 3 and the steps
+    # around the loop sum to 0: (n-1) d + w = 0  ->  d = 3/n, w = -3(n-1)/n.
+    n = 16
+    ramp = np.broadcast_to((np.arange(n) * 3.0)[None, :, None], (8, n, 3))
+    p = periodic_component(ramp)
+    np.testing.assert_allclose(np.diff(p, axis=1), 3 / n, atol=1e-4)
+    np.testing.assert_allclose(p[:, 0] - p[:, -1], -3 * (n - 1) / n, atol=1e-4)
+    np.testing.assert_allclose(np.diff(p, axis=0), 0, atol=1e-4)  # no jump along y
+    assert abs(p.mean() - ramp.mean()) < 1e-4  # s has zero mean
+    # A constant image has no boundary jump: p = u.
+    np.testing.assert_allclose(periodic_component(np.full((5, 7, 3), 9.0)), 9.0, atol=1e-5)
+
+
+def test_flatten_removes_slow_waves_by_hand() -> None:
+    # One cosine period over 64 texels, sigma 16: the periodic Gaussian keeps
+    # exp(-2 pi^2 sigma^2 / n^2) = exp(-1.2337) = 0.2912 of it, so flattening leaves
+    # 0.7088; a period-4 cosine is kept whole (its blur is exp(-2 pi^2 16) = 0).
+    x = np.arange(64)
+    slow = 40 * np.cos(2 * np.pi * x / 64)
+    fast = 20 * np.cos(2 * np.pi * x / 4)
+    img = np.broadcast_to((100 + slow + fast)[None, :, None], (64, 64, 3)).astype(np.float32)
+    out = flatten_trend(img, 16.0, FlattenMode.SUBTRACT)[0, :, 0]
+    np.testing.assert_allclose(out, 100 + 0.7088 * slow + fast, atol=0.02)
+    # DIVIDE: a shading that multiplies a texture is divided out.
+    shade = 1 + 0.5 * np.cos(2 * np.pi * x / 64)
+    tex = 100 * shade * (1 + 0.1 * np.cos(2 * np.pi * x / 4))
+    # sigma 4: the blur keeps exp(-2 pi^2 16 / 64^2) = 0.926 of the shading, none of the texture.
+    flat = flatten_trend(np.broadcast_to(tex[None, :, None], (8, 64, 1)).astype(np.float32),
+                         4.0, FlattenMode.DIVIDE)[0, :, 0]
+    assert np.ptp(flat[::4]) < 0.2 * np.ptp(tex[::4])
+
+
+def test_make_tileable_removes_linear_trend() -> None:
+    patch = _ramp_patch(seed=4, h=64, w=64)
+    out = make_tileable(patch).astype(float)
+    # Least-squares slope of the column means, per channel: 3 (red) before.
+    for c, before in ((0, 3.0), (2, 1.5)):
+        cols = out[:, :, c].mean(axis=0)
+        slope = np.polyfit(np.arange(64), cols, 1)[0]
+        assert abs(slope) < 0.1 * before
+    assert lowfreq_score(out.astype(np.uint8)) < 0.25 < lowfreq_score(patch)
+
+
+def test_make_tileable_histogram_crossfade_keeps_contrast() -> None:
     rng = np.random.default_rng(3)
     patch = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
-    lin = make_tileable(patch, TileableOptions(histogram=False))
-    his = make_tileable(patch, TileableOptions(histogram=True))
+    # White noise already tiles (seam score about 1): tiles_already=0 forces the fade.
+    cross = {"method": SeamMethod.CROSSFADE, "flatten": 0.0, "tiles_already": 0.0}
+    lin = make_tileable(patch, TileableOptions(histogram=False, **cross))
+    his = make_tileable(patch, TileableOptions(histogram=True, **cross))
     # Plain averaging of independent noise lowers its spread; the histogram blend does not.
     assert his.std() > lin.std() + 5
     assert abs(his.std() - patch.std()) < 4
 
 
+def test_no_ghosts_unlike_crossfade() -> None:
+    rng = np.random.default_rng(5)
+    patch = np.clip(rng.normal(128, 40, (64, 64, 3)), 0, 255).astype(np.uint8)
+    ghosty = make_tileable(patch, TileableOptions(method=SeamMethod.CROSSFADE, tiles_already=0))
+    clean = make_tileable(patch, TileableOptions(tiles_already=0))
+    # The cross-fade mixes each texel with the one half a tile away; the default copies nothing.
+    assert repeat_score(ghosty) > 0.5
+    assert repeat_score(clean) < 0.15
+
+
 def test_make_tileable_errors() -> None:
     with pytest.raises(TerrathemeError, match="too small"):
         make_tileable(np.zeros((3, 8, 3), np.uint8))
-    with pytest.raises(TerrathemeError, match="band"):
-        make_tileable(np.zeros((8, 8, 3), np.uint8), TileableOptions(band=0.0))
     with pytest.raises(TerrathemeError, match="empty"):
         make_tileable(np.zeros((0, 8, 3), np.uint8))
+    patch = np.zeros((8, 8, 3), np.uint8)
+    for bad, match in (
+        ({"band": 0.0}, "band"),
+        ({"overlap": 0.5}, "overlap"),
+        ({"flatten": -0.1}, "flatten"),
+        ({"feather": -1}, "feather"),
+        ({"tiles_already": -1.0}, "tiles_already"),
+        ({"method": "blur"}, "method"),
+        ({"flatten_mode": "xor"}, "flatten_mode"),
+    ):
+        with pytest.raises(TerrathemeError, match=match):
+            make_tileable(patch, TileableOptions(**bad))
 
 
 def test_make_tileable_on_dubai_photo(shared_data) -> None:
@@ -77,7 +182,10 @@ def test_make_tileable_on_dubai_photo(shared_data) -> None:
 
     photo = read_image(shared_data / "dubai" / "images" / "image_part_001t1.jpg", dtype=np.uint8)
     patch = photo[100:228, 100:228, :3]
-    assert seam_score(make_tileable(patch)) < SEAM_THRESHOLD < seam_score(patch)
+    tile = make_tileable(patch)
+    assert seam_score(tile) < SEAM_THRESHOLD < seam_score(patch)
+    assert repeat_score(tile) < repeat_score(patch) + 0.05
+    assert lowfreq_score(tile) < 0.5 * lowfreq_score(patch)
 
 
 def test_shipped_themes_pass_seam_test() -> None:
@@ -91,5 +199,10 @@ def test_shipped_themes_pass_seam_test() -> None:
     for theme in lib:
         assert theme.texture.shape[0] >= 64 and theme.texture.shape[1] >= 64
         assert seam_score(theme.texture) < SEAM_THRESHOLD, theme.name
+        # No tile-sized banding: tiled 3 x 3, a dark band or bright corner makes a grid.
+        assert lowfreq_score(theme.texture) < 0.2, theme.name
         colours.add(theme.colour)
     assert len(colours) == len(lib)  # display colours tell themes apart
+    # Photo themes carry no cross-fade ghosts (the old half-shift fade scored about 0.85).
+    for name in ("sand", "town", "grass"):
+        assert repeat_score(lib[lib.index_of(name)].texture) < 0.3, name

@@ -5,13 +5,20 @@ Run: ``.venv/bin/python themes/make_themes.py [--dubai ../shared/data/dubai]``
 * Photo themes (sand, town, grass) are cut from the Dubai aerial
   photos (Humans in the Loop, CC0 1.0; see themes/README.md): for each class
   the script picks the window whose mask is purest for that class, then
-  makes it tileable with :func:`core.tileable.make_tileable`.
+  makes it tileable with :func:`core.tileable.make_tileable` (default
+  options: Moisan periodic-plus-smooth wrap, then periodic low-frequency
+  flattening -- no cross-fade ghosts, no tile-sized banding).
 * Procedural themes (water, forest, crop field, rock, road, snow) are synthesised
   from spectrally filtered noise, which is periodic by construction (FFT),
-  and periodic Gaussian filters (``mode="wrap"``): seamless without a fade.
+  and periodic Gaussian filters (``mode="grid-wrap"``): seamless without a fade.
+  They go through :func:`core.tileable.make_tileable` too, which leaves a
+  periodic texture's seam alone and only flattens its tile-sized blotches
+  (1/f noise puts most of its energy in the lowest, tile-sized waves).
 
 Everything is seeded, so a re-run reproduces the same files. Every theme
-must pass :func:`core.tileable.seam_score` (the script checks it).
+must pass :func:`core.tileable.seam_score` and
+:func:`core.tile_quality.lowfreq_score`, and every photo theme
+:func:`core.tile_quality.repeat_score` (the script checks them).
 """
 
 from __future__ import annotations
@@ -30,9 +37,14 @@ sys.path.insert(0, str(HERE.parent))
 
 from core.atomic import write_bytes_atomic  # noqa: E402
 from core.image_io import read_image, write_image  # noqa: E402
+from core.tile_quality import lowfreq_score, repeat_score  # noqa: E402
 from core.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
 
 SIZE = 256
+#: banding pass mark: share of contrast in waves of <= 2 periods per tile
+LOWFREQ_MAX = 0.2
+#: ghost / copy pass mark for photo themes (a half-shift cross-fade scores about 0.85)
+REPEAT_MAX = 0.3
 
 
 def spectral_noise(rng: np.random.Generator, size: int, beta: float) -> np.ndarray:
@@ -99,7 +111,7 @@ def road(rng: np.random.Generator) -> np.ndarray:
 
 def snow(rng: np.random.Generator) -> np.ndarray:
     """Wind-blown snow: bright blue-white with soft drifts."""
-    drift = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 1.5), (1, 6), mode="wrap")
+    drift = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 1.5), (1, 6), mode="grid-wrap")
     g = 0.75 + 0.1 * drift / drift.std() + 0.02 * spectral_noise(rng, SIZE, 0.2)
     return to_u8(colourise(g, (150, 165, 190), (255, 255, 255)))
 
@@ -143,7 +155,7 @@ def _photo_of(mask_path: str) -> Path:
 
 def water(rng: np.random.Generator) -> np.ndarray:
     """Open water: deep blue with wind ripples and soft swell."""
-    ripples = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 0.8), (0.6, 2.5), mode="wrap")
+    ripples = ndimage.gaussian_filter(spectral_noise(rng, SIZE, 0.8), (0.6, 2.5), mode="grid-wrap")
     swell = spectral_noise(rng, SIZE, 2.2)
     g = 0.45 + 0.12 * ripples / ripples.std() + 0.12 * swell
     return to_u8(colourise(g, (10, 35, 80), (70, 130, 185)))
@@ -178,17 +190,22 @@ def main() -> int:
         tex = make_tileable(patch)
         entries.append((name, colour, tex, desc))
         credits.append(f"{name}: {where} (class purity {purity:.2f})")
+    photo_names = {entry[0] for entry in entries}
     for name, fn, colour, desc in PROCEDURAL:
-        entries.append((name, colour, fn(rng), desc))
+        entries.append((name, colour, make_tileable(fn(rng)), desc))
     meta = []
     for name, colour, tex, desc in entries:
-        score = seam_score(tex)
+        score, low, rep = seam_score(tex), lowfreq_score(tex), repeat_score(tex)
         if score > SEAM_THRESHOLD:
             raise SystemExit(f"{name}: seam score {score:.2f} above {SEAM_THRESHOLD}")
+        if low > LOWFREQ_MAX:
+            raise SystemExit(f"{name}: low-frequency share {low:.2f} above {LOWFREQ_MAX}")
+        if name in photo_names and rep > REPEAT_MAX:
+            raise SystemExit(f"{name}: repeat score {rep:.2f} above {REPEAT_MAX}")
         file = name.replace(" ", "_") + ".png"
         write_image(HERE / file, tex)
         meta.append({"name": name, "colour": list(colour), "file": file, "description": desc})
-        print(f"{name:12s} {file:16s} seam {score:.2f}")
+        print(f"{name:12s} {file:16s} seam {score:.2f} lowfreq {low:.3f} repeat {rep:.3f}")
     text = json.dumps({"version": 1, "themes": meta}, indent=1) + "\n"
     write_bytes_atomic(HERE / "themes.json", text.encode())
     write_bytes_atomic(HERE / "photo_sources.txt", ("\n".join(credits) + "\n").encode())
