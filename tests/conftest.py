@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -41,3 +42,21 @@ def shared_vectors(shared_dir: Path) -> Path:
     if not vec.is_dir():
         pytest.skip("../shared/vectors is absent: vector test skipped")
     return vec
+
+
+@pytest.fixture(scope="session")
+def block_photo():
+    """Factory: a photo of square blocks in three colours with noise.
+
+    ``block_photo(rng, (rows, cols), block, noise)`` returns ``(photo, classes)``:
+    ``photo`` (rows*block, cols*block, 3) uint8, ``classes`` the block class
+    (0, 1 or 2) of every pixel.
+    """
+    colours = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.uint8)
+
+    def make(rng, grid, block, noise):
+        classes = np.kron(rng.integers(0, 3, grid), np.ones((block, block), int))
+        photo = colours[classes] + rng.normal(0, noise, classes.shape + (3,))
+        return np.clip(photo, 0, 255).astype(np.uint8), classes
+
+    return make

@@ -115,12 +115,9 @@ def test_bad_edge_sigmas_are_clear_errors(bad):
         RegulariseOptions(method=Regularisation.EDGE, **bad)
 
 
-def test_edge_default_tiles_do_not_show():
+def test_edge_default_tiles_do_not_show(block_photo):
     # Random blocks of three colours with noise; small tiles must give the whole-photo labels.
-    rng = np.random.default_rng(11)
-    blocks = np.kron(rng.integers(0, 3, (9, 11)), np.ones((24, 24), int))
-    photo = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.uint8)[blocks]
-    photo = np.clip(photo + rng.normal(0, 8, photo.shape), 0, 255).astype(np.uint8)
+    photo, blocks = block_photo(np.random.default_rng(11), (9, 11), 24, 8)
     mask = np.zeros(blocks.shape, np.uint8)
     mask[12::24, 6:18] = blocks[12::24, 6:18] + 1
     model = train_classifier([(photo, mask)])

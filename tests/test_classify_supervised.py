@@ -172,11 +172,8 @@ def test_bad_options_are_clear_errors():
         SupervisedOptions(n_trees=0)
 
 
-def test_pieces_with_the_context_overlap_match_the_whole_photo():
-    rng = np.random.default_rng(7)
-    img = np.kron(rng.integers(0, 3, (8, 30)), np.ones((24, 24), int))
-    photo = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.uint8)[img]
-    photo = np.clip(photo + rng.normal(0, 6, photo.shape), 0, 255).astype(np.uint8)
+def test_pieces_with_the_context_overlap_match_the_whole_photo(block_photo):
+    photo, img = block_photo(np.random.default_rng(7), (8, 30), 24, 6)
     mask = np.zeros(img.shape, np.uint8)
     mask[::9, ::9] = img[::9, ::9] + 1
     model = train_classifier([(photo, mask)])
