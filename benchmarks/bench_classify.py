@@ -1,8 +1,9 @@
 """Classification accuracy and speed on the real photos in ../shared/data.
 
-Run: ``.venv/bin/python benchmarks/bench_classify.py [scribbles] [across_tiles] [memory]``
-(all three by default, about 7-15 minutes on 2 busy cores; naming parts reruns
-only those and keeps the others from the last classify.json).
+Run: ``.venv/bin/python benchmarks/bench_classify.py [scribbles] [corrections]
+[across_tiles] [memory]`` (all four by default, about 10-20 minutes on 2 busy cores;
+naming parts reruns only those and keeps the others from the last classify.json;
+``--scribbles-only`` = ``scribbles corrections``, for iterating on the scribble parts).
 Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 
 (a) across tiles: Dubai, leave one satellite tile out (train on the photos of
@@ -10,6 +11,9 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 (b) scribbles: short strokes (3 px wide, 30 px long) inside eroded class
     regions, <= 0.8% of the photo's pixels, train and test on the same photo:
     12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop).
+(c) corrections (row group ``scribbles_corrections``): the same budget, photos and
+    strokes painted in two rounds, round 2 where the round-1 result is wrong (or least
+    confident), as an editor user does; see classify_corrections.py.
 
 Methods, all in the same run:
   rf-default      random forest (cv2.ml) on DEFAULT features with Hessian eigenvalues,
@@ -61,7 +65,19 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 from classify_chart import chart  # noqa: E402
+from classify_corrections import corrections  # noqa: E402
 from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
+from classify_peers import (  # noqa: E402, F401 (classify_corrections reads them here)
+    ILASTIK,
+    ILASTIK_TEST_PIXELS,
+    KMEANS,
+    RNG_SEED,
+    ColourKMeans,
+    ilastik_features,
+    ilastik_predict,
+    kmeans_predict,
+    whole_window,
+)
 
 from core.classify import (  # noqa: E402
     Classifier,
@@ -70,19 +86,12 @@ from core.classify import (  # noqa: E402
     Regularisation,
     RegulariseOptions,
     SupervisedOptions,
-    UnsupervisedOptions,
-    classify_unsupervised,
 )
-from core.classify.features import coarse_lab  # noqa: E402
-from core.classify.photo import prepare_photo  # noqa: E402
 from core.classify.supervised import _pair_samples, build_forest  # noqa: E402
-from core.classify.tiled import Window, tile_features  # noqa: E402
 from core.image_io import read_image  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 OUT = REPO / "benchmarks" / "results"
-RNG_SEED = 0
-ILASTIK_TEST_PIXELS = 50_000
 #: training samples per class for (a): cv2's forest trains on one core, keep folds short
 ACROSS_CAP = 6000
 #: clusters of the k-means-on-colour baseline trained on other tiles
@@ -107,83 +116,12 @@ SCRIBBLE_METHODS = {
     "rf-nogrow": SupervisedOptions(grow_colour=0.0),
     "rf-position": SupervisedOptions(features=FeatureOptions(position=True, hessian=True)),
 }
-ILASTIK = SupervisedOptions(
-    features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
-    regularisation=RegulariseOptions(method=Regularisation.NONE),
-)
-KMEANS = UnsupervisedOptions(
-    features=FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
-    regularisation=RegulariseOptions(method=Regularisation.NONE),
-)
-
-
 def load(folder, name, crop=None):
     img = read_image(DATA / folder / "images" / name)
     mask = read_image(DATA / folder / "masks" / (Path(name).stem + ".png"))[:, :, 0]
     if crop:
         img, mask = img[:crop, :crop], mask[:crop, :crop]
     return np.ascontiguousarray(img[:, :, :3]), np.ascontiguousarray(mask)
-
-
-def whole_window(h, w):
-    return Window(0, h, 0, w, 0, h, 0, w)
-
-
-def ilastik_features(photo):
-    rgb, _ = prepare_photo(photo)
-    t = time.perf_counter()
-    _lab, feats = tile_features(rgb, whole_window(*rgb.shape[:2]), ILASTIK.features)
-    return feats, time.perf_counter() - t
-
-
-def ilastik_predict(model, feats, truth, classes, rng, seconds_feat):
-    """Votes on random labelled pixels -> (confusion, Mpx/s of features + votes)."""
-    cand = np.flatnonzero(np.isin(truth.ravel(), classes))
-    pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
-    x = feats.reshape(-1, feats.shape[2])[pick][None]
-    t = time.perf_counter()
-    probs = model.probabilities(x)[0]
-    dt = time.perf_counter() - t
-    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
-    per_px = seconds_feat / truth.size + dt / len(pick)
-    return confusion(truth.ravel()[pick], pred, classes), 1e-6 / per_px
-
-
-def kmeans_predict(photo, truth, classes, mapping_mask):
-    """k-means on colour, clusters -> classes by majority of ``mapping_mask`` (0 = unlabelled)."""
-    t = time.perf_counter()
-    res = classify_unsupervised(photo, themes=len(classes), options=KMEANS)
-    dt = time.perf_counter() - t
-    lut = np.zeros(256, np.uint8)
-    fallback = np.bincount(mapping_mask[np.isin(mapping_mask, classes)], minlength=256).argmax()
-    for c in res.classes:
-        hit = mapping_mask[(res.labels == c) & np.isin(mapping_mask, classes)]
-        lut[c] = np.bincount(hit, minlength=256).argmax() if hit.size else fallback
-    return confusion(truth, lut[res.labels], classes), truth.size / dt / 1e6
-
-
-class ColourKMeans:
-    """k-means on Lab fitted to training samples, each cluster named by its majority class."""
-
-    def __init__(self, lab, labels, k):
-        cv2.setRNGSeed(RNG_SEED)
-        criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
-        _, assign, self.centres = cv2.kmeans(lab.astype(np.float32), k, None, criteria, 3,
-                                              cv2.KMEANS_PP_CENTERS)
-        assign = assign.ravel()
-        self.lut = np.array([np.bincount(labels[assign == c], minlength=256).argmax()
-                             if (assign == c).any() else 0 for c in range(k)], np.uint8)
-
-    def classify(self, photo, truth, classes):
-        """Per-pixel nearest centre -> (confusion, seconds)."""
-        t = time.perf_counter()
-        rgb, _ = prepare_photo(photo)
-        lab, _ = coarse_lab(rgb, 1)
-        flat = lab.reshape(-1, 3)
-        c = self.centres
-        d2 = (flat * flat).sum(1)[:, None] - 2.0 * flat @ c.T + (c * c).sum(1)[None]
-        pred = self.lut[d2.argmin(1)].reshape(truth.shape)
-        return confusion(truth, pred, classes), time.perf_counter() - t
 
 
 def across_tiles(log):
@@ -277,7 +215,8 @@ def _capped(per_photo_samples, names, cap, rng):
     return x[keep].astype(np.float32), y[keep]
 
 
-def scribbles(log):
+def scribble_sets():
+    """The 16 photos of the scribble parts: (folder, name, classes, crop)."""
     sets = [("dubai", n, [1, 2, 3, 4, 5], None)
             for n in sorted(p.name for p in (DATA / "dubai" / "images").glob("*.jpg"))
             if n[11:14] in ("004", "005")]
@@ -285,6 +224,11 @@ def scribbles(log):
              ("loveda", "loveda_1.png", [1, 2, 3, 4, 5, 6, 7], None),
              ("potsdam", "potsdam_2_10_0_0_512_512.png", [1, 2, 3, 4, 5, 6], None),
              ("deepglobe", "6399_sat.jpg", [1, 2, 3, 4, 5, 6], 1536)]
+    return sets
+
+
+def scribbles(log):
+    sets = scribble_sets()
     rng = np.random.default_rng(RNG_SEED + 1)
     methods = {"rf-default": METHODS["rf-default"], **SCRIBBLE_METHODS,
                **{m: o for m, o in METHODS.items() if m != "rf-default"}}
@@ -376,15 +320,22 @@ def main() -> int:
 
     result = {"cv2_threads": cv2.getNumThreads()}
     OUT.mkdir(parents=True, exist_ok=True)
-    parts = sys.argv[1:] or ["scribbles", "across_tiles", "memory"]
+    every = ("scribbles", "corrections", "across_tiles", "memory")
+    parts = sys.argv[1:] or list(every)
+    if "--scribbles-only" in parts:
+        parts = ["scribbles", "corrections"]
+    if unknown := set(parts) - set(every):
+        print(f"unknown part(s) {sorted(unknown)}: choose from {every} or --scribbles-only")
+        return 2
     previous = OUT / "classify.json"
-    if len(parts) < 3 and previous.is_file():
+    if len(set(parts)) < len(every) and previous.is_file():
         result.update(json.loads(previous.read_text()))
-    for part, fn in (("scribbles", scribbles), ("across_tiles", across_tiles),
-                     ("memory", memory)):
+    keys = {"corrections": "scribbles_corrections"}
+    for part, fn in (("scribbles", scribbles), ("corrections", corrections),
+                     ("across_tiles", across_tiles), ("memory", memory)):
         if part in parts:
             log(part)
-            result[part] = fn(log)
+            result[keys.get(part, part)] = fn(log)
             (OUT / "classify.partial.json").write_text(json.dumps(result, indent=1))
     base = result["across_tiles"]["ilastik"]
     result["ratios_vs_ilastik"] = {
@@ -402,6 +353,12 @@ def main() -> int:
                 continue
             miou = r.get("miou", r.get("mean_miou_over_photos"))
             log(f"{part:12s} {m:14s} mIoU {miou:.3f}  {r['mpx_per_s']:.2f} Mpx/s")
+    for m, rows in result.get("scribbles_corrections", {}).items():
+        for v, r in rows.items() if m not in ("coverage", "repeats", "low_confidence_share") \
+                else ():
+            log(f"corrections  {m:14s} {v:14s} mIoU {r['mean_miou_over_photos']:.3f}  "
+                f"Dubai pooled {r['dubai_pooled']['miou']:.3f}  "
+                f"Dubai per-photo {r['dubai_mean_miou_over_photos']:.3f}")
     return 0
 
 

@@ -1,6 +1,17 @@
-"""The accuracy-against-speed chart of ``bench_classify.py`` (one point per method)."""
+"""The charts of ``bench_classify.py``.
+
+(a), (b): accuracy against speed, one point per method; (c): the scribble
+protocols at the same budget -- one-shot against two rounds (corrections).
+"""
 
 from __future__ import annotations
+
+#: the scribble protocols of part "corrections": (variant, colour, label)
+_SERIES = (("one-shot", "#9e9e9e", "one-shot, whole budget (same-run peer)"),
+           ("round1", "#d9d9d9", "round 1 only (half the budget)"),
+           ("corrections", "crimson", "corrections: + half on the errors"),
+           ("low-confidence", "darkorange", "prompts: + half on low confidence"))
+_PROTOCOL_METHODS = ("rf-default", "rf-noprior", "rf-keepprior", "ilastik")
 
 
 def chart(result, path):
@@ -10,16 +21,18 @@ def chart(result, path):
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    rows = result.get("scribbles_corrections")
+    fig, axes = plt.subplots(1, 3 if rows else 2, figsize=(19 if rows else 12, 5.2),
+                             width_ratios=[1, 1, 1.1] if rows else None)
     panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
                result["across_tiles"], lambda r: r["subset_001_003"]["miou"], 0.45),
-              ("(b) scribbles <= 1% of pixels, mean mIoU", result["scribbles"],
-               lambda r: r["mean_miou_over_photos"], 0.60)]
+              ("(b) one-shot scribbles <= 0.8% of pixels (16 photos), mean mIoU",
+               result["scribbles"], lambda r: r["mean_miou_over_photos"], 0.60)]
     # One colour and marker per method in both panels.
     names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res if m != "coverage"))
     markers = "osDv^P*Xhd<>p8H"
     colours = plt.get_cmap("tab20").colors
-    for ax, (title, res, get, goal) in zip(axes, panels, strict=True):
+    for ax, (title, res, get, goal) in zip(axes, panels, strict=False):
         for m, r in ((m, r) for m, r in res.items() if m != "coverage"):
             i = names.index(m)
             ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
@@ -34,7 +47,49 @@ def chart(result, path):
         ax.set_ylabel("mIoU")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
+    if rows:
+        _protocols(axes[2], rows)
     fig.suptitle("terratheme classify: accuracy vs speed per feature set / classifier "
                  "(dashed: goal mIoU, dotted: 5 Mpx/s)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def _protocols(ax, rows):
+    """Grouped bars: per method, mean mIoU over 16 photos of each scribble protocol.
+
+    Whiskers span the repeats (independent stroke draws); black dots are the
+    Dubai pooled mIoU.
+    """
+    methods = [m for m in _PROTOCOL_METHODS if m in rows]
+    width = 0.8 / len(_SERIES)
+    for j, (v, colour, label) in enumerate(_SERIES):
+        xs, ys, lo, hi, pooled = [], [], [], [], []
+        for i, m in enumerate(methods):
+            if v not in rows[m]:
+                continue
+            r = rows[m][v]
+            reps = r.get("mean_miou_per_repeat", [r["mean_miou_over_photos"]])
+            xs.append(i + (j - (len(_SERIES) - 1) / 2) * width)
+            ys.append(r["mean_miou_over_photos"])
+            lo.append(r["mean_miou_over_photos"] - min(reps))
+            hi.append(max(reps) - r["mean_miou_over_photos"])
+            pooled.append(r["dubai_pooled"]["miou"])
+        hatch = "//" if v in ("corrections", "low-confidence") else None
+        ax.bar(xs, ys, width, color=colour, edgecolor="black", linewidth=0.6, hatch=hatch,
+               label=label, yerr=[lo, hi], capsize=2, error_kw={"lw": 0.8})
+        ax.scatter(xs, pooled, s=14, color="black", zorder=5,
+                   label="Dubai pooled mIoU" if j == 0 else None)
+        for x, y in zip(xs, ys, strict=True):
+            ax.text(x, 0.305, f"{y:.3f}", rotation=90, ha="center", va="bottom", fontsize=7,
+                    bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+    ax.axhline(0.60, color="grey", ls="--", lw=1)
+    ax.set_xticks(range(len(methods)), methods, fontsize=8)
+    ax.set_ylim(0.3, 0.8)
+    ax.set_ylabel("mean mIoU over 16 photos")
+    share = rows.get("low_confidence_share", 0.1)
+    ax.set_title(f"(c) the same <= 0.8% budget: one shot vs two rounds (mean of "
+                 f"{rows.get('repeats', 1)} draws;\n prompts = lowest {share:.0%} confidence, "
+                 "no ground truth chooses where)", fontsize=10)
+    ax.legend(fontsize=7, loc="upper left", ncol=2)
+    ax.grid(alpha=0.3, axis="y")

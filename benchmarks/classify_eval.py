@@ -58,3 +58,97 @@ def simulate_scribbles(mask, classes, rng, budget=0.008, length=30, width=3):
             out[stroke] = k
             painted += stroke_px
     return out
+
+
+def simulate_corrections(mask, classes, rng, target, budget_px, existing=None,
+                         length=30, width=3, min_area=50, tries=4, smooth=9):
+    """Correction strokes as a user adds them after seeing a result (round 2 of "corrections").
+
+    The user looks at the regions ``target`` marks (the misclassified pixels, or the
+    low-confidence ones the app highlights), takes its connected regions largest
+    first and paints one short stroke of the TRUE class centred in each, then goes
+    round again while paint is left. Strokes have the length and width of
+    :func:`simulate_scribbles` and lie inside the eroded true-class region under
+    their centre (the same 9 x 9 erosion), never on ``existing`` strokes.
+
+    Parameters
+    ----------
+    mask : (H, W) uint8 ndarray
+        True classes.
+    classes : sequence of int
+        Classes a user may paint (others, e.g. ignored classes, are never painted).
+    rng : numpy Generator
+    target : (H, W) bool ndarray
+        Where the user wants to correct.
+    budget_px : int
+        Most pixels the new strokes may cover.
+    existing : (H, W) uint8 ndarray, optional
+        Strokes already painted (0 = none).
+    min_area : int
+        Target regions smaller than this many pixels are not worth a stroke.
+    tries : int
+        Stroke directions tried per stroke; the one covering most target pixels is
+        kept (the user draws along the wrong region).
+    smooth : int
+        The user sees regions, not single pixels: regions are the connected
+        components of the ``smooth`` x ``smooth`` majority of ``target`` (1 = as is);
+        stroke centres are still ``target`` pixels.
+
+    Returns
+    -------
+    strokes : (H, W) uint8 ndarray
+        The new strokes only (0 = none, k = class k).
+    """
+    h, w = mask.shape
+    out = np.zeros_like(mask)
+    taken = np.zeros(mask.shape, bool) if existing is None else existing > 0
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
+    # Eroded true-class regions: where a stroke of class k may lie.
+    core = {k: cv2.erode((mask == k).astype(np.uint8), kernel).astype(bool) for k in classes}
+    any_core = np.zeros(mask.shape, bool)
+    for region in core.values():
+        any_core |= region
+    # Target regions as the user sees them (majority filter), largest first, each with
+    # the target pixels a stroke may be centred on.
+    seen = target.astype(np.uint8)
+    if smooth > 1:
+        seen = (cv2.blur(seen.astype(np.float32), (smooth, smooth)) > 0.5).astype(np.uint8)
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(seen, connectivity=8)
+    centre_comp = np.where(any_core & target, comp, 0).ravel()
+    order = np.argsort(centre_comp, kind="stable")
+    bounds = np.searchsorted(centre_comp[order], np.arange(n + 1))
+    regions = [order[bounds[c]:bounds[c + 1]]
+               for c in sorted(range(1, n), key=lambda c: -stats[c, cv2.CC_STAT_AREA])
+               if stats[c, cv2.CC_STAT_AREA] >= min_area and bounds[c + 1] > bounds[c]]
+    half = length // 2 + width
+    painted, misses = 0, 0
+    # Rounds over the regions until the paint is spent or no stroke fits any more.
+    while regions and painted < budget_px and misses < 3 * len(regions):
+        for cand in regions:
+            if painted >= budget_px or misses >= 3 * len(regions):
+                break
+            y, x = divmod(int(cand[rng.integers(len(cand))]), w)
+            k = int(mask[y, x])
+            y0, y1, x0, x1 = max(y - half, 0), min(y + half + 1, h), max(x - half, 0), \
+                min(x + half + 1, w)
+            allowed = core[k][y0:y1, x0:x1] & ~taken[y0:y1, x0:x1] & (out[y0:y1, x0:x1] == 0)
+            best, best_hits = None, -1
+            # A few directions through the centre; keep the one along the target region.
+            for _ in range(tries):
+                a = rng.uniform(0, np.pi)
+                dx, dy = np.cos(a) * length / 2, np.sin(a) * length / 2
+                canvas = np.zeros(allowed.shape, np.uint8)
+                cx, cy = x - x0, y - y0
+                cv2.line(canvas, (int(cx - dx), int(cy - dy)), (int(cx + dx), int(cy + dy)),
+                         1, width)
+                stroke = canvas.astype(bool) & allowed
+                hits = int((stroke & target[y0:y1, x0:x1]).sum())
+                if hits > best_hits:
+                    best, best_hits = stroke, hits
+            stroke_px = int(best.sum())
+            if stroke_px == 0 or painted + stroke_px > budget_px:
+                misses += 1
+                continue
+            out[y0:y1, x0:x1][best] = k
+            painted += stroke_px
+    return out

@@ -1,0 +1,102 @@
+"""The peers of ``bench_classify.py``: the ilastik recipe and k-means baselines (not a test module).
+
+* ilastik recipe: a random forest on colour + scikit-image multiscale
+  features per pixel (``FeatureSet.SKIMAGE``, scale 1, no regularisation),
+  scored on ``ILASTIK_TEST_PIXELS`` random labelled pixels per photo;
+* k-means on colour: OpenCV k-means on per-pixel Lab, clusters named by the
+  majority class of the training labels.
+"""
+
+from __future__ import annotations
+
+import time
+
+import cv2
+import numpy as np
+from classify_eval import confusion
+
+from core.classify import (
+    FeatureOptions,
+    FeatureSet,
+    Regularisation,
+    RegulariseOptions,
+    SupervisedOptions,
+    UnsupervisedOptions,
+    classify_unsupervised,
+)
+from core.classify.features import coarse_lab
+from core.classify.photo import prepare_photo
+from core.classify.tiled import Window, tile_features
+
+RNG_SEED = 0
+ILASTIK_TEST_PIXELS = 50_000
+
+ILASTIK = SupervisedOptions(
+    features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
+    regularisation=RegulariseOptions(method=Regularisation.NONE),
+)
+KMEANS = UnsupervisedOptions(
+    features=FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
+    regularisation=RegulariseOptions(method=Regularisation.NONE),
+)
+
+
+def whole_window(h, w):
+    return Window(0, h, 0, w, 0, h, 0, w)
+
+
+def ilastik_features(photo):
+    rgb, _ = prepare_photo(photo)
+    t = time.perf_counter()
+    _lab, feats = tile_features(rgb, whole_window(*rgb.shape[:2]), ILASTIK.features)
+    return feats, time.perf_counter() - t
+
+
+def ilastik_predict(model, feats, truth, classes, rng, seconds_feat):
+    """Votes on random labelled pixels -> (confusion, Mpx/s of features + votes)."""
+    cand = np.flatnonzero(np.isin(truth.ravel(), classes))
+    pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
+    x = feats.reshape(-1, feats.shape[2])[pick][None]
+    t = time.perf_counter()
+    probs = model.probabilities(x)[0]
+    dt = time.perf_counter() - t
+    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
+    per_px = seconds_feat / truth.size + dt / len(pick)
+    return confusion(truth.ravel()[pick], pred, classes), 1e-6 / per_px
+
+
+def kmeans_predict(photo, truth, classes, mapping_mask):
+    """k-means on colour, clusters -> classes by majority of ``mapping_mask`` (0 = unlabelled)."""
+    t = time.perf_counter()
+    res = classify_unsupervised(photo, themes=len(classes), options=KMEANS)
+    dt = time.perf_counter() - t
+    lut = np.zeros(256, np.uint8)
+    fallback = np.bincount(mapping_mask[np.isin(mapping_mask, classes)], minlength=256).argmax()
+    for c in res.classes:
+        hit = mapping_mask[(res.labels == c) & np.isin(mapping_mask, classes)]
+        lut[c] = np.bincount(hit, minlength=256).argmax() if hit.size else fallback
+    return confusion(truth, lut[res.labels], classes), truth.size / dt / 1e6
+
+
+class ColourKMeans:
+    """k-means on Lab fitted to training samples, each cluster named by its majority class."""
+
+    def __init__(self, lab, labels, k):
+        cv2.setRNGSeed(RNG_SEED)
+        criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
+        _, assign, self.centres = cv2.kmeans(lab.astype(np.float32), k, None, criteria, 3,
+                                              cv2.KMEANS_PP_CENTERS)
+        assign = assign.ravel()
+        self.lut = np.array([np.bincount(labels[assign == c], minlength=256).argmax()
+                             if (assign == c).any() else 0 for c in range(k)], np.uint8)
+
+    def classify(self, photo, truth, classes):
+        """Per-pixel nearest centre -> (confusion, seconds)."""
+        t = time.perf_counter()
+        rgb, _ = prepare_photo(photo)
+        lab, _ = coarse_lab(rgb, 1)
+        flat = lab.reshape(-1, 3)
+        c = self.centres
+        d2 = (flat * flat).sum(1)[:, None] - 2.0 * flat @ c.T + (c * c).sum(1)[None]
+        pred = self.lut[d2.argmin(1)].reshape(truth.shape)
+        return confusion(truth, pred, classes), time.perf_counter() - t
