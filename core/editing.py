@@ -338,7 +338,8 @@ class EditSession:
         # Record every part against the original grid, then apply them all.
         for p in parts:
             p.apply(self.indices)
-        atom = MultiAtom(tuple(parts)) if len(parts) != 1 else (parts[0] if parts else None)
+        # No part: the grid is unchanged and nothing is recorded.
+        atom = MultiAtom(tuple(parts)) if len(parts) > 1 else (parts[0] if parts else None)
         if atom is not None:
             self._emit(atom.rows, atom.cols)
         return self._commit(atom)

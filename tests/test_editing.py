@@ -245,6 +245,15 @@ def test_replace_all_is_one_undo_step():
         s.replace_all(np.zeros((3, 3), dtype=np.uint8))
 
 
+def test_replace_all_with_the_same_grid_records_nothing():
+    base = np.arange(72, dtype=np.uint8).reshape(8, 9) % 3
+    tex = make_texture(base.copy(), k=3)
+    s = EditSession(tex)
+    assert s.replace_all(base.copy()) is None
+    assert not s.can_undo
+    np.testing.assert_array_equal(tex.grid.indices, base)
+
+
 def test_errors_name_the_problem():
     s = EditSession(make_texture(np.zeros((5, 5), dtype=np.uint8), k=2))
     with pytest.raises(TerrathemeError, match="theme index 7"):

@@ -384,3 +384,4 @@ def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monke
     assert not np.array_equal(lib[0].texture, tex)
     fresh = render_cells(doc.texture.grid.indices, lib.textures, (8, 8))
     np.testing.assert_array_equal(doc.preview.image, fresh)
+

@@ -10,12 +10,14 @@ Cancel is dropped.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
 
+from app.editor.uncertainty import scribble_classes
 from core.themes import Theme, ThemeLibrary
 
 #: display colours of new class themes (matplotlib's tab10, as 8-bit RGB)
@@ -49,11 +51,27 @@ class Cancelled(Exception):
 
 @dataclass
 class ClassifyResult:
-    """What the job hands back: the new grid indices and themes to append first."""
+    """What the job hands back: the new grid indices and themes to append first.
+
+    Attributes
+    ----------
+    indices : (gh, gw) vertex index grid
+    new_themes : themes to append before applying ``indices``
+    n_classes : classes the classifier knows
+    confidence : (H, W) float32 ndarray, the photo's size, or None
+        The winning class's vote share / posterior per photo pixel.
+    class_weights : {class value: weight} or None
+        Scribble runs: the model's class-prior weights (None without a correction).
+    scribble_classes : frozenset of int
+        Scribble runs: the class values painted in the scribbles trained on.
+    """
 
     indices: np.ndarray
     new_themes: list[Theme]
     n_classes: int
+    confidence: np.ndarray | None = None
+    class_weights: dict[int, float] | None = None
+    scribble_classes: frozenset[int] = field(default_factory=frozenset)
 
 
 def _mean_lab(colours: np.ndarray) -> np.ndarray:
@@ -111,8 +129,13 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
 
 def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | None,
                        library: ThemeLibrary, cell: tuple[int, int], grid_shape: tuple[int, int],
-                       progress) -> ClassifyResult:
-    """Classify ``photo`` and convert the labels to a ``grid_shape`` vertex grid."""
+                       progress, class_weights: Mapping[int, float] | None = None
+                       ) -> ClassifyResult:
+    """Classify ``photo`` and convert the labels to a ``grid_shape`` vertex grid.
+
+    ``class_weights`` (scribbles only): prior weights kept from an earlier run,
+    passed to ``train_classifier``.
+    """
     from core.classify import classify_unsupervised, train_classifier
     from core.errors import TerrathemeError
     from core.labels_to_grid import labels_to_grid
@@ -120,11 +143,16 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
     if mode is Mode.SCRIBBLES:
         if scribbles is None or not scribbles.any():
             raise TerrathemeError("no scribbles: paint some with the Scribble tool (S) first")
-        result = train_classifier([(photo, scribbles)]).predict(photo, progress=progress)
+        model = train_classifier([(photo, scribbles)], class_weights=class_weights)
+        result = model.predict(photo, progress=progress)
+        weights = (None if model.class_weights is None else
+                   dict(zip(model.classes, model.class_weights, strict=True)))
+        painted = scribble_classes(scribbles)
         # Scribble value v marks theme v - 1.
         lut = np.clip(np.arange(256) - 1, 0, len(library) - 1)
         new_themes: list[Theme] = []
     else:
+        weights, painted = None, frozenset()
         result = classify_unsupervised(photo, progress=progress)
         labels, classes = result.labels, result.classes
         if mode is Mode.UNSUPERVISED_MAP:
@@ -138,7 +166,8 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
         raise TerrathemeError(
             f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
             f"with cell {cell}; the project grid is {grid_shape}")
-    return ClassifyResult(grid.indices, new_themes, len(result.classes))
+    return ClassifyResult(grid.indices, new_themes, len(result.classes),
+                          np.asarray(result.confidence, np.float32), weights, painted)
 
 
 class ClassifyJob(QThread):
@@ -153,9 +182,10 @@ class ClassifyJob(QThread):
     failed = Signal(str)
 
     def __init__(self, mode: Mode, photo, scribbles, library, cell, grid_shape,
-                 parent: QObject | None = None) -> None:
+                 parent: QObject | None = None, class_weights=None) -> None:
         super().__init__(parent)
         self.args = (mode, photo, scribbles, ThemeLibrary(library), cell, grid_shape)
+        self.class_weights = class_weights
         self.cancelled = False
 
     def cancel(self) -> None:
@@ -168,7 +198,8 @@ class ClassifyJob(QThread):
 
     def run(self) -> None:
         try:
-            result = run_classification(*self.args, progress=self._progress)
+            result = run_classification(*self.args, progress=self._progress,
+                                        class_weights=self.class_weights)
         except Cancelled:
             return
         except Exception as exc:  # reported in the window, never a crash

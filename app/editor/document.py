@@ -18,6 +18,7 @@ from PySide6.QtGui import QUndoStack
 
 from app.editor.commands import AddThemeCommand, AtomCommand, ThemeCommand
 from app.editor.imaging import Pyramid
+from app.editor.uncertainty import KeptPrior, next_kept_prior, scribble_classes, uncertain_mask
 from core.edit_fidelity import fidelity_map, heat_colours
 from core.edit_preview import RenderPreview
 from core.edit_tools import capsule_footprint
@@ -36,11 +37,16 @@ class EditorDocument(QObject):
         Texels whose index colours or render changed.
     libraryChanged()
         A theme was added, renamed, recoloured or retextured.
+    scribblesChanged()
+        The scribble layer changed.
+    confidenceChanged()
+        A classification's confidence map was set or cleared.
     """
 
     regionChanged = Signal(QRectF)
     libraryChanged = Signal()
     scribblesChanged = Signal()
+    confidenceChanged = Signal()
 
     def __init__(self, texture: ThematicTexture, path: str | Path | None = None,
                  progress=None) -> None:
@@ -65,7 +71,14 @@ class EditorDocument(QObject):
             self.photo_pyramid = Pyramid(photo, extent=self.photo_extent())
         self._fidelity: np.ndarray | None = None
         self.fidelity_pyramid: Pyramid | None = None
+        # The last classification's confidence (not saved) and what it was computed for.
+        self._confidence: np.ndarray | None = None
+        self._confidence_for: tuple | None = None
+        self._uncertain: np.ndarray | None = None
+        #: class weights of the first scribble classification (see app.editor.uncertainty)
+        self.kept_prior: KeptPrior | None = None
         self.session.subscribe(self._on_grid_change)
+        self.scribblesChanged.connect(self._drop_prior_without_scribbles)
 
     # -- geometry ------------------------------------------------------------
     @property
@@ -189,6 +202,62 @@ class EditorDocument(QObject):
         colours[1 : len(lib) + 1, :3] = lib
         colours[1 : len(lib) + 1, 3] = 255
         return np.ascontiguousarray(colours[sc[rows, cols]])
+
+    # -- classifier confidence and the kept prior ------------------------------
+    def _confidence_key(self) -> tuple:
+        tex = self.texture
+        photo = None if tex.photo is None else (id(tex.photo), tex.photo.shape)
+        return (photo, tex.grid.indices.shape, tex.grid.cell)
+
+    def set_confidence(self, confidence: np.ndarray | None) -> None:
+        """Keep a classification's (H, W) confidence map (the photo's size); None clears it."""
+        if confidence is not None:
+            photo = self.texture.photo
+            conf = np.asarray(confidence, np.float32)
+            if photo is None or conf.shape != photo.shape[:2]:
+                have = "no photo" if photo is None else f"a {photo.shape[1]} x {photo.shape[0]}"
+                raise TerrathemeError(f"a {conf.shape[::-1]} confidence map does not fit "
+                                      f"{have} photo")
+            confidence = conf
+        self._confidence = confidence
+        self._confidence_for = None if confidence is None else self._confidence_key()
+        self._uncertain = None
+        self.confidenceChanged.emit()
+
+    def confidence(self) -> np.ndarray | None:
+        """The last confidence map, (H, W) float32; None once the photo or grid changed."""
+        if self._confidence is not None and self._confidence_for != self._confidence_key():
+            self.set_confidence(None)
+        return self._confidence
+
+    def uncertain(self) -> np.ndarray | None:
+        """(H, W) bool: the least confident ``UNCERTAIN_SHARE`` of the photo, as regions."""
+        conf = self.confidence()
+        if conf is None:
+            return None
+        if self._uncertain is None:
+            self._uncertain = uncertain_mask(conf)
+        return self._uncertain
+
+    def prior_for(self, scribbles: np.ndarray | None) -> dict[int, float] | None:
+        """Class weights a scribble classification of ``scribbles`` should reuse, or None.
+
+        A kept prior whose scribbled classes differ (a class added or erased)
+        is dropped: the next run estimates afresh.
+        """
+        classes = scribble_classes(scribbles)
+        if self.kept_prior is not None and not self.kept_prior.applies_to(classes):
+            self.kept_prior = None
+        return None if self.kept_prior is None else dict(self.kept_prior.weights)
+
+    def remember_prior(self, classes: frozenset[int],
+                       weights: dict[int, float] | None) -> None:
+        """After a scribble classification: keep the first run's weights for its classes."""
+        self.kept_prior = next_kept_prior(self.kept_prior, classes, weights)
+
+    def _drop_prior_without_scribbles(self) -> None:
+        if self.kept_prior is not None and not scribble_classes(self.texture.scribbles):
+            self.kept_prior = None
 
     # -- fidelity ------------------------------------------------------------
     def fidelity(self) -> np.ndarray | None:

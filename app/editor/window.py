@@ -21,10 +21,11 @@ from app.editor.document import EditorDocument
 from app.editor.imaging import Pyramid
 from app.editor.palette import ThemePalette
 from app.editor.tools import Tool, ToolController
+from app.editor.uncertainty_view import UncertaintyMixin
 from app.editor.window_menus import MenuMixin
 
 
-class MainWindow(MenuMixin, QMainWindow):
+class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
     """The editor window over one :class:`EditorDocument` at a time."""
 
     def __init__(self, doc: EditorDocument) -> None:
@@ -73,7 +74,8 @@ class MainWindow(MenuMixin, QMainWindow):
                     sig.disconnect()
         old = self.doc
         if old is not None:
-            for sig in (old.regionChanged, old.scribblesChanged, old.undo_stack.cleanChanged):
+            for sig in (old.regionChanged, old.scribblesChanged, old.undo_stack.cleanChanged,
+                        old.confidenceChanged):
                 sig.disconnect()
         self.doc = doc
         tools = ToolController(doc)
@@ -88,6 +90,7 @@ class MainWindow(MenuMixin, QMainWindow):
             canvas.released.connect(self._released)
         doc.regionChanged.connect(self._region_changed)
         doc.scribblesChanged.connect(self._scribbles_changed)
+        doc.confidenceChanged.connect(self._confidence_changed)
         doc.undo_stack.cleanChanged.connect(self._update_title)
         self.rebind_undo(doc.undo_stack)
         self.palette_widget.set_document(doc)
@@ -96,6 +99,7 @@ class MainWindow(MenuMixin, QMainWindow):
         for canvas in (self.index_canvas, self.render_canvas):
             canvas.overlays = [self._paint_grid, tools.paint_overlay]
         self._scribbles_changed()
+        self._confidence_changed()
         self.photo_slider.setEnabled(doc.texture.photo is not None)
         self._update_title()
         self.fit()
@@ -187,6 +191,7 @@ class MainWindow(MenuMixin, QMainWindow):
         else:
             doc.index_pyramid.draw(p, visible, scale, self.index_opacity if over_photo else 1.0,
                                    smooth=False)
+        self._paint_uncertainty(p, visible, scale)
         if self.scribble_pyramid is not None:
             self.scribble_pyramid.draw(p, visible, scale, 0.9, smooth=False)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressBar, QPushButton
 
@@ -43,6 +44,7 @@ class MenuMixin:
                                       self._toggle("show_photo"), "P", True)
         self.fidelity_action = self._act(view, "Fidelity &heat map (render vs photo)",
                                          self._toggle("show_fidelity"), "H", False)
+        self.build_uncertainty_action(view)
         cls = mb.addMenu("&Classify")
         for mode in Mode:
             self._act(cls, mode.value + "…", lambda _=False, m=mode: self.start_classification(m))
@@ -215,9 +217,11 @@ class MenuMixin:
             return None
         if self.job is not None:
             return None
-        job = ClassifyJob(mode, tex.photo, None if tex.scribbles is None else
-                          tex.scribbles.copy(), tex.library, tex.grid.cell,
-                          tex.grid.indices.shape)
+        scribbles = None if tex.scribbles is None else tex.scribbles.copy()
+        # Scribble runs reuse the class prior of the first strokes (same classes painted).
+        prior = self.doc.prior_for(scribbles) if mode is Mode.SCRIBBLES else None
+        job = ClassifyJob(mode, tex.photo, scribbles, tex.library, tex.grid.cell,
+                          tex.grid.indices.shape, class_weights=prior)
         keep_alive(job)
         job.progressed.connect(self._job_progress)
         job.succeeded.connect(lambda result, j=job: self._job_done(j, result))
@@ -229,7 +233,8 @@ class MenuMixin:
         self.progress.setVisible(True)
         self.cancel_button.setVisible(True)
         self.cancel_action.setEnabled(True)
-        self.statusBar().showMessage(f"classifying: {mode.value}")
+        kept = " (keeping the first strokes' class prior)" if prior else ""
+        self.statusBar().showMessage(f"classifying: {mode.value}{kept}")
         job.start()
         return job
 
@@ -247,10 +252,18 @@ class MenuMixin:
         if job is not self.job or job.cancelled:
             return
         doc = self.doc
+        if job.args[0] is Mode.SCRIBBLES:
+            doc.remember_prior(result.scribble_classes, result.class_weights)
         if doc.fresh_from_photo and result.new_themes and doc.undo_stack.count() == 0:
             # A project just started over a photo: its themes are the classes, nothing else.
             self.set_document(EditorDocument(fresh_classified(doc.texture, result)))
+            self.doc.set_confidence(result.confidence)
             self.statusBar().showMessage(f"classified into {result.n_classes} themes", 6000)
+            return
+        if not result.new_themes and np.array_equal(result.indices, doc.texture.grid.indices):
+            # Nothing changed (a rerun): no empty undo step (core replace_all would fail).
+            doc.set_confidence(result.confidence)
+            self.statusBar().showMessage("classified: the grid is unchanged", 6000)
             return
         # New themes and the new grid are one undo step.
         doc.undo_stack.beginMacro("classification")
@@ -260,6 +273,7 @@ class MenuMixin:
             doc.commit(doc.session.replace_all(result.indices), "classification")
         finally:
             doc.undo_stack.endMacro()
+        doc.set_confidence(result.confidence)
         self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
 
     def _job_finished(self, job: ClassifyJob) -> None:

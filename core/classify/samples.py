@@ -23,6 +23,8 @@ from collections.abc import Iterable, Sequence
 import cv2
 import numpy as np
 
+from core.errors import TerrathemeError
+
 #: a single mask labelling less than this share of its photo is taken for scribbles
 SCRIBBLE_SHARE = 0.5
 #: default colour threshold (Lab |dL| + |da| + |db|) of :func:`grow_labels` for scribbles
@@ -110,3 +112,24 @@ def grow_labels(coarse: np.ndarray, lab: np.ndarray, threshold: float) -> np.nda
         t[hit] = near[hit]
     taken[conflict] = 0
     return np.where(coarse > 0, coarse, taken).astype(np.uint8)
+
+
+def check_mask(mask: np.ndarray, shape: tuple[int, int], index: int) -> np.ndarray:
+    """Label mask ``index`` checked against its photo's ``(H, W)``: (H, W) uint8 ndarray."""
+    m = np.asarray(mask)
+    if m.ndim == 3 and m.shape[2] == 1:
+        m = m[:, :, 0]
+    if m.ndim != 2:
+        raise TerrathemeError(
+            f"label mask {index}: shape {m.shape} is not single-channel (H, W)"
+        )
+    if m.shape != shape:
+        raise TerrathemeError(
+            f"label mask {index} is {m.shape[1]} x {m.shape[0]} pixels but its photo is "
+            f"{shape[1]} x {shape[0]}: a mask must have the photo's size"
+        )
+    if not np.issubdtype(m.dtype, np.integer):
+        raise TerrathemeError(f"label mask {index}: values must be integers, not {m.dtype}")
+    if m.size and (int(m.min()) < 0 or int(m.max()) > 255):
+        raise TerrathemeError(f"label mask {index}: class values must be 0..255")
+    return m.astype(np.uint8, copy=False)

@@ -32,7 +32,7 @@ Orfeo ToolBox report it), after the prior weights and spatial regularisation.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -41,6 +41,7 @@ import numpy as np
 from core.classify.features import FeatureOptions, Normalise, photo_statistics
 from core.classify.photo import prepare_photo
 from core.classify.prior import (
+    kept_weights,
     photo_probabilities,
     predicted_shares,
     prior_power_for,
@@ -48,7 +49,13 @@ from core.classify.prior import (
 )
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
-from core.classify.samples import GROW_COLOUR, coarse_mask, grow_labels, looks_like_scribbles
+from core.classify.samples import (
+    GROW_COLOUR,
+    check_mask,
+    coarse_mask,
+    grow_labels,
+    looks_like_scribbles,
+)
 from core.classify.tiled import iter_tile_features, predict_tiled
 from core.errors import TerrathemeError
 
@@ -126,26 +133,6 @@ class SupervisedOptions:
             raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
 
 
-def _check_mask(mask: np.ndarray, shape: tuple[int, int], index: int) -> np.ndarray:
-    m = np.asarray(mask)
-    if m.ndim == 3 and m.shape[2] == 1:
-        m = m[:, :, 0]
-    if m.ndim != 2:
-        raise TerrathemeError(
-            f"label mask {index}: shape {m.shape} is not single-channel (H, W)"
-        )
-    if m.shape != shape:
-        raise TerrathemeError(
-            f"label mask {index} is {m.shape[1]} x {m.shape[0]} pixels but its photo is "
-            f"{shape[1]} x {shape[0]}: a mask must have the photo's size"
-        )
-    if not np.issubdtype(m.dtype, np.integer):
-        raise TerrathemeError(f"label mask {index}: values must be integers, not {m.dtype}")
-    if m.size and (int(m.min()) < 0 or int(m.max()) > 255):
-        raise TerrathemeError(f"label mask {index}: class values must be 0..255")
-    return m.astype(np.uint8, copy=False)
-
-
 def _stats(rgb, valid, fo: FeatureOptions):
     return None if fo.normalise is Normalise.NONE else photo_statistics(rgb, valid)
 
@@ -156,7 +143,7 @@ def _pair_samples(photo, mask, index, classes, options, grow=0.0):
     ``grow`` > 0 adds the coarse pixels :func:`grow_labels` finds next to the labels.
     """
     rgb, valid = prepare_photo(photo)
-    m = _check_mask(mask, rgb.shape[:2], index)
+    m = check_mask(mask, rgb.shape[:2], index)
     if valid is not None:
         m = np.where(valid, m, 0).astype(np.uint8)
     fo, scale = options.features, options.features.scale
@@ -205,7 +192,7 @@ def collect_samples(
     if len(pairs) == 0:
         raise TerrathemeError("no training data: give at least one photo with a label mask")
     for i, (photo, mask) in enumerate(pairs):
-        _check_mask(mask, np.asarray(photo).shape[:2], i)
+        check_mask(mask, np.asarray(photo).shape[:2], i)
     classes = _mask_classes(pairs, options.ignore_classes)
     if not classes:
         raise TerrathemeError(
@@ -355,6 +342,8 @@ def build_forest(x: np.ndarray, y: np.ndarray, options: SupervisedOptions) -> cv
 def train_classifier(
     pairs_or_scribbles: Sequence[tuple[np.ndarray, np.ndarray]],
     options: SupervisedOptions | None = None,
+    *,
+    class_weights: Mapping[int, float] | None = None,
 ) -> Classifier:
     """Train a classifier from scribbles or full label masks.
 
@@ -365,6 +354,11 @@ def train_classifier(
         k > 0 = class k. Scribbles on the photo to classify and full masks of
         other photos both fit.
     options : SupervisedOptions, optional
+    class_weights : mapping of class value -> float, optional
+        Prior weights per class value to use instead of estimating them, e.g.
+        from a first round of blind strokes (:func:`core.classify.prior.kept_weights`).
+        Used (in ``model.classes`` order) when they cover every trained class
+        and the forest has two classes or more; otherwise estimated as usual.
 
     Returns
     -------
@@ -374,13 +368,19 @@ def train_classifier(
     Raises
     ------
     TerrathemeError
-        No pairs, a mask of the wrong size or type, no labelled pixel.
+        No pairs, a mask of the wrong size or type, no labelled pixel, a
+        class weight that is not a finite number > 0.
     """
     opts = options or SupervisedOptions()
     x, y = collect_samples(pairs_or_scribbles, opts)
     classes, counts = np.unique(y, return_counts=True)
     forest = build_forest(x, y, opts) if len(classes) > 1 else None
     model = Classifier(forest, classes, opts)
+    # Weights given for every class (kept from a first round of strokes): no estimate.
+    kept = None if class_weights is None else kept_weights(class_weights, model.classes)
+    if forest is not None and kept is not None:
+        model.class_weights = kept
+        return model
     power = prior_power_for(pairs_or_scribbles, opts.prior_power, opts.ignore_classes)
     if forest is not None and power > 0:
         # Class shares of the scribbled photo from the forest's votes on it, as weights.
