@@ -60,3 +60,37 @@ def block_photo():
         return np.clip(photo, 0, 255).astype(np.uint8), classes
 
     return make
+
+
+@pytest.fixture
+def open_window(qtbot, monkeypatch):
+    """Factory: ``open_window(document)`` shows an editor window on it, offscreen.
+
+    Message boxes do not block: errors are collected in ``window.errors`` and
+    "discard changes?" questions answer Discard. Running jobs are waited for
+    at teardown.
+    """
+    windows = []
+
+    def make(document):
+        from PySide6.QtWidgets import QMessageBox
+
+        from app.editor.window import MainWindow
+
+        errors: list[str] = []
+        monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: errors.append(a[2]))
+        monkeypatch.setattr(QMessageBox, "question",
+                            lambda *a, **k: QMessageBox.StandardButton.Discard)
+        win = MainWindow(document)
+        win.errors = errors
+        qtbot.addWidget(win)
+        win.resize(900, 600)
+        win.show()
+        qtbot.waitExposed(win)
+        win.fit()
+        windows.append(win)
+        return win
+
+    yield make
+    for win in windows:
+        win.wait_for_jobs()

@@ -34,25 +34,10 @@ def small_texture(photo: bool = False) -> ThematicTexture:
 
 
 @pytest.fixture
-def window(qtbot, monkeypatch):
-    from PySide6.QtWidgets import QMessageBox
-
+def window(open_window):
     from app.editor.document import EditorDocument
-    from app.editor.window import MainWindow
 
-    errors: list[str] = []
-    monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: errors.append(a[2]))
-    monkeypatch.setattr(QMessageBox, "question",
-                        lambda *a, **k: QMessageBox.StandardButton.Discard)
-    win = MainWindow(EditorDocument(small_texture(photo=True)))
-    win.errors = errors
-    qtbot.addWidget(win)
-    win.resize(900, 600)
-    win.show()
-    qtbot.waitExposed(win)
-    win.fit()
-    yield win
-    win.wait_for_jobs()
+    return open_window(EditorDocument(small_texture(photo=True)))
 
 
 def screen_of(canvas, texel: QPointF) -> QPoint:

@@ -160,27 +160,11 @@ def test_scribble_run_uses_and_reports_the_class_weights():
 
 
 @pytest.fixture
-def window(qtbot, monkeypatch):
-    from PySide6.QtWidgets import QMessageBox
-
-    from app.editor.window import MainWindow
-
-    errors: list[str] = []
-    monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: errors.append(a[2]))
-    monkeypatch.setattr(QMessageBox, "question",
-                        lambda *a, **k: QMessageBox.StandardButton.Discard)
+def window(open_window):
     doc = small_doc()
     doc.texture.photo[:, :48] = (30, 140, 40)
     doc.texture.photo[:, 48:] = (40, 60, 200)
-    win = MainWindow(doc)
-    win.errors = errors
-    qtbot.addWidget(win)
-    win.resize(900, 600)
-    win.show()
-    qtbot.waitExposed(win)
-    win.fit()
-    yield win
-    win.wait_for_jobs()
+    return open_window(doc)
 
 
 def drag(qtbot, canvas, points):
