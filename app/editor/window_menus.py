@@ -260,9 +260,9 @@ class MenuMixin:
             self.doc.set_confidence(result.confidence)
             self.statusBar().showMessage(f"classified into {result.n_classes} themes", 6000)
             return
+        doc.set_confidence(result.confidence)
         if not result.new_themes and np.array_equal(result.indices, doc.texture.grid.indices):
-            # Nothing changed (a rerun): no empty undo step (core replace_all would fail).
-            doc.set_confidence(result.confidence)
+            # Nothing changed (a rerun): say so rather than record an empty undo step.
             self.statusBar().showMessage("classified: the grid is unchanged", 6000)
             return
         # New themes and the new grid are one undo step.
@@ -273,7 +273,6 @@ class MenuMixin:
             doc.commit(doc.session.replace_all(result.indices), "classification")
         finally:
             doc.undo_stack.endMacro()
-        doc.set_confidence(result.confidence)
         self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
 
     def _job_finished(self, job: ClassifyJob) -> None:
