@@ -87,3 +87,24 @@ def test_user_errors_exit_2_with_one_line(photo, capsys, extra, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0]
     assert not (d / "x.png").exists()
+
+
+def test_position_trains_a_placed_model(photo):
+    d, truth = photo
+    assert main(["classify", str(d / "photo.png"), "-o", str(d / "p.png"), "--position",
+                 "--scribbles", str(d / "scribbles.png"), "--model-out", str(d / "p.ttc")]) == 0
+    assert (read_image(d / "p.png")[:, :, 0] == truth).mean() > 0.95
+    from core.classify import Classifier
+
+    assert Classifier.load(d / "p.ttc").options.features.position
+
+
+@pytest.mark.parametrize("extra", [[], ["--scribbles", "{d}/scribbles.png",
+                                        "--train", "{d}/photo.png", "{d}/truth.png"]])
+def test_position_needs_scribbles_alone(photo, capsys, extra):
+    d, _ = photo
+    args = [a.format(d=d) for a in extra]
+    assert main(["classify", str(d / "photo.png"), "-o", str(d / "x.png"), "--position",
+                 *args]) == 2
+    assert "--position needs --scribbles and no --train" in capsys.readouterr().err
+    assert not (d / "x.png").exists()

@@ -43,6 +43,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--confidence", metavar="CONF.png",
                         help="write the per-pixel confidence (8-bit 0..255 for PNG/JPEG, "
                              "float 0..1 for TIFF/EXR)")
+    parser.add_argument("--position", action="store_true",
+                        help="with --scribbles: where the strokes lie counts as evidence too "
+                             "(helps photos of large whole regions; the model then fits "
+                             "PHOTO only)")
     parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
     parser.add_argument("--model", metavar="M", help="classify with a saved classifier")
 
@@ -68,6 +72,8 @@ def _read_mask(path: str):
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
+    from dataclasses import replace
+
     import numpy as np
     from tqdm import tqdm
 
@@ -87,6 +93,9 @@ def run(args: argparse.Namespace) -> int:
     if args.themes is not None and (supervised or args.model):
         raise TerrathemeError("--themes is for unsupervised classification; the classes of "
                               "--scribbles/--train/--model come from the masks")
+    if args.position and (not args.scribbles or args.train):
+        raise TerrathemeError("--position needs --scribbles and no --train: a position in "
+                              "another photo says nothing about this one")
     if args.model_out and not supervised:
         raise TerrathemeError("--model-out needs training data (--scribbles or --train)")
 
@@ -100,7 +109,10 @@ def run(args: argparse.Namespace) -> int:
             pairs.append((photo, _read_mask(args.scribbles)))
         for train_photo, train_mask in args.train:
             pairs.append((read_image(train_photo), _read_mask(train_mask)))
-        model = train_classifier(pairs, SupervisedOptions(ignore_classes=tuple(args.ignore)))
+        options = SupervisedOptions(ignore_classes=tuple(args.ignore))
+        if args.position:
+            options = replace(options, features=replace(options.features, position=True))
+        model = train_classifier(pairs, options)
         if args.model_out:
             model.save(args.model_out)
     else:
