@@ -126,6 +126,14 @@ def test_position_features_by_hand():
     assert FeatureOptions(position=True).n_features == FeatureOptions().n_features + 2
 
 
+def test_with_positions_changes_only_the_position_flag():
+    base = SupervisedOptions(n_trees=7, features=FeatureOptions(hessian=True, scale=4))
+    on = base.with_positions()
+    assert on.features == replace(base.features, position=True)
+    assert replace(on, features=base.features) == base
+    assert on.with_positions(False) == base
+
+
 def test_position_model_is_the_same_whole_and_tiled():
     img, truth = stripes(h=160, w=200)
     mask = strokes(truth)

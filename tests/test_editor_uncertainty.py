@@ -156,6 +156,31 @@ def test_scribble_run_uses_and_reports_the_class_weights():
     assert unsup.confidence.shape == (64, 96)
 
 
+
+def test_scribble_run_passes_the_position_option(monkeypatch):
+    import core.classify
+    from app.editor.classify_job import Mode, run_classification
+
+    seen = []
+    train = core.classify.train_classifier
+
+    def spy(pairs, options=None, **kw):
+        seen.append(options.features.position)
+        return train(pairs, options, **kw)
+
+    monkeypatch.setattr(core.classify, "train_classifier", spy)
+    photo = np.zeros((64, 96, 3), np.uint8)
+    photo[:, 48:] = (40, 60, 200)
+    sc = np.zeros((64, 96), np.uint8)
+    sc[30:33, 10:30], sc[30:33, 60:80] = 1, 2
+    lib = small_doc().texture.library
+    for position in (False, True):
+        out = run_classification(Mode.SCRIBBLES, photo, sc, lib, (8, 8), (9, 13), None,
+                                 position=position)
+        assert (out.indices[:, :5] == 0).all() and (out.indices[:, 8:] == 1).all()
+    assert seen == [False, True]
+
+
 # -- in the window (pytest-qt, offscreen) --------------------------------------
 
 
@@ -234,6 +259,7 @@ def test_scribble_reruns_keep_the_first_class_prior(window, qtbot):
     drag(qtbot, window.index_canvas, [QPointF(60, 10), QPointF(85, 50)])
     first = window.start_classification(Mode.SCRIBBLES)
     assert first.class_weights is None  # the first run estimates
+    assert first.position is False  # Classify > "use where the strokes lie" is off
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
     kept = doc.kept_prior
     assert kept is not None and kept.classes == {2, 3} and set(kept.weights) == {2, 3}
@@ -246,8 +272,9 @@ def test_scribble_reruns_keep_the_first_class_prior(window, qtbot):
     # A new class (grass, value 1): estimate afresh.
     window.palette_widget.select(0)
     drag(qtbot, window.index_canvas, [QPointF(20, 56), QPointF(36, 56)])
+    window.position_action.trigger()
     third = window.start_classification(Mode.SCRIBBLES)
-    assert third.class_weights is None
+    assert third.class_weights is None and third.position is True
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
     assert not window.errors, window.errors
     assert set(np.unique(doc.texture.scribbles)) == {0, 1, 2, 3}

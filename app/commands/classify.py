@@ -72,8 +72,6 @@ def _read_mask(path: str):
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
-    from dataclasses import replace
-
     import numpy as np
     from tqdm import tqdm
 
@@ -110,9 +108,7 @@ def run(args: argparse.Namespace) -> int:
         for train_photo, train_mask in args.train:
             pairs.append((read_image(train_photo), _read_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
-        if args.position:
-            options = replace(options, features=replace(options.features, position=True))
-        model = train_classifier(pairs, options)
+        model = train_classifier(pairs, options.with_positions(args.position))
         if args.model_out:
             model.save(args.model_out)
     else:

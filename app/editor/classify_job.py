@@ -129,21 +129,24 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
 
 def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | None,
                        library: ThemeLibrary, cell: tuple[int, int], grid_shape: tuple[int, int],
-                       progress, class_weights: Mapping[int, float] | None = None
-                       ) -> ClassifyResult:
+                       progress, class_weights: Mapping[int, float] | None = None,
+                       position: bool = False) -> ClassifyResult:
     """Classify ``photo`` and convert the labels to a ``grid_shape`` vertex grid.
 
     ``class_weights`` (scribbles only): prior weights kept from an earlier run,
-    passed to ``train_classifier``.
+    passed to ``train_classifier``. ``position`` (scribbles only): the forest
+    also uses where the strokes lie (``FeatureOptions.position``).
     """
-    from core.classify import classify_unsupervised, train_classifier
+    from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
     from core.errors import TerrathemeError
     from core.labels_to_grid import labels_to_grid
 
     if mode is Mode.SCRIBBLES:
         if scribbles is None or not scribbles.any():
             raise TerrathemeError("no scribbles: paint some with the Scribble tool (S) first")
-        model = train_classifier([(photo, scribbles)], class_weights=class_weights)
+        model = train_classifier([(photo, scribbles)],
+                                 SupervisedOptions().with_positions(position),
+                                 class_weights=class_weights)
         result = model.predict(photo, progress=progress)
         weights = (None if model.class_weights is None else
                    dict(zip(model.classes, model.class_weights, strict=True)))
@@ -182,10 +185,12 @@ class ClassifyJob(QThread):
     failed = Signal(str)
 
     def __init__(self, mode: Mode, photo, scribbles, library, cell, grid_shape,
-                 parent: QObject | None = None, class_weights=None) -> None:
+                 parent: QObject | None = None, class_weights=None,
+                 position: bool = False) -> None:
         super().__init__(parent)
         self.args = (mode, photo, scribbles, ThemeLibrary(library), cell, grid_shape)
         self.class_weights = class_weights
+        self.position = position
         self.cancelled = False
 
     def cancel(self) -> None:
@@ -199,7 +204,8 @@ class ClassifyJob(QThread):
     def run(self) -> None:
         try:
             result = run_classification(*self.args, progress=self._progress,
-                                        class_weights=self.class_weights)
+                                        class_weights=self.class_weights,
+                                        position=self.position)
         except Cancelled:
             return
         except Exception as exc:  # reported in the window, never a crash

@@ -48,6 +48,10 @@ class MenuMixin:
         cls = mb.addMenu("&Classify")
         for mode in Mode:
             self._act(cls, mode.value + "…", lambda _=False, m=mode: self.start_classification(m))
+        cls.addSeparator()
+        # Off by default: such a model fits this photo only (see classify --position).
+        self.position_action = self._act(cls, "Scribbles: use where the strokes &lie",
+                                         lambda _=False: None, checked=False)
         self.cancel_action = self._act(cls, "&Cancel classification", self.cancel_classification,
                                        "Esc")
         self.cancel_action.setEnabled(False)
@@ -221,7 +225,8 @@ class MenuMixin:
         # Scribble runs reuse the class prior of the first strokes (same classes painted).
         prior = self.doc.prior_for(scribbles) if mode is Mode.SCRIBBLES else None
         job = ClassifyJob(mode, tex.photo, scribbles, tex.library, tex.grid.cell,
-                          tex.grid.indices.shape, class_weights=prior)
+                          tex.grid.indices.shape, class_weights=prior,
+                          position=mode is Mode.SCRIBBLES and self.position_action.isChecked())
         keep_alive(job)
         job.progressed.connect(self._job_progress)
         job.succeeded.connect(lambda result, j=job: self._job_done(j, result))

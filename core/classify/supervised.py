@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -131,6 +131,10 @@ class SupervisedOptions:
             raise TerrathemeError(f"grow_colour must be >= 0 or None, not {self.grow_colour}")
         if self.tile < 16:
             raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
+
+    def with_positions(self, on: bool = True) -> SupervisedOptions:
+        """These options with the position features (``FeatureOptions.position``) ``on``."""
+        return replace(self, features=replace(self.features, position=on))
 
 
 def _stats(rgb, valid, fo: FeatureOptions):
