@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from core.classify.ridges import block_ridges, ridge_halo
 from core.errors import TerrathemeError
 
 
@@ -91,6 +92,10 @@ class FeatureOptions:
     position : bool
         Append the coarse pixel's position in the photo (row and column as
         fractions of the photo's height and width); see the module docstring.
+    ridge_sigmas : tuple of float
+        DEFAULT set: add fine ridge features at these scales in photo pixels
+        (:mod:`core.classify.ridges`, two per sigma), computed before the block
+        average. Default () here; the supervised default uses (1, 2, 4).
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -100,12 +105,14 @@ class FeatureOptions:
     skimage_sigma_max: float = 16.0
     hessian: bool = False
     position: bool = False
+    ridge_sigmas: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
             raise TerrathemeError(f"feature scale must be a whole number >= 1, not {self.scale}")
-        if any(s <= 0 for s in self.sigmas):
-            raise TerrathemeError(f"feature sigmas must be positive, not {self.sigmas}")
+        if any(s <= 0 for s in (*self.sigmas, *self.ridge_sigmas)):
+            raise TerrathemeError(f"feature sigmas must be positive, not {self.sigmas} / "
+                                  f"{self.ridge_sigmas}")
 
     @property
     def n_features(self) -> int:
@@ -119,7 +126,8 @@ class FeatureOptions:
             return 3
         if self.feature_set is FeatureSet.DEFAULT:
             per_sigma = 7 if self.hessian else 5
-            return 3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
+            return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
+                    + 2 * len(self.ridge_sigmas))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -130,7 +138,8 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.COLOUR:
             return 0
         if self.feature_set is FeatureSet.DEFAULT:
-            return _radius(max(self.sigmas, default=0.0)) + 1
+            fine = -(-ridge_halo(self.ridge_sigmas) // self.scale)
+            return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1)
         # scipy's gaussian_filter truncates at 4 sigma; Hessian adds 2 pixels
         return int(math.ceil(4.0 * self.skimage_sigma_max)) + 2
 
@@ -213,7 +222,7 @@ def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
 
 def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
-    stats: np.ndarray | None = None,
+    stats: np.ndarray | None = None, ridges: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
@@ -224,6 +233,9 @@ def features_from_lab(
     options : FeatureOptions
     stats : (2, 3) float32 ndarray, optional
         The whole photo's :func:`photo_statistics`, for ``options.normalise``.
+    ridges : (h, w, 2 * len(options.ridge_sigmas)) float32 ndarray, optional
+        :func:`core.classify.ridges.block_ridges` of the same photo pixels;
+        required when ``options.ridge_sigmas`` is set (DEFAULT set).
 
     Returns
     -------
@@ -279,7 +291,27 @@ def features_from_lab(
             out[:, :, i] = s2 * (half_trace + root)
             out[:, :, i + 1] = s2 * (half_trace - root)
             i += 2
+    if options.ridge_sigmas:
+        if ridges is None or ridges.shape != (h, w, 2 * len(options.ridge_sigmas)):
+            raise TerrathemeError("ridge_sigmas needs the block_ridges of the same pixels")
+        out[:, :, i:] = ridges
     return out
+
+
+def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coarse Lab, block lightness std and features (no position) of photo pixels.
+
+    Returns
+    -------
+    lab : (h, w, 3) float32 ndarray
+    block_std : (h, w) float32 ndarray
+    features : (h, w, options.n_image_features) float32 ndarray
+    """
+    lab, block_std = coarse_lab(rgb, options.scale)
+    ridges = (block_ridges(rgb, options.scale, options.ridge_sigmas)
+              if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
+    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges)
 
 
 def position_features(shape: tuple[int, int], origin: tuple[int, int],
@@ -331,6 +363,5 @@ def compute_features(rgb: np.ndarray, options: FeatureOptions) -> np.ndarray:
     -------
     features : (ceil(H/scale), ceil(W/scale), F) float32 ndarray
     """
-    lab, block_std = coarse_lab(rgb, options.scale)
-    return with_position(features_from_lab(lab, block_std, options), (0, 0), rgb.shape[:2],
-                         options)
+    _lab, _block_std, feats = image_features(rgb, options)
+    return with_position(feats, (0, 0), rgb.shape[:2], options)

@@ -42,6 +42,7 @@ def _options_from_json(d: dict) -> SupervisedOptions:
     f["feature_set"] = FeatureSet(f["feature_set"])
     f["normalise"] = Normalise(f.get("normalise", "none"))
     f["sigmas"] = tuple(f["sigmas"])
+    f["ridge_sigmas"] = tuple(f.get("ridge_sigmas", ()))
     r = dict(d["regularisation"])
     r["method"] = Regularisation(r["method"])
     rest = {k: v for k, v in d.items() if k not in ("features", "regularisation")}

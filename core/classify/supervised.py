@@ -67,8 +67,9 @@ class SupervisedOptions:
     Attributes
     ----------
     features : FeatureOptions
-        Default: the DEFAULT set with the Hessian eigenvalues (``hessian=True``):
-        +0.009 mean mIoU from scribbles on the tuning photos (Dubai parts 001-003).
+        Default: the DEFAULT set with the Hessian eigenvalues (``hessian=True``,
+        +0.009 mean scribble mIoU on the tuning photos, Dubai parts 001-003) and
+        fine ridges at 1, 2, 4 pixels (:mod:`core.classify.ridges`, +0.008).
     regularisation : RegulariseOptions
         Default: edge-aware, confidence-weighted averaging (``Regularisation.EDGE``,
         :func:`core.classify.regularise.edge_aware_probabilities`); on the
@@ -104,7 +105,8 @@ class SupervisedOptions:
         this). 0 = off; None = ``samples.GROW_COLOUR`` for scribbles, else off.
     """
 
-    features: FeatureOptions = field(default_factory=lambda: FeatureOptions(hessian=True))
+    features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
+        hessian=True, ridge_sigmas=(1.0, 2.0, 4.0)))
     regularisation: RegulariseOptions = field(
         default_factory=lambda: RegulariseOptions(method=Regularisation.EDGE))
     ignore_classes: tuple[int, ...] = ()

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from core.classify.features import FeatureOptions, coarse_lab, features_from_lab, with_position
+from core.classify.features import FeatureOptions, image_features, with_position
 from core.classify.regularise import RegulariseOptions, regularise
 from core.classify.result import Classification
 from core.errors import TerrathemeError
@@ -97,8 +97,8 @@ def tile_arrays(
     block_std : (h, w) float32 ndarray
     features : (h, w, F) float32 ndarray
     """
-    lab, block_std = coarse_lab(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options.scale)
-    feats = features_from_lab(lab, block_std, options, stats)
+    lab, block_std, feats = image_features(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options,
+                                           stats)
     return lab, block_std, with_position(feats, (win.oy0, win.ox0), rgb.shape[:2], options)
 
 

@@ -1,0 +1,80 @@
+"""Fine ridge features (core.classify.ridges): known answers on tiny photos."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.classify.features import FeatureOptions, compute_features, image_features
+from core.classify.ridges import block_ridges, ridge_halo
+from core.classify.tiled import tile_windows
+from core.errors import TerrathemeError
+
+
+def grey(h: int, w: int, value: int = 200) -> np.ndarray:
+    return np.full((h, w, 3), value, np.uint8)
+
+
+def test_flat_photo_has_no_ridges():
+    out = block_ridges(grey(20, 28), 8, (1.0, 2.0))
+    assert out.shape == (3, 4, 4) and out.dtype == np.float32
+    np.testing.assert_allclose(out, 0.0, atol=1e-4)
+
+
+def test_a_dark_line_shows_in_its_blocks_only():
+    photo = grey(32, 32)
+    photo[:, 12] = 40  # a one-pixel dark line in block column 1 (pixels 8..15)
+    out = block_ridges(photo, 8, (1.0,))
+    dark, bright = out[:, :, 0], out[:, :, 1]
+    # Across a dark valley the second derivative is positive: lambda_1 > 0 on the line.
+    assert (dark[:, 1] > 5.0).all()
+    # Blocks whose pixels are all more than 4 sigma from the line see nothing.
+    np.testing.assert_allclose(dark[:, 3], 0.0, atol=1e-4)
+    np.testing.assert_allclose(bright[:, 3], 0.0, atol=1e-4)
+    # A bright line shows in the other channel (negative across a ridge), of similar size.
+    bright_line = block_ridges(255 - photo, 8, (1.0,))[:, :, 1]
+    assert (bright_line[:, 1] < -0.5 * dark[:, 1]).all()
+    np.testing.assert_allclose(bright_line[:, 3], 0.0, atol=1e-4)
+
+
+def test_blocks_past_the_edge_are_edge_replicated():
+    photo = grey(10, 10)
+    photo[:, 9] = 0
+    out = block_ridges(photo, 8, (1.0,))
+    assert out.shape == (2, 2, 2)
+    # The partial block column 1 holds pixels 8..9 (and copies of 9): it sees the edge line.
+    assert out[0, 1, 0] > 0 and abs(out[0, 0, 0]) < out[0, 1, 0]
+
+
+def test_halo_and_counts():
+    assert ridge_halo(()) == 0 and ridge_halo((1.0, 4.0)) == 13
+    fo = FeatureOptions(hessian=True, ridge_sigmas=(1.0, 2.0, 4.0))
+    assert fo.n_features == FeatureOptions(hessian=True).n_features + 6
+    # The coarse halo covers the 3-sigma kernel of the largest fine sigma.
+    assert FeatureOptions(sigmas=(0.5,), ridge_sigmas=(40.0,)).halo * 8 >= ridge_halo((40.0,))
+    with pytest.raises(TerrathemeError, match="sigmas must be positive"):
+        FeatureOptions(ridge_sigmas=(0.0,))
+
+
+def test_features_carry_the_ridges_last():
+    rng = np.random.default_rng(5)
+    photo = rng.integers(0, 256, (40, 48, 3), dtype=np.uint8)
+    fo = FeatureOptions(hessian=True, ridge_sigmas=(1.0, 2.0))
+    feats = compute_features(photo, fo)
+    assert feats.shape == (5, 6, fo.n_features)
+    np.testing.assert_allclose(feats[:, :, -4:], block_ridges(photo, 8, (1.0, 2.0)), atol=1e-4)
+    _lab, _std, plain = image_features(photo, FeatureOptions(hessian=True))
+    np.testing.assert_allclose(feats[:, :, :-4], plain, atol=1e-4)
+
+
+def test_tiles_with_the_halo_reproduce_the_whole_photo():
+    rng = np.random.default_rng(6)
+    photo = rng.integers(0, 256, (72, 96, 3), dtype=np.uint8)
+    fo = FeatureOptions(sigmas=(0.5,), ridge_sigmas=(1.0, 4.0))
+    whole = compute_features(photo, fo)
+    for win in tile_windows(72, 96, 32, 8, fo.halo):
+        _lab, _std, part = image_features(photo[win.oy0:win.oy1, win.ox0:win.ox1], fo)
+        oy, ox = (win.y0 - win.oy0) // 8, (win.x0 - win.ox0) // 8
+        core = part[oy:oy + (win.y1 - win.y0) // 8, ox:ox + (win.x1 - win.x0) // 8, -4:]
+        np.testing.assert_allclose(
+            core, whole[win.y0 // 8:win.y1 // 8, win.x0 // 8:win.x1 // 8, -4:], atol=1e-3)
