@@ -16,13 +16,15 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
     confident), as an editor user does; see classify_corrections.py.
 
 Methods, all in the same run:
-  rf-default      random forest (cv2.ml) on DEFAULT features with Hessian eigenvalues,
+  rf-default      random forest (cv2.ml) on DEFAULT features with Hessian eigenvalues
+                  and fine ridges (core/classify/ridges.py, sigmas 1, 2, 4 px),
                   8x8 coarse pixels, edge-aware confidence-weighted regularisation
                   (Regularisation.EDGE, core/classify/regularise.py) -- the library
                   default; for (b) also the scribble defaults: prior correction at
                   power 0.75 (core/classify/prior.py) and strokes grown by one ring of
                   same-colour coarse pixels (core/classify/samples.py);
-  rf-smooth       the previous default: no Hessian, Gaussian probability smoothing,
+  rf-noridges     the previous default: rf-default without the fine ridges;
+  rf-smooth       the default before that: no Hessian, Gaussian probability smoothing,
                   (b) prior power 0.5 and no growing;
   rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
   rf-prior1       (b) only: rf-default with the full prior correction (prior_power=1);
@@ -99,6 +101,7 @@ KMEANS_CLUSTERS = 10
 
 METHODS = {
     "rf-default": SupervisedOptions(),
+    "rf-noridges": SupervisedOptions(features=FeatureOptions(hessian=True)),
     "rf-smooth": SupervisedOptions(features=FeatureOptions(), regularisation=RegulariseOptions(
         method=Regularisation.SMOOTH)),
     "rf-superpixel": SupervisedOptions(
@@ -114,7 +117,7 @@ SCRIBBLE_METHODS = {
     "rf-noprior": SupervisedOptions(prior_power=0.0),
     "rf-prior1": SupervisedOptions(prior_power=1.0),
     "rf-nogrow": SupervisedOptions(grow_colour=0.0),
-    "rf-position": SupervisedOptions(features=FeatureOptions(position=True, hessian=True)),
+    "rf-position": SupervisedOptions().with_positions(),
 }
 def load(folder, name, crop=None):
     img = read_image(DATA / folder / "images" / name)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.classify.features import FeatureOptions, compute_features, image_features
+from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
 from core.classify.ridges import block_ridges, ridge_halo
 from core.classify.tiled import tile_windows
 from core.errors import TerrathemeError
@@ -15,8 +15,12 @@ def grey(h: int, w: int, value: int = 200) -> np.ndarray:
     return np.full((h, w, 3), value, np.uint8)
 
 
+def ridges_of(photo: np.ndarray, sigmas) -> np.ndarray:
+    return block_ridges(full_lab(photo)[:, :, 0], 8, sigmas)
+
+
 def test_flat_photo_has_no_ridges():
-    out = block_ridges(grey(20, 28), 8, (1.0, 2.0))
+    out = ridges_of(grey(20, 28), (1.0, 2.0))
     assert out.shape == (3, 4, 4) and out.dtype == np.float32
     np.testing.assert_allclose(out, 0.0, atol=1e-4)
 
@@ -24,7 +28,7 @@ def test_flat_photo_has_no_ridges():
 def test_a_dark_line_shows_in_its_blocks_only():
     photo = grey(32, 32)
     photo[:, 12] = 40  # a one-pixel dark line in block column 1 (pixels 8..15)
-    out = block_ridges(photo, 8, (1.0,))
+    out = ridges_of(photo, (1.0,))
     dark, bright = out[:, :, 0], out[:, :, 1]
     # Across a dark valley the second derivative is positive: lambda_1 > 0 on the line.
     assert (dark[:, 1] > 5.0).all()
@@ -32,7 +36,7 @@ def test_a_dark_line_shows_in_its_blocks_only():
     np.testing.assert_allclose(dark[:, 3], 0.0, atol=1e-4)
     np.testing.assert_allclose(bright[:, 3], 0.0, atol=1e-4)
     # A bright line shows in the other channel (negative across a ridge), of similar size.
-    bright_line = block_ridges(255 - photo, 8, (1.0,))[:, :, 1]
+    bright_line = ridges_of(255 - photo, (1.0,))[:, :, 1]
     assert (bright_line[:, 1] < -0.5 * dark[:, 1]).all()
     np.testing.assert_allclose(bright_line[:, 3], 0.0, atol=1e-4)
 
@@ -40,7 +44,7 @@ def test_a_dark_line_shows_in_its_blocks_only():
 def test_blocks_past_the_edge_are_edge_replicated():
     photo = grey(10, 10)
     photo[:, 9] = 0
-    out = block_ridges(photo, 8, (1.0,))
+    out = ridges_of(photo, (1.0,))
     assert out.shape == (2, 2, 2)
     # The partial block column 1 holds pixels 8..9 (and copies of 9): it sees the edge line.
     assert out[0, 1, 0] > 0 and abs(out[0, 0, 0]) < out[0, 1, 0]
@@ -62,7 +66,7 @@ def test_features_carry_the_ridges_last():
     fo = FeatureOptions(hessian=True, ridge_sigmas=(1.0, 2.0))
     feats = compute_features(photo, fo)
     assert feats.shape == (5, 6, fo.n_features)
-    np.testing.assert_allclose(feats[:, :, -4:], block_ridges(photo, 8, (1.0, 2.0)), atol=1e-4)
+    np.testing.assert_allclose(feats[:, :, -4:], ridges_of(photo, (1.0, 2.0)), atol=1e-4)
     _lab, _std, plain = image_features(photo, FeatureOptions(hessian=True))
     np.testing.assert_allclose(feats[:, :, :-4], plain, atol=1e-4)
 

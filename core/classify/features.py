@@ -169,11 +169,23 @@ def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
     block_std : same shape without the last axis, float32
         Standard deviation of L inside each block (0 when ``scale == 1``).
     """
-    h, w = rgb.shape[:2]
-    # Convert at full resolution with OpenCV's 8-bit Lab (L scaled to 0..255, a/b offset 128).
+    return block_lab(full_lab(rgb), scale)
+
+
+def full_lab(rgb: np.ndarray) -> np.ndarray:
+    """CIE Lab of every pixel: (H, W, 3) float32, L in 0..100, a and b about -128..127.
+
+    OpenCV's 8-bit conversion (L scaled to 0..255, a/b offset by 128), rescaled.
+    """
     lab8 = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab).astype(np.float32)
     lab8 *= np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
     lab8 -= np.array([0.0, 128.0, 128.0], np.float32)
+    return lab8
+
+
+def block_lab(lab8: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`coarse_lab` of a :func:`full_lab` image: block means and block L std."""
+    h, w = lab8.shape[:2]
     if scale == 1:
         return lab8, np.zeros((h, w), np.float32)
     # Pad to whole blocks by edge replication so block (i, j) covers rows i*s..i*s+s-1.
@@ -308,8 +320,9 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
     block_std : (h, w) float32 ndarray
     features : (h, w, options.n_image_features) float32 ndarray
     """
-    lab, block_std = coarse_lab(rgb, options.scale)
-    ridges = (block_ridges(rgb, options.scale, options.ridge_sigmas)
+    full = full_lab(rgb)
+    lab, block_std = block_lab(full, options.scale)
+    ridges = (block_ridges(full[:, :, 0], options.scale, options.ridge_sigmas)
               if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
     return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges)
 

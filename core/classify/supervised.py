@@ -67,9 +67,8 @@ class SupervisedOptions:
     Attributes
     ----------
     features : FeatureOptions
-        Default: the DEFAULT set with the Hessian eigenvalues (``hessian=True``,
-        +0.009 mean scribble mIoU on the tuning photos, Dubai parts 001-003) and
-        fine ridges at 1, 2, 4 pixels (:mod:`core.classify.ridges`, +0.008).
+        Default: the DEFAULT set with Hessian eigenvalues (+0.009 mean scribble mIoU on
+        the tuning photos) and fine ridges at 1, 2, 4 px (:mod:`core.classify.ridges`).
     regularisation : RegulariseOptions
         Default: edge-aware, confidence-weighted averaging (``Regularisation.EDGE``,
         :func:`core.classify.regularise.edge_aware_probabilities`); on the
