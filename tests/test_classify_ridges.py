@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
-from core.classify.ridges import block_ridges, ridge_halo
+from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.classify.tiled import tile_windows
 from core.errors import TerrathemeError
 
@@ -17,6 +17,14 @@ def grey(h: int, w: int, value: int = 200) -> np.ndarray:
 
 def ridges_of(photo: np.ndarray, sigmas) -> np.ndarray:
     return block_ridges(full_lab(photo)[:, :, 0], 8, sigmas)
+
+
+def test_hessian_eigenvalues_of_a_quadratic():
+    # f = x^2 + 3 y^2 + x y has the constant Hessian [[2, 1], [1, 6]]: 4 +/- sqrt(5).
+    y, x = np.mgrid[0:12, 0:14].astype(np.float32)
+    larger, smaller = hessian_eigenvalues(x * x + 3 * y * y + x * y)
+    np.testing.assert_allclose(larger[1:-1, 1:-1], 4 + np.sqrt(5), rtol=1e-5)
+    np.testing.assert_allclose(smaller[1:-1, 1:-1], 4 - np.sqrt(5), rtol=1e-5)
 
 
 def test_flat_photo_has_no_ridges():

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from core.classify.ridges import block_ridges, ridge_halo
+from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.errors import TerrathemeError
 
 
@@ -292,16 +292,9 @@ def features_from_lab(
         if options.hessian:
             # Ridges and blobs (roads, buildings): Hessian eigenvalues, scale-normalised by sigma^2.
             s2 = np.float32(sigma * sigma)
-            lxx = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 2, 0, ksize=3, scale=0.25,
-                            borderType=cv2.BORDER_REFLECT_101)
-            lyy = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 0, 2, ksize=3, scale=0.25,
-                            borderType=cv2.BORDER_REFLECT_101)
-            lxy = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 1, 1, ksize=3, scale=0.25,
-                            borderType=cv2.BORDER_REFLECT_101)
-            half_trace = 0.5 * (lxx + lyy)
-            root = np.sqrt(0.25 * (lxx - lyy) ** 2 + lxy * lxy)
-            out[:, :, i] = s2 * (half_trace + root)
-            out[:, :, i + 1] = s2 * (half_trace - root)
+            larger, smaller = hessian_eigenvalues(smooth[:, :, 0])
+            out[:, :, i] = s2 * larger
+            out[:, :, i + 1] = s2 * smaller
             i += 2
     if options.ridge_sigmas:
         if ridges is None or ridges.shape != (h, w, 2 * len(options.ridge_sigmas)):

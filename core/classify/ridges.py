@@ -36,6 +36,31 @@ def ridge_halo(sigmas: Sequence[float]) -> int:
     return int(math.ceil(3.0 * max(sigmas, default=0.0))) + 1 if len(sigmas) else 0
 
 
+def hessian_eigenvalues(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues ``lambda_1 >= lambda_2`` of the Hessian of a smoothed image.
+
+    Parameters
+    ----------
+    image : (H, W) float32 ndarray
+        Already smoothed (the derivatives are 3 x 3 Sobel, 1/4 normalised,
+        reflected at the border).
+
+    Returns
+    -------
+    larger, smaller : (H, W) float32 ndarrays
+        ``(xx + yy) / 2 +/- sqrt(((xx - yy) / 2)^2 + xy^2)``, not scale-normalised.
+    """
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    lxx, lyy, lxy = (cv2.Sobel(img, cv2.CV_32F, dx, dy, ksize=3, scale=0.25,
+                               borderType=cv2.BORDER_REFLECT_101)
+                     for dx, dy in ((2, 0), (0, 2), (1, 1)))
+    # Half trace +/- root in the three derivative buffers.
+    half_diff = cv2.addWeighted(lxx, 0.5, lyy, -0.5, 0.0)
+    root = cv2.magnitude(half_diff, lxy, lxy)
+    half_trace = cv2.addWeighted(lxx, 0.5, lyy, 0.5, 0.0, dst=half_diff)
+    return cv2.add(half_trace, root, dst=lxx), cv2.subtract(half_trace, root, dst=lyy)
+
+
 def block_ridges(lightness: np.ndarray, scale: int, sigmas: Sequence[float]) -> np.ndarray:
     """Per-block extremes of the lightness Hessian's eigenvalues at each sigma.
 
@@ -76,23 +101,11 @@ def block_ridges(lightness: np.ndarray, scale: int, sigmas: Sequence[float]) -> 
         # Smooth with an explicit 3-sigma kernel (the tile overlap covers it exactly).
         k = 2 * int(math.ceil(3.0 * sigma)) + 1
         g = cv2.GaussianBlur(lum, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
-        # Second derivatives (Sobel, 1/4 normalised) of the smoothed lightness.
-        lxx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3, scale=0.25,
-                        borderType=cv2.BORDER_REFLECT_101)
-        lyy = cv2.Sobel(g, cv2.CV_32F, 0, 2, ksize=3, scale=0.25,
-                        borderType=cv2.BORDER_REFLECT_101)
-        lxy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3, scale=0.25,
-                        borderType=cv2.BORDER_REFLECT_101)
-        # Eigenvalues of [[xx, xy], [xy, yy]]: half trace +/- root, in four buffers.
-        cv2.addWeighted(lxx, 0.5, lyy, -0.5, 0.0, dst=g)
-        root = cv2.magnitude(g, lxy, lxy)
-        half_trace = cv2.addWeighted(lxx, 0.5, lyy, 0.5, 0.0, dst=g)
-        larger = cv2.add(half_trace, root, dst=lxx)
-        smaller = cv2.subtract(half_trace, root, dst=lyy)
+        larger, smaller = hessian_eigenvalues(g)
         # Block extremes: max/min filter over each block anchored at its top-left pixel,
         # read at the block corners; past the photo the border is replicated.
         top = cv2.dilate(larger, block, dst=g, anchor=(0, 0), borderType=cv2.BORDER_REPLICATE)
-        bottom = cv2.erode(smaller, block, dst=lxy, anchor=(0, 0),
+        bottom = cv2.erode(smaller, block, dst=larger, anchor=(0, 0),
                            borderType=cv2.BORDER_REPLICATE)
         s2 = np.float32(sigma * sigma)
         out[:, :, 2 * n] = s2 * top[::step, ::step]
