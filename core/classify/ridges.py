@@ -54,7 +54,7 @@ def hessian_eigenvalues(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lxx, lyy, lxy = (cv2.Sobel(img, cv2.CV_32F, dx, dy, ksize=3, scale=0.25,
                                borderType=cv2.BORDER_REFLECT_101)
                      for dx, dy in ((2, 0), (0, 2), (1, 1)))
-    # Half trace +/- root in the three derivative buffers.
+    # Half trace +/- root: one new buffer, the results written over the derivatives.
     half_diff = cv2.addWeighted(lxx, 0.5, lyy, -0.5, 0.0)
     root = cv2.magnitude(half_diff, lxy, lxy)
     half_trace = cv2.addWeighted(lxx, 0.5, lyy, 0.5, 0.0, dst=half_diff)
