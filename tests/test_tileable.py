@@ -7,7 +7,7 @@ import pytest
 
 from core.errors import TerrathemeError
 from core.themes import SHIPPED_THEMES_DIR, shipped_theme_library
-from core.tile_quality import lowfreq_score, repeat_score
+from core.tile_quality import landmark_score, lowfreq_score, repeat_score
 from core.tileable import (
     SEAM_THRESHOLD,
     FlattenMode,
@@ -206,3 +206,7 @@ def test_shipped_themes_pass_seam_test() -> None:
     # Photo themes carry no cross-fade ghosts (the old half-shift fade scored about 0.85).
     for name in ("sand", "town", "grass"):
         assert repeat_score(lib[lib.index_of(name)].texture) < 0.3, name
+    # Nor a landmark that repeats once per tile (the first grass had a channel over 5 %
+    # of the tile); town keeps its streets.
+    for name in ("sand", "grass"):
+        assert landmark_score(lib[lib.index_of(name)].texture) < 0.02, name

@@ -1,4 +1,4 @@
-"""core.tile_quality: low-frequency banding and repetition (ghost) scores."""
+"""core.tile_quality: low-frequency banding, repetition (ghost) and landmark scores."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
-from core.tile_quality import lowfreq_score, repeat_score
+from core.tile_quality import landmark_mask, landmark_score, lowfreq_score, repeat_score
 
 
 def _grey(lum: np.ndarray) -> np.ndarray:
@@ -50,8 +50,51 @@ def test_repeat_score_by_hand() -> None:
     assert repeat_score(np.full((8, 8, 3), 9, np.uint8)) == 0.0
 
 
+def _square(size: int, side: int, y: int, x: int, value: float) -> np.ndarray:
+    """A flat grey tile with a ``side``-texel square of ``value`` at (y, x), wrapping."""
+    lum = np.full((size, size), 128.0)
+    rows = (y + np.arange(side)) % size
+    cols = (x + np.arange(side)) % size
+    lum[np.ix_(rows, cols)] = value
+    return _grey(lum)
+
+
+def test_landmark_score_by_hand() -> None:
+    # A flat tile has no landmark.
+    assert landmark_score(np.full((64, 64, 3), 90, np.uint8)) == 0.0
+    # A dark 9 x 9 square: found with its blurred rim, about its own area.
+    centred = landmark_score(_square(64, 9, 28, 28, 28.0))
+    assert 81 / 64**2 <= centred <= 15**2 / 64**2
+    # The tile wraps: the same square split over the four corners is one landmark.
+    assert landmark_score(_square(64, 9, 60, 60, 28.0)) == pytest.approx(centred)
+    # A bright square of the same contrast scores the same (top-hat).
+    assert landmark_score(_square(64, 9, 28, 28, 228.0)) == pytest.approx(centred)
+    # Too faint to see: under the contrast threshold.
+    assert landmark_score(_square(64, 9, 28, 28, 118.0)) == 0.0
+    # A stripe across the whole tile runs on into the next tiles: 3 tiles' worth.
+    lum = np.full((64, 64), 128.0)
+    lum[30:35] = 40.0
+    stripe = landmark_score(_grey(lum))
+    assert stripe >= 3 * 5 * 64 / 64**2
+    dark, bright = landmark_mask(_grey(lum))
+    assert dark[30:35].all() and not dark[:20].any() and not bright.any()
+    # A stripe along the left edge: a tile wraps it next to bright texels (a landmark);
+    # a photo window (not periodic) cannot tell it from the edge of a larger dark area.
+    lum = np.full((64, 64), 128.0)
+    lum[:, :5] = 40.0
+    dark, _ = landmark_mask(_grey(lum))
+    assert dark[:, :5].all() and not dark[:, 20:60].any()
+    dark, _ = landmark_mask(_grey(lum), periodic=False)
+    assert not dark.any()
+    lum = np.roll(lum, 12, axis=1)
+    dark, _ = landmark_mask(_grey(lum), periodic=False)
+    assert dark[:, 12:17].all() and not dark[:, 30:].any()
+
+
 def test_scores_errors() -> None:
-    for fn in (lowfreq_score, repeat_score):
+    with pytest.raises(TerrathemeError, match="odd and at least 3"):
+        landmark_score(np.zeros((8, 8, 3), np.uint8), size=4)
+    for fn in (lowfreq_score, repeat_score, landmark_score):
         with pytest.raises(TerrathemeError, match="too small"):
             fn(np.zeros((3, 8, 3), np.uint8))
         with pytest.raises(TerrathemeError, match="empty"):

@@ -7,7 +7,11 @@ Run: ``.venv/bin/python themes/make_themes.py [--dubai ../shared/data/dubai]``
   the script picks the window whose mask is purest for that class, then
   makes it tileable with :func:`core.tileable.make_tileable` (default
   options: Moisan periodic-plus-smooth wrap, then periodic low-frequency
-  flattening -- no cross-fade ghosts, no tile-sized banding).
+  flattening -- no cross-fade ghosts, no tile-sized banding). A window
+  that holds a landmark (grass: a Y-shaped tidal channel) first has it
+  filled from the rest of the window by shift-map inpainting
+  (``cv2.xphoto.inpaint``, ``INPAINT_SHIFTMAP``: He & Sun 2012, patch
+  offsets), so it does not repeat once per tile.
 * Procedural themes (water, forest, crop field, rock, road, snow) are synthesised
   from spectrally filtered noise, which is periodic by construction (FFT),
   and periodic Gaussian filters (``mode="grid-wrap"``): seamless without a fade.
@@ -29,6 +33,7 @@ import json
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -37,7 +42,12 @@ sys.path.insert(0, str(HERE.parent))
 
 from core.atomic import write_bytes_atomic  # noqa: E402
 from core.image_io import read_image, write_image  # noqa: E402
-from core.tile_quality import lowfreq_score, repeat_score  # noqa: E402
+from core.tile_quality import (  # noqa: E402
+    landmark_mask,
+    landmark_score,
+    lowfreq_score,
+    repeat_score,
+)
 from core.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
 
 SIZE = 256
@@ -45,6 +55,12 @@ SIZE = 256
 LOWFREQ_MAX = 0.2
 #: ghost / copy pass mark for photo themes (a half-shift cross-fade scores about 0.85)
 REPEAT_MAX = 0.3
+#: largest landmark (core.tile_quality.landmark_score) a cleaned photo theme may keep
+LANDMARK_MAX = 0.02
+#: remove_landmarks: features smaller than this share of the window are texture grain
+LANDMARK_MIN_AREA = 0.008
+#: remove_landmarks: texels added around a feature so its soft edge goes too
+LANDMARK_MARGIN = 4
 
 
 def spectral_noise(rng: np.random.Generator, size: int, beta: float) -> np.ndarray:
@@ -149,6 +165,37 @@ def best_window(
     return img, f"{photo.name} x={x} y={y} {size}x{size}", purity
 
 
+def remove_landmarks(patch: np.ndarray) -> tuple[np.ndarray, float]:
+    """Fill a window's landmarks (channels, paths) from its own texture.
+
+    Parameters
+    ----------
+    patch : (h, w, 3) uint8 ndarray
+
+    Returns
+    -------
+    cleaned : (h, w, 3) uint8 ndarray
+    share : float
+        Share of the window that was filled.
+    """
+    # Dark and bright features wider than the grain (core.tile_quality.landmark_mask).
+    hole = np.zeros(patch.shape[:2], np.uint8)
+    for mask in landmark_mask(patch, periodic=False):
+        _n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8))
+        big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= LANDMARK_MIN_AREA * mask.size)
+        hole |= np.isin(labels, big[big > 0])
+    # Grow each feature by its soft edge.
+    side = 2 * LANDMARK_MARGIN + 1
+    hole = cv2.dilate(hole, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side, side)))
+    if not hole.any():
+        return patch, 0.0
+    # Shift-map inpainting in Lab (the mask is 1 where pixels are kept).
+    lab = cv2.cvtColor(patch, cv2.COLOR_RGB2Lab)
+    out = np.zeros_like(lab)
+    cv2.xphoto.inpaint(lab, (1 - hole).astype(np.uint8), out, cv2.xphoto.INPAINT_SHIFTMAP)
+    return cv2.cvtColor(out, cv2.COLOR_Lab2RGB), float(hole.mean())
+
+
 def _photo_of(mask_path: str) -> Path:
     return Path(mask_path.replace("/masks/", "/images/")).with_suffix(".jpg")
 
@@ -162,9 +209,12 @@ def water(rng: np.random.Generator) -> np.ndarray:
 
 
 PHOTO = [
-    ("sand", 2, 0.0, (225, 200, 140), "bare land / desert sand (Dubai photo, made tileable)"),
-    ("town", 1, 0.0, (200, 60, 60), "buildings and roofs (Dubai photo, made tileable)"),
-    ("grass", 4, 0.02, (120, 200, 80), "grass and low vegetation (Dubai photo, made tileable)"),
+    # name, mask class, greenness bonus, landmarks removed, display colour, description
+    ("sand", 2, 0.0, True, (225, 200, 140), "bare land / desert sand (Dubai photo, made tileable)"),
+    # Streets are what a town texture shows: they stay.
+    ("town", 1, 0.0, False, (200, 60, 60), "buildings and roofs (Dubai photo, made tileable)"),
+    ("grass", 4, 0.02, True, (120, 200, 80),
+     "grass and low vegetation (Dubai photo, channel filled, made tileable)"),
 ]
 PROCEDURAL = [
     ("water", water, (40, 90, 200), "open water (procedural)"),
@@ -183,13 +233,19 @@ def main() -> int:
     dubai = Path(args.dubai)
     entries, credits = [], []
     rng = np.random.default_rng(20261123)
-    for name, cls, green, colour, desc in PHOTO:
+    cleaned = set()
+    for name, cls, green, clean, colour, desc in PHOTO:
         if not (dubai / "masks").is_dir():
             raise SystemExit(f"{dubai}: Dubai photos not found (needed for photo themes)")
         patch, where, purity = best_window(dubai, cls, SIZE, green)
+        filled = 0.0
+        if clean:
+            patch, filled = remove_landmarks(patch)
+            cleaned.add(name)
         tex = make_tileable(patch)
         entries.append((name, colour, tex, desc))
-        credits.append(f"{name}: {where} (class purity {purity:.2f})")
+        note = f", {filled:.1%} filled by shift-map inpainting" if filled else ""
+        credits.append(f"{name}: {where} (class purity {purity:.2f}{note})")
     photo_names = {entry[0] for entry in entries}
     for name, fn, colour, desc in PROCEDURAL:
         entries.append((name, colour, make_tileable(fn(rng)), desc))
@@ -202,10 +258,15 @@ def main() -> int:
             raise SystemExit(f"{name}: low-frequency share {low:.2f} above {LOWFREQ_MAX}")
         if name in photo_names and rep > REPEAT_MAX:
             raise SystemExit(f"{name}: repeat score {rep:.2f} above {REPEAT_MAX}")
+        mark = landmark_score(tex)
+        if name in cleaned and mark > LANDMARK_MAX:
+            raise SystemExit(f"{name}: landmark covers {mark:.3f} of the tile, "
+                             f"above {LANDMARK_MAX}")
         file = name.replace(" ", "_") + ".png"
         write_image(HERE / file, tex)
         meta.append({"name": name, "colour": list(colour), "file": file, "description": desc})
-        print(f"{name:12s} {file:16s} seam {score:.2f} lowfreq {low:.3f} repeat {rep:.3f}")
+        print(f"{name:12s} {file:16s} seam {score:.2f} lowfreq {low:.3f} repeat {rep:.3f} "
+              f"landmark {mark:.4f}")
     text = json.dumps({"version": 1, "themes": meta}, indent=1) + "\n"
     write_bytes_atomic(HERE / "themes.json", text.encode())
     write_bytes_atomic(HERE / "photo_sources.txt", ("\n".join(credits) + "\n").encode())
