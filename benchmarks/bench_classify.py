@@ -10,7 +10,9 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
     five tiles, test on every photo of the sixth), classes 1-5 (6, 7 ignored);
 (b) scribbles: short strokes (3 px wide, 30 px long) inside eroded class
     regions, <= 0.8% of the photo's pixels, train and test on the same photo:
-    12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop).
+    12 Dubai photos, 2 LoveDA, 1 Potsdam, DeepGlobe 6399 (top-left 1536 crop);
+    every row the mean of 3 independent draws of the strokes, plus a budget
+    curve (0.25% to 1%) for rf-default and ilastik; see classify_scribbles.py.
 (c) corrections (row group ``scribbles_corrections``): the same budget, photos and
     strokes painted in two rounds, round 2 where the round-1 result is wrong (or least
     confident), as an editor user does; see classify_corrections.py.
@@ -56,7 +58,6 @@ import json
 import sys
 import time
 import tracemalloc
-from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -69,7 +70,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from classify_chart import chart  # noqa: E402
 from classify_corrections import corrections  # noqa: E402
 from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
-from classify_peers import (  # noqa: E402, F401 (classify_corrections reads them here)
+from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribbles read them here)
     ILASTIK,
     ILASTIK_TEST_PIXELS,
     KMEANS,
@@ -80,6 +81,7 @@ from classify_peers import (  # noqa: E402, F401 (classify_corrections reads the
     kmeans_predict,
     whole_window,
 )
+from classify_scribbles import scribbles  # noqa: E402
 
 from core.classify import (  # noqa: E402
     Classifier,
@@ -230,57 +232,6 @@ def scribble_sets():
     return sets
 
 
-def scribbles(log):
-    sets = scribble_sets()
-    rng = np.random.default_rng(RNG_SEED + 1)
-    methods = {"rf-default": METHODS["rf-default"], **SCRIBBLE_METHODS,
-               **{m: o for m, o in METHODS.items() if m != "rf-default"}}
-    methods["rf-smooth"] = replace(methods["rf-smooth"], **SMOOTH_SCRIBBLES)
-    results = {m: {} for m in [*methods, "ilastik", "kmeans-colour"]}
-    speed = {m: [0.0, 0.0] for m in results}
-    coverage = {}
-    for folder, name, classes, crop in sets:
-        photo, mask = load(folder, name, crop)
-        scr = simulate_scribbles(mask, classes, rng)
-        coverage[name] = float((scr > 0).mean())
-        for m, opts in methods.items():
-            model = _train_one(photo, scr, opts)
-            t = time.perf_counter()
-            res = model.predict(photo)
-            speed[m][1] += time.perf_counter() - t
-            speed[m][0] += mask.size
-            results[m][name] = confusion(mask, res.labels, classes)
-        feats, secs = ilastik_features(photo)
-        sel = scr.ravel() > 0
-        x, y = feats.reshape(-1, feats.shape[2])[sel], scr.ravel()[sel].astype(np.int32)
-        model = Classifier(build_forest(x, y, ILASTIK), tuple(np.unique(y)), ILASTIK)
-        cm, mpxs = ilastik_predict(model, feats, mask, classes, rng, secs)
-        del feats
-        results["ilastik"][name] = cm
-        speed["ilastik"][0] += mask.size
-        speed["ilastik"][1] += mask.size / mpxs / 1e6
-        cm, mpxs = kmeans_predict(photo, mask, classes, scr)
-        results["kmeans-colour"][name] = cm
-        speed["kmeans-colour"][0] += mask.size
-        speed["kmeans-colour"][1] += mask.size / mpxs / 1e6
-        log(f"  scribbles {name}: {coverage[name]:.2%} of pixels")
-    out = {"coverage": coverage}
-    for m, per in results.items():
-        mious = {n: scores(cm, [k for k in _classes_of(sets, n)])["miou"] for n, cm in per.items()}
-        dubai = [cm for n, cm in per.items() if n.startswith("image_part")]
-        out[m] = {
-            "mean_miou_over_photos": float(np.mean(list(mious.values()))),
-            "miou_per_photo": {n: round(v, 4) for n, v in mious.items()},
-            "dubai_pooled": scores(sum(dubai), [1, 2, 3, 4, 5]),
-            "mpx_per_s": speed[m][0] / max(speed[m][1], 1e-9) / 1e6,
-        }
-    return out
-
-
-def _classes_of(sets, name):
-    return next(c for _f, n, c, _crop in sets if n == name)
-
-
 def _train_one(photo, scr, opts):
     from core.classify import train_classifier
 
@@ -338,7 +289,10 @@ def main() -> int:
                      ("across_tiles", across_tiles), ("memory", memory)):
         if part in parts:
             log(part)
-            result[keys.get(part, part)] = fn(log)
+            out = fn(log)
+            if part == "scribbles":
+                out, result["scribbles_budget"] = out
+            result[keys.get(part, part)] = out
             (OUT / "classify.partial.json").write_text(json.dumps(result, indent=1))
     base = result["across_tiles"]["ilastik"]
     result["ratios_vs_ilastik"] = {
@@ -352,7 +306,7 @@ def main() -> int:
     chart(result, OUT / "classify.png")
     for part in ("across_tiles", "scribbles"):
         for m, r in result[part].items():
-            if m == "coverage":
+            if m in ("coverage", "draws", "budget"):
                 continue
             miou = r.get("miou", r.get("mean_miou_over_photos"))
             log(f"{part:12s} {m:14s} mIoU {miou:.3f}  {r['mpx_per_s']:.2f} Mpx/s")

@@ -1,7 +1,8 @@
 """The charts of ``bench_classify.py``.
 
 (a), (b): accuracy against speed, one point per method; (c): the scribble
-protocols at the same budget -- one-shot against two rounds (corrections).
+protocols at the same budget -- one-shot against two rounds (corrections);
+(d): one-shot accuracy against the scribble budget.
 """
 
 from __future__ import annotations
@@ -22,18 +23,22 @@ def chart(result, path):
     from matplotlib.ticker import NullFormatter
 
     rows = result.get("scribbles_corrections")
-    fig, axes = plt.subplots(1, 3 if rows else 2, figsize=(19 if rows else 12, 5.2),
-                             width_ratios=[1, 1, 1.1] if rows else None)
+    budget = result.get("scribbles_budget")
+    fig, axes = plt.subplots(2, 2, figsize=(14, 10.5))
+    axes = axes.ravel()
+    draws = result["scribbles"].get("draws", 1)
     panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
                result["across_tiles"], lambda r: r["subset_001_003"]["miou"], 0.45),
-              ("(b) one-shot scribbles <= 0.8% of pixels (16 photos), mean mIoU",
+              (f"(b) one-shot scribbles <= 0.8% of pixels (16 photos), mean mIoU "
+               f"(mean of {draws} draws)",
                result["scribbles"], lambda r: r["mean_miou_over_photos"], 0.60)]
     # One colour and marker per method in both panels.
-    names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res if m != "coverage"))
+    names = list(dict.fromkeys(m for _t, res, _g, _goal in panels for m in res
+                               if isinstance(res[m], dict) and m != "coverage"))
     markers = "osDv^P*Xhd<>p8H"
     colours = plt.get_cmap("tab20").colors
     for ax, (title, res, get, goal) in zip(axes, panels, strict=False):
-        for m, r in ((m, r) for m, r in res.items() if m != "coverage"):
+        for m, r in ((m, r) for m, r in res.items() if m in names):
             i = names.index(m)
             ax.scatter(r["mpx_per_s"], get(r), s=70, marker=markers[i % len(markers)],
                        color=colours[i % len(colours)], label=m,
@@ -49,6 +54,12 @@ def chart(result, path):
         ax.grid(alpha=0.3)
     if rows:
         _protocols(axes[2], rows)
+    else:
+        axes[2].set_visible(False)
+    if budget:
+        _budget(axes[3], budget)
+    else:
+        axes[3].set_visible(False)
     fig.suptitle("terratheme classify: accuracy vs speed per feature set / classifier "
                  "(dashed: goal mIoU, dotted: 5 Mpx/s)", fontsize=10)
     fig.tight_layout()
@@ -93,3 +104,28 @@ def _protocols(ax, rows):
                  "no ground truth chooses where)", fontsize=10)
     ax.legend(fontsize=7, loc="upper left", ncol=2)
     ax.grid(alpha=0.3, axis="y")
+
+
+def _budget(ax, budget):
+    """Mean mIoU over 16 photos against the scribble budget; whiskers span the draws."""
+    for m, colour, below in (("rf-default", "crimson", True), ("ilastik", "#4c72b0", False)):
+        if m not in budget:
+            continue
+        xs = [100 * float(b) for b in budget[m]]
+        rows = list(budget[m].values())
+        ys = [r["mean_miou_over_photos"] for r in rows]
+        lo = [y - min(r["mean_miou_per_repeat"]) for y, r in zip(ys, rows, strict=True)]
+        hi = [max(r["mean_miou_per_repeat"]) - y for y, r in zip(ys, rows, strict=True)]
+        ax.errorbar(xs, ys, yerr=[lo, hi], color=colour, marker="o", capsize=3, label=m)
+        for x, y in zip(xs, ys, strict=True):
+            ax.annotate(f"{y:.3f}", (x, y), textcoords="offset points",
+                        xytext=(5, -12) if below else (-30, 6),
+                        fontsize=7, color=colour)
+    ax.axhline(0.60, color="grey", ls="--", lw=1)
+    ax.axvline(1.0, color="grey", ls=":", lw=1)
+    ax.set_xlabel("scribble budget, % of the photo's pixels (dotted: the issue's 1% cap)")
+    ax.set_ylabel("mean mIoU over 16 photos")
+    ax.set_title(f"(d) one-shot scribbles: what more paint buys (mean of {budget['draws']} "
+                 "draws, whiskers: the draws)", fontsize=10)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.grid(alpha=0.3)

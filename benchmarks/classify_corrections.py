@@ -36,7 +36,14 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from classify_eval import confusion, scores, simulate_corrections, simulate_scribbles
+from classify_eval import (
+    confusion,
+    draw_rows,
+    draw_seeds,
+    scores,
+    simulate_corrections,
+    simulate_scribbles,
+)
 
 #: share of the photo's pixels, lowest confidence first, the app highlights
 LOW_CONFIDENCE_SHARE = 0.10
@@ -68,7 +75,7 @@ def corrections(log):
 
     # Per repeat: strokes of round 1 and of the one-shot peer from generators seeded
     # alike (repeat 0 as part "scribbles"), round-2 seeds from a third.
-    seed0 = [bench.RNG_SEED + 1] + [[bench.RNG_SEED + 1, r] for r in range(1, REPEATS)]
+    seed0 = draw_seeds(bench.RNG_SEED + 1, REPEATS)
     round1_rng = [np.random.default_rng(s) for s in seed0]
     oneshot_rng = [np.random.default_rng(s) for s in seed0]
     seeds = np.random.default_rng(bench.RNG_SEED + 2)
@@ -132,25 +139,8 @@ def corrections(log):
     out = {"repeats": REPEATS, "coverage": coverage,
            "low_confidence_share": LOW_CONFIDENCE_SHARE}
     for (m, v), reps in cms.items():
-        out.setdefault(m, {})[v] = _rows(reps, sets)
+        out.setdefault(m, {})[v] = draw_rows(reps, sets)
     return out
-
-
-def _rows(reps, sets):
-    """Result rows of one method and variant from per-repeat {photo: confusion}."""
-    classes = {n: c for _f, n, c, _x in sets}
-    mious = [{n: scores(cm, classes[n])["miou"] for n, cm in per.items()} for per in reps]
-    dubai = [n for n in reps[0] if n.startswith("image_part")]
-    pooled = [scores(sum(per[n] for n in dubai), [1, 2, 3, 4, 5]) for per in reps]
-    return {
-        "mean_miou_over_photos": float(np.mean([np.mean(list(m.values())) for m in mious])),
-        "mean_miou_per_repeat": [round(float(np.mean(list(m.values()))), 4) for m in mious],
-        "dubai_mean_miou_over_photos": float(np.mean([[m[n] for n in dubai] for m in mious])),
-        "miou_per_photo": {n: round(float(np.mean([m[n] for m in mious])), 4)
-                           for n in reps[0]},
-        "dubai_pooled": scores(sum(per[n] for per in reps for n in dubai), [1, 2, 3, 4, 5]),
-        "dubai_pooled_miou_per_repeat": [round(p["miou"], 4) for p in pooled],
-    }
 
 
 def _keep_prior(bench, photo, scr, first):

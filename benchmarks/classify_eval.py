@@ -152,3 +152,28 @@ def simulate_corrections(mask, classes, rng, target, budget_px, existing=None,
             out[y0:y1, x0:x1][best] = k
             painted += stroke_px
     return out
+
+
+def draw_seeds(first, n):
+    """Seeds of ``n`` independent stroke draws: ``first``, then ``[first, 1]``, ``[first, 2]``..."""
+    return [first] + [[first, d] for d in range(1, n)]
+
+
+def draw_rows(reps, sets):
+    """Result row of one method from per-draw ``{photo: confusion}`` (draws = repeats).
+
+    ``sets`` are the photos as :func:`bench_classify.scribble_sets` gives them.
+    """
+    classes = {n: c for _f, n, c, _x in sets}
+    mious = [{n: scores(cm, classes[n])["miou"] for n, cm in per.items()} for per in reps]
+    dubai = [n for n in reps[0] if n.startswith("image_part")]
+    pooled = [scores(sum(per[n] for n in dubai), [1, 2, 3, 4, 5]) for per in reps]
+    return {
+        "mean_miou_over_photos": float(np.mean([np.mean(list(m.values())) for m in mious])),
+        "mean_miou_per_repeat": [round(float(np.mean(list(m.values()))), 4) for m in mious],
+        "dubai_mean_miou_over_photos": float(np.mean([[m[n] for n in dubai] for m in mious])),
+        "miou_per_photo": {n: round(float(np.mean([m[n] for m in mious])), 4)
+                           for n in reps[0]},
+        "dubai_pooled": scores(sum(per[n] for per in reps for n in dubai), [1, 2, 3, 4, 5]),
+        "dubai_pooled_miou_per_repeat": [round(p["miou"], 4) for p in pooled],
+    }
