@@ -11,7 +11,8 @@ On the land-cover maps in ../shared/data/maps and the label masks in
   paper's peer, written here for the measurement: one split bit per inner
   node, one byte per leaf, nodes outside the image absent);
 * batched random access, ns per texel, against a numpy gather from the dense
-  array (serial and on all cores);
+  array (serial and on all cores), in ``LOOKUP_ROUNDS`` paired rounds (the
+  median ratio within a round, and the range);
 * scalar lookup time against a scalar numpy index;
 * pack time (scan + runs + random-access structure), with the numpy peer of
   the numba scan (recursive numpy curve points + mask + gather) on a crop,
@@ -46,6 +47,8 @@ from core.packing import PackedLayer, pack  # noqa: E402
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
 RNG = np.random.default_rng(7)
+#: paired rounds of the batched random-access measurement
+LOOKUP_ROUNDS = 7
 
 
 def best_of(fn, repeat: int = 3) -> float:
@@ -141,11 +144,19 @@ def measure(name: str, img: np.ndarray, *, full: bool) -> dict:
     ys = RNG.integers(0, h, 10**6)
     serial = dataclasses.replace(layer, threads=1)
     assert np.array_equal(serial.lookup(xs, ys), img[ys, xs])
-    rec["dense_gather_ns"] = best_of(lambda: img[ys, xs], 5) * 1e3
-    rec["lookup_serial_ns"] = best_of(lambda: serial.lookup(xs, ys), 5) * 1e3
-    rec["lookup_parallel_ns"] = best_of(lambda: layer.lookup(xs, ys), 5) * 1e3
-    rec["lookup_serial_vs_dense"] = rec["lookup_serial_ns"] / rec["dense_gather_ns"]
-    rec["lookup_parallel_vs_dense"] = rec["lookup_parallel_ns"] / rec["dense_gather_ns"]
+    # Paired rounds (peer, serial, parallel back to back): on a shared machine the load
+    # drifts between rounds, so each ratio is taken within a round, then the median.
+    rounds = [[best_of(fn, 3) * 1e3 for fn in (lambda: img[ys, xs],
+                                               lambda: serial.lookup(xs, ys),
+                                               lambda: layer.lookup(xs, ys))]
+              for _ in range(LOOKUP_ROUNDS)]
+    dense, ser, par = (np.array(col) for col in zip(*rounds, strict=True))
+    rec["dense_gather_ns"] = float(np.median(dense))
+    rec["lookup_serial_ns"] = float(np.median(ser))
+    rec["lookup_parallel_ns"] = float(np.median(par))
+    rec["lookup_serial_vs_dense"] = float(np.median(ser / dense))
+    rec["lookup_parallel_vs_dense"] = float(np.median(par / dense))
+    rec["lookup_serial_vs_dense_range"] = [float((ser / dense).min()), float((ser / dense).max())]
     # Scalar calls from Python.
     pts = [(int(x), int(y)) for x, y in zip(xs[:20000], ys[:20000], strict=True)]
     layer.lookup(*pts[0])
