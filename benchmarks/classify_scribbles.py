@@ -6,13 +6,13 @@ photos (:func:`bench_classify.scribble_sets`). Where the strokes fall moves a
 photo's mIoU by several hundredths, more than most differences between
 methods, so every method is scored on the same ``DRAWS`` independent draws of
 the strokes, drawn from the generators of the one-shot rows of part
-"corrections" (so rf-default's rows agree between the two parts). A row's ``mean_miou_over_photos``
-is the mean over the draws of the mean over the 16 photos; the per-draw means
-are kept.
+"corrections" (so rf-default's rows agree between the two parts). A row's
+``mean_miou_over_photos`` is the mean over the draws of the mean over the 16
+photos; the per-draw means are kept.
 
 Budget curve (row group ``scribbles_budget``): rf-default and the ilastik
-recipe at ``BUDGETS`` of the pixels (the same draws, the strokes drawn afresh for
-each budget), to show what more paint buys.
+recipe at ``BUDGETS`` of the pixels (as many draws, the strokes drawn afresh
+for each budget), to show what more paint buys.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ two use the FFT, which treats the texture as one period of an infinite tiling):
   or a copied strip) correlates with itself at that shift; a texture whose
   detail never repeats within the tile scores near ``3 / sqrt(h * w)``.
 * :func:`landmark_score` -- the area of the largest dark or bright feature
-  much wider than the texture's grain (a channel, a path, a lone building),
-  as a share of the tile: tiled, such a landmark repeats once per tile and
+  that stands out from the texture's grain (a channel, a path, a lone
+  building), as a share of the tile: tiled, such a landmark repeats once per tile and
   the eye finds the grid through it. :func:`landmark_mask` gives the pixels.
 
 None needs the source patch, so they also rate shipped texture files.
