@@ -18,23 +18,26 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
     confident), as an editor user does; see classify_corrections.py.
 
 Methods, all in the same run:
-  rf-default      random forest (cv2.ml) on DEFAULT features with Hessian eigenvalues
-                  and fine ridges (core/classify/ridges.py, sigmas 1, 2, 4 px),
-                  8x8 coarse pixels, edge-aware confidence-weighted regularisation
-                  (Regularisation.EDGE, core/classify/regularise.py) -- the library
-                  default; for (b) also the scribble defaults: prior correction at
-                  power 0.75 (core/classify/prior.py) and strokes grown by one ring of
-                  same-colour coarse pixels (core/classify/samples.py);
-  rf-noridges     the previous default: rf-default without the fine ridges;
-  rf-smooth       the default before that: no Hessian, Gaussian probability smoothing,
-                  (b) prior power 0.5 and no growing;
+  rf-default      Extra-Trees (core/classify/extra_trees.py, 50 trees, soft votes) on
+                  DEFAULT features with Hessian eigenvalues and fine ridges
+                  (core/classify/ridges.py, sigmas 1, 2, 4 px), 8x8 coarse pixels,
+                  edge-aware confidence-weighted regularisation (Regularisation.EDGE,
+                  core/classify/regularise.py) -- the library default; for (b) also the
+                  scribble defaults: prior correction at power 0.75
+                  (core/classify/prior.py) and strokes grown by one ring of same-colour
+                  coarse pixels (core/classify/samples.py);
+  rf-cv2          the previous default: rf-default with OpenCV's random forest
+                  (cv2.ml.RTrees, 24 trees, hard votes) instead of Extra-Trees;
+  rf-noridges     rf-default without the fine ridges;
+  rf-smooth       the default before those: OpenCV forest, no Hessian, no ridges,
+                  Gaussian probability smoothing, (b) prior power 0.5 and no growing;
   rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
   rf-prior1       (b) only: rf-default with the full prior correction (prior_power=1);
   rf-nogrow       (b) only: rf-default without growing the strokes (grow_colour=0);
   rf-position     (b) only: rf-default plus the coarse pixel's position in the photo
                   (FeatureOptions.position; legitimate for a model of one photo);
   rf-superpixel   same, probabilities averaged over MSLIC superpixels;
-  rf-colour       random forest on coarse Lab only;
+  rf-colour       rf-default on coarse Lab only;
   rf-scale4       DEFAULT features on 4x4 coarse pixels (same context in photo pixels);
   ilastik         the ilastik recipe: random forest on Lab + scikit-image
                   multiscale_basic_features (sigma 1..16) for every pixel, no
@@ -87,6 +90,7 @@ from core.classify import (  # noqa: E402
     Classifier,
     FeatureOptions,
     FeatureSet,
+    ForestKind,
     Regularisation,
     RegulariseOptions,
     SupervisedOptions,
@@ -103,9 +107,11 @@ KMEANS_CLUSTERS = 10
 
 METHODS = {
     "rf-default": SupervisedOptions(),
+    "rf-cv2": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24),
     "rf-noridges": SupervisedOptions(features=FeatureOptions(hessian=True)),
-    "rf-smooth": SupervisedOptions(features=FeatureOptions(), regularisation=RegulariseOptions(
-        method=Regularisation.SMOOTH)),
+    "rf-smooth": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24,
+                                   features=FeatureOptions(), regularisation=RegulariseOptions(
+                                       method=Regularisation.SMOOTH)),
     "rf-superpixel": SupervisedOptions(
         regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
     "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),

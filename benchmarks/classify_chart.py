@@ -108,7 +108,8 @@ def _protocols(ax, rows):
 
 def _budget(ax, budget):
     """Mean mIoU over 16 photos against the scribble budget; whiskers span the draws."""
-    for m, colour, below in (("rf-default", "crimson", True), ("ilastik", "#4c72b0", False)):
+    for m, colour, below in (("rf-default", "crimson", False), ("rf-cv2", "#999999", True),
+                             ("ilastik", "#4c72b0", False)):
         if m not in budget:
             continue
         xs = [100 * float(b) for b in budget[m]]

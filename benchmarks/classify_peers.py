@@ -18,6 +18,7 @@ from classify_eval import confusion
 from core.classify import (
     FeatureOptions,
     FeatureSet,
+    ForestKind,
     Regularisation,
     RegulariseOptions,
     SupervisedOptions,
@@ -32,6 +33,7 @@ RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000
 
 ILASTIK = SupervisedOptions(
+    forest=ForestKind.RANDOM_FOREST, n_trees=24,
     features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
     regularisation=RegulariseOptions(method=Regularisation.NONE),
 )

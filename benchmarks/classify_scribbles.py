@@ -10,8 +10,8 @@ the strokes, drawn from the generators of the one-shot rows of part
 ``mean_miou_over_photos`` is the mean over the draws of the mean over the 16
 photos; the per-draw means are kept.
 
-Budget curve (row group ``scribbles_budget``): rf-default and the ilastik
-recipe at ``BUDGETS`` of the pixels (as many draws, the strokes drawn afresh
+Budget curve (row group ``scribbles_budget``): rf-default, rf-cv2 (its OpenCV
+forest) and the ilastik recipe at ``BUDGETS`` of the pixels (as many draws, the strokes drawn afresh
 for each budget), to show what more paint buys.
 """
 
@@ -30,7 +30,7 @@ DRAWS = 3
 #: budgets of the budget curve (BUDGET's point is the main rows)
 BUDGETS = (0.0025, 0.005, 0.008, 0.01)
 #: methods of the budget curve
-CURVE_METHODS = ("rf-default", "ilastik")
+CURVE_METHODS = ("rf-default", "rf-cv2", "ilastik")
 
 
 def scribbles(log):
@@ -56,7 +56,8 @@ def scribbles(log):
             for b in BUDGETS:
                 scr = simulate_scribbles(mask, classes, rngs[b, d], b)
                 coverage[name, b] = max(coverage.get((name, b), 0.0), float((scr > 0).mean()))
-                run = methods if b == BUDGET else {"rf-default": methods["rf-default"]}
+                run = methods if b == BUDGET else {
+                    m: methods[m] for m in CURVE_METHODS if m in methods}
                 for m, opts in run.items():
                     model = bench._train_one(photo, scr, opts)
                     t = time.perf_counter()

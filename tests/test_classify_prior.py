@@ -102,11 +102,11 @@ def test_weights_survive_save_and_load(tmp_path):
     # A file whose weights do not match its classes is damaged.
     with zipfile.ZipFile(tmp_path / "m.model") as zf:
         meta = json.loads(zf.read("meta.json"))
-        forest = zf.read("forest.yml")
+        forest = zf.read("forest.npz")
     meta["class_weights"] = [1.0, 0.5]
     with zipfile.ZipFile(tmp_path / "bad.model", "w") as zf:
         zf.writestr("meta.json", json.dumps(meta))
-        zf.writestr("forest.yml", forest)
+        zf.writestr("forest.npz", forest)
     with pytest.raises(CorruptFileError, match="class weights"):
         Classifier.load(tmp_path / "bad.model")
 

@@ -8,7 +8,13 @@ import zipfile
 import numpy as np
 import pytest
 
-from core.classify import Classifier, Regularisation, SupervisedOptions, train_classifier
+from core.classify import (
+    Classifier,
+    ForestKind,
+    Regularisation,
+    SupervisedOptions,
+    train_classifier,
+)
 from core.classify.samples import GROW_COLOUR, grow_labels, looks_like_scribbles
 from core.classify.supervised import collect_samples
 from core.errors import TerrathemeError
@@ -90,11 +96,15 @@ def test_a_model_file_from_before_edge_and_growing_still_loads(tmp_path):
     photo[:, 16:] = (200, 180, 150)
     mask = np.zeros((32, 32), np.uint8)
     mask[8, 2:10], mask[8, 20:30] = 1, 2
-    train_classifier([(photo, mask)]).save(tmp_path / "new.model")
+    opts = SupervisedOptions(forest=ForestKind.RANDOM_FOREST)
+    train_classifier([(photo, mask)], opts).save(tmp_path / "new.model")
     with zipfile.ZipFile(tmp_path / "new.model") as zf:
         meta = json.loads(zf.read("meta.json"))
         forest = zf.read("forest.yml")
-    # The options as the previous version wrote them: no grow_colour, no edge sigmas.
+    # The options as an earlier version wrote them (file version 1, OpenCV forest): no
+    # forest kind, no grow_colour, no edge sigmas.
+    meta["version"] = 1
+    del meta["options"]["forest"]
     del meta["options"]["grow_colour"]
     reg = meta["options"]["regularisation"]
     del reg["edge_sigma_spatial"], reg["edge_sigma_colour"]
@@ -103,6 +113,7 @@ def test_a_model_file_from_before_edge_and_growing_still_loads(tmp_path):
         zf.writestr("meta.json", json.dumps(meta))
         zf.writestr("forest.yml", forest)
     old = Classifier.load(tmp_path / "old.model")
+    assert old.options.forest is ForestKind.RANDOM_FOREST
     assert old.options.regularisation.method is Regularisation.SMOOTH
     assert old.options.grow_colour is None
     labels = old.predict(photo).labels

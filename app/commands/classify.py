@@ -1,7 +1,7 @@
 """``terratheme classify``: label an orthophoto's pixels with themes.
 
 Unsupervised (k-means, K from the data or ``--themes K``) unless scribbles,
-training pairs or a saved model are given, in which case a random forest does
+training pairs or a saved model are given, in which case Extra-Trees do
 the job (see :mod:`core.classify`).
 """
 

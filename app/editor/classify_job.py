@@ -1,7 +1,7 @@
 """Classification on a worker thread, with progress and Cancel.
 
-The job runs the core classifier (unsupervised, or a random forest trained on
-the scribble layer) and converts its labels to a vertex grid
+The job runs the core classifier (unsupervised, or Extra-Trees trained on the
+scribble layer) and converts its labels to a vertex grid
 (``core.labels_to_grid``) off the GUI thread; the window applies the result
 as one undoable step. Cancel is cooperative: the progress callback raises
 inside the classifier at its next tile, and a result that arrives after

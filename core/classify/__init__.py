@@ -6,18 +6,21 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 * :func:`fit_unsupervised` -> :class:`UnsupervisedModel` (``predict``) -- the
   same themes fitted on a sample (or pieces of a big photo), applied per tile;
 * :func:`train_classifier` -> :class:`Classifier` (``predict``, ``save``,
-  ``Classifier.load``) -- random forest from scribbles or label masks;
+  ``Classifier.load``) -- Extra-Trees (or OpenCV's random forest) from
+  scribbles or label masks;
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
   float32 in [0, 1].
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
 photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
 (smoothing / superpixels / edge-aware averaging), ``unsupervised`` (K criterion),
-``unsupervised_model``, ``supervised``, ``samples`` (training samples from masks and
+``unsupervised_model``, ``supervised``, ``forest`` and ``extra_trees`` (the tree
+ensembles), ``samples`` (training samples from masks and
 scribbles), ``prior`` (class-prior correction), ``model_file``.
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
+from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
 from core.classify.supervised import Classifier, SupervisedOptions, train_classifier
@@ -33,6 +36,7 @@ __all__ = [
     "Classifier",
     "FeatureOptions",
     "FeatureSet",
+    "ForestKind",
     "Normalise",
     "Regularisation",
     "RegulariseOptions",

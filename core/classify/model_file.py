@@ -1,10 +1,13 @@
-"""The trained-classifier file: a zip holding ``meta.json`` and ``forest.yml``.
+"""The trained-classifier file: a zip holding ``meta.json`` and the forest.
 
-``meta.json`` : ``{"format": "terratheme-classifier", "version": 1,
+``meta.json`` : ``{"format": "terratheme-classifier", "version": 2,
 "classes": [...], "options": {...}, "class_weights": [...]}`` (options as plain
-JSON, enums by value; class weights only when the model has a prior correction);
-``forest.yml`` : the OpenCV random forest as OpenCV's own YAML (absent when the
-model has a single class). Written atomically; a newer version raises
+JSON, enums by value; class weights only when the model has a prior correction).
+The forest (absent when the model has a single class): ``forest.npz``, the
+Extra-Trees node arrays (:class:`core.classify.extra_trees.ExtraTreesForest`,
+read with ``allow_pickle=False``: numbers only), or ``forest.yml``, an OpenCV
+random forest as OpenCV's own YAML. Version 1 files (OpenCV forests, written
+before Extra-Trees) still load. Written atomically; a newer version raises
 UnsupportedVersionError, a damaged file CorruptFileError.
 """
 
@@ -18,15 +21,18 @@ from dataclasses import asdict
 from pathlib import Path
 
 import cv2
+import numpy as np
 
 from core.atomic import write_bytes_atomic
+from core.classify.extra_trees import ExtraTreesForest
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
+from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.supervised import Classifier, SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 FORMAT = "terratheme-classifier"
-VERSION = 1
+VERSION = 2
 
 
 def _options_to_json(options: SupervisedOptions) -> dict:
@@ -34,6 +40,7 @@ def _options_to_json(options: SupervisedOptions) -> dict:
     d["features"]["feature_set"] = options.features.feature_set.value
     d["features"]["normalise"] = options.features.normalise.value
     d["regularisation"]["method"] = options.regularisation.method.value
+    d["forest"] = options.forest.value
     return d
 
 
@@ -47,6 +54,8 @@ def _options_from_json(d: dict) -> SupervisedOptions:
     r["method"] = Regularisation(r["method"])
     rest = {k: v for k, v in d.items() if k not in ("features", "regularisation")}
     rest["ignore_classes"] = tuple(rest.get("ignore_classes", ()))
+    # Version 1 files predate Extra-Trees: their forests are OpenCV's.
+    rest["forest"] = ForestKind(rest.get("forest", ForestKind.RANDOM_FOREST.value))
     return SupervisedOptions(features=FeatureOptions(**f),
                              regularisation=RegulariseOptions(**r), **rest)
 
@@ -60,7 +69,11 @@ def save_classifier(model: Classifier, path: str | os.PathLike) -> None:
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("meta.json", json.dumps(meta, indent=1))
-        if model.forest is not None:
+        if isinstance(model.forest, ExtraTreesForest):
+            arrays = io.BytesIO()
+            np.savez_compressed(arrays, **model.forest.arrays())
+            zf.writestr("forest.npz", arrays.getvalue())
+        elif model.forest is not None:
             fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
             model.forest.write(fs)
             zf.writestr("forest.yml", fs.releaseAndGetString())
@@ -86,6 +99,7 @@ def load_classifier(path: str | os.PathLike) -> Classifier:
         with zipfile.ZipFile(p) as zf:
             meta = json.loads(zf.read("meta.json"))
             forest_text = zf.read("forest.yml").decode() if "forest.yml" in zf.namelist() else None
+            forest_npz = zf.read("forest.npz") if "forest.npz" in zf.namelist() else None
     except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CorruptFileError(f"{p}: not a terratheme classifier file ({exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
@@ -106,7 +120,15 @@ def load_classifier(path: str | os.PathLike) -> Classifier:
     except (KeyError, TypeError, ValueError) as exc:
         raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
     forest = None
-    if forest_text is not None:
+    if forest_npz is not None:
+        try:
+            with np.load(io.BytesIO(forest_npz), allow_pickle=False) as npz:
+                forest = ExtraTreesForest.from_arrays({k: npz[k] for k in npz.files})
+        except (OSError, ValueError, zipfile.BadZipFile, TerrathemeError) as exc:
+            raise CorruptFileError(f"{p}: damaged forest ({str(exc).strip()[:80]})") from None
+        if [int(c) for c in forest.classes] != sorted(classes):
+            raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
+    elif forest_text is not None:
         try:
             fs = cv2.FileStorage(forest_text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
             forest = cv2.ml.RTrees_create()

@@ -18,8 +18,8 @@ same forest without them: from scribbles (bench_classify.py protocol, 3
 fresh draws of the strokes at 0.8%) mean mIoU 0.568 -> 0.584 on the 16
 evaluation photos, up in each draw, and 0.610 -> 0.612 on the tuning photos
 (Dubai parts 001-003); in bench_classify.py itself (rf-default against
-rf-noridges, mean of its 3 stroke draws) 0.577 -> 0.580 from scribbles at
-0.80x the speed, and 0.486 -> 0.495 across tiles at 0.88x.
+rf-noridges, Extra-Trees, mean of its 3 stroke draws) 0.586 -> 0.589 from
+scribbles and 0.508 -> 0.514 across tiles, both at 0.78x the speed.
 """
 
 from __future__ import annotations
