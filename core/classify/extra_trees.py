@@ -126,7 +126,7 @@ class ExtraTreesForest:
                    a["value"].astype(np.float32))
 
 
-def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 100, max_depth: int = 12,
+def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_depth: int = 12,
                     min_samples_split: int = 2, balance: bool = True,
                     seed: int = 0) -> ExtraTreesForest:
     """Train Extra-Trees on samples ``x`` (n, F) with class values ``y`` (n,).
