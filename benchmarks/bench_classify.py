@@ -96,7 +96,7 @@ from core.classify import (  # noqa: E402
     SupervisedOptions,
 )
 from core.classify.supervised import _pair_samples, build_forest  # noqa: E402
-from core.image_io import read_image  # noqa: E402
+from core.io.images import read_image  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 OUT = REPO / "benchmarks" / "results"

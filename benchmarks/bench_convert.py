@@ -6,7 +6,7 @@ Writes ``benchmarks/results/convert.json`` and ``convert.png``.
 
 Part A (Dubai sample photo, ``sample_maps/dubai_marina.jpg``, with its mask
 from ``../shared/data/dubai`` when present): the agreement curve of
-:func:`core.labels_to_grid.choose_cell_size` for the unsupervised labels and
+:func:`core.convert.labels_to_grid.choose_cell_size` for the unsupervised labels and
 for the ground-truth mask, the grid's bytes (1 per vertex; packed along a
 space-filling curve) against the peer "the full-resolution label map packed
 the same way", and the end-to-end ``convert_photo`` time.
@@ -16,11 +16,11 @@ dir). Each measurement runs in a fresh child process and reports its peak
 resident memory (``VmHWM``) above the resident memory after imports, plus
 the tracemalloc peak (numpy allocations). Peers in the same run: the whole-
 image path (read_image + classify + vote_grid) against the tiled path
-(:func:`core.convert_tiled.grid_from_file`), with a per-pixel nearest-colour
+(:func:`core.convert.tiled.grid_from_file`), with a per-pixel nearest-colour
 classifier (fast, so every size and tile is measured; no context needed) and
 with the trained random forest of ``core.classify`` (the real pipeline; 32
 pixels of context here, where the product default is 128, see
-``core.convert_tiled.DEFAULT_OVERLAP``).
+``core.convert.tiled.DEFAULT_OVERLAP``).
 """
 
 from __future__ import annotations
@@ -56,9 +56,9 @@ def _status_kib(key: str) -> int:
 
 def part_a(quick: bool) -> dict:
     from core.classify import classify_unsupervised
-    from core.convert import ConvertOptions, convert_photo
-    from core.image_io import read_image
-    from core.labels_to_grid import choose_cell_size, vote_grid
+    from core.convert.labels_to_grid import choose_cell_size, vote_grid
+    from core.convert.photo import ConvertOptions, convert_photo
+    from core.io.images import read_image
     from core.packing import pack
 
     photo = read_image(SAMPLE)
@@ -107,8 +107,8 @@ def part_a(quick: bool) -> dict:
 
 def make_big_tiff(path: Path, side: int, seed: int = 0) -> None:
     """A ``side x side`` RGB tiled TIFF made of 512-pixel crops of the Dubai photos."""
-    from core.image_io import image_info, read_image
-    from core.tiled import TiledImageWriter
+    from core.io.images import image_info, read_image
+    from core.io.tiles import TiledImageWriter
 
     photos = [p for p in sorted((SHARED / "images").glob("*.jpg"))
               if min(image_info(p).width, image_info(p).height) >= BLOCK]
@@ -152,10 +152,10 @@ def child(args: argparse.Namespace) -> None:
     import tracemalloc
 
     from core.classify import Classifier
-    from core.convert_tiled import grid_from_file
-    from core.image_io import read_image
-    from core.labels_to_grid import vote_grid
-    from core.tiled import Scheduler
+    from core.convert.labels_to_grid import vote_grid
+    from core.convert.tiled import grid_from_file
+    from core.io.images import read_image
+    from core.io.tiles import Scheduler
 
     if args.classifier == "forest":
         model = Classifier.load(args.model)
@@ -203,7 +203,7 @@ def part_b(quick: bool) -> dict:
     import cv2
 
     from core.classify import train_classifier
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     photo = read_image(SAMPLE, dtype=np.uint8)[..., :3]
     # Nearest-colour classifier: 5 k-means colour centres of the sample (OpenCV).

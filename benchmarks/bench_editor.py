@@ -32,11 +32,11 @@ sys.path.insert(0, str(REPO))
 
 from app.editor.imaging import Pyramid  # noqa: E402
 from app.editor.newproject import default_library  # noqa: E402
-from core.edit_preview import RenderPreview  # noqa: E402
-from core.editing import EditSession  # noqa: E402
-from core.grid import IndexGrid  # noqa: E402
-from core.project import ThematicTexture  # noqa: E402
-from core.render import render_cells  # noqa: E402
+from core.edit.preview import RenderPreview  # noqa: E402
+from core.edit.session import EditSession  # noqa: E402
+from core.model.grid import IndexGrid  # noqa: E402
+from core.model.project import ThematicTexture  # noqa: E402
+from core.render.renderer import render_cells  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
 CELL = (16, 16)

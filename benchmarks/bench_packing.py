@@ -40,8 +40,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from core import sfc  # noqa: E402
-from core.image_io import read_image  # noqa: E402
+from core.curves import steps as sfc  # noqa: E402
+from core.io.images import read_image  # noqa: E402
 from core.packing import PackedLayer, pack  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"

@@ -67,13 +67,13 @@ def checkerboard(n: int = TEX, square: int = 32) -> np.ndarray:
 def thematic(n: int = TEX) -> tuple[np.ndarray, str]:
     """A rendered thematic texture crop, ``(n, n, 3) uint8``, and where it came from."""
     try:
-        from core.project import load_project
-        from core.render import render_project
+        from core.model.project import load_project
+        from core.render.renderer import render_project
 
         img = render_project(load_project(REPO / "sample_maps" / "airfield.ttproj"))
         return np.ascontiguousarray(img[:n, :n]), "render of sample_maps/airfield.ttproj"
     except (ImportError, OSError, ValueError):
-        from core.image_io import read_image
+        from core.io.images import read_image
 
         path = REPO.parent / "shared" / "data" / "dubai" / "images" / "image_part_001t1.jpg"
         return np.ascontiguousarray(read_image(path)[:n, :n, :3]), f"crop of {path.name}"

@@ -10,7 +10,7 @@ vertex grid (nearest), cell 16 x 16 -> an 8192 x 8192 texture, shipped themes.
 
 Contenders, same run, same grid and themes:
 
-* ``terratheme``: ``core.render.render_cells`` (numba kernel, 2 threads),
+* ``terratheme``: ``core.render.renderer.render_cells`` (numba kernel, 2 threads),
   linear and histogram-preserving blend;
 * ``numpy vectorised``: the same algorithm as whole-band numpy gathers
   (shows what numba buys);
@@ -38,10 +38,10 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 
-from core.image_io import read_image, write_image  # noqa: E402
-from core.render import BlendMode, RenderOptions, render_cells  # noqa: E402
-from core.render_rules import cell_splits, corner_weights  # noqa: E402
-from core.themes import shipped_theme_library  # noqa: E402
+from core.io.images import read_image, write_image  # noqa: E402
+from core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
+from core.render.rules import cell_splits, corner_weights  # noqa: E402
+from core.themes.library import shipped_theme_library  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
 ESA = {10: "forest", 20: "grass", 30: "grass", 40: "crop field", 50: "town", 60: "sand",

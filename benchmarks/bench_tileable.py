@@ -8,12 +8,12 @@ Patches: 32 seeded random square windows of the Dubai photos in
 method below runs on the same patches in the same run; for each we report
 the mean (and worst) of
 
-* ``seam``    -- :func:`core.tileable.seam_score` (wrap-edge step / interior
+* ``seam``    -- :func:`core.themes.tileable.seam_score` (wrap-edge step / interior
   step; 1 = like the interior, the pass mark is 1.5);
-* ``repeat``  -- :func:`core.tile_quality.repeat_score` (self-similarity of
+* ``repeat``  -- :func:`core.themes.quality.repeat_score` (self-similarity of
   the detail at a non-trivial shift: ghosts and copied strips; the raw
   patch's own level is shown as ``raw``);
-* ``lowfreq`` -- :func:`core.tile_quality.lowfreq_score` (share of the
+* ``lowfreq`` -- :func:`core.themes.quality.lowfreq_score` (share of the
   contrast in waves of <= 2 periods per tile: banding in a tiling);
 * ``detail``  -- the std of the luminance minus its sigma-2 blur, over the
   raw patch's (fine texture kept: 1 = all of it);
@@ -34,9 +34,9 @@ from scipy.ndimage import gaussian_filter
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from core.image_io import read_image  # noqa: E402
-from core.tile_quality import lowfreq_score, repeat_score  # noqa: E402
-from core.tileable import (  # noqa: E402
+from core.io.images import read_image  # noqa: E402
+from core.themes.quality import lowfreq_score, repeat_score  # noqa: E402
+from core.themes.tileable import (  # noqa: E402
     FlattenMode,
     SeamMethod,
     TileableOptions,

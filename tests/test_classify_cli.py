@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from core.image_io import read_image, write_image
+from core.io.images import read_image, write_image
 
 
 @pytest.fixture()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
-from core.image_io import read_image
+from core.io.images import read_image
 
 
 def test_dubai_photo_trained_on_its_mask_reproduces_it(shared_data):

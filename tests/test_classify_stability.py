@@ -7,7 +7,7 @@ import pytest
 
 from core.classify import classify_unsupervised, train_classifier
 from core.errors import TerrathemeError
-from core.image_io import read_image, write_image
+from core.io.images import read_image, write_image
 
 
 def field_and_road(h=96, w=128):

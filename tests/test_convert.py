@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from core.convert import ConvertOptions, convert_photo, parse_themes
+from core.convert.photo import ConvertOptions, convert_photo, parse_themes
 from core.errors import TerrathemeError
-from core.georef import read_georeference, write_georeference
-from core.image_io import read_image, write_image
+from core.io.georef import read_georeference, write_georeference
+from core.io.images import read_image, write_image
+from core.model.project import load_project
 from core.packing import PackedLayer
-from core.project import load_project
 
 BLUE, SAND = (40, 90, 200), (225, 200, 140)
 
@@ -240,7 +240,7 @@ def test_one_class_scribbles_and_float_exr(tmp_path):
 
 
 def test_reduced_preview_keeps_georeference_scaled(tmp_path):
-    from core.convert import write_outputs
+    from core.convert.photo import write_outputs
 
     geo = {"ModelPixelScale": [1.0, 1.0, 0.0], "ModelTiepoint": [0, 0, 0, 100.0, 200.0, 0]}
     res = convert_photo(_halves(h=40, w=80), ConvertOptions(cell=8),

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
-from core.photo_themes import (
+from core.themes.from_photo import (
     NO_DATA_NAME,
     PatchOptions,
     find_patch,
     themes_by_name,
     themes_from_photo,
 )
-from core.tileable import SEAM_THRESHOLD, seam_score
+from core.themes.tileable import SEAM_THRESHOLD, seam_score
 
 
 def _two_regions(h=96, w=128, seed=0):

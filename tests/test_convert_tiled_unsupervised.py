@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import core.convert_tiled as ct
+import core.convert.tiled as ct
 from app.cli import main
-from core.convert_tiled import convert_file_tiled, sample_pieces
+from core.convert.tiled import convert_file_tiled, sample_pieces
 from core.errors import TerrathemeError
-from core.image_io import write_image
-from core.project import load_project
+from core.io.images import write_image
+from core.model.project import load_project
 
 GREEN, SAND, BLUE = (40, 120, 40), (225, 200, 140), (40, 90, 200)
 

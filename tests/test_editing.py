@@ -1,4 +1,4 @@
-"""The pure edit model (core.editing, core.edit_tools): no Qt."""
+"""The pure edit model (core.edit.session, core.edit.tools): no Qt."""
 
 from __future__ import annotations
 
@@ -9,8 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.edit_tools import Connectivity, capsule_footprint, flood_footprint, rect_footprint
-from core.editing import (
+from core.edit.session import (
     EditAtom,
     EditSession,
     GridChange,
@@ -18,10 +17,11 @@ from core.editing import (
     dirty_cells,
     dirty_region,
 )
+from core.edit.tools import Connectivity, capsule_footprint, flood_footprint, rect_footprint
 from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.project import ThematicTexture
-from core.themes import ThemeLibrary, flat_theme
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture
+from core.themes.library import ThemeLibrary, flat_theme
 
 
 def make_texture(indices: np.ndarray, cell=(4, 4), k: int = 4) -> ThematicTexture:

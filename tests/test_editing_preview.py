@@ -1,18 +1,18 @@
-"""The live preview (core.edit_preview) and the fidelity map (core.edit_fidelity)."""
+"""The live preview (core.edit.preview) and the fidelity map (core.edit.fidelity)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from core.edit_fidelity import fidelity_map, heat_colours
-from core.edit_preview import RenderPreview
-from core.editing import EditSession
+from core.edit.fidelity import fidelity_map, heat_colours
+from core.edit.preview import RenderPreview
+from core.edit.session import EditSession
 from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.project import ThematicTexture
-from core.render import render_cells
-from core.themes import Theme, ThemeLibrary
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture
+from core.render.renderer import render_cells
+from core.themes.library import Theme, ThemeLibrary
 
 
 def textured_library(k: int, seed: int = 0) -> ThemeLibrary:

@@ -10,10 +10,10 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 
-from core.grid import IndexGrid  # noqa: E402
-from core.project import ThematicTexture, save_project  # noqa: E402
-from core.render import render_cells  # noqa: E402
-from core.themes import Theme, ThemeLibrary  # noqa: E402
+from core.model.grid import IndexGrid  # noqa: E402
+from core.model.project import ThematicTexture, save_project  # noqa: E402
+from core.render.renderer import render_cells  # noqa: E402
+from core.themes.library import Theme, ThemeLibrary  # noqa: E402
 
 pytestmark = pytest.mark.qt
 
@@ -165,7 +165,7 @@ def test_damaged_project_shows_an_error_dialog(window, tmp_path):
 
 
 def test_export_render_writes_the_preview(window, tmp_path):
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     out = tmp_path / "render.png"
     assert window.export_render(str(out))
@@ -235,7 +235,7 @@ def test_classification_without_photo_or_scribbles_reports(window, qtbot):
 
 def test_screenshot_command_writes_a_png(tmp_path, monkeypatch):
     from app.cli import main
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     project = tmp_path / "p.ttproj"
     save_project(project, small_texture(photo=True))
@@ -302,7 +302,7 @@ def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, mo
     from app.editor.classify_job import Mode
     from app.editor.launch import load_start_document
     from app.editor.window import MainWindow
-    from core.image_io import write_image
+    from core.io.images import write_image
 
     photo = np.zeros((64, 96, 3), dtype=np.uint8)
     photo[:, :48] = (30, 140, 40)
@@ -346,7 +346,7 @@ def test_app_command_reports_a_damaged_project_in_one_line(tmp_path, capsys):
 def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monkeypatch):
     from PySide6.QtWidgets import QFileDialog, QInputDialog
 
-    from core.image_io import write_image
+    from core.io.images import write_image
 
     tex = np.zeros((16, 16, 3), dtype=np.uint8)
     tex[..., 0] = 200

@@ -80,9 +80,9 @@ def test_kept_prior_lifecycle():
 
 def small_doc():
     from app.editor.document import EditorDocument
-    from core.grid import IndexGrid
-    from core.project import ThematicTexture
-    from core.themes import Theme, ThemeLibrary
+    from core.model.grid import IndexGrid
+    from core.model.project import ThematicTexture
+    from core.themes.library import Theme, ThemeLibrary
 
     rng = np.random.default_rng(5)
     lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))

@@ -7,9 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.labels_to_grid import (
+from core.convert.labels_to_grid import (
     agreement,
     apply_lut,
     choose_cell_size,
@@ -17,6 +15,8 @@ from core.labels_to_grid import (
     labels_to_grid,
     vote_grid,
 )
+from core.errors import TerrathemeError
+from core.model.grid import IndexGrid
 
 
 def _naive_vote(labels: np.ndarray, n: int, m: int) -> np.ndarray:

@@ -9,9 +9,15 @@ import numpy as np
 import pytest
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.grid import IndexGrid, validate_cell, validate_indices
-from core.project import ThematicTexture, load_project, save_project
-from core.themes import Theme, ThemeLibrary, flat_theme, read_theme_library, validate_texture
+from core.model.grid import IndexGrid, validate_cell, validate_indices
+from core.model.project import ThematicTexture, load_project, save_project
+from core.themes.library import (
+    Theme,
+    ThemeLibrary,
+    flat_theme,
+    read_theme_library,
+    validate_texture,
+)
 
 
 def _project(photo: bool = True) -> ThematicTexture:

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import core.atomic
+import core.io.atomic
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.packing import PackedLayer, pack
 
@@ -161,7 +161,7 @@ def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
     def failing_replace(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(core.atomic.os, "replace", failing_replace)
+    monkeypatch.setattr(core.io.atomic.os, "replace", failing_replace)
     with pytest.raises(OSError, match="disk full"):
         layer.save(target)
     assert target.read_bytes() == b"old content"

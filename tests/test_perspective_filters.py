@@ -7,7 +7,7 @@ import pytest
 
 from app.cli import main
 from core.errors import TerrathemeError
-from core.image_io import read_image, write_image
+from core.io.images import read_image, write_image
 from core.perspective import (
     Camera,
     FilterOptions,
@@ -372,10 +372,10 @@ def test_cli_errors_exit_2(tmp_path, capsys):
 
 
 def test_cli_renders_a_project(tmp_path):
-    from core.grid import IndexGrid
-    from core.project import ThematicTexture, save_project
-    from core.render import render_project
-    from core.themes import ThemeLibrary, flat_theme
+    from core.model.grid import IndexGrid
+    from core.model.project import ThematicTexture, save_project
+    from core.render.renderer import render_project
+    from core.themes.library import ThemeLibrary, flat_theme
 
     lib = ThemeLibrary([flat_theme("field", (200, 180, 40)), flat_theme("water", (20, 60, 200))])
     grid = IndexGrid(np.array([[0, 1, 0], [1, 0, 1], [0, 0, 1]], np.uint8), (8, 8))

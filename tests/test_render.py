@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.render import BlendMode, RenderOptions, render_cells, render_labels
-from core.render_rules import ANTI, MAIN, UNIFORM, SaddleRule, cell_splits, corner_weights
+from core.model.grid import IndexGrid
+from core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
+from core.render.rules import ANTI, MAIN, UNIFORM, SaddleRule, cell_splits, corner_weights
 
 
 def _split_ref(g: np.ndarray, i: int, j: int) -> str:

@@ -10,13 +10,13 @@ import pytest
 
 from app.cli import main
 from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.image_io import read_image, write_image
-from core.index_image import indices_from_image
-from core.project import ThematicTexture, load_project
-from core.render import render_cells, render_project
-from core.render_overview import render_overview
-from core.themes import Theme, ThemeLibrary, shipped_theme_library
+from core.io.images import read_image, write_image
+from core.model.grid import IndexGrid
+from core.model.index_image import indices_from_image
+from core.model.project import ThematicTexture, load_project
+from core.render.overview import render_overview
+from core.render.renderer import render_cells, render_project
+from core.themes.library import Theme, ThemeLibrary, shipped_theme_library
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_maps"
 

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core import sfc
+from core.curves import steps as sfc
+from core.curves.scan import fill_runs, ranks_to_steps, scan_order, scan_runs, steps_to_ranks
 from core.errors import TerrathemeError
-from core.sfc_scan import fill_runs, ranks_to_steps, scan_order, scan_runs, steps_to_ranks
 
 
 @pytest.fixture(scope="module")

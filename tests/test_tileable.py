@@ -1,4 +1,4 @@
-"""core.tileable: making patches tileable, the seam measure, and the shipped themes."""
+"""core.themes.tileable: making patches tileable, the seam measure, and the shipped themes."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
-from core.themes import SHIPPED_THEMES_DIR, shipped_theme_library
-from core.tile_quality import landmark_score, lowfreq_score, repeat_score
-from core.tileable import (
+from core.themes.library import SHIPPED_THEMES_DIR, shipped_theme_library
+from core.themes.quality import landmark_score, lowfreq_score, repeat_score
+from core.themes.tileable import (
     SEAM_THRESHOLD,
     FlattenMode,
     SeamMethod,
@@ -178,7 +178,7 @@ def test_make_tileable_errors() -> None:
 
 
 def test_make_tileable_on_dubai_photo(shared_data) -> None:
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     photo = read_image(shared_data / "dubai" / "images" / "image_part_001t1.jpg", dtype=np.uint8)
     patch = photo[100:228, 100:228, :3]

@@ -1,4 +1,4 @@
-"""core.tile_quality: low-frequency banding, repetition (ghost) and landmark scores."""
+"""core.themes.quality: low-frequency banding, repetition (ghost) and landmark scores."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
-from core.tile_quality import landmark_mask, landmark_score, lowfreq_score, repeat_score
+from core.themes.quality import landmark_mask, landmark_score, lowfreq_score, repeat_score
 
 
 def _grey(lum: np.ndarray) -> np.ndarray:

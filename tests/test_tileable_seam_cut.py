@@ -1,4 +1,4 @@
-"""core.seam_cut: minimum-error boundary cuts (Efros & Freeman 2001) across a wrap edge."""
+"""core.themes.seam_cut: minimum-error boundary cuts (Efros & Freeman 2001) across a wrap edge."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.seam_cut import cut_wrap, min_error_cut
+from core.themes.seam_cut import cut_wrap, min_error_cut
 
 
 def test_min_error_cut_follows_the_free_path() -> None:

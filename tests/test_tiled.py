@@ -7,9 +7,14 @@ import pytest
 from scipy import ndimage
 
 from core.errors import TerrathemeError
-from core.georef import read_georeference, scale_georeference, world_file_lines, write_georeference
-from core.image_io import image_info, read_image, read_region, write_image
-from core.tiled import (
+from core.io.georef import (
+    read_georeference,
+    scale_georeference,
+    world_file_lines,
+    write_georeference,
+)
+from core.io.images import image_info, read_image, read_region, write_image
+from core.io.tiles import (
     Scheduler,
     TiledImageWriter,
     dask_image,

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.convert_tiled import grid_from_file, vertex_tiles
+from core.convert.labels_to_grid import vote_grid
+from core.convert.tiled import grid_from_file, vertex_tiles
 from core.errors import TerrathemeError
-from core.image_io import write_image
-from core.labels_to_grid import vote_grid
-from core.tiled import Scheduler
+from core.io.images import write_image
+from core.io.tiles import Scheduler
 
 
 def _classes(pixels: np.ndarray) -> np.ndarray:

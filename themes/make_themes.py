@@ -5,7 +5,7 @@ Run: ``.venv/bin/python themes/make_themes.py [--dubai ../shared/data/dubai]``
 * Photo themes (sand, town, grass) are cut from the Dubai aerial
   photos (Humans in the Loop, CC0 1.0; see themes/README.md): for each class
   the script picks the window whose mask is purest for that class, then
-  makes it tileable with :func:`core.tileable.make_tileable` (default
+  makes it tileable with :func:`core.themes.tileable.make_tileable` (default
   options: Moisan periodic-plus-smooth wrap, then periodic low-frequency
   flattening -- no cross-fade ghosts, no tile-sized banding). A window
   that holds a landmark (grass: a Y-shaped tidal channel) first has it
@@ -15,14 +15,14 @@ Run: ``.venv/bin/python themes/make_themes.py [--dubai ../shared/data/dubai]``
 * Procedural themes (water, forest, crop field, rock, road, snow) are synthesised
   from spectrally filtered noise, which is periodic by construction (FFT),
   and periodic Gaussian filters (``mode="grid-wrap"``): seamless without a fade.
-  They go through :func:`core.tileable.make_tileable` too, which leaves a
+  They go through :func:`core.themes.tileable.make_tileable` too, which leaves a
   periodic texture's seam alone and only flattens its tile-sized blotches
   (1/f noise puts most of its energy in the lowest, tile-sized waves).
 
 Everything is seeded, so a re-run reproduces the same files. Every theme
-must pass :func:`core.tileable.seam_score` and
-:func:`core.tile_quality.lowfreq_score`, and every photo theme
-:func:`core.tile_quality.repeat_score` (the script checks them).
+must pass :func:`core.themes.tileable.seam_score` and
+:func:`core.themes.quality.lowfreq_score`, and every photo theme
+:func:`core.themes.quality.repeat_score` (the script checks them).
 """
 
 from __future__ import annotations
@@ -40,22 +40,22 @@ from scipy import ndimage
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from core.atomic import write_bytes_atomic  # noqa: E402
-from core.image_io import read_image, write_image  # noqa: E402
-from core.tile_quality import (  # noqa: E402
+from core.io.atomic import write_bytes_atomic  # noqa: E402
+from core.io.images import read_image, write_image  # noqa: E402
+from core.themes.quality import (  # noqa: E402
     landmark_mask,
     landmark_score,
     lowfreq_score,
     repeat_score,
 )
-from core.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
+from core.themes.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
 
 SIZE = 256
 #: banding pass mark: share of contrast in waves of <= 2 periods per tile
 LOWFREQ_MAX = 0.2
 #: ghost / copy pass mark for photo themes (a half-shift cross-fade scores about 0.85)
 REPEAT_MAX = 0.3
-#: largest landmark (core.tile_quality.landmark_score) a cleaned photo theme may keep
+#: largest landmark (core.themes.quality.landmark_score) a cleaned photo theme may keep
 LANDMARK_MAX = 0.02
 #: remove_landmarks: features smaller than this share of the window are texture grain
 LANDMARK_MIN_AREA = 0.008
@@ -178,7 +178,7 @@ def remove_landmarks(patch: np.ndarray) -> tuple[np.ndarray, float]:
     share : float
         Share of the window that was filled.
     """
-    # Dark and bright features wider than the grain (core.tile_quality.landmark_mask).
+    # Dark and bright features wider than the grain (core.themes.quality.landmark_mask).
     hole = np.zeros(patch.shape[:2], np.uint8)
     for mask in landmark_mask(patch, periodic=False):
         _n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8))

@@ -55,7 +55,7 @@ def _read_mask(path: str):
     import numpy as np
 
     from core.errors import TerrathemeError
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     mask = read_image(path)
     if mask.shape[2] > 1:
@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         train_classifier,
     )
     from core.errors import TerrathemeError
-    from core.image_io import read_image, write_image
+    from core.io.images import read_image, write_image
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:

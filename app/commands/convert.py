@@ -1,6 +1,6 @@
 """``terratheme convert``: orthophoto -> thematic texture project, preview and packed index layer.
 
-Runs the whole pipeline of :mod:`core.convert` with a progress bar and
+Runs the whole pipeline of :mod:`core.convert.photo` with a progress bar and
 writes, by default beside PROJECT: ``<stem>_preview.png`` (the render over
 the photo's extent; a world file beside it when the photo is a GeoTIFF) and
 ``<stem>.ttpack`` (the vertex grid packed along a space-filling curve).
@@ -72,7 +72,7 @@ def _read_mask(path: str):
     import numpy as np
 
     from core.errors import TerrathemeError
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     mask = read_image(path)
     if not np.issubdtype(mask.dtype, np.integer):
@@ -92,7 +92,7 @@ def _curve_chart(choice, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from core.atomic import atomic_path
+    from core.io.atomic import atomic_path
 
     cells = [p.cell for p in choice.curve]
     fig, ax = plt.subplots(figsize=(6, 3.6), dpi=110)
@@ -119,7 +119,13 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from core.convert import ConvertOptions, convert_photo, parse_themes, read_photo, write_outputs
+    from core.convert.photo import (
+        ConvertOptions,
+        convert_photo,
+        parse_themes,
+        read_photo,
+        write_outputs,
+    )
     from core.errors import TerrathemeError
 
     project = Path(args.project)
@@ -184,8 +190,8 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
     from tqdm import tqdm
 
     from core.classify import Classifier
-    from core.convert import write_outputs
-    from core.convert_tiled import convert_file_tiled
+    from core.convert.photo import write_outputs
+    from core.convert.tiled import convert_file_tiled
     from core.errors import TerrathemeError
 
     if args.scribbles:

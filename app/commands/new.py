@@ -36,10 +36,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.image_io import read_image
-    from core.index_image import project_from_index_image
-    from core.project import save_project
-    from core.themes import shipped_theme_library
+    from core.io.images import read_image
+    from core.model.index_image import project_from_index_image
+    from core.model.project import save_project
+    from core.themes.library import shipped_theme_library
 
     names = [n.strip() for n in args.themes.split(",") if n.strip()]
     library = shipped_theme_library().select(names)

@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
     """Pack ``args.input`` into ``args.output`` and print a one-line summary."""
     from tqdm import tqdm
 
-    from core.image_io import read_image
+    from core.io.images import read_image
     from core.packing import pack
 
     image = read_image(args.input)

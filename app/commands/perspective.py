@@ -65,13 +65,13 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from core.errors import TerrathemeError
-    from core.image_io import read_image, write_image
+    from core.io.images import read_image, write_image
     from core.perspective import Camera, FilterOptions, Method, PlaneMapping, PreparedTexture
 
     # the texture: an image file, or a project's full render
     if str(args.input).lower().endswith(".ttproj"):
-        from core.project import load_project
-        from core.render import render_project
+        from core.model.project import load_project
+        from core.render.renderer import render_project
 
         texture = render_project(load_project(args.input))
     else:

@@ -32,9 +32,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from core.image_io import write_image
-    from core.project import load_project
-    from core.render import BlendMode, RenderOptions, render_project
+    from core.io.images import write_image
+    from core.model.project import load_project
+    from core.render.renderer import BlendMode, RenderOptions, render_project
 
     project = load_project(args.project)
     options = RenderOptions(blend=BlendMode(args.blend))

@@ -17,7 +17,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Unpack ``args.input`` into the image ``args.output``."""
-    from core.image_io import write_image
+    from core.io.images import write_image
     from core.packing import PackedLayer
 
     layer = PackedLayer.load(args.input)

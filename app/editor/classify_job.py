@@ -2,7 +2,7 @@
 
 The job runs the core classifier (unsupervised, or Extra-Trees trained on the
 scribble layer) and converts its labels to a vertex grid
-(``core.labels_to_grid``) off the GUI thread; the window applies the result
+(``core.convert.labels_to_grid``) off the GUI thread; the window applies the result
 as one undoable step. Cancel is cooperative: the progress callback raises
 inside the classifier at its next tile, and a result that arrives after
 Cancel is dropped.
@@ -18,7 +18,7 @@ import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
 
 from app.editor.uncertainty import scribble_classes
-from core.themes import Theme, ThemeLibrary
+from core.themes.library import Theme, ThemeLibrary
 
 #: display colours of new class themes (matplotlib's tab10, as 8-bit RGB)
 _QUALITATIVE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
@@ -107,13 +107,13 @@ def nearest_theme_lut(photo: np.ndarray, labels: np.ndarray, classes: tuple[int,
 
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
                  taken: list[str]) -> tuple[list[Theme], np.ndarray]:
-    """Themes cut from the photo for every class (``core.photo_themes.themes_from_photo``).
+    """Themes cut from the photo for every class (``core.themes.from_photo.themes_from_photo``).
 
     Returns the themes (renamed where a name is taken, and given distinct
     display colours so the index map reads well; the texture keeps the
     photo's look) and the class -> position-in-that-list table.
     """
-    from core.photo_themes import themes_from_photo
+    from core.themes.from_photo import themes_from_photo
 
     mapping = themes_from_photo(photo[..., :3], labels, classes=classes)
     out = []
@@ -138,8 +138,8 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
     also uses where the strokes lie (``FeatureOptions.position``).
     """
     from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
+    from core.convert.labels_to_grid import labels_to_grid
     from core.errors import TerrathemeError
-    from core.labels_to_grid import labels_to_grid
 
     if mode is Mode.SCRIBBLES:
         if scribbles is None or not scribbles.any():

@@ -6,8 +6,8 @@ from typing import TYPE_CHECKING
 
 from PySide6.QtGui import QUndoCommand
 
-from core.editing import Atom
-from core.themes import Theme
+from core.edit.session import Atom
+from core.themes.library import Theme
 
 if TYPE_CHECKING:
     from app.editor.document import EditorDocument

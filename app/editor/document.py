@@ -19,13 +19,13 @@ from PySide6.QtGui import QUndoStack
 from app.editor.commands import AddThemeCommand, AtomCommand, ThemeCommand
 from app.editor.imaging import Pyramid
 from app.editor.uncertainty import KeptPrior, next_kept_prior, scribble_classes, uncertain_mask
-from core.edit_fidelity import fidelity_map, heat_colours
-from core.edit_preview import RenderPreview
-from core.edit_tools import capsule_footprint
-from core.editing import Atom, EditAtom, EditSession, GridChange
+from core.edit.fidelity import fidelity_map, heat_colours
+from core.edit.preview import RenderPreview
+from core.edit.session import Atom, EditAtom, EditSession, GridChange
+from core.edit.tools import capsule_footprint
 from core.errors import TerrathemeError
-from core.project import ThematicTexture, load_project, save_project
-from core.themes import Theme
+from core.model.project import ThematicTexture, load_project, save_project
+from core.themes.library import Theme
 
 
 class EditorDocument(QObject):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from core.errors import TerrathemeError
-from core.project import PROJECT_SUFFIX
+from core.model.project import PROJECT_SUFFIX
 
 
 def load_start_document(target: str | None, *, classify: bool):

@@ -20,7 +20,7 @@ from PySide6.QtWidgets import (
 from app.editor.document import EditorDocument
 from app.editor.imaging import qimage_view
 from core.errors import TerrathemeError
-from core.themes import Theme
+from core.themes.library import Theme
 
 THUMB = 44
 
@@ -105,7 +105,7 @@ class ThemePalette(QWidget):
 
     # -- actions -------------------------------------------------------------
     def _texture_file(self) -> tuple[np.ndarray, str] | None:
-        from core.image_io import read_image
+        from core.io.images import read_image
 
         path, _ = QFileDialog.getOpenFileName(self, "Theme texture", "",
                                               "Images (*.png *.jpg *.jpeg *.tif *.tiff *.exr)")

@@ -16,7 +16,7 @@ from PySide6.QtGui import QColor, QPainter, QPen
 
 from app.editor.commands import ScribbleCommand
 from app.editor.document import EditorDocument
-from core.editing import merge_atoms
+from core.edit.session import merge_atoms
 
 
 class Tool(Enum):

@@ -176,7 +176,7 @@ class MenuMixin:
         return True
 
     def export_render(self, path: str | None = None) -> bool:
-        from core.image_io import write_image
+        from core.io.images import write_image
 
         if not path:
             path, _ = QFileDialog.getSaveFileName(

@@ -23,13 +23,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.atomic import write_bytes_atomic
 from core.classify.extra_trees import ExtraTreesForest
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.supervised import Classifier, SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.io.atomic import write_bytes_atomic
 
 FORMAT = "terratheme-classifier"
 VERSION = 2

@@ -5,7 +5,7 @@ of one photo too large for memory -- and fits k-means with K chosen by the
 criterion of :mod:`core.classify.unsupervised`. The resulting
 :class:`UnsupervisedModel` classifies any photo or tile with the same centres,
 so a colour gets the same theme number in every tile (the tiled converter,
-:mod:`core.convert_tiled`, relies on it). :func:`classify_unsupervised` is
+:mod:`core.convert.tiled`, relies on it). :func:`classify_unsupervised` is
 fit-then-predict on one photo.
 """
 

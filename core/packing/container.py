@@ -28,10 +28,10 @@ import zlib
 
 import numpy as np
 
+from core.curves.steps import MAX_SIDE, Curve
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.packing import compact_format, seed_format
 from core.packing.layer import PackedLayer
-from core.sfc import MAX_SIDE, Curve
 
 MAGIC = b"TTPK"
 VERSION = 1

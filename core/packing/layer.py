@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.curves.scan import fill_runs, ranks_to_steps, steps_to_ranks
+from core.curves.steps import Curve, curve_order
 from core.errors import TerrathemeError
 from core.packing.lookup import (
     W_COUNT,
@@ -22,8 +24,6 @@ from core.packing.lookup import (
     table_runs,
 )
 from core.packing.palette import PaletteReport
-from core.sfc import Curve, curve_order
-from core.sfc_scan import fill_runs, ranks_to_steps, steps_to_ranks
 
 _SCALAR: list = []
 
@@ -300,7 +300,7 @@ class PackedLayer:
         -------
         bytes_written : int
         """
-        from core.atomic import write_bytes_atomic
+        from core.io.atomic import write_bytes_atomic
         from core.packing.container import encode_layer
 
         data = encode_layer(self, format)

@@ -97,7 +97,7 @@ def _step(x, row, data):  # pragma: no cover - numba
     if data[W_MORTON]:
         return morton_step(x, y)
     n = np.int64(data[W_LEVELS])
-    # Even level counts use the transposed square curve (core.sfc.hilbert_transposed).
+    # Even level counts use the transposed square curve (core.curves.steps.hilbert_transposed).
     if n % 2 == 0:
         x, y = y, x
     return hilbert_step(x, y, n, data[TABLE_AT:TABLE_AT + HILBERT_TABLES.size])

@@ -7,11 +7,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from core.curves.steps import Curve
 from core.errors import TerrathemeError
 from core.packing import palette as _palette
 from core.packing.layer import PackedLayer
 from core.packing.palette import PaletteReport, check_image, image_runs
-from core.sfc import Curve
 
 
 class CurveChoice(enum.Enum):

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.curves.scan import scan_runs
+from core.curves.steps import Curve, curve_order
 from core.errors import TerrathemeError
-from core.sfc import Curve, curve_order
-from core.sfc_scan import scan_runs
 
 MAX_COLOURS = 256
 SUPPORTED_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))

@@ -2,14 +2,14 @@
 
 Steps (each reports through ``progress(done, total)``, total = 100):
 
-1. read the photo through OpenImageIO and its GeoTIFF georeference (``core.georef``);
+1. read the photo through OpenImageIO and its GeoTIFF georeference (``core.io.georef``);
 2. classify it (``core.classify``): unsupervised with K chosen from the data,
    a fixed K, or supervised from a scribble mask (0 = unlabelled);
-3. themes for the classes (``core.photo_themes``): cut from the photo and
+3. themes for the classes (``core.themes.from_photo``): cut from the photo and
    made tileable, or shipped themes by name;
-4. labels -> theme indices -> the vertex grid (``core.labels_to_grid``),
+4. labels -> theme indices -> the vertex grid (``core.convert.labels_to_grid``),
    the cell size chosen from the agreement target when ``cell="auto"``;
-5. the project (``core.project.ThematicTexture``) with the photo, the
+5. the project (``core.model.project.ThematicTexture``) with the photo, the
    scribbles, the georeference and the cell-size curve in its metadata.
 
 :func:`write_outputs` then saves the project, a preview render cropped to the
@@ -27,17 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import TerrathemeError
-from core.grid import IndexGrid
-from core.labels_to_grid import (
+from core.convert.labels_to_grid import (
     DEFAULT_CELL_CANDIDATES,
     CellChoice,
     apply_lut,
     choose_cell_size,
     vote_grid,
 )
-from core.photo_themes import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
-from core.project import ThematicTexture
+from core.errors import TerrathemeError
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture
+from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
 
 ProgressFn = Callable[[int, int], None]
 
@@ -221,7 +221,7 @@ def convert_photo(
     else:
         cell = (int(options.cell), int(options.cell))
     grid = IndexGrid(vote_grid(theme_labels, cell), cell)
-    from core.labels_to_grid import agreement as measure
+    from core.convert.labels_to_grid import agreement as measure
 
     score = choice.agreement if choice is not None else measure(theme_labels, grid,
                                                                 max_pixels=1 << 22)
@@ -248,8 +248,8 @@ def convert_photo(
 
 def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     """Read a photo and its georeference: ``((H, W, C) array, metadata dict)``."""
-    from core.georef import read_georeference
-    from core.image_io import read_image
+    from core.io.georef import read_georeference
+    from core.io.images import read_image
 
     photo = read_image(path)
     if photo.dtype not in (np.uint8, np.uint16):
@@ -276,7 +276,7 @@ def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -
     pixel_size : (sx, sy)
         Photo pixels per preview pixel (1, 1 unless reduced).
     """
-    from core.render import render_project
+    from core.render.renderer import render_project
 
     tw, th = project.grid.texture_size
     w, h = project.metadata.get("photo_size", [tw, th])
@@ -300,9 +300,9 @@ def write_outputs(
     -------
     written : {"project": path, "preview": path, "packed": path, "world": path...}
     """
-    from core.georef import scale_georeference, write_georeference
-    from core.image_io import write_image
-    from core.project import save_project
+    from core.io.georef import scale_georeference, write_georeference
+    from core.io.images import write_image
+    from core.model.project import save_project
 
     written: dict[str, Path] = {}
     save_project(project_path, project)

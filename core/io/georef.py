@@ -10,7 +10,7 @@ to an ImageOutput are silently dropped). So:
   names are kept, and the GeoTIFF tags themselves are read with ``tifffile``
   (a scikit-image dependency; metadata only, pixels still come through
   OpenImageIO);
-* writing: the image is written by OpenImageIO (``core.image_io`` or a tiled
+* writing: the image is written by OpenImageIO (``core.io.images`` or a tiled
   writer) and the tags are then added by appending a new first IFD that
   holds every original entry plus the GeoTIFF ones (the TIFF 6.0 way to
   extend a directory without moving pixel data). Classic TIFF and BigTIFF.
@@ -27,8 +27,8 @@ import os
 import struct
 from pathlib import Path
 
-from core.atomic import write_bytes_atomic
 from core.errors import CorruptFileError, TerrathemeError
+from core.io.atomic import write_bytes_atomic
 
 #: GeoTIFF / GDAL tags kept: code -> (name, TIFF type, struct code)
 GEO_TAGS = {

@@ -10,7 +10,7 @@ several threads (``nogil``); they share one data layout:
   cell row are one contiguous slice: uniform cells are copied, never
   gathered (the speed trick the issue names);
 * ``grid`` holds the vertex indices and ``splits`` the per-cell split
-  (``core.render_rules``) of the cells from ``(ocy, ocx)`` on (the region's
+  (``core.render.rules``) of the cells from ``(ocy, ocx)`` on (the region's
   block of the grid); weights are the exact integers of
   ``corner_weights`` (local coordinates times ``D = N*M``).
 
@@ -91,7 +91,7 @@ def _full_table(n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _table(n: int, m: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    from core.render_rules import corner_weights
+    from core.render.rules import corner_weights
 
     xi = (np.arange(n) * m)[None, :]
     yi = (rows * n)[:, None]

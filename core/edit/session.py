@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.edit_tools import (
+from core.edit.tools import (
     Connectivity,
     Footprint,
     capsule_footprint,
@@ -25,7 +25,7 @@ from core.edit_tools import (
     rect_footprint,
 )
 from core.errors import TerrathemeError
-from core.project import ThematicTexture
+from core.model.project import ThematicTexture
 
 
 @dataclass(frozen=True, eq=False)

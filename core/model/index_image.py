@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.grid import IndexGrid, validate_indices
-from core.project import ThematicTexture
-from core.themes import ThemeLibrary
+from core.model.grid import IndexGrid, validate_indices
+from core.model.project import ThematicTexture
+from core.themes.library import ThemeLibrary
 
 COLOUR_TOLERANCE = 12
 

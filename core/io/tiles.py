@@ -1,7 +1,7 @@
 """Images larger than memory: tile windows with overlap, bounded-memory tile jobs, Dask.
 
 A tile job reads one window of a file (its core plus ``overlap`` pixels on
-every side, clipped to the image) through :func:`core.image_io.read_region`,
+every side, clipped to the image) through :func:`core.io.images.read_region`,
 computes on it, and keeps the core of the result. Peak memory is set by the
 tile size and the number of tiles in flight, never by the image size
 (``benchmarks/bench_convert.py`` measures it on a 16384 x 16384 TIFF).
@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from core.atomic import atomic_path
 from core.errors import TerrathemeError
-from core.image_io import OIIO_PIXEL_TYPES, image_info, read_region
+from core.io.atomic import atomic_path
+from core.io.images import OIIO_PIXEL_TYPES, image_info, read_region
 
 ProgressFn = Callable[[int, int], None]
 

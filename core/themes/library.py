@@ -18,7 +18,7 @@ import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError
 
-SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[1] / "themes"
+SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[2] / "themes"
 THEMES_METADATA = "themes.json"
 
 
@@ -200,7 +200,7 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
          "themes": [{"name": "forest", "colour": [34, 90, 40], "file": "forest.png",
                      "description": "..."}, ...]}
     """
-    from core.image_io import read_image
+    from core.io.images import read_image
 
     folder = Path(folder)
     meta_path = folder / THEMES_METADATA

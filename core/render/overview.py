@@ -8,7 +8,7 @@ Never renders full resolution first. Each output pixel covers an
 (the box-filtered render, assuming the smooth theme weights and the fine
 theme texture are uncorrelated inside one footprint):
 
-* ``mean(weight_k)``: the barycentric weights of ``core.render_rules``
+* ``mean(weight_k)``: the barycentric weights of ``core.render.rules``
   (same texel convention, splits and saddle rule as the full render),
   supersampled ``ceil(2 * fx / N)`` times per axis, enough to follow the
   piecewise-linear weights when a footprint spans several cells;
@@ -29,7 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from core.errors import TerrathemeError
-from core.render_rules import SaddleRule, cell_splits, corner_weights
+from core.render.rules import SaddleRule, cell_splits, corner_weights
 
 _FRAC = 4096  # fixed-point scale of the local coordinates
 
@@ -64,7 +64,7 @@ def render_overview(
     -------
     image : (max(1, round(h*scale)), max(1, round(w*scale)), 3) uint8 ndarray
     """
-    from core.render import _textures, prepare_grid, validate_region
+    from core.render.renderer import _textures, prepare_grid, validate_region
 
     texs = _textures(textures)
     grid, (n, m) = prepare_grid(indices, cell, len(texs))

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from core.atomic import atomic_path
 from core.errors import CorruptFileError, TerrathemeError
+from core.io.atomic import atomic_path
 
 #: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
 OIIO_PIXEL_TYPES = {

@@ -2,7 +2,7 @@
 
 Each tool returns a :class:`Footprint`: the bounding slice of the vertices it
 covers and a boolean mask inside that slice. The edit model
-(:mod:`core.editing`) turns a footprint plus a theme number into an undo atom.
+(:mod:`core.edit.session`) turns a footprint plus a theme number into an undo atom.
 
 Coordinates are in *vertex units*: ``(x, y)`` = (column, row) as floats, so
 vertex ``indices[j, i]`` sits at ``(i, j)``. The editor converts a cursor texel

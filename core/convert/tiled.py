@@ -1,17 +1,17 @@
 """The vertex grid of a photo larger than memory: classify and vote tile by tile.
 
 Each tile job owns a block of grid vertices: it reads the pixels those
-vertices vote over (:func:`core.labels_to_grid.vertex_window`) plus
+vertices vote over (:func:`core.convert.labels_to_grid.vertex_window`) plus
 ``overlap`` pixels of context for the classifier's features, through
-:func:`core.image_io.read_region`; classifies them; maps classes to theme
+:func:`core.io.images.read_region`; classifies them; maps classes to theme
 indices; crops the context away and votes (:func:`vote_vertices`). The grid
 is the only whole-image array (one byte per vertex), so peak memory is set by
 the tile size, not the photo size (``benchmarks/bench_convert.py``). The
-result equals :func:`core.labels_to_grid.vote_grid` on the whole label image
+result equals :func:`core.convert.labels_to_grid.vote_grid` on the whole label image
 whenever the classifier's output on a tile with ``overlap`` context equals
 its output on the whole photo there (tested with a per-pixel classifier).
 
-Jobs run serially or on Dask (:class:`core.tiled.Scheduler`).
+Jobs run serially or on Dask (:class:`core.io.tiles.Scheduler`).
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
 from core.errors import TerrathemeError
-from core.grid import IndexGrid, validate_cell
-from core.image_io import image_info
-from core.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
-from core.tiled import Scheduler, TileWindow, run_tiles
+from core.io.images import image_info
+from core.io.tiles import Scheduler, TileWindow, run_tiles
+from core.model.grid import IndexGrid, validate_cell
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 
@@ -171,7 +171,7 @@ def sample_pieces(path: str | os.PathLike, budget: int | None = None,
     -------
     pieces : list of (h, w, C) ndarrays
     """
-    from core.image_io import read_region
+    from core.io.images import read_region
 
     budget = THEME_WINDOW if budget is None else int(budget)
     info = image_info(path)
@@ -194,7 +194,7 @@ def fit_unsupervised_file(path: str | os.PathLike, themes: str | int = "auto",
     """Unsupervised themes fitted on :func:`sample_pieces` of a photo file.
 
     With a list of theme ``names`` and ``themes="auto"``, K never exceeds the
-    number of names (as :func:`core.convert.convert_photo` does).
+    number of names (as :func:`core.convert.photo.convert_photo` does).
 
     Returns
     -------
@@ -234,7 +234,7 @@ def convert_file_tiled(
         the same themes in every tile.
     cell : int or "auto"
         Square cell size; "auto" chooses it on the centre window's labels
-        (:func:`core.labels_to_grid.choose_cell_size`, ``target_agreement``):
+        (:func:`core.convert.labels_to_grid.choose_cell_size`, ``target_agreement``):
         an estimate from ``THEME_WINDOW``^2 pixels, recorded as such in the
         metadata (``cell_choice["measured_on"]``).
     names : list or {class: name}, optional
@@ -251,10 +251,10 @@ def convert_file_tiled(
         Metadata: ``source_photo``, ``georeference``, ``photo_size``, ``classes``;
         no photo layer (it does not fit in memory).
     """
-    from core.georef import read_georeference
-    from core.image_io import read_region
-    from core.photo_themes import themes_by_name, themes_from_photo
-    from core.project import ThematicTexture
+    from core.io.georef import read_georeference
+    from core.io.images import read_region
+    from core.model.project import ThematicTexture
+    from core.themes.from_photo import themes_by_name, themes_from_photo
 
     info = image_info(path)
     if model is None:
@@ -302,7 +302,7 @@ def convert_file_tiled(
     choice = None
     if cell == "auto":
         # Cell size from the agreement curve of the centre window (an estimate).
-        from core.labels_to_grid import apply_lut, choose_cell_size
+        from core.convert.labels_to_grid import apply_lut, choose_cell_size
 
         choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement)
         cell = choice.cell[0]

@@ -15,7 +15,7 @@ has 2^32 steps, so 0-based steps fit ``uint32`` and 1-based ones do not.
 The whole-image scan (texel order along the curve) is cut into ``2^b x 2^b``
 blocks: the coarse curve orders the blocks, and each block is walked with one
 of four precomputed local patterns (:func:`block_plan`). The numba kernels in
-:mod:`core.sfc_scan` use that plan.
+:mod:`core.curves.scan` use that plan.
 """
 
 from __future__ import annotations

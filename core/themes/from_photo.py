@@ -5,7 +5,7 @@ made tileable"): for every class, the square window that lies (almost)
 entirely inside the class region and whose pixels lie closest, in mean
 squared CIE Lab distance, to the class's mean colour is cut out and made
 tileable with
-:func:`core.tileable.make_tileable`. That distance is the window's colour
+:func:`core.themes.tileable.make_tileable`. That distance is the window's colour
 variance plus the squared distance of its mean from the class mean, so the
 patch is both homogeneous (least texture energy, no mixture with a
 neighbouring class) and representative: variance alone prefers the darkest,
@@ -18,13 +18,13 @@ scattered pixels, or a photo smaller than ``min_size``) gets a flat theme of
 its mean colour, and says so in ``Theme.source``.
 
 *Shipped themes by name*: classes map to themes of
-:func:`core.themes.shipped_theme_library`, either explicitly (``{class:
+:func:`core.themes.library.shipped_theme_library`, either explicitly (``{class:
 name}``) or by colour: the assignment of classes to the named themes that
 minimises the total Lab distance between class mean colours and theme mean
 colours (``scipy.optimize.linear_sum_assignment``).
 
 Both return a :class:`ThemeMapping`: the library plus the 256-entry table
-class value -> theme index used by :func:`core.labels_to_grid.labels_to_grid`.
+class value -> theme index used by :func:`core.convert.labels_to_grid.labels_to_grid`.
 Label 0 (no data: transparent pixels) gets a theme of its own, ``no data``.
 """
 
@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.themes import Theme, ThemeLibrary, flat_theme
+from core.themes.library import Theme, ThemeLibrary, flat_theme
 
 NO_DATA_NAME = "no data"
 NO_DATA_COLOUR = (0, 0, 0)
@@ -205,7 +205,7 @@ def themes_from_photo(
     -------
     ThemeMapping
     """
-    from core.tileable import make_tileable
+    from core.themes.tileable import make_tileable
 
     rgb, labels = _check(photo, labels)
     wanted = _present_classes(labels, classes)
@@ -261,7 +261,7 @@ def themes_by_name(
     """
     from scipy.optimize import linear_sum_assignment
 
-    from core.themes import shipped_theme_library
+    from core.themes.library import shipped_theme_library
 
     rgb, labels = _check(photo, labels)
     source = library if library is not None else shipped_theme_library()

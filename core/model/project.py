@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.atomic import atomic_path
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.grid import IndexGrid, validate_indices
-from core.themes import Theme, ThemeLibrary
+from core.io.atomic import atomic_path
+from core.model.grid import IndexGrid, validate_indices
+from core.themes.library import Theme, ThemeLibrary
 
 FORMAT_NAME = "terratheme-project"
 FORMAT_VERSION = 1

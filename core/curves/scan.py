@@ -1,4 +1,4 @@
-"""Whole-image scans along a curve: numba kernels over a :class:`core.sfc.BlockPlan`.
+"""Whole-image scans along a curve: numba kernels over a :class:`core.curves.steps.BlockPlan`.
 
 Each kernel walks the blocks of the plan in curve order and, inside a block,
 one of the precomputed local patterns, skipping texels outside the image (seed
@@ -18,8 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
+from core.curves.steps import BlockPlan, Curve, block_plan
 from core.errors import TerrathemeError
-from core.sfc import BlockPlan, Curve, block_plan
 
 
 @numba.njit(cache=True, nogil=True)

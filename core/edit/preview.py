@@ -1,6 +1,6 @@
 """The editor's live preview: a full render kept up to date by re-rendering dirty cells.
 
-After an edit only the cells whose render can change (``core.editing.dirty_region``:
+After an edit only the cells whose render can change (``core.edit.session.dirty_region``:
 the cells around the changed vertices plus the saddle rule's one-cell ring) are
 re-rendered with ``render_cells(region=...)`` and pasted into the existing
 image. Because ``render_cells`` returns exactly the crop of the full render
@@ -15,8 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.editing import GridChange, dirty_region
-from core.project import ThematicTexture
+from core.edit.session import GridChange, dirty_region
+from core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
 
@@ -42,7 +42,7 @@ class RenderPreview:
 
     def _render(self, region: tuple[int, int, int, int] | None,
                 progress: Progress | None = None) -> np.ndarray:
-        from core.render import render_cells
+        from core.render.renderer import render_cells
 
         grid = self.texture.grid
         return render_cells(grid.indices, self.texture.library.textures, grid.cell, region,

@@ -1,6 +1,6 @@
 """Per-pixel labels to a vertex index grid, and the cell size chosen from an agreement target.
 
-Conventions follow :mod:`core.render_rules`: global texel column ``X`` sits at
+Conventions follow :mod:`core.render.rules`: global texel column ``X`` sits at
 grid position ``X / N``, so vertex ``i`` sits on texel column ``i*N`` and a
 photo of ``W x H`` pixels needs ``gw = ceil(W / N)`` cells across (the
 render is ``gw*N`` texels wide, at least the photo's width, and is cropped to
@@ -16,7 +16,7 @@ render reproduces exactly), then to the lowest label: deterministic.
 
 The agreement of a grid is the fraction of photo pixels whose label equals
 the grid's *label view* (the theme with the largest blend weight at that
-texel, :func:`core.render.render_labels`). :func:`choose_cell_size`
+texel, :func:`core.render.renderer.render_labels`). :func:`choose_cell_size`
 returns the largest cell whose agreement meets the target (DESIGN.md §4:
 "cell size chosen from an error target").
 """
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.grid import IndexGrid, validate_cell
+from core.model.grid import IndexGrid, validate_cell
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
 DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
@@ -260,7 +260,7 @@ def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = N
         regions are exact crops of the full render, so this is an unbiased
         row sample). Default: every pixel.
     """
-    from core.render import render_labels
+    from core.render.renderer import render_labels
 
     labels = _check_labels(labels)
     h, w = labels.shape

@@ -4,11 +4,11 @@
 texture, or any ``region`` of it (exactly the crop of the full render);
 ``render_labels`` gives the theme with the largest weight per texel (the
 converter's agreement measure); ``render_project`` renders a
-:class:`~core.project.ThematicTexture`, at reduced resolution for overviews
-(``core.render_overview``, which never renders full resolution first).
+:class:`~core.model.project.ThematicTexture`, at reduced resolution for overviews
+(``core.render.overview``, which never renders full resolution first).
 
 Conventions (texel positions, exact integer weights and rounding, saddle
-rule) are documented in :mod:`core.render_rules`.
+rule) are documented in :mod:`core.render.rules`.
 """
 
 from __future__ import annotations
@@ -23,12 +23,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.grid import IndexGrid, validate_cell, validate_indices
-from core.render_rules import SaddleRule, cell_splits
-from core.themes import Theme, validate_texture
+from core.model.grid import IndexGrid, validate_cell, validate_indices
+from core.render.rules import SaddleRule, cell_splits
+from core.themes.library import Theme, validate_texture
 
 if TYPE_CHECKING:
-    from core.project import ThematicTexture
+    from core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
 
@@ -50,7 +50,7 @@ class RenderOptions:
     ----------
     blend : BlendMode
     saddle : SaddleRule
-        How saddle cells (``A B / B A``) are split (``core.render_rules``).
+        How saddle cells (``A B / B A``) are split (``core.render.rules``).
     threads : int
         Row bands rendered in parallel; 0 = one per CPU.
     """
@@ -177,8 +177,8 @@ def render_cells(
         Bad grid (not 2-D, empty, negative, index without a theme), bad
         themes (none, empty, not 3/4 channels), bad cell or region.
     """
-    from core import render_kernel as rk
-    from core.render_pack import LUT_RANGE, pack_themes
+    from core.render import kernels as rk
+    from core.render.theme_pack import LUT_RANGE, pack_themes
 
     textures = _textures(themes)
     indices, (n, m) = prepare_grid(grid, cell, len(textures))
@@ -285,7 +285,7 @@ def render_labels(
     -------
     labels : (h, w) uint8 ndarray
     """
-    from core import render_kernel as rk
+    from core.render import kernels as rk
 
     indices, (n, m) = prepare_grid(grid, cell, n_themes)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
@@ -339,7 +339,7 @@ def render_project(
     if float(scale) == 1.0:
         return render_cells(project.grid.indices, textures, project.grid.cell, region,
                             options=options, progress=progress)
-    from core.render_overview import render_overview
+    from core.render.overview import render_overview
 
     return render_overview(project.grid.indices, textures, project.grid.cell, region,
                            scale=float(scale), saddle=options.saddle)

@@ -16,7 +16,7 @@
      (``seam_score <= TileableOptions.tiles_already``) is not wrapped again:
      a periodic patch comes through this step unchanged.
    * ``CUT``: image quilting across the wrap edge (Efros & Freeman,
-     SIGGRAPH 2001; :mod:`core.seam_cut`): a half-shifted copy fills a narrow
+     SIGGRAPH 2001; :mod:`core.themes.seam_cut`): a half-shifted copy fills a narrow
      band around the edge, joined along minimum-error cuts with a few texels
      of feathering. No ghosts, but the band repeats part of the interior.
    * ``CROSSFADE``: the classic half-shift cross-fade, made *histogram
@@ -37,7 +37,7 @@
 
 Defaults were chosen with ``benchmarks/bench_tileable.py`` on Dubai photo
 patches (32 to 256 texels), rated by :func:`seam_score` and
-:mod:`core.tile_quality` (``repeat_score`` for ghosts and copied strips,
+:mod:`core.themes.quality` (``repeat_score`` for ghosts and copied strips,
 ``lowfreq_score`` for banding).
 
 Seam measure (``seam_score``): the mean absolute colour step across the
@@ -57,9 +57,9 @@ from scipy.ndimage import gaussian_filter
 from scipy.special import ndtr
 
 from core.errors import TerrathemeError
-from core.render_pack import gaussianise
-from core.seam_cut import cut_wrap
-from core.themes import validate_texture
+from core.render.theme_pack import gaussianise
+from core.themes.library import validate_texture
+from core.themes.seam_cut import cut_wrap
 
 #: the score below which a texture counts as seamless (the shipped themes' test)
 SEAM_THRESHOLD = 1.5
