@@ -2,25 +2,39 @@
 # Set up terratheme in ./.venv on a fresh machine (Python >= 3.11 required).
 #   bash setup.sh          # the tool and the editor
 #   bash setup.sh --test   # plus the test tools (pytest, pytest-qt, hypothesis, ruff)
+#   bash setup.sh --bench  # plus the benchmark peers (imagecodecs)
 set -euo pipefail
 cd "$(dirname "$0")"
 
 extra="app"
 [ "${1:-}" = "--test" ] && extra="test"
+[ "${1:-}" = "--bench" ] && extra="test,bench"
 
-# System libraries the Qt editor needs (present on most desktops; installed via apt when root).
+# System libraries: Qt's xcb platform (a real X display) and fonts, and Mesa's EGL/GL with the
+# llvmpipe software driver for the GPU path on machines without a GPU. Present on most
+# desktops; installed via apt when root.
 need=()
-for pair in libGL.so.1:libgl1 libEGL.so.1:libegl1 libfontconfig.so.1:libfontconfig1 \
-            libxkbcommon.so.0:libxkbcommon0 libdbus-1.so.3:libdbus-1-3 libglib-2.0.so.0:libglib2.0-0; do
+for pair in libGL.so.1:libgl1 libEGL.so.1:libegl1 libEGL_mesa.so.0:libegl-mesa0 \
+            libgbm.so.1:libgbm1 libfontconfig.so.1:libfontconfig1 \
+            libxkbcommon.so.0:libxkbcommon0 libxkbcommon-x11.so.0:libxkbcommon-x11-0 \
+            libdbus-1.so.3:libdbus-1-3 libglib-2.0.so.0:libglib2.0-0 \
+            libxcb-cursor.so.0:libxcb-cursor0 libxcb-icccm.so.4:libxcb-icccm4 \
+            libxcb-keysyms.so.1:libxcb-keysyms1 libxcb-image.so.0:libxcb-image0 \
+            libxcb-render-util.so.0:libxcb-render-util0 libxcb-randr.so.0:libxcb-randr0 \
+            libxcb-shape.so.0:libxcb-shape0 libxcb-xkb.so.1:libxcb-xkb1 \
+            libxcb-xinerama.so.0:libxcb-xinerama0 libX11-xcb.so.1:libx11-xcb1; do
   lib=${pair%%:*}; pkg=${pair##*:}
   ldconfig -p 2>/dev/null | grep -q "$lib" || need+=("$pkg")
 done
+# Mesa's software rasteriser (llvmpipe) is a DRI driver, not on the linker path.
+ls /usr/lib/*/dri/swrast_dri.so /usr/lib/dri/swrast_dri.so >/dev/null 2>&1 || need+=(libgl1-mesa-dri)
 if [ ${#need[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     echo "setup: installing system libraries: ${need[*]}"
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
   else
-    echo "setup: warning: missing system libraries for the Qt editor: ${need[*]} (install them with your package manager)" >&2
+    echo "setup: warning: missing system libraries (editor on a real display, GPU path):" \
+         "${need[*]} (install them with your package manager)" >&2
   fi
 fi
 
@@ -29,4 +43,7 @@ PY=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e ".[$extra]"
+# Compile the numba kernels once now (cached beside the sources), so a first run is as fast
+# as a second.
+.venv/bin/python -m app.warmup
 echo "setup: ready (.venv/bin/terratheme)"

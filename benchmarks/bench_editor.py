@@ -30,7 +30,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.editor.imaging import Pyramid  # noqa: E402
+from app.editor.imaging import ZoomPyramid  # noqa: E402
 from app.editor.newproject import default_library  # noqa: E402
 from core.edit.preview import RenderPreview  # noqa: E402
 from core.edit.session import EditSession  # noqa: E402
@@ -72,7 +72,7 @@ class Setup:
         t0 = time.perf_counter()
         self.preview = RenderPreview(self.tex)
         self.init_s = time.perf_counter() - t0
-        self.pyramid = Pyramid(self.preview.image)
+        self.pyramid = ZoomPyramid(self.preview.image)
         self.session = EditSession(self.tex)
         self.regions: list[tuple[int, int, int, int]] = []
         self.session.subscribe(self._on_change)

@@ -21,12 +21,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from skimage.metrics import peak_signal_noise_ratio, structural_similarity  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
-from core.perspective import Camera, FilterOptions, Method, PreparedTexture  # noqa: E402
-from core.perspective.mapping import camera_mapping  # noqa: E402
+from core.perspective import Camera, FilterOptions, Method, PreparedTexture
+from core.perspective.mapping import camera_mapping
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
@@ -68,7 +68,7 @@ def thematic(n: int = TEX) -> tuple[np.ndarray, str]:
     """A rendered thematic texture crop, ``(n, n, 3) uint8``, and where it came from."""
     try:
         from core.model.project import load_project
-        from core.render.renderer import render_project
+        from core.render.project import render_project
 
         img = render_project(load_project(REPO / "sample_maps" / "airfield.ttproj"))
         return np.ascontiguousarray(img[:n, :n]), "render of sample_maps/airfield.ttproj"

@@ -27,7 +27,8 @@ from core.classify import (
 )
 from core.classify.features import coarse_lab
 from core.classify.photo import prepare_photo
-from core.classify.tiled import Window, tile_features
+from core.classify.tiled import tile_features
+from core.io.tiles import TileWindow
 
 RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000
@@ -44,7 +45,7 @@ KMEANS = UnsupervisedOptions(
 
 
 def whole_window(h, w):
-    return Window(0, h, 0, w, 0, h, 0, w)
+    return TileWindow(0, 0, w, h, 0, 0, w, h)
 
 
 def ilastik_features(photo):

@@ -111,6 +111,8 @@ def test_corrections_leave_existing_strokes_and_ignored_classes(ev):
     wrong = np.ones(mask.shape, bool)
     strokes = ev.simulate_corrections(mask, [1, 2], np.random.default_rng(1), wrong, 3000,
                                       existing=existing)
+    # It paints (most of the budget), around the strokes already there.
+    assert (strokes > 0).sum() > 1500
     assert not (strokes[existing > 0]).any()
     assert not (strokes == 7).any() and not strokes[:, 136:].any()
     assert _inside_class(mask, strokes)
@@ -134,6 +136,9 @@ def test_two_rounds_respect_the_budget_and_the_classes(ev, seed, budget):
     first = ev.simulate_scribbles(mask, [1, 2, 3], rng, budget=budget / 2)
     second = ev.simulate_corrections(mask, [1, 2, 3], rng, wrong,
                                      total - int((first > 0).sum()), existing=first)
+    # A class's share of the first half holds a whole stroke (at most 30 x 3 + caps): painted.
+    if budget / 2 * mask.size / 3 >= 130:
+        assert (first > 0).any()
     assert not (first.astype(bool) & second.astype(bool)).any()
     assert int((first > 0).sum() + (second > 0).sum()) <= total
     assert _inside_class(mask, first) and _inside_class(mask, second)

@@ -7,7 +7,7 @@ import pytest
 
 from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.classify.tiled import tile_windows
+from core.classify.tiled import feature_windows
 from core.errors import TerrathemeError
 
 
@@ -84,9 +84,9 @@ def test_tiles_with_the_halo_reproduce_the_whole_photo():
     photo = rng.integers(0, 256, (72, 96, 3), dtype=np.uint8)
     fo = FeatureOptions(sigmas=(0.5,), ridge_sigmas=(1.0, 4.0))
     whole = compute_features(photo, fo)
-    for win in tile_windows(72, 96, 32, 8, fo.halo):
-        _lab, _std, part = image_features(photo[win.oy0:win.oy1, win.ox0:win.ox1], fo)
-        oy, ox = (win.y0 - win.oy0) // 8, (win.x0 - win.ox0) // 8
-        core = part[oy:oy + (win.y1 - win.y0) // 8, ox:ox + (win.x1 - win.x0) // 8, -4:]
+    for win in feature_windows(72, 96, 32, 8, fo.halo):
+        _lab, _std, part = image_features(photo[win.ry:win.ry1, win.rx:win.rx1], fo)
+        oy, ox = (win.y - win.ry) // 8, (win.x - win.rx) // 8
+        core = part[oy:oy + (win.y1 - win.y) // 8, ox:ox + (win.x1 - win.x) // 8, -4:]
         np.testing.assert_allclose(
-            core, whole[win.y0 // 8:win.y1 // 8, win.x0 // 8:win.x1 // 8, -4:], atol=1e-3)
+            core, whole[win.y // 8:win.y1 // 8, win.x // 8:win.x1 // 8, -4:], atol=1e-3)

@@ -8,12 +8,12 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
+from PySide6.QtCore import QPoint, QPointF, Qt
 
-from core.model.grid import IndexGrid  # noqa: E402
-from core.model.project import ThematicTexture, save_project  # noqa: E402
-from core.render.renderer import render_cells  # noqa: E402
-from core.themes.library import Theme, ThemeLibrary  # noqa: E402
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture, save_project
+from core.render.renderer import render_cells
+from core.themes.library import Theme, ThemeLibrary
 
 pytestmark = pytest.mark.qt
 

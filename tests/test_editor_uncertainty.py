@@ -9,9 +9,9 @@ pytest.importorskip("PySide6")
 
 pytest.importorskip("pytestqt")
 
-from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
+from PySide6.QtCore import QPoint, QPointF, Qt
 
-from app.editor.uncertainty import (  # noqa: E402
+from app.editor.uncertainty import (
     TINT,
     KeptPrior,
     next_kept_prior,
@@ -19,7 +19,7 @@ from app.editor.uncertainty import (  # noqa: E402
     uncertain_mask,
     uncertainty_rgba,
 )
-from core.errors import TerrathemeError  # noqa: E402
+from core.errors import TerrathemeError
 
 
 def test_the_lowest_tenth_without_filter_is_the_smallest_values():

@@ -374,7 +374,7 @@ def test_cli_errors_exit_2(tmp_path, capsys):
 def test_cli_renders_a_project(tmp_path):
     from core.model.grid import IndexGrid
     from core.model.project import ThematicTexture, save_project
-    from core.render.renderer import render_project
+    from core.render.project import render_project
     from core.themes.library import ThemeLibrary, flat_theme
 
     lib = ThemeLibrary([flat_theme("field", (200, 180, 40)), flat_theme("water", (20, 60, 200))])

@@ -15,7 +15,8 @@ from core.model.grid import IndexGrid
 from core.model.index_image import indices_from_image
 from core.model.project import ThematicTexture, load_project
 from core.render.overview import render_overview
-from core.render.renderer import render_cells, render_project
+from core.render.project import render_project
+from core.render.renderer import render_cells
 from core.themes.library import Theme, ThemeLibrary, shipped_theme_library
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_maps"

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     # the texture: an image file, or a project's full render
     if str(args.input).lower().endswith(".ttproj"):
         from core.model.project import load_project
-        from core.render.renderer import render_project
+        from core.render.project import render_project
 
         texture = render_project(load_project(args.input))
     else:

@@ -34,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
 
     from core.io.images import write_image
     from core.model.project import load_project
-    from core.render.renderer import BlendMode, RenderOptions, render_project
+    from core.render.project import render_project
+    from core.render.renderer import BlendMode, RenderOptions
 
     project = load_project(args.project)
     options = RenderOptions(blend=BlendMode(args.blend))

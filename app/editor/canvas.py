@@ -84,7 +84,7 @@ class MapCanvas(QWidget):
         self.update(self.to_screen_rect(r).toAlignedRect().adjusted(-2, -2, 2, 2))
 
     # -- painting ------------------------------------------------------------
-    def paintEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def paintEvent(self, event) -> None:
         p = QPainter(self)
         p.fillRect(event.rect(), QColor(48, 48, 52))
         s, o = self.view.scale, self.view.origin
@@ -109,14 +109,14 @@ class MapCanvas(QWidget):
             self._space and bool(b & Qt.MouseButton.LeftButton)
         )
 
-    def mousePressEvent(self, event) -> None:  # noqa: N802
+    def mousePressEvent(self, event) -> None:
         if self._is_pan(event):
             self._pan_from = event.position()
         elif event.button() == Qt.MouseButton.LeftButton:
             self._tool_down = True
             self.pressed.emit(self.to_texel(event.position()), event.modifiers())
 
-    def mouseMoveEvent(self, event) -> None:  # noqa: N802
+    def mouseMoveEvent(self, event) -> None:
         pos = event.position()
         if self._pan_from is not None:
             delta = (pos - self._pan_from) / self.view.scale
@@ -126,24 +126,24 @@ class MapCanvas(QWidget):
             self.dragged.emit(self.to_texel(pos))
         self.hovered.emit(self.to_texel(pos))
 
-    def mouseReleaseEvent(self, event) -> None:  # noqa: N802
+    def mouseReleaseEvent(self, event) -> None:
         if self._pan_from is not None:
             self._pan_from = None
         elif self._tool_down and event.button() == Qt.MouseButton.LeftButton:
             self._tool_down = False
             self.released.emit(self.to_texel(event.position()))
 
-    def wheelEvent(self, event) -> None:  # noqa: N802
+    def wheelEvent(self, event) -> None:
         steps = event.angleDelta().y() / 120.0
         if steps:
             self.view.zoom_about(1.25**steps, event.position())
 
-    def keyPressEvent(self, event) -> None:  # noqa: N802
+    def keyPressEvent(self, event) -> None:
         if event.key() == Qt.Key.Key_Space and not event.isAutoRepeat():
             self._space = True
         super().keyPressEvent(event)
 
-    def keyReleaseEvent(self, event) -> None:  # noqa: N802
+    def keyReleaseEvent(self, event) -> None:
         if event.key() == Qt.Key.Key_Space and not event.isAutoRepeat():
             self._space = False
         super().keyReleaseEvent(event)

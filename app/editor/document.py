@@ -17,7 +17,7 @@ from PySide6.QtCore import QObject, QRectF, Signal
 from PySide6.QtGui import QUndoStack
 
 from app.editor.commands import AddThemeCommand, AtomCommand, ThemeCommand
-from app.editor.imaging import Pyramid
+from app.editor.imaging import ZoomPyramid
 from app.editor.uncertainty import KeptPrior, next_kept_prior, scribble_classes, uncertain_mask
 from core.edit.fidelity import fidelity_map, heat_colours
 from core.edit.preview import RenderPreview
@@ -58,19 +58,19 @@ class EditorDocument(QObject):
         self.undo_stack = QUndoStack(self)
         self.session = EditSession(texture, keep_history=False)
         self.preview = RenderPreview(texture, progress=progress)
-        self.render_pyramid = Pyramid(self.preview.image)
+        self.render_pyramid = ZoomPyramid(self.preview.image)
         n, m = texture.grid.cell
         gh1, gw1 = texture.grid.indices.shape
         self.index_rgb = np.ascontiguousarray(texture.library.colours[texture.grid.indices])
         # Vertex (i, j) sits at texel (i*N, j*M): its pixel spans half a cell either side.
-        self.index_pyramid = Pyramid(self.index_rgb, extent=(gw1 * n, gh1 * m),
+        self.index_pyramid = ZoomPyramid(self.index_rgb, extent=(gw1 * n, gh1 * m),
                                      origin=(-n / 2, -m / 2))
         self.photo_pyramid = None
         if texture.photo is not None:
             photo = np.ascontiguousarray(texture.photo[..., :3])
-            self.photo_pyramid = Pyramid(photo, extent=self.photo_extent())
+            self.photo_pyramid = ZoomPyramid(photo, extent=self.photo_extent())
         self._fidelity: np.ndarray | None = None
-        self.fidelity_pyramid: Pyramid | None = None
+        self.fidelity_pyramid: ZoomPyramid | None = None
         # The last classification's confidence (not saved) and what it was computed for.
         self._confidence: np.ndarray | None = None
         self._confidence_for: tuple | None = None
@@ -274,7 +274,7 @@ class EditorDocument(QObject):
                 photo = np.pad(photo, ((0, h - ph), (0, w - pw), (0, 0)), mode="edge")
             self._fidelity = fidelity_map(self.preview.image, photo, tex.grid.cells_shape)
             heat = heat_colours(self._fidelity)
-            self.fidelity_pyramid = Pyramid(heat, extent=(float(w), float(h)))
+            self.fidelity_pyramid = ZoomPyramid(heat, extent=(float(w), float(h)))
         return self._fidelity
 
     # -- files ---------------------------------------------------------------

@@ -1,6 +1,6 @@
 """numpy images shown in Qt without copies, with a mip pyramid for zoomed-out views.
 
-A :class:`Pyramid` wraps an ``(H, W, 3) uint8`` array as a QImage sharing its
+A :class:`ZoomPyramid` wraps an ``(H, W, 3) uint8`` array as a QImage sharing its
 memory (edits to the array show at the next paint) plus 2x-downsampled levels
 used when the view is zoomed out, so painting a 16384 x 16384 render costs
 what the screen shows, not what the map holds. ``update_region`` refreshes the
@@ -30,7 +30,7 @@ def qimage_view(arr: np.ndarray) -> QImage:
     return QImage(arr.data, w, h, arr.strides[0], fmt)
 
 
-class Pyramid:
+class ZoomPyramid:
     """An image and its 2x box-filtered levels, drawn into a texel rectangle.
 
     Parameters

@@ -134,7 +134,7 @@ class PerspectiveTab(QWidget):
         else:
             self._pending = True
 
-    def showEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def showEvent(self, event) -> None:
         super().showEvent(event)
         if self._pending or self._frame is None:
             self._pending = False

@@ -13,7 +13,7 @@ from PySide6.QtCore import QRectF
 from PySide6.QtGui import QAction, QKeySequence, QPainter
 from PySide6.QtWidgets import QLabel
 
-from app.editor.imaging import Pyramid
+from app.editor.imaging import ZoomPyramid
 from app.editor.uncertainty import UNCERTAIN_SHARE, uncertainty_rgba
 
 
@@ -21,7 +21,7 @@ class UncertaintyMixin:
     """For :class:`~app.editor.window.MainWindow`: the uncertainty toggle and overlay."""
 
     show_uncertainty = False
-    uncertainty_pyramid: Pyramid | None = None
+    uncertainty_pyramid: ZoomPyramid | None = None
 
     def build_uncertainty_action(self, menu) -> QAction:
         act = QAction("Show &uncertainty (least confident 10% of the photo)", self)
@@ -51,7 +51,7 @@ class UncertaintyMixin:
             self.uncertainty_action.setChecked(self.show_uncertainty)
             self.uncertainty_action.blockSignals(False)
         if self.show_uncertainty:
-            self.uncertainty_pyramid = Pyramid(uncertainty_rgba(mask),
+            self.uncertainty_pyramid = ZoomPyramid(uncertainty_rgba(mask),
                                                extent=doc.photo_extent())
             self.uncertainty_label.setText(
                 f"uncertain: {100 * mask.mean():.1f}% of the photo "

@@ -18,7 +18,7 @@ from PySide6.QtWidgets import (
 
 from app.editor.canvas import MapCanvas, ViewState
 from app.editor.document import EditorDocument
-from app.editor.imaging import Pyramid
+from app.editor.imaging import ZoomPyramid
 from app.editor.palette import ThemePalette
 from app.editor.tools import Tool, ToolController
 from app.editor.uncertainty_view import UncertaintyMixin
@@ -50,7 +50,7 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
         self.show_photo = True
         self.show_fidelity = False
         self.index_opacity = 0.75
-        self.scribble_pyramid: Pyramid | None = None
+        self.scribble_pyramid: ZoomPyramid | None = None
         self.job = None
         self.all_jobs: list = []
         self._status = QLabel()
@@ -221,7 +221,7 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
     def _scribbles_changed(self) -> None:
         rgba = self.doc.scribble_rgba()
         self.scribble_pyramid = (None if rgba is None else
-                                 Pyramid(rgba, extent=self.doc.photo_extent()))
+                                 ZoomPyramid(rgba, extent=self.doc.photo_extent()))
         self.index_canvas.update()
 
     def _scribble_painted(self, atom) -> None:

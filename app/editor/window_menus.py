@@ -297,7 +297,7 @@ class MenuMixin:
         if getattr(self, "perspective_tab", None) is not None:
             self.perspective_tab.wait(msecs)
 
-    def closeEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def closeEvent(self, event) -> None:
         if not self._confirm_discard():
             event.ignore()
             return

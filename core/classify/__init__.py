@@ -23,7 +23,8 @@ from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
-from core.classify.supervised import Classifier, SupervisedOptions, train_classifier
+from core.classify.supervised import Classifier, train_classifier
+from core.classify.supervised_options import SupervisedOptions
 from core.classify.unsupervised import UnsupervisedOptions
 from core.classify.unsupervised_model import (
     UnsupervisedModel,

@@ -19,6 +19,7 @@ import os
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -27,12 +28,21 @@ from core.classify.extra_trees import ExtraTreesForest
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
-from core.classify.supervised import Classifier, SupervisedOptions
+from core.classify.supervised_options import SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.io.atomic import write_bytes_atomic
 
 FORMAT = "terratheme-classifier"
 VERSION = 2
+
+
+class ModelParts(NamedTuple):
+    """What a model file holds: the forest (None for one class), classes, options, weights."""
+
+    forest: object
+    classes: tuple[int, ...]
+    options: SupervisedOptions
+    class_weights: tuple[float, ...] | None
 
 
 def _options_to_json(options: SupervisedOptions) -> dict:
@@ -60,8 +70,8 @@ def _options_from_json(d: dict) -> SupervisedOptions:
                              regularisation=RegulariseOptions(**r), **rest)
 
 
-def save_classifier(model: Classifier, path: str | os.PathLike) -> None:
-    """Write ``model`` to ``path`` (atomic)."""
+def write_model(path: str | os.PathLike, model: ModelParts) -> None:
+    """Write a model to ``path`` (atomic)."""
     meta = {"format": FORMAT, "version": VERSION, "classes": list(model.classes),
             "options": _options_to_json(model.options)}
     if model.class_weights is not None:
@@ -80,8 +90,8 @@ def save_classifier(model: Classifier, path: str | os.PathLike) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def load_classifier(path: str | os.PathLike) -> Classifier:
-    """Read a model written by :func:`save_classifier`.
+def read_model(path: str | os.PathLike) -> ModelParts:
+    """Read a model written by :func:`write_model`.
 
     Raises
     ------
@@ -139,4 +149,5 @@ def load_classifier(path: str | os.PathLike) -> Classifier:
             raise CorruptFileError(f"{p}: damaged forest (not trained)")
     if (forest is None) != (len(classes) == 1) or not classes:
         raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
-    return Classifier(forest, classes, options, weights)
+    return ModelParts(forest, tuple(classes), options,
+                      None if weights is None else tuple(weights))

@@ -34,7 +34,7 @@ import numpy as np
 
 from core.classify.features import FeatureOptions
 from core.classify.samples import looks_like_scribbles
-from core.classify.tiled import iter_tile_features
+from core.classify.tiled import iter_tile_features, strided_core
 from core.errors import TerrathemeError
 
 #: default correction for scribbles (benchmark: benchmarks/results/classify.json,
@@ -124,19 +124,14 @@ def photo_probabilities(
     out = []
     for win, _lab, feats in iter_tile_features(rgb, features, tile, features.halo, stats):
         # This tile's core, on a global grid of every stride-th coarse row/column.
-        gy0, gx0 = win.y0 // scale, win.x0 // scale
-        cy, cx = gy0 - win.oy0 // scale, gx0 - win.ox0 // scale
-        ch, cw = -(-(win.y1 - win.y0) // scale), -(-(win.x1 - win.x0) // scale)
-        ry, rx = (-gy0) % stride, (-gx0) % stride
-        core = feats[cy + ry : cy + ch : stride, cx + rx : cx + cw : stride]
+        core, rows, cols = strided_core(feats, win, scale, stride)
         if core.size == 0:
             continue
         probs = probability_fn(np.ascontiguousarray(core))
         if valid is not None:
             # Keep coarse pixels whose top-left photo pixel has data.
-            rows = np.minimum((np.arange(gy0 + ry, gy0 + ch, stride) * scale), h - 1)
-            cols = np.minimum((np.arange(gx0 + rx, gx0 + cw, stride) * scale), w - 1)
-            probs = probs[valid[np.ix_(rows, cols)]]
+            probs = probs[valid[np.ix_(np.minimum(rows * scale, h - 1),
+                                       np.minimum(cols * scale, w - 1))]]
         out.append(probs.reshape(-1, probs.shape[-1]))
     return np.concatenate(out).astype(np.float32)
 

@@ -37,12 +37,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from core.classify.features import FeatureOptions, Normalise, photo_statistics
-from core.classify.forest import Forest, ForestKind, build_forest, forest_scores
+from core.classify.forest import Forest, build_forest, forest_scores
+from core.classify.model_file import ModelParts, read_model, write_model
 from core.classify.photo import prepare_photo
 from core.classify.prior import (
     kept_weights,
@@ -51,7 +51,6 @@ from core.classify.prior import (
     prior_power_for,
     prior_weights,
 )
-from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
 from core.classify.samples import (
     GROW_COLOUR,
@@ -60,91 +59,9 @@ from core.classify.samples import (
     grow_labels,
     looks_like_scribbles,
 )
+from core.classify.supervised_options import SupervisedOptions
 from core.classify.tiled import iter_tile_features, predict_tiled
 from core.errors import TerrathemeError
-
-
-@dataclass(frozen=True)
-class SupervisedOptions:
-    """Options of :func:`train_classifier`.
-
-    Attributes
-    ----------
-    features : FeatureOptions
-        Default: the DEFAULT set with Hessian eigenvalues (+0.009 mean scribble mIoU on
-        the tuning photos) and fine ridges at 1, 2, 4 px (:mod:`core.classify.ridges`).
-    regularisation : RegulariseOptions
-        Default: edge-aware, confidence-weighted averaging (``Regularisation.EDGE``,
-        :func:`core.classify.regularise.edge_aware_probabilities`); on the
-        scribble benchmark it beat the Gaussian smoothing by +0.014 mean mIoU
-        (tuning photos, Dubai parts 001-003) at the same speed.
-    ignore_classes : tuple of int
-        Mask values treated as unlabelled (besides 0).
-    forest : ForestKind
-        Default Extra-Trees (:mod:`core.classify.extra_trees`); RANDOM_FOREST is
-        OpenCV's forest of earlier versions.
-    n_trees : int
-        Trees in the forest.
-    max_depth : int
-        Depth limit of each tree.
-    min_samples : int
-        Smallest node that is still split.
-    active_vars : int
-        RANDOM_FOREST: features tried per split (0: ``sqrt(F)``; Extra-Trees
-        always tries ``sqrt(F)``).
-    max_samples_per_class : int
-        Cap on training samples of one class (over all pairs).
-    balance : bool
-        Equal class priors whatever the sample counts.
-    seed : int
-        Sampling and forest RNG seed.
-    tile : int
-        Tile core size in photo pixels.
-    prior_power : float or None
-        Class-prior correction (:mod:`core.classify.prior`): the votes are
-        weighted by ``(estimated share / training share) ** prior_power``.
-        0 = off; None = ``prior.SCRIBBLE_PRIOR_POWER`` when training from
-        scribbles (one photo, under ``samples.SCRIBBLE_SHARE`` of its pixels
-        labelled), else off.
-    grow_colour : float or None
-        Scribble samples grown by one ring of coarse pixels of the stroke's
-        colour (:func:`core.classify.samples.grow_labels`, Lab difference under
-        this). 0 = off; None = ``samples.GROW_COLOUR`` for scribbles, else off.
-    """
-
-    features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
-        hessian=True, ridge_sigmas=(1.0, 2.0, 4.0)))
-    regularisation: RegulariseOptions = field(
-        default_factory=lambda: RegulariseOptions(method=Regularisation.EDGE))
-    ignore_classes: tuple[int, ...] = ()
-    forest: ForestKind = ForestKind.EXTRA_TREES
-    n_trees: int = 50
-    max_depth: int = 12
-    min_samples: int = 4
-    active_vars: int = 0
-    max_samples_per_class: int = 15000
-    balance: bool = True
-    seed: int = 0
-    tile: int = 2048
-    prior_power: float | None = None
-    grow_colour: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.prior_power is not None and not 0.0 <= self.prior_power <= 1.0:
-            raise TerrathemeError(f"prior_power must be in 0..1 or None, not {self.prior_power}")
-        if self.n_trees < 1 or self.max_depth < 1 or self.max_samples_per_class < 1:
-            raise TerrathemeError(
-                "n_trees, max_depth and max_samples_per_class must be at least 1 "
-                f"(got {self.n_trees}, {self.max_depth}, {self.max_samples_per_class})"
-            )
-        if self.grow_colour is not None and self.grow_colour < 0:
-            raise TerrathemeError(f"grow_colour must be >= 0 or None, not {self.grow_colour}")
-        if self.tile < 16:
-            raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
-
-    def with_positions(self, on: bool = True) -> SupervisedOptions:
-        """These options with the position features (``FeatureOptions.position``) ``on``."""
-        return replace(self, features=replace(self.features, position=on))
 
 
 def _stats(rgb, valid, fo: FeatureOptions):
@@ -166,16 +83,16 @@ def _pair_samples(photo, mask, index, classes, options, grow=0.0):
     feats_out, labels_out = [], []
     for win, lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo, stats):
         # Labelled coarse pixels of this tile's core.
-        cy0, cx0 = win.y0 // scale, win.x0 // scale
+        cy0, cx0 = win.y // scale, win.x // scale
         cy1, cx1 = -(-win.y1 // scale), -(-win.x1 // scale)
         lab_core = target[cy0:cy1, cx0:cx1]
         if not lab_core.any():
             continue
-        oy, ox = cy0 - win.oy0 // scale, cx0 - win.ox0 // scale
+        oy, ox = cy0 - win.ry // scale, cx0 - win.rx // scale
         if grow > 0:
             # Grow over the whole window (its halo holds the core's neighbours), keep the core.
-            grown = grow_labels(target[win.oy0 // scale : -(-win.oy1 // scale),
-                                       win.ox0 // scale : -(-win.ox1 // scale)], lab, grow)
+            grown = grow_labels(target[win.ry // scale : -(-win.ry1 // scale),
+                                       win.rx // scale : -(-win.rx1 // scale)], lab, grow)
             lab_core = grown[oy : oy + lab_core.shape[0], ox : ox + lab_core.shape[1]]
         core = feats[oy : oy + lab_core.shape[0], ox : ox + lab_core.shape[1]]
         sel = lab_core > 0
@@ -318,16 +235,14 @@ class Classifier:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the model to a file (atomic); see :mod:`core.classify.model_file`."""
-        from core.classify.model_file import save_classifier
-
-        save_classifier(self, path)
+        write_model(path, ModelParts(self.forest, tuple(self.classes), self.options,
+                                     self.class_weights))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Classifier:
         """Read a model written by :meth:`save`."""
-        from core.classify.model_file import load_classifier
-
-        return load_classifier(path)
+        parts = read_model(path)
+        return cls(parts.forest, parts.classes, parts.options, parts.class_weights)
 
 
 def train_classifier(

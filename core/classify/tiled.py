@@ -11,7 +11,6 @@ at photo position ``(i + 0.5) * scale - 0.5``), and the arg-max gives the label.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -20,28 +19,16 @@ from core.classify.features import FeatureOptions, image_features, with_position
 from core.classify.regularise import RegulariseOptions, regularise
 from core.classify.result import Classification
 from core.errors import TerrathemeError
+from core.io.tiles import TileWindow, tile_windows
 
 ProgressFn = Callable[[int, int], None]
 #: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
 
 
-@dataclass(frozen=True)
-class Window:
-    """One tile: its core (written) and outer (read) rectangles, photo pixels."""
-
-    y0: int
-    y1: int
-    x0: int
-    x1: int
-    oy0: int
-    oy1: int
-    ox0: int
-    ox1: int
-
-
-def tile_windows(height: int, width: int, tile: int, scale: int, halo: int) -> list[Window]:
-    """Cut a photo into tiles with overlap.
+def feature_windows(height: int, width: int, tile: int, scale: int,
+                    halo: int) -> list[TileWindow]:
+    """Cut a photo into tiles of whole coarse pixels with ``halo`` coarse pixels of overlap.
 
     Parameters
     ----------
@@ -56,21 +43,13 @@ def tile_windows(height: int, width: int, tile: int, scale: int, halo: int) -> l
 
     Returns
     -------
-    windows : list of Window, row-major
+    windows : list of :class:`core.io.tiles.TileWindow`, row-major
     """
-    step = max(scale, (tile // scale) * scale)
-    pad = halo * scale
-    out = []
-    for y0 in range(0, height, step):
-        for x0 in range(0, width, step):
-            y1, x1 = min(y0 + step, height), min(x0 + step, width)
-            out.append(Window(y0, y1, x0, x1, max(0, y0 - pad), min(height, y1 + pad),
-                              max(0, x0 - pad), min(width, x1 + pad)))
-    return out
+    return tile_windows(width, height, max(scale, (tile // scale) * scale), halo * scale)
 
 
 def tile_features(
-    rgb: np.ndarray, win: Window, options: FeatureOptions, stats: np.ndarray | None = None
+    rgb: np.ndarray, win: TileWindow, options: FeatureOptions, stats: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Coarse Lab and features of a window's outer rectangle.
 
@@ -87,7 +66,7 @@ def tile_features(
 
 
 def tile_arrays(
-    rgb: np.ndarray, win: Window, options: FeatureOptions, stats: np.ndarray | None = None
+    rgb: np.ndarray, win: TileWindow, options: FeatureOptions, stats: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`tile_features` plus the block lightness std (texture) of each coarse pixel.
 
@@ -97,22 +76,51 @@ def tile_arrays(
     block_std : (h, w) float32 ndarray
     features : (h, w, F) float32 ndarray
     """
-    lab, block_std, feats = image_features(rgb[win.oy0 : win.oy1, win.ox0 : win.ox1], options,
+    lab, block_std, feats = image_features(rgb[win.ry : win.ry1, win.rx : win.rx1], options,
                                            stats)
-    return lab, block_std, with_position(feats, (win.oy0, win.ox0), rgb.shape[:2], options)
+    return lab, block_std, with_position(feats, (win.ry, win.rx), rgb.shape[:2], options)
 
 
 def iter_tile_features(
     rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int,
     stats: np.ndarray | None = None,
-) -> Iterator[tuple[Window, np.ndarray, np.ndarray]]:
+) -> Iterator[tuple[TileWindow, np.ndarray, np.ndarray]]:
     """Yield ``(window, lab, features)`` for every tile of a photo."""
-    for win in tile_windows(rgb.shape[0], rgb.shape[1], tile, options.scale, halo):
+    for win in feature_windows(rgb.shape[0], rgb.shape[1], tile, options.scale, halo):
         lab, feats = tile_features(rgb, win, options, stats)
         yield win, lab, feats
 
 
-def _core_probabilities(probs: np.ndarray, win: Window, scale: int) -> np.ndarray:
+def strided_core(
+    feats: np.ndarray, win: TileWindow, scale: int, stride: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A tile's core coarse pixels on the photo-wide grid of every ``stride``-th row/column.
+
+    The same coarse pixels are picked whatever the tiling, so samples drawn
+    tile by tile equal samples drawn from the whole photo.
+
+    Parameters
+    ----------
+    feats : (h, w, F) ndarray over the window's read rectangle (coarse pixels)
+    win : TileWindow
+    scale, stride : int
+
+    Returns
+    -------
+    core : (r, c, F) ndarray
+    rows, cols : (r,), (c,) int64 ndarrays
+        Photo-wide coarse row and column of each picked coarse pixel.
+    """
+    gy0, gx0 = win.y // scale, win.x // scale
+    cy, cx = gy0 - win.ry // scale, gx0 - win.rx // scale
+    ch, cw = -(-(win.y1 - win.y) // scale), -(-(win.x1 - win.x) // scale)
+    ry, rx = (-gy0) % stride, (-gx0) % stride
+    core = feats[cy + ry : cy + ch : stride, cx + rx : cx + cw : stride]
+    return (core, np.arange(gy0 + ry, gy0 + ch, stride, dtype=np.int64),
+            np.arange(gx0 + rx, gx0 + cw, stride, dtype=np.int64))
+
+
+def _core_probabilities(probs: np.ndarray, win: TileWindow, scale: int) -> np.ndarray:
     """Upsample a tile's coarse probabilities to the photo pixels of its core.
 
     Parameters
@@ -124,11 +132,11 @@ def _core_probabilities(probs: np.ndarray, win: Window, scale: int) -> np.ndarra
     probs : (y1 - y0, x1 - x0, C) float32 ndarray
     """
     if scale == 1:
-        return probs[win.y0 - win.oy0 : win.y1 - win.oy0, win.x0 - win.ox0 : win.x1 - win.ox0]
+        return probs[win.y - win.ry : win.y1 - win.ry, win.x - win.rx : win.x1 - win.rx]
     h, w, c = probs.shape
     up = cv2.resize(probs, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR)
     up = up.reshape(h * scale, w * scale, c)
-    return up[win.y0 - win.oy0 : win.y1 - win.oy0, win.x0 - win.ox0 : win.x1 - win.ox0]
+    return up[win.y - win.ry : win.y1 - win.ry, win.x - win.rx : win.x1 - win.rx]
 
 
 def predict_tiled(
@@ -172,7 +180,7 @@ def predict_tiled(
     # The overlap must cover the features' reach plus the regularisation's, plus one
     # coarse pixel for the bilinear upsampling.
     halo = features.halo + regularisation.halo + 1
-    windows = tile_windows(height, width, tile, scale, halo)
+    windows = feature_windows(height, width, tile, scale, halo)
     lut = np.asarray(classes, np.uint8)
     labels = np.zeros((height, width), np.uint8)
     confidence = np.zeros((height, width), np.float32)
@@ -185,8 +193,8 @@ def predict_tiled(
         # Back to photo pixels: arg-max class and its probability.
         core = _core_probabilities(probs, win, scale)
         best = np.argmax(core, axis=2)
-        labels[win.y0 : win.y1, win.x0 : win.x1] = lut[best]
-        confidence[win.y0 : win.y1, win.x0 : win.x1] = np.take_along_axis(
+        labels[win.y : win.y1, win.x : win.x1] = lut[best]
+        confidence[win.y : win.y1, win.x : win.x1] = np.take_along_axis(
             core, best[:, :, None], axis=2
         )[:, :, 0]
         if progress is not None:

@@ -34,7 +34,7 @@ import numpy as np
 
 from core.classify.features import FeatureOptions, FeatureSet
 from core.classify.regularise import RegulariseOptions
-from core.classify.tiled import iter_tile_features
+from core.classify.tiled import iter_tile_features, strided_core
 from core.errors import TerrathemeError
 
 
@@ -115,7 +115,7 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
 def _valid_coarse(valid: np.ndarray | None, win, scale: int) -> np.ndarray | None:
     if valid is None:
         return None
-    block = valid[win.y0 : win.y1, win.x0 : win.x1].astype(np.float32)
+    block = valid[win.y : win.y1, win.x : win.x1].astype(np.float32)
     h, w = -(-block.shape[0] // scale), -(-block.shape[1] // scale)
     ph, pw = h * scale - block.shape[0], w * scale - block.shape[1]
     block = np.pad(block, ((0, ph), (0, pw)), mode="edge")
@@ -141,17 +141,15 @@ def sample_features(
     for win, _lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo):
         # Core of the tile in coarse pixels, on a global grid of every stride-th row/column
         # (the same samples whatever the tile size).
-        gy0, gx0 = win.y0 // scale, win.x0 // scale
-        cy, cx = gy0 - win.oy0 // scale, gx0 - win.ox0 // scale
-        ch, cw = -(-(win.y1 - win.y0) // scale), -(-(win.x1 - win.x0) // scale)
-        ry, rx = (-gy0) % stride, (-gx0) % stride
-        core = feats[cy + ry : cy + ch : stride, cx + rx : cx + cw : stride]
+        core, rows, cols = strided_core(feats, win, scale, stride)
         keep = _valid_coarse(valid, win, scale)
-        keep = np.ones(core.shape[:2], bool) if keep is None else keep[ry::stride, rx::stride]
-        rows = np.arange(gy0 + ry, gy0 + ch, stride)[:, None]
-        cols = np.arange(gx0 + rx, gx0 + cw, stride)[None, :]
+        if keep is None:
+            keep = np.ones(core.shape[:2], bool)
+        else:
+            ry, rx = (-(win.y // scale)) % stride, (-(win.x // scale)) % stride
+            keep = keep[ry::stride, rx::stride]
         chunks.append(core[keep] * weights)
-        order.append((rows * wc + cols)[keep])
+        order.append((rows[:, None] * wc + cols[None, :])[keep])
     samples = np.concatenate(chunks).astype(np.float32)
     if len(samples) == 0:
         # The opaque pixels fall between the sampling grid's rows/columns: take them all.

@@ -1,0 +1,22 @@
+"""Orthophoto to thematic texture: classify, themes, labels to a vertex grid, the cell size.
+
+Modules: ``labels_to_grid`` (the vertex vote and the cell size chosen from a
+target), ``photo`` (the whole-image pipeline and its outputs), ``tiled``
+(photos larger than memory, tile by tile).
+"""
+
+from core.convert.labels_to_grid import CellChoice, choose_cell_size, labels_to_grid, vote_grid
+from core.convert.photo import ConvertOptions, ConvertResult, convert_photo, write_outputs
+from core.convert.tiled import convert_file_tiled
+
+__all__ = [
+    "CellChoice",
+    "ConvertOptions",
+    "ConvertResult",
+    "choose_cell_size",
+    "convert_file_tiled",
+    "convert_photo",
+    "labels_to_grid",
+    "vote_grid",
+    "write_outputs",
+]

@@ -30,6 +30,7 @@ import numpy as np
 
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid, validate_cell
+from core.render.renderer import render_labels
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
 DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
@@ -260,8 +261,6 @@ def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = N
         regions are exact crops of the full render, so this is an unbiased
         row sample). Default: every pixel.
     """
-    from core.render.renderer import render_labels
-
     labels = _check_labels(labels)
     h, w = labels.shape
     tw, th = grid.texture_size

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from core.classify import classify_unsupervised, train_classifier
+from core.classify.photo import prepare_photo
 from core.convert.labels_to_grid import (
     DEFAULT_CELL_CANDIDATES,
     CellChoice,
@@ -34,9 +36,14 @@ from core.convert.labels_to_grid import (
     choose_cell_size,
     vote_grid,
 )
+from core.convert.labels_to_grid import agreement as measure
 from core.errors import TerrathemeError
+from core.io.georef import read_georeference, scale_georeference, write_georeference
+from core.io.images import read_image, write_image
 from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
+from core.model.project import ThematicTexture, save_project
+from core.packing import pack
+from core.render.project import render_project
 from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
 
 ProgressFn = Callable[[int, int], None]
@@ -67,7 +74,6 @@ class ConvertOptions:
     patch : PatchOptions
         Theme patch search.
     """
-
     cell: str | int = "auto"
     themes: str | int | Sequence[str] | Mapping[int, str] = "auto"
     target_agreement: float = 0.9
@@ -92,7 +98,6 @@ class ConvertResult:
     agreement : float
         Share of photo pixels whose theme the grid's label view keeps.
     """
-
     project: ThematicTexture
     labels: np.ndarray
     confidence: np.ndarray
@@ -139,8 +144,6 @@ def _stage(progress: ProgressFn | None, start: int, span: int) -> ProgressFn | N
 
 
 def _classify(photo, scribbles, themes, model, progress):
-    from core.classify import classify_unsupervised, train_classifier
-
     if model is not None:
         return model.predict(photo, progress=progress)
     if scribbles is not None:
@@ -158,7 +161,7 @@ def _classify(photo, scribbles, themes, model, progress):
 
 def convert_photo(
     photo: np.ndarray,
-    options: ConvertOptions = ConvertOptions(),  # noqa: B008 (frozen)
+    options: ConvertOptions = ConvertOptions(),
     *,
     scribbles: np.ndarray | None = None,
     model=None,
@@ -184,8 +187,6 @@ def convert_photo(
     -------
     ConvertResult
     """
-    from core.classify.photo import prepare_photo
-
     rgb, _ = prepare_photo(photo)
     h, w = rgb.shape[:2]
     if scribbles is not None:
@@ -221,7 +222,6 @@ def convert_photo(
     else:
         cell = (int(options.cell), int(options.cell))
     grid = IndexGrid(vote_grid(theme_labels, cell), cell)
-    from core.convert.labels_to_grid import agreement as measure
 
     score = choice.agreement if choice is not None else measure(theme_labels, grid,
                                                                 max_pixels=1 << 22)
@@ -248,8 +248,6 @@ def convert_photo(
 
 def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     """Read a photo and its georeference: ``((H, W, C) array, metadata dict)``."""
-    from core.io.georef import read_georeference
-    from core.io.images import read_image
 
     photo = read_image(path)
     if photo.dtype not in (np.uint8, np.uint16):
@@ -276,8 +274,6 @@ def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -
     pixel_size : (sx, sy)
         Photo pixels per preview pixel (1, 1 unless reduced).
     """
-    from core.render.renderer import render_project
-
     tw, th = project.grid.texture_size
     w, h = project.metadata.get("photo_size", [tw, th])
     w, h = min(int(w), tw), min(int(h), th)
@@ -300,10 +296,6 @@ def write_outputs(
     -------
     written : {"project": path, "preview": path, "packed": path, "world": path...}
     """
-    from core.io.georef import scale_georeference, write_georeference
-    from core.io.images import write_image
-    from core.model.project import save_project
-
     written: dict[str, Path] = {}
     save_project(project_path, project)
     written["project"] = Path(project_path)
@@ -319,8 +311,6 @@ def write_outputs(
                 if made != Path(preview_path):
                     written["preview_world_file"] = made
     if packed_path is not None:
-        from core.packing import pack
-
         layer = pack(project.grid.indices, curve="auto")
         layer.save(packed_path)
         written["packed"] = Path(packed_path)

@@ -21,11 +21,22 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
+from core.classify import fit_unsupervised
+from core.classify.photo import prepare_photo
+from core.convert.labels_to_grid import (
+    apply_lut,
+    choose_cell_size,
+    grid_shape_for,
+    vertex_window,
+    vote_vertices,
+)
 from core.errors import TerrathemeError
-from core.io.images import image_info
+from core.io.georef import read_georeference
+from core.io.images import image_info, read_region
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.grid import IndexGrid, validate_cell
+from core.model.project import ThematicTexture
+from core.themes.from_photo import themes_by_name, themes_from_photo
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 
@@ -171,8 +182,6 @@ def sample_pieces(path: str | os.PathLike, budget: int | None = None,
     -------
     pieces : list of (h, w, C) ndarrays
     """
-    from core.io.images import read_region
-
     budget = THEME_WINDOW if budget is None else int(budget)
     info = image_info(path)
     w, h = info.width, info.height
@@ -200,8 +209,6 @@ def fit_unsupervised_file(path: str | os.PathLike, themes: str | int = "auto",
     -------
     core.classify.UnsupervisedModel
     """
-    from core.classify import fit_unsupervised
-
     pieces = sample_pieces(path)
     model = fit_unsupervised(pieces, themes=themes)
     if names and themes == "auto" and len(model.classes) > len(names):
@@ -251,11 +258,6 @@ def convert_file_tiled(
         Metadata: ``source_photo``, ``georeference``, ``photo_size``, ``classes``;
         no photo layer (it does not fit in memory).
     """
-    from core.io.georef import read_georeference
-    from core.io.images import read_region
-    from core.model.project import ThematicTexture
-    from core.themes.from_photo import themes_by_name, themes_from_photo
-
     info = image_info(path)
     if model is None:
         # Unsupervised: fit k-means on full-resolution windows spread over the photo.
@@ -279,7 +281,6 @@ def convert_file_tiled(
     x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
     window = read_region(path, x0, y0, side_w, side_h)
     win_result = model.predict(window)
-    from core.classify.photo import prepare_photo
 
     rgb, _ = prepare_photo(window)
     unsupervised = not hasattr(model, "forest")
@@ -302,7 +303,6 @@ def convert_file_tiled(
     choice = None
     if cell == "auto":
         # Cell size from the agreement curve of the centre window (an estimate).
-        from core.convert.labels_to_grid import apply_lut, choose_cell_size
 
         choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement)
         cell = choice.cell[0]

@@ -17,6 +17,7 @@ import numpy as np
 
 from core.edit.session import GridChange, dirty_region
 from core.model.project import ThematicTexture
+from core.render.renderer import render_cells
 
 Progress = Callable[[int, int], None]
 
@@ -33,7 +34,6 @@ class RenderPreview:
     progress : callable(done, total), optional
         For the first full render.
     """
-
     def __init__(self, texture: ThematicTexture, *, margin: int = 1,
                  progress: Progress | None = None) -> None:
         self.texture = texture
@@ -42,8 +42,6 @@ class RenderPreview:
 
     def _render(self, region: tuple[int, int, int, int] | None,
                 progress: Progress | None = None) -> np.ndarray:
-        from core.render.renderer import render_cells
-
         grid = self.texture.grid
         return render_cells(grid.indices, self.texture.library.textures, grid.cell, region,
                             progress=progress)

@@ -18,7 +18,7 @@ import numpy as np
 
 from core.edit.tools import (
     Connectivity,
-    Footprint,
+    VertexSelection,
     capsule_footprint,
     eyedropper,
     flood_footprint,
@@ -54,7 +54,7 @@ class EditAtom:
     new: int
 
     @classmethod
-    def record(cls, indices: np.ndarray, fp: Footprint, new: int) -> EditAtom | None:
+    def record(cls, indices: np.ndarray, fp: VertexSelection, new: int) -> EditAtom | None:
         """The atom that writes ``new`` under ``fp`` into ``indices`` (not applied yet).
 
         Only vertices whose value differs from ``new`` are recorded; returns
@@ -266,7 +266,7 @@ class EditSession:
             self._redo.clear()
         return atom
 
-    def _paint(self, fp: Footprint, value: int) -> EditAtom | None:
+    def _paint(self, fp: VertexSelection, value: int) -> EditAtom | None:
         atom = EditAtom.record(self.indices, fp, value)
         if atom is not None:
             self.apply(atom)
@@ -332,7 +332,7 @@ class EditSession:
         full = (slice(0, new.shape[0]), slice(0, new.shape[1]))
         parts = []
         for v in np.unique(new):
-            atom = EditAtom.record(self.indices, Footprint(*full, new == v), int(v))
+            atom = EditAtom.record(self.indices, VertexSelection(*full, new == v), int(v))
             if atom is not None:
                 parts.append(atom)
         # Record every part against the original grid, then apply them all.

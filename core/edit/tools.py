@@ -1,8 +1,8 @@
 """Editing tools as pure functions on a vertex index array.
 
-Each tool returns a :class:`Footprint`: the bounding slice of the vertices it
+Each tool returns a :class:`VertexSelection`: the bounding slice of the vertices it
 covers and a boolean mask inside that slice. The edit model
-(:mod:`core.edit.session`) turns a footprint plus a theme number into an undo atom.
+(:mod:`core.edit.session`) turns a selection plus a theme number into an undo atom.
 
 Coordinates are in *vertex units*: ``(x, y)`` = (column, row) as floats, so
 vertex ``indices[j, i]`` sits at ``(i, j)``. The editor converts a cursor texel
@@ -22,7 +22,7 @@ from core.errors import TerrathemeError
 
 
 @dataclass(frozen=True, eq=False)
-class Footprint:
+class VertexSelection:
     """The vertices a tool covers.
 
     Attributes
@@ -42,7 +42,7 @@ class Footprint:
         return self.mask.size == 0 or not bool(self.mask.any())
 
     def full_mask(self, shape: tuple[int, int]) -> np.ndarray:
-        """The footprint as a whole-grid ``shape`` bool mask (for tests and small grids)."""
+        """The selection as a whole-grid ``shape`` bool mask (for tests and small grids)."""
         out = np.zeros(shape, dtype=bool)
         out[self.rows, self.cols] = self.mask
         return out
@@ -55,8 +55,8 @@ class Connectivity(IntEnum):
     EIGHT = 2
 
 
-def _empty() -> Footprint:
-    return Footprint(slice(0, 0), slice(0, 0), np.zeros((0, 0), dtype=bool))
+def _empty() -> VertexSelection:
+    return VertexSelection(slice(0, 0), slice(0, 0), np.zeros((0, 0), dtype=bool))
 
 
 def _check_point(shape: tuple[int, int], point: tuple[float, float], what: str) -> None:
@@ -70,7 +70,7 @@ def capsule_footprint(
     p0: tuple[float, float],
     p1: tuple[float, float],
     radius: float,
-) -> Footprint:
+) -> VertexSelection:
     """Vertices within ``radius`` of the segment ``p0``-``p1`` (one brush stroke segment).
 
     A brush dab is a disc of ``radius`` vertex units; moving it along a segment
@@ -88,7 +88,7 @@ def capsule_footprint(
 
     Returns
     -------
-    Footprint
+    VertexSelection
         Empty if the capsule misses the grid.
     """
     _check_point(shape, p0, "brush")
@@ -121,12 +121,12 @@ def capsule_footprint(
         ci, ri = int(np.floor(px + 0.5)), int(np.floor(py + 0.5))
         if r0 <= ri < r1 and c0 <= ci < c1:
             mask[ri - r0, ci - c0] = True
-    return Footprint(slice(r0, r1), slice(c0, c1), mask)
+    return VertexSelection(slice(r0, r1), slice(c0, c1), mask)
 
 
 def rect_footprint(
     shape: tuple[int, int], p0: tuple[float, float], p1: tuple[float, float]
-) -> Footprint:
+) -> VertexSelection:
     """Vertices inside the rectangle spanned by two corners (inclusive, any order).
 
     Corners are rounded to the nearest vertex, so dragging from one vertex to
@@ -141,7 +141,7 @@ def rect_footprint(
     r0, r1 = max(ys[0], 0), min(ys[1] + 1, rows_n)
     if c0 >= c1 or r0 >= r1:
         return _empty()
-    return Footprint(slice(r0, r1), slice(c0, c1), np.ones((r1 - r0, c1 - c0), dtype=bool))
+    return VertexSelection(slice(r0, r1), slice(c0, c1), np.ones((r1 - r0, c1 - c0), dtype=bool))
 
 
 def nearest_vertex(shape: tuple[int, int], point: tuple[float, float]) -> tuple[int, int] | None:
@@ -157,7 +157,7 @@ def flood_footprint(
     indices: np.ndarray,
     point: tuple[float, float],
     connectivity: Connectivity = Connectivity.FOUR,
-) -> Footprint:
+) -> VertexSelection:
     """The connected region of equal indices around the vertex nearest ``point``.
 
     Uses :func:`skimage.segmentation.flood`; the fill stops at any other index.
@@ -177,7 +177,7 @@ def flood_footprint(
     rows = np.flatnonzero(region.any(axis=1))
     cols = np.flatnonzero(region.any(axis=0))
     rs, cs = slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
-    return Footprint(rs, cs, np.ascontiguousarray(region[rs, cs]))
+    return VertexSelection(rs, cs, np.ascontiguousarray(region[rs, cs]))
 
 
 def eyedropper(indices: np.ndarray, point: tuple[float, float]) -> int | None:

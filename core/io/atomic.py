@@ -11,6 +11,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from core.errors import TerrathemeError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterator[Path]:
@@ -29,8 +31,6 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterat
     final = Path(path)
     directory = final.parent if str(final.parent) else Path(".")
     if not directory.is_dir():
-        from core.errors import TerrathemeError
-
         raise TerrathemeError(f"cannot write {final}: folder {directory} does not exist")
     fd, tmp_name = tempfile.mkstemp(
         prefix=f".{final.name}.", suffix=final.suffix if suffix is None else suffix,

@@ -52,6 +52,26 @@ class TileWindow:
     rh: int
 
     @property
+    def x1(self) -> int:
+        """End column of the core (exclusive)."""
+        return self.x + self.w
+
+    @property
+    def y1(self) -> int:
+        """End row of the core (exclusive)."""
+        return self.y + self.h
+
+    @property
+    def rx1(self) -> int:
+        """End column of the read window (exclusive)."""
+        return self.rx + self.rw
+
+    @property
+    def ry1(self) -> int:
+        """End row of the read window (exclusive)."""
+        return self.ry + self.rh
+
+    @property
     def core_in_read(self) -> tuple[slice, slice]:
         """``(rows, cols)`` slices of the core inside the read window's array."""
         oy, ox = self.y - self.ry, self.x - self.rx

@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import struct
 import zlib
+from typing import NamedTuple
 
 import numpy as np
 
 from core.curves.steps import MAX_SIDE, Curve
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.packing import compact_format, seed_format
-from core.packing.layer import PackedLayer
 
 MAGIC = b"TTPK"
 VERSION = 1
@@ -41,12 +41,30 @@ FLAG_SQUEEZE = 1
 FLAG_IDENTITY = 2
 
 
-def encode_layer(layer: PackedLayer, encoding: str) -> bytes:
+class LayerFields(NamedTuple):
+    """What a layer file stores (:class:`core.packing.layer.PackedLayer` is built from it).
+
+    ``lengths`` and ``indices`` are the runs (texels per run, palette index);
+    ``palette`` is ``(K, C)`` uint8 or uint16.
+    """
+
+    width: int
+    height: int
+    curve: Curve
+    lengths: np.ndarray
+    indices: np.ndarray
+    palette: np.ndarray
+    identity: bool
+    squeeze: bool
+
+
+def encode_layer(layer: LayerFields, encoding: str) -> bytes:
     """The bytes of a layer file in ``encoding`` (``"seed"`` or ``"compact"``)."""
     if encoding not in ENCODINGS:
         raise TerrathemeError(f"unknown packed format {encoding!r}: use 'compact' or 'seed'")
     lengths = layer.lengths
-    indices = layer.P
+    indices = layer.indices
+    channels = layer.palette.shape[1]
     if encoding == "seed":
         payload = seed_format.encode_seed_runs(lengths, indices)
     else:
@@ -55,9 +73,9 @@ def encode_layer(layer: PackedLayer, encoding: str) -> bytes:
         layer.palette.dtype.newbyteorder("<")).tobytes()
     flags = (FLAG_SQUEEZE if layer.squeeze else 0) | (FLAG_IDENTITY if layer.identity else 0)
     header = _HEADER.pack(
-        MAGIC, VERSION, ENCODINGS[encoding], int(layer.curve), flags, layer.channels,
+        MAGIC, VERSION, ENCODINGS[encoding], int(layer.curve), flags, channels,
         layer.palette.dtype.itemsize, layer.palette.shape[0], layer.width, layer.height,
-        layer.run_count, len(payload),
+        len(lengths), len(payload),
     )
     body = header + palette + payload
     return body + struct.pack("<I", zlib.crc32(body))
@@ -98,8 +116,8 @@ def read_header(data: bytes, *, name: str) -> dict:
                 sample=sample, k=k, width=width, height=height, runs=runs, payload=payload)
 
 
-def decode_layer(data: bytes, *, name: str) -> PackedLayer:
-    """Parse a layer file (either encoding) into a random-access layer."""
+def decode_layer(data: bytes, *, name: str) -> LayerFields:
+    """Parse and check a layer file (either encoding)."""
     head = read_header(data, name=name)
     identity = bool(head["flags"] & FLAG_IDENTITY)
     pal_bytes = 0 if identity else head["k"] * head["channels"] * head["sample"]
@@ -127,13 +145,6 @@ def decode_layer(data: bytes, *, name: str) -> PackedLayer:
         raise CorruptFileError(
             f"{name}: palette index {int(indices.max())} out of range (palette has {head['k']})"
         )
-    try:
-        return PackedLayer.from_lengths(
-            head["width"], head["height"], head["curve"], lengths, indices,
-            palette.astype(dtype.newbyteorder("=")), identity=identity,
-            squeeze=bool(head["flags"] & FLAG_SQUEEZE),
-        )
-    except CorruptFileError:
-        raise
-    except TerrathemeError as exc:
-        raise CorruptFileError(f"{name}: {exc}") from None
+    return LayerFields(head["width"], head["height"], head["curve"], lengths, indices,
+                       palette.astype(dtype.newbyteorder("=")), identity,
+                       bool(head["flags"] & FLAG_SQUEEZE))

@@ -14,7 +14,9 @@ import numpy as np
 
 from core.curves.scan import fill_runs, ranks_to_steps, steps_to_ranks
 from core.curves.steps import Curve, curve_order
-from core.errors import TerrathemeError
+from core.errors import CorruptFileError, TerrathemeError
+from core.io.atomic import write_bytes_atomic
+from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.lookup import (
     W_COUNT,
     build_table,
@@ -179,7 +181,7 @@ class PackedLayer:
         return int(self._data[W_COUNT])
 
     @property
-    def P(self) -> np.ndarray:  # noqa: N802 - the seed's name
+    def P(self) -> np.ndarray:
         """(R,) uint8 ndarray: palette index of each run (seed Table 3)."""
         return table_runs(self._data)[1]
 
@@ -189,7 +191,7 @@ class PackedLayer:
         return table_runs(self._data)[0]
 
     @property
-    def S(self) -> np.ndarray:  # noqa: N802 - the seed's name
+    def S(self) -> np.ndarray:
         """(R,) int64 ndarray: the seed's 1-based step of each run's last texel (Table 3)."""
         return self.steps.astype(np.int64) + 1
 
@@ -293,25 +295,22 @@ class PackedLayer:
 
     # ------------------------------------------------------------ files
 
-    def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:  # noqa: A002
+    def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
         """Write the layer atomically; ``format`` is ``"compact"`` or ``"seed"``.
 
         Returns
         -------
         bytes_written : int
         """
-        from core.io.atomic import write_bytes_atomic
-        from core.packing.container import encode_layer
-
-        data = encode_layer(self, format)
+        data = self.to_bytes(format=format)
         write_bytes_atomic(path, data)
         return len(data)
 
-    def to_bytes(self, *, format: str = "compact") -> bytes:  # noqa: A002
+    def to_bytes(self, *, format: str = "compact") -> bytes:
         """The file content :meth:`save` would write."""
-        from core.packing.container import encode_layer
-
-        return encode_layer(self, format)
+        return encode_layer(LayerFields(self.width, self.height, self.curve, self.lengths,
+                                        self.P, self.palette, self.identity, self.squeeze),
+                            format)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PackedLayer:
@@ -325,17 +324,20 @@ class PackedLayer:
         UnsupportedVersionError
             A file from a newer format version.
         """
-        from core.packing.container import decode_layer
-
         p = os.fspath(path)
         if not os.path.isfile(p):
             raise TerrathemeError(f"{p}: no such file")
         with open(p, "rb") as fh:
-            return decode_layer(fh.read(), name=p)
+            return cls.from_bytes(fh.read(), name=p)
 
     @classmethod
     def from_bytes(cls, data: bytes, *, name: str = "<bytes>") -> PackedLayer:
         """Parse the content of a layer file."""
-        from core.packing.container import decode_layer
-
-        return decode_layer(data, name=name)
+        f = decode_layer(data, name=name)
+        try:
+            return cls.from_lengths(f.width, f.height, f.curve, f.lengths, f.indices, f.palette,
+                                    identity=f.identity, squeeze=f.squeeze)
+        except CorruptFileError:
+            raise
+        except TerrathemeError as exc:
+            raise CorruptFileError(f"{name}: {exc}") from None

@@ -17,72 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from core.curves.steps import HILBERT_TABLES, hilbert_step, morton_step
 from core.errors import TerrathemeError
-
-# Hilbert state machine (2 bits: swap, flip-both): entry [state*4 + (x_bit*2 + y_bit)]
-# holds (digit << 2) | next_state, the table form of Hacker's Delight's xy2d.
-_TABLE = np.zeros(16, dtype=np.uint8)
-for _state in range(4):
-    for _xb in range(2):
-        for _yb in range(2):
-            _rx, _ry = (_xb ^ 1, _yb ^ 1) if _state & 2 else (_xb, _yb)
-            if _state & 1:
-                _rx, _ry = _ry, _rx
-            _digit = (3 * _rx) ^ _ry
-            _next = _state
-            if _ry == 0:
-                _next ^= 1 | (2 if _rx == 1 else 0)
-            _TABLE[_state * 4 + _xb * 2 + _yb] = (_digit << 2) | _next
-# Four levels at once: [state*256 + (x 4 bits)*16 + (y 4 bits)] -> (8-bit digits << 2) | state.
-_TABLE4 = np.zeros(1024, dtype=np.uint16)
-for _state in range(4):
-    for _x4 in range(16):
-        for _y4 in range(16):
-            _s, _d = _state, 0
-            for _lv in range(3, -1, -1):
-                _e = int(_TABLE[_s * 4 + ((_x4 >> _lv) & 1) * 2 + ((_y4 >> _lv) & 1)])
-                _d, _s = (_d << 2) | (_e >> 2), _e & 3
-            _TABLE4[_state * 256 + _x4 * 16 + _y4] = (_d << 2) | _s
-#: One-level table (16 entries) then four-level table (1024), as stored in a layer's data.
-HILBERT_TABLES = np.concatenate([_TABLE.astype(np.uint16), _TABLE4])
-HILBERT_TABLES.setflags(write=False)
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def hilbert_step(x, y, n, tables):  # pragma: no cover - numba
-    """0-based Hilbert step of ``(x, y)`` (y up) on the ``2^n`` square (:data:`HILBERT_TABLES`)."""
-    d = np.uint64(0)
-    state = 0
-    level = n
-    # Leading levels one at a time until a multiple of four remain.
-    while level % 4 != 0:
-        level -= 1
-        e = tables[state * 4 + ((x >> level) & 1) * 2 + ((y >> level) & 1)]
-        d = (d << np.uint64(2)) | np.uint64(e >> 2)
-        state = e & 3
-    # Then four levels per table lookup.
-    while level > 0:
-        level -= 4
-        e = tables[16 + state * 256 + ((x >> level) & 15) * 16 + ((y >> level) & 15)]
-        d = (d << np.uint64(8)) | np.uint64(e >> 2)
-        state = e & 3
-    return d
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def morton_step(x, y):  # pragma: no cover - numba
-    """0-based Morton step ``sum((x_i + 2 y_i) 4^i)`` of ``(x, y)`` (y up)."""
-    return _spread(np.uint64(x)) | (_spread(np.uint64(y)) << np.uint64(1))
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _spread(v):  # pragma: no cover - numba
-    v = (v | (v << np.uint64(16))) & np.uint64(0x0000FFFF0000FFFF)
-    v = (v | (v << np.uint64(8))) & np.uint64(0x00FF00FF00FF00FF)
-    v = (v | (v << np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    v = (v | (v << np.uint64(2))) & np.uint64(0x3333333333333333)
-    return (v | (v << np.uint64(1))) & np.uint64(0x5555555555555555)
-
 
 # Layout of the one uint32 array that holds a layer's random-access structure.
 HEAD_WORDS = 8

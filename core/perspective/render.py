@@ -26,7 +26,7 @@ from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
 from core.perspective.options import FilterOptions, Method
 from core.perspective.reference import reference_kernel
 from core.perspective.texture import (
-    Pyramid,
+    MipPyramid,
     as_float_texture,
     build_pyramid,
     power_of_two_square,
@@ -122,7 +122,7 @@ class PreparedTexture:
         self._scale = 1.0 / np.iinfo(dt).max if self._store is not None else 1.0
         self.texture = as_float_texture(texture)
         self.square, self.su, self.sv = power_of_two_square(self.texture)
-        self._pyramid: Pyramid | None = None
+        self._pyramid: MipPyramid | None = None
         self._families: dict[tuple[int, int], ParallelogramFamily] = {}
         self._ensure(self.options, progress)
 
@@ -143,7 +143,7 @@ class PreparedTexture:
         return np.ascontiguousarray(np.clip(np.rint(buf * top), 0, top).astype(self._store))
 
     @property
-    def pyramid(self) -> Pyramid:
+    def pyramid(self) -> MipPyramid:
         if self._pyramid is None:
             pyr = build_pyramid(self.square)
             self._pyramid = replace(pyr, buf=self._stored(pyr.buf))

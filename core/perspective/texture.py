@@ -83,7 +83,7 @@ def power_of_two_square(tex: np.ndarray) -> tuple[np.ndarray, float, float]:
 
 
 @dataclass(frozen=True)
-class Pyramid:
+class MipPyramid:
     """Box-filtered mip levels of an ``N x N`` texture, packed for the kernels.
 
     Attributes
@@ -124,7 +124,7 @@ def box_halve(img: np.ndarray, axis0: bool = True, axis1: bool = True) -> np.nda
     return out
 
 
-def build_pyramid(square: np.ndarray) -> Pyramid:
+def build_pyramid(square: np.ndarray) -> MipPyramid:
     """Mip levels ``N, N/2, ..., 1`` by 2 x 2 box averaging.
 
     Parameters
@@ -141,4 +141,4 @@ def build_pyramid(square: np.ndarray) -> Pyramid:
     sizes = [lv.shape[0] * lv.shape[1] for lv in levels]
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     buf = np.concatenate([lv.reshape(-1, c) for lv in levels], axis=0)
-    return Pyramid(np.ascontiguousarray(buf), offsets, n)
+    return MipPyramid(np.ascontiguousarray(buf), offsets, n)

@@ -1,0 +1,26 @@
+"""The renderer: an index grid and its themes to the full-resolution texture (DESIGN.md §1).
+
+Modules: ``rules`` (splits, the saddle rule, barycentric weights),
+``renderer`` (full resolution or any region: ``render_cells``,
+``render_labels``), ``kernels`` (the numba row loops), ``theme_pack`` (themes
+laid out for the kernels), ``overview`` (reduced resolution without rendering
+full resolution first), ``project`` (a project at any scale), ``inputs`` (the
+checks every renderer shares).
+"""
+
+from core.render.overview import render_overview
+from core.render.project import render_project
+from core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
+from core.render.rules import SaddleRule, cell_splits, corner_weights
+
+__all__ = [
+    "BlendMode",
+    "RenderOptions",
+    "SaddleRule",
+    "cell_splits",
+    "corner_weights",
+    "render_cells",
+    "render_labels",
+    "render_overview",
+    "render_project",
+]

@@ -23,11 +23,59 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
+from core.render.rules import corner_weights
+
 _MAX_SHIFT = 54
+
+
+class RegionBlock(NamedTuple):
+    """The block of the grid under an output region, as the kernels read it.
+
+    ``grid`` (uint8, vertices) and ``splits`` (uint8, cells) start at cell
+    ``(ocy, ocx)`` of the whole grid; the output's texel ``(0, 0)`` is global
+    texel ``(rx, ry)``; cells are ``n x m`` texels.
+    """
+
+    grid: np.ndarray
+    splits: np.ndarray
+    ocx: int
+    ocy: int
+    rx: int
+    ry: int
+    n: int
+    m: int
+
+
+class ThemeRows(NamedTuple):
+    """The packed themes (:class:`core.render.theme_pack.PackedThemes`) the kernels read."""
+
+    flat: np.ndarray
+    off: np.ndarray
+    stride: np.ndarray
+    th: np.ndarray
+    tw: np.ndarray
+
+
+class LinearWeights(NamedTuple):
+    """Weight tables (:func:`weight_tables`) and the rounding (:func:`division_magic`)."""
+
+    tab: np.ndarray
+    trow: np.ndarray
+    mag: int
+    sh: int
+
+
+class GaussianThemes(NamedTuple):
+    """Gaussianised themes and their inverse tables (histogram-preserving blend)."""
+
+    gflat: np.ndarray
+    inv_lut: np.ndarray
+    g_range: float
 
 
 def division_magic(d: int) -> tuple[int, int]:
@@ -91,8 +139,6 @@ def _full_table(n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _table(n: int, m: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    from core.render.rules import corner_weights
-
     xi = (np.arange(n) * m)[None, :]
     yi = (rows * n)[:, None]
     tab = np.empty((2, len(rows), 4, 3 * n), dtype=np.int32)
@@ -106,15 +152,17 @@ def _table(n: int, m: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @nb.njit(cache=True, nogil=True)
-def linear_rows(
-    out, r0, r1, rx, ry, grid, splits, ocx, ocy, n, m, flat, off, stride, th, tw, tab, trow, mag, sh
-):
-    """Fill ``out[r0:r1]`` (region origin ``rx, ry``) with the linear three-theme blend.
+def linear_rows(out, r0, r1, block, themes, weights):
+    """Fill ``out[r0:r1]`` with the linear three-theme blend.
 
-    ``tab, trow`` from :func:`weight_tables`. Rounding: ``mag == 0`` divides;
+    ``block`` a :class:`RegionBlock`, ``themes`` :class:`ThemeRows`,
+    ``weights`` :class:`LinearWeights`. Rounding: ``mag == 0`` divides;
     ``mag < 0`` means ``D`` is a power of two and the shift ``sh`` is exact
     (``(v + D/2) >> log2 D``, all 32-bit, vectorises); otherwise multiply-shift.
     """
+    grid, splits, ocx, ocy, rx, ry, n, m = block
+    flat, off, stride, th, tw = themes
+    tab, trow, mag, sh = weights
     rw = out.shape[1] // 3
     d = n * m
     half = d >> 1
@@ -188,10 +236,7 @@ def _inverse(inv_lut, row, g, g_range):
 
 
 @nb.njit(cache=True, nogil=True)
-def histogram_rows(
-    out, r0, r1, rx, ry, grid, splits, ocx, ocy, n, m, flat, gflat, off, stride, th, tw,
-    inv_lut, g_range,
-):
+def histogram_rows(out, r0, r1, block, themes, gauss):
     """Fill ``out[r0:r1]`` with the histogram-preserving blend (Heitz & Neyret, HPG 2018).
 
     Per texel and channel: ``g = sum(w_t * G_t) / sqrt(sum(w_t^2))`` over the
@@ -199,8 +244,12 @@ def histogram_rows(
     Gaussianised values ``G_t``), then ``out = sum(w_t * Q_t(g))`` with
     ``Q_t`` theme ``t``'s inverse transform (their inverse LUT, back to each
     theme's own histogram). A texel with one theme at full weight is that
-    theme's texel exactly.
+    theme's texel exactly. ``block`` a :class:`RegionBlock`, ``themes``
+    :class:`ThemeRows`, ``gauss`` :class:`GaussianThemes`.
     """
+    grid, splits, ocx, ocy, rx, ry, n, m = block
+    flat, off, stride, th, tw = themes
+    gflat, inv_lut, g_range = gauss
     rw = out.shape[1] // 3
     d = n * m
     cx0 = rx // n
@@ -265,12 +314,14 @@ def histogram_rows(
 
 
 @nb.njit(cache=True, nogil=True)
-def label_rows(out, r0, r1, rx, ry, grid, splits, ocx, ocy, n, m, tab, trow):
+def label_rows(out, r0, r1, block, tab, trow):
     """Fill ``out[r0:r1]`` ((h, w) uint8) with the theme of largest total weight per texel.
 
     Corners carrying the same theme add their weights; ties go to the lower
-    theme index. ``tab, trow`` from :func:`weight_tables` (every third entry).
+    theme index. ``block`` a :class:`RegionBlock`; ``tab, trow`` from
+    :func:`weight_tables` (every third entry).
     """
+    grid, splits, ocx, ocy, rx, ry, n, m = block
     rw = out.shape[1]
     cx0 = rx // n
     cx1 = (rx + rw - 1) // n

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from core.errors import TerrathemeError
+from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import SaddleRule, cell_splits, corner_weights
 
 _FRAC = 4096  # fixed-point scale of the local coordinates
@@ -64,9 +65,7 @@ def render_overview(
     -------
     image : (max(1, round(h*scale)), max(1, round(w*scale)), 3) uint8 ndarray
     """
-    from core.render.renderer import _textures, prepare_grid, validate_region
-
-    texs = _textures(textures)
+    texs = theme_textures(textures)
     grid, (n, m) = prepare_grid(indices, cell, len(texs))
     if not (0.0 < scale <= 1.0):
         raise TerrathemeError(f"scale must be in (0, 1], got {scale}")

@@ -14,21 +14,20 @@ rule) are documented in :mod:`core.render.rules`.
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.model.grid import IndexGrid, validate_cell, validate_indices
+from core.render import kernels as rk
+from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import SaddleRule, cell_splits
-from core.themes.library import Theme, validate_texture
-
-if TYPE_CHECKING:
-    from core.model.project import ThematicTexture
+from core.render.theme_pack import LUT_RANGE, pack_themes
+from core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
 
@@ -60,69 +59,26 @@ class RenderOptions:
     threads: int = 0
 
 
-_pool: ThreadPoolExecutor | None = None
+_pools: dict[int, ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
 
 
 def _executor(threads: int) -> ThreadPoolExecutor:
-    global _pool
-    if _pool is None:
-        _pool = ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1),
-                                   thread_name_prefix="terratheme-render")
-    return _pool
+    """A pool of exactly ``threads`` workers, made once per size."""
+    with _pools_lock:
+        if threads not in _pools:
+            _pools[threads] = ThreadPoolExecutor(max_workers=threads,
+                                                 thread_name_prefix="terratheme-render")
+        return _pools[threads]
 
 
-def _textures(themes: object) -> list[np.ndarray]:
-    """Validate a theme sequence (arrays or :class:`Theme`) into uint8 (h, w, 3) arrays."""
-    if themes is None or isinstance(themes, np.ndarray) and themes.ndim not in (1, 4):
-        raise TerrathemeError(
-            "themes must be a sequence of (h, w, 3) textures, one per index "
-            f"(got {'None' if themes is None else f'an array of shape {themes.shape}'})"
-        )
-    try:
-        items = list(themes)  # type: ignore[arg-type]
-    except TypeError as exc:
-        raise TerrathemeError(f"themes must be a sequence of textures, got {themes!r}") from exc
-    if not items:
-        raise TerrathemeError("no themes: need at least one (h, w, 3) texture")
-    out = []
-    for k, t in enumerate(items):
-        if isinstance(t, Theme):
-            out.append(t.texture)
-        else:
-            out.append(validate_texture(t, name=f"theme {k}"))
-    return out
-
-
-def prepare_grid(
-    grid: object, cell: object, n_themes: int | None
-) -> tuple[np.ndarray, tuple[int, int]]:
-    """Validate ``grid`` (array or :class:`IndexGrid`) and ``cell`` into ``(indices, (N, M))``."""
-    if isinstance(grid, IndexGrid):
-        if cell is None:
-            cell = grid.cell
-        grid = grid.indices
-    if cell is None:
-        raise TerrathemeError("cell size (N, M) is required with a plain index array")
-    indices = validate_indices(grid, n_themes=n_themes)
-    return indices, validate_cell(cell)
-
-
-def validate_region(region: object, size: tuple[int, int]) -> tuple[int, int, int, int]:
-    """Check ``region = (x, y, w, h)`` against the full texture ``size = (W, H)``."""
-    full_w, full_h = size
-    if region is None:
-        return 0, 0, full_w, full_h
-    try:
-        x, y, w, h = (int(v) for v in region)  # type: ignore[union-attr]
-    except (TypeError, ValueError) as exc:
-        raise TerrathemeError(f"region must be four integers (x, y, w, h), got {region!r}") from exc
-    if w < 1 or h < 1:
-        raise TerrathemeError(f"region {w} x {h} is empty")
-    if x < 0 or y < 0 or x + w > full_w or y + h > full_h:
-        raise TerrathemeError(
-            f"region x={x} y={y} w={w} h={h} is outside the {full_w} x {full_h} texture"
-        )
-    return x, y, w, h
+def _thread_count(threads: int, pixels: int) -> int:
+    """``threads`` (0 = one per CPU), one for renders too small to split."""
+    if threads < 0:
+        raise TerrathemeError(f"threads must be >= 0 (0 = one per CPU), got {threads}")
+    if pixels < 1 << 16:
+        return 1
+    return threads or (os.cpu_count() or 1)
 
 
 def _bands(h: int, threads: int) -> list[tuple[int, int]]:
@@ -138,7 +94,7 @@ def render_cells(
     cell: tuple[int, int] | None = None,
     region: tuple[int, int, int, int] | None = None,
     *,
-    options: RenderOptions = RenderOptions(),  # noqa: B008 (frozen, immutable)
+    options: RenderOptions = RenderOptions(),
     splits: np.ndarray | None = None,
     progress: Progress | None = None,
     out: np.ndarray | None = None,
@@ -177,10 +133,7 @@ def render_cells(
         Bad grid (not 2-D, empty, negative, index without a theme), bad
         themes (none, empty, not 3/4 channels), bad cell or region.
     """
-    from core.render import kernels as rk
-    from core.render.theme_pack import LUT_RANGE, pack_themes
-
-    textures = _textures(themes)
+    textures = theme_textures(themes)
     indices, (n, m) = prepare_grid(grid, cell, len(textures))
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
@@ -196,6 +149,8 @@ def render_cells(
           or not out.flags.c_contiguous or not out.flags.writeable):
         raise TerrathemeError(f"out must be a writeable C-contiguous ({rh}, {rw}, 3) uint8 array")
     out2 = out.reshape(rh, rw * 3)
+    block = rk.RegionBlock(sub, splits, cx0, cy0, rx, ry, n, m)
+    rows = rk.ThemeRows(packed.flat, packed.off, packed.stride, packed.th, packed.tw)
     mag, sh = rk.division_magic(n * m)
     small_table = 96 * n * m <= 8 << 20
 
@@ -208,17 +163,12 @@ def render_cells(
     def band(r0: int, r1: int) -> None:
         # One row band; the kernels release the GIL so bands run in parallel.
         if hist:
-            rk.histogram_rows(out2, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m, packed.flat,
-                              packed.gflat, packed.off, packed.stride, packed.th, packed.tw,
-                              packed.inv_lut, LUT_RANGE)
+            gauss = rk.GaussianThemes(packed.gflat, packed.inv_lut, LUT_RANGE)
+            rk.histogram_rows(out2, r0, r1, block, rows, gauss)
         else:
-            rk.linear_rows(out2, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m, packed.flat,
-                           packed.off, packed.stride, packed.th, packed.tw, *tables(r0, r1),
-                           mag, sh)
+            rk.linear_rows(out2, r0, r1, block, rows, rk.LinearWeights(*tables(r0, r1), mag, sh))
 
-    threads = options.threads or (os.cpu_count() or 1)
-    if rw * rh < 1 << 16:
-        threads = 1
+    threads = _thread_count(options.threads, rw * rh)
     bands = _bands(rh, threads)
     if threads == 1 or len(bands) == 1:
         for i, (r0, r1) in enumerate(bands):
@@ -275,6 +225,7 @@ def render_labels(
     n_themes: int | None = None,
     saddle: SaddleRule = SaddleRule.MINORITY,
     splits: np.ndarray | None = None,
+    threads: int = 0,
 ) -> np.ndarray:
     """The theme with the largest total weight at every texel (the one-hot view of a render).
 
@@ -285,8 +236,6 @@ def render_labels(
     -------
     labels : (h, w) uint8 ndarray
     """
-    from core.render import kernels as rk
-
     indices, (n, m) = prepare_grid(grid, cell, n_themes)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
@@ -294,52 +243,19 @@ def render_labels(
     sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
     splits = _region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
     out = np.empty((rh, rw), dtype=np.uint8)
+    block = rk.RegionBlock(sub, splits, cx0, cy0, rx, ry, n, m)
     small_table = 96 * n * m <= 8 << 20
 
     def band(r0: int, r1: int) -> None:
         rows = None if small_table else np.unique((ry + np.arange(r0, r1)) % m)
-        rk.label_rows(out, r0, r1, rx, ry, sub, splits, cx0, cy0, n, m,
-                      *rk.weight_tables(n, m, rows))
+        rk.label_rows(out, r0, r1, block, *rk.weight_tables(n, m, rows))
 
-    bands = _bands(rh, os.cpu_count() or 1)
-    if rw * rh < 1 << 16 or len(bands) == 1:
+    threads = _thread_count(threads, rw * rh)
+    bands = _bands(rh, threads)
+    if threads == 1 or len(bands) == 1:
         for r0, r1 in bands:
             band(r0, r1)
     else:
-        for fut in [_executor(2).submit(band, r0, r1) for r0, r1 in bands]:
+        for fut in [_executor(threads).submit(band, r0, r1) for r0, r1 in bands]:
             fut.result()
     return out
-
-
-def render_project(
-    project: ThematicTexture,
-    region: tuple[int, int, int, int] | None = None,
-    scale: float = 1.0,
-    *,
-    options: RenderOptions = RenderOptions(),  # noqa: B008
-    progress: Progress | None = None,
-) -> np.ndarray:
-    """Render a project's texture, or a reduced-resolution overview when ``scale < 1``.
-
-    Parameters
-    ----------
-    region : (x, y, w, h), optional
-        In full-resolution texels.
-    scale : float in (0, 1]
-        Output texels per full-resolution texel; below 1 the overview
-        renderer is used (it never renders full resolution first).
-
-    Returns
-    -------
-    image : (round(h*scale), round(w*scale), 3) uint8 ndarray
-    """
-    if not (0.0 < float(scale) <= 1.0):
-        raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
-    textures = project.library.textures
-    if float(scale) == 1.0:
-        return render_cells(project.grid.indices, textures, project.grid.cell, region,
-                            options=options, progress=progress)
-    from core.render.overview import render_overview
-
-    return render_overview(project.grid.indices, textures, project.grid.cell, region,
-                           scale=float(scale), saddle=options.saddle)

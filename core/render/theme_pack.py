@@ -19,7 +19,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ndtr, ndtri
+from scipy.special import ndtr
+
+from core.themes.histogram import gaussianise
 
 _CACHE_SIZE = 16
 #: entries and half-range of the inverse-transform tables of the histogram blend
@@ -92,34 +94,6 @@ def _cached(key: tuple, make):
         while len(_cache) > _CACHE_SIZE:
             _cache.popitem(last=False)
     return value
-
-
-def gaussianise(texture: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-channel Gaussianisation of a texture (Heitz & Neyret 2018, Gaussianisation step).
-
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray
-
-    Returns
-    -------
-    g : (h, w, 3) float32 ndarray
-        ``Phi^-1((rank + 0.5) / n)``: standard-normal values with the texel order.
-    sorted_vals : (3, h*w) float32 ndarray
-        Each channel's values sorted; ``sorted_vals[c][rank]`` inverts ``g``.
-    """
-    h, w, _ = texture.shape
-    n = h * w
-    flat = texture.reshape(n, 3)
-    g = np.empty((n, 3), dtype=np.float32)
-    sorted_vals = np.empty((3, n), dtype=np.float32)
-    # The Gaussian value of each rank, shared by all channels.
-    normal = ndtri((np.arange(n) + 0.5) / n).astype(np.float32)
-    for c in range(3):
-        order = np.argsort(flat[:, c], kind="stable")
-        g[order, c] = normal
-        sorted_vals[c] = flat[order, c]
-    return g.reshape(h, w, 3), sorted_vals
 
 
 def _tile_rows(tex: np.ndarray, extra: int) -> np.ndarray:

@@ -37,7 +37,8 @@ import cv2
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.themes.library import Theme, ThemeLibrary, flat_theme
+from core.themes.library import Theme, ThemeLibrary, flat_theme, shipped_theme_library
+from core.themes.tileable import make_tileable
 
 NO_DATA_NAME = "no data"
 NO_DATA_COLOUR = (0, 0, 0)
@@ -60,7 +61,6 @@ class PatchOptions:
         from the class's mean colour. False: by their Lab variance alone (the
         most homogeneous window, whatever its colour).
     """
-
     size: int = 128
     min_size: int = 16
     inside: float = 0.97
@@ -79,7 +79,6 @@ class ThemeMapping:
     classes : tuple of int
         The class values mapped, in theme order.
     """
-
     library: ThemeLibrary
     lut: np.ndarray
     classes: tuple[int, ...]
@@ -104,7 +103,7 @@ def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def find_patch(
-    lab: np.ndarray, mask: np.ndarray, options: PatchOptions = PatchOptions()  # noqa: B008
+    lab: np.ndarray, mask: np.ndarray, options: PatchOptions = PatchOptions()
 ) -> tuple[int, int, int] | None:
     """The most homogeneous square window inside a class region.
 
@@ -185,7 +184,7 @@ def themes_from_photo(
     *,
     classes: Sequence[int] | None = None,
     names: Mapping[int, str] | None = None,
-    options: PatchOptions = PatchOptions(),  # noqa: B008
+    options: PatchOptions = PatchOptions(),
 ) -> ThemeMapping:
     """One tileable theme per class, cut from the photo's most homogeneous patch of that class.
 
@@ -205,8 +204,6 @@ def themes_from_photo(
     -------
     ThemeMapping
     """
-    from core.themes.tileable import make_tileable
-
     rgb, labels = _check(photo, labels)
     wanted = _present_classes(labels, classes)
     lab = _lab(rgb)
@@ -261,7 +258,6 @@ def themes_by_name(
     """
     from scipy.optimize import linear_sum_assignment
 
-    from core.themes.library import shipped_theme_library
 
     rgb, labels = _check(photo, labels)
     source = library if library is not None else shipped_theme_library()

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError
+from core.io.images import read_image
 
 SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[2] / "themes"
 THEMES_METADATA = "themes.json"
@@ -80,7 +81,6 @@ class Theme:
     source : str
         Where the texture came from (shipped file, photo patch, ...).
     """
-
     name: str
     colour: tuple[int, int, int]
     texture: np.ndarray = field(repr=False)
@@ -195,13 +195,10 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
     """Load a theme folder: ``themes.json`` plus one texture image per theme.
 
     ``themes.json``::
-
         {"version": 1,
          "themes": [{"name": "forest", "colour": [34, 90, 40], "file": "forest.png",
                      "description": "..."}, ...]}
     """
-    from core.io.images import read_image
-
     folder = Path(folder)
     meta_path = folder / THEMES_METADATA
     if not meta_path.is_file():

@@ -57,7 +57,7 @@ from scipy.ndimage import gaussian_filter
 from scipy.special import ndtr
 
 from core.errors import TerrathemeError
-from core.render.theme_pack import gaussianise
+from core.themes.histogram import gaussianise
 from core.themes.library import validate_texture
 from core.themes.seam_cut import cut_wrap
 
@@ -245,7 +245,7 @@ def _crossfade_wrap(cur: np.ndarray, options: TileableOptions) -> np.ndarray:
     return cur
 
 
-def make_tileable(patch: np.ndarray, options: TileableOptions = TileableOptions()) -> np.ndarray:  # noqa: B008
+def make_tileable(patch: np.ndarray, options: TileableOptions = TileableOptions()) -> np.ndarray:
     """Make a patch tile seamlessly in both directions.
 
     Parameters
