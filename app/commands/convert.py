@@ -119,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
+    from app.outputs import check_outputs
     from core.convert.photo import (
         ConvertOptions,
         convert_photo,
@@ -134,9 +135,9 @@ def run(args: argparse.Namespace) -> int:
     preview = args.preview or str(project.with_name(project.stem + "_preview.png"))
     packed = args.packed or str(project.with_suffix(".ttpack"))
     themes = parse_themes(args.themes)
-    # Output folders are made up front (the README's command writes into out/).
-    for out in (project, Path(preview), Path(packed), *([Path(args.curve)] if args.curve else [])):
-        out.parent.mkdir(parents=True, exist_ok=True)
+    # Output paths checked (and their folders made) before any work.
+    check_outputs([project, preview, packed, args.curve],
+                  inputs=[args.photo, args.scribbles, args.model])
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes)
     model = None

@@ -22,7 +22,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("project", help="project file (.ttproj)")
     parser.add_argument("out", help="output image (.png, .tif, .jpg, .exr ...)")
     parser.add_argument("--region", type=_region, metavar="X,Y,W,H",
-                        help="render only this window (full-resolution texels)")
+                        help="render only this window (full-resolution texels; default: the "
+                             "photo's extent, or the whole texture of a hand-made project)")
     parser.add_argument("--scale", type=float, default=1.0,
                         help="output pixels per texel, in (0, 1] (overview render below 1)")
     parser.add_argument("--blend", choices=["linear", "histogram"], default="linear",
@@ -32,13 +33,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from app.outputs import check_outputs
+    from core.io.georef import write_georeference
     from core.io.images import write_image
     from core.model.project import load_project
-    from core.render.project import render_project
+    from core.render.project import photo_extent, render_georeference, render_project
     from core.render.renderer import BlendMode, RenderOptions
 
+    check_outputs([args.out], inputs=[args.project])
     project = load_project(args.project)
     options = RenderOptions(blend=BlendMode(args.blend))
+    region = args.region or (0, 0, *photo_extent(project))
     with tqdm(total=1, desc="render", unit="band", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -46,9 +51,14 @@ def run(args: argparse.Namespace) -> int:
             bar.n = done
             bar.refresh()
 
-        image = render_project(project, args.region, args.scale, options=options,
+        image = render_project(project, region, args.scale, options=options,
                                progress=progress)
     write_image(args.out, image)
     h, w = image.shape[:2]
-    print(f"{args.out}: {w} x {h} texels ({args.blend} blend)")
+    made = write_georeference(args.out, render_georeference(project, region, (w, h)))
+    geo = " with its georeference" if made else ""
+    print(f"{args.out}: {w} x {h} texels ({args.blend} blend){geo}")
+    for extra in made:
+        if str(extra) != str(args.out):
+            print(f"  world file: {extra}")
     return 0

@@ -38,12 +38,12 @@ from core.convert.labels_to_grid import (
 )
 from core.convert.labels_to_grid import agreement as measure
 from core.errors import TerrathemeError
-from core.io.georef import read_georeference, scale_georeference, write_georeference
+from core.io.georef import read_georeference, write_georeference
 from core.io.images import read_image, write_image
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture, save_project
 from core.packing import pack
-from core.render.project import render_project
+from core.render.project import photo_extent, render_georeference, render_project
 from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
 
 ProgressFn = Callable[[int, int], None]
@@ -260,26 +260,22 @@ def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
 
 
 def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -> tuple[
-    np.ndarray, tuple[float, float]
+    np.ndarray, tuple[int, int, int, int]
 ]:
-    """The project rendered over the photo's extent.
+    """The project rendered over the photo's extent (:func:`core.render.project.photo_extent`).
 
-    The render is cropped to the photo size stored in the metadata (so it
-    lies on the photo's pixel grid) and reduced when its long side exceeds
-    ``max_side`` (overview renderer).
+    Reduced when its long side exceeds ``max_side`` (overview renderer).
 
     Returns
     -------
     image : (h, w, 3) uint8 ndarray
-    pixel_size : (sx, sy)
-        Photo pixels per preview pixel (1, 1 unless reduced).
+    region : (x, y, w, h)
+        The texels it covers.
     """
-    tw, th = project.grid.texture_size
-    w, h = project.metadata.get("photo_size", [tw, th])
-    w, h = min(int(w), tw), min(int(h), th)
+    w, h = photo_extent(project)
     scale = min(1.0, max_side / max(w, h))
-    image = render_project(project, region=(0, 0, w, h), scale=scale)
-    return image, (w / image.shape[1], h / image.shape[0])
+    region = (0, 0, w, h)
+    return render_project(project, region=region, scale=scale), region
 
 
 def write_outputs(
@@ -300,16 +296,13 @@ def write_outputs(
     save_project(project_path, project)
     written["project"] = Path(project_path)
     if preview_path is not None:
-        image, (sx, sy) = render_preview(project, preview_max_side)
+        image, region = render_preview(project, preview_max_side)
         write_image(preview_path, image)
         written["preview"] = Path(preview_path)
-        geo = project.metadata.get("georeference")
-        if geo:
-            if (sx, sy) != (1.0, 1.0):
-                geo = scale_georeference(geo, sx, sy)
-            for made in write_georeference(preview_path, geo):
-                if made != Path(preview_path):
-                    written["preview_world_file"] = made
+        geo = render_georeference(project, region, image.shape[1::-1])
+        for made in write_georeference(preview_path, geo):
+            if made != Path(preview_path):
+                written["preview_world_file"] = made
     if packed_path is not None:
         layer = pack(project.grid.indices, curve="auto")
         layer.save(packed_path)

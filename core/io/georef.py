@@ -106,13 +106,36 @@ def _read_geo_tags(path: Path) -> dict:
         raise CorruptFileError(f"{path}: damaged TIFF directory ({exc})") from exc
 
 
-def scale_georeference(georef: dict, sx: float, sy: float) -> dict:
-    """The georeference of an image resampled so one new pixel covers ``sx x sy`` old ones.
+def scale_georeference(georef: dict, sx: float, sy: float, *,
+                       offset: tuple[float, float] = (0.0, 0.0)) -> dict:
+    """The georeference of a window of an image, resampled so one new pixel covers ``sx x sy``.
 
-    The tie point is kept on the raster's corner (pixel-is-area), so only the
-    pixel scale (or the affine transformation's linear part) changes.
+    Parameters
+    ----------
+    georef : dict
+        As :func:`read_georeference` returns it.
+    sx, sy : float
+        Old pixels per new pixel along x and y.
+    offset : (x, y)
+        Old pixel where the new raster's corner lies (a region's origin).
+
+    The tie point is kept on the raster's corner (pixel-is-area), so apart
+    from the offset only the pixel scale (or the affine transformation's
+    linear part) changes.
     """
     out = dict(georef)
+    ox, oy = float(offset[0]), float(offset[1])
+    if (ox, oy) != (0.0, 0.0):
+        if "ModelTransformation" in out:
+            t = list(out["ModelTransformation"])
+            for r in range(3):
+                t[4 * r + 3] += t[4 * r] * ox + t[4 * r + 1] * oy
+            out["ModelTransformation"] = t
+        if "ModelTiepoint" in out and "ModelPixelScale" in out:
+            i, j, k, x, y, z = out["ModelTiepoint"][:6]
+            px, py = out["ModelPixelScale"][:2]
+            out["ModelTiepoint"] = [0.0, 0.0, k, x + (ox - i) * px, y - (oy - j) * py, z,
+                                    *out["ModelTiepoint"][6:]]
     if "ModelPixelScale" in out:
         px = list(out["ModelPixelScale"])
         out["ModelPixelScale"] = [px[0] * sx, px[1] * sy, *px[2:]]

@@ -7,6 +7,7 @@ from collections.abc import Callable
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.io.georef import scale_georeference
 from core.model.project import ThematicTexture
 from core.render.overview import render_overview
 from core.render.renderer import RenderOptions, render_cells
@@ -47,3 +48,36 @@ def render_project(
                             options=options, progress=progress)
     return render_overview(project.grid.indices, textures, project.grid.cell, region,
                            scale=float(scale), saddle=options.saddle)
+
+
+def photo_extent(project: ThematicTexture) -> tuple[int, int]:
+    """``(w, h)``: the size of the photo the project was made from, else the texture's.
+
+    A converted project's grid covers whole cells, so its texture can be a
+    little larger than the photo; renders of the project default to the
+    photo's extent (the last cells cut to it) so they lie on its pixel grid.
+    """
+    tw, th = project.grid.texture_size
+    size = project.metadata.get("photo_size")
+    try:
+        w, h = (int(v) for v in size)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        return tw, th
+    if w < 1 or h < 1:
+        return tw, th
+    return min(w, tw), min(h, th)
+
+
+def render_georeference(project: ThematicTexture, region: tuple[int, int, int, int],
+                        out_size: tuple[int, int]) -> dict:
+    """The georeference of a render of ``region`` at ``out_size = (w, h)`` pixels.
+
+    The project's georeference (kept from a GeoTIFF photo) describes texel
+    ``(0, 0)``; the render starts at the region's origin and one output pixel
+    covers ``region w / out w`` texels. ``{}`` when the project has none.
+    """
+    geo = project.metadata.get("georeference")
+    if not geo:
+        return {}
+    x, y, w, h = region
+    return scale_georeference(geo, w / out_size[0], h / out_size[1], offset=(x, y))
