@@ -8,11 +8,13 @@ import pytest
 from core.errors import TerrathemeError
 from core.themes.from_photo import (
     NO_DATA_NAME,
-    PatchOptions,
-    find_patch,
+    fill_from_class,
+    lone_objects,
     themes_by_name,
     themes_from_photo,
 )
+from core.themes.library import shipped_theme_library
+from core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
 from core.themes.tileable import SEAM_THRESHOLD, seam_score
 
 
@@ -31,71 +33,107 @@ def _two_regions(h=96, w=128, seed=0):
     return photo, labels
 
 
-def test_find_patch_picks_the_calm_square_inside_the_class():
-    import cv2
+def _windows(photo):
+    return WindowStats(texture_stats(photo))
 
+
+def test_find_patch_matches_the_class_texture_not_its_calmest_corner():
     photo, labels = _two_regions()
-    lab = cv2.cvtColor(photo.astype(np.float32) / 255, cv2.COLOR_RGB2LAB)
-    x, y, s = find_patch(lab, labels == 2, PatchOptions(size=32, min_size=8))
-    assert s == 32
-    # The whole window lies in the calm square (columns 80..119, rows 30..69).
-    assert 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
-    # Class 1 has no calm part, but its window must stay inside the class (columns < 64).
-    x1, y1, s1 = find_patch(lab, labels == 1, PatchOptions(size=32, min_size=8))
+    # Class 2's texture is its noise (std 25): the window picked avoids the calm square.
+    x, y, s = find_patch(_windows(photo), labels == 2, PatchOptions(size=32, min_size=8))
+    assert s == 32 and x >= 64
+    inside_calm = 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
+    assert not inside_calm
+    assert photo[y : y + s, x : x + s].std() > 15
+    # Class 1's window stays inside the class (columns < 64).
+    x1, y1, s1 = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=8))
     assert x1 + s1 <= 64
 
 
-def test_find_patch_prefers_the_class_colour_over_a_flat_dark_corner():
-    import cv2
-
-    # One class: mostly mid-grey with mild noise, plus a flat black 40 x 40 corner.
-    rng = np.random.default_rng(1)
-    photo = np.clip(128 + rng.normal(0, 6, (96, 96, 3)), 0, 255).astype(np.uint8)
-    photo[:40, :40] = 0
-    lab = cv2.cvtColor(photo.astype(np.float32) / 255, cv2.COLOR_RGB2LAB)
-    mask = np.ones((96, 96), bool)
-    opts = PatchOptions(size=32, min_size=8)
-    # Variance alone picks the flat black corner ...
-    x, y, s = find_patch(lab, mask, PatchOptions(size=32, min_size=8, representative=False))
-    assert x + s <= 40 and y + s <= 40
-    # ... the representative score a grey window that misses the corner entirely.
-    x, y, s = find_patch(lab, mask, opts)
-    assert s == 32 and (x >= 40 or y >= 40)
-    assert photo[y : y + s, x : x + s].mean() > 100
+def test_find_patch_takes_the_calm_square_when_the_class_is_calm():
+    photo, labels = _two_regions()
+    calm = np.zeros(labels.shape, bool)
+    calm[30:70, 80:120] = True
+    calm[0:10, 64:74] = True  # a few noisy pixels of the class elsewhere
+    x, y, s = find_patch(_windows(photo), calm, PatchOptions(size=32, min_size=8, inside=1.0))
+    assert 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
 
 
 def test_find_patch_shrinks_then_gives_up():
-    lab = np.zeros((50, 50, 3), np.float32)
+    photo = np.zeros((50, 50, 3), np.uint8)
     mask = np.zeros((50, 50), bool)
     mask[10:30, 10:30] = True  # 20 x 20 region: sizes 50, 37, 27 do not fit, 20 does
-    got = find_patch(lab, mask, PatchOptions(size=128, min_size=8, inside=1.0))
+    got = find_patch(_windows(photo), mask, PatchOptions(size=128, min_size=8, inside=1.0))
     assert got == (10, 10, 20)
-    assert find_patch(lab, mask, PatchOptions(size=128, min_size=24, inside=1.0)) is None
+    opts = PatchOptions(size=128, min_size=24, inside=1.0)
+    assert find_patch(_windows(photo), mask, opts) is None
 
 
-def test_themes_from_photo_are_tileable_patches():
+def test_find_patch_skips_excluded_windows():
+    photo, labels = _two_regions()
+    first = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=32))
+    second = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=32),
+                        exclude=[first])
+    assert second is not None
+    assert abs(second[0] - first[0]) > 16 or abs(second[1] - first[1]) > 16
+
+
+def test_fill_from_class_takes_only_class_pixels():
+    rng = np.random.default_rng(3)
+    patch = rng.integers(100, 200, (16, 16, 3), dtype=np.uint8)
+    keep = np.ones((16, 16), bool)
+    keep[4:8, 4:8] = False
+    patch[4:8, 4:8] = 0  # another class's pixels
+    out = fill_from_class(patch, keep)
+    assert np.array_equal(out[keep], patch[keep])
+    assert out[~keep].min() >= 100
+    # Every filled texel is one of the kept ones.
+    kept = {tuple(v) for v in patch[keep]}
+    assert all(tuple(v) in kept for v in out[~keep])
+
+
+def test_lone_objects_are_found_in_calm_texture_only():
+    rng = np.random.default_rng(4)
+    calm = np.clip(90 + rng.normal(0, 3, (64, 64, 3)), 0, 255).astype(np.uint8)
+    calm[30:36, 30:36] = 250  # a white box in dark water
+    found = lone_objects(calm)
+    assert found[30:36, 30:36].all() and found.mean() < 0.05
+    busy = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    assert lone_objects(busy).mean() < 0.2
+
+
+def test_themes_from_photo_are_tileable_patches_with_the_class_detail():
+    from core.fidelity import detail_energy
+
     photo, labels = _two_regions()
     mapping = themes_from_photo(photo, labels, options=PatchOptions(size=32, min_size=8))
-    assert mapping.library.names == ["class 1", "class 2"]
     assert mapping.classes == (1, 2)
     assert mapping.lut[1] == 0 and mapping.lut[2] == 1
-    for theme in mapping.library:
+    for theme, c in zip(mapping.library, (1, 2), strict=True):
         assert theme.texture.shape == (32, 32, 3)
         assert theme.source.startswith("photo patch")
         assert seam_score(theme.texture) < SEAM_THRESHOLD
+        region = photo[:, :64] if c == 1 else photo[:, 70:]
+        # The theme carries at least half of its class's fine detail.
+        assert detail_energy(theme.texture) > 0.5 * detail_energy(region)
     # Display colour: the class's mean colour (red-brown, then green).
     assert mapping.library[0].colour[0] > mapping.library[0].colour[1]
     assert mapping.library[1].colour[1] > mapping.library[1].colour[0]
+    # Named after shipped themes, never "class 1".
+    names = set(shipped_theme_library().names)
+    assert all(n.split(" ")[0] in names or n in names for n in mapping.library.names)
+    assert len(set(mapping.library.names)) == 2
 
 
 def test_tiny_class_and_no_data_get_flat_themes():
     photo = np.full((20, 20, 3), 100, np.uint8)
     labels = np.ones((20, 20), np.uint8)
-    labels[0, 0] = 3  # one pixel: no 16-pixel patch fits
+    labels[0, 0] = 3  # one pixel: no patch fits
     labels[19, 19] = 0  # transparent
     photo[0, 0] = (10, 20, 30)
-    mapping = themes_from_photo(photo, labels)
-    assert mapping.library.names == ["class 1", "class 3", NO_DATA_NAME]
+    mapping = themes_from_photo(photo, labels, names={1: "ground", 3: "speck"},
+                                options=PatchOptions(size=16, min_size=16))
+    assert mapping.library.names == ["ground", "speck", NO_DATA_NAME]
     assert mapping.library[1].colour == (10, 20, 30)
     assert "flat" in mapping.library[1].source
     assert mapping.library[0].source.startswith("photo patch")

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+from core.errors import TerrathemeError
+
 NAME = "convert"
 HELP = "turn an orthophoto into a thematic texture project (+ preview render, packed layer)"
 ORDER = 40
@@ -25,6 +27,32 @@ def _cell(value: str) -> str | int:
     if not 1 <= n <= 4096:
         raise argparse.ArgumentTypeError(f"--cell must be 1..4096, not {n}")
     return n
+
+
+def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
+    """Parse ``--themes``: ``auto``, ``K``, ``name,name,...`` or ``1=name,2=name``."""
+    text = text.strip()
+    if not text:
+        raise TerrathemeError("--themes is empty (use auto, a number, or theme names)")
+    if text.lower() == "auto":
+        return "auto"
+    if text.isdigit():
+        k = int(text)
+        if not 1 <= k <= 255:
+            raise TerrathemeError(f"--themes {k}: the number of themes must be 1..255")
+        return k
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if all("=" in p for p in parts):
+        out: dict[int, str] = {}
+        for p in parts:
+            key, name = (s.strip() for s in p.split("=", 1))
+            if not key.isdigit() or not 1 <= int(key) <= 255:
+                raise TerrathemeError(f"--themes {p!r}: class must be a number 1..255")
+            out[int(key)] = name
+        return out
+    if any("=" in p for p in parts):
+        raise TerrathemeError(f"--themes {text!r}: mix of names and class=name pairs")
+    return parts
 
 
 def _agreement(value: str) -> float:
@@ -123,7 +151,6 @@ def run(args: argparse.Namespace) -> int:
     from core.convert.photo import (
         ConvertOptions,
         convert_photo,
-        parse_themes,
         read_photo,
         write_outputs,
     )

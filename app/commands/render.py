@@ -26,8 +26,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "photo's extent, or the whole texture of a hand-made project)")
     parser.add_argument("--scale", type=float, default=1.0,
                         help="output pixels per texel, in (0, 1] (overview render below 1)")
-    parser.add_argument("--blend", choices=["linear", "histogram"], default="linear",
-                        help="linear (the paper's) or histogram-preserving (Heitz & Neyret 2018)")
+    parser.add_argument("--blend", choices=["linear", "histogram", "shaped"], default=None,
+                        help="default: the project's own style (shaped borders for converted "
+                             "photos, the paper's linear ramp for hand-made maps); linear: the "
+                             "paper's; histogram: histogram-preserving (Heitz & Neyret 2018); "
+                             "shaped: borders shaped by the themes and noise")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,12 +40,24 @@ def run(args: argparse.Namespace) -> int:
     from core.io.georef import write_georeference
     from core.io.images import write_image
     from core.model.project import load_project
-    from core.render.project import photo_extent, render_georeference, render_project
+    from core.render.boundary import BoundaryOptions
+    from core.render.project import (
+        photo_extent,
+        project_style,
+        render_georeference,
+        render_project,
+    )
     from core.render.renderer import BlendMode, RenderOptions
 
     check_outputs([args.out], inputs=[args.project])
     project = load_project(args.project)
-    options = RenderOptions(blend=BlendMode(args.blend))
+    if args.blend is None:
+        options = project_style(project)
+    elif args.blend == "shaped":
+        options = RenderOptions(boundary=BoundaryOptions())
+    else:
+        options = RenderOptions(blend=BlendMode(args.blend))
+    style = "shaped" if options.boundary is not None else options.blend.value
     region = args.region or (0, 0, *photo_extent(project))
     with tqdm(total=1, desc="render", unit="band", leave=False) as bar:
 
@@ -57,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     h, w = image.shape[:2]
     made = write_georeference(args.out, render_georeference(project, region, (w, h)))
     geo = " with its georeference" if made else ""
-    print(f"{args.out}: {w} x {h} texels ({args.blend} blend){geo}")
+    print(f"{args.out}: {w} x {h} texels ({style} blend){geo}")
     for extra in made:
         if str(extra) != str(args.out):
             print(f"  world file: {extra}")

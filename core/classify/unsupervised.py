@@ -74,7 +74,7 @@ class UnsupervisedOptions:
     )
     regularisation: RegulariseOptions = field(default_factory=RegulariseOptions)
     max_themes: int = 8
-    min_gain: float = 0.05
+    min_gain: float = 0.03
     min_separation: float = 6.0
     transition_share: float = 0.15
     max_samples: int = 20000

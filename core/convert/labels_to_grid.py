@@ -40,6 +40,8 @@ _MAX_PIXELS = 1 << 23
 _STRIP = 8
 #: pixels on which :func:`choose_cell_size` measures each candidate by default
 DEFAULT_SAMPLE_PIXELS = 1 << 20
+#: classes smaller than this share of the photo do not constrain the cell size
+CLASS_MIN_SHARE = 0.005
 
 ProgressFn = Callable[[int, int], None]
 
@@ -246,8 +248,9 @@ def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.
     return table.astype(np.uint8)[labels]
 
 
-def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = None) -> float:
-    """Fraction of pixels whose label equals the grid's label view (cropped to the photo).
+def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
+                    max_pixels: int | None = None) -> np.ndarray:
+    """Counts of (label, label view) pairs over the photo: ``(K, K)`` int64, rows = labels.
 
     Parameters
     ----------
@@ -256,10 +259,14 @@ def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = N
     grid : IndexGrid
         Must cover the photo: ``grid.texture_size >= (W, H)``.
     max_pixels : int, optional
-        Above this many pixels, measure on evenly spaced full-width strips of
+        Above this many pixels, count on evenly spaced full-width strips of
         ``_STRIP`` rows holding about ``max_pixels`` pixels (the renderer's
         regions are exact crops of the full render, so this is an unbiased
         row sample). Default: every pixel.
+
+    Returns
+    -------
+    (K, K) int64 ndarray, ``K = max(label, index) + 1``
     """
     labels = _check_labels(labels)
     h, w = labels.shape
@@ -273,13 +280,32 @@ def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = N
         n_strips = max(1, int(max_pixels) // (w * _STRIP))
         starts = np.linspace(0, h - _STRIP, n_strips).astype(int)
         strips = [(int(y), _STRIP) for y in np.unique(starts)]
-    same = total = 0
+    k = int(max(labels.max(initial=0), grid.indices.max(initial=0))) + 1
+    counts = np.zeros(k * k, np.int64)
     for y, sh in strips:
         # A region render touches only the vertex rows under it (an exact crop of the full view).
         view = render_labels(grid, region=(0, y, w, sh))
-        same += int(np.count_nonzero(view == labels[y : y + sh]))
-        total += w * sh
-    return same / total
+        pairs = labels[y : y + sh].astype(np.int64) * k + view
+        counts += np.bincount(pairs.ravel(), minlength=k * k)
+    return counts.reshape(k, k)
+
+
+def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = None) -> float:
+    """Fraction of pixels whose label equals the grid's label view (cropped to the photo).
+
+    See :func:`label_confusion` for the arguments.
+    """
+    cm = label_confusion(labels, grid, max_pixels=max_pixels)
+    return float(np.trace(cm) / max(cm.sum(), 1))
+
+
+def class_iou(confusion: np.ndarray, min_share: float = 0.0) -> dict[int, float]:
+    """IoU of each label with its label view, for labels covering at least ``min_share``."""
+    tp = np.diag(confusion).astype(np.float64)
+    rows, cols = confusion.sum(axis=1), confusion.sum(axis=0)
+    total = max(int(confusion.sum()), 1)
+    return {int(k): float(tp[k] / max(rows[k] + cols[k] - tp[k], 1))
+            for k in range(confusion.shape[0]) if rows[k] > 0 and rows[k] / total >= min_share}
 
 
 @dataclass(frozen=True)
@@ -290,6 +316,8 @@ class CellPoint:
     agreement: float
     #: vertex count of the grid: 1 byte per vertex, uncompressed
     grid_bytes: int
+    #: the lowest IoU of a class (covering at least CLASS_MIN_SHARE) with its label view
+    worst_class_iou: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -302,6 +330,8 @@ class CellChoice:
     curve: tuple[CellPoint, ...]
     #: False when no candidate met the target (then the best-agreeing cell was taken)
     target_met: bool
+    #: the per-class IoU target the cell also had to meet (0: none)
+    class_target: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-ready summary (for the project metadata and the benchmark)."""
@@ -310,8 +340,10 @@ class CellChoice:
             "agreement": self.agreement,
             "target": self.target,
             "target_met": self.target_met,
+            "class_target": self.class_target,
             "curve": [
-                {"cell": p.cell, "agreement": p.agreement, "grid_bytes": p.grid_bytes}
+                {"cell": p.cell, "agreement": p.agreement, "grid_bytes": p.grid_bytes,
+                 "worst_class_iou": p.worst_class_iou}
                 for p in self.curve
             ],
         }
@@ -324,15 +356,19 @@ def choose_cell_size(
     candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
     sample_pixels: int | None = DEFAULT_SAMPLE_PIXELS,
     progress: ProgressFn | None = None,
+    class_target: float = 0.0,
 ) -> CellChoice:
     """The largest square cell whose label view keeps ``target_agreement`` of the labels.
 
     Every candidate cell that fits the photo (``cell <= max(W, H)``) is tried:
     vote the grid (:func:`vote_grid`), render its label view and count the
     pixels that keep their label. The answer is the largest candidate whose
-    agreement is at least the target, so a higher target never gives a
-    larger cell. When none meets it (possible only if cell 1 is not a
-    candidate), the candidate with the best agreement is returned with
+    agreement is at least the target and whose every class covering at least
+    ``CLASS_MIN_SHARE`` of the photo keeps an IoU with its label view of at
+    least ``class_target`` (so a thin class such as roads does not vanish
+    while the whole photo's agreement stays high). A higher target never
+    gives a larger cell. When none meets them (possible only if cell 1 is
+    not a candidate), the candidate with the best agreement is returned with
     ``target_met=False``.
 
     Parameters
@@ -361,19 +397,24 @@ def choose_cell_size(
         raise TerrathemeError(
             f"no candidate cell size fits the {w} x {h} labels (candidates {list(candidates)})"
         )
+    if not 0.0 <= float(class_target) <= 1.0:
+        raise TerrathemeError(f"class target must be in [0, 1], got {class_target}")
     curve = []
     for done, c in enumerate(sizes, start=1):
         grid = IndexGrid(vote_grid(labels, (c, c)), (c, c))
-        score = agreement(labels, grid, max_pixels=sample_pixels)
-        curve.append(CellPoint(c, score, int(grid.indices.size)))
+        cm = label_confusion(labels, grid, max_pixels=sample_pixels)
+        ious = class_iou(cm, CLASS_MIN_SHARE)
+        curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), int(grid.indices.size),
+                               min(ious.values(), default=1.0)))
         if progress is not None:
             progress(done, len(sizes))
-    meeting = [p for p in curve if p.agreement >= target_agreement]
+    meeting = [p for p in curve if p.agreement >= target_agreement
+               and p.worst_class_iou >= class_target]
     if meeting:
         best = max(meeting, key=lambda p: p.cell)
     else:
         best = max(curve, key=lambda p: (p.agreement, -p.cell))
     return CellChoice(
         (best.cell, best.cell), best.agreement, float(target_agreement), tuple(curve),
-        target_met=bool(meeting),
+        target_met=bool(meeting), class_target=float(class_target),
     )

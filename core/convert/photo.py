@@ -22,29 +22,25 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from core.classify import classify_unsupervised, train_classifier
 from core.classify.photo import prepare_photo
-from core.convert.labels_to_grid import (
-    DEFAULT_CELL_CANDIDATES,
-    CellChoice,
-    apply_lut,
-    choose_cell_size,
-    vote_grid,
-)
-from core.convert.labels_to_grid import agreement as measure
+from core.convert.colour_fit import ColourMapOptions, FittedColourMap
+from core.convert.labels_to_grid import DEFAULT_CELL_CANDIDATES, CellChoice, apply_lut
+from core.convert.step import assign_themes, classify_photo, grid_and_colour
 from core.errors import TerrathemeError
 from core.io.georef import read_georeference, write_georeference
 from core.io.images import read_image, write_image
-from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture, save_project
 from core.packing import pack
+from core.render.boundary import BoundaryOptions
 from core.render.project import photo_extent, render_georeference, render_project
-from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
+from core.render.renderer import RenderOptions
+from core.themes.from_photo import ThemeMapping
+from core.themes.patch_search import PatchOptions
 
 ProgressFn = Callable[[int, int], None]
 
@@ -61,24 +57,36 @@ class ConvertOptions:
     Attributes
     ----------
     cell : "auto" or int
-        Square cell size in texels, or chosen from ``target_agreement``.
+        Square cell size in texels, or chosen from the targets.
     themes : "auto", int, sequence of names or {class: name}
         "auto"/int: number of unsupervised classes (themes cut from the
         photo). Names: shipped themes; a list is assigned to the classes by
-        colour (unsupervised K = auto, at most the number of names); a
+        appearance (unsupervised K = auto, at most the number of names); a
         mapping names the class values (for scribbles).
     target_agreement : float
         Share of pixels whose label the grid must keep (``cell="auto"``).
+    class_target : float
+        IoU with its label view every class (of at least 0.5% of the photo)
+        must keep (``cell="auto"``): thin classes such as roads do not vanish.
     candidates : sequence of int
         Cell sizes tried by ``cell="auto"``.
     patch : PatchOptions
         Theme patch search.
+    colour_map : ColourMapOptions or None
+        The colour map fitted to the photo; None: the paper's pure rule.
+    boundary : BoundaryOptions or None
+        Borders shaped by the themes' content and noise, stored as the
+        project's render style; None: the paper's barycentric ramp.
     """
+
     cell: str | int = "auto"
     themes: str | int | Sequence[str] | Mapping[int, str] = "auto"
     target_agreement: float = 0.9
+    class_target: float = 0.5
     candidates: tuple[int, ...] = DEFAULT_CELL_CANDIDATES
     patch: PatchOptions = field(default_factory=PatchOptions)
+    colour_map: ColourMapOptions | None = field(default_factory=ColourMapOptions)
+    boundary: BoundaryOptions | None = field(default_factory=BoundaryOptions)
 
 
 @dataclass(frozen=True)
@@ -97,39 +105,17 @@ class ConvertResult:
         The agreement curve when the cell size was chosen automatically.
     agreement : float
         Share of photo pixels whose theme the grid's label view keeps.
+    colour : FittedColourMap or None
+        The colour map and its stored bytes.
     """
+
     project: ThematicTexture
     labels: np.ndarray
     confidence: np.ndarray
     mapping: ThemeMapping
     choice: CellChoice | None
     agreement: float
-
-
-def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
-    """Parse ``--themes``: ``auto``, ``K``, ``name,name,...`` or ``1=name,2=name``."""
-    text = text.strip()
-    if not text:
-        raise TerrathemeError("--themes is empty (use auto, a number, or theme names)")
-    if text.lower() == "auto":
-        return "auto"
-    if text.isdigit():
-        k = int(text)
-        if not 1 <= k <= 255:
-            raise TerrathemeError(f"--themes {k}: the number of themes must be 1..255")
-        return k
-    parts = [p.strip() for p in text.split(",") if p.strip()]
-    if all("=" in p for p in parts):
-        out: dict[int, str] = {}
-        for p in parts:
-            key, name = (s.strip() for s in p.split("=", 1))
-            if not key.isdigit() or not 1 <= int(key) <= 255:
-                raise TerrathemeError(f"--themes {p!r}: class must be a number 1..255")
-            out[int(key)] = name
-        return out
-    if any("=" in p for p in parts):
-        raise TerrathemeError(f"--themes {text!r}: mix of names and class=name pairs")
-    return parts
+    colour: FittedColourMap | None = None
 
 
 def _stage(progress: ProgressFn | None, start: int, span: int) -> ProgressFn | None:
@@ -141,22 +127,6 @@ def _stage(progress: ProgressFn | None, start: int, span: int) -> ProgressFn | N
         progress(start + (span * done) // max(total, 1), 100)
 
     return sub
-
-
-def _classify(photo, scribbles, themes, model, progress):
-    if model is not None:
-        return model.predict(photo, progress=progress)
-    if scribbles is not None:
-        model = train_classifier([(photo, scribbles)])
-        return model.predict(photo, progress=progress)
-    if isinstance(themes, int | str):
-        return classify_unsupervised(photo, themes=themes, progress=progress)
-    # Names: K from the data, but never more classes than names.
-    n_names = len(themes)
-    result = classify_unsupervised(photo, themes="auto", progress=progress)
-    if len(np.unique(result.labels[result.labels > 0])) > n_names:
-        result = classify_unsupervised(photo, themes=n_names, progress=progress)
-    return result
 
 
 def convert_photo(
@@ -199,32 +169,22 @@ def convert_photo(
             )
     if options.cell != "auto" and (not isinstance(options.cell, int) or options.cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {options.cell!r}")
-    # Classify the photo (40% of the progress).
-    result = _classify(photo, scribbles, options.themes, model, _stage(progress, 0, 40))
+    # Classify the photo (35% of the progress).
+    result, _ = classify_photo(photo, themes=options.themes, scribbles=scribbles, model=model,
+                               progress=_stage(progress, 0, 35))
     labels = result.labels
-    # Themes: named shipped themes or patches cut from the photo (15%).
-    if isinstance(options.themes, Mapping) or (
-        not isinstance(options.themes, str | int)
-    ):
-        mapping = themes_by_name(rgb, labels, options.themes)
-    else:
-        mapping = themes_from_photo(rgb, labels, options=options.patch)
+    # Themes: cut from the photo and named, or shipped themes by name (15%).
+    mapping = assign_themes(rgb, labels, result.classes, options.themes, patch=options.patch)
     if progress is not None:
-        progress(55, 100)
-    # Class values -> theme indices, then the cell size (35%) and the grid vote.
+        progress(50, 100)
+    # Class values -> theme indices, the grid (35%), then the colour map (15%).
     theme_labels = apply_lut(labels, mapping.lut)
-    choice = None
-    if options.cell == "auto":
-        choice = choose_cell_size(theme_labels, options.target_agreement,
-                                  candidates=options.candidates,
-                                  progress=_stage(progress, 55, 35))
-        cell = choice.cell
-    else:
-        cell = (int(options.cell), int(options.cell))
-    grid = IndexGrid(vote_grid(theme_labels, cell), cell)
-
-    score = choice.agreement if choice is not None else measure(theme_labels, grid,
-                                                                max_pixels=1 << 22)
+    made = grid_and_colour(rgb, theme_labels, mapping, cell=options.cell,
+                           target_agreement=options.target_agreement,
+                           class_target=options.class_target, candidates=options.candidates,
+                           colour_map=options.colour_map,
+                           render=RenderOptions(boundary=options.boundary),
+                           progress=_stage(progress, 50, 35))
     if progress is not None:
         progress(95, 100)
     meta = dict(metadata or {})
@@ -232,18 +192,26 @@ def convert_photo(
         "created_by": "terratheme convert",
         "photo_size": [w, h],
         "classes": {str(c): mapping.library[int(mapping.lut[c])].name for c in mapping.classes},
-        "agreement": score,
+        "agreement": made.agreement,
     })
-    if choice is not None:
-        meta["cell_choice"] = choice.as_dict()
+    if made.choice is not None:
+        meta["cell_choice"] = made.choice.as_dict()
+    if options.boundary is not None:
+        meta["render"] = {"boundary": asdict(options.boundary)}
+    if made.colour is not None:
+        meta["colour_map"] = {"codec": made.colour.codec, "bytes": len(made.colour.data),
+                              "colour_error": made.colour.colour_error,
+                              "curve": [list(p) for p in made.colour.curve]}
     project = ThematicTexture(
-        grid, mapping.library, meta,
+        made.grid, mapping.library, meta,
         photo=rgb if rgb.size // 3 <= MAX_STORED_PHOTO else None,
         scribbles=None if scribbles is None else scribbles.astype(np.uint8),
+        colour_map=None if made.colour is None else made.colour.colour_map,
     )
     if progress is not None:
         progress(100, 100)
-    return ConvertResult(project, labels, result.confidence, mapping, choice, score)
+    return ConvertResult(project, labels, result.confidence, mapping, made.choice,
+                         made.agreement, made.colour)
 
 
 def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:

@@ -14,6 +14,9 @@ CRC-32 on reading:
     ``(h, w, 3) uint8`` texture of theme ``KKK``.
 ``photo.npy``, ``scribbles.npy`` (optional)
     the source photo ``(H, W, 3) uint8`` and the scribble mask ``(H, W) uint8``.
+``colour_map.npy`` (optional)
+    ``(mh, mw, 3) uint8`` colour gain over the texture
+    (:mod:`core.model.colour_map`); the manifest gives ``"colour_map_scale"``.
 
 ``metadata`` is free JSON: ``source_photo`` (path), ``georeference`` (the
 photo's GeoTIFF/CRS attributes), ``created_by``. Saving writes a temporary
@@ -35,6 +38,7 @@ import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.io.atomic import atomic_path
+from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid, validate_indices
 from core.themes.library import Theme, ThemeLibrary
 
@@ -59,6 +63,8 @@ class ThematicTexture:
         The source photo, kept for the editor's overlay and fidelity view.
     scribbles : (H, W) uint8 ndarray or None
         User scribbles for supervised classification (0 = unlabelled).
+    colour_map : ColourMap or None
+        Low-resolution colour gain over the whole texture (every renderer applies it).
     """
 
     grid: IndexGrid
@@ -66,11 +72,14 @@ class ThematicTexture:
     metadata: dict = field(default_factory=dict)
     photo: np.ndarray | None = None
     scribbles: np.ndarray | None = None
+    colour_map: ColourMap | None = None
 
     def __post_init__(self) -> None:
         if len(self.library) == 0:
             raise TerrathemeError("a thematic texture needs at least one theme")
         validate_indices(self.grid.indices, n_themes=len(self.library))
+        if self.colour_map is not None:
+            self.colour_map.check_covers(self.grid.texture_size)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ThematicTexture):
@@ -87,6 +96,7 @@ class ThematicTexture:
             and self.metadata == other.metadata
             and same(self.photo, other.photo)
             and same(self.scribbles, other.scribbles)
+            and self.colour_map == other.colour_map
         )
 
 
@@ -124,6 +134,10 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
         if arr is not None:
             members[f"{name}.npy"] = _npy_bytes(arr)
             layers.append(name)
+    extra = {}
+    if project.colour_map is not None:
+        members["colour_map.npy"] = _npy_bytes(project.colour_map.pixels)
+        extra["colour_map_scale"] = project.colour_map.scale
     manifest = {
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
@@ -132,6 +146,7 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
         "themes": themes,
         "metadata": project.metadata,
         "layers": layers,
+        **extra,
     }
     try:
         manifest_text = json.dumps(manifest, indent=1)
@@ -194,7 +209,12 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
                 for name in manifest.get("layers", [])
                 if name in _LAYERS
             }
-            return ThematicTexture(grid, library, dict(manifest.get("metadata", {})), **layers)
+            colour_map = None
+            if "colour_map_scale" in manifest:
+                colour_map = ColourMap(_load_npy(zf, "colour_map.npy", path),
+                                       manifest["colour_map_scale"])
+            return ThematicTexture(grid, library, dict(manifest.get("metadata", {})), **layers,
+                                   colour_map=colour_map)
         except (KeyError, TypeError) as exc:
             raise CorruptFileError(f"{path}: damaged manifest (missing {exc})") from exc
         except CorruptFileError:

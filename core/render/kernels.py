@@ -100,8 +100,12 @@ def division_magic(d: int) -> tuple[int, int]:
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _weights(split, xi, yi, d):
-    # DESIGN.md §1 step 2: barycentric weights of ind[0][0], [0][1], [1][0], [1][1] times D.
+def texel_weights(split, xi, yi, d):  # pragma: no cover - numba
+    """Barycentric weights (times ``D``) of corners ``ind[0][0], [0][1], [1][0], [1][1]``.
+
+    DESIGN.md §1 step 2; ``xi = xs * M``, ``yi = ys * N`` for texel ``(xs, ys)``
+    of a cell split along ``split`` (1 main, 2 anti diagonal).
+    """
     if split == 1:
         if xi <= yi:
             return d - yi, 0, yi - xi, xi
@@ -279,7 +283,7 @@ def histogram_rows(out, r0, r1, block, themes, gauss):
                         out[r, (x - rx) * 3 + c] = flat[bs[0] + o + c]
                     continue
                 xi = (x - cx * n) * m
-                w00, w01, w10, w11 = _weights(sp, xi, yi, d)
+                w00, w01, w10, w11 = texel_weights(sp, xi, yi, d)
                 ws[0], ws[1], ws[2], ws[3] = w00, w01, w10, w11
                 # Merge corners that carry the same theme (identical, fully correlated samples).
                 for a in range(4):

@@ -29,6 +29,8 @@ import numpy as np
 from scipy import ndimage
 
 from core.errors import TerrathemeError
+from core.model.colour_map import ColourMap
+from core.render.colour_map import gain_image
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import SaddleRule, cell_splits, corner_weights
 
@@ -50,6 +52,7 @@ def render_overview(
     *,
     scale: float,
     saddle: SaddleRule = SaddleRule.MINORITY,
+    colour_map: ColourMap | None = None,
 ) -> np.ndarray:
     """Render ``region`` (full-resolution texels) at ``scale`` output pixels per texel.
 
@@ -60,6 +63,8 @@ def render_overview(
     cell : (N, M)
     region : (x, y, w, h), optional
     scale : float in (0, 1]
+    colour_map : ColourMap, optional
+        Applied as its gain at every output pixel's centre.
 
     Returns
     -------
@@ -98,6 +103,9 @@ def render_overview(
         colour = _prefiltered(texs[int(k)], fx, fy)
         th, tw = colour.shape[:2]
         out += wk[:, :, None] * colour[(cys % th)[:, None], (cxs % tw)[None, :]]
+    if colour_map is not None:
+        colour_map.check_covers((gw * n, gh * m))
+        out *= gain_image(colour_map, (rx, ry, rw, rh), (ow, oh))
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 

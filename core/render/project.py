@@ -9,10 +9,34 @@ import numpy as np
 from core.errors import TerrathemeError
 from core.io.georef import scale_georeference
 from core.model.project import ThematicTexture
+from core.render.boundary import BoundaryOptions
 from core.render.overview import render_overview
 from core.render.renderer import RenderOptions, render_cells
 
 Progress = Callable[[int, int], None]
+
+
+def project_style(project: ThematicTexture) -> RenderOptions:
+    """The render options a project asks for (``metadata["render"]``), else the paper's rule.
+
+    ``metadata["render"]`` is ``{"boundary": {BoundaryOptions fields}}`` (written
+    by ``convert``); anything else there is refused with one line.
+    """
+    style = project.metadata.get("render")
+    if style is None:
+        return RenderOptions()
+    if not isinstance(style, dict) or set(style) - {"boundary"}:
+        raise TerrathemeError(f"project render style must be {{'boundary': {{...}}}}, got "
+                              f"{str(style)[:60]}")
+    boundary = style.get("boundary")
+    if boundary is None:
+        return RenderOptions()
+    if not isinstance(boundary, dict):
+        raise TerrathemeError("project render style: boundary must be an object")
+    try:
+        return RenderOptions(boundary=BoundaryOptions(**boundary))
+    except TypeError as exc:
+        raise TerrathemeError(f"project render style: bad boundary options ({exc})") from None
 
 
 def render_project(
@@ -20,7 +44,7 @@ def render_project(
     region: tuple[int, int, int, int] | None = None,
     scale: float = 1.0,
     *,
-    options: RenderOptions = RenderOptions(),  # noqa: B008 (frozen)
+    options: RenderOptions | None = None,
     progress: Progress | None = None,
 ) -> np.ndarray:
     """Render a project's texture, or a reduced-resolution overview when ``scale < 1``.
@@ -33,7 +57,8 @@ def render_project(
     scale : float in (0, 1]
         Output texels per full-resolution texel; below 1 the overview
         renderer is used (it never renders full resolution first).
-    options : RenderOptions
+    options : RenderOptions, optional
+        Default: the project's own style (:func:`project_style`).
     progress : callable(done, total), optional
 
     Returns
@@ -43,11 +68,14 @@ def render_project(
     if not (0.0 < float(scale) <= 1.0):
         raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
     textures = project.library.textures
+    if options is None:
+        options = project_style(project)
     if float(scale) == 1.0:
         return render_cells(project.grid.indices, textures, project.grid.cell, region,
-                            options=options, progress=progress)
+                            options=options, progress=progress, colour_map=project.colour_map)
     return render_overview(project.grid.indices, textures, project.grid.cell, region,
-                           scale=float(scale), saddle=options.saddle)
+                           scale=float(scale), saddle=options.saddle,
+                           colour_map=project.colour_map)
 
 
 def photo_extent(project: ThematicTexture) -> tuple[int, int]:

@@ -23,7 +23,10 @@ from enum import Enum
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.model.colour_map import ColourMap
 from core.render import kernels as rk
+from core.render.boundary import BoundaryOptions, shaped_rows
+from core.render.colour_map import RegionGain
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import SaddleRule, cell_splits
 from core.render.theme_pack import LUT_RANGE, pack_themes
@@ -52,11 +55,20 @@ class RenderOptions:
         How saddle cells (``A B / B A``) are split (``core.render.rules``).
     threads : int
         Row bands rendered in parallel; 0 = one per CPU.
+    boundary : BoundaryOptions or None
+        Borders shaped by the themes' content and noise (:mod:`core.render.boundary`,
+        linear blend only); None: the paper's barycentric ramp.
     """
 
     blend: BlendMode = BlendMode.LINEAR
     saddle: SaddleRule = SaddleRule.MINORITY
     threads: int = 0
+    boundary: BoundaryOptions | None = None
+
+    def __post_init__(self) -> None:
+        if self.boundary is not None and self.blend is not BlendMode.LINEAR:
+            raise TerrathemeError("shaped boundaries blend linearly: use BlendMode.LINEAR "
+                                  "with a boundary, or no boundary with the histogram blend")
 
 
 _pools: dict[int, ThreadPoolExecutor] = {}
@@ -98,6 +110,7 @@ def render_cells(
     splits: np.ndarray | None = None,
     progress: Progress | None = None,
     out: np.ndarray | None = None,
+    colour_map: ColourMap | None = None,
 ) -> np.ndarray:
     """Render a thematic texture (DESIGN.md §1, steps 1-3).
 
@@ -121,6 +134,9 @@ def render_cells(
     out : (h, w, 3) uint8 C-contiguous ndarray, optional
         Render into this array (a viewport reusing its buffer skips the page
         faults of a fresh allocation, which cost as much as a whole render).
+    colour_map : ColourMap, optional
+        Colour gain over the full texture, applied to every texel rendered
+        (:mod:`core.render.colour_map`).
 
     Returns
     -------
@@ -153,6 +169,11 @@ def render_cells(
     rows = rk.ThemeRows(packed.flat, packed.off, packed.stride, packed.th, packed.tw)
     mag, sh = rk.division_magic(n * m)
     small_table = 96 * n * m <= 8 << 20
+    shaped = None if options.boundary is None else options.boundary.parameters(n, m)
+    gain = None
+    if colour_map is not None:
+        colour_map.check_covers((gw * n, gh * m))
+        gain = RegionGain(colour_map, (rx, ry, rw, rh))
 
     def tables(r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
         # Weight tables: cached for ordinary cells, only this band's rows for huge ones.
@@ -165,8 +186,13 @@ def render_cells(
         if hist:
             gauss = rk.GaussianThemes(packed.gflat, packed.inv_lut, LUT_RANGE)
             rk.histogram_rows(out2, r0, r1, block, rows, gauss)
+        elif shaped is not None:
+            shaped_rows(out2, r0, r1, block, rows, shaped)
         else:
             rk.linear_rows(out2, r0, r1, block, rows, rk.LinearWeights(*tables(r0, r1), mag, sh))
+        if gain is not None:
+            # The colour map multiplies the blend, band by band on the same thread.
+            gain.apply(out2, r0, r1)
 
     threads = _thread_count(options.threads, rw * rh)
     bands = _bands(rh, threads)

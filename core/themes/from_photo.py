@@ -1,27 +1,23 @@
 """Themes for a classified photo: cut from the photo itself, or shipped themes by name.
 
 *Cut from the photo* (DESIGN.md §4, "themes cut from the photo itself and
-made tileable"): for every class, the square window that lies (almost)
-entirely inside the class region and whose pixels lie closest, in mean
-squared CIE Lab distance, to the class's mean colour is cut out and made
-tileable with
-:func:`core.themes.tileable.make_tileable`. That distance is the window's colour
-variance plus the squared distance of its mean from the class mean, so the
-patch is both homogeneous (least texture energy, no mixture with a
-neighbouring class) and representative: variance alone prefers the darkest,
-flattest corner of a class (deep water, shadow), whose colour is not the
-class's. Window means and variances at every
-position come from box filters (``cv2.boxFilter``), so the search costs a few
-passes over the photo per size tried. Sizes shrink from ``PatchOptions.size``
-until a window fits; a class with no window of ``min_size`` inside it (a few
-scattered pixels, or a photo smaller than ``min_size``) gets a flat theme of
-its mean colour, and says so in ``Theme.source``.
+made tileable"): for every class, the window whose texture statistics are
+closest to the class's (band-pass energy, Lab spread and mean;
+:mod:`core.themes.patch_search`) is cut out, the few pixels of other classes
+in it are filled from the class's own pixels of the window (shifted copies),
+and it is made tileable with :func:`core.themes.tileable.make_tileable`. A
+tile that would visibly repeat (:func:`core.themes.quality.repeat_score` or
+:func:`core.themes.quality.landmark_score` over their limits) is replaced by
+the next best window. A class with no window of ``min_size`` inside it (a
+few scattered pixels, or a photo smaller than ``min_size``) gets a flat theme
+of its mean colour, and says so in ``Theme.source``.
 
 *Shipped themes by name*: classes map to themes of
 :func:`core.themes.library.shipped_theme_library`, either explicitly (``{class:
-name}``) or by colour: the assignment of classes to the named themes that
-minimises the total Lab distance between class mean colours and theme mean
-colours (``scipy.optimize.linear_sum_assignment``).
+name}``) or by appearance: the assignment of classes to distinct named themes
+of least total colour-and-texture cost (:mod:`core.themes.matching`, the rule
+the editor uses too). Themes cut from the photo are named after their closest
+shipped theme.
 
 Both return a :class:`ThemeMapping`: the library plus the 256-entry table
 class value -> theme index used by :func:`core.convert.labels_to_grid.labels_to_grid`.
@@ -38,33 +34,24 @@ import numpy as np
 
 from core.errors import TerrathemeError
 from core.themes.library import Theme, ThemeLibrary, flat_theme, shipped_theme_library
+from core.themes.matching import (
+    class_appearances,
+    match_classes,
+    shipped_names,
+    theme_appearances,
+)
+from core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
+from core.themes.quality import (
+    LANDMARK_CONTRAST,
+    LANDMARK_SIZE,
+    landmark_mask,
+    landmark_score,
+    repeat_score,
+)
 from core.themes.tileable import make_tileable
 
 NO_DATA_NAME = "no data"
 NO_DATA_COLOUR = (0, 0, 0)
-
-
-@dataclass(frozen=True)
-class PatchOptions:
-    """How theme patches are searched.
-
-    Attributes
-    ----------
-    size : int
-        Largest patch side tried (pixels).
-    min_size : int
-        Smallest patch side tried; below it the class gets a flat theme.
-    inside : float
-        Share of the patch's pixels that must carry the class.
-    representative : bool
-        True: score windows by the mean squared Lab distance of their pixels
-        from the class's mean colour. False: by their Lab variance alone (the
-        most homogeneous window, whatever its colour).
-    """
-    size: int = 128
-    min_size: int = 16
-    inside: float = 0.97
-    representative: bool = True
 
 
 @dataclass(frozen=True)
@@ -84,11 +71,6 @@ class ThemeMapping:
     classes: tuple[int, ...]
 
 
-def _lab(photo: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float32 CIE Lab of an (H, W, 3) uint8 sRGB photo (OpenCV's conversion)."""
-    return cv2.cvtColor(photo.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
-
-
 def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rgb = np.asarray(photo)
     lab = np.asarray(labels)
@@ -102,59 +84,96 @@ def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.ascontiguousarray(rgb[:, :, :3]), lab.astype(np.uint8, copy=False)
 
 
-def find_patch(
-    lab: np.ndarray, mask: np.ndarray, options: PatchOptions = PatchOptions()
-) -> tuple[int, int, int] | None:
-    """The most homogeneous square window inside a class region.
+def fill_from_class(patch: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Fill the pixels of ``patch`` outside ``keep`` from shifted copies of its kept pixels.
 
     Parameters
     ----------
-    lab : (H, W, 3) float32 ndarray
-        The photo in CIE Lab.
-    mask : (H, W) bool ndarray
-        The class region.
-    options : PatchOptions
+    patch : (s, s, 3) uint8 ndarray
+    keep : (s, s) bool ndarray
+        The class's own pixels (at least one).
 
     Returns
     -------
-    (x, y, size) or None
-        Top-left corner and side of the window with at least ``options.inside``
-        of its pixels in the class and the lowest score (see
-        :class:`PatchOptions`); ``None`` when not even a ``min_size`` window
-        fits.
+    (s, s, 3) uint8 ndarray
+        Every pixel a pixel of the class: holes take the texel at the smallest
+        circular shift (of a fixed list, nearest first) that lands on a kept one.
     """
-    h, w = mask.shape
-    m = mask.astype(np.float32)
-    lab2 = lab * lab
-    # The class's mean Lab colour, which representative windows stay close to.
-    target = None
-    if options.representative and mask.any():
-        target = lab[mask].reshape(-1, 3).mean(axis=0)
-    # Sizes tried: from the largest that fits down to min_size, shrinking by 3/4.
-    size = min(options.size, h, w)
-    sizes = []
-    while size >= options.min_size:
-        sizes.append(size)
-        size = size * 3 // 4
-    for size in sizes:
-        # Box means of the mask, of Lab and of Lab^2 at every window position (top-left anchor).
-        k = (size, size)
-        cover = cv2.boxFilter(m, -1, k, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
-        mean = cv2.boxFilter(lab, -1, k, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
-        sq = cv2.boxFilter(lab2, -1, k, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
-        var = (sq - mean * mean).sum(axis=2)
-        # Mean squared distance to the class colour = variance + |window mean - class mean|^2.
-        if target is not None:
-            var = var + ((mean - target) ** 2).sum(axis=2)
-        # Only windows inside the photo whose pixels are (almost) all in the class.
-        ok = np.zeros((h, w), bool)
-        ok[: h - size + 1, : w - size + 1] = True
-        ok &= cover >= options.inside - 1e-6
-        if ok.any():
-            score = np.where(ok, var, np.inf)
-            y, x = np.unravel_index(int(np.argmin(score)), score.shape)
-            return int(x), int(y), int(size)
-    return None
+    out = patch.copy()
+    have = keep.copy()
+    s = patch.shape[0]
+    steps = sorted({(dy, dx) for dy in range(-s // 2, s // 2 + 1, max(1, s // 16))
+                    for dx in range(-s // 2, s // 2 + 1, max(1, s // 16)) if (dy, dx) != (0, 0)},
+                   key=lambda d: (d[0] ** 2 + d[1] ** 2, d))
+    for dy, dx in steps:
+        if have.all():
+            break
+        # Holes take this shift's texel where the shifted pixel is the class's own.
+        src_keep = np.roll(keep, (dy, dx), axis=(0, 1))
+        take = ~have & src_keep
+        if take.any():
+            out[take] = np.roll(patch, (dy, dx), axis=(0, 1))[take]
+            have |= take
+    if not have.all():
+        out[~have] = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.uint8)
+    return out
+
+
+#: an object stands out of its texture when it passes this many luma spreads (and 20 levels)
+OBJECT_SPREADS = 4.0
+
+
+def lone_objects(window: np.ndarray) -> np.ndarray:
+    """Pixels of objects that stand out of a patch's texture (a lone building in water).
+
+    Dark or bright features narrower than
+    :data:`core.themes.quality.LANDMARK_SIZE` whose contrast passes
+    ``OBJECT_SPREADS`` times the patch's own luma spread
+    (:func:`core.themes.quality.landmark_mask`), grown by two pixels. Tiled,
+    such an object repeats on a grid the eye picks out at once; in a busy
+    texture (town) the threshold rises with the spread, so its streets stay.
+
+    Returns
+    -------
+    (s, s) bool ndarray
+    """
+    lum = window.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+    spread = float(np.std(lum - cv2.GaussianBlur(lum, (0, 0), LANDMARK_SIZE / 4)))
+    dark, bright = landmark_mask(window, periodic=False,
+                                 contrast=max(LANDMARK_CONTRAST, OBJECT_SPREADS * spread))
+    grown = cv2.dilate((dark | bright).astype(np.uint8), np.ones((5, 5), np.uint8))
+    return grown.astype(bool)
+
+
+#: a tile repeating more than this (repeat_score) or holding a larger landmark is replaced
+REPEAT_LIMIT = 0.3
+LANDMARK_LIMIT = 0.04
+#: windows tried per class before the best rejected one is kept
+PATCH_TRIES = 3
+
+
+def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats,
+                options: PatchOptions) -> tuple[np.ndarray, str] | None:
+    """The tileable patch of one class and where it came from, or None when none fits."""
+    tried: list[tuple[int, int, int]] = []
+    fallback = None
+    for _ in range(PATCH_TRIES):
+        found = find_patch(windows, mask, options, exclude=tried)
+        if found is None:
+            break
+        x, y, s = found
+        tried.append(found)
+        # Other classes' pixels, and lone objects that would repeat once per tile,
+        # are filled from the class's own pixels of the window.
+        window = rgb[y : y + s, x : x + s]
+        keep = mask[y : y + s, x : x + s] & ~lone_objects(window)
+        cut = window if keep.all() else fill_from_class(window, keep)
+        tile = make_tileable(cut)
+        source = f"photo patch x={x} y={y} size={s}"
+        if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
+            return tile, source
+        fallback = fallback or (tile, source + " (repeats)")
+    return fallback
 
 
 def _mean_colour(photo: np.ndarray, mask: np.ndarray) -> tuple[int, int, int]:
@@ -186,7 +205,7 @@ def themes_from_photo(
     names: Mapping[int, str] | None = None,
     options: PatchOptions = PatchOptions(),
 ) -> ThemeMapping:
-    """One tileable theme per class, cut from the photo's most homogeneous patch of that class.
+    """One tileable theme per class, cut from the photo where its texture matches the class.
 
     Parameters
     ----------
@@ -197,7 +216,8 @@ def themes_from_photo(
         Class values to make themes for (default: those present, ascending).
         A class absent from the labels gets a mid-grey flat theme.
     names : {class: name}, optional
-        Theme names; default ``"class <k>"``.
+        Theme names; default: the closest shipped theme's name
+        (:func:`core.themes.matching.shipped_names`).
     options : PatchOptions
 
     Returns
@@ -206,24 +226,27 @@ def themes_from_photo(
     """
     rgb, labels = _check(photo, labels)
     wanted = _present_classes(labels, classes)
-    lab = _lab(rgb)
+    stats = texture_stats(rgb, options)
+    windows = WindowStats(stats)
+    if names is None:
+        # Named after the closest shipped theme (water, sand, grass, ...), never "class 1".
+        looks = class_appearances(stats, labels, wanted)
+        names = dict(zip(wanted, shipped_names(looks, shipped_theme_library()), strict=True))
     themes = []
     for c in wanted:
-        name = (names or {}).get(c, f"class {c}")
+        name = names.get(c, f"class {c}")
         mask = labels == c
         if not mask.any():
             themes.append(flat_theme(name, (128, 128, 128)).with_(source="class absent from photo"))
             continue
         colour = _mean_colour(rgb, mask)
-        found = find_patch(lab, mask, options)
+        found = _class_tile(rgb, mask, windows, options)
         if found is None:
             theme = flat_theme(name, colour).with_(
                 source=f"flat mean colour (no {options.min_size}px patch inside the class)"
             )
         else:
-            x, y, s = found
-            tile = make_tileable(rgb[y : y + s, x : x + s])
-            theme = Theme(name, colour, tile, source=f"photo patch x={x} y={y} size={s}")
+            theme = Theme(name, colour, found[0], source=found[1])
         themes.append(theme)
     has_no_data = bool((labels == 0).any())
     if has_no_data:
@@ -247,8 +270,9 @@ def themes_by_name(
     names : sequence of str or {class: name}
         A mapping is taken as given. A sequence is assigned by colour: each
         class present goes to a distinct named theme, the assignment that
-        minimises the summed Lab distance between class and theme mean
-        colours; there must be at least as many names as classes.
+        minimises the summed colour-and-texture cost of
+        :func:`core.themes.matching.match_classes`; there must be at least as
+        many names as classes.
     library : ThemeLibrary, optional
 
     Returns
@@ -256,8 +280,6 @@ def themes_by_name(
     ThemeMapping
         The library holds the used themes in class order.
     """
-    from scipy.optimize import linear_sum_assignment
-
 
     rgb, labels = _check(photo, labels)
     source = library if library is not None else shipped_theme_library()
@@ -277,13 +299,10 @@ def themes_by_name(
                 f"the photo has {len(classes)} classes but only {len(picks)} theme names were "
                 f"given ({', '.join(names)})"
             )
-        # Class and theme mean colours in Lab; assign by least total colour distance.
-        cls_lab = np.array([_lab(np.array([[_mean_colour(rgb, labels == c)]], np.uint8))[0, 0]
-                            for c in classes]).reshape(-1, 3)
-        thm_lab = np.array([_lab(t.texture).reshape(-1, 3).mean(axis=0) for t in picks])
-        cost = np.linalg.norm(cls_lab[:, None, :] - thm_lab[None, :, :], axis=2)
-        rows, cols = linear_sum_assignment(cost)
-        chosen = {classes[r]: picks[c] for r, c in zip(rows, cols, strict=True)}
+        # One rule (core.themes.matching): colour and texture, distinct themes.
+        looks = class_appearances(texture_stats(rgb), labels, classes)
+        picked = match_classes(looks, theme_appearances(ThemeLibrary(picks)), distinct=True)
+        chosen = {c: picks[k] for c, k in zip(classes, picked, strict=True)}
     # One theme per distinct name (two classes may share one), in class order.
     themes: list[Theme] = []
     lut = np.zeros(256, np.uint8)

@@ -1,0 +1,177 @@
+"""The colour map of a converted photo: the gain that brings the render's colours to the photo's.
+
+Issue 13: a class carries one texture, so the photo's slow colour changes
+inside a class are lost and the render's colour layout is far from the
+photo's (dE8 5.5 on held-out photos). The colour map (:mod:`core.model.colour_map`)
+restores them at a small cost in bytes:
+
+1. block means of photo and render over each map pixel's ``scale x scale``
+   texels give the first gain, ``photo / render`` per channel;
+2. the gain is refined (``iterations`` times) against the render multiplied
+   by its own bilinear upsampling, since that is what a renderer shows;
+3. it is quantised to the stored ``128 * gain`` and passed through the
+   codec it ships in (WebP by default), so the project renders exactly what
+   the packed output holds;
+4. the scale: the coarsest of ``scales`` whose render keeps the colour error
+   (:func:`core.fidelity.metrics.colour_error`, measured at a quarter of the
+   resolution with the blur scaled alike) under ``target``, else the finest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.fidelity.metrics import COLOUR_SIGMA, colour_error
+from core.io.codec import decode_image, encode_image
+from core.model.colour_map import NEUTRAL, ColourMap
+from core.render.colour_map import apply_colour_map, gain_image
+
+
+@dataclass(frozen=True)
+class ColourMapOptions:
+    """How the colour map of a conversion is made.
+
+    Attributes
+    ----------
+    target : float
+        Colour error (mean CIEDE2000 after a sigma-8 blur) the map aims at.
+    scales : tuple of int
+        Texels per map pixel tried, coarsest first.
+    codec : str
+        How the map is stored in the packed output (``core.io.codec``: webp, jpegxl, jpeg, png).
+    quality : int
+        Codec quality 1..100.
+    iterations : int
+        Refinements of the block gain against its own upsampling.
+    """
+
+    target: float = 2.0
+    scales: tuple[int, ...] = (64, 32, 16, 8)
+    codec: str = "webp"
+    quality: int = 80
+    iterations: int = 2
+
+    def __post_init__(self) -> None:
+        if not self.scales or any(int(s) < 1 for s in self.scales):
+            raise TerrathemeError(f"colour map scales must be positive, got {self.scales}")
+        if self.target <= 0:
+            raise TerrathemeError(f"colour map target must be > 0, got {self.target}")
+
+
+@dataclass(frozen=True)
+class FittedColourMap:
+    """A colour map as stored and what it achieves.
+
+    Attributes
+    ----------
+    colour_map : ColourMap
+        Decoded from ``data``.
+    data : bytes
+        The map in ``codec`` (what the packed output holds).
+    codec : str
+    colour_error : float
+        Estimated dE8 of the render with this map.
+    curve : tuple of (scale, bytes, colour_error)
+        Every scale tried.
+    """
+
+    colour_map: ColourMap
+    data: bytes
+    codec: str
+    colour_error: float
+    curve: tuple[tuple[int, int, float], ...]
+
+
+def _padded(image: np.ndarray, h: int, w: int) -> np.ndarray:
+    """``image`` cut or edge-extended to ``h x w``."""
+    image = image[:h, :w]
+    return cv2.copyMakeBorder(image, 0, h - image.shape[0], 0, w - image.shape[1],
+                              cv2.BORDER_REPLICATE)
+
+
+def fit_gain(photo: np.ndarray, render: np.ndarray, scale: int, iterations: int = 2
+             ) -> np.ndarray:
+    """The ``(mh, mw, 3)`` float32 gain at ``scale`` that maps ``render`` onto ``photo``.
+
+    Parameters
+    ----------
+    photo : (h, w, 3) uint8 ndarray
+        The photo over the texture's top-left ``w x h`` texels.
+    render : (H, W, 3) uint8 ndarray
+        The full texture without a colour map (``H >= h``, ``W >= w``); texels
+        beyond the photo take the photo's edge.
+    scale : int
+    iterations : int
+    """
+    th, tw = render.shape[:2]
+    mh, mw = ColourMap.shape_for((tw, th), scale)
+    ph, pw = mh * scale, mw * scale
+    target = _padded(_padded(photo, th, tw), ph, pw).astype(np.float32)
+    base = _padded(render, ph, pw).astype(np.float32)
+    size = (mw, mh)
+
+    def blocks(img: np.ndarray) -> np.ndarray:
+        return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+    want = blocks(target)
+    # Step 1: the block ratio.
+    gain = want / np.maximum(blocks(base), 1.0)
+    for _ in range(iterations):
+        # Step 2: correct for what the bilinear upsampling of the gain shows.
+        up = gain_image(ColourMap(_quantise(gain), scale), (0, 0, pw, ph), (pw, ph))
+        gain *= want / np.maximum(blocks(base * up), 1.0)
+    return gain.astype(np.float32)
+
+
+def _quantise(gain: np.ndarray) -> np.ndarray:
+    return np.clip(np.rint(gain * NEUTRAL), 0, 255).astype(np.uint8)
+
+
+def _quick_error(photo: np.ndarray, render: np.ndarray) -> float:
+    """dE8 at a quarter of the resolution (the blur scaled with it) for the scale choice."""
+    f = 4 if min(photo.shape[:2]) >= 64 else 1
+    if f == 1:
+        return colour_error(render, photo)
+    size = (max(1, photo.shape[1] // f), max(1, photo.shape[0] // f))
+    small = [cv2.resize(a, size, interpolation=cv2.INTER_AREA) for a in (photo, render)]
+    return colour_error(small[1], small[0], sigma=COLOUR_SIGMA / f)
+
+
+def choose_colour_map(photo: np.ndarray, render: np.ndarray,
+                      options: ColourMapOptions = ColourMapOptions()) -> FittedColourMap:
+    """The colour map of a conversion (see the module docstring).
+
+    Parameters
+    ----------
+    photo : (h, w, 3) uint8 ndarray
+    render : (H, W, 3) uint8 ndarray
+        The full texture rendered without a colour map, ``H >= h, W >= w``.
+    options : ColourMapOptions
+
+    Returns
+    -------
+    FittedColourMap
+    """
+    h, w = photo.shape[:2]
+    if render.shape[0] < h or render.shape[1] < w:
+        raise TerrathemeError(f"render {render.shape[1]} x {render.shape[0]} is smaller than "
+                              f"the {w} x {h} photo")
+    curve: list[tuple[int, int, float]] = []
+    best: tuple[ColourMap, bytes, float] | None = None
+    for scale in options.scales:
+        gain = fit_gain(photo, render, int(scale), options.iterations)
+        data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
+        cmap = ColourMap(decode_image(data, codec=options.codec)[:, :, :3], int(scale))
+        # The photo's extent of the render, as a renderer shows it with this map.
+        shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
+        err = _quick_error(photo, shown)
+        curve.append((int(scale), len(data), err))
+        best = (cmap, data, err)
+        if err <= options.target:
+            break
+    cmap, data, err = best  # type: ignore[misc]  (scales is never empty)
+    return FittedColourMap(cmap, data, options.codec, err, tuple(curve))

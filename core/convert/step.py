@@ -1,0 +1,202 @@
+"""The one conversion step every face of terratheme uses: classes -> themes -> grid -> colour map.
+
+``terratheme convert`` (:func:`core.convert.photo.convert_photo`), the tiled
+conversion (:mod:`core.convert.tiled`) and the editor's Classify menu all go
+through these functions, so the same photo gives the same themes everywhere:
+
+* :func:`classify_photo` -- unsupervised (K from the data, or fixed), from
+  scribbles, or with a trained model;
+* :func:`assign_themes` -- one theme per class: cut from the photo and named
+  after the closest shipped theme, shipped themes by name, or the themes of
+  an existing library (the editor's "map classes to the current themes"),
+  all matched by one colour-and-texture rule (:mod:`core.themes.matching`);
+* :func:`grid_and_colour` -- the theme labels voted to a vertex grid (cell
+  chosen from the agreement and per-class targets when asked), and the
+  colour map fitted to the photo (:mod:`core.convert.colour_fit`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.classify import Classification, SupervisedOptions, classify_unsupervised, train_classifier
+from core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
+from core.convert.labels_to_grid import (
+    DEFAULT_CELL_CANDIDATES,
+    CellChoice,
+    agreement,
+    choose_cell_size,
+    vote_grid,
+)
+from core.errors import TerrathemeError
+from core.model.grid import IndexGrid
+from core.render.renderer import RenderOptions, render_cells
+from core.themes.from_photo import ThemeMapping, themes_by_name, themes_from_photo
+from core.themes.library import ThemeLibrary
+from core.themes.matching import class_appearances, match_classes, theme_appearances
+from core.themes.patch_search import PatchOptions, texture_stats
+
+ProgressFn = Callable[[int, int], None]
+#: what the themes of a conversion are: "auto"/K (cut from the photo), names, {class: name},
+#: or an existing library to map the classes to
+ThemesSpec = str | int | Sequence[str] | Mapping[int, str] | ThemeLibrary
+
+
+def classify_photo(
+    rgb: np.ndarray,
+    *,
+    themes: ThemesSpec = "auto",
+    scribbles: np.ndarray | None = None,
+    model=None,
+    supervised: SupervisedOptions | None = None,
+    class_weights: Mapping[int, float] | None = None,
+    progress: ProgressFn | None = None,
+) -> tuple[Classification, object | None]:
+    """Classify a photo the way every conversion does.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3|4) uint8/uint16 ndarray
+    themes : ThemesSpec
+        Unsupervised: ``"auto"`` (K from the data), ``K``, or a list of names
+        (K from the data but never more than the names).
+    scribbles : (H, W) uint8 ndarray, optional
+        0 = unlabelled, k > 0 = class k: an Extra-Trees classifier trained on them.
+    model : core.classify.Classifier, optional
+        A trained classifier to use instead.
+    supervised : SupervisedOptions, optional
+        Options of the scribble classifier.
+    class_weights : {class: weight}, optional
+        Class-prior weights kept from an earlier scribble run.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    classification : Classification
+    trained : Classifier or None
+        The scribble classifier (its prior weights), None otherwise.
+    """
+    if model is not None:
+        return model.predict(rgb, progress=progress), None
+    if scribbles is not None:
+        trained = train_classifier([(rgb, scribbles)], supervised, class_weights=class_weights)
+        return trained.predict(rgb, progress=progress), trained
+    if isinstance(themes, int | str):
+        return classify_unsupervised(rgb, themes=themes, progress=progress), None
+    # Names (or a library): K from the data, but never more classes than themes to give.
+    n_names = len(themes)
+    result = classify_unsupervised(rgb, themes="auto", progress=progress)
+    if len(np.unique(result.labels[result.labels > 0])) > n_names:
+        result = classify_unsupervised(rgb, themes=n_names, progress=progress)
+    return result, None
+
+
+def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
+                  themes: ThemesSpec = "auto", *,
+                  patch: PatchOptions = PatchOptions()) -> ThemeMapping:
+    """One theme per class (see the module docstring).
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    labels : (H, W) uint8 ndarray
+        Class values; 0 = no data.
+    classes : sequence of int
+        The classes the classifier can give (themes for absent ones too).
+    themes : ThemesSpec
+        A ThemeLibrary: each class takes its nearest theme of it (themes may
+        be shared) and the mapping's library is that library.
+    patch : PatchOptions
+
+    Returns
+    -------
+    ThemeMapping
+    """
+    if isinstance(themes, ThemeLibrary):
+        present = [int(c) for c in classes]
+        looks = class_appearances(texture_stats(rgb), labels, present)
+        nearest = match_classes(looks, theme_appearances(themes), distinct=False)
+        lut = np.zeros(256, np.uint8)
+        for c, k in zip(present, nearest, strict=True):
+            lut[c] = k
+        return ThemeMapping(themes, lut, tuple(present))
+    if isinstance(themes, Mapping) or not isinstance(themes, str | int):
+        return themes_by_name(rgb, labels, themes)
+    return themes_from_photo(rgb, labels, classes=classes, options=patch)
+
+
+@dataclass(frozen=True)
+class GridResult:
+    """The vertex grid of a conversion and how well it keeps the labels.
+
+    Attributes
+    ----------
+    grid : IndexGrid
+    choice : CellChoice or None
+        The agreement curve when the cell size was chosen.
+    agreement : float
+        Share of photo pixels whose theme the grid's label view keeps.
+    colour : FittedColourMap or None
+        The colour map, when one was asked for.
+    """
+
+    grid: IndexGrid
+    choice: CellChoice | None
+    agreement: float
+    colour: FittedColourMap | None
+
+
+def grid_and_colour(
+    rgb: np.ndarray,
+    theme_labels: np.ndarray,
+    mapping: ThemeMapping,
+    *,
+    cell: str | int = "auto",
+    target_agreement: float = 0.9,
+    class_target: float = 0.0,
+    candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
+    colour_map: ColourMapOptions | None = ColourMapOptions(),
+    render: RenderOptions = RenderOptions(),
+    progress: ProgressFn | None = None,
+) -> GridResult:
+    """Vote the theme labels to a grid and fit the colour map.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    theme_labels : (H, W) uint8 ndarray
+        Theme index per pixel (``apply_lut(labels, mapping.lut)``).
+    mapping : ThemeMapping
+    cell : "auto" or int
+    target_agreement, class_target : float
+        Targets of the automatic cell choice
+        (:func:`core.convert.labels_to_grid.choose_cell_size`).
+    candidates : sequence of int
+    colour_map : ColourMapOptions or None
+        None: the paper's pure rule, no colour map.
+    render : RenderOptions
+        How the project will be rendered (the colour map is fitted to that render).
+    progress : callable(done, total), optional
+    """
+    if cell != "auto" and (not isinstance(cell, int) or cell < 1):
+        raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
+    choice = None
+    if cell == "auto":
+        choice = choose_cell_size(theme_labels, target_agreement, candidates=candidates,
+                                  class_target=class_target, progress=progress)
+        size = choice.cell
+    else:
+        size = (int(cell), int(cell))
+    grid = IndexGrid(vote_grid(theme_labels, size), size)
+    score = choice.agreement if choice is not None else agreement(theme_labels, grid,
+                                                                  max_pixels=1 << 22)
+    fitted = None
+    if colour_map is not None:
+        # The colour map is fitted to the render it multiplies.
+        plain = render_cells(grid, mapping.library.textures, options=render)
+        fitted = choose_colour_map(rgb, plain, colour_map)
+    return GridResult(grid, choice, score, fitted)
+

@@ -1,0 +1,194 @@
+"""How much a thematic texture looks like its photo: colour layout, fine detail, structure.
+
+The three measures of issue 13, each on whole images of the same size:
+
+* :func:`colour_error` (``dE8``): mean CIEDE2000 between photo and render
+  after a Gaussian blur of sigma 8 px, the colour layout an observer sees
+  from a distance (texture inside a region does not count);
+* :func:`detail_ratio`: band-pass energy of the render's luminance
+  (Gaussian sigma 0.7 minus sigma 3.0, mean square) over the photo's: 1 means
+  as much fine texture as the photo, below 1 washed out or smeared, above 1
+  noisier than the photo;
+* :func:`structure_scores`: per-class IoU of the texture's label view against
+  a ground-truth mask, each theme mapped to the class it covers most.
+
+Colour conversion and CIEDE2000 are scikit-image's, blurs OpenCV's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+from skimage.color import deltaE_ciede2000, rgb2gray, rgb2lab
+
+from core.errors import TerrathemeError
+
+#: blur of the colour-layout error, pixels
+COLOUR_SIGMA = 8.0
+#: the detail band: Gaussian sigmas (pixels) whose difference is the band-pass
+DETAIL_SIGMAS = (0.7, 3.0)
+
+
+def _rgb(image: np.ndarray, name: str) -> np.ndarray:
+    """(H, W, 3) float32 in [0, 1] from an 8- or 16-bit RGB(A) image."""
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise TerrathemeError(f"{name} must be an (H, W, 3) RGB image, got shape {arr.shape}")
+    scale = 65535.0 if arr.dtype == np.uint16 else 255.0 if arr.dtype == np.uint8 else 1.0
+    return np.ascontiguousarray(arr[:, :, :3], dtype=np.float32) / np.float32(scale)
+
+
+def _pair(render: np.ndarray, photo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r, p = _rgb(render, "render"), _rgb(photo, "photo")
+    if r.shape != p.shape:
+        raise TerrathemeError(
+            f"render is {r.shape[1]} x {r.shape[0]} but the photo is {p.shape[1]} x {p.shape[0]}"
+        )
+    return r, p
+
+
+def _mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
+    if valid is None:
+        return None
+    v = np.asarray(valid, bool)
+    if v.shape != shape[:2]:
+        raise TerrathemeError(f"valid mask is {v.shape} but the images are {shape[:2]}")
+    if not v.any():
+        raise TerrathemeError("valid mask selects no pixel")
+    return v
+
+
+def colour_error(render: np.ndarray, photo: np.ndarray, *, sigma: float = COLOUR_SIGMA,
+                 valid: np.ndarray | None = None) -> float:
+    """Mean CIEDE2000 between the blurred render and the blurred photo (``dE8``).
+
+    Parameters
+    ----------
+    render, photo : (H, W, 3) uint8/uint16/float ndarray
+        sRGB; float images in [0, 1].
+    sigma : float
+        Gaussian blur applied to both first, pixels (8 for ``dE8``).
+    valid : (H, W) bool ndarray, optional
+        Pixels to average over (default all).
+
+    Returns
+    -------
+    float
+        Mean delta E 2000 (about 1: barely visible; above 10: clearly another colour).
+    """
+    r, p = _pair(render, photo)
+    v = _mask(valid, r.shape)
+    # Blur both in sRGB (what the eye integrates at a distance), then compare in CIELAB.
+    rb = cv2.GaussianBlur(r, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    pb = cv2.GaussianBlur(p, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    de = deltaE_ciede2000(rgb2lab(pb), rgb2lab(rb))
+    return float(de.mean() if v is None else de[v].mean())
+
+
+def detail_energy(image: np.ndarray, *, sigmas: tuple[float, float] = DETAIL_SIGMAS,
+                  valid: np.ndarray | None = None) -> float:
+    """Mean square of the luminance band-pass ``G(sigma0) - G(sigma1)``.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8/uint16/float ndarray
+    sigmas : (fine, coarse) Gaussian sigmas in pixels
+    valid : (H, W) bool ndarray, optional
+
+    Returns
+    -------
+    float
+        In (luminance in [0, 1])^2.
+    """
+    y = rgb2gray(_rgb(image, "image")).astype(np.float32)
+    fine = cv2.GaussianBlur(y, (0, 0), sigmas[0], borderType=cv2.BORDER_REFLECT)
+    coarse = cv2.GaussianBlur(y, (0, 0), sigmas[1], borderType=cv2.BORDER_REFLECT)
+    band = (fine - coarse) ** 2
+    v = _mask(valid, y.shape)
+    return float(band.mean() if v is None else band[v].mean())
+
+
+def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
+                 valid: np.ndarray | None = None) -> float:
+    """The render's band-pass energy over the photo's (1 = as much fine texture).
+
+    Raises
+    ------
+    TerrathemeError
+        Different sizes, or a photo without any detail (a flat image).
+    """
+    r, p = _pair(render, photo)
+    ref = detail_energy(p, valid=valid)
+    if ref <= 1e-12:
+        raise TerrathemeError("the photo has no detail (flat): the detail ratio is undefined")
+    return detail_energy(r, valid=valid) / ref
+
+
+def majority_classes(labels: np.ndarray, truth: np.ndarray,
+                     classes: Sequence[int]) -> dict[int, int]:
+    """For every label value, the ground-truth class (among ``classes``) it covers most.
+
+    Parameters
+    ----------
+    labels : (H, W) integer ndarray
+        A label view (theme per pixel).
+    truth : (H, W) integer ndarray
+        Ground-truth classes; values outside ``classes`` are ignored.
+    classes : sequence of int
+
+    Returns
+    -------
+    {label: class}
+        Labels that cover no scored pixel are left out.
+    """
+    lab = np.asarray(labels).ravel().astype(np.int64)
+    tru = np.asarray(truth).ravel().astype(np.int64)
+    lut = np.full(max(int(tru.max(initial=0)), max(classes, default=0)) + 1, -1, np.int64)
+    for i, k in enumerate(classes):
+        lut[k] = i
+    ti = lut[np.clip(tru, 0, lut.size - 1)]
+    keep = ti >= 0
+    nl = int(lab.max(initial=0)) + 1
+    counts = np.bincount(lab[keep] * len(classes) + ti[keep],
+                         minlength=nl * len(classes)).reshape(nl, len(classes))
+    return {int(t): int(classes[int(np.argmax(row))]) for t, row in enumerate(counts) if row.any()}
+
+
+def structure_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
+    """Per-class IoU of a label view against ground truth, each label mapped to its majority class.
+
+    Parameters
+    ----------
+    labels : (H, W) integer ndarray
+    truth : (H, W) integer ndarray
+    classes : sequence of int
+        Scored ground-truth classes (others, e.g. "unlabelled", are ignored).
+
+    Returns
+    -------
+    dict
+        ``{"miou": float, "iou": {class: float or None}, "mapping": {label: class}}``;
+        a class absent from both the truth and the mapped labels has IoU None and
+        does not count in the mean.
+    """
+    labels, truth = np.asarray(labels), np.asarray(truth)
+    if labels.shape != truth.shape or labels.ndim != 2:
+        raise TerrathemeError(f"label view {labels.shape} and truth {truth.shape} differ")
+    if not classes:
+        raise TerrathemeError("no classes to score")
+    mapping = majority_classes(labels, truth, classes)
+    lut = np.full(int(labels.max(initial=0)) + 1, -1, np.int64)
+    for t, k in mapping.items():
+        lut[t] = k
+    pred = lut[labels.astype(np.int64)]
+    scored = np.isin(truth, classes)
+    iou: dict[int, float | None] = {}
+    for k in classes:
+        t, p = (truth == k) & scored, (pred == k) & scored
+        union = int((t | p).sum())
+        iou[int(k)] = None if union == 0 else float((t & p).sum() / union)
+    present = [v for v in iou.values() if v is not None]
+    return {"miou": float(np.mean(present)) if present else float("nan"), "iou": iou,
+            "mapping": mapping}

@@ -1,0 +1,125 @@
+"""Matching classes of a photo to themes: one colour-and-texture rule for every caller.
+
+A class and a theme are compared by their mean colour (CIE Lab, OpenCV's
+conversion) and their fine texture (band-pass energy of the lightness, as
+:mod:`core.themes.patch_search` measures it):
+
+    cost = |Lab_class - Lab_theme| + TEXTURE_WEIGHT * |ln(E_class / E_theme)|
+
+:func:`match_classes` assigns classes to the themes of a library with that
+cost, either to distinct themes (least total cost, Hungarian assignment,
+``scipy.optimize.linear_sum_assignment``) or each to its nearest theme; the
+CLI's ``--themes name,name`` and the editor's "map classes to the current
+themes" both use it. :func:`shipped_names` names themes cut from a photo
+after the closest shipped theme (water, sand, grass, town, ...), so a user
+never sees ``class 1``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from core.errors import TerrathemeError
+from core.themes.library import ThemeLibrary
+from core.themes.patch_search import TextureStats, texture_stats
+
+#: Lab units per unit of |log energy ratio|
+TEXTURE_WEIGHT = 6.0
+
+
+@dataclass(frozen=True)
+class Appearance:
+    """Mean colour and fine-texture energy of a class or a theme.
+
+    Attributes
+    ----------
+    lab : (3,) float ndarray
+    energy : float
+        Mean band-pass energy of the lightness (``L / 100``).
+    """
+
+    lab: np.ndarray
+    energy: float
+
+
+def class_appearances(stats: TextureStats, labels: np.ndarray,
+                      classes: Sequence[int]) -> list[Appearance]:
+    """Appearance of each class of a photo (a class absent from ``labels`` gets mid-grey).
+
+    Parameters
+    ----------
+    stats : TextureStats
+        Of the photo (:func:`core.themes.patch_search.texture_stats`).
+    labels : (H, W) integer ndarray
+    classes : sequence of int
+    """
+    out = []
+    for c in classes:
+        m = labels == c
+        if m.any():
+            out.append(Appearance(stats.lab[m].mean(axis=0), float(stats.band[m].mean())))
+        else:
+            out.append(Appearance(np.array([53.4, 0.0, 0.0]), 0.0))
+    return out
+
+
+def theme_appearances(library: ThemeLibrary) -> list[Appearance]:
+    """Appearance of each theme's texture."""
+    out = []
+    for theme in library:
+        st = texture_stats(theme.texture)
+        out.append(Appearance(st.lab.reshape(-1, 3).mean(axis=0), float(st.band.mean())))
+    return out
+
+
+def match_cost(a: Sequence[Appearance], b: Sequence[Appearance]) -> np.ndarray:
+    """(len(a), len(b)) cost of giving each class of ``a`` each theme of ``b``."""
+    la = np.array([x.lab for x in a]).reshape(-1, 3)
+    lb = np.array([x.lab for x in b]).reshape(-1, 3)
+    ea = np.log(np.array([x.energy for x in a]) + 1e-6)
+    eb = np.log(np.array([x.energy for x in b]) + 1e-6)
+    return (np.linalg.norm(la[:, None] - lb[None], axis=2)
+            + TEXTURE_WEIGHT * np.abs(ea[:, None] - eb[None]))
+
+
+def match_classes(classes: Sequence[Appearance], themes: Sequence[Appearance], *,
+                  distinct: bool) -> list[int]:
+    """The theme index of each class: distinct themes by least total cost, or each its nearest.
+
+    Raises
+    ------
+    TerrathemeError
+        ``distinct`` with fewer themes than classes.
+    """
+    if not themes:
+        raise TerrathemeError("no themes to match the classes to")
+    cost = match_cost(classes, themes)
+    if not distinct:
+        return [int(k) for k in np.argmin(cost, axis=1)]
+    if len(themes) < len(classes):
+        raise TerrathemeError(f"{len(classes)} classes but only {len(themes)} themes to give "
+                              "them distinct themes")
+    rows, cols = linear_sum_assignment(cost)
+    out = [0] * len(classes)
+    for r, c in zip(rows, cols, strict=True):
+        out[int(r)] = int(c)
+    return out
+
+
+def shipped_names(appearances: Sequence[Appearance], library: ThemeLibrary) -> list[str]:
+    """A name for each class after its closest theme of ``library`` ("water", "water 2", ...)."""
+    names = list(library.names)
+    nearest = match_classes(appearances, theme_appearances(library), distinct=False)
+    out: list[str] = []
+    for k in nearest:
+        base, n = names[k], 1
+        name = base
+        while name in out:
+            n += 1
+            name = f"{base} {n}"
+        out.append(name)
+    return out

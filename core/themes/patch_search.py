@@ -1,0 +1,243 @@
+"""Where to cut a class's theme from its photo: the window whose texture matches the class.
+
+A theme stands for every pixel of its class, so the patch cut for it must
+carry the class's texture, not its calmest corner (issue 13: patches chosen
+closest to the class's mean colour were the flattest windows, and a render
+made of them carried a third of the photo's fine detail). Every window that
+lies mostly inside the class is scored by how far its statistics are from
+the class's, over three measures of what a viewer sees at texel scale:
+
+* the band-pass energy of the luminance, ``(G_0.7 - G_3.0)^2`` (the ``detail``
+  measure of :mod:`core.fidelity.metrics`): compared as ``ln(E_window / E_class)^2``;
+* the spread of each Lab channel about its local mean (the photo minus its
+  Gaussian blur of ``highpass_sigma``: what a colour map over the texture does
+  not carry), relative to the class's spread;
+* the window's mean Lab colour against the class's, in units of that spread
+  (a small weight: the colour map or the theme's display colour carries it).
+
+Larger windows repeat less when tiled, so every halving of the side costs
+``size_weight``. All window statistics come from box filters of per-pixel
+maps that do not depend on the class (``cv2.boxFilter``), computed once per
+photo and size; only the class cover is filtered per class. On large photos
+the maps are area-averaged by a factor first (window means stay exact for
+windows on that lattice), so the search costs about the same on any photo.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from core.errors import TerrathemeError
+
+#: Gaussian sigmas of the detail band (as core.fidelity.metrics.DETAIL_SIGMAS)
+BAND_SIGMAS = (0.7, 3.0)
+#: window positions searched at most (the lattice is coarsened above this)
+SEARCH_POSITIONS = 1 << 18
+
+
+@dataclass(frozen=True)
+class PatchOptions:
+    """How theme patches are searched.
+
+    Attributes
+    ----------
+    size : int
+        Largest patch side tried (pixels).
+    min_size : int
+        Smallest patch side tried; below it the class gets a flat theme.
+    inside : float
+        Share of the patch's pixels that must carry the class; the others
+        are filled from the class's own pixels before the patch is made
+        tileable (:func:`core.themes.from_photo.themes_from_photo`).
+    size_weight : float
+        Score added per halving of the side below ``size``.
+    colour_weight : float
+        Weight of the mean-colour term.
+    highpass_sigma : float
+        The local mean the Lab spread is measured about (pixels).
+    """
+
+    size: int = 256
+    min_size: int = 24
+    inside: float = 0.85
+    size_weight: float = 0.15
+    colour_weight: float = 0.25
+    highpass_sigma: float = 16.0
+
+    def __post_init__(self) -> None:
+        if not 4 <= self.min_size <= self.size:
+            raise TerrathemeError(
+                f"patch sizes must satisfy 4 <= min_size <= size, got {self.min_size}, {self.size}"
+            )
+        if not 0.0 < self.inside <= 1.0:
+            raise TerrathemeError(f"inside must be in (0, 1], got {self.inside}")
+
+    def sizes(self, h: int, w: int) -> list[int]:
+        """Sides tried on an ``h x w`` photo: from the largest that fits down by 3/4."""
+        size = min(self.size, h, w)
+        out = []
+        while size >= self.min_size:
+            out.append(size)
+            size = size * 3 // 4
+        return out
+
+
+@dataclass(frozen=True)
+class TextureStats:
+    """Per-pixel maps of a photo that window and class statistics are taken from.
+
+    Attributes
+    ----------
+    lab : (H, W, 3) float32 ndarray
+        CIE Lab (OpenCV's conversion of sRGB).
+    detail : (H, W, 3) float32 ndarray
+        The Lab spread about the local mean (``lab`` minus its Gaussian blur).
+    band : (H, W) float32 ndarray
+        Band-pass energy of the luminance in [0, 1].
+    """
+
+    lab: np.ndarray
+    detail: np.ndarray
+    band: np.ndarray
+
+
+def texture_stats(rgb: np.ndarray, options: PatchOptions = PatchOptions()) -> TextureStats:
+    """The per-pixel maps of an ``(H, W, 3)`` uint8 photo (see :class:`TextureStats`)."""
+    lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
+    local = cv2.GaussianBlur(lab, (0, 0), options.highpass_sigma, borderType=cv2.BORDER_REFLECT)
+    lum = lab[:, :, 0] / 100.0
+    fine = cv2.GaussianBlur(lum, (0, 0), BAND_SIGMAS[0], borderType=cv2.BORDER_REFLECT)
+    coarse = cv2.GaussianBlur(lum, (0, 0), BAND_SIGMAS[1], borderType=cv2.BORDER_REFLECT)
+    return TextureStats(lab, lab - local, (fine - coarse) ** 2)
+
+
+@dataclass(frozen=True)
+class ClassTarget:
+    """The statistics a class's patch should have: band energy, Lab spread and mean."""
+
+    energy: float
+    spread: np.ndarray
+    mean: np.ndarray
+
+
+def class_target(stats: TextureStats, mask: np.ndarray) -> ClassTarget:
+    """Statistics of the pixels of ``mask`` ((H, W) bool, not empty)."""
+    if not mask.any():
+        raise TerrathemeError("the class has no pixel to take a patch's statistics from")
+    d = stats.detail[mask]
+    return ClassTarget(float(stats.band[mask].mean()), d.std(axis=0), stats.lab[mask].mean(axis=0))
+
+
+def _coarsen(arr: np.ndarray, f: int) -> np.ndarray:
+    """Area average over ``f x f`` blocks (the last partial blocks dropped)."""
+    if f == 1:
+        return arr
+    h, w = arr.shape[0] // f, arr.shape[1] // f
+    return cv2.resize(arr[: h * f, : w * f], (w, h), interpolation=cv2.INTER_AREA)
+
+
+class WindowStats:
+    """Box-filtered window statistics of a photo at every lattice position, per side (cached).
+
+    The lattice step ``factor`` is 1 on small photos and grows so that at most
+    :data:`SEARCH_POSITIONS` positions are searched.
+    """
+
+    def __init__(self, stats: TextureStats) -> None:
+        self.stats = stats
+        h, w = stats.band.shape
+        self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
+        f = self.factor
+        self._stack = _coarsen(np.concatenate(
+            [stats.band[:, :, None], stats.lab, stats.detail, stats.detail * stats.detail],
+            axis=2), f)
+        self._by_size: dict[int, np.ndarray] = {}
+
+    def cover(self, mask: np.ndarray, size: int) -> np.ndarray:
+        """(h, w) float32 share of class pixels in the window at every lattice position."""
+        m = _coarsen(mask.astype(np.float32), self.factor)
+        k = max(1, size // self.factor)
+        return cv2.boxFilter(m, -1, (k, k), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
+
+    def at(self, size: int) -> np.ndarray:
+        """(h, w, 10) float32: mean band, Lab mean (3), detail mean (3), detail^2 mean (3).
+
+        Entry ``[j, i]`` describes the window with top-left corner
+        ``(i * factor, j * factor)`` and side ``size`` (rounded to the lattice).
+        """
+        if size not in self._by_size:
+            k = max(1, size // self.factor)
+            self._by_size[size] = cv2.boxFilter(self._stack, -1, (k, k), anchor=(0, 0),
+                                                borderType=cv2.BORDER_CONSTANT)
+        return self._by_size[size]
+
+
+def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
+                 options: PatchOptions) -> np.ndarray:
+    """(n,) float32 score of windows of one side against a class (lower is closer).
+
+    ``window`` is ``(n, 10)``: rows of :meth:`WindowStats.at`.
+    """
+    eps = 1e-6
+    energy = window[:, 0]
+    mean, dmean, dsq = window[:, 1:4], window[:, 4:7], window[:, 7:10]
+    spread = np.sqrt(np.maximum(dsq - dmean * dmean, 0.0))
+    # Band-pass energy as a log ratio (texture a viewer sees at texel scale).
+    score = np.log((energy + eps) / (target.energy + eps)) ** 2
+    # Lab spread about the local mean, relative to the class's.
+    score += (((spread - target.spread) / (target.spread + 1.0)) ** 2).mean(axis=1)
+    # Mean colour, in units of the class's spread.
+    score += options.colour_weight * (((mean - target.mean) / (target.spread + 3.0)) ** 2).mean(
+        axis=1)
+    # Smaller windows repeat more when tiled.
+    return score + options.size_weight * np.log2(options.size / size)
+
+
+def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
+               *, exclude: list[tuple[int, int, int]] = ()) -> tuple[int, int, int] | None:
+    """The window whose statistics are closest to those of a class region.
+
+    Parameters
+    ----------
+    windows : WindowStats
+        Of the photo (:func:`texture_stats`).
+    mask : (H, W) bool ndarray
+        The class region.
+    options : PatchOptions
+    exclude : list of (x, y, size)
+        Windows already rejected: windows overlapping them by more than half are skipped.
+
+    Returns
+    -------
+    (x, y, size) or None
+        Top-left corner and side of the best window with at least
+        ``options.inside`` of its pixels in the class; ``None`` when not even a
+        ``min_size`` window fits.
+    """
+    h, w = mask.shape
+    f = windows.factor
+    target = class_target(windows.stats, mask)
+    best: tuple[float, int, int, int] | None = None
+    for size in options.sizes(h, w):
+        cover = windows.cover(mask, size)
+        # Only windows inside the photo whose pixels are mostly in the class.
+        ok = np.zeros(cover.shape, bool)
+        ok[: (h - size) // f + 1, : (w - size) // f + 1] = True
+        ok &= cover >= options.inside - 1e-6
+        for ex, ey, es in exclude:
+            half = max(size, es) // 2
+            ok[max(0, (ey - half) // f): (ey + half) // f + 1,
+               max(0, (ex - half) // f): (ex + half) // f + 1] = False
+        at = np.flatnonzero(ok)
+        if at.size == 0:
+            continue
+        # Scores of the admissible windows only.
+        score = patch_scores(windows.at(size).reshape(-1, 10)[at], target, size, options)
+        k = int(np.argmin(score))
+        if best is None or score[k] < best[0]:
+            j, i = divmod(int(at[k]), cover.shape[1])
+            best = (float(score[k]), i * f, j * f, max(1, size // f) * f)
+    return None if best is None else best[1:]

@@ -1,0 +1,153 @@
+"""The colour map: exact gains, region renders, overviews and the project file."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from core.errors import TerrathemeError
+from core.model.colour_map import ColourMap
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture, load_project, save_project
+from core.render.colour_map import apply_colour_map, axis_weights, gain_image
+from core.render.overview import render_overview
+from core.render.project import render_project
+from core.render.renderer import render_cells
+from core.themes.library import ThemeLibrary, flat_theme
+
+
+def _reference_gain(pixels: np.ndarray, s: int, x: int, y: int) -> list[Fraction]:
+    """Bilinear gain at texel (x, y), written from the documented convention with fractions."""
+    mh, mw = pixels.shape[:2]
+
+    def axis(t: int, size: int) -> tuple[int, int, Fraction]:
+        u = Fraction(2 * t + 1, 2 * s) - Fraction(1, 2)
+        u = min(max(u, Fraction(0)), Fraction(size - 1))
+        i0 = int(u)
+        return i0, min(i0 + 1, size - 1), u - i0
+
+    a, b, fy = axis(y, mh)
+    c, d, fx = axis(x, mw)
+    return [((1 - fy) * ((1 - fx) * int(pixels[a, c, ch]) + fx * int(pixels[a, d, ch]))
+             + fy * ((1 - fx) * int(pixels[b, c, ch]) + fx * int(pixels[b, d, ch]))) / 128
+            for ch in range(3)]
+
+
+def _round_half_up(v: Fraction) -> int:
+    return min(255, int(v + Fraction(1, 2)))
+
+
+def test_a_uniform_half_gain_halves_every_texel_rounding_half_up():
+    img = np.arange(256, dtype=np.uint8).reshape(16, 16, 1).repeat(3, axis=2).copy()
+    cmap = ColourMap(np.full((1, 2, 3), 64, np.uint8), 8)
+    apply_colour_map(img, cmap, (0, 0, 16, 16))
+    want = (np.arange(256).reshape(16, 16) + 1) // 2
+    assert np.array_equal(img[:, :, 0], want)
+
+
+def test_gain_is_clamped_at_255():
+    img = np.full((4, 4, 3), 200, np.uint8)
+    apply_colour_map(img, ColourMap(np.full((1, 1, 3), 255, np.uint8), 4), (0, 0, 4, 4))
+    assert (img == 255).all()
+
+
+def test_axis_weights_match_the_convention():
+    i0, i1, w0, w1 = axis_weights(0, 8, 4, 2)
+    assert i0.tolist() == [0, 0, 0, 0, 0, 0, 1, 1]
+    assert i1.tolist() == [1, 1, 1, 1, 1, 1, 1, 1]
+    # u = (X + 0.5) / 4 - 0.5 -> fractions 0, 0, 1/8, 3/8, 5/8, 7/8, then the last pixel.
+    assert (w1 / 8).tolist() == [0, 0, 0.125, 0.375, 0.625, 0.875, 0, 0]
+    assert ((w0 + w1) == 8).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(s=st.integers(1, 9), w=st.integers(1, 30), h=st.integers(1, 20), seed=st.integers(0, 999))
+def test_every_texel_equals_the_fraction_reference(s, w, h, seed):
+    rng = np.random.default_rng(seed)
+    cmap = ColourMap(rng.integers(0, 256, (-(-h // s), -(-w // s), 3), dtype=np.uint8), s)
+    img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    got = apply_colour_map(img.copy(), cmap, (0, 0, w, h))
+    for y in range(h):
+        for x in range(w):
+            g = _reference_gain(cmap.pixels, s, x, y)
+            assert got[y, x].tolist() == [_round_half_up(int(img[y, x, c]) * g[c])
+                                          for c in range(3)]
+
+
+def _project(colour_map=None):
+    rng = np.random.default_rng(2)
+    grid = IndexGrid(rng.integers(0, 3, (6, 9)).astype(np.uint8), (12, 10))  # 96 x 50
+    lib = ThemeLibrary([flat_theme("a", (10, 20, 30)), flat_theme("b", (200, 100, 50)),
+                        flat_theme("c", (90, 250, 140))])
+    return ThematicTexture(grid, lib, {}, colour_map=colour_map)
+
+
+def _map(scale=16, seed=4):
+    rng = np.random.default_rng(seed)
+    return ColourMap(rng.integers(40, 250, (-(-50 // scale), -(-96 // scale), 3),
+                                  dtype=np.uint8), scale)
+
+
+def test_region_render_equals_the_crop_of_the_full_render():
+    proj = _project(_map())
+    full = render_project(proj)
+    for region in [(0, 0, 96, 50), (5, 7, 40, 30), (95, 49, 1, 1), (33, 0, 17, 50)]:
+        x, y, w, h = region
+        assert np.array_equal(render_project(proj, region), full[y:y + h, x:x + w])
+    plain = render_project(_project())
+    assert not np.array_equal(full, plain)
+    assert np.array_equal(full, apply_colour_map(plain.copy(), proj.colour_map, (0, 0, 96, 50)))
+
+
+def test_threads_and_bands_do_not_change_the_result():
+    from core.render.renderer import RenderOptions
+
+    proj = _project(_map(scale=3))
+    one = render_cells(proj.grid, proj.library.textures, colour_map=proj.colour_map,
+                       options=RenderOptions(threads=1))
+    two = render_cells(proj.grid, proj.library.textures, colour_map=proj.colour_map,
+                       options=RenderOptions(threads=2))
+    assert np.array_equal(one, two)
+
+
+def test_overview_applies_the_gain_at_pixel_centres():
+    proj = _project(ColourMap(np.full((4, 6, 3), 64, np.uint8), 16))
+    half = render_overview(proj.grid.indices, proj.library.textures, proj.grid.cell,
+                           scale=0.5, colour_map=proj.colour_map)
+    plain = render_overview(proj.grid.indices, proj.library.textures, proj.grid.cell, scale=0.5)
+    assert np.abs(half.astype(int) - plain.astype(int) / 2).max() <= 1
+    g = gain_image(_map(), (0, 0, 96, 50), (96, 50))
+    ref = _reference_gain(_map().pixels, 16, 40, 20)
+    assert g[20, 40].tolist() == pytest.approx([float(v) for v in ref], abs=1e-5)
+
+
+def test_project_round_trip_keeps_the_colour_map(tmp_path):
+    proj = _project(_map())
+    save_project(tmp_path / "p.ttproj", proj)
+    back = load_project(tmp_path / "p.ttproj")
+    assert back == proj and back.colour_map.scale == 16
+
+
+def test_a_map_that_does_not_cover_the_texture_is_refused():
+    with pytest.raises(TerrathemeError, match="needs 6 x 4"):
+        _project(ColourMap(np.full((3, 6, 3), 128, np.uint8), 16))
+    proj = _project()
+    with pytest.raises(TerrathemeError, match="needs"):
+        render_cells(proj.grid, proj.library.textures,
+                     colour_map=ColourMap(np.full((1, 1, 3), 128, np.uint8), 16))
+
+
+@pytest.mark.parametrize("pixels, scale, match", [
+    (np.zeros((2, 2), np.uint8), 4, r"\(h, w, 3\)"),
+    (np.zeros((2, 2, 3), np.float32), 4, "uint8"),
+    (np.zeros((2, 2, 3), np.uint8), 0, "integer 1..4096"),
+    (np.zeros((2, 2, 3), np.uint8), 2.5, "integer 1..4096"),
+    (np.zeros((0, 2, 3), np.uint8), 4, r"\(h, w, 3\)"),
+])
+def test_bad_colour_maps(pixels, scale, match):
+    with pytest.raises(TerrathemeError, match=match):
+        ColourMap(pixels, scale)

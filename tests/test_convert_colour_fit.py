@@ -1,0 +1,109 @@
+"""The colour map fitted by convert, and the one class-to-theme matching rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.convert.colour_fit import ColourMapOptions, choose_colour_map, fit_gain
+from core.errors import TerrathemeError
+from core.fidelity import colour_error
+from core.io.codec import decode_image, encode_image
+from core.model.colour_map import ColourMap
+from core.render.colour_map import apply_colour_map
+from core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
+from core.themes.matching import (
+    Appearance,
+    class_appearances,
+    match_classes,
+    shipped_names,
+)
+from core.themes.patch_search import texture_stats
+
+
+def _photo_and_render(seed=0):
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:96, 0:128]
+    # The photo: a slow colour change over a grain the render shares.
+    grain = rng.normal(0, 6, (96, 128, 1))
+    photo = np.clip(np.stack([90 + 0.6 * xx, 120 + 0.3 * yy, 80 + 0 * xx], 2) + grain, 0, 255)
+    render = np.clip(110 + grain.repeat(3, 2), 0, 255)
+    return photo.astype(np.uint8), render.astype(np.uint8)
+
+
+def test_block_gain_brings_block_means_to_the_photo():
+    photo, render = _photo_and_render()
+    gain = fit_gain(photo, render, 16, iterations=0)
+    assert gain.shape == (6, 8, 3)
+    want = photo[:16, :16].reshape(-1, 3).mean(0) / render[:16, :16].reshape(-1, 3).mean(0)
+    assert gain[0, 0] == pytest.approx(want, rel=1e-3)
+
+
+def test_a_finer_map_or_more_iterations_lower_the_colour_error():
+    photo, render = _photo_and_render()
+    errors = []
+    for scale, it in [(64, 0), (16, 0), (16, 2)]:
+        gain = fit_gain(photo, render, scale, it)
+        cmap = ColourMap(np.clip(np.rint(gain * 128), 0, 255).astype(np.uint8), scale)
+        errors.append(colour_error(apply_colour_map(render.copy(), cmap, (0, 0, 128, 96)), photo))
+    assert errors[0] > errors[1] >= errors[2] - 0.05
+    assert errors[2] < 1.5 and colour_error(render, photo) > 8
+
+
+def test_the_coarsest_scale_meeting_the_target_is_chosen_and_shipped_as_decoded():
+    photo, render = _photo_and_render()
+    fitted = choose_colour_map(photo, render, ColourMapOptions(target=3.0, scales=(64, 32, 16)))
+    scales = [p[0] for p in fitted.curve]
+    # Tried coarsest first, stopped at the first that meets the target.
+    assert scales == [64, 32, 16][: len(scales)]
+    assert all(p[2] > 3.0 for p in fitted.curve[:-1])
+    assert fitted.curve[-1][2] <= 3.0 or len(scales) == 3
+    assert fitted.colour_map.scale == scales[-1] and fitted.colour_error == fitted.curve[-1][2]
+    # The map renders exactly what its stored bytes decode to.
+    assert np.array_equal(fitted.colour_map.pixels, decode_image(fitted.data, codec="webp"))
+    loose = choose_colour_map(photo, render, ColourMapOptions(target=50.0))
+    assert [p[0] for p in loose.curve] == [64]
+
+
+def test_colour_fit_errors():
+    photo, render = _photo_and_render()
+    with pytest.raises(TerrathemeError, match="smaller than"):
+        choose_colour_map(photo, render[:50])
+    with pytest.raises(TerrathemeError, match="scales"):
+        ColourMapOptions(scales=())
+    with pytest.raises(TerrathemeError, match="unknown image codec"):
+        encode_image(photo, codec="bmpx")
+    with pytest.raises(TerrathemeError, match="quality"):
+        encode_image(photo, quality=0)
+
+
+def test_png_codec_is_lossless():
+    photo, _ = _photo_and_render()
+    assert np.array_equal(decode_image(encode_image(photo, codec="png"), codec="png"), photo)
+
+
+def test_classes_go_to_the_theme_that_looks_like_them():
+    looks = [Appearance(np.array([60.0, 60, 40]), 1e-3), Appearance(np.array([30.0, 5, -40]), 1e-4)]
+    themes = [Appearance(np.array([32.0, 4, -38]), 1e-4),
+              Appearance(np.array([58.0, 55, 45]), 1e-3),
+              Appearance(np.array([90.0, 0, 0]), 1e-5)]
+    assert match_classes(looks, themes, distinct=False) == [1, 0]
+    assert match_classes(looks, themes, distinct=True) == [1, 0]
+    # Two classes that both look like theme 1: distinct gives one of them the next best.
+    twins = [looks[0], looks[0]]
+    assert match_classes(twins, themes, distinct=False) == [1, 1]
+    assert sorted(match_classes(twins, themes, distinct=True)) in ([0, 1], [1, 2])
+    with pytest.raises(TerrathemeError, match="only 1 themes"):
+        match_classes(looks, themes[:1], distinct=True)
+
+
+def test_shipped_names_name_classes_and_number_repeats():
+    water = np.zeros((32, 32, 3), np.uint8)
+    water[:] = (40, 90, 200)
+    snowy = np.full((32, 32, 3), 245, np.uint8)
+    photo = np.concatenate([water, snowy, water], axis=1)
+    labels = np.repeat(np.repeat(np.array([[1, 2, 3]], np.uint8), 32, 0), 32, 1)
+    looks = class_appearances(texture_stats(photo), labels, [1, 2, 3])
+    lib = ThemeLibrary([flat_theme("water", (40, 90, 200)), flat_theme("snow", (240, 240, 250))])
+    assert shipped_names(looks, lib) == ["water", "snow", "water 2"]
+    assert shipped_names(looks[:1], shipped_theme_library()) == ["water"]

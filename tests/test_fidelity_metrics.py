@@ -1,0 +1,128 @@
+"""core.fidelity.metrics on synthetic images with known answers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from core.errors import TerrathemeError
+from core.fidelity import (
+    colour_error,
+    detail_energy,
+    detail_ratio,
+    majority_classes,
+    structure_scores,
+)
+
+
+def _lightness(v: float) -> float:
+    """CIE L* of an sRGB grey level v in [0, 1] (IEC 61966-2-1, then CIE 1976)."""
+    lin = v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
+    return 116 * lin ** (1 / 3) - 16 if lin > (6 / 29) ** 3 else lin * (29 / 6) ** 3 * 116 / 1
+
+
+def _de2000_greys(l1: float, l2: float) -> float:
+    """CIEDE2000 of two neutral colours: only the lightness term (Sharma et al. 2005, eq. 17)."""
+    lbar = (l1 + l2) / 2
+    sl = 1 + 0.015 * (lbar - 50) ** 2 / math.sqrt(20 + (lbar - 50) ** 2)
+    return abs(l2 - l1) / sl
+
+
+def _flat(v: float, shape=(40, 50)) -> np.ndarray:
+    return np.full((*shape, 3), v, np.float32)
+
+
+def test_colour_error_of_two_greys_is_their_lightness_difference():
+    got = colour_error(_flat(0.3), _flat(0.6))
+    assert got == pytest.approx(_de2000_greys(_lightness(0.3), _lightness(0.6)), rel=1e-3)
+    assert colour_error(_flat(0.3), _flat(0.3)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_colour_error_ignores_detail_finer_than_the_blur():
+    yy, xx = np.mgrid[0:96, 0:96]
+    checker = np.repeat(((xx + yy) % 2).astype(np.float32)[:, :, None], 3, axis=2)
+    # A one-pixel checkerboard blurred at sigma 8 is its mean everywhere.
+    assert colour_error(checker, _flat(0.5, (96, 96))) < 0.05
+    assert colour_error(checker, _flat(0.5, (96, 96)), sigma=0.3) > 20
+
+
+def test_colour_error_over_valid_pixels_only():
+    photo = _flat(0.5, (64, 64))
+    render = photo.copy()
+    render[:, 32:] = 0.9
+    valid = np.zeros((64, 64), bool)
+    valid[:, :4] = True
+    assert colour_error(render, photo, valid=valid) < 0.05
+    assert colour_error(render, photo) > 5
+
+
+def test_detail_of_flat_is_zero_and_contrast_scales_it_squared():
+    rng = np.random.default_rng(0)
+    photo = (0.25 + 0.5 * rng.random((64, 64, 3))).astype(np.float32)
+    assert detail_energy(_flat(0.4)) == pytest.approx(0.0, abs=1e-12)
+    assert detail_ratio(photo, photo) == pytest.approx(1.0)
+    # Twice the contrast about the mean: the band-pass is linear, its energy x4.
+    boosted = 0.5 + 2.0 * (photo - 0.5)
+    assert detail_ratio(boosted, (photo - 0.5) + 0.5) == pytest.approx(4.0, rel=1e-4)
+    assert detail_ratio(_flat(0.5, (64, 64)), photo) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_detail_band_excludes_coarse_structure():
+    xx = np.arange(256, dtype=np.float32)
+    slow = 0.5 + 0.3 * np.sin(2 * np.pi * xx / 128)  # a 128 px wave: far below the band
+    fast = 0.5 + 0.3 * np.sin(2 * np.pi * xx / 6)  # a 6 px wave: inside it
+    to_img = lambda row: np.repeat(np.tile(row, (64, 1))[:, :, None], 3, axis=2)  # noqa: E731
+    assert detail_energy(to_img(slow)) < 0.01 * detail_energy(to_img(fast))
+
+
+def test_uint8_and_float_agree():
+    rng = np.random.default_rng(1)
+    a = rng.integers(0, 256, (30, 40, 3), dtype=np.uint8)
+    b = rng.integers(0, 256, (30, 40, 3), dtype=np.uint8)
+    assert colour_error(a, b) == pytest.approx(colour_error(a / 255.0, b / 255.0), rel=1e-5)
+    assert detail_ratio(a, b) == pytest.approx(detail_ratio(a / 255.0, b / 255.0), rel=1e-5)
+
+
+def test_structure_of_a_relabelled_truth_is_perfect():
+    truth = np.zeros((20, 30), np.uint8)
+    truth[:, 10:] = 2
+    truth[:, :10] = 1
+    truth[15:, :] = 3
+    labels = np.choose(truth, [9, 4, 7, 5]).astype(np.uint8)  # 1->4, 2->7, 3->5
+    got = structure_scores(labels, truth, [1, 2, 3])
+    assert got["miou"] == 1.0
+    assert got["mapping"] == {4: 1, 7: 2, 5: 3}
+
+
+def test_structure_of_one_label_over_two_halves():
+    truth = np.ones((10, 20), np.uint8)
+    truth[:, 10:] = 2
+    labels = np.zeros_like(truth)
+    got = structure_scores(labels, truth, [1, 2])
+    # Ties go to the first class: everything called class 1, half of it right.
+    assert got["iou"] == {1: 0.5, 2: 0.0}
+    assert got["miou"] == 0.25
+
+
+def test_structure_ignores_unscored_classes():
+    truth = np.ones((10, 10), np.uint8)
+    truth[:, 5:] = 6  # "unlabelled"
+    labels = np.zeros_like(truth)
+    labels[:, 5:] = 1
+    assert structure_scores(labels, truth, [1])["iou"] == {1: 1.0}
+    assert majority_classes(labels, truth, [1]) == {0: 1}
+
+
+def test_errors():
+    with pytest.raises(TerrathemeError, match="render is 50 x 40 but the photo is 5 x 4"):
+        colour_error(_flat(0.1), _flat(0.1, (4, 5)))
+    with pytest.raises(TerrathemeError, match=r"\(H, W, 3\) RGB image"):
+        detail_energy(np.zeros((4, 4)))
+    with pytest.raises(TerrathemeError, match="no detail"):
+        detail_ratio(_flat(0.2), _flat(0.2))
+    with pytest.raises(TerrathemeError, match="selects no pixel"):
+        colour_error(_flat(0.1), _flat(0.1), valid=np.zeros((40, 50), bool))
+    with pytest.raises(TerrathemeError, match="differ"):
+        structure_scores(np.zeros((2, 2)), np.zeros((2, 3)), [1])
