@@ -1,9 +1,11 @@
 """How much a thematic texture looks like its photo (issue 13's measures).
 
 Modules: ``metrics`` (``dE8`` colour layout, band-pass detail ratio,
-structure IoU of the label view against ground truth).
+structure IoU of the label view against ground truth), ``cost`` (bytes per
+area and of the shared themes).
 """
 
+from core.fidelity.cost import TextureCost, texture_cost
 from core.fidelity.metrics import (
     COLOUR_SIGMA,
     DETAIL_SIGMAS,
@@ -16,10 +18,12 @@ from core.fidelity.metrics import (
 
 __all__ = [
     "COLOUR_SIGMA",
+    "TextureCost",
     "DETAIL_SIGMAS",
     "colour_error",
     "detail_energy",
     "detail_ratio",
     "majority_classes",
     "structure_scores",
+    "texture_cost",
 ]

@@ -1,0 +1,62 @@
+"""What a thematic texture costs in bytes: per area (grid + colour map) and shared (themes).
+
+The papers' premise is a texture that looks right at a small fraction of
+the photo's bytes (thematic_textures.txt: "analogy: JPEG"). The themes are a
+library shared by every area of a terrain, so a texture's own cost is
+``area_bytes``: its index grid packed along a space-filling curve
+(:func:`core.packing.pack`, compact layout) plus its colour map in the
+codec it ships in (:func:`core.io.codec.encode_image`). ``theme_bytes`` is
+the library's, every theme as lossless PNG.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from core.io.codec import encode_image
+from core.model.project import ThematicTexture
+from core.packing import pack
+
+#: how a colour map is counted (and shipped)
+COLOUR_MAP_CODEC = "webp"
+COLOUR_MAP_QUALITY = 80
+
+
+@dataclass(frozen=True)
+class TextureCost:
+    """Bytes of a thematic texture.
+
+    Attributes
+    ----------
+    grid_bytes : int
+        The index grid as a compact packed layer.
+    colour_map_bytes : int
+        The colour map in :data:`COLOUR_MAP_CODEC` (0 without one).
+    theme_bytes : int
+        The theme library as PNG files.
+    """
+
+    grid_bytes: int
+    colour_map_bytes: int
+    theme_bytes: int
+
+    @property
+    def area_bytes(self) -> int:
+        """What the area itself costs: grid + colour map."""
+        return self.grid_bytes + self.colour_map_bytes
+
+    def as_dict(self) -> dict:
+        """JSON-ready (``terratheme info PROJECT --json``)."""
+        return {"area_bytes": self.area_bytes, "grid_bytes": self.grid_bytes,
+                "colour_map_bytes": self.colour_map_bytes, "theme_bytes": self.theme_bytes}
+
+
+def texture_cost(project: ThematicTexture) -> TextureCost:
+    """The bytes of a project's texture (see the module docstring)."""
+    grid = len(pack(project.grid.indices, curve="auto").to_bytes())
+    cmap = 0
+    if project.colour_map is not None:
+        cmap = len(encode_image(project.colour_map.pixels, codec=COLOUR_MAP_CODEC,
+                                quality=COLOUR_MAP_QUALITY))
+    themes = sum(len(encode_image(t.texture, codec="png")) for t in project.library)
+    return TextureCost(grid, cmap, themes)
