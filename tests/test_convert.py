@@ -256,3 +256,38 @@ def test_reduced_preview_keeps_georeference_scaled(tmp_path):
     got = read_georeference(tmp_path / "p.tif")
     assert got["ModelPixelScale"][:2] == [4.0, 4.0]
     assert got["ModelTiepoint"] == geo["ModelTiepoint"]
+
+
+def test_cli_colour_map_and_boundary_options(tmp_path):
+    from core.render.project import project_style
+
+    photo = tmp_path / "h.png"
+    write_image(photo, _halves())
+    assert _run([photo, tmp_path / "a.ttproj", "--cell", "16"]) == 0
+    a = load_project(tmp_path / "a.ttproj")
+    assert a.colour_map is not None and project_style(a).boundary is not None
+    assert (tmp_path / "a_colour.webp").stat().st_size > 0
+    assert _run([photo, tmp_path / "b.ttproj", "--cell", "16", "--colour-map", "off",
+                 "--boundary", "linear"]) == 0
+    b = load_project(tmp_path / "b.ttproj")
+    assert b.colour_map is None and project_style(b).boundary is None
+    assert not (tmp_path / "b_colour.webp").exists()
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--themes", "water,lava"], "unknown theme 'lava'"),
+    (["--cell", "16", "--curve", "c.png"], "needs --cell auto"),
+    (["--colour-map", "blue"], "not auto, off or a number"),
+    (["--class-target", "2"], "must be in"),
+])
+def test_cli_refuses_before_any_work(tmp_path, capsys, args, match):
+    photo = tmp_path / "h.png"
+    write_image(photo, _halves())
+    code = None
+    try:
+        code = _run([photo, tmp_path / "x.ttproj", *args])
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    assert code == 2
+    assert match in capsys.readouterr().err
+    assert not (tmp_path / "x.ttproj").exists()

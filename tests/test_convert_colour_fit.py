@@ -107,3 +107,24 @@ def test_shipped_names_name_classes_and_number_repeats():
     lib = ThemeLibrary([flat_theme("water", (40, 90, 200)), flat_theme("snow", (240, 240, 250))])
     assert shipped_names(looks, lib) == ["water", "snow", "water 2"]
     assert shipped_names(looks[:1], shipped_theme_library()) == ["water"]
+
+
+def test_tile_by_tile_map_equals_the_whole_photo_block_gain(tmp_path):
+    from core.convert.colour_fit import colour_map_from_file
+    from core.io.images import write_image
+    from core.model.grid import IndexGrid
+    from core.render.renderer import render_cells
+
+    rng = np.random.default_rng(8)
+    photo = rng.integers(30, 220, (100, 140, 3), dtype=np.uint8)
+    write_image(tmp_path / "p.png", photo)
+    grid = IndexGrid(rng.integers(0, 2, (8, 10)).astype(np.uint8), (16, 16))  # 144 x 112
+    themes = [np.full((8, 8, 3), 90, np.uint8), np.full((8, 8, 3), 160, np.uint8)]
+    opts = ColourMapOptions(codec="png")
+    tiled = colour_map_from_file(tmp_path / "p.png", grid, themes, 16, options=opts, tile=48)
+    whole = fit_gain(photo, render_cells(grid, themes), 16, iterations=0)
+    want = np.clip(np.rint(whole * 128), 0, 255).astype(np.uint8)
+    # Map pixels inside the photo: the same block ratio (to rounding of the sums).
+    inside = tiled.colour_map.pixels[:6, :8].astype(int) - want[:6, :8]
+    assert np.abs(inside).max() <= 1
+    assert tiled.colour_map.pixels.shape == (7, 9, 3)

@@ -65,6 +65,39 @@ def _agreement(value: str) -> float:
     return t
 
 
+def _share(value: str) -> float:
+    try:
+        t = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not a number") from None
+    if not 0.0 <= t <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in [0, 1], not {t}")
+    return t
+
+
+def _colour_map(value: str) -> str | float:
+    if value in ("auto", "off"):
+        return value
+    try:
+        t = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not auto, off or a number") from None
+    if not 0.0 < t <= 100.0:
+        raise argparse.ArgumentTypeError(f"--colour-map target must be in (0, 100], not {t}")
+    return t
+
+
+def _check_theme_names(themes) -> None:
+    """Unknown shipped theme names are refused before any work."""
+    from core.themes.library import shipped_theme_library
+
+    if isinstance(themes, str | int):
+        return
+    library = shipped_theme_library()
+    for name in themes.values() if isinstance(themes, dict) else themes:
+        library.index_of(name)
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the command's arguments."""
     parser.add_argument("photo", metavar="PHOTO", help="orthophoto (PNG, JPEG, TIFF/GeoTIFF, EXR)")
@@ -94,6 +127,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "central 2048 x 2048 window)")
     parser.add_argument("--curve", metavar="PNG",
                         help="also write the agreement / bytes vs cell size chart (cell auto)")
+    parser.add_argument("--class-target", type=_share, default=0.5, metavar="T",
+                        help="with --cell auto, every class of at least 0.5%% of the photo keeps "
+                             "this IoU with its label view, so thin classes such as roads do "
+                             "not vanish (default 0.5; 0 = off)")
+    parser.add_argument("--colour-map", type=_colour_map, default="auto", metavar="auto|off|T",
+                        help="a low-resolution colour map over the themes, at the coarsest "
+                             "resolution whose colour error (dE8) stays under T (auto: 2.0); "
+                             "off: the paper's pure rule")
+    parser.add_argument("--boundary", choices=["shaped", "linear"], default="shaped",
+                        help="shaped (default): borders of a few texels shaped by the themes and "
+                             "noise; linear: the paper's ramp across the cell")
 
 
 def _read_mask(path: str):
@@ -154,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         read_photo,
         write_outputs,
     )
-    from core.errors import TerrathemeError
+    from core.fidelity import texture_cost
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -162,6 +206,9 @@ def run(args: argparse.Namespace) -> int:
     preview = args.preview or str(project.with_name(project.stem + "_preview.png"))
     packed = args.packed or str(project.with_suffix(".ttpack"))
     themes = parse_themes(args.themes)
+    _check_theme_names(themes)
+    if args.curve and args.cell != "auto":
+        raise TerrathemeError("--curve charts the automatic cell choice: it needs --cell auto")
     # Output paths checked (and their folders made) before any work.
     check_outputs([project, preview, packed, args.curve],
                   inputs=[args.photo, args.scribbles, args.model])
@@ -179,8 +226,10 @@ def run(args: argparse.Namespace) -> int:
     if (scribbles is not None or model is not None) and isinstance(themes, int):
         raise TerrathemeError("--themes K is for unsupervised classification; with --scribbles "
                               "or --model the classes are given (use auto or 1=name,2=name)")
-    options = ConvertOptions(cell=args.cell, themes=themes,
-                             target_agreement=args.target_agreement)
+    colour, boundary = _style(args)
+    options = ConvertOptions(
+        cell=args.cell, themes=themes, target_agreement=args.target_agreement,
+        class_target=args.class_target, colour_map=colour, boundary=boundary)
     with tqdm(total=100, desc="convert", unit="%", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -200,11 +249,31 @@ def run(args: argparse.Namespace) -> int:
     h, w = photo.shape[:2]
     names = ", ".join(result.project.library.names)
     k = len(result.project.library)
+    cost = texture_cost(result.project)
+    fitted = result.colour
+    colour = ("no colour map" if fitted is None else
+              f"colour map 1/{fitted.colour_map.scale} (dE8 {fitted.colour_error:.1f})")
     print(f"{project}: {k} theme{'s' if k != 1 else ''} ({names}); cell {grid.cell[0]} x "
           f"{grid.cell[1]} -> {gw + 1} x {gh + 1} vertices for the {w} x {h} photo; "
-          f"label agreement {result.agreement:.1%}")
+          f"label agreement {result.agreement:.1%}; {colour}; {cost.area_bytes:,} bytes per "
+          f"area ({cost.area_bytes / max(1, w * h) * 8:.3f} bits/pixel) + "
+          f"{cost.theme_bytes:,} of themes")
     _print_written(written)
     return 0
+
+
+def _style(args: argparse.Namespace) -> tuple:
+    """The colour-map and boundary options of ``--colour-map`` and ``--boundary``."""
+    from core.convert.colour_fit import ColourMapOptions
+    from core.render.boundary import BoundaryOptions
+
+    if args.colour_map == "off":
+        colour = None
+    elif args.colour_map == "auto":
+        colour = ColourMapOptions()
+    else:
+        colour = ColourMapOptions(target=args.colour_map)
+    return colour, BoundaryOptions() if args.boundary == "shaped" else None
 
 
 def _print_written(written) -> None:
@@ -241,9 +310,11 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
             bar.total, bar.n = total, done
             bar.refresh()
 
+        colour, boundary = _style(args)
         proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
                                   tile=args.tile, target_agreement=args.target_agreement,
-                                  progress=progress)
+                                  progress=progress, class_target=args.class_target,
+                                  colour_map=colour, boundary=boundary)
         written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
     gh, gw = proj.grid.cells_shape
     k = len(proj.library)

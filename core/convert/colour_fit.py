@@ -19,16 +19,23 @@ restores them at a small cost in bytes:
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
+from core.classify.photo import prepare_photo
 from core.errors import TerrathemeError
 from core.fidelity.metrics import COLOUR_SIGMA, colour_error
-from core.io.codec import decode_image, encode_image
+from core.io.codec import encode_image
+from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.colour_map import NEUTRAL, ColourMap
+from core.model.grid import IndexGrid
 from core.render.colour_map import apply_colour_map, gain_image
+from core.render.renderer import RenderOptions, render_cells
 
 
 @dataclass(frozen=True)
@@ -165,7 +172,7 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     for scale in options.scales:
         gain = fit_gain(photo, render, int(scale), options.iterations)
         data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
-        cmap = ColourMap(decode_image(data, codec=options.codec)[:, :, :3], int(scale))
+        cmap = ColourMap.from_bytes(data, options.codec, int(scale))
         # The photo's extent of the render, as a renderer shows it with this map.
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
         err = _quick_error(photo, shown)
@@ -175,3 +182,74 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
             break
     cmap, data, err = best  # type: ignore[misc]  (scales is never empty)
     return FittedColourMap(cmap, data, options.codec, err, tuple(curve))
+
+
+def _block_sums(image: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-``s x s``-block channel sums and pixel counts of an image whose origin is on a block."""
+    h, w = image.shape[:2]
+    bh, bw = -(-h // s), -(-w // s)
+    pad = np.zeros((bh * s, bw * s, 3), np.float64)
+    pad[:h, :w] = image[:, :, :3]
+    sums = pad.reshape(bh, s, bw, s, 3).sum(axis=(1, 3))
+    ones = np.zeros((bh * s, bw * s), np.float64)
+    ones[:h, :w] = 1.0
+    return sums, ones.reshape(bh, s, bw, s).sum(axis=(1, 3))
+
+
+def colour_map_from_file(
+    path: str | os.PathLike,
+    grid: IndexGrid,
+    textures: list[np.ndarray],
+    scale: int,
+    *,
+    render: RenderOptions = RenderOptions(),
+    options: ColourMapOptions = ColourMapOptions(),
+    tile: int = 1024,
+    scheduler: Scheduler = Scheduler.SERIAL,
+    progress: Callable[[int, int], None] | None = None,
+) -> FittedColourMap:
+    """The colour map of a photo larger than memory, tile by tile (the block gain of step 1).
+
+    Tiles are whole map pixels; each reads its photo pixels, renders the same
+    texels and adds up both per map pixel, so memory is set by the tile and
+    the map, not the photo. Map pixels beyond the photo (the last cells) take
+    the nearest pixel's gain. The refinement of step 2 needs every
+    neighbour's gain and is not done here.
+
+    Returns
+    -------
+    FittedColourMap
+        ``colour_error`` is NaN (not measured on the whole photo); ``curve`` empty.
+    """
+    tw, th = grid.texture_size
+    mh, mw = ColourMap.shape_for((tw, th), scale)
+    side = max(scale, (int(tile) // scale) * scale)
+    photo_sum = np.zeros((mh, mw, 3))
+    render_sum = np.zeros((mh, mw, 3))
+    count = np.zeros((mh, mw))
+
+    def job(win: TileWindow, pixels: np.ndarray) -> tuple:
+        # The photo's and the render's sums over the map pixels of this tile.
+        rgb, _ = prepare_photo(pixels)
+        shown = render_cells(grid, textures, region=(win.x, win.y, win.w, win.h), options=render)
+        return _block_sums(rgb, scale), _block_sums(shown, scale)[0]
+
+    def sink(win: TileWindow, result: tuple) -> None:
+        (psum, pcount), rsum = result
+        j, i = win.y // scale, win.x // scale
+        bh, bw = pcount.shape
+        photo_sum[j:j + bh, i:i + bw] += psum
+        render_sum[j:j + bh, i:i + bw] += rsum
+        count[j:j + bh, i:i + bw] += pcount
+
+    run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress)
+    covered = count > 0
+    gain = np.ones((mh, mw, 3), np.float64)
+    gain[covered] = photo_sum[covered] / np.maximum(render_sum[covered], 1.0)
+    if not covered.all():
+        # Map pixels past the photo take the gain of the nearest covered one.
+        _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
+        gain = gain[iy, ix]
+    data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
+    cmap = ColourMap.from_bytes(data, options.codec, int(scale))
+    return FittedColourMap(cmap, data, options.codec, float("nan"), ())

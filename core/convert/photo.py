@@ -32,6 +32,8 @@ from core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from core.convert.labels_to_grid import DEFAULT_CELL_CANDIDATES, CellChoice, apply_lut
 from core.convert.step import assign_themes, classify_photo, grid_and_colour
 from core.errors import TerrathemeError
+from core.io.atomic import write_bytes_atomic
+from core.io.codec import CODECS
 from core.io.georef import read_georeference, write_georeference
 from core.io.images import read_image, write_image
 from core.model.project import ThematicTexture, save_project
@@ -44,6 +46,8 @@ from core.themes.patch_search import PatchOptions
 
 ProgressFn = Callable[[int, int], None]
 
+#: file suffix of a colour map in each codec
+CODEC_SUFFIX = {name: ext for name, (ext, _) in CODECS.items()}
 #: photos up to this many pixels are stored in the project (the editor's overlay)
 MAX_STORED_PHOTO = 40_000_000
 #: preview renders larger than this on their long side are reduced (overview renderer)
@@ -254,7 +258,10 @@ def write_outputs(
     packed_path: str | os.PathLike | None = None,
     preview_max_side: int = PREVIEW_MAX_SIDE,
 ) -> dict[str, Path]:
-    """Save a project, its preview render and its packed index layer.
+    """Save a project, its preview render and its packed index layer (+ colour map).
+
+    A colour map shipped in a codec is written as those bytes beside the
+    packed layer (``<stem>_colour.webp``): together they are the packed output.
 
     Returns
     -------
@@ -275,4 +282,10 @@ def write_outputs(
         layer = pack(project.grid.indices, curve="auto")
         layer.save(packed_path)
         written["packed"] = Path(packed_path)
+        cmap = project.colour_map
+        if cmap is not None and cmap.data is not None:
+            target = Path(packed_path)
+            target = target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[cmap.codec]}")
+            write_bytes_atomic(target, cmap.data)
+            written["colour_map"] = target
     return written

@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from dataclasses import asdict
 
 import numpy as np
 
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
+from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
 from core.convert.labels_to_grid import (
     apply_lut,
     choose_cell_size,
@@ -30,13 +32,15 @@ from core.convert.labels_to_grid import (
     vertex_window,
     vote_vertices,
 )
+from core.convert.step import assign_themes
 from core.errors import TerrathemeError
 from core.io.georef import read_georeference
 from core.io.images import image_info, read_region
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.grid import IndexGrid, validate_cell
 from core.model.project import ThematicTexture
-from core.themes.from_photo import themes_by_name, themes_from_photo
+from core.render.boundary import BoundaryOptions
+from core.render.renderer import RenderOptions, render_cells
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 
@@ -228,6 +232,9 @@ def convert_file_tiled(
     overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
+    class_target: float = 0.5,
+    colour_map: ColourMapOptions | None = ColourMapOptions(),
+    boundary: BoundaryOptions | None = BoundaryOptions(),
 ):
     """A project for a photo larger than memory, with a trained classifier or unsupervised.
 
@@ -251,6 +258,13 @@ def convert_file_tiled(
     themes : "auto" or int
         Unsupervised (``model`` None) only: K from the data or that many themes.
     tile, overlap, scheduler, progress : see :func:`grid_from_file`
+    class_target : float
+        Per-class IoU target of the cell choice (as ``convert_photo``'s).
+    colour_map : ColourMapOptions or None
+        Its scale chosen on the centre window, then fitted tile by tile
+        (:func:`core.convert.colour_fit.colour_map_from_file`); None: none.
+    boundary : BoundaryOptions or None
+        The project's render style (shaped borders), as ``convert_photo``'s.
 
     Returns
     -------
@@ -285,8 +299,8 @@ def convert_file_tiled(
     rgb, _ = prepare_photo(window)
     unsupervised = not hasattr(model, "forest")
     if names and unsupervised:
-        # Names are assigned to the unsupervised themes by colour.
-        mapping = themes_by_name(rgb, win_result.labels, list(names))
+        # Names are assigned to the unsupervised themes by appearance.
+        mapping = assign_themes(rgb, win_result.labels, model.classes, list(names))
     elif names:
         # Every class the model can give needs a name (list: in class order).
         named = dict(names) if isinstance(names, dict) else dict(zip(model.classes, names,
@@ -297,17 +311,27 @@ def convert_file_tiled(
                 f"the classifier gives classes {list(model.classes)}: name each one "
                 f"({', '.join(f'{c}=name' for c in model.classes)})"
             )
-        mapping = themes_by_name(rgb, win_result.labels, named)
+        mapping = assign_themes(rgb, win_result.labels, model.classes, named)
     else:
-        mapping = themes_from_photo(rgb, win_result.labels, classes=model.classes)
+        mapping = assign_themes(rgb, win_result.labels, model.classes)
     choice = None
     if cell == "auto":
         # Cell size from the agreement curve of the centre window (an estimate).
 
-        choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement)
+        choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement,
+                                  class_target=class_target)
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), lambda p: model.predict(p).labels, lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
+    style = RenderOptions(boundary=boundary)
+    fitted = None
+    if colour_map is not None:
+        # The map's scale from the centre window, then the map itself tile by tile.
+        shown = render_cells(grid, mapping.library.textures, options=style,
+                             region=(x0, y0, side_w, side_h))
+        scale = choose_colour_map(rgb, shown, colour_map).colour_map.scale
+        fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
+                                      options=colour_map, tile=tile, scheduler=scheduler)
     meta = {
         "source_photo": str(path), "created_by": "terratheme convert (tiled)",
         "photo_size": [info.width, info.height],
@@ -316,7 +340,13 @@ def convert_file_tiled(
     if choice is not None:
         meta["cell_choice"] = {**choice.as_dict(),
                                "measured_on": [x0, y0, side_w, side_h]}
+    if boundary is not None:
+        meta["render"] = {"boundary": asdict(boundary)}
+    if fitted is not None:
+        meta["colour_map"] = {"codec": fitted.codec, "bytes": len(fitted.data),
+                              "scale_measured_on": [x0, y0, side_w, side_h]}
     geo = read_georeference(path)
     if geo:
         meta["georeference"] = geo
-    return ThematicTexture(grid, mapping.library, meta)
+    return ThematicTexture(grid, mapping.library, meta,
+                           colour_map=None if fitted is None else fitted.colour_map)

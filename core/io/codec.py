@@ -53,8 +53,13 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
         return Path(path).read_bytes()
 
 
-def decode_image(data: bytes, *, codec: str = "webp") -> np.ndarray:
-    """Pixels ``(h, w, C)`` uint8 of bytes written by :func:`encode_image`."""
+def decode_image(data: bytes, *, codec: str = "webp",
+                 shape: tuple[int, int] | None = None) -> np.ndarray:
+    """Pixels ``(h, w, C)`` uint8 of bytes written by :func:`encode_image`.
+
+    ``shape``: the ``(h, w)`` the image must have; checked on its header before
+    any pixel is decoded (a forged header cannot make it allocate more).
+    """
     ext, _ = _codec(codec)
     with tempfile.TemporaryDirectory(prefix="terratheme-codec-") as folder:
         path = os.path.join(folder, "image" + ext)
@@ -63,6 +68,10 @@ def decode_image(data: bytes, *, codec: str = "webp") -> np.ndarray:
         if inp is None:
             raise CorruptFileError(f"not a {codec} image ({oiio.geterror().strip()})")
         try:
+            spec = inp.spec()
+            if shape is not None and (spec.height, spec.width) != tuple(shape):
+                raise CorruptFileError(f"{codec} image is {spec.width} x {spec.height}, "
+                                       f"expected {shape[1]} x {shape[0]}")
             pixels = inp.read_image("uint8")
         finally:
             inp.close()

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.io.codec import decode_image
 
 #: the stored value that leaves a texel unchanged
 NEUTRAL = 128
@@ -42,10 +43,15 @@ class ColourMap:
         Gain times 128 (read-only copy).
     scale : int
         Texels per map pixel, 1..4096.
+    codec, data : str and bytes, or None
+        The map as it ships (:mod:`core.io.codec`): ``pixels`` are these bytes
+        decoded (:meth:`from_bytes`), so every copy renders alike.
     """
 
     pixels: np.ndarray
     scale: int
+    codec: str | None = None
+    data: bytes | None = None
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.pixels)
@@ -61,6 +67,16 @@ class ColourMap:
         frozen.setflags(write=False)
         object.__setattr__(self, "pixels", frozen)
         object.__setattr__(self, "scale", int(self.scale))
+
+    @classmethod
+    def from_bytes(cls, data: bytes, codec: str, scale: int,
+                   shape: tuple[int, int] | None = None) -> ColourMap:
+        """The map shipped as ``data`` in ``codec`` (``shape`` = expected ``(mh, mw)``)."""
+        pixels = decode_image(data, codec=codec, shape=shape)
+        if pixels.shape[2] < 3:
+            raise TerrathemeError(f"colour map must be RGB, the {codec} image has "
+                                  f"{pixels.shape[2]} channel(s)")
+        return cls(pixels[:, :, :3], scale, codec, bytes(data))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ColourMap):
@@ -85,5 +101,5 @@ class ColourMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the raw pixels."""
-        return int(self.pixels.nbytes)
+        """Bytes as shipped (``data``), else of the raw pixels."""
+        return len(self.data) if self.data is not None else int(self.pixels.nbytes)

@@ -14,9 +14,10 @@ CRC-32 on reading:
     ``(h, w, 3) uint8`` texture of theme ``KKK``.
 ``photo.npy``, ``scribbles.npy`` (optional)
     the source photo ``(H, W, 3) uint8`` and the scribble mask ``(H, W) uint8``.
-``colour_map.npy`` (optional)
-    ``(mh, mw, 3) uint8`` colour gain over the texture
-    (:mod:`core.model.colour_map`); the manifest gives ``"colour_map_scale"``.
+``colour_map.webp`` (or another codec), or ``colour_map.npy`` (optional)
+    the colour gain over the texture (:mod:`core.model.colour_map`) as it
+    ships; the manifest's ``"colour_map": {"scale", "codec", "member"}``
+    says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``).
 
 ``metadata`` is free JSON: ``source_photo`` (path), ``georeference`` (the
 photo's GeoTIFF/CRS attributes), ``created_by``. Saving writes a temporary
@@ -38,6 +39,7 @@ import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.io.atomic import atomic_path
+from core.io.codec import CODECS
 from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid, validate_indices
 from core.themes.library import Theme, ThemeLibrary
@@ -116,6 +118,28 @@ def _load_npy(zf: zipfile.ZipFile, member: str, path: Path) -> np.ndarray:
         raise CorruptFileError(f"{path}: {member} is damaged ({exc})") from exc
 
 
+def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
+                     path: Path) -> ColourMap | None:
+    """The colour map the manifest names, checked against the grid before decoding."""
+    if entry is None:
+        return None
+    if not isinstance(entry, dict) or not isinstance(entry.get("member"), str):
+        raise CorruptFileError(f"{path}: bad colour_map entry in the manifest")
+    scale, codec = entry.get("scale"), entry.get("codec")
+    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
+        raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
+    shape = ColourMap.shape_for(grid.texture_size, scale)
+    if codec is None:
+        return ColourMap(_load_npy(zf, entry["member"], path), scale)
+    if codec not in CODECS:
+        raise CorruptFileError(f"{path}: unknown colour map codec {codec!r}")
+    try:
+        data = zf.read(entry["member"])
+    except KeyError:
+        raise CorruptFileError(f"{path}: project lacks {entry['member']}") from None
+    return ColourMap.from_bytes(data, codec, scale, shape)
+
+
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
     """Write ``project`` to ``path`` (a ``.ttproj`` file) atomically."""
     validate_indices(project.grid.indices, n_themes=len(project.library))
@@ -135,9 +159,15 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
             members[f"{name}.npy"] = _npy_bytes(arr)
             layers.append(name)
     extra = {}
-    if project.colour_map is not None:
-        members["colour_map.npy"] = _npy_bytes(project.colour_map.pixels)
-        extra["colour_map_scale"] = project.colour_map.scale
+    cmap = project.colour_map
+    if cmap is not None:
+        if cmap.data is not None:
+            member = "colour_map" + CODECS[cmap.codec][0]
+            members[member] = cmap.data
+        else:
+            member = "colour_map.npy"
+            members[member] = _npy_bytes(cmap.pixels)
+        extra["colour_map"] = {"scale": cmap.scale, "codec": cmap.codec, "member": member}
     manifest = {
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
@@ -209,10 +239,7 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
                 for name in manifest.get("layers", [])
                 if name in _LAYERS
             }
-            colour_map = None
-            if "colour_map_scale" in manifest:
-                colour_map = ColourMap(_load_npy(zf, "colour_map.npy", path),
-                                       manifest["colour_map_scale"])
+            colour_map = _load_colour_map(zf, manifest.get("colour_map"), grid, path)
             return ThematicTexture(grid, library, dict(manifest.get("metadata", {})), **layers,
                                    colour_map=colour_map)
         except (KeyError, TypeError) as exc:
