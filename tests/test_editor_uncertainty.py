@@ -158,17 +158,17 @@ def test_scribble_run_uses_and_reports_the_class_weights():
 
 
 def test_scribble_run_passes_the_position_option(monkeypatch):
-    import core.classify
+    import core.convert.step
     from app.editor.classify_job import Mode, run_classification
 
     seen = []
-    train = core.classify.train_classifier
+    train = core.convert.step.train_classifier
 
     def spy(pairs, options=None, **kw):
         seen.append(options.features.position)
         return train(pairs, options, **kw)
 
-    monkeypatch.setattr(core.classify, "train_classifier", spy)
+    monkeypatch.setattr(core.convert.step, "train_classifier", spy)
     photo = np.zeros((64, 96, 3), np.uint8)
     photo[:, 48:] = (40, 60, 200)
     sc = np.zeros((64, 96), np.uint8)

@@ -74,48 +74,17 @@ class ClassifyResult:
     scribble_classes: frozenset[int] = field(default_factory=frozenset)
 
 
-def _mean_lab(colours: np.ndarray) -> np.ndarray:
-    from skimage.color import rgb2lab
-
-    return rgb2lab(colours.reshape(-1, 1, 3).astype(np.float32) / 255.0).reshape(-1, 3)
-
-
-def class_means(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]) -> np.ndarray:
-    """Mean photo colour of every class: (K, 3) float (NaN-free; absent classes get grey)."""
-    rgb = photo[..., :3].reshape(-1, 3).astype(np.float64)
-    lab = labels.ravel()
-    out = np.full((len(classes), 3), 128.0)
-    for i, c in enumerate(classes):
-        sel = lab == c
-        if sel.any():
-            out[i] = rgb[sel].mean(axis=0)
-    return out
-
-
-def nearest_theme_lut(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
-                      library: ThemeLibrary) -> np.ndarray:
-    """Class value -> index of the theme whose mean texture colour is nearest (CIELAB)."""
-    theme_means = np.array([t.texture.reshape(-1, 3).mean(axis=0) for t in library])
-    a = _mean_lab(class_means(photo, labels, classes))
-    b = _mean_lab(theme_means)
-    nearest = np.argmin(((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=2), axis=1)
-    lut = np.zeros(256, dtype=np.int64)
-    for c, k in zip(classes, nearest, strict=True):
-        lut[c] = k
-    return lut
-
-
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
                  taken: list[str]) -> tuple[list[Theme], np.ndarray]:
-    """Themes cut from the photo for every class (``core.themes.from_photo.themes_from_photo``).
+    """Themes cut from the photo for every class (``core.convert.step.assign_themes``).
 
     Returns the themes (renamed where a name is taken, and given distinct
     display colours so the index map reads well; the texture keeps the
     photo's look) and the class -> position-in-that-list table.
     """
-    from core.themes.from_photo import themes_from_photo
+    from core.convert.step import assign_themes
 
-    mapping = themes_from_photo(photo[..., :3], labels, classes=classes)
+    mapping = assign_themes(photo[..., :3], labels, classes)
     out = []
     for i, theme in enumerate(mapping.library):
         name = theme.name
@@ -137,17 +106,18 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
     passed to ``train_classifier``. ``position`` (scribbles only): the forest
     also uses where the strokes lie (``FeatureOptions.position``).
     """
-    from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
+    from core.classify import SupervisedOptions
     from core.convert.labels_to_grid import labels_to_grid
+    from core.convert.step import assign_themes, classify_photo
     from core.errors import TerrathemeError
 
+    # The one conversion step of core (core.convert.step), as terratheme convert runs it.
     if mode is Mode.SCRIBBLES:
         if scribbles is None or not scribbles.any():
             raise TerrathemeError("no scribbles: paint some with the Scribble tool (S) first")
-        model = train_classifier([(photo, scribbles)],
-                                 SupervisedOptions().with_positions(position),
-                                 class_weights=class_weights)
-        result = model.predict(photo, progress=progress)
+        result, model = classify_photo(photo, scribbles=scribbles,
+                                       supervised=SupervisedOptions().with_positions(position),
+                                       class_weights=class_weights, progress=progress)
         weights = (None if model.class_weights is None else
                    dict(zip(model.classes, model.class_weights, strict=True)))
         painted = scribble_classes(scribbles)
@@ -156,10 +126,11 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
         new_themes: list[Theme] = []
     else:
         weights, painted = None, frozenset()
-        result = classify_unsupervised(photo, progress=progress)
+        result, _ = classify_photo(photo, progress=progress)
         labels, classes = result.labels, result.classes
         if mode is Mode.UNSUPERVISED_MAP:
-            lut = nearest_theme_lut(photo, labels, classes, library)
+            # Each class to its nearest current theme, by the rule convert --themes uses.
+            lut = assign_themes(photo[..., :3], labels, classes, library).lut.astype(np.int64)
             new_themes = []
         else:
             new_themes, lut = class_themes(photo, labels, classes, list(library.names))
