@@ -46,7 +46,33 @@ def _classify() -> None:
     classify_unsupervised(photo)
 
 
-PARTS = {"render": _render, "packing": _curves_and_packing, "classify": _classify}
+def _perspective() -> None:
+    from core.perspective import Camera, FilterOptions, Method, PreparedTexture
+
+    rng = np.random.default_rng(1)
+    texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
+    for method in Method:
+        for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
+            opts = FilterOptions(method=method, skew_blend=skew_blend)
+            PreparedTexture(texture, opts).render(Camera(height=8, pitch=20), (16, 12))
+    for grey in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
+        PreparedTexture(grey, FilterOptions()).render(Camera(height=8, pitch=20), (16, 12))
+
+
+def _boundary() -> None:
+    from core.model.colour_map import ColourMap
+    from core.render import RenderOptions, render_cells
+    from core.render.boundary import BoundaryOptions
+    from core.render.colour_map import apply_colour_map
+
+    grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
+    themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
+    img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
+    apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
+
+
+PARTS = {"render": _render, "boundary": _boundary, "packing": _curves_and_packing,
+         "classify": _classify, "perspective": _perspective}
 
 
 def main(argv: list[str] | None = None) -> int:

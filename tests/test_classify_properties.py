@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -38,6 +39,7 @@ def test_unsupervised_is_well_formed(photo):
     assert res.classes == tuple(range(1, res.n_classes + 1))
 
 
+@pytest.mark.slow
 @settings(max_examples=15, deadline=None)
 @given(photos, st.integers(0, 2**31 - 1))
 def test_supervised_is_well_formed(photo, seed):

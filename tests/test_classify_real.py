@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
 from core.io.images import read_image
+
+#: real photos: part of the slow suite
+pytestmark = pytest.mark.slow
 
 
 def test_dubai_photo_trained_on_its_mask_reproduces_it(shared_data):

@@ -193,6 +193,7 @@ def test_convert_photo_progress_and_options():
         convert_photo(_halves(), ConvertOptions(cell=0))
 
 
+@pytest.mark.slow
 def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
     from core.classify import train_classifier
 

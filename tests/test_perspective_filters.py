@@ -210,6 +210,7 @@ def test_parallelogram_beats_trilinear_on_a_grazing_checkerboard():
     assert err[Method.PARALLELOGRAM] < 0.6 * err[Method.TRILINEAR]
 
 
+@pytest.mark.slow
 def test_two_probes_match_eq5_at_powers_of_two_and_do_better_between():
     tex = _random_texture(64, 64).astype(np.float32) / 255
     eq5, probes = FilterOptions(long_probes=1), FilterOptions(long_probes=2)
