@@ -278,7 +278,7 @@ def test_cli_colour_map_and_boundary_options(tmp_path):
 @pytest.mark.parametrize("args, match", [
     (["--themes", "water,lava"], "unknown theme 'lava'"),
     (["--cell", "16", "--curve", "c.png"], "needs --cell auto"),
-    (["--colour-map", "blue"], "not auto, off or a number"),
+    (["--colour-map", "blue"], "not auto or off or a number"),
     (["--class-target", "2"], "must be in"),
 ])
 def test_cli_refuses_before_any_work(tmp_path, capsys, args, match):

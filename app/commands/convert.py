@@ -17,16 +17,31 @@ HELP = "turn an orthophoto into a thematic texture project (+ preview render, pa
 ORDER = 40
 
 
-def _cell(value: str) -> str | int:
-    if value == "auto":
-        return value
-    try:
-        n = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not 'auto' or a number") from None
-    if not 1 <= n <= 4096:
-        raise argparse.ArgumentTypeError(f"--cell must be 1..4096, not {n}")
-    return n
+def _number(kind: type, low: float, high: float, what: str, *, words: tuple[str, ...] = (),
+            open_low: bool = False):
+    """An argparse type: one of ``words``, or a ``kind`` number in ``[low, high]``."""
+
+    def parse(value: str):
+        if value in words:
+            return value
+        try:
+            v = kind(value)
+        except ValueError:
+            accepted = " or ".join([*words, "a number"])
+            raise argparse.ArgumentTypeError(f"'{value}' is not {accepted}") from None
+        if not (low < v if open_low else low <= v) or v > high:
+            lo = "(" if open_low else "["
+            raise argparse.ArgumentTypeError(f"{what} must be in {lo}{low:g}, {high:g}], not {v}")
+        return v
+
+    return parse
+
+
+_cell = _number(int, 1, 4096, "--cell", words=("auto",))
+_agreement = _number(float, 0.0, 1.0, "--target-agreement", open_low=True)
+_share = _number(float, 0.0, 1.0, "--class-target")
+_colour_map = _number(float, 0.0, 100.0, "--colour-map target", words=("auto", "off"),
+                      open_low=True)
 
 
 def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
@@ -53,38 +68,6 @@ def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
     if any("=" in p for p in parts):
         raise TerrathemeError(f"--themes {text!r}: mix of names and class=name pairs")
     return parts
-
-
-def _agreement(value: str) -> float:
-    try:
-        t = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not a number") from None
-    if not 0.0 < t <= 1.0:
-        raise argparse.ArgumentTypeError(f"--target-agreement must be in (0, 1], not {t}")
-    return t
-
-
-def _share(value: str) -> float:
-    try:
-        t = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not a number") from None
-    if not 0.0 <= t <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], not {t}")
-    return t
-
-
-def _colour_map(value: str) -> str | float:
-    if value in ("auto", "off"):
-        return value
-    try:
-        t = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not auto, off or a number") from None
-    if not 0.0 < t <= 100.0:
-        raise argparse.ArgumentTypeError(f"--colour-map target must be in (0, 100], not {t}")
-    return t
 
 
 def _check_theme_names(themes) -> None:

@@ -41,7 +41,7 @@ import numba as nb
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.render.kernels import texel_weights
+from core.render.kernels import cell_corners, merged_weights
 
 _M32 = np.uint64(0xFFFFFFFF)
 #: widest border, in 1/1024 of a weight
@@ -182,14 +182,7 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
         for cx in range(cx0, cx1 + 1):
             xa = max(cx * n, rx)
             xb = min(cx * n + n, rx + rw)
-            ks[0] = grid[cy - ocy, cx - ocx]
-            ks[1] = grid[cy - ocy, cx - ocx + 1]
-            ks[2] = grid[cy - ocy + 1, cx - ocx]
-            ks[3] = grid[cy - ocy + 1, cx - ocx + 1]
-            sp = splits[cy - ocy, cx - ocx]
-            for j in range(4):
-                k = ks[j]
-                bs[j] = off[k] + (gy % th[k]) * stride[k] + (xa % tw[k]) * 3
+            sp = cell_corners(block, themes, cx, gy, xa, ks, bs)
             if sp == 0:
                 # A uniform cell: one contiguous copy, as the paper's rule.
                 length = (xb - xa) * 3
@@ -199,13 +192,7 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
             for x in range(xa, xb):
                 o = (x - xa) * 3
                 # Step 1: the barycentric weights, corners of one theme merged.
-                w00, w01, w10, w11 = texel_weights(sp, (x - cx * n) * m, yi, d)
-                ws[0], ws[1], ws[2], ws[3] = w00, w01, w10, w11
-                for a in range(4):
-                    for b in range(a + 1, 4):
-                        if ws[b] != 0 and ks[b] == ks[a]:
-                            ws[a] += ws[b]
-                            ws[b] = 0
+                merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
                 # Step 2: the score of every theme of non-zero weight.
                 best = np.int64(-(1 << 40))
                 for a in range(4):

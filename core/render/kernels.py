@@ -115,6 +115,38 @@ def texel_weights(split, xi, yi, d):  # pragma: no cover - numba
     return 0, d - yi, d - xi, xi + yi - d
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def cell_corners(block, themes, cx, gy, xa, ks, bs):  # pragma: no cover - numba
+    """Corner themes of cell ``cx`` on texel row ``gy`` into ``ks``, their row offsets into ``bs``.
+
+    ``bs[j]`` is the flat index of corner ``j``'s theme texel at ``(xa, gy)``
+    (pre-tiled rows); returns the cell's split.
+    """
+    grid, splits, ocx, ocy, rx, ry, n, m = block
+    flat, off, stride, th, tw = themes
+    cy = gy // m
+    ks[0] = grid[cy - ocy, cx - ocx]
+    ks[1] = grid[cy - ocy, cx - ocx + 1]
+    ks[2] = grid[cy - ocy + 1, cx - ocx]
+    ks[3] = grid[cy - ocy + 1, cx - ocx + 1]
+    for j in range(4):
+        k = ks[j]
+        bs[j] = off[k] + (gy % th[k]) * stride[k] + (xa % tw[k]) * 3
+    return splits[cy - ocy, cx - ocx]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def merged_weights(split, xi, yi, d, ks, ws):  # pragma: no cover - numba
+    """Barycentric weights into ``ws``, corners that carry the same theme merged into the first."""
+    w00, w01, w10, w11 = texel_weights(split, xi, yi, d)
+    ws[0], ws[1], ws[2], ws[3] = w00, w01, w10, w11
+    for a in range(4):
+        for b in range(a + 1, 4):
+            if ws[b] != 0 and ks[b] == ks[a]:
+                ws[a] += ws[b]
+                ws[b] = 0
+
+
 _TABLE_CACHE_BYTES = 8 << 20
 
 
@@ -268,29 +300,15 @@ def histogram_rows(out, r0, r1, block, themes, gauss):
         for cx in range(cx0, cx1 + 1):
             xa = max(cx * n, rx)
             xb = min(cx * n + n, rx + rw)
-            ks[0] = grid[cy - ocy, cx - ocx]
-            ks[1] = grid[cy - ocy, cx - ocx + 1]
-            ks[2] = grid[cy - ocy + 1, cx - ocx]
-            ks[3] = grid[cy - ocy + 1, cx - ocx + 1]
-            sp = splits[cy - ocy, cx - ocx]
-            for j in range(4):
-                k = ks[j]
-                bs[j] = off[k] + (gy % th[k]) * stride[k] + (xa % tw[k]) * 3
+            sp = cell_corners(block, themes, cx, gy, xa, ks, bs)
             for x in range(xa, xb):
                 o = (x - xa) * 3
                 if sp == 0:
                     for c in range(3):
                         out[r, (x - rx) * 3 + c] = flat[bs[0] + o + c]
                     continue
-                xi = (x - cx * n) * m
-                w00, w01, w10, w11 = texel_weights(sp, xi, yi, d)
-                ws[0], ws[1], ws[2], ws[3] = w00, w01, w10, w11
-                # Merge corners that carry the same theme (identical, fully correlated samples).
-                for a in range(4):
-                    for b in range(a + 1, 4):
-                        if ws[b] != 0 and ks[b] == ks[a]:
-                            ws[a] += ws[b]
-                            ws[b] = 0
+                # Corners that carry the same theme merged (identical, fully correlated samples).
+                merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
                 full = -1
                 for a in range(4):
                     if ws[a] == d:
