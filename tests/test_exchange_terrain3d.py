@@ -87,6 +87,8 @@ def test_control_map_holds_one_vertex_per_pixel(tmp_path):
                                                               "theme_01_sand.png"]
     assert manifest["textures"][0]["uv_scale"] == 1 / 256
     assert manifest["region_size"] == 64 and manifest["colour_map"] is None
+    # Centred on the origin, on a region boundary, in vertices (the importer's units).
+    assert manifest["import_position"] == [-64, -64]
     np.testing.assert_array_equal(grid_from_labels(control_labels(
         read_control_map(tmp_path / "terrain3d_control.exr")), 1), grid)
 

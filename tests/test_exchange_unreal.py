@@ -55,6 +55,7 @@ def test_weight_maps_sum_to_255_and_rebuild_the_render(tmp_path):
     assert manifest["component_quads"] == 126 and manifest["section_quads"] == 63
     assert [layer["name"] for layer in manifest["layers"]] == list(SAFE)
     assert manifest["layers"][3]["weightmap"] == "weight_03_crop_field.png"
+    assert manifest["layers"][0]["mapping_scale"] == 256.0  # a 256-texel theme, a quad per texel
 
 
 def test_tiles_use_unreal_names_and_share_their_border_vertices(tmp_path):

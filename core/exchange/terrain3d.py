@@ -213,7 +213,8 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     region = next((r for r in _REGION_SIZES if 32 * r >= max(w, h)), None)
     if region is None:
         raise TerrathemeError(f"a {w} x {h} control map exceeds Terrain3D's 65536-vertex world")
-    corner = [-(-(w // 2) // region) * region * spacing, -(-(h // 2) // region) * region * spacing]
+    # The importer's import_position is the map's top-left corner in vertices (descaled).
+    corner = [-(-(w // 2) // region) * region, -(-(h // 2) // region) * region]
     sx = plan.world.texel_size[0]
     manifest = common_manifest(project, plan)
     manifest.update({
@@ -221,7 +222,7 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         "control_map_size": [w, h],
         "vertex_spacing": spacing,
         "region_size": region,
-        "import_position": [-corner[0], 0.0, -corner[1]],
+        "import_position": [-corner[0], -corner[1]],
         # Terrain3D repeats a texture every 1 / uv_scale world units.
         "textures": [{"id": j, "name": t.name, "albedo": f,
                       "uv_scale": 1.0 / (t.texture.shape[1] * sx)}

@@ -144,9 +144,11 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
     spacing = pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size
+    # LandscapeLayerCoords' Mapping Scale: landscape quads per repeat of the theme.
     layers = [{"name": safe_name(t.name), "weightmap": weight_file(project, j),
                "texture": tex, "texture_world_size_cm": [t.texture.shape[1] * sx * 100,
-                                                         t.texture.shape[0] * sy * 100]}
+                                                         t.texture.shape[0] * sy * 100],
+               "mapping_scale": t.texture.shape[1] * sx / spacing[0]}
               for j, (t, tex) in enumerate(zip(project.library, theme_files(project),
                                                strict=True))]
     quads = UNREAL_SIZES.get(layout.tile or layout.size[0])
