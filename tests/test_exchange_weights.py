@@ -155,3 +155,20 @@ def test_layout_tiles_share_their_borders():
         ExportLayout((100, 63), 32)
     with pytest.raises(TerrathemeError, match="larger than"):
         ExportLayout((1 << 15, 1 << 14))
+
+
+def test_world_frame_converts_crs_units_to_metres():
+    from core.exchange import world_frame
+
+    feet = {"ModelPixelScale": [2.0, 2.0, 0.0], "ModelTiepoint": [0, 0, 0, 100.0, 50.0, 0],
+            "GeoKeyDirectory": [1, 1, 0, 2, 1024, 0, 1, 1, 3076, 0, 1, 9003]}
+    frame = world_frame(feet, (10, 10))
+    assert frame.units == "metre" and frame.crs_units == "US survey foot"
+    assert frame.texel_size == pytest.approx((2 * 1200 / 3937,) * 2)
+    assert frame.origin == (101.0, 49.0)  # the centre of texel (0, 0), in CRS feet
+    degrees = {"ModelPixelScale": [1e-4, 1e-4, 0.0], "ModelTiepoint": [0, 0, 0, 10.0, 60.0, 0],
+               "GeoKeyDirectory": [1, 1, 0, 1, 1024, 0, 1, 2]}
+    frame = world_frame(degrees, (100, 100))
+    # At 60 degrees north a degree of longitude is half a degree of latitude.
+    assert frame.texel_size[0] == pytest.approx(frame.texel_size[1] / 2, rel=1e-3)
+    assert world_frame({}, (4, 4)).units == "texel"

@@ -28,7 +28,8 @@ from core.io.georef import world_file_lines
 MAX_MAP_PIXELS = 1 << 28
 _MODEL_TYPE_KEY = 1024
 _LINEAR_UNITS_KEY = 3076
-_UNIT_NAMES = {9001: "metre", 9002: "foot", 9003: "US survey foot"}
+#: EPSG linear units -> (name, metres per unit)
+_UNITS = {9001: ("metre", 1.0), 9002: ("foot", 0.3048), 9003: ("US survey foot", 1200 / 3937)}
 _METRES_PER_DEGREE = 111_319.49
 
 
@@ -115,12 +116,15 @@ class WorldFrame:
     texel_size : (float, float)
         World units per texel along x (east) and y (south, image rows).
     origin : (float, float)
-        World (CRS) coordinates of texel (0, 0)'s sample point: the centre of
-        the photo's top-left pixel, where the export maps start.
+        CRS coordinates of texel (0, 0)'s sample point: the centre of the
+        photo's top-left pixel, where the export maps start.
     units : str
-        ``"metre"`` (also for a geographic CRS, converted at the centre
-        latitude), another linear unit of the CRS, or ``"texel"`` when the
-        project has no georeference (then one texel = one world unit).
+        Unit of ``texel_size``: ``"metre"`` (CRS feet and degrees are
+        converted, degrees at the centre latitude), ``"CRS unit"`` for a unit
+        not known here, or ``"texel"`` without a georeference (one texel =
+        one world unit).
+    crs_units : str
+        Unit of ``origin``: the CRS's own (``"degree"`` for a geographic one).
     rotation_deg : float
         Rotation of a ModelTransformation georeference (engines get it unrotated).
     """
@@ -129,6 +133,7 @@ class WorldFrame:
     origin: tuple[float, float] = (0.0, 0.0)
     units: str = "texel"
     rotation_deg: float = 0.0
+    crs_units: str = "texel"
 
 
 def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> WorldFrame:
@@ -149,13 +154,17 @@ def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> Wor
     if sx <= 0 or sy <= 0 or not all(math.isfinite(v) for v in world):
         raise TerrathemeError(f"the project's georeference has a degenerate pixel size {world}")
     keys = _geo_keys(georeference)
-    units = _UNIT_NAMES.get(keys.get(_LINEAR_UNITS_KEY, 9001), "CRS unit")
+    rotation = math.degrees(math.atan2(d, a))
     if keys.get(_MODEL_TYPE_KEY) == 2:
         # Geographic CRS: degrees to metres at the centre latitude (spherical approximation).
         lat = math.radians(f + e * texture_size[1] / 2)
-        sx, sy = sx * _METRES_PER_DEGREE * math.cos(lat), sy * _METRES_PER_DEGREE
-        units = "metre"
-    return WorldFrame((sx, sy), (c, f), units, math.degrees(math.atan2(d, a)))
+        scale = (_METRES_PER_DEGREE * math.cos(lat), _METRES_PER_DEGREE)
+        return WorldFrame((sx * scale[0], sy * scale[1]), (c, f), "metre", rotation, "degree")
+    unit = _UNITS.get(keys.get(_LINEAR_UNITS_KEY, 9001))
+    if unit is None:
+        return WorldFrame((sx, sy), (c, f), "CRS unit", rotation, "CRS unit")
+    # Engines work in metres: CRS feet become metres.
+    return WorldFrame((sx * unit[1], sy * unit[1]), (c, f), "metre", rotation, unit[0])
 
 
 def _geo_keys(georeference: dict) -> dict[int, int]:

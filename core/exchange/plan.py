@@ -91,6 +91,7 @@ def common_manifest(project: ThematicTexture, plan: ExportPlan) -> dict:
         "units": world.units,
         "texel_size": list(world.texel_size),
         "origin": list(world.origin),
+        "crs_units": world.crs_units,
         "rotation_deg": world.rotation_deg,
         # The colour map layer (RGB, neutral 128, a gain over the render) goes here once
         # projects carry one; Terrain3D's own colour map is its natural target.
