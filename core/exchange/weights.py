@@ -176,18 +176,19 @@ def quantise_weights(slots: CornerSlots, n_themes: int, *, total: int = 255) -> 
     if int(slots.ids.max(initial=0)) >= n_themes:
         raise TerrathemeError(f"grid uses theme {int(slots.ids.max())} of only {n_themes}")
     d = slots.denominator
-    scaled = slots.weights * total
-    share, remainder = scaled // d, scaled % d
+    share, remainder = np.divmod(slots.weights * total, d)
     # The units the floors miss go to the largest remainders (ties: lower theme).
     missing = total - share.sum(axis=0)
     share += slot_ranks(remainder, slots.ids) < missing[None]
     dtype = np.uint8 if total <= 255 else np.uint16
     h, w = slots.ids.shape[1:]
-    out = np.zeros((n_themes, h, w), dtype=dtype)
-    rows, cols = np.ogrid[:h, :w]
+    out = np.zeros(n_themes * h * w, dtype=dtype)
+    pixel = np.arange(h * w)
+    # Scatter each slot into its theme's plane (the non-zero slots of a pixel differ in theme).
     for c in range(4):
-        out[slots.ids[c], rows, cols] += share[c].astype(dtype)
-    return out
+        plane = slots.ids[c].ravel().astype(np.intp) * (h * w)
+        out[plane + pixel] += share[c].ravel().astype(dtype)
+    return out.reshape(n_themes, h, w)
 
 
 def theme_weights(
