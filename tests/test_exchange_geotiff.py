@@ -114,3 +114,22 @@ def test_manifest_and_no_georeference(tmp_path, exported):
     assert "no georeference" in plan.notes[0]
     with pytest.raises(TerrathemeError, match="--size and --tile are for engine exports"):
         plan_export(plain, ExportOptions(Engine.GEOTIFF, tile=512))
+
+
+def test_a_real_georeference_in_us_survey_feet_survives(tmp_path, shared_data):
+    # DRCOG's land cover tile: Colorado State Plane, US survey feet, 1 ft pixels.
+    source = shared_data / "geotiff" / "DRCOG_2020_LULC_E2880000_N1680000.tif"
+    if not source.is_file():
+        pytest.skip(f"{source} is absent")
+    georef = read_georeference(source)
+    grid = np.array([[0, 1, 2], [3, 0, 1]], np.uint8)
+    project = ThematicTexture(IndexGrid(grid, (16, 16)), shipped_theme_library().select(NAMES),
+                              {"georeference": georef})
+    write_export(project, plan_export(project, ExportOptions(Engine.GEOTIFF)), tmp_path)
+    for name in ("landclass.tif", "texture.tif"):
+        back = read_georeference(tmp_path / name)
+        assert {k: back[k] for k in georef if k != "oiio"} == \
+            {k: v for k, v in georef.items() if k != "oiio"}
+    manifest = json.loads((tmp_path / "terratheme_geotiff.json").read_text())
+    assert manifest["crs_units"] == "US survey foot"
+    assert manifest["texel_size"] == pytest.approx([1200 / 3937] * 2)
