@@ -41,6 +41,8 @@ LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture
     "terratheme_geotiff.json"
 TILE = 512
 _TIFF_TYPES = {12: "d", 3: "H", 2: "s"}
+#: GDAL tags describing the source photo's values (its no-data value would hide theme 0)
+_SOURCE_VALUE_TAGS = ("GDAL_NODATA", "GDAL_METADATA")
 Progress = Callable[[int, int], None]
 
 
@@ -56,10 +58,10 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
 
 
 def geotiff_tags(georeference: dict) -> list[tuple]:
-    """tifffile ``extratags`` for the GeoTIFF tags of a georeference dict."""
+    """tifffile ``extratags`` for the GeoTIFF tags of a georeference dict (placement only)."""
     tags = []
     for code, (name, ttype, _) in sorted(GEO_TAGS.items()):
-        if name not in georeference:
+        if name not in georeference or name in _SOURCE_VALUE_TAGS:
             continue
         value = georeference[name]
         kind = _TIFF_TYPES[ttype]
