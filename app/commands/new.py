@@ -1,11 +1,12 @@
-"""``terratheme new INDEX_IMAGE PROJECT --themes ...``: a project from an index image."""
+"""``terratheme new MAP [MAP ...] PROJECT --themes ...``: a project from an index image or maps."""
 
 from __future__ import annotations
 
 import argparse
 
 NAME = "new"
-HELP = "make a project from an index image (vertex = pixel) and shipped themes chosen by name"
+HELP = ("make a project from an index image (vertex = pixel), or from Unity splatmaps, weight "
+        "maps or a Terrain3D control map, with shipped themes chosen by name")
 ORDER = 10
 
 
@@ -23,9 +24,9 @@ def _cell(text: str) -> tuple[int, int]:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "index_image",
-        help="one pixel per grid vertex: grey values = theme numbers (0 = first of --themes), "
-        "or colours = the chosen themes' display colours",
+        "inputs", nargs="+", metavar="MAP",
+        help="index image: one pixel per grid vertex, grey values = theme numbers (0 = first of "
+        "--themes) or the chosen themes' display colours; or engine maps (see --from)",
     )
     parser.add_argument("project", help="project file to write (.ttproj)")
     parser.add_argument("--themes", required=True,
@@ -33,21 +34,60 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "e.g. water,sand,forest")
     parser.add_argument("--cell", type=_cell, default=(16, 16), metavar="N[xM]",
                         help="texels per cell: N columns x M rows (default 16)")
+    parser.add_argument("--from", dest="kind", default="index",
+                        choices=["index", "splatmap", "weights", "terrain3d"],
+                        help="what MAP is: an index image (default); Unity splatmaps (RGBA, 4 "
+                        "themes each, in order); one grey weight map per theme (Unreal); a "
+                        "Terrain3D control map (32-bit float EXR). Maps: strongest theme per "
+                        "pixel, ties to the lower theme")
+    parser.add_argument("--step", type=int, default=1, metavar="S",
+                        help="engine maps: map pixels per cell (a vertex every S pixels, the "
+                        "map's edges on vertices; default 1 = every pixel a vertex)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from app.outputs import check_outputs
+    from core.errors import TerrathemeError
+    from core.exchange import (
+        control_labels,
+        grid_from_labels,
+        labels_from_weights,
+        read_control_map,
+        read_splatmaps,
+        read_weight_maps,
+    )
     from core.io.images import read_image
+    from core.model.grid import IndexGrid
     from core.model.index_image import project_from_index_image
-    from core.model.project import save_project
+    from core.model.project import ThematicTexture, save_project
     from core.themes.library import shipped_theme_library
 
+    check_outputs([args.project], inputs=args.inputs)
     names = [n.strip() for n in args.themes.split(",") if n.strip()]
     library = shipped_theme_library().select(names)
-    image = read_image(args.index_image)
-    project = project_from_index_image(
-        image, library, args.cell, {"source_index_image": str(args.index_image),
-                                    "created_by": "terratheme new"},
-    )
+    single = args.kind in ("index", "terrain3d")
+    if single and len(args.inputs) != 1:
+        raise TerrathemeError(f"--from {args.kind} reads one map, got {len(args.inputs)}")
+    if args.kind == "weights" and len(args.inputs) != len(library):
+        raise TerrathemeError(f"--from weights needs one weight map per theme: "
+                              f"{len(args.inputs)} maps for {len(library)} themes")
+    sources = [str(p) for p in args.inputs]
+    metadata = {"created_by": "terratheme new"}
+    if args.kind == "index":
+        if args.step != 1:
+            raise TerrathemeError("--step is for engine maps; index images have a pixel per vertex")
+        metadata["source_index_image"] = sources[0]
+        project = project_from_index_image(read_image(sources[0]), library, args.cell, metadata)
+    else:
+        if args.kind == "splatmap":
+            labels = labels_from_weights(read_splatmaps(sources), len(library))
+        elif args.kind == "weights":
+            labels = labels_from_weights(read_weight_maps(sources), len(library))
+        else:
+            labels = control_labels(read_control_map(sources[0]))
+        metadata.update({"source_maps": sources, "source_kind": args.kind})
+        grid = IndexGrid(grid_from_labels(labels, args.step), args.cell)
+        project = ThematicTexture(grid, library, metadata)
     save_project(args.project, project)
     w, h = project.grid.texture_size
     print(f"{args.project}: {project.grid.indices.shape[1]} x {project.grid.indices.shape[0]} "

@@ -1,0 +1,72 @@
+"""``terratheme export PROJECT OUTDIR --engine ...``: maps and textures for engines and GIS."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "export"
+HELP = ("export a project for Unity, Unreal, Godot Terrain3D or GIS: weight or control maps, "
+        "theme textures, GeoTIFFs (docs/engines.md)")
+ORDER = 25
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"size must be WxH (integers), got {text!r}") from exc
+    return w, h
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("project", help="project file (.ttproj)")
+    parser.add_argument("outdir", help="folder to write the export into (made if missing)")
+    parser.add_argument("--engine", required=True, choices=["unity", "unreal", "godot", "geotiff"],
+                        help="unity: RGBA splatmaps + terrain layers; unreal: weight map per "
+                        "theme; godot: Terrain3D control map; geotiff: land-class map + baked "
+                        "texture (COG)")
+    parser.add_argument("--size", type=_size, metavar="WxH",
+                        help="pixels of the whole weight/control map, corner to corner "
+                        "(default: the engine's size nearest one pixel per texel; Terrain3D: "
+                        "one pixel per grid vertex)")
+    parser.add_argument("--tile", type=int, metavar="N",
+                        help="cut the map into N x N tiles sharing their border pixels "
+                        "(Unity: 16..4096, a power of two; Unreal: a recommended landscape size)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from app.outputs import check_outputs
+    from core.errors import TerrathemeError
+    from core.exchange import Engine, ExportOptions, plan_export, write_export
+    from core.model.project import load_project
+
+    outdir = Path(args.outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise TerrathemeError(f"{outdir}: is a file, not an output folder")
+    project = load_project(args.project)
+    options = ExportOptions(Engine(args.engine), args.size, args.tile)
+    plan = plan_export(project, options)
+    check_outputs(plan.paths(outdir), inputs=[args.project])
+    with tqdm(total=1, desc=f"export {args.engine}", unit="part", leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        paths = write_export(project, plan, outdir, progress=progress)
+    if plan.layout is not None:
+        (w, h), (kx, ky) = plan.layout.size, plan.layout.tiles
+        tiles = f" in {kx} x {ky} tiles of {plan.layout.tile}" if plan.layout.tile else ""
+        what = f"{w} x {h} map{tiles}"
+    else:
+        what = "land-class map and baked texture"
+    print(f"{outdir}: {args.engine} export, {what}, {len(paths)} files "
+          f"(manifest {paths[-1].name})")
+    for note in plan.notes:
+        print(f"  note: {note}")
+    return 0

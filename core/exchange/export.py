@@ -1,0 +1,42 @@
+"""One export entry point: plan (what will be written, checked before work), then write."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from core.exchange import geotiff, terrain3d, unity, unreal
+from core.exchange.options import Engine, ExportOptions
+from core.exchange.plan import ExportPlan
+from core.model.project import ThematicTexture
+
+Progress = Callable[[int, int], None]
+_ENGINES = {Engine.UNITY: unity, Engine.UNREAL: unreal, Engine.GODOT: terrain3d,
+            Engine.GEOTIFF: geotiff}
+
+
+def plan_export(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+    """Decide sizes and tiles and list every file of an export, without writing anything.
+
+    Raises
+    ------
+    TerrathemeError
+        A size or tile the engine does not take, too many themes for it, a
+        map too large: before any work.
+    """
+    return _ENGINES[options.engine].plan(project, options)
+
+
+def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.PathLike, *,
+                 progress: Progress | None = None) -> list[Path]:
+    """Write the files of ``plan`` into ``folder`` (each atomically, the manifest last).
+
+    Returns
+    -------
+    paths : list of Path, the files written
+    """
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    _ENGINES[plan.options.engine].write(project, plan, out, progress)
+    return plan.paths(out)

@@ -1,0 +1,132 @@
+"""GIS: the land-class map with a colour table and the baked texture, as georeferenced COG TIFFs.
+
+Both cover the photo's extent (``core.render.project.photo_extent``) at one
+pixel per texel, so they carry the project's georeference unchanged
+(``metadata["georeference"]``, the GeoTIFF tags of the source photo;
+``core.render.project.render_georeference``):
+
+* ``landclass.tif``: the theme with the largest weight at every texel
+  (``core.render.renderer.render_labels``), 8-bit palette image whose colour
+  table holds the themes' display colours; ``landclass.qml`` beside it is a
+  QGIS style naming every class (QGIS loads it with the raster).
+* ``texture.tif``: the render (``core.render.project.render_project``), RGB.
+
+Both are tiled (512) and deflate-compressed with overviews, in the Cloud
+Optimized GeoTIFF layout (:mod:`core.exchange.cog`); the class map's
+overviews take every other pixel (classes are not averaged), the texture's
+average 2 x 2 texels. Rendering goes band by band, so memory is bounded by
+a band of 512 rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.exchange.cog import box_half, nearest_half, write_cog
+from core.exchange.layout import world_frame
+from core.exchange.options import ExportOptions
+from core.exchange.plan import ExportPlan, common_manifest, write_manifest
+from core.io.atomic import write_bytes_atomic
+from core.io.georef import GEO_TAGS
+from core.model.project import ThematicTexture
+from core.render.project import photo_extent, render_georeference, render_project
+from core.render.renderer import RenderOptions, render_labels
+
+LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture.tif", \
+    "terratheme_geotiff.json"
+TILE = 512
+_TIFF_TYPES = {12: "d", 3: "H", 2: "s"}
+#: GDAL tags describing the source photo's values (its no-data value would hide theme 0)
+_SOURCE_VALUE_TAGS = ("GDAL_NODATA", "GDAL_METADATA")
+Progress = Callable[[int, int], None]
+
+
+def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+    """List the files of a GIS export (``--size`` and ``--tile`` are for engine maps)."""
+    if options.size is not None or options.tile is not None:
+        raise TerrathemeError("the GeoTIFF export is at one pixel per texel, tiled inside the "
+                              "file with overviews: --size and --tile are for engine exports")
+    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    notes = () if project.metadata.get("georeference") else (
+        "the project has no georeference (not made from a GeoTIFF): the TIFFs carry none",)
+    return ExportPlan(options, None, world, (LANDCLASS, STYLE, TEXTURE, MANIFEST), notes)
+
+
+def geotiff_tags(georeference: dict) -> list[tuple]:
+    """tifffile ``extratags`` for the GeoTIFF tags of a georeference dict (placement only)."""
+    tags = []
+    for code, (name, ttype, _) in sorted(GEO_TAGS.items()):
+        if name not in georeference or name in _SOURCE_VALUE_TAGS:
+            continue
+        value = georeference[name]
+        kind = _TIFF_TYPES[ttype]
+        if kind == "s":
+            tags.append((code, "s", 0, str(value), True))
+        else:
+            tags.append((code, kind, len(value), tuple(value), True))
+    return tags
+
+
+def palette(project: ThematicTexture) -> np.ndarray:
+    """``(3, 256)`` uint16 TIFF colour table: theme ``k``'s display colour at entry ``k``."""
+    table = np.zeros((3, 256), dtype=np.uint16)
+    table[:, : len(project.library)] = project.library.colours.T.astype(np.uint16) * 257
+    return table
+
+
+def qgis_style(project: ThematicTexture) -> str:
+    """A QGIS layer style (``.qml``): the paletted renderer with every theme's colour and name."""
+    entries = "\n".join(
+        f'      <paletteEntry value="{k}" color="#{r:02x}{g:02x}{b:02x}" alpha="255" '
+        f"label={quoteattr(t.name)}/>"
+        for k, (t, (r, g, b)) in enumerate(zip(project.library, project.library.colours,
+                                               strict=True)))
+    return ("<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n"
+            '<qgis version="3.28" styleCategories="Symbology">\n <pipe>\n'
+            '  <rasterrenderer type="paletted" band="1" opacity="1" alphaBand="-1">\n'
+            f"   <colorPalette>\n{entries}\n   </colorPalette>\n"
+            "  </rasterrenderer>\n </pipe>\n</qgis>\n")
+
+
+def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
+          progress: Progress | None = None) -> None:
+    """Write the land-class map, its QGIS style, the baked texture and the manifest."""
+    w, h = photo_extent(project)
+    tags = geotiff_tags(render_georeference(project, (0, 0, w, h), (w, h)))
+    grid, cell, k = project.grid.indices, project.grid.cell, len(project.library)
+    saddle = plan.options.saddle
+    bands = -(-h // TILE)
+    done = [0]
+
+    def tick() -> None:
+        done[0] += 1
+        if progress:
+            progress(done[0], 2 * bands)
+
+    def labels(y0: int, y1: int) -> np.ndarray:
+        tick()
+        return render_labels(grid, cell, (0, y0, w, y1 - y0), n_themes=k, saddle=saddle)
+
+    def texture(y0: int, y1: int) -> np.ndarray:
+        tick()
+        return render_project(project, (0, y0, w, y1 - y0), options=RenderOptions(saddle=saddle))
+
+    levels = write_cog(folder / LANDCLASS, labels, (w, h), channels=1, tile=TILE,
+                       photometric="minisblack", colormap=palette(project),
+                       downsample=nearest_half, extratags=tags)
+    write_bytes_atomic(folder / STYLE, qgis_style(project).encode())
+    write_cog(folder / TEXTURE, texture, (w, h), channels=3, tile=TILE, downsample=box_half,
+              extratags=tags)
+    manifest = common_manifest(project, plan)
+    manifest.update({
+        "landclass": LANDCLASS, "style": STYLE, "texture": TEXTURE, "size": [w, h],
+        "tile": TILE, "overviews": levels, "georeferenced": bool(tags),
+        "classes": [{"value": j, "name": t.name, "colour": list(t.colour)}
+                    for j, t in enumerate(project.library)],
+    })
+    write_manifest(folder / MANIFEST, manifest)

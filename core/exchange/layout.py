@@ -1,0 +1,178 @@
+"""Where an export's pixels lie: on the grid, in tiles, and in the world.
+
+Convention (the engines' own, see ``docs/engines.md``): a map of ``W x H``
+pixels spans the whole grid **corner to corner**, pixel ``i`` of ``W`` at
+texel position ``i * Wtex / (W - 1)`` (``Wtex = gw * N``), so its first and
+last pixels sit on the grid's outer vertices. Unity's terrain shader samples
+its control texture so that "the edges of the terrain tile lie on pixel
+centers" (``TerrainSplatmapCommon``: ``uv * (size - 1) + 0.5``); Unreal
+landscape weight maps and Terrain3D control maps hold one pixel per landscape
+vertex. A map of ``Wtex + 1`` pixels therefore holds exactly the renderer's
+texels (texel ``X`` at grid position ``X / N``, ``core.render.rules``) plus
+the far edge.
+
+Tiles of ``T`` pixels share their border row and column (tile ``t`` starts at
+pixel ``t * (T - 1)``), as neighbouring Unity terrains and Unreal landscape
+tiles do; a tiled map is ``k * (T - 1) + 1`` pixels wide.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from core.errors import TerrathemeError
+from core.io.georef import world_file_lines
+
+#: most pixels one weight or control map may hold (bounded work per export)
+MAX_MAP_PIXELS = 1 << 28
+_MODEL_TYPE_KEY = 1024
+_LINEAR_UNITS_KEY = 3076
+#: EPSG linear units -> (name, metres per unit)
+_UNITS = {9001: ("metre", 1.0), 9002: ("foot", 0.3048), 9003: ("US survey foot", 1200 / 3937)}
+_METRES_PER_DEGREE = 111_319.49
+
+
+@dataclass(frozen=True)
+class TilePiece:
+    """One tile of an export map: tile column/row and its pixel window in the whole map."""
+
+    tx: int
+    ty: int
+    x: int
+    y: int
+    w: int
+    h: int
+
+    @property
+    def suffix(self) -> str:
+        """``_x{tx}_y{ty}``: the tile naming Unreal's tiled landscape import reads."""
+        return f"_x{self.tx}_y{self.ty}"
+
+
+@dataclass(frozen=True)
+class ExportLayout:
+    """A whole export map of ``size = (W, H)`` pixels, cut into tiles of ``tile`` pixels or not.
+
+    Attributes
+    ----------
+    size : (int, int)
+        ``(W, H)`` of the whole map, both >= 2.
+    tile : int or None
+        Tile side in pixels; then ``W - 1`` and ``H - 1`` are multiples of ``tile - 1``.
+    """
+
+    size: tuple[int, int]
+    tile: int | None = None
+
+    def __post_init__(self) -> None:
+        w, h = self.size
+        if w < 2 or h < 2:
+            raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {w} x {h}")
+        if w * h > MAX_MAP_PIXELS:
+            raise TerrathemeError(
+                f"an export map of {w} x {h} pixels is larger than {MAX_MAP_PIXELS:,} pixels; "
+                "use --tile or a smaller --size"
+            )
+        if self.tile is not None:
+            t = self.tile
+            if t < 2:
+                raise TerrathemeError(f"tile must be at least 2 pixels, got {t}")
+            if (w - 1) % (t - 1) or (h - 1) % (t - 1):
+                raise TerrathemeError(
+                    f"a {w} x {h} map does not cut into {t}-pixel tiles sharing their borders: "
+                    f"width and height must be k * {t - 1} + 1 (e.g. {tiled_length(w, t)})"
+                )
+
+    @property
+    def tiles(self) -> tuple[int, int]:
+        """``(kx, ky)``: tile columns and rows (1 x 1 untiled)."""
+        if self.tile is None:
+            return 1, 1
+        return (self.size[0] - 1) // (self.tile - 1), (self.size[1] - 1) // (self.tile - 1)
+
+    def pieces(self) -> list[TilePiece]:
+        """Every tile, row by row from the top (north) row, left to right."""
+        if self.tile is None:
+            return [TilePiece(0, 0, 0, 0, *self.size)]
+        kx, ky = self.tiles
+        step = self.tile - 1
+        return [TilePiece(tx, ty, tx * step, ty * step, self.tile, self.tile)
+                for ty in range(ky) for tx in range(kx)]
+
+
+def tiled_length(length: int, tile: int) -> int:
+    """The smallest ``k * (tile - 1) + 1 >= length``: a length cut into shared-border tiles."""
+    k = max(1, -(-(length - 1) // (tile - 1)))
+    return k * (tile - 1) + 1
+
+
+@dataclass(frozen=True)
+class WorldFrame:
+    """World units of a project: the size of one texel and where texel (0, 0) lies.
+
+    Attributes
+    ----------
+    texel_size : (float, float)
+        World units per texel along x (east) and y (south, image rows).
+    origin : (float, float)
+        CRS coordinates of texel (0, 0)'s sample point: the centre of the
+        photo's top-left pixel, where the export maps start.
+    units : str
+        Unit of ``texel_size``: ``"metre"`` (CRS feet and degrees are
+        converted, degrees at the centre latitude), ``"CRS unit"`` for a unit
+        not known here, or ``"texel"`` without a georeference (one texel =
+        one world unit).
+    crs_units : str
+        Unit of ``origin``: the CRS's own (``"degree"`` for a geographic one).
+    rotation_deg : float
+        Rotation of a ModelTransformation georeference (engines get it unrotated).
+    """
+
+    texel_size: tuple[float, float] = (1.0, 1.0)
+    origin: tuple[float, float] = (0.0, 0.0)
+    units: str = "texel"
+    rotation_deg: float = 0.0
+    crs_units: str = "texel"
+
+
+def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> WorldFrame:
+    """The :class:`WorldFrame` of a project's ``metadata["georeference"]`` (``{}`` or None: texels).
+
+    Parameters
+    ----------
+    georeference : dict or None
+        As :func:`core.io.georef.read_georeference` returns it.
+    texture_size : (int, int)
+        ``(Wtex, Htex)``, for the centre latitude of a geographic CRS.
+    """
+    world = world_file_lines(georeference) if georeference else None
+    if world is None:
+        return WorldFrame()
+    a, d, b, e, c, f = (float(v) for v in world)
+    sx, sy = math.hypot(a, d), math.hypot(b, e)
+    if sx <= 0 or sy <= 0 or not all(math.isfinite(v) for v in world):
+        raise TerrathemeError(f"the project's georeference has a degenerate pixel size {world}")
+    keys = _geo_keys(georeference)
+    rotation = math.degrees(math.atan2(d, a))
+    if keys.get(_MODEL_TYPE_KEY) == 2:
+        # Geographic CRS: degrees to metres at the centre latitude (spherical approximation).
+        lat = math.radians(f + e * texture_size[1] / 2)
+        scale = (_METRES_PER_DEGREE * math.cos(lat), _METRES_PER_DEGREE)
+        return WorldFrame((sx * scale[0], sy * scale[1]), (c, f), "metre", rotation, "degree")
+    unit = _UNITS.get(keys.get(_LINEAR_UNITS_KEY, 9001))
+    if unit is None:
+        return WorldFrame((sx, sy), (c, f), "CRS unit", rotation, "CRS unit")
+    # Engines work in metres: CRS feet become metres.
+    return WorldFrame((sx * unit[1], sy * unit[1]), (c, f), "metre", rotation, unit[0])
+
+
+def _geo_keys(georeference: dict) -> dict[int, int]:
+    """Short-valued GeoKeys of a GeoKeyDirectory (key -> value)."""
+    raw = list(georeference.get("GeoKeyDirectory") or [])
+    out = {}
+    for i in range(4, len(raw) - 3, 4):
+        key, location, _, value = raw[i : i + 4]
+        if location == 0:
+            out[int(key)] = int(value)
+    return out

@@ -1,0 +1,44 @@
+"""What an export is asked for: the target engine or format, the map size and the tiling."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+from core.render.rules import SaddleRule
+
+
+class Engine(Enum):
+    """Where an export goes (``docs/engines.md`` says how to import each)."""
+
+    #: RGBA8 splatmaps (4 themes per image), theme PNGs, terrain-layer JSON, an editor script
+    UNITY = "unity"
+    #: one 8-bit weight map per theme at a recommended landscape size, a flat heightmap
+    UNREAL = "unreal"
+    #: a Terrain3D control map (base/overlay ids and blend per vertex) and a texture list
+    GODOT = "godot"
+    #: the land-class map with a colour table and the baked texture as a COG-layout GeoTIFF
+    GEOTIFF = "geotiff"
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """Options of an export.
+
+    Attributes
+    ----------
+    engine : Engine
+    size : (int, int) or None
+        ``(W, H)`` pixels of the whole weight or control map (all tiles
+        together); ``None`` = the engine's default for the project.
+    tile : int or None
+        Cut the map into ``tile x tile`` pieces sharing their border pixels
+        (Unity terrain tiles, Unreal landscape tiles); ``None`` = one piece.
+    saddle : SaddleRule
+        The renderer's saddle rule (``core.render.rules``).
+    """
+
+    engine: Engine = Engine.UNITY
+    size: tuple[int, int] | None = None
+    tile: int | None = None
+    saddle: SaddleRule = SaddleRule.MINORITY

@@ -1,0 +1,107 @@
+"""What an export will write, known before any work starts, and the parts every engine shares.
+
+An :class:`ExportPlan` lists every file (relative to the output folder), so
+the caller can check the outputs before the long work; the theme textures
+and the JSON manifest are written the same way for every engine.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.exchange.layout import ExportLayout, WorldFrame
+from core.exchange.options import ExportOptions
+from core.io.atomic import write_bytes_atomic
+from core.io.images import write_image
+from core.model.project import ThematicTexture
+
+
+@dataclass(frozen=True)
+class ExportPlan:
+    """Everything an export decides before writing.
+
+    Attributes
+    ----------
+    options : ExportOptions
+    layout : ExportLayout or None
+        The weight/control map and its tiles (None for the GIS export).
+    world : WorldFrame
+    files : tuple of str
+        Every file the export writes, relative to the output folder, the
+        manifest last (written last: its presence means the export is whole).
+    notes : tuple of str
+        What the caller should tell the user (a size chosen, a limitation).
+    """
+
+    options: ExportOptions
+    layout: ExportLayout | None
+    world: WorldFrame
+    files: tuple[str, ...]
+    notes: tuple[str, ...] = field(default=())
+
+    def paths(self, folder: str | os.PathLike) -> list[Path]:
+        """The files under ``folder``."""
+        return [Path(folder) / f for f in self.files]
+
+
+def safe_name(name: str) -> str:
+    """A theme name as a file- and engine-safe identifier (letters, digits, ``_``)."""
+    return re.sub(r"[^A-Za-z0-9_]+", "_", name.strip()).strip("_") or "theme"
+
+
+def theme_files(project: ThematicTexture) -> list[str]:
+    """``theme_KK_name.png``: one texture file per theme, in index order."""
+    return [f"theme_{k:02d}_{safe_name(t.name)}.png" for k, t in enumerate(project.library)]
+
+
+def write_theme_textures(project: ThematicTexture, folder: Path,
+                         textures: list[np.ndarray] | None = None) -> None:
+    """Write every theme texture as PNG (``textures`` replaces the project's when given)."""
+    texs = textures if textures is not None else project.library.textures
+    for name, tex in zip(theme_files(project), texs, strict=True):
+        write_image(folder / name, tex)
+
+
+def write_manifest(path: Path, manifest: dict) -> None:
+    """Write an export's JSON manifest atomically."""
+    try:
+        text = json.dumps(manifest, indent=1)
+    except (TypeError, ValueError) as exc:
+        raise TerrathemeError(f"{path}: export description is not JSON-serialisable ({exc})"
+                              ) from exc
+    write_bytes_atomic(path, (text + "\n").encode())
+
+
+def common_manifest(project: ThematicTexture, plan: ExportPlan) -> dict:
+    """The manifest fields every engine shares: source grid, cell, world units, themes."""
+    world = plan.world
+    return {
+        "format": f"terratheme-{plan.options.engine.value}",
+        "version": 1,
+        "grid_shape": list(project.grid.indices.shape),
+        "cell": list(project.grid.cell),
+        "texture_size": list(project.grid.texture_size),
+        "units": world.units,
+        "texel_size": list(world.texel_size),
+        "origin": list(world.origin),
+        "crs_units": world.crs_units,
+        "rotation_deg": world.rotation_deg,
+        # The colour map layer (RGB, neutral 128, a gain over the render) goes here once
+        # projects carry one; Terrain3D's own colour map is its natural target.
+        "colour_map": None,
+    }
+
+
+def pixel_spacing(project: ThematicTexture, plan: ExportPlan) -> tuple[float, float]:
+    """World units between neighbouring map pixels along x and y."""
+    wtex, htex = project.grid.texture_size
+    w, h = plan.layout.size
+    sx, sy = plan.world.texel_size
+    return wtex * sx / (w - 1), htex * sy / (h - 1)

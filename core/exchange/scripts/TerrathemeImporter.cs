@@ -1,0 +1,127 @@
+// Terratheme -> Unity terrain importer (Unity 2019.3 or later; terratheme docs/engines.md).
+//
+// 1. Copy the whole export folder (terratheme export PROJECT OUTDIR --engine unity) under Assets/.
+// 2. Select terratheme_unity.json in the Project window.
+// 3. Choose Assets > Terratheme > Build Terrain From Export.
+//
+// It makes one TerrainLayer per theme (texture, tile size and offset from the JSON), one
+// TerrainData asset per tile with the splatmaps' weights (splatmap s holds layers 4s..4s+3 in
+// R, G, B, A; the weights of every texel sum to 255), and connected Terrain objects under one
+// parent. The splatmap PNGs are read from disk, so Unity's texture import settings never touch
+// the weights.
+#if UNITY_EDITOR
+using System.IO;
+using UnityEditor;
+using UnityEngine;
+
+public static class TerrathemeImporter
+{
+    [System.Serializable]
+    public class Layer
+    {
+        public string name;
+        public string texture;
+        public float[] tile_size;
+        public float[] tile_offset;
+    }
+
+    [System.Serializable]
+    public class Tile
+    {
+        public int x;
+        public int y;
+        public float[] position;
+        public string[] splatmaps;
+    }
+
+    [System.Serializable]
+    public class Manifest
+    {
+        public string format;
+        public int alphamap_resolution;
+        public float[] tile_world_size;
+        public Layer[] layers;
+        public Tile[] tiles;
+    }
+
+    const string MenuPath = "Assets/Terratheme/Build Terrain From Export";
+
+    [MenuItem(MenuPath, true)]
+    static bool CanBuild()
+    {
+        Object selected = Selection.activeObject;
+        return selected != null && AssetDatabase.GetAssetPath(selected).EndsWith("terratheme_unity.json");
+    }
+
+    [MenuItem(MenuPath)]
+    static void Build()
+    {
+        string jsonPath = AssetDatabase.GetAssetPath(Selection.activeObject);
+        string folder = Path.GetDirectoryName(jsonPath).Replace('\\', '/');
+        Manifest manifest = JsonUtility.FromJson<Manifest>(File.ReadAllText(jsonPath));
+        if (manifest == null || manifest.format != "terratheme-unity")
+        {
+            Debug.LogError(jsonPath + ": not a terratheme Unity export");
+            return;
+        }
+        TerrainLayer[] layers = new TerrainLayer[manifest.layers.Length];
+        for (int k = 0; k < layers.Length; k++)
+        {
+            Layer source = manifest.layers[k];
+            TerrainLayer layer = new TerrainLayer();
+            layer.name = source.name;
+            layer.diffuseTexture = AssetDatabase.LoadAssetAtPath<Texture2D>(folder + "/" + source.texture);
+            layer.tileSize = new Vector2(source.tile_size[0], source.tile_size[1]);
+            layer.tileOffset = new Vector2(source.tile_offset[0], source.tile_offset[1]);
+            AssetDatabase.CreateAsset(layer, folder + "/" + source.name + ".terrainlayer");
+            layers[k] = layer;
+        }
+        int resolution = manifest.alphamap_resolution;
+        GameObject root = new GameObject("Terratheme terrain");
+        foreach (Tile tile in manifest.tiles)
+        {
+            string name = "terrain_x" + tile.x + "_y" + tile.y;
+            TerrainData data = new TerrainData();
+            data.heightmapResolution = 33;  // before size: setting it rescales the size
+            data.alphamapResolution = resolution;
+            data.size = new Vector3(manifest.tile_world_size[0], 1f, manifest.tile_world_size[1]);
+            data.terrainLayers = layers;
+            data.SetAlphamaps(0, 0, ReadWeights(folder, tile.splatmaps, resolution, layers.Length));
+            AssetDatabase.CreateAsset(data, folder + "/" + name + ".asset");
+            GameObject terrain = Terrain.CreateTerrainGameObject(data);
+            terrain.name = name;
+            terrain.transform.SetParent(root.transform, false);
+            terrain.transform.localPosition = new Vector3(tile.position[0], 0f, tile.position[1]);
+            terrain.GetComponent<Terrain>().allowAutoConnect = true;
+        }
+        AssetDatabase.SaveAssets();
+        Undo.RegisterCreatedObjectUndo(root, "Build terratheme terrain");
+        Selection.activeGameObject = root;
+    }
+
+    // Texture2D.LoadImage puts the PNG's top row (north) at the top; GetPixels32 returns rows
+    // bottom (south) first, which is the order of TerrainData's alphamap rows (z = 0 first).
+    static float[,,] ReadWeights(string folder, string[] files, int resolution, int count)
+    {
+        float[,,] maps = new float[resolution, resolution, count];
+        for (int s = 0; s < files.Length; s++)
+        {
+            Texture2D image = new Texture2D(2, 2, TextureFormat.RGBA32, false, true);
+            bool loaded = image.LoadImage(File.ReadAllBytes(folder + "/" + files[s]));
+            if (!loaded || image.width != resolution || image.height != resolution)
+                throw new System.Exception(files[s] + ": not a " + resolution + " x " + resolution + " splatmap");
+            Color32[] pixels = image.GetPixels32();
+            Object.DestroyImmediate(image);
+            for (int c = 0; c < 4 && 4 * s + c < count; c++)
+                for (int y = 0; y < resolution; y++)
+                    for (int x = 0; x < resolution; x++)
+                    {
+                        Color32 p = pixels[y * resolution + x];
+                        byte v = c == 0 ? p.r : c == 1 ? p.g : c == 2 ? p.b : p.a;
+                        maps[y, x, 4 * s + c] = v / 255f;
+                    }
+        }
+        return maps;
+    }
+}
+#endif

@@ -1,0 +1,234 @@
+"""Godot Terrain3D: its control map (texture ids and blend per vertex) and a texture list.
+
+The format, as Terrain3D defines it (TokisanGames/Terrain3D,
+``doc/docs/controlmap_format.md`` and ``src/terrain_3d_util.h``, read at
+commit fc7a744): one 32-bit unsigned integer per terrain vertex, stored in
+a ``FORMAT_RF`` (32-bit float) image whose bits are the integer, never
+converted. Bits, from the top::
+
+    31-27  base texture id      (x & 0x1F) << 27
+    26-22  overlay texture id   (x & 0x1F) << 22
+    21-14  texture blend 0-255  (x & 0xFF) << 14   overlay weight = blend / 255
+    13-10  UV angle             (x & 0xF)  << 10
+     9-7   UV scale             (x & 0x7)  << 7
+     6-3   reserved
+     2     hole                 (x & 1) << 2
+     1     navigation           (x & 1) << 1
+     0     autoshader           x & 1
+
+Terrain3D's shader (``src/shaders/main.glsl``) gives the base texture weight
+``1 - blend/255`` and the overlay ``blend/255`` at a vertex and interpolates
+bilinearly between vertices. So each terratheme vertex (or each pixel of a
+``--size`` map, at the positions of :mod:`core.exchange.layout`) gets its two
+strongest themes and their renormalised share; up to 32 themes, autoshader
+off. Terrain3D recommends EXR for its control maps ("Use exr to export and
+reimport"); Godot's EXR loader reads a single ``R`` channel of 32-bit floats
+as ``FORMAT_RF`` (bits intact), which is what is written.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import OpenImageIO as oiio
+
+from core.errors import TerrathemeError
+from core.exchange.layout import ExportLayout, world_frame
+from core.exchange.options import ExportOptions
+from core.exchange.plan import (
+    ExportPlan,
+    common_manifest,
+    pixel_spacing,
+    theme_files,
+    write_manifest,
+    write_theme_textures,
+)
+from core.exchange.weights import BAND_PIXELS, sample_corners, strongest_two
+from core.io.atomic import atomic_path
+from core.io.images import image_info, read_image
+from core.model.project import ThematicTexture
+from core.render.rules import cell_splits
+
+#: texture ids a control map holds (5 bits)
+MAX_TEXTURES = 32
+CONTROL_MAP = "terrain3d_control.exr"
+MANIFEST = "terratheme_godot.json"
+_REGION_SIZES = tuple(1 << k for k in range(6, 12))
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class ControlFields:
+    """A decoded control map: every field as an ``(H, W)`` uint8 array."""
+
+    base: np.ndarray
+    overlay: np.ndarray
+    blend: np.ndarray
+    uv_angle: np.ndarray
+    uv_scale: np.ndarray
+    hole: np.ndarray
+    navigation: np.ndarray
+    autoshader: np.ndarray
+
+
+def encode_control(base: np.ndarray, overlay: np.ndarray, blend: np.ndarray) -> np.ndarray:
+    """Terrain3D control values (``enc_base | enc_overlay | enc_blend``, autoshader off).
+
+    Parameters
+    ----------
+    base, overlay : (H, W) integer ndarrays, ids 0..31
+    blend : (H, W) integer ndarray, 0..255 (overlay weight times 255)
+
+    Returns
+    -------
+    control : (H, W) uint32 ndarray
+    """
+    base, overlay, blend = (np.asarray(v, dtype=np.uint32) for v in (base, overlay, blend))
+    return ((base & 0x1F) << 27) | ((overlay & 0x1F) << 22) | ((blend & 0xFF) << 14)
+
+
+def decode_control(control: np.ndarray) -> ControlFields:
+    """Split ``(H, W)`` uint32 control values into Terrain3D's fields (``get_base`` ...)."""
+    c = np.asarray(control, dtype=np.uint32)
+
+    def field(shift: int, mask: int) -> np.ndarray:
+        return ((c >> shift) & mask).astype(np.uint8)
+
+    return ControlFields(field(27, 0x1F), field(22, 0x1F), field(14, 0xFF), field(10, 0xF),
+                         field(7, 0x7), field(2, 1), field(1, 1), field(0, 1))
+
+
+def control_labels(control: np.ndarray) -> np.ndarray:
+    """The stronger of base and overlay at every pixel (overlay when ``blend > 127``)."""
+    f = decode_control(control)
+    return np.where(f.blend > 127, f.overlay, f.base).astype(np.uint8)
+
+
+def read_control_map(path: str | Path) -> np.ndarray:
+    """A Terrain3D control map (32-bit float EXR, or any 32-bit float image) as uint32 values."""
+    info = image_info(path)
+    if info.dtype != np.float32:
+        raise TerrathemeError(
+            f"{path}: a Terrain3D control map holds 32-bit floats (FORMAT_RF) whose bits are the "
+            f"control values; this file holds {info.dtype} (export it from Terrain3D as EXR)")
+    image = read_image(path)
+    return np.ascontiguousarray(image[:, :, 0]).view(np.uint32)
+
+
+def write_control_map(path: str | Path, control: np.ndarray) -> None:
+    """Write uint32 control values as a one-channel ``R`` 32-bit float EXR, bits untouched.
+
+    ``core.io.images.write_image`` names a single channel ``Y``, which Godot
+    loads as RGB; Terrain3D's own exports and Godot's ``FORMAT_RF`` use ``R``.
+    """
+    values = np.ascontiguousarray(control, dtype=np.uint32)
+    h, w = values.shape
+    spec = oiio.ImageSpec(w, h, 1, oiio.FLOAT)
+    spec.channelnames = ("R",)
+    spec.attribute("compression", "zip")
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(str(path))
+        if out is None or not out.open(str(tmp), spec):
+            raise TerrathemeError(f"cannot write {path}: {oiio.geterror().strip()}")
+        ok = out.write_image(values.view(np.float32)[:, :, None])
+        err = out.geterror().strip()
+        out.close()
+        if not ok:
+            raise TerrathemeError(f"cannot write {path}: {err}")
+
+
+def terrain3d_layout(grid_shape: tuple[int, int], texture_size: tuple[int, int],
+                     texel_size: tuple[float, float], options: ExportOptions) -> ExportLayout:
+    """One control map: one pixel per grid vertex by default, or ``--size``; never tiled."""
+    if options.tile is not None:
+        raise TerrathemeError("Terrain3D cuts one control map into regions itself on import: "
+                              "export it without --tile")
+    size = options.size or (grid_shape[1], grid_shape[0])
+    layout = ExportLayout(size)
+    # Terrain3D has one vertex spacing for both axes.
+    (wtex, htex), (sx, sy) = texture_size, texel_size
+    gx, gy = wtex * sx / (size[0] - 1), htex * sy / (size[1] - 1)
+    if abs(gx - gy) > 1e-6 * max(gx, gy):
+        raise TerrathemeError(
+            f"a {size[0]} x {size[1]} control map spaces its vertices {gx:.6g} x {gy:.6g} apart; "
+            "Terrain3D needs one vertex spacing: pick --size with (W - 1) : (H - 1) = "
+            f"{wtex * sx:.6g} : {htex * sy:.6g}")
+    return layout
+
+
+def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+    """Decide the control map size and list the files of a Terrain3D export."""
+    k = len(project.library)
+    if k > MAX_TEXTURES:
+        raise TerrathemeError(f"Terrain3D holds {MAX_TEXTURES} textures; "
+                              f"the project has {k} themes")
+    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    layout = terrain3d_layout(project.grid.indices.shape, project.grid.texture_size,
+                              world.texel_size, options)
+    notes = []
+    sizes = {t.texture.shape[:2] for t in project.library}
+    if len(sizes) > 1:
+        notes.append("Terrain3D needs textures of one size: themes resampled to "
+                     f"{max(s[1] for s in sizes)} x {max(s[0] for s in sizes)} "
+                     "(uv_scale keeps their world size)")
+    files = (CONTROL_MAP, *theme_files(project), MANIFEST)
+    return ExportPlan(options, layout, world, files, tuple(notes))
+
+
+def control_map(grid: np.ndarray, size: tuple[int, int], options: ExportOptions) -> np.ndarray:
+    """The ``(H, W)`` uint32 control values of a map of ``size`` over ``grid``."""
+    w, h = size
+    splits = cell_splits(grid, options.saddle)
+    out = np.empty((h, w), dtype=np.uint32)
+    rows = max(1, BAND_PIXELS // w)
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        slots = sample_corners(grid, size, (0, r0, w, r1 - r0), splits=splits)
+        out[r0:r1] = encode_control(*strongest_two(slots))
+    return out
+
+
+def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
+          progress: Progress | None = None) -> None:
+    """Write the control map, the theme textures (one size) and the texture list of ``plan``."""
+    layout = plan.layout
+    write_control_map(folder / CONTROL_MAP, control_map(project.grid.indices, layout.size,
+                                                        plan.options))
+    if progress:
+        progress(1, 2)
+    tw = max(t.texture.shape[1] for t in project.library)
+    th = max(t.texture.shape[0] for t in project.library)
+    # Terrain3D's texture arrays need one size: smaller themes are resampled up.
+    textures = [t.texture if t.texture.shape[:2] == (th, tw)
+                else cv2.resize(t.texture, (tw, th), interpolation=cv2.INTER_CUBIC)
+                for t in project.library]
+    write_theme_textures(project, folder, textures)
+    spacing = pixel_spacing(project, plan)[0]
+    w, h = layout.size
+    # Terrain3D has 32 x 32 regions: the smallest region holding the map centred on the origin.
+    region = next((r for r in _REGION_SIZES if 32 * r >= max(w, h)), None)
+    if region is None:
+        raise TerrathemeError(f"a {w} x {h} control map exceeds Terrain3D's 65536-vertex world")
+    # The importer's import_position is the map's top-left corner in vertices (descaled).
+    corner = [-(-(w // 2) // region) * region, -(-(h // 2) // region) * region]
+    sx = plan.world.texel_size[0]
+    manifest = common_manifest(project, plan)
+    manifest.update({
+        "control_map": CONTROL_MAP,
+        "control_map_size": [w, h],
+        "vertex_spacing": spacing,
+        "region_size": region,
+        "import_position": [-corner[0], -corner[1]],
+        # Terrain3D repeats a texture every 1 / uv_scale world units.
+        "textures": [{"id": j, "name": t.name, "albedo": f,
+                      "uv_scale": 1.0 / (t.texture.shape[1] * sx)}
+                     for j, (t, f) in enumerate(zip(project.library, theme_files(project),
+                                                    strict=True))],
+    })
+    write_manifest(folder / MANIFEST, manifest)
+    if progress:
+        progress(2, 2)

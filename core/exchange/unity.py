@@ -1,0 +1,200 @@
+"""Unity terrain: RGBA8 splatmaps, theme textures, a terrain-layer description and an editor script.
+
+Unity's terrain keeps one weight per terrain layer per alphamap texel, four
+layers per RGBA control texture ("splatmap"), the weights of all layers
+summing to 1; the alphamap is square with a power-of-two resolution from 16
+to 4096 (``TerrainData.alphamapResolution``; other sizes are refused here
+with the list of accepted ones, as Unity would round them). Its shader puts
+the first and last alphamap texels on the terrain's edges, the convention of
+:mod:`core.exchange.layout`. Splatmap ``s`` holds themes ``4s..4s+3`` in R,
+G, B, A; image row 0 is the terrain's north (far +z) edge. Neighbouring
+terrain tiles share their border texels, as Unity's connected terrains do.
+
+``Editor/TerrathemeImporter.cs`` (shipped in ``core/exchange/scripts``)
+builds the TerrainLayers, TerrainData and terrain objects from
+``terratheme_unity.json`` inside the Unity editor (``docs/engines.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+from core.errors import TerrathemeError
+from core.exchange.layout import ExportLayout, tiled_length, world_frame
+from core.exchange.options import ExportOptions
+from core.exchange.plan import (
+    ExportPlan,
+    common_manifest,
+    pixel_spacing,
+    safe_name,
+    theme_files,
+    write_manifest,
+    write_theme_textures,
+)
+from core.exchange.weights import theme_weights
+from core.io.atomic import write_bytes_atomic
+from core.io.images import image_info, write_image
+from core.model.project import ThematicTexture
+
+#: alphamap (control texture) resolutions Unity's terrain accepts
+UNITY_RESOLUTIONS = tuple(1 << k for k in range(4, 13))
+MANIFEST = "terratheme_unity.json"
+SCRIPT = "Editor/TerrathemeImporter.cs"
+SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / "TerrathemeImporter.cs"
+#: PNG alpha is stored unassociated: OpenImageIO must neither divide nor multiply colour by it
+STORED_ALPHA = {"oiio:UnassociatedAlpha": 1}
+Progress = Callable[[int, int], None]
+
+
+def _check_resolution(r: int, what: str) -> None:
+    if r not in UNITY_RESOLUTIONS:
+        raise TerrathemeError(
+            f"{what} {r} is not a Unity alphamap resolution (a power of two from 16 to 4096: "
+            f"{', '.join(map(str, UNITY_RESOLUTIONS))})"
+        )
+
+
+def unity_layout(texture_size: tuple[int, int], options: ExportOptions
+                 ) -> tuple[ExportLayout, list[str]]:
+    """The splatmap layout of an export, and notes for the user.
+
+    Untiled: one square ``R x R`` alphamap (default the power of two nearest
+    above the texture's longer side, at most 4096). Tiled: ``T x T`` tiles
+    (``T`` an accepted resolution), the whole map ``k * (T - 1) + 1`` pixels
+    each way (default: at least one pixel per texel).
+    """
+    wtex, htex = texture_size
+    notes = []
+    if options.tile is None:
+        if options.size is not None:
+            w, h = options.size
+            if w != h:
+                raise TerrathemeError(f"Unity's alphamap is square: --size {w}x{h} is not")
+            _check_resolution(w, "--size")
+            return ExportLayout((w, w)), notes
+        want = max(wtex, htex, 16)
+        r = min(4096, 1 << (want - 1).bit_length())
+        if r < want:
+            notes.append(f"the {wtex} x {htex} texture is sampled on one 4096 alphamap; "
+                         "use --tile 4096 (or smaller) to keep every texel")
+        return ExportLayout((r, r)), notes
+    _check_resolution(options.tile, "--tile")
+    size = options.size or (tiled_length(wtex + 1, options.tile),
+                            tiled_length(htex + 1, options.tile))
+    return ExportLayout(size, options.tile), notes
+
+
+def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+    """Decide the layout and list the files of a Unity export."""
+    layout, notes = unity_layout(project.grid.texture_size, options)
+    n_splat = -(-len(project.library) // 4)
+    files = [f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
+             for piece in layout.pieces() for s in range(n_splat)]
+    files += theme_files(project) + [SCRIPT, MANIFEST]
+    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    return ExportPlan(options, layout, world, tuple(files), tuple(notes))
+
+
+def splatmaps(weights: np.ndarray) -> list[np.ndarray]:
+    """``(K, h, w)`` theme weights as ``ceil(K/4)`` RGBA8 images ``(h, w, 4)`` (unused: 0)."""
+    k, h, w = weights.shape
+    out = []
+    for s in range(-(-k // 4)):
+        image = np.zeros((h, w, 4), dtype=np.uint8)
+        part = weights[4 * s : 4 * s + 4]
+        image[:, :, : part.shape[0]] = np.moveaxis(part, 0, 2)
+        out.append(image)
+    return out
+
+
+def read_stored_rgba(path: str | Path) -> np.ndarray:
+    """An 8-bit image's stored channel values, alpha not applied to colour.
+
+    OpenImageIO premultiplies colour by alpha when it reads an RGBA PNG
+    (weights under a small A would be lost) unless told the alpha is
+    unassociated; ``core.io.images.read_image`` has no such option yet.
+    """
+    info = image_info(path)
+    if info.dtype != np.uint8 or info.channels not in (3, 4):
+        raise TerrathemeError(f"{path}: a splatmap is an 8-bit RGBA image, got "
+                              f"{info.channels} channels of {info.dtype}")
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    inp = oiio.ImageInput.open(str(path), config)
+    pixels = None if inp is None else inp.read_image(0, 0, 0, info.channels, oiio.UINT8)
+    if inp is None or pixels is None or inp.has_error:
+        why = oiio.geterror() if inp is None else inp.geterror()
+        raise TerrathemeError(f"{path}: damaged or truncated image ({why.strip()})")
+    inp.close()
+    return np.asarray(pixels).reshape(info.height, info.width, info.channels)
+
+
+def read_splatmaps(paths: list[str]) -> np.ndarray:
+    """Stack splatmap files (RGBA8, 4 themes each, in order) into ``(4 * files, H, W)`` weights."""
+    planes = []
+    for p in paths:
+        image = read_stored_rgba(p)
+        if planes and image.shape[:2] != planes[0].shape[1:]:
+            raise TerrathemeError(f"{p}: {image.shape[1]} x {image.shape[0]} differs from the "
+                                  f"first splatmap's {planes[0].shape[2]} x {planes[0].shape[1]}")
+        rgba = np.zeros(image.shape[:2] + (4,), np.uint8)
+        rgba[:, :, : image.shape[2]] = image
+        planes.append(np.moveaxis(rgba, 2, 0))
+    if not planes:
+        raise TerrathemeError("no splatmap given")
+    return np.concatenate(planes)
+
+
+def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
+          progress: Progress | None = None) -> None:
+    """Write the splatmaps, theme textures, editor script and manifest of ``plan``."""
+    layout = plan.layout
+    k = len(project.library)
+    pieces = layout.pieces()
+    tiles = []
+    spacing = pixel_spacing(project, plan)
+    tile_world = ((layout.size[0] - 1 if layout.tile is None else layout.tile - 1) * spacing[0],
+                  (layout.size[1] - 1 if layout.tile is None else layout.tile - 1) * spacing[1])
+    ky = layout.tiles[1]
+    for i, piece in enumerate(pieces):
+        # Each tile's weights at its own pixels of the whole map (shared borders agree).
+        weights = theme_weights(project.grid.indices, layout.size,
+                                (piece.x, piece.y, piece.w, piece.h), n_themes=k,
+                                saddle=plan.options.saddle)
+        names = []
+        for s, image in enumerate(splatmaps(weights)):
+            name = f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
+            write_image(folder / name, image, attributes=STORED_ALPHA)
+            names.append(name)
+        # Unity's z runs north: tile row 0 (north) is the farthest from the origin.
+        tiles.append({"x": piece.tx, "y": piece.ty, "splatmaps": names,
+                      "position": [piece.tx * tile_world[0], (ky - 1 - piece.ty) * tile_world[1]]})
+        if progress:
+            progress(i + 1, len(pieces))
+    write_theme_textures(project, folder)
+    (folder / SCRIPT).parent.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(folder / SCRIPT, SCRIPT_SOURCE.read_bytes())
+    sx, sy = plan.world.texel_size
+    layers = []
+    for theme, texture in zip(project.library, theme_files(project), strict=True):
+        th, tw = theme.texture.shape[:2]
+        size = [tw * sx, th * sy]
+        # Unity's v runs up from the tile's south edge; rows of the theme run down from its north.
+        layers.append({"name": safe_name(theme.name), "texture": texture, "tile_size": size,
+                       "tile_offset": [0.0, float(-tile_world[1] % size[1])]})
+    manifest = common_manifest(project, plan)
+    manifest.update({
+        "alphamap_resolution": layout.tile or layout.size[0],
+        "map_size": list(layout.size),
+        "tiles_x": layout.tiles[0],
+        "tiles_y": layout.tiles[1],
+        "tile_world_size": list(tile_world),
+        "terrain_size": [layout.tiles[0] * tile_world[0], layout.tiles[1] * tile_world[1]],
+        "layers": layers,
+        "tiles": tiles,
+    })
+    write_manifest(folder / MANIFEST, manifest)

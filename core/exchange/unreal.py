@@ -1,0 +1,169 @@
+"""Unreal Engine landscape: one 8-bit weight map per theme, a flat heightmap, theme textures.
+
+An Unreal landscape of ``(A + 1) x (B + 1)`` vertices is made of square
+components of ``q`` quads; Epic's recommended landscape sizes (Landscape
+Technical Guide) are 127, 253, 505, 1009, 2017 and 4033 vertices (2 x 2
+sections of 63 quads, components of 126 quads) and 8129 (sections of 127,
+components of 254). Landscape weight maps hold one value per vertex, the
+first and last on the landscape's edges (``core.exchange.layout``); for
+weight-blended layers the values of every vertex sum to 255. The "Import
+from File" panel takes a 16-bit heightmap with the weight maps, so a flat one
+(value 32768: height 0) of the same size comes with them. Tiles follow
+Unreal's tiled-import naming (``name_x0_y0.png``) and share their border
+vertices, as neighbouring landscape tiles do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.exchange.layout import ExportLayout, tiled_length, world_frame
+from core.exchange.options import ExportOptions
+from core.exchange.plan import (
+    ExportPlan,
+    common_manifest,
+    pixel_spacing,
+    safe_name,
+    theme_files,
+    write_manifest,
+    write_theme_textures,
+)
+from core.exchange.weights import theme_weights
+from core.io.images import read_image, write_image
+from core.model.project import ThematicTexture
+
+#: Epic's recommended landscape sizes (vertices per side) and their component size in quads
+UNREAL_SIZES = {127: 126, 253: 126, 505: 126, 1009: 126, 2017: 126, 4033: 126, 8129: 254}
+#: heightmap value of height 0 (Unreal's 16-bit heights are centred on 32768)
+FLAT_HEIGHT = 32768
+MANIFEST = "terratheme_unreal.json"
+Progress = Callable[[int, int], None]
+
+
+def _check_size(n: int, what: str) -> None:
+    if n not in UNREAL_SIZES:
+        raise TerrathemeError(f"{what} {n} is not a recommended Unreal landscape size "
+                              f"({', '.join(map(str, UNREAL_SIZES))} vertices)")
+
+
+def _fit(n: int) -> int:
+    """The smallest recommended size of at least ``n`` vertices (the largest if none)."""
+    return next((s for s in UNREAL_SIZES if s >= n), max(UNREAL_SIZES))
+
+
+def unreal_layout(texture_size: tuple[int, int], options: ExportOptions
+                  ) -> tuple[ExportLayout, list[str]]:
+    """The weight-map layout of an export, and notes for the user.
+
+    Untiled: each side a recommended size (both with the same component
+    size), by default the smallest holding one vertex per texel. Tiled: tiles
+    of a recommended size, the whole map ``k * (T - 1) + 1`` vertices each way.
+    """
+    wtex, htex = texture_size
+    notes = []
+    if options.tile is None:
+        if options.size is not None:
+            w, h = options.size
+            _check_size(w, "--size width")
+            _check_size(h, "--size height")
+        else:
+            w, h = _fit(wtex + 1), _fit(htex + 1)
+            if max(w, h) < max(wtex, htex) + 1:
+                notes.append(f"the {wtex} x {htex} texture is sampled on an 8129 landscape; "
+                             "use --tile to keep every texel")
+        if UNREAL_SIZES[w] != UNREAL_SIZES[h]:
+            if options.size is not None:
+                raise TerrathemeError(f"a {w} x {h} landscape mixes component sizes "
+                                      f"({UNREAL_SIZES[w]} and {UNREAL_SIZES[h]} quads)")
+            w = h = max(w, h)
+        return ExportLayout((w, h)), notes
+    _check_size(options.tile, "--tile")
+    size = options.size or (tiled_length(wtex + 1, options.tile),
+                            tiled_length(htex + 1, options.tile))
+    return ExportLayout(size, options.tile), notes
+
+
+def weight_file(project: ThematicTexture, k: int, suffix: str = "") -> str:
+    """``weight_KK_name[_xI_yJ].png``: the weight map of theme ``k``."""
+    return f"weight_{k:02d}_{safe_name(project.library[k].name)}{suffix}.png"
+
+
+def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+    """Decide the layout and list the files of an Unreal export."""
+    layout, notes = unreal_layout(project.grid.texture_size, options)
+    files = []
+    for piece in layout.pieces():
+        suffix = piece.suffix if layout.tile else ""
+        files.append(f"heightmap{suffix}.png")
+        files += [weight_file(project, k, suffix) for k in range(len(project.library))]
+    files += theme_files(project) + [MANIFEST]
+    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    return ExportPlan(options, layout, world, tuple(files), tuple(notes))
+
+
+def read_weight_maps(paths: list[str]) -> np.ndarray:
+    """Stack one greyscale weight map per theme (8 or 16-bit, in theme order) into ``(K, H, W)``."""
+    planes = []
+    for p in paths:
+        image = read_image(p)
+        if image.dtype not in (np.uint8, np.uint16):
+            raise TerrathemeError(f"{p}: a weight map is an 8 or 16-bit grey image, got "
+                                  f"{image.dtype}")
+        if planes and (image.shape[:2] != planes[0].shape or image.dtype != planes[0].dtype):
+            raise TerrathemeError(f"{p}: {image.shape[1]} x {image.shape[0]} {image.dtype} differs "
+                                  f"from the first weight map's")
+        planes.append(image[:, :, 0])
+    if not planes:
+        raise TerrathemeError("no weight map given")
+    return np.stack(planes)
+
+
+def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
+          progress: Progress | None = None) -> None:
+    """Write the heightmaps, weight maps, theme textures and manifest of ``plan``."""
+    layout = plan.layout
+    k = len(project.library)
+    pieces = layout.pieces()
+    for i, piece in enumerate(pieces):
+        suffix = piece.suffix if layout.tile else ""
+        write_image(folder / f"heightmap{suffix}.png",
+                    np.full((piece.h, piece.w, 1), FLAT_HEIGHT, dtype=np.uint16))
+        # Each tile's weights at its own vertices of the whole map (shared borders agree).
+        weights = theme_weights(project.grid.indices, layout.size,
+                                (piece.x, piece.y, piece.w, piece.h), n_themes=k,
+                                saddle=plan.options.saddle)
+        for t in range(k):
+            write_image(folder / weight_file(project, t, suffix), weights[t][:, :, None])
+        if progress:
+            progress(i + 1, len(pieces))
+    write_theme_textures(project, folder)
+    # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
+    spacing = pixel_spacing(project, plan)
+    sx, sy = plan.world.texel_size
+    # LandscapeLayerCoords' Mapping Scale: landscape quads per repeat of the theme.
+    layers = [{"name": safe_name(t.name), "weightmap": weight_file(project, j),
+               "texture": tex, "texture_world_size_cm": [t.texture.shape[1] * sx * 100,
+                                                         t.texture.shape[0] * sy * 100],
+               "mapping_scale": t.texture.shape[1] * sx / spacing[0]}
+              for j, (t, tex) in enumerate(zip(project.library, theme_files(project),
+                                               strict=True))]
+    quads = UNREAL_SIZES.get(layout.tile or layout.size[0])
+    manifest = common_manifest(project, plan)
+    manifest.update({
+        "landscape_size": list(layout.size),
+        "tile_size": layout.tile,
+        "tiles_x": layout.tiles[0],
+        "tiles_y": layout.tiles[1],
+        "component_quads": quads,
+        "section_quads": None if quads is None else quads // 2,
+        "sections_per_component": "2x2",
+        "landscape_scale_cm": [spacing[0] * 100, spacing[1] * 100, 100.0],
+        "heightmap": "heightmap.png" if layout.tile is None else "heightmap_x0_y0.png",
+        "flat_height": FLAT_HEIGHT,
+        "layers": layers,
+    })
+    write_manifest(folder / MANIFEST, manifest)
