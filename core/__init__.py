@@ -12,7 +12,9 @@ One package per part, lowest first (a package imports only those above it):
 * ``core.convert`` -- orthophoto to thematic texture;
 * ``core.edit`` -- the edit model behind the editor;
 * ``core.packing`` -- index layers packed along a curve;
-* ``core.perspective`` -- the low-angle preview and its anisotropic filters.
+* ``core.perspective`` -- the low-angle preview and its anisotropic filters;
+* ``core.fidelity`` -- how much a texture looks like its photo, and what it costs;
+* ``core.exchange`` -- exports for terrain engines and GIS, and the way back.
 
 The design notes, with the papers' equations, are in ``docs/design.md``.
 """

@@ -7,7 +7,8 @@ import pytest
 
 from app.cli import build_parser, main
 
-EXPECTED = {"new", "render", "classify", "convert", "pack", "unpack", "info", "perspective", "app"}
+EXPECTED = {"new", "render", "classify", "convert", "pack", "unpack", "info", "perspective", "app",
+            "export"}
 
 
 def test_help_lists_every_subcommand(capsys):
