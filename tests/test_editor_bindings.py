@@ -1,4 +1,4 @@
-"""The Qt editor bound to the core document (pytest-qt, offscreen): undo menu, odd layers."""
+"""The Qt editor bound to the core document (pytest-qt, offscreen): undo menu, odd layers, Help."""
 
 from __future__ import annotations
 
@@ -149,3 +149,29 @@ def test_photo_changes_reach_the_window(window):
     assert doc.photo_pyramid is None and not window.photo_slider.isEnabled()
     doc.model.undo()
     assert window.photo_slider.isEnabled()
+
+
+def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
+    from PySide6.QtGui import QDesktopServices
+    from PySide6.QtWidgets import QMessageBox
+
+    import core
+    from app.editor.help import DOCS
+
+    shown, opened = [], []
+    monkeypatch.setattr(QMessageBox, "exec", lambda box: shown.append(box.text()))
+    monkeypatch.setattr(QMessageBox, "information", lambda *a, **k: shown.append(a[2]))
+    monkeypatch.setattr(QMessageBox, "about", lambda *a, **k: shown.append(a[2]))
+    monkeypatch.setattr(QDesktopServices, "openUrl", lambda url: opened.append(url) or True)
+    texts = [a.text() for a in window.help_menu.actions()]
+    assert texts == ["&Keys and mouse…", "&Documentation…", "&About terratheme…"]
+    window.doc.model.fill_rect((0, 0), (1, 1), 1)  # Undo's text names the step now
+    for act in window.help_menu.actions():
+        act.trigger()
+    keys, docs, about = shown
+    for must in ("Brush", "Scribble", "Wheel", "Ctrl+Z", "Edit &gt; Undo<", "File &gt; Save",
+                 "[ and ]"):
+        assert must in keys, must
+    assert str(DOCS[0]) in docs
+    assert opened and opened[0].toLocalFile() == str(DOCS[0])
+    assert f"terratheme {core.__version__}" in about and "PySide6" in about

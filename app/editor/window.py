@@ -18,6 +18,7 @@ from PySide6.QtWidgets import (
 
 from app.editor.canvas import MapCanvas, ViewState
 from app.editor.document import EditorDocument
+from app.editor.help import HelpMixin
 from app.editor.imaging import ZoomPyramid
 from app.editor.palette import ThemePalette
 from app.editor.tools import Tool, ToolController
@@ -26,7 +27,7 @@ from app.editor.window_menus import MenuMixin
 from core.edit import HistoryChange, ScribbleChange
 
 
-class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
+class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):
     """The editor window over one :class:`EditorDocument` at a time.
 
     ``interactive=False`` (the screenshot command) reports problems in the

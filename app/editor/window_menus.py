@@ -1,4 +1,7 @@
-"""Menus of the main window: File, Edit, View, Classify; file and classification actions."""
+"""Menus of the main window: File, Edit, View, Classify; file and classification actions.
+
+Help is in :mod:`app.editor.help`.
+"""
 
 from __future__ import annotations
 
@@ -70,6 +73,7 @@ class MenuMixin:
         self.cancel_button.clicked.connect(self.cancel_classification)
         self.statusBar().addPermanentWidget(self.progress)
         self.statusBar().addPermanentWidget(self.cancel_button)
+        self.build_help_menu(mb)
 
     def _act(self, menu, text, slot, shortcut=None, checked=None) -> QAction:
         act = QAction(text, self)
