@@ -15,7 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
-from core.edit.atoms import Atom, atom_parts
+from core.edit.atoms import Atom, atom_parts, replace_atoms
 from core.edit.events import (
     ConfidenceChange,
     Event,
@@ -27,6 +27,7 @@ from core.edit.events import (
 )
 from core.edit.layers import DocumentData, Layer
 from core.edit.uncertainty import KeptPrior
+from core.errors import TerrathemeError
 from core.themes.library import Theme, ThemeLibrary
 
 
@@ -211,3 +212,36 @@ def drop_prior_without_classes(data: DocumentData, classes: frozenset[int]) -> l
     if data.kept_prior is None or classes:
         return []
     return [SetPrior(data.kept_prior, None)]
+
+
+def grid_replacement(data: DocumentData, indices: object, n_themes: int) -> list[Change]:
+    """The paint that turns the grid into ``indices`` (empty when equal), checked first.
+
+    ``n_themes`` is the library size the new grid will index (after any theme change).
+    """
+    new = np.asarray(indices)
+    grid = data.texture.grid.indices
+    if new.shape != grid.shape:
+        raise TerrathemeError(f"new grid has shape {new.shape}; the project grid is {grid.shape}")
+    if new.dtype.kind not in "iu" or (new.size and not 0 <= int(new.min())
+                                      <= int(new.max()) < n_themes):
+        raise TerrathemeError(f"new grid must hold theme indices 0..{n_themes - 1}")
+    atom = replace_atoms(grid, new)
+    return [] if atom is None else [Paint(Layer.GRID, atom)]
+
+
+def photo_replacement(data: DocumentData, photo: np.ndarray | None) -> list[Change]:
+    """The changes that show ``photo`` (checked) instead of the current one.
+
+    The confidence map goes with the old photo; so do the scribbles and the
+    kept prior when the scribbles do not fit the new photo.
+    """
+    changes: list[Change] = [SwapLayer(Layer.PHOTO, data.texture.photo, photo)]
+    if data.confidence is not None:
+        changes.append(SwapLayer(Layer.CONFIDENCE, data.confidence, None))
+    sc = data.texture.scribbles
+    if sc is not None and (photo is None or sc.shape != photo.shape[:2]):
+        changes.append(SwapLayer(Layer.SCRIBBLES, sc, None))
+        if data.kept_prior is not None:
+            changes.append(SetPrior(data.kept_prior, None))
+    return changes

@@ -1,21 +1,14 @@
 """The edit document: everything the editor edits, with one undo history and events.
 
-No Qt here; the editor (``app/editor``) is a view of it. The model follows
-napari's layer model: the data is edited in place; every change fires a
-plain-Python event (:mod:`core.edit.events`) once the document is
-consistent; and every change is an undo atom (:mod:`core.edit.changes`) on
-one history (:mod:`core.edit.history`), whatever it touched:
-
-* the vertex index grid: brush strokes, rectangles, flood fills, a whole new grid;
-* the theme library: add, rename, recolour, new texture, replace all;
-* the scribble layer: training strokes painted per class over the photo;
-* the photo shown under the index map;
-* the classifier's confidence map and the class prior kept between scribble
-  rounds, set as classification results arrive.
-
-A whole brush stroke (press, many moves, release) is one undo step; so is a
-classification result that replaces grid, themes and confidence
-(:meth:`EditDocument.apply_classification`).
+No Qt here; the editor (``app/editor``) is a view of it. As in napari's layer
+model, the data is edited in place and every change fires a plain-Python
+event (:mod:`core.edit.events`) once the document is consistent. Every change
+is an undo atom (:mod:`core.edit.changes`) on one history
+(:mod:`core.edit.history`), whatever it touched: the vertex index grid, the
+theme library, the scribble layer, the photo, the classifier's confidence map
+and the class prior kept between scribble rounds. A whole brush stroke is one
+undo step; so is a classification result that replaces grid, themes and
+confidence (:meth:`EditDocument.apply_classification`).
 """
 
 from __future__ import annotations
@@ -25,7 +18,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from core.edit.atoms import EditAtom, replace_atoms
+from core.edit.atoms import EditAtom
 from core.edit.changes import (
     AppendTheme,
     Change,
@@ -36,6 +29,8 @@ from core.edit.changes import (
     SetTheme,
     SwapLayer,
     drop_prior_without_classes,
+    grid_replacement,
+    photo_replacement,
 )
 from core.edit.events import DocumentEvents, Event, HistoryChange
 from core.edit.history import History, Step
@@ -44,6 +39,7 @@ from core.edit.layers import (
     DocumentData,
     Layer,
     check_layers,
+    check_theme_name,
     check_value,
     display_photo,
     photo_extent,
@@ -262,20 +258,9 @@ class EditDocument:
         """Eyedropper: the theme index at the vertex nearest ``point`` (vertex units)."""
         return eyedropper(self.indices, point)
 
-    def _grid_paint(self, indices: np.ndarray, n_themes: int) -> list[Change]:
-        new = np.asarray(indices)
-        if new.shape != self.indices.shape:
-            raise TerrathemeError(
-                f"new grid has shape {new.shape}; the project grid is {self.indices.shape}")
-        if new.dtype.kind not in "iu" or (new.size and not 0 <= int(new.min())
-                                          <= int(new.max()) < n_themes):
-            raise TerrathemeError(f"new grid must hold theme indices 0..{n_themes - 1}")
-        atom = replace_atoms(self.indices, new)
-        return [] if atom is None else [Paint(Layer.GRID, atom)]
-
     def replace_grid(self, indices: np.ndarray, label: str = "replace grid") -> Step | None:
         """Replace the whole grid as one undo step (None when it is the same grid)."""
-        return self._commit(label, self._grid_paint(indices, len(self.library)))
+        return self._commit(label, grid_replacement(self.data, indices, len(self.library)))
 
     def replace_scribbles(self, scribbles: np.ndarray | None, label: str = "replace scribbles"
                           ) -> Step | None:
@@ -290,23 +275,18 @@ class EditDocument:
                                     *drop_prior_without_classes(self.data, classes)])
 
     # -- themes ----------------------------------------------------------------------
-    def _check_name(self, name: str, skip: int | None = None) -> None:
-        taken = [n.lower() for i, n in enumerate(self.library.names) if i != skip]
-        if name.lower() in taken:
-            raise TerrathemeError(f"a theme called {name!r} is already in the library")
-
     def replace_theme(self, k: int, theme: Theme, label: str | None = None) -> Step | None:
         """Rename / recolour / retexture theme ``k`` (None when ``theme`` equals it)."""
         old = self.library[k]
         k = k % len(self.library)
-        self._check_name(theme.name, skip=k)
+        check_theme_name(self.library, theme.name, skip=k)
         if theme == old:
             return None
         return self._commit(label or f"change theme {old.name}", [SetTheme(k, old, theme)])
 
     def add_theme(self, theme: Theme) -> int:
         """Append a theme as one undo step; returns its index."""
-        self._check_name(theme.name)
+        check_theme_name(self.library, theme.name)
         if len(self.library) >= 256:
             raise TerrathemeError("a theme library holds at most 256 themes")
         self._commit(f"add theme {theme.name}", [AppendTheme(theme)])
@@ -331,17 +311,7 @@ class EditDocument:
         so do the scribbles and the kept prior when they do not fit the new photo.
         """
         new = None if photo is None else validate_photo(photo)
-        if new is self.photo:
-            return None
-        changes: list[Change] = [SwapLayer(Layer.PHOTO, self.photo, new)]
-        if self.confidence is not None:
-            changes.append(SwapLayer(Layer.CONFIDENCE, self.confidence, None))
-        sc = self.scribbles
-        if sc is not None and (new is None or sc.shape != new.shape[:2]):
-            changes.append(SwapLayer(Layer.SCRIBBLES, sc, None))
-            if self.kept_prior is not None:
-                changes.append(SetPrior(self.kept_prior, None))
-        return self._commit(label, changes)
+        return None if new is self.photo else self._commit(label, photo_replacement(self.data, new))
 
     def set_confidence(self, confidence: np.ndarray | None, label: str = "confidence map"
                        ) -> Step | None:
@@ -367,25 +337,19 @@ class EditDocument:
         Parameters
         ----------
         indices : (gh+1, gw+1) integer ndarray
-            The new grid. Its indices refer to the library after the themes
-            change: the current themes followed by ``new_themes``, or
-            ``new_themes`` alone with ``replace_themes``.
+            The new grid, indexing the library after the change: the current
+            themes then ``new_themes``, or (``replace_themes``) ``new_themes`` alone.
         new_themes : sequence of Theme
             Themes cut from the photo for the classes.
         replace_themes : bool
-            The library becomes exactly ``new_themes`` (a project just started
-            over a photo: its themes are the classes, nothing else).
+            The library becomes ``new_themes`` (a project just started over a photo).
         confidence : (H, W) float ndarray in [0, 1] or None
             Replaces the old map (None clears it: it was another result's).
         scribble_classes, class_weights :
-            Scribble runs: the class values trained on and the class-prior
-            weights the model used; the kept prior follows
-            :func:`~core.edit.uncertainty.next_kept_prior`. None: unchanged.
+            Scribble runs: the classes trained on and the model's class-prior
+            weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
 
-        Returns
-        -------
-        Step or None
-            None when nothing changed (the same grid and themes, no map).
+        Returns None when nothing changed (the same grid and themes, no map).
         """
         # Check everything before anything changes.
         if replace_themes:
@@ -406,7 +370,7 @@ class EditDocument:
             prior = next_kept_prior(self.kept_prior, frozenset(scribble_classes), class_weights)
             if prior != self.kept_prior:
                 changes.append(SetPrior(self.kept_prior, prior))
-        grid = self._grid_paint(indices, len(library))
+        grid = grid_replacement(self.data, indices, len(library))
         # Themes first (the new grid refers to them), then the grid, then the rest.
         n_themes = sum(isinstance(c, SetLibrary | AppendTheme) for c in changes)
         changes[n_themes:n_themes] = grid

@@ -24,6 +24,7 @@ from core.edit.uncertainty import KeptPrior
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture
+from core.themes.library import ThemeLibrary
 
 
 class Layer(Enum):
@@ -171,6 +172,13 @@ def check_value(layer: Layer, value: object, n_themes: int) -> int:
         raise TerrathemeError(f"{what} {value} is out of range 0..{top} "
                               f"(the library has {n_themes} themes)")
     return int(value)
+
+
+def check_theme_name(library: ThemeLibrary, name: str, skip: int | None = None) -> None:
+    """Refuse a theme name the library already has (case-insensitive), but for theme ``skip``."""
+    taken = [n.lower() for i, n in enumerate(library.names) if i != skip]
+    if name.lower() in taken:
+        raise TerrathemeError(f"a theme called {name!r} is already in the library")
 
 
 @dataclass(eq=False)
