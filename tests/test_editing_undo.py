@@ -289,12 +289,18 @@ class UndoMachine(RuleBasedStateMachine):
         assert same(snapshot(self.doc), self.states[-1])
 
 
-SETTINGS = settings(max_examples=60, stateful_step_count=25, deadline=None,
+SETTINGS = settings(max_examples=40, stateful_step_count=25, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
 
 
 def test_undo_redo_follow_the_reference_model():
     run_state_machine_as_test(UndoMachine, settings=SETTINGS)
+
+
+@pytest.mark.slow
+def test_undo_redo_follow_the_reference_model_at_length():
+    run_state_machine_as_test(
+        UndoMachine, settings=settings(SETTINGS, max_examples=300, stateful_step_count=40))
 
 
 def test_the_property_catches_an_undo_that_skips_small_edits(monkeypatch):
@@ -306,9 +312,10 @@ def test_the_property_catches_an_undo_that_skips_small_edits(monkeypatch):
             revert(self, indices)
 
     monkeypatch.setattr(EditAtom, "revert", lazy_revert)
-    quick = settings(SETTINGS, max_examples=40, database=None,
+    quick = settings(SETTINGS, max_examples=40, database=None, derandomize=True,
                      phases=[Phase.explicit, Phase.generate], report_multiple_bugs=False)
-    with pytest.raises(AssertionError):
+    # A check fails, or the corrupted grid names a theme the library no longer has.
+    with pytest.raises((AssertionError, IndexError)):
         run_state_machine_as_test(UndoMachine, settings=quick)
 
 
