@@ -4,7 +4,7 @@ Measures, on 2048 x 2048 and 16384 x 16384 texel maps (cell 16 x 16, the
 shipped themes):
 
 * **ours**: one brush segment (a mouse move, radius 3 vertices) through
-  ``EditSession.stroke_to`` -> ``RenderPreview.refresh`` (dirty cells only,
+  ``EditDocument.stroke_to`` -> ``RenderPreview.refresh`` (dirty cells only,
   splits kept incrementally) -> the window's image pyramid update; and a
   whole stroke (press, 8 moves, release);
 * reference **region render alone**: the same dirty region through
@@ -32,8 +32,7 @@ sys.path.insert(0, str(REPO))
 
 from app.editor.imaging import ZoomPyramid  # noqa: E402
 from app.editor.newproject import default_library  # noqa: E402
-from core.edit.preview import RenderPreview  # noqa: E402
-from core.edit.session import EditSession  # noqa: E402
+from core.edit import EditDocument, RenderPreview  # noqa: E402
 from core.model.grid import IndexGrid  # noqa: E402
 from core.model.project import ThematicTexture  # noqa: E402
 from core.render.renderer import render_cells  # noqa: E402
@@ -63,7 +62,7 @@ def timed(fn, repeat: int) -> list[float]:
 
 
 class Setup:
-    """One map size: texture, live preview, the window's pyramid and an edit session."""
+    """One map size: texture, live preview, the window's pyramid and an edit document."""
 
     def __init__(self, size: int, lib) -> None:
         self.size = size
@@ -73,9 +72,9 @@ class Setup:
         self.preview = RenderPreview(self.tex)
         self.init_s = time.perf_counter() - t0
         self.pyramid = ZoomPyramid(self.preview.image)
-        self.session = EditSession(self.tex)
+        self.doc = EditDocument(self.tex)
         self.regions: list[tuple[int, int, int, int]] = []
-        self.session.subscribe(self._on_change)
+        self.doc.events.grid.connect(self._on_change)
         self.seg, self.stroke, self.api, self.undo_t = [], [], [], []
 
     def _on_change(self, ch) -> None:
@@ -89,13 +88,13 @@ class Setup:
         x, y = rng.uniform(8, g - 8, 2)
         value = int(rng.integers(len(self.lib)))
         t = time.perf_counter()
-        self.session.begin_stroke(value, (x, y), 3.0)
+        self.doc.begin_stroke(value, (x, y), 3.0)
         for _ in range(8):
             x, y = x + rng.uniform(-2, 2), y + rng.uniform(-2, 2)
             ts = time.perf_counter()
-            self.session.stroke_to((x, y), 3.0)
+            self.doc.stroke_to((x, y), 3.0)
             self.seg.append(time.perf_counter() - ts)
-        self.session.end_stroke()
+        self.doc.end_stroke()
         self.stroke.append(time.perf_counter() - t)
         if with_peer and self.regions:
             # Peer: the same dirty region rendered alone through the public API.
@@ -112,16 +111,16 @@ class Setup:
         identical = bool(np.array_equal(fresh, self.preview.image))
         del fresh
         # Memory: 1,000 undo steps of random strokes.
-        mem_session = EditSession(tex)
+        mem_doc = EditDocument(tex)
         g = tex.grid.indices.shape[0]
         for _ in range(1000):
             x, y = rng.uniform(0, g, 2)
             r = float(rng.uniform(1, 6))
-            mem_session.begin_stroke(int(rng.integers(len(lib))), (x, y), r)
+            mem_doc.begin_stroke(int(rng.integers(len(lib))), (x, y), r)
             for _ in range(int(rng.integers(5, 20))):
                 x, y = x + rng.uniform(-3, 3), y + rng.uniform(-3, 3)
-                mem_session.stroke_to((x, y), r)
-            mem_session.end_stroke()
+                mem_doc.stroke_to((x, y), r)
+            mem_doc.end_stroke()
         w, h = tex.grid.texture_size
         med = lambda v: float(np.median(v)) * 1000  # noqa: E731
         p95 = lambda v: float(np.percentile(v, 95)) * 1000  # noqa: E731
@@ -139,12 +138,13 @@ class Setup:
             "preview_equals_fresh_render": identical,
             "ratio_full_over_segment": med(full_times) / med(self.seg),
             "ratio_full_over_stroke": med(full_times) / med(self.stroke),
-            "undo_1000_steps_bytes": mem_session.history_nbytes,
-            "undo_1000_changed_vertices": int(sum(a.count for a in mem_session._undo)),
+            "undo_1000_steps_bytes": mem_doc.history.nbytes,
+            "undo_1000_changed_vertices": int(sum(
+                c.atom.count for step in mem_doc.history.undo_steps for c in step.changes)),
             "grid_snapshots_1000_bytes": 1000 * tex.grid.indices.nbytes,
             "render_snapshots_1000_bytes": 1000 * w * h * 3,
             "ratio_grid_snapshots_over_undo": 1000 * tex.grid.indices.nbytes
-            / mem_session.history_nbytes,
+            / mem_doc.history.nbytes,
         }
 
 
@@ -199,7 +199,7 @@ def main() -> None:
     # Undo whole strokes, interleaved too (before the full-render peers disturb the caches).
     for _ in range(20):
         for st in setups:
-            st.undo_t += timed(st.session.undo, 1)
+            st.undo_t += timed(st.doc.undo, 1)
     results = {}
     for st in setups:
         results[str(st.size)] = st.finish(rng)

@@ -1,4 +1,4 @@
-"""The pure edit model (core.edit.session, core.edit.tools): no Qt."""
+"""Painting the grid in the core edit document (core.edit.document, atoms, tools): no Qt."""
 
 from __future__ import annotations
 
@@ -9,11 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.edit.session import (
+from core.edit import (
     EditAtom,
-    EditSession,
+    EditDocument,
     GridChange,
     MultiAtom,
+    Step,
     dirty_cells,
     dirty_region,
 )
@@ -25,8 +26,15 @@ from core.themes.library import ThemeLibrary, flat_theme
 
 
 def make_texture(indices: np.ndarray, cell=(4, 4), k: int = 4) -> ThematicTexture:
+    """A texture over ``indices`` with ``k`` flat themes."""
     lib = ThemeLibrary(flat_theme(f"t{i}", (40 * i, 255 - 40 * i, 7 * i)) for i in range(k))
     return ThematicTexture(IndexGrid(indices, cell), lib)
+
+
+def the_atom(step: Step):
+    """The one paint a grid edit step holds."""
+    assert step is not None and len(step.changes) == 1
+    return step.changes[0].atom
 
 
 def brute_capsule(shape, p0, p1, r):
@@ -75,12 +83,12 @@ def test_brush_stroke_changes_exactly_the_vertices_under_it():
     base = np.zeros((20, 30), dtype=np.uint8)
     base[:, 20:] = 2
     tex = make_texture(base.copy())
-    s = EditSession(tex)
+    s = EditDocument(tex)
     pts = [(3.0, 4.0), (10.5, 6.2), (25.0, 15.0)]
     s.begin_stroke(1, pts[0], 1.5)
     for p in pts[1:]:
         s.stroke_to(p, 1.5)
-    atom = s.end_stroke()
+    atom = the_atom(s.end_stroke())
     under = np.zeros_like(base, dtype=bool)
     for a, b in zip(pts[:-1], pts[1:], strict=True):
         under |= brute_capsule(base.shape, a, b, 1.5)
@@ -94,7 +102,7 @@ def test_one_stroke_is_one_undo_step_and_undo_redo_are_exact():
     rng = np.random.default_rng(1)
     base = rng.integers(0, 3, (40, 50), dtype=np.uint8)
     tex = make_texture(base.copy())
-    s = EditSession(tex)
+    s = EditDocument(tex)
     s.fill_rect((0, 0), (5, 5), 3)
     after_rect = tex.grid.indices.copy()
     s.begin_stroke(3, (10, 10), 2)
@@ -108,21 +116,21 @@ def test_one_stroke_is_one_undo_step_and_undo_redo_are_exact():
     np.testing.assert_array_equal(tex.grid.indices, after_rect)
     s.undo()
     np.testing.assert_array_equal(tex.grid.indices, base)
-    assert not s.can_undo and s.undo() is None
+    assert not s.history.can_undo and s.undo() is None
     s.redo()
     s.redo()
     np.testing.assert_array_equal(tex.grid.indices, after_stroke)
-    assert not s.can_redo
+    assert not s.history.can_redo
 
 
 def test_overlapping_dabs_undo_to_original_values():
     base = np.arange(15 * 15, dtype=np.uint8).reshape(15, 15) % 3
     tex = make_texture(base.copy())
-    s = EditSession(tex)
+    s = EditDocument(tex)
     s.begin_stroke(3, (7, 7), 3)
     s.stroke_to((8, 7), 3)
     s.stroke_to((7, 7), 3)
-    atom = s.end_stroke()
+    atom = the_atom(s.end_stroke())
     assert isinstance(atom, EditAtom)
     assert int((tex.grid.indices != base).sum()) == atom.count
     s.undo()
@@ -131,12 +139,12 @@ def test_overlapping_dabs_undo_to_original_values():
 
 def test_new_edit_clears_redo():
     tex = make_texture(np.zeros((6, 6), dtype=np.uint8))
-    s = EditSession(tex)
+    s = EditDocument(tex)
     s.fill_rect((0, 0), (1, 1), 1)
     s.undo()
-    assert s.can_redo
+    assert s.history.can_redo
     s.fill_rect((3, 3), (4, 4), 2)
-    assert not s.can_redo
+    assert not s.history.can_redo
 
 
 def test_flood_fill_stops_at_other_indices():
@@ -151,7 +159,7 @@ def test_flood_fill_stops_at_other_indices():
         dtype=np.uint8,
     )
     tex = make_texture(g.copy())
-    s = EditSession(tex)
+    s = EditDocument(tex)
     s.flood_fill((0, 0), 3)
     expected = g.copy()
     expected[:2, :2] = 3  # only the top-left pocket of zeros, walled in by 1s
@@ -165,7 +173,7 @@ def test_flood_fill_stops_at_other_indices():
 
 def test_rect_fill_inclusive_any_order_and_clipped():
     tex = make_texture(np.zeros((6, 8), dtype=np.uint8))
-    s = EditSession(tex)
+    s = EditDocument(tex)
     s.fill_rect((6.2, 4.4), (2.0, 1.0), 2)  # corners round to (6, 4) and (2, 1)
     expected = np.zeros((6, 8), dtype=np.uint8)
     expected[1:5, 2:7] = 2
@@ -178,7 +186,7 @@ def test_rect_fill_inclusive_any_order_and_clipped():
 def test_eyedropper_picks_nearest_vertex():
     g = np.zeros((4, 4), dtype=np.uint8)
     g[2, 3] = 3
-    s = EditSession(make_texture(g))
+    s = EditDocument(make_texture(g))
     assert s.pick((2.6, 1.7)) == 3
     assert s.pick((2.4, 1.7)) == 0
     assert s.pick((-2, 0)) is None
@@ -189,26 +197,26 @@ def test_atom_memory_grows_with_the_edit_not_the_map():
     big = make_texture(np.zeros((2049, 2049), dtype=np.uint8))
     sizes = []
     for tex in (small, big):
-        s = EditSession(tex)
+        s = EditDocument(tex)
         s.begin_stroke(1, (20, 20), 3)
         s.stroke_to((40, 30), 3)
         sizes.append(s.end_stroke().nbytes)
     assert sizes[0] == sizes[1]
     # A long diagonal stroke stays proportional to the vertices it changed.
-    s = EditSession(big)
+    s = EditDocument(big)
     s.begin_stroke(2, (0, 0), 1)
     for k in range(1, 200):
         s.stroke_to((10 * k, 10 * k), 1)
-    atom = s.end_stroke()
+    atom = the_atom(s.end_stroke())
     assert atom.nbytes < 3 * atom.count
     assert atom.nbytes < big.grid.indices.nbytes / 50
 
 
 def test_events_report_the_changed_box():
     tex = make_texture(np.zeros((10, 10), dtype=np.uint8))
-    s = EditSession(tex)
+    s = EditDocument(tex)
     seen: list[GridChange] = []
-    unsubscribe = s.subscribe(seen.append)
+    unsubscribe = s.events.grid.connect(seen.append)
     s.fill_rect((2, 3), (4, 5), 1)
     assert seen == [GridChange(slice(3, 6), slice(2, 5))]
     s.fill_rect((2, 3), (4, 5), 1)  # no change -> no event, no undo step
@@ -231,31 +239,31 @@ def test_dirty_region_covers_touched_cells_plus_one():
     assert (rows, cols) == (slice(7, 10), slice(8, 10))
 
 
-def test_replace_all_is_one_undo_step():
+def test_replace_grid_is_one_undo_step():
     base = np.zeros((8, 9), dtype=np.uint8)
     tex = make_texture(base.copy())
-    s = EditSession(tex)
+    s = EditDocument(tex)
     new = np.random.default_rng(3).integers(0, 4, base.shape, dtype=np.uint8)
-    atom = s.replace_all(new)
+    atom = the_atom(s.replace_grid(new))
     assert isinstance(atom, MultiAtom)
     np.testing.assert_array_equal(tex.grid.indices, new)
     s.undo()
     np.testing.assert_array_equal(tex.grid.indices, base)
     with pytest.raises(TerrathemeError, match="shape"):
-        s.replace_all(np.zeros((3, 3), dtype=np.uint8))
+        s.replace_grid(np.zeros((3, 3), dtype=np.uint8))
 
 
-def test_replace_all_with_the_same_grid_records_nothing():
+def test_replace_grid_with_the_same_grid_records_nothing():
     base = np.arange(72, dtype=np.uint8).reshape(8, 9) % 3
     tex = make_texture(base.copy(), k=3)
-    s = EditSession(tex)
-    assert s.replace_all(base.copy()) is None
-    assert not s.can_undo
+    s = EditDocument(tex)
+    assert s.replace_grid(base.copy()) is None
+    assert not s.history.can_undo
     np.testing.assert_array_equal(tex.grid.indices, base)
 
 
 def test_errors_name_the_problem():
-    s = EditSession(make_texture(np.zeros((5, 5), dtype=np.uint8), k=2))
+    s = EditDocument(make_texture(np.zeros((5, 5), dtype=np.uint8), k=2))
     with pytest.raises(TerrathemeError, match="theme index 7"):
         s.fill_rect((0, 0), (1, 1), 7)
     with pytest.raises(TerrathemeError, match="radius"):

@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from core.edit import EditDocument, RenderPreview
 from core.edit.fidelity import fidelity_map, heat_colours
-from core.edit.preview import RenderPreview
-from core.edit.session import EditSession
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture
@@ -32,8 +31,8 @@ def test_preview_after_edits_equals_a_fresh_render(cell):
     tex = ThematicTexture(IndexGrid(rng.integers(0, 2, (23, 31), dtype=np.uint8), cell),
                           textured_library(3))
     preview = RenderPreview(tex)
-    s = EditSession(tex)
-    s.subscribe(preview.refresh)
+    s = EditDocument(tex)
+    s.events.grid.connect(preview.refresh)
     s.begin_stroke(2, (3.2, 4.1), 1.5)
     s.stroke_to((12.7, 9.3), 1.5)
     s.end_stroke()
@@ -57,8 +56,8 @@ def test_preview_follows_saddle_decisions_of_neighbouring_cells():
     tex = ThematicTexture(IndexGrid(rng.integers(0, 2, (14, 14), dtype=np.uint8), (3, 3)),
                           textured_library(2))
     preview = RenderPreview(tex)
-    s = EditSession(tex)
-    s.subscribe(preview.refresh)
+    s = EditDocument(tex)
+    s.events.grid.connect(preview.refresh)
     for _ in range(40):
         x, y = rng.integers(0, 14, 2)
         s.fill_rect((x, y), (x, y), 1 - int(tex.grid.indices[y, x]))
@@ -70,9 +69,9 @@ def test_refresh_reports_the_replaced_region():
     tex = ThematicTexture(IndexGrid(np.zeros((11, 11), dtype=np.uint8), (4, 2)),
                           textured_library(2))
     preview = RenderPreview(tex)
-    s = EditSession(tex)
+    s = EditDocument(tex)
     regions = []
-    s.subscribe(lambda ch: regions.append(preview.refresh(ch)))
+    s.events.grid.connect(lambda ch: regions.append(preview.refresh(ch)))
     s.fill_rect((5, 5), (5, 5), 1)
     # Vertex (5, 5) touches cells 4..5; with the one-cell ring: cells 3..6 -> texels.
     assert regions == [(12, 6, 16, 8)]

@@ -62,13 +62,13 @@ def test_mouse_stroke_edits_model_render_and_is_one_undo_step(window, qtbot):
     np.testing.assert_array_equal(doc.index_rgb[4, 3], doc.texture.library[1].colour)
     fresh = render_cells(doc.texture.grid.indices, doc.texture.library.textures, (8, 8))
     np.testing.assert_array_equal(doc.preview.image, fresh)
-    assert doc.undo_stack.count() == 1
-    doc.undo_stack.undo()
+    assert len(doc.model.history.undo_steps) == 1
+    doc.model.undo()
     assert not doc.texture.grid.indices.any()
     np.testing.assert_array_equal(doc.index_rgb[4, 3], doc.texture.library[0].colour)
     fresh0 = render_cells(doc.texture.grid.indices, doc.texture.library.textures, (8, 8))
     np.testing.assert_array_equal(doc.preview.image, fresh0)
-    doc.undo_stack.redo()
+    doc.model.redo()
     np.testing.assert_array_equal(doc.texture.grid.indices, expected)
     np.testing.assert_array_equal(doc.preview.image, fresh)
 
@@ -105,42 +105,42 @@ def test_tools_by_shortcut_fill_and_eyedropper(window, qtbot):
 def test_theme_rename_and_recolour_are_undoable(window):
     doc = window.doc
     old = doc.texture.library[1]
-    doc.change_theme(1, old.with_(name="lake", colour=(0, 0, 255)), "rename")
+    doc.model.replace_theme(1, old.with_(name="lake", colour=(0, 0, 255)), "rename")
     assert doc.texture.library[1].name == "lake"
     assert window.palette_widget.list.item(1).text().endswith("lake")
-    doc.undo_stack.undo()
+    doc.model.undo()
     assert doc.texture.library[1] == old
     from core.errors import TerrathemeError
 
     with pytest.raises(TerrathemeError, match="already in the library"):
-        doc.change_theme(1, old.with_(name="Grass"), "rename")
+        doc.model.replace_theme(1, old.with_(name="Grass"), "rename")
 
 
 def test_adding_a_theme_is_undoable(window):
     doc = window.doc
     before = list(doc.texture.library)
     tex = np.full((4, 4, 3), 7, np.uint8)
-    k = doc.add_theme(Theme("snow", (250, 250, 250), tex))
+    k = doc.model.add_theme(Theme("snow", (250, 250, 250), tex))
     assert k == 3 and doc.texture.library[3].name == "snow"
     assert window.palette_widget.list.count() == 4
-    doc.undo_stack.undo()
+    doc.model.undo()
     assert list(doc.texture.library) == before
     assert window.palette_widget.list.count() == 3
-    doc.undo_stack.redo()
+    doc.model.redo()
     assert doc.texture.library.names == ["grass", "water", "sand", "snow"]
     from core.errors import TerrathemeError
 
     with pytest.raises(TerrathemeError, match="already in the library"):
-        doc.add_theme(Theme("Snow", (1, 1, 1), tex))
-    assert doc.undo_stack.count() == 1
+        doc.model.add_theme(Theme("Snow", (1, 1, 1), tex))
+    assert len(doc.model.history.undo_steps) == 1
 
 
 def test_save_open_round_trip(window, tmp_path):
     doc = window.doc
-    doc.commit(doc.session.fill_rect((1, 1), (4, 3), 2), "rect")
+    doc.model.fill_rect((1, 1), (4, 3), 2)
     path = tmp_path / "edited.ttproj"
     assert window._save_to(path)
-    assert doc.undo_stack.isClean()
+    assert doc.clean
     before = doc.texture
     window.new_project()
     assert window.doc is not doc
@@ -175,7 +175,7 @@ def test_export_render_writes_the_preview(window, tmp_path):
 def test_fidelity_view_marks_the_cells_that_differ(window):
     doc = window.doc
     # The photo is green on the left half, blue on the right; paint water on the right.
-    doc.commit(doc.session.fill_rect((6, 0), (12, 8), 1), "rect")
+    doc.model.fill_rect((6, 0), (12, 8), 1)
     fid = doc.fidelity()
     assert fid.shape == (8, 12)
     window.fidelity_action.trigger()
@@ -197,12 +197,12 @@ def test_classification_from_the_menu_fills_the_grid(window, qtbot):
     assert len(doc.texture.library) >= 5
     assert ind[:, 1].min() == ind[:, 1].max() and ind[:, -2].min() == ind[:, -2].max()
     assert ind[0, 1] != ind[0, -2]
-    assert doc.undo_stack.count() == 1
-    doc.undo_stack.undo()
+    assert len(doc.model.history.undo_steps) == 1
+    doc.model.undo()
     assert not doc.texture.grid.indices.any()
     # One undo step takes back the grid and the themes the classification added.
     assert doc.texture.library.names == ["grass", "water", "sand"]
-    doc.undo_stack.redo()
+    doc.model.redo()
     redone = doc.texture.grid.indices
     assert len(doc.texture.library) >= 5 and redone[0, 1] != redone[0, -2]
 
@@ -218,7 +218,7 @@ def test_classification_can_be_cancelled(window, qtbot):
     qtbot.waitUntil(job.isFinished, timeout=60000)
     qtbot.wait(50)
     assert not doc.texture.grid.indices.any()
-    assert len(doc.texture.library) == n_themes and doc.undo_stack.count() == 0
+    assert len(doc.texture.library) == n_themes and len(doc.model.history.undo_steps) == 0
 
 
 def test_classification_without_photo_or_scribbles_reports(window, qtbot):
@@ -285,13 +285,13 @@ def test_scribbles_train_a_classifier_from_the_menu(window, qtbot):
     assert set(np.unique(sc)) == {0, 2, 3}
     # Scribble value = theme + 1: sand (3) only on the left, water (2) only on the right.
     assert set(np.unique(sc[:, :48])) == {0, 3} and set(np.unique(sc[:, 48:])) == {0, 2}
-    assert doc.undo_stack.count() == 2
+    assert len(doc.model.history.undo_steps) == 2
     # The overlay, updated block by block while painting, shows the whole layer.
     np.testing.assert_array_equal(window.scribble_pyramid.base, doc.scribble_rgba())
-    doc.undo_stack.undo()
+    doc.model.undo()
     assert set(np.unique(doc.texture.scribbles)) == {0, 3}
     np.testing.assert_array_equal(window.scribble_pyramid.base, doc.scribble_rgba())
-    doc.undo_stack.redo()
+    doc.model.redo()
     window.start_classification(Mode.SCRIBBLES)
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
     ind = doc.texture.grid.indices
@@ -316,9 +316,14 @@ def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, mo
     win.start_classification(Mode.UNSUPERVISED_NEW)
     qtbot.waitUntil(lambda: win.job is None, timeout=60000)
     lib = win.doc.texture.library
-    assert len(lib) == 2 and win.doc is not doc
+    assert len(lib) == 2 and not doc.fresh_from_photo
     ind = win.doc.texture.grid.indices
     assert ind[0, 0] != ind[0, -1]
+    # One undo step takes the classes back to the shipped themes and the one-theme grid.
+    assert win.undo_action.isEnabled() and win.undo_action.text() == "&Undo classification"
+    win.undo_action.trigger()
+    assert len(win.doc.texture.library) > 2 and not win.doc.texture.grid.indices.any()
+    assert win.doc.model.confidence is None
     win.wait_for_jobs()
 
 
@@ -326,7 +331,7 @@ def test_export_packed_index_layer_round_trips(window, tmp_path):
     from core.packing.layer import PackedLayer
 
     doc = window.doc
-    doc.commit(doc.session.fill_rect((2, 1), (7, 5), 2), "rect")
+    doc.model.fill_rect((2, 1), (7, 5), 2)
     out = tmp_path / "index.sfc"
     assert window.export_packed(str(out)), window.errors
     np.testing.assert_array_equal(PackedLayer.load(out).unpack(), doc.texture.grid.indices)
@@ -365,7 +370,7 @@ def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monke
     pal.assign_texture()
     np.testing.assert_array_equal(lib[0].texture, tex)
     assert (doc.preview.image[..., 0] == 200).all() and not doc.preview.image[..., 1:].any()
-    doc.undo_stack.undo()
+    doc.model.undo()
     assert not np.array_equal(lib[0].texture, tex)
     fresh = render_cells(doc.texture.grid.indices, lib.textures, (8, 8))
     np.testing.assert_array_equal(doc.preview.image, fresh)

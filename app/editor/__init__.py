@@ -1,4 +1,4 @@
-"""The PySide6 editor: a thin view over the core edit model (``core.edit.session``).
+"""The PySide6 editor: a thin view over the core edit document (``core.edit.EditDocument``).
 
 ``app.editor.launch.run_editor(target, screenshot=None)`` opens the window;
 ``app/commands/app.py`` is the command line. Importing the package applies

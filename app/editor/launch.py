@@ -55,7 +55,7 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
         from app.editor.newproject import empty_project
 
         doc, wants_classification, error = EditorDocument(empty_project()), False, exc
-    win = MainWindow(doc)
+    win = MainWindow(doc, interactive=screenshot is None)
     win.resize(*size)
     win.show()
     if wants_classification:
@@ -76,6 +76,6 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     win.wait_for_jobs()
     if not image.save(str(screenshot)):
         raise TerrathemeError(f"cannot write the screenshot {screenshot}")
-    win.doc.undo_stack.setClean()
+    win.doc.model.history.mark_saved()
     win.close()
     return 0

@@ -58,17 +58,3 @@ def sample_project_path() -> Path | None:
             return p
     return None
 
-
-def fresh_classified(texture: ThematicTexture, result) -> ThematicTexture:
-    """A project over ``texture``'s photo whose themes are exactly the classes of ``result``.
-
-    ``result`` is a ``ClassifyResult`` whose new themes were numbered after the
-    texture's library (index ``len(library) + i`` for class theme ``i``).
-    """
-    base = len(texture.library)
-    indices = result.indices.astype(np.int64) - base
-    if indices.min() < 0:
-        raise TerrathemeError("classification result refers to themes of the old library")
-    return ThematicTexture(IndexGrid(indices.astype(np.uint8), texture.grid.cell),
-                           ThemeLibrary(result.new_themes), dict(texture.metadata),
-                           photo=texture.photo, scribbles=texture.scribbles)

@@ -129,7 +129,7 @@ class ThemePalette(QWidget):
             return
         mean = tuple(int(v) for v in tex[..., :3].reshape(-1, 3).mean(axis=0))
         try:
-            k = self.doc.add_theme(Theme(name.strip(), mean, tex, source=path))
+            k = self.doc.model.add_theme(Theme(name.strip(), mean, tex, source=path))
         except TerrathemeError as exc:
             self.error.emit(str(exc))
             return
@@ -165,6 +165,6 @@ class ThemePalette(QWidget):
 
     def _change(self, k: int, theme: Theme, text: str, **changes: object) -> None:
         try:
-            self.doc.change_theme(k, theme.with_(**changes), text)
+            self.doc.model.replace_theme(k, theme.with_(**changes), text)
         except TerrathemeError as exc:
             self.error.emit(str(exc))

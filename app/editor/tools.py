@@ -14,9 +14,9 @@ from enum import Enum
 from PySide6.QtCore import QObject, QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPen
 
-from app.editor.commands import ScribbleCommand
 from app.editor.document import EditorDocument
-from core.edit.session import merge_atoms
+from core.edit import Layer
+from core.errors import TerrathemeError
 
 
 class Tool(Enum):
@@ -35,14 +35,25 @@ class Tool(Enum):
         return self.value[1]
 
 
+#: what each tool does, for Help > Keys and mouse
+TOOL_HELP = {
+    Tool.BRUSH: "paint the selected theme on the grid vertices under the brush",
+    Tool.RECT: "drag a box: every vertex inside takes the selected theme",
+    Tool.FILL: "click: the connected region of one theme takes the selected theme",
+    Tool.PICK: "click: select the theme under the cursor",
+    Tool.SCRIBBLE: "paint training strokes of the selected theme over the photo "
+                   "(Classify > From scribbles)",
+}
+
+
 class ToolController(QObject):
-    """Routes canvas mouse signals to the active tool.
+    """Routes canvas mouse signals to the active tool, as edits of the core document.
 
     ``brush_size`` is the brush diameter in vertices (radius = size / 2).
     """
 
     picked = Signal(int)
-    scribbled = Signal(object)  # the applied scribble atom
+    error = Signal(str)
 
     def __init__(self, doc: EditorDocument) -> None:
         super().__init__()
@@ -52,58 +63,62 @@ class ToolController(QObject):
         self.theme = 0
         self.hover: QPointF | None = None
         self._rect_from: QPointF | None = None
-        self._points: list[tuple[float, float]] = []
-        self._stroke_atoms: list = []
+        self._stroke_layer: Layer | None = None
+
+    def _layer_point(self, layer: Layer, texel: QPointF) -> tuple[float, float]:
+        """A texel position in the units of ``layer``: vertices or photo pixels."""
+        if layer is Layer.GRID:
+            return self.doc.model.texel_to_vertex(texel.x(), texel.y())
+        return self.doc.model.texel_to_photo(texel.x(), texel.y())
+
+    def _radius(self, layer: Layer) -> float:
+        radius = self.brush_size / 2
+        if layer is Layer.GRID:
+            return radius
+        # Scribbles: the brush's size in texels, in photo pixels.
+        n = self.doc.texture.grid.cell[0]
+        return radius * n * self.doc.texture.photo.shape[1] / self.doc.photo_extent()[0]
 
     # -- gestures ------------------------------------------------------------
     def press(self, texel: QPointF, modifiers=None) -> None:
-        doc, v = self.doc, self.doc.to_vertex(texel.x(), texel.y())
-        if self.tool is Tool.BRUSH:
-            doc.session.begin_stroke(self.theme, v, self.brush_size / 2)
-        elif self.tool is Tool.RECT:
-            self._rect_from = QPointF(texel)
-        elif self.tool is Tool.FILL:
-            doc.commit(doc.session.flood_fill(v, self.theme), "flood fill")
-        elif self.tool is Tool.PICK:
-            k = doc.session.pick(v)
-            if k is not None:
-                self.picked.emit(k)
-        elif self.tool is Tool.SCRIBBLE:
-            self._points = [(texel.x(), texel.y())]
-            self._scribble_segment()
+        model = self.doc.model
+        try:
+            if self.tool in (Tool.BRUSH, Tool.SCRIBBLE):
+                layer = Layer.GRID if self.tool is Tool.BRUSH else Layer.SCRIBBLES
+                value = self.theme if layer is Layer.GRID else self.theme + 1
+                if layer is Layer.SCRIBBLES and model.photo is None:
+                    raise TerrathemeError("scribbles are painted over the photo, and this "
+                                          "project has none")
+                model.begin_stroke(value, self._layer_point(layer, texel), self._radius(layer),
+                                   layer)
+                self._stroke_layer = layer
+            elif self.tool is Tool.RECT:
+                self._rect_from = QPointF(texel)
+            elif self.tool is Tool.FILL:
+                model.flood_fill(model.texel_to_vertex(texel.x(), texel.y()), self.theme)
+            elif self.tool is Tool.PICK:
+                k = model.pick(model.texel_to_vertex(texel.x(), texel.y()))
+                if k is not None:
+                    self.picked.emit(k)
+        except TerrathemeError as exc:
+            self.error.emit(str(exc))
 
     def drag(self, texel: QPointF) -> None:
         self.hover = QPointF(texel)
-        if self.tool is Tool.BRUSH and self.doc.session.in_stroke:
-            self.doc.session.stroke_to(self.doc.to_vertex(texel.x(), texel.y()),
-                                       self.brush_size / 2)
-        elif self.tool is Tool.SCRIBBLE and self._points:
-            self._points.append((texel.x(), texel.y()))
-            self._scribble_segment()
+        layer = self._stroke_layer
+        if layer is not None and self.doc.model.in_stroke:
+            self.doc.model.stroke_to(self._layer_point(layer, texel), self._radius(layer))
 
     def release(self, texel: QPointF) -> None:
-        doc = self.doc
-        if doc.session.in_stroke:  # even if the tool changed during the drag
-            doc.commit(doc.session.end_stroke(), "brush stroke")
+        model = self.doc.model
+        if model.in_stroke:  # even if the tool changed during the drag
+            model.end_stroke()
         elif self.tool is Tool.RECT and self._rect_from is not None:
-            a = doc.to_vertex(self._rect_from.x(), self._rect_from.y())
-            b = doc.to_vertex(texel.x(), texel.y())
+            a = model.texel_to_vertex(self._rect_from.x(), self._rect_from.y())
+            b = model.texel_to_vertex(texel.x(), texel.y())
             self._rect_from = None
-            doc.commit(doc.session.fill_rect(a, b, self.theme), "rectangle fill")
-        elif self._points:
-            self._points = []
-            atom, self._stroke_atoms = merge_atoms(self._stroke_atoms), []
-            if atom is not None:
-                doc.undo_stack.push(ScribbleCommand(doc, atom, "scribble"))
-
-    def _scribble_segment(self) -> None:
-        a = self._points[-2] if len(self._points) > 1 else self._points[-1]
-        n = self.doc.texture.grid.cell[0]
-        atom = self.doc.scribble_segment(a, self._points[-1], self.brush_size / 2 * n,
-                                         self.theme + 1)
-        if atom is not None:
-            self._stroke_atoms.append(atom)
-            self.scribbled.emit(atom)
+            model.fill_rect(a, b, self.theme)
+        self._stroke_layer = None
 
     # -- overlay -------------------------------------------------------------
     def paint_overlay(self, p: QPainter, visible: QRectF, scale: float) -> None:

@@ -4,7 +4,7 @@ The toggle, the window's ``show_uncertainty`` flag, the index canvas's tint
 and the status-bar share follow one setter (:meth:`UncertaintyMixin.
 set_show_uncertainty`); the document's ``confidenceChanged`` rebuilds or
 removes the tint, so it disappears when there is no confidence map. Which
-pixels are uncertain is decided in :mod:`app.editor.uncertainty` (no Qt).
+pixels are uncertain is decided in :mod:`core.edit.uncertainty`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from PySide6.QtGui import QAction, QKeySequence, QPainter
 from PySide6.QtWidgets import QLabel
 
 from app.editor.imaging import ZoomPyramid
-from app.editor.uncertainty import UNCERTAIN_SHARE, uncertainty_rgba
+from core.edit import UNCERTAIN_SHARE, uncertainty_rgba
 
 
 class UncertaintyMixin:
@@ -40,7 +40,7 @@ class UncertaintyMixin:
     def set_show_uncertainty(self, on: bool, quiet: bool = False) -> None:
         """Show or hide the tint; the toggle follows (off when there is no confidence map)."""
         doc = self.doc
-        mask = None if doc is None else doc.uncertain()
+        mask = None if doc is None else doc.model.uncertain()
         if on and mask is None and not quiet:
             self.statusBar().showMessage(
                 "no confidence map: classify the photo first (Classify menu)", 4000)

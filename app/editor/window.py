@@ -18,18 +18,25 @@ from PySide6.QtWidgets import (
 
 from app.editor.canvas import MapCanvas, ViewState
 from app.editor.document import EditorDocument
+from app.editor.help import HelpMixin
 from app.editor.imaging import ZoomPyramid
 from app.editor.palette import ThemePalette
 from app.editor.tools import Tool, ToolController
 from app.editor.uncertainty_view import UncertaintyMixin
 from app.editor.window_menus import MenuMixin
+from core.edit import HistoryChange, ScribbleChange
 
 
-class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
-    """The editor window over one :class:`EditorDocument` at a time."""
+class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):
+    """The editor window over one :class:`EditorDocument` at a time.
 
-    def __init__(self, doc: EditorDocument) -> None:
+    ``interactive=False`` (the screenshot command) reports problems in the
+    status bar only, never in a dialog that would wait for a click.
+    """
+
+    def __init__(self, doc: EditorDocument, *, interactive: bool = True) -> None:
         super().__init__()
+        self.interactive = interactive
         self.resize(1400, 860)
         self.view = ViewState()
         self.index_canvas = MapCanvas(self.view, "Index map")
@@ -74,8 +81,8 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
                     sig.disconnect()
         old = self.doc
         if old is not None:
-            for sig in (old.regionChanged, old.scribblesChanged, old.undo_stack.cleanChanged,
-                        old.confidenceChanged):
+            for sig in (old.regionChanged, old.scribblesChanged, old.historyChanged,
+                        old.confidenceChanged, old.photoChanged):
                 sig.disconnect()
         self.doc = doc
         tools = ToolController(doc)
@@ -83,7 +90,7 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
             tools.tool, tools.brush_size = self.tools.tool, self.tools.brush_size
         self.tools = tools
         tools.picked.connect(self.palette_widget.select)
-        tools.scribbled.connect(self._scribble_painted)
+        tools.error.connect(lambda msg: self.statusBar().showMessage(msg, 6000))
         for canvas in (self.index_canvas, self.render_canvas):
             canvas.pressed.connect(tools.press)
             canvas.dragged.connect(tools.drag)
@@ -91,27 +98,48 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
         doc.regionChanged.connect(self._region_changed)
         doc.scribblesChanged.connect(self._scribbles_changed)
         doc.confidenceChanged.connect(self._confidence_changed)
-        doc.undo_stack.cleanChanged.connect(self._update_title)
-        self.rebind_undo(doc.undo_stack)
+        doc.photoChanged.connect(self._photo_changed)
+        doc.historyChanged.connect(self._history_changed)
         self.palette_widget.set_document(doc)
         self.index_canvas.layers = [self._paint_index]
         self.render_canvas.layers = [self._paint_render]
         for canvas in (self.index_canvas, self.render_canvas):
             canvas.overlays = [self._paint_grid, tools.paint_overlay]
-        self._scribbles_changed()
+        self._scribbles_changed(None)
         self._confidence_changed()
         self.photo_slider.setEnabled(doc.texture.photo is not None)
-        self._update_title()
+        self._history_changed(doc.history_state())
         self.fit()
         self.update_perspective_tab()
+        self._report_dropped_layers(doc)
+
+    def _report_dropped_layers(self, doc: EditorDocument) -> None:
+        """A photo or scribble layer the editor cannot show was left out: say so once."""
+        if not doc.model.dropped_layers:
+            return
+        name = doc.path.name if doc.path else "the project"
+        message = f"{name}: " + "; ".join(doc.model.dropped_layers)
+        self.statusBar().showMessage(message)
+        if self.interactive:
+            self.show_error(message)
+
+    def _history_changed(self, state: HistoryChange) -> None:
+        """Edit > Undo / Redo and the title follow the core history."""
+        for action, label, verb in ((self.undo_action, state.undo_label, "Undo"),
+                                    (self.redo_action, state.redo_label, "Redo")):
+            action.setEnabled(label is not None)
+            action.setText(f"&{verb} {label}" if label else f"&{verb}")
+        self._update_title()
 
     def _update_title(self, *_args) -> None:
         name = self.doc.path.name if self.doc and self.doc.path else "untitled"
-        try:
-            dirty = "" if self.doc is None or self.doc.undo_stack.isClean() else " *"
-        except RuntimeError:  # the stack is being deleted with its document
-            return
+        dirty = "" if self.doc is None or self.doc.clean else " *"
         self.setWindowTitle(f"{name}{dirty} — terratheme")
+
+    def _photo_changed(self) -> None:
+        self.photo_slider.setEnabled(self.doc.texture.photo is not None)
+        self._scribbles_changed(None)
+        self._repaint()
 
     # -- toolbar -------------------------------------------------------------
     def _build_toolbar(self) -> None:
@@ -218,24 +246,24 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
         for canvas in (self.index_canvas, self.render_canvas):
             canvas.update_texels(r)
 
-    def _scribbles_changed(self) -> None:
-        rgba = self.doc.scribble_rgba()
-        self.scribble_pyramid = (None if rgba is None else
-                                 ZoomPyramid(rgba, extent=self.doc.photo_extent()))
-        self.index_canvas.update()
-
-    def _scribble_painted(self, atom) -> None:
-        """Refresh only the block of the scribble overlay a segment painted."""
-        if self.scribble_pyramid is None:
-            self._scribbles_changed()
+    def _scribbles_changed(self, change: ScribbleChange | None) -> None:
+        """Refresh the block of the scribble overlay ``change`` names (all of it if None)."""
+        sc = self.doc.texture.scribbles
+        pyramid = self.scribble_pyramid
+        if (change is None or change.whole or sc is None or pyramid is None
+                or pyramid.base.shape[:2] != sc.shape):
+            rgba = self.doc.scribble_rgba()
+            self.scribble_pyramid = (None if rgba is None else
+                                     ZoomPyramid(rgba, extent=self.doc.photo_extent()))
+            self.index_canvas.update()
             return
-        block = self.doc.scribble_rgba(atom.rows, atom.cols)
-        self.scribble_pyramid.base[atom.rows, atom.cols] = block
-        x, y = atom.cols.start, atom.rows.start
-        w, h = atom.cols.stop - x, atom.rows.stop - y
-        self.scribble_pyramid.update_region(x, y, w, h)
+        rows, cols = change.rows, change.cols
+        pyramid.base[rows, cols] = self.doc.scribble_rgba(rows, cols)
+        x, y = cols.start, rows.start
+        w, h = cols.stop - x, rows.stop - y
+        pyramid.update_region(x, y, w, h)
         ew, eh = self.doc.photo_extent()
-        sx, sy = ew / self.doc.texture.photo.shape[1], eh / self.doc.texture.photo.shape[0]
+        sx, sy = ew / sc.shape[1], eh / sc.shape[0]
         self.index_canvas.update_texels(QRectF(x * sx, y * sy, w * sx, h * sy))
 
     def _repaint(self) -> None:
@@ -260,7 +288,7 @@ class MainWindow(MenuMixin, UncertaintyMixin, QMainWindow):
         if 0 <= x < w and 0 <= y < h:
             parts.append(f"texel {x}, {y}")
             parts.append(f"cell {x // n}, {y // m}")
-            k = doc.session.pick(doc.to_vertex(texel.x(), texel.y()))
+            k = doc.model.pick(doc.to_vertex(texel.x(), texel.y()))
             if k is not None:
                 parts.append(f"theme {doc.texture.library[k].name}")
             fid = doc.fidelity() if self.show_fidelity else None

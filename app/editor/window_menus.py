@@ -1,4 +1,7 @@
-"""Menus of the main window: File, Edit, View, Classify; file and classification actions."""
+"""Menus of the main window: File, Edit, View, Classify; file and classification actions.
+
+Help is in :mod:`app.editor.help`.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +13,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressBar, QPushButto
 
 from app.editor.classify_job import ClassifyJob, ClassifyResult, Mode, keep_alive
 from app.editor.document import EditorDocument
-from app.editor.newproject import empty_project, fresh_classified
+from app.editor.newproject import empty_project
 from core.errors import TerrathemeError
 
 PROJECT_FILTER = "terratheme project (*.ttproj)"
@@ -32,6 +35,13 @@ class MenuMixin:
         file.addSeparator()
         self._act(file, "&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.edit_menu = mb.addMenu("&Edit")
+        # Bound once; the text and enabled state follow the core history.
+        self.undo_action = self._act(self.edit_menu, "&Undo", lambda: self.doc.model.undo(),
+                                     "Ctrl+Z")
+        self.redo_action = self._act(self.edit_menu, "&Redo", lambda: self.doc.model.redo())
+        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.undo_action.setData("Undo")
+        self.redo_action.setData("Redo")
         view = mb.addMenu("&View")
         self._act(view, "&Fit to window", self.fit, "Ctrl+0")
         self._act(view, "Side by side", lambda: self.set_layout("both"), "Ctrl+1")
@@ -63,6 +73,7 @@ class MenuMixin:
         self.cancel_button.clicked.connect(self.cancel_classification)
         self.statusBar().addPermanentWidget(self.progress)
         self.statusBar().addPermanentWidget(self.cancel_button)
+        self.build_help_menu(mb)
 
     def _act(self, menu, text, slot, shortcut=None, checked=None) -> QAction:
         act = QAction(text, self)
@@ -88,16 +99,6 @@ class MenuMixin:
 
         return flip
 
-    def rebind_undo(self, stack) -> None:
-        """Point Edit > Undo/Redo at ``stack`` (Ctrl+Z, Ctrl+Shift+Z and Ctrl+Y)."""
-        self.edit_menu.clear()
-        undo = stack.createUndoAction(self, "&Undo")
-        undo.setShortcuts([QKeySequence("Ctrl+Z")])
-        redo = stack.createRedoAction(self, "&Redo")
-        redo.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
-        self.edit_menu.addAction(undo)
-        self.edit_menu.addAction(redo)
-
     # -- layout ----------------------------------------------------------------
     def set_layout(self, which: str) -> None:
         self.index_canvas.setVisible(which in ("both", "index"))
@@ -108,7 +109,7 @@ class MenuMixin:
 
     # -- files ---------------------------------------------------------------
     def _confirm_discard(self) -> bool:
-        if self.doc is None or self.doc.undo_stack.isClean():
+        if self.doc is None or self.doc.clean:
             return True
         answer = QMessageBox.question(
             self, "terratheme", "Discard the unsaved changes?",
@@ -223,7 +224,7 @@ class MenuMixin:
             return None
         scribbles = None if tex.scribbles is None else tex.scribbles.copy()
         # Scribble runs reuse the class prior of the first strokes (same classes painted).
-        prior = self.doc.prior_for(scribbles) if mode is Mode.SCRIBBLES else None
+        prior = self.doc.model.prior_for_scribbles() if mode is Mode.SCRIBBLES else None
         job = ClassifyJob(mode, tex.photo, scribbles, tex.library, tex.grid.cell,
                           tex.grid.indices.shape, class_weights=prior,
                           position=mode is Mode.SCRIBBLES and self.position_action.isChecked())
@@ -254,31 +255,33 @@ class MenuMixin:
         self.progress.setValue(done)
 
     def _job_done(self, job: ClassifyJob, result: ClassifyResult) -> None:
+        """Apply a classification result as one undo step of the core document."""
         if job is not self.job or job.cancelled:
             return
         doc = self.doc
-        if job.args[0] is Mode.SCRIBBLES:
-            doc.remember_prior(result.scribble_classes, result.class_weights)
-        if doc.fresh_from_photo and result.new_themes and doc.undo_stack.count() == 0:
-            # A project just started over a photo: its themes are the classes, nothing else.
-            self.set_document(EditorDocument(fresh_classified(doc.texture, result)))
-            self.doc.set_confidence(result.confidence)
-            self.statusBar().showMessage(f"classified into {result.n_classes} themes", 6000)
-            return
-        doc.set_confidence(result.confidence)
-        if not result.new_themes and np.array_equal(result.indices, doc.texture.grid.indices):
-            # Nothing changed (a rerun): say so rather than record an empty undo step.
-            self.statusBar().showMessage("classified: the grid is unchanged", 6000)
-            return
-        # New themes and the new grid are one undo step.
-        doc.undo_stack.beginMacro("classification")
+        model = doc.model
+        # A project just started over a photo: its themes are the classes, nothing else.
+        fresh = doc.fresh_from_photo and bool(result.new_themes) and not model.history.can_undo
+        # The job numbers new themes after the current library.
+        indices = (result.indices.astype(np.int64) - len(doc.texture.library) if fresh
+                   else result.indices)
+        unchanged = not result.new_themes and np.array_equal(indices, doc.texture.grid.indices)
+        scribble_run = job.args[0] is Mode.SCRIBBLES
         try:
-            for theme in result.new_themes:
-                doc.add_theme(theme)
-            doc.commit(doc.session.replace_all(result.indices), "classification")
-        finally:
-            doc.undo_stack.endMacro()
-        self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
+            model.apply_classification(
+                indices, new_themes=result.new_themes, replace_themes=fresh,
+                confidence=result.confidence,
+                scribble_classes=result.scribble_classes if scribble_run else None,
+                class_weights=result.class_weights)
+        except TerrathemeError as exc:
+            self.show_error(f"Classification result not applied:\n{exc}")
+            return
+        doc.fresh_from_photo = doc.fresh_from_photo and not fresh
+        if unchanged:
+            # A rerun: say so (only the confidence map and prior were replaced).
+            self.statusBar().showMessage("classified: the grid is unchanged", 6000)
+        else:
+            self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
 
     def _job_finished(self, job: ClassifyJob) -> None:
         if job is not self.job:

@@ -1,14 +1,49 @@
-"""Editing an index grid by hand: the undo model, the tools, the live preview, fidelity.
+"""Editing a thematic texture by hand: the document model behind the editor (no Qt).
 
-Modules: ``session`` (EditSession: undo atoms, strokes, change events),
-``tools`` (brush, rectangle, flood fill, eyedropper as vertex selections),
-``preview`` (a render kept current by re-rendering dirty cells), ``fidelity``
-(per-cell colour difference between render and photo).
+Modules, from the bottom up:
+
+* ``tools`` -- brush, rectangle, flood fill, eyedropper as vertex selections;
+* ``atoms`` -- undo atoms of a painted layer (bounding slice, bit-packed mask,
+  old values, new value) and their merging into one step per stroke;
+* ``uncertainty`` -- where the classifier is unsure, the class prior kept
+  between scribble rounds;
+* ``layers`` -- the document's layers (grid, scribbles, photo, confidence)
+  and what each must look like;
+* ``events`` -- the plain-Python change events and their emitters;
+* ``changes`` -- the undoable changes (paint, swap a layer, theme edits, prior);
+* ``history`` -- the one undo history: steps, groups, the saved mark;
+* ``strokes`` -- a brush stroke in progress (one undo step when it ends);
+* ``document`` -- :class:`EditDocument`: everything the editor edits;
+* ``preview`` -- a render kept current by re-rendering dirty cells;
+* ``fidelity`` -- per-cell colour difference between render and photo.
 """
 
+from core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
+from core.edit.changes import Change
+from core.edit.document import EditDocument
+from core.edit.events import (
+    ConfidenceChange,
+    DocumentEvents,
+    Emitter,
+    GridChange,
+    HistoryChange,
+    PhotoChange,
+    PriorChange,
+    ScribbleChange,
+    ThemeChange,
+)
 from core.edit.fidelity import fidelity_map, heat_colours
-from core.edit.preview import RenderPreview
-from core.edit.session import EditAtom, EditSession, GridChange
+from core.edit.history import History, Step
+from core.edit.layers import (
+    BadLayers,
+    Layer,
+    display_photo,
+    photo_extent,
+    validate_confidence,
+    validate_photo,
+    validate_scribbles,
+)
+from core.edit.preview import RenderPreview, dirty_cells, dirty_region
 from core.edit.tools import (
     Connectivity,
     VertexSelection,
@@ -17,18 +52,56 @@ from core.edit.tools import (
     flood_footprint,
     rect_footprint,
 )
+from core.edit.uncertainty import (
+    UNCERTAIN_SHARE,
+    KeptPrior,
+    next_kept_prior,
+    scribble_classes,
+    uncertain_mask,
+    uncertainty_rgba,
+)
 
 __all__ = [
+    "UNCERTAIN_SHARE",
+    "Atom",
+    "BadLayers",
+    "Change",
+    "ConfidenceChange",
     "Connectivity",
+    "DocumentEvents",
     "EditAtom",
-    "EditSession",
+    "EditDocument",
+    "Emitter",
     "GridChange",
+    "History",
+    "HistoryChange",
+    "KeptPrior",
+    "Layer",
+    "MultiAtom",
+    "PhotoChange",
+    "PriorChange",
     "RenderPreview",
+    "ScribbleChange",
+    "Step",
+    "ThemeChange",
     "VertexSelection",
     "capsule_footprint",
+    "dirty_cells",
+    "dirty_region",
+    "display_photo",
     "eyedropper",
     "fidelity_map",
     "flood_footprint",
     "heat_colours",
+    "merge_atoms",
+    "next_kept_prior",
+    "photo_extent",
     "rect_footprint",
+    "replace_atoms",
+    "scribble_classes",
+    "uncertain_mask",
+    "uncertainty_rgba",
+    "validate_confidence",
+    "validate_photo",
+    "validate_scribbles",
 ]

@@ -1,6 +1,6 @@
 """The editor's live preview: a full render kept up to date by re-rendering dirty cells.
 
-After an edit only the cells whose render can change (``core.edit.session.dirty_region``:
+After an edit only the cells whose render can change (:func:`dirty_region`:
 the cells around the changed vertices plus the saddle rule's one-cell ring) are
 re-rendered with ``render_cells(region=...)`` and pasted into the existing
 image. Because ``render_cells`` returns exactly the crop of the full render
@@ -15,11 +15,34 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.edit.session import GridChange, dirty_region
+from core.edit.events import GridChange
 from core.model.project import ThematicTexture
 from core.render.renderer import render_cells
 
 Progress = Callable[[int, int], None]
+
+
+def dirty_cells(change: GridChange, cells_shape: tuple[int, int], margin: int = 1
+                ) -> tuple[slice, slice]:
+    """Cells whose render a vertex change can alter: touched cells plus ``margin`` cells.
+
+    Vertex row ``j`` bounds cell rows ``j-1`` and ``j``; the extra margin
+    covers a renderer whose saddle rule (docs/design.md §1, case 3) looks at
+    the neighbouring cells.
+    """
+    gh, gw = cells_shape
+    rows = slice(max(change.rows.start - 1 - margin, 0), min(change.rows.stop + margin, gh))
+    cols = slice(max(change.cols.start - 1 - margin, 0), min(change.cols.stop + margin, gw))
+    return rows, cols
+
+
+def dirty_region(change: GridChange, cells_shape: tuple[int, int], cell: tuple[int, int],
+                 margin: int = 1) -> tuple[int, int, int, int]:
+    """The dirty texel region ``(x, y, w, h)`` to re-render after ``change``."""
+    rows, cols = dirty_cells(change, cells_shape, margin)
+    n, m = cell
+    return (cols.start * n, rows.start * m, max(cols.stop - cols.start, 0) * n,
+            max(rows.stop - rows.start, 0) * m)
 
 
 class RenderPreview:

@@ -1,12 +1,14 @@
 """Editing tools as pure functions on a vertex index array.
 
 Each tool returns a :class:`VertexSelection`: the bounding slice of the vertices it
-covers and a boolean mask inside that slice. The edit model
-(:mod:`core.edit.session`) turns a selection plus a theme number into an undo atom.
+covers and a boolean mask inside that slice. The edit document
+(:mod:`core.edit.document`) turns a selection plus a value into an undo atom
+(:mod:`core.edit.atoms`). The scribble layer uses the same tools in photo
+pixel units.
 
 Coordinates are in *vertex units*: ``(x, y)`` = (column, row) as floats, so
 vertex ``indices[j, i]`` sits at ``(i, j)``. The editor converts a cursor texel
-``(X, Y)`` to ``(X / N, Y / M)`` (DESIGN.md §1: texel ``X`` sits at grid
+``(X, Y)`` to ``(X / N, Y / M)`` (docs/design.md §1: texel ``X`` sits at grid
 position ``X / N``).
 """
 

@@ -1,0 +1,247 @@
+"""The undoable changes of an edit document: each applies, reverts and says what changed.
+
+Every change holds just what it needs to go both ways (a paint holds an
+:mod:`~core.edit.atoms` atom; a swap holds references to the two arrays; a
+theme change the two themes), writes :class:`~core.edit.layers.DocumentData`
+and returns the events it causes. An undo step is a tuple of changes applied
+in order and reverted in reverse order (:mod:`core.edit.history`); the
+document fires the events once the whole step is done.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from core.edit.atoms import Atom, atom_parts, replace_atoms
+from core.edit.events import (
+    ConfidenceChange,
+    Event,
+    GridChange,
+    PhotoChange,
+    PriorChange,
+    ScribbleChange,
+    ThemeChange,
+)
+from core.edit.layers import DocumentData, Layer
+from core.edit.uncertainty import KeptPrior
+from core.errors import TerrathemeError
+from core.themes.library import Theme, ThemeLibrary
+
+
+class Change(Protocol):
+    """What every undoable change offers."""
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        """Make the change (redo); returns the events it causes."""
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        """Take the change back (undo); returns the events it causes."""
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the arrays the change keeps alive (an upper bound)."""
+
+
+def _region_event(layer: Layer, rows: slice, cols: slice) -> Event:
+    return GridChange(rows, cols) if layer is Layer.GRID else ScribbleChange(rows, cols)
+
+
+@dataclass(frozen=True, eq=False)
+class Paint:
+    """Elements of a painted layer (the grid or the scribbles) set by an atom."""
+
+    layer: Layer
+    atom: Atom
+
+    @property
+    def nbytes(self) -> int:
+        return self.atom.nbytes
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        array = data.layer(self.layer)
+        for part in atom_parts(self.atom):
+            # Keep the per-value tally of the scribble layer current, part by part.
+            if self.layer is Layer.SCRIBBLES:
+                data.scribble_counts -= np.bincount(part.old, minlength=256)
+                data.scribble_counts[part.new] += part.count
+            part.apply(array)
+        return [_region_event(self.layer, self.atom.rows, self.atom.cols)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        array = data.layer(self.layer)
+        for part in reversed(atom_parts(self.atom)):
+            part.revert(array)
+            if self.layer is Layer.SCRIBBLES:
+                data.scribble_counts[part.new] -= part.count
+                data.scribble_counts += np.bincount(part.old, minlength=256)
+        return [_region_event(self.layer, self.atom.rows, self.atom.cols)]
+
+
+def _whole_event(layer: Layer, array: np.ndarray | None) -> Event:
+    if layer is Layer.PHOTO:
+        return PhotoChange()
+    if layer is Layer.CONFIDENCE:
+        return ConfidenceChange()
+    h, w = (0, 0) if array is None else array.shape[:2]
+    return ScribbleChange(slice(0, h), slice(0, w), whole=True)
+
+
+@dataclass(frozen=True, eq=False)
+class SwapLayer:
+    """A whole layer (photo, scribbles or confidence) put in place of another, or of none."""
+
+    layer: Layer
+    old: np.ndarray | None
+    new: np.ndarray | None
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in (self.old, self.new) if a is not None)
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.set_layer(self.layer, self.new)
+        return [_whole_event(self.layer, self.new)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.set_layer(self.layer, self.old)
+        return [_whole_event(self.layer, self.old)]
+
+
+@dataclass(frozen=True, eq=False)
+class SetTheme:
+    """Theme ``index`` replaced (renamed, recoloured or given a new texture)."""
+
+    index: int
+    old: Theme
+    new: Theme
+
+    nbytes = 0  # themes are immutable and shared, never copied
+
+    def _event(self) -> ThemeChange:
+        return ThemeChange(self.index, self.old.colour != self.new.colour,
+                           not np.array_equal(self.old.texture, self.new.texture))
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.texture.library.replace(self.index, self.new)
+        return [self._event()]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.texture.library.replace(self.index, self.old)
+        return [self._event()]
+
+
+@dataclass(frozen=True, eq=False)
+class AppendTheme:
+    """A theme appended to the library (no vertex uses it before the change)."""
+
+    theme: Theme
+
+    nbytes = 0
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        k = data.texture.library.append(self.theme)
+        return [ThemeChange(k, False, False)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.texture.library.remove_last()
+        return [ThemeChange(len(data.texture.library), False, False)]
+
+
+@dataclass(frozen=True, eq=False)
+class RemoveLastTheme:
+    """The last theme removed from the library (no vertex or scribble uses it)."""
+
+    theme: Theme
+
+    nbytes = 0
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.texture.library.remove_last()
+        return [ThemeChange(len(data.texture.library), False, False)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        k = data.texture.library.append(self.theme)
+        return [ThemeChange(k, False, False)]
+
+
+@dataclass(frozen=True, eq=False)
+class SetLibrary:
+    """The whole theme library replaced (a classification's own themes)."""
+
+    old: ThemeLibrary
+    new: ThemeLibrary
+
+    nbytes = 0
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.texture.library = self.new
+        return [ThemeChange(None, True, True)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.texture.library = self.old
+        return [ThemeChange(None, True, True)]
+
+
+@dataclass(frozen=True, eq=False)
+class SetPrior:
+    """The class prior kept between scribble classifications replaced."""
+
+    old: KeptPrior | None
+    new: KeptPrior | None
+
+    nbytes = 0
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.kept_prior = self.new
+        return [PriorChange()]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.kept_prior = self.old
+        return [PriorChange()]
+
+
+def drop_prior_without_classes(data: DocumentData, classes: frozenset[int]) -> list[Change]:
+    """The change that forgets the kept prior when no class is left in the scribbles.
+
+    Erasing every stroke means starting afresh: the next scribble
+    classification estimates the prior again. Empty when there is nothing to drop.
+    """
+    if data.kept_prior is None or classes:
+        return []
+    return [SetPrior(data.kept_prior, None)]
+
+
+def grid_replacement(data: DocumentData, indices: object, n_themes: int) -> list[Change]:
+    """The paint that turns the grid into ``indices`` (empty when equal), checked first.
+
+    ``n_themes`` is the library size the new grid will index (after any theme change).
+    """
+    new = np.asarray(indices)
+    grid = data.texture.grid.indices
+    if new.shape != grid.shape:
+        raise TerrathemeError(f"new grid has shape {new.shape}; the project grid is {grid.shape}")
+    if new.dtype.kind not in "iu" or (new.size and not 0 <= int(new.min())
+                                      <= int(new.max()) < n_themes):
+        raise TerrathemeError(f"new grid must hold theme indices 0..{n_themes - 1}")
+    atom = replace_atoms(grid, new)
+    return [] if atom is None else [Paint(Layer.GRID, atom)]
+
+
+def photo_replacement(data: DocumentData, photo: np.ndarray | None) -> list[Change]:
+    """The changes that show ``photo`` (checked) instead of the current one.
+
+    The confidence map goes with the old photo; so do the scribbles and the
+    kept prior when the scribbles do not fit the new photo.
+    """
+    changes: list[Change] = [SwapLayer(Layer.PHOTO, data.texture.photo, photo)]
+    if data.confidence is not None:
+        changes.append(SwapLayer(Layer.CONFIDENCE, data.confidence, None))
+    sc = data.texture.scribbles
+    if sc is not None and (photo is None or sc.shape != photo.shape[:2]):
+        changes.append(SwapLayer(Layer.SCRIBBLES, sc, None))
+        if data.kept_prior is not None:
+            changes.append(SetPrior(data.kept_prior, None))
+    return changes

@@ -1,0 +1,402 @@
+"""The edit document: everything the editor edits, with one undo history and events.
+
+No Qt here; the editor (``app/editor``) is a view of it. As in napari's layer
+model, the data is edited in place and every change fires a plain-Python
+event (:mod:`core.edit.events`) once the document is consistent. Every change
+is an undo atom (:mod:`core.edit.changes`) on one history
+(:mod:`core.edit.history`), whatever it touched: the vertex index grid, the
+theme library, the scribble layer, the photo, the classifier's confidence map
+and the class prior kept between scribble rounds. A whole brush stroke is one
+undo step; so is a classification result that replaces grid, themes and
+confidence (:meth:`EditDocument.apply_classification`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+
+import numpy as np
+
+from core.edit.atoms import EditAtom
+from core.edit.changes import (
+    AppendTheme,
+    Change,
+    Paint,
+    RemoveLastTheme,
+    SetLibrary,
+    SetPrior,
+    SetTheme,
+    SwapLayer,
+    drop_prior_without_classes,
+    grid_replacement,
+    photo_replacement,
+)
+from core.edit.events import DocumentEvents, Event, HistoryChange
+from core.edit.history import History, Step
+from core.edit.layers import (
+    BadLayers,
+    DocumentData,
+    Layer,
+    check_layers,
+    check_theme_name,
+    check_value,
+    display_photo,
+    photo_extent,
+    validate_confidence,
+    validate_photo,
+    validate_scribbles,
+)
+from core.edit.strokes import Stroke
+from core.edit.tools import (
+    Connectivity,
+    VertexSelection,
+    eyedropper,
+    flood_footprint,
+    rect_footprint,
+)
+from core.edit.uncertainty import KeptPrior, next_kept_prior, uncertain_mask
+from core.errors import TerrathemeError
+from core.model.project import ThematicTexture, save_project
+from core.themes.library import Theme, ThemeLibrary
+
+
+class EditDocument:
+    """A thematic texture open for editing.
+
+    Parameters
+    ----------
+    texture : ThematicTexture
+        Edited in place (its grid, library, photo and scribbles).
+    bad_layers : BadLayers
+        A photo that is not an 8-bit image, or a scribble layer that does not
+        fit the photo: refuse (default) or drop it (``dropped_layers`` says why).
+
+    Attributes
+    ----------
+    events : DocumentEvents
+        ``doc.events.grid.connect(callback)`` and so on.
+    history : History
+        The one undo history (read it; change it through :meth:`undo` / :meth:`redo`).
+    dropped_layers : tuple of str
+        One line per layer refused under ``BadLayers.DROP``.
+    """
+
+    def __init__(self, texture: ThematicTexture, *, bad_layers: BadLayers = BadLayers.RAISE
+                 ) -> None:
+        self.dropped_layers = check_layers(texture, bad_layers)
+        self.data = DocumentData(texture)
+        self.events = DocumentEvents.new()
+        self.history = History()
+        self._stroke: Stroke | None = None
+        self._photo_rgb: tuple[np.ndarray, np.ndarray] | None = None
+        self._uncertain: tuple[np.ndarray, np.ndarray] | None = None
+
+    # -- what the document holds ------------------------------------------------
+    @property
+    def texture(self) -> ThematicTexture:
+        return self.data.texture
+
+    @property
+    def indices(self) -> np.ndarray:
+        """(gh+1, gw+1) uint8 vertex indices (the live array: read, never write)."""
+        return self.data.texture.grid.indices
+
+    @property
+    def library(self) -> ThemeLibrary:
+        return self.data.texture.library
+
+    @property
+    def photo(self) -> np.ndarray | None:
+        return self.data.texture.photo
+
+    @property
+    def scribbles(self) -> np.ndarray | None:
+        return self.data.texture.scribbles
+
+    @property
+    def confidence(self) -> np.ndarray | None:
+        """(H, W) float32 read-only: the last classification's confidence, or None."""
+        return self.data.confidence
+
+    @property
+    def kept_prior(self) -> KeptPrior | None:
+        return self.data.kept_prior
+
+    def photo_rgb(self) -> np.ndarray | None:
+        """The photo as (H, W, 3) C-contiguous uint8 for display (a view when it is RGB)."""
+        photo = self.photo
+        if photo is None:
+            return None
+        if self._photo_rgb is None or self._photo_rgb[0] is not photo:
+            self._photo_rgb = (photo, display_photo(photo))
+        return self._photo_rgb[1]
+
+    def photo_extent(self) -> tuple[float, float] | None:
+        """``(width, height)`` in texels the photo covers (None without a photo)."""
+        return None if self.photo is None else photo_extent(self.photo.shape,
+                                                            self.texture.grid)
+
+    def texel_to_vertex(self, x: float, y: float) -> tuple[float, float]:
+        """Texel position -> vertex units (texel X sits at grid position X / N)."""
+        n, m = self.texture.grid.cell
+        return x / n, y / m
+
+    def texel_to_photo(self, x: float, y: float) -> tuple[float, float]:
+        """Texel position -> photo pixel units (1:1 unless the photo is stretched)."""
+        ew, eh = self.photo_extent()
+        return x * self.photo.shape[1] / ew, y * self.photo.shape[0] / eh
+
+    def scribble_classes(self) -> frozenset[int]:
+        """Class values painted in the scribble layer (without scanning it)."""
+        return self.data.scribble_classes()
+
+    def prior_for_scribbles(self) -> dict[int, float] | None:
+        """Class weights a scribble classification of the current strokes should reuse.
+
+        The kept prior applies while the same set of classes is painted
+        (:class:`~core.edit.uncertainty.KeptPrior`); otherwise None (estimate afresh).
+        """
+        kept = self.kept_prior
+        return dict(kept.weights) if kept and kept.applies_to(self.scribble_classes()) else None
+
+    def uncertain(self) -> np.ndarray | None:
+        """(H, W) bool: the least confident share of the photo, as regions (None: no map)."""
+        conf = self.confidence
+        if conf is None:
+            return None
+        if self._uncertain is None or self._uncertain[0] is not conf:
+            self._uncertain = (conf, uncertain_mask(conf))
+        return self._uncertain[1]
+
+    # -- applying changes ---------------------------------------------------------
+    def _fire(self, events: Iterable[Event], history: bool = True) -> None:
+        for event in events:
+            self.events.emit(event)
+        if history:
+            h = self.history
+            self.events.emit(HistoryChange(h.undo_label, h.redo_label, h.clean))
+
+    def _apply(self, changes: Sequence[Change]) -> list[Event]:
+        events: list[Event] = []
+        for change in changes:
+            events += change.apply(self.data)
+        return events
+
+    def _commit(self, label: str, changes: Sequence[Change]) -> Step | None:
+        """Apply ``changes`` as one undo step, then fire their events."""
+        self.end_stroke()
+        events = self._apply(changes)
+        step = self.history.record(label, changes)
+        self._fire(events, history=bool(changes))
+        return step
+
+    @contextmanager
+    def group(self, label: str) -> Iterator[None]:
+        """Every change made inside the ``with`` block is one undo step called ``label``."""
+        self.end_stroke()
+        try:
+            with self.history.group(label):
+                yield
+        finally:
+            self._fire(())
+
+    # -- painting ------------------------------------------------------------------
+    def begin_stroke(self, value: int, point: tuple[float, float], radius: float,
+                     layer: Layer = Layer.GRID) -> None:
+        """Start a brush stroke with a dab at ``point`` (:class:`~core.edit.strokes.Stroke`).
+
+        ``layer`` GRID: ``value`` is a theme index, ``point`` and ``radius``
+        in vertex units. SCRIBBLES: ``value`` is a class value (theme + 1,
+        0 erases), ``point`` and ``radius`` in photo pixels.
+        """
+        self.end_stroke()
+        stroke = Stroke(self.data, layer, check_value(layer, value, len(self.library)))
+        events = stroke.start(point, radius)
+        self._stroke = stroke
+        self._fire(events, history=False)
+
+    def stroke_to(self, point: tuple[float, float], radius: float) -> EditAtom | None:
+        """Extend the stroke to ``point``; applied and announced at once (the view
+        follows the mouse), the undo step is made by :meth:`end_stroke`."""
+        if self._stroke is None:
+            raise TerrathemeError("stroke_to called without begin_stroke")
+        atom, events = self._stroke.extend(point, radius)
+        self._fire(events, history=False)
+        return atom
+
+    def end_stroke(self) -> Step | None:
+        """Finish the open stroke as one undo step (None if it changed nothing or none is open)."""
+        stroke, self._stroke = self._stroke, None
+        if stroke is None:
+            return None
+        changes, events = stroke.finish()
+        step = self.history.record(stroke.label, changes)
+        self._fire(events, history=step is not None)
+        return step
+
+    @property
+    def in_stroke(self) -> bool:
+        return self._stroke is not None
+
+    def _paint(self, label: str, fp: VertexSelection, value: int) -> Step | None:
+        atom = EditAtom.record(self.indices, fp, check_value(Layer.GRID, value, len(self.library)))
+        return None if atom is None else self._commit(label, [Paint(Layer.GRID, atom)])
+
+    def fill_rect(self, p0: tuple[float, float], p1: tuple[float, float], value: int
+                  ) -> Step | None:
+        """Set every vertex in the rectangle with corners ``p0``, ``p1`` to ``value``."""
+        return self._paint("rectangle fill", rect_footprint(self.indices.shape, p0, p1), value)
+
+    def flood_fill(self, point: tuple[float, float], value: int,
+                   connectivity: Connectivity = Connectivity.FOUR) -> Step | None:
+        """Fill the connected region of equal indices at ``point`` with ``value``."""
+        return self._paint("flood fill", flood_footprint(self.indices, point, connectivity),
+                           value)
+
+    def pick(self, point: tuple[float, float]) -> int | None:
+        """Eyedropper: the theme index at the vertex nearest ``point`` (vertex units)."""
+        return eyedropper(self.indices, point)
+
+    def replace_grid(self, indices: np.ndarray, label: str = "replace grid") -> Step | None:
+        """Replace the whole grid as one undo step (None when it is the same grid)."""
+        return self._commit(label, grid_replacement(self.data, indices, len(self.library)))
+
+    def replace_scribbles(self, scribbles: np.ndarray | None, label: str = "replace scribbles"
+                          ) -> Step | None:
+        """Put a whole scribble layer (a copy of ``scribbles``; None removes it) in place."""
+        new = None if scribbles is None else validate_scribbles(scribbles, self.photo).copy()
+        old = self.scribbles
+        if (old is None and new is None) or (old is not None and new is not None
+                                             and np.array_equal(old, new)):
+            return None
+        classes = frozenset() if new is None else frozenset(np.unique(new).tolist()) - {0}
+        return self._commit(label, [SwapLayer(Layer.SCRIBBLES, old, new),
+                                    *drop_prior_without_classes(self.data, classes)])
+
+    # -- themes ----------------------------------------------------------------------
+    def replace_theme(self, k: int, theme: Theme, label: str | None = None) -> Step | None:
+        """Rename / recolour / retexture theme ``k`` (None when ``theme`` equals it)."""
+        old = self.library[k]
+        k = k % len(self.library)
+        check_theme_name(self.library, theme.name, skip=k)
+        if theme == old:
+            return None
+        return self._commit(label or f"change theme {old.name}", [SetTheme(k, old, theme)])
+
+    def add_theme(self, theme: Theme) -> int:
+        """Append a theme as one undo step; returns its index."""
+        check_theme_name(self.library, theme.name)
+        if len(self.library) >= 256:
+            raise TerrathemeError("a theme library holds at most 256 themes")
+        self._commit(f"add theme {theme.name}", [AppendTheme(theme)])
+        return len(self.library) - 1
+
+    def remove_last_theme(self) -> Step:
+        """Remove the last theme as one undo step; refused while it is painted."""
+        last = len(self.library) - 1
+        name = self.library[last].name
+        if last == 0:
+            raise TerrathemeError(f"theme {name!r} is the only theme: a project needs one")
+        if int(self.indices.max()) >= last or (last < 255 and self.data.scribble_counts[last + 1]):
+            raise TerrathemeError(f"theme {name!r} is still painted on the grid or in the "
+                                  "scribbles")
+        return self._commit(f"remove theme {name}", [RemoveLastTheme(self.library[last])])
+
+    # -- photo, confidence, classification results ----------------------------------------
+    def set_photo(self, photo: np.ndarray | None, label: str = "set photo") -> Step | None:
+        """Show ``photo`` under the index map (None removes it), as one undo step.
+
+        The confidence map (it was for the old photo) goes in the same step;
+        so do the scribbles and the kept prior when they do not fit the new photo.
+        """
+        new = None if photo is None else validate_photo(photo)
+        return None if new is self.photo else self._commit(label, photo_replacement(self.data, new))
+
+    def set_confidence(self, confidence: np.ndarray | None, label: str = "confidence map"
+                       ) -> Step | None:
+        """Keep a classification's (H, W) confidence map (the photo's size); None clears it."""
+        new = None if confidence is None else validate_confidence(confidence, self.photo)
+        if new is None and self.confidence is None:
+            return None
+        return self._commit(label, [SwapLayer(Layer.CONFIDENCE, self.confidence, new)])
+
+    def apply_classification(
+        self,
+        indices: np.ndarray,
+        *,
+        new_themes: Sequence[Theme] = (),
+        replace_themes: bool = False,
+        confidence: np.ndarray | None = None,
+        scribble_classes: frozenset[int] | None = None,
+        class_weights: Mapping[int, float] | None = None,
+        label: str = "classification",
+    ) -> Step | None:
+        """A classification result as one undo step: themes, grid, confidence, prior.
+
+        Parameters
+        ----------
+        indices : (gh+1, gw+1) integer ndarray
+            The new grid, indexing the library after the change: the current
+            themes then ``new_themes``, or (``replace_themes``) ``new_themes`` alone.
+        new_themes : sequence of Theme
+            Themes cut from the photo for the classes.
+        replace_themes : bool
+            The library becomes ``new_themes`` (a project just started over a photo).
+        confidence : (H, W) float ndarray in [0, 1] or None
+            Replaces the old map (None clears it: it was another result's).
+        scribble_classes, class_weights :
+            Scribble runs: the classes trained on and the model's class-prior
+            weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
+
+        Returns None when nothing changed (the same grid and themes, no map).
+        """
+        # Check everything before anything changes.
+        if replace_themes:
+            library = ThemeLibrary(new_themes)
+            if not len(library):
+                raise TerrathemeError("a classification that replaces the themes needs themes")
+        else:
+            library = ThemeLibrary([*self.library, *new_themes])
+        changes: list[Change] = []
+        if replace_themes and library != self.library:
+            changes.append(SetLibrary(self.library, library))
+        elif not replace_themes:
+            changes += [AppendTheme(t) for t in new_themes]
+        new_conf = None if confidence is None else validate_confidence(confidence, self.photo)
+        if new_conf is not None or self.confidence is not None:
+            changes.append(SwapLayer(Layer.CONFIDENCE, self.confidence, new_conf))
+        if scribble_classes is not None:
+            prior = next_kept_prior(self.kept_prior, frozenset(scribble_classes), class_weights)
+            if prior != self.kept_prior:
+                changes.append(SetPrior(self.kept_prior, prior))
+        grid = grid_replacement(self.data, indices, len(library))
+        # Themes first (the new grid refers to them), then the grid, then the rest.
+        n_themes = sum(isinstance(c, SetLibrary | AppendTheme) for c in changes)
+        changes[n_themes:n_themes] = grid
+        return self._commit(label, changes) if changes else None
+
+    # -- history -------------------------------------------------------------------
+    def undo(self) -> Step | None:
+        """Undo the last step (an open stroke is finished first, then undone)."""
+        self.end_stroke()
+        step = self.history.pop_undo()
+        if step is not None:
+            self._fire([e for c in reversed(step.changes) for e in c.revert(self.data)])
+        return step
+
+    def redo(self) -> Step | None:
+        """Redo the last undone step."""
+        self.end_stroke()
+        step = self.history.pop_redo()
+        if step is not None:
+            self._fire(self._apply(step.changes))
+        return step
+
+    def save(self, path) -> None:
+        """Write the project file (``core.model.project.save_project``); marks it clean."""
+        self.end_stroke()
+        save_project(path, self.texture)
+        self.history.mark_saved()
+        self._fire(())
+

@@ -1,0 +1,139 @@
+"""Change events of the edit document: frozen dataclasses handed to plain callables.
+
+As in napari's layer model (``layer.events.data.connect(callback)``), a
+document has one emitter per kind of change (:class:`DocumentEvents`) and
+fires a small event after every change, undo and redo, once the document is
+consistent again (a step that replaces the themes and the grid fires after
+both). A view (the Qt editor) connects to them and never polls.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import Generic, TypeVar
+
+
+@dataclass(frozen=True)
+class GridChange:
+    """Vertices in ``indices[rows, cols]`` may have changed."""
+
+    rows: slice
+    cols: slice
+
+
+@dataclass(frozen=True)
+class ScribbleChange:
+    """Pixels ``scribbles[rows, cols]`` of the scribble layer may have changed.
+
+    ``whole`` is True when the layer was created, removed or replaced (its
+    shape may differ; ``rows``/``cols`` then span the new layer, empty if none).
+    """
+
+    rows: slice
+    cols: slice
+    whole: bool = False
+
+
+@dataclass(frozen=True)
+class ThemeChange:
+    """The theme library changed.
+
+    Attributes
+    ----------
+    index : int or None
+        The theme added, removed or replaced; None when the whole library was.
+    colours : bool
+        Display colours of themes the grid may use changed (recolour the index map).
+    textures : bool
+        Textures of themes the grid may use changed (re-render everything).
+    """
+
+    index: int | None
+    colours: bool
+    textures: bool
+
+
+@dataclass(frozen=True)
+class PhotoChange:
+    """The photo layer was set, replaced or removed."""
+
+
+@dataclass(frozen=True)
+class ConfidenceChange:
+    """The classifier's confidence map was set, replaced or cleared."""
+
+
+@dataclass(frozen=True)
+class PriorChange:
+    """The class prior kept between scribble classifications changed."""
+
+
+@dataclass(frozen=True)
+class HistoryChange:
+    """The undo history moved: what Undo and Redo would do now, and whether it is saved.
+
+    Attributes
+    ----------
+    undo_label, redo_label : str or None
+        Label of the step :meth:`~core.edit.history.History.undo` /
+        ``redo`` would take (None: nothing to undo / redo).
+    clean : bool
+        The document equals its last saved (or opened) state.
+    """
+
+    undo_label: str | None
+    redo_label: str | None
+    clean: bool
+
+
+Event = (GridChange | ScribbleChange | ThemeChange | PhotoChange | ConfidenceChange
+         | PriorChange | HistoryChange)
+E = TypeVar("E")
+
+
+class Emitter(Generic[E]):
+    """Calls every connected callable with each event, in connection order."""
+
+    def __init__(self) -> None:
+        self._callbacks: list[Callable[[E], None]] = []
+
+    def connect(self, callback: Callable[[E], None]) -> Callable[[], None]:
+        """Call ``callback(event)`` after every change; returns the disconnect function."""
+        self._callbacks.append(callback)
+        return lambda: self.disconnect(callback)
+
+    def disconnect(self, callback: Callable[[E], None]) -> None:
+        """Stop calling ``callback`` (no error if it was not connected)."""
+        if callback in self._callbacks:
+            self._callbacks.remove(callback)
+
+    def emit(self, event: E) -> None:
+        for callback in list(self._callbacks):
+            callback(event)
+
+
+@dataclass(frozen=True, eq=False)
+class DocumentEvents:
+    """One emitter per kind of change (``doc.events.grid.connect(callback)``)."""
+
+    grid: Emitter[GridChange]
+    scribbles: Emitter[ScribbleChange]
+    themes: Emitter[ThemeChange]
+    photo: Emitter[PhotoChange]
+    confidence: Emitter[ConfidenceChange]
+    prior: Emitter[PriorChange]
+    history: Emitter[HistoryChange]
+
+    @classmethod
+    def new(cls) -> DocumentEvents:
+        return cls(*(Emitter() for _ in fields(cls)))
+
+    def emit(self, event: Event) -> None:
+        """Hand ``event`` to the emitter of its kind."""
+        emitter = {
+            GridChange: self.grid, ScribbleChange: self.scribbles, ThemeChange: self.themes,
+            PhotoChange: self.photo, ConfidenceChange: self.confidence,
+            PriorChange: self.prior, HistoryChange: self.history,
+        }[type(event)]
+        emitter.emit(event)

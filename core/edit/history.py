@@ -1,0 +1,150 @@
+"""The undo history of an edit document: steps of changes, groups, the saved mark.
+
+One history holds every kind of change (grid, scribbles, themes, photo,
+confidence, prior), so Undo always takes back the last thing the user did,
+whatever layer it touched. A step is a labelled tuple of changes that were
+applied together; :meth:`History.group` merges everything recorded inside it
+into one step (napari's ``block_history``): a brush stroke, or a
+classification that replaces themes, grid and confidence at once. The
+history only keeps the books; the document applies and reverts the changes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from core.edit.changes import Change
+from core.errors import TerrathemeError
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One undo step: changes applied in order, reverted in reverse order."""
+
+    label: str
+    changes: tuple[Change, ...]
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the arrays the step keeps alive (an upper bound)."""
+        return sum(c.nbytes for c in self.changes)
+
+
+class History:
+    """Undo and redo stacks of :class:`Step`, with grouping and a saved mark."""
+
+    def __init__(self) -> None:
+        self._undo: list[Step] = []
+        self._redo: list[Step] = []
+        self._group: list[Change] | None = None
+        self._group_label = ""
+        #: ``len(self._undo)`` when the document was last saved; None once unreachable
+        self._saved_at: int | None = 0
+
+    # -- recording -------------------------------------------------------------
+    def record(self, label: str, changes: Sequence[Change]) -> Step | None:
+        """Put already-applied ``changes`` on the history as one step (or into the open group).
+
+        Clears the redo stack. Returns the step, None when ``changes`` is
+        empty or a group is open (the group's step is made when it closes).
+        """
+        if not changes:
+            return None
+        if self._group is not None:
+            self._group.extend(changes)
+            return None
+        if self._saved_at is not None and self._saved_at > len(self._undo):
+            # The saved state was on the redo stack: it can never come back.
+            self._saved_at = None
+        self._redo.clear()
+        step = Step(label, tuple(changes))
+        self._undo.append(step)
+        return step
+
+    @contextmanager
+    def group(self, label: str) -> Iterator[None]:
+        """Everything recorded inside the ``with`` block becomes one step called ``label``.
+
+        Nested groups join the outermost. The step is recorded even when the
+        block raises, so the history always matches what was applied.
+        """
+        if self._group is not None:
+            yield
+            return
+        self._group, self._group_label = [], label
+        try:
+            yield
+        finally:
+            changes, self._group = self._group, None
+            self.record(self._group_label, changes)
+
+    @property
+    def grouping(self) -> bool:
+        """Whether a :meth:`group` is open."""
+        return self._group is not None
+
+    # -- moving ----------------------------------------------------------------
+    def pop_undo(self) -> Step | None:
+        """The step to revert now (moved to the redo stack), or None."""
+        self._check_not_grouping("undo")
+        if not self._undo:
+            return None
+        step = self._undo.pop()
+        self._redo.append(step)
+        return step
+
+    def pop_redo(self) -> Step | None:
+        """The step to apply again now (moved back to the undo stack), or None."""
+        self._check_not_grouping("redo")
+        if not self._redo:
+            return None
+        step = self._redo.pop()
+        self._undo.append(step)
+        return step
+
+    def _check_not_grouping(self, what: str) -> None:
+        if self._group is not None:
+            raise TerrathemeError(f"cannot {what} while the step {self._group_label!r} is open")
+
+    # -- state -----------------------------------------------------------------
+    @property
+    def undo_steps(self) -> tuple[Step, ...]:
+        """Steps that can be undone, oldest first."""
+        return tuple(self._undo)
+
+    @property
+    def redo_steps(self) -> tuple[Step, ...]:
+        """Steps that can be redone, the next one last."""
+        return tuple(self._redo)
+
+    @property
+    def can_undo(self) -> bool:
+        return bool(self._undo)
+
+    @property
+    def can_redo(self) -> bool:
+        return bool(self._redo)
+
+    @property
+    def undo_label(self) -> str | None:
+        return self._undo[-1].label if self._undo else None
+
+    @property
+    def redo_label(self) -> str | None:
+        return self._redo[-1].label if self._redo else None
+
+    @property
+    def clean(self) -> bool:
+        """Whether the document is in the state it was last saved (or opened) in."""
+        return self._saved_at == len(self._undo)
+
+    def mark_saved(self) -> None:
+        """The document was just saved: this is the clean state now."""
+        self._saved_at = len(self._undo)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the undo and redo stacks."""
+        return sum(s.nbytes for s in self._undo) + sum(s.nbytes for s in self._redo)

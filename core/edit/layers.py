@@ -1,0 +1,236 @@
+"""The layers of an edit document, what each must look like, and where the photo lies.
+
+An :class:`~core.edit.document.EditDocument` edits a
+:class:`~core.model.project.ThematicTexture` (the vertex index grid, the
+theme library, the photo and the scribble layer) plus two layers that live
+only in the editor: the classifier's confidence map and the class prior kept
+between scribble rounds. :class:`DocumentData` holds them all; the undoable
+changes (:mod:`core.edit.changes`) are the only code that writes it.
+
+A project file may carry a photo or scribble layer the editor cannot show
+(1-D, float, one pixel, the wrong size): :func:`validate_photo`,
+:func:`validate_scribbles` and :func:`validate_confidence` refuse those with
+one line naming the layer and the problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from core.edit.uncertainty import KeptPrior
+from core.errors import TerrathemeError
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture
+from core.themes.library import ThemeLibrary
+
+
+class Layer(Enum):
+    """A layer of the document that an undoable change can paint or replace."""
+
+    #: (gh+1, gw+1) uint8 theme index per grid vertex (painted, never replaced whole)
+    GRID = "grid"
+    #: (H, W) uint8 training strokes over the photo: class value = theme + 1, 0 = none
+    SCRIBBLES = "scribbles"
+    #: (H, W, C) uint8 orthophoto shown under the index map
+    PHOTO = "photo"
+    #: (H, W) float32 in [0, 1]: the last classification's confidence per photo pixel
+    CONFIDENCE = "confidence"
+
+
+def validate_photo(photo: object) -> np.ndarray:
+    """Check a photo layer: ``(H, W)``, ``(H, W, 1)``, ``(H, W, 3)`` or ``(H, W, 4)`` uint8.
+
+    Raises
+    ------
+    TerrathemeError
+        Not an array, not 8-bit, not an image shape, or no pixels.
+    """
+    if not isinstance(photo, np.ndarray):
+        raise TerrathemeError(f"photo layer is a {type(photo).__name__}, not an image array")
+    if photo.ndim not in (2, 3) or (photo.ndim == 3 and photo.shape[2] not in (1, 3, 4)):
+        raise TerrathemeError(f"photo layer has shape {photo.shape}; an image is (H, W), "
+                              "(H, W, 3) or (H, W, 4)")
+    if photo.dtype != np.uint8:
+        raise TerrathemeError(f"photo layer holds {photo.dtype} values; the editor shows "
+                              "8-bit (uint8) photos")
+    if photo.shape[0] == 0 or photo.shape[1] == 0:
+        raise TerrathemeError(f"photo layer has no pixels (shape {photo.shape})")
+    return photo
+
+
+def validate_scribbles(scribbles: object, photo: np.ndarray | None) -> np.ndarray:
+    """Check a scribble layer: ``(H, W)`` uint8, the photo's ``H`` and ``W``.
+
+    Raises
+    ------
+    TerrathemeError
+        No photo to lie over, not an array, not 2-D uint8, or not the photo's size.
+    """
+    if photo is None:
+        raise TerrathemeError("scribble layer without a photo: scribbles mark photo pixels")
+    if not isinstance(scribbles, np.ndarray) or scribbles.ndim != 2:
+        shape = getattr(scribbles, "shape", type(scribbles).__name__)
+        raise TerrathemeError(f"scribble layer has shape {shape}; it must be (H, W) like "
+                              f"the {photo.shape[1]} x {photo.shape[0]} photo")
+    if scribbles.dtype != np.uint8:
+        raise TerrathemeError(f"scribble layer holds {scribbles.dtype} values; it must be "
+                              "uint8 class values (0 = unlabelled)")
+    if scribbles.shape != photo.shape[:2]:
+        raise TerrathemeError(f"scribble layer is {scribbles.shape[1]} x {scribbles.shape[0]}; "
+                              f"the photo is {photo.shape[1]} x {photo.shape[0]}")
+    return scribbles
+
+
+def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndarray:
+    """Check a confidence map and return it as a read-only ``(H, W) float32`` array.
+
+    Raises
+    ------
+    TerrathemeError
+        No photo, not the photo's size, or values that are not finite in [0, 1].
+    """
+    conf = np.array(confidence, dtype=np.float32)
+    if photo is None or conf.shape != photo.shape[:2]:
+        have = "no photo" if photo is None else f"a {photo.shape[1]} x {photo.shape[0]} photo"
+        raise TerrathemeError(f"a {conf.shape[::-1]} confidence map does not fit {have}")
+    if conf.size and not (np.isfinite(conf).all() and conf.min() >= 0 and conf.max() <= 1):
+        raise TerrathemeError("confidence map values must be finite and in [0, 1]")
+    conf.setflags(write=False)
+    return conf
+
+
+def display_photo(photo: np.ndarray) -> np.ndarray:
+    """The photo as ``(H, W, 3)`` C-contiguous uint8 for display (grey repeated, alpha cut)."""
+    if photo.ndim == 2:
+        photo = photo[..., None]
+    if photo.shape[2] == 1:
+        photo = np.repeat(photo, 3, axis=2)
+    return np.ascontiguousarray(photo[..., :3])
+
+
+def photo_extent(photo_shape: tuple[int, ...], grid: IndexGrid) -> tuple[float, float]:
+    """``(width, height)`` in texels that a photo of ``photo_shape`` covers.
+
+    1:1 from the origin (the converter's convention: the grid is rounded up
+    to whole cells) when the photo is at most one cell smaller than the
+    render in each direction; otherwise stretched over the whole render.
+    """
+    ph, pw = photo_shape[:2]
+    w, h = grid.texture_size
+    n, m = grid.cell
+    if w - n < pw <= w and h - m < ph <= h:
+        return float(pw), float(ph)
+    return float(w), float(h)
+
+
+class BadLayers(Enum):
+    """What a document does with a photo or scribble layer it cannot show."""
+
+    #: refuse the document (TerrathemeError naming the layer and the problem)
+    RAISE = "raise"
+    #: open without the layer, saying why
+    DROP = "drop"
+
+
+def check_layers(texture: ThematicTexture, bad_layers: BadLayers = BadLayers.RAISE
+                 ) -> tuple[str, ...]:
+    """Check the photo and scribble layers of ``texture``; under DROP remove bad ones.
+
+    Returns one line per layer removed (naming the layer and the problem);
+    under RAISE the first bad layer raises TerrathemeError instead.
+    """
+    dropped = []
+    # The photo first: the scribbles are checked against it.
+    for layer in (Layer.PHOTO, Layer.SCRIBBLES):
+        array = getattr(texture, layer.value)
+        if array is None:
+            continue
+        try:
+            if layer is Layer.PHOTO:
+                validate_photo(array)
+            else:
+                validate_scribbles(array, texture.photo)
+        except TerrathemeError as exc:
+            if bad_layers is BadLayers.RAISE:
+                raise
+            dropped.append(f"{exc}: opened without the {layer.value} layer")
+            setattr(texture, layer.value, None)
+    return tuple(dropped)
+
+
+def check_value(layer: Layer, value: object, n_themes: int) -> int:
+    """Check a value to paint: a theme index on the grid, a class value in the scribbles.
+
+    Scribble class value ``v`` marks theme ``v - 1``; 0 erases.
+    """
+    top = n_themes - 1 if layer is Layer.GRID else min(n_themes, 255)
+    if not isinstance(value, int | np.integer) or not 0 <= int(value) <= top:
+        what = "theme index" if layer is Layer.GRID else "scribble class value"
+        raise TerrathemeError(f"{what} {value} is out of range 0..{top} "
+                              f"(the library has {n_themes} themes)")
+    return int(value)
+
+
+def check_theme_name(library: ThemeLibrary, name: str, skip: int | None = None) -> None:
+    """Refuse a theme name the library already has (case-insensitive), but for theme ``skip``."""
+    taken = [n.lower() for i, n in enumerate(library.names) if i != skip]
+    if name.lower() in taken:
+        raise TerrathemeError(f"a theme called {name!r} is already in the library")
+
+
+@dataclass(eq=False)
+class DocumentData:
+    """Everything an edit document holds; written only by :mod:`core.edit.changes`.
+
+    Attributes
+    ----------
+    texture : ThematicTexture
+        Grid, library, photo and scribbles (saved in the project file).
+    confidence : (H, W) float32 read-only ndarray or None
+        The last classification's confidence map (not saved).
+    kept_prior : KeptPrior or None
+        Class weights of the first scribble classification (not saved).
+    scribble_counts : (256,) int64 ndarray
+        Pixels of the scribble layer holding each value, kept current by every
+        change, so the painted classes are known without scanning the layer.
+    """
+
+    texture: ThematicTexture
+    confidence: np.ndarray | None = None
+    kept_prior: KeptPrior | None = None
+    scribble_counts: np.ndarray = field(default_factory=lambda: np.zeros(256, np.int64))
+
+    def __post_init__(self) -> None:
+        self.recount_scribbles()
+
+    def layer(self, which: Layer) -> np.ndarray | None:
+        """The array of ``which`` (None when the document has no such layer)."""
+        if which is Layer.GRID:
+            return self.texture.grid.indices
+        if which is Layer.CONFIDENCE:
+            return self.confidence
+        return getattr(self.texture, which.value)
+
+    def set_layer(self, which: Layer, array: np.ndarray | None) -> None:
+        """Put ``array`` in place of layer ``which`` (not the grid, which is painted)."""
+        if which is Layer.GRID:
+            raise TerrathemeError("the index grid is painted, never replaced whole")
+        if which is Layer.CONFIDENCE:
+            self.confidence = array
+            return
+        setattr(self.texture, which.value, array)
+        if which is Layer.SCRIBBLES:
+            self.recount_scribbles()
+
+    def recount_scribbles(self) -> None:
+        """Recount :attr:`scribble_counts` from the whole layer (after it was replaced)."""
+        sc = self.texture.scribbles
+        self.scribble_counts = (np.zeros(256, np.int64) if sc is None else
+                                np.bincount(sc.ravel(), minlength=256).astype(np.int64))
+
+    def scribble_classes(self) -> frozenset[int]:
+        """Class values painted in the scribble layer (0 = unlabelled is not a class)."""
+        return frozenset(int(v) for v in np.flatnonzero(self.scribble_counts[1:]) + 1)

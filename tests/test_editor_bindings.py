@@ -1,0 +1,177 @@
+"""The Qt editor bound to the core document (pytest-qt, offscreen): undo menu, odd layers, Help."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("PySide6")
+pytest.importorskip("pytestqt")
+
+from PySide6.QtCore import QPoint, QPointF, Qt
+
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture, save_project
+from core.themes.library import Theme, ThemeLibrary
+
+pytestmark = pytest.mark.qt
+
+
+def small_texture(photo=None, scribbles=None) -> ThematicTexture:
+    rng = np.random.default_rng(2)
+    lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
+                       for n, c in (("grass", (90, 160, 60)), ("water", (40, 80, 170))))
+    return ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib, photo=photo,
+                           scribbles=scribbles)
+
+
+def screen_of(canvas, texel: QPointF) -> QPoint:
+    s, o = canvas.view.scale, canvas.view.origin
+    return QPoint(round((texel.x() - o.x()) * s), round((texel.y() - o.y()) * s))
+
+
+@pytest.fixture
+def window(open_window):
+    from app.editor.document import EditorDocument
+
+    return open_window(EditorDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8))))
+
+
+def test_edit_menu_and_title_follow_the_core_history(window, qtbot, tmp_path):
+    doc = window.doc
+    assert not window.undo_action.isEnabled() and not window.redo_action.isEnabled()
+    assert "*" not in window.windowTitle()
+    doc.model.fill_rect((0, 0), (2, 2), 1)
+    assert window.undo_action.text() == "&Undo rectangle fill" and window.undo_action.isEnabled()
+    assert window.windowTitle().startswith("untitled *")
+    # Ctrl+Z goes to the core history; the render and index colours follow its events.
+    window.index_canvas.setFocus()
+    qtbot.keyClick(window, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    assert not doc.texture.grid.indices.any()
+    assert window.redo_action.text() == "&Redo rectangle fill"
+    assert (doc.index_rgb == doc.texture.library[0].colour).all()
+    assert "*" not in window.windowTitle()
+    window.redo_action.trigger()
+    assert doc.texture.grid.indices[:3, :3].all()
+    assert window._save_to(tmp_path / "p.ttproj") and doc.clean
+    assert window.windowTitle() == "p.ttproj — terratheme"
+
+
+def test_undo_during_a_brush_drag_takes_the_stroke_back(window, qtbot):
+    doc = window.doc
+    canvas = window.index_canvas
+    doc.model.fill_rect((12, 8), (12, 8), 1)  # an earlier step: Undo is enabled
+    window.palette_widget.select(1)
+    qtbot.mousePress(canvas, Qt.MouseButton.LeftButton, pos=screen_of(canvas, QPointF(16, 16)))
+    qtbot.mouseMove(canvas, screen_of(canvas, QPointF(40, 16)))
+    assert doc.model.in_stroke and doc.texture.grid.indices.sum() > 1
+    window.undo_action.trigger()
+    # The stroke is finished and taken back; the earlier step stays.
+    assert doc.texture.grid.indices.sum() == 1 and not doc.model.in_stroke
+    # The rest of the drag paints nothing: the stroke it belonged to is undone.
+    qtbot.mouseMove(canvas, screen_of(canvas, QPointF(60, 16)))
+    qtbot.mouseRelease(canvas, Qt.MouseButton.LeftButton, pos=screen_of(canvas, QPointF(60, 16)))
+    assert doc.texture.grid.indices.sum() == 1
+    assert doc.model.history.undo_label == "rectangle fill"
+    assert doc.model.history.redo_label == "brush stroke"
+
+
+def test_brush_then_undo_of_a_single_vertex(window, qtbot):
+    doc = window.doc
+    window.palette_widget.select(1)
+    window.size_box.setValue(1)
+    canvas = window.index_canvas
+    qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=screen_of(canvas, QPointF(24, 16)))
+    assert doc.texture.grid.indices[2, 3] == 1 and doc.texture.grid.indices.sum() == 1
+    window.undo_action.trigger()
+    assert not doc.texture.grid.indices.any()
+    np.testing.assert_array_equal(doc.index_rgb[2, 3], doc.texture.library[0].colour)
+
+
+ODD_LAYERS = [
+    ({"photo": np.zeros(5, np.uint8)}, "photo layer has shape (5,)"),
+    ({"photo": np.zeros(1, np.uint8)}, "photo layer has shape (1,)"),
+    ({"photo": np.zeros((64, 96, 3), np.float32)}, "photo layer holds float32 values"),
+    ({"photo": np.zeros((64, 96, 3), np.uint8), "scribbles": np.zeros(7, np.uint8)},
+     "scribble layer has shape (7,)"),
+    ({"photo": np.zeros((64, 96, 3), np.uint8), "scribbles": np.zeros((64, 96), np.float64)},
+     "scribble layer holds float64 values"),
+]
+
+
+@pytest.mark.parametrize(("layers", "message"), ODD_LAYERS)
+def test_a_project_with_an_odd_layer_opens_without_it(window, tmp_path, layers, message):
+    path = tmp_path / "odd.ttproj"
+    save_project(path, small_texture(**layers))
+    assert window.open_path(path)
+    assert len(window.errors) == 1
+    assert window.errors[0].startswith(f"odd.ttproj: {message}") and "opened without" in \
+        window.errors[0]
+    tex = window.doc.texture
+    name = "photo" if "photo layer" in message else "scribbles"
+    assert getattr(tex, name) is None
+    # The rest works: paint, scribble (or a clear word when there is no photo), render.
+    window.doc.model.fill_rect((0, 0), (3, 3), 1)
+    from app.editor.tools import Tool
+
+    window.set_tool(Tool.SCRIBBLE)
+    window.tools.press(QPointF(10, 10))
+    window.tools.release(QPointF(10, 10))
+    if tex.photo is None:
+        assert "has none" in window.statusBar().currentMessage()
+    else:
+        assert tex.scribbles is not None and tex.scribbles.any()
+    window.index_canvas.repaint()
+
+
+def test_the_screenshot_command_reports_an_odd_layer_without_a_dialog(tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QMessageBox
+
+    from app.cli import main
+    from core.io.images import read_image
+
+    dialogs = []
+    monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: dialogs.append(a[2]))
+
+    path = tmp_path / "odd.ttproj"
+    save_project(path, small_texture(photo=np.zeros(5, np.uint8)))
+    out = tmp_path / "shot.png"
+    assert main(["app", str(path), "--screenshot", str(out), "--size", "640x400"]) == 0
+    assert read_image(out).shape[0] >= 400 and dialogs == []
+
+
+def test_photo_changes_reach_the_window(window):
+    doc = window.doc
+    photo = np.full((64, 96, 3), 200, np.uint8)
+    doc.model.set_photo(photo)
+    assert doc.photo_pyramid.base is photo or np.array_equal(doc.photo_pyramid.base, photo)
+    doc.model.set_photo(None)
+    assert doc.photo_pyramid is None and not window.photo_slider.isEnabled()
+    doc.model.undo()
+    assert window.photo_slider.isEnabled()
+
+
+def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
+    from PySide6.QtGui import QDesktopServices
+    from PySide6.QtWidgets import QMessageBox
+
+    import core
+    from app.editor.help import DOCS
+
+    shown, opened = [], []
+    monkeypatch.setattr(QMessageBox, "exec", lambda box: shown.append(box.text()))
+    monkeypatch.setattr(QMessageBox, "information", lambda *a, **k: shown.append(a[2]))
+    monkeypatch.setattr(QMessageBox, "about", lambda *a, **k: shown.append(a[2]))
+    monkeypatch.setattr(QDesktopServices, "openUrl", lambda url: opened.append(url) or True)
+    texts = [a.text() for a in window.help_menu.actions()]
+    assert texts == ["&Keys and mouse…", "&Documentation…", "&About terratheme…"]
+    window.doc.model.fill_rect((0, 0), (1, 1), 1)  # Undo's text names the step now
+    for act in window.help_menu.actions():
+        act.trigger()
+    keys, docs, about = shown
+    for must in ("Brush", "Scribble", "Wheel", "Ctrl+Z", "Edit &gt; Undo<", "File &gt; Save",
+                 "[ and ]"):
+        assert must in keys, must
+    assert str(DOCS[0]) in docs
+    assert opened and opened[0].toLocalFile() == str(DOCS[0])
+    assert f"terratheme {core.__version__}" in about and "PySide6" in about
