@@ -17,7 +17,7 @@ from enum import Enum
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
 
-from app.editor.uncertainty import scribble_classes
+from core.edit.uncertainty import scribble_classes
 from core.themes.library import Theme, ThemeLibrary
 
 #: display colours of new class themes (matplotlib's tab10, as 8-bit RGB)
