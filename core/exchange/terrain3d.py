@@ -199,6 +199,12 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         notes.append("Terrain3D needs textures of one size: themes resampled to "
                      f"{max(s[1] for s in sizes)} x {max(s[0] for s in sizes)} "
                      "(uv_scale keeps their world size)")
+    wtex, htex = project.grid.texture_size
+    spacing = wtex / (layout.size[0] - 1)
+    if project.colour_map is not None and spacing > project.colour_map.scale:
+        notes.append(f"the colour map (a pixel per {project.colour_map.scale} texels) is sampled "
+                     f"at the control map's vertices (one per {spacing:g} texels); "
+                     f"--size {wtex + 1}x{htex + 1} keeps it (a vertex per texel)")
     colour = () if project.colour_map is None else (COLOUR_MAP,)
     files = (CONTROL_MAP, *colour, *theme_files(project), MANIFEST)
     return ExportPlan(options, layout, world, files, tuple(notes))
