@@ -139,7 +139,8 @@ def shaped_slots(
         ``(h, w)`` int64 denominator ``sum(v_t)``.
     """
     textures = theme_textures(themes)
-    indices = np.ascontiguousarray(validate_indices(grid, n_themes=len(textures)))
+    # Writeable C arrays: one kernel signature (numba types read-only arrays apart).
+    indices = np.require(validate_indices(grid, n_themes=len(textures)), np.uint8, ("C", "W"))
     n, m = (int(v) for v in cell)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     if size[0] < 2 or size[1] < 2:
@@ -147,7 +148,7 @@ def shaped_slots(
     x, y, w, h = check_window(window, size)
     if splits is None:
         splits = cell_splits(indices, saddle)
-    splits = np.ascontiguousarray(splits, dtype=np.uint8)
+    splits = np.require(splits, np.uint8, ("C", "W"))
     packed = pack_themes(textures, n)
     rows = ThemeRows(packed.flat, packed.off, packed.stride, packed.th, packed.tw)
     block = RegionBlock(indices, splits, 0, 0, 0, 0, n, m)
