@@ -197,3 +197,36 @@ def test_projects_without_a_colour_map_write_none(tmp_path):
     assert manifest["colour_map"] is None and "colour_map_st" not in manifest["tiles"][0]
     plan = plan_export(project, ExportOptions(Engine.GODOT))
     assert "terrain3d_colour.png" not in plan.files
+
+
+@pytest.mark.slow
+def test_a_converted_photo_exports_its_look():
+    # convert's defaults: shaped borders and a colour map; one weight pixel per texel.
+    from pathlib import Path
+
+    from core.convert import convert_photo
+    from core.exchange import map_weights
+    from core.exchange.colour import vertex_colour_uv
+    from core.exchange.layout import ExportLayout
+    from core.io.images import read_image
+    from core.render.project import project_style
+
+    photo = read_image(Path(__file__).resolve().parents[1] / "sample_maps" / "dubai_marina.jpg")
+    project = convert_photo(photo[:640, :640]).project
+    assert project.colour_map is not None and project_style(project).boundary is not None
+    wtex, htex = project.grid.texture_size
+    size = (wtex + 1, htex + 1)
+    uv = vertex_colour_uv(project, ExportLayout(size))
+    rows, cols = np.mgrid[:htex, :wtex]
+    (au, av), (bu, bv) = uv["uv_per_vertex"], uv["uv_offset"]
+    gain = _bilinear(project.colour_map.pixels, cols * au + bu, rows * av + bv) / 128
+    ref = render_project(project, (0, 0, wtex, htex)).astype(float)
+
+    def shown(style: WeightStyle) -> np.ndarray:
+        weights = map_weights(project, size, None, ExportOptions(Engine.UNREAL, style=style))
+        splat = _splat(weights[:, :htex, :wtex], project.library.textures)
+        return np.minimum(np.floor(splat * gain + 0.5), 255)
+
+    assert np.abs(shown(WeightStyle.PROJECT) - ref).max() <= 2
+    # The paper's weights smear every border over its cell: far from the render.
+    assert np.abs(shown(WeightStyle.LINEAR) - ref).max() > 50
