@@ -114,3 +114,34 @@ def test_splatmap_channel_without_a_theme_is_refused(tmp_path, capsys):
     write_image(tmp_path / "s.png", rgba, attributes={"oiio:UnassociatedAlpha": 1})
     _error(capsys, ["new", str(tmp_path / "s.png"), str(tmp_path / "a.ttproj"), "--themes",
                     "water,sand", "--from", "splatmap"], "weight channel 2 carries weight")
+
+
+def test_a_styled_project_exports_its_look_and_comes_back(tmp_path, project, capsys):
+    # The project as convert leaves it: shaped borders in metadata["render"] and a colour map.
+    from core.model.colour_map import ColourMap
+
+    path, grid = project
+    p = load_project(path)
+    p.metadata["render"] = {"boundary": {"width": 3.0, "noise": 90, "height": 40,
+                                         "features": 2.0, "seed": 0}}
+    p.colour_map = ColourMap(np.random.default_rng(1).integers(90, 170, (8, 8, 3))
+                             .astype(np.uint8), 8)
+    save_project(path, p)
+    capsys.readouterr()
+    out = tmp_path / "unity"
+    assert main(["export", str(path), str(out), "--engine", "unity"]) == 0
+    assert "shaped borders, colour map" in capsys.readouterr().out
+    assert (out / "colour_map.png").is_file()
+    back = tmp_path / "back.ttproj"
+    assert main(["new", str(out / "splatmap_0.png"), str(out / "splatmap_1.png"), str(back),
+                 "--themes", THEMES, "--from", "splatmap", "--step", "9", "--cell", "9"]) == 0
+    np.testing.assert_array_equal(load_project(back).grid.indices, grid)
+    linear = tmp_path / "linear"
+    assert main(["export", str(path), str(linear), "--engine", "unity", "--style", "linear"]) == 0
+    assert "linear weights, colour map" in capsys.readouterr().out
+    assert (out / "splatmap_0.png").read_bytes() != (linear / "splatmap_0.png").read_bytes()
+    p.metadata["render"] = {"boundary": {"width": "wide"}}
+    save_project(path, p)
+    _error(capsys, ["export", str(path), str(tmp_path / "bad"), "--engine", "godot"],
+           "boundary")
+    assert not (tmp_path / "bad").exists()

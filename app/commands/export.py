@@ -29,6 +29,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="pixels of the whole weight/control map, corner to corner "
                         "(default: the engine's size nearest one pixel per texel; Terrain3D: "
                         "one pixel per grid vertex)")
+    parser.add_argument("--style", choices=["project", "linear"], default="project",
+                        help="weights (and the GIS texture and class map) in the project's own "
+                        "style, shaped borders when it has them (default), or the paper's "
+                        "linear barycentric weights")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="cut the map into N x N tiles sharing their border pixels "
                         "(Unity: 16..4096, a power of two; Unreal: a recommended landscape size)")
@@ -41,14 +45,22 @@ def run(args: argparse.Namespace) -> int:
 
     from app.outputs import check_outputs
     from core.errors import TerrathemeError
-    from core.exchange import Engine, ExportOptions, plan_export, write_export
+    from core.exchange import (
+        Engine,
+        ExportOptions,
+        WeightStyle,
+        export_boundary,
+        plan_export,
+        write_export,
+    )
     from core.model.project import load_project
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():
         raise TerrathemeError(f"{outdir}: is a file, not an output folder")
     project = load_project(args.project)
-    options = ExportOptions(Engine(args.engine), args.size, args.tile)
+    options = ExportOptions(Engine(args.engine), args.size, args.tile,
+                            style=WeightStyle(args.style))
     plan = plan_export(project, options)
     check_outputs(plan.paths(outdir), inputs=[args.project])
     with tqdm(total=1, desc=f"export {args.engine}", unit="part", leave=False) as bar:
@@ -65,7 +77,10 @@ def run(args: argparse.Namespace) -> int:
         what = f"{w} x {h} map{tiles}"
     else:
         what = "land-class map and baked texture"
-    print(f"{outdir}: {args.engine} export, {what}, {len(paths)} files "
+    shaped = export_boundary(project, options) is not None
+    borders = "shaped borders" if shaped else "linear weights"
+    colour = ", colour map" if project.colour_map is not None else ""
+    print(f"{outdir}: {args.engine} export, {what}, {borders}{colour}, {len(paths)} files "
           f"(manifest {paths[-1].name})")
     for note in plan.notes:
         print(f"  note: {note}")

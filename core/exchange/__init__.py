@@ -1,21 +1,30 @@
 """Exports that terrain engines and GIS read, and the way back (docs/engines.md).
 
-Weights come from the renderer's rule (``core.render.rules``): every map
-pixel gets the exact barycentric weight of each theme at its grid position
-(``weights``), 8-bit weights summing to exactly 255 per pixel. Modules:
-``options`` (Engine, ExportOptions), ``layout`` (map sizes, shared-border
-tiles, world units), ``weights`` (theme weights at map pixels), ``plan``
-(the files of an export, theme textures, manifests), ``unity``, ``unreal``,
+Weights follow the project's look: by default its render style
+(``core.render.project.project_style``), so with shaped boundaries every map
+pixel gets the shaped blend's own weights (``shaped``), else, and with
+``WeightStyle.LINEAR``, the exact barycentric weight of each theme at its
+grid position by the renderer's rule (``weights``); 8-bit weights sum to
+exactly 255 per pixel. The project's colour map goes with every export
+(``colour``). Modules: ``options`` (Engine, WeightStyle, ExportOptions),
+``layout`` (map sizes, shared-border tiles, world units), ``weights``
+(barycentric weights at map pixels, quantisation), ``shaped`` (the shaped
+blend's weights), ``style`` (which of the two an export follows),
+``colour`` (the colour map's file, UV transforms and gain), ``plan`` (the
+files of an export, theme textures, manifests), ``unity``, ``unreal``,
 ``terrain3d`` (Godot), ``geotiff`` (GIS) with ``cog`` (the Cloud Optimized
 GeoTIFF layout), ``export`` (plan, then write), ``maps_to_grid`` (the way
 back: engine maps to a vertex grid).
 """
 
+from core.exchange.colour import gain_at_pixels, linear_gain
 from core.exchange.export import plan_export, write_export
 from core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
 from core.exchange.maps_to_grid import grid_from_labels, labels_from_weights
-from core.exchange.options import Engine, ExportOptions
+from core.exchange.options import Engine, ExportOptions, WeightStyle
 from core.exchange.plan import ExportPlan
+from core.exchange.shaped import shaped_slots
+from core.exchange.style import export_boundary, map_labels, map_weights
 from core.exchange.terrain3d import (
     control_labels,
     decode_control,
@@ -32,17 +41,24 @@ __all__ = [
     "ExportOptions",
     "ExportPlan",
     "TilePiece",
+    "WeightStyle",
     "WorldFrame",
     "control_labels",
     "decode_control",
     "encode_control",
+    "export_boundary",
+    "gain_at_pixels",
     "grid_from_labels",
     "labels_from_weights",
+    "linear_gain",
+    "map_labels",
+    "map_weights",
     "plan_export",
     "read_control_map",
     "read_splatmaps",
     "read_weight_maps",
     "sample_corners",
+    "shaped_slots",
     "strongest_two",
     "theme_weights",
     "world_frame",

@@ -9,6 +9,7 @@ from pathlib import Path
 from core.exchange import geotiff, terrain3d, unity, unreal
 from core.exchange.options import Engine, ExportOptions
 from core.exchange.plan import ExportPlan
+from core.exchange.style import export_boundary
 from core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
@@ -23,8 +24,9 @@ def plan_export(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     ------
     TerrathemeError
         A size or tile the engine does not take, too many themes for it, a
-        map too large: before any work.
+        map too large, a project render style that cannot be read: before any work.
     """
+    export_boundary(project, options)
     return _ENGINES[options.engine].plan(project, options)
 
 

@@ -5,11 +5,14 @@ pixel per texel, so they carry the project's georeference unchanged
 (``metadata["georeference"]``, the GeoTIFF tags of the source photo;
 ``core.render.project.render_georeference``):
 
-* ``landclass.tif``: the theme with the largest weight at every texel
-  (``core.render.renderer.render_labels``), 8-bit palette image whose colour
-  table holds the themes' display colours; ``landclass.qml`` beside it is a
-  QGIS style naming every class (QGIS loads it with the raster).
-* ``texture.tif``: the render (``core.render.project.render_project``), RGB.
+* ``landclass.tif``: the theme with the largest weight at every texel, by
+  the export's style (shaped borders: :func:`core.exchange.style.map_labels`;
+  the paper's rule: ``core.render.renderer.render_labels``), 8-bit palette
+  image whose colour table holds the themes' display colours;
+  ``landclass.qml`` beside it is a QGIS style naming every class (QGIS loads
+  it with the raster).
+* ``texture.tif``: the render (``core.render.project.render_project``) in the
+  export's style, colour map included, RGB: what ``terratheme render`` gives.
 
 Both are tiled (512) and deflate-compressed with overviews, in the Cloud
 Optimized GeoTIFF layout (:mod:`core.exchange.cog`); the class map's
@@ -31,11 +34,12 @@ from core.exchange.cog import box_half, nearest_half, write_cog
 from core.exchange.layout import world_frame
 from core.exchange.options import ExportOptions
 from core.exchange.plan import ExportPlan, common_manifest, write_manifest
+from core.exchange.style import export_boundary, export_render_options, map_labels
 from core.io.atomic import write_bytes_atomic
 from core.io.georef import GEO_TAGS
 from core.model.project import ThematicTexture
 from core.render.project import photo_extent, render_georeference, render_project
-from core.render.renderer import RenderOptions, render_labels
+from core.render.renderer import render_labels
 
 LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture.tif", \
     "terratheme_geotiff.json"
@@ -100,6 +104,10 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     tags = geotiff_tags(render_georeference(project, (0, 0, w, h), (w, h)))
     grid, cell, k = project.grid.indices, project.grid.cell, len(project.library)
     saddle = plan.options.saddle
+    shaped = export_boundary(project, plan.options) is not None
+    render_options = export_render_options(project, plan.options)
+    # Class-map pixel i is texel i: a map of Wtex + 1 pixels (the renderer's texels).
+    texels = (project.grid.texture_size[0] + 1, project.grid.texture_size[1] + 1)
     bands = -(-h // TILE)
     done = [0]
 
@@ -110,11 +118,13 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
 
     def labels(y0: int, y1: int) -> np.ndarray:
         tick()
+        if shaped:
+            return map_labels(project, texels, (0, y0, w, y1 - y0), plan.options)
         return render_labels(grid, cell, (0, y0, w, y1 - y0), n_themes=k, saddle=saddle)
 
     def texture(y0: int, y1: int) -> np.ndarray:
         tick()
-        return render_project(project, (0, y0, w, y1 - y0), options=RenderOptions(saddle=saddle))
+        return render_project(project, (0, y0, w, y1 - y0), options=render_options)
 
     levels = write_cog(folder / LANDCLASS, labels, (w, h), channels=1, tile=TILE,
                        photometric="minisblack", colormap=palette(project),
@@ -123,6 +133,8 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     write_cog(folder / TEXTURE, texture, (w, h), channels=3, tile=TILE, downsample=box_half,
               extratags=tags)
     manifest = common_manifest(project, plan)
+    if manifest["colour_map"] is not None:
+        manifest["colour_map"]["baked_into"] = TEXTURE
     manifest.update({
         "landclass": LANDCLASS, "style": STYLE, "texture": TEXTURE, "size": [w, h],
         "tile": TILE, "overviews": levels, "georeferenced": bool(tags),

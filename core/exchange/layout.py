@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from core.errors import TerrathemeError
 from core.io.georef import world_file_lines
 
@@ -105,6 +107,23 @@ def tiled_length(length: int, tile: int) -> int:
     """The smallest ``k * (tile - 1) + 1 >= length``: a length cut into shared-border tiles."""
     k = max(1, -(-(length - 1) // (tile - 1)))
     return k * (tile - 1) + 1
+
+
+def nearest_texels(n_pixels: int, n_texels: int, start: int, count: int) -> np.ndarray:
+    """The texel nearest each of pixels ``start .. start+count-1`` of an ``n_pixels`` map axis.
+
+    Pixel ``i`` lies at texel position ``i * n_texels / (n_pixels - 1)``; the
+    nearest texel is that rounded half up, so at ``n_pixels = n_texels + 1``
+    pixel ``i`` is texel ``i`` (the last pixel is texel ``n_texels``, the far
+    edge of the grid).
+
+    Returns
+    -------
+    texels : (count,) int64 ndarray, in ``0 .. n_texels``
+    """
+    den = n_pixels - 1
+    i = start + np.arange(count, dtype=np.int64)
+    return (2 * i * n_texels + den) // (2 * den)
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,16 @@ class Engine(Enum):
     GEOTIFF = "geotiff"
 
 
+class WeightStyle(Enum):
+    """Which blend an export's weights follow (``docs/engines.md``)."""
+
+    #: the project's own render style (``core.render.project.project_style``): its shaped
+    #: borders when it has them, else the paper's rule
+    PROJECT = "project"
+    #: the paper's barycentric weights, whatever the project's style
+    LINEAR = "linear"
+
+
 @dataclass(frozen=True)
 class ExportOptions:
     """Options of an export.
@@ -36,9 +46,13 @@ class ExportOptions:
         (Unity terrain tiles, Unreal landscape tiles); ``None`` = one piece.
     saddle : SaddleRule
         The renderer's saddle rule (``core.render.rules``).
+    style : WeightStyle
+        The project's style (shaped borders, :mod:`core.exchange.shaped`) or the paper's
+        linear weights; the GIS texture and class map follow it too.
     """
 
     engine: Engine = Engine.UNITY
     size: tuple[int, int] | None = None
     tile: int | None = None
     saddle: SaddleRule = SaddleRule.MINORITY
+    style: WeightStyle = WeightStyle.PROJECT

@@ -2,7 +2,8 @@
 
 An :class:`ExportPlan` lists every file (relative to the output folder), so
 the caller can check the outputs before the long work; the theme textures
-and the JSON manifest are written the same way for every engine.
+and the JSON manifest (with the weights' style and the colour map) are
+written the same way for every engine.
 """
 
 from __future__ import annotations
@@ -10,14 +11,16 @@ from __future__ import annotations
 import json
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.exchange.colour import colour_manifest
 from core.exchange.layout import ExportLayout, WorldFrame
 from core.exchange.options import ExportOptions
+from core.exchange.style import export_boundary
 from core.io.atomic import write_bytes_atomic
 from core.io.images import write_image
 from core.model.project import ThematicTexture
@@ -79,9 +82,20 @@ def write_manifest(path: Path, manifest: dict) -> None:
     write_bytes_atomic(path, (text + "\n").encode())
 
 
-def common_manifest(project: ThematicTexture, plan: ExportPlan) -> dict:
-    """The manifest fields every engine shares: source grid, cell, world units, themes."""
+#: PNG alpha is stored unassociated: OpenImageIO must neither divide nor multiply colour by it
+STORED_ALPHA = {"oiio:UnassociatedAlpha": 1}
+
+
+def common_manifest(project: ThematicTexture, plan: ExportPlan,
+                    colour_file: str | None = None) -> dict:
+    """The manifest fields every engine shares: grid, cell, world units, style, colour map.
+
+    ``borders`` is ``"shaped"`` (with the ``boundary`` options the weights
+    follow, :mod:`core.exchange.shaped`) or ``"linear"``; ``colour_map`` is
+    :func:`core.exchange.colour.colour_manifest` with ``colour_file``, or None.
+    """
     world = plan.world
+    boundary = export_boundary(project, plan.options)
     return {
         "format": f"terratheme-{plan.options.engine.value}",
         "version": 1,
@@ -93,9 +107,9 @@ def common_manifest(project: ThematicTexture, plan: ExportPlan) -> dict:
         "origin": list(world.origin),
         "crs_units": world.crs_units,
         "rotation_deg": world.rotation_deg,
-        # The colour map layer (RGB, neutral 128, a gain over the render) goes here once
-        # projects carry one; Terrain3D's own colour map is its natural target.
-        "colour_map": None,
+        "borders": "linear" if boundary is None else "shaped",
+        "boundary": None if boundary is None else asdict(boundary),
+        "colour_map": colour_manifest(project, colour_file),
     }
 
 

@@ -23,7 +23,25 @@ bilinearly between vertices. So each terratheme vertex (or each pixel of a
 strongest themes and their renormalised share; up to 32 themes, autoshader
 off. Terrain3D recommends EXR for its control maps ("Use exr to export and
 reimport"); Godot's EXR loader reads a single ``R`` channel of 32-bit floats
-as ``FORMAT_RF`` (bits intact), which is what is written.
+as ``FORMAT_RF`` (bits intact), which is what is written. With ``--size``
+the two strongest themes come from the project's style (shaped borders,
+:mod:`core.exchange.style`).
+
+The colour map, as Terrain3D reads it (same commit): an ``FORMAT_RGBA8``
+image per region (``src/terrain_3d_region.h``, ``TYPE_COLOR``) of the
+control map's size (``src/terrain_3d_data.cpp``, ``import_images``: "Included
+Images in p_images have different dimensions. Aborting import"), RGB
+sRGB-encoded (``src/shaders/main.glsl``: ``_color_maps : source_color``,
+default ``COLOR_MAP_DEF = vec4(1.0, 1.0, 1.0, 0.5)``) and multiplied onto
+the albedo (``src/shaders/pbr_views.glsl``: ``ALBEDO =
+mat.albedo_height.rgb * color_map.rgb``), alpha a roughness modifier
+(``wetness = fma(color_map.a, -2., 1.)``, 0.5 neutral). A colour map holds at
+most 1.0, below the gains above neutral, so ``terrain3d_colour.png`` keeps
+terratheme's encoding (the gain at every vertex's texel times 128,
+:func:`core.exchange.colour.gain_at_pixels`; alpha 128, neutral roughness)
+and every texture's ``albedo_color``, which the shader multiplies in too
+(``alb.rgb *= _texture_color_array[id].rgb``), is
+:func:`core.exchange.colour.linear_gain` (4.633: decoded 128 times it is 1).
 """
 
 from __future__ import annotations
@@ -37,9 +55,11 @@ import numpy as np
 import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
+from core.exchange.colour import gain_at_pixels, linear_gain
 from core.exchange.layout import ExportLayout, world_frame
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
+    STORED_ALPHA,
     ExportPlan,
     common_manifest,
     pixel_spacing,
@@ -47,15 +67,19 @@ from core.exchange.plan import (
     write_manifest,
     write_theme_textures,
 )
-from core.exchange.weights import BAND_PIXELS, sample_corners, strongest_two
+from core.exchange.style import map_slots
+from core.exchange.weights import BAND_PIXELS, strongest_two
 from core.io.atomic import atomic_path
-from core.io.images import image_info, read_image
+from core.io.images import image_info, read_image, write_image
 from core.model.project import ThematicTexture
 from core.render.rules import cell_splits
 
 #: texture ids a control map holds (5 bits)
 MAX_TEXTURES = 32
 CONTROL_MAP = "terrain3d_control.exr"
+COLOUR_MAP = "terrain3d_colour.png"
+#: the colour map's alpha: Terrain3D's neutral roughness modifier (0.5)
+NEUTRAL_ROUGHNESS = 128
 MANIFEST = "terratheme_godot.json"
 _REGION_SIZES = tuple(1 << k for k in range(6, 12))
 Progress = Callable[[int, int], None]
@@ -175,29 +199,47 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         notes.append("Terrain3D needs textures of one size: themes resampled to "
                      f"{max(s[1] for s in sizes)} x {max(s[0] for s in sizes)} "
                      "(uv_scale keeps their world size)")
-    files = (CONTROL_MAP, *theme_files(project), MANIFEST)
+    wtex, htex = project.grid.texture_size
+    spacing = wtex / (layout.size[0] - 1)
+    if project.colour_map is not None and spacing > project.colour_map.scale:
+        notes.append(f"the colour map (a pixel per {project.colour_map.scale} texels) is sampled "
+                     f"at the control map's vertices (one per {spacing:g} texels); "
+                     f"--size {wtex + 1}x{htex + 1} keeps it (a vertex per texel)")
+    colour = () if project.colour_map is None else (COLOUR_MAP,)
+    files = (CONTROL_MAP, *colour, *theme_files(project), MANIFEST)
     return ExportPlan(options, layout, world, files, tuple(notes))
 
 
-def control_map(grid: np.ndarray, size: tuple[int, int], options: ExportOptions) -> np.ndarray:
-    """The ``(H, W)`` uint32 control values of a map of ``size`` over ``grid``."""
+def control_map(project: ThematicTexture, size: tuple[int, int], options: ExportOptions
+                ) -> np.ndarray:
+    """The ``(H, W)`` uint32 control values of a map of ``size`` over the project's grid."""
     w, h = size
-    splits = cell_splits(grid, options.saddle)
+    splits = cell_splits(project.grid.indices, options.saddle)
     out = np.empty((h, w), dtype=np.uint32)
     rows = max(1, BAND_PIXELS // w)
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
-        slots = sample_corners(grid, size, (0, r0, w, r1 - r0), splits=splits)
+        slots = map_slots(project, size, (0, r0, w, r1 - r0), options, splits=splits)
         out[r0:r1] = encode_control(*strongest_two(slots))
     return out
+
+
+def colour_map_image(project: ThematicTexture, size: tuple[int, int]) -> np.ndarray:
+    """``(H, W, 4)`` uint8 Terrain3D colour map: the gain at each vertex, neutral roughness."""
+    w, h = size
+    image = np.full((h, w, 4), NEUTRAL_ROUGHNESS, dtype=np.uint8)
+    image[:, :, :3] = gain_at_pixels(project.colour_map, project.grid.texture_size, size)
+    return image
 
 
 def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
           progress: Progress | None = None) -> None:
     """Write the control map, the theme textures (one size) and the texture list of ``plan``."""
     layout = plan.layout
-    write_control_map(folder / CONTROL_MAP, control_map(project.grid.indices, layout.size,
-                                                        plan.options))
+    write_control_map(folder / CONTROL_MAP, control_map(project, layout.size, plan.options))
+    if project.colour_map is not None:
+        write_image(folder / COLOUR_MAP, colour_map_image(project, layout.size),
+                    attributes=STORED_ALPHA)
     if progress:
         progress(1, 2)
     tw = max(t.texture.shape[1] for t in project.library)
@@ -216,7 +258,8 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     # The importer's import_position is the map's top-left corner in vertices (descaled).
     corner = [-(-(w // 2) // region) * region, -(-(h // 2) // region) * region]
     sx = plan.world.texel_size[0]
-    manifest = common_manifest(project, plan)
+    manifest = common_manifest(project, plan, None if project.colour_map is None else COLOUR_MAP)
+    tint = [1.0] * 3 if project.colour_map is None else [linear_gain()] * 3
     manifest.update({
         "control_map": CONTROL_MAP,
         "control_map_size": [w, h],
@@ -224,7 +267,8 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         "region_size": region,
         "import_position": [-corner[0], -corner[1]],
         # Terrain3D repeats a texture every 1 / uv_scale world units.
-        "textures": [{"id": j, "name": t.name, "albedo": f,
+        # albedo_color brings the colour map's neutral 128 to 1 (the module docstring).
+        "textures": [{"id": j, "name": t.name, "albedo": f, "albedo_color": tint,
                       "uv_scale": 1.0 / (t.texture.shape[1] * sx)}
                      for j, (t, f) in enumerate(zip(project.library, theme_files(project),
                                                     strict=True))],

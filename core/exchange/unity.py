@@ -10,9 +10,18 @@ the first and last alphamap texels on the terrain's edges, the convention of
 G, B, A; image row 0 is the terrain's north (far +z) edge. Neighbouring
 terrain tiles share their border texels, as Unity's connected terrains do.
 
+The weights follow the project's style (:mod:`core.exchange.style`: its
+shaped borders by default). Unity's terrain layers have no per-terrain tint,
+so the project's colour map ships as ``colour_map.png`` with each tile's
+``colour_map_st`` (texture UV = terrain UV * scale + offset,
+:func:`core.exchange.colour.unity_colour_st`) for a terrain material that
+multiplies it in.
+
 ``Editor/TerrathemeImporter.cs`` (shipped in ``core/exchange/scripts``)
 builds the TerrainLayers, TerrainData and terrain objects from
-``terratheme_unity.json`` inside the Unity editor (``docs/engines.md``).
+``terratheme_unity.json`` inside the Unity editor, and gives every terrain
+its colour map when the export folder holds a ``TerrathemeTerrain.mat``
+material with a ``_ColourMap`` texture (``docs/engines.md``).
 """
 
 from __future__ import annotations
@@ -24,9 +33,11 @@ import numpy as np
 import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
+from core.exchange.colour import COLOUR_MAP, unity_colour_st, write_colour_map
 from core.exchange.layout import ExportLayout, tiled_length, world_frame
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
+    STORED_ALPHA,
     ExportPlan,
     common_manifest,
     pixel_spacing,
@@ -35,7 +46,7 @@ from core.exchange.plan import (
     write_manifest,
     write_theme_textures,
 )
-from core.exchange.weights import theme_weights
+from core.exchange.style import map_weights
 from core.io.atomic import write_bytes_atomic
 from core.io.images import image_info, write_image
 from core.model.project import ThematicTexture
@@ -45,8 +56,6 @@ UNITY_RESOLUTIONS = tuple(1 << k for k in range(4, 13))
 MANIFEST = "terratheme_unity.json"
 SCRIPT = "Editor/TerrathemeImporter.cs"
 SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / "TerrathemeImporter.cs"
-#: PNG alpha is stored unassociated: OpenImageIO must neither divide nor multiply colour by it
-STORED_ALPHA = {"oiio:UnassociatedAlpha": 1}
 Progress = Callable[[int, int], None]
 
 
@@ -94,7 +103,10 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     n_splat = -(-len(project.library) // 4)
     files = [f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
              for piece in layout.pieces() for s in range(n_splat)]
-    files += theme_files(project) + [SCRIPT, MANIFEST]
+    files += theme_files(project) + [SCRIPT]
+    if project.colour_map is not None:
+        files.append(COLOUR_MAP)
+    files.append(MANIFEST)
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     return ExportPlan(options, layout, world, tuple(files), tuple(notes))
 
@@ -153,7 +165,6 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
           progress: Progress | None = None) -> None:
     """Write the splatmaps, theme textures, editor script and manifest of ``plan``."""
     layout = plan.layout
-    k = len(project.library)
     pieces = layout.pieces()
     tiles = []
     spacing = pixel_spacing(project, plan)
@@ -162,20 +173,24 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     ky = layout.tiles[1]
     for i, piece in enumerate(pieces):
         # Each tile's weights at its own pixels of the whole map (shared borders agree).
-        weights = theme_weights(project.grid.indices, layout.size,
-                                (piece.x, piece.y, piece.w, piece.h), n_themes=k,
-                                saddle=plan.options.saddle)
+        weights = map_weights(project, layout.size, (piece.x, piece.y, piece.w, piece.h),
+                              plan.options)
         names = []
         for s, image in enumerate(splatmaps(weights)):
             name = f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
             write_image(folder / name, image, attributes=STORED_ALPHA)
             names.append(name)
         # Unity's z runs north: tile row 0 (north) is the farthest from the origin.
-        tiles.append({"x": piece.tx, "y": piece.ty, "splatmaps": names,
-                      "position": [piece.tx * tile_world[0], (ky - 1 - piece.ty) * tile_world[1]]})
+        tile = {"x": piece.tx, "y": piece.ty, "splatmaps": names,
+                "position": [piece.tx * tile_world[0], (ky - 1 - piece.ty) * tile_world[1]]}
+        if project.colour_map is not None:
+            tile["colour_map_st"] = unity_colour_st(project, layout, piece)
+        tiles.append(tile)
         if progress:
             progress(i + 1, len(pieces))
     write_theme_textures(project, folder)
+    if project.colour_map is not None:
+        write_colour_map(folder / COLOUR_MAP, project.colour_map)
     (folder / SCRIPT).parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(folder / SCRIPT, SCRIPT_SOURCE.read_bytes())
     sx, sy = plan.world.texel_size
@@ -186,7 +201,7 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         # Unity's v runs up from the tile's south edge; rows of the theme run down from its north.
         layers.append({"name": safe_name(theme.name), "texture": texture, "tile_size": size,
                        "tile_offset": [0.0, float(-tile_world[1] % size[1])]})
-    manifest = common_manifest(project, plan)
+    manifest = common_manifest(project, plan, COLOUR_MAP)
     manifest.update({
         "alphamap_resolution": layout.tile or layout.size[0],
         "map_size": list(layout.size),

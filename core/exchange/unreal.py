@@ -10,7 +10,11 @@ weight-blended layers the values of every vertex sum to 255. The "Import
 from File" panel takes a 16-bit heightmap with the weight maps, so a flat one
 (value 32768: height 0) of the same size comes with them. Tiles follow
 Unreal's tiled-import naming (``name_x0_y0.png``) and share their border
-vertices, as neighbouring landscape tiles do.
+vertices, as neighbouring landscape tiles do. The weights follow the
+project's style (:mod:`core.exchange.style`); the colour map ships as
+``colour_map.png`` with the transform from landscape vertex coordinates to
+its UV (:func:`core.exchange.colour.vertex_colour_uv`), for the landscape
+material to multiply in (``docs/engines.md``).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.exchange.colour import COLOUR_MAP, vertex_colour_uv, write_colour_map
 from core.exchange.layout import ExportLayout, tiled_length, world_frame
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
@@ -32,7 +37,7 @@ from core.exchange.plan import (
     write_manifest,
     write_theme_textures,
 )
-from core.exchange.weights import theme_weights
+from core.exchange.style import map_weights
 from core.io.images import read_image, write_image
 from core.model.project import ThematicTexture
 
@@ -100,7 +105,10 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         suffix = piece.suffix if layout.tile else ""
         files.append(f"heightmap{suffix}.png")
         files += [weight_file(project, k, suffix) for k in range(len(project.library))]
-    files += theme_files(project) + [MANIFEST]
+    files += theme_files(project)
+    if project.colour_map is not None:
+        files.append(COLOUR_MAP)
+    files.append(MANIFEST)
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     return ExportPlan(options, layout, world, tuple(files), tuple(notes))
 
@@ -133,14 +141,15 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         write_image(folder / f"heightmap{suffix}.png",
                     np.full((piece.h, piece.w, 1), FLAT_HEIGHT, dtype=np.uint16))
         # Each tile's weights at its own vertices of the whole map (shared borders agree).
-        weights = theme_weights(project.grid.indices, layout.size,
-                                (piece.x, piece.y, piece.w, piece.h), n_themes=k,
-                                saddle=plan.options.saddle)
+        weights = map_weights(project, layout.size, (piece.x, piece.y, piece.w, piece.h),
+                              plan.options)
         for t in range(k):
             write_image(folder / weight_file(project, t, suffix), weights[t][:, :, None])
         if progress:
             progress(i + 1, len(pieces))
     write_theme_textures(project, folder)
+    if project.colour_map is not None:
+        write_colour_map(folder / COLOUR_MAP, project.colour_map)
     # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
     spacing = pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size
@@ -152,7 +161,9 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
               for j, (t, tex) in enumerate(zip(project.library, theme_files(project),
                                                strict=True))]
     quads = UNREAL_SIZES.get(layout.tile or layout.size[0])
-    manifest = common_manifest(project, plan)
+    manifest = common_manifest(project, plan, COLOUR_MAP)
+    if project.colour_map is not None:
+        manifest["colour_map"].update(vertex_colour_uv(project, layout))
     manifest.update({
         "landscape_size": list(layout.size),
         "tile_size": layout.tile,

@@ -12,15 +12,18 @@ the renderer's own. (Were ``D`` above ``2**28``, the local coordinates are
 rounded to ``1/16384`` of a cell first.)
 
 Corners carrying the same theme add up. :func:`quantise_weights` turns the
-exact weights into 8-bit (or 16-bit) weights that sum to exactly 255 (65535)
-per pixel by largest-remainder rounding: every theme gets the floor of its
-share, and the units still missing go to the largest remainders, ties to the
-lower theme index (deterministic, and no theme moves by a whole unit).
+exact weights (these, or the shaped blend's of :mod:`core.exchange.shaped`,
+whose denominator differs per pixel) into 8-bit (or 16-bit) weights that
+sum to exactly 255 (65535) per pixel by largest-remainder rounding: every
+theme gets the floor of its share, and the units still missing go to the
+largest remainders, ties to the lower theme index (deterministic, and no
+theme moves by a whole unit).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,12 +50,14 @@ class CornerSlots:
         Weight times ``denominator``; a slot whose theme an earlier slot of
         the same pixel carries holds 0 (its weight moved there), so the
         non-zero slots of a pixel have distinct themes. Sums to ``denominator``.
-    denominator : int
+    denominator : int, or (h, w) int64 ndarray
+        One for the whole map (the barycentric weights), or one per pixel
+        (the shaped blend's ``sum(v_t)``, :mod:`core.exchange.shaped`).
     """
 
     ids: np.ndarray
     weights: np.ndarray
-    denominator: int
+    denominator: int | np.ndarray
 
 
 def _axis(n_pixels: int, cells: int, start: int, count: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -65,8 +70,9 @@ def _axis(n_pixels: int, cells: int, start: int, count: int) -> tuple[np.ndarray
     return cell, num - cell * den, den
 
 
-def _window(window: tuple[int, int, int, int] | None, size: tuple[int, int]
-            ) -> tuple[int, int, int, int]:
+def check_window(window: tuple[int, int, int, int] | None, size: tuple[int, int]
+                 ) -> tuple[int, int, int, int]:
+    """``(x, y, w, h)`` of ``window`` (None: the whole ``size = (W, H)`` map), checked inside it."""
     full_w, full_h = size
     if window is None:
         return 0, 0, full_w, full_h
@@ -107,7 +113,7 @@ def sample_corners(
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     if size[0] < 2 or size[1] < 2:
         raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {size}")
-    x, y, w, h = _window(window, size)
+    x, y, w, h = check_window(window, size)
     cx, lx, dx = _axis(size[0], gw, x, w)
     cy, ly, dy = _axis(size[1], gh, y, h)
     # Denominators too large for corner_weights' int32: round local coordinates to 1/16384.
@@ -228,15 +234,36 @@ def theme_weights(
            [  0,   0,   0]], dtype=uint8)
     """
     indices = validate_indices(grid, n_themes=n_themes)
-    x, y, w, h = _window(window, size)
     splits = cell_splits(indices, saddle)
+    return quantised_bands(lambda win: sample_corners(indices, size, win, splits=splits),
+                           n_themes, size, window, total=total)
+
+
+def quantised_bands(slots_of: Callable[[tuple[int, int, int, int]], CornerSlots],
+                    n_themes: int, size: tuple[int, int],
+                    window: tuple[int, int, int, int] | None, *, total: int = 255) -> np.ndarray:
+    """:func:`quantise_weights` of ``slots_of(band)`` over row bands of a window of a map.
+
+    Parameters
+    ----------
+    slots_of : callable((x, y, w, h)) -> CornerSlots
+        The exact weights of a window of the ``size = (W, H)`` map.
+    n_themes, total : int
+    size : (W, H)
+    window : (x, y, w, h), optional
+
+    Returns
+    -------
+    weights : (K, h, w) uint8 (or uint16) ndarray
+    """
+    x, y, w, h = check_window(window, size)
     out = np.zeros((n_themes, h, w), dtype=np.uint8 if total <= 255 else np.uint16)
     rows = max(1, BAND_PIXELS // w)
     # Row bands bound the temporaries; every pixel is computed on its own, so bands agree.
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
-        slots = sample_corners(indices, size, (x, y + r0, w, r1 - r0), splits=splits)
-        out[:, r0:r1] = quantise_weights(slots, n_themes, total=total)
+        out[:, r0:r1] = quantise_weights(slots_of((x, y + r0, w, r1 - r0)), n_themes,
+                                         total=total)
     return out
 
 

@@ -9,6 +9,14 @@
 // R, G, B, A; the weights of every texel sum to 255), and connected Terrain objects under one
 // parent. The splatmap PNGs are read from disk, so Unity's texture import settings never touch
 // the weights.
+//
+// The colour map (colour_map.png: a gain value / 128 per channel over the blended layers) has no
+// place in Unity's terrain layers. The script imports it (sRGB, clamped, bilinear, uncompressed)
+// and, when the export folder holds a material TerrathemeTerrain.mat whose shader has a
+// _ColourMap texture, gives every terrain a copy of it with _ColourMap set and its tiling/offset
+// (_ColourMap_ST) set to the tile's colour_map_st, plus _ColourGain (4.633 in a Linear colour
+// space project, 255/128 in Gamma) when the shader has it: the shader multiplies its blended
+// albedo by tex2D(_ColourMap, TRANSFORM_TEX(terrainUV, _ColourMap)).rgb * _ColourGain.
 #if UNITY_EDITOR
 using System.IO;
 using UnityEditor;
@@ -32,6 +40,14 @@ public static class TerrathemeImporter
         public int y;
         public float[] position;
         public string[] splatmaps;
+        public float[] colour_map_st;
+    }
+
+    [System.Serializable]
+    public class ColourMap
+    {
+        public string file;
+        public float linear_gain;
     }
 
     [System.Serializable]
@@ -42,6 +58,7 @@ public static class TerrathemeImporter
         public float[] tile_world_size;
         public Layer[] layers;
         public Tile[] tiles;
+        public ColourMap colour_map;
     }
 
     const string MenuPath = "Assets/Terratheme/Build Terrain From Export";
@@ -76,6 +93,8 @@ public static class TerrathemeImporter
             AssetDatabase.CreateAsset(layer, folder + "/" + source.name + ".terrainlayer");
             layers[k] = layer;
         }
+        Texture2D colour;
+        Material template = ColourMaterial(folder, manifest, out colour);
         int resolution = manifest.alphamap_resolution;
         GameObject root = new GameObject("Terratheme terrain");
         foreach (Tile tile in manifest.tiles)
@@ -93,10 +112,50 @@ public static class TerrathemeImporter
             terrain.transform.SetParent(root.transform, false);
             terrain.transform.localPosition = new Vector3(tile.position[0], 0f, tile.position[1]);
             terrain.GetComponent<Terrain>().allowAutoConnect = true;
+            if (template != null && tile.colour_map_st != null && tile.colour_map_st.Length == 4)
+            {
+                Material material = new Material(template);
+                material.SetTexture("_ColourMap", colour);
+                material.SetTextureScale("_ColourMap", new Vector2(tile.colour_map_st[0], tile.colour_map_st[1]));
+                material.SetTextureOffset("_ColourMap", new Vector2(tile.colour_map_st[2], tile.colour_map_st[3]));
+                if (material.HasProperty("_ColourGain"))
+                    material.SetFloat("_ColourGain", QualitySettings.activeColorSpace == ColorSpace.Linear
+                        ? manifest.colour_map.linear_gain : 255f / 128f);
+                AssetDatabase.CreateAsset(material, folder + "/" + name + ".mat");
+                terrain.GetComponent<Terrain>().materialTemplate = material;
+            }
         }
         AssetDatabase.SaveAssets();
         Undo.RegisterCreatedObjectUndo(root, "Build terratheme terrain");
         Selection.activeGameObject = root;
+    }
+
+    // Imports colour_map.png for sampling as a colour texture; returns TerrathemeTerrain.mat when
+    // the folder has one with a _ColourMap texture, else null (and says what to do).
+    static Material ColourMaterial(string folder, Manifest manifest, out Texture2D colour)
+    {
+        colour = null;
+        if (manifest.colour_map == null || string.IsNullOrEmpty(manifest.colour_map.file))
+            return null;
+        string path = folder + "/" + manifest.colour_map.file;
+        TextureImporter importer = AssetImporter.GetAtPath(path) as TextureImporter;
+        if (importer != null)
+        {
+            importer.sRGBTexture = true;
+            importer.wrapMode = TextureWrapMode.Clamp;
+            importer.filterMode = FilterMode.Bilinear;
+            importer.textureCompression = TextureImporterCompression.Uncompressed;
+            importer.SaveAndReimport();
+        }
+        colour = AssetDatabase.LoadAssetAtPath<Texture2D>(path);
+        Material template = AssetDatabase.LoadAssetAtPath<Material>(folder + "/TerrathemeTerrain.mat");
+        if (template == null || !template.HasProperty("_ColourMap"))
+        {
+            Debug.Log(path + ": imported. To show the colour map, save a terrain material whose shader has a "
+                + "_ColourMap texture as TerrathemeTerrain.mat in this folder and build again (docs/engines.md)");
+            return null;
+        }
+        return template;
     }
 
     // Texture2D.LoadImage puts the PNG's top row (north) at the top; GetPixels32 returns rows
