@@ -60,6 +60,7 @@ def _perspective() -> None:
 
 
 def _boundary() -> None:
+    from core.exchange import shaped_slots
     from core.model.colour_map import ColourMap
     from core.render import RenderOptions, render_cells
     from core.render.boundary import BoundaryOptions
@@ -69,6 +70,9 @@ def _boundary() -> None:
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
     img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
     apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
+    # The exports' weights of the same borders.
+    shaped_slots(np.zeros((2, 2), np.uint8), [np.zeros((4, 4, 3), np.uint8)], (2, 2), (3, 3),
+                 boundary=BoundaryOptions())
 
 
 PARTS = {"render": _render, "boundary": _boundary, "packing": _curves_and_packing,

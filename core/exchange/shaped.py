@@ -8,7 +8,7 @@ that splats them over the same themes shows the same borders. This module
 computes the ``v_t`` in the boundary kernel's own integers, with its own
 pieces (:func:`core.render.kernels.cell_corners` and
 :func:`~core.render.kernels.merged_weights` for the corners and step 1,
-:func:`core.render.boundary.noise_value` and
+:func:`core.render.boundary.border_weights` and
 :class:`~core.render.boundary.BoundaryParams` for step 2), so the colours
 they give are the renderer's exactly (``tests/test_exchange_shaped.py``).
 
@@ -31,7 +31,7 @@ from core.errors import TerrathemeError
 from core.exchange.layout import nearest_texels
 from core.exchange.weights import CornerSlots, check_window
 from core.model.grid import validate_indices
-from core.render.boundary import BoundaryOptions, noise_value
+from core.render.boundary import BoundaryOptions, border_weights
 from core.render.inputs import theme_textures
 from core.render.kernels import RegionBlock, ThemeRows, cell_corners, merged_weights
 from core.render.rules import SaddleRule, cell_splits
@@ -53,7 +53,6 @@ def shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, themes, params
     """
     grid, splits, ocx, ocy, rx, ry, n, m = block
     flat = themes[0]
-    width, noise, height, lattice, seed = params
     gh, gw = splits.shape[0], splits.shape[1]
     d = n * m
     ks = np.zeros(4, np.int64)
@@ -80,26 +79,10 @@ def shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, themes, params
                 continue
             # Step 1: the barycentric weights, corners of one theme merged.
             merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
-            # Step 2: the score of every theme of non-zero weight.
-            best = np.int64(-(1 << 40))
+            # Steps 2-3 of the boundary blend: the v_t are the weights.
+            total = border_weights(ks, ws, bs, 0, flat, x, gy, d, params, sc)
             for a in range(4):
-                if ws[a] == 0:
-                    continue
-                p = bs[a]
-                luma = (77 * np.int64(flat[p]) + 150 * np.int64(flat[p + 1])
-                        + 29 * np.int64(flat[p + 2])) >> 8
-                s = ((ws[a] * 1024) // d
-                     + (noise * noise_value(x, gy, ks[a], lattice, seed)) // 256
-                     + (height * (luma - 128) * 4) // 256)
-                sc[a] = s
-                best = max(best, s)
-            # Step 3: the border of the given width around the best score; v_t are the weights.
-            total = np.int64(0)
-            for a in range(4):
-                if ws[a] != 0:
-                    v = max(np.int64(0), sc[a] - best + width)
-                    weights[a, r, c] = v
-                    total += v
+                weights[a, r, c] = sc[a]
             denom[r, c] = total
 
 

@@ -157,6 +157,38 @@ def _noise_field(x0, y0, w, h, theme, lattice, seed):  # pragma: no cover - numb
     return out
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def border_weights(ks, ws, bs, o, flat, x, gy, d, params, sc):  # pragma: no cover - numba
+    """Steps 2-3 at texel ``(x, gy)``: ``sc[a] = v_t`` of every corner slot; returns their sum.
+
+    ``ks, ws`` the corner themes and merged weights (:func:`core.render.kernels.merged_weights`),
+    ``bs[a] + o`` each theme's texel in ``flat``; slots of zero weight get 0.
+    """
+    width, noise, height, lattice, seed = params
+    # Step 2: the score of every theme of non-zero weight.
+    best = np.int64(-(1 << 40))
+    for a in range(4):
+        if ws[a] == 0:
+            continue
+        p = bs[a] + o
+        luma = (77 * np.int64(flat[p]) + 150 * np.int64(flat[p + 1])
+                + 29 * np.int64(flat[p + 2])) >> 8
+        s = ((ws[a] * 1024) // d
+             + (noise * noise_value(x, gy, ks[a], lattice, seed)) // 256
+             + (height * (luma - 128) * 4) // 256)
+        sc[a] = s
+        best = max(best, s)
+    # Step 3: the border of the given width around the best score.
+    total = np.int64(0)
+    for a in range(4):
+        if ws[a] == 0:
+            sc[a] = 0
+        else:
+            sc[a] = max(np.int64(0), sc[a] - best + width)
+            total += sc[a]
+    return total
+
+
 @nb.njit(cache=True, nogil=True)
 def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
     """Fill ``out[r0:r1]`` with the shaped-boundary blend (the module docstring's steps).
@@ -166,7 +198,6 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
     """
     grid, splits, ocx, ocy, rx, ry, n, m = block
     flat, off, stride, th, tw = themes
-    width, noise, height, lattice, seed = params
     rw = out.shape[1] // 3
     d = n * m
     cx0 = rx // n
@@ -193,27 +224,8 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
                 o = (x - xa) * 3
                 # Step 1: the barycentric weights, corners of one theme merged.
                 merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
-                # Step 2: the score of every theme of non-zero weight.
-                best = np.int64(-(1 << 40))
-                for a in range(4):
-                    if ws[a] == 0:
-                        continue
-                    p = bs[a] + o
-                    luma = (77 * np.int64(flat[p]) + 150 * np.int64(flat[p + 1])
-                            + 29 * np.int64(flat[p + 2])) >> 8
-                    s = ((ws[a] * 1024) // d
-                         + (noise * noise_value(x, gy, ks[a], lattice, seed)) // 256
-                         + (height * (luma - 128) * 4) // 256)
-                    sc[a] = s
-                    best = max(best, s)
-                # Step 3: the border of the given width around the best score.
-                total = np.int64(0)
-                for a in range(4):
-                    if ws[a] == 0:
-                        sc[a] = 0
-                    else:
-                        sc[a] = max(np.int64(0), sc[a] - best + width)
-                        total += sc[a]
+                # Steps 2-3: scores, and the weights v_t of the border around the best.
+                total = border_weights(ks, ws, bs, o, flat, x, gy, d, params, sc)
                 for c in range(3):
                     acc = np.int64(0)
                     for a in range(4):
