@@ -314,6 +314,7 @@ def test_a_reader_that_allocates_too_much_fails_the_bound(worker, tmp_path):
     assert not outcome.bounded
 
 
+@pytest.mark.slow
 def test_a_reader_that_spins_fails_the_bound(worker, tmp_path):
     outcome = worker.run("spin", tmp_path / "x")
     assert outcome.kind == "ok" and outcome.seconds > CPU_SECONDS and not outcome.bounded

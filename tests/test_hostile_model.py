@@ -149,7 +149,7 @@ def test_options_out_of_range_are_refused(model_parts, tmp_path, path, value, ma
 @pytest.mark.parametrize("weights", [[0.0, 1.0], [1e300, 1.0], [1.0], "x", [True, 1.0]])
 def test_class_weights_must_be_finite_and_positive(model_parts, tmp_path, weights):
     meta, arrays, _ = model_parts
-    with pytest.raises(CorruptFileError, match="class weight|class_weights must be one number"):
+    with pytest.raises(CorruptFileError, match="class weight"):
         Classifier.load(_model_file(tmp_path, dict(meta, class_weights=weights), arrays))
 
 
@@ -194,15 +194,24 @@ def bounded():
     return shared_reader()
 
 
-def test_every_truncation_of_a_model_file(bounded, model_parts, tmp_path):
+def _truncations(bounded, model_parts, tmp_path, step: int) -> None:
     data = model_parts[2].read_bytes()
     assert len(data) < 4000
     path = tmp_path / "cut.ttc"
-    for n in range(len(data)):
+    for n in range(0, len(data), step):
         path.write_bytes(data[:n])
         outcome = bounded.run("model", path)
         check_bounded(outcome, path)
         assert outcome.kind == "error"
+
+
+def test_truncations_of_a_model_file(bounded, model_parts, tmp_path):
+    _truncations(bounded, model_parts, tmp_path, step=7)
+
+
+@pytest.mark.slow
+def test_every_truncation_of_a_model_file(bounded, model_parts, tmp_path):
+    _truncations(bounded, model_parts, tmp_path, step=1)
 
 
 EDITS = st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 255),

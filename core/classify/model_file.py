@@ -204,7 +204,8 @@ def _class_weights(weights: object, classes: list) -> list[float] | None:
     if weights is None:
         return None
     if not isinstance(weights, list) or len(weights) != len(classes):
-        raise ValueError(f"class_weights must be one number per class ({len(classes)})")
+        count = len(weights) if isinstance(weights, list) else "no list of"
+        raise ValueError(f"{count} class weights for {len(classes)} classes")
     return [float(_number(1e-12, 1e12)(v, "class weight")) for v in weights]
 
 
