@@ -345,3 +345,16 @@ def test_hostile_tiff_header_sizes(bounded, tmp_path, width, height):
     tifffile.imwrite(path, np.zeros((2, 2), np.uint8))
     _patch_tiff_size(path, width, height)
     check_bounded(bounded.run("image", path), path)
+
+
+def test_pack_and_unpack_keep_every_texel_of_an_rgba_index_image(tmp_path, capsys):
+    from app.cli import main
+
+    # Issue 16: 32 of these 64 texels changed (alpha was premultiplied on reading).
+    colours = np.array([[200, 100, 50, 255], [0, 255, 0, 128], [10, 20, 30, 0],
+                        [255, 255, 255, 64], [1, 2, 3, 200], [90, 0, 200, 17]], np.uint8)
+    image = colours[np.random.default_rng(0).integers(0, 6, (8, 8))]
+    write_image(tmp_path / "idx.png", image)
+    assert main(["pack", str(tmp_path / "idx.png"), str(tmp_path / "idx.ttpack")]) == 0
+    assert main(["unpack", str(tmp_path / "idx.ttpack"), str(tmp_path / "back.png")]) == 0
+    np.testing.assert_array_equal(read_image(tmp_path / "back.png"), image)

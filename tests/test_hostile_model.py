@@ -104,6 +104,18 @@ def test_bad_forest_arrays_are_refused(model_parts, tmp_path, change, match):
         Classifier.load(_model_file(tmp_path, meta, dict(arrays, **{name: arr})))
 
 
+def test_a_flipped_byte_in_a_deflated_member_is_one_line(model_parts, tmp_path):
+    data = bytearray(model_parts[2].read_bytes())
+    with zipfile.ZipFile(model_parts[2]) as zf:
+        info = zf.getinfo("forest.npz")
+    start = info.header_offset + 30 + len(info.filename)
+    data[start + info.compress_size // 2] ^= 0x55  # inside the deflate stream
+    (tmp_path / "flip.ttc").write_bytes(bytes(data))
+    with pytest.raises(CorruptFileError, match=r"flip.ttc: forest.npz is damaged") as exc:
+        Classifier.load(tmp_path / "flip.ttc")
+    assert "\n" not in str(exc.value)
+
+
 def test_index_arrays_of_float_type_are_refused(model_parts, tmp_path):
     meta, arrays, _ = model_parts
     path = _model_file(tmp_path, meta, dict(arrays, left=arrays["left"].astype(np.float64)))
