@@ -41,6 +41,7 @@ from core.io.atomic import atomic_path
 from core.io.png import (
     is_png,
     libpng_quiet,
+    palette_indices,
     palette_of_png,
     png_header_size,
     relabel_grey_png_as_palette,
@@ -300,7 +301,7 @@ def read_labels(path: str | os.PathLike) -> np.ndarray:
     palette = palette_of_png(Path(path))
     image = read_image(path)
     if palette is not None:
-        return _palette_indices(image, palette, path)
+        return palette_indices(image, palette, path)
     if image.shape[2] > 1 and not all(np.array_equal(image[:, :, 0], image[:, :, c])
                                       for c in range(1, image.shape[2])):
         raise TerrathemeError(f"{path}: a label image must hold single-channel class values, "
@@ -308,28 +309,6 @@ def read_labels(path: str | os.PathLike) -> np.ndarray:
     if not np.issubdtype(image.dtype, np.integer):
         raise TerrathemeError(f"{path}: label values must be whole numbers, not {image.dtype}")
     return np.ascontiguousarray(image[:, :, 0])
-
-
-def _palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
-    """Map the colours OpenImageIO expanded a palette PNG to back to their indices."""
-    channels = image.shape[2]
-    entries = palette[:, :channels].astype(np.uint32)
-    weights = np.array([1 << 24, 1 << 16, 1 << 8, 1][-channels:], np.uint32)
-    keys = entries @ weights
-    pixels = image.astype(np.uint32).reshape(-1, channels) @ weights
-    order = np.argsort(keys, kind="stable")
-    where = np.searchsorted(keys[order], pixels)
-    where = np.minimum(where, len(keys) - 1)
-    found = keys[order][where] == pixels
-    if not found.all():
-        raise CorruptFileError(f"{path}: a pixel colour is not in the file's palette")
-    index = order[where]
-    used_keys, counts = np.unique(keys, return_counts=True)
-    shared = set(used_keys[counts > 1].tolist())
-    if shared and np.isin(pixels, list(shared)).any():
-        raise TerrathemeError(f"{path}: palette entries share a colour, so their class "
-                              "numbers cannot be told apart; save the labels as grey")
-    return index.astype(np.uint8).reshape(image.shape[:2])
 
 
 def write_image(

@@ -7,8 +7,9 @@ module only
 
 * reads the header's size (:func:`png_header_size`) so a 0 x 0 PNG is
   refused before libpng sees it;
-* reads a palette PNG's ``PLTE``/``tRNS`` (:func:`palette_of_png`), since
-  OpenImageIO expands palettes to RGB and the indices must be recovered;
+* reads a palette PNG's ``PLTE``/``tRNS`` (:func:`palette_of_png`) and maps
+  the colours OpenImageIO expanded it to back to indices
+  (:func:`palette_indices`): OpenImageIO gives no access to them;
 * turns an 8-bit grey PNG that OpenImageIO wrote into a palette PNG
   (:func:`relabel_grey_png_as_palette`): the scanline bytes of 8-bit grey
   and 8-bit palette images are identical, so only ``IHDR``'s colour type
@@ -107,6 +108,47 @@ def palette_of_png(path: Path) -> np.ndarray | None:
     trns = np.frombuffer(chunks.get(b"tRNS", b"")[: len(colours)], np.uint8)
     alpha[: len(trns)] = trns
     return np.column_stack([colours, alpha])
+
+
+def palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
+    """The palette indices of a palette PNG that OpenImageIO expanded to colours.
+
+    Parameters
+    ----------
+    image : (H, W, 3 or 4) uint8 ndarray
+        The pixels as read (RGB, or RGBA when the file has tRNS).
+    palette : (K, 4) uint8 ndarray
+        :func:`palette_of_png`.
+    path : path-like
+        For messages.
+
+    Returns
+    -------
+    indices : (H, W) uint8 ndarray
+
+    Raises
+    ------
+    TerrathemeError
+        Entries of the palette that pixels use share a colour (ambiguous).
+    """
+    channels = image.shape[2]
+    entries = palette[:, :channels].astype(np.uint32)
+    weights = np.array([1 << 24, 1 << 16, 1 << 8, 1][-channels:], np.uint32)
+    keys = entries @ weights
+    pixels = image.astype(np.uint32).reshape(-1, channels) @ weights
+    order = np.argsort(keys, kind="stable")
+    where = np.searchsorted(keys[order], pixels)
+    where = np.minimum(where, len(keys) - 1)
+    found = keys[order][where] == pixels
+    if not found.all():
+        raise CorruptFileError(f"{path}: a pixel colour is not in the file's palette")
+    index = order[where]
+    used_keys, counts = np.unique(keys, return_counts=True)
+    shared = set(used_keys[counts > 1].tolist())
+    if shared and np.isin(pixels, list(shared)).any():
+        raise TerrathemeError(f"{path}: palette entries share a colour, so their class "
+                              "numbers cannot be told apart; save the labels as grey")
+    return index.astype(np.uint8).reshape(image.shape[:2])
 
 
 def relabel_grey_png_as_palette(path: Path, palette: np.ndarray) -> None:
