@@ -1,13 +1,17 @@
 """The ``terratheme`` command line: ``main(argv=None) -> int``.
 
 Subcommands are discovered from :mod:`app.commands`. Errors the user can fix
-exit with status 2 and one line on stderr naming the problem.
+(bad or hostile input, a missing folder, a full disk, not enough memory)
+exit with status 2 and one line on stderr naming the problem, never a
+traceback; Ctrl-C exits with 130.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import pkgutil
 import sys
 from collections.abc import Sequence
@@ -42,21 +46,47 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line(text: str) -> str:
+    """A message as one line (readers' messages may quote multi-line library errors)."""
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+def _os_error(exc: OSError) -> str:
+    where = exc.filename if exc.filename is not None else ""
+    why = exc.strerror or str(exc)
+    return f"{where}: {why}" if where else why
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the process exit status."""
+    """Run the CLI; returns the process exit status.
+
+    A problem with the input or the environment is one line on stderr and
+    status 2 (no traceback): the library's own errors, operating-system
+    errors (missing folder, disk full, permissions), running out of memory.
+    Ctrl-C prints one line and returns 130 (128 + SIGINT, as shells expect).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "_run", None) is None:
         parser.print_help()
         return 2
+    name = f"terratheme {args.command}"
     try:
         return int(args._run(args) or 0)
-    except (TerrathemeError, OSError) as exc:
-        print(f"terratheme {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except TerrathemeError as exc:
+        print(f"{name}: error: {_one_line(exc)}", file=sys.stderr)
+    except MemoryError:
+        print(f"{name}: error: not enough memory for this input", file=sys.stderr)
+    except BrokenPipeError:
+        # The reader of our output went away: say nothing more on stdout.
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except OSError as exc:
+        print(f"{name}: error: {_one_line(_os_error(exc))}", file=sys.stderr)
     except KeyboardInterrupt:
-        print(f"terratheme {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted", file=sys.stderr)
         return 130
+    return 2
 
 
 if __name__ == "__main__":

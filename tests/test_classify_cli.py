@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from core.io.images import read_image, write_image
+from core.io.images import read_image, read_labels, write_image
 
 
 @pytest.fixture()
@@ -25,14 +25,19 @@ def photo(tmp_path):
     return tmp_path, truth
 
 
-def test_unsupervised_writes_a_single_channel_label_image(photo, capsys):
+def test_unsupervised_writes_a_palette_label_image(photo, capsys):
     d, truth = photo
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "labels.png"),
                  "--confidence", str(d / "conf.png")]) == 0
-    labels = read_image(d / "labels.png")
-    assert labels.shape == (64, 96, 1) and labels.dtype == np.uint8
+    labels = read_labels(d / "labels.png")
+    assert labels.shape == (64, 96) and labels.dtype == np.uint8
     assert set(np.unique(labels)) == {1, 2}
-    assert (labels[:, :40, 0] != labels[:, 56:, 0][:, :40]).all()
+    assert (labels[:, :40] != labels[:, 56:][:, :40]).all()
+    # Shown in colour: classes 1 and 2 in the first two shipped themes' colours (sand, town).
+    shown = read_image(d / "labels.png")
+    assert shown.shape == (64, 96, 3)
+    assert {tuple(shown[labels == 1][0]), tuple(shown[labels == 2][0])} == {
+        (225, 200, 140), (200, 60, 60)}
     conf = read_image(d / "conf.png")
     assert conf.shape == (64, 96, 1) and conf.dtype == np.uint8 and conf.max() == 255
     assert "2 classes" in capsys.readouterr().out
@@ -41,7 +46,7 @@ def test_unsupervised_writes_a_single_channel_label_image(photo, capsys):
 def test_themes_option(photo):
     d, _ = photo
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "l.png"), "--themes", "1"]) == 0
-    assert (read_image(d / "l.png") == 1).all()
+    assert (read_labels(d / "l.png") == 1).all()
 
 
 def test_scribbles_model_out_and_model(photo):
@@ -49,20 +54,20 @@ def test_scribbles_model_out_and_model(photo):
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "a.png"),
                  "--scribbles", str(d / "scribbles.png"), "--model-out", str(d / "m.ttc"),
                  "--confidence", str(d / "conf.tif")]) == 0
-    a = read_image(d / "a.png")[:, :, 0]
+    a = read_labels(d / "a.png")
     assert (a[:, :40] == 2).all() and (a[:, 56:] == 7).all()
     conf = read_image(d / "conf.tif")
     assert conf.dtype == np.float32 and 0.0 <= conf.min() and conf.max() <= 1.0
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "b.png"),
                  "--model", str(d / "m.ttc")]) == 0
-    np.testing.assert_array_equal(read_image(d / "b.png")[:, :, 0], a)
+    np.testing.assert_array_equal(read_labels(d / "b.png"), a)
 
 
 def test_train_pairs(photo):
     d, truth = photo
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "c.png"),
                  "--train", str(d / "photo.png"), str(d / "truth.png")]) == 0
-    assert (read_image(d / "c.png")[:, :, 0] == truth).mean() > 0.95
+    assert (read_labels(d / "c.png") == truth).mean() > 0.95
 
 
 @pytest.mark.parametrize(
@@ -93,7 +98,7 @@ def test_position_trains_a_placed_model(photo):
     d, truth = photo
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "p.png"), "--position",
                  "--scribbles", str(d / "scribbles.png"), "--model-out", str(d / "p.ttc")]) == 0
-    assert (read_image(d / "p.png")[:, :, 0] == truth).mean() > 0.95
+    assert (read_labels(d / "p.png") == truth).mean() > 0.95
     from core.classify import Classifier
 
     assert Classifier.load(d / "p.ttc").options.features.position

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from core.edit import (
-    BadLayers,
     EditDocument,
     Emitter,
     GridChange,
@@ -45,53 +44,57 @@ def record(doc: EditDocument) -> list:
 
 # -- layers the editor cannot show ---------------------------------------------------------
 ODD_PHOTOS = [
-    (np.zeros(5, np.uint8), r"photo layer has shape \(5,\)"),
-    (np.zeros(1, np.uint8), r"photo layer has shape \(1,\)"),
-    (np.zeros((4, 4, 2), np.uint8), r"photo layer has shape \(4, 4, 2\)"),
-    (np.zeros((*PHOTO, 3), np.float64), "photo layer holds float64 values"),
+    (np.zeros(5, np.uint8), r"photo layer must be \(H, W, 3\), got shape \(5,\)"),
+    (np.zeros(1, np.uint8), r"photo layer must be \(H, W, 3\), got shape \(1,\)"),
+    (np.zeros((4, 4, 2), np.uint8), r"got shape \(4, 4, 2\)"),
+    (np.zeros((*PHOTO, 3), np.float64), "photo layer must be uint8, got float64"),
     (np.zeros((0, 7, 3), np.uint8), "photo layer has no pixels"),
 ]
 
 
 @pytest.mark.parametrize(("photo", "message"), ODD_PHOTOS)
-def test_an_odd_photo_is_refused_or_dropped_with_one_line(photo, message):
+def test_an_odd_photo_is_refused_with_one_line(photo, message):
+    # By the project itself (core.model.layers), and when the editor sets one.
     with pytest.raises(TerrathemeError, match=message):
         make_doc(photo=photo)
-    doc = make_doc(photo=photo, bad_layers=BadLayers.DROP)
-    assert doc.photo is None and len(doc.dropped_layers) == 1
-    assert "opened without the photo layer" in doc.dropped_layers[0]
+    doc = make_doc()
+    with pytest.raises(TerrathemeError, match=message):
+        doc.set_photo(photo)
+    assert doc.photo.shape == (*PHOTO, 3)
 
 
 ODD_SCRIBBLES = [
-    (np.zeros(5, np.uint8), r"scribble layer has shape \(5,\)"),
-    (np.zeros(PHOTO, np.float32), "scribble layer holds float32 values"),
-    (np.zeros((3, 3), np.uint8), "scribble layer is 3 x 3; the photo is 30 x 20"),
+    (np.zeros(5, np.uint8), r"scribbles layer must be \(H, W\), got shape \(5,\)"),
+    (np.zeros(PHOTO, np.float32), "scribbles layer must be uint8, got float32"),
+    (np.zeros((3, 3), np.uint8), "scribbles layer is 3 x 3 but the photo is 30 x 20"),
 ]
 
 
 @pytest.mark.parametrize(("scribbles", "message"), ODD_SCRIBBLES)
-def test_odd_scribbles_are_refused_or_dropped_with_one_line(scribbles, message):
+def test_odd_scribbles_are_refused_with_one_line(scribbles, message):
     with pytest.raises(TerrathemeError, match=message):
         make_doc(scribbles=scribbles)
-    doc = make_doc(scribbles=scribbles, bad_layers=BadLayers.DROP)
-    assert doc.scribbles is None and doc.photo is not None
-    assert len(doc.dropped_layers) == 1
-    assert doc.dropped_layers[0].endswith(": opened without the scribbles layer")
+    doc = make_doc()
+    with pytest.raises(TerrathemeError, match=message):
+        doc.replace_scribbles(scribbles)
+    assert doc.scribbles is None
 
 
-def test_scribbles_without_a_photo_and_a_bad_photo_are_both_dropped():
-    doc = make_doc(photo=np.zeros(3, np.uint8), scribbles=np.zeros(PHOTO, np.uint8),
-                   bad_layers=BadLayers.DROP)
-    assert doc.photo is None and doc.scribbles is None and len(doc.dropped_layers) == 2
-    assert "without a photo" in doc.dropped_layers[1]
+def test_scribbles_need_a_photo():
+    doc = make_doc(photo=None)
+    with pytest.raises(TerrathemeError, match="without a photo"):
+        doc.replace_scribbles(np.zeros(PHOTO, np.uint8))
 
 
 def test_grey_and_rgba_photos_are_shown_as_rgb():
     grey = np.arange(600, dtype=np.uint16).reshape(PHOTO).astype(np.uint8)
-    rgb = make_doc(photo=grey).photo_rgb()
+    doc = make_doc(photo=None)
+    doc.set_photo(grey)
+    rgb = doc.photo_rgb()
     assert rgb.shape == (*PHOTO, 3) and (rgb[..., 1] == grey).all()
     rgba = np.dstack([np.full(PHOTO, c, np.uint8) for c in (1, 2, 3, 4)])
-    assert (make_doc(photo=rgba).photo_rgb() == (1, 2, 3)).all()
+    doc.set_photo(rgba)
+    assert (doc.photo_rgb() == (1, 2, 3)).all()
 
 
 def test_photo_extent_is_one_to_one_unless_more_than_a_cell_smaller():
@@ -239,7 +242,7 @@ def test_a_new_photo_takes_the_scribbles_that_no_longer_fit():
     assert doc.scribbles is None and doc.photo.shape == (5, 5, 3)
     doc.undo()
     assert doc.photo is same_size and doc.scribbles[2, 2] == 1
-    with pytest.raises(TerrathemeError, match="holds int64 values"):
+    with pytest.raises(TerrathemeError, match="must be uint8, got int64"):
         doc.set_photo(np.zeros((5, 5, 3), np.int64))
 
 

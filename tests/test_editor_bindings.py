@@ -89,55 +89,65 @@ def test_brush_then_undo_of_a_single_vertex(window, qtbot):
 
 
 ODD_LAYERS = [
-    ({"photo": np.zeros(5, np.uint8)}, "photo layer has shape (5,)"),
-    ({"photo": np.zeros(1, np.uint8)}, "photo layer has shape (1,)"),
-    ({"photo": np.zeros((64, 96, 3), np.float32)}, "photo layer holds float32 values"),
+    ({"photo": np.zeros(5, np.uint8)}, r"photo.npy has shape \(5,\); expected 3 dimensions"),
+    ({"photo": np.zeros((64, 96, 3), np.float32)}, "photo.npy holds float32, not uint8"),
     ({"photo": np.zeros((64, 96, 3), np.uint8), "scribbles": np.zeros(7, np.uint8)},
-     "scribble layer has shape (7,)"),
-    ({"photo": np.zeros((64, 96, 3), np.uint8), "scribbles": np.zeros((64, 96), np.float64)},
-     "scribble layer holds float64 values"),
+     r"scribbles.npy has shape \(7,\); expected 2 dimensions"),
 ]
 
 
-@pytest.mark.parametrize(("layers", "message"), ODD_LAYERS)
-def test_a_project_with_an_odd_layer_opens_without_it(window, tmp_path, layers, message):
-    path = tmp_path / "odd.ttproj"
-    save_project(path, small_texture(**layers))
-    assert window.open_path(path)
-    assert len(window.errors) == 1
-    assert window.errors[0].startswith(f"odd.ttproj: {message}") and "opened without" in \
-        window.errors[0]
-    tex = window.doc.texture
-    name = "photo" if "photo layer" in message else "scribbles"
-    assert getattr(tex, name) is None
-    # The rest works: paint, scribble (or a clear word when there is no photo), render.
-    window.doc.model.fill_rect((0, 0), (3, 3), 1)
-    from app.editor.tools import Tool
+def _odd_project(path, layers: dict) -> None:
+    """A project file holding layers no ThematicTexture accepts (written member by member)."""
+    import io
+    import json
+    import zipfile
 
-    window.set_tool(Tool.SCRIBBLE)
-    window.tools.press(QPointF(10, 10))
-    window.tools.release(QPointF(10, 10))
-    if tex.photo is None:
-        assert "has none" in window.statusBar().currentMessage()
-    else:
-        assert tex.scribbles is not None and tex.scribbles.any()
+    save_project(path, small_texture())
+    with zipfile.ZipFile(path) as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    manifest = json.loads(members["manifest.json"])
+    manifest["layers"] = list(layers)
+    members["manifest.json"] = json.dumps(manifest).encode()
+    for name, arr in layers.items():
+        buf = io.BytesIO()
+        np.save(buf, arr, allow_pickle=False)
+        members[f"{name}.npy"] = buf.getvalue()
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+
+
+@pytest.mark.parametrize(("layers", "message"), ODD_LAYERS)
+def test_a_project_with_an_odd_layer_is_refused_with_one_line(window, tmp_path, layers,
+                                                               message):
+    import re
+
+    before = window.doc
+    path = tmp_path / "odd.ttproj"
+    _odd_project(path, layers)
+    assert not window.open_path(path)
+    assert len(window.errors) == 1 and re.search(message, window.errors[0])
+    assert "odd.ttproj" in window.errors[0]
+    # The open document is untouched and still works.
+    assert window.doc is before
+    window.doc.model.fill_rect((0, 0), (3, 3), 1)
     window.index_canvas.repaint()
 
 
-def test_the_screenshot_command_reports_an_odd_layer_without_a_dialog(tmp_path, monkeypatch):
+def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, capsys, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
     from app.cli import main
-    from core.io.images import read_image
 
     dialogs = []
     monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: dialogs.append(a[2]))
-
     path = tmp_path / "odd.ttproj"
-    save_project(path, small_texture(photo=np.zeros(5, np.uint8)))
+    _odd_project(path, {"photo": np.zeros(5, np.uint8)})
     out = tmp_path / "shot.png"
-    assert main(["app", str(path), "--screenshot", str(out), "--size", "640x400"]) == 0
-    assert read_image(out).shape[0] >= 400 and dialogs == []
+    assert main(["app", str(path), "--screenshot", str(out), "--size", "640x400"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "photo.npy has shape (5,)" in err[0] and dialogs == []
+    assert not out.exists()
 
 
 def test_photo_changes_reach_the_window(window):

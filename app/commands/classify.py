@@ -30,7 +30,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Add the command's arguments."""
     parser.add_argument("photo", metavar="PHOTO", help="orthophoto (PNG, JPEG, TIFF, EXR, ...)")
     parser.add_argument("-o", "--output", metavar="LABELS.png", required=True,
-                        help="single-channel 8-bit label image, the photo's size")
+                        help="8-bit label image, the photo's size: a .png is a palette PNG "
+                             "(values are the class numbers, shown in theme colours), other "
+                             "formats are grey")
     parser.add_argument("--scribbles", metavar="MASK",
                         help="brush strokes on PHOTO: 0 = unlabelled, k > 0 = class k")
     parser.add_argument("--train", nargs=2, action="append", default=[],
@@ -55,19 +57,36 @@ def _read_mask(path: str):
     import numpy as np
 
     from core.errors import TerrathemeError
-    from core.io.images import read_image
+    from core.io.images import read_labels
 
-    mask = read_image(path)
-    if mask.shape[2] > 1:
-        if not all(np.array_equal(mask[:, :, 0], mask[:, :, c]) for c in range(1, mask.shape[2])):
-            raise TerrathemeError(
-                f"{path}: a label mask must be single-channel class values, "
-                f"not a {mask.shape[2]}-channel colour image"
-            )
-    mask = mask[:, :, 0]
-    if not np.issubdtype(mask.dtype, np.integer) or (mask.size and int(mask.max()) > 255):
+    mask = read_labels(path)
+    if mask.size and int(mask.max()) > 255:
         raise TerrathemeError(f"{path}: label mask values must be whole numbers 0..255")
     return mask.astype(np.uint8)
+
+
+def label_palette():
+    """(256, 3) uint8 colours for label images, all distinct (so values read back exactly).
+
+    0 (unlabelled, no data) is black; 1..9 are the shipped themes' display
+    colours in ``themes.json`` order; the rest are spread over hue and value.
+    """
+    import cv2
+    import numpy as np
+
+    from core.themes.library import shipped_theme_library
+
+    colours = [(0, 0, 0), *(tuple(int(c) for c in t.colour) for t in shipped_theme_library())]
+    step = 0
+    while len(colours) < 256:
+        # Golden-ratio hue walk, three brightness levels (OpenCV hue is 0..179).
+        hsv = np.array([[[int(step * 0.618034 * 180) % 180, 200, (255, 190, 130)[step % 3]]]],
+                       np.uint8)
+        rgb = tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)[0, 0])
+        if rgb not in colours:
+            colours.append(rgb)
+        step += 1
+    return np.array(colours[:256], np.uint8)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
+    from app.outputs import check_outputs
     from core.classify import (
         Classifier,
         SupervisedOptions,
@@ -82,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         train_classifier,
     )
     from core.errors import TerrathemeError
-    from core.io.images import read_image, write_image
+    from core.io.images import Bands, read_image, write_image
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -96,8 +116,12 @@ def run(args: argparse.Namespace) -> int:
                               "another photo says nothing about this one")
     if args.model_out and not supervised:
         raise TerrathemeError("--model-out needs training data (--scribbles or --train)")
+    # Every output path is checked before any work (and before the labels are written).
+    check_outputs([args.output, args.confidence, args.model_out],
+                  inputs=[args.photo, args.scribbles, args.model,
+                          *(p for pair in args.train for p in pair)])
 
-    photo = read_image(args.photo)
+    photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.
     if args.model:
         model = Classifier.load(args.model)
@@ -106,11 +130,9 @@ def run(args: argparse.Namespace) -> int:
         if args.scribbles:
             pairs.append((photo, _read_mask(args.scribbles)))
         for train_photo, train_mask in args.train:
-            pairs.append((read_image(train_photo), _read_mask(train_mask)))
+            pairs.append((read_image(train_photo, bands=Bands.PHOTO), _read_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
         model = train_classifier(pairs, options.with_positions(args.position))
-        if args.model_out:
-            model.save(args.model_out)
     else:
         model = None
 
@@ -132,13 +154,17 @@ def run(args: argparse.Namespace) -> int:
         for bar in bars:
             bar.close()
 
-    write_image(args.output, result.labels[:, :, None])
+    # Labels as a palette PNG (values stay the class numbers) or a grey image.
+    palette = label_palette() if args.output.lower().endswith(".png") else None
+    write_image(args.output, result.labels[:, :, None], palette=palette)
     if args.confidence:
         if args.confidence.lower().endswith((".tif", ".tiff", ".exr")):
             conf = result.confidence
         else:
             conf = np.round(result.confidence * 255.0).astype(np.uint8)
         write_image(args.confidence, conf[:, :, None])
+    if args.model_out:
+        model.save(args.model_out)
     counts = np.bincount(result.labels.ravel(), minlength=256)
     shown = ", ".join(f"{k}: {counts[k] / result.labels.size:.1%}" for k in result.classes)
     print(f"{args.output}: {len(result.classes)} classes ({shown})")

@@ -25,7 +25,6 @@ from PySide6.QtCore import QObject, QRectF, Signal
 
 from app.editor.imaging import ZoomPyramid
 from core.edit import (
-    BadLayers,
     EditDocument,
     GridChange,
     HistoryChange,
@@ -45,9 +44,6 @@ class EditorDocument(QObject):
     Parameters
     ----------
     source : ThematicTexture or core EditDocument
-        A texture is opened with ``BadLayers.DROP``: a photo or scribble
-        layer the editor cannot show is left out and ``model.dropped_layers``
-        says why (the window shows it).
 
     Signals
     -------
@@ -75,8 +71,7 @@ class EditorDocument(QObject):
     def __init__(self, source: ThematicTexture | EditDocument, path: str | Path | None = None,
                  progress=None) -> None:
         super().__init__()
-        self.model = (source if isinstance(source, EditDocument)
-                      else EditDocument(source, bad_layers=BadLayers.DROP))
+        self.model = source if isinstance(source, EditDocument) else EditDocument(source)
         self.path = Path(path) if path else None
         #: a project just started over a photo (classification replaces its themes)
         self.fresh_from_photo = False

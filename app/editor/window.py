@@ -111,17 +111,6 @@ class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):
         self._history_changed(doc.history_state())
         self.fit()
         self.update_perspective_tab()
-        self._report_dropped_layers(doc)
-
-    def _report_dropped_layers(self, doc: EditorDocument) -> None:
-        """A photo or scribble layer the editor cannot show was left out: say so once."""
-        if not doc.model.dropped_layers:
-            return
-        name = doc.path.name if doc.path else "the project"
-        message = f"{name}: " + "; ".join(doc.model.dropped_layers)
-        self.statusBar().showMessage(message)
-        if self.interactive:
-            self.show_error(message)
 
     def _history_changed(self, state: HistoryChange) -> None:
         """Edit > Undo / Redo and the title follow the core history."""

@@ -29,6 +29,13 @@ from core.errors import TerrathemeError
 
 #: the arrays of an :class:`ExtraTreesForest`, in file order
 ARRAY_NAMES = ("classes", "roots", "feature", "threshold", "left", "right", "value")
+#: ceilings :meth:`ExtraTreesForest.from_arrays` holds a forest to (50 trees of depth 12
+#: have at most 409,550 nodes)
+MAX_TREES = 1024
+MAX_NODES = 1 << 24
+MAX_CLASSES = 256
+MAX_DEPTH = 64
+MAX_FEATURES = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,41 +96,98 @@ class ExtraTreesForest:
         return {name: getattr(self, name) for name in ARRAY_NAMES}
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> ExtraTreesForest:
+    def from_arrays(cls, arrays: dict[str, np.ndarray],
+                    n_features: int | None = None) -> ExtraTreesForest:
         """Check and wrap arrays read from a file.
+
+        Every value the prediction kernel uses as an index is range-checked
+        *before* the arrays are narrowed to int32 (a feature index of 2^31
+        would otherwise wrap and read outside the samples), so a forest that
+        passes cannot make the kernel read out of bounds or loop.
+
+        Parameters
+        ----------
+        arrays : dict of name -> ndarray
+            :data:`ARRAY_NAMES`; index arrays of an integer dtype, ``threshold``
+            and ``value`` floating.
+        n_features : int, optional
+            Length of the feature vectors the forest will see; every split
+            feature must be below it (default: below :data:`MAX_FEATURES`).
 
         Raises
         ------
         TerrathemeError
-            A missing array, or arrays that do not form a forest (wrong
-            shapes, children or features out of range, a cycle-prone child
-            index, a leaf without a distribution).
+            A missing array, a wrong dtype or shape, more than
+            :data:`MAX_NODES` nodes, :data:`MAX_TREES` trees or
+            :data:`MAX_CLASSES` classes, classes not distinct ascending 0..255,
+            a root, child or feature out of range, a child not after its parent,
+            a tree deeper than :data:`MAX_DEPTH`, a threshold or distribution
+            value that is not finite, a leaf whose distribution does not sum to 1.
         """
         missing = [n for n in ARRAY_NAMES if n not in arrays]
         if missing:
             raise TerrathemeError(f"forest arrays missing: {', '.join(missing)}")
         a = {n: np.asarray(arrays[n]) for n in ARRAY_NAMES}
+        for name in ARRAY_NAMES:
+            kind = "f" if name in ("threshold", "value") else "iu"
+            if a[name].dtype.kind not in kind:
+                raise TerrathemeError(f"forest arrays do not form a forest: {name} has dtype "
+                                  f"{a[name].dtype}")
         n_nodes, n_classes = a["feature"].shape[0], a["classes"].shape[0]
-        ok = (a["classes"].ndim == 1 and n_classes >= 1 and a["roots"].ndim == 1
-              and a["roots"].size >= 1
-              and all(a[k].shape == (n_nodes,) for k in ("feature", "threshold", "left", "right"))
-              and a["value"].shape == (n_nodes, n_classes))
-        if ok:
-            nodes = np.arange(n_nodes)
-            leaf = a["left"] < 0
-            ok = bool(((a["roots"] >= 0) & (a["roots"] < n_nodes)).all()
-                      # Children come after their parent (scikit-learn's depth-first order),
-                      # so a walk always ends.
-                      and ((a["left"] > nodes) | leaf).all() and ((a["right"] > nodes) | leaf).all()
-                      and (a["left"] < n_nodes).all() and (a["right"] < n_nodes).all()
-                      and ((a["right"] < 0) == leaf).all() and ((a["feature"] >= 0) != leaf).all()
-                      and np.isfinite(a["value"]).all())
-        if not ok:
-            raise TerrathemeError("forest arrays do not form a forest")
-        return cls(a["classes"].astype(np.int64), a["roots"].astype(np.int32),
-                   a["feature"].astype(np.int32), a["threshold"].astype(np.float64),
-                   a["left"].astype(np.int32), a["right"].astype(np.int32),
+        shapes_ok = (a["classes"].ndim == 1 and 1 <= n_classes <= MAX_CLASSES
+                     and a["roots"].ndim == 1 and 1 <= a["roots"].size <= MAX_TREES
+                     and 1 <= n_nodes <= MAX_NODES
+                     and all(a[k].shape == (n_nodes,)
+                             for k in ("feature", "threshold", "left", "right"))
+                     and a["value"].shape == (n_nodes, n_classes))
+        if not shapes_ok:
+            raise TerrathemeError("forest arrays do not form a forest: shapes "
+                                  + ", ".join(f"{n} {a[n].shape}" for n in ARRAY_NAMES))
+        # Ranges in Python integers / int64 before any narrowing cast.
+        limit = MAX_FEATURES if n_features is None else n_features
+        classes = a["classes"]
+        if int(classes.min()) < 0 or int(classes.max()) > 255 or (np.diff(
+                classes.astype(np.int64)) <= 0).any():
+            raise TerrathemeError("forest arrays do not form a forest: classes must be "
+                                  "distinct ascending values 0..255")
+        for name, low, high in (("roots", 0, n_nodes - 1), ("left", -1, n_nodes - 1),
+                                ("right", -1, n_nodes - 1), ("feature", -1, limit - 1)):
+            lo, hi = int(a[name].min()), int(a[name].max())
+            if lo < low or hi > high:
+                raise TerrathemeError(f"forest arrays do not form a forest: {name} holds "
+                                      f"{lo if lo < low else hi}, outside {low}..{high}")
+        left, right, feature = (a[k].astype(np.int64) for k in ("left", "right", "feature"))
+        leaf = left < 0
+        nodes = np.arange(n_nodes)
+        # Children come after their parent (scikit-learn's depth-first order), so a walk ends.
+        if not (((left > nodes) | leaf).all() and ((right > nodes) | leaf).all()
+                and ((right < 0) == leaf).all() and ((feature >= 0) != leaf).all()):
+            raise TerrathemeError("forest arrays do not form a forest: children, leaves and "
+                                  "features disagree")
+        if not (np.isfinite(a["threshold"]).all() and np.isfinite(a["value"]).all()):
+            raise TerrathemeError("forest arrays do not form a forest: thresholds or leaf "
+                                  "values are not finite")
+        values = a["value"][leaf].astype(np.float64)
+        if (values < 0).any() or (np.abs(values.sum(1) - 1.0) > 1e-3).any():
+            raise TerrathemeError("forest arrays do not form a forest: a leaf's class "
+                                  "distribution is not shares summing to 1")
+        _check_depth(a["roots"].astype(np.int64), left, right)
+        return cls(classes.astype(np.int64), a["roots"].astype(np.int32),
+                   feature.astype(np.int32), a["threshold"].astype(np.float64),
+                   left.astype(np.int32), right.astype(np.int32),
                    a["value"].astype(np.float32))
+
+
+def _check_depth(roots: np.ndarray, left: np.ndarray, right: np.ndarray) -> None:
+    """Refuse trees deeper than MAX_DEPTH (walks level by level, at most MAX_DEPTH + 1 steps)."""
+    level = np.unique(roots)
+    for _ in range(MAX_DEPTH + 1):
+        inner = level[left[level] >= 0]
+        if inner.size == 0:
+            return
+        level = np.unique(np.concatenate([left[inner], right[inner]]))
+    raise TerrathemeError(f"forest arrays do not form a forest: a tree is deeper than "
+                          f"{MAX_DEPTH} levels")
 
 
 def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_depth: int = 12,
@@ -174,7 +238,7 @@ def from_sklearn(model) -> ExtraTreesForest:
     arrays = {n: np.concatenate(p) if n != "roots" else np.asarray(p)
               for n, p in parts.items()}
     arrays["classes"] = np.asarray(model.classes_)
-    return ExtraTreesForest.from_arrays(arrays)
+    return ExtraTreesForest.from_arrays(arrays, n_features=int(model.n_features_in_))
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)

@@ -9,12 +9,22 @@ read with ``allow_pickle=False``: numbers only), or ``forest.yml``, an OpenCV
 random forest as OpenCV's own YAML. Version 1 files (OpenCV forests, written
 before Extra-Trees) still load. Written atomically; a newer version raises
 UnsupportedVersionError, a damaged file CorruptFileError.
+
+A model file may come from anyone, so reading bounds its work
+(:mod:`core.io.archive`: sizes checked before reading, a capped inflate) and
+checks every number: each option against a type and range (``_OPTION_RULES``:
+feature scale 1..64, sigmas up to 64, at most ``MAX_TREES`` trees of depth
+``MAX_DEPTH``, ...), class values 0..255, class weights finite and positive,
+and the forest's arrays (:meth:`ExtraTreesForest.from_arrays`) against the
+options' feature count, so prediction never fails or reads out of bounds.
+:func:`write_model` refuses what :func:`read_model` would refuse.
 """
 
 from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import zipfile
 from dataclasses import asdict
@@ -24,16 +34,32 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from core.classify.extra_trees import ExtraTreesForest
+from core.classify.extra_trees import (
+    ARRAY_NAMES,
+    MAX_CLASSES,
+    MAX_DEPTH,
+    MAX_FEATURES,
+    MAX_NODES,
+    MAX_TREES,
+    ExtraTreesForest,
+)
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.supervised_options import SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.io.archive import open_archive, read_json_member, read_member, read_npy_member
 from core.io.atomic import write_bytes_atomic
 
 FORMAT = "terratheme-classifier"
 VERSION = 2
+META, FOREST_NPZ, FOREST_YML = "meta.json", "forest.npz", "forest.yml"
+#: ceilings on what a model file may declare
+MAX_META_BYTES = 1 << 20
+MAX_FOREST_BYTES = 256 << 20
+MAX_MEMBERS = 16
+_INT_DTYPES = [np.int8, np.int16, np.int32, np.int64, np.uint8, np.uint16, np.uint32, np.uint64]
+_FLOAT_DTYPES = [np.float32, np.float64]
 
 
 class ModelParts(NamedTuple):
@@ -54,100 +80,318 @@ def _options_to_json(options: SupervisedOptions) -> dict:
     return d
 
 
-def _options_from_json(d: dict) -> SupervisedOptions:
-    f = dict(d["features"])
-    f["feature_set"] = FeatureSet(f["feature_set"])
-    f["normalise"] = Normalise(f.get("normalise", "none"))
-    f["sigmas"] = tuple(f["sigmas"])
-    f["ridge_sigmas"] = tuple(f.get("ridge_sigmas", ()))
-    r = dict(d["regularisation"])
-    r["method"] = Regularisation(r["method"])
-    rest = {k: v for k, v in d.items() if k not in ("features", "regularisation")}
-    rest["ignore_classes"] = tuple(rest.get("ignore_classes", ()))
+def _number(lo: float, hi: float, *, whole: bool = False, optional: bool = False):
+    """A rule: a finite number (a whole one if ``whole``) in ``lo..hi`` (None if ``optional``)."""
+    def check(value, name):
+        if value is None and optional:
+            return None
+        kinds = int if whole else int | float
+        if (not isinstance(value, kinds) or isinstance(value, bool)
+                or not math.isfinite(value) or not lo <= value <= hi):
+            raise ValueError(f"{name} must be a {'whole ' if whole else ''}number in "
+                             f"{lo:g}..{hi:g}, not {repr(value)[:30]}")
+        return value
+    return check
+
+
+def _numbers(lo: float, hi: float, *, whole: bool = False, most: int = 16):
+    """A rule: a list of at most ``most`` numbers, each as :func:`_number`."""
+    one = _number(lo, hi, whole=whole)
+
+    def check(value, name):
+        if not isinstance(value, list) or len(value) > most:
+            raise ValueError(f"{name} must be a list of at most {most} numbers")
+        return tuple(one(v, name) for v in value)
+    return check
+
+
+def _flag(value, name):
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} must be true or false, not {repr(value)[:30]}")
+    return value
+
+
+def _choice(enum_type):
+    def check(value, name):
+        try:
+            return enum_type(value)
+        except (ValueError, TypeError):
+            raise ValueError(f"{name} must be one of "
+                             f"{', '.join(e.value for e in enum_type)}") from None
+    return check
+
+
+#: every option a model file may hold, with its type and range (missing ones take
+#: their defaults; bounds keep a hostile file from costing unbounded work at predict time)
+_FEATURE_RULES = {
+    "feature_set": _choice(FeatureSet), "normalise": _choice(Normalise),
+    "scale": _number(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
+    "skimage_sigma_max": _number(1, 64), "hessian": _flag, "position": _flag,
+    "ridge_sigmas": _numbers(1e-3, 64),
+}
+_REGULARISE_RULES = {
+    "method": _choice(Regularisation), "sigma": _number(1e-3, 64),
+    "region_size": _number(2, 256, whole=True), "ruler": _number(1e-3, 1e4),
+    "edge_sigma_spatial": _number(1e-3, 256), "edge_sigma_colour": _number(1e-3, 1e4),
+}
+_OPTION_RULES = {
+    "ignore_classes": _numbers(0, 255, whole=True, most=256), "forest": _choice(ForestKind),
+    "n_trees": _number(1, MAX_TREES, whole=True), "max_depth": _number(1, MAX_DEPTH, whole=True),
+    "min_samples": _number(1, 1 << 30, whole=True),
+    "active_vars": _number(0, MAX_FEATURES, whole=True),
+    "max_samples_per_class": _number(1, 1 << 30, whole=True), "balance": _flag,
+    "seed": _number(0, 2**32 - 1, whole=True), "tile": _number(16, 1 << 16, whole=True),
+    "prior_power": _number(0, 1, optional=True),
+    "grow_colour": _number(0, 1e4, optional=True),
+}
+
+
+def _apply_rules(d: object, rules: dict, where: str) -> dict:
+    if not isinstance(d, dict):
+        raise ValueError(f"{where} must be an object")
+    unknown = sorted(set(d) - set(rules) - {"features", "regularisation"})
+    if unknown:
+        raise ValueError(f"unknown option {where}.{unknown[0][:40]}")
+    return {k: rule(d[k], f"{where}.{k}") for k, rule in rules.items() if k in d}
+
+
+def _options_from_json(d: object) -> SupervisedOptions:
+    rest = _apply_rules(d, _OPTION_RULES, "options")
+    features = FeatureOptions(**_apply_rules(d.get("features"), _FEATURE_RULES,
+                                             "options.features"))
+    regularisation = RegulariseOptions(**_apply_rules(d.get("regularisation"),
+                                                      _REGULARISE_RULES,
+                                                      "options.regularisation"))
     # Version 1 files predate Extra-Trees: their forests are OpenCV's.
-    rest["forest"] = ForestKind(rest.get("forest", ForestKind.RANDOM_FOREST.value))
-    return SupervisedOptions(features=FeatureOptions(**f),
-                             regularisation=RegulariseOptions(**r), **rest)
+    rest.setdefault("forest", ForestKind.RANDOM_FOREST)
+    return SupervisedOptions(features=features, regularisation=regularisation, **rest)
 
 
 def write_model(path: str | os.PathLike, model: ModelParts) -> None:
-    """Write a model to ``path`` (atomic)."""
+    """Write a model to ``path`` (atomic).
+
+    Raises
+    ------
+    TerrathemeError
+        Options or class weights :func:`read_model` would refuse (nothing is written).
+    """
+    options = _options_to_json(model.options)
+    try:
+        _options_from_json(json.loads(json.dumps(options)))
+        _class_weights(list(model.class_weights) if model.class_weights is not None else None,
+                       list(model.classes))
+    except ValueError as exc:
+        raise TerrathemeError(f"cannot save the classifier: {exc}") from None
     meta = {"format": FORMAT, "version": VERSION, "classes": list(model.classes),
-            "options": _options_to_json(model.options)}
+            "options": options}
     if model.class_weights is not None:
         meta["class_weights"] = list(model.class_weights)
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("meta.json", json.dumps(meta, indent=1))
+        zf.writestr(META, json.dumps(meta, indent=1, allow_nan=False))
         if isinstance(model.forest, ExtraTreesForest):
             arrays = io.BytesIO()
             np.savez_compressed(arrays, **model.forest.arrays())
-            zf.writestr("forest.npz", arrays.getvalue())
+            zf.writestr(FOREST_NPZ, arrays.getvalue())
         elif model.forest is not None:
             fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
             model.forest.write(fs)
-            zf.writestr("forest.yml", fs.releaseAndGetString())
+            zf.writestr(FOREST_YML, fs.releaseAndGetString())
     write_bytes_atomic(path, buf.getvalue())
+
+
+def _class_weights(weights: object, classes: list) -> list[float] | None:
+    if weights is None:
+        return None
+    if not isinstance(weights, list) or len(weights) != len(classes):
+        count = len(weights) if isinstance(weights, list) else "no list of"
+        raise ValueError(f"{count} class weights for {len(classes)} classes")
+    return [float(_number(1e-12, 1e12)(v, "class weight")) for v in weights]
+
+
+def _classes(value: object) -> list[int]:
+    if not isinstance(value, list) or not 1 <= len(value) <= MAX_CLASSES:
+        raise ValueError(f"classes must be a list of 1..{MAX_CLASSES} class values")
+    classes = [_number(0, 255, whole=True)(c, "class") for c in value]
+    if len(set(classes)) != len(classes):
+        raise ValueError(f"classes {classes} repeat a value")
+    return classes
+
+
+def _read_extra_trees(data: bytes, label: str, n_features: int) -> ExtraTreesForest:
+    """The Extra-Trees arrays of ``forest.npz`` (itself a ZIP of ``.npy`` members)."""
+    arrays = {}
+    try:
+        with open_archive(data, FOREST_NPZ, kind="forest array archive",
+                          max_members=len(ARRAY_NAMES) + 4) as npz:
+            for name in ARRAY_NAMES:
+                floats = name in ("threshold", "value")
+                arrays[name] = read_npy_member(
+                    npz, f"{name}.npy", FOREST_NPZ, max_bytes=MAX_NODES * MAX_CLASSES * 8 if
+                    name == "value" else MAX_NODES * 8,
+                    dtypes=_FLOAT_DTYPES if floats else _INT_DTYPES,
+                    ndims=[2] if name == "value" else [1])
+    except CorruptFileError as exc:
+        raise CorruptFileError(f"{label}: damaged forest ({exc})") from None
+    try:
+        return ExtraTreesForest.from_arrays(arrays, n_features=n_features)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{label}: damaged forest ({exc})") from None
+
+
+def _whole_field(node, name: str, lo: int, hi: int) -> int:
+    field = node.getNode(name)
+    if not field.isInt() or not lo <= field.real() <= hi:
+        raise ValueError(f"{name} is not a whole number in {lo}..{hi}")
+    return int(field.real())
+
+
+def _opencv_trees(root, n_features: int, classes: list[int]) -> dict[str, np.ndarray]:
+    """The node arrays of an OpenCV RTrees file node (format 3, ordered features only)."""
+    if _whole_field(root, "var_count", 0, MAX_FEATURES) != n_features:
+        raise ValueError(f"not trained for {n_features} features")
+    _whole_field(root, "is_classifier", 1, 1)
+    var_idx, labels = root.getNode("var_idx"), root.getNode("class_labels")
+    if not var_idx.empty() and [int(var_idx.at(i).real()) for i in range(
+            min(var_idx.size(), MAX_FEATURES + 1))] != list(range(n_features)):
+        raise ValueError("var_idx picks features this version does not read")
+    labels = [int(labels.at(i).real()) for i in range(min(labels.size(), MAX_CLASSES + 1))]
+    if sorted(labels) != sorted(classes):
+        raise ValueError(f"classes {labels[:8]} are not the file's {classes}")
+    column = [sorted(classes).index(c) for c in labels]
+    trees = root.getNode("trees")
+    if not trees.isSeq() or not 1 <= trees.size() <= MAX_TREES:
+        raise ValueError(f"trees must be a list of 1..{MAX_TREES}")
+    feature, threshold, left, right, leaf_class, roots = [], [], [], [], [], []
+    inverted = []
+    for t in range(trees.size()):
+        nodes = trees.at(t).getNode("nodes")
+        if not nodes.isSeq() or not 1 <= nodes.size() <= MAX_NODES - len(feature):
+            raise ValueError(f"tree {t} has no nodes or too many")
+        # Pre-order, linked as OpenCV's readTree does: a split node's children follow it.
+        parent, pending = {}, -1
+        roots.append(len(feature))
+        for i in range(nodes.size()):
+            node, k = nodes.at(i), len(feature)
+            if pending < 0 and k != roots[-1]:
+                raise ValueError(f"tree {t} has nodes after its last leaf")
+            parent[k] = pending
+            if pending >= 0:
+                (left if left[pending] < 0 else right)[pending] = k
+            leaf_class.append(column[_whole_field(node, "norm_class_idx", 0, len(labels) - 1)])
+            left.append(-1)
+            right.append(-1)
+            splits = node.getNode("splits")
+            if splits.empty():
+                feature.append(-1)
+                threshold.append(0.0)
+                while pending >= 0 and right[pending] >= 0:
+                    pending = parent[pending]
+                continue
+            split = splits.at(0)
+            # "ge" marks an inverted split: x <= c goes right (its children are swapped below).
+            if split.getNode("le").empty():
+                inverted.append(k)
+            cut = split.getNode("ge" if inverted and inverted[-1] == k else "le")
+            if not (cut.isReal() or cut.isInt()) or not math.isfinite(cut.real()):
+                raise ValueError(f"tree {t} has a split that is not on an ordered feature")
+            feature.append(_whole_field(split, "var", 0, n_features - 1))
+            threshold.append(float(np.float32(cut.real())))
+            pending = k
+        if pending >= 0:
+            raise ValueError(f"tree {t} ends before every split has two children")
+    left, right = np.array(left), np.array(right)
+    left[inverted], right[inverted] = right[inverted], left[inverted].copy()
+    is_leaf = np.array(feature) < 0
+    value = np.zeros((len(feature), len(classes)))
+    value[np.flatnonzero(is_leaf), np.array(leaf_class)[is_leaf]] = 1.0
+    return {"classes": np.array(sorted(classes)), "roots": np.array(roots),
+            "feature": np.array(feature), "threshold": np.array(threshold), "left": left,
+            "right": right, "value": value}
+
+
+def _read_opencv_forest(text: str, label: str, n_features: int,
+                        classes: list[int]) -> ExtraTreesForest:
+    """An OpenCV random forest (``forest.yml``) as checked node arrays.
+
+    OpenCV's own reader trusts the file (a split on feature ``var_count``
+    reads out of bounds, a split without children crashes prediction), so
+    the trees are read here, node by node, and predicted by the checked
+    kernel of :mod:`core.classify.extra_trees`: a leaf's distribution is its
+    class, one vote per tree, which is what ``RTrees.getVotes`` counts.
+    """
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+        arrays = _opencv_trees(fs.root(), n_features, classes)
+        return ExtraTreesForest.from_arrays(arrays, n_features=n_features)
+    except (cv2.error, SystemError, ValueError, TerrathemeError) as exc:
+        # OpenCV's bindings report some YAML parse errors as SystemError.
+        raise CorruptFileError(f"{label}: damaged forest "
+                               f"({' '.join(str(exc).split())[:120]})") from None
 
 
 def read_model(path: str | os.PathLike) -> ModelParts:
     """Read a model written by :func:`write_model`.
+
+    Work is bounded by the file: members and arrays are checked before they
+    are read (:mod:`core.io.archive`), every option is type- and
+    range-checked, and the forest is checked so prediction cannot fail or
+    read out of bounds.
 
     Raises
     ------
     TerrathemeError
         Missing file.
     CorruptFileError
-        Not a classifier file, or damaged.
+        Not a classifier file, or damaged: a member, an option out of range,
+        class weights that are not finite and positive, a forest that does
+        not fit the options or the classes.
     UnsupportedVersionError
         Written by a newer version.
     """
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such model file")
-    try:
-        with zipfile.ZipFile(p) as zf:
-            meta = json.loads(zf.read("meta.json"))
-            forest_text = zf.read("forest.yml").decode() if "forest.yml" in zf.namelist() else None
-            forest_npz = zf.read("forest.npz") if "forest.npz" in zf.namelist() else None
-    except (zipfile.BadZipFile, KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CorruptFileError(f"{p}: not a terratheme classifier file ({exc})") from None
+    label = str(p)
+    with open_archive(p, label, kind="terratheme classifier file",
+                      max_members=MAX_MEMBERS) as zf:
+        names = zf.namelist()
+        if META not in names:
+            raise CorruptFileError(f"{p}: not a terratheme classifier file (no {META})")
+        meta = read_json_member(zf, META, label, max_bytes=MAX_META_BYTES)
+        forest_npz = (read_member(zf, FOREST_NPZ, label, max_bytes=MAX_FOREST_BYTES)
+                      if FOREST_NPZ in names else None)
+        forest_yml = (read_member(zf, FOREST_YML, label, max_bytes=MAX_FOREST_BYTES)
+                      if FOREST_YML in names else None)
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise CorruptFileError(f"{p}: not a terratheme classifier file")
-    if not isinstance(meta.get("version"), int) or meta["version"] > VERSION:
+    version = meta.get("version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise CorruptFileError(f"{p}: bad classifier file version {repr(version)[:20]}")
+    if version > VERSION:
         raise UnsupportedVersionError(
-            f"{p}: classifier file version {meta.get('version')} is newer than this "
+            f"{p}: classifier file version {version} is newer than this "
             f"terratheme reads ({VERSION})"
         )
     try:
-        options = _options_from_json(meta["options"])
-        classes = [int(c) for c in meta["classes"]]
-        weights = meta.get("class_weights")
-        weights = None if weights is None else [float(v) for v in weights]
-        if weights is not None and (len(weights) != len(classes)
-                                    or not all(v >= 0 for v in weights)):
-            raise ValueError(f"{len(weights)} class weights for {len(classes)} classes")
-    except (KeyError, TypeError, ValueError) as exc:
+        options = _options_from_json(meta.get("options"))
+        classes = _classes(meta.get("classes"))
+        weights = _class_weights(meta.get("class_weights"), classes)
+    except (ValueError, TerrathemeError) as exc:
         raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
-    forest = None
+    n_features = options.features.n_features
+    forest: object = None
     if forest_npz is not None:
-        try:
-            with np.load(io.BytesIO(forest_npz), allow_pickle=False) as npz:
-                forest = ExtraTreesForest.from_arrays({k: npz[k] for k in npz.files})
-        except (OSError, ValueError, zipfile.BadZipFile, TerrathemeError) as exc:
-            raise CorruptFileError(f"{p}: damaged forest ({str(exc).strip()[:80]})") from None
+        forest = _read_extra_trees(forest_npz, label, n_features)
         if [int(c) for c in forest.classes] != sorted(classes):
             raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
-    elif forest_text is not None:
+    elif forest_yml is not None:
         try:
-            fs = cv2.FileStorage(forest_text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-            forest = cv2.ml.RTrees_create()
-            forest.read(fs.root())
-        except cv2.error as exc:
-            raise CorruptFileError(f"{p}: damaged forest ({str(exc).strip()[:80]})") from None
-        if not forest.isTrained():
-            raise CorruptFileError(f"{p}: damaged forest (not trained)")
-    if (forest is None) != (len(classes) == 1) or not classes:
+            text = forest_yml.decode("utf-8")
+        except UnicodeDecodeError:
+            raise CorruptFileError(f"{p}: damaged forest (not UTF-8 text)") from None
+        forest = _read_opencv_forest(text, label, n_features, classes)
+    if (forest is None) != (len(classes) == 1):
         raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
     return ModelParts(forest, tuple(classes), options,
                       None if weights is None else tuple(weights))

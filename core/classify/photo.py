@@ -4,6 +4,13 @@ Photos arrive as ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA arrays, 8- or 16-bit
 (or 2-D grey). The classifier works on 8-bit RGB plus a mask of the pixels
 that carry data: fully transparent pixels (alpha 0) are *no data*, they are
 neither sampled for training nor given a class.
+
+A 2nd or 4th channel here *is* alpha. Whether a file's extra band is alpha
+is the file's say, not its channel count (an RGB + near-infrared TIFF has a
+4th band that is not alpha, and taking it for alpha would turn its dark
+pixels into no data): read photo files with
+``core.io.images.read_image(path, bands=Bands.PHOTO)``, which keeps an extra
+band only when the file marks it as alpha (TIFF ExtraSamples, PNG colour type).
 """
 
 from __future__ import annotations
@@ -19,7 +26,8 @@ def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     Parameters
     ----------
     photo : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) ndarray
-        uint8, uint16 (scaled so 65535 -> 255) or float in [0, 1].
+        uint8, uint16 (scaled so 65535 -> 255) or float in [0, 1]; a 2nd or
+        4th channel is alpha (module docstring: read files with ``Bands.PHOTO``).
 
     Returns
     -------

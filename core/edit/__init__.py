@@ -35,7 +35,6 @@ from core.edit.events import (
 from core.edit.fidelity import fidelity_map, heat_colours
 from core.edit.history import History, Step
 from core.edit.layers import (
-    BadLayers,
     Layer,
     display_photo,
     photo_extent,
@@ -64,7 +63,6 @@ from core.edit.uncertainty import (
 __all__ = [
     "UNCERTAIN_SHARE",
     "Atom",
-    "BadLayers",
     "Change",
     "ConfidenceChange",
     "Connectivity",

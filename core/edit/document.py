@@ -35,10 +35,8 @@ from core.edit.changes import (
 from core.edit.events import DocumentEvents, Event, HistoryChange
 from core.edit.history import History, Step
 from core.edit.layers import (
-    BadLayers,
     DocumentData,
     Layer,
-    check_layers,
     check_theme_name,
     check_value,
     display_photo,
@@ -67,10 +65,8 @@ class EditDocument:
     Parameters
     ----------
     texture : ThematicTexture
-        Edited in place (its grid, library, photo and scribbles).
-    bad_layers : BadLayers
-        A photo that is not an 8-bit image, or a scribble layer that does not
-        fit the photo: refuse (default) or drop it (``dropped_layers`` says why).
+        Edited in place (its grid, library, photo and scribbles; its layers
+        were checked when it was made, :mod:`core.model.layers`).
 
     Attributes
     ----------
@@ -78,13 +74,9 @@ class EditDocument:
         ``doc.events.grid.connect(callback)`` and so on.
     history : History
         The one undo history (read it; change it through :meth:`undo` / :meth:`redo`).
-    dropped_layers : tuple of str
-        One line per layer refused under ``BadLayers.DROP``.
     """
 
-    def __init__(self, texture: ThematicTexture, *, bad_layers: BadLayers = BadLayers.RAISE
-                 ) -> None:
-        self.dropped_layers = check_layers(texture, bad_layers)
+    def __init__(self, texture: ThematicTexture) -> None:
         self.data = DocumentData(texture)
         self.events = DocumentEvents.new()
         self.history = History()

@@ -7,10 +7,11 @@ only in the editor: the classifier's confidence map and the class prior kept
 between scribble rounds. :class:`DocumentData` holds them all; the undoable
 changes (:mod:`core.edit.changes`) are the only code that writes it.
 
-A project file may carry a photo or scribble layer the editor cannot show
-(1-D, float, one pixel, the wrong size): :func:`validate_photo`,
-:func:`validate_scribbles` and :func:`validate_confidence` refuse those with
-one line naming the layer and the problem.
+A photo or scribble layer set while editing is checked by the project's own
+rule (:func:`core.model.layers.check_layer`: a project never holds a layer
+the editor cannot show): :func:`validate_photo`, :func:`validate_scribbles`
+and :func:`validate_confidence` refuse one with one line naming the layer
+and the problem.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 from core.edit.uncertainty import KeptPrior
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
+from core.model.layers import LAYER_BY_NAME, check_layer
 from core.model.project import ThematicTexture
 from core.themes.library import ThemeLibrary
 
@@ -41,28 +43,24 @@ class Layer(Enum):
 
 
 def validate_photo(photo: object) -> np.ndarray:
-    """Check a photo layer: ``(H, W)``, ``(H, W, 1)``, ``(H, W, 3)`` or ``(H, W, 4)`` uint8.
+    """Check a photo layer (the project's rule, :func:`core.model.layers.check_layer`).
+
+    Grey ``(H, W)``, ``(H, W, 1)`` and RGBA ``(H, W, 4)`` uint8 photos are
+    first shown as RGB (:func:`display_photo`).
 
     Raises
     ------
     TerrathemeError
         Not an array, not 8-bit, not an image shape, or no pixels.
     """
-    if not isinstance(photo, np.ndarray):
-        raise TerrathemeError(f"photo layer is a {type(photo).__name__}, not an image array")
-    if photo.ndim not in (2, 3) or (photo.ndim == 3 and photo.shape[2] not in (1, 3, 4)):
-        raise TerrathemeError(f"photo layer has shape {photo.shape}; an image is (H, W), "
-                              "(H, W, 3) or (H, W, 4)")
-    if photo.dtype != np.uint8:
-        raise TerrathemeError(f"photo layer holds {photo.dtype} values; the editor shows "
-                              "8-bit (uint8) photos")
-    if photo.shape[0] == 0 or photo.shape[1] == 0:
-        raise TerrathemeError(f"photo layer has no pixels (shape {photo.shape})")
-    return photo
+    if (isinstance(photo, np.ndarray) and photo.dtype == np.uint8 and photo.size
+            and (photo.ndim == 2 or (photo.ndim == 3 and photo.shape[2] in (1, 4)))):
+        photo = display_photo(photo)
+    return check_layer(LAYER_BY_NAME["photo"], photo, {})
 
 
 def validate_scribbles(scribbles: object, photo: np.ndarray | None) -> np.ndarray:
-    """Check a scribble layer: ``(H, W)`` uint8, the photo's ``H`` and ``W``.
+    """Check a scribble layer: ``(H, W)`` uint8, the photo's ``H`` and ``W`` (the project's rule).
 
     Raises
     ------
@@ -71,17 +69,7 @@ def validate_scribbles(scribbles: object, photo: np.ndarray | None) -> np.ndarra
     """
     if photo is None:
         raise TerrathemeError("scribble layer without a photo: scribbles mark photo pixels")
-    if not isinstance(scribbles, np.ndarray) or scribbles.ndim != 2:
-        shape = getattr(scribbles, "shape", type(scribbles).__name__)
-        raise TerrathemeError(f"scribble layer has shape {shape}; it must be (H, W) like "
-                              f"the {photo.shape[1]} x {photo.shape[0]} photo")
-    if scribbles.dtype != np.uint8:
-        raise TerrathemeError(f"scribble layer holds {scribbles.dtype} values; it must be "
-                              "uint8 class values (0 = unlabelled)")
-    if scribbles.shape != photo.shape[:2]:
-        raise TerrathemeError(f"scribble layer is {scribbles.shape[1]} x {scribbles.shape[0]}; "
-                              f"the photo is {photo.shape[1]} x {photo.shape[0]}")
-    return scribbles
+    return check_layer(LAYER_BY_NAME["scribbles"], scribbles, {"photo": photo.shape[:2]})
 
 
 def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndarray:
@@ -124,41 +112,6 @@ def photo_extent(photo_shape: tuple[int, ...], grid: IndexGrid) -> tuple[float, 
     if w - n < pw <= w and h - m < ph <= h:
         return float(pw), float(ph)
     return float(w), float(h)
-
-
-class BadLayers(Enum):
-    """What a document does with a photo or scribble layer it cannot show."""
-
-    #: refuse the document (TerrathemeError naming the layer and the problem)
-    RAISE = "raise"
-    #: open without the layer, saying why
-    DROP = "drop"
-
-
-def check_layers(texture: ThematicTexture, bad_layers: BadLayers = BadLayers.RAISE
-                 ) -> tuple[str, ...]:
-    """Check the photo and scribble layers of ``texture``; under DROP remove bad ones.
-
-    Returns one line per layer removed (naming the layer and the problem);
-    under RAISE the first bad layer raises TerrathemeError instead.
-    """
-    dropped = []
-    # The photo first: the scribbles are checked against it.
-    for layer in (Layer.PHOTO, Layer.SCRIBBLES):
-        array = getattr(texture, layer.value)
-        if array is None:
-            continue
-        try:
-            if layer is Layer.PHOTO:
-                validate_photo(array)
-            else:
-                validate_scribbles(array, texture.photo)
-        except TerrathemeError as exc:
-            if bad_layers is BadLayers.RAISE:
-                raise
-            dropped.append(f"{exc}: opened without the {layer.value} layer")
-            setattr(texture, layer.value, None)
-    return tuple(dropped)
 
 
 def check_value(layer: Layer, value: object, n_themes: int) -> int:

@@ -18,17 +18,23 @@ to an ImageOutput are silently dropped). So:
   them, computed from the pixel scale and tie point.
 
 The georeference is a plain JSON-ready ``dict`` (tag name -> list / str), so
-it travels in a project's ``metadata["georeference"]``.
+it travels in a project's ``metadata["georeference"]``. It comes from files
+(a photo's tags, a project's manifest), so :func:`validate_georeference`
+checks every known tag's type, length and finiteness (at most
+:data:`MAX_TAG_VALUES` numbers, :data:`MAX_TAG_TEXT` characters) when it is
+read and before it is used or written.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 from pathlib import Path
 
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
+from core.io.images import image_attributes, image_info
 
 #: GeoTIFF / GDAL tags kept: code -> (name, TIFF type, struct code)
 GEO_TAGS = {
@@ -42,8 +48,77 @@ GEO_TAGS = {
     42113: ("GDAL_NODATA", 2, "s"),
 }
 _NAME_TO_CODE = {v[0]: k for k, v in GEO_TAGS.items()}
+#: most entries in a TIFF directory (tifffile refuses more as suspicious)
+MAX_IFD_ENTRIES = 4096
+#: most numbers in one GeoTIFF tag (GeoKeyDirectory: 4 per key, at most 65535 keys)
+MAX_TAG_VALUES = 4 * 65536
+#: longest text tag (GeoAsciiParams, GDAL_METADATA, GDAL_NODATA)
+MAX_TAG_TEXT = 1 << 20
+#: numbers each numeric tag must hold: (fixed lengths or None, multiple of, minimum)
+_TAG_LENGTHS = {
+    "ModelPixelScale": ((2, 3), 1, 2),
+    "ModelTiepoint": (None, 6, 6),
+    "ModelTransformation": ((16,), 1, 16),
+    "GeoKeyDirectory": (None, 4, 4),
+    "GeoDoubleParams": (None, 1, 0),
+}
 _TIFF_SUFFIXES = (".tif", ".tiff")
 _PIXEL_IS_POINT_KEY = 1025
+
+
+def validate_georeference(georef: object) -> dict:
+    """Check a georeference dict: every GeoTIFF tag it names has values of the right kind.
+
+    Parameters
+    ----------
+    georef : dict
+        Tag name -> value, as :func:`read_georeference` returns it. Numeric
+        tags: lists of finite numbers of the tag's length (ModelPixelScale 2-3,
+        ModelTiepoint a multiple of 6, ModelTransformation 16, GeoKeyDirectory
+        whole numbers 0..65535, a multiple of 4); text tags: Latin-1 strings.
+        Other keys (``"oiio"``, ``"crs"``, ...) pass unchecked.
+
+    Returns
+    -------
+    georef : dict, the same object
+
+    Raises
+    ------
+    TerrathemeError
+        Not a dict, or a tag with a value of the wrong type, length or range.
+    """
+    if not isinstance(georef, dict):
+        raise TerrathemeError(f"georeference must be an object, not {type(georef).__name__}")
+    for name, value in georef.items():
+        code = _NAME_TO_CODE.get(name)
+        if code is None:
+            continue
+        if GEO_TAGS[code][2] == "s":
+            if not isinstance(value, str) or len(value) > MAX_TAG_TEXT:
+                raise TerrathemeError(f"georeference {name} must be text of at most "
+                                      f"{MAX_TAG_TEXT:,} characters")
+            try:
+                value.encode("latin-1")
+            except UnicodeEncodeError:
+                raise TerrathemeError(f"georeference {name} is not Latin-1 text") from None
+            continue
+        fixed, multiple, least = _TAG_LENGTHS[name]
+        if not isinstance(value, list | tuple) or len(value) > MAX_TAG_VALUES:
+            raise TerrathemeError(f"georeference {name} must be a list of at most "
+                                  f"{MAX_TAG_VALUES:,} numbers")
+        n = len(value)
+        if (fixed is not None and n not in fixed) or n % multiple or n < least:
+            raise TerrathemeError(f"georeference {name} has {n} numbers")
+        if name == "GeoKeyDirectory":
+            ok = all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 65535
+                     for v in value)
+        else:
+            ok = all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                     for v in value)
+        if not ok:
+            raise TerrathemeError(f"georeference {name} holds a value that is not a finite "
+                                  "number in range")
+    return georef
 
 
 def read_georeference(path: str | os.PathLike) -> dict:
@@ -57,29 +132,20 @@ def read_georeference(path: str | os.PathLike) -> dict:
         present, plus ``"oiio": {name: value}`` for georeference attributes
         OpenImageIO exposes itself.
     """
-    import OpenImageIO as oiio
-
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such file")
     georef: dict = {}
-    inp = oiio.ImageInput.open(str(p))
-    if inp is None:
-        raise CorruptFileError(f"{p}: cannot read as an image ({oiio.geterror().strip()})")
-    try:
-        exposed = {
-            a.name: _jsonable(a.value)
-            for a in inp.spec().extra_attribs
-            if a.name.lower().startswith("geotiff:")
-        }
-        is_tiff = inp.format_name() == "tiff"
-    finally:
-        inp.close()
+    exposed = {name: _jsonable(value)
+               for name, value in image_attributes(p, "geotiff:").items()}
     if exposed:
         georef["oiio"] = exposed
-    if is_tiff:
+    if image_info(p).format_name == "tiff":
         georef.update(_read_geo_tags(p))
-    return georef
+    try:
+        return validate_georeference(georef)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{p}: {exc}") from None
 
 
 def _jsonable(value: object) -> object:
@@ -99,11 +165,21 @@ def _read_geo_tags(path: Path) -> dict:
             out = {}
             for code, (name, _, _) in GEO_TAGS.items():
                 tag = tags.get(code)
-                if tag is not None:
-                    out[name] = _jsonable(tag.value)
+                if tag is None:
+                    continue
+                if tag.count > MAX_TAG_VALUES + MAX_TAG_TEXT:
+                    raise CorruptFileError(f"{path}: GeoTIFF tag {name} declares "
+                                           f"{tag.count:,} values")
+                value = _jsonable(tag.value)
+                # One-number tags come back from tifffile as scalars.
+                out[name] = [value] if isinstance(value, int | float) else value
             return out
-    except (tifffile.TiffFileError, struct.error, ValueError) as exc:
-        raise CorruptFileError(f"{path}: damaged TIFF directory ({exc})") from exc
+    except CorruptFileError:
+        raise
+    except (tifffile.TiffFileError, struct.error, ValueError, OverflowError, KeyError,
+            IndexError, TypeError, AttributeError, MemoryError, OSError) as exc:
+        raise CorruptFileError(f"{path}: damaged TIFF directory "
+                               f"({' '.join(str(exc).split())[:100]})") from None
 
 
 def scale_georeference(georef: dict, sx: float, sy: float, *,
@@ -123,7 +199,7 @@ def scale_georeference(georef: dict, sx: float, sy: float, *,
     from the offset only the pixel scale (or the affine transformation's
     linear part) changes.
     """
-    out = dict(georef)
+    out = dict(validate_georeference(georef))
     ox, oy = float(offset[0]), float(offset[1])
     if (ox, oy) != (0.0, 0.0):
         if "ModelTransformation" in out:
@@ -158,6 +234,7 @@ def write_georeference(path: str | os.PathLike, georef: dict) -> list[Path]:
     p = Path(path)
     if not georef:
         return []
+    validate_georeference(georef)
     if p.suffix.lower() in _TIFF_SUFFIXES:
         add_tiff_tags(p, georef)
         return [p]
@@ -172,6 +249,7 @@ def write_georeference(path: str | os.PathLike, georef: dict) -> list[Path]:
 
 def world_file_lines(georef: dict) -> list[float] | None:
     """The six numbers of an ESRI world file (A, D, B, E, C, F: centre of the top-left pixel)."""
+    validate_georeference(georef)
     keys = georef.get("GeoKeyDirectory") or []
     point = any(
         keys[i] == _PIXEL_IS_POINT_KEY and keys[i + 3] == 2 for i in range(4, len(keys) - 3, 4)
@@ -214,7 +292,12 @@ def add_tiff_tags(path: str | os.PathLike, georef: dict) -> None:
         ifd = struct.unpack_from(bo + ptr_fmt, head, hdr_ptr)[0]
         # Read the first directory's raw entries (kept verbatim: their offsets stay valid).
         fh.seek(ifd)
-        count = struct.unpack(bo + cnt_fmt, fh.read(struct.calcsize(cnt_fmt)))[0]
+        count_bytes = fh.read(struct.calcsize(cnt_fmt))
+        if len(count_bytes) != struct.calcsize(cnt_fmt):
+            raise CorruptFileError(f"{p}: truncated TIFF directory")
+        count = struct.unpack(bo + cnt_fmt, count_bytes)[0]
+        if count > MAX_IFD_ENTRIES:
+            raise CorruptFileError(f"{p}: TIFF directory of {count:,} entries")
         raw = fh.read(count * entry_size + struct.calcsize(ptr_fmt))
         if len(raw) != count * entry_size + struct.calcsize(ptr_fmt):
             raise CorruptFileError(f"{p}: truncated TIFF directory")

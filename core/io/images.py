@@ -4,12 +4,31 @@
 keyword-only options. Arrays are always ``(H, W, C)`` when they go to
 OpenImageIO: its Python ``write_image`` misreads 2-D arrays (DESIGN.md §5).
 
+Pixel values are never changed behind the caller's back: files are opened
+with OpenImageIO's ``oiio:UnassociatedAlpha`` hint and written with it, so an
+RGBA image is neither premultiplied on reading nor divided by alpha on
+writing (DESIGN.md §5). Which band is alpha is the file's say
+(``ImageInfo.alpha_channel``): ``Bands.PHOTO`` keeps the colour bands plus a
+marked alpha band, so an RGB + near-infrared TIFF reads as RGB.
+
+Hostile files: before any pixel is read, the declared size is checked against
+the bytes present (at most :data:`MAX_COMPRESSION_RATIO` bytes of pixels per
+byte of file, above what deflate, JPEG or LZW reach on a flat image) and
+against OpenImageIO's own ceilings (``limits:resolution``, ``limits:channels``,
+``limits:imagesize_MB``); a PNG's header is read first so a 0 x 0 PNG is
+refused by name, and libpng's own ``libpng error`` lines are kept off the
+terminal. Every problem is one line naming the file.
+
 Writing goes to a temporary file that is renamed onto the target, so a failed
-write never leaves a half-written image.
+write never leaves a half-written image. ``write_image(..., palette=colours)``
+makes an 8-bit label image a palette PNG (values stay the class numbers;
+OpenImageIO writes no palettes, so its grey PNG's header is relabelled, see
+:mod:`core.io.png`), and :func:`read_labels` reads the class numbers back.
 """
 
 from __future__ import annotations
 
+import enum
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +38,14 @@ import OpenImageIO as oiio
 
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import atomic_path
+from core.io.png import (
+    is_png,
+    libpng_quiet,
+    palette_indices,
+    palette_of_png,
+    png_header_size,
+    relabel_grey_png_as_palette,
+)
 
 #: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
 OIIO_PIXEL_TYPES = {
@@ -32,11 +59,29 @@ OIIO_PIXEL_TYPES = {
     np.dtype(np.float32): oiio.FLOAT,
     np.dtype(np.float64): oiio.DOUBLE,
 }
+#: most bytes of pixels a file may declare per byte it holds (deflate's limit is 1032)
+MAX_COMPRESSION_RATIO = 2048
+#: declared pixel bytes always allowed, whatever the file size
+MIN_DECLARED_BYTES = 4 << 20
+#: most channels an image may have (OpenImageIO's limits:channels is set to this)
+MAX_CHANNELS = 64
+
+oiio.attribute("limits:channels", MAX_CHANNELS)
+
+
+class Bands(enum.Enum):
+    """Which channels of a file are read."""
+
+    ALL = "all"      # every channel, as stored
+    PHOTO = "photo"  # grey or RGB, plus alpha only where the file marks one, last
 
 
 @dataclass(frozen=True)
 class ImageInfo:
-    """What a file holds, read from its header only."""
+    """What a file holds, read from its header only.
+
+    ``alpha_channel`` is the channel the file marks as alpha, or -1.
+    """
 
     width: int
     height: int
@@ -46,6 +91,20 @@ class ImageInfo:
     tile_width: int
     tile_height: int
     format_name: str
+    alpha_channel: int = -1
+
+    def band_indices(self, bands: Bands) -> list[int]:
+        """The channels :class:`Bands` selects, in output order."""
+        if bands is Bands.ALL:
+            return list(range(self.channels))
+        colour = [0] if self.channels < 3 or self.alpha_channel in (1, 2) else [0, 1, 2]
+        alpha = [self.alpha_channel] if self.alpha_channel >= len(colour) else []
+        return colour + alpha
+
+
+def _first_line(text: str) -> str:
+    lines = [ln.strip() for ln in text.strip().splitlines() if ln.strip()]
+    return lines[0] if lines else ""
 
 
 def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
@@ -54,15 +113,31 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
         raise TerrathemeError(f"{p}: no such file")
     if p.is_dir():
         raise TerrathemeError(f"{p}: is a folder, not an image")
-    inp = oiio.ImageInput.open(str(p))
+    size = png_header_size(p)
+    if size is not None and (size[0] == 0 or size[1] == 0):
+        raise TerrathemeError(f"{p}: image has no pixels ({size[0]} x {size[1]})")
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    with libpng_quiet(is_png(p)):
+        inp = oiio.ImageInput.open(str(p), config)
     if inp is None:
-        msg = oiio.geterror().strip().splitlines()
-        why = msg[0] if msg else "unknown format"
+        why = _first_line(oiio.geterror()) or "unknown format"
         raise CorruptFileError(f"{p}: cannot read as an image ({why})")
     spec = inp.spec()
     if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
         inp.close()
         raise TerrathemeError(f"{p}: image has no pixels ({spec.width} x {spec.height})")
+    if spec.deep:
+        inp.close()
+        raise TerrathemeError(f"{p}: deep images are not supported")
+    declared = int(spec.image_bytes())
+    allowed = MAX_COMPRESSION_RATIO * p.stat().st_size + MIN_DECLARED_BYTES
+    if declared > allowed:
+        inp.close()
+        raise CorruptFileError(
+            f"{p}: header declares {spec.width} x {spec.height} x {spec.nchannels} pixels "
+            f"({declared / 2**20:,.0f} MiB) from a {p.stat().st_size:,}-byte file: damaged "
+            "or forged")
     return inp
 
 
@@ -73,26 +148,42 @@ def _np_dtype(spec: oiio.ImageSpec) -> np.dtype:
     return np.dtype(np.float32)
 
 
+def _info(inp: oiio.ImageInput) -> ImageInfo:
+    spec = inp.spec()
+    return ImageInfo(width=spec.width, height=spec.height, channels=spec.nchannels,
+                     dtype=_np_dtype(spec), tiled=spec.tile_width > 0,
+                     tile_width=spec.tile_width, tile_height=spec.tile_height,
+                     format_name=inp.format_name(), alpha_channel=spec.alpha_channel)
+
+
 def image_info(path: str | os.PathLike) -> ImageInfo:
-    """Read an image file's header: size, channels, pixel type, tiling."""
+    """Read an image file's header: size, channels, pixel type, tiling, alpha."""
     inp = _open_input(path)
     try:
-        spec = inp.spec()
-        return ImageInfo(
-            width=spec.width,
-            height=spec.height,
-            channels=spec.nchannels,
-            dtype=_np_dtype(spec),
-            tiled=spec.tile_width > 0,
-            tile_width=spec.tile_width,
-            tile_height=spec.tile_height,
-            format_name=inp.format_name(),
-        )
+        return _info(inp)
     finally:
         inp.close()
 
 
-def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None) -> np.ndarray:
+def image_attributes(path: str | os.PathLike, prefix: str) -> dict[str, object]:
+    """The header attributes whose names start with ``prefix`` (case-insensitive)."""
+    inp = _open_input(path)
+    try:
+        return {a.name: a.value for a in inp.spec().extra_attribs
+                if a.name.lower().startswith(prefix.lower())}
+    finally:
+        inp.close()
+
+
+def _select(pixels: np.ndarray, info: ImageInfo, bands: Bands, first: int) -> np.ndarray:
+    keep = info.band_indices(bands)
+    if keep == list(range(first, first + pixels.shape[2])):
+        return pixels
+    return pixels[:, :, [k - first for k in keep]]
+
+
+def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
+               bands: Bands = Bands.ALL) -> np.ndarray:
     """Read a whole image file.
 
     Parameters
@@ -102,39 +193,52 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None) 
     dtype : numpy dtype, optional
         Convert to this pixel type (OpenImageIO rescales, e.g. uint16 -> uint8
         maps 65535 to 255). Default: the file's own type.
+    bands : Bands
+        ALL (default): every channel; PHOTO: colour plus marked alpha.
 
     Returns
     -------
     image : (H, W, C) ndarray
-        Always three-dimensional; C is the file's channel count.
+        Always three-dimensional; alpha as stored (never premultiplied).
 
     Raises
     ------
     TerrathemeError
-        Missing file, unreadable or truncated file, image with no pixels.
+        Missing file, unreadable, truncated or forged file, image with no
+        pixels, not enough memory for it.
     """
     inp = _open_input(path)
     try:
-        spec = inp.spec()
-        want = np.dtype(dtype) if dtype is not None else _np_dtype(spec)
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, OIIO_PIXEL_TYPES.get(want, oiio.FLOAT))
+        info = _info(inp)
+        keep = info.band_indices(bands)
+        first, last = min(keep), max(keep) + 1
+        want = np.dtype(dtype) if dtype is not None else info.dtype
+        try:
+            with libpng_quiet(info.format_name == "png"):
+                pixels = inp.read_image(0, 0, first, last, OIIO_PIXEL_TYPES.get(want, oiio.FLOAT))
+        except MemoryError:
+            raise TerrathemeError(f"{path}: not enough memory to read {info.width} x "
+                                  f"{info.height} x {info.channels} pixels") from None
         if pixels is None or inp.has_error:
-            raise CorruptFileError(f"{path}: damaged or truncated image ({inp.geterror().strip()})")
+            raise CorruptFileError(
+                f"{path}: damaged or truncated image ({_first_line(inp.geterror())})")
     finally:
         inp.close()
     pixels = np.asarray(pixels)
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
-    return pixels.astype(want, copy=False).reshape(spec.height, spec.width, spec.nchannels)
+    pixels = pixels.astype(want, copy=False).reshape(info.height, info.width, last - first)
+    return _select(pixels, info, bands, first)
 
 
 def read_region(
-    path: str | os.PathLike, x: int, y: int, w: int, h: int, *, dtype: np.dtype | str | None = None
+    path: str | os.PathLike, x: int, y: int, w: int, h: int, *,
+    dtype: np.dtype | str | None = None, bands: Bands = Bands.ALL,
 ) -> np.ndarray:
     """Read the ``w`` x ``h`` window at column ``x``, row ``y`` without reading the whole file.
 
     Tiled files are read tile by tile and scanline files line by line, so
-    memory is bounded by the window, not the image.
+    memory is bounded by the window, not the image. ``bands`` as :func:`read_image`.
 
     Returns
     -------
@@ -143,32 +247,68 @@ def read_region(
     inp = _open_input(path)
     try:
         spec = inp.spec()
+        info = _info(inp)
         if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > spec.width or y + h > spec.height:
             raise TerrathemeError(
                 f"{path}: window x={x} y={y} w={w} h={h} is outside the "
                 f"{spec.width} x {spec.height} image"
             )
-        want = np.dtype(dtype) if dtype is not None else _np_dtype(spec)
+        keep = info.band_indices(bands)
+        first, last = min(keep), max(keep) + 1
+        want = np.dtype(dtype) if dtype is not None else info.dtype
         fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
-        if spec.tile_width > 0:
-            tw, th = spec.tile_width, spec.tile_height
-            x0, y0 = (x // tw) * tw, (y // th) * th
-            x1 = min(-(-(x + w) // tw) * tw, spec.width + (-spec.width) % tw)
-            y1 = min(-(-(y + h) // th) * th, spec.height + (-spec.height) % th)
-            x1, y1 = min(x1, spec.width), min(y1, spec.height)
-            block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, 0, spec.nchannels, fmt)
-            if block is None:
-                raise CorruptFileError(f"{path}: damaged tiles ({inp.geterror().strip()})")
-            block = np.asarray(block).reshape(y1 - y0, x1 - x0, spec.nchannels)
-            out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
-        else:
-            rows = inp.read_scanlines(0, 0, y, y + h, 0, 0, spec.nchannels, fmt)
-            if rows is None:
-                raise CorruptFileError(f"{path}: damaged scanlines ({inp.geterror().strip()})")
-            out = np.asarray(rows).reshape(h, spec.width, spec.nchannels)[:, x : x + w]
+        with libpng_quiet(info.format_name == "png"):
+            if spec.tile_width > 0:
+                tw, th = spec.tile_width, spec.tile_height
+                x0, y0 = (x // tw) * tw, (y // th) * th
+                x1 = min(-(-(x + w) // tw) * tw, spec.width)
+                y1 = min(-(-(y + h) // th) * th, spec.height)
+                block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
+                if block is None:
+                    raise CorruptFileError(
+                        f"{path}: damaged tiles ({_first_line(inp.geterror())})")
+                block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
+                out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
+            else:
+                rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
+                if rows is None:
+                    raise CorruptFileError(
+                        f"{path}: damaged scanlines ({_first_line(inp.geterror())})")
+                out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
     finally:
         inp.close()
-    return np.ascontiguousarray(out).astype(want, copy=False)
+    out = np.ascontiguousarray(out).astype(want, copy=False)
+    return np.ascontiguousarray(_select(out, info, bands, first))
+
+
+def read_labels(path: str | os.PathLike) -> np.ndarray:
+    """Class numbers stored in an image file: label masks, scribbles, classify's output.
+
+    A palette PNG gives its palette indices (what :func:`write_image` with
+    ``palette=`` wrote); other files must hold one channel, or channels that
+    are all equal (a grey image saved as RGB).
+
+    Returns
+    -------
+    labels : (H, W) integer ndarray (the file's pixel type)
+
+    Raises
+    ------
+    TerrathemeError
+        A colour image, non-integer pixels, or a palette whose colours
+        repeat (so indices cannot be told apart).
+    """
+    palette = palette_of_png(Path(path))
+    image = read_image(path)
+    if palette is not None:
+        return palette_indices(image, palette, path)
+    if image.shape[2] > 1 and not all(np.array_equal(image[:, :, 0], image[:, :, c])
+                                      for c in range(1, image.shape[2])):
+        raise TerrathemeError(f"{path}: a label image must hold single-channel class values, "
+                              f"not a {image.shape[2]}-channel colour image")
+    if not np.issubdtype(image.dtype, np.integer):
+        raise TerrathemeError(f"{path}: label values must be whole numbers, not {image.dtype}")
+    return np.ascontiguousarray(image[:, :, 0])
 
 
 def write_image(
@@ -178,6 +318,7 @@ def write_image(
     tile: int | None = None,
     compression: str | None = None,
     attributes: dict[str, object] | None = None,
+    palette: np.ndarray | None = None,
 ) -> None:
     """Write an image atomically (temporary file, then rename).
 
@@ -186,13 +327,17 @@ def write_image(
     path : path-like
         Output file; the extension picks the format (.png, .jpg, .tif, .exr, ...).
     image : (H, W) or (H, W, C) ndarray
-        Pixel data of any dtype OpenImageIO stores.
+        Pixel data of any dtype OpenImageIO stores; 2 or 4 channels carry
+        unassociated alpha last (written as given, not divided by alpha).
     tile : int, optional
         Write a tiled file (TIFF, EXR) with square tiles of this size.
     compression : str, optional
         OpenImageIO compression name, e.g. ``"zip"``, ``"lzw"``, ``"zip:9"``.
     attributes : dict, optional
         Extra metadata attributes for the ImageSpec (e.g. GeoTIFF tags).
+    palette : (K, 3) uint8 ndarray, optional
+        PNG only, single-channel uint8 images: write a palette PNG showing
+        value k in colour ``palette[k]`` (every value must be below K).
     """
     arr = np.asarray(image)
     if arr.ndim == 2:
@@ -203,9 +348,12 @@ def write_image(
         arr = arr.astype(np.uint8) * 255
     if arr.dtype not in OIIO_PIXEL_TYPES:
         arr = arr.astype(np.float32)
+    if palette is not None:
+        palette = _check_palette(path, arr, palette)
     arr = np.ascontiguousarray(arr)
     h, w, c = arr.shape
     spec = oiio.ImageSpec(w, h, c, OIIO_PIXEL_TYPES[arr.dtype])
+    spec.attribute("oiio:UnassociatedAlpha", 1)
     if tile:
         spec.tile_width = spec.tile_height = int(tile)
     if compression:
@@ -215,12 +363,28 @@ def write_image(
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(path))
         if out is None:
-            why = oiio.geterror().strip() or "unknown format"
+            why = _first_line(oiio.geterror()) or "unknown format"
             raise TerrathemeError(f"cannot write {path}: {why}")
         if not out.open(str(tmp), spec):
-            raise TerrathemeError(f"cannot write {path}: {out.geterror().strip()}")
+            raise TerrathemeError(f"cannot write {path}: {_first_line(out.geterror())}")
         ok = out.write_image(arr)
-        err = out.geterror().strip()
+        err = _first_line(out.geterror())
         out.close()
         if not ok:
             raise TerrathemeError(f"cannot write {path}: {err}")
+        if palette is not None:
+            relabel_grey_png_as_palette(tmp, palette)
+
+
+def _check_palette(path, arr: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    colours = np.asarray(palette)
+    if Path(path).suffix.lower() != ".png" or arr.shape[2] != 1 or arr.dtype != np.uint8:
+        raise TerrathemeError(f"cannot write {path}: a palette needs a single-channel "
+                              "8-bit PNG")
+    if colours.ndim != 2 or colours.shape[1] != 3 or not 1 <= len(colours) <= 256:
+        raise TerrathemeError(f"cannot write {path}: a palette is 1..256 RGB colours, "
+                              f"got shape {colours.shape}")
+    if int(arr.max()) >= len(colours):
+        raise TerrathemeError(f"cannot write {path}: value {int(arr.max())} has no colour in "
+                              f"a palette of {len(colours)}")
+    return np.ascontiguousarray(colours, dtype=np.uint8)

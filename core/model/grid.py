@@ -3,6 +3,10 @@
 A grid of ``(gh+1, gw+1)`` vertex indices with a cell of ``N x M`` texels
 (N columns, M rows) renders to a ``gw*N x gh*M`` texture. Compression grows
 with ``N*M``.
+
+Limits: a cell is at most :data:`MAX_CELL` texels along each side (16 repeats
+of a 256-texel theme; ``convert --cell auto`` tries up to 256), so a region
+render's working buffers stay a few tens of MiB per cell.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ import numpy as np
 from core.errors import TerrathemeError
 
 MAX_THEMES = 256
+#: largest cell side in texels (validate_cell refuses more)
+MAX_CELL = 4096
 
 
 def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndarray:
@@ -63,13 +69,34 @@ def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndar
 
 
 def validate_cell(cell: object) -> tuple[int, int]:
-    """Check a cell size ``(N, M)``: N texel columns, M texel rows, both >= 1."""
-    try:
-        n, m = (int(v) for v in cell)  # type: ignore[union-attr]
-    except (TypeError, ValueError) as exc:
-        raise TerrathemeError(f"cell size must be two integers (N, M), got {cell!r}") from exc
+    """Check a cell size ``(N, M)``: N texel columns, M texel rows, each 1..MAX_CELL.
+
+    Parameters
+    ----------
+    cell : pair of integers
+        Whole numbers (numpy integers too); not booleans, strings or fractions.
+
+    Returns
+    -------
+    cell : (int, int)
+
+    Raises
+    ------
+    TerrathemeError
+        Not a pair of whole numbers, below 1, or above :data:`MAX_CELL`.
+    """
+    if isinstance(cell, str | bytes) or not hasattr(cell, "__len__") or len(cell) != 2:
+        raise TerrathemeError(f"cell size must be two whole numbers (N, M), got {cell!r}")
+    n, m = cell  # type: ignore[misc]
+    if not all(isinstance(v, int | np.integer) and not isinstance(v, bool | np.bool_)
+               for v in (n, m)):
+        raise TerrathemeError(f"cell size must be two whole numbers (N, M), got {cell!r}")
+    n, m = int(n), int(m)
     if n < 1 or m < 1:
         raise TerrathemeError(f"cell size must be at least 1 x 1 texels, got {n} x {m}")
+    if n > MAX_CELL or m > MAX_CELL:
+        raise TerrathemeError(f"cell size {n} x {m} is over the limit of {MAX_CELL} texels "
+                              "per side")
     return n, m
 
 

@@ -12,17 +12,30 @@ CRC-32 on reading:
     ``(gh+1, gw+1) uint8`` vertex indices (numpy ``.npy``, no pickles).
 ``themes/KKK.npy``
     ``(h, w, 3) uint8`` texture of theme ``KKK``.
-``photo.npy``, ``scribbles.npy`` (optional)
-    the source photo ``(H, W, 3) uint8`` and the scribble mask ``(H, W) uint8``.
+``<layer>.npy`` (optional, one per entry of :data:`core.model.layers.LAYERS`)
+    ``photo.npy``: the source photo ``(H, W, 3) uint8``; ``scribbles.npy``:
+    the scribble mask ``(H, W) uint8``, the photo's size when both are stored.
 ``colour_map.webp`` (or another codec), or ``colour_map.npy`` (optional)
     the colour gain over the texture (:mod:`core.model.colour_map`) as it
     ships; the manifest's ``"colour_map": {"scale", "codec", "member"}``
     says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``).
 
-``metadata`` is free JSON: ``source_photo`` (path), ``georeference`` (the
-photo's GeoTIFF/CRS attributes), ``created_by``. Saving writes a temporary
-file and renames it; loading a damaged file raises ``CorruptFileError`` and a
-newer version ``UnsupportedVersionError``.
+``metadata`` is a JSON object: ``source_photo`` (path), ``georeference`` (the
+photo's GeoTIFF/CRS attributes, checked by
+:func:`core.io.georef.validate_georeference`), ``created_by``. Saving writes a
+temporary file and renames it.
+
+Loading a hostile file costs bounded work (:mod:`core.io.archive`): every
+member is checked against the limits below and against the bytes present
+before it is read, and every manifest field is type- and range-checked.
+Damage raises ``CorruptFileError``, a newer version (or a layer this version
+does not know) ``UnsupportedVersionError``, each with one line naming the file.
+
+Limits: :data:`MAX_GRID_VERTICES` grid vertices (128 Mi: a 11585 x 11585
+grid), theme textures up to :data:`MAX_THEME_SIDE` texels a side, layers up
+to :data:`MAX_LAYER_PIXELS` pixels (``convert`` stores photos up to 40 Mpx),
+a manifest of :data:`MAX_MANIFEST_BYTES`. :func:`save_project` refuses what
+:func:`load_project` would refuse, so every saved project loads.
 """
 
 from __future__ import annotations
@@ -31,23 +44,42 @@ import io
 import json
 import os
 import zipfile
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.io.archive import (
+    MAX_JSON_DEPTH,
+    json_depth,
+    open_archive,
+    read_json_member,
+    read_member,
+    read_npy_member,
+)
 from core.io.atomic import atomic_path
 from core.io.codec import CODECS
+from core.io.georef import validate_georeference
 from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid, validate_indices
+from core.model.grid import MAX_THEMES, IndexGrid, validate_cell, validate_indices
+from core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
 from core.themes.library import Theme, ThemeLibrary
 
 FORMAT_NAME = "terratheme-project"
 FORMAT_VERSION = 1
 PROJECT_SUFFIX = ".ttproj"
-_LAYERS = ("photo", "scribbles")
+MANIFEST = "manifest.json"
+GRID_MEMBER = "grid.npy"
+#: most grid vertices a project holds (128 MiB of indices)
+MAX_GRID_VERTICES = 1 << 27
+#: longest side of a theme texture, in texels
+MAX_THEME_SIDE = 4096
+#: largest manifest (metadata included)
+MAX_MANIFEST_BYTES = 4 << 20
+#: longest theme name / source string kept
+MAX_TEXT = 4096
+_MAX_MEMBERS = MAX_THEMES + 64
 
 
 @dataclass(eq=False)
@@ -64,9 +96,13 @@ class ThematicTexture:
     photo : (H, W, 3) uint8 ndarray or None
         The source photo, kept for the editor's overlay and fidelity view.
     scribbles : (H, W) uint8 ndarray or None
-        User scribbles for supervised classification (0 = unlabelled).
+        User scribbles for supervised classification (0 = unlabelled); the
+        photo's size when both are present.
+
     colour_map : ColourMap or None
         Low-resolution colour gain over the whole texture (every renderer applies it).
+
+    The optional layers are described by :data:`LAYERS` and checked on construction.
     """
 
     grid: IndexGrid
@@ -80,6 +116,16 @@ class ThematicTexture:
         if len(self.library) == 0:
             raise TerrathemeError("a thematic texture needs at least one theme")
         validate_indices(self.grid.indices, n_themes=len(self.library))
+        if not isinstance(self.metadata, dict):
+            raise TerrathemeError(f"project metadata must be a dict, not "
+                                  f"{type(self.metadata).__name__}")
+        sizes = {"grid": self.grid.indices.shape}
+        for spec in LAYERS:
+            arr = getattr(self, spec.name)
+            if arr is not None:
+                arr = check_layer(spec, arr, sizes)
+                setattr(self, spec.name, arr)
+                sizes[spec.name] = arr.shape[:2]
         if self.colour_map is not None:
             self.colour_map.check_covers(self.grid.texture_size)
 
@@ -96,8 +142,7 @@ class ThematicTexture:
             self.grid == other.grid
             and self.library == other.library
             and self.metadata == other.metadata
-            and same(self.photo, other.photo)
-            and same(self.scribbles, other.scribbles)
+            and all(same(getattr(self, s.name), getattr(other, s.name)) for s in LAYERS)
             and self.colour_map == other.colour_map
         )
 
@@ -108,14 +153,22 @@ def _npy_bytes(arr: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def _load_npy(zf: zipfile.ZipFile, member: str, path: Path) -> np.ndarray:
-    try:
-        with zf.open(member) as fh:
-            return np.load(io.BytesIO(fh.read()), allow_pickle=False)
-    except KeyError as exc:
-        raise CorruptFileError(f"{path}: project lacks {member}") from exc
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        raise CorruptFileError(f"{path}: {member} is damaged ({exc})") from exc
+def _check_savable(project: ThematicTexture) -> None:
+    """Refuse what load_project would refuse, before anything is written."""
+    validate_indices(project.grid.indices, n_themes=len(project.library))
+    if project.grid.indices.size > MAX_GRID_VERTICES:
+        raise TerrathemeError(f"grid of {project.grid.indices.size:,} vertices is over the "
+                              f"limit of {MAX_GRID_VERTICES:,} a project file holds")
+    for theme in project.library:
+        h, w = theme.texture.shape[:2]
+        if max(h, w) > MAX_THEME_SIDE:
+            raise TerrathemeError(f"theme {theme.name!r}: texture {w} x {h} is over the "
+                                  f"limit of {MAX_THEME_SIDE} texels a side")
+        if len(theme.name) > MAX_TEXT or len(theme.source) > MAX_TEXT:
+            raise TerrathemeError(f"theme {theme.name[:40]!r}: name or source longer than "
+                                  f"{MAX_TEXT} characters")
+    if "georeference" in project.metadata:
+        validate_georeference(project.metadata["georeference"])
 
 
 def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
@@ -129,22 +182,30 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
         raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
     shape = ColourMap.shape_for(grid.texture_size, scale)
+    label = str(path)
     if codec is None:
-        return ColourMap(_load_npy(zf, entry["member"], path), scale)
+        pixels = read_npy_member(zf, entry["member"], label, dtypes=[np.uint8], ndims=[3],
+                                 max_bytes=shape[0] * shape[1] * 3)
+        return ColourMap(pixels, scale)
     if codec not in CODECS:
         raise CorruptFileError(f"{path}: unknown colour map codec {codec!r}")
-    try:
-        data = zf.read(entry["member"])
-    except KeyError:
-        raise CorruptFileError(f"{path}: project lacks {entry['member']}") from None
+    # The codec's bytes: at most the raw map's size (a compressed map is smaller).
+    data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
     return ColourMap.from_bytes(data, codec, scale, shape)
 
 
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
-    """Write ``project`` to ``path`` (a ``.ttproj`` file) atomically."""
-    validate_indices(project.grid.indices, n_themes=len(project.library))
+    """Write ``project`` to ``path`` (a ``.ttproj`` file) atomically.
+
+    Raises
+    ------
+    TerrathemeError
+        Metadata that is not finite JSON or nests too deeply, or anything
+        over the limits :func:`load_project` enforces (nothing is written).
+    """
+    _check_savable(project)
     themes = []
-    members: dict[str, bytes] = {"grid.npy": _npy_bytes(project.grid.indices)}
+    members: dict[str, bytes] = {GRID_MEMBER: _npy_bytes(project.grid.indices)}
     for k, theme in enumerate(project.library):
         member = f"themes/{k:03d}.npy"
         members[member] = _npy_bytes(theme.texture)
@@ -153,11 +214,11 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
              "texture": member}
         )
     layers = []
-    for name in _LAYERS:
-        arr = getattr(project, name)
+    for spec in LAYERS:
+        arr = getattr(project, spec.name)
         if arr is not None:
-            members[f"{name}.npy"] = _npy_bytes(arr)
-            layers.append(name)
+            members[spec.member] = _npy_bytes(arr)
+            layers.append(spec.name)
     extra = {}
     cmap = project.colour_map
     if cmap is not None:
@@ -179,72 +240,160 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
         **extra,
     }
     try:
-        manifest_text = json.dumps(manifest, indent=1)
-    except TypeError as exc:
+        manifest_text = json.dumps(manifest, indent=1, allow_nan=False)
+    except (TypeError, ValueError, RecursionError) as exc:
         raise TerrathemeError(f"project metadata is not JSON-serialisable: {exc}") from exc
+    if len(manifest_text.encode()) > MAX_MANIFEST_BYTES:
+        raise TerrathemeError(f"project metadata is too large (manifest over "
+                              f"{MAX_MANIFEST_BYTES:,} bytes)")
+    if json_depth(manifest) > MAX_JSON_DEPTH:
+        raise TerrathemeError(f"project metadata nests deeper than {MAX_JSON_DEPTH - 2} levels")
     with atomic_path(path) as tmp:
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=6) as zf:
-            zf.writestr("manifest.json", manifest_text)
+            zf.writestr(MANIFEST, manifest_text)
             for member, data in members.items():
                 zf.writestr(member, data)
 
 
+def _whole(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _text(value: object, what: str, *, empty: bool = False) -> str:
+    if not isinstance(value, str) or (not empty and not value.strip()) or len(value) > MAX_TEXT:
+        raise TerrathemeError(f"{what} must be a{'' if empty else ' non-empty'} string of at "
+                              f"most {MAX_TEXT} characters, got {_show(value)}")
+    return value
+
+
+def _show(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _check_manifest(manifest: object) -> dict:
+    """Type- and range-check every manifest field; returns the manifest."""
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+        raise CorruptFileError("not a terratheme project (wrong format tag)")
+    version = manifest.get("version")
+    if not _whole(version) or version < 1:
+        raise CorruptFileError(f"bad format version {_show(version)}")
+    if version > FORMAT_VERSION:
+        raise UnsupportedVersionError(
+            f"written by a newer terratheme (project format {version}; "
+            f"this version reads up to {FORMAT_VERSION})")
+    for key in ("cell", "grid_shape", "themes"):
+        if key not in manifest:
+            raise TerrathemeError(f"damaged manifest (missing {key!r})")
+    validate_cell(manifest["cell"])
+    shape = manifest["grid_shape"]
+    if not (isinstance(shape, list) and len(shape) == 2 and all(_whole(v) for v in shape)):
+        raise TerrathemeError(f"grid_shape must be two whole numbers, got {_show(shape)}")
+    themes = manifest["themes"]
+    if not isinstance(themes, list) or not 1 <= len(themes) <= MAX_THEMES:
+        raise TerrathemeError(f"themes must be a list of 1..{MAX_THEMES} entries")
+    textures = set()
+    for k, t in enumerate(themes):
+        if not isinstance(t, dict):
+            raise TerrathemeError(f"theme {k} is not an object")
+        _text(t.get("name"), f"theme {k} name")
+        _text(t.get("source", ""), f"theme {k} source", empty=True)
+        colour = t.get("colour")
+        if not (isinstance(colour, list) and len(colour) == 3
+                and all(_whole(c) and 0 <= c <= 255 for c in colour)):
+            raise TerrathemeError(f"theme {k} colour must be three whole numbers 0..255, "
+                                  f"got {_show(colour)}")
+        member = _text(t.get("texture"), f"theme {k} texture")
+        if member in textures or member == GRID_MEMBER or member == MANIFEST:
+            raise TerrathemeError(f"theme {k} texture {member!r} is used twice")
+        textures.add(member)
+    metadata = manifest.get("metadata", {})
+    if not isinstance(metadata, dict):
+        raise TerrathemeError(f"metadata must be a JSON object, not {type(metadata).__name__}")
+    if "georeference" in metadata:
+        validate_georeference(metadata["georeference"])
+    layers = manifest.get("layers", [])
+    if not isinstance(layers, list) or not all(isinstance(n, str) for n in layers):
+        raise TerrathemeError(f"layers must be a list of names, got {_show(layers)}")
+    if len(set(layers)) != len(layers):
+        raise TerrathemeError(f"a layer is listed twice in {_show(layers)}")
+    unknown = [n for n in layers if n not in LAYER_BY_NAME]
+    if unknown:
+        raise UnsupportedVersionError(
+            f"has a layer {unknown[0][:40]!r} this terratheme does not know "
+            f"(known: {', '.join(LAYER_BY_NAME)}); written by a newer version?")
+    return manifest
+
+
 def load_project(path: str | os.PathLike) -> ThematicTexture:
     """Read a ``.ttproj`` file written by :func:`save_project`.
+
+    Work and memory are bounded by the file's size and the module's limits;
+    every field is checked before the arrays it describes are read.
 
     Raises
     ------
     TerrathemeError
         Missing file.
     CorruptFileError
-        Not a ZIP, a damaged member (CRC mismatch), a missing member, a grid
-        index without a theme.
+        Not a ZIP, a damaged, encrypted, oversized or missing member, a
+        manifest field of the wrong type or range, a stored array of the
+        wrong dtype or shape, a grid index without a theme.
     UnsupportedVersionError
-        Written by a newer terratheme.
+        Written by a newer terratheme (a newer format, or an unknown layer).
     """
     path = Path(path)
     if not path.is_file():
         raise TerrathemeError(f"{path}: no such project file")
-    try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError) as exc:
-        raise CorruptFileError(f"{path}: not a terratheme project (damaged or not a ZIP)") from exc
+    label = str(path)
+    zf = open_archive(path, label, kind="terratheme project", max_members=_MAX_MEMBERS)
     with zf:
+        if MANIFEST not in zf.namelist():
+            raise CorruptFileError(f"{path}: not a terratheme project (no manifest)")
+        manifest = read_json_member(zf, MANIFEST, label, max_bytes=MAX_MANIFEST_BYTES)
         try:
-            manifest = json.loads(zf.read("manifest.json"))
-        except KeyError as exc:
-            raise CorruptFileError(f"{path}: not a terratheme project (no manifest)") from exc
-        except (json.JSONDecodeError, zipfile.BadZipFile, OSError, ValueError, zlib.error) as exc:
-            raise CorruptFileError(f"{path}: damaged manifest ({exc})") from exc
-        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
-            raise CorruptFileError(f"{path}: not a terratheme project (wrong format tag)")
-        version = manifest.get("version")
-        if not isinstance(version, int) or version < 1:
-            raise CorruptFileError(f"{path}: bad format version {version!r}")
-        if version > FORMAT_VERSION:
-            raise UnsupportedVersionError(
-                f"{path}: written by a newer terratheme (project format {version}; "
-                f"this version reads up to {FORMAT_VERSION})"
-            )
+            _check_manifest(manifest)
+        except (CorruptFileError, UnsupportedVersionError) as exc:
+            raise type(exc)(f"{path}: {exc}") from None
+        except TerrathemeError as exc:
+            raise CorruptFileError(f"{path}: {exc}") from None
+        # Arrays: each checked against its limit and the bytes present before it is read.
+        indices = read_npy_member(zf, GRID_MEMBER, label, max_bytes=MAX_GRID_VERTICES,
+                                  dtypes=[np.uint8], ndims=[2])
+        if list(indices.shape) != manifest["grid_shape"]:
+            raise CorruptFileError(f"{path}: {GRID_MEMBER} is {indices.shape[0]} x "
+                                   f"{indices.shape[1]} but the manifest says "
+                                   f"{manifest['grid_shape'][0]} x {manifest['grid_shape'][1]}")
+        textures = [
+            read_npy_member(zf, t["texture"], label, dtypes=[np.uint8], ndims=[3],
+                            max_bytes=MAX_THEME_SIDE * MAX_THEME_SIDE * 3)
+            for t in manifest["themes"]
+        ]
+        layers = {
+            name: read_npy_member(zf, LAYER_BY_NAME[name].member, label,
+                                  dtypes=[LAYER_BY_NAME[name].dtype],
+                                  ndims=[2 if LAYER_BY_NAME[name].channels is None else 3],
+                                  max_bytes=MAX_LAYER_PIXELS * (
+                                      LAYER_BY_NAME[name].channels or 1))
+            for name in manifest.get("layers", [])
+        }
         try:
-            library = ThemeLibrary(
-                Theme(t["name"], tuple(t["colour"]), _load_npy(zf, t["texture"], path),
-                      source=t.get("source", ""))
-                for t in manifest["themes"]
-            )
-            indices = _load_npy(zf, "grid.npy", path)
             grid = IndexGrid(indices, tuple(manifest["cell"]))
-            layers = {
-                name: _load_npy(zf, f"{name}.npy", path)
-                for name in manifest.get("layers", [])
-                if name in _LAYERS
-            }
             colour_map = _load_colour_map(zf, manifest.get("colour_map"), grid, path)
-            return ThematicTexture(grid, library, dict(manifest.get("metadata", {})), **layers,
-                                   colour_map=colour_map)
-        except (KeyError, TypeError) as exc:
-            raise CorruptFileError(f"{path}: damaged manifest (missing {exc})") from exc
         except CorruptFileError:
             raise
         except TerrathemeError as exc:
-            raise CorruptFileError(f"{path}: {exc}") from exc
+            raise CorruptFileError(f"{path}: {exc}") from None
+    try:
+        for t, tex in zip(manifest["themes"], textures, strict=True):
+            if tex.shape[2] != 3 or max(tex.shape[:2]) > MAX_THEME_SIDE:
+                raise TerrathemeError(f"theme {t['name'][:40]!r}: texture of shape {tex.shape} "
+                                      f"is not (h, w, 3) with sides up to {MAX_THEME_SIDE}")
+        library = ThemeLibrary(
+            Theme(t["name"], tuple(t["colour"]), tex, source=t.get("source", ""))
+            for t, tex in zip(manifest["themes"], textures, strict=True))
+        return ThematicTexture(grid, library, manifest.get("metadata", {}), **layers,
+                               colour_map=colour_map)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{path}: {exc}") from None
+
