@@ -8,7 +8,7 @@ import pytest
 from app.cli import build_parser, main
 
 EXPECTED = {"new", "render", "classify", "convert", "pack", "unpack", "info", "perspective", "app",
-            "export"}
+            "export", "themes"}
 
 
 def test_help_lists_every_subcommand(capsys):

@@ -292,3 +292,23 @@ def test_cli_refuses_before_any_work(tmp_path, capsys, args, match):
     assert code == 2
     assert match in capsys.readouterr().err
     assert not (tmp_path / "x.ttproj").exists()
+
+
+def test_outputs_are_written_as_a_set(tmp_path, monkeypatch):
+    import core.convert.photo as photo_mod
+
+    photo = tmp_path / "h.png"
+    write_image(photo, _halves())
+    assert _run([photo, tmp_path / "s.ttproj", "--cell", "16"]) == 0
+    names = {"s.ttproj", "s_preview.png", "s.ttpack", "s_colour.webp"}
+    before = {n: (tmp_path / n).read_bytes() for n in names}
+    # The project (written last) fails: every file of the set keeps its old bytes.
+    def fail(path, project):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(photo_mod, "save_project", fail)
+    write_image(photo, _halves()[:, ::-1].copy())
+    assert _run([photo, tmp_path / "s.ttproj", "--cell", "16"]) == 2
+    assert {n: (tmp_path / n).read_bytes() for n in names} == before
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert leftovers == []

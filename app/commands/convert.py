@@ -124,21 +124,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _read_mask(path: str):
+    """Scribble class values (a grey PNG, or classify's palette PNG) as (H, W) uint8."""
     import numpy as np
 
-    from core.errors import TerrathemeError
-    from core.io.images import read_image
+    from core.io.images import read_labels
 
-    mask = read_image(path)
-    if not np.issubdtype(mask.dtype, np.integer):
-        raise TerrathemeError(f"{path}: scribble mask must hold whole numbers 0..255")
-    if mask.shape[2] > 1 and any(
-        not np.array_equal(mask[:, :, 0], mask[:, :, c]) for c in range(1, mask.shape[2])
-    ):
-        raise TerrathemeError(f"{path}: scribble mask must be single-channel class values")
-    if mask.size and int(mask.max()) > 255:
+    mask = read_labels(path)
+    if mask.size and (int(mask.max()) > 255 or int(mask.min()) < 0):
         raise TerrathemeError(f"{path}: scribble mask values must be 0..255")
-    return mask[:, :, 0].astype(np.uint8)
+    return mask.astype(np.uint8)
 
 
 def _curve_chart(choice, path: str) -> None:

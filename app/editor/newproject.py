@@ -38,9 +38,9 @@ def empty_project(cells: tuple[int, int] = (64, 64), cell: tuple[int, int] = DEF
 def project_from_photo(path: str | Path, cell: tuple[int, int] = DEFAULT_CELL) -> ThematicTexture:
     """A one-theme project covering the photo at ``path`` 1:1 (classify it afterwards)."""
     from core.convert.labels_to_grid import grid_shape_for
-    from core.io.images import read_image
+    from core.io.images import Bands, read_image
 
-    photo = read_image(path, dtype=np.uint8)
+    photo = read_image(path, dtype=np.uint8, bands=Bands.PHOTO)
     if photo.shape[2] == 1:
         photo = np.repeat(photo, 3, axis=2)
     photo = np.ascontiguousarray(photo[..., :3])

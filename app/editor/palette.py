@@ -105,14 +105,14 @@ class ThemePalette(QWidget):
 
     # -- actions -------------------------------------------------------------
     def _texture_file(self) -> tuple[np.ndarray, str] | None:
-        from core.io.images import read_image
+        from core.io.images import Bands, read_image
 
         path, _ = QFileDialog.getOpenFileName(self, "Theme texture", "",
                                               "Images (*.png *.jpg *.jpeg *.tif *.tiff *.exr)")
         if not path:
             return None
         try:
-            return read_image(path, dtype=np.uint8), path
+            return read_image(path, dtype=np.uint8, bands=Bands.PHOTO), path
         except TerrathemeError as exc:
             self.error.emit(str(exc))
             return None

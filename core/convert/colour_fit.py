@@ -31,6 +31,7 @@ from core.classify.photo import prepare_photo
 from core.errors import TerrathemeError
 from core.fidelity.metrics import COLOUR_SIGMA, colour_error
 from core.io.codec import encode_image
+from core.io.images import Bands
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.colour_map import NEUTRAL, ColourMap
 from core.model.grid import IndexGrid
@@ -242,7 +243,8 @@ def colour_map_from_file(
         render_sum[j:j + bh, i:i + bw] += rsum
         count[j:j + bh, i:i + bw] += pcount
 
-    run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress)
+    run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress,
+              bands=Bands.PHOTO)
     covered = count > 0
     gain = np.ones((mh, mw, 3), np.float64)
     gain[covered] = photo_sum[covered] / np.maximum(render_sum[covered], 1.0)

@@ -32,10 +32,10 @@ from core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from core.convert.labels_to_grid import DEFAULT_CELL_CANDIDATES, CellChoice, apply_lut
 from core.convert.step import assign_themes, classify_photo, grid_and_colour
 from core.errors import TerrathemeError
-from core.io.atomic import write_bytes_atomic
+from core.io.atomic import atomic_file_set, write_bytes_atomic
 from core.io.codec import CODECS
-from core.io.georef import read_georeference, write_georeference
-from core.io.images import read_image, write_image
+from core.io.georef import read_georeference, world_file_for, write_georeference
+from core.io.images import Bands, read_image, write_image
 from core.model.project import ThematicTexture, save_project
 from core.packing import pack
 from core.render.boundary import BoundaryOptions
@@ -221,9 +221,9 @@ def convert_photo(
 def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     """Read a photo and its georeference: ``((H, W, C) array, metadata dict)``."""
 
-    photo = read_image(path)
+    photo = read_image(path, bands=Bands.PHOTO)
     if photo.dtype not in (np.uint8, np.uint16):
-        photo = read_image(path, dtype=np.uint8)
+        photo = read_image(path, dtype=np.uint8, bands=Bands.PHOTO)
     meta: dict = {"source_photo": str(path)}
     geo = read_georeference(path)
     if geo:
@@ -258,34 +258,62 @@ def write_outputs(
     packed_path: str | os.PathLike | None = None,
     preview_max_side: int = PREVIEW_MAX_SIDE,
 ) -> dict[str, Path]:
-    """Save a project, its preview render and its packed index layer (+ colour map).
+    """Save a project, its preview render and its packed index layer (+ colour map), as a set.
 
     A colour map shipped in a codec is written as those bytes beside the
     packed layer (``<stem>_colour.webp``): together they are the packed output.
+    When every file lies in one folder they are written as one set
+    (:func:`core.io.atomic.atomic_file_set`): all replaced, or none, the
+    project last; a run killed half way leaves the old set, and the next run
+    in that folder cleans up after it. Otherwise each file is written
+    atomically on its own, the project last.
 
     Returns
     -------
     written : {"project": path, "preview": path, "packed": path, "world": path...}
     """
-    written: dict[str, Path] = {}
-    save_project(project_path, project)
-    written["project"] = Path(project_path)
-    if preview_path is not None:
-        image, region = render_preview(project, preview_max_side)
-        write_image(preview_path, image)
-        written["preview"] = Path(preview_path)
-        geo = render_georeference(project, region, image.shape[1::-1])
-        for made in write_georeference(preview_path, geo):
-            if made != Path(preview_path):
-                written["preview_world_file"] = made
+    # What goes where, in write order (the project names the others: last).
+    plan: list[tuple[str, Path]] = []
+    image = geo = layer = None
     if packed_path is not None:
         layer = pack(project.grid.indices, curve="auto")
-        layer.save(packed_path)
-        written["packed"] = Path(packed_path)
+        plan.append(("packed", Path(packed_path)))
         cmap = project.colour_map
         if cmap is not None and cmap.data is not None:
             target = Path(packed_path)
-            target = target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[cmap.codec]}")
-            write_bytes_atomic(target, cmap.data)
-            written["colour_map"] = target
-    return written
+            plan.append(("colour_map",
+                         target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[cmap.codec]}")))
+    if preview_path is not None:
+        image, region = render_preview(project, preview_max_side)
+        geo = render_georeference(project, region, image.shape[1::-1])
+        plan.append(("preview", Path(preview_path)))
+        world = world_file_for(preview_path, geo)
+        if world is not None:
+            plan.append(("preview_world_file", world))
+    plan.append(("project", Path(project_path)))
+
+    def write(key: str, target: Path, paths: dict[str, Path]) -> None:
+        if key == "packed":
+            layer.save(target)
+        elif key == "colour_map":
+            write_bytes_atomic(target, project.colour_map.data)
+        elif key == "preview":
+            write_image(target, image)
+            if geo and "preview_world_file" not in paths:
+                write_georeference(target, geo)  # a GeoTIFF preview carries the tags
+        elif key == "preview_world_file":
+            write_georeference(paths["preview"], geo, world_file=target)
+        else:
+            save_project(target, project)
+
+    finals = [path for _, path in plan]
+    if len({p.parent.resolve() for p in finals}) == 1:
+        with atomic_file_set(finals) as temps:
+            where = {key: tmp for (key, _), tmp in zip(plan, temps, strict=True)}
+            for key, tmp in where.items():
+                write(key, tmp, where)
+    else:
+        where = dict(plan)
+        for key, path in plan:
+            write(key, path, where)
+    return dict(plan)

@@ -35,7 +35,7 @@ from core.convert.labels_to_grid import (
 from core.convert.step import assign_themes
 from core.errors import TerrathemeError
 from core.io.georef import read_georeference
-from core.io.images import image_info, read_region
+from core.io.images import Bands, image_info, read_region
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.grid import IndexGrid, validate_cell
 from core.model.project import ThematicTexture
@@ -152,7 +152,8 @@ def grid_from_file(
         (r0, r1), (c0, c1) = tiles[win]
         grid[r0:r1, c0:c1] = block
 
-    run_tiles(path, job, sink, windows=list(tiles), scheduler=scheduler, progress=progress)
+    run_tiles(path, job, sink, windows=list(tiles), scheduler=scheduler, progress=progress,
+              bands=Bands.PHOTO)
     return IndexGrid(grid, (n, m))
 
 
@@ -190,7 +191,7 @@ def sample_pieces(path: str | os.PathLike, budget: int | None = None,
     info = image_info(path)
     w, h = info.width, info.height
     if w * h <= budget * budget:
-        return [read_region(path, 0, 0, w, h)]
+        return [read_region(path, 0, 0, w, h, bands=Bands.PHOTO)]
     side_w, side_h = min(w, budget // grid), min(h, budget // grid)
     pieces = []
     for gy in range(grid):
@@ -198,7 +199,7 @@ def sample_pieces(path: str | os.PathLike, budget: int | None = None,
             # Centre of cell (gx, gy) of a grid x grid division of the photo.
             x0 = min(w - side_w, max(0, (2 * gx + 1) * w // (2 * grid) - side_w // 2))
             y0 = min(h - side_h, max(0, (2 * gy + 1) * h // (2 * grid) - side_h // 2))
-            pieces.append(read_region(path, x0, y0, side_w, side_h))
+            pieces.append(read_region(path, x0, y0, side_w, side_h, bands=Bands.PHOTO))
     return pieces
 
 
@@ -293,7 +294,7 @@ def convert_file_tiled(
     # Themes from the centre window of the photo, classified by the model.
     side_w, side_h = min(THEME_WINDOW, info.width), min(THEME_WINDOW, info.height)
     x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
-    window = read_region(path, x0, y0, side_w, side_h)
+    window = read_region(path, x0, y0, side_w, side_h, bands=Bands.PHOTO)
     win_result = model.predict(window)
 
     rgb, _ = prepare_photo(window)

@@ -3,12 +3,34 @@
 Modules: ``images`` (every image file through OpenImageIO), ``tiles`` (tile
 windows, bounded-memory tile jobs on one machine or Dask, tiled writing),
 ``georef`` (GeoTIFF tags and world files), ``atomic`` (write to a temporary
-file, then rename).
+file, then rename; sets of files; clean-up after signals), ``codec`` (images
+as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
+``png`` (PNG chunks: palettes).
 """
 
-from core.io.atomic import atomic_path, write_bytes_atomic
-from core.io.georef import read_georeference, scale_georeference, write_georeference
-from core.io.images import ImageInfo, image_info, read_image, read_region, write_image
+from core.io.atomic import (
+    atomic_file_set,
+    atomic_path,
+    clean_stale_temporaries,
+    write_bytes_atomic,
+)
+from core.io.codec import decode_image, encode_image
+from core.io.georef import (
+    read_georeference,
+    scale_georeference,
+    validate_georeference,
+    write_georeference,
+)
+from core.io.images import (
+    Bands,
+    ImageInfo,
+    image_attributes,
+    image_info,
+    read_image,
+    read_labels,
+    read_region,
+    write_image,
+)
 from core.io.tiles import (
     Scheduler,
     TiledImageWriter,
@@ -19,19 +41,27 @@ from core.io.tiles import (
 )
 
 __all__ = [
+    "Bands",
     "ImageInfo",
     "Scheduler",
     "TileWindow",
     "TiledImageWriter",
+    "atomic_file_set",
     "atomic_path",
+    "clean_stale_temporaries",
+    "decode_image",
+    "encode_image",
+    "image_attributes",
     "image_info",
     "map_tiles",
     "read_georeference",
     "read_image",
+    "read_labels",
     "read_region",
     "run_tiles",
     "scale_georeference",
     "tile_windows",
+    "validate_georeference",
     "write_bytes_atomic",
     "write_georeference",
     "write_image",

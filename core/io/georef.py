@@ -224,12 +224,26 @@ def scale_georeference(georef: dict, sx: float, sy: float, *,
     return out
 
 
-def write_georeference(path: str | os.PathLike, georef: dict) -> list[Path]:
+def world_file_for(path: str | os.PathLike, georef: dict) -> Path | None:
+    """The ESRI world file a georeferenced ``path`` gets, or None (TIFF, or no georeference).
+
+    ``.pgw`` for PNG, ``.jgw`` for JPEG, ``.wld`` otherwise, beside the image.
+    """
+    p = Path(path)
+    if not georef or p.suffix.lower() in _TIFF_SUFFIXES or world_file_lines(georef) is None:
+        return None
+    return p.with_suffix({".png": ".pgw", ".jpg": ".jgw", ".jpeg": ".jgw"}.get(
+        p.suffix.lower(), ".wld"))
+
+
+def write_georeference(path: str | os.PathLike, georef: dict, *,
+                       world_file: str | os.PathLike | None = None) -> list[Path]:
     """Attach ``georef`` to an image file already written; returns the files changed or made.
 
     TIFF files get the GeoTIFF tags in their first directory; other formats
-    get an ESRI world file beside them (``.pgw`` for PNG, ``.jgw`` for JPEG,
-    ``.wld`` otherwise). An empty georeference does nothing.
+    get an ESRI world file (:func:`world_file_for`, or at ``world_file`` when
+    given: a file set writes it to a temporary first). An empty georeference
+    does nothing.
     """
     p = Path(path)
     if not georef:
@@ -241,8 +255,7 @@ def write_georeference(path: str | os.PathLike, georef: dict) -> list[Path]:
     world = world_file_lines(georef)
     if world is None:
         return []
-    ext = {".png": ".pgw", ".jpg": ".jgw", ".jpeg": ".jgw"}.get(p.suffix.lower(), ".wld")
-    target = p.with_suffix(ext)
+    target = Path(world_file) if world_file is not None else world_file_for(p, georef)
     write_bytes_atomic(target, ("\n".join(f"{v:.12g}" for v in world) + "\n").encode())
     return [target]
 

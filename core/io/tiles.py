@@ -29,7 +29,7 @@ import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
 from core.io.atomic import atomic_path
-from core.io.images import OIIO_PIXEL_TYPES, image_info, read_region
+from core.io.images import OIIO_PIXEL_TYPES, Bands, image_info, read_region
 
 ProgressFn = Callable[[int, int], None]
 
@@ -144,8 +144,8 @@ TileJob = Callable[[TileWindow, np.ndarray], object]
 TileSink = Callable[[TileWindow, object], None]
 
 
-def _run_one(path: str, win: TileWindow, job: TileJob, dtype) -> object:
-    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype))
+def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands) -> object:
+    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands))
 
 
 def run_tiles(
@@ -160,6 +160,7 @@ def run_tiles(
     batch: int = 4,
     windows: list[TileWindow] | None = None,
     progress: ProgressFn | None = None,
+    bands: Bands = Bands.ALL,
 ) -> int:
     """Run ``job(window, pixels)`` on every tile of a file and hand each result to ``sink``.
 
@@ -180,6 +181,8 @@ def run_tiles(
     windows : list of TileWindow, optional
         Run these windows instead of the regular tiling.
     progress : callable(done, total), optional
+    bands : Bands
+        Which channels each tile holds (``Bands.PHOTO`` for photos).
 
     Returns
     -------
@@ -191,7 +194,7 @@ def run_tiles(
     path = str(path)
     if scheduler is Scheduler.SERIAL:
         for done, win in enumerate(wins, start=1):
-            sink(win, _run_one(path, win, job, dtype))
+            sink(win, _run_one(path, win, job, dtype, bands))
             if progress is not None:
                 progress(done, total)
         return total
@@ -201,7 +204,8 @@ def run_tiles(
     step = max(1, int(batch))
     for start in range(0, total, step):
         part = wins[start : start + step]
-        results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype) for w in part])
+        results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype, bands)
+                                 for w in part])
         for win, res in zip(part, results, strict=True):
             sink(win, res)
         if progress is not None:

@@ -1,16 +1,19 @@
 """The thematic texture as data: the index grid, the project (grid + themes + layers) and its file.
 
 Modules: ``grid`` (IndexGrid: theme numbers at grid vertices), ``project``
-(ThematicTexture and the ``.ttproj`` file), ``index_image`` (grids stored as
-pictures, and projects made from them).
+(ThematicTexture and the ``.ttproj`` file), ``layers`` (the optional per-pixel
+layers and their checks), ``colour_map`` (the colour gain over a texture),
+``index_image`` (grids stored as pictures, and projects made from them).
 """
 
+from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid
 from core.model.index_image import project_from_index_image
 from core.model.project import PROJECT_SUFFIX, ThematicTexture, load_project, save_project
 
 __all__ = [
     "PROJECT_SUFFIX",
+    "ColourMap",
     "IndexGrid",
     "ThematicTexture",
     "load_project",
