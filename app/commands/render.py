@@ -28,6 +28,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="output pixels per texel, in (0, 1] (overview render below 1)")
     parser.add_argument("--blend", choices=["linear", "histogram"], default="linear",
                         help="linear (the paper's) or histogram-preserving (Heitz & Neyret 2018)")
+    parser.add_argument("--gpu", action="store_true",
+                        help="render through the OpenGL shaders (headless EGL; Mesa's llvmpipe "
+                             "without a GPU): at scale 1 the same texels as the CPU render, "
+                             "below 1 mipmapped")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,21 +48,43 @@ def run(args: argparse.Namespace) -> int:
     project = load_project(args.project)
     options = RenderOptions(blend=BlendMode(args.blend))
     region = args.region or (0, 0, *photo_extent(project))
-    with tqdm(total=1, desc="render", unit="band", leave=False) as bar:
+    gpu = _gpu_renderer(project) if args.gpu else None
+    with tqdm(total=1, desc="render", unit="tile" if gpu else "band", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
             bar.total = total
             bar.n = done
             bar.refresh()
 
-        image = render_project(project, region, args.scale, options=options,
-                               progress=progress)
+        if gpu is not None:
+            image = _render_gpu(gpu, project, region, args, progress)
+        else:
+            image = render_project(project, region, args.scale, options=options,
+                                   progress=progress)
     write_image(args.out, image)
     h, w = image.shape[:2]
     made = write_georeference(args.out, render_georeference(project, region, (w, h)))
     geo = " with its georeference" if made else ""
-    print(f"{args.out}: {w} x {h} texels ({args.blend} blend){geo}")
+    print(f"{args.out}: {w} x {h} texels ({args.blend} blend{', GPU' if gpu else ''}){geo}")
     for extra in made:
         if str(extra) != str(args.out):
             print(f"  world file: {extra}")
     return 0
+
+
+def _gpu_renderer(project):
+    """The project's themes on the GPU (fails with one line where no OpenGL context exists)."""
+    from core.gpu import GpuRenderer
+
+    return GpuRenderer(project.library.textures)
+
+
+def _render_gpu(gpu, project, region, args: argparse.Namespace, progress):
+    from core.gpu import GpuRenderOptions
+    from core.render.renderer import BlendMode
+
+    try:
+        return gpu.render(project.grid, region=region, scale=args.scale, progress=progress,
+                          options=GpuRenderOptions(blend=BlendMode(args.blend)))
+    finally:
+        gpu.release()

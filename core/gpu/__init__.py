@@ -1,0 +1,26 @@
+"""The blend rule on the GPU: GLSL shaders and a headless renderer (docs/gpu.md).
+
+Modules: ``context`` (the standalone EGL OpenGL context, one clear error
+where none can be made), ``shaders`` (the GLSL files of ``shaders/``, with
+defines and includes), ``programs`` (compiled variants), ``textures``
+(themes, Gaussianised themes, inverse tables and index grids as textures),
+``cover`` (rectangles of uniform and blended cells), ``renderer``
+(:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any region,
+exact at scale 1, filtered with mipmaps and anisotropy below or on request).
+"""
+
+from core.gpu.context import GpuUnavailableError, create_context, gl_context
+from core.gpu.renderer import GpuRenderer, GpuRenderOptions, Sampling, render_cells_gpu
+from core.gpu.shaders import SHADER_DIR, shader_source
+
+__all__ = [
+    "SHADER_DIR",
+    "GpuRenderOptions",
+    "GpuRenderer",
+    "GpuUnavailableError",
+    "Sampling",
+    "create_context",
+    "gl_context",
+    "render_cells_gpu",
+    "shader_source",
+]
