@@ -27,6 +27,7 @@ from core.gpu import (
     GpuRenderOptions,
     GpuUnavailableError,
     Sampling,
+    UniformCells,
     create_context,
     gl_context,
     render_cells_gpu,
@@ -48,8 +49,8 @@ def _themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:
 
 #: four themes whose sizes divide neither each other nor the textures rendered
 ODD_THEMES = _themes(1, [(7, 5), (13, 17), (16, 16), (3, 11)])
-#: three themes of one size (the filtered path keeps their texels)
-EVEN_THEMES = _themes(2, [(32, 32)] * 3)
+#: three themes of one size, not a power of two (REPEAT wraps them; the filtered path keeps them)
+EVEN_THEMES = _themes(2, [(24, 20)] * 3)
 
 
 @pytest.fixture(scope="module")
@@ -72,6 +73,17 @@ def even() -> GpuRenderer:
     renderer.release()
 
 
+#: every way the exact path can fill uniform cells
+FILLS = [UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND]
+
+
+def _options(renderer: GpuRenderer, fill: UniformCells, **kwargs) -> GpuRenderOptions:
+    """Options with ``fill``, skipping where this driver cannot copy images."""
+    if fill is UniformCells.COPY and not renderer.can_copy:
+        pytest.skip("this OpenGL driver has no glCopyImageSubData")
+    return GpuRenderOptions(uniform_cells=fill, **kwargs)
+
+
 def _assert_same(cpu: np.ndarray, gpu: np.ndarray, blend: BlendMode) -> None:
     assert gpu.shape == cpu.shape and gpu.dtype == np.uint8
     diff = np.abs(cpu.astype(np.int16) - gpu)
@@ -81,26 +93,40 @@ def _assert_same(cpu: np.ndarray, gpu: np.ndarray, blend: BlendMode) -> None:
         assert diff.max() <= 1
 
 
+@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
 @pytest.mark.parametrize("cell", [(4, 4), (5, 3), (1, 1), (1, 4), (7, 1), (3, 11), (16, 16)])
-def test_random_grids_equal_cpu(odd, cell, blend):
+def test_random_grids_equal_cpu(odd, cell, blend, fill):
     rng = np.random.default_rng(cell[0] * 31 + cell[1])
     grid = rng.integers(0, 4, (9, 12)).astype(np.uint8)
     grid[:4, :5] = 2  # a uniform block too
     cpu = render_cells(grid, ODD_THEMES, cell, options=RenderOptions(blend=blend))
-    gpu = odd.render(grid, cell, options=GpuRenderOptions(blend=blend))
+    gpu = odd.render(grid, cell, options=_options(odd, fill, blend=blend))
     _assert_same(cpu, gpu, blend)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 9), m=st.integers(1, 9),
-       k=st.integers(1, 4), hist=st.booleans())
-def test_random_grids_equal_cpu_hypothesis(odd, seed, n, m, k, hist):
+       k=st.integers(1, 4), hist=st.booleans(), fill=st.sampled_from(FILLS))
+def test_random_grids_equal_cpu_hypothesis(odd, seed, n, m, k, hist, fill):
     rng = np.random.default_rng(seed)
     grid = rng.integers(0, k, (int(rng.integers(2, 8)), int(rng.integers(2, 8))))
     blend = HISTOGRAM if hist else LINEAR
     cpu = render_cells(grid, ODD_THEMES, (n, m), options=RenderOptions(blend=blend))
-    _assert_same(cpu, odd.render(grid, (n, m), options=GpuRenderOptions(blend=blend)), blend)
+    _assert_same(cpu, odd.render(grid, (n, m), options=_options(odd, fill, blend=blend)), blend)
+
+
+@pytest.mark.parametrize("fill", FILLS)
+@pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
+def test_themes_of_one_size_wrap_exactly_far_out(even, blend, fill):
+    # One theme size: the shaders wrap with REPEAT, coordinates kept small per tile.
+    rng = np.random.default_rng(11)
+    grid = rng.integers(0, 3, (4, 8381)).astype(np.uint8)
+    grid[:, 8370:8376] = 1
+    region = (8_375_000 - 37, 5, 70, 40)  # near the largest coordinate, 2^23
+    cpu = render_cells(grid, EVEN_THEMES, (1000, 16), region, options=RenderOptions(blend=blend))
+    gpu = even.render(grid, (1000, 16), region, options=_options(even, fill, blend=blend))
+    _assert_same(cpu, gpu, blend)
 
 
 def test_every_split_and_saddle_rule(odd):
@@ -130,31 +156,34 @@ def test_thin_river_saddles_stay_connected(odd):
     _assert_same(cpu, odd.render(grid, (8, 8)), LINEAR)
 
 
+@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
-def test_regions_equal_the_cpu_region(odd, blend):
+def test_regions_equal_the_cpu_region(odd, blend, fill):
     rng = np.random.default_rng(7)
     grid = rng.integers(0, 4, (14, 17)).astype(np.uint8)
+    grid[3:11, 2:12] = 3  # long uniform runs: copies of several theme periods
     cell = (6, 5)
-    full = odd.render(grid, cell, options=GpuRenderOptions(blend=blend))
+    options = _options(odd, fill, blend=blend)
+    full = odd.render(grid, cell, options=options)
     for _ in range(6):
         w, h = int(rng.integers(1, 60)), int(rng.integers(1, 40))
         x, y = int(rng.integers(0, 16 * 6 - w + 1)), int(rng.integers(0, 13 * 5 - h + 1))
         cpu = render_cells(grid, ODD_THEMES, cell, (x, y, w, h), options=RenderOptions(blend=blend))
-        gpu = odd.render(grid, cell, (x, y, w, h), options=GpuRenderOptions(blend=blend))
+        gpu = odd.render(grid, cell, (x, y, w, h), options=options)
         _assert_same(cpu, gpu, blend)
         assert np.array_equal(gpu, full[y : y + h, x : x + w])
 
 
+@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
-def test_tiles_and_the_blend_shader_alone_change_nothing(odd, blend):
+def test_tiles_change_nothing(odd, blend, fill):
     rng = np.random.default_rng(3)
     grid = rng.integers(0, 4, (10, 10)).astype(np.uint8)
     grid[2:7, 2:8] = 1
-    ref = odd.render(grid, (7, 6), options=GpuRenderOptions(blend=blend))
-    tiled = odd.render(grid, (7, 6), (3, 2, 50, 41), options=GpuRenderOptions(blend=blend, tile=9))
-    assert np.array_equal(tiled, ref[2:43, 3:53])
-    alone = odd.render(grid, (7, 6), options=GpuRenderOptions(blend=blend, uniform_cells=False))
-    assert np.array_equal(alone, ref)
+    ref = render_cells(grid, ODD_THEMES, (7, 6), options=RenderOptions(blend=blend))
+    tiled = odd.render(grid, (7, 6), (3, 2, 50, 41),
+                       options=_options(odd, fill, blend=blend, tile=9))
+    _assert_same(ref[2:43, 3:53], tiled, blend)
 
 
 def test_index_grid_out_buffer_progress_and_one_shot(odd):
@@ -189,6 +218,17 @@ def test_filtered_overview_is_close_to_the_cpu_overview(even):
         gpu = even.render(grid, (16, 16), scale=scale)
         assert gpu.shape == cpu.shape
         assert np.abs(cpu.astype(np.int16) - gpu).mean() < 2.0
+
+
+def test_draw_leaves_the_frame_in_the_framebuffer(odd):
+    grid = np.array([[0, 1, 1], [2, 1, 1], [1, 1, 3]], np.uint8)
+    fbo = odd.draw(grid, (9, 7), (2, 3, 15, 9))
+    odd.ctx.finish()
+    rgba = np.frombuffer(fbo.read(viewport=(0, 0, 15, 9), components=4), np.uint8)
+    want = render_cells(grid, ODD_THEMES, (9, 7), (2, 3, 15, 9))
+    assert np.array_equal(rgba.reshape(9, 15, 4)[..., :3], want)
+    with pytest.raises(TerrathemeError, match="one tile"):
+        odd.draw(grid, (9, 7), options=GpuRenderOptions(tile=8))
 
 
 def test_colour_map_multiplies_by_value_over_128(even):
@@ -228,6 +268,10 @@ def test_bad_inputs_are_refused_before_work(odd):
         odd.render(grid, (4, 4), options=GpuRenderOptions(tile=0))
     with pytest.raises(TerrathemeError, match="cell size"):
         odd.render(grid, (0, 4))
+    if odd.can_copy:
+        with pytest.raises(TerrathemeError, match="no colour map"):
+            odd.render(grid, (4, 4), colour_map=np.full((2, 2, 3), 128, np.uint8),
+                       options=GpuRenderOptions(uniform_cells=UniformCells.COPY))
     with pytest.raises(TerrathemeError, match="no themes"):
         GpuRenderer([])
 

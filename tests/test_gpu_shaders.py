@@ -16,7 +16,7 @@ from core.gpu.cover import BLENDED, cell_rectangles
 from core.render.rules import cell_splits
 
 REPO = Path(__file__).resolve().parents[1]
-ENTRY_POINTS = ["tt_terrain.frag.glsl", "tt_uniform.frag.glsl", "tt_rect.vert.glsl"]
+ENTRY_POINTS = ["tt_terrain.frag.glsl", "tt_copy.frag.glsl", "tt_rect.vert.glsl"]
 
 
 @pytest.mark.parametrize("name", ENTRY_POINTS)
@@ -27,7 +27,7 @@ def test_defines_follow_the_version_line_and_includes_are_expanded(name):
     assert lines[1:3] == ["#define TT_THEMES 5", "#define TT_BLEND 1"]
     assert "#include" not in src.replace("`#include`", "")
     if name.endswith(".frag.glsl"):
-        assert "vec4 tt_shade(vec2 p)" in src
+        assert "vec4 tt_shade(vec2 p)" in src and "main()" in src
 
 
 def test_every_shader_file_documents_its_inputs():

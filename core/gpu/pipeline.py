@@ -15,8 +15,43 @@ import numpy as np
 
 from core.gpu.programs import UNITS, compile_program, set_uniform
 
-#: one drawn rectangle: texel edges x0, y0, x1, y1 and its theme (-1: blended)
-RECT = np.dtype([("edges", "<f4", 4), ("theme", "<i4")])
+#: one vertex of a drawn rectangle: texel-edge position and the copy shader's theme coordinate
+VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])
+
+
+#: the two triangles of a rectangle, as (x, y) picks of (x0, y0, x1, y1)
+_CORNERS = np.array([(0, 1), (2, 1), (0, 3), (0, 3), (2, 1), (2, 3)])
+
+
+def rect_vertices(edges: np.ndarray, themes: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The vertices of rectangles: two triangles each, with the copy shader's theme coordinate.
+
+    Parameters
+    ----------
+    edges : (R, 4) float ndarray
+        ``x0, y0, x1, y1`` in texel edges (whole numbers for rectangles of cells).
+    themes : (R,) int ndarray
+        Theme of each rectangle, negative for blended ones (their ``uv`` is 0).
+    sizes : (K, 4) float ndarray
+        ``w, h, 1/w, 1/h`` of every theme.
+
+    Returns
+    -------
+    vertices : (6R,) :data:`VERTEX` ndarray
+        ``uv`` counts theme periods from the rectangle's corner reduced to its
+        first period, so it stays small (exact) however far the rectangle lies.
+    """
+    edges = np.asarray(edges, dtype=np.float64)
+    out = np.zeros(6 * len(edges), VERTEX)
+    corner = edges[:, _CORNERS]  # (R, 6, 2)
+    out["edge"] = corner.reshape(-1, 2)
+    uniform = themes >= 0
+    if uniform.any():
+        size = sizes[themes[uniform], :2].astype(np.float64)[:, None, :]
+        origin = edges[uniform, None, :2]
+        uv = (corner[uniform] - origin + np.mod(origin, size)) / size
+        out["uv"].reshape(len(edges), 6, 2)[uniform] = uv
+    return out
 
 
 def _capacity(n: int) -> int:
@@ -25,18 +60,21 @@ def _capacity(n: int) -> int:
 
 
 class Pipeline:
-    """Programs, reusable textures and buffers, and the framebuffer of one renderer.
+    """Programs, reusable textures, the vertex buffer and the framebuffer of one renderer.
 
     Parameters
     ----------
     ctx : moderngl.Context
     themes : int
         The theme count the programs are compiled for (``TT_THEMES``).
+    one_size : bool
+        Every theme has one size (``TT_ONE_SIZE``).
     """
 
-    def __init__(self, ctx: moderngl.Context, themes: int) -> None:
+    def __init__(self, ctx: moderngl.Context, themes: int, one_size: bool) -> None:
         self.ctx = ctx
         self.themes = themes
+        self.one_size = one_size
         self._programs: dict[tuple, moderngl.Program] = {}
         self._uniforms: dict[int, dict[str, object]] = {}
         self._index: dict[str, moderngl.Texture] = {}
@@ -52,7 +90,7 @@ class Pipeline:
         if key not in self._programs:
             self._programs[key] = compile_program(
                 self.ctx, kind, themes=self.themes, histogram=histogram, filtered=filtered,
-                colour_map=colour_map, lut_size=lut_size)
+                colour_map=colour_map, one_size=self.one_size, lut_size=lut_size)
         return self._programs[key]
 
     def set_uniforms(self, prog: moderngl.Program, values: dict[str, object]) -> None:
@@ -80,9 +118,9 @@ class Pipeline:
         tex.use(UNITS[name])
         return tex
 
-    def draw_rects(self, prog: moderngl.Program, rects: np.ndarray) -> None:
-        """Draw ``rects`` (:data:`RECT` records) as instanced quads with ``prog``."""
-        size = rects.nbytes
+    def upload_vertices(self, vertices: np.ndarray) -> None:
+        """Write this tile's vertices (:data:`VERTEX` records) to the reused vertex buffer."""
+        size = vertices.nbytes
         if self._buffer is None or self._buffer.size < size:
             if self._buffer is not None:
                 for vao in self._vaos.values():
@@ -90,12 +128,15 @@ class Pipeline:
                 self._vaos.clear()
                 self._buffer.release()
             self._buffer = self.ctx.buffer(reserve=_capacity(size))
-        self._buffer.write(rects.tobytes())
+        self._buffer.write(vertices.tobytes())
+
+    def draw(self, prog: moderngl.Program, first: int, count: int) -> None:
+        """Draw vertices ``[first, first + count)`` of the buffer as triangles with ``prog``."""
         vao = self._vaos.get(prog.glo)
         if vao is None:
             vao = self._vaos[prog.glo] = self.ctx.vertex_array(
-                prog, [(self._buffer, "4f 1i/i", "tt_rect", "tt_rect_theme")], skip_errors=True)
-        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=len(rects))
+                prog, [(self._buffer, "2f 2f", "tt_edge", "tt_uv")], skip_errors=True)
+        vao.render(moderngl.TRIANGLES, vertices=count, first=first)
 
     def framebuffer(self, w: int, h: int) -> moderngl.Framebuffer:
         """An RGBA8 framebuffer of at least ``w x h`` pixels, made current."""
@@ -106,6 +147,10 @@ class Pipeline:
             fbo = self._fbo = self.ctx.simple_framebuffer((w, h), components=4)
         fbo.use()
         return fbo
+
+    def colour_target(self) -> int:
+        """The GL name of the framebuffer's colour renderbuffer (the image copies' target)."""
+        return self._fbo.color_attachments[0].glo
 
     def read(self, image: np.ndarray, tx: int, ty: int, tw: int, th: int) -> None:
         """Copy the framebuffer's first ``tw x th`` pixels into ``image[ty:, tx:]`` (RGB)."""

@@ -3,7 +3,8 @@
 * Exact path: one RGBA8 ``sampler2DArray``, theme ``k`` in texels
   ``[0, w_k) x [0, h_k)`` of layer ``k`` (layers padded to the largest
   theme), read with ``texelFetch`` and wrapped with integer arithmetic, so
-  themes of any sizes stay exact.
+  themes of any sizes stay exact; and every theme alone as a 2D texture
+  whose hardware ``REPEAT`` wraps at its own size (the copy shader's).
 * Filtered path: every theme resampled to the layer size, so the hardware's
   ``REPEAT`` wraps at the theme's own period, with mipmaps and anisotropic
   filtering. Themes already at the layer size (the usual case: every theme
@@ -24,6 +25,11 @@ import numpy as np
 
 from core.errors import TerrathemeError
 from core.render.theme_pack import LUT_RANGE, pack_themes
+
+
+def _rgba(rgb: np.ndarray) -> np.ndarray:
+    """An opaque RGBA copy of a ``(h, w, 3)`` uint8 image (the layout GL reads fastest)."""
+    return np.concatenate([rgb, np.full(rgb.shape[:2] + (1,), 255, np.uint8)], axis=2)
 
 
 def _resample_wrapped(tex: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -66,7 +72,7 @@ class ThemeTextures:
     def __init__(self, ctx: moderngl.Context, textures: Sequence[np.ndarray]) -> None:
         self.ctx = ctx
         self.textures = list(textures)
-        max_size = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self.max_size = max_size = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
         max_layers = int(ctx.info["GL_MAX_ARRAY_TEXTURE_LAYERS"])
         if len(self.textures) > max_layers:
             raise TerrathemeError(f"{len(self.textures)} themes: this OpenGL driver holds at "
@@ -81,6 +87,8 @@ class ThemeTextures:
         #: the layer size (w, h): the largest theme's
         self.layer_size = (max(t.shape[1] for t in self.textures),
                            max(t.shape[0] for t in self.textures))
+        #: every theme has the layer size (the exact path may wrap with REPEAT)
+        self.one_size = all(t.shape[:2] == self.layer_size[::-1] for t in self.textures)
         self._made: dict[tuple, moderngl.Texture | moderngl.TextureArray] = {}
 
     def _array(self, layers: Sequence[np.ndarray], dtype: str, filtered: bool,
@@ -97,7 +105,8 @@ class ThemeTextures:
             tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
             tex.anisotropy = min(float(anisotropy), float(self.ctx.max_anisotropy))
         else:
-            tex.repeat_x = tex.repeat_y = False
+            # REPEAT serves themes of the layer size (TT_ONE_SIZE); texelFetch ignores it.
+            tex.repeat_x = tex.repeat_y = True
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
 
@@ -109,11 +118,32 @@ class ThemeTextures:
     def colours(self, filtered: bool, anisotropy: float = 16.0) -> moderngl.TextureArray:
         """The RGBA8 theme array (``tt_themes``) of the exact or the filtered path."""
         def make():
-            rgba = [np.concatenate([t, np.full(t.shape[:2] + (1,), 255, np.uint8)], axis=2)
-                    for t in self.textures]
-            return self._array(rgba, "f1", filtered, anisotropy)
+            return self._array([_rgba(t) for t in self.textures], "f1", filtered, anisotropy)
 
         return self._cached(("colours", filtered, anisotropy if filtered else 0.0), make)
+
+    def theme(self, k: int) -> moderngl.Texture:
+        """Theme ``k`` alone as an RGBA8 2D texture, REPEAT, NEAREST (``tt_theme``)."""
+        def make():
+            t = self.textures[k]
+            tex = self.ctx.texture((t.shape[1], t.shape[0]), 4, _rgba(t).tobytes())
+            tex.repeat_x = tex.repeat_y = True
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            return tex
+
+        return self._cached(("theme", k), make)
+
+    def tiled(self, k: int) -> moderngl.Texture:
+        """Theme ``k`` tiled 2 x 2 as an RGBA8 2D texture: the image copies' source."""
+        def make():
+            t = np.tile(_rgba(self.textures[k]), (2, 2, 1))
+            return self.ctx.texture((t.shape[1], t.shape[0]), 4, t.tobytes())
+
+        return self._cached(("tiled", k), make)
+
+    def tiles_fit(self) -> bool:
+        """True when every theme tiled 2 x 2 fits the driver's largest texture."""
+        return 2 * max(max(t.shape[:2]) for t in self.textures) <= self.max_size
 
     def _gaussian_pack(self):
         return pack_themes(self.textures, 1, gaussian=True)
@@ -149,9 +179,23 @@ class ThemeTextures:
         self._made.clear()
 
 
-def index_texture(ctx: moderngl.Context, values: np.ndarray) -> moderngl.Texture:
-    """A ``(h, w)`` uint8 array as an R8UI texture (``usampler2D``, read with texelFetch)."""
-    arr = np.ascontiguousarray(values, dtype=np.uint8)
-    tex = ctx.texture((arr.shape[1], arr.shape[0]), 1, arr.tobytes(), dtype="u1")
+def check_colour_map(colour_map: np.ndarray | None) -> None:
+    """Check a colour map: a (h, w, 3) uint8 image (128 is neutral)."""
+    if colour_map is None:
+        return
+    arr = np.asarray(colour_map)
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.dtype != np.uint8 or 0 in arr.shape:
+        raise TerrathemeError(f"colour map must be a (h, w, 3) uint8 image, "
+                              f"got shape {arr.shape} dtype {arr.dtype}")
+
+
+def colour_map_texture(ctx: moderngl.Context,
+                        colour_map: np.ndarray | None) -> moderngl.Texture | None:
+    """The colour map as an RGBA8 texture (the shaders read it with texelFetch)."""
+    if colour_map is None:
+        return None
+    arr = np.asarray(colour_map)
+    tex = ctx.texture((arr.shape[1], arr.shape[0]), 4, _rgba(arr).tobytes())
     tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
     return tex
+

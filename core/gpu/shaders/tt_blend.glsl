@@ -13,6 +13,10 @@
 //                1 filtered: textureGrad with mipmaps and anisotropic
 //                filtering at any scale or angle (fly-over); default 0
 //   TT_LUT_SIZE  entries of the inverse LUT rows (TT_BLEND 1; default 4096)
+//   TT_ONE_SIZE  1 when every theme has the layer size of tt_themes: the
+//                exact path then wraps with the sampler's REPEAT (cheaper than
+//                integer wrapping; tt_wrap_origin keeps coordinates small);
+//                default 0
 //   TT_COLOUR_MAP 1 multiplies the render by a colour map (below); default 0.
 //                A compile-time switch: a software rasteriser runs both sides
 //                of a branch on a uniform bool, which would cost every pixel
@@ -35,11 +39,15 @@
 //   tt_cell        ivec2: (N, M) texel columns and rows per cell
 //   tt_themes      sampler2DArray RGBA8: layer k = theme k. Exact path: theme
 //                  k occupies texels [0, w_k) x [0, h_k) of its layer (layers
-//                  padded to the largest theme), NEAREST. Filtered path: every
+//                  padded to the largest theme), NEAREST, REPEAT (used with
+//                  TT_ONE_SIZE 1). Filtered path: every
 //                  layer holds its theme resampled to the layer size, REPEAT,
 //                  mipmapped, anisotropic.
 //   tt_theme_size  vec4[TT_THEMES]: (w_k, h_k, 1/w_k, 1/h_k), the theme's own
 //                  size in texels (it repeats every w_k x h_k texels)
+//   tt_wrap_origin ivec2 (TT_ONE_SIZE 1): a whole number of theme periods
+//                  subtracted from texel positions before scaling them to
+//                  texture coordinates (0 is exact below 2^21 texels)
 //   tt_gauss       sampler2DArray RGB32F (TT_BLEND 1): the Gaussianised
 //                  themes G = Phi^-1(CDF(T)), same layout as tt_themes
 //   tt_inverse_lut sampler2D R32F (TT_BLEND 1): TT_LUT_SIZE x 3K; row 3k+c is
@@ -67,6 +75,9 @@
 #ifndef TT_COLOUR_MAP
 #define TT_COLOUR_MAP 0
 #endif
+#ifndef TT_ONE_SIZE
+#define TT_ONE_SIZE 0
+#endif
 
 uniform usampler2D tt_grid;
 uniform usampler2D tt_splits;
@@ -75,6 +86,9 @@ uniform ivec2 tt_block_cells;
 uniform ivec2 tt_cell;
 uniform sampler2DArray tt_themes;
 uniform vec4 tt_theme_size[TT_THEMES];
+#if TT_ONE_SIZE == 1
+uniform ivec2 tt_wrap_origin;
+#endif
 #if TT_BLEND == 1
 uniform sampler2DArray tt_gauss;
 uniform sampler2D tt_inverse_lut;
@@ -156,16 +170,46 @@ vec3 tt_inverse(uint k, vec3 g) {
 
 // ---------------------------------------------------------------- exact path
 
+// The size (w, h, 1/w, 1/h) of theme k.
+vec4 tt_size_of(uint k) {
+#if TT_ONE_SIZE == 1
+    return tt_theme_size[0];
+#else
+    return tt_theme_size[k];
+#endif
+}
+
+#if TT_ONE_SIZE == 1
+// Texture coordinate of global texel t in a layer: the sampler's REPEAT wraps it.
+vec3 tt_layer_coord(uint k, ivec2 t) {
+    return vec3((vec2(t - tt_wrap_origin) + 0.5) * tt_theme_size[0].zw, float(k));
+}
+#else
 // Theme k's texel at global texel t, wrapping with the theme's own size.
-ivec3 tt_wrapped(uint k, vec4 size, ivec2 t) {
+ivec3 tt_wrapped(uint k, ivec2 t) {
+    vec4 size = tt_theme_size[k];
     return ivec3(tt_divmod(t.x, int(size.x), size.z).y, tt_divmod(t.y, int(size.y), size.w).y, int(k));
 }
-uvec3 tt_texel_sized(uint k, vec4 size, ivec2 t) {
-    return uvec3(texelFetch(tt_themes, tt_wrapped(k, size, t), 0).rgb * 255.0 + 0.5);
-}
+#endif
+
 uvec3 tt_texel(uint k, ivec2 t) {
-    return tt_texel_sized(k, tt_theme_size[k], t);
+#if TT_ONE_SIZE == 1
+    vec4 c = texture(tt_themes, tt_layer_coord(k, t));
+#else
+    vec4 c = texelFetch(tt_themes, tt_wrapped(k, t), 0);
+#endif
+    return uvec3(c.rgb * 255.0 + 0.5);
 }
+
+#if TT_BLEND == 1
+vec3 tt_gauss_at(uint k, ivec2 t) {
+#if TT_ONE_SIZE == 1
+    return texture(tt_gauss, tt_layer_coord(k, t)).rgb;
+#else
+    return texelFetch(tt_gauss, tt_wrapped(k, t), 0).rgb;
+#endif
+}
+#endif
 
 // The linear blend rounded half up exactly: floor((2*sum(w*T) + d) / (2d)),
 // for d <= 2^23 (a float estimate, one exact correction).
@@ -189,9 +233,7 @@ uvec3 tt_histogram_exact(uvec3 kt, ivec3 wt, int d, ivec2 t) {
     if (wt.x == d) return tt_texel(kt.x, t);
     if (wt.y == d) return tt_texel(kt.y, t);
     vec3 w = vec3(wt);
-    vec3 g = w.x * texelFetch(tt_gauss, tt_wrapped(kt.x, tt_theme_size[kt.x], t), 0).rgb
-           + w.y * texelFetch(tt_gauss, tt_wrapped(kt.y, tt_theme_size[kt.y], t), 0).rgb
-           + w.z * texelFetch(tt_gauss, tt_wrapped(kt.z, tt_theme_size[kt.z], t), 0).rgb;
+    vec3 g = w.x * tt_gauss_at(kt.x, t) + w.y * tt_gauss_at(kt.y, t) + w.z * tt_gauss_at(kt.z, t);
     g /= sqrt(dot(w, w));
     vec3 v = w.x * tt_inverse(kt.x, g) + w.y * tt_inverse(kt.y, g) + w.z * tt_inverse(kt.z, g);
     return uvec3(clamp(ivec3(v / float(d) + 0.5), 0, 255));
@@ -250,12 +292,12 @@ vec4 tt_shade_exact(ivec2 t) {
 #if TT_FILTERED == 1
 // Theme k at texel position p, filtered over the footprint (dx, dy) in texels.
 vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
-    vec4 s = tt_theme_size[k];
+    vec4 s = tt_size_of(k);
     return textureGrad(tt_themes, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
 }
 #if TT_BLEND == 1
 vec3 tt_sample_gauss(uint k, vec2 p, vec2 dx, vec2 dy) {
-    vec4 s = tt_theme_size[k];
+    vec4 s = tt_size_of(k);
     return textureGrad(tt_gauss, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
 }
 #endif
