@@ -117,6 +117,7 @@ class GpuRenderer:
         self.themes = ThemeTextures(self.ctx, textures)
         self.pipeline = Pipeline(self.ctx, len(textures), self.themes.one_size)
         self._copy = copy_image_function(self.ctx)
+        self._max_viewport = min(self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
 
     @property
     def can_copy(self) -> bool:
@@ -246,7 +247,7 @@ class GpuRenderer:
         mode = _Mode(filtered, options.blend is BlendMode.HISTOGRAM, coloured,
                      self._uniform_cells(options.uniform_cells, filtered, coloured))
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
-        tile = min(options.tile, *self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
+        tile = min(options.tile, self._max_viewport)
         return _Plan(indices, (n, m), size, region, out_size, mode, tile)
 
     def _uniform_cells(self, asked: UniformCells, filtered: bool, coloured: bool) -> UniformCells:

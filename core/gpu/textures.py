@@ -165,6 +165,10 @@ class ThemeTextures:
         """``(tt_inverse_lut, LUT entries, LUT half-range)``: R32F, row ``3k + c``."""
         def make():
             lut = np.ascontiguousarray(self._gaussian_pack().inv_lut, dtype=np.float32)
+            if max(lut.shape) > self.max_size:
+                raise TerrathemeError(f"the histogram blend's {lut.shape[1]} x {lut.shape[0]} "
+                                      f"inverse table exceeds this driver's {self.max_size} "
+                                      "texture size")
             tex = self.ctx.texture((lut.shape[1], lut.shape[0]), 1, lut.tobytes(), dtype="f4")
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             return tex
