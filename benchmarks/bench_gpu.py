@@ -202,7 +202,7 @@ def chart(res: dict, path: Path) -> None:
                 ax.text(j, v, f"{v:.1f}", ha="center", va="bottom", fontsize=8)
             acc = sc["accuracy"][blend]["max_abs_diff"]
             ratio = m["cpu_over_contender_median"].get("gpu frame", float("nan"))
-            ax.set_title(f"{label}, {blend}\n(mixed cells {sc['mixed_cell_fraction']:.1%}; "
+            ax.set_title(f"{label}, {blend}\n(map cells blended {sc['mixed_cell_fraction']:.1%}; "
                          f"cpu / gpu frame {ratio:.2f}x; max |gpu-cpu| {acc})", fontsize=9)
             ax.set_ylabel("ms per 1920 x 1080 frame (median, p10-p90)")
     fig.suptitle(f"GPU renderer on {res['gl_renderer']} vs CPU render_cells, same run, "
