@@ -1,0 +1,86 @@
+"""The OpenGL context of the GPU renderer: a standalone EGL context made by moderngl.
+
+Headless: no window or display server. On a machine without a GPU, Mesa's
+llvmpipe (a multi-threaded software rasteriser; ``LP_NUM_THREADS`` sets its
+thread count) provides OpenGL 4.5; any driver with OpenGL 3.3 core will do.
+Where no context can be made, :func:`create_context` raises
+:class:`GpuUnavailableError` with one line and keeps EGL's own warnings off
+stderr.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
+
+import moderngl
+
+from core.errors import TerrathemeError
+
+#: the OpenGL version the shaders need (GLSL 3.30 core)
+REQUIRED_GL = 330
+
+_shared: dict[int, moderngl.Context] = {}
+_lock = threading.Lock()
+
+
+class GpuUnavailableError(TerrathemeError):
+    """No OpenGL 3.3 context can be made on this machine."""
+
+
+@contextlib.contextmanager
+def _quiet_stderr() -> Iterator[list[str]]:
+    """Collect what native code writes to file descriptor 2 instead of showing it."""
+    captured: list[str] = []
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        yield captured
+        return
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), fd)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, fd)
+            os.close(saved)
+            sink.seek(0)
+            captured.extend(sink.read().decode(errors="replace").splitlines())
+
+
+def create_context() -> moderngl.Context:
+    """A new standalone OpenGL context (EGL backend, OpenGL 3.3 core or later).
+
+    Raises
+    ------
+    GpuUnavailableError
+        No EGL library or device, or no OpenGL 3.3 context (one line naming why).
+    """
+    # Mesa prints its loader warnings unless told otherwise; the caller gets one line.
+    os.environ.setdefault("EGL_LOG_LEVEL", "fatal")
+    with _quiet_stderr():
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl", require=REQUIRED_GL)
+        except Exception as exc:  # glcontext raises plain Exception
+            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise GpuUnavailableError(
+                f"GPU rendering unavailable: no OpenGL 3.3 context could be made with EGL "
+                f"({reason}); install Mesa's EGL (llvmpipe) or a GPU driver"
+            ) from None
+    return ctx
+
+
+def gl_context() -> moderngl.Context:
+    """The context shared by this thread's GPU renders, made on first use."""
+    key = threading.get_ident()
+    with _lock:
+        ctx = _shared.get(key)
+        if ctx is None:
+            ctx = _shared[key] = create_context()
+        return ctx

@@ -1,0 +1,395 @@
+"""The GPU renderer: the blend rule as GLSL shaders, rendered headless (docs/gpu.md).
+
+:class:`GpuRenderer` takes the same grid, themes, cell and region as
+:func:`core.render.render_cells` and refuses them with the same messages
+(:mod:`core.render.inputs`). Two sampling paths:
+
+* ``Sampling.EXACT`` (scale 1): ``texelFetch`` (or ``REPEAT`` when every
+  theme has one size) with exact integer weights rounded as the CPU does, so
+  the render equals the CPU render (within one level for the
+  histogram-preserving blend, whose sums run in float32 here). Runs of
+  uniform cells are image copies (or drawn by a copy shader); blended cells
+  are drawn by the blend shader (``core.gpu.cover``, ``UniformCells``).
+* ``Sampling.FILTERED`` (any scale; ``AUTO`` picks it below scale 1):
+  ``textureGrad`` with mipmaps and anisotropic filtering, weights averaged
+  over ``S x S`` sub-samples per pixel; the fly-over's path.
+
+Large outputs are rendered in tiles of ``GpuRenderOptions.tile`` pixels
+(framebuffer limits), each reading only the block of the grid under it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import moderngl
+import numpy as np
+
+from core.errors import TerrathemeError
+from core.gpu.context import gl_context
+from core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
+from core.gpu.cover import cell_rectangles
+from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from core.gpu.pipeline import Pipeline, rect_vertices
+from core.gpu.programs import UNITS
+from core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
+from core.render.inputs import prepare_grid, theme_textures, validate_region
+from core.render.renderer import BlendMode
+from core.render.rules import SaddleRule, cell_splits
+from core.themes.library import Theme
+
+Progress = Callable[[int, int], None]
+
+#: largest texel coordinate and cell area the shaders' integer arithmetic keeps exact
+MAX_COORDINATE = 1 << 23
+MAX_CELL_AREA = 1 << 23
+
+
+class _Mode(NamedTuple):
+    """The shader variant of a render and how its uniform cells are filled."""
+
+    filtered: bool
+    histogram: bool
+    colour_map: bool
+    uniform_cells: UniformCells
+
+
+class _Plan(NamedTuple):
+    """What a render draws: the checked inputs, the output size, the variant, the tile side."""
+
+    indices: np.ndarray
+    cell: tuple[int, int]
+    size: tuple[int, int]
+    region: tuple[int, int, int, int]
+    out_size: tuple[int, int]
+    mode: _Mode
+    tile: int
+
+
+def _block_splits(indices: np.ndarray, rule: SaddleRule,
+                  cells: tuple[int, int, int, int]) -> np.ndarray:
+    """Splits of cells ``cx0..cx1 x cy0..cy1``, the saddle rule seeing one vertex ring around."""
+    cx0, cy0, cx1, cy1 = cells
+    vy0, vx0 = max(cy0 - 1, 0), max(cx0 - 1, 0)
+    part = cell_splits(indices[vy0 : cy1 + 3, vx0 : cx1 + 3], rule)
+    return part[cy0 - vy0 : cy1 - vy0 + 1, cx0 - vx0 : cx1 - vx0 + 1]
+
+
+def _supersample(view: tuple[float, float, float, float], pixels: tuple[int, int],
+                 cell: tuple[int, int]) -> int:
+    """Sub-samples per pixel side of the filtered path: two or more per cell a pixel spans."""
+    fx, fy = view[2] / pixels[0], view[3] / pixels[1]
+    return int(min(16, max(1, math.ceil(2 * fx / cell[0]), math.ceil(2 * fy / cell[1]))))
+
+
+def _check_out(out: np.ndarray | None, shape: tuple[int, int, int]) -> np.ndarray:
+    if out is None:
+        return np.empty(shape, dtype=np.uint8)
+    if (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.uint8
+            or not out.flags.c_contiguous or not out.flags.writeable):
+        raise TerrathemeError(f"out must be a writeable C-contiguous {shape} uint8 array")
+    return out
+
+
+class GpuRenderer:
+    """Themes on the GPU, ready to render any grid over them (an editor keeps one).
+
+    Parameters
+    ----------
+    themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
+        ``themes[k]`` for index ``k``; any sizes.
+    context : moderngl.Context, optional
+        Current on the calling thread; default this thread's shared context
+        (:func:`core.gpu.context.gl_context`).
+
+    Raises
+    ------
+    TerrathemeError
+        Bad themes; ``GpuUnavailableError`` where no OpenGL 3.3 context can be made.
+    """
+
+    def __init__(self, themes: Sequence[np.ndarray] | Sequence[Theme], *,
+                 context: moderngl.Context | None = None) -> None:
+        textures = theme_textures(themes)
+        self.ctx = context if context is not None else gl_context()
+        self.themes = ThemeTextures(self.ctx, textures)
+        self.pipeline = Pipeline(self.ctx, len(textures), self.themes.one_size)
+        self._copy = copy_image_function(self.ctx)
+        self._max_viewport = min(self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
+
+    @property
+    def can_copy(self) -> bool:
+        """True when uniform cells can be image copies (``UniformCells.COPY``)."""
+        return self._copy is not None and self.themes.tiles_fit()
+
+    def render(
+        self,
+        grid: object,
+        cell: tuple[int, int] | None = None,
+        region: tuple[int, int, int, int] | None = None,
+        *,
+        scale: float = 1.0,
+        options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
+        colour_map: np.ndarray | None = None,
+        progress: Progress | None = None,
+        out: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Render a region of the thematic texture through the shaders.
+
+        Parameters
+        ----------
+        grid : (gh+1, gw+1) integer array-like or IndexGrid
+            Theme index at every grid vertex (row 0 at the top).
+        cell : (N, M)
+            Texel columns and rows per cell (default: the IndexGrid's).
+        region : (x, y, w, h), optional
+            Full-resolution texels (default: the whole ``(gw*N, gh*M)`` texture).
+        scale : float in (0, 1]
+            Output pixels per texel (below 1 the filtered path renders an overview).
+        options : GpuRenderOptions
+        colour_map : (ch, cw, 3) uint8 ndarray, optional
+            A low-resolution colour map over the whole texture (128 neutral):
+            the render is multiplied by ``value / 128``, bilinear (texel
+            centres aligned), rounded.
+        progress : callable(done, total), optional
+            Called after every tile.
+        out : (h, w, 3) uint8 C-contiguous ndarray, optional
+            Render into this array.
+
+        Returns
+        -------
+        image : (h, w, 3) uint8 ndarray
+            ``(max(1, round(h*scale)), max(1, round(w*scale)), 3)``; at scale 1
+            with exact sampling, the CPU render's texels.
+
+        Raises
+        ------
+        TerrathemeError
+            Bad grid, cell, region, scale, colour map or ``out`` (checked
+            before any work); a texture or cell beyond the shaders' exact
+            integer range.
+        """
+        plan = self._plan(grid, cell, region, scale, options, colour_map)
+        ow, oh = plan.out_size
+        image = _check_out(out, (oh, ow, 3))
+        tiles = [(tx, ty) for ty in range(0, oh, plan.tile) for tx in range(0, ow, plan.tile)]
+        colours = self._start(plan, options, colour_map)
+        try:
+            for i, (tx, ty) in enumerate(tiles):
+                tw, th = self._draw_tile(plan, options, tx, ty)
+                self.pipeline.read(image, tx, ty, tw, th)
+                if progress:
+                    progress(i + 1, len(tiles))
+        finally:
+            if colours is not None:
+                colours.release()
+        return image
+
+    def draw(
+        self,
+        grid: object,
+        cell: tuple[int, int] | None = None,
+        region: tuple[int, int, int, int] | None = None,
+        *,
+        scale: float = 1.0,
+        options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
+        colour_map: np.ndarray | None = None,
+    ) -> moderngl.Framebuffer:
+        """Draw a region into the renderer's framebuffer without reading it back.
+
+        For a display (a viewport shown by OpenGL) or a timing of the GPU work
+        alone; the output must fit one tile. Parameters as :meth:`render`.
+
+        Returns
+        -------
+        framebuffer : moderngl.Framebuffer
+            RGBA8; pixels ``(0, 0)`` to ``(w, h)`` hold the render, framebuffer
+            row 0 being the region's top row. The draw may still be running
+            (``ctx.finish()`` waits).
+        """
+        plan = self._plan(grid, cell, region, scale, options, colour_map)
+        if max(plan.out_size) > plan.tile:
+            raise TerrathemeError(f"draw renders one tile of at most {plan.tile} pixels a side, "
+                                  f"got {plan.out_size[0]} x {plan.out_size[1]} (use render)")
+        colours = self._start(plan, options, colour_map)
+        try:
+            self._draw_tile(plan, options, 0, 0)
+        finally:
+            if colours is not None:
+                colours.release()
+        return self.pipeline.framebuffer(*plan.out_size)
+
+    def _plan(self, grid: object, cell: tuple[int, int] | None,
+              region: tuple[int, int, int, int] | None, scale: float,
+              options: GpuRenderOptions, colour_map: np.ndarray | None) -> _Plan:
+        """Check every input (before any GPU work) and fix what the tiles draw."""
+        indices, (n, m) = prepare_grid(grid, cell, len(self.themes.textures))
+        gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
+        size = (gw * n, gh * m)
+        region = validate_region(region, size)
+        if not 0.0 < float(scale) <= 1.0:
+            raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
+        if max(size) > MAX_COORDINATE or n * m > MAX_CELL_AREA:
+            raise TerrathemeError(
+                f"texture {size[0]} x {size[1]} with {n} x {m} cells is beyond the GPU "
+                f"renderer's exact integer range (sides and cell area up to {MAX_COORDINATE})")
+        if options.tile < 1:
+            raise TerrathemeError(f"tile must be at least 1 pixel, got {options.tile}")
+        sampling = options.sampling
+        if sampling is Sampling.AUTO:
+            sampling = Sampling.EXACT if float(scale) == 1.0 else Sampling.FILTERED
+        if sampling is Sampling.EXACT and float(scale) != 1.0:
+            raise TerrathemeError(f"exact sampling renders at scale 1 only, got scale {scale}")
+        check_colour_map(colour_map)
+        filtered, coloured = sampling is Sampling.FILTERED, colour_map is not None
+        mode = _Mode(filtered, options.blend is BlendMode.HISTOGRAM, coloured,
+                     self._uniform_cells(options.uniform_cells, filtered, coloured))
+        out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
+        tile = min(options.tile, self._max_viewport)
+        return _Plan(indices, (n, m), size, region, out_size, mode, tile)
+
+    def _uniform_cells(self, asked: UniformCells, filtered: bool, coloured: bool) -> UniformCells:
+        """How uniform cells are filled: ``asked`` with ``AUTO`` resolved, checked."""
+        if filtered:
+            return UniformCells.BLEND
+        copies = self.can_copy and not coloured
+        if asked is UniformCells.AUTO:
+            return UniformCells.COPY if copies else UniformCells.SHADER
+        if asked is UniformCells.COPY and not copies:
+            raise TerrathemeError(
+                "uniform cells as image copies need glCopyImageSubData (OpenGL 4.3), themes "
+                f"whose 2 x 2 tiling fits a {self.themes.max_size} texture and no colour map")
+        return asked
+
+    def _start(self, plan: _Plan, options: GpuRenderOptions,
+               colour_map: np.ndarray | None) -> moderngl.Texture | None:
+        """Bind the textures, make the framebuffer current; returns the colour map texture."""
+        colours = colour_map_texture(self.ctx, colour_map)
+        self.themes.colours(plan.mode.filtered, options.max_anisotropy).use(UNITS["tt_themes"])
+        if plan.mode.histogram:
+            self.themes.gaussianised(plan.mode.filtered,
+                                     options.max_anisotropy).use(UNITS["tt_gauss"])
+            self.themes.inverse_lut()[0].use(UNITS["tt_inverse_lut"])
+        if colours is not None:
+            colours.use(UNITS["tt_colour_map"])
+        ow, oh = plan.out_size
+        self.pipeline.framebuffer(min(plan.tile, ow), min(plan.tile, oh))
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        return colours
+
+    def _draw_tile(self, plan: _Plan, options: GpuRenderOptions, tx: int,
+                   ty: int) -> tuple[int, int]:
+        """Draw output pixels ``[tx, tx + tile) x [ty, ty + tile)``; returns their size."""
+        n, m = plan.cell
+        rx, ry, rw, rh = plan.region
+        ow, oh = plan.out_size
+        fx, fy = rw / ow, rh / oh
+        tw, th = min(plan.tile, ow - tx), min(plan.tile, oh - ty)
+        # The tile's part of the texture, in texel edges, and the cells under it
+        # (the filtered path's sub-samples reach half a texel beyond).
+        x0, y0, w, h = view = (rx + tx * fx, ry + ty * fy, tw * fx, th * fy)
+        self.ctx.viewport = (0, 0, tw, th)
+        gh, gw = plan.indices.shape[0] - 1, plan.indices.shape[1] - 1
+        pad = int(plan.mode.filtered)
+        cx0 = min(max(0, math.floor((x0 - pad) / n)), gw - 1)
+        cy0 = min(max(0, math.floor((y0 - pad) / m)), gh - 1)
+        cx1 = min(gw - 1, math.ceil((x0 + w) / n) - 1 + pad)
+        cy1 = min(gh - 1, math.ceil((y0 + h) / m) - 1 + pad)
+        sub = plan.indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+        splits = _block_splits(plan.indices, options.saddle, (cx0, cy0, cx1, cy1))
+        self.pipeline.index_texture("tt_grid", sub)
+        self.pipeline.index_texture("tt_splits", splits)
+        # Rectangles: runs of uniform cells by theme, then blended runs (or the whole tile).
+        if plan.mode.uniform_cells is UniformCells.BLEND:
+            edges, kinds = np.array([[x0, y0, x0 + w, y0 + h]]), np.array([-1])
+        else:
+            cells, kinds = cell_rectangles(sub, splits)
+            order = np.argsort(np.where(kinds < 0, 1 << 16, kinds), kind="stable")
+            cells, kinds = cells[order], kinds[order]
+            edges = (cells + (cx0, cy0, cx0, cy0)) * np.array([n, m, n, m])
+            if plan.mode.uniform_cells is UniformCells.COPY:
+                # Uniform runs as image copies; the blend shader draws the rest.
+                self._copy_runs(edges[kinds >= 0], kinds[kinds >= 0], view)
+                edges, kinds = edges[kinds < 0], kinds[kinds < 0]
+        if len(kinds):
+            values = self._uniforms(plan, view, (tw, th), (cx0, cy0), splits.shape)
+            self._draw_rects(plan.mode, edges, kinds, values)
+        return tw, th
+
+    def _uniforms(self, plan: _Plan, view: tuple[float, float, float, float],
+                  pixels: tuple[int, int], block_cell: tuple[int, int],
+                  block_shape: tuple[int, int]) -> dict[str, object]:
+        """The uniform values of one tile's draws (``tt_blend.glsl`` documents each)."""
+        lw, lh = self.themes.layer_size
+        lut_range = self.themes.inverse_lut()[2] if plan.mode.histogram else 0.0
+        return {
+            "tt_view": view, "tt_cell": plan.cell, "tt_block_cell": block_cell,
+            "tt_block_cells": (block_shape[1], block_shape[0]),
+            "tt_wrap_origin": (int(view[0]) // lw * lw, int(view[1]) // lh * lh),
+            "tt_theme_size": self.themes.sizes,
+            "tt_texture_size": (float(plan.size[0]), float(plan.size[1])),
+            "tt_supersample": _supersample(view, pixels, plan.cell), "tt_lut_range": lut_range,
+        }
+
+    def _draw_rects(self, mode: _Mode, edges: np.ndarray, kinds: np.ndarray,
+                    values: dict[str, object]) -> None:
+        """One draw per theme of uniform rectangles (copy shader), one for the blended ones."""
+        self.pipeline.upload_vertices(rect_vertices(edges, kinds, self.themes.sizes))
+        lut_size = self.themes.inverse_lut()[1] if mode.histogram else 4096
+        starts = np.flatnonzero(np.diff(kinds, prepend=-2) != 0)
+        for first, last in zip(starts, [*starts[1:], len(kinds)], strict=True):
+            theme = int(kinds[first])
+            kind = "copy" if theme >= 0 else "blend"
+            prog = self.pipeline.program(kind, histogram=mode.histogram and kind == "blend",
+                                         filtered=mode.filtered, colour_map=mode.colour_map,
+                                         lut_size=lut_size)
+            if theme >= 0:
+                self.themes.theme(theme).use(UNITS["tt_theme"])
+            self.pipeline.set_uniforms(prog, values)
+            self.pipeline.draw(prog, 6 * int(first), 6 * int(last - first))
+
+    def _copy_runs(self, edges: np.ndarray, kinds: np.ndarray,
+                   view: tuple[float, float, float, float]) -> None:
+        """Copy runs of uniform cells (texel ``edges`` of themes ``kinds``) into the framebuffer."""
+        x0, y0 = int(view[0]), int(view[1])
+        x1, y1 = x0 + int(view[2]), y0 + int(view[3])
+        clipped = np.column_stack([np.maximum(edges[:, 0], x0), np.maximum(edges[:, 1], y0),
+                                   np.minimum(edges[:, 2], x1), np.minimum(edges[:, 3], y1)])
+        keep = (clipped[:, 2] > clipped[:, 0]) & (clipped[:, 3] > clipped[:, 1])
+        pieces = copy_pieces(clipped[keep], kinds[keep], self.themes.sizes, (x0, y0))
+        sources = {int(k): self.themes.tiled(int(k)).glo for k in np.unique(kinds[keep])}
+        copy_into(self._copy, sources, self.pipeline.colour_target(), pieces)
+
+    def release(self) -> None:
+        """Free the GPU objects of this renderer (the context stays)."""
+        self.pipeline.release()
+        self.themes.release()
+
+
+def render_cells_gpu(
+    grid: object,
+    themes: Sequence[np.ndarray] | Sequence[Theme],
+    cell: tuple[int, int] | None = None,
+    region: tuple[int, int, int, int] | None = None,
+    *,
+    scale: float = 1.0,
+    options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
+    progress: Progress | None = None,
+) -> np.ndarray:
+    """Render a thematic texture on the GPU once (:class:`GpuRenderer` for repeated renders).
+
+    Same inputs as :func:`core.render.render_cells` plus ``scale``; see
+    :meth:`GpuRenderer.render`.
+
+    Returns
+    -------
+    image : (h, w, 3) uint8 ndarray
+    """
+    renderer = GpuRenderer(themes)
+    try:
+        return renderer.render(grid, cell, region, scale=scale, options=options,
+                               progress=progress)
+    finally:
+        renderer.release()
