@@ -37,7 +37,7 @@ from core.gpu.programs import UNITS
 from core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.renderer import BlendMode
-from core.render.rules import SaddleRule, cell_splits
+from core.render.rules import region_splits
 from core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
@@ -66,15 +66,6 @@ class _Plan(NamedTuple):
     out_size: tuple[int, int]
     mode: _Mode
     tile: int
-
-
-def _block_splits(indices: np.ndarray, rule: SaddleRule,
-                  cells: tuple[int, int, int, int]) -> np.ndarray:
-    """Splits of cells ``cx0..cx1 x cy0..cy1``, the saddle rule seeing one vertex ring around."""
-    cx0, cy0, cx1, cy1 = cells
-    vy0, vx0 = max(cy0 - 1, 0), max(cx0 - 1, 0)
-    part = cell_splits(indices[vy0 : cy1 + 3, vx0 : cx1 + 3], rule)
-    return part[cy0 - vy0 : cy1 - vy0 + 1, cx0 - vx0 : cx1 - vx0 + 1]
 
 
 def _supersample(view: tuple[float, float, float, float], pixels: tuple[int, int],
@@ -298,7 +289,7 @@ class GpuRenderer:
         cx1 = min(gw - 1, math.ceil((x0 + w) / n) - 1 + pad)
         cy1 = min(gh - 1, math.ceil((y0 + h) / m) - 1 + pad)
         sub = plan.indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
-        splits = _block_splits(plan.indices, options.saddle, (cx0, cy0, cx1, cy1))
+        splits = region_splits(plan.indices, None, options.saddle, (cy0, cy1, cx0, cx1))
         self.pipeline.index_texture("tt_grid", sub)
         self.pipeline.index_texture("tt_splits", splits)
         # Rectangles: runs of uniform cells by theme, then blended runs (or the whole tile).

@@ -28,7 +28,7 @@ from core.render import kernels as rk
 from core.render.boundary import BoundaryOptions, shaped_rows
 from core.render.colour_map import RegionGain
 from core.render.inputs import prepare_grid, theme_textures, validate_region
-from core.render.rules import SaddleRule, cell_splits
+from core.render.rules import SaddleRule, region_splits
 from core.render.theme_pack import LUT_RANGE, pack_themes
 from core.themes.library import Theme
 
@@ -156,7 +156,7 @@ def render_cells(
     # Only the block of cells under the region (a viewport of a huge grid stays cheap).
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
     sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
-    splits = _region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
+    splits = region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
     hist = options.blend is BlendMode.HISTOGRAM
     packed = pack_themes(textures, n, gaussian=hist)
     if out is None:
@@ -210,39 +210,6 @@ def render_cells(
     return out
 
 
-def _check_splits(splits: object, indices: np.ndarray, rule: SaddleRule) -> np.ndarray:
-    """The per-cell splits: computed by ``rule``, or the caller's choice where a cell is mixed."""
-    auto = cell_splits(indices, rule)
-    if splits is None:
-        return auto
-    arr = np.asarray(splits)
-    if arr.shape != auto.shape or arr.dtype.kind not in "iu":
-        raise TerrathemeError(
-            f"splits must be a {auto.shape} integer array (0 auto, 1 main, 2 anti diagonal), "
-            f"got shape {arr.shape} dtype {arr.dtype}"
-        )
-    if arr.size and (arr.min() < 0 or arr.max() > 2):
-        raise TerrathemeError("splits values must be 0 (auto), 1 (main) or 2 (anti diagonal)")
-    # Uniform cells stay uniform; 0 elsewhere means "use the rule".
-    chosen = np.where((auto == 0) | (arr == 0), auto, arr)
-    return np.ascontiguousarray(chosen, dtype=np.uint8)
-
-
-def _region_splits(
-    indices: np.ndarray, splits: object, rule: SaddleRule, cells: tuple[int, int, int, int]
-) -> np.ndarray:
-    """Splits of cells ``cy0..cy1 x cx0..cx1`` only (the ring rule needs one more vertex around)."""
-    cy0, cy1, cx0, cx1 = cells
-    if splits is not None:
-        return np.ascontiguousarray(_check_splits(splits, indices, rule)[cy0 : cy1 + 1,
-                                                                         cx0 : cx1 + 1])
-    vy0, vx0 = max(cy0 - 1, 0), max(cx0 - 1, 0)
-    block = indices[vy0 : cy1 + 3, vx0 : cx1 + 3]
-    # Cells of the block at the grid border see the true border (nothing beyond it).
-    part = cell_splits(block, rule)
-    return np.ascontiguousarray(part[cy0 - vy0 : cy1 - vy0 + 1, cx0 - vx0 : cx1 - vx0 + 1])
-
-
 def render_labels(
     grid: object,
     cell: tuple[int, int] | None = None,
@@ -267,7 +234,7 @@ def render_labels(
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
     sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
-    splits = _region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
+    splits = region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
     out = np.empty((rh, rw), dtype=np.uint8)
     block = rk.RegionBlock(sub, splits, cx0, cy0, rx, ry, n, m)
     small_table = 96 * n * m <= 8 << 20

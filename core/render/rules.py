@@ -30,6 +30,8 @@ from enum import Enum
 
 import numpy as np
 
+from core.errors import TerrathemeError
+
 UNIFORM, MAIN, ANTI = 0, 1, 2
 
 
@@ -147,3 +149,44 @@ def corner_weights(
     w10 = np.where(main, m10, np.where(anti, a10, 0)).astype(np.int32)
     w11 = np.where(main, m11, np.where(anti, a11, 0)).astype(np.int32)
     return w00, w01, w10, w11
+
+
+def checked_splits(splits: object, indices: np.ndarray, rule: SaddleRule) -> np.ndarray:
+    """The per-cell splits: computed by ``rule``, or the caller's choice where a cell is mixed."""
+    auto = cell_splits(indices, rule)
+    if splits is None:
+        return auto
+    arr = np.asarray(splits)
+    if arr.shape != auto.shape or arr.dtype.kind not in "iu":
+        raise TerrathemeError(
+            f"splits must be a {auto.shape} integer array (0 auto, 1 main, 2 anti diagonal), "
+            f"got shape {arr.shape} dtype {arr.dtype}"
+        )
+    if arr.size and (arr.min() < 0 or arr.max() > 2):
+        raise TerrathemeError("splits values must be 0 (auto), 1 (main) or 2 (anti diagonal)")
+    # Uniform cells stay uniform; 0 elsewhere means "use the rule".
+    chosen = np.where((auto == 0) | (arr == 0), auto, arr)
+    return np.ascontiguousarray(chosen, dtype=np.uint8)
+
+
+def region_splits(
+    indices: np.ndarray, splits: object, rule: SaddleRule, cells: tuple[int, int, int, int]
+) -> np.ndarray:
+    """Splits of cells ``cy0..cy1 x cx0..cx1`` only (the ring rule needs one more vertex around).
+
+    ``splits``: the caller's per-cell choice over the whole grid
+    (:func:`checked_splits`), or None for ``rule``'s.
+
+    Returns
+    -------
+    (cy1 - cy0 + 1, cx1 - cx0 + 1) uint8 C-contiguous ndarray
+    """
+    cy0, cy1, cx0, cx1 = cells
+    if splits is not None:
+        return np.ascontiguousarray(checked_splits(splits, indices, rule)[cy0 : cy1 + 1,
+                                                                         cx0 : cx1 + 1])
+    vy0, vx0 = max(cy0 - 1, 0), max(cx0 - 1, 0)
+    block = indices[vy0 : cy1 + 3, vx0 : cx1 + 3]
+    # Cells of the block at the grid border see the true border (nothing beyond it).
+    part = cell_splits(block, rule)
+    return np.ascontiguousarray(part[cy0 - vy0 : cy1 - vy0 + 1, cx0 - vx0 : cx1 - vx0 + 1])
