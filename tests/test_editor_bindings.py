@@ -185,3 +185,14 @@ def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
     assert str(DOCS[0]) in docs
     assert opened and opened[0].toLocalFile() == str(DOCS[0])
     assert f"terratheme {core.__version__}" in about and "PySide6" in about
+
+
+def test_the_fidelity_view_names_the_whole_texture_figures(window):
+    photo = np.full((64, 96, 3), 120, np.uint8)
+    photo[:, ::2] = 160
+    window.doc.model.set_photo(photo)
+    window.fidelity_action.trigger()
+    title = window.index_canvas.title
+    assert "whole texture: dE8" in title and "bytes per area" in title
+    window.fidelity_action.trigger()
+    assert window.index_canvas.title == "Index map"

@@ -126,3 +126,15 @@ def test_errors():
         colour_error(_flat(0.1), _flat(0.1), valid=np.zeros((40, 50), bool))
     with pytest.raises(TerrathemeError, match="differ"):
         structure_scores(np.zeros((2, 2)), np.zeros((2, 3)), [1])
+
+
+def test_fidelity_summary_line():
+    from core.fidelity import fidelity
+
+    rng = np.random.default_rng(2)
+    photo = (0.25 + 0.5 * rng.random((64, 64, 3))).astype(np.float32)
+    got = fidelity(photo, photo)
+    assert got.colour_error == pytest.approx(0.0, abs=1e-6) and got.detail == pytest.approx(1.0)
+    assert got.describe() == "dE8 0.0, detail 1.00"
+    flat = fidelity(_flat(0.5, (64, 64)), _flat(0.5, (64, 64)))
+    assert np.isnan(flat.detail) and "flat photo" in flat.describe()

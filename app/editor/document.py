@@ -33,6 +33,7 @@ from core.edit import (
     fidelity_map,
     heat_colours,
 )
+from core.fidelity import fidelity, texture_cost
 from core.model.project import ThematicTexture, load_project
 
 EVERYWHERE = QRectF(-1e9, -1e9, 2e9, 2e9)
@@ -87,6 +88,7 @@ class EditorDocument(QObject):
         self.photo_pyramid: ZoomPyramid | None = None
         self._make_photo_pyramid()
         self._fidelity: np.ndarray | None = None
+        self._summary: str | None = None
         self.fidelity_pyramid: ZoomPyramid | None = None
         events = self.model.events
         events.grid.connect(self._on_grid)
@@ -133,6 +135,7 @@ class EditorDocument(QObject):
         if region is not None:
             self.render_pyramid.update_region(*region)
         self._fidelity = None
+        self._summary = None
         n, m = self.texture.grid.cell
         vr = QRectF((change.cols.start - 1) * n, (change.rows.start - 1) * m,
                     (change.cols.stop - change.cols.start + 2) * n,
@@ -147,6 +150,7 @@ class EditorDocument(QObject):
             self.preview.refresh_all()
             self.render_pyramid.update_region(0, 0, *self.extent)
             self._fidelity = None
+        self._summary = None
         self.libraryChanged.emit()
         self.regionChanged.emit(EVERYWHERE)
 
@@ -158,6 +162,7 @@ class EditorDocument(QObject):
     def _on_photo(self, _change) -> None:
         self._make_photo_pyramid()
         self._fidelity = None
+        self._summary = None
         self.photoChanged.emit()
         self.regionChanged.emit(EVERYWHERE)
 
@@ -175,21 +180,40 @@ class EditorDocument(QObject):
         colours[1 : len(lib) + 1, 3] = 255
         return np.ascontiguousarray(colours[sc[rows, cols]])
 
-    def fidelity(self) -> np.ndarray | None:
-        """Per-cell CIEDE2000 difference render vs photo, (gh, gw) float32 (None without photo)."""
+    def _padded_photo(self) -> np.ndarray | None:
         photo = self.model.photo_rgb()
         if photo is None:
             return None
+        w, h = self.extent
+        ph, pw = photo.shape[:2]
+        if (pw, ph) != (w, h) and self.photo_extent() == (float(pw), float(ph)):
+            # Photo 1:1 from the origin: pad it to the render with its edge pixels.
+            photo = np.pad(photo, ((0, h - ph), (0, w - pw), (0, 0)), mode="edge")
+        return photo
+
+    def fidelity(self) -> np.ndarray | None:
+        """Per-cell CIEDE2000 difference render vs photo, (gh, gw) float32 (None without photo)."""
         if self._fidelity is None:
+            photo = self._padded_photo()
+            if photo is None:
+                return None
             w, h = self.extent
-            ph, pw = photo.shape[:2]
-            if (pw, ph) != (w, h) and self.photo_extent() == (float(pw), float(ph)):
-                # Photo 1:1 from the origin: pad it to the render with its edge pixels.
-                photo = np.pad(photo, ((0, h - ph), (0, w - pw), (0, 0)), mode="edge")
             self._fidelity = fidelity_map(self.preview.image, photo, self.texture.grid.cells_shape)
             heat = heat_colours(self._fidelity)
             self.fidelity_pyramid = ZoomPyramid(heat, extent=(float(w), float(h)))
+            self._summary = None
         return self._fidelity
+
+    def fidelity_summary(self) -> str | None:
+        """The whole texture against its photo: ``dE8 .., detail .., N bytes per area``."""
+        if self._summary is None:
+            photo = self._padded_photo()
+            if photo is None or photo.shape[:2] != self.preview.image.shape[:2]:
+                return None
+            cost = texture_cost(self.texture)
+            self._summary = (f"{fidelity(self.preview.image, photo).describe()}, "
+                             f"{cost.area_bytes:,} bytes per area")
+        return self._summary
 
     # -- files ---------------------------------------------------------------------
     def save(self, path: str | Path | None = None) -> Path:

@@ -92,9 +92,12 @@ class MenuMixin:
             if attr == "show_fidelity":
                 if checked and self.doc.texture.photo is None:
                     self.statusBar().showMessage("the fidelity view needs a photo", 4000)
+                summary = self.doc.fidelity_summary() if checked else None
                 self.index_canvas.title = (
                     "Fidelity: per-cell colour difference render vs photo "
-                    "(CIEDE2000, dark 0 -> bright 25+)" if checked else "Index map")
+                    "(CIEDE2000, dark 0 -> bright 25+)"
+                    + (f"; whole texture: {summary}" if summary else "")
+                    if checked else "Index map")
             self._repaint()
 
         return flip

@@ -9,9 +9,11 @@ from core.fidelity.cost import TextureCost, texture_cost
 from core.fidelity.metrics import (
     COLOUR_SIGMA,
     DETAIL_SIGMAS,
+    Fidelity,
     colour_error,
     detail_energy,
     detail_ratio,
+    fidelity,
     majority_classes,
     structure_scores,
 )
@@ -20,9 +22,11 @@ __all__ = [
     "COLOUR_SIGMA",
     "TextureCost",
     "DETAIL_SIGMAS",
+    "Fidelity",
     "colour_error",
     "detail_energy",
     "detail_ratio",
+    "fidelity",
     "majority_classes",
     "structure_scores",
     "texture_cost",

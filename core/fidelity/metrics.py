@@ -18,6 +18,7 @@ Colour conversion and CIEDE2000 are scikit-image's, blurs OpenCV's.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -124,6 +125,36 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
     if ref <= 1e-12:
         raise TerrathemeError("the photo has no detail (flat): the detail ratio is undefined")
     return detail_energy(r, valid=valid) / ref
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """The look of a render against its photo: colour layout and fine detail.
+
+    Attributes
+    ----------
+    colour_error : float
+        ``dE8`` (:func:`colour_error`).
+    detail : float
+        :func:`detail_ratio` (NaN for a flat photo).
+    """
+
+    colour_error: float
+    detail: float
+
+    def describe(self) -> str:
+        """One line for a status bar: ``dE8 2.1, detail 0.93``."""
+        detail = "n/a (flat photo)" if np.isnan(self.detail) else f"{self.detail:.2f}"
+        return f"dE8 {self.colour_error:.1f}, detail {detail}"
+
+
+def fidelity(render: np.ndarray, photo: np.ndarray) -> Fidelity:
+    """:func:`colour_error` and :func:`detail_ratio` of a render against its photo."""
+    try:
+        detail = detail_ratio(render, photo)
+    except TerrathemeError:
+        detail = float("nan")
+    return Fidelity(colour_error(render, photo), detail)
 
 
 def majority_classes(labels: np.ndarray, truth: np.ndarray,
