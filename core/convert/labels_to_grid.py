@@ -17,7 +17,7 @@ render reproduces exactly), then to the lowest label: deterministic.
 The agreement of a grid is the fraction of photo pixels whose label equals
 the grid's *label view* (the theme with the largest blend weight at that
 texel, :func:`core.render.renderer.render_labels`). :func:`choose_cell_size`
-returns the largest cell whose agreement meets the target (DESIGN.md §4:
+returns the largest cell whose agreement meets the target (design.md §2-3:
 "cell size chosen from an error target").
 """
 

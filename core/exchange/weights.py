@@ -1,4 +1,4 @@
-"""Theme weights at an export map's pixels, by the renderer's rule (DESIGN.md §1).
+"""Theme weights at an export map's pixels, by the renderer's rule (design.md §1).
 
 Pixel ``(i, j)`` of a ``W x H`` map sits at grid position
 ``(i * gw / (W - 1), j * gh / (H - 1))`` (``core.exchange.layout``). Its cell

@@ -2,12 +2,12 @@
 
 ``read_image`` / ``write_image`` follow tifffile's style: a positional path and
 keyword-only options. Arrays are always ``(H, W, C)`` when they go to
-OpenImageIO: its Python ``write_image`` misreads 2-D arrays (DESIGN.md §5).
+OpenImageIO: its Python ``write_image`` misreads 2-D arrays (design.md §9).
 
 Pixel values are never changed behind the caller's back: files are opened
 with OpenImageIO's ``oiio:UnassociatedAlpha`` hint and written with it, so an
 RGBA image is neither premultiplied on reading nor divided by alpha on
-writing (DESIGN.md §5). Which band is alpha is the file's say
+writing (design.md §9). Which band is alpha is the file's say
 (``ImageInfo.alpha_channel``): ``Bands.PHOTO`` keeps the colour bands plus a
 marked alpha band, so an RGB + near-infrared TIFF reads as RGB.
 

@@ -1,4 +1,4 @@
-"""The index grid: theme numbers at grid vertices (Vyatkin & Romanyuk, DESIGN.md §1).
+"""The index grid: theme numbers at grid vertices (Vyatkin & Romanyuk, design.md §1).
 
 A grid of ``(gh+1, gw+1)`` vertex indices with a cell of ``N x M`` texels
 (N columns, M rows) renders to a ``gw*N x gh*M`` texture. Compression grows

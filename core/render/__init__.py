@@ -1,4 +1,4 @@
-"""The renderer: an index grid and its themes to the full-resolution texture (DESIGN.md §1).
+"""The renderer: an index grid and its themes to the full-resolution texture (design.md §1).
 
 Modules: ``rules`` (splits, the saddle rule, barycentric weights),
 ``renderer`` (full resolution or any region: ``render_cells``,

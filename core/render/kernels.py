@@ -103,7 +103,7 @@ def division_magic(d: int) -> tuple[int, int]:
 def texel_weights(split, xi, yi, d):  # pragma: no cover - numba
     """Barycentric weights (times ``D``) of corners ``ind[0][0], [0][1], [1][0], [1][1]``.
 
-    DESIGN.md §1 step 2; ``xi = xs * M``, ``yi = ys * N`` for texel ``(xs, ys)``
+    design.md §1 step 2; ``xi = xs * M``, ``yi = ys * N`` for texel ``(xs, ys)``
     of a cell split along ``split`` (1 main, 2 anti diagonal).
     """
     if split == 1:

@@ -1,4 +1,4 @@
-"""The thematic-texture renderer (Vyatkin & Romanyuk, DESIGN.md §1).
+"""The thematic-texture renderer (Vyatkin & Romanyuk, design.md §1).
 
 ``render_cells`` turns a vertex index grid and a theme list into the full
 texture, or any ``region`` of it (exactly the crop of the full render);
@@ -112,7 +112,7 @@ def render_cells(
     out: np.ndarray | None = None,
     colour_map: ColourMap | None = None,
 ) -> np.ndarray:
-    """Render a thematic texture (DESIGN.md §1, steps 1-3).
+    """Render a thematic texture (design.md §1, steps 1-3).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""How each cell is split and weighted (Vyatkin & Romanyuk, DESIGN.md §1).
+"""How each cell is split and weighted (Vyatkin & Romanyuk, design.md §1).
 
 Conventions (the renderer, the label view and the tests all follow them):
 
@@ -107,7 +107,7 @@ def cell_splits(grid: np.ndarray, rule: SaddleRule = SaddleRule.MINORITY) -> np.
 def corner_weights(
     split: np.ndarray, xi: np.ndarray, yi: np.ndarray, d: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Integer barycentric weights (times ``D``) of the four cell corners (DESIGN.md §1 step 2).
+    """Integer barycentric weights (times ``D``) of the four cell corners (design.md §1 step 2).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Themes for a classified photo: cut from the photo itself, or shipped themes by name.
 
-*Cut from the photo* (DESIGN.md §4, "themes cut from the photo itself and
+*Cut from the photo* (design.md §2-3, "themes cut from the photo itself and
 made tileable"): for every class, the window whose texture statistics are
 closest to the class's (band-pass energy, Lab spread and mean;
 :mod:`core.themes.patch_search`) is cut out, the few pixels of other classes

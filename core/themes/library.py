@@ -1,7 +1,7 @@
 """Themes: small tileable textures with a name and a display colour.
 
 A theme ``T[k]`` is sampled at global output coordinates, wrapping, so a
-theme flows unbroken across cells (DESIGN.md §1). The shipped library lives
+theme flows unbroken across cells (design.md §1). The shipped library lives
 in the repository's ``themes/`` folder: ``themes.json`` names each theme, its
 display colour and its texture file.
 """
