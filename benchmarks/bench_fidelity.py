@@ -5,8 +5,8 @@ Run: ``.venv/bin/python benchmarks/bench_fidelity.py [variants] [defaults54] [tr
 the others from the last fidelity.json; ``--chart`` only redraws the chart).
 Writes ``benchmarks/results/fidelity.json`` and ``fidelity.png``, and the
 README pictures ``docs/fidelity/*.jpg`` (photo | texture, Dubai photos only:
-CC0). On 2 cores shared with other jobs (load average 6-9) the parts took
-about 17, 10 and 12 minutes; ``--quick``: two photos, no pictures, to /tmp.
+CC0). On 2 cores shared with other jobs (load average 5-9) the parts took
+about 17, 7, 10 and 7 minutes; ``--quick``: two photos, no pictures, to /tmp.
 
 Photos (with masks, ``../shared/data``): parts ``variants`` and ``trials``
 run on the 16 photos of ``bench_classify.scribble_sets()``: Dubai parts 004
@@ -16,7 +16,8 @@ LoveDA 0 and 1, Potsdam, DeepGlobe 6399 cropped to its top-left 1536^2 (all
 cores). Part ``defaults54`` runs the defaults and the peers at equal bytes
 on all 54 Dubai photos; part ``trials`` runs option variants
 (:data:`TRIALS`) as if they were the defaults (texture, peers at their own
-bytes, goals).
+bytes, goals), part ``trials54`` the best of them (:data:`BEST_TRIAL`) on
+all 54 Dubai photos.
 
 Per photo: ``convert_photo`` with the defaults (timed end to end), then each
 variant from the same classification and themes (they depend on neither
@@ -103,7 +104,9 @@ TRIALS = {
         colour_map=ColourMapOptions(scales=(64, 32, 16, 8, 4))),
     "agreement-0.95": replace(DEFAULT, target_agreement=0.95),
 }
-PARTS = ("variants", "defaults54", "trials")
+#: the trial that part "trials54" runs on all 54 Dubai photos
+BEST_TRIAL = "cells<=16"
+PARTS = ("variants", "defaults54", "trials", "trials54")
 GOALS = {"mean_dE8": 3.0, "detail": (0.8, 1.25), "miou_ratio": 0.9, "dE8_over_peer": 1.0,
          "convert_seconds": 5.0}
 
@@ -325,7 +328,7 @@ def run_defaults(sets, log, options=DEFAULT):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("parts", nargs="*", help="variants, defaults54, trials (default: all)")
+    ap.add_argument("parts", nargs="*", help=f"{', '.join(PARTS)} (default: all)")
     ap.add_argument("--quick", action="store_true", help="two photos, no pictures")
     ap.add_argument("--chart", action="store_true", help="redraw the chart from fidelity.json")
     args = ap.parse_args()
@@ -356,9 +359,11 @@ def main():
         if part == "variants":
             sets = scribble_sets()[:2] if args.quick else scribble_sets()
             result["variants"] = run_variants(sets, args.quick, log)
-        elif part == "defaults54":
+        elif part in ("defaults54", "trials54"):
             sets = dubai_all()[:2] if args.quick else dubai_all()
-            result["defaults54"] = run_defaults(sets, log)
+            options = DEFAULT if part == "defaults54" else TRIALS[BEST_TRIAL]
+            result[part] = run_defaults(sets, log, options)
+            result[part]["options"] = "defaults" if part == "defaults54" else BEST_TRIAL
         else:
             sets = scribble_sets()[:2] if args.quick else scribble_sets()
             result["trials"] = {}

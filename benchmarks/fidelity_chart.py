@@ -20,6 +20,7 @@ CURVES = (("default (cell auto), fixed cells 8-64", "crimson",
           ("colour-map target 1.5 / 2 (default) / 3 / 4", "darkorange",
            ("cmap-1.5", "default", "cmap-3.0", "cmap-4.0")))
 PEER_COLOURS = ("tab:blue", "tab:green", "tab:purple")
+TRIAL_STYLES = (("^", "teal"), ("v", "olive"), ("<", "saddlebrown"), (">", "black"))
 
 
 def chart(result, path, goals):
@@ -53,6 +54,10 @@ def chart(result, path, goals):
                 label="default")
         for n, marker in (("no-colour-map", "s"), ("linear-ramp", "D")):
             ax.plot(var[n]["bpp"], var[n][key], marker, color="navy", mfc="none", ms=8, label=n)
+        trials = [(n, t["summary"]["variants"]["default"])
+                  for n, t in result.get("trials", {}).items() if "summary" in t]
+        for (n, t), (marker, colour) in zip(trials, TRIAL_STYLES, strict=False):
+            ax.plot(t["bpp"], t[key], marker, color=colour, ms=9, label=f"trial: {n}")
         if key != "miou_ratio":
             for c, colour in zip(CODECS, PEER_COLOURS, strict=True):
                 lad = summ["peers_ladder"][c.name]
@@ -69,6 +74,7 @@ def chart(result, path, goals):
         ax.set_xlabel("area bytes x 8 / photo pixels (bits per pixel, log)")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3, which="both")
+    axes[2].set_title("(not defined for the peers)", fontsize=9)
     axes[0].legend(fontsize=7.5)
     rows = result["variants"]["photos"]
     counts = {f: sum(r["folder"] == f for r in rows) for f in dict.fromkeys(r["folder"]
