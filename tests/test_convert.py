@@ -76,9 +76,12 @@ def test_cli_auto_cell_and_named_themes(tmp_path):
     assert project.library[int(project.grid.indices[0, -1])].name == "sand"
     choice = project.metadata["cell_choice"]
     assert choice["target"] == 0.95 and choice["agreement"] >= 0.95
-    # Two half planes keep 95% agreement with large cells: the choice is the largest that does.
-    ok = [p["cell"] for p in choice["curve"] if p["agreement"] >= 0.95]
-    assert project.grid.cell == (max(ok), max(ok)) and max(ok) >= 16
+    # Two half planes keep 95% agreement and every class with large cells: the choice is
+    # the largest candidate that does (convert tries cells up to 16).
+    ok = [p["cell"] for p in choice["curve"] if p["agreement"] >= 0.95
+          and p["worst_class_iou"] >= choice["class_target"]]
+    assert project.grid.cell == (max(ok), max(ok)) and max(ok) >= 8
+    assert max(p["cell"] for p in choice["curve"]) == 16
     assert prev.is_file() and (tmp_path / "p.pack").is_file()
     assert read_image(chart).shape[2] in (3, 4)
 

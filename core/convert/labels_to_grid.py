@@ -34,6 +34,9 @@ from core.render.renderer import render_labels
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
 DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
+#: cell sizes ``convert --cell auto`` tries: larger automatic cells broke the structure and
+#: the colour layout of some photos (benchmarks/bench_fidelity.py, trial cells<=16)
+CONVERT_CELL_CANDIDATES = tuple(c for c in DEFAULT_CELL_CANDIDATES if c <= 16)
 #: pixels voted per band of vertex rows (bounded memory)
 _MAX_PIXELS = 1 << 23
 #: rows per sample strip when the agreement is measured on a sample
