@@ -264,7 +264,7 @@ def write_outputs(
     """Save a project, its preview render and its packed index layer (+ colour map), as a set.
 
     A colour map shipped in a codec is written as those bytes beside the
-    packed layer (``<stem>_colour.webp``): together they are the packed output.
+    packed layer (``<stem>_colour.jxl``): together they are the packed output.
     When every file lies in one folder they are written as one set
     (:func:`core.io.atomic.atomic_file_set`): all replaced, or none, the
     project last; a run killed half way leaves the old set, and the next run

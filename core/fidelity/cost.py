@@ -5,7 +5,7 @@ the photo's bytes (thematic_textures.txt: "analogy: JPEG"). The themes are a
 library shared by every area of a terrain, so a texture's own cost is
 ``area_bytes``: its index grid packed along a space-filling curve
 (:func:`core.packing.pack`, compact layout) plus its colour map's bytes as
-it ships (WebP at quality 80 for a map made without them). ``theme_bytes`` is
+it ships (JPEG XL at quality 99 for a map made without them, as convert does). ``theme_bytes`` is
 the library's, every theme as lossless PNG.
 """
 
@@ -18,8 +18,8 @@ from core.model.project import ThematicTexture
 from core.packing import pack
 
 #: how a colour map is counted (and shipped)
-COLOUR_MAP_CODEC = "webp"
-COLOUR_MAP_QUALITY = 80
+COLOUR_MAP_CODEC = "jpegxl"
+COLOUR_MAP_QUALITY = 99
 
 
 @dataclass(frozen=True)
