@@ -15,7 +15,7 @@ CRC-32 on reading:
 ``<layer>.npy`` (optional, one per entry of :data:`core.model.layers.LAYERS`)
     ``photo.npy``: the source photo ``(H, W, 3) uint8``; ``scribbles.npy``:
     the scribble mask ``(H, W) uint8``, the photo's size when both are stored.
-``colour_map.webp`` (or another codec), or ``colour_map.npy`` (optional)
+``colour_map.jxl`` (or another codec of core.io.codec), or ``colour_map.npy`` (optional)
     the colour gain over the texture (:mod:`core.model.colour_map`) as it
     ships; the manifest's ``"colour_map": {"scale", "codec", "member"}``
     says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``).
