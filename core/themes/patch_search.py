@@ -34,6 +34,8 @@ from core.errors import TerrathemeError
 
 #: Gaussian sigmas of the detail band (as core.fidelity.metrics.DETAIL_SIGMAS)
 BAND_SIGMAS = (0.7, 3.0)
+#: a class's texture is measured this many pixels inside its border
+INTERIOR = 4
 #: window positions searched at most (the lattice is coarsened above this)
 SEARCH_POSITIONS = 1 << 18
 
@@ -124,11 +126,22 @@ class ClassTarget:
 
 
 def class_target(stats: TextureStats, mask: np.ndarray) -> ClassTarget:
-    """Statistics of the pixels of ``mask`` ((H, W) bool, not empty)."""
+    """The texture of the inside of a class region (``mask``, (H, W) bool, not empty).
+
+    Energy and spread are measured on the class's pixels at least
+    ``INTERIOR`` pixels from its border (its own pixels when none are that
+    far): the edge along a class border is drawn by the render's border, not
+    by the theme, and a theme that carried it too would double it (a calm
+    lake whose shore is busy). The colour is the whole class's mean.
+    """
     if not mask.any():
         raise TerrathemeError("the class has no pixel to take a patch's statistics from")
-    d = stats.detail[mask]
-    return ClassTarget(float(stats.band[mask].mean()), d.std(axis=0), stats.lab[mask].mean(axis=0))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
+    inner = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE) > 0
+    if not inner.any():
+        inner = mask
+    return ClassTarget(float(stats.band[inner].mean()), stats.detail[inner].std(axis=0),
+                       stats.lab[mask].mean(axis=0))
 
 
 def _coarsen(arr: np.ndarray, f: int) -> np.ndarray:
