@@ -34,9 +34,10 @@ from hypothesis.stateful import (
 
 from core.edit import EditAtom, EditDocument, Layer, RenderPreview
 from core.errors import TerrathemeError
+from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture
-from core.render.renderer import render_cells
+from core.render.project import render_project
 from core.themes.library import Theme, ThemeLibrary
 
 CELL = (2, 2)
@@ -56,8 +57,9 @@ def snapshot(doc: EditDocument) -> tuple:
     """Everything the document holds, copied (independent of the code under test)."""
     t = doc.texture
     themes = tuple((th.name, th.colour, th.source, th.texture.copy()) for th in t.library)
+    cmap = None if t.colour_map is None else (t.colour_map.scale, t.colour_map.pixels.copy())
     return (t.grid.indices.copy(), themes, copy_or_none(t.photo), copy_or_none(t.scribbles),
-            copy_or_none(doc.confidence), doc.kept_prior)
+            copy_or_none(doc.confidence), doc.kept_prior, cmap)
 
 
 def same(a, b) -> bool:
@@ -75,8 +77,8 @@ class UndoMachine(RuleBasedStateMachine):
 
     @initialize(rows=st.integers(2, 7), cols=st.integers(2, 7),
                 layers=st.sampled_from(["none", "photo", "photo+scribbles", "photo+scribbles"]),
-                seed=st.integers(0, 2**16))
-    def start(self, rows: int, cols: int, layers: str, seed: int) -> None:
+                seed=st.integers(0, 2**16), colour_scale=st.sampled_from([0, 1, 3]))
+    def start(self, rows: int, cols: int, layers: str, seed: int, colour_scale: int) -> None:
         rng = np.random.default_rng(seed)
         lib = ThemeLibrary(Theme(n, tuple(int(c) for c in rng.integers(0, 256, 3)),
                                  texture_of(rng)) for n in ("grass", "water", "sand"))
@@ -87,7 +89,14 @@ class UndoMachine(RuleBasedStateMachine):
             sc = (rng.integers(0, 4, ph.shape[:2]) * (rng.random(ph.shape[:2]) < 0.3)
                   ).astype(np.uint8)
         grid = IndexGrid(rng.integers(0, 3, (rows, cols), dtype=np.uint8), CELL)
-        self.doc = EditDocument(ThematicTexture(grid, lib, photo=ph, scribbles=sc))
+        cmap = None
+        if colour_scale:
+            # A colour map and shaped borders, as convert makes them.
+            shape = ColourMap.shape_for(grid.texture_size, colour_scale)
+            cmap = ColourMap(rng.integers(60, 250, (*shape, 3), dtype=np.uint8), colour_scale)
+        meta = {"render": {"boundary": {}}} if colour_scale else {}
+        self.doc = EditDocument(ThematicTexture(grid, lib, meta, photo=ph, scribbles=sc,
+                                                colour_map=cmap))
         self.states = [snapshot(self.doc)]
         self.pos = 0
         # Views kept only from events.
@@ -97,6 +106,7 @@ class UndoMachine(RuleBasedStateMachine):
         self.scribble_view = copy_or_none(doc.scribbles)
         self.history_view = None
         doc.events.grid.connect(self._on_grid)
+        doc.events.colour_map.connect(lambda e: self.preview.refresh_region(e.region))
         doc.events.themes.connect(self._on_themes)
         doc.events.scribbles.connect(self._on_scribbles)
         doc.events.history.connect(lambda e: setattr(self, "history_view", e))
@@ -261,8 +271,7 @@ class UndoMachine(RuleBasedStateMachine):
     def views_follow_the_events(self) -> None:
         d = self.doc
         np.testing.assert_array_equal(self.index_rgb, d.library.colours[d.indices])
-        np.testing.assert_array_equal(
-            self.preview.image, render_cells(d.indices, d.library.textures, CELL))
+        np.testing.assert_array_equal(self.preview.image, render_project(d.texture))
         assert same(self.scribble_view, copy_or_none(d.scribbles))
         h = d.history
         if self.history_view is not None:

@@ -25,6 +25,7 @@ from PySide6.QtCore import QObject, QRectF, Signal
 
 from app.editor.imaging import ZoomPyramid
 from core.edit import (
+    ColourMapChange,
     EditDocument,
     GridChange,
     HistoryChange,
@@ -92,6 +93,7 @@ class EditorDocument(QObject):
         self.fidelity_pyramid: ZoomPyramid | None = None
         events = self.model.events
         events.grid.connect(self._on_grid)
+        events.colour_map.connect(self._on_colour_map)
         events.themes.connect(self._on_themes)
         events.photo.connect(self._on_photo)
         events.scribbles.connect(self.scribblesChanged.emit)
@@ -141,6 +143,14 @@ class EditorDocument(QObject):
                     (change.cols.stop - change.cols.start + 2) * n,
                     (change.rows.stop - change.rows.start + 2) * m)
         self.regionChanged.emit(vr if region is None else vr.united(QRectF(*region)))
+
+    def _on_colour_map(self, change: ColourMapChange) -> None:
+        self.preview.refresh_region(change.region)
+        region = change.region or (0, 0, *self.extent)
+        self.render_pyramid.update_region(*region)
+        self._fidelity = None
+        self._summary = None
+        self.regionChanged.emit(QRectF(*region))
 
     def _on_themes(self, change: ThemeChange) -> None:
         if change.colours:

@@ -22,6 +22,7 @@ from core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atom
 from core.edit.changes import Change
 from core.edit.document import EditDocument
 from core.edit.events import (
+    ColourMapChange,
     ConfidenceChange,
     DocumentEvents,
     Emitter,
@@ -70,6 +71,7 @@ __all__ = [
     "EditAtom",
     "EditDocument",
     "Emitter",
+    "ColourMapChange",
     "GridChange",
     "History",
     "HistoryChange",

@@ -17,6 +17,7 @@ import numpy as np
 
 from core.edit.atoms import Atom, atom_parts, replace_atoms
 from core.edit.events import (
+    ColourMapChange,
     ConfidenceChange,
     Event,
     GridChange,
@@ -28,6 +29,7 @@ from core.edit.events import (
 from core.edit.layers import DocumentData, Layer
 from core.edit.uncertainty import KeptPrior
 from core.errors import TerrathemeError
+from core.model.colour_map import NEUTRAL, ColourMap
 from core.themes.library import Theme, ThemeLibrary
 
 
@@ -108,6 +110,59 @@ class SwapLayer:
     def revert(self, data: DocumentData) -> list[Event]:
         data.set_layer(self.layer, self.old)
         return [_whole_event(self.layer, self.old)]
+
+
+@dataclass(frozen=True, eq=False)
+class SetColourMap:
+    """The colour map replaced (made neutral under an edit, or dropped with the themes)."""
+
+    old: ColourMap | None
+    new: ColourMap | None
+    #: texels whose render the swap can change (None: all of them)
+    region: tuple[int, int, int, int] | None = None
+
+    @property
+    def nbytes(self) -> int:
+        return sum(c.pixels.nbytes for c in (self.old, self.new) if c is not None)
+
+    def apply(self, data: DocumentData) -> list[Event]:
+        data.texture.colour_map = self.new
+        return [ColourMapChange(self.region)]
+
+    def revert(self, data: DocumentData) -> list[Event]:
+        data.texture.colour_map = self.old
+        return [ColourMapChange(self.region)]
+
+
+def neutral_under(data: DocumentData, rows: slice, cols: slice) -> SetColourMap | None:
+    """The colour map made neutral (gain 1) wherever it touches cells of vertices ``rows, cols``.
+
+    The map was fitted to the photo under the themes the grid had; where the
+    grid is repainted its gain would tint the new theme with the old one's
+    correction (water painted on sand lit up like sand), so an edit shows the
+    new theme's own colours there. None when the texture has no colour map.
+    """
+    cmap = data.texture.colour_map
+    if cmap is None:
+        return None
+    grid = data.texture.grid
+    n, m = grid.cell
+    s = cmap.scale
+    mh, mw = cmap.pixels.shape[:2]
+    # Cells the vertices bound, then the map pixels whose texels meet those cells.
+    x0, x1 = max(cols.start - 1, 0) * n, min(cols.stop, grid.cells_shape[1]) * n
+    y0, y1 = max(rows.start - 1, 0) * m, min(rows.stop, grid.cells_shape[0]) * m
+    i0, i1 = x0 // s, min(mw, -(-x1 // s))
+    j0, j1 = y0 // s, min(mh, -(-y1 // s))
+    if i1 <= i0 or j1 <= j0 or (cmap.pixels[j0:j1, i0:i1] == NEUTRAL).all():
+        return None
+    pixels = cmap.pixels.copy()
+    pixels[j0:j1, i0:i1] = NEUTRAL
+    # A map pixel's gain reaches one pixel beyond its own texels (bilinear).
+    tw, th = grid.texture_size
+    rx0, ry0 = max(0, (i0 - 1) * s), max(0, (j0 - 1) * s)
+    rx1, ry1 = min(tw, (i1 + 1) * s), min(th, (j1 + 1) * s)
+    return SetColourMap(cmap, ColourMap(pixels, s), (rx0, ry0, rx1 - rx0, ry1 - ry0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,10 +269,13 @@ def drop_prior_without_classes(data: DocumentData, classes: frozenset[int]) -> l
     return [SetPrior(data.kept_prior, None)]
 
 
-def grid_replacement(data: DocumentData, indices: object, n_themes: int) -> list[Change]:
+def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
+                     neutral: bool = True) -> list[Change]:
     """The paint that turns the grid into ``indices`` (empty when equal), checked first.
 
-    ``n_themes`` is the library size the new grid will index (after any theme change).
+    ``n_themes`` is the library size the new grid will index (after any theme
+    change); with ``neutral`` the colour map goes neutral where the grid
+    changed (:func:`neutral_under`).
     """
     new = np.asarray(indices)
     grid = data.texture.grid.indices
@@ -227,7 +285,10 @@ def grid_replacement(data: DocumentData, indices: object, n_themes: int) -> list
                                       <= int(new.max()) < n_themes):
         raise TerrathemeError(f"new grid must hold theme indices 0..{n_themes - 1}")
     atom = replace_atoms(grid, new)
-    return [] if atom is None else [Paint(Layer.GRID, atom)]
+    if atom is None:
+        return []
+    swap = neutral_under(data, atom.rows, atom.cols) if neutral else None
+    return [Paint(Layer.GRID, atom), *([swap] if swap is not None else [])]
 
 
 def photo_replacement(data: DocumentData, photo: np.ndarray | None) -> list[Change]:

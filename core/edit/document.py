@@ -24,12 +24,14 @@ from core.edit.changes import (
     Change,
     Paint,
     RemoveLastTheme,
+    SetColourMap,
     SetLibrary,
     SetPrior,
     SetTheme,
     SwapLayer,
     drop_prior_without_classes,
     grid_replacement,
+    neutral_under,
     photo_replacement,
 )
 from core.edit.events import DocumentEvents, Event, HistoryChange
@@ -233,7 +235,11 @@ class EditDocument:
 
     def _paint(self, label: str, fp: VertexSelection, value: int) -> Step | None:
         atom = EditAtom.record(self.indices, fp, check_value(Layer.GRID, value, len(self.library)))
-        return None if atom is None else self._commit(label, [Paint(Layer.GRID, atom)])
+        if atom is None:
+            return None
+        neutral = neutral_under(self.data, atom.rows, atom.cols)
+        return self._commit(label, [Paint(Layer.GRID, atom),
+                                    *([neutral] if neutral is not None else [])])
 
     def fill_rect(self, p0: tuple[float, float], p1: tuple[float, float], value: int
                   ) -> Step | None:
@@ -362,7 +368,10 @@ class EditDocument:
             prior = next_kept_prior(self.kept_prior, frozenset(scribble_classes), class_weights)
             if prior != self.kept_prior:
                 changes.append(SetPrior(self.kept_prior, prior))
-        grid = grid_replacement(self.data, indices, len(library))
+        # New themes of their own: the colour map fitted to the old ones goes.
+        grid = grid_replacement(self.data, indices, len(library), neutral=not replace_themes)
+        if replace_themes and self.data.texture.colour_map is not None:
+            changes.append(SetColourMap(self.data.texture.colour_map, None))
         # Themes first (the new grid refers to them), then the grid, then the rest.
         n_themes = sum(isinstance(c, SetLibrary | AppendTheme) for c in changes)
         changes[n_themes:n_themes] = grid

@@ -55,6 +55,13 @@ class ThemeChange:
 
 
 @dataclass(frozen=True)
+class ColourMapChange:
+    """The colour map changed over the texels ``(x, y, w, h)`` (the whole texture if None)."""
+
+    region: tuple[int, int, int, int] | None = None
+
+
+@dataclass(frozen=True)
 class PhotoChange:
     """The photo layer was set, replaced or removed."""
 
@@ -87,8 +94,8 @@ class HistoryChange:
     clean: bool
 
 
-Event = (GridChange | ScribbleChange | ThemeChange | PhotoChange | ConfidenceChange
-         | PriorChange | HistoryChange)
+Event = (GridChange | ScribbleChange | ThemeChange | ColourMapChange | PhotoChange
+         | ConfidenceChange | PriorChange | HistoryChange)
 E = TypeVar("E")
 
 
@@ -120,6 +127,7 @@ class DocumentEvents:
     grid: Emitter[GridChange]
     scribbles: Emitter[ScribbleChange]
     themes: Emitter[ThemeChange]
+    colour_map: Emitter[ColourMapChange]
     photo: Emitter[PhotoChange]
     confidence: Emitter[ConfidenceChange]
     prior: Emitter[PriorChange]
@@ -133,7 +141,8 @@ class DocumentEvents:
         """Hand ``event`` to the emitter of its kind."""
         emitter = {
             GridChange: self.grid, ScribbleChange: self.scribbles, ThemeChange: self.themes,
-            PhotoChange: self.photo, ConfidenceChange: self.confidence,
-            PriorChange: self.prior, HistoryChange: self.history,
+            ColourMapChange: self.colour_map, PhotoChange: self.photo,
+            ConfidenceChange: self.confidence, PriorChange: self.prior,
+            HistoryChange: self.history,
         }[type(event)]
         emitter.emit(event)

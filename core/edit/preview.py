@@ -5,8 +5,8 @@ the cells around the changed vertices plus the saddle rule's one-cell ring) are
 re-rendered with ``render_cells(region=...)`` and pasted into the existing
 image. Because ``render_cells`` returns exactly the crop of the full render
 (and computes splits only for the region's cells), the preview always equals a
-fresh full render of the edited grid, at a cost that follows the edit, not the
-map.
+fresh full render of the edited grid (in the project's own style, with its
+colour map), at a cost that follows the edit, not the map.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 
 from core.edit.events import GridChange
 from core.model.project import ThematicTexture
+from core.render.project import project_style
 from core.render.renderer import render_cells
 
 Progress = Callable[[int, int], None]
@@ -65,9 +66,11 @@ class RenderPreview:
 
     def _render(self, region: tuple[int, int, int, int] | None,
                 progress: Progress | None = None) -> np.ndarray:
+        # The project's own style and colour map, as terratheme render shows it.
         grid = self.texture.grid
         return render_cells(grid.indices, self.texture.library.textures, grid.cell, region,
-                            progress=progress)
+                            progress=progress, options=project_style(self.texture),
+                            colour_map=self.texture.colour_map)
 
     def refresh(self, change: GridChange) -> tuple[int, int, int, int] | None:
         """Re-render the cells ``change`` can affect and paste them in place.
@@ -82,6 +85,15 @@ class RenderPreview:
             return None
         self.image[y : y + h, x : x + w] = self._render((x, y, w, h))
         return x, y, w, h
+
+    def refresh_region(self, region: tuple[int, int, int, int] | None) -> None:
+        """Re-render texels ``(x, y, w, h)`` (all when None) in place (the colour map changed)."""
+        if region is None:
+            self.refresh_all()
+            return
+        x, y, w, h = region
+        if w > 0 and h > 0:
+            self.image[y : y + h, x : x + w] = self._render((x, y, w, h))
 
     def refresh_all(self, progress: Progress | None = None) -> None:
         """Re-render everything in place (a theme's texture changed)."""

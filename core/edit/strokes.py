@@ -12,7 +12,13 @@ from __future__ import annotations
 import numpy as np
 
 from core.edit.atoms import EditAtom, merge_atoms
-from core.edit.changes import Change, Paint, SwapLayer, drop_prior_without_classes
+from core.edit.changes import (
+    Change,
+    Paint,
+    SwapLayer,
+    drop_prior_without_classes,
+    neutral_under,
+)
 from core.edit.events import Event
 from core.edit.layers import DocumentData, Layer
 from core.edit.tools import capsule_footprint
@@ -75,5 +81,9 @@ class Stroke:
         # The parts are applied already; the step records them as one paint.
         prior = (drop_prior_without_classes(self.data, self.data.scribble_classes())
                  if self.layer is Layer.SCRIBBLES else [])
-        events = [e for c in prior for e in c.apply(self.data)]
-        return [*self.before, Paint(self.layer, merged), *prior], events
+        # A repainted grid shows its new themes' own colours (no stale colour-map gain).
+        neutral = (neutral_under(self.data, merged.rows, merged.cols)
+                   if self.layer is Layer.GRID else None)
+        after = [*prior, *([neutral] if neutral is not None else [])]
+        events = [e for c in after for e in c.apply(self.data)]
+        return [*self.before, Paint(self.layer, merged), *after], events

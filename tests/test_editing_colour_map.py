@@ -1,0 +1,81 @@
+"""The colour map under edits: neutral where the grid is repainted, dropped with new themes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.edit import EditDocument, RenderPreview
+from core.model.colour_map import NEUTRAL, ColourMap
+from core.model.grid import IndexGrid
+from core.model.project import ThematicTexture
+from core.render.project import render_project
+from core.themes.library import Theme, ThemeLibrary
+
+CELL = (8, 8)
+
+
+def _doc() -> EditDocument:
+    rng = np.random.default_rng(0)
+    lib = ThemeLibrary(Theme(n, (50 * i, 90, 200 - 40 * i),
+                             rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
+                       for i, n in enumerate(("grass", "water", "sand")))
+    grid = IndexGrid(np.zeros((9, 11), np.uint8), CELL)  # 80 x 64 texels
+    cmap = ColourMap(np.full((*ColourMap.shape_for(grid.texture_size, 4), 3), 200, np.uint8), 4)
+    return EditDocument(ThematicTexture(grid, lib, {"render": {"boundary": {}}},
+                                        colour_map=cmap))
+
+
+def test_painting_makes_the_map_neutral_under_the_painted_cells_only():
+    doc = _doc()
+    doc.fill_rect((5, 4), (5, 4), 2)  # one vertex: it bounds cells 4..5 x 3..4
+    px = doc.texture.colour_map.pixels
+    # Texels 32..48 x 24..40 -> map pixels 8..11 x 6..9 (4 texels each).
+    assert (px[6:10, 8:12] == NEUTRAL).all()
+    untouched = np.ones(px.shape[:2], bool)
+    untouched[6:10, 8:12] = False
+    assert (px[untouched] == 200).all()
+    assert doc.texture.colour_map.data is None
+    # One step: undo brings back both the grid and the map.
+    doc.undo()
+    assert not doc.indices.any() and (doc.texture.colour_map.pixels == 200).all()
+    doc.redo()
+    assert (doc.texture.colour_map.pixels[6:10, 8:12] == NEUTRAL).all()
+
+
+def test_a_stroke_neutralises_the_map_as_one_step():
+    doc = _doc()
+    doc.begin_stroke(1, (2.0, 2.0), 0.6)
+    doc.stroke_to((4.0, 2.0), 0.6)
+    doc.end_stroke()
+    assert (doc.texture.colour_map.pixels == NEUTRAL).any()
+    assert len(doc.history.undo_steps) == 1
+    doc.undo()
+    assert (doc.texture.colour_map.pixels == 200).all()
+
+
+def test_the_live_preview_follows_the_map():
+    doc = _doc()
+    preview = RenderPreview(doc.texture)
+    doc.events.grid.connect(preview.refresh)
+    doc.events.colour_map.connect(lambda e: preview.refresh_region(e.region))
+    np.testing.assert_array_equal(preview.image, render_project(doc.texture))
+    doc.fill_rect((1, 1), (3, 2), 1)
+    np.testing.assert_array_equal(preview.image, render_project(doc.texture))
+    doc.undo()
+    np.testing.assert_array_equal(preview.image, render_project(doc.texture))
+
+
+def test_new_themes_of_a_classification_drop_the_map():
+    doc = _doc()
+    new = [Theme("rock", (90, 90, 90), np.full((4, 4, 3), 90, np.uint8))]
+    doc.apply_classification(np.zeros((9, 11), np.uint8), new_themes=new, replace_themes=True)
+    assert doc.texture.colour_map is None
+    doc.undo()
+    assert doc.texture.colour_map is not None
+
+
+def test_without_a_map_an_edit_records_only_the_paint():
+    doc = _doc()
+    doc.texture.colour_map = None
+    step = doc.fill_rect((1, 1), (2, 2), 1)
+    assert len(step.changes) == 1
