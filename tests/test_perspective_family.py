@@ -161,9 +161,15 @@ def test_family_refuses_other_sides_and_oversampling():
 
 
 @pytest.mark.parametrize("n, want", [(1, 1), (2, 2), (3, 4), (5, 4), (6, 8), (1126, 1024),
-                                     (1449, 2048), (4096, 4096)])
-def test_power_of_two_side_is_the_nearest_in_ratio(n, want):
+                                     (1449, 1024), (1500, 2048), (4096, 4096)])
+def test_power_of_two_side(n, want):
     assert power_of_two_side(n) == want
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 1 << 20))
+def test_a_side_grows_by_at_most_1_37_and_shrinks_by_at_most_1_47(n):
+    assert n / 1.47 <= power_of_two_side(n) <= 1.37 * n
 
 
 def test_power_of_two_grid_resamples_each_side_and_keeps_the_range():
@@ -188,3 +194,12 @@ def test_prepared_texture_memory_is_family_plus_input():
     assert pt.grid_size == (32, 64)
     assert pt.memory_bytes() == pt.family().nbytes + tex.nbytes
     assert pt.memory_bytes() <= 48 * 48 * 40
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 3000), st.integers(1, 3000))
+def test_an_rgb_texture_of_any_size_costs_at_most_48_bytes_per_texel(w, h):
+    from core.perspective.family import family_layout
+
+    cells = family_layout((power_of_two_side(w), power_of_two_side(h)), 4, 1)[2]
+    assert cells * 3 + w * h * 3 <= 48 * w * h

@@ -7,9 +7,12 @@ the cells are short, which is what the seed's eq. 5 loses (its three copies
 blend boxes of length ``2^e`` and ``2^(e+1)``, both blind to a pattern whose
 period divides ``2^e``: a grazing checkerboard came out flat grey).
 Weights per cell column come from the pixel's extent along the tilted axis
-(the sum of two uniform spreads, :func:`trapezoid_cdf`), the cross interval is
-read at the column's middle. Rows of ``b = 0`` copies are lines through
-texel centres, read as the bilinear texture is (:func:`tent_integral`).
+(the sum of two uniform spreads, :func:`trapezoid_cdf`); across, the pixel's
+interval at the column's middle, spread by its drift against the cells' rows
+over the column where the copy's skew is not the pixel's (the seed's skews
+are up to a cell height off at a cell's ends: this takes it out). Rows of
+``b = 0`` copies are lines through texel centres, read as the bilinear
+texture is (the spread against the unit tent, :func:`trapezoid_integral`).
 
 Footprints under a few texels read the texture itself by the midpoint rule
 over the pixel (2 points per texel of its sides, 2 to 4 per side), weights
@@ -32,18 +35,6 @@ QUAD_WINDOW = 8
 
 
 @njit(cache=True, inline="always")
-def tent_integral(t):
-    """Integral of the unit tent ``max(0, 1 - |x|)`` from -inf to ``t``."""
-    if t <= -1.0:
-        return 0.0
-    if t <= 0.0:
-        return 0.5 * (1.0 + t) * (1.0 + t)
-    if t < 1.0:
-        return 1.0 - 0.5 * (1.0 - t) * (1.0 - t)
-    return 1.0
-
-
-@njit(cache=True, inline="always")
 def trapezoid_cdf(x, a, b):
     """CDF of ``U(-a/2, a/2) + U(-b/2, b/2)``, ``a >= b >= 0``: the share of the
     pixel ``{(s a + t b, ...)}`` lying below ``x`` along the tilted axis."""
@@ -62,6 +53,28 @@ def trapezoid_cdf(x, a, b):
         return (x + 0.5 * a) / a
     d = h - x
     return 1.0 - d * d / (2.0 * a * b)
+
+
+@njit(cache=True, inline="always")
+def _cube_plus(x):
+    return x * x * x if x > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _square_plus(x):
+    return x * x if x > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def trapezoid_integral(x, a, b):
+    """``E[(x - X)_+]`` for ``X = U(-a/2, a/2) + U(-b/2, b/2)``, ``a >= b >= 0``:
+    the integral of :func:`trapezoid_cdf`; its second difference with unit steps is
+    the trapezoid against the unit tent (a bilinear row's share)."""
+    if b <= 1e-3 * a:
+        return (_square_plus(x + 0.5 * a) - _square_plus(x - 0.5 * a)) / (2.0 * a)
+    r = (_cube_plus(x + 0.5 * (a + b)) - _cube_plus(x + 0.5 * (a - b))
+         - _cube_plus(x - 0.5 * (a - b)) + _cube_plus(x - 0.5 * (a + b)))
+    return r / (6.0 * a * b)
 
 
 @njit(cache=True)
@@ -118,30 +131,38 @@ def cover_cells(buf, off, rows, cols, s, t, tent_rows, swap, x0, y0, a, bs, ls, 
             t_hi = min(t_hi, max(q1, q2))
         if t_hi < t_lo:
             t_lo = t_hi = 0.5 * (t_lo + t_hi)
-        # in the cell's unsheared frame
+        # in the cell's unsheared frame; across the column the pixel's band drifts
+        # by (slope - tau) per texel against the cell's rows: a trapezoid of spreads
         shift = y0 + slope * xr - tau * (xm - (j + 0.5) * s)
-        y1 = min(t_lo * ls, t_hi * ls) + shift
-        y2 = max(t_lo * ls, t_hi * ls) + shift
-        span = y2 - y1
+        centre = 0.5 * (t_lo + t_hi) * ls + shift
+        span = abs((t_hi - t_lo) * ls)
+        drift = abs(slope - tau) * (hi - lo)
+        wide, narrow = max(span, drift), min(span, drift)
+        reach = 0.5 * (span + drift)
         jj = j % cols
         if tent_rows:
-            m_lo = int(math.floor(y1 - 0.5))
-            m_hi = int(math.floor(y2 + 0.5))
+            m_lo = int(math.floor(centre - reach - 0.5))
+            m_hi = int(math.floor(centre + reach + 0.5))
         else:
-            m_lo = int(math.floor(y1 / t))
-            m_hi = int(math.ceil(y2 / t)) - 1
+            m_lo = int(math.floor((centre - reach) / t))
+            m_hi = int(math.ceil((centre + reach) / t)) - 1
         for m in range(m_lo, m_hi + 1):
-            # share of the cross interval in this row
-            if tent_rows:
-                cm = m + 0.5
-                if span > 1e-9:
-                    wb = (tent_integral(y2 - cm) - tent_integral(y1 - cm)) / span
+            # share of the pixel's cross spread in this row
+            if wide < 1e-9:
+                # a point across: the row that holds it (tent rows: bilinear)
+                d = centre - (m + 0.5) if tent_rows else 0.0
+                if tent_rows:
+                    wb = max(0.0, 1.0 - abs(d))
                 else:
-                    wb = max(0.0, 1.0 - abs(y1 - cm))
-            elif span > 1e-9:
-                wb = (min(y2, (m + 1) * t) - max(y1, m * t)) / span
+                    wb = 1.0 if m * t <= centre < (m + 1) * t else 0.0
+            elif tent_rows:
+                d = m + 0.5 - centre
+                wb = (trapezoid_integral(d + 1.0, wide, narrow)
+                      - 2.0 * trapezoid_integral(d, wide, narrow)
+                      + trapezoid_integral(d - 1.0, wide, narrow))
             else:
-                wb = 1.0 if m == m_lo else 0.0
+                wb = (trapezoid_cdf((m + 1) * t - centre, wide, narrow)
+                      - trapezoid_cdf(m * t - centre, wide, narrow))
             if wb <= 0.0:
                 continue
             mm = m % rows

@@ -86,7 +86,7 @@ class FilterOptions:
     max_anisotropy: float = 16.0
     aperture: float = 1.0
     skew_oversampling: int = 1
-    cells_per_footprint: float = 4.0
+    cells_per_footprint: float = 3.0
     lookup: Lookup = Lookup.COVERAGE
     skew_blend: bool = False
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
