@@ -9,8 +9,9 @@ tilted long side and ``2^b`` across, the long side sloping ``tan`` texels
 across per texel along: cell ``(m, k)`` is the mean of the texture over the
 parallelogram centred at ``((k + 1/2) 2^a, (m + 1/2) 2^b)`` (for ``b = 0``: the
 line through that texel row, read bilinearly). Cells are ``lambda = 2^(a-b)``
-times longer than wide; there are ``2^(i-1)`` skews per orientation at
-``lambda = 2^i`` (the seed's count, on a grid through 0: :func:`skew_values`).
+times longer than wide; there are ``2^(i-1) + 1`` skews per orientation at
+``lambda = 2^i`` for ``i >= 2`` and one at ``i = 1`` (the seed's spacing, on a
+grid through 0 that holds both ends, -1 and 1: :func:`skew_values`).
 ``lambda = 1`` copies are the mip levels. With ``k = log2`` of the largest
 ``lambda`` kept, the family costs about ``(k + 1) * 4/3 * W' H'`` cells
 (the seed's ``n * 4/3 * 4^n`` for ``k = n``; 7.8 per texel for ``k = 4``).

@@ -63,16 +63,19 @@ class FilterOptions:
     cells_per_footprint : float
         ``COVERAGE``: the copy is chosen so a pixel spans this many to twice
         this many cells along its long side (and one to two across): more
-        cells, sharper ends of the filter, more texels read (about 2 + this
-        many per pixel on grazing views). Default 4: on the issue's grazing
-        checkerboard (benchmarks/results/perspective.json) 2 gives 36.5 dB for
-        8.9 reads per pixel, 4 gives 41.3 dB for 10.8.
+        cells, sharper ends of the filter, more texels read. Measured on the
+        issue's grazing checkerboard (benchmarks/results/perspective.json):
+        2 gives 38.1 dB for 10.5 reads per pixel, 3 (default) 44.7 dB for
+        11.7, 4 44.7 dB for 12.4.
     lookup : Lookup
         ``PARALLELOGRAM`` only: ``COVERAGE`` (default) or the seed's ``SEED``.
     skew_blend : bool
         ``PARALLELOGRAM`` only. Interpolate between the two prefiltered skews
         around the footprint's ``tan`` (linear in ``tan``) instead of reading
         the nearest one: twice the reads where the copy has several skews.
+        It helps the seed's lookup; ``COVERAGE`` already takes the nearest
+        skew's drift into the cross share, and blending costs it (44.7 -> 43.6
+        dB on the issue's scene).
     sky : tuple of float
         Colour of pixels above the horizon (``z <= 0``), in [0, 1].
     reference_density : float
