@@ -1,5 +1,6 @@
-"""Issue 6: the parallelogram lookup's footprint bounds, magnification probes
-and skew blend (core/perspective/lookup.py)."""
+"""Issues 6 and 18: the parallelogram lookup's footprint bounds, the exact
+coverage and quadrature reads, the skew blend (core/perspective/lookup.py,
+coverage.py)."""
 
 from __future__ import annotations
 
@@ -7,19 +8,22 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
-from core.perspective import Camera, FilterOptions, PlaneMapping, render_perspective
+from core.perspective import Camera, FilterOptions, Lookup, PlaneMapping, render_perspective
 
 
 def _random_texture(h, w, c=3, seed=0):
     return np.random.default_rng(seed).integers(0, 256, (h, w, c)).astype(np.float32) / 255
 
 
+LOOKUPS = [dict(lookup=Lookup.SEED), {}, dict(cells_per_footprint=1)]
+
+
 @pytest.mark.parametrize("blend", [False, True])
-@pytest.mark.parametrize("probes", [1, 2])
-def test_constant_texture_stays_constant_down_to_the_horizon(blend, probes):
+@pytest.mark.parametrize("over", LOOKUPS)
+def test_constant_texture_stays_constant_down_to_the_horizon(blend, over):
     tex = np.empty((32, 32, 3), np.float32)
     tex[:] = (0.2, 0.5, 0.9)
-    opt = FilterOptions(skew_blend=blend, long_probes=probes, sky=(0.0, 0.0, 0.0))
+    opt = FilterOptions(skew_blend=blend, sky=(0.0, 0.0, 0.0), **over)
     # the horizon crosses the frame: footprints up to far beyond the texture
     img = render_perspective(tex, Camera(height=4, pitch=4, yaw=33, fov=70), (48, 32), opt)
     ground = img.reshape(-1, 3)[img.reshape(-1, 3).sum(axis=1) > 0]
@@ -27,9 +31,9 @@ def test_constant_texture_stays_constant_down_to_the_horizon(blend, probes):
     np.testing.assert_allclose(ground - (0.2, 0.5, 0.9), 0, atol=1e-5)
 
 
-@pytest.mark.parametrize("probes", [1, 2])
+@pytest.mark.parametrize("over", LOOKUPS)
 @pytest.mark.parametrize("toward_v", [False, True])
-def test_footprint_far_longer_than_the_texture_reads_the_mean(probes, toward_v):
+def test_footprint_far_longer_than_the_texture_reads_the_mean(over, toward_v):
     # U = 5000 x (or V = 5000 y), skew 0.3: the footprint winds ~80 times round
     # the 64-texel texture; its turns fill it, so the pixel is the texture's mean
     tex = _random_texture(64, 64)
@@ -39,7 +43,7 @@ def test_footprint_far_longer_than_the_texture_reads_the_mean(probes, toward_v):
     else:
         m = PlaneMapping(5000, 0, 0, 0.3 * 5000, 1, 0, 0, 0, 1)
         size = (2, 3)
-    img = render_perspective(tex, m, size, FilterOptions(long_probes=probes))
+    img = render_perspective(tex, m, size, FilterOptions(**over))
     want = tex.reshape(-1, 3).mean(axis=0)
     np.testing.assert_allclose(img.reshape(-1, 3) - want, 0, atol=1e-5)
 
@@ -55,52 +59,61 @@ def test_footprint_within_the_texture_is_not_widened():
     np.testing.assert_allclose(img, want, atol=1e-5)
 
 
-def _bilinear_1d(row, x):
-    """Wrapping linear interpolation of ``row`` (texel centres at i + 0.5)."""
-    n = row.shape[0]
-    xs = x - 0.5
-    i0 = np.floor(xs).astype(int)
-    f = (xs - i0)[:, None]
-    return (1 - f) * row[i0 % n] + f * row[(i0 + 1) % n]
+@pytest.mark.parametrize("coefs", [
+    (0.6, 0.2, 3.3, -0.1, 0.9, 5.1, 0.0, 0.0, 1.0),  # magnified, rotated
+    (2.5, 0.4, 1.0, 0.3, 1.5, 2.0, 0.0, 0.0, 1.0),  # a few texels: still quadrature
+    (0.3, 0.0, 7.0, 0.0, 0.2, 3.0, 0.0, 0.001, 1.0),  # perspective
+])
+def test_small_footprints_on_a_linear_ramp_give_the_ramp_at_the_pixel_centre(coefs):
+    # the bilinear texture of a ramp is the ramp itself (away from the wrap), and the
+    # box over a pixel of a linear function is its value at the pixel's centre
+    yy, xx = np.mgrid[0:64, 0:64]
+    tex = (0.003 * xx + 0.011 * yy).astype(np.float64)[:, :, None].astype(np.float32)
+    m = PlaneMapping(*coefs)
+    img = render_perspective(tex, m, (8, 6))
+    u, v, _, *_ = m.pixel_grid((8, 6))
+    np.testing.assert_allclose(img[:, :, 0], 0.003 * (u - 0.5) + 0.011 * (v - 0.5), atol=2e-6)
 
 
-def test_magnified_long_side_probes_at_plus_minus_sigma():
-    # dX = (1.2, 0), dY = (0, 0.3): H = 1.2 < 2 texels, L = 0.3, toward U, tan = 0;
-    # probes at U +- sigma, sigma^2 = 1.2^2 / 12 (a box of 1.2 texels), each
-    # bilinear in the texture itself
-    row = _random_texture(1, 16)[0]
-    tex = np.repeat(row[None], 16, axis=0)
-    m = PlaneMapping(1.2, 0, 0.37, 0, 0.3, 0, 0, 0, 1)
-    img = render_perspective(tex, m, (12, 3), FilterOptions())
-    u = 1.2 * (np.arange(12) + 0.5) + 0.37
-    sigma = np.sqrt(1.2**2 / 12)
-    want = 0.5 * (_bilinear_1d(row, u - sigma) + _bilinear_1d(row, u + sigma))
-    for r in range(3):
-        np.testing.assert_allclose(img[r], want, atol=1e-5)
-
-
-def test_magnified_isotropic_footprint_stays_bilinear():
-    # H = 1, L = 1 (one texel per pixel): a plain bilinear read, exact at centres
+def test_magnified_isotropic_footprint_stays_bilinear_at_its_limit():
+    # a pixel 1/1000 of a texel: the box over it is the bilinear value at its centre
     tex = _random_texture(16, 16)
-    img = render_perspective(tex, PlaneMapping(1, 0, 0, 0, 1, 0, 0, 0, 1), (16, 16),
-                             FilterOptions())
-    np.testing.assert_allclose(img, tex, atol=1e-5)
+    m = PlaneMapping(1e-3, 0, 3.3, 0, 1e-3, 7.9, 0, 0, 1)
+    img = render_perspective(tex, m, (2, 2), FilterOptions())
+    fx, fy = 3.3005 - 2.5, 7.9005 - 7.5  # the pixel centre (0.5, 0.5)
+    want = ((1 - fx) * (1 - fy) * tex[7, 2] + fx * (1 - fy) * tex[7, 3]
+            + (1 - fx) * fy * tex[8, 2] + fx * fy * tex[8, 3])
+    np.testing.assert_allclose(img[0, 0], want, atol=1e-6)
 
 
-@pytest.mark.parametrize("probes", [1, 2])
+def test_grazing_checkerboard_is_sharp_where_a_period_divides_the_copy():
+    # the issue's failure: H ~ 86 texels over a period of 32 along V; the seed's
+    # boxes of 64 all read the mean (flat grey), the true box keeps a +-0.06 ripple
+    yy, xx = np.mgrid[0:256, 0:256]
+    board = (((xx // 16) + (yy // 16)) % 2).astype(np.float32)
+    m = PlaneMapping(6, 0, -960, 0, 0, 2000, 0, 0.05, 1)
+    ref = render_perspective(board, m, (320, 4), FilterOptions(
+        method="reference", reference_min_samples=32, reference_max_samples=32))
+    ours = render_perspective(board, m, (320, 4))
+    seed = render_perspective(board, m, (320, 4), FilterOptions(lookup=Lookup.SEED))
+    assert ref[1].std() > 0.03
+    assert np.sqrt(np.mean((ours - ref) ** 2)) < 0.5 * np.sqrt(np.mean((seed - ref) ** 2))
+
+
+@pytest.mark.parametrize("over", [dict(lookup=Lookup.SEED), dict(cells_per_footprint=1)])
 @pytest.mark.parametrize("skew", [0.5, -0.5, 1.0, 0.0])
-def test_skew_blend_at_a_family_skew_equals_the_single_skew_read(probes, skew):
+def test_skew_blend_at_a_family_skew_equals_the_single_skew_read(over, skew):
     # dX = (8, 8 skew), dY = (0, 1): H = 8, L = 1, lambda = 8, whose copies have
     # skews -1, -0.5, 0, 0.5, 1: the blend reads exactly one of them
     tex = _random_texture(32, 32)
     m = PlaneMapping(8, 0, 0.3, 8 * skew, 1, 0.7, 0, 0, 1)
-    one = render_perspective(tex, m, (6, 9), FilterOptions(long_probes=probes))
-    blend = render_perspective(tex, m, (6, 9),
-                               FilterOptions(long_probes=probes, skew_blend=True))
+    one = render_perspective(tex, m, (6, 9), FilterOptions(**over))
+    blend = render_perspective(tex, m, (6, 9), FilterOptions(skew_blend=True, **over))
     np.testing.assert_allclose(blend, one, atol=1e-6)
 
 
-def test_skew_blend_is_continuous_where_the_nearest_skew_jumps():
+@pytest.mark.parametrize("over", [dict(lookup=Lookup.SEED), dict(cells_per_footprint=1)])
+def test_skew_blend_is_continuous_where_the_nearest_skew_jumps(over):
     # skew 0.25 is halfway between the copies 0 and 0.5 at lambda = 8: the
     # nearest copy switches there, the blend moves by O(eps)
     tex = _random_texture(32, 32, seed=3)
@@ -108,7 +121,7 @@ def test_skew_blend_is_continuous_where_the_nearest_skew_jumps():
 
     def frame(skew, blend):
         m = PlaneMapping(8, 0, 0.3, 8 * skew, 1, 0.7, 0, 0, 1)
-        return render_perspective(tex, m, (6, 9), FilterOptions(skew_blend=blend))
+        return render_perspective(tex, m, (6, 9), FilterOptions(skew_blend=blend, **over))
 
     jump = np.abs(frame(0.25 + eps, False) - frame(0.25 - eps, False)).max()
     step = np.abs(frame(0.25 + eps, True) - frame(0.25 - eps, True)).max()
@@ -116,7 +129,8 @@ def test_skew_blend_is_continuous_where_the_nearest_skew_jumps():
     assert step < 1e-4
 
 
-def test_skew_blend_halfway_is_the_mean_of_the_neighbouring_copies():
+@pytest.mark.parametrize("over", [dict(lookup=Lookup.SEED), dict(cells_per_footprint=1)])
+def test_skew_blend_halfway_is_the_mean_of_the_neighbouring_copies(over):
     # skew 0.75 is halfway between the copies 0.5 and 1 at lambda = 8; the
     # nearest-skew lookup just below / above 0.75 reads copy 0.5 / copy 1 alone
     # (same coordinates to 1e-9), so the blend must be their mean
@@ -124,7 +138,7 @@ def test_skew_blend_halfway_is_the_mean_of_the_neighbouring_copies():
 
     def frame(skew, blend):
         m = PlaneMapping(8, 0, 0.3, 8 * skew, 1, 0.7, 0, 0, 1)
-        return render_perspective(tex, m, (6, 9), FilterOptions(skew_blend=blend))
+        return render_perspective(tex, m, (6, 9), FilterOptions(skew_blend=blend, **over))
 
     lo, hi = frame(0.75 - 1e-9, False), frame(0.75 + 1e-9, False)
     assert np.abs(lo - hi).max() > 0.01
@@ -137,9 +151,10 @@ def test_skew_blend_halfway_is_the_mean_of_the_neighbouring_copies():
     PlaneMapping(1e9, 0, 0, 0, 1e9, 0, 0, 1, 1e-300),  # near-infinite footprints
 ])
 @pytest.mark.parametrize("shape", [(1, 1), (3, 5)])
-def test_skew_blend_never_nan_never_out_of_range(view, shape):
+@pytest.mark.parametrize("over", LOOKUPS)
+def test_skew_blend_never_nan_never_out_of_range(view, shape, over):
     tex = _random_texture(*shape)
-    opt = FilterOptions(skew_blend=True)
+    opt = FilterOptions(skew_blend=True, **over)
     img = render_perspective(tex, view, (17, 11), opt)
     assert np.all(np.isfinite(img))
     lo, hi = min(float(tex.min()), min(opt.sky)), max(float(tex.max()), max(opt.sky))

@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
+import re
+import threading
+import time
+from pathlib import Path
 
 NAME = "perspective"
 HELP = ("render an image or a project on a ground plane seen in perspective, "
@@ -10,6 +15,25 @@ HELP = ("render an image or a project on a ground plane seen in perspective, "
 ORDER = 60
 
 METHODS = ["parallelogram", "trilinear", "aniso", "ewa", "bilinear", "nearest", "reference"]
+EPILOG = """\
+examples:
+  terratheme perspective out/sample.ttproj out/low.png
+      the default view: from beyond the texture's south edge, looking north,
+      about 10 degrees down, the horizon in the frame
+  terratheme perspective photo.png low.png --camera 40,8,30,60 --size 1280x720
+      40 texels up, 8 degrees down, heading 30 degrees east of north, 60-degree view
+  terratheme perspective tex.png low.png --mapping -6,0,960,0,0,2000,0,0.05,1
+      the nine plane-mapping coefficients (negative numbers are fine)
+
+The prefiltered family of the texture is kept in a cache folder
+($XDG_CACHE_HOME/terratheme/families, else ~/.cache/terratheme/families;
+--cache-dir, --no-cache), so the next preview of the same texture starts at once.
+"""
+#: arguments that are numbers or comma-separated numbers (argparse would take
+#: "-60,10,0,60" for an option; this makes it a value, as it does for "-60")
+NUMBERS = re.compile(r"^-[\d.]+([eE][-+]?\d+)?(,[-+]?[\d.]+([eE][-+]?\d+)?)*$")
+#: seconds without progress before the first-run compile note
+COMPILE_NOTE_AFTER = 2.0
 
 
 def _floats(count: tuple[int, ...], what: str):
@@ -35,81 +59,156 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def default_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/terratheme/families``, else ``~/.cache/terratheme/families``."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "terratheme" / "families"
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", help="texture image, or a project (.ttproj: its render)")
+    parser.epilog = EPILOG
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser._negative_number_matcher = NUMBERS  # values such as -60,10,0,60
+    parser.add_argument("input", help="texture image, or a project (.ttproj: its texture, "
+                        "rendered at the detail the frame needs)")
     parser.add_argument("out", help="output image (.png, .tif, .exr ...)")
     parser.add_argument("--method", choices=METHODS, default="parallelogram",
-                        help="texture filter (default: the seed's parallelogram filter)")
+                        help="texture filter (default: the seed's parallelogram family, read "
+                        "by exact coverage)")
     parser.add_argument("--size", type=_size, default=(640, 360), metavar="WxH",
                         help="frame size in pixels (default 640x360)")
-    view = parser.add_mutually_exclusive_group(required=True)
+    view = parser.add_mutually_exclusive_group()
     view.add_argument("--camera", type=_floats((4, 6), "--camera"),
                       metavar="HEIGHT,PITCH,YAW,FOV[,X,Y]",
                       help="camera height in texels, pitch below horizontal, yaw clockwise "
                       "from north and horizontal field of view in degrees, optional "
-                      "position in texels (default: the texture's centre)")
+                      "position in texels (default: the texture's centre). Without "
+                      "--camera or --mapping: a low-angle view of the whole texture")
     view.add_argument("--mapping", type=_floats((9,), "--mapping"),
                       metavar="Au,Bu,Cu,Av,Bv,Cv,Az,Bz,Cz",
                       help="the nine plane-mapping coefficients (U, V in texels, "
                       "x, y in pixels, pixel centres at +0.5)")
     parser.add_argument("--max-anisotropy", type=float, default=16.0,
-                        help="largest footprint elongation honoured (default 16)")
+                        help="largest cell elongation kept in the family (default 16)")
     parser.add_argument("--max-texture", type=int, default=4096, metavar="TEXELS",
-                        help="downscale a larger texture to this many texels on its long "
-                        "side first (the parallelogram family costs about 43 bytes per RGB "
-                        "texel; default 4096); camera and mapping stay in input texels")
+                        help="use the texture reduced to at most this many texels on its long "
+                        "side (the family costs about 24 bytes per RGB texel; default 4096); "
+                        "camera and mapping stay in input texels")
+    cache = parser.add_mutually_exclusive_group()
+    cache.add_argument("--cache-dir", type=Path, default=None, metavar="DIR",
+                       help="folder of prefiltered families (default: see below)")
+    cache.add_argument("--no-cache", action="store_true",
+                       help="build the family afresh and keep it only for this run")
+
+
+def _warm_up(texture, options, project=None) -> None:
+    """Load (or, on a first run, compile) the kernels this run needs on tiny inputs,
+    saying so in one line when that takes long (a compile)."""
+    import numpy as np
+
+    from core.perspective import Camera, PreparedTexture
+
+    def note() -> None:
+        print("note: compiling the preview kernels (first run only, a minute or two; "
+              "`python -m app.warmup` does it at install)", flush=True)
+
+    timer = threading.Timer(COMPILE_NOTE_AFTER, note)
+    timer.daemon = True
+    timer.start()
+    try:
+        tiny = np.ascontiguousarray(texture[:8, :8])
+        PreparedTexture(tiny, options).render(Camera(height=4, pitch=20), (8, 8), options)
+        if project is not None:
+            from core.render.project import render_project
+
+            w, h = project.grid.texture_size
+            render_project(project, (0, 0, min(8, w), min(8, h)), 1.0)
+            render_project(project, (0, 0, min(16, w), min(16, h)), 0.5)
+    finally:
+        timer.cancel()
 
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
+    from app.outputs import check_outputs
     from core.errors import TerrathemeError
     from core.io.images import read_image, write_image
-    from core.perspective import Camera, FilterOptions, Method, PlaneMapping, PreparedTexture
+    from core.perspective import (
+        Camera,
+        FamilyCache,
+        FilterOptions,
+        Method,
+        PlaneMapping,
+        PreparedTexture,
+    )
+    from core.perspective.mapping import camera_mapping, overview_camera, scaled_view
+    from core.perspective.project_view import project_texture, texture_scale
 
-    # the texture: an image file, or a project's full render
-    if str(args.input).lower().endswith(".ttproj"):
-        from core.model.project import load_project
-        from core.render.project import render_project
-
-        texture = render_project(load_project(args.input))
-    else:
-        texture = read_image(args.input)
-    # a texture too large for the prefiltered family is area-averaged down first
+    check_outputs([args.out], inputs=[args.input])
     if args.max_texture < 1:
         raise TerrathemeError(f"--max-texture must be at least 1, got {args.max_texture}")
-    s = min(1.0, args.max_texture / max(texture.shape[:2]))
-    if s < 1.0:
-        import cv2
+    options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
+    is_project = str(args.input).lower().endswith(".ttproj")
+    if is_project:
+        from core.model.project import load_project
 
-        full = texture.shape
-        size = (max(1, round(full[1] * s)), max(1, round(full[0] * s)))
-        texture = cv2.resize(texture, size, interpolation=cv2.INTER_AREA).reshape(
-            size[1], size[0], full[2])
-        sx, sy = size[0] / full[1], size[1] / full[0]
-        print(f"note: texture {full[1]} x {full[0]} downscaled to {size[0]} x {size[1]} "
-              "(--max-texture)")
+        project = load_project(args.input)
+        full_size = project.grid.texture_size
     else:
-        sx = sy = 1.0
+        texture = read_image(args.input)
+        full_size = (texture.shape[1], texture.shape[0])
+    # the view, in texels of the full texture
     if args.camera is not None:
         c = args.camera
-        x, y = (c[4] * sx, c[5] * sy) if len(c) == 6 else (None, None)
-        view = Camera(height=c[0] * sx, pitch=c[1], yaw=c[2], fov=c[3], x=x, y=y)
+        x, y = (c[4], c[5]) if len(c) == 6 else (None, None)
+        view = Camera(height=c[0], pitch=c[1], yaw=c[2], fov=c[3], x=x, y=y)
+    elif args.mapping is not None:
+        view = PlaneMapping.from_sequence(args.mapping)
     else:
-        au, bu, cu, av, bv, cv, az, bz, cz = args.mapping
-        view = PlaneMapping.from_sequence(
-            [au * sx, bu * sx, cu * sx, av * sy, bv * sy, cv * sy, az, bz, cz])
-    options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
-    prepared = PreparedTexture(texture, options)
-    with tqdm(total=args.size[1], desc="perspective", unit="row", leave=False) as bar:
+        view = overview_camera(full_size)
+    t0 = time.perf_counter()
+    if is_project:
+        # a tiny texture of the project's type for the warm-up
+        _warm_up(np.zeros((8, 8, 3), np.uint8), options, project)
+        # the texture at the detail the frame needs
+        texture, view = project_texture(project, view, args.size, args.max_texture)
+    else:
+        _warm_up(texture, options)
+        mapping = view if isinstance(view, PlaneMapping) else camera_mapping(view, args.size,
+                                                                             full_size)
+        s = texture_scale(mapping, args.size, full_size, args.max_texture)
+        if s < 1.0:
+            import cv2
 
-        def progress(done: int, total: int) -> None:
+            size = (max(1, round(full_size[0] * s)), max(1, round(full_size[1] * s)))
+            texture = cv2.resize(texture, size, interpolation=cv2.INTER_AREA).reshape(
+                size[1], size[0], -1)
+            view = scaled_view(view, size[0] / full_size[0], size[1] / full_size[1])
+    if (texture.shape[1], texture.shape[0]) != tuple(full_size):
+        print(f"note: texture {full_size[0]} x {full_size[1]} used at "
+              f"{texture.shape[1]} x {texture.shape[0]} (the detail the frame needs, "
+              "--max-texture)")
+    cache = None if args.no_cache else FamilyCache(args.cache_dir or default_cache_dir())
+    with tqdm(desc="prefiltering", unit="cell", leave=False, disable=None) as bar:
+
+        def built(done: int, total: int) -> None:
             bar.total = total
             bar.n = done
             bar.refresh()
 
-        result = prepared.render(view, args.size, progress=progress)
+        prepared = PreparedTexture(texture, options, progress=built, cache=cache)
+    with tqdm(total=args.size[1], desc="perspective", unit="row", leave=False,
+              disable=None) as bar:
+
+        def rendered(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        result = prepared.render(view, args.size, progress=rendered)
+    seconds = time.perf_counter() - t0
     # back to the input's number type (integers were read as [0, 1])
     image = result.image
     if np.issubdtype(texture.dtype, np.integer):
@@ -117,7 +216,10 @@ def run(args: argparse.Namespace) -> int:
         image = np.clip(np.rint(image * top), 0, top).astype(texture.dtype)
     write_image(args.out, image)
     w, h = args.size
+    cached = {True: ", family from the cache", False: ", family cached",
+              None: ""}[prepared.cache_hit]
     print(f"{args.out}: {w} x {h} pixels, {args.method}, "
           f"{result.mean_reads:.1f} texels read per ground pixel, "
-          f"{prepared.memory_bytes() / 2**20:.1f} MiB of prefiltered texture")
+          f"{prepared.memory_bytes() / 2**20:.1f} MiB of prefiltered texture{cached}, "
+          f"{seconds:.2f} s")
     return 0

@@ -1,33 +1,43 @@
-"""Low-angle terrain preview with anisotropic filtering (issue 6).
+"""Low-angle terrain preview with anisotropic filtering (issues 6 and 18).
 
-The seed's parallelogram filter (Kovalev & Tarasov, DESIGN.md section 3) and
-its baselines, all with one set of conventions (see :mod:`.mapping`)::
+The seed's family of prefiltered parallelogram copies (Kovalev & Tarasov,
+DESIGN.md section 3), read by summing the pixel's own parallelogram over the
+cells it covers, and its baselines, all with one set of conventions (see
+:mod:`.mapping`)::
 
-    from core.perspective import Camera, FilterOptions, Method, PreparedTexture
-    prepared = PreparedTexture(texture, FilterOptions(method=Method.PARALLELOGRAM))
+    from core.perspective import Camera, FamilyCache, FilterOptions, PreparedTexture
+    prepared = PreparedTexture(texture, FilterOptions(), cache=FamilyCache(folder))
     frame = prepared.render(Camera(height=40, pitch=10, yaw=30), (640, 360)).image
 
-Modules: ``options`` (FilterOptions, Method), ``mapping`` (eqs. 1-2, camera),
-``footprint`` (eqs. 3-4), ``family`` (the prefiltered copies),
-``lookup`` (eqs. 5-9), ``baselines`` (nearest, bilinear, trilinear, GPU
-aniso), ``ewa`` (pbrt-style EWA), ``reference`` (supersampled box filter),
-``texture`` (power-of-two resampling, mip pyramid), ``render`` (entry points).
+Modules: ``options`` (FilterOptions, Method, Lookup), ``mapping`` (eqs. 1-2,
+camera, default view), ``footprint`` (eqs. 3-4), ``family`` (the prefiltered
+copies, built level by level), ``coverage`` (exact-coverage and quadrature
+reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``cache``
+(families on disk), ``baselines`` (nearest, bilinear, trilinear, GPU aniso),
+``ewa`` (pbrt-style EWA), ``reference`` (supersampled box filter),
+``texture`` (storage type, power-of-two resampling, mip pyramid),
+``project_view`` (a project's texture at the level a frame needs),
+``render`` (entry points).
 """
 
+from core.perspective.cache import FamilyCache, family_key
 from core.perspective.footprint import Footprint, footprint_parameters
 from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
-from core.perspective.options import FilterOptions, Method
+from core.perspective.options import FilterOptions, Lookup, Method
 from core.perspective.render import PreparedTexture, RenderResult, render_perspective
 
 __all__ = [
     "Camera",
+    "FamilyCache",
     "FilterOptions",
     "Footprint",
+    "Lookup",
     "Method",
     "PlaneMapping",
     "PreparedTexture",
     "RenderResult",
     "camera_mapping",
+    "family_key",
     "footprint_parameters",
     "render_perspective",
 ]

@@ -44,7 +44,7 @@ def bilinear_kernel(buf, rows, cols, u, v, valid, out):
 
 
 @njit(cache=True, parallel=True)
-def trilinear_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, valid, out):
+def trilinear_kernel(buf, offsets, heights, widths, u, v, dux, dvx, duy, dvy, valid, out):
     """Mip-mapping: level ``log2 max(|dX|, |dY|)``, linear between two levels
     (Williams 1983; the seed's table diagonal ``H = L``)."""
     p_count = u.shape[0]
@@ -56,12 +56,13 @@ def trilinear_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, valid, out):
         ly = math.hypot(duy[p], dvy[p])
         rho = max(lx, ly)
         lod = math.log2(rho) if rho > 0.0 else -1.0
-        reads[p] = add_trilinear(buf, offsets, size, u[p], v[p], lod, 1.0, out[p])
+        reads[p] = add_trilinear(buf, offsets, heights, widths, u[p], v[p], lod, 1.0, out[p])
     return reads
 
 
 @njit(cache=True, parallel=True)
-def aniso_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, max_aniso, valid, out):
+def aniso_kernel(buf, offsets, heights, widths, u, v, dux, dvx, duy, dvy, max_aniso, valid,
+                 out):
     """GPU-style anisotropic filtering (EXT_texture_filter_anisotropic):
     ``N = min(ceil(Pmax/Pmin), max_aniso)`` trilinear probes spread along the
     major axis, each at level ``log2(Pmax/N)``, averaged."""
@@ -89,6 +90,7 @@ def aniso_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, max_aniso, valid,
         # probes evenly spaced along the major axis, centred on (u, v)
         for k in range(nprobe):
             t = (k + 0.5) / nprobe - 0.5
-            r += add_trilinear(buf, offsets, size, u[p] + t * mu, v[p] + t * mv, lod, w, out[p])
+            r += add_trilinear(buf, offsets, heights, widths, u[p] + t * mu, v[p] + t * mv, lod,
+                               w, out[p])
         reads[p] = r
     return reads

@@ -23,19 +23,20 @@ EWA_LUT = (np.exp(-2.0 * np.arange(128) / 127.0) - np.exp(-2.0)).astype(np.float
 
 
 @njit(cache=True)
-def _ewa_level(buf, offsets, size, level, u, v, d0u, d0v, d1u, d1v, lut, w, out):
+def _ewa_level(buf, offsets, heights, widths, level, u, v, d0u, d0v, d1u, d1v, lut, w, out):
     """``out += w * `` EWA over mip ``level``; returns the texels read."""
     nlev = offsets.shape[0]
     if level >= nlev:
         add_texel(buf, offsets[nlev - 1], 1, 0, 0, w, out)
         return 1
-    res = size >> level
-    scale = 1.0 / (1 << level)
+    rows, cols = heights[level], widths[level]
+    sx = cols / widths[0]
+    sy = rows / heights[0]
     # coordinates in this level's texels, texel centres at integers
-    s = u * scale - 0.5
-    t = v * scale - 0.5
-    a0, a1 = d0u * scale, d0v * scale
-    b0, b1 = d1u * scale, d1v * scale
+    s = u * sx - 0.5
+    t = v * sy - 0.5
+    a0, a1 = d0u * sx, d0v * sy
+    b0, b1 = d1u * sx, d1v * sy
     # ellipse coefficients bounding the filter region
     A = a1 * a1 + b1 * b1 + 1.0
     B = -2.0 * (a0 * a1 + b0 * b1)
@@ -61,27 +62,28 @@ def _ewa_level(buf, offsets, size, level, u, v, d0u, d0v, d1u, d1v, lut, w, out)
     off = offsets[level]
     for it in range(t0, t1 + 1):
         tt = it - t
-        jj = it % res
+        jj = it % rows
         for is_ in range(s0, s1 + 1):
             ss = is_ - s
             r2 = A * ss * ss + B * ss * tt + C * tt * tt
             if r2 < 1.0:
                 idx = min(int(r2 * 128), 127)
                 wt = lut[idx]
-                k = off + jj * res + (is_ % res)
+                k = off + jj * cols + (is_ % cols)
                 for c in range(nc):
                     acc[c] += wt * buf[k, c]
                 sum_w += wt
                 reads += 1
     if sum_w <= 0.0:
-        return add_bilinear(buf, off, res, res, u * scale, v * scale, w, out)
+        return add_bilinear(buf, off, rows, cols, u * sx, v * sy, w, out)
     for c in range(nc):
         out[c] += w * acc[c] / sum_w
     return reads
 
 
 @njit(cache=True, parallel=True)
-def ewa_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, max_aniso, lut, valid, out):
+def ewa_kernel(buf, offsets, heights, widths, u, v, dux, dvx, duy, dvy, max_aniso, lut, valid,
+               out):
     """pbrt-v4 ``MIPMap::Filter`` with ``FilterFunction::EWA``, per pixel."""
     p_count = u.shape[0]
     reads = np.zeros(p_count, np.int32)
@@ -89,8 +91,8 @@ def ewa_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, max_aniso, lut, val
         if not valid[p]:
             continue
         # wrap first so huge coordinates near the horizon stay exact integers
-        up = wrap_coord(u[p], size)
-        vp = wrap_coord(v[p], size)
+        up = wrap_coord(u[p], widths[0])
+        vp = wrap_coord(v[p], heights[0])
         d0u, d0v, d1u, d1v = dux[p], dvx[p], duy[p], dvy[p]
         # the longer derivative is the major axis
         if d0u * d0u + d0v * d0v < d1u * d1u + d1v * d1v:
@@ -104,15 +106,15 @@ def ewa_kernel(buf, offsets, size, u, v, dux, dvx, duy, dvy, max_aniso, lut, val
             d1v *= sc
             shorter *= sc
         if shorter == 0.0:
-            reads[p] = add_bilinear(buf, offsets[0], size, size, up, vp, 1.0, out[p])
+            reads[p] = add_bilinear(buf, offsets[0], heights[0], widths[0], up, vp, 1.0, out[p])
             continue
         # level of detail from the minor axis, blend of two levels
         lod = max(0.0, math.log2(shorter))
         il = int(math.floor(lod))
         f = lod - il
-        r = _ewa_level(buf, offsets, size, il, up, vp, d0u, d0v, d1u, d1v, lut,
+        r = _ewa_level(buf, offsets, heights, widths, il, up, vp, d0u, d0v, d1u, d1v, lut,
                        1.0 - f, out[p])
-        r += _ewa_level(buf, offsets, size, il + 1, up, vp, d0u, d0v, d1u, d1v, lut,
-                        f, out[p])
+        r += _ewa_level(buf, offsets, heights, widths, il + 1, up, vp, d0u, d0v, d1u, d1v,
+                        lut, f, out[p])
         reads[p] = r
     return reads

@@ -99,3 +99,36 @@ def footprint_parameters(dudx, dvdx, dudy, dvdy) -> Footprint:
     shape = arrs[0].shape
     h, l, t, o = _footprint_arrays(*(a.ravel() for a in arrs))
     return Footprint(h.reshape(shape), l.reshape(shape), t.reshape(shape), o.reshape(shape))
+
+
+@njit(cache=True, inline="always")
+def footprint_sides(dux, dvx, duy, dvy):
+    """The pixel's own parallelogram in the sheared frame of eq. 4.
+
+    With the long side ``(1, tan)`` toward U (or ``(tan, 1)`` toward V) chosen as
+    in eqs. 3-4, the coordinates ``x`` along the tilted axis and ``y`` across it
+    minus ``tan x`` map the pixel's sides to ``(A, 0)`` and ``(bs, Ls)``: the
+    pixel is ``{(s A + t bs, t Ls) : |s|, |t| <= 1/2}``. Eq. 4's ``H`` is
+    ``A + |bs|`` (the whole extent along) and ``L`` is ``|Ls|``.
+
+    Returns
+    -------
+    A, bs, Ls, tan, toward : float, float, float, float, int
+        ``A >= 0`` is the long side's extent along, ``bs`` and ``Ls`` the short
+        side's (signed) extents along and across.
+    """
+    aux, avx, auy, avy = abs(dux), abs(dvx), abs(duy), abs(dvy)
+    # eq. 3: approximate side lengths; eq. 4: the longer one sets the slope
+    dx = max(aux, avx) + 0.5 * min(aux, avx)
+    dy = max(auy, avy) + 0.5 * min(auy, avy)
+    if dy >= dx:
+        if auy >= avy:
+            tan = dvy / duy if duy != 0.0 else 0.0
+            return auy, dux, dvx - dux * tan, tan, TOWARD_U
+        tan = duy / dvy if dvy != 0.0 else 0.0
+        return avy, dvx, dux - dvx * tan, tan, TOWARD_V
+    if aux >= avx:
+        tan = dvx / dux if dux != 0.0 else 0.0
+        return aux, duy, dvy - duy * tan, tan, TOWARD_U
+    tan = dux / dvx if dvx != 0.0 else 0.0
+    return avx, dvy, duy - dvy * tan, tan, TOWARD_V

@@ -1,15 +1,20 @@
-"""Lookup in the prefiltered family (Kovalev & Tarasov, eqs. 5-9).
+"""Lookup in the prefiltered family, per pixel (Kovalev & Tarasov, eqs. 2-9).
 
-Per pixel: the footprint of eqs. 2-4 gives ``H, L, tan`` and the axis it is
-tilted toward; the three copies around ``(log2 H, log2 L)`` are read with
-skew-corrected bilinear interpolation (eqs. 6-9) and blended by the
-mantissas of ``H`` and ``L`` (eq. 5): :func:`parallelogram_kernel`.
-:func:`two_probe_kernel` replaces eq. 5's blend along ``H`` by two probes of
-one copy (measured closer to the box-filtered reference).
+:func:`coverage_kernel` (the default): eqs. 3-4 choose the tilted axis and
+the skew; the copy is chosen so the pixel spans ``cells_along`` to twice that
+many cells along its long side and one to two across, and the pixel's own
+parallelogram is summed over them with exact shares
+(:func:`core.perspective.coverage.cover_cells`); footprints under a few
+texels are integrated over the texture itself
+(:func:`core.perspective.coverage.quadrature_texels`).
 
-Both kernels first bound the footprint (:func:`_honoured`): the elongation is
-clamped on the true footprint, and a footprint longer than the (wrapping)
-texture is folded into one texture length, widened across by the same factor.
+:func:`seed_kernel`: the seed as published: the three copies around
+``(log2 H, log2 L)`` read with the skew-corrected bilinear interpolation of
+eqs. 6-9 and blended by the mantissas of ``H`` and ``L`` (eq. 5).
+
+Both take per-pixel arrays (length ``P``) in texels of the power-of-two grid
+the family was built on, write ``out : (P, C) float32`` in stored units and
+return the texels read per pixel.
 """
 
 from __future__ import annotations
@@ -19,8 +24,124 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from core.perspective.footprint import TOWARD_U, footprint
+from core.perspective.coverage import QUAD_WINDOW, cover_cells, quadrature_texels
+from core.perspective.footprint import TOWARD_U, footprint, footprint_sides
 from core.perspective.sampling import add_bilinear, add_column_lerp, wrap_coord
+
+#: pixels per parallel chunk (scratch is allocated once per chunk)
+CHUNK = 256
+#: footprints below this many texels along both texture axes are integrated
+#: over the texture itself
+QUAD_EXTENT = 4.0
+
+
+@njit(cache=True, inline="always")
+def floor_log2(x):
+    """``floor(log2 x)`` for ``x >= 1``, else -1."""
+    if x < 1.0:
+        return -1
+    return int(math.floor(math.log2(x)))
+
+
+@njit(cache=True, inline="always")
+def log2_int(n):
+    return int(round(math.log2(n)))
+
+
+@njit(cache=True, inline="always")
+def skew_choice(tan, i, so, n_skews, blend):
+    """``(s0, tau0, s1, tau1, f)``: the skews read for ``tan`` at ``lambda = 2^i``
+    and the weight ``f`` of the second (0 unless ``blend``)."""
+    if n_skews == 1:
+        return 0, 0.0, 0, 0.0, 0.0
+    c = so * (1 << (i - 1))
+    q = c // 2
+    if blend:
+        # the two skews around tan, linear in tan
+        jf = tan * 0.5 * c
+        j = int(math.floor(jf))
+        f = jf - j
+        if j < -q:
+            j, f = -q, 0.0
+        if j >= q:
+            j, f = q, 0.0
+        return j + q, 2.0 * j / c, min(j + 1, q) + q, 2.0 * min(j + 1, q) / c, f
+    # nearest skew, ties away from 0 (mirrored footprints pick mirrored copies)
+    j = int(math.floor(abs(tan) * 0.5 * c + 0.5))
+    if tan < 0.0:
+        j = -j
+    j = max(-q, min(q, j))
+    return j + q, 2.0 * j / c, j + q, 2.0 * j / c, 0.0
+
+
+@njit(cache=True, parallel=True)
+def coverage_kernel(buf, start, count, grid_w, grid_h, k, so, cells_along, tex, tex_w, tex_h,
+                    su, sv, u, v, dux, dvx, duy, dvy, blend, valid, out):
+    """The default filter (see the module docstring); returns reads per pixel."""
+    p_count = u.shape[0]
+    reads = np.zeros(p_count, np.int32)
+    for chunk in prange((p_count + CHUNK - 1) // CHUNK):
+        scratch = np.zeros((QUAD_WINDOW, QUAD_WINDOW))
+        for p in range(chunk * CHUNK, min(p_count, (chunk + 1) * CHUNK)):
+            if not valid[p]:
+                continue
+            # small footprints: the box over the pixel of the texture itself
+            iux, ivx, iuy, ivy = dux[p] / su, dvx[p] / sv, duy[p] / su, dvy[p] / sv
+            if abs(iux) + abs(iuy) < QUAD_EXTENT and abs(ivx) + abs(ivy) < QUAD_EXTENT:
+                reads[p] = quadrature_texels(
+                    tex, tex_h, tex_w, wrap_coord(u[p] / su, tex_w), wrap_coord(v[p] / sv, tex_h),
+                    iux, ivx, iuy, ivy, scratch, out[p])
+                continue
+            # eqs. 3-4: the tilted axis, the slope, the pixel in the sheared frame
+            a_len, bs, ls, tan, toward = footprint_sides(dux[p], dvx[p], duy[p], dvy[p])
+            if toward == TOWARD_U:
+                along, across, x0, y0 = grid_w, grid_h, u[p], v[p]
+            else:
+                along, across, x0, y0 = grid_h, grid_w, v[p], u[p]
+            x0 = wrap_coord(x0, along)
+            y0 = wrap_coord(y0, across)
+            h = a_len + abs(bs)
+            # a footprint longer than the texture winds round it: one turn, widened
+            if h > along:
+                f = h / along
+                a_len /= f
+                bs /= f
+                ls *= f
+                h = float(along)
+            if abs(ls) > across:
+                ls = across if ls > 0 else -across
+            a_len = max(a_len, 1e-6)
+            pa, px = log2_int(along), log2_int(across)
+            # cells: cells_along..2 cells_along along, 1..2 across
+            a = min(max(floor_log2(h / cells_along), 1), pa)
+            b = min(max(floor_log2(abs(ls)), 0), px)
+            if a - b > k and b < px:
+                b = min(a - k, px)
+            if a < b:
+                a = b
+            i = a - b
+            if i == 0:
+                # a mip level, in the texture's frame
+                rows, cols = max(1, grid_h >> b), max(1, grid_w >> b)
+                if toward == TOWARD_U:
+                    s, t, swap = grid_w / cols, grid_h / rows, False
+                else:
+                    s, t, swap = grid_h / rows, grid_w / cols, True
+                reads[p] = cover_cells(buf, start[0, b, b], rows, cols, s, t, b == 0, swap,
+                                       x0, y0, a_len, bs, ls, tan, 0.0, 1.0, out[p])
+                continue
+            rows, cols = max(1, across >> b), max(1, along >> a)
+            s, t = along / cols, across / rows
+            n_skews = count[toward, a, b]
+            s0, tau0, s1, tau1, fb = skew_choice(tan, i, so, n_skews, blend)
+            off = start[toward, a, b]
+            r = cover_cells(buf, off + s0 * rows * cols, rows, cols, s, t, b == 0, False, x0,
+                            y0, a_len, bs, ls, tan, tau0, 1.0 - fb, out[p])
+            if fb > 0.0:
+                r += cover_cells(buf, off + s1 * rows * cols, rows, cols, s, t, b == 0, False,
+                                 x0, y0, a_len, bs, ls, tan, tau1, fb, out[p])
+            reads[p] = r
+    return reads
 
 
 @njit(cache=True, inline="always")
@@ -34,212 +155,83 @@ def _exponent_mantissa(x, lo, hi):
         return lo, 0.0
     if e >= hi:
         return hi, 0.0
-    m = x / (1 << e) - 1.0
-    if m < 0.0:
-        m = 0.0
-    if m >= 1.0:
-        m = 0.999999
-    return e, m
+    return e, min(max(x / (1 << e) - 1.0, 0.0), 0.999999)
 
 
-@njit(cache=True, inline="always")
-def _honoured(h, l, size, max_ratio):
-    """The footprint ``(H, L)`` the family can serve: ``1 <= L <= H <= N``.
-
-    The elongation is clamped to ``max_ratio`` on the footprint itself (as GPUs
-    and EWA do), before the length is bounded. A footprint longer than the
-    texture (``H > N``, near the horizon) wraps ``H / N`` times; for a slope
-    that is not a small fraction its turns lie side by side across the long
-    side, so it is read as the ``N``-long footprint ``H / N`` times wider (the
-    same area; ``L = N`` is the texture's mean)."""
-    h = max(h, 1.0)
-    # elongation clamp on the true footprint: widen across
-    l = max(l, h / max_ratio, 1.0)
-    # fold a footprint longer than the texture into one turn, same area
-    if h > size:
-        l = l * (h / size)
-        h = float(size)
-    return h, min(l, h)
-
-
-@njit(cache=True, inline="always")
-def _add_copy_columns(buf, off, rows, cols, i0, i1, fx, y1, y2, w, out):
-    """Eqs. 8-9: linear down columns ``i0`` (at ``y1``) and ``i1`` (at ``y2``),
-    then across with weight ``fx``; returns texels read (4)."""
-    r = add_column_lerp(buf, off, rows, cols, i0, y1, w * (1.0 - fx), out)
-    r += add_column_lerp(buf, off, rows, cols, i1, y2, w * fx, out)
-    return r
-
-
-@njit(cache=True, inline="always")
-def _read_copy(buf, table, size, k, over, lover, a, b, tan, toward, u, v, w, blend, out):
-    """``out += w * R_i`` for copy ``(a, b)`` (eqs. 6-9); returns texels read.
-
-    ``blend``: interpolate between the two prefiltered skews around ``tan``
-    (linear in ``tan``, like eq. 5 in ``H`` and ``L``) instead of taking the
-    nearest one; twice the reads for ``lambda >= 4``."""
-    n = table.shape[1] - 1
-    # keep (a, b) inside the family: b <= a <= n, a - b <= k
-    if a > n:
-        a = n
-    if b > a:
-        b = a
-    if a - b > k:
-        b = a - k
+@njit(cache=True)
+def _seed_read(buf, start, count, grid_w, grid_h, k, so, a, b, tan, toward, u, v, w, blend,
+               out):
+    """``out += w * R_i`` for copy ``(a, b)`` (eqs. 6-9); returns texels read."""
+    along, across = (grid_w, grid_h) if toward == TOWARD_U else (grid_h, grid_w)
+    pa, px = log2_int(along), log2_int(across)
+    # keep (a, b) inside the family
+    b = min(max(b, 0), px)
+    a = max(min(a, pa), b)
+    if a - b > k and b < px:
+        b = min(a - k, px)
     i = a - b
     if i == 0:
-        # lambda = 1: the ordinary mip level, plain bilinear
-        s = 1.0 / (1 << a)
-        r = size >> a
-        return add_bilinear(buf, table[0, a, b, 0], r, r, u * s, v * s, w, out)
-    # skews at this lambda are tan = 2 j / c, |j| <= q
-    c = over * (1 << (i - 1))
-    q = c // 2
-    if blend:
-        # the two skews around tan and the weight of the upper one
-        jf = tan * 0.5 * c
-        j = int(math.floor(jf))
-        ft = jf - j
-        if j < -q:
-            j, ft = -q, 0.0
-        if j >= q:
-            j, ft = q, 0.0
-    else:
-        # nearest skew, ties away from 0 (so mirrored footprints pick mirrored copies)
-        j = int(math.floor(abs(tan) * 0.5 * c + 0.5))
-        if tan < 0.0:
-            j = -j
-        if j < -q:
-            j = -q
-        if j > q:
-            j = q
-        ft = 0.0
-    # the copy's lattice: `cols` samples along the long side, N >> b across
-    rows = size >> b
-    cols = min(size >> b, (size >> a) * lover)
-    step = size / cols
-    # coordinates in the copy's frame: X along the long side, Y across
-    if toward == TOWARD_U:
-        x, y = u / step, v / (1 << b)
-    else:
-        x, y = v / step, u / (1 << b)
-    # rows of shift per column along the tilted side (lambda tan when not oversampled)
-    lam_tan = step / (1 << b) * tan
+        # lambda = 1: the mip level, bilinear (eqs. 8-9 with tan = 0)
+        rows, cols = max(1, grid_h >> b), max(1, grid_w >> b)
+        return add_bilinear(buf, start[0, b, b], rows, cols, u * cols / grid_w,
+                            v * rows / grid_h, w, out)
+    rows, cols = max(1, across >> b), max(1, along >> a)
+    s, t = along / cols, across / rows
+    x, y = (u / s, v / t) if toward == TOWARD_U else (v / s, u / t)
+    s0, _, s1, _, fb = skew_choice(tan, i, so, count[toward, a, b], blend)
+    # rows of shift per column along the tilted side (lambda tan)
+    lam_tan = s / t * tan if count[toward, a, b] > 1 else 0.0
     # eqs. 6-7: skew-corrected heights in the two neighbouring columns
     xs = wrap_coord(x - 0.5, cols)
     i0 = int(xs)
     fx = xs - i0
-    i1 = i0 + 1
-    if i1 == cols:
-        i1 = 0
+    i1 = (i0 + 1) % cols
     y1 = y - fx * lam_tan
     y2 = y + (1.0 - fx) * lam_tan
-    # eqs. 8-9 in the chosen copy (and its upper neighbour in skew when blending)
-    r = _add_copy_columns(buf, table[toward, a, b, j + q], rows, cols, i0, i1, fx, y1, y2,
-                          w * (1.0 - ft), out)
-    if ft > 0.0:
-        r += _add_copy_columns(buf, table[toward, a, b, j + 1 + q], rows, cols, i0, i1, fx,
-                               y1, y2, w * ft, out)
+    r = 0
+    # eq. 8 in the chosen skew (and its upper neighbour when blending)
+    for sk, ws in ((s0, 1.0 - fb), (s1, fb)):
+        if ws <= 0.0:
+            continue
+        off = start[toward, a, b] + sk * rows * cols
+        r += add_column_lerp(buf, off, rows, cols, i0, y1, w * ws * (1.0 - fx), out)
+        r += add_column_lerp(buf, off, rows, cols, i1, y2, w * ws * fx, out)
     return r
 
 
 @njit(cache=True, parallel=True)
-def parallelogram_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy, blend,
-                         valid, out):
-    """The seed's filter per pixel; derivatives in texels of the ``N x N``
-    texture (already scaled by the aperture). Returns texels read per pixel."""
+def seed_kernel(buf, start, count, grid_w, grid_h, k, so, u, v, dux, dvx, duy, dvy, blend,
+                valid, out):
+    """The seed's filter per pixel (eqs. 3-9); returns texels read per pixel."""
     p_count = u.shape[0]
     reads = np.zeros(p_count, np.int32)
-    n = table.shape[1] - 1
     for p in prange(p_count):
         if not valid[p]:
             continue
-        up = wrap_coord(u[p], size)
-        vp = wrap_coord(v[p], size)
         # eqs. 3-4: footprint parameters
         h, l, tan, toward = footprint(dux[p], dvx[p], duy[p], dvy[p])
-        # at most 2^k elongation, at most the texture along the long side
-        h, l = _honoured(h, l, size, float(1 << k))
-        eh, mh = _exponent_mantissa(h, 0, n)
+        along = grid_w if toward == TOWARD_U else grid_h
+        # at most 2^k elongation (widened across), folded into one turn of the texture
+        h = max(h, 1.0)
+        l = max(l, h / (1 << k), 1.0)
+        if h > along:
+            l *= h / along
+            h = float(along)
+        l = min(l, h)
+        eh, mh = _exponent_mantissa(h, 0, log2_int(along))
         el, ml = _exponent_mantissa(l, 0, eh)
         # eq. 5: three copies around (log2 H, log2 L), weights from the mantissas
         if mh >= ml:
-            w1, w2, w3 = 1.0 - mh, ml, mh - ml
-            a3, b3 = eh + 1, el
+            w1, w2, w3, a3, b3 = 1.0 - mh, ml, mh - ml, eh + 1, el
         else:
-            w1, w2, w3 = 1.0 - ml, mh, ml - mh
-            a3, b3 = eh, el + 1
-        r = _read_copy(buf, table, size, k, over, lover, eh, el, tan, toward, up, vp, w1,
-                       blend, out[p])
+            w1, w2, w3, a3, b3 = 1.0 - ml, mh, ml - mh, eh, el + 1
+        r = _seed_read(buf, start, count, grid_w, grid_h, k, so, eh, el, tan, toward, u[p],
+                       v[p], w1, blend, out[p])
         if w2 > 0.0:
-            r += _read_copy(buf, table, size, k, over, lover, eh + 1, el + 1, tan, toward, up, vp,
-                            w2, blend, out[p])
+            r += _seed_read(buf, start, count, grid_w, grid_h, k, so, eh + 1, el + 1, tan,
+                            toward, u[p], v[p], w2, blend, out[p])
         if w3 > 0.0:
-            r += _read_copy(buf, table, size, k, over, lover, a3, b3, tan, toward, up, vp,
-                            w3, blend, out[p])
-        reads[p] = r
-    return reads
-
-
-@njit(cache=True, parallel=True)
-def two_probe_kernel(buf, table, size, k, over, lover, u, v, dux, dvx, duy, dvy, blend,
-                     valid, out):
-    """Variant of eq. 5 along the long side: instead of blending the copies
-    ``H = 2^e`` and ``2^(e+1)`` by the mantissa, read copy ``2^e`` twice,
-    centred ``+-(H - 2^e)/2`` along the tilted long side, so the two boxes
-    span exactly ``H`` (a trapezoid; exact at both powers of two). Across,
-    ``L`` is blended by its mantissa as in eq. 5. When the long side is
-    shorter than 2 texels and the footprint is anisotropic, copy ``2^0`` is
-    the texture itself (bilinear, no box), so the probes go to ``+-sigma``,
-    the spread of the pixel's parallelogram along the long axis. 4 to 16
-    texel reads (twice that for ``lambda >= 4`` when ``blend``).
-    Selected by ``FilterOptions(long_probes=2)`` (the default)."""
-    p_count = u.shape[0]
-    reads = np.zeros(p_count, np.int32)
-    n = table.shape[1] - 1
-    for p in prange(p_count):
-        if not valid[p]:
-            continue
-        up = wrap_coord(u[p], size)
-        vp = wrap_coord(v[p], size)
-        # eqs. 3-4: footprint parameters
-        h0, l0, tan, toward = footprint(dux[p], dvx[p], duy[p], dvy[p])
-        # at most 2^(k+1) elongation, at most the texture along the long side
-        h, l = _honoured(h0, l0, size, float(2 << k))
-        eh, mh = _exponent_mantissa(h, 0, n)
-        el, ml = _exponent_mantissa(l, 0, eh)
-        if eh - el > k:
-            el, ml = eh - k, 0.0
-        # probe offset along the long side: the two boxes span H
-        d = 0.5 * mh * (1 << eh)
-        if eh == 0 and h0 >= 2.0 * l0:
-            # magnified along the long side: +-sigma, sigma^2 = (a^2 + b^2) / 12 of the
-            # pixel's sides a, b projected on the long axis (the box's variance)
-            a_x, b_x = (dux[p], duy[p]) if toward == TOWARD_U else (dvx[p], dvy[p])
-            d = math.sqrt((a_x * a_x + b_x * b_x) / 12.0)
-        # probe offsets along the long side (1, tan) or (tan, 1)
-        if toward == TOWARD_U:
-            du, dv = d, d * tan
-        else:
-            du, dv = d * tan, d
-        # one probe when H is a power of two, else two
-        nprobe = 1 if d == 0.0 else 2
-        wp = 1.0 / nprobe
-        # the wider base must stay within the copy's height (L <= H)
-        cross_ok = el + 1 <= eh
-        r = 0
-        for q in range(nprobe):
-            sgn = 0.0 if nprobe == 1 else (2.0 * q - 1.0)
-            pu = up + sgn * du
-            pv = vp + sgn * dv
-            r += _read_copy(buf, table, size, k, over, lover, eh, el, tan, toward, pu, pv,
-                            wp * (1.0 - ml), blend, out[p])
-            if ml > 0.0 and cross_ok:
-                r += _read_copy(buf, table, size, k, over, lover, eh, el + 1, tan, toward, pu,
-                                pv, wp * ml, blend, out[p])
-        if ml > 0.0 and not cross_ok:
-            # nearly square footprint: blend toward the next mip level (eq. 5's R2)
-            r += _read_copy(buf, table, size, k, over, lover, eh + 1, el + 1, tan, toward, up,
-                            vp, ml, blend, out[p])
+            r += _seed_read(buf, start, count, grid_w, grid_h, k, so, a3, b3, tan, toward,
+                            u[p], v[p], w3, blend, out[p])
         reads[p] = r
     return reads

@@ -218,3 +218,40 @@ def camera_mapping(
     # normalise so z is about 1 at the frame centre (the mapping is homogeneous)
     s = 1.0 / f
     return PlaneMapping(au * s, bu * s, cu * s, av * s, bv * s, cv * s, az * s, bz * s, cz * s)
+
+
+def overview_camera(texture_size: tuple[int, int]) -> Camera:
+    """A low-angle view of the whole texture, the default when none is given.
+
+    The camera looks along the texture's longer side (north for a square or
+    tall texture, east for a wide one) from a tenth of that length beyond its
+    near edge, so a 60-degree view spans the whole texture at its far edge,
+    at a tenth of its distance to that edge above the plane, aimed at the
+    texture's centre (about 10 degrees down): the near edge at the bottom of
+    the frame, the horizon (over the texture's repeats) near the top.
+
+    Parameters
+    ----------
+    texture_size : (width, height) in texels
+    """
+    w, h = (float(s) for s in texture_size)
+    along = max(w, h)
+    back = 1.1 * along
+    height = back / 10.0
+    pitch = math.degrees(math.atan2(height, back - along / 2.0))
+    if h >= w:
+        return Camera(height=height, pitch=pitch, yaw=0.0, fov=60.0, x=w / 2.0, y=back)
+    return Camera(height=height, pitch=pitch, yaw=90.0, fov=60.0, x=w - back, y=h / 2.0)
+
+
+def scaled_view(view: PlaneMapping | Camera, sx: float, sy: float) -> PlaneMapping | Camera:
+    """The same view of a texture resampled by ``sx`` along U and ``sy`` along V.
+
+    A camera keeps its angles; its height and position scale by ``sx`` (a
+    camera needs ``sx == sy``, which texture reductions keep to within a texel).
+    """
+    if isinstance(view, PlaneMapping):
+        return view.scaled(sx, sy)
+    return Camera(height=view.height * sx, pitch=view.pitch, yaw=view.yaw, fov=view.fov,
+                  x=None if view.x is None else view.x * sx,
+                  y=None if view.y is None else view.y * sy)

@@ -30,6 +30,13 @@ class Method(StrEnum):
 PYRAMID_METHODS = frozenset({Method.TRILINEAR, Method.ANISO, Method.EWA})
 
 
+class Lookup(StrEnum):
+    """How ``PARALLELOGRAM`` reads the family of prefiltered copies."""
+
+    COVERAGE = "coverage"  # the pixel's parallelogram summed over the cells it covers
+    SEED = "seed"  # eqs. 5-9 as published: three copies blended by the mantissas
+
+
 @dataclass(frozen=True)
 class FilterOptions:
     """How a frame is filtered.
@@ -39,57 +46,38 @@ class FilterOptions:
     method : Method
         The filter.
     max_anisotropy : float
-        Largest footprint elongation honoured (GPU/pbrt style clamp); longer
-        footprints are widened across. For ``PARALLELOGRAM`` it also decides
-        how many skewed copies are prefiltered: ``lambda = H/L`` up to the
-        next power of two, ``2^k`` (the two-probe lookup honours ``2^(k+1)``).
-        The clamp acts on the pixel's own footprint, like EWA's, and a
-        footprint longer than the wrapping texture (near the horizon) is read
-        as one texture length widened across by the same factor (same area;
-        its turns lie side by side): before, ``H`` was cut to ``N`` first, so
-        the horizon rows read a thin band instead of nearly the texture's
-        mean (up to 20x EWA's error there); fixing it gained 0.9-1.2 dB on the
-        thematic texture at pitches 2.5-10 (0 on the checkerboard; benchmarks/
-        results/perspective.json).
-        ``ANISO`` takes at most this many probes.
+        ``PARALLELOGRAM``: the family keeps cells up to this elongation
+        (``lambda = 2^k``, ``k = ceil(log2)``, the seed's table with ``a - b <= k``);
+        ``COVERAGE`` covers a pixel with several cells along, so footprints up to
+        about ``cells_per_footprint`` times longer are read sharp, longer ones
+        with wider cells across. ``SEED`` clamps the footprint to it (widened
+        across). ``ANISO`` takes at most this many probes, ``EWA`` clamps its
+        ellipse's eccentricity to it.
     aperture : float
         Scale of the pixel footprint fed to the filters (1.0 = the pixel's
         own parallelogram of eq. 2; the seed's 2 x 2-pixel filter is 2.0).
         Applies to ``PARALLELOGRAM``, ``TRILINEAR`` and ``ANISO``.
     skew_oversampling : int
-        Power of two: how many times more skews per ``lambda`` level than the
-        seed's ``lambda`` (1 = the seed). More skews, more memory. Default 1:
-        2 doubles the family for 0.1-0.2 dB (benchmarks/results/perspective.json,
-        ``parallelogram-dense``).
-    long_oversampling : int
-        Power of two: how many times more samples along a copy's long side
-        than the seed's ``N/H`` (1 = the seed), never closer than ``L`` apart.
-        More samples, more memory. Default 2: with the seed's lattice, edges
-        across the long side show the bilinear ripple of a too coarse lattice
-        (about 3 dB lost); 4 gains another 1-2 dB on the checkerboard for 1.7x
-        the memory. Defaults cost 43 bytes per RGB uint8 texel (mip pyramid: 4).
-    long_probes : int
-        ``PARALLELOGRAM`` only. 1: the seed's eq. 5, three copies blended by
-        the mantissas of ``H`` and ``L`` (12 reads). 2: two probes of the
-        copy below ``H`` spanning exactly ``H`` along the long side (4-16
-        reads, see :func:`core.perspective.lookup.two_probe_kernel`); default,
-        measured 0.5-1.3 dB closer to the reference at grazing angles. Where
-        the long side is under 2 texels and the footprint anisotropic, copy
-        ``2^0`` is the bare texture, so the probes sit at ``+-sigma`` of the
-        pixel's box along the long side: another 0.3-0.7 dB on the
-        checkerboard and 0.6-1.3 dB on the thematic texture at pitches <= 20
-        for 7.6-8.5 reads instead of 5.7-7.2 (the ``H < 1`` pixels were a
-        single bilinear read before).
+        1 or 2: how many times more skews per ``lambda`` level than the seed's
+        ``lambda``. 2 doubles the family's memory.
+    cells_per_footprint : float
+        ``COVERAGE``: the copy is chosen so a pixel spans this many to twice
+        this many cells along its long side (and one to two across): more
+        cells, sharper ends of the filter, more texels read. Measured on the
+        issue's grazing checkerboard (benchmarks/results/perspective.json):
+        2 gives 38.1 dB for 10.5 reads per pixel, 3 (default) 44.7 dB for
+        11.7, 4 44.7 dB for 12.4.
+    lookup : Lookup
+        ``PARALLELOGRAM`` only: ``COVERAGE`` (default) or the seed's ``SEED``.
     skew_blend : bool
         ``PARALLELOGRAM`` only. Interpolate between the two prefiltered skews
-        around the footprint's ``tan`` (linear in ``tan``, as eq. 5 is in
-        ``H`` and ``L``) instead of reading the nearest one. Measured +0.3 to
-        +0.6 dB at pitches <= 20 on both textures for 9-11.5 reads instead of
-        7.6-8.5 and about 1.1x the time; default off (the default already
-        beats EWA by 1.3-5.3 dB with fewer reads).
+        around the footprint's ``tan`` (linear in ``tan``) instead of reading
+        the nearest one: twice the reads where the copy has several skews.
+        It helps the seed's lookup; ``COVERAGE`` already takes the nearest
+        skew's drift into the cross share, and blending costs it (44.7 -> 43.6
+        dB on the issue's scene).
     sky : tuple of float
-        Colour of pixels above the horizon (``z <= 0``), in the texture's
-        value scale (integers are read as [0, 1]).
+        Colour of pixels above the horizon (``z <= 0``), in [0, 1].
     reference_density : float
         ``REFERENCE`` only: sub-samples per texel of footprint along each
         screen axis.
@@ -101,8 +89,8 @@ class FilterOptions:
     max_anisotropy: float = 16.0
     aperture: float = 1.0
     skew_oversampling: int = 1
-    long_oversampling: int = 2
-    long_probes: int = 2
+    cells_per_footprint: float = 3.0
+    lookup: Lookup = Lookup.COVERAGE
     skew_blend: bool = False
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
     reference_density: float = 2.0
@@ -110,26 +98,27 @@ class FilterOptions:
     reference_max_samples: int = 256
 
     def __post_init__(self) -> None:
-        try:
-            object.__setattr__(self, "method", Method(self.method))
-        except ValueError:
-            names = ", ".join(m.value for m in Method)
-            raise TerrathemeError(
-                f"unknown filter method {self.method!r} (choose from {names})"
-            ) from None
+        for name, enum, what in (("method", Method, "filter method"),
+                                 ("lookup", Lookup, "lookup")):
+            try:
+                object.__setattr__(self, name, enum(getattr(self, name)))
+            except ValueError:
+                names = ", ".join(m.value for m in enum)
+                raise TerrathemeError(
+                    f"unknown {what} {getattr(self, name)!r} (choose from {names})"
+                ) from None
         if not (math.isfinite(self.max_anisotropy) and 1.0 <= self.max_anisotropy <= 4096):
             raise TerrathemeError(
                 f"max_anisotropy must be in [1, 4096], got {self.max_anisotropy}"
             )
         if not (math.isfinite(self.aperture) and 0.0 < self.aperture <= 16.0):
             raise TerrathemeError(f"aperture must be in (0, 16], got {self.aperture}")
-        for name in ("skew_oversampling", "long_oversampling"):
-            val = getattr(self, name)
-            s = int(val)
-            if s != val or s < 1 or s > 16 or s & (s - 1):
-                raise TerrathemeError(f"{name} must be a power of two in [1, 16], got {val}")
-        if self.long_probes not in (1, 2):
-            raise TerrathemeError(f"long_probes must be 1 or 2, got {self.long_probes}")
+        if self.skew_oversampling not in (1, 2) or isinstance(self.skew_oversampling, bool):
+            raise TerrathemeError(
+                f"skew_oversampling must be 1 or 2, got {self.skew_oversampling}")
+        if not (math.isfinite(self.cells_per_footprint) and 1.0 <= self.cells_per_footprint <= 16):
+            raise TerrathemeError(
+                f"cells_per_footprint must be in [1, 16], got {self.cells_per_footprint}")
         if not isinstance(self.skew_blend, bool):
             raise TerrathemeError(f"skew_blend must be True or False, got {self.skew_blend!r}")
         if len(self.sky) == 0 or not all(math.isfinite(c) for c in self.sky):
@@ -146,5 +135,5 @@ class FilterOptions:
 
     @property
     def max_lambda_log2(self) -> int:
-        """``k``: the parallelogram family holds ``lambda = H/L`` up to ``2**k``."""
+        """``k``: the family keeps cells with ``lambda = H/L`` up to ``2**k``."""
         return max(0, math.ceil(math.log2(self.max_anisotropy) - 1e-9))

@@ -1,14 +1,15 @@
 """Rendering a textured ground plane: the public entry points.
 
 ``PreparedTexture`` prefilters a texture once (mip pyramid, the seed's
-family of copies) and renders any number of frames as the camera moves;
-``render_perspective`` is the one-call form.
+family of copies, optionally loaded from a :class:`~.cache.FamilyCache`) and
+renders any number of frames as the camera moves; ``render_perspective`` is
+the one-call form.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,17 +20,19 @@ from core.perspective.baselines import (
     nearest_kernel,
     trilinear_kernel,
 )
+from core.perspective.cache import FamilyCache, family_key
 from core.perspective.ewa import EWA_LUT, ewa_kernel
 from core.perspective.family import ParallelogramFamily, build_family
-from core.perspective.lookup import parallelogram_kernel, two_probe_kernel
+from core.perspective.lookup import coverage_kernel, seed_kernel
 from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
-from core.perspective.options import FilterOptions, Method
+from core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
 from core.perspective.reference import reference_kernel
 from core.perspective.texture import (
     MipPyramid,
-    as_float_texture,
     build_pyramid,
-    power_of_two_square,
+    power_of_two_grid,
+    power_of_two_side,
+    stored_texture,
 )
 
 Progress = Callable[[int, int], None]
@@ -47,7 +50,7 @@ class RenderResult:
     Attributes
     ----------
     image : (h, w, C) float32 ndarray
-        C as in the texture; integer textures come out in [0, 1].
+        C as in the texture, values in [0, 1] for integer textures.
     texel_reads : (h, w) int32 ndarray
         Texels read for each pixel (0 for sky).
     mapping : PlaneMapping
@@ -98,81 +101,88 @@ class PreparedTexture:
     Parameters
     ----------
     texture : (h, w) or (h, w, C) ndarray, C in 1..4
-        Integer types are read as [0, 1]. Any size: the pyramid and the
-        family use it resampled to ``N x N``, ``N`` the next power of two.
+        uint8 / uint16 textures keep their type (the prefiltered data too:
+        filtered in floating point, then rounded); other types become float32
+        in [0, 1]. Any size: the pyramid and the family use it resampled to
+        powers of two side by side (:func:`~.texture.power_of_two_grid`).
     options : FilterOptions
         The default filter; the structures it needs are built now.
     progress : callable(done, total) or None
+        Called while the family is built (cells written of the total).
+    cache : FamilyCache or None
+        Families are loaded from and stored into it.
 
     Notes
     -----
     Structures for other methods are built on first use by :meth:`render`
     and kept, so switching methods in a viewer costs one prefiltering each.
-    For ``uint8`` / ``uint16`` textures the prefiltered data (pyramid, family)
-    is stored in that type (filtered in floating point, then rounded), a
-    quarter / half of the float32 memory.
     """
 
     def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,
-                 progress: Progress | None = None) -> None:
+                 progress: Progress | None = None, cache: FamilyCache | None = None) -> None:
         self.options = options if options is not None else FilterOptions()
-        dt = np.asarray(texture).dtype
-        # prefiltered data keeps 8 or 16 bits when the input has them
-        self._store = dt if dt in (np.dtype(np.uint8), np.dtype(np.uint16)) else None
-        self._scale = 1.0 / np.iinfo(dt).max if self._store is not None else 1.0
-        self.texture = as_float_texture(texture)
-        self.square, self.su, self.sv = power_of_two_square(self.texture)
+        self.stored = stored_texture(texture)
+        w, h = self.stored.size
+        self.grid_size = (power_of_two_side(w), power_of_two_side(h))
+        self.su, self.sv = self.grid_size[0] / w, self.grid_size[1] / h
+        self.cache = cache
+        self.cache_hit: bool | None = None
         self._pyramid: MipPyramid | None = None
         self._families: dict[tuple[int, int], ParallelogramFamily] = {}
         self._ensure(self.options, progress)
 
     @property
     def channels(self) -> int:
-        return int(self.texture.shape[2])
+        return self.stored.channels
 
     @property
     def texture_size(self) -> tuple[int, int]:
         """``(width, height)`` of the input in texels."""
-        return int(self.texture.shape[1]), int(self.texture.shape[0])
+        return self.stored.size
 
-    def _stored(self, buf: np.ndarray) -> np.ndarray:
-        """Prefiltered texels in the storage type (rounded), ``(T, C)``."""
-        if self._store is None:
-            return buf
-        top = np.iinfo(self._store).max
-        return np.ascontiguousarray(np.clip(np.rint(buf * top), 0, top).astype(self._store))
+    def _grid(self) -> np.ndarray:
+        """The texture resampled to the power-of-two grid, float32 stored units."""
+        return power_of_two_grid(self.stored)[0]
 
     @property
     def pyramid(self) -> MipPyramid:
         if self._pyramid is None:
-            pyr = build_pyramid(self.square)
-            self._pyramid = replace(pyr, buf=self._stored(pyr.buf))
+            self._pyramid = build_pyramid(self._grid(), self.stored.texels.dtype)
         return self._pyramid
 
     def family(self, options: FilterOptions | None = None,
                progress: Progress | None = None) -> ParallelogramFamily:
-        """The seed's prefiltered copies for ``options`` (built once, cached)."""
+        """The prefiltered copies for ``options`` (built once, or loaded from the cache)."""
         opt = options if options is not None else self.options
-        key = (opt.max_lambda_log2, opt.skew_oversampling, opt.long_oversampling)
+        key = (opt.max_lambda_log2, opt.skew_oversampling)
         if key not in self._families:
-            dtype = self._store if self._store is not None else np.float32
-            self._families[key] = build_family(self.square, *key, progress=progress,
-                                               dtype=dtype)
+            fam = None
+            if self.cache is not None:
+                cache_key = family_key(self.stored.texels, *key)
+                fam = self.cache.load(cache_key)
+                self.cache_hit = fam is not None
+            if fam is None:
+                fam = build_family(self._grid(), *key, dtype=self.stored.texels.dtype,
+                                   progress=progress)
+                if self.cache is not None:
+                    self.cache.store(cache_key, fam)
+            self._families[key] = fam
         return self._families[key]
 
     def memory_bytes(self, options: FilterOptions | None = None) -> int:
-        """Bytes of texture data the method of ``options`` reads from."""
+        """Bytes of texture data the method of ``options`` reads from (the input included)."""
         opt = options if options is not None else self.options
+        base = int(self.stored.texels.nbytes)
         if opt.method == Method.PARALLELOGRAM:
-            return self.family(opt).nbytes
-        if opt.method in (Method.TRILINEAR, Method.ANISO, Method.EWA):
+            return self.family(opt).nbytes + base
+        if opt.method in PYRAMID_METHODS:
             return self.pyramid.nbytes
-        return int(self.texture.nbytes)
+        return base
 
     def _ensure(self, opt: FilterOptions, progress: Progress | None = None) -> None:
         if opt.method == Method.PARALLELOGRAM:
             self.family(opt, progress)
-        elif opt.method in (Method.TRILINEAR, Method.ANISO, Method.EWA):
+        elif opt.method in PYRAMID_METHODS:
             _ = self.pyramid
 
     def mapping_for(self, view: PlaneMapping | Camera, size: tuple[int, int]) -> PlaneMapping:
@@ -223,51 +233,55 @@ class PreparedTexture:
         c = self.channels
         out = np.zeros((bh * w, c), np.float32)
         m = opt.method
+        top = self.stored.top
+        tex = self.stored.texels.reshape(-1, c)
+        tw, th = self.stored.size
         if m in (Method.NEAREST, Method.BILINEAR, Method.REFERENCE):
             # these read the input texture itself
             u, v, z, dux, dvx, duy, dvy = _grid(mapping, w, y0, y1)
             valid = (z > 0) & np.isfinite(u) & np.isfinite(v)
-            tex = self.texture.reshape(-1, c)
-            rows, cols = self.texture.shape[:2]
             if m == Method.NEAREST:
-                reads = nearest_kernel(tex, rows, cols, u, v, valid, out)
+                reads = nearest_kernel(tex, th, tw, u, v, valid, out)
             elif m == Method.BILINEAR:
-                reads = bilinear_kernel(tex, rows, cols, u, v, valid, out)
+                reads = bilinear_kernel(tex, th, tw, u, v, valid, out)
             else:
                 reads = reference_kernel(
-                    tex, rows, cols, mapping.coefficients(), w, bh, y0, dux, dvx, duy, dvy,
+                    tex, th, tw, mapping.coefficients(), w, bh, y0, dux, dvx, duy, dvy,
                     float(opt.reference_density), int(opt.reference_min_samples),
-                    int(opt.reference_max_samples), sky, out)
+                    int(opt.reference_max_samples), sky * top, out)
                 # the reference blends the sky per sub-sample
+                out /= np.float32(top)
                 return out.reshape(bh, w, c), reads.reshape(bh, w)
         else:
-            # the others read the N x N resampled texture
-            sq = mapping.scaled(self.su, self.sv)
-            u, v, z, dux, dvx, duy, dvy = _grid(sq, w, y0, y1)
+            # the others read the power-of-two grid
+            u, v, z, dux, dvx, duy, dvy = _grid(mapping.scaled(self.su, self.sv), w, y0, y1)
             valid = (z > 0) & np.isfinite(u) & np.isfinite(v)
             if m != Method.EWA and opt.aperture != 1.0:
                 dux, dvx, duy, dvy = (d * opt.aperture for d in (dux, dvx, duy, dvy))
+            gw, gh = self.grid_size
             if m == Method.PARALLELOGRAM:
                 fam = self.family(opt)
-                kernel = two_probe_kernel if opt.long_probes == 2 else parallelogram_kernel
-                reads = kernel(
-                    fam.buf, fam.table, fam.size, fam.max_lambda_log2, fam.skew_oversampling,
-                    fam.long_oversampling,
-                    u, v, dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
+                k, so = fam.max_lambda_log2, fam.skew_oversampling
+                if opt.lookup == Lookup.COVERAGE:
+                    reads = coverage_kernel(
+                        fam.buf, fam.start, fam.count, gw, gh, k, so,
+                        float(opt.cells_per_footprint), tex, tw, th, self.su, self.sv,
+                        u, v, dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
+                else:
+                    reads = seed_kernel(fam.buf, fam.start, fam.count, gw, gh, k, so, u, v,
+                                        dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
             else:
                 pyr = self.pyramid
+                args = (pyr.buf, pyr.offsets, pyr.heights, pyr.widths, u, v, dux, dvx, duy, dvy)
                 if m == Method.TRILINEAR:
-                    reads = trilinear_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx,
-                                             duy, dvy, valid, out)
+                    reads = trilinear_kernel(*args, valid, out)
                 elif m == Method.ANISO:
-                    reads = aniso_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx, duy,
-                                         dvy, int(opt.max_anisotropy), valid, out)
+                    reads = aniso_kernel(*args, int(opt.max_anisotropy), valid, out)
                 else:
-                    reads = ewa_kernel(pyr.buf, pyr.offsets, pyr.size, u, v, dux, dvx, duy,
-                                       dvy, float(opt.max_anisotropy), EWA_LUT, valid, out)
-            if self._scale != 1.0:
-                # integer storage back to [0, 1]
-                out *= np.float32(self._scale)
+                    reads = ewa_kernel(*args, float(opt.max_anisotropy), EWA_LUT, valid, out)
+        if top != 1.0:
+            # integer storage back to [0, 1]
+            out /= np.float32(top)
         out[~valid] = sky.astype(np.float32)
         return out.reshape(bh, w, c), reads.reshape(bh, w)
 

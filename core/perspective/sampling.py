@@ -1,10 +1,10 @@
 """Per-texel reads shared by the numba kernels.
 
-Every image level is stored row-major in a flat ``(T, C) float32`` buffer:
-texel ``(i, j)`` (column ``i``, row ``j``) of a ``rows x cols`` level that
-starts at ``off`` is ``buf[off + j * cols + i]``. Coordinates are continuous
-and in texels of that level: texel ``(i, j)`` covers ``[i, i+1) x [j, j+1)``,
-so its centre is ``(i + 0.5, j + 0.5)``. All reads wrap.
+Every image level is stored row-major in a flat ``(T, C)`` buffer: texel
+``(i, j)`` (column ``i``, row ``j``) of a ``rows x cols`` level that starts at
+``off`` is ``buf[off + j * cols + i]``. Coordinates are continuous and in
+texels of that level: texel ``(i, j)`` covers ``[i, i+1) x [j, j+1)``, so its
+centre is ``(i + 0.5, j + 0.5)``. All reads wrap.
 """
 
 from __future__ import annotations
@@ -68,20 +68,25 @@ def add_column_lerp(buf, off, rows, cols, i, y, w, out):
 
 
 @njit(cache=True, inline="always")
-def add_trilinear(buf, offsets, size, x, y, lod, w, out):
+def add_mip_bilinear(buf, offsets, heights, widths, level, x, y, w, out):
+    """``out += w * `` bilinear read of mip ``level`` at ``(x, y)`` in level-0 texels."""
+    rows, cols = heights[level], widths[level]
+    return add_bilinear(buf, offsets[level], rows, cols, x * cols / widths[0],
+                        y * rows / heights[0], w, out)
+
+
+@njit(cache=True, inline="always")
+def add_trilinear(buf, offsets, heights, widths, x, y, lod, w, out):
     """``out += w * `` trilinear mip lookup at ``(x, y)`` (level-0 texels) and
     level of detail ``lod`` (log2 of the footprint in texels); returns reads."""
     nlev = offsets.shape[0]
     if lod <= 0.0:
-        return add_bilinear(buf, offsets[0], size, size, x, y, w, out)
+        return add_mip_bilinear(buf, offsets, heights, widths, 0, x, y, w, out)
     if lod >= nlev - 1:
         add_texel(buf, offsets[nlev - 1], 1, 0, 0, w, out)
         return 1
     l0 = int(math.floor(lod))
     f = lod - l0
-    s0 = 1.0 / (1 << l0)
-    r0 = size >> l0
-    reads = add_bilinear(buf, offsets[l0], r0, r0, x * s0, y * s0, w * (1.0 - f), out)
-    r1 = size >> (l0 + 1)
-    reads += add_bilinear(buf, offsets[l0 + 1], r1, r1, x * s0 * 0.5, y * s0 * 0.5, w * f, out)
+    reads = add_mip_bilinear(buf, offsets, heights, widths, l0, x, y, w * (1.0 - f), out)
+    reads += add_mip_bilinear(buf, offsets, heights, widths, l0 + 1, x, y, w * f, out)
     return reads

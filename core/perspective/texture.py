@@ -1,29 +1,62 @@
-"""Texture preparation: float conversion, power-of-two resampling, mip pyramid.
+"""Texture preparation: storage type, power-of-two resampling, mip pyramid.
 
-The seed's prefiltered family needs a ``2^n x 2^n`` tiling texture. Other
-sizes are resampled (bicubic, with wrap-around borders so the tiling seam
-stays invisible) *up* to the square ``N = 2^ceil(log2(max(w, h)))``; the
-mapping is scaled by ``N/w`` along U and ``N/h`` along V so that U, V stay in
-texels of the input. The nearest, bilinear and reference filters read the
-input itself and need no resampling.
+The prefiltered structures (the mip pyramid, the family of copies) need a
+wrapping texture whose sides are powers of two. Each side is resampled on its
+own to a power of two near it (:func:`power_of_two_side`: a 4096 x 1 strip
+stays 4096 x 1, the texel count grows by at most 1.87x); the mapping
+is scaled by ``W'/w`` along U and ``H'/h`` along V so that U, V stay in
+texels of the input. The nearest, bilinear and reference filters, and the
+family's lookup of footprints smaller than two texels, read the input itself.
+
+Texels keep the input's storage type (uint8, uint16 or float32) so the
+prefiltered data costs 1, 2 or 4 bytes per channel; integer values are read
+as ``value / top`` with ``top`` the type's largest value.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
+from skimage.transform import resize
 
 from core.errors import TerrathemeError
 
+#: storage types kept as they are (others become float32 in [0, 1])
+STORED_TYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
 
-def as_float_texture(texture: np.ndarray) -> np.ndarray:
-    """The texture as ``(h, w, C) float32``; integer types are scaled to [0, 1].
+
+@dataclass(frozen=True)
+class StoredTexture:
+    """A texture in its storage type.
+
+    Attributes
+    ----------
+    texels : (h, w, C) uint8, uint16 or float32 ndarray, C in 1..4
+    top : float
+        Stored units per 1.0: 255, 65535 or 1.
+    """
+
+    texels: np.ndarray
+    top: float
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)`` in texels."""
+        return int(self.texels.shape[1]), int(self.texels.shape[0])
+
+    @property
+    def channels(self) -> int:
+        return int(self.texels.shape[2])
+
+
+def stored_texture(texture: np.ndarray) -> StoredTexture:
+    """The texture as ``(h, w, C)`` in a storage type (see module docstring).
 
     Parameters
     ----------
     texture : (h, w) or (h, w, C) ndarray, C in 1..4
+        Other integer types and booleans are scaled to float32 [0, 1].
 
     Raises
     ------
@@ -37,6 +70,8 @@ def as_float_texture(texture: np.ndarray) -> np.ndarray:
         raise TerrathemeError(f"texture must be a non-empty (h, w, C) array, got {arr.shape}")
     if not 1 <= arr.shape[2] <= 4:
         raise TerrathemeError(f"texture must have 1 to 4 channels, got {arr.shape[2]}")
+    if arr.dtype in (np.dtype(np.uint8), np.dtype(np.uint16)):
+        return StoredTexture(np.ascontiguousarray(arr), float(np.iinfo(arr.dtype).max))
     if arr.dtype == np.bool_:
         arr = arr.astype(np.float32)
     elif np.issubdtype(arr.dtype, np.integer):
@@ -47,58 +82,92 @@ def as_float_texture(texture: np.ndarray) -> np.ndarray:
         raise TerrathemeError(f"texture dtype {arr.dtype} is not a number type")
     if not np.all(np.isfinite(arr)):
         raise TerrathemeError("texture holds NaN or infinite values")
-    return np.ascontiguousarray(arr)
+    return StoredTexture(np.ascontiguousarray(arr), 1.0)
 
 
-def power_of_two_square(tex: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Resample a wrapping texture up to ``N x N``, ``N`` a power of two.
+#: a side grows to the next power of two only past this share of the octave (in log2):
+#: at most 2^0.45 = 1.37 up per side, 1.87 in area, so the family (23.5 bytes per RGB
+#: texel of the grid) plus the input stays within 48 bytes per input texel
+ROUND_UP_FROM = 0.55
+
+
+def power_of_two_side(n: int) -> int:
+    """The power of two for a side of ``n`` texels: ``2^floor(log2 n + 1 - ROUND_UP_FROM)``."""
+    return 1 << max(0, int(np.floor(np.log2(n) + 1.0 - ROUND_UP_FROM)))
+
+
+def power_of_two_grid(tex: StoredTexture) -> tuple[np.ndarray, float, float]:
+    """Resample a wrapping texture to ``H' x W'``, each a power of two.
 
     Parameters
     ----------
-    tex : (h, w, C) float32 ndarray
+    tex : StoredTexture
+        ``(h, w, C)`` texels.
 
     Returns
     -------
-    square : (N, N, C) float32 ndarray
-        ``tex`` itself when it already is ``2^n x 2^n``.
+    grid : (H', W', C) ndarray
+        In the storage type (the texels themselves when the sides already are
+        powers of two). Linear interpolation with wrap-around borders,
+        Gaussian anti-aliasing along a side that shrinks (scikit-image's
+        ``resize``), rounded back to the storage type.
     su, sv : float
-        ``N / w`` and ``N / h``: multiply U and V by these.
+        ``W' / w`` and ``H' / h``: multiply U and V by these.
     """
-    h, w, c = tex.shape
-    n = 1 << int(np.ceil(np.log2(max(h, w))))
-    if h == n and w == n:
-        return tex, 1.0, 1.0
-    # sample the input at the centres of the N x N texels (wrap-around borders)
-    xs = ((np.arange(n, dtype=np.float32) + 0.5) * (w / n) - 0.5).astype(np.float32)
-    ys = ((np.arange(n, dtype=np.float32) + 0.5) * (h / n) - 0.5).astype(np.float32)
-    mx, my = np.meshgrid(xs, ys)
-    lo, hi = tex.min(axis=(0, 1)), tex.max(axis=(0, 1))
-    planes = []
-    for ch in range(c):
-        src = np.ascontiguousarray(tex[:, :, ch])
-        out = cv2.remap(src, mx, my, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_WRAP)
-        # bicubic overshoots at edges: keep the input's value range
-        planes.append(np.clip(out, lo[ch], hi[ch]))
-    return np.ascontiguousarray(np.stack(planes, axis=2)), n / w, n / h
+    h, w, c = tex.texels.shape
+    wp, hp = power_of_two_side(w), power_of_two_side(h)
+    if (hp, wp) == (h, w):
+        return tex.texels, 1.0, 1.0
+    src = tex.texels.astype(np.float32)
+    # anti-aliasing only along the sides that shrink (sigma 0 keeps the others sharp)
+    sigma = [max(0.0, (h / hp - 1) / 2), max(0.0, (w / wp - 1) / 2), 0.0]
+    out = resize(src, (hp, wp, c), order=1, mode="wrap", anti_aliasing=max(sigma) > 0,
+                 anti_aliasing_sigma=sigma, preserve_range=True)
+    return np.ascontiguousarray(to_storage(out, tex.texels.dtype)), wp / w, hp / h
+
+
+def to_storage(values: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """Float values in stored units rounded into ``dtype`` (kept for float32)."""
+    dt = np.dtype(dtype)
+    if dt.kind != "u":
+        return values.astype(dt, copy=False)
+    top = np.iinfo(dt).max
+    return np.clip(np.rint(values), 0, top).astype(dt)
+
+
+def level_shape(height: int, width: int, level: int) -> tuple[int, int]:
+    """``(rows, cols)`` of mip ``level`` of an ``H' x W'`` grid: each side halves down to 1."""
+    return max(1, height >> level), max(1, width >> level)
+
+
+def box_halve(img: np.ndarray) -> np.ndarray:
+    """Average 2-texel blocks along every side longer than one texel of ``(h, w, C)``."""
+    out = img
+    if out.shape[0] > 1:
+        out = 0.5 * (out[0::2] + out[1::2])
+    if out.shape[1] > 1:
+        out = 0.5 * (out[:, 0::2] + out[:, 1::2])
+    return out
 
 
 @dataclass(frozen=True)
 class MipPyramid:
-    """Box-filtered mip levels of an ``N x N`` texture, packed for the kernels.
+    """Box-filtered mip levels of an ``H' x W'`` texture, packed for the kernels.
 
     Attributes
     ----------
-    buf : (T, C) float32 ndarray
-        All levels, row-major, level after level.
-    offsets : (n+1,) int64 ndarray
-        Start of level ``l`` in ``buf``; level ``l`` is ``N>>l`` squared.
-    size : int
-        ``N``.
+    buf : (T, C) ndarray
+        All levels, row-major, level after level, in the storage type.
+    offsets : (L,) int64 ndarray
+        Start of level ``l`` in ``buf``.
+    heights, widths : (L,) int64 ndarrays
+        ``level_shape`` of every level; the last one is 1 x 1.
     """
 
     buf: np.ndarray
     offsets: np.ndarray
-    size: int
+    heights: np.ndarray
+    widths: np.ndarray
 
     @property
     def levels(self) -> int:
@@ -109,36 +178,28 @@ class MipPyramid:
         return int(self.buf.nbytes)
 
     def level(self, i: int) -> np.ndarray:
-        """Level ``i`` as a ``(N>>i, N>>i, C)`` view."""
-        r = self.size >> i
-        return self.buf[self.offsets[i] : self.offsets[i] + r * r].reshape(r, r, -1)
+        """Level ``i`` as a ``(rows, cols, C)`` view."""
+        r, c = int(self.heights[i]), int(self.widths[i])
+        return self.buf[self.offsets[i] : self.offsets[i] + r * c].reshape(r, c, -1)
 
 
-def box_halve(img: np.ndarray, axis0: bool = True, axis1: bool = True) -> np.ndarray:
-    """Average 2-texel blocks along the chosen axes of ``(h, w, C)`` (even sizes)."""
-    out = img
-    if axis0:
-        out = 0.5 * (out[0::2] + out[1::2])
-    if axis1:
-        out = 0.5 * (out[:, 0::2] + out[:, 1::2])
-    return out
-
-
-def build_pyramid(square: np.ndarray) -> MipPyramid:
-    """Mip levels ``N, N/2, ..., 1`` by 2 x 2 box averaging.
+def build_pyramid(grid: np.ndarray, dtype: np.dtype | type = np.float32) -> MipPyramid:
+    """Mip levels down to 1 x 1 by 2 x 2 (or 2 x 1) box averaging.
 
     Parameters
     ----------
-    square : (N, N, C) float32 ndarray, N a power of two
+    grid : (H', W', C) float ndarray, sides powers of two
+    dtype : storage type of the levels (values rounded for integer types)
     """
-    n = square.shape[0]
-    if square.shape[1] != n or n & (n - 1):
-        raise TerrathemeError(f"mip pyramid needs a 2^n x 2^n texture, got {square.shape[:2]}")
-    levels = [square.astype(np.float32)]
-    while levels[-1].shape[0] > 1:
+    h, w = grid.shape[:2]
+    if h & (h - 1) or w & (w - 1):
+        raise TerrathemeError(f"mip pyramid needs power-of-two sides, got {grid.shape[:2]}")
+    levels = [grid.astype(np.float32)]
+    while levels[-1].shape[0] > 1 or levels[-1].shape[1] > 1:
         levels.append(box_halve(levels[-1]).astype(np.float32))
-    c = square.shape[2]
-    sizes = [lv.shape[0] * lv.shape[1] for lv in levels]
-    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    buf = np.concatenate([lv.reshape(-1, c) for lv in levels], axis=0)
-    return MipPyramid(np.ascontiguousarray(buf), offsets, n)
+    c = grid.shape[2]
+    heights = np.array([lv.shape[0] for lv in levels], np.int64)
+    widths = np.array([lv.shape[1] for lv in levels], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(heights * widths)[:-1]]).astype(np.int64)
+    buf = to_storage(np.concatenate([lv.reshape(-1, c) for lv in levels], axis=0), dtype)
+    return MipPyramid(np.ascontiguousarray(buf), offsets, heights, widths)
