@@ -44,6 +44,8 @@ PY=${PYTHON:-python3}
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e ".[$extra]"
 # Compile the numba kernels once now (cached beside the sources), so a first run is as fast
-# as a second.
+# as a second. Old caches go first: numba notices edits to a kernel's own file only, not to
+# the kernels it inlines from other files.
+find core -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete 2>/dev/null || true
 .venv/bin/python -m app.warmup
 echo "setup: ready (.venv/bin/terratheme)"

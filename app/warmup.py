@@ -48,6 +48,7 @@ def _classify() -> None:
 
 def _perspective() -> None:
     from core.perspective import Camera, FilterOptions, Method, PreparedTexture
+    from core.perspective.options import Lookup
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
@@ -55,8 +56,11 @@ def _perspective() -> None:
         for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
             opts = FilterOptions(method=method, skew_blend=skew_blend)
             PreparedTexture(texture, opts).render(Camera(height=8, pitch=20), (16, 12))
-    for grey in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
-        PreparedTexture(grey, FilterOptions()).render(Camera(height=8, pitch=20), (16, 12))
+    for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2),
+                  texture.astype(np.float32) / 255):
+        PreparedTexture(other, FilterOptions()).render(Camera(height=8, pitch=20), (16, 12))
+    seed = FilterOptions(lookup=Lookup.SEED)
+    PreparedTexture(texture, seed).render(Camera(height=8, pitch=20), (16, 12))
 
 
 def _boundary() -> None:

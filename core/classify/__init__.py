@@ -1,4 +1,4 @@
-"""Orthophoto classification into themes (DESIGN.md section 4).
+"""Orthophoto classification into themes (design.md §3).
 
 Public API (stable; used by ``terratheme classify`` and ``convert``):
 

@@ -9,7 +9,7 @@ kept as one feature, the block's standard deviation of lightness.
 
 Units are perceptual and fixed (CIE Lab, L in 0..100, a/b about -128..127),
 not standardised per photo: the unsupervised criterion relies on distances
-being in Delta-E units, so that a flat photo stays flat (DESIGN.md section 4).
+being in Delta-E units, so that a flat photo stays flat (design.md §3).
 
 Feature sets
 ------------

@@ -1,7 +1,7 @@
 """Unsupervised themes: k-means on colour + texture, K chosen from the data.
 
 Criterion for the number of themes K ("model no more than the scene needs",
-DESIGN.md section 4). With ``W_K`` the mean squared distance of the sampled
+design.md §3). With ``W_K`` the mean squared distance of the sampled
 feature vectors to their nearest of K k-means centres (OpenCV k-means++,
 features in fixed Delta-E-like units, see :mod:`core.classify.features`):
 

@@ -1,6 +1,6 @@
 """Hilbert and Morton space-filling curves over an image (seed sfc_packing.txt, section 1).
 
-Orientation (DESIGN.md section 2 and ``vectors/sfc_8x8.json``): the curve runs
+Orientation (design.md §4 and ``vectors/sfc_8x8.json``): the curve runs
 over the enclosing ``2^n x 2^n`` square whose origin is the **bottom-left**
 texel of the image as displayed, so curve step 0 (the seed's step 1) is
 ``(column 0, row H-1)``; the Hilbert curve's first move is upward. Steps that
@@ -294,7 +294,7 @@ def hilbert_transposed(n: int) -> bool:
     The square curve of :func:`hilbert_xy2d` always visits its quadrants
     bottom-left, top-left, top-right, bottom-right, so its very first move is
     upward only when ``n`` is odd (the seed's 8 x 8 figure). The image curve
-    keeps the first move upward for every size (DESIGN.md section 2) by
+    keeps the first move upward for every size (design.md §4) by
     swapping x and y when ``n`` is even.
     """
     return n % 2 == 0

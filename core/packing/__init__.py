@@ -1,4 +1,4 @@
-"""Index layers packed along a space-filling curve (seed sfc_packing.txt; DESIGN.md section 2).
+"""Index layers packed along a space-filling curve (seed sfc_packing.txt; design.md §4).
 
 ``pack(image)`` scans an index (or <= 256-colour) image along a Hilbert or
 Morton curve into runs ``<S_i, P_i>``; the :class:`PackedLayer` reads texels

@@ -1,7 +1,7 @@
 """Low-angle terrain preview with anisotropic filtering (issues 6 and 18).
 
 The seed's family of prefiltered parallelogram copies (Kovalev & Tarasov,
-DESIGN.md section 3), read by summing the pixel's own parallelogram over the
+design.md §6), read by summing the pixel's own parallelogram over the
 cells it covers, and its baselines, all with one set of conventions (see
 :mod:`.mapping`)::
 

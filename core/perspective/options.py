@@ -1,4 +1,4 @@
-"""Options of the low-angle terrain preview (DESIGN.md section 3).
+"""Options of the low-angle terrain preview (design.md §6).
 
 One small frozen dataclass, :class:`FilterOptions`, chooses the filter and
 its knobs; :class:`Method` names the seed's parallelogram filter and the
