@@ -5,7 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from core.render.renderer import BlendMode
+from core.errors import TerrathemeError
+from core.render.boundary import BoundaryOptions
+from core.render.renderer import BlendMode, RenderOptions
 from core.render.rules import SaddleRule
 
 
@@ -55,6 +57,12 @@ class GpuRenderOptions:
     uniform_cells : UniformCells
         How the exact path fills runs of uniform cells (the filtered path
         blends every pixel).
+    boundary : BoundaryOptions or None
+        Borders shaped by the themes' content and noise
+        (:mod:`core.render.boundary`, linear blend only); None: the paper's ramp.
+    max_supersample : int
+        Filtered path: most weight sub-samples per pixel side (two per cell a
+        pixel spans, up to this), 1..64.
     """
 
     blend: BlendMode = BlendMode.LINEAR
@@ -63,3 +71,17 @@ class GpuRenderOptions:
     max_anisotropy: float = 1.0
     tile: int = 4096
     uniform_cells: UniformCells = UniformCells.AUTO
+    boundary: BoundaryOptions | None = None
+    max_supersample: int = 16
+
+    def __post_init__(self) -> None:
+        if self.boundary is not None and self.blend is not BlendMode.LINEAR:
+            raise TerrathemeError("shaped boundaries blend linearly: use BlendMode.LINEAR "
+                                  "with a boundary, or no boundary with the histogram blend")
+        if not 1 <= int(self.max_supersample) <= 64:
+            raise TerrathemeError(f"max_supersample must be 1..64, got {self.max_supersample}")
+
+    @classmethod
+    def from_render_options(cls, style: RenderOptions, **kwargs) -> GpuRenderOptions:
+        """The GPU options drawing what ``style`` draws on the CPU (blend, saddle, borders)."""
+        return cls(blend=style.blend, saddle=style.saddle, boundary=style.boundary, **kwargs)
