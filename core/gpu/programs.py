@@ -42,6 +42,7 @@ class Variant(NamedTuple):
     wrap: bool = False
     colour_map: bool = False
     lut_size: int = 4096
+    probes: int = 0
 
     def defines(self, themes: int, one_size: bool) -> dict[str, int]:
         """The ``#define`` values of this variant for ``themes`` themes."""
@@ -49,6 +50,7 @@ class Variant(NamedTuple):
                 "TT_SHAPED": int(self.shaped), "TT_FILTERED": int(self.filtered),
                 "TT_WRAP": int(self.wrap), "TT_COLOUR_MAP": int(self.colour_map),
                 "TT_ONE_SIZE": int(one_size), "TT_LUT_SIZE": self.lut_size,
+                "TT_PROBES": self.probes,
                 **SOURCES[self.kind][2]}
 
 

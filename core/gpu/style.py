@@ -92,7 +92,9 @@ class StyleTextures:
             lut, lut_size, _ = self.themes.inverse_lut()
             lut.use(UNITS["tt_inverse_lut"])
         if style.colour_map is not None:
-            self._colour_texture(style.colour_map).use(UNITS["tt_colour_map"])
+            colours = self._colour_texture(style.colour_map)
+            colours.anisotropy = min(float(anisotropy), float(self.ctx.max_anisotropy))
+            colours.use(UNITS["tt_colour_map"])
         return lut_size
 
     def _colour_texture(self, colour_map: ColourMap) -> moderngl.Texture:

@@ -11,8 +11,8 @@
 // texel v becomes min(255, floor((v * G + 256 s^2) / (512 s^2))), G the
 // integer bilinear sum, divided by tt_quotient from its low 32 bits: exact
 // for s <= 1448 (512 s^2 <= 2^30; the renderer checks).
-// Filtered path (tt_colour_filtered): the hardware's mipmapped bilinear
-// lookup at the same coordinate, for renders at any scale or angle.
+// Filtered path (tt_colour_filtered in tt_filtered.glsl): the map filtered
+// over the pixel's footprint at the same coordinate, for any scale or angle.
 //
 // Uniforms:
 //   tt_colour_map    sampler2D RGBA8 (mh x mw): the map, CLAMP_TO_EDGE,
@@ -50,11 +50,4 @@ uvec3 tt_colour_exact(uvec3 rgb, ivec2 t) {
     vec3 g = float(ay.z) * vec3(top) + float(ay.w) * vec3(bottom);
     vec3 e = (vec3(rgb) * g + 256.0 * fs * fs) / (512.0 * fs * fs);
     return min(tt_quotient3(rgb * gain + half_den, 2u * half_den, e), uvec3(255u));
-}
-
-// The map's gain (value / 128) at texel position p over the footprint (dx, dy) in texels.
-vec3 tt_colour_filtered(vec2 p, vec2 dx, vec2 dy) {
-    vec2 span = float(tt_colour_scale) * vec2(textureSize(tt_colour_map, 0));
-    return textureGrad(tt_colour_map, (p + 0.5) / span, dx / span, dy / span).rgb
-           * (255.0 / 128.0);
 }
