@@ -154,7 +154,7 @@ class GroundView:
         self._dirty: list[tuple[slice, slice]] = []
         self._plane = self.ctx.vertex_array(self.pipeline.program(self._variant(False)), [])
         self._fbo: moderngl.Framebuffer | None = None
-        #: cell boxes ``(x, y, w, h)`` re-split by the last draw (edits)
+        #: cell boxes ``(x, y, w, h)`` re-split by the last draw that had edits to upload
         self.uploaded: list[tuple[int, int, int, int]] = []
 
     def _shader_filters(self, options: GroundOptions) -> bool:
@@ -192,6 +192,8 @@ class GroundView:
 
     def _flush(self) -> None:
         """Upload the changed vertices and re-split the cells they (and the saddle ring) touch."""
+        if not self._dirty:
+            return
         self.uploaded = []
         gh, gw = self.indices.shape[0] - 1, self.indices.shape[1] - 1
         for rows, cols in self._dirty:
