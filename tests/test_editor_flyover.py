@@ -105,13 +105,13 @@ def test_keys_mouse_and_wheel_fly_the_camera(tab, qtbot):
     view, driver = tab.view, tab.driver
     start = tab.flight
     qtbot.keyPress(view, Qt.Key.Key_W)
-    assert driver.timer.isActive()
+    assert driver.timer.isActive() and driver.moving and view.moving()
     driver.tick(0.5)  # half a second of W: half a camera height along the heading
     qtbot.keyRelease(view, Qt.Key.Key_W)
     want = start.moved(0.5 * start.height, 0.0)
     assert (tab.flight.x, tab.flight.y) == pytest.approx((want.x, want.y))
     driver.tick(0.1)
-    assert not driver.timer.isActive()  # nothing held: the timer stops
+    assert not driver.timer.isActive() and not view.moving()  # nothing held: it stops
     qtbot.keyPress(view, Qt.Key.Key_Right)
     driver.tick(0.5)
     qtbot.keyRelease(view, Qt.Key.Key_Right)

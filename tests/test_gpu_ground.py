@@ -219,3 +219,20 @@ def test_bad_views_and_options_are_refused(context):
     with pytest.raises(TerrathemeError, match="colour map is"):
         GroundView(_grid(1), _themes(1), (4, 4), context=context,
                    colour_map=ColourMap(np.zeros((2, 2, 3), np.uint8), 4))
+
+
+def test_a_reduced_frame_is_the_small_frame_stretched(context):
+    # A moving camera draws half the pixels a side, stretched bilinearly over the frame.
+    import cv2
+
+    view = GroundView(_grid(14), _themes(14), (8, 8), options=PROBES, context=context)
+    try:
+        camera = Camera(height=20.0, pitch=25.0, yaw=15.0)
+        small = view.render(camera, (48, 32))
+        stretched = view.render(camera, (96, 64), scale=0.5)
+        want = cv2.resize(small, (96, 64), interpolation=cv2.INTER_LINEAR)
+        assert np.abs(stretched.astype(np.int16) - want).max() <= 2
+        full = view.render(camera, (96, 64))
+        assert np.abs(stretched.astype(np.int16) - full).mean() < 12
+    finally:
+        view.release()

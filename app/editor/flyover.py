@@ -43,6 +43,8 @@ HELP = ("W/S fly, A/D sideways, E/Q or PgUp/PgDn climb, arrows turn and pitch, "
         "drag to look, wheel to change height, Shift faster, C: CPU filter")
 #: the motion timer's interval in milliseconds (about 60 steps a second)
 TICK_MS = 16
+#: pixels drawn along each side while the camera moves (stretched over the view)
+MOVING_SCALE = 0.5
 
 
 def surface_format() -> QSurfaceFormat:
@@ -92,11 +94,14 @@ class FlightDriver(QObject):
     -------
     moved(Flight)
         The flight the input asks for (the owner stores it and redraws).
+    settled()
+        The camera stopped (keys released, drag ended): time for a full-size frame.
     compare()
         C was pressed: show the CPU filter's frame.
     """
 
     moved = Signal(object)
+    settled = Signal()
     compare = Signal()
 
     def __init__(self, widget: QWidget, flight: Callable[[], Flight],
@@ -113,6 +118,11 @@ class FlightDriver(QObject):
         widget.setMouseTracking(False)
         widget.installEventFilter(self)
 
+    @property
+    def moving(self) -> bool:
+        """True while keys fly the camera or the mouse drags it."""
+        return self.timer.isActive() or self._drag is not None
+
     def held_input(self) -> FlightInput:
         """The input the held keys make."""
         axes = {"forward": 0.0, "right": 0.0, "up": 0.0, "yaw": 0.0, "pitch": 0.0}
@@ -128,6 +138,7 @@ class FlightDriver(QObject):
         held = self.held_input()
         if held.idle:
             self.timer.stop()
+            self.settled.emit()
             return
         flight = self._flight()
         self.moved.emit(flight.step(held, step, ground=self._ground(flight.x, flight.y)))
@@ -147,6 +158,7 @@ class FlightDriver(QObject):
             return True
         if kind == QEvent.Type.MouseButtonRelease:
             self._drag = None
+            self.settled.emit()
             return True
         if kind == QEvent.Type.Wheel:
             flight = self._flight()
@@ -211,6 +223,8 @@ class FlyoverGL(QOpenGLWidget):
         self.scene = scene
         self.ground: GroundView | None = None
         self.ctx = None
+        #: True while frames may be drawn at MOVING_SCALE (the tab sets it to its driver's)
+        self.moving: Callable[[], bool] = lambda: False
         self._stale = True
         self._heights: tuple[np.ndarray | None, float] | None = None
 
@@ -256,7 +270,9 @@ class FlyoverGL(QOpenGLWidget):
             size = (max(1, round(self.width() * ratio)), max(1, round(self.height() * ratio)))
             fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
             self.ctx.scissor = None
-            self.ground.draw(self.scene.camera(), size, framebuffer=fbo, flip_y=True)
+            scale = MOVING_SCALE if self.moving() else 1.0
+            self.ground.draw(self.scene.camera(), size, framebuffer=fbo, flip_y=True,
+                             scale=scale)
             self.ctx.finish()
             self.drawn.emit(1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # shown in the tab, never a crash
@@ -287,6 +303,7 @@ class FlyoverImage(QWidget):
         self.scene = scene
         self.ground: GroundView | None = None
         self.frame: np.ndarray | None = None
+        self.moving: Callable[[], bool] = lambda: False
         self._hidden_request = False
         self._timer = QTimer(self, singleShot=True, interval=0)
         self._timer.timeout.connect(self.draw_now)
@@ -323,8 +340,9 @@ class FlyoverImage(QWidget):
         return self.ground
 
     def frame_size(self) -> tuple[int, int]:
+        """The frame drawn: the widget's size, capped, smaller while the camera moves."""
         w, h = max(1, self.width()), max(1, self.height())
-        s = min(1.0, self.max_width / w)
+        s = min(1.0, self.max_width / w) * (MOVING_SCALE if self.moving() else 1.0)
         return max(1, round(w * s)), max(1, round(h * s))
 
     def draw_now(self) -> None:

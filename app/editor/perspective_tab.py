@@ -124,6 +124,8 @@ class PerspectiveTab(QWidget):
         view.failed.connect(lambda msg: self.gpu_info.setText(f"GPU error: {msg}"))
         self.driver = FlightDriver(view, lambda: self.flight, self.ground_height)
         self.driver.moved.connect(self.set_flight)
+        self.driver.settled.connect(view.request_frame)
+        view.moving = lambda: self.driver.moving
         self.driver.compare.connect(lambda: self.compare.toggle())
         return view
 

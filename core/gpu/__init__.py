@@ -18,8 +18,8 @@ request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
 
 from core.gpu.context import GpuUnavailableError, create_context, gl_context
 from core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
-from core.gpu.ground import Anisotropy, GroundOptions, GroundView, render_perspective_gpu
-from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from core.gpu.ground import GroundView, render_perspective_gpu
+from core.gpu.options import Anisotropy, GpuRenderOptions, GroundOptions, Sampling, UniformCells
 from core.gpu.renderer import GpuRenderer, render_cells_gpu
 from core.gpu.shaders import SHADER_DIR, shader_source
 

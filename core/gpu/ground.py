@@ -19,8 +19,6 @@ costs what it touches, not the map.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from enum import Enum
 
 import moderngl
 import numpy as np
@@ -31,70 +29,19 @@ from core.errors import TerrathemeError
 from core.gpu.context import gl_context
 from core.gpu.flight import clip_matrix
 from core.gpu.ground_mesh import HeightField
-from core.gpu.options import GpuRenderOptions
+from core.gpu.options import SOFTWARE_RENDERERS, Anisotropy, GpuRenderOptions, GroundOptions
 from core.gpu.pipeline import Pipeline
 from core.gpu.programs import UNITS, Variant
 from core.gpu.style import StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
 from core.model.project import ThematicTexture
-from core.perspective import Camera, FilterOptions, PlaneMapping, camera_mapping
+from core.perspective import Camera, PlaneMapping, camera_mapping
 from core.render.inputs import prepare_grid, theme_textures
 from core.render.project import project_style
 from core.render.renderer import RenderOptions
 from core.render.rules import region_splits
 from core.themes.library import Theme
-
-
-class Anisotropy(Enum):
-    """Who filters the themes anisotropically (up to ``GroundOptions.max_anisotropy``)."""
-
-    #: ``SHADER`` on a software rasteriser (llvmpipe, softpipe, SwiftShader), else ``DRIVER``
-    AUTO = "auto"
-    #: the sampler's anisotropic filtering (about free on GPUs; Mesa's llvmpipe took
-    #: 126 times as long as SHADER for a 640 x 360 frame at 16x, and blurs more)
-    DRIVER = "driver"
-    #: up to ``max_anisotropy`` trilinear reads along each footprint, in the shader
-    SHADER = "shader"
-
-
-#: GL_RENDERER substrings of software rasterisers (their own anisotropic filter is slow)
-SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swiftshader", "swr")
-
-
-@dataclass(frozen=True)
-class GroundOptions:
-    """How the ground plane is drawn.
-
-    Attributes
-    ----------
-    max_anisotropy : float
-        Anisotropic filtering of the themes (the driver's cap applies; 16 on llvmpipe).
-    max_supersample : int
-        Most weight sub-samples per pixel side (two per cell a footprint side spans).
-    sky : (r, g, b) floats in [0, 1]
-        The colour above the horizon (the CPU preview's default).
-    mesh : int
-        Quads per side of the height map's mesh (at most; fewer for a small map).
-    anisotropy : Anisotropy
-        Whether the driver or the shader (``TT_PROBES``) filters anisotropically.
-    """
-
-    max_anisotropy: float = 16.0
-    max_supersample: int = 4
-    sky: tuple[float, float, float] = field(default_factory=lambda: FilterOptions().sky[:3])
-    mesh: int = 256
-    anisotropy: Anisotropy = Anisotropy.AUTO
-
-    def __post_init__(self) -> None:
-        if not 1.0 <= float(self.max_anisotropy) <= 64.0:
-            raise TerrathemeError(f"max_anisotropy must be 1..64, got {self.max_anisotropy}")
-        if not 1 <= int(self.max_supersample) <= 16:
-            raise TerrathemeError(f"max_supersample must be 1..16, got {self.max_supersample}")
-        if len(self.sky) != 3 or not all(0.0 <= float(c) <= 1.0 for c in self.sky):
-            raise TerrathemeError(f"sky must be three values in [0, 1], got {self.sky}")
-        if not 1 <= int(self.mesh) <= 4096:
-            raise TerrathemeError(f"mesh must be 1..4096 quads a side, got {self.mesh}")
 
 
 class GroundView:
@@ -125,7 +72,8 @@ class GroundView:
 
     def __init__(self, grid: object, themes: Sequence[np.ndarray] | Sequence[Theme],
                  cell: tuple[int, int] | None = None, *, style: RenderOptions = RenderOptions(),
-                 colour_map: ColourMap | None = None, options: GroundOptions = GroundOptions(),
+                 colour_map: ColourMap | None = None,
+                 options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
                  context: moderngl.Context | None = None) -> None:
         textures = theme_textures(themes)
         self.indices, self.cell = prepare_grid(grid, cell, len(textures))
@@ -154,6 +102,8 @@ class GroundView:
         self._dirty: list[tuple[slice, slice]] = []
         self._plane = self.ctx.vertex_array(self.pipeline.program(self._variant(False)), [])
         self._fbo: moderngl.Framebuffer | None = None
+        self._reduced: moderngl.Framebuffer | None = None
+        self._present: moderngl.VertexArray | None = None
         #: cell boxes ``(x, y, w, h)`` re-split by the last draw that had edits to upload
         self.uploaded: list[tuple[int, int, int, int]] = []
 
@@ -165,7 +115,8 @@ class GroundView:
         return options.anisotropy is Anisotropy.SHADER and options.max_anisotropy > 1
 
     @classmethod
-    def from_project(cls, project: ThematicTexture, options: GroundOptions = GroundOptions(),
+    def from_project(cls, project: ThematicTexture,
+                     options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
                      context: moderngl.Context | None = None) -> GroundView:
         """A project in its own style (shaped borders, colour map)."""
         return cls(project.grid, project.library.textures, style=project_style(project),
@@ -242,14 +193,30 @@ class GroundView:
                               f"{type(view).__name__}")
 
     def draw(self, view: Camera | PlaneMapping, size: tuple[int, int], *,
-             framebuffer: moderngl.Framebuffer | None = None, flip_y: bool = False) -> None:
+             framebuffer: moderngl.Framebuffer | None = None, flip_y: bool = False,
+             scale: float = 1.0) -> None:
         """Draw a ``size = (w, h)`` frame into ``framebuffer`` (default: this view's own).
 
         ``flip_y`` True draws the frame upright on a display (a Qt widget's
         framebuffer, row 0 at the bottom); False puts the frame's top row in
-        framebuffer row 0, as :meth:`render` reads it back.
+        framebuffer row 0, as :meth:`render` reads it back. ``scale`` below 1
+        draws ``scale`` of the pixels along each side and stretches them over
+        the frame (a moving camera at a quarter of the cost).
         """
         w, h = _check_size(size)
+        if scale < 1.0:
+            small = (max(1, round(w * scale)), max(1, round(h * scale)))
+            frame = self._reduced_target(small)
+            self.draw(view, small, framebuffer=frame, flip_y=flip_y)
+            target = framebuffer if framebuffer is not None else self._framebuffer(w, h)
+            target.use()
+            self.ctx.viewport = (0, 0, w, h)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+            prog = self.pipeline.program(Variant("present"))
+            self.pipeline.set_uniforms(prog, {"tt_target": (float(w), float(h))})
+            frame.color_attachments[0].use(UNITS["tt_frame"])
+            self._present.render(moderngl.TRIANGLES, vertices=3)
+            return
         if self.heights is not None and not isinstance(view, Camera):
             raise TerrathemeError("a height map needs a Camera view (eq. 1 maps a flat plane)")
         mapping = self.mapping(view, (w, h))
@@ -285,24 +252,35 @@ class GroundView:
             self.ctx.disable(moderngl.DEPTH_TEST)
             self._plane.render(moderngl.TRIANGLES, vertices=3)
 
+    def _reduced_target(self, size: tuple[int, int]) -> moderngl.Framebuffer:
+        """A texture-backed framebuffer with depth of exactly ``size`` (the reduced frame)."""
+        fbo = self._reduced
+        if fbo is None or fbo.size != size:
+            _release_framebuffer(fbo)
+            colour = self.ctx.texture(size, 4)
+            colour.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            colour.repeat_x = colour.repeat_y = False
+            fbo = self._reduced = self.ctx.framebuffer(
+                color_attachments=[colour], depth_attachment=self.ctx.depth_renderbuffer(size))
+        if self._present is None:
+            self._present = self.ctx.vertex_array(self.pipeline.program(Variant("present")), [])
+        return fbo
+
     def _framebuffer(self, w: int, h: int) -> moderngl.Framebuffer:
         """An RGBA8 framebuffer with depth of at least ``w x h`` pixels."""
         fbo = self._fbo
         if fbo is None or fbo.width < w or fbo.height < h:
-            if fbo is not None:
-                for attachment in (*fbo.color_attachments, fbo.depth_attachment):
-                    attachment.release()
-                fbo.release()
+            _release_framebuffer(fbo)
             fbo = self._fbo = self.ctx.framebuffer(
                 color_attachments=[self.ctx.renderbuffer((w, h), 4)],
                 depth_attachment=self.ctx.depth_renderbuffer((w, h)))
         return fbo
 
-    def render(self, view: Camera | PlaneMapping, size: tuple[int, int] = (640, 360)
-               ) -> np.ndarray:
-        """One frame read back: ``(h, w, 3) uint8``, row 0 at the top."""
+    def render(self, view: Camera | PlaneMapping, size: tuple[int, int] = (640, 360),
+               scale: float = 1.0) -> np.ndarray:
+        """One frame read back: ``(h, w, 3) uint8``, row 0 at the top (``scale``: :meth:`draw`)."""
         w, h = _check_size(size)
-        self.draw(view, (w, h))
+        self.draw(view, (w, h), scale=scale)
         rgba = np.empty((h, w, 4), np.uint8)
         self._fbo.read_into(rgba, viewport=(0, 0, w, h), components=4, alignment=1)
         return np.ascontiguousarray(rgba[..., :3])
@@ -312,16 +290,23 @@ class GroundView:
         if self.heights is not None:
             self.heights.release()
             self.heights = None
-        if self._fbo is not None:
-            for attachment in (*self._fbo.color_attachments, self._fbo.depth_attachment):
-                attachment.release()
-            self._fbo.release()
-            self._fbo = None
-        for obj in (self._plane, self._grid, self._splits):
-            obj.release()
+        for fbo in (self._fbo, self._reduced):
+            _release_framebuffer(fbo)
+        self._fbo = self._reduced = None
+        for obj in (self._plane, self._present, self._grid, self._splits):
+            if obj is not None:
+                obj.release()
         self.pipeline.release()
         self.textures.release()
         self.themes.release()
+
+
+def _release_framebuffer(fbo: moderngl.Framebuffer | None) -> None:
+    """Free a framebuffer this view made and its attachments."""
+    if fbo is not None:
+        for attachment in (*fbo.color_attachments, fbo.depth_attachment):
+            attachment.release()
+        fbo.release()
 
 
 def _check_size(size: tuple[int, int]) -> tuple[int, int]:
@@ -336,7 +321,7 @@ def _check_size(size: tuple[int, int]) -> tuple[int, int]:
 
 def render_perspective_gpu(project: ThematicTexture, view: Camera | PlaneMapping,
                            size: tuple[int, int] = (640, 360), *,
-                           options: GroundOptions = GroundOptions(),
+                           options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
                            heights: np.ndarray | None = None,
                            height_scale: float = 1.0) -> np.ndarray:
     """One perspective frame of a project on the GPU, headless.
