@@ -68,12 +68,15 @@ def _top_down(texture_size, x0, y0, w, h) -> Camera:
     return Camera(height=f, pitch=90.0, yaw=0.0, fov=60.0, x=x0 + w / 2.0, y=y0 + h / 2.0)
 
 
+@pytest.mark.parametrize("options", [PROBES, GroundOptions(base_map=0)],
+                         ids=["base map", "per-pixel blend"])
 @pytest.mark.parametrize("style", [RenderOptions(), SHAPED])
-def test_straight_down_at_one_texel_per_pixel_is_the_render(context, style):
+def test_straight_down_at_one_texel_per_pixel_is_the_render(context, style, options):
     themes, grid = _themes(1), _grid(2)
     cell = (8, 6)
     cmap = ColourMap(np.random.default_rng(3).integers(70, 200, (12, 20, 3), dtype=np.uint8), 8)
-    view = GroundView(grid, themes, cell, style=style, colour_map=cmap, context=context)
+    view = GroundView(grid, themes, cell, style=style, colour_map=cmap, context=context,
+                      options=options)
     try:
         # A window crossing the texture's right and bottom edges: the plane repeats there.
         w, h = 64, 40

@@ -26,12 +26,14 @@ import numpy as np
 from core.edit.events import GridChange
 from core.edit.preview import dirty_cells
 from core.errors import TerrathemeError
+from core.gpu.base_map import BaseMap
 from core.gpu.context import gl_context
 from core.gpu.flight import clip_matrix
 from core.gpu.ground_mesh import HeightField
 from core.gpu.options import SOFTWARE_RENDERERS, Anisotropy, GpuRenderOptions, GroundOptions
 from core.gpu.pipeline import Pipeline
 from core.gpu.programs import UNITS, Variant
+from core.gpu.renderer import GpuRenderer
 from core.gpu.style import StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
@@ -100,6 +102,13 @@ class GroundView:
         self._splits = self._index_texture(region_splits(self.indices, None, self.saddle,
                                                          (0, gh - 1, 0, gw - 1)))
         self._dirty: list[tuple[slice, slice]] = []
+        self.base: BaseMap | None = None
+        if options.base_map:
+            # The render itself for wide footprints, drawn by the flat renderer (same style).
+            self._renderer = GpuRenderer(textures, context=self.ctx)
+            self.base = BaseMap(self.ctx, self._renderer, self.indices, self.cell,
+                                GpuRenderOptions.from_render_options(style), colour_map,
+                                options.base_map)
         self._plane = self.ctx.vertex_array(self.pipeline.program(self._variant(False)), [])
         self._fbo: moderngl.Framebuffer | None = None
         self._reduced: moderngl.Framebuffer | None = None
@@ -134,7 +143,7 @@ class GroundView:
         return Variant("ground_mesh" if mesh else "ground", histogram=self.style.histogram,
                        shaped=self.style.border is not None, filtered=True, wrap=not mesh,
                        colour_map=self.style.colour_map is not None, lut_size=lut,
-                       probes=self.probes)
+                       probes=self.probes, base=self.base is not None)
 
     # -- edits -----------------------------------------------------------------
     def mark_dirty(self, rows: slice, cols: slice) -> None:
@@ -162,6 +171,9 @@ class GroundView:
             box = (ccol.start, crow.start, ccol.stop - ccol.start, crow.stop - crow.start)
             self._splits.write(splits.tobytes(), viewport=box)
             self.uploaded.append(box)
+            if self.base is not None:
+                n, m = self.cell
+                self.base.update((box[0] * n, box[1] * m, box[2] * n, box[3] * m))
         self._dirty.clear()
 
     # -- height map --------------------------------------------------------------
@@ -233,6 +245,9 @@ class GroundView:
         values = {"tt_cell": self.cell, "tt_block_cell": (0, 0), "tt_block_cells": (gw, gh),
                   **self.textures.uniforms(self.style, self.texture_size,
                                            self.options.max_supersample)}
+        if self.base is not None:
+            self.base.bind(self.sampler_anisotropy)
+            values.update(self.base.uniforms())
         self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         if mesh:
             near, far = self.heights.depth_range(view, self.texture_size)
@@ -293,9 +308,12 @@ class GroundView:
         for fbo in (self._fbo, self._reduced):
             _release_framebuffer(fbo)
         self._fbo = self._reduced = None
-        for obj in (self._plane, self._present, self._grid, self._splits):
+        for obj in (self._plane, self._present, self._grid, self._splits, self.base):
             if obj is not None:
                 obj.release()
+        if self.base is not None:
+            self._renderer.release()
+            self.base = None
         self.pipeline.release()
         self.textures.release()
         self.themes.release()

@@ -122,6 +122,10 @@ class GroundOptions:
         Quads per side of the height map's mesh (at most; fewer for a small map).
     anisotropy : Anisotropy
         Whether the driver or the shader (``TT_PROBES``) filters anisotropically.
+    base_map : int
+        Most texels a side of the base map (``core.gpu.base_map``: the render,
+        mipmapped, read where footprints are a base texel wide or more); 0: none,
+        the per-pixel blend everywhere.
     """
 
     max_anisotropy: float = 16.0
@@ -129,6 +133,7 @@ class GroundOptions:
     sky: tuple[float, float, float] = field(default=SKY)
     mesh: int = 256
     anisotropy: Anisotropy = Anisotropy.AUTO
+    base_map: int = 4096
 
     def __post_init__(self) -> None:
         if not 1.0 <= float(self.max_anisotropy) <= 64.0:
@@ -137,5 +142,7 @@ class GroundOptions:
             raise TerrathemeError(f"max_supersample must be 1..16, got {self.max_supersample}")
         if len(self.sky) != 3 or not all(0.0 <= float(c) <= 1.0 for c in self.sky):
             raise TerrathemeError(f"sky must be three values in [0, 1], got {self.sky}")
+        if not 0 <= int(self.base_map) <= 16384:
+            raise TerrathemeError(f"base_map must be 0..16384 texels a side, got {self.base_map}")
         if not 1 <= int(self.mesh) <= 4096:
             raise TerrathemeError(f"mesh must be 1..4096 quads a side, got {self.mesh}")

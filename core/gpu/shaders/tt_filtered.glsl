@@ -25,19 +25,20 @@ const int TT_SLOTS = 4;
 // Anisotropic filtering in the shader (TT_PROBES, for drivers whose own is slow): up to
 // TT_PROBES trilinear reads spaced along the footprint's longer side, each at the level of
 // the longer side over the probe count (or of the shorter side, if longer), averaged.
-// Returns the probe count n, the level, and the step between probes in texture units.
-int tt_probes(vec2 dx, vec2 dy, float size, out float lod, out vec2 step) {
-    float lx = dot(dx, dx), ly = dot(dy, dy);
+// Returns the probe count n, the level, and the step between probes in texture
+// units; size is the texture's level 0 in texels.
+int tt_probes(vec2 dx, vec2 dy, vec2 size, out float lod, out vec2 step) {
+    float lx = dot(dx * size, dx * size), ly = dot(dy * size, dy * size);
     float big = sqrt(max(lx, ly)), small = sqrt(min(lx, ly));
     int n = int(clamp(ceil(big / max(small, 1e-6 * big) - 1e-3), 1.0, float(TT_PROBES)));
-    lod = log2(max(max(small, big / float(n)) * size, 1e-8));
+    lod = log2(max(max(small, big / float(n)), 1e-8));
     step = (lx > ly ? dx : dy) / float(n);
     return n;
 }
 vec3 tt_probe(sampler2DArray tex, vec3 at, vec2 dx, vec2 dy) {
     float lod;
     vec2 step;
-    int n = tt_probes(dx, dy, float(textureSize(tex, 0).x), lod, step);
+    int n = tt_probes(dx, dy, vec2(textureSize(tex, 0).xy), lod, step);
     vec3 sum = vec3(0.0);
     for (int i = 0; i < n; ++i) {
         sum += textureLod(tex, vec3(at.xy + (float(i) - 0.5 * float(n - 1)) * step, at.z), lod).rgb;
@@ -47,8 +48,7 @@ vec3 tt_probe(sampler2DArray tex, vec3 at, vec2 dx, vec2 dy) {
 vec3 tt_probe(sampler2D tex, vec2 at, vec2 dx, vec2 dy) {
     float lod;
     vec2 step;
-    ivec2 size = textureSize(tex, 0);
-    int n = tt_probes(dx, dy, float(max(size.x, size.y)), lod, step);
+    int n = tt_probes(dx, dy, vec2(textureSize(tex, 0)), lod, step);
     vec3 sum = vec3(0.0);
     for (int i = 0; i < n; ++i) {
         sum += textureLod(tex, at + (float(i) - 0.5 * float(n - 1)) * step, lod).rgb;

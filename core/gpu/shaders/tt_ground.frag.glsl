@@ -14,6 +14,13 @@
 //   tt_sky     vec3: the sky's colour
 // TT_GROUND_MESH 1 (mesh displaced by a height map): v_texel from
 // tt_ground.vert.glsl, the footprint from its screen derivatives.
+// TT_BASE 1: footprints a base texel wide or more read the base map (the
+// render itself, mipmapped: core.gpu.base_map), narrower ones the per-pixel
+// blend, mixed over the octave between:
+//   tt_base       sampler2D RGBA8: the render at tt_base_step texels per texel,
+//                 REPEAT, mipmapped (the sampler's anisotropy, or TT_PROBES)
+//   tt_base_step  float: texels of the render per base texel
+//   tt_base_span  vec2: texels of the render the base map covers
 // Textures and the other uniforms: tt_blend.glsl. Output: f_colour, RGBA.
 #include "tt_blend.glsl"
 
@@ -25,6 +32,45 @@ uniform vec2 tt_screen;
 uniform vec3 tt_sky;
 #endif
 
+#ifndef TT_BASE
+#define TT_BASE 0
+#endif
+#if TT_BASE == 1
+uniform sampler2D tt_base;
+uniform float tt_base_step;
+uniform vec2 tt_base_span;
+
+// The base map over the footprint: the render's own average there.
+vec3 tt_base_colour(vec2 p, vec2 dx, vec2 dy) {
+    vec2 at = (tt_place(p) + 0.5) / tt_base_span;
+#if TT_PROBES > 1
+    return tt_probe(tt_base, at, dx / tt_base_span, dy / tt_base_span);
+#else
+    return textureGrad(tt_base, at, dx / tt_base_span, dy / tt_base_span).rgb;
+#endif
+}
+
+// The base map's share: 0 for footprints under half a base texel wide, 1 from one
+// (the width a 16x anisotropic filter averages across).
+float tt_base_share(vec2 dx, vec2 dy) {
+    float lx = length(dx), ly = length(dy);
+    float width = max(min(lx, ly), max(lx, ly) / 16.0);
+    return clamp(log2(width / tt_base_step) + 1.0, 0.0, 1.0);
+}
+#endif
+
+// The ground's colour at texel position p, footprint (dx, dy).
+vec4 tt_ground(vec2 p, vec2 dx, vec2 dy) {
+#if TT_BASE == 1
+    float t = tt_base_share(dx, dy);
+    vec3 far = t > 0.0 ? tt_base_colour(p, dx, dy) : vec3(0.0);
+    vec3 near = t < 1.0 ? tt_shade_footprint(p, dx, dy).rgb : vec3(0.0);
+    return vec4(mix(near, far, t), 1.0);
+#else
+    return tt_shade_footprint(p, dx, dy);
+#endif
+}
+
 // A footprint side no longer than the texture (past the horizon eq. 2 grows without bound).
 vec2 tt_bounded(vec2 side) {
     float most = max(tt_texture_size.x, tt_texture_size.y);
@@ -34,7 +80,7 @@ vec2 tt_bounded(vec2 side) {
 
 void main() {
 #if TT_GROUND_MESH == 1
-    f_colour = tt_shade_footprint(v_texel, tt_bounded(dFdx(v_texel)), tt_bounded(dFdy(v_texel)));
+    f_colour = tt_ground(v_texel, tt_bounded(dFdx(v_texel)), tt_bounded(dFdy(v_texel)));
 #else
     // Eq. 1 at the pixel centre, then eq. 2 for its footprint.
     vec3 s = vec3(gl_FragCoord.x, tt_screen.x + tt_screen.y * gl_FragCoord.y, 1.0);
@@ -46,6 +92,6 @@ void main() {
     vec2 uv = h.xy / h.z;
     vec2 dx = (vec2(tt_plane[0][0], tt_plane[1][0]) - tt_plane[2][0] * uv) / h.z;
     vec2 dy = (vec2(tt_plane[0][1], tt_plane[1][1]) - tt_plane[2][1] * uv) / h.z;
-    f_colour = tt_shade_footprint(uv - 0.5, tt_bounded(dx), tt_bounded(dy));
+    f_colour = tt_ground(uv - 0.5, tt_bounded(dx), tt_bounded(dy));
 #endif
 }
