@@ -217,11 +217,32 @@ def test_bad_views_and_options_are_refused(context):
         GroundOptions(max_supersample=0)
     with pytest.raises(TerrathemeError, match="sky"):
         GroundOptions(sky=(2.0, 0.0, 0.0))
+    with pytest.raises(TerrathemeError, match="base_map"):
+        GroundOptions(base_map=-1)
     with pytest.raises(TerrathemeError, match="theme"):
         GroundView(np.full((3, 3), 9), _themes(1), (4, 4), context=context)
     with pytest.raises(TerrathemeError, match="colour map is"):
         GroundView(_grid(1), _themes(1), (4, 4), context=context,
                    colour_map=ColourMap(np.zeros((2, 2, 3), np.uint8), 4))
+
+
+def test_a_large_texture_gets_a_reduced_base_map(context):
+    # 256 x 192 texels with base maps of at most 64 a side: 4 texels per base texel.
+    themes, grid = _themes(15), _grid(16, (25, 33))
+    view = GroundView(grid, themes, (8, 8), options=GroundOptions(base_map=64), context=context)
+    try:
+        assert view.base.step == 4 and view.base.size == (64, 48)
+        far = Camera(height=30.0, pitch=4.0, yaw=10.0)
+        frame = view.render(far, (96, 64))
+        whole = GroundView(grid, themes, (8, 8), options=GroundOptions(base_map=0),
+                           context=context)
+        try:
+            # The far field from the reduced render, the rest per pixel: close to no base map.
+            assert np.abs(frame.astype(np.int16) - whole.render(far, (96, 64))).mean() < 6
+        finally:
+            whole.release()
+    finally:
+        view.release()
 
 
 def test_a_reduced_frame_is_the_small_frame_stretched(context):

@@ -12,7 +12,8 @@ and colour map, checked against the shaders' integer ranges), ``renderer``
 (:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any
 region, exact at scale 1, filtered with mipmaps and anisotropy below or on
 request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
-``ground_mesh`` (a height map as a mesh), ``ground`` (:class:`GroundView`,
+``ground_mesh`` (a height map as a mesh), ``base_map`` (the render itself,
+mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
 :func:`render_perspective_gpu`: the texture on a ground plane in perspective).
 """
 
