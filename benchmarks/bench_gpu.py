@@ -28,6 +28,20 @@ with every contender back to back, so machine load hits them alike:
 
 Accuracy: the largest difference between the GPU and CPU texels of every
 frame (linear: must be 0; histogram-preserving: at most 1).
+
+A converted project in its own style (shaped borders + colour map): the
+DeepGlobe photo 6399 (2448 x 2448) converted with ``convert``'s defaults,
+1920 x 1080 viewports, ``render_cells`` with the project's style against the
+shaders (must be equal: max difference 0).
+
+Perspective frames (``core.gpu.GroundView``, the fly-over's renderer): the
+bundled ``sample_maps/dubai_marina.jpg`` converted with ``convert``'s
+defaults, 1280 x 720 frames from a camera 24 texels up, yaw 30, fov 60, at
+pitches 20 to 2.5 degrees; the GPU (anisotropic 16x: shader probes on a
+software rasteriser; and trilinear) next to the CPU preview's trilinear, the
+parallelogram default and EWA on the project's render, all against the CPU's
+supersampled reference (``Method.REFERENCE``): PSNR over ground pixels and
+median ms per frame over interleaved rounds.
 """
 
 from __future__ import annotations
@@ -48,11 +62,108 @@ sys.path.insert(0, str(HERE))
 
 from bench_render import N, esa_grid  # noqa: E402
 
-from core.gpu import GpuRenderer, GpuRenderOptions, UniformCells  # noqa: E402
+from core.gpu import (  # noqa: E402
+    GpuRenderer,
+    GpuRenderOptions,
+    GroundOptions,
+    GroundView,
+    UniformCells,
+)
 from core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
 from core.render.rules import cell_splits  # noqa: E402
 
 W, H = 1920, 1080
+SHARED = HERE.parent.parent / "shared" / "data"
+FRAME = (1280, 720)
+PITCHES = (20.0, 10.0, 5.0, 2.5)
+
+
+def converted(path: Path):
+    """A photo converted with convert's defaults (shaped borders, colour map)."""
+    from core.convert.photo import convert_photo
+    from core.io.images import read_image
+
+    return convert_photo(read_image(path)).project
+
+
+def style_scenario(project, gpu: GpuRenderer, regions: list, rounds: int) -> dict:
+    """1920 x 1080 viewports of a converted project in its style: CPU against the shaders."""
+    from core.render.project import project_style
+
+    style, cmap = project_style(project), project.colour_map
+    textures, grid = project.library.textures, project.grid
+    opts = GpuRenderOptions.from_render_options(style)
+    buf_cpu, buf_gpu = np.empty((H, W, 3), np.uint8), np.empty((H, W, 3), np.uint8)
+
+    def frame(region):
+        gpu.draw(grid, region=region, options=opts, colour_map=cmap)
+        gpu.ctx.finish()
+
+    fns = {
+        "cpu": lambda r: render_cells(grid, textures, region=r, options=style, colour_map=cmap),
+        "cpu (reused buffer)": lambda r: render_cells(grid, textures, region=r, options=style,
+                                                      colour_map=cmap, out=buf_cpu),
+        "gpu frame": frame,
+        "gpu to numpy": lambda r: gpu.render(grid, region=r, options=opts, colour_map=cmap,
+                                             out=buf_gpu),
+    }
+    worst = 0
+    for r in regions[:2]:
+        cpu = render_cells(grid, textures, region=r, options=style, colour_map=cmap)
+        worst = max(worst, int(np.abs(cpu.astype(np.int16) - gpu.render(
+            grid, region=r, options=opts, colour_map=cmap)).max()))
+    for fn in fns.values():
+        fn(regions[0])
+    return {"cell": list(grid.cell), "texture": list(grid.texture_size),
+            "colour_map_scale": cmap.scale, "boundary": project.metadata.get("render"),
+            "mixed_cell_fraction": float((cell_splits(grid.indices) != 0).mean()),
+            "max_abs_diff": worst, "linear": measure(fns, regions, rounds)}
+
+
+def perspective_rows(project, rounds: int, pitches=PITCHES) -> list[dict]:
+    """PSNR against the CPU reference and ms per frame, GPU and CPU filters, per pitch."""
+    from skimage.metrics import peak_signal_noise_ratio
+
+    from core.perspective import Camera, FilterOptions, Method, PreparedTexture, camera_mapping
+    from core.render.project import render_project
+
+    texture = render_project(project)
+    prepared = PreparedTexture(texture)
+    cpu = {name: FilterOptions(method=m) for name, m in (
+        ("cpu trilinear", Method.TRILINEAR), ("cpu parallelogram", Method.PARALLELOGRAM),
+        ("cpu ewa", Method.EWA))}
+    views = {"gpu anisotropic 16x": GroundView.from_project(project),
+             "gpu trilinear": GroundView.from_project(project, GroundOptions(max_anisotropy=1))}
+    rows = []
+    for pitch in pitches:
+        cam = Camera(height=24.0, pitch=pitch, yaw=30.0, fov=60.0)
+        t0 = time.perf_counter()
+        ref = prepared.render(cam, FRAME, FilterOptions(method=Method.REFERENCE)).image
+        ref_ms = 1e3 * (time.perf_counter() - t0)
+        mapping = camera_mapping(cam, FRAME, prepared.texture_size)
+        z = mapping.Bz * np.arange(FRAME[1] + 1) + mapping.Cz
+        ground = np.repeat(((z[:-1] > 0) & (z[1:] > 0))[:, None], FRAME[0], axis=1)
+        fns = {**{k: (lambda v=v, c=cam: v.render(c, FRAME)) for k, v in views.items()},
+               **{k: (lambda o=o, c=cam: prepared.render(c, FRAME, o).image)
+                  for k, o in cpu.items()}}
+        frames = {k: fn() for k, fn in fns.items()}  # warm-up: shaders, numba, families
+        times: dict[str, list[float]] = {k: [] for k in fns}
+        for rnd in range(rounds):
+            for name in (list(fns) if rnd % 2 == 0 else list(reversed(fns))):
+                t0 = time.perf_counter()
+                frames[name] = fns[name]()
+                times[name].append(1e3 * (time.perf_counter() - t0))
+        for name, img in frames.items():
+            img = img.astype(np.float32) / 255 if img.dtype == np.uint8 else img
+            psnr = peak_signal_noise_ratio(ref[ground], img[ground], data_range=1.0)
+            rows.append({"pitch": pitch, "method": name, "psnr_db": float(psnr),
+                         "ms_per_frame": statistics.median(times[name]),
+                         "reference_ms": ref_ms})
+            print(f"pitch {pitch:4.1f} {name:20s} {psnr:6.2f} dB "
+                  f"{statistics.median(times[name]):8.1f} ms", flush=True)
+    for v in views.values():
+        v.release()
+    return rows
 
 
 def spots(size: int, count: int) -> list[tuple[int, int, int, int]]:
@@ -164,6 +275,24 @@ def main() -> int:
             scen[blend.value] = measure(fns, regions, rounds)
             print(label, blend.value, json.dumps(scen[blend.value]["median_ms"]), flush=True)
         res["scenarios"][label] = scen
+    deepglobe = SHARED / "deepglobe" / "images" / "6399_sat.jpg"
+    if deepglobe.is_file():
+        project = converted(deepglobe)
+        gpu_style = GpuRenderer(project.library.textures)
+        tw, th = project.grid.texture_size
+        rng = np.random.default_rng(0)
+        views = [(int(rng.integers(0, tw - W)), int(rng.integers(0, th - H)), W, H)
+                 for _ in range(len(regions))]
+        res["converted"] = {"photo": "DeepGlobe 6399 (2448 x 2448), convert defaults",
+                            **style_scenario(project, gpu_style, views, rounds)}
+        print("converted", json.dumps(res["converted"]["linear"]["median_ms"]), flush=True)
+        gpu_style.release()
+    sample = converted(HERE.parent / "sample_maps" / "dubai_marina.jpg")
+    res["perspective"] = {
+        "project": "sample_maps/dubai_marina.jpg, convert defaults", "frame": list(FRAME),
+        "camera": "height 24 texels, yaw 30, fov 60", "texture": list(sample.grid.texture_size),
+        "rows": perspective_rows(sample, 1 if args.quick else 3,
+                                 PITCHES[::2] if args.quick else PITCHES)}
     res["load_average_end"] = os.getloadavg()[0]
     out = HERE / "results"
     out.mkdir(exist_ok=True)
@@ -174,6 +303,21 @@ def main() -> int:
     return 0
 
 
+def _bars(ax, m: dict, colours: dict, title: str) -> None:
+    """Median ms per frame with p10-p90 whiskers, one bar per contender."""
+    names = list(m["median_ms"])
+    med = [m["median_ms"][k] for k in names]
+    lo = [m["median_ms"][k] - m["p10_ms"][k] for k in names]
+    hi = [m["p90_ms"][k] - m["median_ms"][k] for k in names]
+    ax.bar(range(len(names)), med, yerr=[lo, hi], capsize=3,
+           color=[colours.get(k, "C5") for k in names])
+    ax.set_xticks(range(len(names)), names, rotation=25, ha="right", fontsize=8)
+    for j, v in enumerate(med):
+        ax.text(j, v, f"{v:.1f}", ha="center", va="bottom", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    ax.set_ylabel("ms per 1920 x 1080 frame (median, p10-p90)")
+
+
 def chart(res: dict, path: Path) -> None:
     import matplotlib
 
@@ -181,35 +325,61 @@ def chart(res: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     scen = res["scenarios"]
-    fig, axes = plt.subplots(1, 2 * len(scen), figsize=(7 * len(scen) * 2 / 1.6, 5))
+    fig, axes = plt.subplots(2, 4, figsize=(22, 10.5))
     colours = {"cpu": "C3", "cpu (reused buffer)": "C1", "gpu frame": "C0",
                "gpu to numpy": "C2", "gpu frame, uniform cells by copy shader": "C9",
                "gpu blend shader alone": "C7"}
-    i = 0
+    flat = iter(axes[0])
     for label, sc in scen.items():
         for blend in ("linear", "histogram"):
-            ax = axes[i]
-            i += 1
             m = sc[blend]
-            names = list(m["median_ms"])
-            med = [m["median_ms"][k] for k in names]
-            lo = [m["median_ms"][k] - m["p10_ms"][k] for k in names]
-            hi = [m["p90_ms"][k] - m["median_ms"][k] for k in names]
-            ax.bar(range(len(names)), med, yerr=[lo, hi], capsize=3,
-                   color=[colours[k] for k in names])
-            ax.set_xticks(range(len(names)), names, rotation=25, ha="right", fontsize=8)
-            for j, v in enumerate(med):
-                ax.text(j, v, f"{v:.1f}", ha="center", va="bottom", fontsize=8)
             acc = sc["accuracy"][blend]["max_abs_diff"]
             ratio = m["cpu_over_contender_median"].get("gpu frame", float("nan"))
-            ax.set_title(f"{label}, {blend}\n(map cells blended {sc['mixed_cell_fraction']:.1%}; "
-                         f"cpu / gpu frame {ratio:.2f}x; max |gpu-cpu| {acc})", fontsize=9)
-            ax.set_ylabel("ms per 1920 x 1080 frame (median, p10-p90)")
-    fig.suptitle(f"GPU renderer on {res['gl_renderer']} vs CPU render_cells, same run, "
-                 f"{res['cpu_count']} cores (load {res['load_average_start']:.1f} at start)",
-                 fontsize=10)
+            _bars(next(flat), m, colours,
+                  f"{label}, {blend}\n(map cells blended {sc['mixed_cell_fraction']:.1%}; "
+                  f"cpu / gpu frame {ratio:.2f}x; max |gpu-cpu| {acc})")
+    ax = axes[1][0]
+    if "converted" in res:
+        c = res["converted"]
+        ratio = c["linear"]["cpu_over_contender_median"]["gpu frame"]
+        _bars(ax, c["linear"], colours,
+              f"converted photo, shaped borders + colour map (scale {c['colour_map_scale']})\n"
+              f"cells blended {c['mixed_cell_fraction']:.1%}; cpu / gpu frame {ratio:.2f}x; "
+              f"max |gpu-cpu| {c['max_abs_diff']}")
+    else:
+        ax.set_axis_off()
+    rows = res["perspective"]["rows"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    marks = dict(zip(methods, "os^vDP", strict=False))
+    ax = axes[1][1]
+    for i, name in enumerate(methods):
+        pts = [r for r in rows if r["method"] == name]
+        ax.plot([p["ms_per_frame"] for p in pts], [p["psnr_db"] for p in pts],
+                marks[name], color=f"C{i}", label=name)
+        for p in pts:
+            ax.annotate(f"{p['pitch']:g}°", (p["ms_per_frame"], p["psnr_db"]), fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlabel("ms per 1280 x 720 frame (median)")
+    ax.set_ylabel("PSNR against the supersampled reference (dB)")
+    ax.set_title(f"perspective frames, {res['perspective']['project']}", fontsize=9)
+    ax.legend(fontsize=8)
+    for ax, key, unit in ((axes[1][2], "psnr_db", "PSNR (dB)"),
+                          (axes[1][3], "ms_per_frame", "ms per frame (median)")):
+        for i, name in enumerate(methods):
+            pts = [r for r in rows if r["method"] == name]
+            ax.plot([p["pitch"] for p in pts], [p[key] for p in pts], "-" + marks[name],
+                    color=f"C{i}", label=name)
+        ax.set_xlabel("camera pitch (degrees below the horizontal)")
+        ax.set_ylabel(unit)
+        if key == "ms_per_frame":
+            ax.set_yscale("log")
+        ax.set_title(f"{unit} by pitch, 1280 x 720", fontsize=9)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"GPU renderer on {res['gl_renderer']} vs CPU, same run, "
+                 f"{res['cpu_count']} cores (load {res['load_average_start']:.1f} at start, "
+                 f"{res['load_average_end']:.1f} at end)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=72)
     plt.close(fig)
 
 

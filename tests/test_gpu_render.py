@@ -33,6 +33,7 @@ from core.gpu import (
     render_cells_gpu,
 )
 from core.io.images import read_image
+from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid
 from core.render.overview import render_overview
 from core.render.renderer import BlendMode, RenderOptions, render_cells
@@ -234,18 +235,19 @@ def test_draw_leaves_the_frame_in_the_framebuffer(odd):
 def test_colour_map_multiplies_by_value_over_128(even):
     grid = np.array([[0, 1, 2], [2, 0, 1], [1, 1, 0]], np.uint8)
     base = even.render(grid, (8, 8))
-    neutral = even.render(grid, (8, 8), colour_map=np.full((2, 2, 3), 128, np.uint8))
+    neutral = even.render(grid, (8, 8), colour_map=ColourMap(np.full((2, 2, 3), 128, np.uint8), 8))
     assert np.array_equal(neutral, base)
-    half = even.render(grid, (8, 8), colour_map=np.full((1, 1, 3), 64, np.uint8))
+    half = even.render(grid, (8, 8), colour_map=ColourMap(np.full((1, 1, 3), 64, np.uint8), 16))
     assert np.array_equal(half, (base.astype(np.int32) + 1) // 2)
-    # Two columns 64 | 192: gains 0.5 and 1.5 at the two halves' centres, linear between.
-    cmap = np.array([[[64, 64, 64], [192, 192, 192]]], np.uint8)
+    # Two map columns 64 | 192 at scale 8 over 16 texels: map coordinate (x + 0.5) / 8 - 0.5,
+    # gains 0.5 and 1.5 at the columns' centres (texels 3.5 and 11.5), linear between.
+    cmap = ColourMap(np.array([[[64, 64, 64], [192, 192, 192]]] * 2, np.uint8), 8)
     ramp = even.render(grid, (8, 8), colour_map=cmap)
     x = np.arange(16)
-    pos = np.clip((x + 0.5) * 2 / 16 - 0.5, 0, 1)
+    pos = np.clip((x + 0.5) / 8 - 0.5, 0, 1)
     gain = (64 + 128 * pos) / 128
     want = np.minimum(np.floor(base * gain[None, :, None] + 0.5), 255)
-    assert np.abs(ramp - want).max() <= 1
+    assert np.abs(ramp - want).max() == 0
 
 
 def test_bad_inputs_are_refused_before_work(odd):
@@ -260,8 +262,8 @@ def test_bad_inputs_are_refused_before_work(odd):
         odd.render(grid, (4, 4), scale=0.5, options=GpuRenderOptions(sampling=Sampling.EXACT))
     with pytest.raises(TerrathemeError, match="out must be"):
         odd.render(grid, (4, 4), out=np.zeros((8, 8, 4), np.uint8))
-    with pytest.raises(TerrathemeError, match="colour map"):
-        odd.render(grid, (4, 4), colour_map=np.zeros((4, 4), np.uint8))
+    with pytest.raises(TerrathemeError, match="colour map must be a ColourMap"):
+        odd.render(grid, (4, 4), colour_map=np.zeros((4, 4, 3), np.uint8))
     with pytest.raises(TerrathemeError, match="exact integer range"):
         # 2049 cells of the largest cell (4096 texels) pass 2^23 texels across.
         odd.render(np.zeros((2, 2050), np.uint8), (4096, 1))
@@ -271,7 +273,7 @@ def test_bad_inputs_are_refused_before_work(odd):
         odd.render(grid, (0, 4))
     if odd.can_copy:
         with pytest.raises(TerrathemeError, match="no colour map"):
-            odd.render(grid, (4, 4), colour_map=np.full((2, 2, 3), 128, np.uint8),
+            odd.render(grid, (4, 4), colour_map=ColourMap(np.full((2, 2, 3), 128, np.uint8), 4),
                        options=GpuRenderOptions(uniform_cells=UniformCells.COPY))
     with pytest.raises(TerrathemeError, match="no themes"):
         GpuRenderer([])

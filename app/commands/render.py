@@ -33,15 +33,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "shaped: borders shaped by the themes and noise")
     parser.add_argument("--gpu", action="store_true",
                         help="render through the OpenGL shaders (headless EGL; Mesa's llvmpipe "
-                             "without a GPU): at scale 1 the same texels as the CPU render, "
-                             "below 1 mipmapped")
+                             "without a GPU), in the same style: at scale 1 the same texels as "
+                             "the CPU render, below 1 mipmapped")
 
 
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from app.outputs import check_outputs
-    from core.errors import TerrathemeError
     from core.io.georef import write_georeference
     from core.io.images import write_image
     from core.model.project import load_project
@@ -64,10 +63,6 @@ def run(args: argparse.Namespace) -> int:
         options = RenderOptions(blend=BlendMode(args.blend))
     style = "shaped" if options.boundary is not None else options.blend.value
     region = args.region or (0, 0, *photo_extent(project))
-    if args.gpu and (options.boundary is not None or project.colour_map is not None):
-        raise TerrathemeError("the GPU renderer draws the paper's linear and the histogram "
-                              "blends without a colour map; this project has shaped borders "
-                              "or a colour map: render it without --gpu")
     gpu = _gpu_renderer(project) if args.gpu else None
     with tqdm(total=1, desc="render", unit="tile" if gpu else "band", leave=False) as bar:
 
@@ -77,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
             bar.refresh()
 
         if gpu is not None:
-            image = _render_gpu(gpu, project, region, args.scale, options.blend, progress)
+            image = _render_gpu(gpu, project, region, args.scale, options, progress)
         else:
             image = render_project(project, region, args.scale, options=options,
                                    progress=progress)
@@ -99,11 +94,13 @@ def _gpu_renderer(project):
     return GpuRenderer(project.library.textures)
 
 
-def _render_gpu(gpu, project, region, scale: float, blend, progress):
+def _render_gpu(gpu, project, region, scale: float, style, progress):
+    """The project through the shaders in ``style`` (blend, saddle, borders) with its colour map."""
     from core.gpu import GpuRenderOptions
 
     try:
         return gpu.render(project.grid, region=region, scale=scale, progress=progress,
-                          options=GpuRenderOptions(blend=blend))
+                          options=GpuRenderOptions.from_render_options(style),
+                          colour_map=project.colour_map)
     finally:
         gpu.release()

@@ -7,25 +7,40 @@ programs, textures and buffers a renderer reuses between frames),
 ``textures`` (themes, Gaussianised themes, inverse tables, colour map as
 textures), ``cover`` (rectangles of uniform and blended cells),
 ``copy_image`` (uniform cells as image copies), ``options``
-(sampling path, blend, tiles), ``renderer`` (:class:`GpuRenderer`,
-:func:`render_cells_gpu`: a full texture or any region, exact at scale 1,
-filtered with mipmaps and anisotropy below or on request).
+(sampling path, blend, tiles), ``style`` (a project's blend, shaped borders
+and colour map, checked against the shaders' integer ranges), ``renderer``
+(:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any
+region, exact at scale 1, filtered with mipmaps and anisotropy below or on
+request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
+``ground_mesh`` (a height map as a mesh), ``base_map`` (the render itself,
+mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
+:func:`render_perspective_gpu`: the texture on a ground plane in perspective).
 """
 
 from core.gpu.context import GpuUnavailableError, create_context, gl_context
-from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
+from core.gpu.ground import GroundView, render_perspective_gpu
+from core.gpu.options import Anisotropy, GpuRenderOptions, GroundOptions, Sampling, UniformCells
 from core.gpu.renderer import GpuRenderer, render_cells_gpu
 from core.gpu.shaders import SHADER_DIR, shader_source
 
 __all__ = [
     "SHADER_DIR",
+    "Anisotropy",
+    "Flight",
+    "FlightControls",
+    "FlightInput",
     "GpuRenderOptions",
     "GpuRenderer",
     "GpuUnavailableError",
+    "GroundOptions",
+    "GroundView",
     "Sampling",
     "UniformCells",
+    "clip_matrix",
     "create_context",
     "gl_context",
     "render_cells_gpu",
+    "render_perspective_gpu",
     "shader_source",
 ]

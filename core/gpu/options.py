@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 
-from core.render.renderer import BlendMode
+from core.errors import TerrathemeError
+from core.render.boundary import BoundaryOptions
+from core.render.renderer import BlendMode, RenderOptions
 from core.render.rules import SaddleRule
+
+#: the CPU preview's sky colour (core.perspective.FilterOptions' default)
+SKY = (0.62, 0.74, 0.88)
 
 
 class Sampling(Enum):
@@ -55,6 +60,12 @@ class GpuRenderOptions:
     uniform_cells : UniformCells
         How the exact path fills runs of uniform cells (the filtered path
         blends every pixel).
+    boundary : BoundaryOptions or None
+        Borders shaped by the themes' content and noise
+        (:mod:`core.render.boundary`, linear blend only); None: the paper's ramp.
+    max_supersample : int
+        Filtered path: most weight sub-samples per pixel side (two per cell a
+        pixel spans, up to this), 1..64.
     """
 
     blend: BlendMode = BlendMode.LINEAR
@@ -63,3 +74,75 @@ class GpuRenderOptions:
     max_anisotropy: float = 1.0
     tile: int = 4096
     uniform_cells: UniformCells = UniformCells.AUTO
+    boundary: BoundaryOptions | None = None
+    max_supersample: int = 16
+
+    def __post_init__(self) -> None:
+        if self.boundary is not None and self.blend is not BlendMode.LINEAR:
+            raise TerrathemeError("shaped boundaries blend linearly: use BlendMode.LINEAR "
+                                  "with a boundary, or no boundary with the histogram blend")
+        if not 1 <= int(self.max_supersample) <= 64:
+            raise TerrathemeError(f"max_supersample must be 1..64, got {self.max_supersample}")
+
+    @classmethod
+    def from_render_options(cls, style: RenderOptions, **kwargs) -> GpuRenderOptions:
+        """The GPU options drawing what ``style`` draws on the CPU (blend, saddle, borders)."""
+        return cls(blend=style.blend, saddle=style.saddle, boundary=style.boundary, **kwargs)
+
+
+class Anisotropy(Enum):
+    """Who filters the themes anisotropically (up to ``GroundOptions.max_anisotropy``)."""
+
+    #: ``SHADER`` on a software rasteriser (llvmpipe, softpipe, SwiftShader), else ``DRIVER``
+    AUTO = "auto"
+    #: the sampler's anisotropic filtering (about free on GPUs; Mesa's llvmpipe took
+    #: 126 times as long as SHADER for a 640 x 360 frame at 16x, and blurs more)
+    DRIVER = "driver"
+    #: up to ``max_anisotropy`` trilinear reads along each footprint, in the shader
+    SHADER = "shader"
+
+
+#: GL_RENDERER substrings of software rasterisers (their own anisotropic filter is slow)
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swiftshader", "swr")
+
+
+@dataclass(frozen=True)
+class GroundOptions:
+    """How the ground plane is drawn.
+
+    Attributes
+    ----------
+    max_anisotropy : float
+        Anisotropic filtering of the themes (the driver's cap applies; 16 on llvmpipe).
+    max_supersample : int
+        Most weight sub-samples per pixel side (two per cell a footprint side spans).
+    sky : (r, g, b) floats in [0, 1]
+        The colour above the horizon (the CPU preview's default).
+    mesh : int
+        Quads per side of the height map's mesh (at most; fewer for a small map).
+    anisotropy : Anisotropy
+        Whether the driver or the shader (``TT_PROBES``) filters anisotropically.
+    base_map : int
+        Most texels a side of the base map (``core.gpu.base_map``: the render,
+        mipmapped, read where footprints are a base texel wide or more); 0: none,
+        the per-pixel blend everywhere.
+    """
+
+    max_anisotropy: float = 16.0
+    max_supersample: int = 4
+    sky: tuple[float, float, float] = field(default=SKY)
+    mesh: int = 256
+    anisotropy: Anisotropy = Anisotropy.AUTO
+    base_map: int = 4096
+
+    def __post_init__(self) -> None:
+        if not 1.0 <= float(self.max_anisotropy) <= 64.0:
+            raise TerrathemeError(f"max_anisotropy must be 1..64, got {self.max_anisotropy}")
+        if not 1 <= int(self.max_supersample) <= 16:
+            raise TerrathemeError(f"max_supersample must be 1..16, got {self.max_supersample}")
+        if len(self.sky) != 3 or not all(0.0 <= float(c) <= 1.0 for c in self.sky):
+            raise TerrathemeError(f"sky must be three values in [0, 1], got {self.sky}")
+        if not 0 <= int(self.base_map) <= 16384:
+            raise TerrathemeError(f"base_map must be 0..16384 texels a side, got {self.base_map}")
+        if not 1 <= int(self.mesh) <= 4096:
+            raise TerrathemeError(f"mesh must be 1..4096 quads a side, got {self.mesh}")

@@ -13,7 +13,7 @@ import cv2
 import moderngl
 import numpy as np
 
-from core.gpu.programs import UNITS, compile_program, set_uniform
+from core.gpu.programs import UNITS, Variant, compile_program, set_uniform
 
 #: one vertex of a drawn rectangle: texel-edge position and the copy shader's theme coordinate
 VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])
@@ -75,7 +75,7 @@ class Pipeline:
         self.ctx = ctx
         self.themes = themes
         self.one_size = one_size
-        self._programs: dict[tuple, moderngl.Program] = {}
+        self._programs: dict[Variant, moderngl.Program] = {}
         self._uniforms: dict[int, dict[str, object]] = {}
         self._index: dict[str, moderngl.Texture] = {}
         self._buffer: moderngl.Buffer | None = None
@@ -83,15 +83,12 @@ class Pipeline:
         self._fbo: moderngl.Framebuffer | None = None
         self._scratch = np.empty((0, 0, 4), np.uint8)
 
-    def program(self, kind: str, *, histogram: bool, filtered: bool, colour_map: bool,
-                lut_size: int) -> moderngl.Program:
+    def program(self, variant: Variant) -> moderngl.Program:
         """The compiled variant (``core.gpu.programs``), made once."""
-        key = (kind, histogram, filtered, colour_map, lut_size)
-        if key not in self._programs:
-            self._programs[key] = compile_program(
-                self.ctx, kind, themes=self.themes, histogram=histogram, filtered=filtered,
-                colour_map=colour_map, one_size=self.one_size, lut_size=lut_size)
-        return self._programs[key]
+        if variant not in self._programs:
+            self._programs[variant] = compile_program(self.ctx, variant, themes=self.themes,
+                                                      one_size=self.one_size)
+        return self._programs[variant]
 
     def set_uniforms(self, prog: moderngl.Program, values: dict[str, object]) -> None:
         """Send the uniforms that changed since this program's last draw."""

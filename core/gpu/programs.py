@@ -1,14 +1,19 @@
 """The shader programs of the GPU renderer, compiled once per context and variant.
 
-A variant is the fragment shader (``tt_terrain.frag.glsl``, the blend rule
-per pixel, or ``tt_copy.frag.glsl``, the copy of uniform cells), the
-blend (``TT_BLEND``), the sampling path (``TT_FILTERED``), the colour map
-switch (``TT_COLOUR_MAP``), the theme count (``TT_THEMES``) and whether
-every theme has one size (``TT_ONE_SIZE``); every variant uses
-``tt_rect.vert.glsl``.
+A :class:`Variant` names the program kind (``blend``: ``tt_terrain.frag.glsl``,
+the blend rule per pixel; ``copy``: ``tt_copy.frag.glsl``, uniform cells;
+``ground`` and ``ground_mesh``: ``tt_ground.frag.glsl``, the textured ground
+plane of a perspective view, flat or displaced by a height map; ``present``:
+``tt_present.frag.glsl``, a reduced frame stretched over its target) and the
+compile-time switches of ``tt_blend.glsl``: the blend (``TT_BLEND``), shaped
+borders (``TT_SHAPED``), the sampling path (``TT_FILTERED``), wrapping
+(``TT_WRAP``), the colour map (``TT_COLOUR_MAP``), the theme count
+(``TT_THEMES``) and whether every theme has one size (``TT_ONE_SIZE``).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import moderngl
 import numpy as np
@@ -18,14 +23,43 @@ from core.gpu.shaders import shader_source
 
 #: texture unit of every sampler uniform (the renderer binds its textures there)
 UNITS = {"tt_grid": 0, "tt_splits": 1, "tt_themes": 2, "tt_gauss": 3, "tt_inverse_lut": 4,
-         "tt_colour_map": 5, "tt_theme": 6}
-#: fragment shader of each program kind
-FRAGMENT = {"blend": "tt_terrain.frag.glsl", "copy": "tt_copy.frag.glsl"}
+         "tt_colour_map": 5, "tt_theme": 6, "tt_height": 7, "tt_frame": 8,
+         "tt_base": 9}
+#: (vertex shader, fragment shader, extra defines) of each program kind
+SOURCES = {
+    "blend": ("tt_rect.vert.glsl", "tt_terrain.frag.glsl", {}),
+    "copy": ("tt_rect.vert.glsl", "tt_copy.frag.glsl", {}),
+    "ground": ("tt_ground.vert.glsl", "tt_ground.frag.glsl", {"TT_GROUND_MESH": 0}),
+    "ground_mesh": ("tt_ground.vert.glsl", "tt_ground.frag.glsl", {"TT_GROUND_MESH": 1}),
+    "present": ("tt_ground.vert.glsl", "tt_present.frag.glsl", {"TT_GROUND_MESH": 0}),
+}
 
 
-def compile_program(ctx: moderngl.Context, kind: str, *, themes: int, histogram: bool,
-                    filtered: bool, colour_map: bool = False, one_size: bool = False,
-                    lut_size: int = 4096) -> moderngl.Program:
+class Variant(NamedTuple):
+    """One compiled program: its kind and the defines of ``tt_blend.glsl``."""
+
+    kind: str
+    histogram: bool = False
+    shaped: bool = False
+    filtered: bool = False
+    wrap: bool = False
+    colour_map: bool = False
+    lut_size: int = 4096
+    probes: int = 0
+    base: bool = False
+
+    def defines(self, themes: int, one_size: bool) -> dict[str, int]:
+        """The ``#define`` values of this variant for ``themes`` themes."""
+        return {"TT_THEMES": themes, "TT_BLEND": int(self.histogram),
+                "TT_SHAPED": int(self.shaped), "TT_FILTERED": int(self.filtered),
+                "TT_WRAP": int(self.wrap), "TT_COLOUR_MAP": int(self.colour_map),
+                "TT_ONE_SIZE": int(one_size), "TT_LUT_SIZE": self.lut_size,
+                "TT_PROBES": self.probes, "TT_BASE": int(self.base),
+                **SOURCES[self.kind][2]}
+
+
+def compile_program(ctx: moderngl.Context, variant: Variant, *, themes: int,
+                    one_size: bool = False) -> moderngl.Program:
     """Compile and link one variant, its samplers bound to :data:`UNITS`.
 
     Raises
@@ -33,15 +67,14 @@ def compile_program(ctx: moderngl.Context, kind: str, *, themes: int, histogram:
     TerrathemeError
         The driver cannot compile the shaders (the first line of its log).
     """
-    defines = {"TT_THEMES": themes, "TT_BLEND": int(histogram), "TT_FILTERED": int(filtered),
-               "TT_COLOUR_MAP": int(colour_map), "TT_ONE_SIZE": int(one_size),
-               "TT_LUT_SIZE": lut_size}
+    vertex, fragment, _ = SOURCES[variant.kind]
+    defines = variant.defines(themes, one_size)
     try:
-        prog = ctx.program(vertex_shader=shader_source("tt_rect.vert.glsl", defines),
-                           fragment_shader=shader_source(FRAGMENT[kind], defines))
+        prog = ctx.program(vertex_shader=shader_source(vertex, defines),
+                           fragment_shader=shader_source(fragment, defines))
     except moderngl.Error as exc:
         log = [ln for ln in str(exc).splitlines() if ln.strip()]
-        raise TerrathemeError(f"GPU shader {FRAGMENT[kind]} does not compile on this driver: "
+        raise TerrathemeError(f"GPU shader {fragment} does not compile on this driver: "
                               f"{log[-1] if log else exc}") from None
     for name, unit in UNITS.items():
         set_uniform(prog, name, unit)

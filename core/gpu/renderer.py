@@ -33,27 +33,30 @@ from core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
 from core.gpu.cover import cell_rectangles
 from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
 from core.gpu.pipeline import Pipeline, rect_vertices
-from core.gpu.programs import UNITS
-from core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
+from core.gpu.programs import UNITS, Variant
+from core.gpu.style import Style, StyleTextures, gpu_style
+from core.gpu.textures import ThemeTextures
+from core.model.colour_map import ColourMap
 from core.render.inputs import prepare_grid, theme_textures, validate_region
-from core.render.renderer import BlendMode
 from core.render.rules import region_splits
 from core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
 
-#: largest texel coordinate and cell area the shaders' integer arithmetic keeps exact
-MAX_COORDINATE = 1 << 23
-MAX_CELL_AREA = 1 << 23
-
 
 class _Mode(NamedTuple):
-    """The shader variant of a render and how its uniform cells are filled."""
+    """The style of a render, its sampling path and how its uniform cells are filled."""
 
+    style: Style
     filtered: bool
-    histogram: bool
-    colour_map: bool
     uniform_cells: UniformCells
+
+    def variant(self, kind: str, lut_size: int) -> Variant:
+        """The program of ``kind`` drawing this mode."""
+        blend = kind == "blend"
+        return Variant(kind, histogram=self.style.histogram and blend,
+                       shaped=self.style.border is not None and blend, filtered=self.filtered,
+                       colour_map=self.style.colour_map is not None, lut_size=lut_size)
 
 
 class _Plan(NamedTuple):
@@ -66,13 +69,6 @@ class _Plan(NamedTuple):
     out_size: tuple[int, int]
     mode: _Mode
     tile: int
-
-
-def _supersample(view: tuple[float, float, float, float], pixels: tuple[int, int],
-                 cell: tuple[int, int]) -> int:
-    """Sub-samples per pixel side of the filtered path: two or more per cell a pixel spans."""
-    fx, fy = view[2] / pixels[0], view[3] / pixels[1]
-    return int(min(16, max(1, math.ceil(2 * fx / cell[0]), math.ceil(2 * fy / cell[1]))))
 
 
 def _check_out(out: np.ndarray | None, shape: tuple[int, int, int]) -> np.ndarray:
@@ -109,6 +105,7 @@ class GpuRenderer:
         self.pipeline = Pipeline(self.ctx, len(textures), self.themes.one_size)
         self._copy = copy_image_function(self.ctx)
         self._max_viewport = min(self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
+        self.style = StyleTextures(self.ctx, self.themes)
 
     @property
     def can_copy(self) -> bool:
@@ -123,7 +120,7 @@ class GpuRenderer:
         *,
         scale: float = 1.0,
         options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
-        colour_map: np.ndarray | None = None,
+        colour_map: ColourMap | None = None,
         progress: Progress | None = None,
         out: np.ndarray | None = None,
     ) -> np.ndarray:
@@ -140,10 +137,10 @@ class GpuRenderer:
         scale : float in (0, 1]
             Output pixels per texel (below 1 the filtered path renders an overview).
         options : GpuRenderOptions
-        colour_map : (ch, cw, 3) uint8 ndarray, optional
-            A low-resolution colour map over the whole texture (128 neutral):
-            the render is multiplied by ``value / 128``, bilinear (texel
-            centres aligned), rounded.
+        colour_map : ColourMap, optional
+            The colour gain over the whole texture (:mod:`core.model.colour_map`),
+            applied in the CPU renderer's exact integers (scale up to
+            :data:`core.gpu.textures.MAX_COLOUR_SCALE`).
         progress : callable(done, total), optional
             Called after every tile.
         out : (h, w, 3) uint8 C-contiguous ndarray, optional
@@ -159,23 +156,19 @@ class GpuRenderer:
         ------
         TerrathemeError
             Bad grid, cell, region, scale, colour map or ``out`` (checked
-            before any work); a texture or cell beyond the shaders' exact
-            integer range.
+            before any work); a texture, cell, noise lattice or colour map
+            scale beyond the shaders' exact integer range.
         """
         plan = self._plan(grid, cell, region, scale, options, colour_map)
         ow, oh = plan.out_size
         image = _check_out(out, (oh, ow, 3))
         tiles = [(tx, ty) for ty in range(0, oh, plan.tile) for tx in range(0, ow, plan.tile)]
-        colours = self._start(plan, options, colour_map)
-        try:
-            for i, (tx, ty) in enumerate(tiles):
-                tw, th = self._draw_tile(plan, options, tx, ty)
-                self.pipeline.read(image, tx, ty, tw, th)
-                if progress:
-                    progress(i + 1, len(tiles))
-        finally:
-            if colours is not None:
-                colours.release()
+        self._start(plan, options)
+        for i, (tx, ty) in enumerate(tiles):
+            tw, th = self._draw_tile(plan, options, tx, ty)
+            self.pipeline.read(image, tx, ty, tw, th)
+            if progress:
+                progress(i + 1, len(tiles))
         return image
 
     def draw(
@@ -186,7 +179,7 @@ class GpuRenderer:
         *,
         scale: float = 1.0,
         options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
-        colour_map: np.ndarray | None = None,
+        colour_map: ColourMap | None = None,
     ) -> moderngl.Framebuffer:
         """Draw a region into the renderer's framebuffer without reading it back.
 
@@ -204,17 +197,13 @@ class GpuRenderer:
         if max(plan.out_size) > plan.tile:
             raise TerrathemeError(f"draw renders one tile of at most {plan.tile} pixels a side, "
                                   f"got {plan.out_size[0]} x {plan.out_size[1]} (use render)")
-        colours = self._start(plan, options, colour_map)
-        try:
-            self._draw_tile(plan, options, 0, 0)
-        finally:
-            if colours is not None:
-                colours.release()
+        self._start(plan, options)
+        self._draw_tile(plan, options, 0, 0)
         return self.pipeline.framebuffer(*plan.out_size)
 
     def _plan(self, grid: object, cell: tuple[int, int] | None,
               region: tuple[int, int, int, int] | None, scale: float,
-              options: GpuRenderOptions, colour_map: np.ndarray | None) -> _Plan:
+              options: GpuRenderOptions, colour_map: ColourMap | None) -> _Plan:
         """Check every input (before any GPU work) and fix what the tiles draw."""
         indices, (n, m) = prepare_grid(grid, cell, len(self.themes.textures))
         gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
@@ -222,10 +211,7 @@ class GpuRenderer:
         region = validate_region(region, size)
         if not 0.0 < float(scale) <= 1.0:
             raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
-        if max(size) > MAX_COORDINATE or n * m > MAX_CELL_AREA:
-            raise TerrathemeError(
-                f"texture {size[0]} x {size[1]} with {n} x {m} cells is beyond the GPU "
-                f"renderer's exact integer range (sides and cell area up to {MAX_COORDINATE})")
+        style = gpu_style(options, (n, m), size, colour_map)
         if options.tile < 1:
             raise TerrathemeError(f"tile must be at least 1 pixel, got {options.tile}")
         sampling = options.sampling
@@ -233,10 +219,9 @@ class GpuRenderer:
             sampling = Sampling.EXACT if float(scale) == 1.0 else Sampling.FILTERED
         if sampling is Sampling.EXACT and float(scale) != 1.0:
             raise TerrathemeError(f"exact sampling renders at scale 1 only, got scale {scale}")
-        check_colour_map(colour_map)
-        filtered, coloured = sampling is Sampling.FILTERED, colour_map is not None
-        mode = _Mode(filtered, options.blend is BlendMode.HISTOGRAM, coloured,
-                     self._uniform_cells(options.uniform_cells, filtered, coloured))
+        filtered = sampling is Sampling.FILTERED
+        mode = _Mode(style, filtered, self._uniform_cells(options.uniform_cells, filtered,
+                                                          colour_map is not None))
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
         tile = min(options.tile, self._max_viewport)
         return _Plan(indices, (n, m), size, region, out_size, mode, tile)
@@ -254,21 +239,12 @@ class GpuRenderer:
                 f"whose 2 x 2 tiling fits a {self.themes.max_size} texture and no colour map")
         return asked
 
-    def _start(self, plan: _Plan, options: GpuRenderOptions,
-               colour_map: np.ndarray | None) -> moderngl.Texture | None:
-        """Bind the textures, make the framebuffer current; returns the colour map texture."""
-        colours = colour_map_texture(self.ctx, colour_map)
-        self.themes.colours(plan.mode.filtered, options.max_anisotropy).use(UNITS["tt_themes"])
-        if plan.mode.histogram:
-            self.themes.gaussianised(plan.mode.filtered,
-                                     options.max_anisotropy).use(UNITS["tt_gauss"])
-            self.themes.inverse_lut()[0].use(UNITS["tt_inverse_lut"])
-        if colours is not None:
-            colours.use(UNITS["tt_colour_map"])
+    def _start(self, plan: _Plan, options: GpuRenderOptions) -> None:
+        """Bind the textures and make the framebuffer current."""
+        self.style.bind(plan.mode.style, plan.mode.filtered, options.max_anisotropy)
         ow, oh = plan.out_size
         self.pipeline.framebuffer(min(plan.tile, ow), min(plan.tile, oh))
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        return colours
 
     def _draw_tile(self, plan: _Plan, options: GpuRenderOptions, tx: int,
                    ty: int) -> tuple[int, int]:
@@ -305,37 +281,32 @@ class GpuRenderer:
                 self._copy_runs(edges[kinds >= 0], kinds[kinds >= 0], view)
                 edges, kinds = edges[kinds < 0], kinds[kinds < 0]
         if len(kinds):
-            values = self._uniforms(plan, view, (tw, th), (cx0, cy0), splits.shape)
+            values = self._uniforms(plan, options, view, (cx0, cy0), splits.shape)
             self._draw_rects(plan.mode, edges, kinds, values)
         return tw, th
 
-    def _uniforms(self, plan: _Plan, view: tuple[float, float, float, float],
-                  pixels: tuple[int, int], block_cell: tuple[int, int],
+    def _uniforms(self, plan: _Plan, options: GpuRenderOptions,
+                  view: tuple[float, float, float, float], block_cell: tuple[int, int],
                   block_shape: tuple[int, int]) -> dict[str, object]:
         """The uniform values of one tile's draws (``tt_blend.glsl`` documents each)."""
         lw, lh = self.themes.layer_size
-        lut_range = self.themes.inverse_lut()[2] if plan.mode.histogram else 0.0
         return {
             "tt_view": view, "tt_cell": plan.cell, "tt_block_cell": block_cell,
             "tt_block_cells": (block_shape[1], block_shape[0]),
             "tt_wrap_origin": (int(view[0]) // lw * lw, int(view[1]) // lh * lh),
-            "tt_theme_size": self.themes.sizes,
-            "tt_texture_size": (float(plan.size[0]), float(plan.size[1])),
-            "tt_supersample": _supersample(view, pixels, plan.cell), "tt_lut_range": lut_range,
+            **self.style.uniforms(plan.mode.style, plan.size, options.max_supersample),
         }
 
     def _draw_rects(self, mode: _Mode, edges: np.ndarray, kinds: np.ndarray,
                     values: dict[str, object]) -> None:
         """One draw per theme of uniform rectangles (copy shader), one for the blended ones."""
         self.pipeline.upload_vertices(rect_vertices(edges, kinds, self.themes.sizes))
-        lut_size = self.themes.inverse_lut()[1] if mode.histogram else 4096
+        lut_size = self.themes.inverse_lut()[1] if mode.style.histogram else 4096
         starts = np.flatnonzero(np.diff(kinds, prepend=-2) != 0)
         for first, last in zip(starts, [*starts[1:], len(kinds)], strict=True):
             theme = int(kinds[first])
-            kind = "copy" if theme >= 0 else "blend"
-            prog = self.pipeline.program(kind, histogram=mode.histogram and kind == "blend",
-                                         filtered=mode.filtered, colour_map=mode.colour_map,
-                                         lut_size=lut_size)
+            prog = self.pipeline.program(mode.variant("copy" if theme >= 0 else "blend",
+                                                      lut_size))
             if theme >= 0:
                 self.themes.theme(theme).use(UNITS["tt_theme"])
             self.pipeline.set_uniforms(prog, values)
@@ -356,6 +327,7 @@ class GpuRenderer:
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays)."""
         self.pipeline.release()
+        self.style.release()
         self.themes.release()
 
 
@@ -367,6 +339,7 @@ def render_cells_gpu(
     *,
     scale: float = 1.0,
     options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
+    colour_map: ColourMap | None = None,
     progress: Progress | None = None,
 ) -> np.ndarray:
     """Render a thematic texture on the GPU once (:class:`GpuRenderer` for repeated renders).
@@ -381,6 +354,6 @@ def render_cells_gpu(
     renderer = GpuRenderer(themes)
     try:
         return renderer.render(grid, cell, region, scale=scale, options=options,
-                               progress=progress)
+                               colour_map=colour_map, progress=progress)
     finally:
         renderer.release()

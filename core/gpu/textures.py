@@ -13,6 +13,8 @@
   layouts) and the inverse tables (R32F, one row per theme channel), both
   exactly as :func:`core.render.theme_pack.pack_themes` builds them for the
   CPU renderer.
+* Colour map: RGBA8, clamped at the edges, mipmapped (level 0 for the exact
+  path's integer bilinear, trilinear for the filtered path).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import moderngl
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.model.colour_map import ColourMap
 from core.render.theme_pack import LUT_RANGE, pack_themes
 
 
@@ -183,23 +186,40 @@ class ThemeTextures:
         self._made.clear()
 
 
-def check_colour_map(colour_map: np.ndarray | None) -> None:
-    """Check a colour map: a (h, w, 3) uint8 image (128 is neutral)."""
+#: largest colour map scale the exact path divides exactly (512 s^2 <= 2^30, tt_colour.glsl)
+MAX_COLOUR_SCALE = 1448
+
+
+def check_colour_map(colour_map: ColourMap | None, texture_size: tuple[int, int]) -> None:
+    """Check a colour map for a ``(W, H)`` texture: a :class:`ColourMap` covering it.
+
+    Raises
+    ------
+    TerrathemeError
+        Not a ColourMap, the wrong shape for the texture, or a scale beyond
+        :data:`MAX_COLOUR_SCALE`.
+    """
     if colour_map is None:
         return
-    arr = np.asarray(colour_map)
-    if arr.ndim != 3 or arr.shape[2] != 3 or arr.dtype != np.uint8 or 0 in arr.shape:
-        raise TerrathemeError(f"colour map must be a (h, w, 3) uint8 image, "
-                              f"got shape {arr.shape} dtype {arr.dtype}")
+    if not isinstance(colour_map, ColourMap):
+        raise TerrathemeError(f"colour map must be a ColourMap (pixels and scale), got "
+                              f"{type(colour_map).__name__}")
+    colour_map.check_covers(texture_size)
+    if colour_map.scale > MAX_COLOUR_SCALE:
+        raise TerrathemeError(f"colour map scale {colour_map.scale} is beyond the GPU "
+                              f"renderer's exact range (up to {MAX_COLOUR_SCALE} texels per "
+                              "map pixel): render without --gpu")
 
 
-def colour_map_texture(ctx: moderngl.Context,
-                        colour_map: np.ndarray | None) -> moderngl.Texture | None:
-    """The colour map as an RGBA8 texture (the shaders read it with texelFetch)."""
-    if colour_map is None:
-        return None
-    arr = np.asarray(colour_map)
+def colour_map_texture(ctx: moderngl.Context, colour_map: ColourMap) -> moderngl.Texture:
+    """The colour map as an RGBA8 texture: clamped, mipmapped and trilinear.
+
+    The exact path reads level 0 with ``texelFetch`` (the filter does not
+    apply); the filtered path samples it with ``textureGrad``.
+    """
+    arr = colour_map.pixels
     tex = ctx.texture((arr.shape[1], arr.shape[0]), 4, _rgba(arr).tobytes())
-    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.repeat_x = tex.repeat_y = False
+    tex.build_mipmaps()
+    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
     return tex
-

@@ -12,7 +12,7 @@
 // v_texel (texel position, centre of texel X at X; read with TT_COLOUR_MAP 1).
 // Texture: tt_theme, sampler2D RGBA8 of the theme alone, NEAREST, REPEAT
 // (the hardware wraps at the theme's own size, so the texels are exact).
-// With TT_COLOUR_MAP 1 also tt_colour_map and tt_texture_size (tt_blend.glsl).
+// With TT_COLOUR_MAP 1 also tt_colour_map and tt_colour_scale (tt_colour.glsl).
 #include "tt_blend.glsl"
 
 uniform sampler2D tt_theme;

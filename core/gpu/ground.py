@@ -1,0 +1,375 @@
+"""The thematic texture on a ground plane seen in perspective, drawn by the GPU (the fly-over).
+
+:class:`GroundView` keeps a whole index grid, its splits and the themes on the
+GPU and draws the plane for a :class:`core.perspective.Camera` (or any eq. 1
+:class:`core.perspective.PlaneMapping`) with the renderer's filtered path:
+mipmapped themes read with anisotropic filtering, weights sub-sampled over
+each pixel's footprint (``tt_filtered.glsl``), the project's shaped borders
+and colour map. The flat plane is mapped per pixel by eq. 1 (the CPU
+preview's exact mapping, the texture repeating to the horizon); with a height
+map the texture's extent is a mesh displaced by it, drawn through
+:func:`core.gpu.flight.clip_matrix`.
+
+Edits: :meth:`GroundView.mark_dirty` takes the changed vertex box of an edit
+(``core.edit.GridChange``); the next draw uploads those vertices and re-splits
+only the cells around them (:func:`core.edit.dirty_cells`), so a brush stroke
+costs what it touches, not the map.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import moderngl
+import numpy as np
+
+from core.edit.events import GridChange
+from core.edit.preview import dirty_cells
+from core.errors import TerrathemeError
+from core.gpu.base_map import BaseMap
+from core.gpu.context import gl_context
+from core.gpu.flight import clip_matrix
+from core.gpu.ground_mesh import HeightField
+from core.gpu.options import SOFTWARE_RENDERERS, Anisotropy, GpuRenderOptions, GroundOptions
+from core.gpu.pipeline import Pipeline
+from core.gpu.programs import UNITS, Variant
+from core.gpu.renderer import GpuRenderer
+from core.gpu.style import StyleTextures, gpu_style
+from core.gpu.textures import ThemeTextures
+from core.model.colour_map import ColourMap
+from core.model.project import ThematicTexture
+from core.perspective import Camera, PlaneMapping, camera_mapping
+from core.render.inputs import prepare_grid, theme_textures
+from core.render.project import project_style
+from core.render.renderer import RenderOptions
+from core.render.rules import region_splits
+from core.themes.library import Theme
+
+
+class GroundView:
+    """A grid, its themes and its style on the GPU, drawn on the ground plane.
+
+    Parameters
+    ----------
+    grid : (gh+1, gw+1) integer array-like or IndexGrid
+        Kept by reference: edits show after :meth:`mark_dirty`.
+    themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
+    cell : (N, M), optional
+        Default: the IndexGrid's.
+    style : RenderOptions
+        Blend, saddle rule and shaped borders (a project's :func:`project_style`).
+    colour_map : ColourMap, optional
+    options : GroundOptions
+    context : moderngl.Context, optional
+        Current on the calling thread (a Qt widget's); default this thread's
+        standalone EGL context.
+
+    Raises
+    ------
+    TerrathemeError
+        Bad grid, themes, style or colour map (checked before any GPU work), a
+        grid larger than the driver's textures; ``GpuUnavailableError`` where no
+        OpenGL 3.3 context can be made.
+    """
+
+    def __init__(self, grid: object, themes: Sequence[np.ndarray] | Sequence[Theme],
+                 cell: tuple[int, int] | None = None, *, style: RenderOptions = RenderOptions(),
+                 colour_map: ColourMap | None = None,
+                 options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
+                 context: moderngl.Context | None = None) -> None:
+        textures = theme_textures(themes)
+        self.indices, self.cell = prepare_grid(grid, cell, len(textures))
+        gh, gw = self.indices.shape[0] - 1, self.indices.shape[1] - 1
+        self.texture_size = (gw * self.cell[0], gh * self.cell[1])
+        self.saddle = style.saddle
+        self.gpu_options = GpuRenderOptions.from_render_options(
+            style, max_anisotropy=options.max_anisotropy, max_supersample=options.max_supersample)
+        self.style = gpu_style(self.gpu_options, self.cell, self.texture_size, colour_map)
+        self.options = options
+        self.ctx = context if context is not None else gl_context()
+        limit = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        if max(self.indices.shape) > limit:
+            raise TerrathemeError(f"grid of {gw + 1} x {gh + 1} vertices: this OpenGL driver's "
+                                  f"textures hold at most {limit} a side")
+        self.themes = ThemeTextures(self.ctx, textures)
+        #: the shader's probe count (``TT_PROBES``; 0: the driver filters) and the sampler's
+        self.probes = int(options.max_anisotropy) if self._shader_filters(options) else 0
+        self.sampler_anisotropy = 1.0 if self.probes else float(options.max_anisotropy)
+        self.textures = StyleTextures(self.ctx, self.themes)
+        self.pipeline = Pipeline(self.ctx, len(textures), self.themes.one_size)
+        self.heights: HeightField | None = None
+        self._grid = self._index_texture(self.indices)
+        self._splits = self._index_texture(region_splits(self.indices, None, self.saddle,
+                                                         (0, gh - 1, 0, gw - 1)))
+        self._dirty: list[tuple[slice, slice]] = []
+        self.base: BaseMap | None = None
+        if options.base_map:
+            # The render itself for wide footprints, drawn by the flat renderer (same style).
+            self._renderer = GpuRenderer(textures, context=self.ctx)
+            self.base = BaseMap(self.ctx, self._renderer, self.indices, self.cell,
+                                GpuRenderOptions.from_render_options(style), colour_map,
+                                options.base_map)
+        self._plane = self.ctx.vertex_array(self.pipeline.program(self._variant(False)), [])
+        self._fbo: moderngl.Framebuffer | None = None
+        self._reduced: moderngl.Framebuffer | None = None
+        self._present: moderngl.VertexArray | None = None
+        #: cell boxes ``(x, y, w, h)`` re-split by the last draw that had edits to upload
+        self.uploaded: list[tuple[int, int, int, int]] = []
+
+    def _shader_filters(self, options: GroundOptions) -> bool:
+        """True when the shader filters anisotropically (``Anisotropy``)."""
+        if options.anisotropy is Anisotropy.AUTO:
+            renderer = str(self.ctx.info.get("GL_RENDERER", "")).lower()
+            return options.max_anisotropy > 1 and any(s in renderer for s in SOFTWARE_RENDERERS)
+        return options.anisotropy is Anisotropy.SHADER and options.max_anisotropy > 1
+
+    @classmethod
+    def from_project(cls, project: ThematicTexture,
+                     options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
+                     context: moderngl.Context | None = None) -> GroundView:
+        """A project in its own style (shaped borders, colour map)."""
+        return cls(project.grid, project.library.textures, style=project_style(project),
+                   colour_map=project.colour_map, options=options, context=context)
+
+    def _index_texture(self, values: np.ndarray) -> moderngl.Texture:
+        h, w = values.shape
+        tex = self.ctx.texture((w, h), 1, np.ascontiguousarray(values, np.uint8).tobytes(),
+                               dtype="u1")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return tex
+
+    def _variant(self, mesh: bool) -> Variant:
+        lut = self.themes.inverse_lut()[1] if self.style.histogram else 4096
+        return Variant("ground_mesh" if mesh else "ground", histogram=self.style.histogram,
+                       shaped=self.style.border is not None, filtered=True, wrap=not mesh,
+                       colour_map=self.style.colour_map is not None, lut_size=lut,
+                       probes=self.probes, base=self.base is not None)
+
+    # -- edits -----------------------------------------------------------------
+    def mark_dirty(self, rows: slice, cols: slice) -> None:
+        """Vertices ``indices[rows, cols]`` changed: upload them at the next draw."""
+        self._dirty.append((rows, cols))
+
+    def _flush(self) -> None:
+        """Upload the changed vertices and re-split the cells they (and the saddle ring) touch."""
+        if not self._dirty:
+            return
+        self.uploaded = []
+        gh, gw = self.indices.shape[0] - 1, self.indices.shape[1] - 1
+        for rows, cols in self._dirty:
+            r0, r1, _ = rows.indices(gh + 1)
+            c0, c1, _ = cols.indices(gw + 1)
+            if r1 <= r0 or c1 <= c0:
+                continue
+            box = np.ascontiguousarray(self.indices[r0:r1, c0:c1], np.uint8)
+            self._grid.write(box.tobytes(), viewport=(c0, r0, c1 - c0, r1 - r0))
+            crow, ccol = dirty_cells(GridChange(slice(r0, r1), slice(c0, c1)), (gh, gw))
+            if crow.stop <= crow.start or ccol.stop <= ccol.start:
+                continue
+            splits = region_splits(self.indices, None, self.saddle,
+                                   (crow.start, crow.stop - 1, ccol.start, ccol.stop - 1))
+            box = (ccol.start, crow.start, ccol.stop - ccol.start, crow.stop - crow.start)
+            self._splits.write(splits.tobytes(), viewport=box)
+            self.uploaded.append(box)
+            if self.base is not None:
+                n, m = self.cell
+                self.base.update((box[0] * n, box[1] * m, box[2] * n, box[3] * m))
+        self._dirty.clear()
+
+    # -- height map --------------------------------------------------------------
+    def set_height_map(self, heights: np.ndarray | None, scale: float = 1.0) -> None:
+        """Displace the ground by a grey image over the whole texture (None: flat, repeating).
+
+        ``heights`` (h, w) or (h, w, C): integers read as [0, 1], floats as
+        they are; the ground rises ``value * scale`` texels.
+        """
+        old, self.heights = self.heights, None
+        if old is not None:
+            old.release()
+        if heights is not None:
+            self.heights = HeightField(self.ctx, heights, scale, self.texture_size,
+                                       self.options.mesh)
+
+    def ground_height(self, x: float, y: float) -> float:
+        """The ground's height in texels under ground point ``(x, y)`` (0 without a height map)."""
+        return 0.0 if self.heights is None else self.heights.height_at(x, y, self.texture_size)
+
+    # -- drawing -----------------------------------------------------------------
+    def mapping(self, view: Camera | PlaneMapping, size: tuple[int, int]) -> PlaneMapping:
+        """Eq. 1 of ``view`` for a ``size = (w, h)`` frame (positions in texels of the texture)."""
+        if isinstance(view, PlaneMapping):
+            return view
+        if isinstance(view, Camera):
+            return camera_mapping(view, size, self.texture_size)
+        raise TerrathemeError(f"view must be a Camera or a PlaneMapping, got "
+                              f"{type(view).__name__}")
+
+    def draw(self, view: Camera | PlaneMapping, size: tuple[int, int], *,
+             framebuffer: moderngl.Framebuffer | None = None, flip_y: bool = False,
+             scale: float = 1.0) -> None:
+        """Draw a ``size = (w, h)`` frame into ``framebuffer`` (default: this view's own).
+
+        ``flip_y`` True draws the frame upright on a display (a Qt widget's
+        framebuffer, row 0 at the bottom); False puts the frame's top row in
+        framebuffer row 0, as :meth:`render` reads it back. ``scale`` below 1
+        draws ``scale`` of the pixels along each side and stretches them over
+        the frame (a moving camera at a quarter of the cost).
+        """
+        w, h = _check_size(size)
+        if scale < 1.0:
+            small = (max(1, round(w * scale)), max(1, round(h * scale)))
+            frame = self._reduced_target(small)
+            self.draw(view, small, framebuffer=frame, flip_y=flip_y)
+            target = framebuffer if framebuffer is not None else self._framebuffer(w, h)
+            target.use()
+            self.ctx.viewport = (0, 0, w, h)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+            prog = self.pipeline.program(Variant("present"))
+            self.pipeline.set_uniforms(prog, {"tt_target": (float(w), float(h))})
+            frame.color_attachments[0].use(UNITS["tt_frame"])
+            self._present.render(moderngl.TRIANGLES, vertices=3)
+            return
+        if self.heights is not None and not isinstance(view, Camera):
+            raise TerrathemeError("a height map needs a Camera view (eq. 1 maps a flat plane)")
+        mapping = self.mapping(view, (w, h))
+        self._flush()
+        fbo = framebuffer if framebuffer is not None else self._framebuffer(w, h)
+        fbo.use()
+        self.ctx.viewport = (0, 0, w, h)
+        mesh = self.heights is not None
+        prog = self.pipeline.program(self._variant(mesh))
+        self.textures.bind(self.style, True, self.sampler_anisotropy)
+        self._grid.use(UNITS["tt_grid"])
+        self._splits.use(UNITS["tt_splits"])
+        gh, gw = self.indices.shape[0] - 1, self.indices.shape[1] - 1
+        values = {"tt_cell": self.cell, "tt_block_cell": (0, 0), "tt_block_cells": (gw, gh),
+                  **self.textures.uniforms(self.style, self.texture_size,
+                                           self.options.max_supersample)}
+        if self.base is not None:
+            self.base.bind(self.sampler_anisotropy)
+            values.update(self.base.uniforms())
+        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        if mesh:
+            near, far = self.heights.depth_range(view, self.texture_size)
+            clip = clip_matrix(view, (w, h), self.texture_size, near, far, flip_y=flip_y)
+            values["tt_clip"] = tuple(clip.T.ravel())
+            values["tt_height_scale"] = self.heights.scale
+            self.pipeline.set_uniforms(prog, values)
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            fbo.clear(*self.options.sky, 1.0, depth=1.0)
+            self.heights.draw(prog)
+            self.ctx.disable(moderngl.DEPTH_TEST)
+        else:
+            values["tt_plane"] = tuple(mapping.coefficients().ravel())
+            values["tt_screen"] = (float(h), -1.0) if flip_y else (0.0, 1.0)
+            values["tt_sky"] = tuple(float(c) for c in self.options.sky)
+            self.pipeline.set_uniforms(prog, values)
+            self.ctx.disable(moderngl.DEPTH_TEST)
+            self._plane.render(moderngl.TRIANGLES, vertices=3)
+
+    def _reduced_target(self, size: tuple[int, int]) -> moderngl.Framebuffer:
+        """A texture-backed framebuffer with depth of exactly ``size`` (the reduced frame)."""
+        fbo = self._reduced
+        if fbo is None or fbo.size != size:
+            _release_framebuffer(fbo)
+            colour = self.ctx.texture(size, 4)
+            colour.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            colour.repeat_x = colour.repeat_y = False
+            fbo = self._reduced = self.ctx.framebuffer(
+                color_attachments=[colour], depth_attachment=self.ctx.depth_renderbuffer(size))
+        if self._present is None:
+            self._present = self.ctx.vertex_array(self.pipeline.program(Variant("present")), [])
+        return fbo
+
+    def _framebuffer(self, w: int, h: int) -> moderngl.Framebuffer:
+        """An RGBA8 framebuffer with depth of at least ``w x h`` pixels."""
+        fbo = self._fbo
+        if fbo is None or fbo.width < w or fbo.height < h:
+            _release_framebuffer(fbo)
+            fbo = self._fbo = self.ctx.framebuffer(
+                color_attachments=[self.ctx.renderbuffer((w, h), 4)],
+                depth_attachment=self.ctx.depth_renderbuffer((w, h)))
+        return fbo
+
+    def render(self, view: Camera | PlaneMapping, size: tuple[int, int] = (640, 360),
+               scale: float = 1.0) -> np.ndarray:
+        """One frame read back: ``(h, w, 3) uint8``, row 0 at the top (``scale``: :meth:`draw`)."""
+        w, h = _check_size(size)
+        self.draw(view, (w, h), scale=scale)
+        rgba = np.empty((h, w, 4), np.uint8)
+        self._fbo.read_into(rgba, viewport=(0, 0, w, h), components=4, alignment=1)
+        return np.ascontiguousarray(rgba[..., :3])
+
+    def release(self) -> None:
+        """Free every GPU object of this view (the context stays)."""
+        if self.heights is not None:
+            self.heights.release()
+            self.heights = None
+        for fbo in (self._fbo, self._reduced):
+            _release_framebuffer(fbo)
+        self._fbo = self._reduced = None
+        for obj in (self._plane, self._present, self._grid, self._splits, self.base):
+            if obj is not None:
+                obj.release()
+        if self.base is not None:
+            self._renderer.release()
+            self.base = None
+        self.pipeline.release()
+        self.textures.release()
+        self.themes.release()
+
+
+def _release_framebuffer(fbo: moderngl.Framebuffer | None) -> None:
+    """Free a framebuffer this view made and its attachments."""
+    if fbo is not None:
+        for attachment in (*fbo.color_attachments, fbo.depth_attachment):
+            attachment.release()
+        fbo.release()
+
+
+def _check_size(size: tuple[int, int]) -> tuple[int, int]:
+    try:
+        w, h = (int(s) for s in size)
+    except (TypeError, ValueError):
+        raise TerrathemeError(f"frame size must be (width, height), got {size!r}") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise TerrathemeError(f"frame size {w}x{h} must be within 1..16384 per side")
+    return w, h
+
+
+def render_perspective_gpu(project: ThematicTexture, view: Camera | PlaneMapping,
+                           size: tuple[int, int] = (640, 360), *,
+                           options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
+                           heights: np.ndarray | None = None,
+                           height_scale: float = 1.0) -> np.ndarray:
+    """One perspective frame of a project on the GPU, headless.
+
+    The same view as ``terratheme perspective PROJECT``
+    (:class:`core.perspective.Camera` or eq. 1 coefficients, positions in
+    texels of the project's texture, which repeats beyond its edges), drawn
+    in the project's own style by the renderer's filtered path.
+
+    Parameters
+    ----------
+    project : ThematicTexture
+    view : Camera or PlaneMapping
+    size : (w, h)
+        Frame size in pixels.
+    options : GroundOptions
+    heights : (h, w) ndarray, optional
+        A height map over the texture (then ``view`` must be a Camera).
+    height_scale : float
+        Texels of height per unit of ``heights``.
+
+    Returns
+    -------
+    frame : (h, w, 3) uint8 ndarray
+        Row 0 at the top; the sky (``options.sky``) above the horizon.
+    """
+    ground = GroundView.from_project(project, options)
+    try:
+        if heights is not None:
+            ground.set_height_map(heights, height_scale)
+        return ground.render(view, size)
+    finally:
+        ground.release()

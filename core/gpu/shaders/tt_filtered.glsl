@@ -1,0 +1,214 @@
+// terratheme filtered path (docs/gpu.md): the blend rule at any scale or angle, GLSL 3.30.
+//
+// Included by tt_blend.glsl when TT_FILTERED is 1 (its uniforms are listed
+// there). A pixel's footprint is the parallelogram spanned by dx and dy (the
+// texel steps of one pixel step along the screen axes: dFdx and dFdy of the
+// texel position, or eq. 2 of a ground plane). The weights change at the cell
+// scale, so they are sub-sampled over the footprint (two sub-samples per cell
+// it spans along each side, at most tt_max_supersample); the themes carry the
+// fine detail, so each distinct theme under the footprint is read once, over
+// the whole footprint, with mipmaps and anisotropic filtering. The colour is
+// sum(mean weight of theme t * filtered theme t): the linear blend, the shaped
+// borders' weights (TT_SHAPED 1: the theme's luminance from its filtered
+// read, the noise at the sub-sample's texel) or the histogram-preserving blend
+// of the filtered Gaussianised themes (TT_BLEND 1). At one texel per pixel
+// this is the exact render within a level or two (weights in 1/4096).
+
+// Distinct themes one footprint can blend (the rest are dropped, weights renormalised).
+const int TT_SLOTS = 4;
+
+#ifndef TT_PROBES
+#define TT_PROBES 0
+#endif
+
+#if TT_PROBES > 1
+// Anisotropic filtering in the shader (TT_PROBES, for drivers whose own is slow): up to
+// TT_PROBES trilinear reads spaced along the footprint's longer side, each at the level of
+// the longer side over the probe count (or of the shorter side, if longer), averaged.
+// Returns the probe count n, the level, and the step between probes in texture
+// units; size is the texture's level 0 in texels.
+int tt_probes(vec2 dx, vec2 dy, vec2 size, out float lod, out vec2 step) {
+    float lx = dot(dx * size, dx * size), ly = dot(dy * size, dy * size);
+    float big = sqrt(max(lx, ly)), small = sqrt(min(lx, ly));
+    int n = int(clamp(ceil(big / max(small, 1e-6 * big) - 1e-3), 1.0, float(TT_PROBES)));
+    lod = log2(max(max(small, big / float(n)), 1e-8));
+    step = (lx > ly ? dx : dy) / float(n);
+    return n;
+}
+vec3 tt_probe(sampler2DArray tex, vec3 at, vec2 dx, vec2 dy) {
+    float lod;
+    vec2 step;
+    int n = tt_probes(dx, dy, vec2(textureSize(tex, 0).xy), lod, step);
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < n; ++i) {
+        sum += textureLod(tex, vec3(at.xy + (float(i) - 0.5 * float(n - 1)) * step, at.z), lod).rgb;
+    }
+    return sum / float(n);
+}
+vec3 tt_probe(sampler2D tex, vec2 at, vec2 dx, vec2 dy) {
+    float lod;
+    vec2 step;
+    int n = tt_probes(dx, dy, vec2(textureSize(tex, 0)), lod, step);
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < n; ++i) {
+        sum += textureLod(tex, at + (float(i) - 0.5 * float(n - 1)) * step, lod).rgb;
+    }
+    return sum / float(n);
+}
+#endif
+
+#if TT_COLOUR_MAP == 1
+// The colour map's gain (value / 128) at texel position p over the footprint (dx, dy).
+vec3 tt_colour_filtered(vec2 p, vec2 dx, vec2 dy) {
+    vec2 span = float(tt_colour_scale) * vec2(textureSize(tt_colour_map, 0));
+#if TT_PROBES > 1
+    vec3 value = tt_probe(tt_colour_map, (p + 0.5) / span, dx / span, dy / span);
+#else
+    vec3 value = textureGrad(tt_colour_map, (p + 0.5) / span, dx / span, dy / span).rgb;
+#endif
+    return value * (255.0 / 128.0);
+}
+#endif
+
+// Theme k at texel position p, filtered over the footprint (dx, dy) in texels.
+vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
+    vec4 s = tt_theme_size[k];
+#if TT_PROBES > 1
+    return tt_probe(tt_themes, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw);
+#else
+    return textureGrad(tt_themes, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
+#endif
+}
+#if TT_BLEND == 1
+vec3 tt_sample_gauss(uint k, vec2 p, vec2 dx, vec2 dy) {
+    vec4 s = tt_theme_size[k];
+#if TT_PROBES > 1
+    return tt_probe(tt_gauss, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw);
+#else
+    return textureGrad(tt_gauss, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
+#endif
+}
+#endif
+
+// A texel position inside the texture: wrapped (TT_WRAP 1), else as given.
+vec2 tt_place(vec2 p) {
+#if TT_WRAP == 1
+    return p - floor(p / tt_texture_size) * tt_texture_size;
+#else
+    return p;
+#endif
+}
+
+// Sub-samples along one footprint side: two per cell it spans, 1..tt_max_supersample.
+int tt_steps(vec2 side) {
+    vec2 cells = abs(side) / vec2(tt_cell);
+    return int(clamp(ceil(2.0 * max(cells.x, cells.y) - 1e-4), 1.0, float(tt_max_supersample)));
+}
+
+// The triangle at point p (clamped to the bound block): themes and weights in TT_FRAC.
+void tt_triangle_at(vec2 p, out uvec3 kt, out ivec3 wt) {
+    vec2 g = p / vec2(tt_cell);
+    ivec2 c = ivec2(floor(g));
+    vec2 f = g - vec2(c);
+    ivec2 cl = clamp(c - tt_block_cell, ivec2(0), tt_block_cells - 1);
+    f = clamp(f + vec2(c - tt_block_cell - cl), 0.0, 1.0);
+    ivec2 fi = ivec2(floor(f * float(TT_FRAC) + 0.5));
+    tt_triangle(tt_split_at(cl), tt_corners_at(cl), fi.x, fi.y, TT_FRAC, kt, wt);
+    tt_merge_equal(kt, wt);
+}
+
+// The slot holding theme k (0..3), or -1.
+int tt_slot_of(uvec4 themes, uint k) {
+    return k == themes.x ? 0 : k == themes.y ? 1 : k == themes.z ? 2 : k == themes.w ? 3 : -1;
+}
+
+// One-hot vector of slot s (zero for -1).
+vec4 tt_slot_mask(int s) {
+    return vec4(equal(ivec4(s), ivec4(0, 1, 2, 3)));
+}
+
+// The pixel whose centre is at texel position p, footprint (dx, dy): RGBA in [0, 1].
+// The slots are vectors and unrolled selections, not arrays: a software
+// rasteriser keeps dynamically indexed arrays in memory, several times slower.
+vec4 tt_shade_footprint(vec2 p, vec2 dx, vec2 dy) {
+    vec2 centre = tt_place(p);
+    int sx = tt_steps(dx);
+    int sy = tt_steps(dy);
+    uvec4 themes = uvec4(0xFFFFFFFFu);
+    vec4 weight = vec4(0.0);
+    vec3 c0 = vec3(0.0), c1 = vec3(0.0), c2 = vec3(0.0), c3 = vec3(0.0);
+#if TT_SHAPED == 1
+    ivec4 luma = ivec4(0);
+    ivec2 last = ivec2(tt_texture_size) - 1;
+#endif
+#if TT_BLEND == 1
+    vec3 g0 = vec3(0.0), g1 = vec3(0.0), g2 = vec3(0.0), g3 = vec3(0.0);
+#endif
+    int used = 0;
+    for (int j = 0; j < sy; ++j) {
+        for (int i = 0; i < sx; ++i) {
+            // Step 1: the sub-sample's triangle and weights.
+            vec2 o = (vec2(i, j) + 0.5) / vec2(sx, sy) - 0.5;
+            vec2 q = tt_place(p + o.x * dx + o.y * dy);
+            uvec3 kt;
+            ivec3 wt;
+            tt_triangle_at(q, kt, wt);
+            // Step 2: each theme of non-zero weight in a slot, read once when it first appears.
+            ivec3 slot = ivec3(-1);
+            for (int c = 0; c < 3; ++c) {
+                if (wt[c] == 0) continue;
+                int s = tt_slot_of(themes, kt[c]);
+                if (s < 0 && used < TT_SLOTS) {
+                    vec3 colour = tt_sample(kt[c], centre, dx, dy);
+#if TT_BLEND == 1
+                    vec3 gauss = tt_sample_gauss(kt[c], centre, dx, dy);
+#endif
+                    s = used++;
+                    if (s == 0) { themes.x = kt[c]; c0 = colour; }
+                    else if (s == 1) { themes.y = kt[c]; c1 = colour; }
+                    else if (s == 2) { themes.z = kt[c]; c2 = colour; }
+                    else { themes.w = kt[c]; c3 = colour; }
+#if TT_SHAPED == 1
+                    luma = ivec4(mix(vec4(luma), vec4(tt_luma(uvec3(colour * 255.0 + 0.5))),
+                                     tt_slot_mask(s)));
+#endif
+#if TT_BLEND == 1
+                    if (s == 0) g0 = gauss; else if (s == 1) g1 = gauss;
+                    else if (s == 2) g2 = gauss; else g3 = gauss;
+#endif
+                }
+                slot[c] = s;
+            }
+            // Step 3: the sub-sample's weights added to its themes' slots.
+#if TT_SHAPED == 1
+            ivec3 l = ivec3(dot(vec4(luma), tt_slot_mask(slot.x)),
+                            dot(vec4(luma), tt_slot_mask(slot.y)),
+                            dot(vec4(luma), tt_slot_mask(slot.z)));
+            ivec2 t = clamp(ivec2(floor(q + 0.5)), ivec2(0), last);
+            ivec3 v = tt_border_weights(kt, wt, TT_FRAC, t, l);
+            vec3 w = vec3(v) / float(v.x + v.y + v.z);
+#else
+            vec3 w = vec3(wt) / float(TT_FRAC);
+#endif
+            weight += w.x * tt_slot_mask(slot.x) + w.y * tt_slot_mask(slot.y)
+                    + w.z * tt_slot_mask(slot.z);
+        }
+    }
+    weight /= weight.x + weight.y + weight.z + weight.w;
+#if TT_BLEND == 1
+    // Histogram-preserving blend of the filtered Gaussianised themes (a theme alone is itself).
+    vec3 g = (weight.x * g0 + weight.y * g1 + weight.z * g2 + weight.w * g3)
+             / sqrt(dot(weight, weight));
+    vec3 rgb = vec3(0.0);
+    if (weight.x > 0.0) rgb += weight.x * (weight.x == 1.0 ? c0 : tt_inverse(themes.x, g) / 255.0);
+    if (weight.y > 0.0) rgb += weight.y * tt_inverse(themes.y, g) / 255.0;
+    if (weight.z > 0.0) rgb += weight.z * tt_inverse(themes.z, g) / 255.0;
+    if (weight.w > 0.0) rgb += weight.w * tt_inverse(themes.w, g) / 255.0;
+#else
+    vec3 rgb = weight.x * c0 + weight.y * c1 + weight.z * c2 + weight.w * c3;
+#endif
+#if TT_COLOUR_MAP == 1
+    rgb = min(rgb * tt_colour_filtered(centre, dx, dy), 1.0);
+#endif
+    return vec4(rgb, 1.0);
+}

@@ -1,0 +1,128 @@
+"""A project's style on the GPU: blend, shaped borders and colour map, checked and bound.
+
+Every view of a texture (the flat renderer, the ground plane of a fly-over)
+draws the same style: the blend (``TT_BLEND``), the shaped borders'
+integer parameters (``TT_SHAPED``, :class:`core.render.boundary.BoundaryParams`)
+and the colour map (``TT_COLOUR_MAP``). :func:`gpu_style` checks them against
+the shaders' exact integer ranges before any GPU work; :class:`StyleTextures`
+keeps the colour map's texture and gives the uniforms all views share.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import moderngl
+
+from core.errors import TerrathemeError
+from core.gpu.options import GpuRenderOptions
+from core.gpu.programs import UNITS
+from core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
+from core.model.colour_map import ColourMap
+from core.render.boundary import BoundaryParams
+from core.render.renderer import BlendMode
+from core.render.theme_pack import LUT_RANGE
+
+#: largest texel coordinate and cell area the shaders' integer arithmetic keeps exact
+MAX_COORDINATE = 1 << 23
+MAX_CELL_AREA = 1 << 23
+#: largest noise lattice of shaped borders the shaders divide exactly (L^2 <= 2^30)
+MAX_LATTICE = 1 << 15
+
+
+class Style(NamedTuple):
+    """What a view draws besides the grid: the blend, the borders, the colour map."""
+
+    histogram: bool
+    border: BoundaryParams | None
+    colour_map: ColourMap | None
+
+
+def gpu_style(options: GpuRenderOptions, cell: tuple[int, int], texture_size: tuple[int, int],
+              colour_map: ColourMap | None) -> Style:
+    """The checked style of a texture of ``texture_size`` texels in cells of ``cell``.
+
+    Raises
+    ------
+    TerrathemeError
+        A texture side or cell area beyond 2^23, a noise lattice beyond
+        :data:`MAX_LATTICE`, or a colour map that does not cover the texture or
+        whose scale is beyond :data:`core.gpu.textures.MAX_COLOUR_SCALE`.
+    """
+    n, m = cell
+    if max(texture_size) > MAX_COORDINATE or n * m > MAX_CELL_AREA:
+        raise TerrathemeError(
+            f"texture {texture_size[0]} x {texture_size[1]} with {n} x {m} cells is beyond the "
+            f"GPU renderer's exact integer range (sides and cell area up to {MAX_COORDINATE})")
+    check_colour_map(colour_map, texture_size)
+    border = None if options.boundary is None else options.boundary.parameters(n, m)
+    if border is not None and border.lattice > MAX_LATTICE:
+        raise TerrathemeError(f"shaped borders with a {border.lattice}-texel noise lattice "
+                              f"are beyond the GPU renderer's exact range (up to "
+                              f"{MAX_LATTICE}): render without --gpu")
+    return Style(options.blend is BlendMode.HISTOGRAM, border, colour_map)
+
+
+class StyleTextures:
+    """The themes and the colour map of one renderer, bound for a view in a style.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    themes : ThemeTextures
+    """
+
+    def __init__(self, ctx: moderngl.Context, themes: ThemeTextures) -> None:
+        self.ctx = ctx
+        self.themes = themes
+        self._colours: tuple[ColourMap, moderngl.Texture] | None = None
+
+    def bind(self, style: Style, filtered: bool, anisotropy: float) -> int:
+        """Bind the themes (and Gaussianised themes, tables, colour map) the style reads.
+
+        Returns
+        -------
+        lut_size : int
+            Entries of the inverse tables (``TT_LUT_SIZE``).
+        """
+        self.themes.colours(filtered, anisotropy).use(UNITS["tt_themes"])
+        lut_size = 4096
+        if style.histogram:
+            self.themes.gaussianised(filtered, anisotropy).use(UNITS["tt_gauss"])
+            lut, lut_size, _ = self.themes.inverse_lut()
+            lut.use(UNITS["tt_inverse_lut"])
+        if style.colour_map is not None:
+            colours = self._colour_texture(style.colour_map)
+            colours.anisotropy = min(float(anisotropy), float(self.ctx.max_anisotropy))
+            colours.use(UNITS["tt_colour_map"])
+        return lut_size
+
+    def _colour_texture(self, colour_map: ColourMap) -> moderngl.Texture:
+        """The colour map's texture, uploaded once per map (a ColourMap is immutable)."""
+        if self._colours is None or self._colours[0] is not colour_map:
+            if self._colours is not None:
+                self._colours[1].release()
+            self._colours = (colour_map, colour_map_texture(self.ctx, colour_map))
+        return self._colours[1]
+
+    def uniforms(self, style: Style, texture_size: tuple[int, int],
+                 max_supersample: int) -> dict[str, object]:
+        """Uniforms of every view of the texture: sizes, tables, borders, colour map scale."""
+        values: dict[str, object] = {
+            "tt_theme_size": self.themes.sizes,
+            "tt_texture_size": (float(texture_size[0]), float(texture_size[1])),
+            "tt_max_supersample": int(max_supersample), "tt_lut_range": LUT_RANGE,
+        }
+        if style.colour_map is not None:
+            values["tt_colour_scale"] = style.colour_map.scale
+        if style.border is not None:
+            b = style.border
+            values["tt_border"] = (b.width, b.noise, b.height, b.lattice)
+            values["tt_border_seed"] = b.seed
+        return values
+
+    def release(self) -> None:
+        """Free the colour map's texture (the themes belong to their owner)."""
+        if self._colours is not None:
+            self._colours[1].release()
+            self._colours = None
