@@ -260,3 +260,18 @@ def test_a_reduced_frame_is_the_small_frame_stretched(context):
         assert np.abs(stretched.astype(np.int16) - full).mean() < 12
     finally:
         view.release()
+
+
+def test_cli_perspective_gpu_renders_a_project_frame(context, tmp_path, capsys):
+    from app.cli import main
+    from core.io.images import read_image
+
+    out = tmp_path / "frame.png"
+    assert main(["perspective", "sample_maps/coastline.ttproj", str(out), "--gpu",
+                 "--size", "160x90"]) == 0
+    frame = read_image(out)
+    assert frame.shape == (90, 160, 3) and frame.std() > 5
+    assert "on the GPU" in capsys.readouterr().out
+    assert main(["perspective", "sample_maps/coastline.png", str(tmp_path / "x.png"),
+                 "--gpu"]) == 2
+    assert "--gpu renders projects" in capsys.readouterr().err

@@ -90,6 +90,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                       "x, y in pixels, pixel centres at +0.5)")
     parser.add_argument("--max-anisotropy", type=float, default=16.0,
                         help="largest cell elongation kept in the family (default 16)")
+    parser.add_argument("--gpu", action="store_true",
+                        help="a project's frame through the GPU renderer (OpenGL on EGL; Mesa's "
+                             "llvmpipe without a GPU): its own style, mipmapped themes, "
+                             "--max-anisotropy probes; --method and --max-texture do not apply")
     parser.add_argument("--max-texture", type=int, default=4096, metavar="TEXELS",
                         help="use the texture reduced to at most this many texels on its long "
                         "side (the family costs about 24 bytes per RGB texel; default 4096); "
@@ -168,6 +172,8 @@ def run(args: argparse.Namespace) -> int:
         view = PlaneMapping.from_sequence(args.mapping)
     else:
         view = overview_camera(full_size)
+    if args.gpu:
+        return _run_gpu(args, project if is_project else None, view)
     t0 = time.perf_counter()
     if is_project:
         # a tiny texture of the project's type for the warm-up
@@ -222,4 +228,22 @@ def run(args: argparse.Namespace) -> int:
           f"{result.mean_reads:.1f} texels read per ground pixel, "
           f"{prepared.memory_bytes() / 2**20:.1f} MiB of prefiltered texture{cached}, "
           f"{seconds:.2f} s")
+    return 0
+
+
+def _run_gpu(args: argparse.Namespace, project, view) -> int:
+    """``--gpu``: one frame of a project through :func:`core.gpu.render_perspective_gpu`."""
+    from core.errors import TerrathemeError
+    from core.gpu import GroundOptions, render_perspective_gpu
+    from core.io.images import write_image
+
+    if project is None:
+        raise TerrathemeError("--gpu renders projects (.ttproj): give a project, or leave out "
+                              "--gpu for an image")
+    t0 = time.perf_counter()
+    frame = render_perspective_gpu(project, view, args.size,
+                                   options=GroundOptions(max_anisotropy=args.max_anisotropy))
+    write_image(args.out, frame)
+    w, h = args.size
+    print(f"{args.out}: {w} x {h} pixels on the GPU, {time.perf_counter() - t0:.2f} s")
     return 0

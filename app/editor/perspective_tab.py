@@ -185,6 +185,7 @@ class PerspectiveTab(QWidget):
         self.doc = doc
         events = doc.model.events
         self._disconnect = [events.grid.connect(self._grid_changed),
+                            events.colour_map.connect(self._colour_map_changed),
                             events.themes.connect(self._themes_changed)]
         w, h = doc.extent
         self.set_flight(Flight(w / 2.0, h / 2.0, max(8.0, min(w, h) / 24), yaw=30.0, pitch=12.0))
@@ -208,6 +209,20 @@ class PerspectiveTab(QWidget):
             self.view.rebuild()
         elif self.driver is not None:
             self.view.mark_dirty(change.rows, change.cols)
+        if self.compare.isChecked():
+            self.request()
+
+    def _colour_map_changed(self, change) -> None:
+        # The colour map went neutral under an edit: swapped in place; gone with new themes:
+        # a new ground.
+        self._prepared = None
+        ground = getattr(self.view, "ground", None)
+        if self.driver is not None:
+            if ground is None or not ground.set_colour_map(self.doc.texture.colour_map,
+                                                           change.region):
+                self.view.rebuild()
+            else:
+                self.view.request_frame()
         if self.compare.isChecked():
             self.request()
 

@@ -176,6 +176,21 @@ class GroundView:
                 self.base.update((box[0] * n, box[1] * m, box[2] * n, box[3] * m))
         self._dirty.clear()
 
+    def set_colour_map(self, colour_map: ColourMap | None,
+                       region: tuple[int, int, int, int] | None) -> bool:
+        """Show ``colour_map`` instead (a map made neutral under an edit), redrawing ``region``.
+
+        Returns False when the view cannot take it in place (a map appears or
+        goes: the shader variant changes), so the caller builds a new view.
+        """
+        if (colour_map is None) != (self.style.colour_map is None):
+            return False
+        self.style = self.style._replace(colour_map=colour_map)
+        if self.base is not None:
+            self.base.colour_map = colour_map
+            self.base.update(region or (0, 0, *self.texture_size))
+        return True
+
     # -- height map --------------------------------------------------------------
     def set_height_map(self, heights: np.ndarray | None, scale: float = 1.0) -> None:
         """Displace the ground by a grey image over the whole texture (None: flat, repeating).
