@@ -66,13 +66,14 @@ def _perspective() -> None:
 def _boundary() -> None:
     from core.exchange import shaped_slots
     from core.model.colour_map import ColourMap
-    from core.render import RenderOptions, render_cells
+    from core.render import RenderOptions, render_cells, render_overview
     from core.render.boundary import BoundaryOptions
     from core.render.colour_map import apply_colour_map
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
     img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
+    render_overview(grid, themes, (4, 4), scale=0.5, boundary=BoundaryOptions())
     apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
     # The exports' weights of the same borders.
     shaped_slots(np.zeros((2, 2), np.uint8), [np.zeros((4, 4, 3), np.uint8)], (2, 2), (3, 3),

@@ -126,3 +126,23 @@ def test_cli_new_and_render(tmp_path, capsys) -> None:
     assert "outside" in capsys.readouterr().err
     assert main(["render", str(tmp_path / "none.ttproj"), str(tmp_path / "y.png")]) == 2
     assert not (tmp_path / "y.png").exists()
+
+
+def test_overview_follows_shaped_borders():
+    import cv2
+
+    from core.render.boundary import BoundaryOptions
+    from core.render.renderer import RenderOptions
+
+    rng = np.random.default_rng(0)
+    grid = rng.integers(0, 3, (20, 24)).astype(np.uint8)
+    themes = [rng.integers(0, 256, (16, 16, 3), dtype=np.uint8) // 2 + 60 * k for k in range(3)]
+    shaped = BoundaryOptions()
+    full = render_cells(grid, themes, (16, 16), options=RenderOptions(boundary=shaped))
+    for scale in (0.5, 0.25):
+        ov = render_overview(grid, themes, (16, 16), scale=scale, boundary=shaped)
+        area = cv2.resize(full.astype(np.float32), ov.shape[1::-1], interpolation=cv2.INTER_AREA)
+        plain = render_overview(grid, themes, (16, 16), scale=scale)
+        err = np.abs(ov - area).mean()
+        # Within a few levels of the area-averaged full render, far closer than the ramp's.
+        assert err < 4.0 and err < 0.4 * np.abs(plain - area).mean()

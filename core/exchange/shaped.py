@@ -8,8 +8,8 @@ that splats them over the same themes shows the same borders. This module
 computes the ``v_t`` in the boundary kernel's own integers, with its own
 pieces (:func:`core.render.kernels.cell_corners` and
 :func:`~core.render.kernels.merged_weights` for the corners and step 1,
-:func:`core.render.boundary.border_weights` and
-:class:`~core.render.boundary.BoundaryParams` for step 2), so the colours
+:func:`core.render.boundary.shaped_weight_rows`, which the overview
+renderer uses too), so the colours
 they give are the renderer's exactly (``tests/test_exchange_shaped.py``).
 
 Where pixels lie: the rule is defined on whole texels, so pixel ``i`` of a
@@ -24,66 +24,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numba as nb
 import numpy as np
 
 from core.errors import TerrathemeError
 from core.exchange.layout import nearest_texels
 from core.exchange.weights import CornerSlots, check_window
 from core.model.grid import validate_indices
-from core.render.boundary import BoundaryOptions, border_weights
+from core.render.boundary import BoundaryOptions, shaped_weights
 from core.render.inputs import theme_textures
-from core.render.kernels import RegionBlock, ThemeRows, cell_corners, merged_weights
 from core.render.rules import SaddleRule, cell_splits
-from core.render.theme_pack import pack_themes
-
-
-@nb.njit(cache=True, nogil=True)
-def shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, themes, params
-                       ):  # pragma: no cover - numba
-    """Fill the slots of pixels at texel columns ``xs`` and rows ``ys`` with the ``v_t``.
-
-    ``ids`` (4, h, w) uint8 and ``weights`` (4, h, w) int64 get every pixel's
-    corner themes and their ``v_t`` (0 for a corner merged into an earlier one
-    of its theme or out of the border), ``denom`` (h, w) int64 their sum.
-    ``block`` a :class:`core.render.kernels.RegionBlock` of the whole grid,
-    ``edge`` the same offset by one cell row (for the far edge row ``Htex``),
-    ``themes`` :class:`core.render.kernels.ThemeRows`, ``params``
-    :class:`core.render.boundary.BoundaryParams`.
-    """
-    grid, splits, ocx, ocy, rx, ry, n, m = block
-    flat = themes[0]
-    gh, gw = splits.shape[0], splits.shape[1]
-    d = n * m
-    ks = np.zeros(4, np.int64)
-    ws = np.zeros(4, np.int64)
-    bs = np.zeros(4, np.int64)
-    sc = np.zeros(4, np.int64)
-    for r in range(ys.size):
-        gy = ys[r]
-        cy = min(gy // m, gh - 1)
-        rows = edge if gy == gh * m else block
-        yi = (gy - cy * m) * n
-        for c in range(xs.size):
-            x = xs[c]
-            cx = min(x // n, gw - 1)
-            # The cell's corner themes, and each theme's texel at (x, gy).
-            sp = cell_corners(rows, themes, cx, gy, x, ks, bs)
-            for a in range(4):
-                ids[a, r, c] = ks[a]
-                weights[a, r, c] = 0
-            if sp == 0:
-                # A uniform cell: its one theme at full weight.
-                weights[0, r, c] = 1
-                denom[r, c] = 1
-                continue
-            # Step 1: the barycentric weights, corners of one theme merged.
-            merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
-            # Steps 2-3 of the boundary blend: the v_t are the weights.
-            total = border_weights(ks, ws, bs, 0, flat, x, gy, d, params, sc)
-            for a in range(4):
-                weights[a, r, c] = sc[a]
-            denom[r, c] = total
 
 
 def shaped_slots(
@@ -131,17 +80,8 @@ def shaped_slots(
     x, y, w, h = check_window(window, size)
     if splits is None:
         splits = cell_splits(indices, saddle)
-    splits = np.require(splits, np.uint8, ("C", "W"))
-    packed = pack_themes(textures, n)
-    rows = ThemeRows(packed.flat, packed.off, packed.stride, packed.th, packed.tw)
-    block = RegionBlock(indices, splits, 0, 0, 0, 0, n, m)
-    # The far edge row: the same grid one cell row on, so cell_corners finds the last row.
-    edge = RegionBlock(indices[gh - 1 :], splits[gh - 1 :], 0, gh, 0, 0, n, m)
     xs = nearest_texels(size[0], gw * n, x, w)
     ys = nearest_texels(size[1], gh * m, y, h)
-    ids = np.empty((4, h, w), np.uint8)
-    weights = np.empty((4, h, w), np.int64)
-    denom = np.empty((h, w), np.int64)
-    shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, rows,
-                       boundary.parameters(n, m))
+    ids, weights, denom = shaped_weights(indices, splits, textures, (n, m), xs, ys,
+                                         boundary.parameters(n, m))
     return CornerSlots(ids, weights, denom)

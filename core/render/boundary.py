@@ -41,7 +41,8 @@ import numba as nb
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.render.kernels import cell_corners, merged_weights
+from core.render.kernels import RegionBlock, ThemeRows, cell_corners, merged_weights
+from core.render.theme_pack import pack_themes
 
 _M32 = np.uint64(0xFFFFFFFF)
 #: widest border, in 1/1024 of a weight
@@ -232,3 +233,95 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
                         if sc[a] != 0:
                             acc += sc[a] * np.int64(flat[bs[a] + o + c])
                     out[r, (x - rx) * 3 + c] = (2 * acc + total) // (2 * total)
+
+
+@nb.njit(cache=True, nogil=True)
+def shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, themes, params
+                       ):  # pragma: no cover - numba
+    """Fill the slots of pixels at texel columns ``xs`` and rows ``ys`` with the ``v_t``.
+
+    ``ids`` (4, h, w) uint8 and ``weights`` (4, h, w) int64 get every pixel's
+    corner themes and their ``v_t`` (0 for a corner merged into an earlier one
+    of its theme or out of the border), ``denom`` (h, w) int64 their sum.
+    ``block`` a :class:`core.render.kernels.RegionBlock` of the whole grid,
+    ``edge`` the same offset by one cell row (for the far edge row ``Htex``),
+    ``themes`` :class:`core.render.kernels.ThemeRows`, ``params``
+    :class:`BoundaryParams`. The weights at texel ``(x, y)`` are
+    ``v_t / denom``: those of :func:`shaped_rows` there (the exports and the
+    overview renderer read them).
+    """
+    grid, splits, ocx, ocy, rx, ry, n, m = block
+    flat = themes[0]
+    gh, gw = splits.shape[0], splits.shape[1]
+    d = n * m
+    ks = np.zeros(4, np.int64)
+    ws = np.zeros(4, np.int64)
+    bs = np.zeros(4, np.int64)
+    sc = np.zeros(4, np.int64)
+    for r in range(ys.size):
+        gy = ys[r]
+        cy = min(gy // m, gh - 1)
+        rows = edge if gy == gh * m else block
+        yi = (gy - cy * m) * n
+        for c in range(xs.size):
+            x = xs[c]
+            cx = min(x // n, gw - 1)
+            # The cell's corner themes, and each theme's texel at (x, gy).
+            sp = cell_corners(rows, themes, cx, gy, x, ks, bs)
+            for a in range(4):
+                ids[a, r, c] = ks[a]
+                weights[a, r, c] = 0
+            if sp == 0:
+                # A uniform cell: its one theme at full weight.
+                weights[0, r, c] = 1
+                denom[r, c] = 1
+                continue
+            # Step 1: the barycentric weights, corners of one theme merged.
+            merged_weights(sp, (x - cx * n) * m, yi, d, ks, ws)
+            # Steps 2-3 of the boundary blend: the v_t are the weights.
+            total = border_weights(ks, ws, bs, 0, flat, x, gy, d, params, sc)
+            for a in range(4):
+                weights[a, r, c] = sc[a]
+            denom[r, c] = total
+
+
+def shaped_weights(indices: np.ndarray, splits: np.ndarray, textures: list[np.ndarray],
+                   cell: tuple[int, int], xs: np.ndarray, ys: np.ndarray,
+                   params: BoundaryParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shaped blend's weights at texels ``xs`` (columns) x ``ys`` (rows) of the whole grid.
+
+    Parameters
+    ----------
+    indices : (gh+1, gw+1) uint8 ndarray
+    splits : (gh, gw) uint8 ndarray
+        ``cell_splits(indices, saddle)``.
+    textures : list of (h, w, 3) uint8 ndarrays
+    cell : (N, M)
+    xs, ys : int64 ndarrays
+        Texel columns in ``0..gw*N`` and rows in ``0..gh*M`` (the far edge included).
+    params : BoundaryParams
+
+    Returns
+    -------
+    ids, weights : (4, len(ys), len(xs)) uint8 and int64 ndarrays
+        Each texel's corner themes and their ``v_t``.
+    denom : (len(ys), len(xs)) int64 ndarray
+        ``sum(v_t)``; the weight of slot ``a`` is ``weights[a] / denom``.
+    """
+    n, m = (int(v) for v in cell)
+    gh = indices.shape[0] - 1
+    # Writeable C arrays: one kernel signature (numba types read-only arrays apart).
+    indices = np.require(indices, np.uint8, ("C", "W"))
+    splits = np.require(splits, np.uint8, ("C", "W"))
+    packed = pack_themes(textures, n)
+    rows = ThemeRows(packed.flat, packed.off, packed.stride, packed.th, packed.tw)
+    block = RegionBlock(indices, splits, 0, 0, 0, 0, n, m)
+    # The far edge row: the same grid one cell row on, so cell_corners finds the last row.
+    edge = RegionBlock(indices[gh - 1:], splits[gh - 1:], 0, gh, 0, 0, n, m)
+    xs = np.ascontiguousarray(xs, np.int64)
+    ys = np.ascontiguousarray(ys, np.int64)
+    ids = np.empty((4, ys.size, xs.size), np.uint8)
+    weights = np.empty((4, ys.size, xs.size), np.int64)
+    denom = np.empty((ys.size, xs.size), np.int64)
+    shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, rows, params)
+    return ids, weights, denom

@@ -30,6 +30,7 @@ from scipy import ndimage
 
 from core.errors import TerrathemeError
 from core.model.colour_map import ColourMap
+from core.render.boundary import BoundaryOptions, shaped_weights
 from core.render.colour_map import gain_image
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import SaddleRule, cell_splits, corner_weights
@@ -53,6 +54,7 @@ def render_overview(
     scale: float,
     saddle: SaddleRule = SaddleRule.MINORITY,
     colour_map: ColourMap | None = None,
+    boundary: BoundaryOptions | None = None,
 ) -> np.ndarray:
     """Render ``region`` (full-resolution texels) at ``scale`` output pixels per texel.
 
@@ -65,6 +67,10 @@ def render_overview(
     scale : float in (0, 1]
     colour_map : ColourMap, optional
         Applied as its gain at every output pixel's centre.
+    boundary : BoundaryOptions, optional
+        Shaped borders (:mod:`core.render.boundary`): the weights are those of
+        the shaped blend at the supersampled texels, sampled finely enough to
+        follow its noise lattice.
 
     Returns
     -------
@@ -78,25 +84,39 @@ def render_overview(
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     ow, oh = max(1, round(rw * scale)), max(1, round(rh * scale))
     fx, fy = rw / ow, rh / oh
-    sx, sy = max(1, int(np.ceil(2 * fx / n))), max(1, int(np.ceil(2 * fy / m)))
+    params = None if boundary is None else boundary.parameters(n, m)
+    # Samples per axis: two per cell, or two per noise feature with shaped borders.
+    px, py = (n, m) if params is None else (params.lattice, params.lattice)
+    sx = min(16, max(1, int(np.ceil(2 * fx / px))))
+    sy = min(16, max(1, int(np.ceil(2 * fy / py))))
     splits = cell_splits(grid, saddle)
-    # Footprint-averaged weight of every theme present (supersampled barycentric weights).
     xs = _sample_positions(rx, rw, ow, sx).reshape(-1)
     ys = _sample_positions(ry, rh, oh, sy).reshape(-1)
-    gx = np.clip(xs / n, 0, gw - 1e-9)
-    gy = np.clip(ys / m, 0, gh - 1e-9)
-    cx, cy = gx.astype(np.int64), gy.astype(np.int64)
-    xi = np.rint((gx - cx) * _FRAC).astype(np.int32)[None, :]
-    yi = np.rint((gy - cy) * _FRAC).astype(np.int32)[:, None]
-    ws = corner_weights(splits[cy[:, None], cx[None, :]], xi, yi, _FRAC)
-    ks = [grid[cy[:, None] + dr, cx[None, :] + dc] for dr, dc in ((0, 0), (0, 1), (1, 0), (1, 1))]
+    if params is None:
+        # Footprint-averaged weight of every theme present (supersampled barycentric weights).
+        gx = np.clip(xs / n, 0, gw - 1e-9)
+        gy = np.clip(ys / m, 0, gh - 1e-9)
+        cx, cy = gx.astype(np.int64), gy.astype(np.int64)
+        xi = np.rint((gx - cx) * _FRAC).astype(np.int32)[None, :]
+        yi = np.rint((gy - cy) * _FRAC).astype(np.int32)[:, None]
+        ws = corner_weights(splits[cy[:, None], cx[None, :]], xi, yi, _FRAC)
+        ks = [grid[cy[:, None] + dr, cx[None, :] + dc]
+              for dr, dc in ((0, 0), (0, 1), (1, 0), (1, 1))]
+        denom = _FRAC
+    else:
+        # The shaped blend's own weights at the nearest texels of the samples.
+        tx = np.clip(np.rint(xs), 0, gw * n - 1).astype(np.int64)
+        ty = np.clip(np.rint(ys), 0, gh * m - 1).astype(np.int64)
+        ids, weights, denom = shaped_weights(grid, splits, texs, (n, m), tx, ty, params)
+        ks, ws = list(ids), list(weights)
+        denom = np.maximum(denom, 1)
     present = np.unique(grid)
     out = np.zeros((oh, ow, 3), dtype=np.float32)
     # Footprint centres, for sampling the prefiltered themes.
     cxs = np.floor(rx + (np.arange(ow) + 0.5) * fx).astype(np.int64)
     cys = np.floor(ry + (np.arange(oh) + 0.5) * fy).astype(np.int64)
     for k in present:
-        wk = sum(np.where(ks[c] == k, ws[c], 0).astype(np.float32) for c in range(4)) / _FRAC
+        wk = sum(np.where(ks[c] == k, ws[c], 0).astype(np.float32) for c in range(4)) / denom
         wk = wk.reshape(oh, sy, ow, sx).mean(axis=(1, 3))
         if not wk.any():
             continue

@@ -75,7 +75,7 @@ def render_project(
                             options=options, progress=progress, colour_map=project.colour_map)
     return render_overview(project.grid.indices, textures, project.grid.cell, region,
                            scale=float(scale), saddle=options.saddle,
-                           colour_map=project.colour_map)
+                           colour_map=project.colour_map, boundary=options.boundary)
 
 
 def photo_extent(project: ThematicTexture) -> tuple[int, int]:
