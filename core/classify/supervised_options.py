@@ -43,7 +43,9 @@ class SupervisedOptions:
         RANDOM_FOREST: features tried per split (0: ``sqrt(F)``; Extra-Trees
         always tries ``sqrt(F)``).
     max_samples_per_class : int
-        Cap on training samples of one class (over all pairs).
+        Cap on training samples of one class (over all pairs). 4000 (was
+        15000): on the one-photo-per-tile protocol (bench_classify.py part
+        ``one_per_tile``) the same mIoU, and the forest trains ~4x faster.
     balance : bool
         Equal class priors whatever the sample counts.
     seed : int
@@ -60,6 +62,17 @@ class SupervisedOptions:
         Scribble samples grown by one ring of coarse pixels of the stroke's
         colour (:func:`core.classify.samples.grow_labels`, Lab difference under
         this). 0 = off; None = ``samples.GROW_COLOUR`` for scribbles, else off.
+    adapt : bool or None
+        Test-time adaptation (:mod:`core.classify.adapt`): each photo is
+        classified, its surest pixels relearned by a small forest, and
+        classified again. None = on for a model trained on label masks of other
+        photos, off for scribbles (they are on the photo already); resolved by
+        :func:`train_classifier`.
+    target_prior_power : float
+        Class shares of each classified photo re-estimated by EM
+        (:func:`core.classify.prior.em_shares`) and the votes reweighted by
+        ``(share / training share) ** target_prior_power``; 0 = off (default:
+        it lowered mean mIoU across Dubai tiles). Needs ``balance``.
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
@@ -72,12 +85,14 @@ class SupervisedOptions:
     max_depth: int = 12
     min_samples: int = 4
     active_vars: int = 0
-    max_samples_per_class: int = 15000
+    max_samples_per_class: int = 4000
     balance: bool = True
     seed: int = 0
     tile: int = 2048
     prior_power: float | None = None
     grow_colour: float | None = None
+    adapt: bool | None = None
+    target_prior_power: float = 0.0
 
     def __post_init__(self) -> None:
         if self.prior_power is not None and not 0.0 <= self.prior_power <= 1.0:
@@ -89,6 +104,11 @@ class SupervisedOptions:
             )
         if self.grow_colour is not None and self.grow_colour < 0:
             raise TerrathemeError(f"grow_colour must be >= 0 or None, not {self.grow_colour}")
+        if not 0.0 <= self.target_prior_power <= 1.0:
+            raise TerrathemeError(
+                f"target_prior_power must be in 0..1, not {self.target_prior_power}")
+        if self.target_prior_power > 0 and not self.balance:
+            raise TerrathemeError("target_prior_power needs balance (uniform training priors)")
         if self.tile < 16:
             raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
 
