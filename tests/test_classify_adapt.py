@@ -31,6 +31,9 @@ def test_pseudo_labels_skip_rare_classes_and_cap_the_rest():
     assert len(index) == 10 and (index < 25).all() and len(set(index.tolist())) == 10
     index, column = pseudo_labels(probs, share=1.0, per_class=10, min_pixels=5)
     assert (column == 2).sum() == 5
+    # 5 of 30 samples is under a minimum share of 20%.
+    index, column = pseudo_labels(probs, share=1.0, per_class=10, min_pixels=1, min_share=0.2)
+    assert set(column.tolist()) == {0}
 
 
 def test_pseudo_labels_of_nothing():

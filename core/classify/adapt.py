@@ -29,7 +29,6 @@ tile), see ``SupervisedOptions.adapt``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -46,6 +45,7 @@ from core.classify.tiled import (
     strided_core,
     tile_arrays,
 )
+from core.io.tiles import TileWindow
 
 #: share of each predicted class's coarse pixels (the most confident) taken as pseudo-labels
 ADAPT_SHARE = 0.7
@@ -57,13 +57,15 @@ ADAPT_SAMPLES_PER_CLASS = 2000
 ADAPT_SAMPLES = 200_000
 #: a class predicted on fewer coarse pixels than this is not relearned
 ADAPT_MIN_PIXELS = 20
+#: ... nor one predicted on less than this share of the photo's coarse pixels
+ADAPT_MIN_SHARE = 0.02
 #: pass-1 features kept for pass 2 up to this many bytes (else computed again)
 ADAPT_KEEP_BYTES = 256 << 20
 
 
 def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
                   per_class: int = ADAPT_SAMPLES_PER_CLASS,
-                  min_pixels: int = ADAPT_MIN_PIXELS,
+                  min_pixels: int = ADAPT_MIN_PIXELS, min_share: float = ADAPT_MIN_SHARE,
                   rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The samples a classification is surest of, per predicted class.
 
@@ -77,7 +79,9 @@ def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
     per_class : int
         At most this many kept per class (random, ``rng``).
     min_pixels : int
-        A class that is the arg-max of fewer samples keeps none.
+        A class that is the arg-max of fewer samples keeps none ...
+    min_share : float
+        ... nor one that is the arg-max of less than this share of them.
     rng : numpy Generator, optional
         Default ``default_rng(0)``.
 
@@ -94,7 +98,7 @@ def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
     index, column = [], []
     for c in range(probs.shape[1]):
         rows = np.flatnonzero(best == c)
-        if len(rows) < max(min_pixels, 1):
+        if len(rows) < max(min_pixels, 1, min_share * len(probs)):
             continue
         # The most confident share of the class, then a random subset if too many.
         cut = np.quantile(conf[rows], 1.0 - share)
@@ -152,17 +156,16 @@ def predict_adapted(
     windows = prediction_windows(h, w, features, regularisation, tile)
     n_coarse = (-(-h // scale)) * (-(-w // scale))
     stride = max(1, int(np.sqrt(n_coarse / ADAPT_SAMPLES)))
-    keep = n_coarse * features.n_features * 4 * 1.5 <= ADAPT_KEEP_BYTES
+    keep = n_coarse * (features.n_features + len(classes) + 4) * 4 * 1.5 <= ADAPT_KEEP_BYTES
     kept: dict = {}
     feats_seen, probs_seen = [], []
     for done, win in enumerate(windows, 1):
         # Pass 1: the trained model's regularised probabilities on this tile.
-        arrays = tile_arrays(rgb, win, features, stats)
-        lab, block_std, feats = arrays
+        lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+        raw = probability_fn(feats).astype(np.float32, copy=False)
         if keep:
-            kept[win] = arrays
-        probs = regularise(probability_fn(feats).astype(np.float32, copy=False), lab,
-                           regularisation, texture=block_std)
+            kept[win] = (lab, block_std, feats, raw)
+        probs = regularise(raw, lab, regularisation, texture=block_std)
         # Its core coarse pixels on the photo-wide strided grid (only those with data).
         core_feats, rows, cols = strided_core(feats, win, scale, stride)
         core_probs, _, _ = strided_core(probs, win, scale, stride)
@@ -175,18 +178,28 @@ def predict_adapted(
     x, p = np.concatenate(feats_seen), np.concatenate(probs_seen)
     # The surest coarse pixels of each class as this photo's own training samples.
     index, column = pseudo_labels(p, rng=np.random.default_rng(forest_options.seed))
-    adapted_fn: ProbabilityFn = probability_fn
-    if len(np.unique(column)) >= 2:
+    if len(np.unique(column)) < 2:
+        adapted_fn = None
+    else:
         adapt_opts = replace(forest_options, forest=ForestKind.EXTRA_TREES, n_trees=ADAPT_TREES,
                              balance=True)
         labels = np.asarray(classes, np.int64)[column]
-        forest = build_forest(x[index], labels, adapt_opts)
-        adapted_fn = forest_probability_fn(forest, classes)
-    arrays_fn: Callable | None = kept.__getitem__ if keep else None
+        adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts), classes)
+
+    def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Pass 2: the mean of the trained and the photo's own forests' probabilities.
+        if keep:
+            lab, block_std, feats, raw = kept.pop(win)
+        else:
+            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            raw = probability_fn(feats)
+        if adapted_fn is None:
+            return lab, block_std, raw
+        return lab, block_std, 0.5 * (raw + adapted_fn(feats))
 
     def pass_two(done: int, total: int) -> None:
         if progress is not None:
             progress(len(windows) + done, 2 * len(windows))
 
-    return predict_tiled(rgb, valid, adapted_fn, classes, features, regularisation, tile,
-                         pass_two, stats, arrays_fn=arrays_fn)
+    return predict_tiled(rgb, valid, probability_fn, classes, features, regularisation, tile,
+                         pass_two, stats, tile_fn=tile_fn)

@@ -8,7 +8,8 @@ that covers most of its labelled pixels, so a one-pixel stroke still teaches
 the block it crosses. Classes listed in ``ignore_classes`` (e.g. Dubai's 6
 "Unlabeled" and 7) are treated as unlabelled.
 
-Samples are capped per class (``max_samples_per_class``, random, seeded) and,
+Samples are capped per class (``SupervisedOptions.samples_per_class``: more
+for more pairs, random, seeded) and,
 with ``balance``, the forest's class priors are set so every class weighs the
 same whatever its area, which is what a mean-IoU user wants from thin roads.
 
@@ -143,7 +144,7 @@ def collect_samples(
             "the label masks name no class (all pixels 0 or ignored): paint at least one class"
         )
     rng = np.random.default_rng(options.seed)
-    cap = options.max_samples_per_class
+    cap = options.samples_per_class(len(pairs))
     per_class: dict[int, list[np.ndarray]] = {k: [] for k in classes}
     grow = options.grow_colour
     if grow is None:

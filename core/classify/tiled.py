@@ -24,8 +24,8 @@ from core.io.tiles import TileWindow, tile_windows
 ProgressFn = Callable[[int, int], None]
 #: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
-#: a window's coarse Lab (h, w, 3), block lightness std (h, w) and features (h, w, F)
-TileArraysFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
+#: a window's coarse Lab (h, w, 3), block lightness std (h, w) and class probabilities (h, w, C)
+TileProbabilitiesFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def feature_windows(height: int, width: int, tile: int, scale: int,
@@ -162,7 +162,7 @@ def predict_tiled(
     tile: int,
     progress: ProgressFn | None = None,
     stats: np.ndarray | None = None,
-    arrays_fn: TileArraysFn | None = None,
+    tile_fn: TileProbabilitiesFn | None = None,
 ) -> Classification:
     """Classify a photo tile by tile.
 
@@ -182,10 +182,10 @@ def predict_tiled(
         Called with ``(tiles_done, tiles_total)``.
     stats : (2, 3) float32 ndarray, optional
         The photo's Lab statistics for colour normalisation.
-    arrays_fn : callable, optional
-        ``window -> (lab, block_std, features)`` of the windows of
-        :func:`prediction_windows` when they are known already (features kept
-        from an earlier pass); default: computed with :func:`tile_arrays`.
+    tile_fn : callable, optional
+        ``window -> (lab, block_std, probabilities)`` for the windows of
+        :func:`prediction_windows`, in place of :func:`tile_arrays` and
+        ``probability_fn`` (probabilities made from an earlier pass's).
 
     Returns
     -------
@@ -196,16 +196,17 @@ def predict_tiled(
     height, width = rgb.shape[:2]
     scale = features.scale
     windows = prediction_windows(height, width, features, regularisation, tile)
-    if arrays_fn is None:
-        def arrays_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            return tile_arrays(rgb, win, features, stats)
+    if tile_fn is None:
+        def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            return lab, block_std, probability_fn(feats)
     lut = np.asarray(classes, np.uint8)
     labels = np.zeros((height, width), np.uint8)
     confidence = np.zeros((height, width), np.float32)
     for done, win in enumerate(windows, 1):
         # Features over the tile and its halo, then per-coarse-pixel probabilities.
-        lab, block_std, feats = arrays_fn(win)
-        probs = probability_fn(feats).astype(np.float32, copy=False)
+        lab, block_std, probs = tile_fn(win)
+        probs = probs.astype(np.float32, copy=False)
         # Spatial regularisation on the coarse grid.
         probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
