@@ -10,6 +10,7 @@ import pytest
 import core.classify.adapt as adapt
 from core.classify import SupervisedOptions, train_classifier
 from core.classify.adapt import pseudo_labels
+from core.classify.supervised_options import ADAPT_MAX_PAIRS
 
 
 def test_pseudo_labels_keep_the_surest_share_of_each_class():
@@ -67,7 +68,7 @@ def test_adaptation_follows_a_shift_of_the_classes_appearance():
     assert after > before + 0.02
 
 
-def test_adaptation_is_on_for_masks_of_other_photos_and_off_for_scribbles():
+def test_adaptation_is_on_for_masks_of_a_few_photos_and_off_for_scribbles():
     train, truth = shifted_blocks(0.0, seed=0)
     assert train_classifier([(train, truth)]).options.adapt is True
     strokes = np.zeros_like(truth)
@@ -76,6 +77,10 @@ def test_adaptation_is_on_for_masks_of_other_photos_and_off_for_scribbles():
     assert train_classifier([(train, strokes)]).options.adapt is False
     assert train_classifier([(train, truth)], SupervisedOptions(adapt=False)).options.adapt \
         is False
+    # Masks of many photos train a model that carries over without adapting.
+    many = [shifted_blocks(0.0, seed=s) for s in range(ADAPT_MAX_PAIRS)]
+    assert train_classifier(many, SupervisedOptions(n_trees=3)).options.adapt is False
+    assert train_classifier(many[:-1], SupervisedOptions(n_trees=3)).options.adapt is True
 
 
 def test_kept_features_give_the_same_labels_as_computed_again(monkeypatch):

@@ -85,7 +85,8 @@ def test_the_aerial_model_names_the_legends_classes():
     assert model.classes == (1, 2, 3, 4, 5)
     assert model.class_names == {1: "building", 2: "land", 3: "road", 4: "vegetation",
                                  5: "water"}
-    assert model.options.adapt is True and model.options.ignore_classes == (6, 7)
+    # Trained on 54 photos: no test-time adaptation (SupervisedOptions.adapt).
+    assert model.options.adapt is False and model.options.ignore_classes == (6, 7)
     # Dark still water and bright bare sand, the two easiest classes of the legend.
     photo = np.zeros((64, 128, 3), np.uint8)
     photo[:, :64] = (20, 35, 40)

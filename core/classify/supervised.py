@@ -30,10 +30,11 @@ trees), and 0.572 -> 0.585 (50 trees) / 0.588 (100) on the 16 evaluation
 photos (3 other draws at 0.8%); 50 trees, since 100 predicted under 5 Mpx/s
 across tiles (the deep trees trained on whole masks).
 
-Across photos (label masks of other photos, the issue-17 protocol of
+Across photos (label masks of a few other photos, the issue-17 protocol of
 bench_classify.py part ``one_per_tile``), a model adapts to each photo it
-classifies by default (:mod:`core.classify.adapt`), and training samples can
-be kept by content between runs (:class:`core.classify.sample_cache.SampleCache`).
+classifies by default (:mod:`core.classify.adapt`, ``SupervisedOptions.adapt``),
+and training samples can be kept by content between runs
+(:class:`core.classify.sample_cache.SampleCache`).
 
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
@@ -43,7 +44,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -328,9 +328,8 @@ def train_classifier(
     """
     opts = options or SupervisedOptions()
     scribbles = looks_like_scribbles(pairs_or_scribbles, opts.ignore_classes)
-    if opts.adapt is None:
-        # Adapt to each photo when trained on other photos (scribbles lie on the photo).
-        opts = replace(opts, adapt=not scribbles)
+    # Adapt to each photo when trained on a few other photos (scribbles lie on the photo).
+    opts = opts.resolved(len(pairs_or_scribbles), scribbles)
     x, y = collect_samples(pairs_or_scribbles, opts, cache)
     classes, counts = np.unique(y, return_counts=True)
     forest = build_forest(x, y, opts) if len(classes) > 1 else None

@@ -15,6 +15,8 @@ from core.errors import TerrathemeError
 
 #: the smallest per-class cap on training samples (see SupervisedOptions.samples_per_pair)
 MIN_SAMPLES_PER_CLASS = 2000
+#: adapt=None: test-time adaptation for models trained on masks of fewer photos than this
+ADAPT_MAX_PAIRS = 10
 
 
 @dataclass(frozen=True)
@@ -75,14 +77,21 @@ class SupervisedOptions:
     adapt : bool or None
         Test-time adaptation (:mod:`core.classify.adapt`): each photo is
         classified, its surest pixels relearned by a small forest, and
-        classified again. None = on for a model trained on label masks of other
-        photos, off for scribbles (they are on the photo already); resolved by
-        :func:`train_classifier`.
+        classified again with both. None = on for a model trained on label
+        masks of fewer than ``ADAPT_MAX_PAIRS`` (10) photos, off for more and
+        for scribbles (they lie on the photo already); resolved by
+        :func:`train_classifier`. bench_classify.py: trained on one photo per
+        other Dubai tile (part ``one_per_tile``, 3 draws of 5 photos) mean tile
+        mIoU 0.414 -> 0.417 and mean mIoU per photo 0.358 -> 0.392 (a class the
+        photo barely shows is no longer scattered over it); trained on every
+        photo of the other tiles (part ``across_tiles``, 45 photos) pooled mIoU
+        0.514 -> 0.509, so off there; 0.7x the prediction speed.
     target_prior_power : float
         Class shares of each classified photo re-estimated by EM
         (:func:`core.classify.prior.em_shares`) and the votes reweighted by
         ``(share / training share) ** target_prior_power``; 0 = off (default:
-        it lowered mean mIoU across Dubai tiles). Needs ``balance``.
+        at 1, mean tile mIoU 0.414 -> 0.323 in part ``one_per_tile``). Needs
+        ``balance``.
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
@@ -129,6 +138,12 @@ class SupervisedOptions:
         """The cap on training samples of one class for ``n_pairs`` training pairs."""
         return min(self.max_samples_per_class,
                    max(MIN_SAMPLES_PER_CLASS, self.samples_per_pair * n_pairs))
+
+    def resolved(self, n_pairs: int, scribbles: bool) -> SupervisedOptions:
+        """These options with ``adapt`` decided for a training set (see ``adapt``)."""
+        if self.adapt is not None:
+            return self
+        return replace(self, adapt=not scribbles and n_pairs < ADAPT_MAX_PAIRS)
 
     def with_positions(self, on: bool = True) -> SupervisedOptions:
         """These options with the position features (``FeatureOptions.position``) ``on``."""
