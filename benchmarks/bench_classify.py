@@ -1,7 +1,8 @@
 """Classification accuracy and speed on the real photos in ../shared/data.
 
 Run: ``.venv/bin/python benchmarks/bench_classify.py [scribbles] [corrections]
-[across_tiles] [memory]`` (all four by default, about 10-20 minutes on 2 busy cores;
+[across_tiles] [one_per_tile] [train_cost] [aerial] [memory]`` (all by default, about
+30-40 minutes on 2 busy cores;
 naming parts reruns only those and keeps the others from the last classify.json;
 ``--scribbles-only`` = ``scribbles corrections``, for iterating on the scribble parts).
 Writes ``benchmarks/results/classify.json`` and ``classify.png``.
@@ -16,16 +17,26 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 (c) corrections (row group ``scribbles_corrections``): the same budget, photos and
     strokes painted in two rounds, round 2 where the round-1 result is wrong (or least
     confident), as an editor user does; see classify_corrections.py.
+(d) one_per_tile: issue 17's protocol, train on one photo of each other tile, score
+    every photo of the held-out tile; the robustness pieces one by one; see
+    classify_one_per_tile.py.
+(e) train_cost: train on six photos + classify a seventh (1.5 Mpx), without and with
+    the sample cache, against classifying it twice; see classify_train_cost.py.
+(f) aerial: the shipped model (models/aerial) on LoveDA, Potsdam and DeepGlobe; see
+    classify_aerial.py.
 
 Methods, all in the same run:
   rf-default      Extra-Trees (core/classify/extra_trees.py, 50 trees, soft votes) on
                   DEFAULT features with Hessian eigenvalues and fine ridges
                   (core/classify/ridges.py, sigmas 1, 2, 4 px), 8x8 coarse pixels,
                   edge-aware confidence-weighted regularisation (Regularisation.EDGE,
-                  core/classify/regularise.py) -- the library default; for (b) also the
+                  core/classify/regularise.py) -- the library default (for (a), trained
+                  on 45 photos, without test-time adaptation); for (b) also the
                   scribble defaults: prior correction at power 0.75
                   (core/classify/prior.py) and strokes grown by one ring of same-colour
                   coarse pixels (core/classify/samples.py);
+  rf-adapt        (a) only: rf-default's forest adapting to each photo
+                  (core/classify/adapt.py, the default for fewer than 10 photos);
   rf-cv2          the previous default: rf-default with OpenCV's random forest
                   (cv2.ml.RTrees, 24 trees, hard votes) instead of Extra-Trees;
   rf-noridges     rf-default without the fine ridges;
@@ -61,6 +72,7 @@ import json
 import sys
 import time
 import tracemalloc
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -70,9 +82,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
+from classify_aerial import aerial  # noqa: E402
 from classify_chart import chart  # noqa: E402
 from classify_corrections import corrections  # noqa: E402
 from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
+from classify_one_per_tile import one_per_tile  # noqa: E402
 from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribbles read them here)
     ILASTIK,
     ILASTIK_TEST_PIXELS,
@@ -85,6 +99,7 @@ from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribble
     whole_window,
 )
 from classify_scribbles import scribbles  # noqa: E402
+from classify_train_cost import train_cost  # noqa: E402
 
 from core.classify import (  # noqa: E402
     Classifier,
@@ -104,6 +119,8 @@ OUT = REPO / "benchmarks" / "results"
 ACROSS_CAP = 6000
 #: clusters of the k-means-on-colour baseline trained on other tiles
 KMEANS_CLUSTERS = 10
+#: (a) only: rf-default's forest with the test-time adaptation
+ADAPT = "rf-adapt"
 
 METHODS = {
     "rf-default": SupervisedOptions(),
@@ -159,7 +176,8 @@ def across_tiles(log):
                             mask.size)
             del feats
         log(f"  features {i + 1}/{len(names)}")
-    per_photo = {m: {} for m in [*METHODS, "ilastik", "kmeans-colour", "kmeans-oracle"]}
+    per_photo = {m: {} for m in [*METHODS, ADAPT, "ilastik", "kmeans-colour",
+                                 "kmeans-oracle"]}
     speed = {m: [0.0, 0.0] for m in per_photo}  # [pixels, seconds]
     for tile in range(1, 7):
         train = [n for n in names if tile_of[n] != tile]
@@ -167,7 +185,14 @@ def across_tiles(log):
         for m, opts in [*METHODS.items(), ("ilastik", ILASTIK)]:
             pool = [n for n in train if n in samples[m]]
             x, y = _capped(samples[m], pool, ACROSS_CAP, rng)
-            model = Classifier(build_forest(x, y, opts), tuple(np.unique(y)), opts)
+            forest = build_forest(x, y, opts)
+            # adapt=None as train_classifier decides it (off for 45 photos); ADAPT is the
+            # same forest adapting to each photo.
+            models = {m: Classifier(forest, tuple(np.unique(y)),
+                                    opts.resolved(len(pool), scribbles=False))}
+            if m == "rf-default":
+                models[ADAPT] = Classifier(forest, models[m].classes, replace(opts, adapt=True))
+            model = models[m]
             for n in test:
                 if m == "ilastik":
                     if n not in ila_feats:
@@ -182,11 +207,12 @@ def across_tiles(log):
                     speed[m][1] += secs + dt * npx / len(fx)
                     continue
                 photo, mask = load("dubai", n)
-                t = time.perf_counter()
-                res = model.predict(photo)
-                speed[m][1] += time.perf_counter() - t
-                speed[m][0] += mask.size
-                per_photo[m][n] = confusion(mask, res.labels, classes)
+                for mm, model in models.items():
+                    t = time.perf_counter()
+                    res = model.predict(photo)
+                    speed[mm][1] += time.perf_counter() - t
+                    speed[mm][0] += mask.size
+                    per_photo[mm][n] = confusion(mask, res.labels, classes)
         # k-means on the training tiles' coarse Lab, clusters -> majority class there.
         x, y = _capped(samples["rf-colour"], train, ACROSS_CAP, rng)
         kmeans_trained = ColourKMeans(x, y, KMEANS_CLUSTERS)
@@ -280,7 +306,8 @@ def main() -> int:
 
     result = {"cv2_threads": cv2.getNumThreads()}
     OUT.mkdir(parents=True, exist_ok=True)
-    every = ("scribbles", "corrections", "across_tiles", "memory")
+    every = ("scribbles", "corrections", "across_tiles", "one_per_tile", "train_cost", "aerial",
+             "memory")
     parts = sys.argv[1:] or list(every)
     if "--scribbles-only" in parts:
         parts = ["scribbles", "corrections"]
@@ -292,10 +319,13 @@ def main() -> int:
         result.update(json.loads(previous.read_text()))
     keys = {"corrections": "scribbles_corrections"}
     for part, fn in (("scribbles", scribbles), ("corrections", corrections),
-                     ("across_tiles", across_tiles), ("memory", memory)):
+                     ("across_tiles", across_tiles), ("one_per_tile", one_per_tile),
+                     ("train_cost", train_cost), ("aerial", aerial), ("memory", memory)):
         if part in parts:
             log(part)
+            started = time.perf_counter()
             out = fn(log)
+            result.setdefault("part_seconds", {})[part] = time.perf_counter() - started
             if part == "scribbles":
                 out, result["scribbles_budget"] = out
             result[keys.get(part, part)] = out
@@ -316,6 +346,11 @@ def main() -> int:
                 continue
             miou = r.get("miou", r.get("mean_miou_over_photos"))
             log(f"{part:12s} {m:14s} mIoU {miou:.3f}  {r['mpx_per_s']:.2f} Mpx/s")
+    for m, r in result.get("one_per_tile", {}).items():
+        if isinstance(r, dict):
+            log(f"one_per_tile {m:14s} mean tile mIoU {r['mean_tile_miou']:.3f} "
+                f"(+/- {r['std_tile_miou']:.3f} over tiles), per photo {r['mean_photo_miou']:.3f}"
+                f"  {r['mpx_per_s']:.2f} Mpx/s")
     for m, rows in result.get("scribbles_corrections", {}).items():
         for v, r in rows.items() if m not in ("coverage", "repeats", "low_confidence_share") \
                 else ():

@@ -2,7 +2,9 @@
 
 (a), (b): accuracy against speed, one point per method; (c): the scribble
 protocols at the same budget -- one-shot against two rounds (corrections);
-(d): one-shot accuracy against the scribble budget.
+(d): one-shot accuracy against the scribble budget; (e): issue 17's
+one-photo-per-tile protocol, each robustness piece on its own; (f): the
+shipped aerial model on other datasets against its peers.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ def chart(result, path):
 
     rows = result.get("scribbles_corrections")
     budget = result.get("scribbles_budget")
-    fig, axes = plt.subplots(2, 2, figsize=(14, 10.5))
+    fig, axes = plt.subplots(3, 2, figsize=(14, 15.5))
     axes = axes.ravel()
     draws = result["scribbles"].get("draws", 1)
     panels = [("(a) Dubai, unseen tile; parts 001-003 of each tile (18 photos, all methods)",
@@ -60,6 +62,14 @@ def chart(result, path):
         _budget(axes[3], budget)
     else:
         axes[3].set_visible(False)
+    if result.get("one_per_tile"):
+        _one_per_tile(axes[4], result["one_per_tile"])
+    else:
+        axes[4].set_visible(False)
+    if result.get("aerial"):
+        _aerial(axes[5], result["aerial"])
+    else:
+        axes[5].set_visible(False)
     fig.suptitle("terratheme classify: accuracy vs speed per feature set / classifier "
                  "(dashed: goal mIoU, dotted: 5 Mpx/s)", fontsize=10)
     fig.tight_layout()
@@ -130,3 +140,54 @@ def _budget(ax, budget):
                  "draws, whiskers: the draws)", fontsize=10)
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(alpha=0.3)
+
+
+def _one_per_tile(ax, rows):
+    """Bars: mean over held-out tiles of the tile mIoU (mean of the draws); whiskers: the
+    draws; dots: mean mIoU per photo."""
+    methods = [m for m, r in rows.items() if isinstance(r, dict) and "mean_tile_miou" in r]
+    ys = [rows[m]["mean_tile_miou"] for m in methods]
+    per = [rows[m]["mean_tile_miou_per_draw"] for m in methods]
+    lo = [max(y - min(p), 0.0) for y, p in zip(ys, per, strict=True)]
+    hi = [max(max(p) - y, 0.0) for y, p in zip(ys, per, strict=True)]
+    colours = ["crimson" if m == "rf-default" else "#4c72b0" if m == "ilastik" else "#9e9e9e"
+               for m in methods]
+    xs = range(len(methods))
+    ax.bar(xs, ys, color=colours, edgecolor="black", linewidth=0.6, yerr=[lo, hi], capsize=3)
+    ax.scatter(xs, [rows[m]["mean_photo_miou"] for m in methods], color="black", s=16,
+               zorder=5, label="mean mIoU per photo")
+    for x, y in zip(xs, ys, strict=True):
+        ax.text(x, 0.205, f"{y:.3f}", rotation=90, ha="center", va="bottom", fontsize=7,
+                bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+    ax.axhline(0.45, color="grey", ls="--", lw=1)
+    ax.set_xticks(list(xs), methods, fontsize=7, rotation=30, ha="right")
+    ax.set_ylim(0.2, 0.5)
+    ax.set_ylabel("mIoU of the held-out tile, mean over tiles")
+    ax.set_title(f"(e) trained on one photo per other Dubai tile, held-out tile scored\n"
+                 f"({len(rows.get('draws', []))} draws of photos, whiskers: draws; "
+                 "ilastik: draw 0, parts 001-003; dashed: goal)", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(alpha=0.3, axis="y")
+
+
+def _aerial(ax, result):
+    """Grouped bars: the shipped model and its peers, mIoU per photo of other datasets."""
+    methods = [m for m in ("aerial", "aerial-adapt", "scribbles", "kmeans-oracle")
+               if m in result]
+    photos = list(result[methods[0]]["per_photo"])
+    width = 0.8 / len(methods)
+    colours = {"aerial": "crimson", "aerial-adapt": "#f4a582", "scribbles": "#9e9e9e",
+               "kmeans-oracle": "#4c72b0"}
+    for j, m in enumerate(methods):
+        xs = [i + (j - (len(methods) - 1) / 2) * width for i in range(len(photos))]
+        ys = [result[m]["per_photo"][p]["miou"] for p in photos]
+        ax.bar(xs, ys, width, color=colours[m], edgecolor="black", linewidth=0.6,
+               label=f"{m} (mean {result[m]['mean_miou']:.3f})")
+    ax.set_xticks(range(len(photos)), [p.split(".")[0][:18] for p in photos], fontsize=7)
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("mIoU over the classes shared with the legend")
+    ax.set_title(f"(f) shipped model {result['model']} ({result['model_bytes']:,} B), no labels "
+                 "of these photos\n(scribbles: 0.8% strokes of the photo itself, its legend)",
+                 fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(alpha=0.3, axis="y")

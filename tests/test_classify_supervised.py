@@ -185,3 +185,23 @@ def test_pieces_with_the_context_overlap_match_the_whole_photo(block_photo):
     left = model.predict(photo[:, : 360 + ctx]).labels[:, :360]
     right = model.predict(photo[:, 360 - ctx :]).labels[:, ctx:]
     np.testing.assert_array_equal(np.hstack([left, right]), whole)
+
+
+def test_samples_per_class_grow_with_the_pairs():
+    opts = SupervisedOptions()
+    assert [opts.samples_per_class(n) for n in (1, 5, 10, 37, 100)] == [
+        2000, 2000, 4000, 14800, 15000]
+    assert SupervisedOptions(max_samples_per_class=500).samples_per_class(3) == 500
+    with pytest.raises(TerrathemeError, match="samples_per_pair must be at least 1"):
+        SupervisedOptions(samples_per_pair=0)
+
+
+def test_training_samples_are_capped_per_class():
+    from core.classify.supervised import collect_samples
+
+    img, truth = three_stripes(h=480, w=480)
+    # 60 x 60 coarse pixels, 1200 per stripe and photo: 2400 per class, two pairs cap 2000.
+    x, y = collect_samples([(img, truth), (img[:, ::-1].copy(), truth[:, ::-1].copy())],
+                           SupervisedOptions())
+    assert np.bincount(y, minlength=10)[[3, 5, 9]].tolist() == [2000, 2000, 2000]
+    assert len(x) == 6000

@@ -9,20 +9,27 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   ``Classifier.load``) -- Extra-Trees (or OpenCV's random forest) from
   scribbles or label masks;
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
-  float32 in [0, 1].
+  float32 in [0, 1];
+* :class:`SampleCache` -- training samples kept by content between trainings
+  (``train_classifier(..., cache=...)``);
+* :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
+  classifier file or a shipped model by name (``aerial``), with class names.
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
 photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
 (smoothing / superpixels / edge-aware averaging), ``unsupervised`` (K criterion),
 ``unsupervised_model``, ``supervised``, ``forest`` and ``extra_trees`` (the tree
 ensembles), ``samples`` (training samples from masks and
-scribbles), ``prior`` (class-prior correction), ``model_file``.
+scribbles), ``sample_cache``, ``prior`` (class-prior correction and EM shares),
+``adapt`` (test-time adaptation), ``model_file``, ``shipped`` (models by name).
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
+from core.classify.sample_cache import SampleCache
+from core.classify.shipped import load_model, resolve_model, shipped_models
 from core.classify.supervised import Classifier, train_classifier
 from core.classify.supervised_options import SupervisedOptions
 from core.classify.unsupervised import UnsupervisedOptions
@@ -41,10 +48,14 @@ __all__ = [
     "Normalise",
     "Regularisation",
     "RegulariseOptions",
+    "SampleCache",
     "SupervisedOptions",
     "UnsupervisedModel",
     "UnsupervisedOptions",
     "classify_unsupervised",
     "fit_unsupervised",
+    "load_model",
+    "resolve_model",
+    "shipped_models",
     "train_classifier",
 ]

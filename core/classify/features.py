@@ -24,6 +24,12 @@ Feature sets
 ``SKIMAGE`` : scikit-image ``multiscale_basic_features`` (intensity, edges,
               Hessian texture) on each Lab channel: the ilastik recipe.
 
+Optional relative lightness (``relative``, DEFAULT set): the coarse pixel's
+lightness and its smoothed lightness at every sigma but the largest, over the
+smoothed lightness at the largest sigma (+ ``RELATIVE_FLOOR``): darker or
+brighter than the surroundings, whatever the photo's exposure (``len(sigmas)``
+features after the ridges; measured in SupervisedOptions).
+
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
 for a model fitted to the one photo it classifies (scribbles): there, where
@@ -68,6 +74,8 @@ class Normalise(enum.Enum):
 #: Lab mean and spread a normalised photo is mapped to (a typical orthophoto).
 REFERENCE_MEAN = np.array([50.0, 0.0, 8.0], np.float32)
 REFERENCE_STD = np.array([18.0, 6.0, 10.0], np.float32)
+#: relative lightness: added to the context lightness (L units) so dark context stays finite
+RELATIVE_FLOOR = 5.0
 
 
 @dataclass(frozen=True)
@@ -96,6 +104,9 @@ class FeatureOptions:
         DEFAULT set: add fine ridge features at these scales in photo pixels
         (:mod:`core.classify.ridges`, two per sigma), computed before the block
         average. Default () here; the supervised default uses (1, 2, 4).
+    relative : bool
+        DEFAULT set: add the lightness relative to the context (module
+        docstring), ``len(sigmas)`` features after the ridges.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -106,6 +117,7 @@ class FeatureOptions:
     hessian: bool = False
     position: bool = False
     ridge_sigmas: tuple[float, ...] = ()
+    relative: bool = False
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -113,6 +125,8 @@ class FeatureOptions:
         if any(s <= 0 for s in (*self.sigmas, *self.ridge_sigmas)):
             raise TerrathemeError(f"feature sigmas must be positive, not {self.sigmas} / "
                                   f"{self.ridge_sigmas}")
+        if self.relative and not self.sigmas:
+            raise TerrathemeError("relative lightness needs at least one sigma (its context)")
 
     @property
     def n_features(self) -> int:
@@ -127,7 +141,7 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.DEFAULT:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
-                    + 2 * len(self.ridge_sigmas))
+                    + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -249,6 +263,11 @@ def features_from_lab(
         :func:`core.classify.ridges.block_ridges` of the same photo pixels;
         required when ``options.ridge_sigmas`` is set (DEFAULT set).
 
+    Raises
+    ------
+    TerrathemeError
+        Ridge sigmas without the ridges.
+
     Returns
     -------
     features : (h, w, F) float32 ndarray, F = ``options.n_features``
@@ -275,10 +294,12 @@ def features_from_lab(
     lum = np.ascontiguousarray(lab[:, :, 0])
     # Second moment of the photo's lightness per block: block variance + block mean^2.
     lum_sq = block_std * block_std + lum * lum
+    smooth_lum = []
     for sigma in options.sigmas:
         # Context colour: Lab smoothed at this scale.
         smooth = _blur(lab, sigma)
         out[:, :, i : i + 3] = smooth
+        smooth_lum.append(out[:, :, i])
         # Local lightness std of the photo pixels: sqrt(G*L^2 - (G*L)^2).
         mean_sq = _blur(lum_sq, sigma)
         out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
@@ -299,7 +320,13 @@ def features_from_lab(
     if options.ridge_sigmas:
         if ridges is None or ridges.shape != (h, w, 2 * len(options.ridge_sigmas)):
             raise TerrathemeError("ridge_sigmas needs the block_ridges of the same pixels")
-        out[:, :, i:] = ridges
+        out[:, :, i : i + ridges.shape[2]] = ridges
+        i += ridges.shape[2]
+    if options.relative:
+        # Lightness over the widest context's lightness: unchanged by the photo's exposure.
+        context = smooth_lum[-1] + np.float32(RELATIVE_FLOOR)
+        for j, near in enumerate([lum, *smooth_lum[:-1]]):
+            out[:, :, i + j] = near / context
     return out
 
 

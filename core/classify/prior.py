@@ -24,6 +24,14 @@ shares are not calibrated posteriors to begin with. The paper's EM estimate of
 0.554 at 0.75) but drifts when a forest trained on a handful of samples is
 unsure (three flat stripes with one stroke each got weights 1 : 0.57 : 0.82),
 so the robust count is used.
+
+Across photos (a model trained on full label masks of other photos, applied
+to a new one) the class shares of the new photo are unknown as well;
+:func:`em_shares` is the paper's EM estimate for that case
+(``SupervisedOptions.target_prior``). Measured on the issue-17 protocol
+(bench_classify.py part ``one_per_tile``) it lowers mean mIoU, so it is off
+by default: the forest's shares are over-confident, and the reweighting
+erases rare classes (roads, vegetation) that mean IoU counts as much as land.
 """
 
 from __future__ import annotations
@@ -73,6 +81,48 @@ def predicted_shares(probs: np.ndarray) -> np.ndarray:
     if len(probs) == 0:
         return np.full(c, 1.0 / c)
     return np.bincount(np.argmax(probs, axis=1), minlength=c) / len(probs)
+
+
+def em_shares(probs: np.ndarray, train_priors: np.ndarray, iterations: int = 100,
+              tol: float = 1e-6) -> np.ndarray:
+    """Class shares of a new photo by EM (Saerens, Latinne & Decaestecker 2002, eq. 2.9-2.10).
+
+    Each step adjusts every sample's posteriors to the current shares
+    ``pi`` (eq. 2.9: ``p_k * pi_k / t_k``, renormalised) and takes their
+    mean as the new shares (eq. 2.10), from ``pi = t``.
+
+    Parameters
+    ----------
+    probs : (n, C) float ndarray
+        Posteriors of n samples under the training priors.
+    train_priors : (C,) float ndarray
+        Priors ``t`` the classifier was trained with (all > 0).
+    iterations : int
+        Most EM steps.
+    tol : float
+        Stop when no share moves by more than this.
+
+    Returns
+    -------
+    shares : (C,) float64 ndarray, sums to 1 (``train_priors`` when n = 0)
+    """
+    t = np.asarray(train_priors, np.float64)
+    t = t / t.sum()
+    p = np.asarray(probs, np.float64)
+    pi = t.copy()
+    if len(p) == 0:
+        return pi
+    for _ in range(iterations):
+        # E step: posteriors adjusted to the current shares (eq. 2.9).
+        q = p * (pi / t)[None, :]
+        q /= np.maximum(q.sum(1, keepdims=True), 1e-300)
+        # M step: the new shares are the adjusted posteriors' mean (eq. 2.10).
+        new = q.mean(0)
+        done = np.abs(new - pi).max() <= tol
+        pi = new
+        if done:
+            break
+    return pi
 
 
 def prior_weights(shares: np.ndarray, train_priors: np.ndarray, power: float) -> np.ndarray:

@@ -8,7 +8,8 @@ that covers most of its labelled pixels, so a one-pixel stroke still teaches
 the block it crosses. Classes listed in ``ignore_classes`` (e.g. Dubai's 6
 "Unlabeled" and 7) are treated as unlabelled.
 
-Samples are capped per class (``max_samples_per_class``, random, seeded) and,
+Samples are capped per class (``SupervisedOptions.samples_per_class``: more
+for more pairs, random, seeded) and,
 with ``balance``, the forest's class priors are set so every class weighs the
 same whatever its area, which is what a mean-IoU user wants from thin roads.
 
@@ -29,6 +30,12 @@ trees), and 0.572 -> 0.585 (50 trees) / 0.588 (100) on the 16 evaluation
 photos (3 other draws at 0.8%); 50 trees, since 100 predicted under 5 Mpx/s
 across tiles (the deep trees trained on whole masks).
 
+Across photos (label masks of a few other photos, the issue-17 protocol of
+bench_classify.py part ``one_per_tile``), a model adapts to each photo it
+classifies by default (:mod:`core.classify.adapt`, ``SupervisedOptions.adapt``),
+and training samples can be kept by content between runs
+(:class:`core.classify.sample_cache.SampleCache`).
+
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
 """
@@ -40,11 +47,13 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from core.classify.adapt import predict_adapted
 from core.classify.features import FeatureOptions, Normalise, photo_statistics
 from core.classify.forest import Forest, build_forest, forest_scores
 from core.classify.model_file import ModelParts, read_model, write_model
 from core.classify.photo import prepare_photo
 from core.classify.prior import (
+    em_shares,
     kept_weights,
     photo_probabilities,
     predicted_shares,
@@ -52,6 +61,7 @@ from core.classify.prior import (
     prior_weights,
 )
 from core.classify.result import Classification
+from core.classify.sample_cache import SampleCache, sample_key
 from core.classify.samples import (
     GROW_COLOUR,
     check_mask,
@@ -111,9 +121,13 @@ def _mask_classes(pairs, ignore) -> list[int]:
 
 
 def collect_samples(
-    pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions
+    pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions,
+    cache: SampleCache | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Training samples from photo/mask pairs, capped per class.
+
+    ``cache`` keeps each pair's samples (before the cap) by content, so a
+    pair seen before costs no feature computation; the result is the same.
 
     Returns
     -------
@@ -130,13 +144,20 @@ def collect_samples(
             "the label masks name no class (all pixels 0 or ignored): paint at least one class"
         )
     rng = np.random.default_rng(options.seed)
-    cap = options.max_samples_per_class
+    cap = options.samples_per_class(len(pairs))
     per_class: dict[int, list[np.ndarray]] = {k: [] for k in classes}
     grow = options.grow_colour
     if grow is None:
         grow = GROW_COLOUR if looks_like_scribbles(pairs, options.ignore_classes) else 0.0
     for i, (photo, mask) in enumerate(pairs):
-        feats, labels = _pair_samples(photo, mask, i, classes, options, grow)
+        if cache is None:
+            feats, labels = _pair_samples(photo, mask, i, classes, options, grow)
+        else:
+            key = sample_key(photo, mask, classes, options.features, options.tile, grow)
+            feats, labels = cache.samples(
+                key, options.features.n_features,
+                lambda photo=photo, mask=mask, i=i: _pair_samples(photo, mask, i, classes,
+                                                                  options, grow))
         for k in classes:
             sel = feats[labels == k]
             # Cap each pair's share so one big photo does not crowd out the others.
@@ -165,10 +186,14 @@ class Classifier:
 
     def __init__(self, forest: Forest | None, classes: Sequence[int],
                  options: SupervisedOptions,
-                 class_weights: Sequence[float] | None = None) -> None:
+                 class_weights: Sequence[float] | None = None,
+                 class_names: Mapping[int, str] | None = None) -> None:
         self.forest = forest
         self.classes = tuple(int(c) for c in classes)
         self.options = options
+        #: name of each class value (e.g. a shipped model's "water"), or None
+        self.class_names = None if class_names is None else {
+            int(k): str(v) for k, v in class_names.items() if int(k) in self.classes}
         #: per-class vote weights (prior correction), ``classes`` order; None = all 1
         self.class_weights = None if class_weights is None else tuple(
             float(v) for v in class_weights)
@@ -229,9 +254,30 @@ class Classifier:
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
-        return predict_tiled(rgb, valid, self.probabilities, self.classes, opts.features,
-                             opts.regularisation, opts.tile, progress,
-                             _stats(rgb, valid, opts.features))
+        stats = _stats(rgb, valid, opts.features)
+        probability_fn = self.probabilities
+        if self.forest is not None and opts.target_prior_power > 0:
+            probability_fn = self._target_prior(rgb, valid, stats)
+        if self.forest is not None and opts.adapt:
+            return predict_adapted(rgb, valid, probability_fn, self.classes, opts.features,
+                                   opts.regularisation, opts, opts.tile, progress, stats)
+        return predict_tiled(rgb, valid, probability_fn, self.classes, opts.features,
+                             opts.regularisation, opts.tile, progress, stats)
+
+    def _target_prior(self, rgb, valid, stats):
+        """:meth:`probabilities` reweighted to this photo's EM class shares (target_prior_power)."""
+        opts = self.options
+        probs = photo_probabilities(rgb, valid, self.probabilities, opts.features, opts.tile,
+                                    stats)
+        # Balanced training: every class had prior 1 / C.
+        train = np.full(len(self.classes), 1.0 / len(self.classes))
+        weights = prior_weights(em_shares(probs, train), train, opts.target_prior_power)
+        weights = weights.astype(np.float32)[None, None, :]
+
+        def probabilities(feats: np.ndarray) -> np.ndarray:
+            probs = self.probabilities(feats) * weights
+            return probs / np.maximum(probs.sum(2, keepdims=True), 1e-12)
+        return probabilities
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the model to a file (atomic); see :mod:`core.classify.model_file`."""
@@ -250,6 +296,7 @@ def train_classifier(
     options: SupervisedOptions | None = None,
     *,
     class_weights: Mapping[int, float] | None = None,
+    cache: SampleCache | None = None,
 ) -> Classifier:
     """Train a classifier from scribbles or full label masks.
 
@@ -265,6 +312,8 @@ def train_classifier(
         from a first round of blind strokes (:func:`core.classify.prior.kept_weights`).
         Used (in ``model.classes`` order) when they cover every trained class
         and the forest has two classes or more; otherwise estimated as usual.
+    cache : SampleCache, optional
+        Keeps the pairs' training samples by content (the model is the same).
 
     Returns
     -------
@@ -278,7 +327,10 @@ def train_classifier(
         class weight that is not a finite number > 0.
     """
     opts = options or SupervisedOptions()
-    x, y = collect_samples(pairs_or_scribbles, opts)
+    scribbles = looks_like_scribbles(pairs_or_scribbles, opts.ignore_classes)
+    # Adapt to each photo when trained on a few other photos (scribbles lie on the photo).
+    opts = opts.resolved(len(pairs_or_scribbles), scribbles)
+    x, y = collect_samples(pairs_or_scribbles, opts, cache)
     classes, counts = np.unique(y, return_counts=True)
     forest = build_forest(x, y, opts) if len(classes) > 1 else None
     model = Classifier(forest, classes, opts)

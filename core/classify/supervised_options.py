@@ -13,6 +13,11 @@ from core.classify.forest import ForestKind
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.errors import TerrathemeError
 
+#: the smallest per-class cap on training samples (see SupervisedOptions.samples_per_pair)
+MIN_SAMPLES_PER_CLASS = 2000
+#: adapt=None: test-time adaptation for models trained on masks of fewer photos than this
+ADAPT_MAX_PAIRS = 10
+
 
 @dataclass(frozen=True)
 class SupervisedOptions:
@@ -43,7 +48,16 @@ class SupervisedOptions:
         RANDOM_FOREST: features tried per split (0: ``sqrt(F)``; Extra-Trees
         always tries ``sqrt(F)``).
     max_samples_per_class : int
-        Cap on training samples of one class (over all pairs).
+        Most training samples of one class (over all pairs).
+    samples_per_pair : int
+        Training samples per class grow with the pairs: at most
+        ``samples_per_pair * len(pairs)``, at least ``MIN_SAMPLES_PER_CLASS``
+        (2000), at most ``max_samples_per_class``
+        (:meth:`samples_per_class`). Five photos of other areas train best
+        on few samples (one-photo-per-tile protocol, exploration runs at coarse
+        level: mean tile mIoU 0.390 / 0.396 / 0.400 with 4000 / 2000 / 1000 per
+        class, and the forest fits 2.4x faster at 2000 than at 4000), 54 photos
+        on many (0.452 with 8000, 0.441 with 2000); scribbles give a few hundred.
     balance : bool
         Equal class priors whatever the sample counts.
     seed : int
@@ -60,6 +74,24 @@ class SupervisedOptions:
         Scribble samples grown by one ring of coarse pixels of the stroke's
         colour (:func:`core.classify.samples.grow_labels`, Lab difference under
         this). 0 = off; None = ``samples.GROW_COLOUR`` for scribbles, else off.
+    adapt : bool or None
+        Test-time adaptation (:mod:`core.classify.adapt`): each photo is
+        classified, its surest pixels relearned by a small forest, and
+        classified again with both. None = on for a model trained on label
+        masks of fewer than ``ADAPT_MAX_PAIRS`` (10) photos, off for more and
+        for scribbles (they lie on the photo already); resolved by
+        :func:`train_classifier`. bench_classify.py: trained on one photo per
+        other Dubai tile (part ``one_per_tile``, 3 draws of 5 photos) mean tile
+        mIoU 0.414 -> 0.417 and mean mIoU per photo 0.358 -> 0.392 (a class the
+        photo barely shows is no longer scattered over it); trained on every
+        photo of the other tiles (part ``across_tiles``, 45 photos) pooled mIoU
+        0.514 -> 0.509, so off there; 0.7x the prediction speed.
+    target_prior_power : float
+        Class shares of each classified photo re-estimated by EM
+        (:func:`core.classify.prior.em_shares`) and the votes reweighted by
+        ``(share / training share) ** target_prior_power``; 0 = off (default:
+        at 1, mean tile mIoU 0.414 -> 0.323 in part ``one_per_tile``). Needs
+        ``balance``.
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
@@ -73,24 +105,45 @@ class SupervisedOptions:
     min_samples: int = 4
     active_vars: int = 0
     max_samples_per_class: int = 15000
+    samples_per_pair: int = 400
     balance: bool = True
     seed: int = 0
     tile: int = 2048
     prior_power: float | None = None
     grow_colour: float | None = None
+    adapt: bool | None = None
+    target_prior_power: float = 0.0
 
     def __post_init__(self) -> None:
         if self.prior_power is not None and not 0.0 <= self.prior_power <= 1.0:
             raise TerrathemeError(f"prior_power must be in 0..1 or None, not {self.prior_power}")
-        if self.n_trees < 1 or self.max_depth < 1 or self.max_samples_per_class < 1:
+        if (self.n_trees < 1 or self.max_depth < 1 or self.max_samples_per_class < 1
+                or self.samples_per_pair < 1):
             raise TerrathemeError(
-                "n_trees, max_depth and max_samples_per_class must be at least 1 "
-                f"(got {self.n_trees}, {self.max_depth}, {self.max_samples_per_class})"
+                "n_trees, max_depth, max_samples_per_class and samples_per_pair must be at "
+                f"least 1 (got {self.n_trees}, {self.max_depth}, {self.max_samples_per_class}, "
+                f"{self.samples_per_pair})"
             )
         if self.grow_colour is not None and self.grow_colour < 0:
             raise TerrathemeError(f"grow_colour must be >= 0 or None, not {self.grow_colour}")
+        if not 0.0 <= self.target_prior_power <= 1.0:
+            raise TerrathemeError(
+                f"target_prior_power must be in 0..1, not {self.target_prior_power}")
+        if self.target_prior_power > 0 and not self.balance:
+            raise TerrathemeError("target_prior_power needs balance (uniform training priors)")
         if self.tile < 16:
             raise TerrathemeError(f"tile must be at least 16 pixels, not {self.tile}")
+
+    def samples_per_class(self, n_pairs: int) -> int:
+        """The cap on training samples of one class for ``n_pairs`` training pairs."""
+        return min(self.max_samples_per_class,
+                   max(MIN_SAMPLES_PER_CLASS, self.samples_per_pair * n_pairs))
+
+    def resolved(self, n_pairs: int, scribbles: bool) -> SupervisedOptions:
+        """These options with ``adapt`` decided for a training set (see ``adapt``)."""
+        if self.adapt is not None:
+            return self
+        return replace(self, adapt=not scribbles and n_pairs < ADAPT_MAX_PAIRS)
 
     def with_positions(self, on: bool = True) -> SupervisedOptions:
         """These options with the position features (``FeatureOptions.position``) ``on``."""

@@ -24,6 +24,8 @@ from core.io.tiles import TileWindow, tile_windows
 ProgressFn = Callable[[int, int], None]
 #: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
+#: a window's coarse Lab (h, w, 3), block lightness std (h, w) and class probabilities (h, w, C)
+TileProbabilitiesFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def feature_windows(height: int, width: int, tile: int, scale: int,
@@ -46,6 +48,17 @@ def feature_windows(height: int, width: int, tile: int, scale: int,
     windows : list of :class:`core.io.tiles.TileWindow`, row-major
     """
     return tile_windows(width, height, max(scale, (tile // scale) * scale), halo * scale)
+
+
+def prediction_windows(height: int, width: int, features: FeatureOptions,
+                       regularisation: RegulariseOptions, tile: int) -> list[TileWindow]:
+    """The tiles :func:`predict_tiled` cuts a photo into.
+
+    The overlap covers the features' reach plus the regularisation's, plus
+    one coarse pixel for the bilinear upsampling.
+    """
+    halo = features.halo + regularisation.halo + 1
+    return feature_windows(height, width, tile, features.scale, halo)
 
 
 def tile_features(
@@ -149,6 +162,7 @@ def predict_tiled(
     tile: int,
     progress: ProgressFn | None = None,
     stats: np.ndarray | None = None,
+    tile_fn: TileProbabilitiesFn | None = None,
 ) -> Classification:
     """Classify a photo tile by tile.
 
@@ -168,6 +182,10 @@ def predict_tiled(
         Called with ``(tiles_done, tiles_total)``.
     stats : (2, 3) float32 ndarray, optional
         The photo's Lab statistics for colour normalisation.
+    tile_fn : callable, optional
+        ``window -> (lab, block_std, probabilities)`` for the windows of
+        :func:`prediction_windows`, in place of :func:`tile_arrays` and
+        ``probability_fn`` (probabilities made from an earlier pass's).
 
     Returns
     -------
@@ -177,26 +195,26 @@ def predict_tiled(
         raise TerrathemeError("a classifier needs at least one class")
     height, width = rgb.shape[:2]
     scale = features.scale
-    # The overlap must cover the features' reach plus the regularisation's, plus one
-    # coarse pixel for the bilinear upsampling.
-    halo = features.halo + regularisation.halo + 1
-    windows = feature_windows(height, width, tile, scale, halo)
+    windows = prediction_windows(height, width, features, regularisation, tile)
+    if tile_fn is None:
+        def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            return lab, block_std, probability_fn(feats)
     lut = np.asarray(classes, np.uint8)
     labels = np.zeros((height, width), np.uint8)
     confidence = np.zeros((height, width), np.float32)
     for done, win in enumerate(windows, 1):
         # Features over the tile and its halo, then per-coarse-pixel probabilities.
-        lab, block_std, feats = tile_arrays(rgb, win, features, stats)
-        probs = probability_fn(feats).astype(np.float32, copy=False)
+        lab, block_std, probs = tile_fn(win)
+        probs = probs.astype(np.float32, copy=False)
         # Spatial regularisation on the coarse grid.
         probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
         core = _core_probabilities(probs, win, scale)
         best = np.argmax(core, axis=2)
         labels[win.y : win.y1, win.x : win.x1] = lut[best]
-        confidence[win.y : win.y1, win.x : win.x1] = np.take_along_axis(
-            core, best[:, :, None], axis=2
-        )[:, :, 0]
+        # The arg-max class's probability is the largest one.
+        np.max(core, axis=2, out=confidence[win.y : win.y1, win.x : win.x1])
         if progress is not None:
             progress(done, len(windows))
     np.clip(confidence, 0.0, 1.0, out=confidence)

@@ -1,0 +1,205 @@
+"""Test-time adaptation: relearn the classes on the photo being classified.
+
+A forest trained on label masks of other photos meets a new photo whose
+classes look somewhat different (another area, date or sensor): its votes
+are right on most pixels of a class and unsure on the rest. Self-training
+(pseudo-labelling: Yarowsky 1995; Lee 2013) turns the sure part into
+training data of the photo itself:
+
+1. classify the photo's coarse pixels with the trained forest and the usual
+   regularisation (:func:`core.classify.regularise.regularise`);
+2. per predicted class, keep the ``ADAPT_SHARE`` most confident of its coarse
+   pixels (:func:`pseudo_labels`, on the strided grid of
+   :func:`core.classify.tiled.strided_core`, at most ``ADAPT_SAMPLES`` of them,
+   ``ADAPT_SAMPLES_PER_CLASS`` per class);
+3. train a small Extra-Trees forest (``ADAPT_TREES`` trees, balanced classes)
+   on them, on this photo's features only;
+4. classify the photo again with that forest.
+
+The features of pass 1 are kept for pass 2 while they fit in
+``ADAPT_KEEP_BYTES`` (a 1.5 Mpx photo needs ~4 MB), so adapting costs one
+feature pass, two forest passes and one small fit. A class the first pass
+gives fewer than ``ADAPT_MIN_PIXELS`` coarse pixels is not relearned (it
+cannot come back either: its pixels were taken by other classes already).
+
+Measured on the issue-17 protocol (bench_classify.py part ``one_per_tile``:
+train on one photo per other Dubai tile, score every photo of the held-out
+tile), see ``SupervisedOptions.adapt``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from core.classify.features import FeatureOptions
+from core.classify.forest import ForestKind, ForestOptions, build_forest, forest_scores
+from core.classify.regularise import RegulariseOptions, regularise
+from core.classify.result import Classification
+from core.classify.tiled import (
+    ProbabilityFn,
+    ProgressFn,
+    predict_tiled,
+    prediction_windows,
+    strided_core,
+    tile_arrays,
+)
+from core.io.tiles import TileWindow
+
+#: share of each predicted class's coarse pixels (the most confident) taken as pseudo-labels
+ADAPT_SHARE = 0.7
+#: trees of the forest trained on the pseudo-labels
+ADAPT_TREES = 10
+#: pseudo-labels per class (random among the confident ones)
+ADAPT_SAMPLES_PER_CLASS = 2000
+#: coarse pixels of the photo pass 1 looks at (strided, at most)
+ADAPT_SAMPLES = 200_000
+#: a class predicted on fewer coarse pixels than this is not relearned
+ADAPT_MIN_PIXELS = 20
+#: ... nor one predicted on less than this share of the photo's coarse pixels
+ADAPT_MIN_SHARE = 0.02
+#: pass-1 features kept for pass 2 up to this many bytes (else computed again)
+ADAPT_KEEP_BYTES = 256 << 20
+
+
+def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
+                  per_class: int = ADAPT_SAMPLES_PER_CLASS,
+                  min_pixels: int = ADAPT_MIN_PIXELS, min_share: float = ADAPT_MIN_SHARE,
+                  rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The samples a classification is surest of, per predicted class.
+
+    Parameters
+    ----------
+    probs : (n, C) float ndarray
+        Class probabilities of n samples.
+    share : float
+        In (0, 1]: of the samples whose arg-max is class ``c``, the ``share``
+        with the highest probability of ``c`` are kept (ties at the cut kept).
+    per_class : int
+        At most this many kept per class (random, ``rng``).
+    min_pixels : int
+        A class that is the arg-max of fewer samples keeps none ...
+    min_share : float
+        ... nor one that is the arg-max of less than this share of them.
+    rng : numpy Generator, optional
+        Default ``default_rng(0)``.
+
+    Returns
+    -------
+    index : (m,) int64 ndarray
+        Rows of ``probs`` kept, ascending within each class, classes in column order.
+    column : (m,) int64 ndarray
+        Their class column.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    best = np.argmax(probs, axis=1)
+    conf = probs[np.arange(len(probs)), best]
+    index, column = [], []
+    for c in range(probs.shape[1]):
+        rows = np.flatnonzero(best == c)
+        if len(rows) < max(min_pixels, 1, min_share * len(probs)):
+            continue
+        # The most confident share of the class, then a random subset if too many.
+        cut = np.quantile(conf[rows], 1.0 - share)
+        rows = rows[conf[rows] >= cut]
+        if len(rows) > per_class:
+            rows = np.sort(rng.choice(rows, per_class, replace=False))
+        index.append(rows)
+        column.append(np.full(len(rows), c, np.int64))
+    if not index:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(index).astype(np.int64), np.concatenate(column)
+
+
+def forest_probability_fn(forest, classes: tuple[int, ...]) -> ProbabilityFn:
+    """``(h, w, F) -> (h, w, C)`` vote shares of a forest, columns in ``classes`` order."""
+    def probabilities(feats: np.ndarray) -> np.ndarray:
+        h, w, f = feats.shape
+        probs = forest_scores(forest, feats.reshape(-1, f), classes)
+        probs /= np.maximum(probs.sum(1, keepdims=True), 1e-12)
+        return probs.reshape(h, w, len(classes))
+    return probabilities
+
+
+def predict_adapted(
+    rgb: np.ndarray, valid: np.ndarray | None, probability_fn: ProbabilityFn,
+    classes: tuple[int, ...], features: FeatureOptions, regularisation: RegulariseOptions,
+    forest_options: ForestOptions, tile: int, progress: ProgressFn | None = None,
+    stats: np.ndarray | None = None,
+) -> Classification:
+    """Classify a photo, relearn its classes from the surest pixels, classify again.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+    valid : (H, W) bool ndarray or None
+    probability_fn : callable
+        The trained model's ``(h, w, F) -> (h, w, C)`` probabilities.
+    classes : tuple of int
+    features, regularisation : options of the model
+    forest_options : ForestOptions
+        Depth, split size and seed of the adapted forest (its tree count is
+        ``ADAPT_TREES``, its kind Extra-Trees, its classes balanced).
+    tile : int
+    progress : callable, optional
+        ``(done, total)`` over both passes' tiles.
+    stats : (2, 3) float32 ndarray, optional (colour normalisation)
+
+    Returns
+    -------
+    Classification
+        Pass 1's result when pass 1 finds fewer than two classes.
+    """
+    h, w = rgb.shape[:2]
+    scale = features.scale
+    windows = prediction_windows(h, w, features, regularisation, tile)
+    n_coarse = (-(-h // scale)) * (-(-w // scale))
+    stride = max(1, int(np.sqrt(n_coarse / ADAPT_SAMPLES)))
+    keep = n_coarse * (features.n_features + len(classes) + 4) * 4 * 1.5 <= ADAPT_KEEP_BYTES
+    kept: dict = {}
+    feats_seen, probs_seen = [], []
+    for done, win in enumerate(windows, 1):
+        # Pass 1: the trained model's regularised probabilities on this tile.
+        lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+        raw = probability_fn(feats).astype(np.float32, copy=False)
+        if keep:
+            kept[win] = (lab, block_std, feats, raw)
+        probs = regularise(raw, lab, regularisation, texture=block_std)
+        # Its core coarse pixels on the photo-wide strided grid (only those with data).
+        core_feats, rows, cols = strided_core(feats, win, scale, stride)
+        core_probs, _, _ = strided_core(probs, win, scale, stride)
+        ok = np.ones(core_feats.shape[:2], bool) if valid is None else valid[
+            np.ix_(np.minimum(rows * scale, h - 1), np.minimum(cols * scale, w - 1))]
+        feats_seen.append(core_feats[ok])
+        probs_seen.append(core_probs[ok])
+        if progress is not None:
+            progress(done, 2 * len(windows))
+    x, p = np.concatenate(feats_seen), np.concatenate(probs_seen)
+    # The surest coarse pixels of each class as this photo's own training samples.
+    index, column = pseudo_labels(p, rng=np.random.default_rng(forest_options.seed))
+    if len(np.unique(column)) < 2:
+        adapted_fn = None
+    else:
+        adapt_opts = replace(forest_options, forest=ForestKind.EXTRA_TREES, n_trees=ADAPT_TREES,
+                             balance=True)
+        labels = np.asarray(classes, np.int64)[column]
+        adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts), classes)
+
+    def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Pass 2: the mean of the trained and the photo's own forests' probabilities.
+        if keep:
+            lab, block_std, feats, raw = kept.pop(win)
+        else:
+            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            raw = probability_fn(feats)
+        if adapted_fn is None:
+            return lab, block_std, raw
+        return lab, block_std, 0.5 * (raw + adapted_fn(feats))
+
+    def pass_two(done: int, total: int) -> None:
+        if progress is not None:
+            progress(len(windows) + done, 2 * len(windows))
+
+    return predict_tiled(rgb, valid, probability_fn, classes, features, regularisation, tile,
+                         pass_two, stats, tile_fn=tile_fn)

@@ -1,0 +1,166 @@
+"""Training samples of photo/mask pairs kept by content, so retraining skips their features.
+
+A user who labels a handful of photos trains on them again and again (one
+more labelled photo, another photo to convert). Computing the features of
+every training photo is most of the cost of training, and they do not change:
+:class:`SampleCache` keeps each pair's labelled coarse feature vectors (before
+the per-class cap, so the result is the same as without the cache) under a
+key made of everything they depend on: the photo's and the mask's bytes,
+shapes and types, the classes sampled, the feature options, the tile size and
+the growing threshold (:func:`sample_key`, SHA-256).
+
+Entries live in memory and, when a folder is given, in one ``.npz`` file per
+key there (numbers only, read with ``allow_pickle=False``, written
+atomically). A file that does not read back as the samples of its key
+(damaged, truncated, written by another version) is a miss: the samples are
+computed again and the file replaced.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import zipfile
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from core.classify.features import FeatureOptions
+from core.errors import TerrathemeError
+from core.io.atomic import write_bytes_atomic
+
+#: entries kept in memory (least recently used dropped first)
+MEMORY_ENTRIES = 64
+#: bumped when the samples of a key change meaning
+CACHE_VERSION = 1
+
+Samples = tuple[np.ndarray, np.ndarray]
+
+
+def sample_key(photo: np.ndarray, mask: np.ndarray, classes: Sequence[int],
+               features: FeatureOptions, tile: int, grow: float) -> str:
+    """Hex SHA-256 of everything a pair's samples depend on.
+
+    Parameters
+    ----------
+    photo : (H, W, C) ndarray
+    mask : (H, W) integer ndarray
+    classes : sequence of int
+        The classes sampled (over all pairs of the training set).
+    features : FeatureOptions
+    tile : int
+    grow : float
+        Colour threshold of the label growing (0 = off).
+    """
+    h = hashlib.sha256()
+    options = {"version": CACHE_VERSION, "classes": [int(c) for c in classes],
+               "features": _plain(asdict(features)), "tile": int(tile), "grow": float(grow)}
+    h.update(json.dumps(options, sort_keys=True).encode())
+    for arr in (np.asarray(photo), np.asarray(mask)):
+        h.update(f"{arr.shape}{arr.dtype.str}".encode())
+        h.update(np.ascontiguousarray(arr).data)
+    return h.hexdigest()
+
+
+def _plain(value):
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return getattr(value, "value", value)
+
+
+class SampleCache:
+    """Per-pair training samples by :func:`sample_key`, in memory and optionally on disk.
+
+    Parameters
+    ----------
+    directory : path, optional
+        Folder of the ``.npz`` entries (made when the first entry is written).
+        None: memory only.
+
+    Raises
+    ------
+    TerrathemeError
+        From :meth:`samples`: the folder cannot be made or written.
+    """
+
+    def __init__(self, directory: str | os.PathLike | None = None) -> None:
+        self.directory = None if directory is None else Path(directory)
+        self._memory: OrderedDict[str, Samples] = OrderedDict()
+        #: lookups answered from the cache / computed, since creation
+        self.hits = 0
+        self.misses = 0
+
+    def samples(self, key: str, n_features: int, compute: Callable[[], Samples]) -> Samples:
+        """The samples of ``key``: cached, or ``compute()`` then kept.
+
+        Parameters
+        ----------
+        key : str
+            :func:`sample_key` of the pair.
+        n_features : int
+            Columns the samples must have (an entry that differs is a miss).
+        compute : callable
+            ``() -> (features (n, F) float32, labels (n,) uint8)``.
+        """
+        found = self._memory.get(key)
+        if found is None:
+            found = self._read(key, n_features)
+            if found is not None:
+                self._remember(key, found)
+        else:
+            self._memory.move_to_end(key)
+        if found is not None:
+            self.hits += 1
+            return found
+        self.misses += 1
+        x, y = compute()
+        x = np.ascontiguousarray(x, np.float32)
+        y = np.ascontiguousarray(y, np.uint8)
+        self._remember(key, (x, y))
+        self._write(key, x, y)
+        return x, y
+
+    def _remember(self, key: str, samples: Samples) -> None:
+        self._memory[key] = samples
+        self._memory.move_to_end(key)
+        while len(self._memory) > MEMORY_ENTRIES:
+            self._memory.popitem(last=False)
+
+    def _path(self, key: str) -> Path | None:
+        return None if self.directory is None else self.directory / f"{key}.npz"
+
+    def _read(self, key: str, n_features: int) -> Samples | None:
+        path = self._path(key)
+        if path is None or not path.is_file():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                stored_key = bytes(npz["key"]).decode("ascii")
+                x, y = npz["features"], npz["labels"]
+        except (OSError, ValueError, KeyError, UnicodeDecodeError, zipfile.BadZipFile, EOFError):
+            return None
+        # Only samples of this very key, with the shapes and types it implies.
+        if (stored_key != key or x.dtype != np.float32 or y.dtype != np.uint8 or x.ndim != 2
+                or x.shape[1] != n_features or y.shape != (x.shape[0],)):
+            return None
+        return x, y
+
+    def _write(self, key: str, x: np.ndarray, y: np.ndarray) -> None:
+        path = self._path(key)
+        if path is None:
+            return
+        buf = io.BytesIO()
+        np.savez(buf, key=np.frombuffer(key.encode("ascii"), np.uint8), features=x, labels=y)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_bytes_atomic(path, buf.getvalue())
+        except OSError as exc:
+            raise TerrathemeError(f"{path.parent}: cannot keep training samples there "
+                                  f"({exc.strerror or exc})") from None
