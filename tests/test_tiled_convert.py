@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from core.convert.labels_to_grid import vote_grid
-from core.convert.tiled import grid_from_file, vertex_tiles
+from core.convert.tile_vote import vertex_tiles
+from core.convert.tiled import grid_from_file
 from core.errors import TerrathemeError
 from core.io.images import write_image
 from core.io.tiles import Scheduler
@@ -39,7 +40,8 @@ def test_tiled_grid_equals_whole_vote(tmp_path, cell, tile):
 def test_vertex_tiles_own_each_vertex_once():
     tiles = vertex_tiles((50, 30), (4, 3), 12, 5)
     hits = np.zeros((11, 14), int)
-    for win, ((r0, r1), (c0, c1)) in tiles.items():
+    for win in tiles:
+        (r0, r1), (c0, c1) = win.rows, win.cols
         hits[r0:r1, c0:c1] += 1
         assert 0 <= win.rx <= win.x and win.x + win.w <= win.rx + win.rw <= 50
     assert (hits == 1).all()

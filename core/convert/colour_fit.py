@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -37,6 +38,9 @@ from core.model.colour_map import NEUTRAL, ColourMap
 from core.model.grid import IndexGrid
 from core.render.colour_map import apply_colour_map, gain_image
 from core.render.renderer import RenderOptions, render_cells
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 
 @dataclass(frozen=True)
@@ -197,6 +201,32 @@ def _block_sums(image: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
     return sums, ones.reshape(bh, s, bw, s).sum(axis=(1, 3))
 
 
+@dataclass(frozen=True)
+class BlockSumJob:
+    """The tile job of :func:`colour_map_from_file`: photo and render sums per map pixel.
+
+    Attributes
+    ----------
+    grid : IndexGrid
+    textures : list of (h, w, 3) uint8 ndarray
+    render : RenderOptions
+    scale : int
+        Texels per map pixel; tiles start on whole map pixels.
+    """
+
+    grid: IndexGrid
+    textures: list[np.ndarray]
+    render: RenderOptions
+    scale: int
+
+    def __call__(self, win: TileWindow, pixels: np.ndarray) -> tuple:
+        # The photo's and the render's sums over the map pixels of this tile.
+        rgb, _ = prepare_photo(pixels)
+        shown = render_cells(self.grid, self.textures, region=(win.x, win.y, win.w, win.h),
+                             options=self.render)
+        return _block_sums(rgb, self.scale), _block_sums(shown, self.scale)[0]
+
+
 def colour_map_from_file(
     path: str | os.PathLike,
     grid: IndexGrid,
@@ -206,7 +236,7 @@ def colour_map_from_file(
     render: RenderOptions = RenderOptions(),
     options: ColourMapOptions = ColourMapOptions(),
     tile: int = 1024,
-    scheduler: Scheduler = Scheduler.SERIAL,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ) -> FittedColourMap:
     """The colour map of a photo larger than memory, tile by tile (the block gain of step 1).
@@ -215,7 +245,9 @@ def colour_map_from_file(
     texels and adds up both per map pixel, so memory is set by the tile and
     the map, not the photo. Map pixels beyond the photo (the last cells) take
     the nearest pixel's gain. The refinement of step 2 needs every
-    neighbour's gain and is not done here.
+    neighbour's gain and is not done here. On a cluster
+    (``scheduler`` a ``distributed.Client``) every worker gets the grid and the
+    themes once (:class:`BlockSumJob`); the map is the serial one, bit for bit.
 
     Returns
     -------
@@ -229,12 +261,6 @@ def colour_map_from_file(
     render_sum = np.zeros((mh, mw, 3))
     count = np.zeros((mh, mw))
 
-    def job(win: TileWindow, pixels: np.ndarray) -> tuple:
-        # The photo's and the render's sums over the map pixels of this tile.
-        rgb, _ = prepare_photo(pixels)
-        shown = render_cells(grid, textures, region=(win.x, win.y, win.w, win.h), options=render)
-        return _block_sums(rgb, scale), _block_sums(shown, scale)[0]
-
     def sink(win: TileWindow, result: tuple) -> None:
         (psum, pcount), rsum = result
         j, i = win.y // scale, win.x // scale
@@ -243,6 +269,7 @@ def colour_map_from_file(
         render_sum[j:j + bh, i:i + bw] += rsum
         count[j:j + bh, i:i + bw] += pcount
 
+    job = BlockSumJob(grid, list(textures), render, int(scale))
     run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress,
               bands=Bands.PHOTO)
     covered = count > 0
