@@ -18,8 +18,10 @@ have terratheme installed. :func:`check_readable` checks the first before
 any work.
 
 :func:`local_cluster` starts worker processes on this machine (one thread
-each: the numba and OpenCV thread pools of each worker are limited to it,
-so K workers use K cores); :func:`connect` joins an existing scheduler.
+each); :func:`connect` joins an existing scheduler. Every task runs with
+numba's and OpenCV's thread pools at one thread: a worker thread is a core,
+so give a machine's workers as many threads in all as it has cores
+(``dask worker SCHEDULER --nworkers auto --nthreads 1``).
 """
 
 from __future__ import annotations
@@ -40,11 +42,15 @@ CONNECT_TIMEOUT = 20.0
 IN_FLIGHT_PER_THREAD = 2
 
 
-def _thread_env(threads: int) -> dict[str, str]:
-    """Environment that caps a worker's numba, OpenCV and BLAS thread pools at ``threads``."""
-    n = str(int(threads))
-    return {"NUMBA_NUM_THREADS": n, "OPENCV_FOR_THREADS_NUM": n, "OMP_NUM_THREADS": n,
-            "OPENBLAS_NUM_THREADS": n, "MKL_NUM_THREADS": n}
+def _one_thread(func: Callable[[Any, Any], Any], item: Any, shared: Any) -> Any:
+    """Run one task with numba's and OpenCV's pools at one thread: a worker thread is a core."""
+    import cv2
+    import numba
+
+    # numba's count is per calling thread; OpenCV's per process (one task per thread).
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
+    return func(item, shared)
 
 
 def local_cluster(workers: int, threads: int = 1) -> Client:
@@ -55,7 +61,7 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
     workers : int
         Worker processes (at least 1).
     threads : int
-        Threads per worker; the worker's numba and OpenCV pools get as many.
+        Threads per worker (tasks at a time; each task runs on one thread).
 
     Returns
     -------
@@ -68,8 +74,7 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
     from distributed import Client
 
     return Client(n_workers=int(workers), threads_per_worker=int(threads), processes=True,
-                  dashboard_address=None, silence_logs=logging.ERROR,
-                  env=_thread_env(threads))
+                  dashboard_address=None, silence_logs=logging.ERROR)
 
 
 def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
@@ -145,7 +150,8 @@ def map_ordered(
     ----------
     client : distributed.Client
     func : callable(item, shared) -> result
-        A module-level function (workers import it by name).
+        A module-level function (workers import it by name); it runs with
+        numba and OpenCV on one thread.
     items : sequence
         Small, picklable task descriptions (tile windows).
     shared : object
@@ -179,7 +185,8 @@ def map_ordered(
         while sunk < total:
             # Keep ``limit`` tasks between submission and the sink.
             while submitted < total and submitted - sunk < limit:
-                fut = client.submit(func, items[submitted], shared_ref, pure=False)
+                fut = client.submit(_one_thread, func, items[submitted], shared_ref,
+                                    pure=False)
                 live[fut.key] = (submitted, fut)
                 pending.add(fut)
                 submitted += 1
