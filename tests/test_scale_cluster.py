@@ -17,7 +17,7 @@ import pytest
 from core.convert.tile_vote import PredictLabels
 from core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
 from core.errors import TerrathemeError
-from core.io.cluster import check_readable, connect, local_cluster, map_ordered
+from core.io.cluster import check_workers, connect, local_cluster, map_ordered
 from core.io.images import read_image, write_image
 from core.io.tiles import Scheduler, run_tiles
 from core.packing import pack
@@ -36,6 +36,11 @@ def refuse_right_half(win, pixels: np.ndarray) -> int:
     if win.x >= 64:
         raise TerrathemeError(f"tile at {win.x}: refused")
     return int(pixels.sum())
+
+
+def per_process_fingerprint() -> tuple[str, str]:
+    """Stands for another terratheme on every other process."""
+    return str(os.getpid()), f"/elsewhere/{os.getpid()}/core"
 
 
 def square(item: int, shared: int) -> int:
@@ -85,6 +90,7 @@ def test_cluster_grid_equals_serial_grid(tmp_path, cluster):
     assert len(cluster.nthreads()) == 2
 
 
+@pytest.mark.slow
 def test_cluster_conversion_equals_serial(tmp_path, cluster):
     path = tmp_path / "photo.tif"
     write_image(path, read_image(SAMPLE)[:320, :384, :3], tile=64)
@@ -110,7 +116,18 @@ def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
 
 def test_a_file_the_workers_cannot_read_is_refused_first(tmp_path, cluster):
     with pytest.raises(TerrathemeError, match=r"cannot read it \(2 of 2 workers\).*file system"):
-        check_readable(cluster, str(tmp_path / "elsewhere.tif"))
+        check_workers(cluster, str(tmp_path / "elsewhere.tif"))
+
+
+def test_workers_running_other_code_are_refused_first(tmp_path, cluster, monkeypatch):
+    import core.io.cluster as cl
+
+    path = tmp_path / "photo.png"
+    _photo(path, 64, 64)
+    monkeypatch.setattr(cl, "code_fingerprint", per_process_fingerprint)
+    with pytest.raises(TerrathemeError, match=r"runs another terratheme \(core at /elsewhere/"
+                                              r".*2 of 2 workers\): install"):
+        convert_file_tiled(path, None, 8, tile=32, scheduler=cluster)
 
 
 def test_connect_errors_are_one_line():

@@ -56,3 +56,12 @@ def test_errors(tmp_path):
         grid_from_file(path, 4, _classes, overlap=-1)
     with pytest.raises(TerrathemeError, match="256 integers"):
         grid_from_file(path, 4, _classes, lut=[0, 1])
+
+
+def test_a_short_last_vertex_block_joins_the_one_before():
+    # 256 px at cell 16: 17 vertices a side; blocks of 4 -> 4, 4, 4, 5 (no block of 1).
+    tiles = vertex_tiles((256, 256), (16, 16), 64, 0)
+    assert len(tiles) == 16
+    assert sorted({t.rows for t in tiles}) == [(0, 4), (4, 8), (8, 12), (12, 17)]
+    # A last block of at least half a block stays on its own: 288 px, 19 vertices -> ..., 3.
+    assert sorted({t.cols for t in vertex_tiles((288, 16), (16, 16), 64, 0)})[-1] == (16, 19)

@@ -34,6 +34,7 @@ from core.convert.labels_to_grid import apply_lut, choose_cell_size, grid_shape_
 from core.convert.step import assign_themes
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
+from core.io.cluster import check_workers, warm_up
 from core.io.georef import read_georeference
 from core.io.images import Bands, image_info, read_region
 from core.io.tiles import Scheduler, run_tiles
@@ -232,6 +233,11 @@ def convert_file_tiled(
         no photo layer (it does not fit in memory).
     """
     info = image_info(path)
+    if not isinstance(scheduler, Scheduler):
+        # A cluster whose workers cannot run this code or read the photo: refused first;
+        # the workers then import the tile jobs' code while the themes are fitted here.
+        check_workers(scheduler, os.path.abspath(path))
+        warm_up(scheduler, [__name__, colour_map_from_file.__module__])
     if model is None:
         # Unsupervised: fit k-means on full-resolution windows spread over the photo.
         if isinstance(names, dict):

@@ -14,8 +14,8 @@ A conversion tile by tile is a map of one pure function over tile windows;
 
 Workers read the photo themselves, from its path: they must see the same
 file at the same absolute path (one machine, or a shared file system), and
-have terratheme installed. :func:`check_readable` checks the first before
-any work.
+run the client's terratheme; :func:`check_workers` checks both before any
+work.
 
 :func:`local_cluster` starts worker processes on this machine (one thread
 each); :func:`connect` joins an existing scheduler. Every task runs with
@@ -101,16 +101,64 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
     return client
 
 
-def check_readable(client: Client, path: str) -> None:
-    """Refuse, in one line, a file that some worker of ``client`` cannot open at ``path``."""
-    seen = client.run(os.access, path, os.R_OK)
+def code_fingerprint() -> tuple[str, str]:
+    """``(sha256 of every core/*.py, where core lives)``: which terratheme this process runs."""
+    import hashlib
+    from pathlib import Path
+
+    import core
+
+    root = Path(core.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest(), str(root)
+
+
+def check_workers(client: Client, path: str) -> None:
+    """Refuse, in one line, a cluster whose workers run another terratheme or cannot read ``path``.
+
+    Every worker must run the client's code (the same ``core`` sources: the
+    result must be the serial run's) and open ``path`` (workers read the
+    photo themselves, from its absolute path).
+    """
+    ours, _ = code_fingerprint()
+    try:
+        theirs = client.run(code_fingerprint)
+        seen = client.run(os.access, path, os.R_OK)
+    except Exception as exc:
+        # A worker without terratheme (or an older one) cannot even unpickle the check.
+        reason = " ".join(str(exc).split())[:120]
+        raise TerrathemeError(f"a dask worker cannot run terratheme ({reason}): install the "
+                              "same terratheme on every worker") from None
     if not seen:
         raise TerrathemeError("the dask cluster has no worker")
+    other = sorted((addr, where) for addr, (digest, where) in theirs.items() if digest != ours)
+    if other:
+        raise TerrathemeError(f"dask worker {other[0][0]} runs another terratheme (core at "
+                              f"{other[0][1]}; {len(other)} of {len(theirs)} workers): install "
+                              "the client's version on every worker")
     blind = sorted(addr for addr, ok in seen.items() if not ok)
     if blind:
         raise TerrathemeError(f"{path}: dask worker {blind[0]} cannot read it "
                               f"({len(blind)} of {len(seen)} workers): workers read the photo "
                               "from its path, so it must be on a file system they all see")
+
+
+def _import_all(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
+
+
+def warm_up(client: Client, modules: Sequence[str]) -> None:
+    """Start importing ``modules`` on every worker and return at once.
+
+    A fresh worker spends seconds importing terratheme's stack before its
+    first tile; started early, that overlaps the client's own serial work.
+    """
+    client.run(_import_all, tuple(modules), wait=False)
 
 
 def worker_threads(client: Client) -> int:

@@ -194,7 +194,8 @@ def run_tiles(
     tile, overlap : see :func:`tile_windows`
     scheduler : Scheduler or distributed.Client
         ``SERIAL``, ``DASK`` (threads here), or a client of the cluster to run
-        on; its workers must read ``path`` (checked before any tile runs).
+        on; its workers must run this terratheme and read ``path`` (both
+        checked before any tile runs).
     batch : int, optional
         Tiles in flight: computed together on Dask's threads (default 4), or
         submitted and not yet sunk on a cluster (default 2 per worker thread);
@@ -223,11 +224,11 @@ def run_tiles(
                 progress(done, total)
         return total
     if not isinstance(scheduler, Scheduler):
-        from core.io.cluster import check_readable, map_ordered
+        from core.io.cluster import check_workers, map_ordered
 
-        # Workers open the file by its absolute path: refuse one they cannot see.
+        # Workers open the file by its absolute path and must run this code: checked first.
         path = os.path.abspath(path)
-        check_readable(scheduler, path)
+        check_workers(scheduler, path)
         return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
                            in_flight=batch, progress=progress, describe=_describe)
     import dask
