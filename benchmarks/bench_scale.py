@@ -1,4 +1,4 @@
-"""Benchmark of whole regions: tiled conversion serially and on 1 and 2 local workers; streamed render.
+"""Benchmark of whole regions: tiled conversion serially and on 1 and 2 workers; streamed render.
 
 Run: ``.venv/bin/python benchmarks/bench_scale.py [--quick] [--sides 8192 32768] [--tile 1024]``
 
@@ -202,24 +202,30 @@ def measure(sides: list[int], tile: int, tmp: Path) -> dict:
         make_mosaic(image, side)
         print(f"made {side}^2 tiled BigTIFF in {time.perf_counter() - t0:.0f} s "
               f"({image.stat().st_size / 2**30:.2f} GiB)", flush=True)
-        for workers in (0, 1, 2):
+        # The three ways side by side; on the smallest photo, 2 workers at other tile sizes.
+        runs = [(w, tile) for w in (0, 1, 2)]
+        if side == min(sides):
+            runs += [(2, t) for t in (tile // 2, tile * 2)]
+        for workers, run_tile in runs:
             name = f"{workers} workers" if workers else "serial"
-            rec = _child("convert", "--image", str(image), "--tile", str(tile), "--workers",
-                         str(workers), "--project", str(tmp / f"p_{side}_{workers}.ttproj"))
+            rec = _child("convert", "--image", str(image), "--tile", str(run_tile),
+                         "--workers", str(workers),
+                         "--project", str(tmp / f"p_{side}_{workers}_{run_tile}.ttproj"))
             px = rec["pixels"] / 1e6
             tiles_s = sum(rec["stage_seconds"])
             # Tile throughput: photo pixels through both tile stages (grid, colour map).
-            rec.update({"side": side, "mode": name, "workers": workers,
+            rec.update({"side": side, "mode": name, "workers": workers, "tile": run_tile,
                         "mpx_per_s": px / rec["seconds"], "tile_mpx_per_s": px / tiles_s,
                         "client_seconds": rec["seconds"] - tiles_s,
                         "image_file_bytes": image.stat().st_size})
             records.append(rec)
-            print(f"  {side}^2 {name:9s}: {rec['seconds']:6.1f} s ({rec['mpx_per_s']:5.2f} Mpx/s; "
-                  f"tile stages {rec['stage_seconds']} s), client peak "
+            print(f"  {side}^2 {name:9s} tile {run_tile}: {rec['seconds']:6.1f} s "
+                  f"({rec['mpx_per_s']:5.2f} Mpx/s; tile stages "
+                  f"{[round(v, 1) for v in rec['stage_seconds']]} s), client peak "
                   f"{rec['client_peak_rss_mib']:.0f} MiB, workers {rec['worker_peak_rss_mib']} "
                   f"MiB, load {rec['load_before'][0]:.1f}->{rec['load_after'][0]:.1f}",
                   flush=True)
-        rend = _child("render", "--project", str(tmp / f"p_{side}_0.ttproj"),
+        rend = _child("render", "--project", str(tmp / f"p_{side}_0_{tile}.ttproj"),
                       "--out", str(tmp / f"render_{side}.tif"))
         rend["side"] = side
         renders.append(rend)
@@ -233,7 +239,8 @@ def measure(sides: list[int], tile: int, tmp: Path) -> dict:
 def estimate(result: dict) -> dict:
     """Hours and bytes of a 400 x 400 km region at 1 m from the largest photo's figures."""
     big = max(r["side"] for r in result["records"])
-    rec = {r["workers"]: r for r in result["records"] if r["side"] == big}
+    rec = {r["workers"]: r for r in result["records"]
+           if r["side"] == big and r["tile"] == result["tile"]}
     rend = next(r for r in result["renders"] if r["side"] == big)
     px = rec[0]["pixels"]
     # Tile stages per worker: the 1-worker rate, scaled by the measured 2-worker efficiency.
@@ -268,9 +275,10 @@ def chart(result: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    recs = result["records"]
+    tile = result["tile"]
+    recs = [r for r in result["records"] if r["tile"] == tile]
     sides = sorted({r["side"] for r in recs})
-    fig, (ax, axm, axr) = plt.subplots(1, 3, figsize=(15, 4.8), dpi=100)
+    fig, ((ax, axm), (axt, axr)) = plt.subplots(2, 2, figsize=(12, 9), dpi=100)
     width = 0.25
     for k, workers in enumerate((0, 1, 2)):
         rows = [next(r for r in recs if r["side"] == s and r["workers"] == workers)
@@ -281,29 +289,41 @@ def chart(result: dict, path: Path) -> None:
         ax.plot(xs, [r["mpx_per_s"] for r in rows], "k_", ms=18, mew=2)
         peaks = [max(r["worker_peak_rss_mib"]) if r["worker_peak_rss_mib"]
                  else r["client_peak_rss_mib"] for r in rows]
-        axm.plot(sides, peaks, "o-", label=("serial process" if not workers
+        axm.plot(sides, peaks, "o-", label=("serial process (client and tiles)" if not workers
                                             else f"each of {workers} worker(s)"))
     axm.plot(sides, [next(r for r in recs if r["side"] == s and r["workers"] == 2)
                      ["client_peak_rss_mib"] for s in sides], "s--", label="client (2 workers)")
+    loads = [f"{r['load_before'][0]:.1f}" for r in recs]
     ax.set_xticks(np.arange(len(sides)), [f"{s}²" for s in sides])
     ax.set_ylabel("Mpx/s (bars: tile stages; black: end to end)")
-    ax.set_title("tiled conversion throughput")
+    ax.set_title(f"tiled conversion, tile {tile} (load avg at start: {', '.join(loads)})",
+                 fontsize=9)
     ax.legend(fontsize=8)
     axm.set_xscale("log", base=2)
     axm.set_xlabel("photo side (pixels)")
     axm.set_ylabel("peak RSS (MiB)")
     axm.set_ylim(bottom=0)
-    axm.set_title(f"peak memory per process (tile {result['tile']})")
+    axm.set_title(f"peak memory per process vs photo size (tile {tile})")
     axm.legend(fontsize=8)
+    small = min(sides)
+    by_tile = sorted((r["tile"], max(r["worker_peak_rss_mib"])) for r in result["records"]
+                     if r["side"] == small and r["workers"] == 2)
+    axt.plot(*zip(*by_tile, strict=True), "o-", label=f"each of 2 workers, {small}² photo")
+    axt.set_xscale("log", base=2)
+    axt.set_xlabel("tile side (pixels)")
+    axt.set_ylabel("peak RSS (MiB)")
+    axt.set_ylim(bottom=0)
+    axt.set_title("peak memory per worker vs tile size")
+    axt.legend(fontsize=8)
     rend = result["renders"]
     axr.plot([r["side"] for r in rend], [r["peak_rss_above_start_mib"] for r in rend], "o-",
              label="render --tiled: peak RSS above start (MiB)")
     axr.plot([r["side"] for r in rend], [r["file_bytes"] / 2**20 for r in rend], "s--",
-             label="its GeoTIFF (MiB)")
+             label="its GeoTIFF with overviews (MiB)")
     axr.set_xscale("log", base=2)
     axr.set_yscale("log")
     axr.set_xlabel("photo side (pixels)")
-    axr.set_title("streamed render: memory vs output")
+    axr.set_title("streamed render: memory vs output size")
     axr.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path)

@@ -17,7 +17,7 @@ import pytest
 from core.convert.tile_vote import PredictLabels
 from core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
 from core.errors import TerrathemeError
-from core.io.cluster import check_workers, connect, local_cluster, map_ordered
+from core.io.cluster import check_workers, connect, local_cluster, map_ordered, warm_up
 from core.io.images import read_image, write_image
 from core.io.tiles import Scheduler, run_tiles
 from core.packing import pack
@@ -101,6 +101,8 @@ def test_cluster_conversion_equals_serial(tmp_path, cluster):
 
 
 def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
+    # Warming the workers up queues one import task each, ahead of the run.
+    warm_up(cluster, ["core.convert.tiled"])
     got = []
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)

@@ -158,7 +158,13 @@ def warm_up(client: Client, modules: Sequence[str]) -> None:
     A fresh worker spends seconds importing terratheme's stack before its
     first tile; started early, that overlaps the client's own serial work.
     """
-    client.run(_import_all, tuple(modules), wait=False)
+    from distributed import fire_and_forget
+
+    # One task pinned to each worker (a task, not client.run: it must not block the
+    # worker's event loop); nobody waits for them.
+    for address in client.nthreads():
+        fire_and_forget(client.submit(_import_all, tuple(modules), workers=[address],
+                                      allow_other_workers=False, pure=False))
 
 
 def worker_threads(client: Client) -> int:
