@@ -108,7 +108,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="photos larger than memory: classify and vote tile by tile "
                              "(N pixels a side; with --model or unsupervised, themes fitted on "
                              "windows spread over the photo; --cell auto is estimated on the "
-                             "central 2048 x 2048 window)")
+                             "central 2048 x 2048 window; --workers or --scheduler run the tiles "
+                             "on a dask cluster, same result)")
     parser.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                         help="with --tile: run the tile jobs on this running dask.distributed "
                              "scheduler; its workers read PHOTO from its absolute path (a file "
