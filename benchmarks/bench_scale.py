@@ -23,8 +23,11 @@ themes, colour map and packed layer are identical to the serial run (sha256).
 The streamed render (``core.exchange.texture_tiff.write_texture_tiff``,
 ``render --tiled``) of each converted project runs in a child process:
 Mpx/s, peak RSS above start, file bytes. The load average is recorded with
-every run (the machine is shared); from the figures, an estimate of the
-hours and bytes of a 400 x 400 km region at 1 m on N workers.
+every run, and the CPU seconds of every process: on a shared machine a
+session's processes share one CPU share (Linux autogroup), which caps what
+2 workers can gain in wall-clock time whatever the code does; CPU seconds
+per megapixel show what the parallel path costs. From the figures, an
+estimate of the hours and bytes of a 400 x 400 km region at 1 m on N workers.
 """
 
 from __future__ import annotations
@@ -65,6 +68,12 @@ def _peak_rss_mib() -> float:
 
 def _rss_mib() -> float:
     return _status_kib("VmRSS") / 1024
+
+
+def _cpu_seconds() -> float:
+    """CPU time of this process so far, all threads (user + system)."""
+    use = resource.getrusage(resource.RUSAGE_SELF)
+    return use.ru_utime + use.ru_stime
 
 
 def make_mosaic(path: Path, side: int, seed: int = 0) -> None:
@@ -128,13 +137,16 @@ def child_convert(args: argparse.Namespace) -> None:
         if client is not None:
             # Workers ready and their baseline taken before the clock starts.
             worker_start = client.run(_rss_mib)
-        load0 = os.getloadavg()
+        worker_cpu0 = client.run(_cpu_seconds) if client is not None else {}
+        load0, cpu0 = os.getloadavg(), _cpu_seconds()
         t0 = time.perf_counter()
         project = convert_file_tiled(args.image, None, "auto", tile=args.tile,
                                      scheduler=client or Scheduler.SERIAL, progress=progress)
         seconds = time.perf_counter() - t0
-        load1 = os.getloadavg()
+        load1, cpu1 = os.getloadavg(), _cpu_seconds()
         workers = client.run(_peak_rss_mib) if client is not None else {}
+        worker_cpu = (sum(client.run(_cpu_seconds).values()) - sum(worker_cpu0.values())
+                      if client is not None else 0.0)
     finally:
         if client is not None:
             client.close()
@@ -147,6 +159,7 @@ def child_convert(args: argparse.Namespace) -> None:
         "seconds": seconds,
         "stage_seconds": [b - a for a, b, _ in stages], "stage_tiles": [t for _, _, t in stages],
         "load_before": load0, "load_after": load1,
+        "client_cpu_seconds": cpu1 - cpu0, "worker_cpu_seconds": worker_cpu,
         "client_peak_rss_mib": _peak_rss_mib(), "client_start_rss_mib": start_rss,
         "worker_peak_rss_mib": sorted(workers.values()),
         "worker_start_rss_mib": sorted(worker_start.values()),
@@ -223,7 +236,8 @@ def measure(sides: list[int], tile: int, tmp: Path) -> dict:
                   f"({rec['mpx_per_s']:5.2f} Mpx/s; tile stages "
                   f"{[round(v, 1) for v in rec['stage_seconds']]} s), client peak "
                   f"{rec['client_peak_rss_mib']:.0f} MiB, workers {rec['worker_peak_rss_mib']} "
-                  f"MiB, load {rec['load_before'][0]:.1f}->{rec['load_after'][0]:.1f}",
+                  f"MiB, CPU {rec['client_cpu_seconds']:.0f}+{rec['worker_cpu_seconds']:.0f} s, "
+                  f"load {rec['load_before'][0]:.1f}->{rec['load_after'][0]:.1f}",
                   flush=True)
         rend = _child("render", "--project", str(tmp / f"p_{side}_0_{tile}.ttproj"),
                       "--out", str(tmp / f"render_{side}.tif"))
