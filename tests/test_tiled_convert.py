@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from core.convert.labels_to_grid import vote_grid
-from core.convert.tiled import grid_from_file, vertex_tiles
+from core.convert.tile_vote import vertex_tiles
+from core.convert.tiled import grid_from_file
 from core.errors import TerrathemeError
 from core.io.images import write_image
 from core.io.tiles import Scheduler
@@ -39,7 +40,8 @@ def test_tiled_grid_equals_whole_vote(tmp_path, cell, tile):
 def test_vertex_tiles_own_each_vertex_once():
     tiles = vertex_tiles((50, 30), (4, 3), 12, 5)
     hits = np.zeros((11, 14), int)
-    for win, ((r0, r1), (c0, c1)) in tiles.items():
+    for win in tiles:
+        (r0, r1), (c0, c1) = win.rows, win.cols
         hits[r0:r1, c0:c1] += 1
         assert 0 <= win.rx <= win.x and win.x + win.w <= win.rx + win.rw <= 50
     assert (hits == 1).all()
@@ -54,3 +56,12 @@ def test_errors(tmp_path):
         grid_from_file(path, 4, _classes, overlap=-1)
     with pytest.raises(TerrathemeError, match="256 integers"):
         grid_from_file(path, 4, _classes, lut=[0, 1])
+
+
+def test_a_short_last_vertex_block_joins_the_one_before():
+    # 256 px at cell 16: 17 vertices a side; blocks of 4 -> 4, 4, 4, 5 (no block of 1).
+    tiles = vertex_tiles((256, 256), (16, 16), 64, 0)
+    assert len(tiles) == 16
+    assert sorted({t.rows for t in tiles}) == [(0, 4), (4, 8), (8, 12), (12, 17)]
+    # A last block of at least half a block stays on its own: 288 px, 19 vertices -> ..., 3.
+    assert sorted({t.cols for t in vertex_tiles((288, 16), (16, 16), 64, 0)})[-1] == (16, 19)

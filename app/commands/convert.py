@@ -9,6 +9,7 @@ the photo's extent; a world file beside it when the photo is a GeoTIFF) and
 from __future__ import annotations
 
 import argparse
+import contextlib
 
 from core.errors import TerrathemeError
 
@@ -107,7 +108,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="photos larger than memory: classify and vote tile by tile "
                              "(N pixels a side; with --model or unsupervised, themes fitted on "
                              "windows spread over the photo; --cell auto is estimated on the "
-                             "central 2048 x 2048 window)")
+                             "central 2048 x 2048 window; --workers or --scheduler run the tiles "
+                             "on a dask cluster, same result)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                        help="with --tile: run the tile jobs on this running dask.distributed "
+                             "scheduler; its workers read PHOTO from its absolute path (a file "
+                             "system they all see) and need terratheme installed")
+    parser.add_argument("--workers", type=_number(int, 1, 1024, "--workers"), metavar="K",
+                        help="with --tile: run the tile jobs on a local cluster of K worker "
+                             "processes (one thread each); same result as without")
     parser.add_argument("--curve", metavar="PNG",
                         help="also write the agreement / bytes vs cell size chart (cell auto)")
     parser.add_argument("--class-target", type=_share, default=0.5, metavar="T",
@@ -186,6 +195,11 @@ def run(args: argparse.Namespace) -> int:
     _check_theme_names(themes)
     if args.curve and args.cell != "auto":
         raise TerrathemeError("--curve charts the automatic cell choice: it needs --cell auto")
+    if (args.scheduler or args.workers) and args.tile is None:
+        raise TerrathemeError("--scheduler and --workers run the tiled path: give --tile N")
+    if args.scheduler and args.workers:
+        raise TerrathemeError("--scheduler joins a running cluster, --workers starts one: "
+                              "pick one")
     # Output paths checked (and their folders made) before any work.
     check_outputs([project, preview, packed, args.curve],
                   inputs=[args.photo, args.scribbles, args.model])
@@ -261,8 +275,6 @@ def _print_written(written) -> None:
 
 def _run_tiled(args, project, preview, packed, themes) -> int:
     """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
-    from tqdm import tqdm
-
     from core.classify import Classifier
     from core.convert.photo import write_outputs
     from core.convert.tiled import convert_file_tiled
@@ -281,21 +293,65 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
     model = Classifier.load(args.model) if args.model else None
     names = None if isinstance(themes, str | int) else themes
     k = themes if isinstance(themes, int) else "auto"
+    colour, boundary = _style(args)
+    with _scheduler(args) as scheduler, _tile_progress(args.photo) as progress:
+        proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
+                                  tile=args.tile, target_agreement=args.target_agreement,
+                                  progress=progress, class_target=args.class_target,
+                                  colour_map=colour, boundary=boundary, scheduler=scheduler)
+        written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
+    gh, gw = proj.grid.cells_shape
+    k = len(proj.library)
+    where = (f" on {args.scheduler}" if args.scheduler else
+             f" on {args.workers} local workers" if args.workers else "")
+    print(f"{project}: {k} theme{'s' if k != 1 else ''} ({', '.join(proj.library.names)}); cell "
+          f"{proj.grid.cell[0]} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)"
+          f"{where}")
+    _print_written(written)
+    return 0
+
+
+@contextlib.contextmanager
+def _scheduler(args):
+    """Where the tiles run: this process, a running cluster (--scheduler) or a local one."""
+    from core.io.cluster import connect, local_cluster
+    from core.io.tiles import Scheduler
+
+    if not (args.scheduler or args.workers):
+        yield Scheduler.SERIAL
+        return
+    # The cluster is reached (or started) before any tile is read.
+    client = connect(args.scheduler) if args.scheduler else local_cluster(args.workers)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+@contextlib.contextmanager
+def _tile_progress(photo: str):
+    """A progress bar of tiles done and megapixels per second, one stage after the other."""
+    import time
+
+    from tqdm import tqdm
+
+    from core.io.images import image_info
+
+    info = image_info(photo)
+    pixels = info.width * info.height
+    stages = iter(["classify", "colour map"])
+    start = [time.perf_counter()]
     with tqdm(total=1, desc="convert (tiled)", unit="tile", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
             bar.total, bar.n = total, done
-            bar.refresh()
+            if done == 0:
+                # A stage begins (run_tiles says (0, total) first): its clock starts.
+                bar.set_description(next(stages, "tiles"))
+                start[0] = time.perf_counter()
+                bar.refresh()
+                return
+            seconds = max(time.perf_counter() - start[0], 1e-9)
+            bar.set_postfix_str(f"{pixels * done / total / 1e6 / seconds:.1f} Mpx/s")
 
-        colour, boundary = _style(args)
-        proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
-                                  tile=args.tile, target_agreement=args.target_agreement,
-                                  progress=progress, class_target=args.class_target,
-                                  colour_map=colour, boundary=boundary)
-        written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
-    gh, gw = proj.grid.cells_shape
-    k = len(proj.library)
-    print(f"{project}: {k} theme{'s' if k != 1 else ''} ({', '.join(proj.library.names)}); cell "
-          f"{proj.grid.cell[0]} -> {gw + 1} x {gh + 1} vertices, tile by tile ({args.tile} px)")
-    _print_written(written)
-    return 0
+        yield progress

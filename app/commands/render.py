@@ -8,6 +8,9 @@ NAME = "render"
 HELP = "render a project (.ttproj) to an image, whole or a region, full size or scaled down"
 ORDER = 20
 
+#: full-resolution .tif renders above this many texels are streamed (--tiled): 16384^2
+STREAM_TEXELS = 1 << 28
+
 
 def _region(text: str) -> tuple[int, int, int, int]:
     try:
@@ -31,6 +34,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "photos, the paper's linear ramp for hand-made maps); linear: the "
                              "paper's; histogram: histogram-preserving (Heitz & Neyret 2018); "
                              "shaped: borders shaped by the themes and noise")
+    parser.add_argument("--tiled", action="store_true",
+                        help="write a tiled GeoTIFF with overviews band by band (bounded "
+                             "memory; Cloud Optimized layout), at full resolution; the default "
+                             f"for .tif outputs of more than {STREAM_TEXELS:,} texels")
     parser.add_argument("--gpu", action="store_true",
                         help="render through the OpenGL shaders (headless EGL; Mesa's llvmpipe "
                              "without a GPU), in the same style: at scale 1 the same texels as "
@@ -63,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
         options = RenderOptions(blend=BlendMode(args.blend))
     style = "shaped" if options.boundary is not None else options.blend.value
     region = args.region or (0, 0, *photo_extent(project))
+    if _streamed(args, region):
+        return _render_tiled(args, project, region, options, style)
     gpu = _gpu_renderer(project) if args.gpu else None
     with tqdm(total=1, desc="render", unit="tile" if gpu else "band", leave=False) as bar:
 
@@ -104,3 +113,41 @@ def _render_gpu(gpu, project, region, scale: float, style, progress):
                           colour_map=project.colour_map)
     finally:
         gpu.release()
+
+
+def _streamed(args: argparse.Namespace, region) -> bool:
+    """Whether to stream a tiled GeoTIFF: ``--tiled``, or a large full-resolution .tif."""
+    from pathlib import Path
+
+    from core.errors import TerrathemeError
+
+    tif = Path(args.out).suffix.lower() in (".tif", ".tiff")
+    if not args.tiled:
+        return tif and args.scale == 1.0 and not args.gpu and \
+            region[2] * region[3] > STREAM_TEXELS
+    if not tif:
+        raise TerrathemeError(f"{args.out}: --tiled writes a GeoTIFF: name it .tif")
+    if args.scale != 1.0 or args.gpu:
+        raise TerrathemeError("--tiled renders at full resolution on the CPU, with overviews "
+                              "in the file: drop --scale and --gpu")
+    return True
+
+
+def _render_tiled(args, project, region, options, style: str) -> int:
+    """The streamed output: tiled GeoTIFF with overviews, band by band (bounded memory)."""
+    from tqdm import tqdm
+
+    from core.exchange.texture_tiff import write_texture_tiff
+
+    with tqdm(total=1, desc="render (tiled)", unit="band", leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total, bar.n = total, done
+            bar.refresh()
+
+        (w, h), overviews = write_texture_tiff(project, args.out, region, options=options,
+                                               progress=progress)
+    geo = " with its georeference" if project.metadata.get("georeference") else ""
+    print(f"{args.out}: {w} x {h} texels ({style} blend), tiled GeoTIFF with {overviews} "
+          f"overview{'s' if overviews != 1 else ''}{geo}")
+    return 0

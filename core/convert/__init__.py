@@ -2,7 +2,9 @@
 
 Modules: ``labels_to_grid`` (the vertex vote and the cell size chosen from a
 target), ``photo`` (the whole-image pipeline and its outputs), ``tiled``
-(photos larger than memory, tile by tile).
+(photos larger than memory, tile by tile, here or on a dask.distributed
+cluster), ``tile_vote`` (its picklable tile jobs), ``colour_fit`` (the
+colour map, whole or tile by tile).
 """
 
 from core.convert.labels_to_grid import CellChoice, choose_cell_size, labels_to_grid, vote_grid

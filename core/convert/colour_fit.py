@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -40,6 +41,9 @@ from core.model.colour_map import NEUTRAL, ColourMap
 from core.model.grid import IndexGrid
 from core.render.colour_map import apply_colour_map, gain_image
 from core.render.renderer import RenderOptions, render_cells
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 
 @dataclass(frozen=True)
@@ -188,16 +192,40 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     return FittedColourMap(cmap, data, options.codec, err, tuple(curve))
 
 
-def _block_sums(image: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-``s x s``-block channel sums and pixel counts of an image whose origin is on a block."""
+def _block_sums(image: np.ndarray, s: int) -> np.ndarray:
+    """Per-``s x s``-block channel sums of an image whose origin is on a block (float64)."""
     h, w = image.shape[:2]
     bh, bw = -(-h // s), -(-w // s)
     pad = np.zeros((bh * s, bw * s, 3), np.float64)
     pad[:h, :w] = image[:, :, :3]
-    sums = pad.reshape(bh, s, bw, s, 3).sum(axis=(1, 3))
-    ones = np.zeros((bh * s, bw * s), np.float64)
-    ones[:h, :w] = 1.0
-    return sums, ones.reshape(bh, s, bw, s).sum(axis=(1, 3))
+    return pad.reshape(bh, s, bw, s, 3).sum(axis=(1, 3))
+
+
+@dataclass(frozen=True)
+class BlockGainJob:
+    """The tile job of :func:`colour_map_from_file`: the stored gain of its map pixels.
+
+    Attributes
+    ----------
+    grid : IndexGrid
+    textures : list of (h, w, 3) uint8 ndarray
+    render : RenderOptions
+    scale : int
+        Texels per map pixel; tiles start on whole map pixels.
+    """
+
+    grid: IndexGrid
+    textures: list[np.ndarray]
+    render: RenderOptions
+    scale: int
+
+    def __call__(self, win: TileWindow, pixels: np.ndarray) -> np.ndarray:
+        # Step 1 on this tile's map pixels: the photo's sums over the render's, quantised.
+        rgb, _ = prepare_photo(pixels)
+        shown = render_cells(self.grid, self.textures, region=(win.x, win.y, win.w, win.h),
+                             options=self.render)
+        return _quantise(_block_sums(rgb, self.scale)
+                         / np.maximum(_block_sums(shown, self.scale), 1.0))
 
 
 def colour_map_from_file(
@@ -209,16 +237,19 @@ def colour_map_from_file(
     render: RenderOptions = RenderOptions(),
     options: ColourMapOptions = ColourMapOptions(),
     tile: int = 1024,
-    scheduler: Scheduler = Scheduler.SERIAL,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ) -> FittedColourMap:
     """The colour map of a photo larger than memory, tile by tile (the block gain of step 1).
 
     Tiles are whole map pixels; each reads its photo pixels, renders the same
-    texels and adds up both per map pixel, so memory is set by the tile and
-    the map, not the photo. Map pixels beyond the photo (the last cells) take
-    the nearest pixel's gain. The refinement of step 2 needs every
-    neighbour's gain and is not done here.
+    texels and returns the stored gain of its map pixels (photo sum over
+    render sum, :class:`BlockGainJob`), so memory is set by the tile and the
+    map (3 bytes a map pixel), not the photo. Map pixels beyond the photo
+    (the last cells) take the nearest pixel's gain. The refinement of step 2
+    needs every neighbour's gain and is not done here. On a cluster
+    (``scheduler`` a ``distributed.Client``) every worker gets the grid and the
+    themes once; the map is the serial one, bit for bit.
 
     Returns
     -------
@@ -228,33 +259,26 @@ def colour_map_from_file(
     tw, th = grid.texture_size
     mh, mw = ColourMap.shape_for((tw, th), scale)
     side = max(scale, (int(tile) // scale) * scale)
-    photo_sum = np.zeros((mh, mw, 3))
-    render_sum = np.zeros((mh, mw, 3))
-    count = np.zeros((mh, mw))
+    stored = np.full((mh, mw, 3), NEUTRAL, np.uint8)
+    covered = np.zeros((mh, mw), bool)
 
-    def job(win: TileWindow, pixels: np.ndarray) -> tuple:
-        # The photo's and the render's sums over the map pixels of this tile.
-        rgb, _ = prepare_photo(pixels)
-        shown = render_cells(grid, textures, region=(win.x, win.y, win.w, win.h), options=render)
-        return _block_sums(rgb, scale), _block_sums(shown, scale)[0]
-
-    def sink(win: TileWindow, result: tuple) -> None:
-        (psum, pcount), rsum = result
+    def sink(win: TileWindow, block: np.ndarray) -> None:
+        # Every map pixel of a tile lies in that tile only: its gain is final.
         j, i = win.y // scale, win.x // scale
-        bh, bw = pcount.shape
-        photo_sum[j:j + bh, i:i + bw] += psum
-        render_sum[j:j + bh, i:i + bw] += rsum
-        count[j:j + bh, i:i + bw] += pcount
+        bh, bw = block.shape[:2]
+        stored[j:j + bh, i:i + bw] = block
+        covered[j:j + bh, i:i + bw] = True
 
+    if not isinstance(scheduler, Scheduler):
+        # On a cluster each task runs on one worker thread, its render too (same texels).
+        render = replace(render, threads=1)
+    job = BlockGainJob(grid, list(textures), render, int(scale))
     run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress,
               bands=Bands.PHOTO)
-    covered = count > 0
-    gain = np.ones((mh, mw, 3), np.float64)
-    gain[covered] = photo_sum[covered] / np.maximum(render_sum[covered], 1.0)
     if not covered.all():
         # Map pixels past the photo take the gain of the nearest covered one.
         _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
-        gain = gain[iy, ix]
-    data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
+        stored = stored[iy, ix]
+    data = encode_image(stored, codec=options.codec, quality=options.quality)
     cmap = ColourMap.from_bytes(data, options.codec, int(scale))
     return FittedColourMap(cmap, data, options.codec, float("nan"), ())

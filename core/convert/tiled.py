@@ -11,7 +11,11 @@ result equals :func:`core.convert.labels_to_grid.vote_grid` on the whole label i
 whenever the classifier's output on a tile with ``overlap`` context equals
 its output on the whole photo there (tested with a per-pixel classifier).
 
-Jobs run serially or on Dask (:class:`core.io.tiles.Scheduler`).
+Jobs run serially, on Dask's threads or on a dask.distributed cluster
+(:func:`core.io.tiles.run_tiles`); the jobs are module-level dataclasses
+(:mod:`core.convert.tile_vote`) holding what they need, so they
+pickle for worker processes, and a cluster's result is the serial one, bit
+for bit (``tests/test_scale_cluster.py``).
 """
 
 from __future__ import annotations
@@ -19,69 +23,34 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
 from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
-from core.convert.labels_to_grid import (
-    apply_lut,
-    choose_cell_size,
-    grid_shape_for,
-    vertex_window,
-    vote_vertices,
-)
+from core.convert.labels_to_grid import apply_lut, choose_cell_size, grid_shape_for
 from core.convert.step import assign_themes
+from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
+from core.io.cluster import check_workers, warm_up
 from core.io.georef import read_georeference
 from core.io.images import Bands, image_info, read_region
-from core.io.tiles import Scheduler, TileWindow, run_tiles
+from core.io.tiles import Scheduler, run_tiles
 from core.model.grid import IndexGrid, validate_cell
 from core.model.project import ThematicTexture
 from core.render.boundary import BoundaryOptions
 from core.render.renderer import RenderOptions, render_cells
 
-ClassifyFn = Callable[[np.ndarray], np.ndarray]
+if TYPE_CHECKING:
+    from distributed import Client
 
 #: context pixels around each tile. The random forest of ``core.classify`` sees
 #: features up to 4 x 16 photo pixels away plus its smoothing: on a 2048^2 mosaic of
 #: Dubai photos (cell 16, tile 1024) the tiled grid differed from the whole-image grid
 #: in 21 of 16641 vertices with 32 pixels of context, 2 with 64 and none with 128.
 DEFAULT_OVERLAP = 128
-
-
-def vertex_tiles(
-    size: tuple[int, int], cell: tuple[int, int], tile: int, overlap: int
-) -> dict[TileWindow, tuple[tuple[int, int], tuple[int, int]]]:
-    """Tile windows, each with the vertex block it owns.
-
-    Parameters
-    ----------
-    size : (W, H) photo size
-    cell : (N, M)
-    tile : int
-        About this many pixels per tile side (rounded to whole cells).
-    overlap : int
-        Context pixels read around each tile's vote window.
-
-    Returns
-    -------
-    {TileWindow: ((row0, row1), (col0, col1))}
-    """
-    w, h = size
-    n, m = cell
-    rows, cols = grid_shape_for(w, h, (n, m))
-    bc, br = max(1, int(tile) // n), max(1, int(tile) // m)
-    out = {}
-    for r0 in range(0, rows, br):
-        for c0 in range(0, cols, bc):
-            vr, vc = (r0, min(rows, r0 + br)), (c0, min(cols, c0 + bc))
-            x, y, ww, hh = vertex_window(vr, vc, (n, m), (w, h))
-            rx, ry = max(0, x - overlap), max(0, y - overlap)
-            rx1, ry1 = min(w, x + ww + overlap), min(h, y + hh + overlap)
-            out[TileWindow(x, y, ww, hh, rx, ry, rx1 - rx, ry1 - ry)] = (vr, vc)
-    return out
 
 
 def grid_from_file(
@@ -92,7 +61,7 @@ def grid_from_file(
     lut: Sequence[int] | np.ndarray | None = None,
     tile: int = 1024,
     overlap: int = DEFAULT_OVERLAP,
-    scheduler: Scheduler = Scheduler.SERIAL,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
 ) -> IndexGrid:
     """The vertex grid of an image file, classified and voted tile by tile.
@@ -103,14 +72,17 @@ def grid_from_file(
         The photo; tiled TIFF/EXR read only the tiles a window touches.
     cell : (N, M) or int
     classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
-        Per-tile class values (e.g. ``lambda t: model.predict(t).labels``).
+        Per-tile class values (e.g. ``PredictLabels(model)``); on a cluster it
+        must pickle (a module-level function or a dataclass, not a lambda).
     lut : (256,) int array-like, optional
         Class value -> theme index (default: identity).
     tile : int
         Tile side in pixels (rounded to whole cells).
     overlap : int
         Context pixels around each tile (the classifier's feature support).
-    scheduler : Scheduler
+    scheduler : Scheduler or distributed.Client
+        Where the tiles run (:func:`core.io.tiles.run_tiles`); every
+        scheduler gives the same grid.
     progress : callable(done, total), optional
 
     Returns
@@ -130,30 +102,15 @@ def grid_from_file(
             raise TerrathemeError(f"class-to-theme table must be 256 integers, got {table.shape}")
         table = table.astype(np.uint8)
     tiles = vertex_tiles(size, (n, m), tile, overlap)
-
-    def job(win: TileWindow, pixels: np.ndarray) -> np.ndarray:
-        # Classify with context, map to themes, crop to the vote window, vote.
-        labels = np.asarray(classify(pixels))
-        if labels.shape[:2] != pixels.shape[:2]:
-            raise TerrathemeError(
-                f"classifier returned {labels.shape} labels for a {pixels.shape[:2]} tile"
-            )
-        labels = labels.reshape(pixels.shape[:2]).astype(np.uint8)
-        if table is not None:
-            labels = table[labels]
-        core = labels[win.core_in_read]
-        vr, vc = tiles[win]
-        return vote_vertices(core, (win.x, win.y), size, (n, m), vr, vc)
-
     rows, cols = grid_shape_for(info.width, info.height, (n, m))
     grid = np.zeros((rows, cols), np.uint8)
 
-    def sink(win: TileWindow, block: np.ndarray) -> None:
-        (r0, r1), (c0, c1) = tiles[win]
+    def sink(win: VertexTile, block: np.ndarray) -> None:
+        (r0, r1), (c0, c1) = win.rows, win.cols
         grid[r0:r1, c0:c1] = block
 
-    run_tiles(path, job, sink, windows=list(tiles), scheduler=scheduler, progress=progress,
-              bands=Bands.PHOTO)
+    run_tiles(path, VoteJob(classify, table, size, (n, m)), sink, windows=tiles,
+              scheduler=scheduler, progress=progress, bands=Bands.PHOTO)
     return IndexGrid(grid, (n, m))
 
 
@@ -231,7 +188,7 @@ def convert_file_tiled(
     target_agreement: float = 0.9,
     tile: int = 1024,
     overlap: int = DEFAULT_OVERLAP,
-    scheduler: Scheduler = Scheduler.SERIAL,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
     class_target: float = 0.5,
     colour_map: ColourMapOptions | None = ColourMapOptions(),
@@ -258,7 +215,9 @@ def convert_file_tiled(
         a grey flat theme). Unsupervised: a list, assigned to the themes by colour.
     themes : "auto" or int
         Unsupervised (``model`` None) only: K from the data or that many themes.
-    tile, overlap, scheduler, progress : see :func:`grid_from_file`
+    tile, overlap, scheduler : see :func:`grid_from_file`
+    progress : callable(done, total), optional
+        Tiles of the grid, then (from ``(0, total)`` again) of the colour map.
     class_target : float
         Per-class IoU target of the cell choice (as ``convert_photo``'s).
     colour_map : ColourMapOptions or None
@@ -274,6 +233,11 @@ def convert_file_tiled(
         no photo layer (it does not fit in memory).
     """
     info = image_info(path)
+    if not isinstance(scheduler, Scheduler):
+        # A cluster whose workers cannot run this code or read the photo: refused first;
+        # the workers then import the tile jobs' code while the themes are fitted here.
+        check_workers(scheduler, os.path.abspath(path))
+        warm_up(scheduler, [__name__, colour_map_from_file.__module__])
     if model is None:
         # Unsupervised: fit k-means on full-resolution windows spread over the photo.
         if isinstance(names, dict):
@@ -322,7 +286,7 @@ def convert_file_tiled(
         choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement,
                                   class_target=class_target)
         cell = choice.cell[0]
-    grid = grid_from_file(path, int(cell), lambda p: model.predict(p).labels, lut=mapping.lut,
+    grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
     style = RenderOptions(boundary=boundary)
     fitted = None
@@ -332,7 +296,8 @@ def convert_file_tiled(
                              region=(x0, y0, side_w, side_h))
         scale = choose_colour_map(rgb, shown, colour_map).colour_map.scale
         fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
-                                      options=colour_map, tile=tile, scheduler=scheduler)
+                                      options=colour_map, tile=tile, scheduler=scheduler,
+                                      progress=progress)
     meta = {
         "source_photo": str(path), "created_by": "terratheme convert (tiled)",
         "photo_size": [info.width, info.height],

@@ -13,8 +13,9 @@ blend's weights), ``style`` (which of the two an export follows),
 ``colour`` (the colour map's file, UV transforms and gain), ``plan`` (the
 files of an export, theme textures, manifests), ``unity``, ``unreal``,
 ``terrain3d`` (Godot), ``geotiff`` (GIS) with ``cog`` (the Cloud Optimized
-GeoTIFF layout), ``export`` (plan, then write), ``maps_to_grid`` (the way
-back: engine maps to a vertex grid).
+GeoTIFF layout), ``texture_tiff`` (a render larger than memory as such a
+GeoTIFF, band by band: ``terratheme render --tiled``), ``export`` (plan,
+then write), ``maps_to_grid`` (the way back: engine maps to a vertex grid).
 """
 
 from core.exchange.colour import gain_at_pixels, linear_gain
@@ -31,6 +32,7 @@ from core.exchange.terrain3d import (
     encode_control,
     read_control_map,
 )
+from core.exchange.texture_tiff import write_texture_tiff
 from core.exchange.unity import read_splatmaps
 from core.exchange.unreal import read_weight_maps
 from core.exchange.weights import sample_corners, strongest_two, theme_weights
@@ -63,4 +65,5 @@ __all__ = [
     "theme_weights",
     "world_frame",
     "write_export",
+    "write_texture_tiff",
 ]

@@ -1,7 +1,9 @@
 """Files in and out: images, tiles of images larger than memory, georeference, atomic writes.
 
 Modules: ``images`` (every image file through OpenImageIO), ``tiles`` (tile
-windows, bounded-memory tile jobs on one machine or Dask, tiled writing),
+windows, bounded-memory tile jobs here or on a cluster), ``cluster`` (a
+dask.distributed cluster: start or join one, tasks in order with bounded
+results in flight), ``tiled_writer`` (images written tile by tile),
 ``georef`` (GeoTIFF tags and world files), ``atomic`` (write to a temporary
 file, then rename; sets of files; clean-up after signals), ``codec`` (images
 as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
@@ -14,6 +16,7 @@ from core.io.atomic import (
     clean_stale_temporaries,
     write_bytes_atomic,
 )
+from core.io.cluster import connect, local_cluster, map_ordered
 from core.io.codec import decode_image, encode_image
 from core.io.georef import (
     read_georeference,
@@ -31,9 +34,9 @@ from core.io.images import (
     read_region,
     write_image,
 )
+from core.io.tiled_writer import TiledImageWriter
 from core.io.tiles import (
     Scheduler,
-    TiledImageWriter,
     TileWindow,
     map_tiles,
     run_tiles,
@@ -49,10 +52,13 @@ __all__ = [
     "atomic_file_set",
     "atomic_path",
     "clean_stale_temporaries",
+    "connect",
     "decode_image",
     "encode_image",
     "image_attributes",
     "image_info",
+    "local_cluster",
+    "map_ordered",
     "map_tiles",
     "read_georeference",
     "read_image",

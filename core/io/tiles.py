@@ -6,14 +6,20 @@ computes on it, and keeps the core of the result. Peak memory is set by the
 tile size and the number of tiles in flight, never by the image size
 (``benchmarks/bench_convert.py`` measures it on a 16384 x 16384 TIFF).
 
-The same jobs run serially (default, bounded by one tile) or on Dask
-(:class:`Scheduler.DASK`: ``dask.delayed`` tasks computed in batches of
-``batch`` tiles, so memory stays bounded there too); :func:`dask_image`
-exposes a file as a lazy ``dask.array`` of ``read_region`` blocks for users
-who want to write their own array pipeline.
+The same jobs run serially (default, bounded by one tile), on Dask's
+threads in this process (:class:`Scheduler.DASK`: ``dask.delayed`` tasks
+computed in batches of ``batch`` tiles, so memory stays bounded there too),
+or on a dask.distributed cluster (pass its ``distributed.Client`` as the
+scheduler; :mod:`core.io.cluster`): there each worker process reads its
+tiles from the file's path, the job is sent to every worker once, so it must
+pickle (a module-level function or a dataclass holding what it needs, no
+closure over big arrays), and the result is the serial run's, bit for bit.
+:func:`dask_image` exposes a file as a lazy ``dask.array`` of
+``read_region`` blocks for users who want to write their own array pipeline.
 
-Large outputs are written tile by tile with :class:`TiledImageWriter`
-(OpenImageIO tiled TIFF/EXR, BigTIFF when asked).
+Large outputs are written tile by tile with
+:class:`core.io.tiled_writer.TiledImageWriter` (OpenImageIO tiled TIFF/EXR,
+BigTIFF when asked).
 """
 
 from __future__ import annotations
@@ -22,14 +28,16 @@ import enum
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
-from core.io.atomic import atomic_path
-from core.io.images import OIIO_PIXEL_TYPES, Bands, image_info, read_region
+from core.io.images import Bands, image_info, read_region
+from core.io.tiled_writer import TiledImageWriter
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 ProgressFn = Callable[[int, int], None]
 
@@ -132,11 +140,11 @@ def iter_tiles(
 
 
 class Scheduler(enum.Enum):
-    """Where tile jobs run."""
+    """Where tile jobs run in this process (a ``distributed.Client`` runs them on its cluster)."""
 
     #: one tile after the other in this process
     SERIAL = "serial"
-    #: dask.delayed tasks on Dask's default (threaded) scheduler, or a distributed client
+    #: dask.delayed tasks on Dask's threaded scheduler, in this process
     DASK = "dask"
 
 
@@ -148,6 +156,15 @@ def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands) -> o
     return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands))
 
 
+def _run_shared(win: TileWindow, shared: tuple) -> object:
+    """One tile on a cluster worker: ``shared`` is ``(path, job, dtype, bands)``."""
+    return _run_one(shared[0], win, shared[1], shared[2], shared[3])
+
+
+def _describe(win: TileWindow) -> str:
+    return f"at ({win.x}, {win.y}) of {win.w} x {win.h}"
+
+
 def run_tiles(
     path: str | os.PathLike,
     job: TileJob,
@@ -156,8 +173,8 @@ def run_tiles(
     tile: int | tuple[int, int] = 1024,
     overlap: int = 0,
     dtype: np.dtype | str | None = None,
-    scheduler: Scheduler = Scheduler.SERIAL,
-    batch: int = 4,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
+    batch: int | None = None,
     windows: list[TileWindow] | None = None,
     progress: ProgressFn | None = None,
     bands: Bands = Bands.ALL,
@@ -169,18 +186,24 @@ def run_tiles(
     path : path-like
         Any image OpenImageIO reads; tiled TIFF/EXR read only the tiles a window touches.
     job : callable(TileWindow, (rh, rw, C) ndarray) -> result
-        Pure function of one tile (it may run on a Dask worker).
+        Pure function of one tile. On a cluster it must pickle (module
+        docstring); it is sent to every worker once.
     sink : callable(TileWindow, result)
         Called in this process, in tile order, with each result (stitch it
         into an array, write it with :class:`TiledImageWriter`, ...).
     tile, overlap : see :func:`tile_windows`
-    scheduler : Scheduler
-        ``SERIAL`` or ``DASK``.
-    batch : int
-        Tiles computed together on Dask (bounds the memory of results in flight).
+    scheduler : Scheduler or distributed.Client
+        ``SERIAL``, ``DASK`` (threads here), or a client of the cluster to run
+        on; its workers must run this terratheme and read ``path`` (both
+        checked before any tile runs).
+    batch : int, optional
+        Tiles in flight: computed together on Dask's threads (default 4), or
+        submitted and not yet sunk on a cluster (default 2 per worker thread);
+        bounds the memory of results in flight.
     windows : list of TileWindow, optional
         Run these windows instead of the regular tiling.
     progress : callable(done, total), optional
+        Called with ``(0, total)`` first, then after each tile is sunk.
     bands : Bands
         Which channels each tile holds (``Bands.PHOTO`` for photos).
 
@@ -192,20 +215,30 @@ def run_tiles(
     wins = windows if windows is not None else tile_windows(info.width, info.height, tile, overlap)
     total = len(wins)
     path = str(path)
+    if progress is not None:
+        progress(0, total)
     if scheduler is Scheduler.SERIAL:
         for done, win in enumerate(wins, start=1):
             sink(win, _run_one(path, win, job, dtype, bands))
             if progress is not None:
                 progress(done, total)
         return total
+    if not isinstance(scheduler, Scheduler):
+        from core.io.cluster import check_workers, map_ordered
+
+        # Workers open the file by its absolute path and must run this code: checked first.
+        path = os.path.abspath(path)
+        check_workers(scheduler, path)
+        return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
+                           in_flight=batch, progress=progress, describe=_describe)
     import dask
 
     # Batches of delayed tasks keep at most ``batch`` results in memory.
-    step = max(1, int(batch))
+    step = max(1, int(batch or 4))
     for start in range(0, total, step):
         part = wins[start : start + step]
         results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype, bands)
-                                 for w in part])
+                                 for w in part], scheduler="threads")
         for win, res in zip(part, results, strict=True):
             sink(win, res)
         if progress is not None:
@@ -221,7 +254,7 @@ def map_tiles(
     overlap: int = 0,
     dtype: np.dtype | str | None = None,
     out: np.ndarray | TiledImageWriter | None = None,
-    scheduler: Scheduler = Scheduler.SERIAL,
+    scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: ProgressFn | None = None,
 ) -> np.ndarray | TiledImageWriter:
     """Apply a per-pixel-window function tile by tile and stitch the tile cores.
@@ -242,14 +275,6 @@ def map_tiles(
     info = image_info(path)
     state: dict = {"out": out}
 
-    def job(win: TileWindow, pixels: np.ndarray) -> np.ndarray:
-        res = np.asarray(func(pixels))
-        if res.shape[:2] != pixels.shape[:2]:
-            raise TerrathemeError(
-                f"tile function returned shape {res.shape} for a {pixels.shape[:2]} tile"
-            )
-        return np.ascontiguousarray(res[win.core_in_read])
-
     def sink(win: TileWindow, core: np.ndarray) -> None:
         if state["out"] is None:
             state["out"] = np.empty((info.height, info.width, *core.shape[2:]), core.dtype)
@@ -259,9 +284,24 @@ def map_tiles(
         else:
             target[win.y : win.y + win.h, win.x : win.x + win.w] = core
 
-    run_tiles(path, job, sink, tile=tile, overlap=overlap, dtype=dtype, scheduler=scheduler,
-              progress=progress)
+    run_tiles(path, CoreOf(func), sink, tile=tile, overlap=overlap, dtype=dtype,
+              scheduler=scheduler, progress=progress)
     return state["out"]
+
+
+@dataclass(frozen=True)
+class CoreOf:
+    """The tile job of :func:`map_tiles`: ``func`` on the read window, cut to the tile's core."""
+
+    func: Callable[[np.ndarray], np.ndarray]
+
+    def __call__(self, win: TileWindow, pixels: np.ndarray) -> np.ndarray:
+        res = np.asarray(self.func(pixels))
+        if res.shape[:2] != pixels.shape[:2]:
+            raise TerrathemeError(
+                f"tile function returned shape {res.shape} for a {pixels.shape[:2]} tile"
+            )
+        return np.ascontiguousarray(res[win.core_in_read])
 
 
 def dask_image(
@@ -287,97 +327,3 @@ def dask_image(
             row.append(da.from_delayed(block, shape=(h, w, info.channels), dtype=want))
         rows.append(da.concatenate(row, axis=1))
     return da.concatenate(rows, axis=0)
-
-
-class TiledImageWriter:
-    """Write a large image tile by tile through OpenImageIO (bounded memory).
-
-    Use as a context manager; the file appears (atomically renamed) on a
-    clean exit only. Regions passed to :meth:`write` must start on tile
-    boundaries; their width and height are multiples of the tile size except
-    at the right and bottom edges.
-
-    Parameters
-    ----------
-    path : path-like
-        ``.tif`` / ``.tiff`` / ``.exr``.
-    width, height, channels : int
-    dtype : numpy dtype
-    tile : int
-        Square tile size of the file (a multiple of 16 for TIFF).
-    compression : str, optional
-        e.g. ``"zip"`` (default), ``"lzw"``, ``"none"``.
-    bigtiff : bool
-        Write BigTIFF (needed past 4 GiB).
-    attributes : dict, optional
-        Extra ImageSpec attributes.
-    """
-
-    def __init__(
-        self,
-        path: str | os.PathLike,
-        width: int,
-        height: int,
-        channels: int,
-        dtype: np.dtype | str = np.uint8,
-        *,
-        tile: int = 256,
-        compression: str | None = "zip",
-        bigtiff: bool = False,
-        attributes: dict | None = None,
-    ) -> None:
-        self.path = Path(path)
-        self.dtype = np.dtype(dtype)
-        if self.dtype not in OIIO_PIXEL_TYPES:
-            raise TerrathemeError(f"cannot write {path}: pixel type {self.dtype} not supported")
-        if width < 1 or height < 1 or channels < 1:
-            raise TerrathemeError(f"cannot write {path}: {width} x {height} x {channels} is empty")
-        self.spec = oiio.ImageSpec(width, height, channels, OIIO_PIXEL_TYPES[self.dtype])
-        self.spec.tile_width = self.spec.tile_height = int(tile)
-        if compression:
-            self.spec.attribute("compression", compression)
-        if bigtiff:
-            self.spec.attribute("tiff:bigtiff", 1)
-        for key, value in (attributes or {}).items():
-            self.spec.attribute(key, value)
-        self._ctx = None
-        self._out = None
-
-    def __enter__(self) -> TiledImageWriter:
-        self._ctx = atomic_path(self.path)
-        tmp = self._ctx.__enter__()
-        out = oiio.ImageOutput.create(str(self.path))
-        if out is None or not out.supports("tiles"):
-            self._ctx.__exit__(TerrathemeError, None, None)
-            raise TerrathemeError(f"cannot write {self.path} tiled: format has no tiles")
-        if not out.open(str(tmp), self.spec):
-            err = out.geterror().strip()
-            self._ctx.__exit__(TerrathemeError, None, None)
-            raise TerrathemeError(f"cannot write {self.path}: {err}")
-        self._out = out
-        return self
-
-    def write(self, x: int, y: int, pixels: np.ndarray) -> None:
-        """Write ``pixels`` ``(h, w[, C])`` with its top-left corner at column ``x``, row ``y``."""
-        arr = np.asarray(pixels)
-        if arr.ndim == 2:
-            arr = arr[:, :, None]
-        h, w = arr.shape[:2]
-        s = self.spec
-        if arr.shape[2] != s.nchannels or x % s.tile_width or y % s.tile_height:
-            raise TerrathemeError(
-                f"{self.path}: region at ({x}, {y}) of shape {arr.shape} does not match "
-                f"{s.nchannels} channels on a {s.tile_width}-pixel tile grid"
-            )
-        arr = np.ascontiguousarray(arr, dtype=self.dtype)
-        if not self._out.write_tiles(x, x + w, y, y + h, 0, 1, arr):
-            raise TerrathemeError(f"cannot write {self.path}: {self._out.geterror().strip()}")
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        ok = self._out.close()
-        if exc_type is None and not ok:
-            err = TerrathemeError(f"cannot finish {self.path}: {oiio.geterror().strip()}")
-            self._ctx.__exit__(TerrathemeError, err, None)
-            raise err
-        # On success the temporary file is renamed; on an exception it is removed.
-        self._ctx.__exit__(exc_type, exc, tb)

@@ -1,0 +1,264 @@
+"""Tile jobs on a dask.distributed cluster: connect or start one, run tasks in order, bounded.
+
+A conversion tile by tile is a map of one pure function over tile windows;
+:func:`map_ordered` runs it on a ``distributed.Client``:
+
+* what every task shares (the classifier, the grid, the themes) is
+  scattered to the workers once (``broadcast``), never embedded in each task;
+* at most ``in_flight`` tasks are submitted or held at a time, so the
+  results waiting on the client are bounded whatever the number of tiles;
+* results reach ``sink`` in item order (stitching stays deterministic);
+* a worker that dies loses nothing: the scheduler runs its tasks again on
+  another worker (``distributed.scheduler.allowed-failures`` times, then the
+  tile is reported as killing workers, in one line).
+
+Workers read the photo themselves, from its path: they must see the same
+file at the same absolute path (one machine, or a shared file system), and
+run the client's terratheme; :func:`check_workers` checks both before any
+work.
+
+:func:`local_cluster` starts worker processes on this machine (one thread
+each); :func:`connect` joins an existing scheduler. Every task runs with
+numba's and OpenCV's thread pools at one thread: a worker thread is a core,
+so give a machine's workers as many threads in all as it has cores
+(``dask worker SCHEDULER --nworkers auto --nthreads 1``).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from core.errors import TerrathemeError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+#: seconds to wait for a scheduler to answer, and for its first worker
+CONNECT_TIMEOUT = 20.0
+#: tasks in flight per worker thread (one running, one queued behind it)
+IN_FLIGHT_PER_THREAD = 2
+
+
+def _one_thread(func: Callable[[Any, Any], Any], item: Any, shared: Any) -> Any:
+    """Run one task with numba's and OpenCV's pools at one thread: a worker thread is a core."""
+    import cv2
+    import numba
+
+    # numba's count is per calling thread; OpenCV's per process (one task per thread).
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
+    return func(item, shared)
+
+
+def local_cluster(workers: int, threads: int = 1) -> Client:
+    """A client of a new local cluster of ``workers`` processes (closing it stops them).
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes (at least 1).
+    threads : int
+        Threads per worker (tasks at a time; each task runs on one thread).
+
+    Returns
+    -------
+    distributed.Client
+        Use it as a context manager, or call ``close()``.
+    """
+    if int(workers) < 1 or int(threads) < 1:
+        raise TerrathemeError(f"a local cluster needs at least 1 worker of 1 thread, got "
+                              f"{workers} x {threads}")
+    from distributed import Client
+
+    return Client(n_workers=int(workers), threads_per_worker=int(threads), processes=True,
+                  dashboard_address=None, silence_logs=logging.ERROR)
+
+
+def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
+    """A client of the running dask scheduler at ``address`` (``tcp://host:port``).
+
+    Raises
+    ------
+    TerrathemeError
+        The scheduler does not answer within ``timeout`` seconds, or has no worker.
+    """
+    from distributed import Client
+
+    try:
+        client = Client(address, timeout=timeout)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise TerrathemeError(f"cannot reach the dask scheduler at {address}: {reason}") from None
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise TerrathemeError(f"the dask scheduler at {address} has no worker "
+                              f"(waited {timeout:g} s)") from exc
+    return client
+
+
+def code_fingerprint() -> tuple[str, str]:
+    """``(sha256 of every core/*.py, where core lives)``: which terratheme this process runs."""
+    import hashlib
+    from pathlib import Path
+
+    import core
+
+    root = Path(core.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest(), str(root)
+
+
+def check_workers(client: Client, path: str) -> None:
+    """Refuse, in one line, a cluster whose workers run another terratheme or cannot read ``path``.
+
+    Every worker must run the client's code (the same ``core`` sources: the
+    result must be the serial run's) and open ``path`` (workers read the
+    photo themselves, from its absolute path).
+    """
+    ours, _ = code_fingerprint()
+    try:
+        theirs = client.run(code_fingerprint)
+        seen = client.run(os.access, path, os.R_OK)
+    except Exception as exc:
+        # A worker without terratheme (or an older one) cannot even unpickle the check.
+        reason = " ".join(str(exc).split())[:120]
+        raise TerrathemeError(f"a dask worker cannot run terratheme ({reason}): install the "
+                              "same terratheme on every worker") from None
+    if not seen:
+        raise TerrathemeError("the dask cluster has no worker")
+    other = sorted((addr, where) for addr, (digest, where) in theirs.items() if digest != ours)
+    if other:
+        raise TerrathemeError(f"dask worker {other[0][0]} runs another terratheme (core at "
+                              f"{other[0][1]}; {len(other)} of {len(theirs)} workers): install "
+                              "the client's version on every worker")
+    blind = sorted(addr for addr, ok in seen.items() if not ok)
+    if blind:
+        raise TerrathemeError(f"{path}: dask worker {blind[0]} cannot read it "
+                              f"({len(blind)} of {len(seen)} workers): workers read the photo "
+                              "from its path, so it must be on a file system they all see")
+
+
+def _import_all(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
+
+
+def warm_up(client: Client, modules: Sequence[str]) -> None:
+    """Start importing ``modules`` on every worker and return at once.
+
+    A fresh worker spends seconds importing terratheme's stack before its
+    first tile; started early, that overlaps the client's own serial work.
+    """
+    from distributed import fire_and_forget
+
+    # One task pinned to each worker (a task, not client.run: it must not block the
+    # worker's event loop); nobody waits for them.
+    for address in client.nthreads():
+        fire_and_forget(client.submit(_import_all, tuple(modules), workers=[address],
+                                      allow_other_workers=False, pure=False))
+
+
+def worker_threads(client: Client) -> int:
+    """Worker threads of the cluster now (at least 1)."""
+    return max(1, sum(client.nthreads().values()))
+
+
+def _remote_error(exc: BaseException, what: str) -> BaseException:
+    """A task's failure as the caller sees it: ours as they are, the rest in one line."""
+    from distributed import KilledWorker
+
+    if isinstance(exc, TerrathemeError):
+        return exc
+    if isinstance(exc, KilledWorker):
+        return TerrathemeError(f"{what} killed every dask worker that ran it (out of memory? "
+                               "try a smaller --tile)")
+    if isinstance(exc, ImportError):
+        return TerrathemeError(f"a dask worker cannot run terratheme ({exc}): install the same "
+                               "terratheme on every worker")
+    return exc
+
+
+def map_ordered(
+    client: Client,
+    func: Callable[[Any, Any], Any],
+    items: Sequence[Any],
+    shared: Any,
+    sink: Callable[[Any, Any], None],
+    *,
+    in_flight: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    describe: Callable[[Any], str] = repr,
+) -> int:
+    """Run ``func(item, shared)`` for every item on the cluster; ``sink(item, result)`` in order.
+
+    Parameters
+    ----------
+    client : distributed.Client
+    func : callable(item, shared) -> result
+        A module-level function (workers import it by name); it runs with
+        numba and OpenCV on one thread.
+    items : sequence
+        Small, picklable task descriptions (tile windows).
+    shared : object
+        Everything the tasks share; sent to every worker once.
+    sink : callable(item, result)
+        Called in this process, in item order.
+    in_flight : int, optional
+        Most tasks submitted and not yet sunk (default: ``IN_FLIGHT_PER_THREAD``
+        per worker thread).
+    progress : callable(done, total), optional
+    describe : callable(item) -> str
+        Names an item in error messages.
+
+    Returns
+    -------
+    n_items : int
+    """
+    from distributed import as_completed
+
+    total = len(items)
+    if total == 0:
+        return 0
+    limit = max(1, int(in_flight) if in_flight else IN_FLIGHT_PER_THREAD * worker_threads(client))
+    # Everything the tasks share goes to every worker once.
+    (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
+    pending = as_completed()
+    live: dict[str, tuple[int, Any]] = {}
+    ready: dict[int, Any] = {}
+    submitted = sunk = 0
+    try:
+        while sunk < total:
+            # Keep ``limit`` tasks between submission and the sink.
+            while submitted < total and submitted - sunk < limit:
+                fut = client.submit(_one_thread, func, items[submitted], shared_ref,
+                                    pure=False)
+                live[fut.key] = (submitted, fut)
+                pending.add(fut)
+                submitted += 1
+            fut = next(pending)
+            i, _ = live.pop(fut.key)
+            try:
+                ready[i] = fut.result()
+            except Exception as exc:
+                # Re-raised as the caller should see it (ours as they are, the rest named).
+                raise _remote_error(exc, f"tile {describe(items[i])}") from None
+            fut.release()
+            # Results reach the sink in item order.
+            while sunk in ready:
+                sink(items[sunk], ready.pop(sunk))
+                sunk += 1
+                if progress is not None:
+                    progress(sunk, total)
+    finally:
+        # Nothing of this run stays on the cluster, whatever stopped it.
+        client.cancel([fut for _, fut in live.values()] + [shared_ref])
+    return total

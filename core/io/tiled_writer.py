@@ -1,0 +1,107 @@
+"""Writing an image larger than memory tile by tile (OpenImageIO tiled TIFF/EXR, BigTIFF)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+from core.errors import TerrathemeError
+from core.io.atomic import atomic_path
+from core.io.images import OIIO_PIXEL_TYPES
+
+
+class TiledImageWriter:
+    """Write a large image tile by tile through OpenImageIO (bounded memory).
+
+    Use as a context manager; the file appears (atomically renamed) on a
+    clean exit only. Regions passed to :meth:`write` must start on tile
+    boundaries; their width and height are multiples of the tile size except
+    at the right and bottom edges.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.tif`` / ``.tiff`` / ``.exr``.
+    width, height, channels : int
+    dtype : numpy dtype
+    tile : int
+        Square tile size of the file (a multiple of 16 for TIFF).
+    compression : str, optional
+        e.g. ``"zip"`` (default), ``"lzw"``, ``"none"``.
+    bigtiff : bool
+        Write BigTIFF (needed past 4 GiB).
+    attributes : dict, optional
+        Extra ImageSpec attributes.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        width: int,
+        height: int,
+        channels: int,
+        dtype: np.dtype | str = np.uint8,
+        *,
+        tile: int = 256,
+        compression: str | None = "zip",
+        bigtiff: bool = False,
+        attributes: dict | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.dtype = np.dtype(dtype)
+        if self.dtype not in OIIO_PIXEL_TYPES:
+            raise TerrathemeError(f"cannot write {path}: pixel type {self.dtype} not supported")
+        if width < 1 or height < 1 or channels < 1:
+            raise TerrathemeError(f"cannot write {path}: {width} x {height} x {channels} is empty")
+        self.spec = oiio.ImageSpec(width, height, channels, OIIO_PIXEL_TYPES[self.dtype])
+        self.spec.tile_width = self.spec.tile_height = int(tile)
+        if compression:
+            self.spec.attribute("compression", compression)
+        if bigtiff:
+            self.spec.attribute("tiff:bigtiff", 1)
+        for key, value in (attributes or {}).items():
+            self.spec.attribute(key, value)
+        self._ctx = None
+        self._out = None
+
+    def __enter__(self) -> TiledImageWriter:
+        self._ctx = atomic_path(self.path)
+        tmp = self._ctx.__enter__()
+        out = oiio.ImageOutput.create(str(self.path))
+        if out is None or not out.supports("tiles"):
+            self._ctx.__exit__(TerrathemeError, None, None)
+            raise TerrathemeError(f"cannot write {self.path} tiled: format has no tiles")
+        if not out.open(str(tmp), self.spec):
+            err = out.geterror().strip()
+            self._ctx.__exit__(TerrathemeError, None, None)
+            raise TerrathemeError(f"cannot write {self.path}: {err}")
+        self._out = out
+        return self
+
+    def write(self, x: int, y: int, pixels: np.ndarray) -> None:
+        """Write ``pixels`` ``(h, w[, C])`` with its top-left corner at column ``x``, row ``y``."""
+        arr = np.asarray(pixels)
+        if arr.ndim == 2:
+            arr = arr[:, :, None]
+        h, w = arr.shape[:2]
+        s = self.spec
+        if arr.shape[2] != s.nchannels or x % s.tile_width or y % s.tile_height:
+            raise TerrathemeError(
+                f"{self.path}: region at ({x}, {y}) of shape {arr.shape} does not match "
+                f"{s.nchannels} channels on a {s.tile_width}-pixel tile grid"
+            )
+        arr = np.ascontiguousarray(arr, dtype=self.dtype)
+        if not self._out.write_tiles(x, x + w, y, y + h, 0, 1, arr):
+            raise TerrathemeError(f"cannot write {self.path}: {self._out.geterror().strip()}")
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        ok = self._out.close()
+        if exc_type is None and not ok:
+            err = TerrathemeError(f"cannot finish {self.path}: {oiio.geterror().strip()}")
+            self._ctx.__exit__(TerrathemeError, err, None)
+            raise err
+        # On success the temporary file is renamed; on an exception it is removed.
+        self._ctx.__exit__(exc_type, exc, tb)

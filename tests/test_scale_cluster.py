@@ -1,0 +1,211 @@
+"""Tile jobs on a dask.distributed cluster of worker processes: the serial result, bit for bit.
+
+A ``LocalCluster`` of 2 worker processes is started here (the workers import
+terratheme and read the photo from its path, as on a real cluster). The
+quick tests share one cluster; the slow ones compare a whole conversion and
+kill a worker half way.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from core.convert.tile_vote import PredictLabels
+from core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
+from core.errors import TerrathemeError
+from core.io.cluster import check_workers, connect, local_cluster, map_ordered, warm_up
+from core.io.images import read_image, write_image
+from core.io.tiles import Scheduler, run_tiles
+from core.packing import pack
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SAMPLE = os.path.join(REPO, "sample_maps", "dubai_marina.jpg")
+
+
+def brightest(pixels: np.ndarray) -> np.ndarray:
+    """A per-pixel classifier (module level: workers import it by name): brightest channel."""
+    return np.argmax(pixels[..., :3], axis=2).astype(np.uint8) + 1
+
+
+def refuse_right_half(win, pixels: np.ndarray) -> int:
+    """A tile job that fails, as a damaged tile would, right of column 64."""
+    if win.x >= 64:
+        raise TerrathemeError(f"tile at {win.x}: refused")
+    return int(pixels.sum())
+
+
+def per_process_fingerprint() -> tuple[str, str]:
+    """Stands for another terratheme on every other process."""
+    return str(os.getpid()), f"/elsewhere/{os.getpid()}/core"
+
+
+def square(item: int, shared: int) -> int:
+    return item * item + shared
+
+
+def _photo(path, h=160, w=224, seed=3):
+    rng = np.random.default_rng(seed)
+    coarse = rng.integers(0, 256, (h // 16 + 1, w // 16 + 1, 3), dtype=np.uint8)
+    img = np.kron(coarse, np.ones((16, 16, 1), np.uint8))[:h, :w]
+    img = np.clip(img.astype(int) + rng.integers(-30, 30, img.shape), 0, 255).astype(np.uint8)
+    write_image(path, img, **({"tile": 32} if str(path).endswith(".tif") else {}))
+    return img
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with local_cluster(2) as client:
+        yield client
+
+
+def _same_project(a, b) -> None:
+    assert np.array_equal(a.grid.indices, b.grid.indices)
+    assert a.grid.cell == b.grid.cell
+    assert a.library.names == b.library.names
+    for ta, tb in zip(a.library.textures, b.library.textures, strict=True):
+        assert np.array_equal(ta, tb)
+    assert (a.colour_map is None) == (b.colour_map is None)
+    if a.colour_map is not None:
+        assert a.colour_map.data == b.colour_map.data
+        assert np.array_equal(a.colour_map.pixels, b.colour_map.pixels)
+    assert pack(a.grid.indices, curve="auto").to_bytes() == \
+        pack(b.grid.indices, curve="auto").to_bytes()
+
+
+def test_cluster_grid_equals_serial_grid(tmp_path, cluster):
+    path = tmp_path / "photo.tif"
+    _photo(path)
+    serial = grid_from_file(path, (8, 6), brightest, tile=48, overlap=5)
+    seen = []
+    on_cluster = grid_from_file(path, (8, 6), brightest, tile=48, overlap=5, scheduler=cluster,
+                                progress=lambda d, t: seen.append((d, t)))
+    assert np.array_equal(on_cluster.indices, serial.indices)
+    # Both workers took tiles; progress runs 0..total in order.
+    total = seen[-1][1]
+    assert [d for d, _ in seen] == list(range(total + 1)) and total > 4
+    assert len(cluster.nthreads()) == 2
+
+
+@pytest.mark.slow
+def test_cluster_conversion_equals_serial(tmp_path, cluster):
+    path = tmp_path / "photo.tif"
+    write_image(path, read_image(SAMPLE)[:320, :384, :3], tile=64)
+    serial = convert_file_tiled(path, None, 16, tile=128)
+    on_cluster = convert_file_tiled(path, None, 16, tile=128, scheduler=cluster)
+    assert serial.colour_map is not None
+    _same_project(serial, on_cluster)
+
+
+def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
+    # Warming the workers up queues one import task each, ahead of the run.
+    warm_up(cluster, ["core.convert.tiled"])
+    got = []
+    n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
+                    in_flight=3)
+    assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
+
+
+def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
+    path = tmp_path / "photo.png"
+    _photo(path, 96, 128)
+    with pytest.raises(TerrathemeError, match="tile at 64: refused"):
+        run_tiles(path, refuse_right_half, lambda w, r: None, tile=64, scheduler=cluster)
+
+
+def test_a_file_the_workers_cannot_read_is_refused_first(tmp_path, cluster):
+    with pytest.raises(TerrathemeError, match=r"cannot read it \(2 of 2 workers\).*file system"):
+        check_workers(cluster, str(tmp_path / "elsewhere.tif"))
+
+
+def test_workers_running_other_code_are_refused_first(tmp_path, cluster, monkeypatch):
+    import core.io.cluster as cl
+
+    path = tmp_path / "photo.png"
+    _photo(path, 64, 64)
+    monkeypatch.setattr(cl, "code_fingerprint", per_process_fingerprint)
+    with pytest.raises(TerrathemeError, match=r"runs another terratheme \(core at /elsewhere/"
+                                              r".*2 of 2 workers\): install"):
+        convert_file_tiled(path, None, 8, tile=32, scheduler=cluster)
+
+
+def test_connect_errors_are_one_line():
+    from distributed import LocalCluster
+
+    with pytest.raises(TerrathemeError, match="cannot reach the dask scheduler at tcp://"):
+        connect("tcp://127.0.0.1:1", timeout=0.5)
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as empty:
+        with pytest.raises(TerrathemeError, match="has no worker"):
+            connect(empty.scheduler_address, timeout=0.5)
+    with pytest.raises(TerrathemeError, match="at least 1 worker"):
+        local_cluster(0)
+
+
+@pytest.mark.slow
+def test_killing_a_worker_mid_run_gives_the_same_result(tmp_path):
+    path = tmp_path / "photo.tif"
+    write_image(path, read_image(SAMPLE)[..., :3], tile=64)
+    model = fit_unsupervised_file(path)
+    classify = PredictLabels(model)
+    overlap = model.context_pixels
+    serial = grid_from_file(path, 16, classify, tile=160, overlap=overlap)
+    with local_cluster(2) as client:
+        pids = client.run(os.getpid)
+        victim = sorted(pids.values())[0]
+        killed = []
+
+        def kill_once(done: int, total: int) -> None:
+            # Two tiles in, one worker dies with its tiles in flight.
+            if done == 2 and not killed:
+                os.kill(victim, signal.SIGKILL)
+                killed.append(total)
+
+        on_cluster = grid_from_file(path, 16, classify, tile=160, overlap=overlap,
+                                    scheduler=client, progress=kill_once)
+        assert killed and killed[0] > 8
+        assert victim not in client.run(os.getpid).values()
+    assert np.array_equal(on_cluster.indices, serial.indices)
+
+
+@pytest.mark.slow
+def test_cli_on_local_workers_writes_the_serial_outputs(tmp_path):
+    from app.cli import main
+
+    path = tmp_path / "photo.tif"
+    write_image(path, read_image(SAMPLE)[..., :3], tile=64)
+    assert main(["convert", str(path), str(tmp_path / "s.ttproj"), "--tile", "256"]) == 0
+    assert main(["convert", str(path), str(tmp_path / "w.ttproj"), "--tile", "256",
+                 "--workers", "2"]) == 0
+    for suffix in (".ttpack", "_colour.webp", "_preview.png"):
+        assert (tmp_path / f"s{suffix}").read_bytes() == (tmp_path / f"w{suffix}").read_bytes()
+    from core.model.project import load_project
+
+    _same_project(load_project(tmp_path / "s.ttproj"), load_project(tmp_path / "w.ttproj"))
+
+
+def test_cli_refuses_cluster_options_without_tiles(tmp_path, capsys):
+    from app.cli import main
+
+    path = tmp_path / "photo.png"
+    _photo(path, 64, 64)
+    out = str(tmp_path / "o.ttproj")
+    assert main(["convert", str(path), out, "--workers", "2"]) == 2
+    assert "give --tile N" in capsys.readouterr().err
+    assert main(["convert", str(path), out, "--tile", "32", "--workers", "2",
+                 "--scheduler", "tcp://127.0.0.1:1"]) == 2
+    assert "pick one" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["convert", str(path), out, "--tile", "32", "--workers", "0"])
+    assert exc.value.code == 2 and "--workers must be in [1, 1024]" in capsys.readouterr().err
+    assert not (tmp_path / "o.ttproj").exists()
+
+
+def test_serial_and_threaded_schedulers_unchanged(tmp_path):
+    path = tmp_path / "photo.tif"
+    _photo(path)
+    a = grid_from_file(path, 8, brightest, tile=40, overlap=3)
+    b = grid_from_file(path, 8, brightest, tile=40, overlap=3, scheduler=Scheduler.DASK)
+    assert np.array_equal(a.indices, b.indices)
