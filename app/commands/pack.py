@@ -11,7 +11,9 @@ ORDER = 50
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``terratheme pack``."""
-    parser.add_argument("input", metavar="IN", help="index or palette image (PNG, TIFF, ...)")
+    parser.add_argument("input", metavar="IN",
+                        help="index or palette image (PNG, TIFF, ...); a palette PNG's indices "
+                             "are packed, its colours kept for display")
     parser.add_argument("output", metavar="OUT", help="packed layer file to write")
     parser.add_argument("--curve", choices=["hilbert", "morton", "auto"], default="hilbert",
                         help="scan curve; auto keeps whichever gives fewer runs (default hilbert)")
@@ -25,17 +27,20 @@ def run(args: argparse.Namespace) -> int:
     """Pack ``args.input`` into ``args.output`` and print a one-line summary."""
     from tqdm import tqdm
 
-    from core.io.images import read_image
+    from app.outputs import check_outputs
     from core.packing import pack
+    from core.packing.index_png import read_index_image
 
-    image = read_image(args.input)
+    check_outputs([args.output], inputs=[args.input])
+    image, colours = read_index_image(args.input)
     with tqdm(total=1, desc="pack", unit="curve", leave=False) as bar:
         def progress(done: int, total: int) -> None:
             bar.total = total
             bar.n = done
             bar.refresh()
 
-        layer = pack(image, args.curve, reduce_palette=args.reduce_palette, progress=progress)
+        layer = pack(image, args.curve, reduce_palette=args.reduce_palette, colours=colours,
+                     progress=progress)
     size = layer.save(args.output, format=args.format)
     h, w = layer.height, layer.width
     print(f"{args.output}: {w} x {h}, {layer.curve.name.lower()} curve, "

@@ -18,15 +18,17 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from core.curves.steps import BlockPlan, Curve, block_plan
+from core.curves.plan import BlockPlan, block_plan
+from core.curves.square import Curve
 from core.errors import TerrathemeError
 
 
 @numba.njit(cache=True, nogil=True)
-def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, values, count,
-                 cur, last):  # pragma: no cover - numba
+def _runs_kernel(keys, ox, oy, width, height, b, bx, by, state, first_step, patterns, j0, j1,
+                 steps, values, count, cur, last):  # pragma: no cover - numba
+    # Blocks j0 .. j1-1 of a width x height image whose texels are in ``keys``, a window
+    # with its top-left texel at column ox, row oy that holds those blocks' texels.
     # Resumable: stops before a block that might overflow ``steps``; returns where it stopped.
-    h, w = keys.shape
     side = 1 << b
     mask = side - 1
     cap = steps.size
@@ -37,14 +39,14 @@ def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, va
         y0 = np.int64(by[j]) * side
         st = state[j]
         base = np.uint64(first_step[j])
-        full = x0 + side <= w and y0 + side <= h
+        full = x0 + side <= width and y0 + side <= height
         for i in range(side * side):
             p = np.int64(patterns[st, i])
             x = x0 + (p & mask)
             y = y0 + (p >> b)
-            if not full and (x >= w or y >= h):
+            if not full and (x >= width or y >= height):
                 continue
-            v = keys[h - 1 - y, x]
+            v = keys[height - 1 - y - oy, x - ox]
             # A value change closes the current run at the previous texel's step.
             if v != cur:
                 steps[count] = last
@@ -56,35 +58,44 @@ def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, va
 
 
 @numba.njit(cache=True, nogil=True)
-def _fill_kernel(out, steps, values, b, bx, by, state, first_step, patterns, j0, j1,
-                 r):  # pragma: no cover - numba
-    # Blocks j0 .. j1-1; r = first run that ends at or after block j0's first step.
-    h, w = out.shape
+def _fill_kernel(out, ox, oy, width, height, steps, values, b, bx, by, state, first_step,
+                 patterns, blocks, starts):  # pragma: no cover - numba
+    # The texels of blocks ``blocks`` that fall in ``out``, a window of a width x height
+    # image with its top-left texel at column ox, row oy; starts[k] = first run that ends
+    # at or after the first step of block blocks[k].
+    wh, ww = out.shape
     side = 1 << b
     mask = side - 1
-    for j in range(j0, j1):
+    for k in range(blocks.size):
+        j = blocks[k]
+        r = starts[k]
         x0 = np.int64(bx[j]) * side
         y0 = np.int64(by[j]) * side
         st = state[j]
         base = np.uint64(first_step[j])
-        full = x0 + side <= w and y0 + side <= h
-        while np.uint64(steps[r]) < base:
-            r += 1
-        if full and np.uint64(steps[r]) >= base + np.uint64(side * side - 1):
+        # The block's rows from the top are height - y0 - side .. height - y0 - 1.
+        top = height - y0 - side - oy
+        left = x0 - ox
+        inside = (x0 + side <= width and y0 + side <= height and top >= 0 and left >= 0
+                  and top + side <= wh and left + side <= ww)
+        if inside and np.uint64(steps[r]) >= base + np.uint64(side * side - 1):
             # One run covers the whole block: fill its rectangle at once.
-            out[h - y0 - side: h - y0, x0: x0 + side] = values[r]
+            out[top: top + side, left: left + side] = values[r]
             continue
         for i in range(side * side):
             p = np.int64(patterns[st, i])
             x = x0 + (p & mask)
             y = y0 + (p >> b)
-            if not full and (x >= w or y >= h):
+            row = height - 1 - y - oy
+            col = x - ox
+            if not inside and (x >= width or y >= height or row < 0 or row >= wh
+                               or col < 0 or col >= ww):
                 continue
             # Advance to the run whose last step is at or after this texel's step.
             s = base + np.uint64(i)
             while np.uint64(steps[r]) < s:
                 r += 1
-            out[h - 1 - y, x] = values[r]
+            out[row, col] = values[r]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -221,7 +232,8 @@ def scan_runs(
         count, cur, last = 0, keys[_first_texel(plan, j, keys.shape)], np.uint64(0)
         while True:
             count, j, cur, last = _runs_kernel(
-                keys, *_plan_args(plan), j, j1, steps, values, count, cur, last)
+                keys, 0, 0, keys.shape[1], keys.shape[0], *_plan_args(plan), j, j1, steps,
+                values, count, cur, last)
             if j == j1:
                 break
             # Out of room: double the run arrays and resume at block j.
@@ -260,21 +272,57 @@ def fill_runs(
 
     ``steps[-1]`` must be the step of the image's last texel along the curve.
     """
+    return fill_window(steps, values, width, height, curve, 0, 0, width, height,
+                       threads=threads)
+
+
+def fill_window(
+    steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
+    x: int, y: int, w: int, h: int, *, out: np.ndarray | None = None, threads: int = 1,
+) -> np.ndarray:
+    """The ``w x h`` window at column ``x``, row ``y`` (row 0 = top) of the runs' image.
+
+    Only the curve blocks that meet the window are walked, so memory and work
+    follow the window, not the image (streamed unpacking reads bands this way).
+
+    Parameters
+    ----------
+    steps, values : (R,) ndarrays
+        Runs as :func:`scan_runs` returns them; ``steps[-1]`` is the image's last step.
+    out : (h, w) ndarray of ``values.dtype``, optional
+        Where to write (a band buffer reused between calls).
+    threads : int
+        The blocks are split into this many stretches filled at once.
+
+    Returns
+    -------
+    window : (h, w) ndarray of ``values.dtype``
+    """
+    if not (0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= width and y + h <= height):
+        raise TerrathemeError(
+            f"window x={x} y={y} w={w} h={h} is outside the {width} x {height} image")
     plan = block_plan(width, height, curve)
-    out = np.empty((height, width), dtype=values.dtype)
-    # Stretches of blocks filled at once; each starts at the run covering its first step.
-    cuts = np.linspace(0, plan.bx.size, max(1, min(threads, plan.bx.size)) + 1).astype(int)
-    firsts = np.searchsorted(steps, plan.first_step[np.minimum(cuts[:-1], plan.bx.size - 1)])
+    if out is None:
+        out = np.empty((h, w), dtype=values.dtype)
+    side = 1 << plan.b
+    # Blocks (y up) whose square meets the window's rows and columns.
+    y_lo, y_hi = height - (y + h), height - 1 - y
+    hit = ((plan.bx.astype(np.int64) * side < x + w) & ((plan.bx.astype(np.int64) + 1) * side > x)
+           & (plan.by.astype(np.int64) * side <= y_hi)
+           & ((plan.by.astype(np.int64) + 1) * side > y_lo))
+    blocks = np.flatnonzero(hit)
+    starts = np.searchsorted(steps, plan.first_step[blocks]).astype(np.int64)
+    parts = np.array_split(np.arange(blocks.size), max(1, min(int(threads), blocks.size)))
 
-    def one(k: int) -> None:
-        _fill_kernel(out, steps, values, *_plan_args(plan), int(cuts[k]), int(cuts[k + 1]),
-                     int(firsts[k]))
+    def one(part: np.ndarray) -> None:
+        _fill_kernel(out, int(x), int(y), int(width), int(height), steps, values,
+                     *_plan_args(plan), blocks[part], starts[part])
 
-    if cuts.size == 2:
-        one(0)
+    if len(parts) == 1:
+        one(parts[0])
     else:
-        with ThreadPoolExecutor(cuts.size - 1) as pool:
-            list(pool.map(one, range(cuts.size - 1)))
+        with ThreadPoolExecutor(len(parts)) as pool:
+            list(pool.map(one, parts))
     return out
 
 

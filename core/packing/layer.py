@@ -8,17 +8,18 @@ encodings of :mod:`core.packing.container`.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.curves.scan import fill_runs, ranks_to_steps, steps_to_ranks
-from core.curves.steps import Curve, curve_order
+from core.curves.scan import fill_runs, fill_window, ranks_to_steps, steps_to_ranks
+from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing.container import LayerFields, decode_layer, encode_layer
+from core.packing.layout import W_COUNT
 from core.packing.lookup import (
-    W_COUNT,
     build_table,
     lookup_batch,
     lookup_batch_parallel,
@@ -60,6 +61,10 @@ class PackedLayer:
         then drop the channel axis like numpy indexing of that array would.
     report : PaletteReport or None
         What palette reduction changed, when it was used.
+    colours : (K, 3) or (K, 4) uint8 ndarray or None
+        Display colours of an identity layer's indices (a palette PNG's table,
+        theme colours): what :func:`core.packing.export.write_layer_image`
+        shows; lookups still return the indices.
     threads : int
         Threads for batched lookups of at least ``PARALLEL_FROM`` texels
         (1 = always serial; ``dataclasses.replace(layer, threads=1)``).
@@ -76,6 +81,7 @@ class PackedLayer:
     _data: np.ndarray = field(repr=False)
     _scalars: list = field(repr=False)
     report: PaletteReport | None = None
+    colours: np.ndarray | None = None
     threads: int = 2
 
     # ------------------------------------------------------------ construction
@@ -85,6 +91,7 @@ class PackedLayer:
         cls, width: int, height: int, curve: str | Curve, steps: np.ndarray,
         indices: np.ndarray, palette: np.ndarray, *, identity: bool = False,
         squeeze: bool = False, report: PaletteReport | None = None, one_based: bool = False,
+        colours: np.ndarray | None = None,
     ) -> PackedLayer:
         """A layer from its runs ``D_i = <S_i, P_i>`` (seed Table 3).
 
@@ -97,12 +104,15 @@ class PackedLayer:
         indices : (R,) integer ndarray
             Palette index ``P_i`` of each run, ``< len(palette)``.
         palette : (K,) or (K, C) ndarray, uint8 or uint16
+        colours : (K', 3) or (K', 4) uint8 ndarray, optional
+            Display colours of an identity layer (``K' >= K``; the first ``K`` are kept).
 
         Raises
         ------
         TerrathemeError
             Runs that are not increasing, do not end at the image's last texel,
-            stop on a step outside the image, or use a palette index out of range.
+            stop on a step outside the image, use a palette index out of range,
+            or display colours that do not fit the palette.
         """
         curve = Curve.parse(curve)
         n = curve_order(width, height)
@@ -141,13 +151,14 @@ class PackedLayer:
         back = ranks_to_steps(ranks, width, height, curve)
         if not np.array_equal(back.astype(np.int64), steps):
             raise TerrathemeError("a run ends on a curve step outside the image")
+        colours = _check_colours(colours, palette.shape[0], identity)
         data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
         palette = np.ascontiguousarray(palette)
         palette.setflags(write=False)
         # What a scalar lookup returns for each palette index, ready-made (like image[y, x]).
         scalars = list(palette[:, 0]) if squeeze else list(palette)
         return cls(int(width), int(height), curve, palette, bool(identity), bool(squeeze),
-                   data, scalars, report)
+                   data, scalars, report, colours)
 
     @classmethod
     def from_lengths(
@@ -285,13 +296,47 @@ class PackedLayer:
         """
         steps, indices = table_runs(self._data)
         idx = fill_runs(steps, indices, self.width, self.height, self.curve)
-        if indices_only:
-            return idx
+        return idx if indices_only else self.values_of(idx)
+
+    def bands(self, rows: int = 256) -> Iterator[tuple[int, np.ndarray]]:
+        """The palette-index image in horizontal bands, top to bottom, with bounded memory.
+
+        Parameters
+        ----------
+        rows : int
+            Rows per band (the last band may be shorter).
+
+        Yields
+        ------
+        y : int
+            Row of the band's first line.
+        band : (h, width) uint8 ndarray
+            Palette indices; the same buffer is reused from band to band.
+        """
+        steps, indices = table_runs(self._data)
+        rows = max(1, int(rows))
+        buf = np.empty((min(rows, self.height), self.width), np.uint8)
+        for y in range(0, self.height, rows):
+            h = min(rows, self.height - y)
+            yield y, fill_window(steps, indices, self.width, self.height, self.curve, 0, y,
+                                 self.width, h, out=buf[:h], threads=self.threads)
+
+    def values_of(self, indices: np.ndarray) -> np.ndarray:
+        """Texel values of palette indices, shaped as :meth:`unpack` returns them.
+
+        Parameters
+        ----------
+        indices : (...) uint8 ndarray
+
+        Returns
+        -------
+        values : (...) or (..., C) ndarray of the palette's dtype
+        """
         if self.identity:
-            image = idx.astype(self.palette.dtype)
-            return image if self.squeeze else image[:, :, None]
-        image = self.palette[idx]
-        return image[:, :, 0] if self.squeeze else image
+            values = indices.astype(self.palette.dtype, copy=False)
+            return values if self.squeeze else values[..., None]
+        values = self.palette[indices]
+        return values[..., 0] if self.squeeze else values
 
     # ------------------------------------------------------------ files
 
@@ -309,8 +354,8 @@ class PackedLayer:
     def to_bytes(self, *, format: str = "compact") -> bytes:
         """The file content :meth:`save` would write."""
         return encode_layer(LayerFields(self.width, self.height, self.curve, self.lengths,
-                                        self.P, self.palette, self.identity, self.squeeze),
-                            format)
+                                        self.P, self.palette, self.identity, self.squeeze,
+                                        self.colours), format)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PackedLayer:
@@ -336,8 +381,25 @@ class PackedLayer:
         f = decode_layer(data, name=name)
         try:
             return cls.from_lengths(f.width, f.height, f.curve, f.lengths, f.indices, f.palette,
-                                    identity=f.identity, squeeze=f.squeeze)
+                                    identity=f.identity, squeeze=f.squeeze, colours=f.colours)
         except CorruptFileError:
             raise
         except TerrathemeError as exc:
             raise CorruptFileError(f"{name}: {exc}") from None
+
+
+def _check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndarray | None:
+    """Display colours cut to the palette's ``k`` entries, read-only, or None."""
+    if colours is None:
+        return None
+    colours = np.asarray(colours)
+    if not identity:
+        raise TerrathemeError("display colours belong to index layers (identity palette) only")
+    if colours.ndim != 2 or colours.shape[1] not in (3, 4) or colours.shape[0] < k:
+        raise TerrathemeError(
+            f"display colours of shape {colours.shape}: ({k} or more, 3 or 4) expected")
+    if colours.dtype.kind not in "iu" or colours.min() < 0 or colours.max() > 255:
+        raise TerrathemeError("display colours must be 0..255 integers")
+    out = np.ascontiguousarray(colours[:k], dtype=np.uint8)
+    out.setflags(write=False)
+    return out

@@ -19,11 +19,17 @@ import numpy as np
 
 from core.curves.steps import HILBERT_TABLES, hilbert_step, morton_step
 from core.errors import TerrathemeError
-
-# Layout of the one uint32 array that holds a layer's random-access structure.
-HEAD_WORDS = 8
-W_WIDTH, W_HEIGHT, W_LEVELS, W_MORTON, W_SHIFT, W_DIR, W_RUNS, W_COUNT = range(HEAD_WORDS)
-TABLE_AT = HEAD_WORDS
+from core.packing.layout import (
+    TABLE_AT,
+    W_DIR,
+    W_HEIGHT,
+    W_LEVELS,
+    W_MORTON,
+    W_RUNS,
+    W_SHIFT,
+    W_WIDTH,
+    directory_shift,
+)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -141,12 +147,6 @@ def scalar_lookup_function():
         lookup_one.compile(sig)
         _SCALAR_CALL.append(lookup_one.overloads[sig].entry_point)
     return _SCALAR_CALL[0]
-
-
-def directory_shift(n: int, run_count: int) -> int:
-    """Block size (log2 steps) giving about one directory entry per 8 runs, at most 2^16."""
-    want = (1 << (2 * n)) * 8 / max(run_count, 1)
-    return int(min(16, 2 * n, max(0, int(np.ceil(np.log2(max(want, 1.0)))))))
 
 
 def build_table(

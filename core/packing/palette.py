@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.curves.scan import scan_runs
-from core.curves.steps import Curve, curve_order
+from core.curves.square import Curve, curve_order
 from core.errors import TerrathemeError
 
 MAX_COLOURS = 256

@@ -158,7 +158,10 @@ def decode_symbols(buf, count, n_used, depth, pair_context, sym):  # pragma: no 
         sym[i] = v
         p2 = p1
         p1 = v
-    return 1 if dec[2] > buf.size + 4 else 0
+        # Reading past the end: stop now, not after the run count the header claims.
+        if dec[2] > buf.size + 4:
+            return 1
+    return 0
 
 
 @numba.njit(cache=True, nogil=True)

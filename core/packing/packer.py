@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.curves.steps import Curve
+from core.curves.square import Curve
 from core.errors import TerrathemeError
 from core.packing import palette as _palette
 from core.packing.layer import PackedLayer
@@ -27,6 +27,7 @@ def pack(
     curve: str | CurveChoice | Curve = "hilbert",
     *,
     reduce_palette: bool = False,
+    colours: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> PackedLayer:
     """Pack an index image into runs along a space-filling curve.
@@ -40,6 +41,8 @@ def pack(
     reduce_palette : bool
         Reduce images with more than 256 colours (k-means) instead of refusing;
         ``layer.report`` then says how much the colours changed.
+    colours : (K, 3) or (K, 4) uint8 ndarray, optional
+        Display colours of an index image's values (e.g. a palette PNG's table).
     progress : callable(done, total), optional
 
     Returns
@@ -69,8 +72,11 @@ def pack(
             progress(i + 1, len(curves))
     c, runs = best
     h, w = arr.shape[:2]
+    if colours is not None and not runs.identity:
+        raise TerrathemeError("display colours need a single-channel index image (values < 256)")
     return PackedLayer.from_runs(w, h, c, runs.steps, runs.indices, runs.palette,
-                                 identity=runs.identity, squeeze=squeeze, report=report)
+                                 identity=runs.identity, squeeze=squeeze, report=report,
+                                 colours=colours)
 
 
 def _choice(curve: str | CurveChoice | Curve) -> CurveChoice:

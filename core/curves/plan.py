@@ -1,0 +1,101 @@
+"""The block plan of a whole-image scan along a curve (used by :mod:`core.curves.scan`).
+
+The scan (texel order along the curve) is cut into ``2^b x 2^b`` blocks: the
+coarse curve orders the blocks, and each block is walked with one of four
+precomputed local patterns. Every aligned ``2^g x 2^g`` square (``g >= b``) is
+a contiguous stretch of blocks, hence of curve steps: windows of a scan are
+stretches of the plan (:func:`window_blocks`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from core.curves.square import Curve, curve_order, hilbert_transposed
+from core.curves.steps import hilbert_d2xy, hilbert_xy2d, morton_d2xy, morton_xy2d
+
+#: log2 of the scan block side (64 x 64 texels per block, 4 Hilbert patterns).
+BLOCK_BITS = 6
+
+@dataclass(frozen=True)
+class BlockPlan:
+    """The blocks of ``2^b x 2^b`` texels that cover an image, in curve order.
+
+    Attributes
+    ----------
+    n, b : int
+        Curve levels of the square and of a block (``b <= n``).
+    bx, by : (nb,) int32 ndarrays
+        Block column and block row, ``by`` counted **up** from the bottom.
+    state : (nb,) uint8 ndarray
+        Local pattern of each block (index into ``patterns``).
+    first_step : (nb,) uint64 ndarray
+        0-based step of each block's first local step (``c * 4^b``).
+    patterns : (4, 4^b) uint16 ndarray
+        Local visiting order: entry ``i`` is ``(ly << b) | lx`` of local step ``i``, y up.
+    """
+
+    n: int
+    b: int
+    bx: np.ndarray
+    by: np.ndarray
+    state: np.ndarray
+    first_step: np.ndarray
+    patterns: np.ndarray
+
+
+@lru_cache(maxsize=8)
+def _patterns(b: int, curve: Curve) -> np.ndarray:
+    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated)."""
+    i = np.arange(4**b, dtype=np.uint64)
+    if curve is Curve.MORTON:
+        x, y = morton_d2xy(i, b)
+        one = ((y << b) | x).astype(np.uint16)
+        return np.ascontiguousarray(np.broadcast_to(one, (4, one.size)))
+    x, y = hilbert_d2xy(i, b)
+    out = np.empty((4, i.size), dtype=np.uint16)
+    side = (1 << b) - 1
+    for state in range(4):
+        # A block in state (swap, flip) is walked by T(d2xy(i)), T = swap^s o flip^f (self-inverse).
+        px, py = (side - x, side - y) if state & 2 else (x, y)
+        if state & 1:
+            px, py = py, px
+        out[state] = (py << b) | px
+    out.setflags(write=False)
+    return out
+
+
+def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
+    """Blocks of the enclosing square that meet the image, in curve order (cached)."""
+    return _block_plan(int(width), int(height), Curve.parse(curve))
+
+
+@lru_cache(maxsize=16)
+def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
+    n = curve_order(width, height)
+    b = min(n, BLOCK_BITS)
+    coarse = n - b
+    nbx = -(-width // (1 << b))
+    nby = -(-height // (1 << b))
+    # Coarse grid of blocks meeting the image (y up), then its coarse curve steps.
+    by, bx = np.mgrid[0:nby, 0:nbx]
+    bx = bx.ravel().astype(np.int64)
+    by = by.ravel().astype(np.int64)
+    if curve is Curve.HILBERT:
+        c, state = hilbert_xy2d(*((by, bx) if hilbert_transposed(n) else (bx, by)), coarse)
+        if hilbert_transposed(n):
+            # Transposed image curve: the local pattern is transposed too (swap bit).
+            state = state ^ np.uint8(1)
+    else:
+        c, state = morton_xy2d(bx, by, coarse), np.zeros(bx.shape, np.uint8)
+    order = np.argsort(c, kind="stable")
+    arrays = dict(
+        bx=bx[order].astype(np.int32), by=by[order].astype(np.int32),
+        state=state[order].astype(np.uint8), first_step=c[order] << np.uint64(2 * b),
+    )
+    for a in arrays.values():
+        a.setflags(write=False)
+    return BlockPlan(n=n, b=b, patterns=_patterns(b, curve), **arrays)
