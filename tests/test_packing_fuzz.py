@@ -33,13 +33,15 @@ WORKER = r"""
 import json, resource, struct, sys, time
 import numpy as np
 from core.errors import TerrathemeError
-from core.packing import PackedLayer, pack
+from core.packing import PackedLayer, TiledLayer, pack
 
 # Warm every kernel a load can reach (compiled code is loaded once per process).
 for fmt in ("seed", "compact"):
     for img in (np.arange(64, dtype=np.uint8).reshape(8, 8) % 3, np.zeros((40, 30), np.uint8)):
         layer = PackedLayer.from_bytes(pack(img).to_bytes(format=fmt))
         layer.lookup(1, 1); layer.lookup(np.arange(3), np.arange(3)); layer.unpack()
+        tiled = TiledLayer.from_bytes(pack(img, tile_bits=6).to_bytes(format=fmt))
+        tiled.lookup(np.arange(3), np.arange(3)); tiled.unpack()
 def vm():
     for line in open("/proc/self/status"):
         if line.startswith("VmSize:"):
@@ -56,8 +58,9 @@ while True:
     data = stdin.read(struct.unpack("<I", head)[0])
     t = time.perf_counter()
     try:
-        layer = PackedLayer.from_bytes(data)
-        layer.lookup(0, 0)
+        kind = TiledLayer if data[:4] == b"TTPT" else PackedLayer
+        layer = kind.from_bytes(data)
+        layer.lookup(np.zeros(1, np.int64), np.zeros(1, np.int64))
         outcome = "layer"
     except TerrathemeError:
         outcome = "error"
@@ -115,9 +118,25 @@ def _check(worker: Worker, data: bytes) -> str:
 def _refresh(body: bytes | bytearray) -> bytes:
     """A file body with its payload size and CRC made consistent (so decoders see it)."""
     body = bytearray(body)
+    if body[:4] == b"TTPT":
+        return _refresh_container(body)
     if len(body) >= 36:
         struct.pack_into("<Q", body, 28, max(0, len(body) - 36 - _palette_bytes(body)))
     return bytes(body) + struct.pack("<I", zlib.crc32(body))
+
+
+def _refresh_container(data: bytearray) -> bytes:
+    """A tiled container with its header-and-index checksum made right (where it can be)."""
+    if len(data) < 36:
+        return bytes(data)
+    flags, channels, sample, k = data[5], data[6], data[7], struct.unpack_from("<H", data, 8)[0]
+    tiles = struct.unpack_from("<I", data, 20)[0] * struct.unpack_from("<I", data, 24)[0]
+    pal = (0 if flags & 2 else k * channels * sample) + (k * (4 if flags & 8 else 3)
+                                                         if flags & 4 else 0)
+    at = 36 + pal + 16 * tiles
+    if at + 4 <= len(data):
+        struct.pack_into("<I", data, at, zlib.crc32(data[:at]))
+    return bytes(data)
 
 
 def _palette_bytes(body: bytes) -> int:
@@ -136,6 +155,9 @@ def _samples() -> list[bytes]:
              for fmt in ("seed", "compact")]
     files.append(pack(blocks, colours=np.array([[9, 9, 9], [200, 0, 0], [0, 200, 0],
                                                 [0, 0, 200]], np.uint8)).to_bytes())
+    wide = np.kron(rng.integers(0, 3, (3, 30)), np.ones((4, 4), int)).astype(np.uint8)
+    files += [pack(img, tile_bits=6).to_bytes(format=fmt) for img in (wide, colour[:, :, :3])
+              for fmt in ("seed", "compact")]
     return files
 
 
@@ -164,18 +186,32 @@ fuzz_long = settings(max_examples=3000, deadline=None, suppress_health_check=lis
 
 
 def _flip(data: bytes, where: int, bit: int, fix: bool) -> bytes:
+    if data[:4] == b"TTPT":
+        body = bytearray(data)
+        body[where % len(body)] ^= 1 << bit
+        return _refresh_container(body) if fix else bytes(body)
     body = bytearray(data[:-4])
     body[where % len(body)] ^= 1 << bit
     return _refresh(body) if fix else bytes(body) + data[-4:]
 
 
 def _insert(data: bytes, where: int, extra: bytes) -> bytes:
+    if data[:4] == b"TTPT":
+        where = where % len(data)
+        return _refresh_container(bytearray(data[:where] + extra + data[where:]))
     body = data[:-4]
     where = 36 + where % max(1, len(body) - 36)
     return _refresh(body[:where] + extra + body[where:])
 
 
 def _forge(data: bytes, fields: dict) -> bytes:
+    if data[:4] == b"TTPT":
+        # Container fields: size, tile side, grid, palette size.
+        body = bytearray(data)
+        for offset, fmt, value in fields.values():
+            offset = {4: 4, 5: 10, 7: 5, 8: 6, 10: 8, 12: 12, 16: 16, 20: 20}[offset]
+            struct.pack_into(fmt, body, offset, value % (1 << (8 * struct.calcsize(fmt))))
+        return _refresh_container(body)
     body = bytearray(data[:-4])
     for offset, fmt, value in fields.values():
         struct.pack_into(fmt, body, offset, value)

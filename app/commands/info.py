@@ -28,8 +28,11 @@ def run(args: argparse.Namespace) -> int:
     # The header, palette and checksum only: fast whatever the layer's size.
     info = dataclasses.asdict(layer_info(args.input))
     if args.runs:
+        from core.errors import TerrathemeError
         from core.packing import PackedLayer
 
+        if info["tiles"] > 1:
+            raise TerrathemeError(f"{args.input}: a tiled container; --runs lists one layer's runs")
         layer = PackedLayer.load(args.input)
         info["S"] = layer.S.tolist()
         info["P"] = layer.P.tolist()

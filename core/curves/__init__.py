@@ -2,8 +2,9 @@
 
 Modules: ``square`` (curve kinds, the enclosing square; no numba), ``steps``
 (the curves: scalar numba functions, array functions over them, texel <->
-step in image coordinates), ``plan`` (the block plan of a scan), ``scan``
-(whole-image and windowed scans along a curve: runs, fill, order, ranks).
+step in image coordinates), ``plan`` (the block plan of a scan, curve
+squares), ``scan`` (scans along a curve: runs, order, ranks), ``fill``
+(images, windows and squares back from runs).
 
 Names are loaded on first use, so importing :mod:`core.curves.square` (as
 file readers do) does not load numba.
@@ -28,10 +29,14 @@ __all__ = [
 
 def __getattr__(name: str) -> object:
     """The numba-backed functions, imported when first asked for (PEP 562)."""
-    if name in ("fill_runs", "scan_order", "scan_runs"):
+    if name in ("scan_order", "scan_runs"):
         from core.curves import scan
 
         return getattr(scan, name)
+    if name == "fill_runs":
+        from core.curves.fill import fill_runs
+
+        return fill_runs
     if name in ("step_table", "steps_of", "texels_of"):
         from core.curves import steps
 

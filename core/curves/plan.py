@@ -99,3 +99,58 @@ def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
     for a in arrays.values():
         a.setflags(write=False)
     return BlockPlan(n=n, b=b, patterns=_patterns(b, curve), **arrays)
+
+
+@dataclass(frozen=True)
+class CurveSquares:
+    """The aligned ``2^g x 2^g`` squares of an image's curve, in curve order.
+
+    Each square is a contiguous stretch of curve steps (Hilbert and Morton
+    alike), hence of plan blocks, so it can be scanned or filled alone.
+
+    Attributes
+    ----------
+    g : int
+        log2 of the side (at least the plan's block side, at most ``n``).
+    sx, sy : (m,) int64 ndarrays
+        Square coordinates, y up (square ``(0, 0)`` holds the bottom-left texel).
+    j0, j1 : (m,) int64 ndarrays
+        The plan blocks ``j0 .. j1 - 1`` of each square.
+    first_step : (m,) uint64 ndarray
+        Curve step of each square's first step.
+    """
+
+    g: int
+    sx: np.ndarray
+    sy: np.ndarray
+    j0: np.ndarray
+    j1: np.ndarray
+    first_step: np.ndarray
+
+    def rect(self, k: int, width: int, height: int) -> tuple[int, int, int, int]:
+        """``(x, y, w, h)`` of square ``k`` in image coordinates (row 0 = top), clipped."""
+        side = 1 << self.g
+        x0, y0 = int(self.sx[k]) * side, int(self.sy[k]) * side
+        x1, y1 = min(width, x0 + side), min(height, y0 + side)
+        return x0, height - y1, x1 - x0, y1 - y0
+
+
+def curve_squares(width: int, height: int, curve: str | Curve, g: int) -> CurveSquares:
+    """The squares of side ``2^g`` that meet a ``width x height`` image, in curve order."""
+    plan = block_plan(width, height, curve)
+    g = max(plan.b, min(int(g), plan.n))
+    k = g - plan.b
+    sx = plan.bx.astype(np.int64) >> k
+    sy = plan.by.astype(np.int64) >> k
+    # Squares are contiguous in plan order: a new square starts where the key changes.
+    key = sy * (1 << 32) + sx
+    starts = np.flatnonzero(np.diff(key, prepend=-1) != 0)
+    ends = np.append(starts[1:], key.size)
+    first = (plan.first_step[starts] >> np.uint64(2 * g)) << np.uint64(2 * g)
+    return CurveSquares(g, sx[starts], sy[starts], starts.astype(np.int64),
+                        ends.astype(np.int64), first)
+
+
+def plan_args(plan: BlockPlan) -> tuple:
+    """The plan as kernels take it: ``(b, bx, by, state, first_step, patterns)``."""
+    return (plan.b, plan.bx, plan.by, plan.state, plan.first_step, plan.patterns)

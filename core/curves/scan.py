@@ -1,4 +1,4 @@
-"""Whole-image scans along a curve: numba kernels over a :class:`core.curves.steps.BlockPlan`.
+"""Scans along a curve: numba kernels over a :class:`core.curves.plan.BlockPlan`.
 
 Each kernel walks the blocks of the plan in curve order and, inside a block,
 one of the precomputed local patterns, skipping texels outside the image (seed
@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from core.curves.plan import BlockPlan, block_plan
+from core.curves.plan import BlockPlan, CurveSquares, block_plan, plan_args
 from core.curves.square import Curve
 from core.errors import TerrathemeError
 
@@ -55,47 +55,6 @@ def _runs_kernel(keys, ox, oy, width, height, b, bx, by, state, first_step, patt
                 cur = v
             last = base + np.uint64(i)
     return count, j1, cur, last
-
-
-@numba.njit(cache=True, nogil=True)
-def _fill_kernel(out, ox, oy, width, height, steps, values, b, bx, by, state, first_step,
-                 patterns, blocks, starts):  # pragma: no cover - numba
-    # The texels of blocks ``blocks`` that fall in ``out``, a window of a width x height
-    # image with its top-left texel at column ox, row oy; starts[k] = first run that ends
-    # at or after the first step of block blocks[k].
-    wh, ww = out.shape
-    side = 1 << b
-    mask = side - 1
-    for k in range(blocks.size):
-        j = blocks[k]
-        r = starts[k]
-        x0 = np.int64(bx[j]) * side
-        y0 = np.int64(by[j]) * side
-        st = state[j]
-        base = np.uint64(first_step[j])
-        # The block's rows from the top are height - y0 - side .. height - y0 - 1.
-        top = height - y0 - side - oy
-        left = x0 - ox
-        inside = (x0 + side <= width and y0 + side <= height and top >= 0 and left >= 0
-                  and top + side <= wh and left + side <= ww)
-        if inside and np.uint64(steps[r]) >= base + np.uint64(side * side - 1):
-            # One run covers the whole block: fill its rectangle at once.
-            out[top: top + side, left: left + side] = values[r]
-            continue
-        for i in range(side * side):
-            p = np.int64(patterns[st, i])
-            x = x0 + (p & mask)
-            y = y0 + (p >> b)
-            row = height - 1 - y - oy
-            col = x - ox
-            if not inside and (x >= width or y >= height or row < 0 or row >= wh
-                               or col < 0 or col >= ww):
-                continue
-            # Advance to the run whose last step is at or after this texel's step.
-            s = base + np.uint64(i)
-            while np.uint64(steps[r]) < s:
-                r += 1
-            out[row, col] = values[r]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -195,10 +154,6 @@ def _steps_to_ranks_kernel(steps, h, w, b, bx, by, state, first_step, patterns):
     return out
 
 
-def _plan_args(plan: BlockPlan) -> tuple:
-    return (plan.b, plan.bx, plan.by, plan.state, plan.first_step, plan.patterns)
-
-
 def scan_runs(
     keys: np.ndarray, curve: str | Curve, *, threads: int = 2
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -232,7 +187,7 @@ def scan_runs(
         count, cur, last = 0, keys[_first_texel(plan, j, keys.shape)], np.uint64(0)
         while True:
             count, j, cur, last = _runs_kernel(
-                keys, 0, 0, keys.shape[1], keys.shape[0], *_plan_args(plan), j, j1, steps,
+                keys, 0, 0, keys.shape[1], keys.shape[0], *plan_args(plan), j, j1, steps,
                 values, count, cur, last)
             if j == j1:
                 break
@@ -247,11 +202,8 @@ def scan_runs(
     else:
         with ThreadPoolExecutor(len(parts)) as pool:
             results = list(pool.map(one, parts))
-    steps = np.concatenate([r[0] for r in results])
-    values = np.concatenate([r[1] for r in results])
     # Stitch: a run cut by a stretch boundary appears twice with one value; keep the later.
-    keep = np.append(values[1:] != values[:-1], True)
-    return (steps, values) if keep.all() else (steps[keep], values[keep])
+    return join_runs(results)
 
 
 def _first_texel(plan: BlockPlan, j: int, shape: tuple[int, int]) -> tuple[int, int]:
@@ -264,66 +216,51 @@ def _first_texel(plan: BlockPlan, j: int, shape: tuple[int, int]) -> tuple[int, 
     return h - 1 - int(y[i]), int(x[i])
 
 
-def fill_runs(
-    steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
-    *, threads: int = 2,
-) -> np.ndarray:
-    """Inverse of :func:`scan_runs`: the ``(height, width)`` image of the runs' values.
-
-    ``steps[-1]`` must be the step of the image's last texel along the curve.
-    """
-    return fill_window(steps, values, width, height, curve, 0, 0, width, height,
-                       threads=threads)
-
-
-def fill_window(
-    steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
-    x: int, y: int, w: int, h: int, *, out: np.ndarray | None = None, threads: int = 1,
-) -> np.ndarray:
-    """The ``w x h`` window at column ``x``, row ``y`` (row 0 = top) of the runs' image.
-
-    Only the curve blocks that meet the window are walked, so memory and work
-    follow the window, not the image (streamed unpacking reads bands this way).
+def scan_square(
+    keys: np.ndarray, width: int, height: int, curve: str | Curve, squares: CurveSquares,
+    k: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of square ``k`` of ``squares`` alone, from that square's texels.
 
     Parameters
     ----------
-    steps, values : (R,) ndarrays
-        Runs as :func:`scan_runs` returns them; ``steps[-1]`` is the image's last step.
-    out : (h, w) ndarray of ``values.dtype``, optional
-        Where to write (a band buffer reused between calls).
-    threads : int
-        The blocks are split into this many stretches filled at once.
+    keys : (h, w) integer ndarray
+        The square's window of the image (:meth:`CurveSquares.rect`), row 0 = top.
 
     Returns
     -------
-    window : (h, w) ndarray of ``values.dtype``
+    steps, values : (R,) ndarrays
+        As :func:`scan_runs` returns them, for the square's stretch of the curve;
+        :func:`join_runs` stitches the squares' runs in curve order.
     """
-    if not (0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= width and y + h <= height):
-        raise TerrathemeError(
-            f"window x={x} y={y} w={w} h={h} is outside the {width} x {height} image")
     plan = block_plan(width, height, curve)
-    if out is None:
-        out = np.empty((h, w), dtype=values.dtype)
-    side = 1 << plan.b
-    # Blocks (y up) whose square meets the window's rows and columns.
-    y_lo, y_hi = height - (y + h), height - 1 - y
-    hit = ((plan.bx.astype(np.int64) * side < x + w) & ((plan.bx.astype(np.int64) + 1) * side > x)
-           & (plan.by.astype(np.int64) * side <= y_hi)
-           & ((plan.by.astype(np.int64) + 1) * side > y_lo))
-    blocks = np.flatnonzero(hit)
-    starts = np.searchsorted(steps, plan.first_step[blocks]).astype(np.int64)
-    parts = np.array_split(np.arange(blocks.size), max(1, min(int(threads), blocks.size)))
+    x, y, w, h = squares.rect(k, width, height)
+    keys = np.ascontiguousarray(keys)
+    if keys.shape != (h, w):
+        raise TerrathemeError(f"square {k} is {w} x {h} texels, got a {keys.shape} window")
+    j, j1 = int(squares.j0[k]), int(squares.j1[k])
+    cap = max(2 * (1 << 2 * plan.b), keys.size // 64)
+    steps, values = np.empty(cap, np.uint32), np.empty(cap, keys.dtype)
+    row, col = _first_texel(plan, j, (height, width))
+    count, cur, last = 0, keys[row - y, col - x], np.uint64(0)
+    while True:
+        count, j, cur, last = _runs_kernel(keys, x, y, width, height, *plan_args(plan), j, j1,
+                                           steps, values, count, cur, last)
+        if j == j1:
+            break
+        # Out of room: double the run arrays and resume at block j.
+        steps = np.concatenate([steps, np.empty_like(steps)])
+        values = np.concatenate([values, np.empty_like(values)])
+    return (np.append(steps[:count], np.uint32(last)),
+            np.append(values[:count], values.dtype.type(cur)))
 
-    def one(part: np.ndarray) -> None:
-        _fill_kernel(out, int(x), int(y), int(width), int(height), steps, values,
-                     *_plan_args(plan), blocks[part], starts[part])
 
-    if len(parts) == 1:
-        one(parts[0])
-    else:
-        with ThreadPoolExecutor(len(parts)) as pool:
-            list(pool.map(one, parts))
-    return out
+def join_runs(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of consecutive stretches of a curve, stitched (a run cut in two is merged)."""
+    steps = np.concatenate([p[0] for p in parts])
+    values = np.concatenate([p[1] for p in parts])
+    keep = np.append(values[1:] != values[:-1], True)
+    return (steps, values) if keep.all() else (steps[keep], values[keep])
 
 
 def scan_order(width: int, height: int, curve: str | Curve) -> np.ndarray:
@@ -349,7 +286,7 @@ def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve
     """
     plan = block_plan(width, height, curve)
     ends = np.ascontiguousarray(ends, dtype=np.int64)
-    out, done = _ranks_to_steps_kernel(ends, height, width, *_plan_args(plan))
+    out, done = _ranks_to_steps_kernel(ends, height, width, *plan_args(plan))
     if done != ends.size:
         raise TerrathemeError(f"run ends beyond the {width} x {height} image's texels")
     return out
@@ -365,4 +302,4 @@ def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curv
     """
     plan = block_plan(width, height, curve)
     steps = np.ascontiguousarray(steps, dtype=np.uint32)
-    return _steps_to_ranks_kernel(steps, height, width, *_plan_args(plan))
+    return _steps_to_ranks_kernel(steps, height, width, *plan_args(plan))

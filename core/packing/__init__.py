@@ -3,14 +3,22 @@
 ``pack(image)`` scans an index (or <= 256-colour) image along a Hilbert or
 Morton curve into runs ``<S_i, P_i>``; the :class:`PackedLayer` reads texels
 without unpacking and saves in the seed's varint layout or a compact,
-entropy-coded one. :func:`layer_info` describes a file from its header alone.
+entropy-coded one. Layers over 65536 texels a side are a
+:class:`TiledLayer` (a grid of packed tiles with an index, the same calls);
+:func:`pack_file` packs an image file of any size band by band,
+:func:`load_layer` opens either kind, :func:`layer_info` describes a file
+from its header alone, and :func:`write_layer_image` unpacks to an image
+file band by band (a palette PNG for index layers).
 
-Modules: :mod:`.packer` (``pack``), :mod:`.palette` (image -> palette and runs), :mod:`.layer` (the
-in-memory layer), :mod:`.lookup` (random access kernels and block directory),
-:mod:`.layout` (the random-access table's layout), :mod:`.container` (file
-header, magic, version, checksum, ceilings), :mod:`.seed_format` (the seed's
-varint pairs), :mod:`.compact_format` and :mod:`.range_coder` (entropy-coded
-streams), :mod:`.info` (header-only description).
+Modules: :mod:`.packer` (``pack``), :mod:`.stream_pack` (``pack_file``),
+:mod:`.palette` (image -> palette and runs), :mod:`.layer` (the in-memory
+layer), :mod:`.tiled` and :mod:`.tiled_format` (the tiled container),
+:mod:`.lookup` (random access kernels and block directory), :mod:`.layout`
+(the random-access table's layout), :mod:`.container` (file header, magic,
+version, checksum, ceilings), :mod:`.seed_format` (the seed's varint pairs),
+:mod:`.compact_format` and :mod:`.range_coder` (entropy-coded streams),
+:mod:`.export` and :mod:`.index_png` (image files out, palette PNGs),
+:mod:`.info` (header-only description).
 
 Names are loaded on first use (PEP 562), so :func:`layer_info` and the file
 header readers load no numba kernel.
@@ -18,7 +26,18 @@ header readers load no numba kernel.
 
 from __future__ import annotations
 
-__all__ = ["CurveChoice", "LayerInfo", "PackedLayer", "PaletteReport", "layer_info", "pack"]
+__all__ = [
+    "CurveChoice",
+    "LayerInfo",
+    "PackedLayer",
+    "PaletteReport",
+    "TiledLayer",
+    "layer_info",
+    "load_layer",
+    "pack",
+    "pack_file",
+    "write_layer_image",
+]
 
 
 def __getattr__(name: str) -> object:
@@ -35,6 +54,18 @@ def __getattr__(name: str) -> object:
         from core.packing import packer
 
         return getattr(packer, name)
+    if name in ("TiledLayer", "load_layer"):
+        from core.packing import tiled
+
+        return getattr(tiled, name)
+    if name == "pack_file":
+        from core.packing.stream_pack import pack_file
+
+        return pack_file
+    if name == "write_layer_image":
+        from core.packing.export import write_layer_image
+
+        return write_layer_image
     if name == "PaletteReport":
         from core.packing.palette import PaletteReport
 

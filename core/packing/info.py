@@ -1,7 +1,8 @@
-"""What a packed-layer file holds, from its header alone (``terratheme info``).
+"""What a packed-layer file holds, from its headers alone (``terratheme info``).
 
-Reads the header, the palette and the checksum; decodes no payload and loads
-no numba kernel, so it answers in milliseconds whatever the layer's size.
+Reads the header, the palette and the checksum (for a tiled container: its
+header and index, and the fixed header of each tile); decodes no payload and
+loads no numba kernel, so it answers in milliseconds whatever the layer's size.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from dataclasses import dataclass
 
 from core.curves.square import Curve, curve_order
 from core.errors import TerrathemeError
-from core.packing.container import check_file, read_palette
+from core.packing import tiled_format
+from core.packing.container import HEADER, check_file, read_header, read_palette
 from core.packing.layout import table_words
 
 
@@ -34,9 +36,14 @@ class LayerInfo:
     memory_bytes : int
         Bytes of the in-memory random-access table once loaded.
     format : str
-        Payload encoding: ``"seed"`` or ``"compact"``.
+        Payload encoding: ``"seed"`` or ``"compact"`` (for a tiled container,
+        the encodings of its tiles joined by ``+``).
     version : int
         File format version.
+    tiles : int
+        Tiles of a tiled container (1 for one layer).
+    tile_side : int or None
+        Their side in texels.
     """
 
     width: int
@@ -50,6 +57,8 @@ class LayerInfo:
     memory_bytes: int
     format: str
     version: int
+    tiles: int = 1
+    tile_side: int | None = None
 
 
 def layer_info(path: str | os.PathLike) -> LayerInfo:
@@ -64,6 +73,9 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
     if not os.path.isfile(p):
         raise TerrathemeError(f"{p}: no such file")
     with open(p, "rb") as fh:
+        if fh.read(4) == tiled_format.MAGIC:
+            return _tiled_info(fh, p)
+        fh.seek(0)
         data = fh.read()
     head = check_file(data, name=p)
     n = curve_order(head.width, head.height)
@@ -73,4 +85,31 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
         palette=read_palette(data, head).tolist(), run_count=head.runs,
         file_bytes=len(data), memory_bytes=4 * table_words(n, head.runs),
         format=head.encoding_name, version=head.version,
+    )
+
+
+def _tiled_info(fh, name: str) -> LayerInfo:
+    """The description of a tiled container, from its index and each tile's header."""
+    size = os.fstat(fh.fileno()).st_size
+    fh.seek(0)
+    head = tiled_format.read_tiled_header(fh.read(tiled_format.HEADER.size), name=name,
+                                          file_bytes=size)
+    fh.seek(0)
+    prefix = fh.read(head.tiles_at)
+    offsets, _ = tiled_format.read_index(prefix, head, name=name)
+    runs = memory = 0
+    curves, formats = set(), set()
+    for i, off in enumerate(offsets):
+        fh.seek(int(off))
+        tile = read_header(fh.read(HEADER.size + 4), name=f"{name} tile {i}")
+        runs += tile.runs
+        memory += 4 * table_words(curve_order(tile.width, tile.height), tile.runs)
+        curves.add(Curve(tile.curve).name.lower())
+        formats.add(tile.encoding_name)
+    return LayerInfo(
+        width=head.width, height=head.height,
+        curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.channels,
+        identity_palette=head.identity, palette=tiled_format.read_palette(prefix, head).tolist(),
+        run_count=runs, file_bytes=size, memory_bytes=memory, format="+".join(sorted(formats)),
+        version=tiled_format.VERSION, tiles=head.tiles, tile_side=1 << head.tile_bits,
     )

@@ -7,13 +7,15 @@ encodings of :mod:`core.packing.container`.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.curves.scan import fill_runs, fill_window, ranks_to_steps, steps_to_ranks
+from core.curves.fill import fill_runs, fill_window
+from core.curves.scan import ranks_to_steps, steps_to_ranks
 from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
@@ -37,6 +39,7 @@ def _scalar():
 
 
 _SCALAR_TYPES = frozenset({int, np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
+_NOT_TILED = np.zeros(0, np.int64)
 #: Batches at least this large are looked up on all threads.
 PARALLEL_FROM = 1 << 16
 
@@ -218,6 +221,23 @@ class PackedLayer:
         return int(self.palette.shape[1])
 
     @property
+    def table(self) -> np.ndarray:
+        """The random-access table (read-only view; layout in :mod:`core.packing.layout`).
+
+        One ``uint32`` array: header words, Hilbert tables, block directory,
+        one word per run. GPU shaders can read it as a buffer texture.
+        """
+        view = self._data.view()
+        view.setflags(write=False)
+        return view
+
+    def with_table(self, table: np.ndarray) -> PackedLayer:
+        """The same layer over another copy of its table (e.g. a view into a larger array)."""
+        if table.dtype != np.uint32 or not np.array_equal(table, self._data):
+            raise TerrathemeError("with_table needs an exact copy of the layer's table")
+        return dataclasses.replace(self, _data=table)
+
+    @property
     def memory_bytes(self) -> int:
         """Bytes of the random-access structure (header, directory, one word per run)."""
         return int(self._data.nbytes)
@@ -260,12 +280,12 @@ class PackedLayer:
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, dtype=np.uint8)
         if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = lookup_batch_parallel(flat_x, flat_y, self._data, idx)
+            bad = lookup_batch_parallel(flat_x, flat_y, self._data, _NOT_TILED, idx)
             bad = -1 if bad == 0 else int(np.flatnonzero(
                 (flat_x < 0) | (flat_x >= self.width) | (flat_y < 0) | (flat_y >= self.height)
             )[0])
         else:
-            bad = lookup_batch(flat_x, flat_y, self._data, idx)
+            bad = lookup_batch(flat_x, flat_y, self._data, _NOT_TILED, idx)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
         if self.identity:

@@ -33,90 +33,124 @@ from core.packing.layout import (
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _step(x, row, data):  # pragma: no cover - numba
-    # Curve step of texel (x, row), row 0 = top; the caller checked the bounds.
-    y = np.int64(data[W_HEIGHT]) - 1 - row
-    if data[W_MORTON]:
+def _step(x, row, data, base):  # pragma: no cover - numba
+    # Curve step of texel (x, row), row 0 = top, in the table at data[base:]; bounds checked.
+    y = np.int64(data[base + W_HEIGHT]) - 1 - row
+    if data[base + W_MORTON]:
         return morton_step(x, y)
-    n = np.int64(data[W_LEVELS])
+    n = np.int64(data[base + W_LEVELS])
     # Even level counts use the transposed square curve (core.curves.steps.hilbert_transposed).
     if n % 2 == 0:
         x, y = y, x
-    return hilbert_step(x, y, n, data[TABLE_AT:TABLE_AT + HILBERT_TABLES.size])
+    return hilbert_step(x, y, n, data[base + TABLE_AT:base + TABLE_AT + HILBERT_TABLES.size])
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _search(data, s, lo, hi):  # pragma: no cover - numba
+def _search(data, base, s, lo, hi):  # pragma: no cover - numba
     # Packed word of the first run in [lo, hi) whose low step bits are >= those of s
     # (branch-free lower bound), or of run hi when there is none.
-    shift = np.uint64(data[W_SHIFT])
-    runs = np.int64(data[W_RUNS])
+    shift = np.uint64(data[base + W_SHIFT])
+    runs = base + np.int64(data[base + W_RUNS])
     t = np.uint32(s & ((np.uint64(1) << shift) - np.uint64(1))) << np.uint32(8)
-    base = lo
+    at = lo
     m = hi - lo
     while m > 1:
         half = m >> 1
-        base = base + half if data[runs + base + half - 1] < t else base
+        at = at + half if data[runs + at + half - 1] < t else at
         m -= half
-    if m == 1 and data[runs + base] < t:
-        base += 1
-    return data[runs + base]
+    if m == 1 and data[runs + at] < t:
+        at += 1
+    return data[runs + at]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _inside(x, row, data):  # pragma: no cover - numba
-    return 0 <= x < np.int64(data[W_WIDTH]) and 0 <= row < np.int64(data[W_HEIGHT])
+def _inside(x, row, data, base):  # pragma: no cover - numba
+    return (0 <= x < np.int64(data[base + W_WIDTH])
+            and 0 <= row < np.int64(data[base + W_HEIGHT]))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _find(x, row, data):  # pragma: no cover - numba
-    # Packed run word (low step bits << 8 | P) of texel (x, row), or -1 outside the image.
-    if not _inside(x, row, data):
+def _range(data, base, s):  # pragma: no cover - numba
+    # The directory's run range [lo, hi) for step s.
+    blk = np.int64(s >> np.uint64(data[base + W_SHIFT]))
+    d0 = base + np.int64(data[base + W_DIR])
+    return np.int64(data[d0 + blk]), np.int64(data[d0 + blk + 1])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _find(x, row, data, base):  # pragma: no cover - numba
+    # Packed run word (low step bits << 8 | P) of texel (x, row), or -1 outside the layer.
+    if not _inside(x, row, data, base):
         return np.int64(-1)
-    s = _step(x, row, data)
+    s = _step(x, row, data, base)
     # Directory block of the step, then a binary search over that block's runs only.
-    blk = np.int64(s >> np.uint64(data[W_SHIFT]))
-    d0 = np.int64(data[W_DIR])
-    return np.int64(_search(data, s, np.int64(data[d0 + blk]), np.int64(data[d0 + blk + 1])))
+    lo, hi = _range(data, base, s)
+    return np.int64(_search(data, base, s, lo, hi))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _tile_of(x, row, tiles):  # pragma: no cover - numba
+    # Table offset and local coordinates of texel (x, row) in a tiled layer, or base -1.
+    # tiles: width, height, log2 tile side, tiles across, then one offset per tile.
+    if not (0 <= x < np.int64(tiles[0]) and 0 <= row < np.int64(tiles[1])):
+        return np.int64(-1), x, row
+    tb = np.int64(tiles[2])
+    mask = (np.int64(1) << tb) - 1
+    t = (row >> tb) * np.int64(tiles[3]) + (x >> tb)
+    return np.int64(tiles[4 + t]), x & mask, row & mask
 
 
 @numba.njit(cache=True, nogil=True)
-def lookup_batch(xs, ys, data, out):  # pragma: no cover - numba
+def lookup_batch(xs, ys, data, tiles, out):  # pragma: no cover - numba
     """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
 
-    Works in chunks of 32: first every step and directory range of the chunk
-    (independent loads the CPU overlaps), then the short searches.
-    Returns the position of the first coordinate outside the image, or -1.
+    ``tiles`` is ``[width, height, log2 tile side, tiles across, offsets...]``
+    (int64) for a tiled layer, whose tile tables lie end to end in ``data``,
+    or empty for one layer's table. Works in chunks of 32: first every step
+    and directory range of the chunk (independent loads the CPU overlaps),
+    then the short searches. Returns the position of the first coordinate
+    outside the layer, or -1.
     """
     chunk = 32
     steps = np.empty(chunk, np.uint64)
     los = np.empty(chunk, np.int64)
     his = np.empty(chunk, np.int64)
-    shift = np.uint64(data[W_SHIFT])
-    d0 = np.int64(data[W_DIR])
+    bases = np.zeros(chunk, np.int64)
+    tiled = tiles.size > 0
     for c0 in range(0, xs.size, chunk):
         c1 = min(xs.size, c0 + chunk)
         for k in range(c0, c1):
             x = np.int64(xs[k])
             row = np.int64(ys[k])
-            if not _inside(x, row, data):
+            base = np.int64(0)
+            if tiled:
+                base, x, row = _tile_of(x, row, tiles)
+                if base < 0:
+                    return k
+            elif not _inside(x, row, data, base):
                 return k
-            s = _step(x, row, data)
-            blk = np.int64(s >> shift)
+            s = _step(x, row, data, base)
             steps[k - c0] = s
-            los[k - c0] = np.int64(data[d0 + blk])
-            his[k - c0] = np.int64(data[d0 + blk + 1])
+            bases[k - c0] = base
+            los[k - c0], his[k - c0] = _range(data, base, s)
         for k in range(c0, c1):
-            out[k] = _search(data, steps[k - c0], los[k - c0], his[k - c0]) & 255
+            i = k - c0
+            out[k] = _search(data, bases[i], steps[i], los[i], his[i]) & 255
     return -1
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def lookup_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
+def lookup_batch_parallel(xs, ys, data, tiles, out):  # pragma: no cover - numba
     """:func:`lookup_batch` over all cores; returns how many coordinates were outside."""
     bad = 0
+    tiled = tiles.size > 0
     for k in numba.prange(xs.size):
-        word = _find(np.int64(xs[k]), np.int64(ys[k]), data)
+        x = np.int64(xs[k])
+        row = np.int64(ys[k])
+        base = np.int64(0)
+        if tiled:
+            base, x, row = _tile_of(x, row, tiles)
+        word = np.int64(-1) if base < 0 else _find(x, row, data, base)
         if word < 0:
             bad += 1
             out[k] = 0
@@ -128,7 +162,7 @@ def lookup_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
 @numba.njit(cache=True, nogil=True)
 def lookup_one(x, y, data):  # pragma: no cover - numba
     """Palette index of one texel, or -1 outside the image (three arguments: cheap to call)."""
-    word = _find(np.int64(x), np.int64(y), data)
+    word = _find(np.int64(x), np.int64(y), data, np.int64(0))
     return word if word < 0 else word & 255
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.curves.scan import scan_runs
-from core.curves.square import Curve, curve_order
+from core.curves.square import MAX_SIDE, Curve
 from core.errors import TerrathemeError
 
 MAX_COLOURS = 256
@@ -68,14 +68,14 @@ class Runs:
     identity: bool
 
 
-def check_image(image: np.ndarray) -> tuple[np.ndarray, bool]:
+def check_image(image: np.ndarray, *, max_side: int = MAX_SIDE) -> tuple[np.ndarray, bool]:
     """Validate an input image; return it as ``(H, W, C)`` and whether it was 2-D.
 
     Raises
     ------
     TerrathemeError
         Empty image, more than 4 channels, a pixel type other than uint8/uint16,
-        or a side over 65536.
+        or a side over ``max_side`` (one layer's 65536 by default).
     """
     arr = np.asarray(image)
     squeeze = arr.ndim == 2
@@ -92,11 +92,13 @@ def check_image(image: np.ndarray) -> tuple[np.ndarray, bool]:
         raise TerrathemeError(
             f"pixel type {arr.dtype} cannot be packed: index layers are uint8 or uint16"
         )
-    curve_order(w, h)
+    if w > max_side or h > max_side:
+        raise TerrathemeError(
+            f"image of {w} x {h} texels exceeds the {max_side} x {max_side} limit")
     return arr, squeeze
 
 
-def _pack_keys(arr: np.ndarray) -> np.ndarray:
+def colour_keys(arr: np.ndarray) -> np.ndarray:
     """One integer per texel holding all its channels: (H, W) uint32 or uint64."""
     bits = 8 * arr.dtype.itemsize
     kind = np.uint32 if bits * arr.shape[2] <= 32 else np.uint64
@@ -106,8 +108,8 @@ def _pack_keys(arr: np.ndarray) -> np.ndarray:
     return keys
 
 
-def _unpack_keys(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndarray:
-    """Inverse of :func:`_pack_keys` for a few keys: (K,) -> (K, C)."""
+def keys_to_colours(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndarray:
+    """Inverse of :func:`colour_keys` for a few keys: (K,) -> (K, C)."""
     bits = 8 * dtype.itemsize
     mask = (1 << bits) - 1
     keys = keys.astype(np.uint64)
@@ -129,7 +131,7 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
         palette = np.arange(int(values.max()) + 1, dtype=arr.dtype)[:, None]
         return Runs(steps, values, palette, identity=True)
     # Colour image: runs of packed colours, then the palette in order of first appearance.
-    steps, values = scan_runs(_pack_keys(arr), curve)
+    steps, values = scan_runs(colour_keys(arr), curve)
     uniq, first, inverse = np.unique(values, return_index=True, return_inverse=True)
     if uniq.size > MAX_COLOURS:
         raise TerrathemeError(
@@ -139,7 +141,7 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
     order = np.argsort(first, kind="stable")
     rank = np.empty(uniq.size, dtype=np.uint8)
     rank[order] = np.arange(uniq.size, dtype=np.uint8)
-    palette = _unpack_keys(uniq[order], arr.shape[2], arr.dtype)
+    palette = keys_to_colours(uniq[order], arr.shape[2], arr.dtype)
     return Runs(steps, rank[inverse.reshape(-1)], palette, identity=False)
 
 
@@ -155,9 +157,9 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
     """
     import cv2
 
-    keys = _pack_keys(arr).reshape(-1)
+    keys = colour_keys(arr).reshape(-1)
     uniq, inverse = np.unique(keys, return_inverse=True)
-    colours = _unpack_keys(uniq, arr.shape[2], arr.dtype).astype(np.float32)
+    colours = keys_to_colours(uniq, arr.shape[2], arr.dtype).astype(np.float32)
     if uniq.size <= MAX_COLOURS:
         return arr, PaletteReport(int(uniq.size), int(uniq.size), 0.0, 0.0)
     # Cluster the distinct colours, weighted by repetition through a texel sample.
