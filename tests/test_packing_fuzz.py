@@ -22,7 +22,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from core.packing import pack
+from core.packing import PackedLayer, pack
 
 MEMORY_CAP = 256 << 20
 TIME_CAP = 2.0
@@ -36,7 +36,7 @@ from core.errors import TerrathemeError
 from core.packing import PackedLayer, TiledLayer, pack
 
 # Warm every kernel a load can reach (compiled code is loaded once per process).
-for fmt in ("seed", "compact"):
+for fmt in ("seed", "streams", "plane"):
     for img in (np.arange(64, dtype=np.uint8).reshape(8, 8) % 3, np.zeros((40, 30), np.uint8)):
         layer = PackedLayer.from_bytes(pack(img).to_bytes(format=fmt))
         layer.lookup(1, 1); layer.lookup(np.arange(3), np.arange(3)); layer.unpack()
@@ -152,12 +152,16 @@ def _samples() -> list[bytes]:
     noise = rng.integers(0, 3, (9, 13)).astype(np.uint8)
     colour = np.stack([blocks * 40, 255 - blocks * 30, blocks], axis=2).astype(np.uint8)
     files = [pack(img).to_bytes(format=fmt) for img in (blocks, noise, colour)
-             for fmt in ("seed", "compact")]
+             for fmt in ("seed", "streams", "plane")]
     files.append(pack(blocks, colours=np.array([[9, 9, 9], [200, 0, 0], [0, 200, 0],
                                                 [0, 0, 200]], np.uint8)).to_bytes())
     wide = np.kron(rng.integers(0, 3, (3, 30)), np.ones((4, 4), int)).astype(np.uint8)
     files += [pack(img, tile_bits=6).to_bytes(format=fmt) for img in (wide, colour[:, :, :3])
               for fmt in ("seed", "compact")]
+    # A big plane layer whose payload is a few bytes: forged streams must end fast too.
+    files.append(PackedLayer.from_runs(4096, 4096, "hilbert", [4096 * 4096 - 1], [1],
+                                       np.arange(2, dtype=np.uint8), identity=True,
+                                       squeeze=True).to_bytes(format="plane"))
     return files
 
 

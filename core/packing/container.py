@@ -7,7 +7,7 @@ and a checksum::
     0      4     magic b"TTPK"
     4      1     format version (1 or 2, see below)
     5      1     encoding: 0 = seed (varint pairs), 1 = compact (two entropy-coded
-                 streams)
+                 streams), 2 = plane (2-D context mixing; version 2)
     6      1     curve: 0 = Hilbert, 1 = Morton
     7      1     flags: bit 0 = 2-D image, bit 1 = identity palette (P = pixel value),
                  bit 2 = display colours stored (version 2), bit 3 = they have alpha
@@ -20,12 +20,12 @@ and a checksum::
     28     8     payload bytes
     36     ...   palette, K*C samples (absent for an identity palette)
     ...    ...   display colours of an identity palette, K*3 or K*4 bytes (flag bit 2)
-    ...    ...   payload (core.packing.seed_format or .compact_format)
+    ...    ...   payload (core.packing.seed_format, .compact_format or .plane_format)
     end-4  4     CRC-32 of every byte before it
 
 Versioning: a file carries the lowest version whose readers understand it
 (encodings 0 and 1 without display colours stay version 1; display colours
-need version 2), so a version-1 reader still opens every file
+and encoding 2 need version 2), so a version-1 reader still opens every file
 it could have written; a reader refuses a version above :data:`VERSION` with
 :class:`UnsupportedVersionError`.
 
@@ -52,9 +52,9 @@ from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionErr
 MAGIC = b"TTPK"
 #: Highest format version this build reads.
 VERSION = 2
-ENCODINGS = {"seed": 0, "compact": 1}
+ENCODINGS = {"seed": 0, "compact": 1, "plane": 2}
 #: Lowest file version that knows each encoding.
-ENCODING_VERSION = {0: 1, 1: 1}
+ENCODING_VERSION = {0: 1, 1: 1, 2: 2}
 HEADER = struct.Struct("<4sBBBBBBHIIQQ")
 FLAG_SQUEEZE = 1
 FLAG_IDENTITY = 2
@@ -129,7 +129,7 @@ class LayerHeader(NamedTuple):
 
     @property
     def encoding_name(self) -> str:
-        """``"seed"`` or ``"compact"``."""
+        """``"seed"``, ``"compact"`` (run streams) or ``"plane"``."""
         return {v: k for k, v in ENCODINGS.items()}[self.encoding]
 
 
@@ -139,16 +139,27 @@ def run_ceiling(payload_bytes: int) -> int:
 
 
 def encode_layer(layer: LayerFields, encoding: str) -> bytes:
-    """The bytes of a layer file in ``encoding`` (``"seed"`` or ``"compact"``)."""
-    from core.packing import compact_format, seed_format
+    """The bytes of a layer file in ``encoding``.
 
-    if encoding not in ENCODINGS:
+    ``"compact"`` keeps the smaller of the plane payload (encoding 2) and the
+    run streams (encoding 1); ``"plane"`` and ``"streams"`` ask for one of
+    them (the run streams when the plane payload cannot hold the layer);
+    ``"seed"`` is the seed's varint pairs.
+    """
+    from core.packing import compact_format, plane_format, seed_format
+
+    if encoding not in (*ENCODINGS, "streams"):
         raise TerrathemeError(f"unknown packed format {encoding!r}: use 'compact' or 'seed'")
     lengths = layer.lengths
     indices = layer.indices
     ceiling_ok = run_ceiling(0) >= len(lengths)
     candidates: dict[int, bytes] = {}
-    if encoding == "compact":
+    if encoding in ("compact", "plane") and plane_format.can_code(indices):
+        plane = plane_format.encode_plane(layer.width, layer.height, layer.curve, lengths,
+                                          indices)
+        if plane is not None:
+            candidates[2] = plane
+    if encoding in ("compact", "streams") or (encoding == "plane" and not candidates):
         candidates[1] = compact_format.encode_runs(lengths, indices, layer.palette.shape[0])
     # Keep the smallest payload within the run ceiling; the seed layout always fits it.
     fits = {e: p for e, p in candidates.items()
@@ -267,15 +278,18 @@ def read_colours(data: bytes, head: LayerHeader) -> np.ndarray | None:
 
 def decode_layer(data: bytes, *, name: str) -> LayerFields:
     """Parse and check a layer file (any encoding)."""
-    from core.packing import compact_format, seed_format
+    from core.packing import compact_format, plane_format, seed_format
 
     head = check_file(data, name=name)
     palette = read_palette(data, head)
     payload = bytes(memoryview(data)[head.payload_at: head.file_bytes - 4])
     if head.encoding == ENCODINGS["seed"]:
         lengths, indices = seed_format.decode_seed_runs(payload, head.runs, name=name)
-    else:
+    elif head.encoding == ENCODINGS["compact"]:
         lengths, indices = compact_format.decode_runs(payload, head.runs, head.k, name=name)
+    else:
+        lengths, indices = plane_format.decode_plane(payload, head.width, head.height,
+                                                     head.curve, head.runs, name=name)
     if indices.max() >= head.k:
         raise CorruptFileError(
             f"{name}: palette index {int(indices.max())} out of range (palette has {head.k})"
