@@ -139,7 +139,7 @@ def test_info_reads_the_header_only(tmp_path, capsys):
     layer.save(path, format="seed")
     assert main(["info", str(path), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["run_count"] == 1 and info["memory_bytes"] == layer.memory_bytes
+    assert info["run_count"] == 1 and layer.memory_bytes <= info["memory_bytes_max"]
     data = bytearray(path.read_bytes())
     data[-1] ^= 1
     path.write_bytes(bytes(data))

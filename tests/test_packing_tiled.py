@@ -47,7 +47,7 @@ def test_tiled_round_trip_and_lookup(tmp_path, curve, tile_bits):
     info = layer_info(tmp_path / "t.ttpack")
     assert (info.tiles, info.tile_side, info.run_count) == (layer.tiles_x * layer.tiles_y, side,
                                                              back.run_count)
-    assert info.memory_bytes == back.memory_bytes
+    assert back.memory_bytes <= info.memory_bytes_max
 
 
 def test_colour_image_tiles_share_one_palette():

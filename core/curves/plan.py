@@ -47,14 +47,26 @@ class BlockPlan:
     patterns: np.ndarray
 
 
+def local_patterns(b: int, curve: str | Curve) -> np.ndarray:
+    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated).
+
+    Returns
+    -------
+    patterns : (4, 4^b) uint16 ndarray, read-only
+        Entry ``i`` of row ``state`` is ``(ly << b) | lx`` of local step ``i``, y up.
+    """
+    return _patterns(int(b), Curve.parse(curve))
+
+
 @lru_cache(maxsize=8)
 def _patterns(b: int, curve: Curve) -> np.ndarray:
-    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated)."""
     i = np.arange(4**b, dtype=np.uint64)
     if curve is Curve.MORTON:
         x, y = morton_d2xy(i, b)
         one = ((y << b) | x).astype(np.uint16)
-        return np.ascontiguousarray(np.broadcast_to(one, (4, one.size)))
+        out = np.ascontiguousarray(np.broadcast_to(one, (4, one.size)))
+        out.setflags(write=False)
+        return out
     x, y = hilbert_d2xy(i, b)
     out = np.empty((4, i.size), dtype=np.uint16)
     side = (1 << b) - 1
@@ -73,24 +85,44 @@ def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
     return _block_plan(int(width), int(height), Curve.parse(curve))
 
 
-@lru_cache(maxsize=16)
-def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
+def block_grid(width: int, height: int, curve: str | Curve, b: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse curve step and local pattern of every ``2^b`` block meeting the image.
+
+    Returns
+    -------
+    coarse : (ceil(H / 2^b), ceil(W / 2^b)) uint64 ndarray
+        Block ``[by, bx]`` (y up: row 0 holds the image's bottom texels) covers
+        the steps ``coarse << 2b`` to ``((coarse + 1) << 2b) - 1``.
+    state : same shape, uint8 ndarray
+        Its local pattern (row of :func:`local_patterns`).
+    """
+    curve = Curve.parse(curve)
     n = curve_order(width, height)
-    b = min(n, BLOCK_BITS)
-    coarse = n - b
-    nbx = -(-width // (1 << b))
-    nby = -(-height // (1 << b))
-    # Coarse grid of blocks meeting the image (y up), then its coarse curve steps.
+    b = min(int(b), n)
+    nbx, nby = -(-width // (1 << b)), -(-height // (1 << b))
     by, bx = np.mgrid[0:nby, 0:nbx]
     bx = bx.ravel().astype(np.int64)
     by = by.ravel().astype(np.int64)
     if curve is Curve.HILBERT:
-        c, state = hilbert_xy2d(*((by, bx) if hilbert_transposed(n) else (bx, by)), coarse)
+        c, state = hilbert_xy2d(*((by, bx) if hilbert_transposed(n) else (bx, by)), n - b)
         if hilbert_transposed(n):
             # Transposed image curve: the local pattern is transposed too (swap bit).
             state = state ^ np.uint8(1)
     else:
-        c, state = morton_xy2d(bx, by, coarse), np.zeros(bx.shape, np.uint8)
+        c, state = morton_xy2d(bx, by, n - b), np.zeros(bx.shape, np.uint8)
+    return c.reshape(nby, nbx), state.reshape(nby, nbx)
+
+
+@lru_cache(maxsize=16)
+def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
+    n = curve_order(width, height)
+    b = min(n, BLOCK_BITS)
+    nbx = -(-width // (1 << b))
+    # Coarse grid of blocks meeting the image (y up), then its coarse curve steps.
+    c, state = (a.ravel() for a in block_grid(width, height, curve, b))
+    bx = np.arange(c.size, dtype=np.int64) % nbx
+    by = np.arange(c.size, dtype=np.int64) // nbx
     order = np.argsort(c, kind="stable")
     arrays = dict(
         bx=bx[order].astype(np.int32), by=by[order].astype(np.int32),

@@ -60,15 +60,17 @@ HILBERT_TABLES.setflags(write=False)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def hilbert_walk(x, y, n, tables):  # pragma: no cover - numba
+def hilbert_walk(x, y, n, tables, start=0):  # pragma: no cover - numba
     """0-based Hilbert step of ``(x, y)`` (y up) on the ``2^n`` square, and the final state.
 
     ``tables`` is :data:`HILBERT_TABLES` (any integer dtype). The state's
     bit 0 = swap x/y, bit 1 = flip both (the transforms of Hacker's Delight /
     Wikipedia's ``rot``, which commute, so two bits describe their composition).
+    ``start`` is the state the walk begins in: the local step of a texel in a
+    block whose pattern is that state (:func:`core.curves.plan.local_patterns`).
     """
     d = np.uint64(0)
-    state = 0
+    state = start
     level = n
     # Leading levels one at a time until a multiple of four remain.
     while level % 4 != 0:

@@ -14,7 +14,7 @@ from core.curves.square import Curve, curve_order
 from core.errors import TerrathemeError
 from core.packing import tiled_format
 from core.packing.container import HEADER, check_file, read_header, read_palette
-from core.packing.layout import table_words
+from core.packing.layout import table_words_max
 
 
 @dataclass(frozen=True)
@@ -33,8 +33,9 @@ class LayerInfo:
         ``K`` colours of ``channels`` samples.
     run_count : int
     file_bytes : int
-    memory_bytes : int
-        Bytes of the in-memory random-access table once loaded.
+    memory_bytes_max : int
+        Bytes the in-memory random-access table takes once loaded, at most
+        (exactly: ``PackedLayer.memory_bytes``; it depends on the runs).
     format : str
         Payload encoding: ``"seed"`` or ``"compact"`` (for a tiled container,
         the encodings of its tiles joined by ``+``).
@@ -54,7 +55,7 @@ class LayerInfo:
     palette: list
     run_count: int
     file_bytes: int
-    memory_bytes: int
+    memory_bytes_max: int
     format: str
     version: int
     tiles: int = 1
@@ -83,7 +84,8 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
         width=head.width, height=head.height, curve=Curve(head.curve).name.lower(),
         channels=head.channels, identity_palette=head.identity,
         palette=read_palette(data, head).tolist(), run_count=head.runs,
-        file_bytes=len(data), memory_bytes=4 * table_words(n, head.runs),
+        file_bytes=len(data),
+        memory_bytes_max=4 * table_words_max(head.width, head.height, n, head.runs),
         format=head.encoding_name, version=head.version,
     )
 
@@ -103,13 +105,14 @@ def _tiled_info(fh, name: str) -> LayerInfo:
         fh.seek(int(off))
         tile = read_header(fh.read(HEADER.size + 4), name=f"{name} tile {i}")
         runs += tile.runs
-        memory += 4 * table_words(curve_order(tile.width, tile.height), tile.runs)
+        memory += 4 * table_words_max(tile.width, tile.height,
+                                 curve_order(tile.width, tile.height), tile.runs)
         curves.add(Curve(tile.curve).name.lower())
         formats.add(tile.encoding_name)
     return LayerInfo(
         width=head.width, height=head.height,
         curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.channels,
         identity_palette=head.identity, palette=tiled_format.read_palette(prefix, head).tolist(),
-        run_count=runs, file_bytes=size, memory_bytes=memory, format="+".join(sorted(formats)),
+        run_count=runs, file_bytes=size, memory_bytes_max=memory, format="+".join(sorted(formats)),
         version=tiled_format.VERSION, tiles=head.tiles, tile_side=1 << head.tile_bits,
     )

@@ -22,14 +22,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.curves.fill import fill_window
-from core.curves.square import MAX_SIDE, curve_order
+from core.curves.square import MAX_SIDE
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing import tiled_format as fmt
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
-from core.packing.layout import table_words
 from core.packing.lookup import lookup_batch, lookup_batch_parallel, table_runs
 
 #: Tile side used when none is asked for: the largest a packed layer has.
@@ -191,29 +190,20 @@ class TiledLayer:
 
     @property
     def memory_bytes(self) -> int:
-        """Bytes of the random-access tables of all tiles."""
-        total = 0
-        for i in range(len(self._lengths)):
-            head = self.tile_header(i)
-            total += 4 * table_words(curve_order(head.width, head.height), head.runs)
-        return total
+        """Bytes of the random-access tables of all tiles (decodes them)."""
+        return int(self._tables()[0].nbytes)
 
     # ------------------------------------------------------------ reading texels
 
     def _tables(self) -> tuple[np.ndarray, np.ndarray]:
         """All tiles' tables end to end, and the tile words the kernels read (built once)."""
         if "table" not in self._cache:
-            sizes = [table_words(curve_order(*self.tile_rect(i)[2:]), self.tile_header(i).runs)
-                     for i in range(len(self._lengths))]
-            starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-            table = np.empty(int(starts[-1]), np.uint32)
-            tiles = []
-            for i in range(len(sizes)):
-                # Decode a tile, copy its table in, keep the tile as a view of it.
-                tile = self._decode(i)
-                view = table[starts[i]: starts[i + 1]]
-                view[:] = tile.table
-                tiles.append(tile.with_table(view))
+            # Decode every tile, then keep their tables end to end and each tile as a view.
+            decoded = [self._decode(i) for i in range(len(self._lengths))]
+            starts = np.concatenate([[0], np.cumsum([t.table.size for t in decoded])])
+            table = np.concatenate([t.table for t in decoded])
+            tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
+                                                                   strict=True)]
             words = np.concatenate([[self.width, self.height, self.tile_bits, self.tiles_x],
                                     starts[:-1]]).astype(np.int64)
             self._cache.update(table=table, words=words, tiles=tiles)
@@ -228,6 +218,16 @@ class TiledLayer:
             A coordinate outside the layer.
         """
         table, words = self._tables()
+        if isinstance(xs, int | np.integer) and isinstance(ys, int | np.integer):
+            # One texel: its tile's scalar lookup, then the layer's palette.
+            x, row = int(xs), int(ys)
+            if not (0 <= x < self.width and 0 <= row < self.height):
+                raise TerrathemeError(f"texel ({x}, {row}) is outside the {self.width} x "
+                                      f"{self.height} layer")
+            mask = self.tile_side - 1
+            tile = self._cache["tiles"][(row >> self.tile_bits) * self.tiles_x
+                                        + (x >> self.tile_bits)]
+            return self.values_of(np.asarray(tile.lookup(x & mask, row & mask)))[()]
         xs_b, ys_b = np.broadcast_arrays(np.asarray(xs), np.asarray(ys))
         if xs_b.dtype.kind not in "iu" or ys_b.dtype.kind not in "iu":
             raise TerrathemeError("texel coordinates must be integers")
