@@ -23,8 +23,8 @@ from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.layout import W_COUNT
 from core.packing.lookup import (
     build_table,
-    lookup_batch,
-    lookup_batch_parallel,
+    layer_batch,
+    layer_batch_parallel,
     scalar_lookup_function,
     table_runs,
 )
@@ -39,7 +39,6 @@ def _scalar():
 
 
 _SCALAR_TYPES = frozenset({int, np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
-_NOT_TILED = np.zeros(0, np.int64)
 #: Batches at least this large are looked up on all threads.
 PARALLEL_FROM = 1 << 16
 
@@ -280,12 +279,12 @@ class PackedLayer:
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, dtype=np.uint8)
         if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = lookup_batch_parallel(flat_x, flat_y, self._data, _NOT_TILED, idx)
+            bad = layer_batch_parallel(flat_x, flat_y, self._data, idx)
             bad = -1 if bad == 0 else int(np.flatnonzero(
                 (flat_x < 0) | (flat_x >= self.width) | (flat_y < 0) | (flat_y >= self.height)
             )[0])
         else:
-            bad = lookup_batch(flat_x, flat_y, self._data, _NOT_TILED, idx)
+            bad = layer_batch(flat_x, flat_y, self._data, idx)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
         if self.identity:

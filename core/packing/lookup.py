@@ -116,139 +116,164 @@ def _find(x, row, data, base):  # pragma: no cover - numba
     return _search(data, base, local, lo, hi)
 
 
-@numba.njit(cache=True, nogil=True)
-def layer_stretch(xs, ys, n, data, base, out, work):  # pragma: no cover - numba
-    """Palette indices of the ``n`` first texels ``(xs[k], ys[k])`` (in bounds, row 0 =
-    top) of the layer whose table starts at ``data[base]``, into ``out[:n]``.
+#: Columns of a tiled layer's tile rows (:func:`tile_rows`), 8 words a tile.
+T_HEIGHT, T_GRID_BITS, T_GRID, T_SPANS, T_RUNS, T_GRID_WIDTH, T_MORTON = range(7)
+TILE_COLUMNS = 8
 
-    Three tight loops, the table's header read once, so the independent loads
-    of a loop overlap: grid words (uniform blocks answer at once), then local
-    steps and spans (the block's runs, or its quarter's), then the searches.
-    ``work`` is a ``(5, >= n)`` int64 scratch array.
+
+def tile_rows(data: np.ndarray, bases: np.ndarray) -> np.ndarray:
+    """The header words the kernels use of each tile whose table starts at ``bases[t]``.
+
+    Returns
+    -------
+    rows : (8 * tiles,) int64 ndarray
+        Per tile: height, grid bits, grid, spans and runs offsets (absolute), grid
+        width, Morton flag, 0.
     """
-    height = np.int64(data[base + W_HEIGHT])
-    morton = data[base + W_MORTON] != 0
-    gb = np.int64(data[base + W_GRID_BITS])
-    grid = base + np.int64(data[base + W_GRID])
-    spans = base + np.int64(data[base + W_SPANS])
-    runs = base + np.int64(data[base + W_RUNS])
-    gw = np.int64(data[base + W_GRID_WIDTH])
-    mask = (np.int64(1) << gb) - 1
-    gs, local, los, his, which = work[0], work[1], work[2], work[3], work[4]
-    m = 0
-    for k in range(n):
-        x = np.int64(xs[k])
-        yup = height - 1 - np.int64(ys[k])
-        g = np.int64(data[grid + (yup >> gb) * gw + (x >> gb)])
-        if g & UNIFORM:
-            out[k] = g & 255
-            continue
-        gs[m] = g
-        local[m] = ((yup & mask) << 32) | (x & mask)
-        which[m] = k
-        m += 1
-    for i in range(m):
-        g = gs[i]
-        lx = local[i] & 0xFFFFFFFF
-        ly = local[i] >> 32
-        if morton:
-            step = np.int64(morton_step(lx, ly))
-        else:
-            step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-        at = spans + (g >> 3)
-        if g & 4:
-            at += step >> (2 * gb - 2)
-        local[i] = step
-        los[i] = np.int64(data[at])
-        his[i] = np.int64(data[at + 1]) & (SPAN_LAST - 1)
-    for i in range(m):
-        key = np.uint32(local[i]) << np.uint32(8)
-        at = los[i]
-        left = his[i] - at
-        while left > 1:
-            half = left >> 1
-            at = at + half if data[runs + at + half - 1] < key else at
-            left -= half
-        if left == 1 and data[runs + at] < key:
-            at += 1
-        out[which[i]] = data[runs + at] & 255
+    rows = np.zeros((len(bases), TILE_COLUMNS), np.int64)
+    for t, base in enumerate(np.asarray(bases, np.int64)):
+        head = data[base: base + HEAD_WORDS].astype(np.int64)
+        rows[t, :7] = (head[W_HEIGHT], head[W_GRID_BITS], base + head[W_GRID],
+                       base + head[W_SPANS], base + head[W_RUNS], head[W_GRID_WIDTH],
+                       head[W_MORTON])
+    return rows.ravel()
 
 
-@numba.njit(cache=True, nogil=True)
-def lookup_batch(xs, ys, data, tiles, out):  # pragma: no cover - numba
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
-
-    ``tiles`` is empty for one layer's table, or ``[width, height, log2 tile
-    side, tiles across, offsets...]`` (int64) for a tiled layer whose tile
-    tables lie end to end in ``data``: each stretch of 4096 texels is then
-    grouped by tile (a counting sort in cache) and each group looked up in its
-    tile at once. Returns the position of the first coordinate outside, or -1.
-    """
-    stretch = 4096
-    size = min(stretch, xs.size)
-    work = np.empty((5, size), np.int64)
-    tiled = tiles.size > 0
+@numba.njit(cache=True, nogil=True, inline="always")
+def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
+    # The body of both batch kernels; inlined with a constant ``tiled``, so each
+    # kernel keeps only its own branch (one layer: header read once, not per texel).
     if tiled:
         width, height, tb, across = tiles[0], tiles[1], tiles[2], tiles[3]
-        count = tiles.size - 4
     else:
-        width, height = np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT])
-        tb, across, count = 0, 1, 1
+        width, height, tb, across = np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1
     tmask = (np.int64(1) << tb) - 1
-    tile = np.empty(size, np.int64)
-    start = np.zeros(count + 1, np.int64)
-    gx = np.empty(size, np.int64)
-    gy = np.empty(size, np.int64)
-    order = np.empty(size, np.int64)
-    got = np.empty(size, np.uint8)
+    height0 = np.int64(data[W_HEIGHT])
+    gb0 = np.int64(data[W_GRID_BITS])
+    grid0 = np.int64(data[W_GRID])
+    spans0 = np.int64(data[W_SPANS])
+    runs0 = np.int64(data[W_RUNS])
+    gw0 = np.int64(data[W_GRID_WIDTH])
+    morton0 = np.int64(data[W_MORTON])
+    stretch = 4096
+    n = min(stretch, xs.size)
+    gs = np.empty(n, np.int64)
+    local = np.empty(n, np.int64)
+    los = np.empty(n, np.int64)
+    his = np.empty(n, np.int64)
+    which = np.empty(n, np.int64)
+    tile = np.zeros(n, np.int64)
     for a in range(0, xs.size, stretch):
         b = min(xs.size, a + stretch)
+        m = 0
+        # Grid words: uniform blocks answer at once, the others wait for a search.
         for k in range(a, b):
             x = np.int64(xs[k])
             row = np.int64(ys[k])
             if not (0 <= x < width and 0 <= row < height):
                 return k
-        if not tiled:
-            layer_stretch(xs[a:b], ys[a:b], b - a, data, 0, out[a:b], work)
-            continue
-        # Group the stretch by tile, in tile coordinates, then look each group up.
-        start[:] = 0
-        for k in range(a, b):
-            t = (np.int64(ys[k]) >> tb) * across + (np.int64(xs[k]) >> tb)
-            tile[k - a] = t
-            start[t + 1] += 1
-        for t in range(count):
-            start[t + 1] += start[t]
-        for k in range(a, b):
-            i = start[tile[k - a]]
-            start[tile[k - a]] += 1
-            order[i] = k
-            gx[i] = np.int64(xs[k]) & tmask
-            gy[i] = np.int64(ys[k]) & tmask
-        lo = 0
-        for t in range(count):
-            hi = start[t]
-            if hi > lo:
-                layer_stretch(gx[lo:hi], gy[lo:hi], hi - lo, data, tiles[4 + t], got[lo:hi], work)
-            lo = hi
-        for i in range(b - a):
-            out[order[i]] = got[i]
+            t = 0
+            if tiled:
+                t = ((row >> tb) * across + (x >> tb)) << 3
+                x &= tmask
+                yup = rows[t + T_HEIGHT] - 1 - (row & tmask)
+                gb = rows[t + T_GRID_BITS]
+                g = np.int64(data[rows[t + T_GRID] + (yup >> gb) * rows[t + T_GRID_WIDTH]
+                                  + (x >> gb)])
+            else:
+                yup = height0 - 1 - row
+                gb = gb0
+                g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
+            if g & UNIFORM:
+                out[k] = g & 255
+                continue
+            mask = (np.int64(1) << gb) - 1
+            gs[m] = g
+            local[m] = ((yup & mask) << 32) | (x & mask)
+            which[m] = k
+            tile[m] = t
+            m += 1
+        # Local steps, and the runs to search (the block's, or its quarter's).
+        for i in range(m):
+            g = gs[i]
+            if tiled:
+                gb, spans, morton = (rows[tile[i] + T_GRID_BITS], rows[tile[i] + T_SPANS],
+                                     rows[tile[i] + T_MORTON])
+            else:
+                gb, spans, morton = gb0, spans0, morton0
+            lx = local[i] & 0xFFFFFFFF
+            ly = local[i] >> 32
+            if morton:
+                step = np.int64(morton_step(lx, ly))
+            else:
+                step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
+            at = spans + (g >> 3)
+            if g & 4:
+                at += step >> (2 * gb - 2)
+            local[i] = step
+            los[i] = np.int64(data[at])
+            his[i] = np.int64(data[at + 1]) & (SPAN_LAST - 1)
+        # The searches.
+        for i in range(m):
+            runs = rows[tile[i] + T_RUNS] if tiled else runs0
+            key = np.uint32(local[i]) << np.uint32(8)
+            at = los[i]
+            left = his[i] - at
+            while left > 1:
+                half = left >> 1
+                at = at + half if data[runs + at + half - 1] < key else at
+                left -= half
+            if left == 1 and data[runs + at] < key:
+                at += 1
+            out[which[i]] = data[runs + at] & 255
     return -1
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def lookup_batch_parallel(xs, ys, data, tiles, out):  # pragma: no cover - numba
-    """:func:`lookup_batch` over all cores in stretches of 16384 texels.
+@numba.njit(cache=True, nogil=True)
+def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
 
-    Returns how many stretches held a coordinate outside the layer.
+    Works in stretches of 4096 texels, each in three tight loops (grid words,
+    answering uniform blocks at once; local steps and spans; searches), with
+    the table's header read once, so the independent loads of a loop overlap.
+    Returns the position of the first coordinate outside the layer, or -1.
     """
+    return _batch(xs, ys, data, False, np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64),
+                  out)
+
+
+@numba.njit(cache=True, nogil=True)
+def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
+    """:func:`layer_batch` for a tiled layer: its tables end to end in ``data``,
+    ``tiles`` = ``[width, height, log2 tile side, tiles across]`` and ``rows`` the
+    tiles' header words (:func:`tile_rows`)."""
+    return _batch(xs, ys, data, True, tiles, rows, out)
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def layer_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
+    """:func:`layer_batch` over all cores; returns how many stretches held a bad coordinate."""
     stretch = 16384
     parts = (xs.size + stretch - 1) // stretch
     bad = 0
     for p in numba.prange(parts):
         a = p * stretch
         b = min(xs.size, a + stretch)
-        if lookup_batch(xs[a:b], ys[a:b], data, tiles, out[a:b]) >= 0:
+        if layer_batch(xs[a:b], ys[a:b], data, out[a:b]) >= 0:
+            bad += 1
+    return bad
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def tiled_batch_parallel(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
+    """:func:`tiled_batch` over all cores; returns how many stretches held a bad coordinate."""
+    stretch = 16384
+    parts = (xs.size + stretch - 1) // stretch
+    bad = 0
+    for p in numba.prange(parts):
+        a = p * stretch
+        b = min(xs.size, a + stretch)
+        if tiled_batch(xs[a:b], ys[a:b], data, tiles, rows, out[a:b]) >= 0:
             bad += 1
     return bad
 

@@ -29,7 +29,7 @@ from core.packing import tiled_format as fmt
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
-from core.packing.lookup import lookup_batch, lookup_batch_parallel, table_runs
+from core.packing.lookup import table_runs, tile_rows, tiled_batch, tiled_batch_parallel
 
 #: Tile side used when none is asked for: the largest a packed layer has.
 DEFAULT_TILE_BITS = 16
@@ -204,8 +204,8 @@ class TiledLayer:
             table = np.concatenate([t.table for t in decoded])
             tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
                                                                    strict=True)]
-            words = np.concatenate([[self.width, self.height, self.tile_bits, self.tiles_x],
-                                    starts[:-1]]).astype(np.int64)
+            words = (np.array([self.width, self.height, self.tile_bits, self.tiles_x], np.int64),
+                     tile_rows(table, starts[:-1]))
             self._cache.update(table=table, words=words, tiles=tiles)
         return self._cache["table"], self._cache["words"]
 
@@ -236,11 +236,11 @@ class TiledLayer:
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, np.uint8)
         if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = -1 if lookup_batch_parallel(flat_x, flat_y, table, words, idx) == 0 else int(
+            bad = -1 if tiled_batch_parallel(flat_x, flat_y, table, *words, idx) == 0 else int(
                 np.flatnonzero((flat_x < 0) | (flat_x >= self.width) | (flat_y < 0)
                                | (flat_y >= self.height))[0])
         else:
-            bad = lookup_batch(flat_x, flat_y, table, words, idx)
+            bad = tiled_batch(flat_x, flat_y, table, *words, idx)
         if bad >= 0:
             raise TerrathemeError(f"texel ({int(flat_x[bad])}, {int(flat_y[bad])}) is outside "
                                   f"the {self.width} x {self.height} layer")
