@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.packing import pack
 from core.packing import layout as lay
+from core.packing import pack
 
 
 def _words(layer):

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from app.cli import main
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.images import write_image
+from core.io.images import read_image, write_image
 from core.packing import PackedLayer, TiledLayer, layer_info, load_layer, pack, pack_file
 from core.packing.index_png import PalettePngWriter, display_colours, read_index_image
 
@@ -191,3 +191,19 @@ def test_single_layer_load_dispatch(tmp_path):
     assert isinstance(load_layer(tmp_path / "one.ttpack"), PackedLayer)
     with pytest.raises(TerrathemeError, match="no such file"):
         load_layer(tmp_path / "none.ttpack")
+
+
+def test_cli_packs_a_strip_wider_than_65536_band_by_band(tmp_path, capsys):
+    img = np.zeros((3, 70000), np.uint8)
+    img[1, 69990:] = 4
+    img[:, 65536] = 2
+    write_image(tmp_path / "strip.png", img[:, :, None])
+    out = tmp_path / "strip.ttpack"
+    assert main(["pack", str(tmp_path / "strip.png"), str(out)]) == 0
+    assert "2 x 1 tiles" in capsys.readouterr().out
+    layer = load_layer(out)
+    assert isinstance(layer, TiledLayer) and layer.lookup(69995, 1) == 4
+    assert main(["unpack", str(out), str(tmp_path / "back.png")]) == 0
+    assert np.array_equal(read_index_image(tmp_path / "back.png")[0], img)
+    assert main(["unpack", str(out), str(tmp_path / "back.tif")]) == 0
+    assert np.array_equal(read_image(tmp_path / "back.tif")[:, :, 0], img)

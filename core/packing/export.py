@@ -29,7 +29,8 @@ from core.packing.index_png import PalettePngWriter, display_colours
 
 #: Largest layer written whole (formats with no streamed writer): 256 Mi texels.
 WHOLE_IMAGE_TEXELS = 1 << 28
-#: Rows per band (also the tile size of streamed TIFF/EXR files).
+#: Rows per band (also the tile size of streamed TIFF/EXR files); layers wider than
+#: 65536 texels use a quarter of that, so a band stays within 16 MiB per 256 Ki texels.
 BAND_ROWS = 256
 TILED_SUFFIXES = (".tif", ".tiff", ".exr")
 
@@ -75,6 +76,7 @@ def write_layer_image(
     """
     suffix = Path(path).suffix.lower()
     texels = layer.width * layer.height
+    rows = BAND_ROWS if layer.width <= 65536 else BAND_ROWS // 4
     palette_png = suffix == ".png" and layer.identity and layer.palette.dtype == np.uint8
     if palette_png:
         colours = layer.colours if layer.colours is not None else display_colours(
@@ -82,15 +84,15 @@ def write_layer_image(
         # zlib's fastest level past WHOLE_IMAGE_TEXELS: 4 Gi texels take 6 s instead of 15.
         level = 6 if texels <= WHOLE_IMAGE_TEXELS else 1
         with PalettePngWriter(path, layer.width, layer.height, colours, level=level) as out:
-            for y, band in layer.bands(BAND_ROWS):
+            for y, band in layer.bands(rows):
                 out.write_rows(band)
                 _report(progress, y + band.shape[0], layer.height)
         return "palette PNG"
     if suffix in TILED_SUFFIXES:
         big = texels * layer.channels * layer.palette.dtype.itemsize > (1 << 31)
         with TiledImageWriter(path, layer.width, layer.height, layer.channels,
-                              layer.palette.dtype, tile=BAND_ROWS, bigtiff=big) as out:
-            for y, band in layer.bands(BAND_ROWS):
+                              layer.palette.dtype, tile=rows, bigtiff=big) as out:
+            for y, band in layer.bands(rows):
                 out.write(0, y, layer.values_of(band))
                 _report(progress, y + band.shape[0], layer.height)
         return "tiled image"

@@ -1,8 +1,8 @@
 """The packed index layer in memory (seed section 2.1): header, palette, runs.
 
 A :class:`PackedLayer` answers texel reads without unpacking (:meth:`lookup`),
-rebuilds the image (:meth:`unpack`) and saves to / loads from the two file
-encodings of :mod:`core.packing.container`.
+rebuilds the image whole (:meth:`unpack`) or band by band (:meth:`bands`), and
+saves to / loads from the file encodings of :mod:`core.packing.container`.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from core.packing.lookup import (
     scalar_lookup_function,
     table_runs,
 )
-from core.packing.palette import PaletteReport
+from core.packing.palette import PaletteReport, check_colours, palette_values
 
 _SCALAR: list = []
 
@@ -153,7 +153,7 @@ class PackedLayer:
         back = ranks_to_steps(ranks, width, height, curve)
         if not np.array_equal(back.astype(np.int64), steps):
             raise TerrathemeError("a run ends on a curve step outside the image")
-        colours = _check_colours(colours, palette.shape[0], identity)
+        colours = check_colours(colours, palette.shape[0], identity)
         data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
         palette = np.ascontiguousarray(palette)
         palette.setflags(write=False)
@@ -287,13 +287,7 @@ class PackedLayer:
             bad = layer_batch(flat_x, flat_y, self._data, idx)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
-        if self.identity:
-            # Index layer: the palette index is the value; no colour gather needed.
-            values = idx.astype(self.palette.dtype, copy=False)
-            values = values if self.squeeze else values[:, None]
-        else:
-            values = self.palette[idx]
-            values = values[:, 0] if self.squeeze else values
+        values = self.values_of(idx)
         out = values.reshape(shape + values.shape[1:])
         return out[()] if out.ndim == 0 else out
 
@@ -351,11 +345,7 @@ class PackedLayer:
         -------
         values : (...) or (..., C) ndarray of the palette's dtype
         """
-        if self.identity:
-            values = indices.astype(self.palette.dtype, copy=False)
-            return values if self.squeeze else values[..., None]
-        values = self.palette[indices]
-        return values[..., 0] if self.squeeze else values
+        return palette_values(self.palette, self.identity, self.squeeze, indices)
 
     # ------------------------------------------------------------ files
 
@@ -406,19 +396,3 @@ class PackedLayer:
         except TerrathemeError as exc:
             raise CorruptFileError(f"{name}: {exc}") from None
 
-
-def _check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndarray | None:
-    """Display colours cut to the palette's ``k`` entries, read-only, or None."""
-    if colours is None:
-        return None
-    colours = np.asarray(colours)
-    if not identity:
-        raise TerrathemeError("display colours belong to index layers (identity palette) only")
-    if colours.ndim != 2 or colours.shape[1] not in (3, 4) or colours.shape[0] < k:
-        raise TerrathemeError(
-            f"display colours of shape {colours.shape}: ({k} or more, 3 or 4) expected")
-    if colours.dtype.kind not in "iu" or colours.min() < 0 or colours.max() > 255:
-        raise TerrathemeError("display colours must be 0..255 integers")
-    out = np.ascontiguousarray(colours[:k], dtype=np.uint8)
-    out.setflags(write=False)
-    return out

@@ -182,3 +182,43 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
     after = np.unique(mapped, axis=0).shape[0]
     return reduced, PaletteReport(int(uniq.size), int(after), float(per_texel.max()),
                                   float(per_texel.mean()))
+
+
+def check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndarray | None:
+    """Display colours cut to the palette's ``k`` entries, read-only, or None."""
+    if colours is None:
+        return None
+    colours = np.asarray(colours)
+    if not identity:
+        raise TerrathemeError("display colours belong to index layers (identity palette) only")
+    if colours.ndim != 2 or colours.shape[1] not in (3, 4) or colours.shape[0] < k:
+        raise TerrathemeError(
+            f"display colours of shape {colours.shape}: ({k} or more, 3 or 4) expected")
+    if colours.dtype.kind not in "iu" or colours.min() < 0 or colours.max() > 255:
+        raise TerrathemeError("display colours must be 0..255 integers")
+    out = np.ascontiguousarray(colours[:k], dtype=np.uint8)
+    out.setflags(write=False)
+    return out
+
+
+def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
+                   indices: np.ndarray) -> np.ndarray:
+    """Texel values of palette indices, shaped as the packed image was.
+
+    Parameters
+    ----------
+    palette : (K, C) ndarray
+    identity, squeeze : bool
+        The layer's flags (index layer; 2-D image).
+    indices : (...) uint8 ndarray
+
+    Returns
+    -------
+    values : (...) or (..., C) ndarray of the palette's dtype
+    """
+    if identity:
+        # Index layer: the palette index is the value; no colour gather needed.
+        values = indices.astype(palette.dtype, copy=False)
+        return values if squeeze else values[..., None]
+    values = palette[indices]
+    return values[..., 0] if squeeze else values

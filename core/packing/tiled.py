@@ -30,6 +30,7 @@ from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.lookup import table_runs, tile_rows, tiled_batch, tiled_batch_parallel
+from core.packing.palette import palette_values
 
 #: Tile side used when none is asked for: the largest a packed layer has.
 DEFAULT_TILE_BITS = 16
@@ -249,11 +250,7 @@ class TiledLayer:
 
     def values_of(self, indices: np.ndarray) -> np.ndarray:
         """Texel values of palette indices (as :meth:`PackedLayer.values_of`)."""
-        if self.identity:
-            values = indices.astype(self.palette.dtype, copy=False)
-            return values if self.squeeze else values[..., None]
-        values = self.palette[indices]
-        return values[..., 0] if self.squeeze else values
+        return palette_values(self.palette, self.identity, self.squeeze, indices)
 
     def bands(self, rows: int = 256) -> Iterator[tuple[int, np.ndarray]]:
         """Palette-index bands, top to bottom, one tile row decoded at a time.
