@@ -16,7 +16,9 @@ layer), :mod:`.tiled` and :mod:`.tiled_format` (the tiled container),
 :mod:`.lookup` (random access kernels and block directory), :mod:`.layout`
 (the random-access table's layout), :mod:`.container` (file header, magic,
 version, checksum, ceilings), :mod:`.seed_format` (the seed's varint pairs),
-:mod:`.compact_format` and :mod:`.range_coder` (entropy-coded streams),
+:mod:`.compact_format` and :mod:`.range_coder` (entropy-coded run streams),
+:mod:`.plane_format`, :mod:`.plane_model` and :mod:`.mixing` (the 2-D
+context-mixing payload),
 :mod:`.export` and :mod:`.index_png` (image files out, palette PNGs),
 :mod:`.info` (header-only description).
 
