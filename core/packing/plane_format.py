@@ -47,9 +47,6 @@ the ceiling (the container then keeps the run streams).
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-from functools import partial
-
 import numpy as np
 
 from core.curves.fill import fill_square
@@ -93,20 +90,14 @@ def encode_plane(width: int, height: int, curve: int, lengths: np.ndarray,
         st, ds = start_encoder(), np.zeros(3, np.uint64)
         last = seg_ref = 0
         coded = 0
-        with ThreadPoolExecutor(1) as pool:
-            # The next segment is filled from the runs while this one is coded.
-            fill = partial(fill_square, steps, values, width, height, curve, squares)
-            ahead = pool.submit(fill, 0)
-            for k in range(squares.sx.size):
-                _, _, sw, sh = squares.rect(k, width, height)
-                seg = ahead.result()
-                if k + 1 < squares.sx.size:
-                    ahead = pool.submit(fill, k + 1)
-                _, last, n, _ = code_segment(False, seg, pad, flags, sh, sw, sw == sh == side,
-                                             seg_ref, last, used.size, model.depth, st, ds, out,
-                                             model.pr, model.cn, model.wt, model.wf, 1 << 62)
-                coded += n
-                seg_ref = last
+        for k in range(squares.sx.size):
+            _, _, sw, sh = squares.rect(k, width, height)
+            seg = fill_square(steps, values, width, height, curve, squares, k)
+            _, last, n, _ = code_segment(False, seg, pad, flags, sh, sw, sw == sh == side,
+                                         seg_ref, last, used.size, model.depth, st, ds, out,
+                                         model.pr, model.cn, model.wt, model.wf, 1 << 62)
+            coded += n
+            seg_ref = last
         size, over = finish_encoder(st, out)
         if not over:
             break
@@ -144,55 +135,39 @@ def decode_plane(payload: bytes, width: int, height: int, curve: int, runs: int,
     buf = np.frombuffer(payload, np.uint8, offset=2 + n_used).copy()
     budget = MAX_TEXELS_PER_BYTE * buf.size + TEXEL_ALLOWANCE
     model = PlaneModel(n_used)
-    # Two scratch segments: one is scanned into runs (on a second thread) while the
-    # next is decoded into the other.
-    pads = [np.empty((side + 2, side + 4), np.uint8) for _ in range(2)]
+    pad = np.empty((side + 2, side + 4), np.uint8)
     flags = np.zeros((side // BLOCK + 2, side // BLOCK + 2), np.uint8)
     ds = start_decoder(buf)
     st = np.zeros(6, np.uint64)
     dummy = np.zeros((1, 1), np.uint8)
     last = seg_ref = 0
-    parts: list = []
-    found = 0
-    def collect(k: int) -> None:
-        # Segment k's runs (its scan done); no more than the header declares, give or take
-        # one stitched run per segment.
-        nonlocal found
-        if not isinstance(parts[k], tuple):
-            parts[k] = parts[k].result()
-        found += parts[k][0].size
+    parts, found = [], 0
+    for k in range(squares.sx.size):
+        _, _, sw, sh = squares.rect(k, width, height)
+        uniform, last, coded, err = code_segment(True, dummy, pad, flags, sh, sw,
+                                                 sw == sh == side, seg_ref, last, n_used,
+                                                 model.depth, st, ds, buf, model.pr, model.cn,
+                                                 model.wt, model.wf, budget)
+        if err == 1 or ds[2] > buf.size + 8:
+            raise CorruptFileError(f"{name}: plane stream ends inside segment {k}")
+        if err == 2:
+            raise CorruptFileError(f"{name}: impossible class in segment {k}")
+        if err == 3:
+            raise CorruptFileError(f"{name}: plane stream codes more texels than its "
+                                   f"{buf.size} bytes may ({MAX_TEXELS_PER_BYTE} per byte)")
+        budget -= coded
+        if uniform:
+            end = squares.first_step[k] + np.uint64(side * side - 1)
+            parts.append((np.array([end], np.uint32), np.array([last], np.uint8)))
+        else:
+            parts.append(scan_square(pad[2: 2 + sh, 2: 2 + sw], width, height, curve,
+                                     squares, k))
+        # No more runs than the header declares, give or take one stitched run a segment.
+        found += parts[-1][0].size
         if found > runs + k + 1:
             raise CorruptFileError(f"{name}: plane stream holds more than the {runs} runs "
                                    "its header declares")
-
-    with ThreadPoolExecutor(1) as pool:
-        for k in range(squares.sx.size):
-            pad = pads[k % 2]
-            if k >= 2:
-                # Segment k - 2's scan must be done with this scratch segment.
-                collect(k - 2)
-            _, _, sw, sh = squares.rect(k, width, height)
-            uniform, last, coded, err = code_segment(True, dummy, pad, flags, sh, sw,
-                                                     sw == sh == side, seg_ref, last, n_used,
-                                                     model.depth, st, ds, buf, model.pr,
-                                                     model.cn, model.wt, model.wf, budget)
-            if err == 1 or ds[2] > buf.size + 8:
-                raise CorruptFileError(f"{name}: plane stream ends inside segment {k}")
-            if err == 2:
-                raise CorruptFileError(f"{name}: impossible class in segment {k}")
-            if err == 3:
-                raise CorruptFileError(f"{name}: plane stream codes more texels than its "
-                                       f"{buf.size} bytes may ({MAX_TEXELS_PER_BYTE} per byte)")
-            budget -= coded
-            if uniform:
-                end = squares.first_step[k] + np.uint64(side * side - 1)
-                parts.append((np.array([end], np.uint32), np.array([last], np.uint8)))
-            else:
-                parts.append(pool.submit(scan_square, pad[2: 2 + sh, 2: 2 + sw], width,
-                                         height, curve, squares, k))
-            seg_ref = last
-        for k in range(max(0, len(parts) - 2), len(parts)):
-            collect(k)
+        seg_ref = last
     steps, values = join_runs(parts)
     if steps.size != runs:
         raise CorruptFileError(f"{name}: plane stream holds {steps.size} runs, the header "
