@@ -34,6 +34,7 @@ import argparse
 import dataclasses
 import io
 import json
+import os
 import subprocess
 import sys
 import time
@@ -242,14 +243,16 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         ratio = r[ours] / r[peer]
         rec[f"{ours}_vs_{peer}"] = float(np.median(ratio))
         rec[f"{ours}_vs_{peer}_range"] = [float(ratio.min()), float(ratio.max())]
-    # Scalar calls from Python.
+    # Scalar calls from Python, paired with numpy's scalar index round by round.
     pts = [(int(x), int(y)) for x, y in zip(xs[:20000], ys[:20000], strict=True)]
     layer.lookup(*pts[0])
-    ours = [best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6
-            for _ in range(3)]
-    dense = [best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6 for _ in range(3)]
+    ours, dense = [], []
+    for _ in range(LOOKUP_ROUNDS):
+        ours.append(best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
+        dense.append(best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6)
     rec["scalar_lookup_us"] = float(np.median(ours))
     rec["scalar_dense_us"] = float(np.median(dense))
+    rec["scalar_vs_dense"] = float(np.median(np.array(ours) / np.array(dense)))
     rec["memory_bytes_per_run"] = layer.memory_bytes / layer.run_count
     rec["dense_bytes"] = int(img.nbytes)
     rec["memory_bytes"] = int(layer.memory_bytes)
@@ -259,7 +262,7 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
 def measure(name: str, img: np.ndarray, e10_timeout: float, work: Path, quick: bool) -> dict:
     """All measurements of one map."""
     h, w = img.shape
-    rec: dict = {"name": name, "width": w, "height": h}
+    rec: dict = {"name": name, "width": w, "height": h, "load_average": os.getloadavg()}
     print(name, "ours", flush=True)
     for fmt in ("compact", "streams", "seed"):
         rec[f"terratheme_{fmt}"] = ours_row(img, fmt)
@@ -361,7 +364,7 @@ def main() -> None:
             print(json.dumps(rec), flush=True)
     peer = scan_peer()
     print(json.dumps(peer), flush=True)
-    result = {"maps": maps, "scan_peer": peer,
+    result = {"maps": maps, "scan_peer": peer, "load_average_at_end": os.getloadavg(),
               "note": "bytes; times in s, ns per texel, us per scalar call; ratios vs peers "
                       "measured in the same run on a shared 2-core machine"}
     (OUT / "packing.json").write_text(json.dumps(result, indent=1))
