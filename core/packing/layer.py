@@ -350,7 +350,11 @@ class PackedLayer:
     # ------------------------------------------------------------ files
 
     def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
-        """Write the layer atomically; ``format`` is ``"compact"`` or ``"seed"``.
+        """Write the layer atomically.
+
+        ``format``: ``"compact"`` (the smaller of the plane and run-stream
+        payloads), ``"plane"``, ``"streams"`` or ``"seed"`` (the seed's varints);
+        see :func:`core.packing.container.encode_layer`.
 
         Returns
         -------
