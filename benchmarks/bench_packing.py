@@ -1,30 +1,41 @@
-"""Benchmark of SFC-packed index layers (issue 2) against the formats a user would try instead.
+"""Benchmark of SFC-packed index layers (issues 2, 15, 19) against the codecs a user would try.
 
-Run ``.venv/bin/python benchmarks/bench_packing.py``; writes
-``benchmarks/results/packing.json`` and ``packing.png``.
+Run ``.venv/bin/python benchmarks/bench_packing.py [--e10-timeout S] [--quick]``;
+writes ``benchmarks/results/packing.json`` and ``packing.png``. Needs the
+``bench`` extra (imagecodecs: JPEG XL, AVIF, tifffile's zstd).
 
-On the land-cover maps in ../shared/data/maps and the label masks in
-../shared/data/*/masks, all measured in the same run:
+On the land-cover maps in ../shared/data/maps, all measured in the same run:
 
-* file bytes: our compact and seed encodings against PNG (zlib level 9),
-  WebP lossless, zstd-19 of the raw bytes and an incomplete quadtree (the
-  paper's peer, written here for the measurement: one split bit per inner
-  node, one byte per leaf, nodes outside the image absent);
-* batched random access, ns per texel, against a numpy gather from the dense
-  array (serial and on all cores), in ``LOOKUP_ROUNDS`` paired rounds (the
-  median ratio within a round, and the range);
+* file bytes, bits per texel, encode time and the decode time of the whole
+  map: terratheme compact (the smaller of the plane and run-stream payloads)
+  and the run streams alone, WebP lossless (OpenCV), JPEG XL lossless
+  effort 9 and 10 and AVIF lossless (speed 0) through imagecodecs, a tiled
+  GeoTIFF (256 x 256 tiles, zstd level 19, tifffile), PNG level 9 and the
+  seed's varint layout; every peer's round trip is checked. Our decode is
+  timed to the random-access layer (what a user keeps) and to the dense
+  image. JPEG XL effort 10 runs in a subprocess under ``--e10-timeout``
+  seconds per map; where it does not finish, it and ours are measured on the
+  map's centre crop where it does;
+* batched random access, ns per texel for 10^6 random texels, against the
+  numpy gather from the dense array and a compiled (numba) dense gather on
+  one and two threads, in ``LOOKUP_ROUNDS`` paired rounds (the median ratio
+  within a round, and the range); the same batch on the map packed as a
+  tiled container of 4096 x 4096 tiles, against the single layer;
 * scalar lookup time against a scalar numpy index;
-* pack time (scan + runs + random-access structure), with the numpy peer of
-  the numba scan (recursive numpy curve points + mask + gather) on a crop,
-  and save/load times.
+* pack time (scan + runs + random-access table) with the numpy peer of the
+  numba scan on a 4096^2 crop.
 
 Machines are shared: every figure comes with a peer measured in the same run.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import io
 import json
+import os
+import subprocess
 import sys
 import time
 import timeit
@@ -32,15 +43,17 @@ from pathlib import Path
 
 import cv2
 import matplotlib
+import numba
 import numpy as np
-import zstandard
 
 matplotlib.use("Agg")
+import imagecodecs
 import matplotlib.pyplot as plt
+import tifffile
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from core.curves import steps as sfc  # noqa: E402
+from core.curves.square import curve_order, hilbert_transposed  # noqa: E402
 from core.io.images import read_image  # noqa: E402
 from core.packing import PackedLayer, pack  # noqa: E402
 
@@ -49,6 +62,7 @@ OUT = ROOT / "benchmarks" / "results"
 RNG = np.random.default_rng(7)
 #: paired rounds of the batched random-access measurement
 LOOKUP_ROUNDS = 7
+E10_CROP = 2048
 
 
 def best_of(fn, repeat: int = 3) -> float:
@@ -56,39 +70,105 @@ def best_of(fn, repeat: int = 3) -> float:
     return min(timeit.repeat(fn, number=1, repeat=repeat))
 
 
-def quadtree_bytes(img: np.ndarray) -> int:
-    """Size of an incomplete-quadtree encoding: 1 bit per inner/leaf flag, 1 byte per leaf."""
-    h, w = img.shape
-    n = sfc.curve_order(w, h)
-    side = 1 << n
-    # Level 0: texels; absent outside the image. value -1 = mixed, -2 = absent.
-    val = np.full((side, side), -2, np.int32)
-    val[:h, :w] = img
-    nodes = leaves = 0
-    levels = [val]
-    for _ in range(n):
-        v = levels[-1]
-        q = v.reshape(v.shape[0] // 2, 2, v.shape[1] // 2, 2).transpose(0, 2, 1, 3).reshape(
-            v.shape[0] // 2, v.shape[1] // 2, 4)
-        present = q != -2
-        anyp = present.any(axis=2)
-        hi = np.where(present, q, -3).max(axis=2)
-        lo = np.where(present, q, 1 << 20).min(axis=2)
-        uniform = anyp & (hi == lo) & (hi >= 0)
-        levels.append(np.where(~anyp, -2, np.where(uniform, hi, -1)))
-    # Top-down: a present node is a leaf when uniform (or a texel), else it splits.
-    emitted = np.ones((1, 1), bool)
-    for level in range(n, -1, -1):
-        v = levels[level]
-        here = emitted & (v != -2)
-        nodes += int(here.sum()) if level > 0 else 0
-        leaf = here & (v >= 0)
-        leaves += int(leaf.sum())
-        if level == 0:
-            break
-        split = here & (v == -1)
-        emitted = np.repeat(np.repeat(split, 2, axis=0), 2, axis=1)
-    return (nodes + 7) // 8 + leaves
+@numba.njit(cache=True, nogil=True)
+def dense_gather(img, xs, ys, out):  # pragma: no cover - numba
+    """The compiled peer: ``out[k] = img[ys[k], xs[k]]`` on one thread."""
+    for k in range(xs.size):
+        out[k] = img[ys[k], xs[k]]
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def dense_gather_parallel(img, xs, ys, out):  # pragma: no cover - numba
+    """The compiled peer on all cores."""
+    for k in numba.prange(xs.size):
+        out[k] = img[ys[k], xs[k]]
+
+
+# ---------------------------------------------------------------- peer codecs
+
+
+def _geotiff(img: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    tifffile.imwrite(buf, img, tile=(256, 256), compression="zstd",
+                     compressionargs={"level": 19})
+    return buf.getvalue()
+
+
+def _geotiff_read(data: bytes) -> np.ndarray:
+    return tifffile.imread(io.BytesIO(data))
+
+
+def _cv2_read(data: bytes) -> np.ndarray:
+    # OpenCV's WebP decoder returns three equal channels for a grey image.
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    return img if img.ndim == 2 else img[:, :, 0]
+
+
+CODECS = {
+    "webp_lossless": (lambda a: cv2.imencode(".webp", a, [cv2.IMWRITE_WEBP_QUALITY, 101])[1]
+                      .tobytes(), _cv2_read),
+    "jpegxl_e9": (lambda a: imagecodecs.jpegxl_encode(a, lossless=True, effort=9, numthreads=2),
+                  imagecodecs.jpegxl_decode),
+    "avif_lossless": (lambda a: imagecodecs.avif_encode(a, level=100, speed=0, numthreads=2),
+                      imagecodecs.avif_decode),
+    "geotiff_zstd19": (_geotiff, _geotiff_read),
+    "png9": (lambda a: cv2.imencode(".png", a, [cv2.IMWRITE_PNG_COMPRESSION, 9])[1].tobytes(),
+             _cv2_read),
+}
+
+E10_SCRIPT = r"""
+import sys, time, numpy as np, imagecodecs
+img = np.load(sys.argv[1])
+t = time.perf_counter()
+data = imagecodecs.jpegxl_encode(img, lossless=True, effort=10, numthreads=2)
+enc = time.perf_counter() - t
+t = time.perf_counter()
+back = imagecodecs.jpegxl_decode(data)
+dec = time.perf_counter() - t
+assert np.array_equal(np.asarray(back).reshape(img.shape), img)
+print(len(data), enc, dec)
+"""
+
+
+def codec_row(name: str, img: np.ndarray) -> dict:
+    """Bytes, times and a checked round trip of one peer codec."""
+    enc, dec = CODECS[name]
+    t = time.perf_counter()
+    data = enc(img)
+    t_enc = time.perf_counter() - t
+    back = np.asarray(dec(data)).reshape(img.shape)
+    assert np.array_equal(back, img), name
+    t_dec = best_of(lambda: dec(data), 2)
+    return {"bytes": len(data), "encode_s": t_enc, "decode_s": t_dec}
+
+
+def e10_row(img: np.ndarray, timeout: float, work: Path) -> dict | None:
+    """JPEG XL effort 10 in a subprocess; None when it does not finish in ``timeout`` s."""
+    path = work / "e10.npy"
+    np.save(path, img)
+    try:
+        run = subprocess.run([sys.executable, "-c", E10_SCRIPT, str(path)], capture_output=True,
+                             text=True, timeout=timeout, check=True)
+    except subprocess.TimeoutExpired:
+        return None
+    size, enc, dec = run.stdout.split()
+    return {"bytes": int(size), "encode_s": float(enc), "decode_s": float(dec)}
+
+
+def ours_row(img: np.ndarray, fmt: str) -> dict:
+    """Our file: bytes, encode (pack + save), load to the random-access layer, and to pixels."""
+    t = time.perf_counter()
+    layer = pack(img)
+    data = layer.to_bytes(format=fmt)
+    t_enc = time.perf_counter() - t
+    back = PackedLayer.from_bytes(data)
+    assert np.array_equal(back.unpack(), img)
+    return {"bytes": len(data), "encode_s": t_enc, "encoding": data[5],
+            "decode_s": best_of(lambda: PackedLayer.from_bytes(data), 2),
+            "decode_dense_s": best_of(lambda: PackedLayer.from_bytes(data).unpack(), 2)}
+
+
+# ---------------------------------------------------------------- the other peers
 
 
 def numpy_hilbert_points(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -106,64 +186,13 @@ def numpy_hilbert_points(n: int) -> tuple[np.ndarray, np.ndarray]:
 def numpy_scan_runs(img: np.ndarray) -> int:
     """The numpy peer of the numba scan: curve points, keep the image's, gather, run ends."""
     h, w = img.shape
-    n = sfc.curve_order(w, h)
+    n = curve_order(w, h)
     x, y = numpy_hilbert_points(n)
-    if sfc.hilbert_transposed(n):
+    if hilbert_transposed(n):
         x, y = y, x
     keep = (x < w) & (y < h)
     along = img.ravel()[(h - 1 - y[keep]).astype(np.int64) * w + x[keep]]
     return int(np.count_nonzero(np.diff(along)) + 1)
-
-
-def measure(name: str, img: np.ndarray, *, full: bool) -> dict:
-    """All measurements of one single-channel index image."""
-    h, w = img.shape
-    rec: dict = {"name": name, "width": w, "height": h}
-    c19 = zstandard.ZstdCompressor(level=19)
-    rec["png9"] = len(cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 9])[1])
-    rec["webp_lossless"] = len(cv2.imencode(".webp", img, [cv2.IMWRITE_WEBP_QUALITY, 101])[1])
-    rec["zstd19_raw"] = len(c19.compress(img.tobytes()))
-    rec["quadtree"] = quadtree_bytes(img)
-    t_pack = best_of(lambda: pack(img), 3 if full else 1)
-    layer = pack(img)
-    rec["pack_s"] = t_pack
-    rec["runs_hilbert"] = layer.run_count
-    rec["runs_morton"] = pack(img, "morton").run_count
-    rec["memory_bytes_per_run"] = layer.memory_bytes / layer.run_count
-    for fmt in ("seed", "compact"):
-        t = time.perf_counter()
-        data = layer.to_bytes(format=fmt)
-        rec[f"{fmt}_save_s"] = time.perf_counter() - t
-        rec[fmt] = len(data)
-        rec[f"{fmt}_load_s"] = best_of(lambda d=data: PackedLayer.from_bytes(d), 1)
-    rec["compact_vs_webp"] = rec["compact"] / rec["webp_lossless"]
-    if not full:
-        return rec
-    # Batched random access: 10^6 random texels, packed layer against a dense gather.
-    xs = RNG.integers(0, w, 10**6)
-    ys = RNG.integers(0, h, 10**6)
-    serial = dataclasses.replace(layer, threads=1)
-    assert np.array_equal(serial.lookup(xs, ys), img[ys, xs])
-    # Paired rounds (peer, serial, parallel back to back): on a shared machine the load
-    # drifts between rounds, so each ratio is taken within a round, then the median.
-    rounds = [[best_of(fn, 3) * 1e3 for fn in (lambda: img[ys, xs],
-                                               lambda: serial.lookup(xs, ys),
-                                               lambda: layer.lookup(xs, ys))]
-              for _ in range(LOOKUP_ROUNDS)]
-    dense, ser, par = (np.array(col) for col in zip(*rounds, strict=True))
-    rec["dense_gather_ns"] = float(np.median(dense))
-    rec["lookup_serial_ns"] = float(np.median(ser))
-    rec["lookup_parallel_ns"] = float(np.median(par))
-    rec["lookup_serial_vs_dense"] = float(np.median(ser / dense))
-    rec["lookup_parallel_vs_dense"] = float(np.median(par / dense))
-    rec["lookup_serial_vs_dense_range"] = [float((ser / dense).min()), float((ser / dense).max())]
-    # Scalar calls from Python.
-    pts = [(int(x), int(y)) for x, y in zip(xs[:20000], ys[:20000], strict=True)]
-    layer.lookup(*pts[0])
-    rec["scalar_lookup_us"] = best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(
-        pts) * 1e6
-    rec["scalar_dense_us"] = best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6
-    return rec
 
 
 def scan_peer() -> dict:
@@ -178,36 +207,136 @@ def scan_peer() -> dict:
             "numpy_over_numba": t_np / t_nb, "runs": runs}
 
 
-def chart(maps: list[dict], masks: dict, peer: dict) -> None:
-    """Three panels: bytes per format, random access, pack time."""
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5.5))
-    fmts = ["compact", "webp_lossless", "png9", "zstd19_raw", "seed", "quadtree"]
-    groups = [*maps, masks]
-    width = 0.8 / len(fmts)
-    ax = axes[0]
-    for i, f in enumerate(fmts):
-        vals = [g[f] / 1e3 for g in groups]
-        ax.bar(np.arange(len(groups)) + i * width, vals, width, label=f)
-    ax.set_xticks(np.arange(len(groups)) + 0.4, [g["name"] for g in groups], fontsize=8)
-    ax.set_yscale("log")
-    ax.set_ylabel("file kB (log)")
-    ax.set_title("File size (lower is better)")
-    ax.legend(fontsize=8)
-    ax = axes[1]
+def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
+    """Batched and scalar random access against the dense gathers, in paired rounds."""
+    h, w = img.shape
+    xs = RNG.integers(0, w, 10**6)
+    ys = RNG.integers(0, h, 10**6)
+    out = np.empty(xs.size, np.uint8)
+    serial = dataclasses.replace(layer, threads=1)
+    tiled = pack(img, tile_bits=12)
+    tiled_serial = dataclasses.replace(tiled, threads=1)
+    for fn in (serial, layer, tiled, tiled_serial):
+        assert np.array_equal(fn.lookup(xs, ys), img[ys, xs])
+    dense_gather(img, xs, ys, out)
+    dense_gather_parallel(img, xs, ys, out)
+    peers = {
+        "numpy_dense": lambda: img[ys, xs],
+        "compiled_dense_1t": lambda: dense_gather(img, xs, ys, out),
+        "compiled_dense_2t": lambda: dense_gather_parallel(img, xs, ys, out),
+        "packed_1t": lambda: serial.lookup(xs, ys),
+        "packed_2t": lambda: layer.lookup(xs, ys),
+        "tiled_1t": lambda: tiled_serial.lookup(xs, ys),
+        "tiled_2t": lambda: tiled.lookup(xs, ys),
+    }
+    # Paired rounds: on a shared machine the load drifts between rounds, so each ratio is
+    # taken within a round, then the median over rounds.
+    rounds = {k: [] for k in peers}
+    for _ in range(LOOKUP_ROUNDS):
+        for k, fn in peers.items():
+            rounds[k].append(best_of(fn, 3) * 1e9 / xs.size)
+    r = {k: np.array(v) for k, v in rounds.items()}
+    rec = {f"{k}_ns": float(np.median(v)) for k, v in r.items()}
+    for ours, peer in (("packed_2t", "compiled_dense_2t"), ("packed_1t", "compiled_dense_1t"),
+                       ("packed_2t", "numpy_dense"), ("packed_1t", "numpy_dense"),
+                       ("tiled_1t", "packed_1t"), ("tiled_2t", "packed_2t")):
+        ratio = r[ours] / r[peer]
+        rec[f"{ours}_vs_{peer}"] = float(np.median(ratio))
+        rec[f"{ours}_vs_{peer}_range"] = [float(ratio.min()), float(ratio.max())]
+    # Scalar calls from Python, paired with numpy's scalar index round by round.
+    pts = [(int(x), int(y)) for x, y in zip(xs[:20000], ys[:20000], strict=True)]
+    layer.lookup(*pts[0])
+    ours, dense = [], []
+    for _ in range(LOOKUP_ROUNDS):
+        ours.append(best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
+        dense.append(best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6)
+    rec["scalar_lookup_us"] = float(np.median(ours))
+    rec["scalar_dense_us"] = float(np.median(dense))
+    rec["scalar_vs_dense"] = float(np.median(np.array(ours) / np.array(dense)))
+    rec["memory_bytes_per_run"] = layer.memory_bytes / layer.run_count
+    rec["dense_bytes"] = int(img.nbytes)
+    rec["memory_bytes"] = int(layer.memory_bytes)
+    return rec
+
+
+def measure(name: str, img: np.ndarray, e10_timeout: float, work: Path, quick: bool) -> dict:
+    """All measurements of one map."""
+    h, w = img.shape
+    rec: dict = {"name": name, "width": w, "height": h, "load_average": os.getloadavg()}
+    print(name, "ours", flush=True)
+    for fmt in ("compact", "streams", "seed"):
+        rec[f"terratheme_{fmt}"] = ours_row(img, fmt)
+    for codec in CODECS:
+        if quick and codec in ("jpegxl_e9", "avif_lossless"):
+            continue
+        print(name, codec, flush=True)
+        rec[codec] = codec_row(codec, img)
+    if not quick:
+        print(name, "jpegxl_e10", flush=True)
+        e10 = e10_row(img, e10_timeout, work)
+        rec["jpegxl_e10"] = e10 if e10 is not None else {"timeout_s": e10_timeout}
+        if e10 is None:
+            # Where effort 10 finishes: the map's centre crop, ours on the same crop.
+            y0, x0 = (h - E10_CROP) // 2, (w - E10_CROP) // 2
+            crop = np.ascontiguousarray(img[y0: y0 + E10_CROP, x0: x0 + E10_CROP])
+            rec["e10_crop"] = {"size": E10_CROP, "jpegxl_e10": e10_row(crop, e10_timeout, work),
+                               "jpegxl_e9": codec_row("jpegxl_e9", crop),
+                               "avif_lossless": codec_row("avif_lossless", crop),
+                               "terratheme_compact": ours_row(crop, "compact")}
+    for row in rec.values():
+        if isinstance(row, dict) and "bytes" in row:
+            row["bits_per_texel"] = 8 * row["bytes"] / (w * h)
+    for row in rec.get("e10_crop", {}).values():
+        if isinstance(row, dict) and "bytes" in row:
+            row["bits_per_texel"] = 8 * row["bytes"] / E10_CROP**2
+    codecs = [k for k in ("jpegxl_e10", "avif_lossless") if "bytes" in rec.get(k, {})]
+    if codecs:
+        best = min(rec[k]["bytes"] for k in codecs)
+        rec["compact_vs_best_of_e10_avif"] = rec["terratheme_compact"]["bytes"] / best
+    print(name, "lookups", flush=True)
+    layer = pack(img)
+    rec["runs_hilbert"] = layer.run_count
+    rec["pack_s"] = best_of(lambda: pack(img), 3)
+    rec.update(lookups(img, layer))
+    return rec
+
+
+CHART_FORMATS = ["terratheme_compact", "terratheme_streams", "jpegxl_e10", "jpegxl_e9",
+                 "avif_lossless", "webp_lossless", "geotiff_zstd19", "png9"]
+
+
+def chart(maps: list[dict]) -> None:
+    """Four panels: bytes, decode time, batched lookup, pack time."""
+    fig, axes = plt.subplots(1, 4, figsize=(22, 5.5))
     names = [m["name"] for m in maps]
-    for i, (k, lab) in enumerate([("dense_gather_ns", "numpy dense gather"),
-                                  ("lookup_serial_ns", "packed, 1 thread"),
-                                  ("lookup_parallel_ns", "packed, 2 threads")]):
-        ax.bar(np.arange(len(maps)) + i * 0.27, [m[k] for m in maps], 0.27, label=lab)
-    ax.set_xticks(np.arange(len(maps)) + 0.27, names, fontsize=8)
+    width = 0.8 / len(CHART_FORMATS)
+    for ax, key, label, log in ((axes[0], "bytes", "file kB (log)", True),
+                                (axes[1], "decode_s", "decode whole map, s (log)", True)):
+        for i, f in enumerate(CHART_FORMATS):
+            vals = [m.get(f, {}).get(key, np.nan) for m in maps]
+            vals = [v / 1e3 if key == "bytes" else v for v in vals]
+            ax.bar(np.arange(len(maps)) + i * width, vals, width, label=f)
+        ax.set_xticks(np.arange(len(maps)) + 0.4, names, fontsize=8)
+        ax.set_yscale("log" if log else "linear")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7)
+    axes[0].set_title("File size (lower is better; no bar: did not finish)")
+    axes[1].set_title("Decode time (ours: to the random-access layer)")
+    ax = axes[2]
+    keys = ["numpy_dense_ns", "compiled_dense_1t_ns", "compiled_dense_2t_ns", "packed_1t_ns",
+            "packed_2t_ns", "tiled_2t_ns"]
+    for i, k in enumerate(keys):
+        ax.bar(np.arange(len(maps)) + i * 0.8 / len(keys), [m[k] for m in maps],
+               0.8 / len(keys), label=k[:-3])
+    ax.set_xticks(np.arange(len(maps)) + 0.4, names, fontsize=8)
     ax.set_ylabel("ns per texel (10^6 random texels)")
     ax.set_title("Batched random access")
-    ax.legend(fontsize=8)
-    ax = axes[2]
-    ax.bar(names, [m["pack_s"] for m in maps], color="tab:green", label="pack (numba scan)")
+    ax.legend(fontsize=7)
+    ax = axes[3]
+    ax.bar(names, [m["pack_s"] for m in maps], color="tab:green", label="pack")
     ax.axhline(1.5, color="red", ls="--", label="goal 1.5 s")
     ax.set_ylabel("seconds")
-    ax.set_title(f"Pack time; numpy scan peer {peer['numpy_over_numba']:.0f}x slower (4096^2)")
+    ax.set_title("Pack time (scan, runs, random-access table)")
     ax.legend(fontsize=8)
     for lab in ax.get_xticklabels():
         lab.set_fontsize(8)
@@ -217,31 +346,32 @@ def chart(maps: list[dict], masks: dict, peer: dict) -> None:
 
 def main() -> None:
     """Run everything and write the results."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--e10-timeout", type=float, default=900.0,
+                        help="seconds JPEG XL effort 10 may take per map (default 900)")
+    parser.add_argument("--quick", action="store_true",
+                        help="skip JPEG XL and AVIF (the slow encoders)")
+    args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
+    work = OUT / ".work"
+    work.mkdir(exist_ok=True)
     maps = []
     for folder in sorted((DATA / "maps").iterdir()):
         for path in sorted(folder.glob("*.png")):
             img = np.ascontiguousarray(read_image(path)[:, :, 0])
-            rec = measure(folder.name, img, full=True)
+            rec = measure(folder.name, img, args.e10_timeout, work, args.quick)
             maps.append(rec)
             print(json.dumps(rec), flush=True)
-    mask_recs = []
-    for path in sorted(DATA.glob("*/masks/*.png")):
-        img = np.ascontiguousarray(read_image(path)[:, :, 0])
-        mask_recs.append(measure(f"{path.parent.parent.name}/{path.name}", img, full=False))
-    keys = ["compact", "seed", "webp_lossless", "png9", "zstd19_raw", "quadtree"]
-    masks = {"name": f"{len(mask_recs)} label masks (sum)",
-             **{k: int(sum(r[k] for r in mask_recs)) for k in keys}}
-    masks["masks_where_compact_beats_webp"] = int(
-        sum(r["compact"] < r["webp_lossless"] for r in mask_recs))
-    print(json.dumps(masks), flush=True)
     peer = scan_peer()
     print(json.dumps(peer), flush=True)
-    result = {"maps": maps, "masks_total": masks, "masks": mask_recs, "scan_peer": peer,
+    result = {"maps": maps, "scan_peer": peer, "load_average_at_end": os.getloadavg(),
               "note": "bytes; times in s, ns per texel, us per scalar call; ratios vs peers "
                       "measured in the same run on a shared 2-core machine"}
     (OUT / "packing.json").write_text(json.dumps(result, indent=1))
-    chart(maps, masks, peer)
+    for f in work.iterdir():
+        f.unlink()
+    work.rmdir()
+    chart(maps)
 
 
 if __name__ == "__main__":

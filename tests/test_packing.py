@@ -231,6 +231,8 @@ def test_lookup_agrees_with_numpy_searchsorted(width, height, curve, runs, seed)
     assert np.array_equal(layer.lookup(xs, ys), expected)
     assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), expected)
     assert layer.lookup(int(xs[0]), int(ys[0])) == expected[0]
+    # The runs come back from the random-access table alone.
+    assert np.array_equal(layer.steps, steps) and np.array_equal(layer.P, indices)
 
 
 def test_real_mask_round_trip(tmp_path, shared_data):

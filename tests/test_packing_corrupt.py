@@ -8,6 +8,7 @@ import zlib
 
 import numpy as np
 import pytest
+import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -75,8 +76,60 @@ def test_bad_checksum(tmp_path, good, where):
 
 
 def test_newer_version(tmp_path):
-    with pytest.raises(UnsupportedVersionError, match="version 2"):
-        _load(tmp_path, _file(runs=[(8, 0)], version=2))
+    with pytest.raises(UnsupportedVersionError, match="version 3; this build reads up to 2"):
+        _load(tmp_path, _file(runs=[(8, 0)], version=3))
+
+
+def _compact_payload(indices: bytes, lengths: bytes, *, used=(0, 1), codecs=(1, 1)) -> bytes:
+    """A compact (encoding 1) payload by hand: used-index list, codecs, stream sizes, streams."""
+    head = bytes([len(used) - 1, *used]) + struct.pack("<BBQQ", *codecs, len(indices),
+                                                        len(lengths))
+    return head + indices + lengths
+
+
+def test_hand_written_version_1_compact_file_loads(tmp_path):
+    # Both streams through zstd: P bytes, and the seed's varints (high bit on the last byte).
+    zc = zstandard.ZstdCompressor(level=3)
+    payload = _compact_payload(zc.compress(bytes([0, 1])), zc.compress(bytes([0x83, 0x85])))
+    data = _file(runs=[(3, 0), (5, 1)], payload=payload, encoding=1)
+    layer = _load(tmp_path, data)
+    assert layer.lengths.tolist() == [3, 5] and layer.P.tolist() == [0, 1]
+
+
+def _with_runs(data: bytes, runs: int) -> bytes:
+    body = bytearray(data[:-4])
+    struct.pack_into("<Q", body, 20, runs)
+    return bytes(body) + struct.pack("<I", zlib.crc32(body))
+
+
+def test_tiny_file_declaring_2_30_runs_fails_at_once(tmp_path):
+    # 70 bytes claiming 2^30 runs of a 65536 x 65536 layer: refused from the header alone.
+    payload = _compact_payload(b"\x00" * 4, b"\x00" * 5, codecs=(0, 0))
+    data = _with_runs(_file(width=65536, height=65536, runs=[(1, 0)], payload=payload,
+                            encoding=1), 1 << 30)
+    assert len(data) == 70
+    with pytest.raises(CorruptFileError, match="1073741824 runs in 30 payload bytes"):
+        _load(tmp_path, data)
+
+
+def test_zstd_frame_declaring_a_huge_size(tmp_path):
+    zc = zstandard.ZstdCompressor(level=3, write_content_size=True)
+    frame = bytearray(zc.compress(bytes(64)))
+    # Forge the declared content size (frame header: magic, descriptor, ... size field).
+    huge = zc.compress(b"")[:4] + bytes([0xE0]) + struct.pack("<Q", 1 << 40) + bytes(frame[-3:])
+    payload = _compact_payload(huge, zc.compress(bytes([0x83, 0x85])))
+    with pytest.raises(CorruptFileError, match="palette-index stream"):
+        _load(tmp_path, _file(runs=[(3, 0), (5, 1)], payload=payload, encoding=1))
+
+
+@pytest.mark.parametrize("declared_size", [True, False])
+def test_zstd_bomb_is_cut_at_the_expected_size(tmp_path, declared_size):
+    # 16 MiB of zeros in about 600 bytes, where two runs need two index bytes.
+    zc = zstandard.ZstdCompressor(level=19, write_content_size=declared_size)
+    bomb = zc.compress(bytes(16 << 20))
+    payload = _compact_payload(bomb, zc.compress(bytes([0x83, 0x85])))
+    with pytest.raises(CorruptFileError, match="declares|inflates past"):
+        _load(tmp_path, _file(runs=[(3, 0), (5, 1)], payload=payload, encoding=1))
 
 
 def test_run_lengths_overrun_the_image(tmp_path):
@@ -105,7 +158,7 @@ def test_colour_palette_index_out_of_range(tmp_path):
         _load(tmp_path, data)
 
 
-@pytest.mark.parametrize("w,h", [(0, 0), (0, 5), (70000, 1)])
+@pytest.mark.parametrize("w,h", [(0, 0), (0, 5), (70000, 1), (65537, 65536)])
 def test_bad_size_in_header(tmp_path, w, h):
     with pytest.raises(CorruptFileError, match="bad header"):
         _load(tmp_path, _file(width=w, height=h, runs=[(1, 0)]))

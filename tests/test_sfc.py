@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from core.curves import steps as sfc
-from core.curves.scan import fill_runs, ranks_to_steps, scan_order, scan_runs, steps_to_ranks
+from core.curves.fill import fill_runs
+from core.curves.scan import ranks_to_steps, scan_order, scan_runs, steps_to_ranks
 from core.errors import TerrathemeError
 
 

@@ -1,11 +1,12 @@
-"""``terratheme unpack IN OUT``: a packed layer back to an image file."""
+"""``terratheme unpack IN OUT``: a packed layer back to an image file, band by band."""
 
 from __future__ import annotations
 
 import argparse
 
 NAME = "unpack"
-HELP = "unpack a space-filling-curve layer back to an image file"
+HELP = ("unpack a space-filling-curve layer to an image file (.png: a palette PNG of the "
+        "indices; .tif/.exr: the values, tiled; both streamed band by band)")
 ORDER = 51
 
 
@@ -17,10 +18,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Unpack ``args.input`` into the image ``args.output``."""
-    from core.io.images import write_image
-    from core.packing import PackedLayer
+    from app.outputs import check_outputs
+    from core.packing import load_layer, write_layer_image
 
-    layer = PackedLayer.load(args.input)
-    write_image(args.output, layer.unpack())
-    print(f"{args.output}: {layer.width} x {layer.height}, {layer.channels} channel(s)")
+    check_outputs([args.output], inputs=[args.input])
+    layer = load_layer(args.input)
+    kind = write_layer_image(layer, args.output)
+    print(f"{args.output}: {layer.width} x {layer.height}, {layer.channels} channel(s), {kind}")
     return 0

@@ -1,12 +1,18 @@
 """Hilbert and Morton space-filling curves over an image (seed sfc_packing.txt, section 1).
 
-Modules: ``steps`` (the curves: scalar numba functions, array functions over
-them, texel <-> step in image coordinates, the block plan of a scan), ``scan``
-(whole-image scans along a curve: runs, fill, order, ranks).
+Modules: ``square`` (curve kinds, the enclosing square; no numba), ``steps``
+(the curves: scalar numba functions, array functions over them, texel <->
+step in image coordinates), ``plan`` (the block plan of a scan, curve
+squares), ``scan`` (scans along a curve: runs, order, ranks), ``fill``
+(images, windows and squares back from runs).
+
+Names are loaded on first use, so importing :mod:`core.curves.square` (as
+file readers do) does not load numba.
 """
 
-from core.curves.scan import fill_runs, scan_order, scan_runs
-from core.curves.steps import MAX_SIDE, Curve, curve_order, step_table, steps_of, texels_of
+from __future__ import annotations
+
+from core.curves.square import MAX_SIDE, Curve, curve_order
 
 __all__ = [
     "MAX_SIDE",
@@ -19,3 +25,20 @@ __all__ = [
     "steps_of",
     "texels_of",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """The numba-backed functions, imported when first asked for (PEP 562)."""
+    if name in ("scan_order", "scan_runs"):
+        from core.curves import scan
+
+        return getattr(scan, name)
+    if name == "fill_runs":
+        from core.curves.fill import fill_runs
+
+        return fill_runs
+    if name in ("step_table", "steps_of", "texels_of"):
+        from core.curves import steps
+
+        return getattr(steps, name)
+    raise AttributeError(f"module 'core.curves' has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Whole-image scans along a curve: numba kernels over a :class:`core.curves.steps.BlockPlan`.
+"""Scans along a curve: numba kernels over a :class:`core.curves.plan.BlockPlan`.
 
 Each kernel walks the blocks of the plan in curve order and, inside a block,
 one of the precomputed local patterns, skipping texels outside the image (seed
@@ -18,15 +18,17 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from core.curves.steps import BlockPlan, Curve, block_plan
+from core.curves.plan import BlockPlan, CurveSquares, block_plan, plan_args
+from core.curves.square import Curve
 from core.errors import TerrathemeError
 
 
 @numba.njit(cache=True, nogil=True)
-def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, values, count,
-                 cur, last):  # pragma: no cover - numba
+def _runs_kernel(keys, ox, oy, width, height, b, bx, by, state, first_step, patterns, j0, j1,
+                 steps, values, count, cur, last):  # pragma: no cover - numba
+    # Blocks j0 .. j1-1 of a width x height image whose texels are in ``keys``, a window
+    # with its top-left texel at column ox, row oy that holds those blocks' texels.
     # Resumable: stops before a block that might overflow ``steps``; returns where it stopped.
-    h, w = keys.shape
     side = 1 << b
     mask = side - 1
     cap = steps.size
@@ -37,14 +39,14 @@ def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, va
         y0 = np.int64(by[j]) * side
         st = state[j]
         base = np.uint64(first_step[j])
-        full = x0 + side <= w and y0 + side <= h
+        full = x0 + side <= width and y0 + side <= height
         for i in range(side * side):
             p = np.int64(patterns[st, i])
             x = x0 + (p & mask)
             y = y0 + (p >> b)
-            if not full and (x >= w or y >= h):
+            if not full and (x >= width or y >= height):
                 continue
-            v = keys[h - 1 - y, x]
+            v = keys[height - 1 - y - oy, x - ox]
             # A value change closes the current run at the previous texel's step.
             if v != cur:
                 steps[count] = last
@@ -53,38 +55,6 @@ def _runs_kernel(keys, b, bx, by, state, first_step, patterns, j0, j1, steps, va
                 cur = v
             last = base + np.uint64(i)
     return count, j1, cur, last
-
-
-@numba.njit(cache=True, nogil=True)
-def _fill_kernel(out, steps, values, b, bx, by, state, first_step, patterns, j0, j1,
-                 r):  # pragma: no cover - numba
-    # Blocks j0 .. j1-1; r = first run that ends at or after block j0's first step.
-    h, w = out.shape
-    side = 1 << b
-    mask = side - 1
-    for j in range(j0, j1):
-        x0 = np.int64(bx[j]) * side
-        y0 = np.int64(by[j]) * side
-        st = state[j]
-        base = np.uint64(first_step[j])
-        full = x0 + side <= w and y0 + side <= h
-        while np.uint64(steps[r]) < base:
-            r += 1
-        if full and np.uint64(steps[r]) >= base + np.uint64(side * side - 1):
-            # One run covers the whole block: fill its rectangle at once.
-            out[h - y0 - side: h - y0, x0: x0 + side] = values[r]
-            continue
-        for i in range(side * side):
-            p = np.int64(patterns[st, i])
-            x = x0 + (p & mask)
-            y = y0 + (p >> b)
-            if not full and (x >= w or y >= h):
-                continue
-            # Advance to the run whose last step is at or after this texel's step.
-            s = base + np.uint64(i)
-            while np.uint64(steps[r]) < s:
-                r += 1
-            out[h - 1 - y, x] = values[r]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -184,10 +154,6 @@ def _steps_to_ranks_kernel(steps, h, w, b, bx, by, state, first_step, patterns):
     return out
 
 
-def _plan_args(plan: BlockPlan) -> tuple:
-    return (plan.b, plan.bx, plan.by, plan.state, plan.first_step, plan.patterns)
-
-
 def scan_runs(
     keys: np.ndarray, curve: str | Curve, *, threads: int = 2
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -221,7 +187,8 @@ def scan_runs(
         count, cur, last = 0, keys[_first_texel(plan, j, keys.shape)], np.uint64(0)
         while True:
             count, j, cur, last = _runs_kernel(
-                keys, *_plan_args(plan), j, j1, steps, values, count, cur, last)
+                keys, 0, 0, keys.shape[1], keys.shape[0], *plan_args(plan), j, j1, steps,
+                values, count, cur, last)
             if j == j1:
                 break
             # Out of room: double the run arrays and resume at block j.
@@ -235,11 +202,8 @@ def scan_runs(
     else:
         with ThreadPoolExecutor(len(parts)) as pool:
             results = list(pool.map(one, parts))
-    steps = np.concatenate([r[0] for r in results])
-    values = np.concatenate([r[1] for r in results])
     # Stitch: a run cut by a stretch boundary appears twice with one value; keep the later.
-    keep = np.append(values[1:] != values[:-1], True)
-    return (steps, values) if keep.all() else (steps[keep], values[keep])
+    return join_runs(results)
 
 
 def _first_texel(plan: BlockPlan, j: int, shape: tuple[int, int]) -> tuple[int, int]:
@@ -252,30 +216,51 @@ def _first_texel(plan: BlockPlan, j: int, shape: tuple[int, int]) -> tuple[int, 
     return h - 1 - int(y[i]), int(x[i])
 
 
-def fill_runs(
-    steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
-    *, threads: int = 2,
-) -> np.ndarray:
-    """Inverse of :func:`scan_runs`: the ``(height, width)`` image of the runs' values.
+def scan_square(
+    keys: np.ndarray, width: int, height: int, curve: str | Curve, squares: CurveSquares,
+    k: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of square ``k`` of ``squares`` alone, from that square's texels.
 
-    ``steps[-1]`` must be the step of the image's last texel along the curve.
+    Parameters
+    ----------
+    keys : (h, w) integer ndarray
+        The square's window of the image (:meth:`CurveSquares.rect`), row 0 = top.
+
+    Returns
+    -------
+    steps, values : (R,) ndarrays
+        As :func:`scan_runs` returns them, for the square's stretch of the curve;
+        :func:`join_runs` stitches the squares' runs in curve order.
     """
     plan = block_plan(width, height, curve)
-    out = np.empty((height, width), dtype=values.dtype)
-    # Stretches of blocks filled at once; each starts at the run covering its first step.
-    cuts = np.linspace(0, plan.bx.size, max(1, min(threads, plan.bx.size)) + 1).astype(int)
-    firsts = np.searchsorted(steps, plan.first_step[np.minimum(cuts[:-1], plan.bx.size - 1)])
+    x, y, w, h = squares.rect(k, width, height)
+    keys = np.ascontiguousarray(keys)
+    if keys.shape != (h, w):
+        raise TerrathemeError(f"square {k} is {w} x {h} texels, got a {keys.shape} window")
+    j, j1 = int(squares.j0[k]), int(squares.j1[k])
+    cap = max(2 * (1 << 2 * plan.b), keys.size // 64)
+    steps, values = np.empty(cap, np.uint32), np.empty(cap, keys.dtype)
+    row, col = _first_texel(plan, j, (height, width))
+    count, cur, last = 0, keys[row - y, col - x], np.uint64(0)
+    while True:
+        count, j, cur, last = _runs_kernel(keys, x, y, width, height, *plan_args(plan), j, j1,
+                                           steps, values, count, cur, last)
+        if j == j1:
+            break
+        # Out of room: double the run arrays and resume at block j.
+        steps = np.concatenate([steps, np.empty_like(steps)])
+        values = np.concatenate([values, np.empty_like(values)])
+    return (np.append(steps[:count], np.uint32(last)),
+            np.append(values[:count], values.dtype.type(cur)))
 
-    def one(k: int) -> None:
-        _fill_kernel(out, steps, values, *_plan_args(plan), int(cuts[k]), int(cuts[k + 1]),
-                     int(firsts[k]))
 
-    if cuts.size == 2:
-        one(0)
-    else:
-        with ThreadPoolExecutor(cuts.size - 1) as pool:
-            list(pool.map(one, range(cuts.size - 1)))
-    return out
+def join_runs(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of consecutive stretches of a curve, stitched (a run cut in two is merged)."""
+    steps = np.concatenate([p[0] for p in parts])
+    values = np.concatenate([p[1] for p in parts])
+    keep = np.append(values[1:] != values[:-1], True)
+    return (steps, values) if keep.all() else (steps[keep], values[keep])
 
 
 def scan_order(width: int, height: int, curve: str | Curve) -> np.ndarray:
@@ -301,7 +286,7 @@ def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve
     """
     plan = block_plan(width, height, curve)
     ends = np.ascontiguousarray(ends, dtype=np.int64)
-    out, done = _ranks_to_steps_kernel(ends, height, width, *_plan_args(plan))
+    out, done = _ranks_to_steps_kernel(ends, height, width, *plan_args(plan))
     if done != ends.size:
         raise TerrathemeError(f"run ends beyond the {width} x {height} image's texels")
     return out
@@ -317,4 +302,4 @@ def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curv
     """
     plan = block_plan(width, height, curve)
     steps = np.ascontiguousarray(steps, dtype=np.uint32)
-    return _steps_to_ranks_kernel(steps, height, width, *_plan_args(plan))
+    return _steps_to_ranks_kernel(steps, height, width, *plan_args(plan))

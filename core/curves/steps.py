@@ -12,69 +12,17 @@ Public coordinates are ``(cols, rows)`` with row 0 the **top** row of the image
 1-based numbers are ``step + 1`` (``one_based=True``). A 65536 x 65536 image
 has 2^32 steps, so 0-based steps fit ``uint32`` and 1-based ones do not.
 
-The whole-image scan (texel order along the curve) is cut into ``2^b x 2^b``
-blocks: the coarse curve orders the blocks, and each block is walked with one
-of four precomputed local patterns (:func:`block_plan`). The numba kernels in
-:mod:`core.curves.scan` use that plan.
+The curve kinds and the enclosing square are in :mod:`core.curves.square`
+(numba-free); the block plan of whole-image scans in :mod:`core.curves.plan`.
 """
 
 from __future__ import annotations
 
-import enum
-from dataclasses import dataclass
-from functools import lru_cache
-
 import numba
 import numpy as np
 
+from core.curves.square import Curve, curve_order, hilbert_transposed
 from core.errors import TerrathemeError
-
-MAX_SIDE = 65536
-#: log2 of the scan block side (64 x 64 texels per block, 4 Hilbert patterns).
-BLOCK_BITS = 6
-
-
-class Curve(enum.IntEnum):
-    """Curve type, as stored in the file header (seed Table 1)."""
-
-    HILBERT = 0
-    MORTON = 1
-
-    @classmethod
-    def parse(cls, value: str | int | Curve) -> Curve:
-        """``"hilbert"`` / ``"morton"`` (any case), an int code, or a Curve."""
-        if isinstance(value, Curve):
-            return value
-        if isinstance(value, str):
-            try:
-                return cls[value.strip().upper()]
-            except KeyError:
-                raise TerrathemeError(
-                    f"unknown curve {value!r}: use 'hilbert' or 'morton'"
-                ) from None
-        try:
-            return cls(int(value))
-        except ValueError:
-            raise TerrathemeError(f"unknown curve code {value!r}") from None
-
-
-def curve_order(width: int, height: int) -> int:
-    """Levels ``n`` of the enclosing ``2^n x 2^n`` square (0 for a 1 x 1 image).
-
-    Raises
-    ------
-    TerrathemeError
-        A side is not in ``1 .. 65536``.
-    """
-    width, height = int(width), int(height)
-    if width < 1 or height < 1:
-        raise TerrathemeError(f"image of {width} x {height} texels has no texels to scan")
-    if width > MAX_SIDE or height > MAX_SIDE:
-        raise TerrathemeError(
-            f"image of {width} x {height} texels exceeds the {MAX_SIDE} x {MAX_SIDE} limit"
-        )
-    return int(max(width, height) - 1).bit_length()
-
 
 # ---------------------------------------------------------------- square curves
 #
@@ -112,15 +60,17 @@ HILBERT_TABLES.setflags(write=False)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def hilbert_walk(x, y, n, tables):  # pragma: no cover - numba
+def hilbert_walk(x, y, n, tables, start=0):  # pragma: no cover - numba
     """0-based Hilbert step of ``(x, y)`` (y up) on the ``2^n`` square, and the final state.
 
     ``tables`` is :data:`HILBERT_TABLES` (any integer dtype). The state's
     bit 0 = swap x/y, bit 1 = flip both (the transforms of Hacker's Delight /
     Wikipedia's ``rot``, which commute, so two bits describe their composition).
+    ``start`` is the state the walk begins in: the local step of a texel in a
+    block whose pattern is that state (:func:`core.curves.plan.local_patterns`).
     """
     d = np.uint64(0)
-    state = 0
+    state = start
     level = n
     # Leading levels one at a time until a multiple of four remain.
     while level % 4 != 0:
@@ -288,18 +238,6 @@ def morton_d2xy(d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------- image coordinates
 
 
-def hilbert_transposed(n: int) -> bool:
-    """Whether the image's Hilbert curve is the square curve with x and y swapped.
-
-    The square curve of :func:`hilbert_xy2d` always visits its quadrants
-    bottom-left, top-left, top-right, bottom-right, so its very first move is
-    upward only when ``n`` is odd (the seed's 8 x 8 figure). The image curve
-    keeps the first move upward for every size (design.md §4) by
-    swapping x and y when ``n`` is even.
-    """
-    return n % 2 == 0
-
-
 def _upward(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return (y, x) if hilbert_transposed(n) else (x, y)
 
@@ -377,87 +315,3 @@ def step_table(
     return steps_of(cols, rows, width, height, curve, one_based=True).astype(np.int64) - (
         0 if one_based else 1
     )
-
-
-# ---------------------------------------------------------------- block plan of a scan
-
-
-@dataclass(frozen=True)
-class BlockPlan:
-    """The blocks of ``2^b x 2^b`` texels that cover an image, in curve order.
-
-    Attributes
-    ----------
-    n, b : int
-        Curve levels of the square and of a block (``b <= n``).
-    bx, by : (nb,) int32 ndarrays
-        Block column and block row, ``by`` counted **up** from the bottom.
-    state : (nb,) uint8 ndarray
-        Local pattern of each block (index into ``patterns``).
-    first_step : (nb,) uint64 ndarray
-        0-based step of each block's first local step (``c * 4^b``).
-    patterns : (4, 4^b) uint16 ndarray
-        Local visiting order: entry ``i`` is ``(ly << b) | lx`` of local step ``i``, y up.
-    """
-
-    n: int
-    b: int
-    bx: np.ndarray
-    by: np.ndarray
-    state: np.ndarray
-    first_step: np.ndarray
-    patterns: np.ndarray
-
-
-@lru_cache(maxsize=8)
-def _patterns(b: int, curve: Curve) -> np.ndarray:
-    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated)."""
-    i = np.arange(4**b, dtype=np.uint64)
-    if curve is Curve.MORTON:
-        x, y = morton_d2xy(i, b)
-        one = ((y << b) | x).astype(np.uint16)
-        return np.ascontiguousarray(np.broadcast_to(one, (4, one.size)))
-    x, y = hilbert_d2xy(i, b)
-    out = np.empty((4, i.size), dtype=np.uint16)
-    side = (1 << b) - 1
-    for state in range(4):
-        # A block in state (swap, flip) is walked by T(d2xy(i)), T = swap^s o flip^f (self-inverse).
-        px, py = (side - x, side - y) if state & 2 else (x, y)
-        if state & 1:
-            px, py = py, px
-        out[state] = (py << b) | px
-    out.setflags(write=False)
-    return out
-
-
-def block_plan(width: int, height: int, curve: str | Curve) -> BlockPlan:
-    """Blocks of the enclosing square that meet the image, in curve order (cached)."""
-    return _block_plan(int(width), int(height), Curve.parse(curve))
-
-
-@lru_cache(maxsize=16)
-def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
-    n = curve_order(width, height)
-    b = min(n, BLOCK_BITS)
-    coarse = n - b
-    nbx = -(-width // (1 << b))
-    nby = -(-height // (1 << b))
-    # Coarse grid of blocks meeting the image (y up), then its coarse curve steps.
-    by, bx = np.mgrid[0:nby, 0:nbx]
-    bx = bx.ravel().astype(np.int64)
-    by = by.ravel().astype(np.int64)
-    if curve is Curve.HILBERT:
-        c, state = hilbert_xy2d(*_upward(bx, by, n), coarse)
-        if hilbert_transposed(n):
-            # Transposed image curve: the local pattern is transposed too (swap bit).
-            state = state ^ np.uint8(1)
-    else:
-        c, state = morton_xy2d(bx, by, coarse), np.zeros(bx.shape, np.uint8)
-    order = np.argsort(c, kind="stable")
-    arrays = dict(
-        bx=bx[order].astype(np.int32), by=by[order].astype(np.int32),
-        state=state[order].astype(np.uint8), first_step=c[order] << np.uint64(2 * b),
-    )
-    for a in arrays.values():
-        a.setflags(write=False)
-    return BlockPlan(n=n, b=b, patterns=_patterns(b, curve), **arrays)

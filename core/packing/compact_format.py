@@ -94,10 +94,31 @@ def encode_runs(lengths: np.ndarray, indices: np.ndarray, palette_size: int) -> 
 
 
 def _inflate(data: bytes, name: str, what: str, limit: int) -> bytes:
+    """A zstd stream's content, refused as soon as it would pass ``limit`` bytes.
+
+    The frame header's declared size is checked first and the content is then
+    read through a bounded stream reader, so neither a forged content size nor
+    a decompression bomb can make the reader allocate more than ``limit``.
+    """
     try:
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=limit)
+        declared = zstandard.frame_content_size(data)
+        if declared > limit:
+            raise CorruptFileError(
+                f"{name}: {what} stream declares {declared} bytes, at most {limit} expected")
+        reader = zstandard.ZstdDecompressor().stream_reader(data)
+        parts: list[bytes] = []
+        size = 0
+        while size <= limit:
+            chunk = reader.read(min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            parts.append(chunk)
+            size += len(chunk)
     except zstandard.ZstdError as exc:
         raise CorruptFileError(f"{name}: damaged {what} stream ({exc})") from None
+    if size > limit:
+        raise CorruptFileError(f"{name}: {what} stream inflates past {limit} bytes")
+    return b"".join(parts)
 
 
 def decode_runs(

@@ -1,14 +1,16 @@
-"""The packed-layer file: header, palette, run payload, checksum.
+"""The packed-layer file: header, palette, run payload, checksum (``docs/formats-ttpack.md``).
 
 Layout (little-endian), the seed's Tables 1-2 plus a magic number, a version
 and a checksum::
 
     offset size  field
     0      4     magic b"TTPK"
-    4      1     format version (1)
-    5      1     encoding: 0 = seed (varint pairs), 1 = compact (entropy coded)
+    4      1     format version (1 or 2, see below)
+    5      1     encoding: 0 = seed (varint pairs), 1 = compact (two entropy-coded
+                 streams), 2 = plane (2-D context mixing; version 2)
     6      1     curve: 0 = Hilbert, 1 = Morton
-    7      1     flags: bit 0 = 2-D image, bit 1 = identity palette (P = pixel value)
+    7      1     flags: bit 0 = 2-D image, bit 1 = identity palette (P = pixel value),
+                 bit 2 = display colours stored (version 2), bit 3 = they have alpha
     8      1     channels C (1..4)
     9      1     bytes per sample (1 or 2)
     10     2     palette entries K (1..256)
@@ -17,8 +19,24 @@ and a checksum::
     20     8     run count R
     28     8     payload bytes
     36     ...   palette, K*C samples (absent for an identity palette)
-    ...    ...   payload (core.packing.seed_format or core.packing.compact_format)
+    ...    ...   display colours of an identity palette, K*3 or K*4 bytes (flag bit 2)
+    ...    ...   payload (core.packing.seed_format, .compact_format or .plane_format)
     end-4  4     CRC-32 of every byte before it
+
+Versioning: a file carries the lowest version whose readers understand it
+(encodings 0 and 1 without display colours stay version 1; display colours
+and encoding 2 need version 2), so a version-1 reader still opens every file
+it could have written; a reader refuses a version above :data:`VERSION` with
+:class:`UnsupportedVersionError`.
+
+Ceilings checked before any payload is decoded (so a small hostile file
+costs milliseconds): the sizes above, the file length and checksum, and at
+most ``max(RUN_ALLOWANCE, MAX_RUNS_PER_BYTE * payload bytes)`` runs. The
+writer never produces a file over the ceilings (a pathologically regular
+layer falls back to the seed encoding, two or more bytes per run).
+
+The codecs are imported when a payload is coded, so reading the header
+(:func:`read_header`, ``terratheme info``) loads no numba kernel.
 """
 
 from __future__ import annotations
@@ -29,51 +47,140 @@ from typing import NamedTuple
 
 import numpy as np
 
-from core.curves.steps import MAX_SIDE, Curve
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.packing import compact_format, seed_format
 
 MAGIC = b"TTPK"
-VERSION = 1
-ENCODINGS = {"seed": 0, "compact": 1}
-_HEADER = struct.Struct("<4sBBBBBBHIIQQ")
+#: Highest format version this build reads.
+VERSION = 2
+ENCODINGS = {"seed": 0, "compact": 1, "plane": 2}
+#: Lowest file version that knows each encoding.
+ENCODING_VERSION = {0: 1, 1: 1, 2: 2}
+HEADER = struct.Struct("<4sBBBBBBHIIQQ")
 FLAG_SQUEEZE = 1
 FLAG_IDENTITY = 2
+FLAG_COLOURS = 4
+FLAG_ALPHA = 8
+#: The flag bits each version knows.
+VERSION_FLAGS = {1: FLAG_SQUEEZE | FLAG_IDENTITY,
+                 2: FLAG_SQUEEZE | FLAG_IDENTITY | FLAG_COLOURS | FLAG_ALPHA}
+#: Largest side of one layer (a curve over at most 2^32 steps).
+MAX_SIDE = 65536
+#: Ceiling on runs per payload byte (real maps: 1.5-3; the decoders' arrays grow with R).
+MAX_RUNS_PER_BYTE = 16
+#: Runs any payload may declare whatever its size (about 20 MB of decoding arrays).
+RUN_ALLOWANCE = 1 << 20
 
 
 class LayerFields(NamedTuple):
     """What a layer file stores (:class:`core.packing.layer.PackedLayer` is built from it).
 
     ``lengths`` and ``indices`` are the runs (texels per run, palette index);
-    ``palette`` is ``(K, C)`` uint8 or uint16.
+    ``palette`` is ``(K, C)`` uint8 or uint16; ``colours`` the ``(K, 3|4)``
+    uint8 display colours of an identity palette, or None.
     """
 
     width: int
     height: int
-    curve: Curve
+    curve: int
     lengths: np.ndarray
     indices: np.ndarray
     palette: np.ndarray
     identity: bool
     squeeze: bool
+    colours: np.ndarray | None = None
+
+
+class LayerHeader(NamedTuple):
+    """The fixed header of a layer file, checked (:func:`read_header`)."""
+
+    version: int
+    encoding: int
+    curve: int
+    squeeze: bool
+    identity: bool
+    colour_channels: int
+    channels: int
+    sample: int
+    k: int
+    width: int
+    height: int
+    runs: int
+    payload: int
+
+    @property
+    def palette_bytes(self) -> int:
+        """Bytes of the stored palette (0 for an identity palette)."""
+        return 0 if self.identity else self.k * self.channels * self.sample
+
+    @property
+    def colour_bytes(self) -> int:
+        """Bytes of the stored display colours (0 when there are none)."""
+        return self.k * self.colour_channels
+
+    @property
+    def payload_at(self) -> int:
+        """Offset of the payload in the file."""
+        return HEADER.size + self.palette_bytes + self.colour_bytes
+
+    @property
+    def file_bytes(self) -> int:
+        """Length of the whole file the header describes."""
+        return self.payload_at + self.payload + 4
+
+    @property
+    def encoding_name(self) -> str:
+        """``"seed"``, ``"compact"`` (run streams) or ``"plane"``."""
+        return {v: k for k, v in ENCODINGS.items()}[self.encoding]
+
+
+def run_ceiling(payload_bytes: int) -> int:
+    """Most runs a payload of this many bytes may declare."""
+    return max(RUN_ALLOWANCE, MAX_RUNS_PER_BYTE * int(payload_bytes))
 
 
 def encode_layer(layer: LayerFields, encoding: str) -> bytes:
-    """The bytes of a layer file in ``encoding`` (``"seed"`` or ``"compact"``)."""
-    if encoding not in ENCODINGS:
+    """The bytes of a layer file in ``encoding``.
+
+    ``"compact"`` keeps the smaller of the plane payload (encoding 2) and the
+    run streams (encoding 1); ``"plane"`` and ``"streams"`` ask for one of
+    them (the run streams when the plane payload cannot hold the layer);
+    ``"seed"`` is the seed's varint pairs.
+    """
+    from core.packing import compact_format, plane_format, seed_format
+
+    if encoding not in (*ENCODINGS, "streams"):
         raise TerrathemeError(f"unknown packed format {encoding!r}: use 'compact' or 'seed'")
     lengths = layer.lengths
     indices = layer.indices
-    channels = layer.palette.shape[1]
-    if encoding == "seed":
-        payload = seed_format.encode_seed_runs(lengths, indices)
+    ceiling_ok = run_ceiling(0) >= len(lengths)
+    candidates: dict[int, bytes] = {}
+    if encoding in ("compact", "plane") and plane_format.can_code(indices):
+        plane = plane_format.encode_plane(layer.width, layer.height, layer.curve, lengths,
+                                          indices)
+        if plane is not None:
+            candidates[2] = plane
+    if encoding in ("compact", "streams") or (encoding == "plane" and not candidates):
+        candidates[1] = compact_format.encode_runs(lengths, indices, layer.palette.shape[0])
+    # Keep the smallest payload within the run ceiling; the seed layout always fits it.
+    fits = {e: p for e, p in candidates.items()
+            if ceiling_ok or len(lengths) <= run_ceiling(len(p))}
+    if fits:
+        code = min(fits, key=lambda e: len(fits[e]))
+        payload = fits[code]
     else:
-        payload = compact_format.encode_runs(lengths, indices, layer.palette.shape[0])
+        code, payload = 0, seed_format.encode_seed_runs(lengths, indices)
+    channels = layer.palette.shape[1]
     palette = b"" if layer.identity else layer.palette.astype(
         layer.palette.dtype.newbyteorder("<")).tobytes()
     flags = (FLAG_SQUEEZE if layer.squeeze else 0) | (FLAG_IDENTITY if layer.identity else 0)
-    header = _HEADER.pack(
-        MAGIC, VERSION, ENCODINGS[encoding], int(layer.curve), flags, channels,
+    version = ENCODING_VERSION[code]
+    if layer.identity and layer.colours is not None:
+        colours = np.ascontiguousarray(layer.colours, np.uint8)
+        flags |= FLAG_COLOURS | (FLAG_ALPHA if colours.shape[1] == 4 else 0)
+        palette += colours.tobytes()
+        version = max(version, 2)
+    header = HEADER.pack(
+        MAGIC, version, code, int(layer.curve), flags, channels,
         layer.palette.dtype.itemsize, layer.palette.shape[0], layer.width, layer.height,
         len(lengths), len(payload),
     )
@@ -81,18 +188,26 @@ def encode_layer(layer: LayerFields, encoding: str) -> bytes:
     return body + struct.pack("<I", zlib.crc32(body))
 
 
-def read_header(data: bytes, *, name: str) -> dict:
-    """Parse and check the fixed header (magic, version, field ranges)."""
+def read_header(data: bytes, *, name: str) -> LayerHeader:
+    """Parse and check the fixed header (magic, version, field ranges, run ceiling).
+
+    Raises
+    ------
+    CorruptFileError
+        Not a layer file, truncated header, a field out of range.
+    UnsupportedVersionError
+        A version newer than :data:`VERSION`.
+    """
     if len(data) < 4:
         raise CorruptFileError(f"{name}: empty or truncated file ({len(data)} bytes)")
     if data[:4] != MAGIC:
         raise CorruptFileError(
-            f"{name}: not a terratheme packed layer (magic {data[:4]!r}, expected {MAGIC!r})"
-        )
-    if len(data) < _HEADER.size + 4:
+            f"{name}: not a terratheme packed layer (magic {bytes(data[:4])!r}, "
+            f"expected {MAGIC!r})")
+    if len(data) < HEADER.size + 4:
         raise CorruptFileError(f"{name}: truncated header ({len(data)} bytes)")
     (_, version, encoding, curve, flags, channels, sample, k, width, height, runs,
-     payload) = _HEADER.unpack_from(data)
+     payload) = HEADER.unpack_from(data)
     if version > VERSION:
         raise UnsupportedVersionError(
             f"{name}: packed-layer format version {version}; this build reads up to {VERSION}"
@@ -100,7 +215,9 @@ def read_header(data: bytes, *, name: str) -> dict:
     if version == 0:
         raise CorruptFileError(f"{name}: format version 0 is not valid")
     checks = (
-        (encoding in ENCODINGS.values(), f"unknown encoding {encoding}"),
+        (encoding in ENCODING_VERSION, f"unknown encoding {encoding}"),
+        (ENCODING_VERSION.get(encoding, 0) <= version,
+         f"encoding {encoding} in a version-{version} file"),
         (curve in (0, 1), f"unknown curve code {curve}"),
         (1 <= channels <= 4, f"{channels} channels"),
         (sample in (1, 2), f"{sample} bytes per sample"),
@@ -108,20 +225,27 @@ def read_header(data: bytes, *, name: str) -> dict:
         (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE, f"size {width} x {height}"),
         (1 <= runs <= width * height, f"{runs} runs for {width} x {height} texels"),
         (not flags & FLAG_IDENTITY or channels == 1, "identity palette with colour channels"),
+        (not flags & ~VERSION_FLAGS.get(version, VERSION_FLAGS[VERSION]),
+         f"flags {flags:#x} in a version-{version} file"),
+        (not flags & FLAG_COLOURS or flags & FLAG_IDENTITY, "display colours without an "
+         "identity palette"),
+        (not flags & FLAG_ALPHA or flags & FLAG_COLOURS, "colour alpha without colours"),
+        (encoding == 0 or runs <= run_ceiling(payload),
+         f"{runs} runs in {payload} payload bytes (at most {MAX_RUNS_PER_BYTE} per byte)"),
     )
     for ok, what in checks:
         if not ok:
             raise CorruptFileError(f"{name}: bad header: {what}")
-    return dict(encoding=encoding, curve=Curve(curve), flags=flags, channels=channels,
-                sample=sample, k=k, width=width, height=height, runs=runs, payload=payload)
+    colour_channels = (4 if flags & FLAG_ALPHA else 3) if flags & FLAG_COLOURS else 0
+    return LayerHeader(version, encoding, curve, bool(flags & FLAG_SQUEEZE),
+                       bool(flags & FLAG_IDENTITY), colour_channels, channels, sample, k,
+                       width, height, runs, payload)
 
 
-def decode_layer(data: bytes, *, name: str) -> LayerFields:
-    """Parse and check a layer file (either encoding)."""
+def check_file(data: bytes, *, name: str) -> LayerHeader:
+    """:func:`read_header`, then the file length and the checksum."""
     head = read_header(data, name=name)
-    identity = bool(head["flags"] & FLAG_IDENTITY)
-    pal_bytes = 0 if identity else head["k"] * head["channels"] * head["sample"]
-    expected = _HEADER.size + pal_bytes + head["payload"] + 4
+    expected = head.file_bytes
     if len(data) < expected:
         raise CorruptFileError(f"{name}: truncated: {len(data)} bytes, header says {expected}")
     if len(data) > expected:
@@ -129,22 +253,46 @@ def decode_layer(data: bytes, *, name: str) -> LayerFields:
     (stored,) = struct.unpack_from("<I", data, expected - 4)
     if zlib.crc32(memoryview(data)[: expected - 4]) != stored:
         raise CorruptFileError(f"{name}: checksum mismatch: the file is damaged")
-    dtype = np.dtype("<u1" if head["sample"] == 1 else "<u2")
-    start = _HEADER.size
-    if identity:
-        palette = np.arange(head["k"], dtype=dtype)[:, None]
+    return head
+
+
+def read_palette(data: bytes, head: LayerHeader) -> np.ndarray:
+    """The ``(K, C)`` palette of a checked file (the identity ``0 .. K-1`` when not stored)."""
+    dtype = np.dtype("<u1" if head.sample == 1 else "<u2")
+    if head.identity:
+        palette = np.arange(head.k, dtype=dtype)[:, None]
     else:
-        palette = np.frombuffer(data, dtype=dtype, count=head["k"] * head["channels"],
-                                offset=start).reshape(head["k"], head["channels"])
-    payload = bytes(memoryview(data)[start + pal_bytes: expected - 4])
-    if head["encoding"] == ENCODINGS["seed"]:
-        lengths, indices = seed_format.decode_seed_runs(payload, head["runs"], name=name)
+        palette = np.frombuffer(data, dtype=dtype, count=head.k * head.channels,
+                                offset=HEADER.size).reshape(head.k, head.channels)
+    return palette.astype(dtype.newbyteorder("="))
+
+
+def read_colours(data: bytes, head: LayerHeader) -> np.ndarray | None:
+    """The ``(K, 3|4)`` uint8 display colours of a checked file, or None."""
+    if not head.colour_channels:
+        return None
+    flat = np.frombuffer(data, np.uint8, count=head.colour_bytes,
+                         offset=HEADER.size + head.palette_bytes)
+    return flat.reshape(head.k, head.colour_channels).copy()
+
+
+def decode_layer(data: bytes, *, name: str) -> LayerFields:
+    """Parse and check a layer file (any encoding)."""
+    from core.packing import compact_format, plane_format, seed_format
+
+    head = check_file(data, name=name)
+    palette = read_palette(data, head)
+    payload = bytes(memoryview(data)[head.payload_at: head.file_bytes - 4])
+    if head.encoding == ENCODINGS["seed"]:
+        lengths, indices = seed_format.decode_seed_runs(payload, head.runs, name=name)
+    elif head.encoding == ENCODINGS["compact"]:
+        lengths, indices = compact_format.decode_runs(payload, head.runs, head.k, name=name)
     else:
-        lengths, indices = compact_format.decode_runs(payload, head["runs"], head["k"], name=name)
-    if indices.max() >= head["k"]:
+        lengths, indices = plane_format.decode_plane(payload, head.width, head.height,
+                                                     head.curve, head.runs, name=name)
+    if indices.max() >= head.k:
         raise CorruptFileError(
-            f"{name}: palette index {int(indices.max())} out of range (palette has {head['k']})"
+            f"{name}: palette index {int(indices.max())} out of range (palette has {head.k})"
         )
-    return LayerFields(head["width"], head["height"], head["curve"], lengths, indices,
-                       palette.astype(dtype.newbyteorder("=")), identity,
-                       bool(head["flags"] & FLAG_SQUEEZE))
+    return LayerFields(head.width, head.height, head.curve, lengths, indices, palette,
+                       head.identity, head.squeeze, read_colours(data, head))

@@ -1,31 +1,34 @@
 """The packed index layer in memory (seed section 2.1): header, palette, runs.
 
 A :class:`PackedLayer` answers texel reads without unpacking (:meth:`lookup`),
-rebuilds the image (:meth:`unpack`) and saves to / loads from the two file
-encodings of :mod:`core.packing.container`.
+rebuilds the image whole (:meth:`unpack`) or band by band (:meth:`bands`), and
+saves to / loads from the file encodings of :mod:`core.packing.container`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.curves.scan import fill_runs, ranks_to_steps, steps_to_ranks
-from core.curves.steps import Curve, curve_order
+from core.curves.fill import fill_runs, fill_window
+from core.curves.scan import ranks_to_steps, steps_to_ranks
+from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing.container import LayerFields, decode_layer, encode_layer
+from core.packing.layout import W_COUNT
 from core.packing.lookup import (
-    W_COUNT,
     build_table,
-    lookup_batch,
-    lookup_batch_parallel,
+    layer_batch,
+    layer_batch_parallel,
     scalar_lookup_function,
     table_runs,
 )
-from core.packing.palette import PaletteReport
+from core.packing.palette import PaletteReport, check_colours, palette_values
 
 _SCALAR: list = []
 
@@ -60,6 +63,10 @@ class PackedLayer:
         then drop the channel axis like numpy indexing of that array would.
     report : PaletteReport or None
         What palette reduction changed, when it was used.
+    colours : (K, 3) or (K, 4) uint8 ndarray or None
+        Display colours of an identity layer's indices (a palette PNG's table,
+        theme colours): what :func:`core.packing.export.write_layer_image`
+        shows; lookups still return the indices.
     threads : int
         Threads for batched lookups of at least ``PARALLEL_FROM`` texels
         (1 = always serial; ``dataclasses.replace(layer, threads=1)``).
@@ -76,6 +83,7 @@ class PackedLayer:
     _data: np.ndarray = field(repr=False)
     _scalars: list = field(repr=False)
     report: PaletteReport | None = None
+    colours: np.ndarray | None = None
     threads: int = 2
 
     # ------------------------------------------------------------ construction
@@ -85,6 +93,7 @@ class PackedLayer:
         cls, width: int, height: int, curve: str | Curve, steps: np.ndarray,
         indices: np.ndarray, palette: np.ndarray, *, identity: bool = False,
         squeeze: bool = False, report: PaletteReport | None = None, one_based: bool = False,
+        colours: np.ndarray | None = None,
     ) -> PackedLayer:
         """A layer from its runs ``D_i = <S_i, P_i>`` (seed Table 3).
 
@@ -97,12 +106,15 @@ class PackedLayer:
         indices : (R,) integer ndarray
             Palette index ``P_i`` of each run, ``< len(palette)``.
         palette : (K,) or (K, C) ndarray, uint8 or uint16
+        colours : (K', 3) or (K', 4) uint8 ndarray, optional
+            Display colours of an identity layer (``K' >= K``; the first ``K`` are kept).
 
         Raises
         ------
         TerrathemeError
             Runs that are not increasing, do not end at the image's last texel,
-            stop on a step outside the image, or use a palette index out of range.
+            stop on a step outside the image, use a palette index out of range,
+            or display colours that do not fit the palette.
         """
         curve = Curve.parse(curve)
         n = curve_order(width, height)
@@ -141,13 +153,14 @@ class PackedLayer:
         back = ranks_to_steps(ranks, width, height, curve)
         if not np.array_equal(back.astype(np.int64), steps):
             raise TerrathemeError("a run ends on a curve step outside the image")
+        colours = check_colours(colours, palette.shape[0], identity)
         data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
         palette = np.ascontiguousarray(palette)
         palette.setflags(write=False)
         # What a scalar lookup returns for each palette index, ready-made (like image[y, x]).
         scalars = list(palette[:, 0]) if squeeze else list(palette)
         return cls(int(width), int(height), curve, palette, bool(identity), bool(squeeze),
-                   data, scalars, report)
+                   data, scalars, report, colours)
 
     @classmethod
     def from_lengths(
@@ -207,6 +220,23 @@ class PackedLayer:
         return int(self.palette.shape[1])
 
     @property
+    def table(self) -> np.ndarray:
+        """The random-access table (read-only view; layout in :mod:`core.packing.layout`).
+
+        One ``uint32`` array: header words, Hilbert tables, block directory,
+        one word per run. GPU shaders can read it as a buffer texture.
+        """
+        view = self._data.view()
+        view.setflags(write=False)
+        return view
+
+    def with_table(self, table: np.ndarray) -> PackedLayer:
+        """The same layer over another copy of its table (e.g. a view into a larger array)."""
+        if table.dtype != np.uint32 or not np.array_equal(table, self._data):
+            raise TerrathemeError("with_table needs an exact copy of the layer's table")
+        return dataclasses.replace(self, _data=table)
+
+    @property
     def memory_bytes(self) -> int:
         """Bytes of the random-access structure (header, directory, one word per run)."""
         return int(self._data.nbytes)
@@ -249,21 +279,15 @@ class PackedLayer:
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, dtype=np.uint8)
         if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = lookup_batch_parallel(flat_x, flat_y, self._data, idx)
+            bad = layer_batch_parallel(flat_x, flat_y, self._data, idx)
             bad = -1 if bad == 0 else int(np.flatnonzero(
                 (flat_x < 0) | (flat_x >= self.width) | (flat_y < 0) | (flat_y >= self.height)
             )[0])
         else:
-            bad = lookup_batch(flat_x, flat_y, self._data, idx)
+            bad = layer_batch(flat_x, flat_y, self._data, idx)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
-        if self.identity:
-            # Index layer: the palette index is the value; no colour gather needed.
-            values = idx.astype(self.palette.dtype, copy=False)
-            values = values if self.squeeze else values[:, None]
-        else:
-            values = self.palette[idx]
-            values = values[:, 0] if self.squeeze else values
+        values = self.values_of(idx)
         out = values.reshape(shape + values.shape[1:])
         return out[()] if out.ndim == 0 else out
 
@@ -285,18 +309,52 @@ class PackedLayer:
         """
         steps, indices = table_runs(self._data)
         idx = fill_runs(steps, indices, self.width, self.height, self.curve)
-        if indices_only:
-            return idx
-        if self.identity:
-            image = idx.astype(self.palette.dtype)
-            return image if self.squeeze else image[:, :, None]
-        image = self.palette[idx]
-        return image[:, :, 0] if self.squeeze else image
+        return idx if indices_only else self.values_of(idx)
+
+    def bands(self, rows: int = 256) -> Iterator[tuple[int, np.ndarray]]:
+        """The palette-index image in horizontal bands, top to bottom, with bounded memory.
+
+        Parameters
+        ----------
+        rows : int
+            Rows per band (the last band may be shorter).
+
+        Yields
+        ------
+        y : int
+            Row of the band's first line.
+        band : (h, width) uint8 ndarray
+            Palette indices; the same buffer is reused from band to band.
+        """
+        steps, indices = table_runs(self._data)
+        rows = max(1, int(rows))
+        buf = np.empty((min(rows, self.height), self.width), np.uint8)
+        for y in range(0, self.height, rows):
+            h = min(rows, self.height - y)
+            yield y, fill_window(steps, indices, self.width, self.height, self.curve, 0, y,
+                                 self.width, h, out=buf[:h], threads=self.threads)
+
+    def values_of(self, indices: np.ndarray) -> np.ndarray:
+        """Texel values of palette indices, shaped as :meth:`unpack` returns them.
+
+        Parameters
+        ----------
+        indices : (...) uint8 ndarray
+
+        Returns
+        -------
+        values : (...) or (..., C) ndarray of the palette's dtype
+        """
+        return palette_values(self.palette, self.identity, self.squeeze, indices)
 
     # ------------------------------------------------------------ files
 
     def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
-        """Write the layer atomically; ``format`` is ``"compact"`` or ``"seed"``.
+        """Write the layer atomically.
+
+        ``format``: ``"compact"`` (the smaller of the plane and run-stream
+        payloads), ``"plane"``, ``"streams"`` or ``"seed"`` (the seed's varints);
+        see :func:`core.packing.container.encode_layer`.
 
         Returns
         -------
@@ -309,8 +367,8 @@ class PackedLayer:
     def to_bytes(self, *, format: str = "compact") -> bytes:
         """The file content :meth:`save` would write."""
         return encode_layer(LayerFields(self.width, self.height, self.curve, self.lengths,
-                                        self.P, self.palette, self.identity, self.squeeze),
-                            format)
+                                        self.P, self.palette, self.identity, self.squeeze,
+                                        self.colours), format)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PackedLayer:
@@ -336,8 +394,9 @@ class PackedLayer:
         f = decode_layer(data, name=name)
         try:
             return cls.from_lengths(f.width, f.height, f.curve, f.lengths, f.indices, f.palette,
-                                    identity=f.identity, squeeze=f.squeeze)
+                                    identity=f.identity, squeeze=f.squeeze, colours=f.colours)
         except CorruptFileError:
             raise
         except TerrathemeError as exc:
             raise CorruptFileError(f"{name}: {exc}") from None
+

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.curves.scan import scan_runs
-from core.curves.steps import Curve, curve_order
+from core.curves.square import MAX_SIDE, Curve
 from core.errors import TerrathemeError
 
 MAX_COLOURS = 256
@@ -68,14 +68,14 @@ class Runs:
     identity: bool
 
 
-def check_image(image: np.ndarray) -> tuple[np.ndarray, bool]:
+def check_image(image: np.ndarray, *, max_side: int = MAX_SIDE) -> tuple[np.ndarray, bool]:
     """Validate an input image; return it as ``(H, W, C)`` and whether it was 2-D.
 
     Raises
     ------
     TerrathemeError
         Empty image, more than 4 channels, a pixel type other than uint8/uint16,
-        or a side over 65536.
+        or a side over ``max_side`` (one layer's 65536 by default).
     """
     arr = np.asarray(image)
     squeeze = arr.ndim == 2
@@ -92,11 +92,13 @@ def check_image(image: np.ndarray) -> tuple[np.ndarray, bool]:
         raise TerrathemeError(
             f"pixel type {arr.dtype} cannot be packed: index layers are uint8 or uint16"
         )
-    curve_order(w, h)
+    if w > max_side or h > max_side:
+        raise TerrathemeError(
+            f"image of {w} x {h} texels exceeds the {max_side} x {max_side} limit")
     return arr, squeeze
 
 
-def _pack_keys(arr: np.ndarray) -> np.ndarray:
+def colour_keys(arr: np.ndarray) -> np.ndarray:
     """One integer per texel holding all its channels: (H, W) uint32 or uint64."""
     bits = 8 * arr.dtype.itemsize
     kind = np.uint32 if bits * arr.shape[2] <= 32 else np.uint64
@@ -106,8 +108,8 @@ def _pack_keys(arr: np.ndarray) -> np.ndarray:
     return keys
 
 
-def _unpack_keys(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndarray:
-    """Inverse of :func:`_pack_keys` for a few keys: (K,) -> (K, C)."""
+def keys_to_colours(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndarray:
+    """Inverse of :func:`colour_keys` for a few keys: (K,) -> (K, C)."""
     bits = 8 * dtype.itemsize
     mask = (1 << bits) - 1
     keys = keys.astype(np.uint64)
@@ -129,7 +131,7 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
         palette = np.arange(int(values.max()) + 1, dtype=arr.dtype)[:, None]
         return Runs(steps, values, palette, identity=True)
     # Colour image: runs of packed colours, then the palette in order of first appearance.
-    steps, values = scan_runs(_pack_keys(arr), curve)
+    steps, values = scan_runs(colour_keys(arr), curve)
     uniq, first, inverse = np.unique(values, return_index=True, return_inverse=True)
     if uniq.size > MAX_COLOURS:
         raise TerrathemeError(
@@ -139,7 +141,7 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
     order = np.argsort(first, kind="stable")
     rank = np.empty(uniq.size, dtype=np.uint8)
     rank[order] = np.arange(uniq.size, dtype=np.uint8)
-    palette = _unpack_keys(uniq[order], arr.shape[2], arr.dtype)
+    palette = keys_to_colours(uniq[order], arr.shape[2], arr.dtype)
     return Runs(steps, rank[inverse.reshape(-1)], palette, identity=False)
 
 
@@ -155,9 +157,9 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
     """
     import cv2
 
-    keys = _pack_keys(arr).reshape(-1)
+    keys = colour_keys(arr).reshape(-1)
     uniq, inverse = np.unique(keys, return_inverse=True)
-    colours = _unpack_keys(uniq, arr.shape[2], arr.dtype).astype(np.float32)
+    colours = keys_to_colours(uniq, arr.shape[2], arr.dtype).astype(np.float32)
     if uniq.size <= MAX_COLOURS:
         return arr, PaletteReport(int(uniq.size), int(uniq.size), 0.0, 0.0)
     # Cluster the distinct colours, weighted by repetition through a texel sample.
@@ -180,3 +182,43 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
     after = np.unique(mapped, axis=0).shape[0]
     return reduced, PaletteReport(int(uniq.size), int(after), float(per_texel.max()),
                                   float(per_texel.mean()))
+
+
+def check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndarray | None:
+    """Display colours cut to the palette's ``k`` entries, read-only, or None."""
+    if colours is None:
+        return None
+    colours = np.asarray(colours)
+    if not identity:
+        raise TerrathemeError("display colours belong to index layers (identity palette) only")
+    if colours.ndim != 2 or colours.shape[1] not in (3, 4) or colours.shape[0] < k:
+        raise TerrathemeError(
+            f"display colours of shape {colours.shape}: ({k} or more, 3 or 4) expected")
+    if colours.dtype.kind not in "iu" or colours.min() < 0 or colours.max() > 255:
+        raise TerrathemeError("display colours must be 0..255 integers")
+    out = np.ascontiguousarray(colours[:k], dtype=np.uint8)
+    out.setflags(write=False)
+    return out
+
+
+def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
+                   indices: np.ndarray) -> np.ndarray:
+    """Texel values of palette indices, shaped as the packed image was.
+
+    Parameters
+    ----------
+    palette : (K, C) ndarray
+    identity, squeeze : bool
+        The layer's flags (index layer; 2-D image).
+    indices : (...) uint8 ndarray
+
+    Returns
+    -------
+    values : (...) or (..., C) ndarray of the palette's dtype
+    """
+    if identity:
+        # Index layer: the palette index is the value; no colour gather needed.
+        values = indices.astype(palette.dtype, copy=False)
+        return values if squeeze else values[..., None]
+    values = palette[indices]
+    return values[..., 0] if squeeze else values

@@ -54,34 +54,29 @@ def _shift_low(st, out):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _encode_bit(st, out, probs, k, bit, rate):  # pragma: no cover - numba
-    p = probs[k]
-    bound = (st[_RANGE] >> np.uint64(PROB_BITS)) * np.uint64(p)
+def put_bit(st, out, p0, bit):  # pragma: no cover - numba
+    """Encode ``bit`` with probability ``p0 / 2^15`` of a 0 (``1 <= p0 < 2^15``)."""
+    bound = (st[_RANGE] >> np.uint64(PROB_BITS)) * np.uint64(p0)
     if bit == 0:
         st[_RANGE] = bound
-        probs[k] = p + (((1 << PROB_BITS) - p) >> rate)
     else:
         st[_LOW] += bound
         st[_RANGE] -= bound
-        probs[k] = p - (p >> rate)
     while st[_RANGE] < np.uint64(TOP):
         st[_RANGE] <<= np.uint64(8)
         _shift_low(st, out)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _decode_bit(dec, buf, probs, k, rate):  # pragma: no cover - numba
-    # dec: code, range, input position.
-    p = probs[k]
-    bound = (dec[1] >> np.uint64(PROB_BITS)) * np.uint64(p)
+def get_bit(dec, buf, p0):  # pragma: no cover - numba
+    """Decode one bit coded by :func:`put_bit` (``dec``: code, range, input position)."""
+    bound = (dec[1] >> np.uint64(PROB_BITS)) * np.uint64(p0)
     if dec[0] < bound:
         dec[1] = bound
-        probs[k] = p + (((1 << PROB_BITS) - p) >> rate)
         bit = 0
     else:
         dec[0] -= bound
         dec[1] -= bound
-        probs[k] = p - (p >> rate)
         bit = 1
     while dec[1] < np.uint64(TOP):
         dec[1] <<= np.uint64(8)
@@ -92,8 +87,24 @@ def _decode_bit(dec, buf, probs, k, rate):  # pragma: no cover - numba
     return bit
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _encode_bit(st, out, probs, k, bit, rate):  # pragma: no cover - numba
+    p = probs[k]
+    put_bit(st, out, p, bit)
+    probs[k] = p + (((1 << PROB_BITS) - p) >> rate) if bit == 0 else p - (p >> rate)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _decode_bit(dec, buf, probs, k, rate):  # pragma: no cover - numba
+    p = probs[k]
+    bit = get_bit(dec, buf, p)
+    probs[k] = p + (((1 << PROB_BITS) - p) >> rate) if bit == 0 else p - (p >> rate)
+    return bit
+
+
 @numba.njit(cache=True, nogil=True)
-def _start_encoder():  # pragma: no cover - numba
+def start_encoder():  # pragma: no cover - numba
+    """Fresh encoder state: low, range, cache, cache size, output position, overflow."""
     st = np.zeros(6, np.uint64)
     st[_RANGE] = np.uint64(0xFFFFFFFF)
     st[_CSIZE] = 1
@@ -101,14 +112,16 @@ def _start_encoder():  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True)
-def _finish_encoder(st, out):  # pragma: no cover - numba
+def finish_encoder(st, out):  # pragma: no cover - numba
+    """Flush the encoder; returns (bytes written, overflow flag)."""
     for _ in range(5):
         _shift_low(st, out)
     return st[_POS], st[_OVER]
 
 
 @numba.njit(cache=True, nogil=True)
-def _start_decoder(buf):  # pragma: no cover - numba
+def start_decoder(buf):  # pragma: no cover - numba
+    """Decoder state (code, range, input position) after the stream's first 5 bytes."""
     dec = np.zeros(3, np.uint64)
     dec[1] = np.uint64(0xFFFFFFFF)
     for i in range(5):
@@ -123,7 +136,7 @@ def encode_symbols(sym, n_used, depth, pair_context, out):  # pragma: no cover -
     """Code palette-symbol ranks ``sym`` (< n_used) in the context of the previous two."""
     nctx = n_used * n_used if pair_context else n_used
     probs = np.full(nctx << depth, PROB_INIT, np.int64)
-    st = _start_encoder()
+    st = start_encoder()
     p1 = 0
     p2 = 0
     for i in range(sym.size):
@@ -136,7 +149,7 @@ def encode_symbols(sym, n_used, depth, pair_context, out):  # pragma: no cover -
             node = node * 2 + bit
         p2 = p1
         p1 = v
-    return _finish_encoder(st, out)
+    return finish_encoder(st, out)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -144,7 +157,7 @@ def decode_symbols(buf, count, n_used, depth, pair_context, sym):  # pragma: no 
     """Inverse of :func:`encode_symbols`; returns an error code."""
     nctx = n_used * n_used if pair_context else n_used
     probs = np.full(nctx << depth, PROB_INIT, np.int64)
-    dec = _start_decoder(buf)
+    dec = start_decoder(buf)
     p1 = 0
     p2 = 0
     for i in range(count):
@@ -158,7 +171,10 @@ def decode_symbols(buf, count, n_used, depth, pair_context, sym):  # pragma: no 
         sym[i] = v
         p2 = p1
         p1 = v
-    return 1 if dec[2] > buf.size + 4 else 0
+        # Reading past the end: stop now, not after the run count the header claims.
+        if dec[2] > buf.size + 4:
+            return 1
+    return 0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -168,7 +184,7 @@ def encode_lengths(lengths, sym, n_used, out):  # pragma: no cover - numba
     pe = np.full(n_used * 64, PROB_INIT, np.int64)
     pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
     pr = np.full(34 * 34, PROB_INIT, np.int64)
-    st = _start_encoder()
+    st = start_encoder()
     for i in range(lengths.size):
         v = np.int64(lengths[i])
         c = sym[i]
@@ -190,7 +206,7 @@ def encode_lengths(lengths, sym, n_used, out):  # pragma: no cover - numba
                 pref = pref * 2 + bit
             else:
                 _encode_bit(st, out, pr, e * 34 + b, bit, L_RATE)
-    return _finish_encoder(st, out)
+    return finish_encoder(st, out)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -200,7 +216,7 @@ def decode_lengths(buf, sym, n_used, lengths):  # pragma: no cover - numba
     pe = np.full(n_used * 64, PROB_INIT, np.int64)
     pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
     pr = np.full(34 * 34, PROB_INIT, np.int64)
-    dec = _start_decoder(buf)
+    dec = start_decoder(buf)
     for i in range(sym.size):
         c = sym[i]
         node = 1

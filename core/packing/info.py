@@ -1,0 +1,118 @@
+"""What a packed-layer file holds, from its headers alone (``terratheme info``).
+
+Reads the header, the palette and the checksum (for a tiled container: its
+header and index, and the fixed header of each tile); decodes no payload and
+loads no numba kernel, so it answers in milliseconds whatever the layer's size.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from core.curves.square import Curve, curve_order
+from core.errors import TerrathemeError
+from core.packing import tiled_format
+from core.packing.container import HEADER, check_file, read_header, read_palette
+from core.packing.layout import table_words_max
+
+
+@dataclass(frozen=True)
+class LayerInfo:
+    """A packed layer's description.
+
+    Attributes
+    ----------
+    width, height : int
+    curve : str
+        ``"hilbert"`` or ``"morton"``.
+    channels : int
+    identity_palette : bool
+        Single-channel layer whose palette index is the texel value.
+    palette : list of lists of int
+        ``K`` colours of ``channels`` samples.
+    run_count : int
+    file_bytes : int
+    memory_bytes_max : int
+        Bytes the in-memory random-access table takes once loaded, at most
+        (exactly: ``PackedLayer.memory_bytes``; it depends on the runs).
+    format : str
+        Payload encoding: ``"seed"`` or ``"compact"`` (for a tiled container,
+        the encodings of its tiles joined by ``+``).
+    version : int
+        File format version.
+    tiles : int
+        Tiles of a tiled container (1 for one layer).
+    tile_side : int or None
+        Their side in texels.
+    """
+
+    width: int
+    height: int
+    curve: str
+    channels: int
+    identity_palette: bool
+    palette: list
+    run_count: int
+    file_bytes: int
+    memory_bytes_max: int
+    format: str
+    version: int
+    tiles: int = 1
+    tile_side: int | None = None
+
+
+def layer_info(path: str | os.PathLike) -> LayerInfo:
+    """Describe a packed-layer file without decoding its runs.
+
+    Raises
+    ------
+    TerrathemeError
+        Missing file; :class:`CorruptFileError` for a damaged or foreign file.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise TerrathemeError(f"{p}: no such file")
+    with open(p, "rb") as fh:
+        if fh.read(4) == tiled_format.MAGIC:
+            return _tiled_info(fh, p)
+        fh.seek(0)
+        data = fh.read()
+    head = check_file(data, name=p)
+    n = curve_order(head.width, head.height)
+    return LayerInfo(
+        width=head.width, height=head.height, curve=Curve(head.curve).name.lower(),
+        channels=head.channels, identity_palette=head.identity,
+        palette=read_palette(data, head).tolist(), run_count=head.runs,
+        file_bytes=len(data),
+        memory_bytes_max=4 * table_words_max(head.width, head.height, n, head.runs),
+        format=head.encoding_name, version=head.version,
+    )
+
+
+def _tiled_info(fh, name: str) -> LayerInfo:
+    """The description of a tiled container, from its index and each tile's header."""
+    size = os.fstat(fh.fileno()).st_size
+    fh.seek(0)
+    head = tiled_format.read_tiled_header(fh.read(tiled_format.HEADER.size), name=name,
+                                          file_bytes=size)
+    fh.seek(0)
+    prefix = fh.read(head.tiles_at)
+    offsets, _ = tiled_format.read_index(prefix, head, name=name)
+    runs = memory = 0
+    curves, formats = set(), set()
+    for i, off in enumerate(offsets):
+        fh.seek(int(off))
+        tile = read_header(fh.read(HEADER.size + 4), name=f"{name} tile {i}")
+        runs += tile.runs
+        memory += 4 * table_words_max(tile.width, tile.height,
+                                 curve_order(tile.width, tile.height), tile.runs)
+        curves.add(Curve(tile.curve).name.lower())
+        formats.add(tile.encoding_name)
+    return LayerInfo(
+        width=head.width, height=head.height,
+        curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.channels,
+        identity_palette=head.identity, palette=tiled_format.read_palette(prefix, head).tolist(),
+        run_count=runs, file_bytes=size, memory_bytes_max=memory, format="+".join(sorted(formats)),
+        version=tiled_format.VERSION, tiles=head.tiles, tile_side=1 << head.tile_bits,
+    )

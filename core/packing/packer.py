@@ -1,0 +1,195 @@
+"""``pack(image)``: the packing algorithm of seed section 2.2, one layer or a grid of tiles."""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable
+
+import numpy as np
+
+from core.curves.scan import scan_runs
+from core.curves.square import Curve
+from core.errors import TerrathemeError
+from core.packing import palette as _palette
+from core.packing.layer import PackedLayer
+from core.packing.palette import MAX_COLOURS, PaletteReport, check_image, colour_keys, image_runs
+from core.packing.tiled import TiledLayer, needs_tiles
+from core.packing.tiled_format import MAX_TILED_SIDE
+
+ProgressFn = Callable[[int, int], None]
+
+
+class CurveChoice(enum.Enum):
+    """Which curve to scan with; ``AUTO`` keeps whichever gives fewer runs (per tile)."""
+
+    HILBERT = "hilbert"
+    MORTON = "morton"
+    AUTO = "auto"
+
+    @property
+    def curves(self) -> list[Curve]:
+        """The curves to try."""
+        return [Curve.HILBERT, Curve.MORTON] if self is CurveChoice.AUTO else [Curve[self.name]]
+
+    @classmethod
+    def parse(cls, curve: str | CurveChoice | Curve) -> CurveChoice:
+        """A choice from ``"hilbert"`` / ``"morton"`` / ``"auto"``, a Curve or a choice."""
+        if isinstance(curve, CurveChoice):
+            return curve
+        if isinstance(curve, Curve):
+            return cls(curve.name.lower())
+        try:
+            return cls(str(curve).strip().lower())
+        except ValueError:
+            raise TerrathemeError(
+                f"unknown curve {curve!r}: use 'hilbert', 'morton' or 'auto'") from None
+
+
+class TilePalette:
+    """Palette indices of run keys across tiles; colours in order of first appearance.
+
+    Parameters
+    ----------
+    identity : bool
+        Keys are the indices themselves (an index image, values < 256).
+    channels : int
+    dtype : numpy dtype
+        Of the image's samples (keys hold the channels packed, ``colour_keys``).
+    """
+
+    def __init__(self, identity: bool, channels: int, dtype: np.dtype) -> None:
+        self.identity = identity
+        self.channels = channels
+        self.dtype = np.dtype(dtype)
+        self.keys = np.zeros(0, np.uint64)
+        self.top = 0
+
+    def indices(self, keys: np.ndarray) -> np.ndarray:
+        """Palette index of each key (keys in run order), growing the palette as needed.
+
+        Raises
+        ------
+        TerrathemeError
+            More than 256 colours in all.
+        """
+        if self.identity:
+            self.top = max(self.top, int(keys.max()))
+            return keys.astype(np.uint8)
+        keys = keys.astype(np.uint64)
+        known = np.isin(keys, self.keys)
+        fresh, first = np.unique(keys[~known], return_index=True)
+        self.keys = np.concatenate([self.keys, fresh[np.argsort(first, kind="stable")]])
+        if self.keys.size > MAX_COLOURS:
+            raise TerrathemeError(
+                f"image has more than the {MAX_COLOURS} colours a packed layer holds: "
+                "reduce the palette (--reduce-palette / reduce_palette=True)")
+        # Sorted keys, then each key's place in the palette.
+        order = np.argsort(self.keys)
+        return order[np.searchsorted(self.keys[order], keys)].astype(np.uint8)
+
+    @property
+    def palette(self) -> np.ndarray:
+        """``(K, C)`` palette of the keys seen so far."""
+        if self.identity:
+            return np.arange(self.top + 1, dtype=self.dtype)[:, None]
+        return _palette.keys_to_colours(self.keys, self.channels, self.dtype)
+
+
+def pack(
+    image: np.ndarray,
+    curve: str | CurveChoice | Curve = "hilbert",
+    *,
+    reduce_palette: bool = False,
+    colours: np.ndarray | None = None,
+    tile_bits: int | None = None,
+    progress: ProgressFn | None = None,
+) -> PackedLayer | TiledLayer:
+    """Pack an index image into runs along a space-filling curve.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, C) uint8/uint16 ndarray
+        Row 0 is the top row. Single-channel values 0..255 are palette indices
+        (``P`` = value); otherwise at most 256 distinct colours.
+    curve : "hilbert" | "morton" | "auto"
+    reduce_palette : bool
+        Reduce images with more than 256 colours (k-means) instead of refusing;
+        ``layer.report`` then says how much the colours changed.
+    colours : (K, 3) or (K, 4) uint8 ndarray, optional
+        Display colours of an index image's values (e.g. a palette PNG's table).
+    tile_bits : int, optional
+        Pack a :class:`TiledLayer` of ``2^tile_bits``-texel tiles (6..16); images
+        over 65536 texels a side are tiled (65536) whatever is asked.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    PackedLayer, or TiledLayer when tiled
+
+    Raises
+    ------
+    TerrathemeError
+        Empty image, unsupported pixel type, more than 256 colours without
+        ``reduce_palette``, display colours for a colour image.
+    """
+    choice = CurveChoice.parse(curve)
+    arr, squeeze = check_image(image, max_side=MAX_TILED_SIDE)
+    report: PaletteReport | None = None
+    if reduce_palette:
+        # Seed section 2.2: bring the image to a 256-colour palette first.
+        arr, report = _palette.reduce_palette(arr)
+    h, w = arr.shape[:2]
+    if tile_bits is not None or needs_tiles(w, h):
+        return _pack_tiles(arr, squeeze, choice, 16 if tile_bits is None else int(tile_bits),
+                           colours, progress)
+    best = None
+    for i, c in enumerate(choice.curves):
+        runs = image_runs(arr, c)
+        if best is None or runs.steps.size < best[1].steps.size:
+            best = (c, runs)
+        if progress is not None:
+            progress(i + 1, len(choice.curves))
+    c, runs = best
+    if colours is not None and not runs.identity:
+        raise TerrathemeError("display colours need a single-channel index image (values < 256)")
+    return PackedLayer.from_runs(w, h, c, runs.steps, runs.indices, runs.palette,
+                                 identity=runs.identity, squeeze=squeeze, report=report,
+                                 colours=colours)
+
+
+def tile_from_runs(width: int, height: int, candidates: dict[Curve, tuple[np.ndarray,
+                   np.ndarray]], palette: TilePalette) -> PackedLayer:
+    """A tile of palette indices from its runs of keys along one or more curves.
+
+    The curve with the fewest runs is kept; its keys become palette indices.
+    """
+    curve = min(candidates, key=lambda c: candidates[c][0].size)
+    steps, keys = candidates[curve]
+    values = palette.indices(keys)
+    return PackedLayer.from_runs(width, height, curve, steps, values,
+                                 np.arange(int(values.max()) + 1, dtype=np.uint8),
+                                 identity=True, squeeze=True)
+
+
+def _pack_tiles(arr: np.ndarray, squeeze: bool, choice: CurveChoice, tile_bits: int,
+                colours: np.ndarray | None, progress: ProgressFn | None) -> TiledLayer:
+    h, w, c = arr.shape
+    side = 1 << tile_bits
+    identity = c == 1 and int(arr.max()) < MAX_COLOURS
+    if colours is not None and not identity:
+        raise TerrathemeError("display colours need a single-channel index image (values < 256)")
+    keys = arr[:, :, 0] if identity else colour_keys(arr)
+    palette = TilePalette(identity, c, arr.dtype)
+    rects = [(x, y, min(side, w - x), min(side, h - y))
+             for y in range(0, h, side) for x in range(0, w, side)]
+    blobs = []
+    for i, (x, y, tw, th) in enumerate(rects):
+        # Runs of the tile's keys along each curve asked for; the shorter is kept.
+        cands = {cv: scan_runs(keys[y: y + th, x: x + tw], cv) for cv in choice.curves}
+        blobs.append(tile_from_runs(tw, th, cands, palette).to_bytes())
+        if progress is not None:
+            progress(i + 1, len(rects))
+    return TiledLayer.from_tile_bytes(w, h, tile_bits, blobs, palette.palette,
+                                      identity=identity, squeeze=squeeze, colours=colours)
+
+

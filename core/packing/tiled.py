@@ -1,0 +1,340 @@
+"""Packed layers beyond 65536 x 65536: a grid of packed tiles behind one API (issue 15).
+
+A :class:`TiledLayer` answers the same calls as a
+:class:`core.packing.layer.PackedLayer` (``lookup``, ``bands``, ``unpack``,
+``save``/``load``); its tiles are packed layers of palette indices into the
+one palette of the whole layer (file layout: :mod:`.tiled_format`).
+
+Opening a container reads its header and index only; tiles are decoded when
+first needed. Random access decodes every tile once into **one** ``uint32``
+array, the tiles' tables end to end (each tile a view into it), and the
+compiled batch kernels of :mod:`.lookup` pick a tile's table by a shift and
+an offset, so a batch costs about what it costs on one layer.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.curves.fill import fill_window
+from core.curves.square import MAX_SIDE
+from core.errors import CorruptFileError, TerrathemeError
+from core.io.atomic import write_bytes_atomic
+from core.packing import tiled_format as fmt
+from core.packing.container import HEADER as LAYER_HEADER
+from core.packing.container import read_header
+from core.packing.layer import PARALLEL_FROM, PackedLayer
+from core.packing.lookup import table_runs, tile_rows, tiled_batch, tiled_batch_parallel
+from core.packing.palette import palette_values
+
+#: Tile side used when none is asked for: the largest a packed layer has.
+DEFAULT_TILE_BITS = 16
+
+
+@dataclass(frozen=True, eq=False)
+class TiledLayer:
+    """A layer as a grid of packed tiles of ``2^tile_bits`` texels a side.
+
+    Build one with :func:`core.packing.pack` (``tile_bits=`` or an image over
+    65536 a side), :func:`core.packing.pack_file`, :meth:`from_tiles` or
+    :meth:`load`.
+
+    Attributes
+    ----------
+    width, height : int
+    tile_bits : int
+        log2 of the tile side.
+    palette : (K, C) ndarray, uint8 or uint16
+        The whole layer's palette; tiles hold indices into it.
+    identity, squeeze : bool
+        As for :class:`PackedLayer`.
+    colours : (K, 3|4) uint8 ndarray or None
+        Display colours of an identity layer.
+    threads : int
+        Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
+    """
+
+    width: int
+    height: int
+    tile_bits: int
+    palette: np.ndarray
+    identity: bool
+    squeeze: bool
+    colours: np.ndarray | None
+    _name: str = field(repr=False)
+    _source: object = field(repr=False)  # the file's bytes or its path
+    _offsets: np.ndarray = field(repr=False)
+    _lengths: np.ndarray = field(repr=False)
+    _cache: dict = field(repr=False, default_factory=dict)
+    threads: int = 2
+
+    # ------------------------------------------------------------ construction
+
+    @classmethod
+    def from_tile_bytes(cls, width: int, height: int, tile_bits: int, tiles: list[bytes],
+                        palette: np.ndarray, *, identity: bool, squeeze: bool,
+                        colours: np.ndarray | None = None) -> TiledLayer:
+        """A tiled layer from its tiles' files (rows from the top-left).
+
+        Each tile must be a packed layer of palette indices (identity),
+        ``2^tile_bits`` texels a side except in the last column and row; tiles
+        are checked when first decoded.
+        """
+        head = _header(width, height, tile_bits, palette, identity, squeeze, colours)
+        if len(tiles) != head.tiles:
+            raise TerrathemeError(f"{len(tiles)} tiles for a {head.tiles_x} x {head.tiles_y} grid")
+        data = fmt.encode_head(head, np.asarray(palette), colours, [len(b) for b in tiles])
+        return cls.from_bytes(data + b"".join(tiles))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> TiledLayer:
+        """Open a container file: its header and index are read and checked, tiles later."""
+        p = os.fspath(path)
+        if not os.path.isfile(p):
+            raise TerrathemeError(f"{p}: no such file")
+        size = os.path.getsize(p)
+        with open(p, "rb") as fh:
+            head = fmt.read_tiled_header(fh.read(fmt.HEADER.size), name=p, file_bytes=size)
+            fh.seek(0)
+            prefix = fh.read(head.tiles_at)
+        return cls._open(prefix, head, p, p)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, *, name: str = "<bytes>") -> TiledLayer:
+        """Parse a container held in memory."""
+        head = fmt.read_tiled_header(data, name=name, file_bytes=len(data))
+        return cls._open(data, head, name, bytes(data))
+
+    @classmethod
+    def _open(cls, prefix: bytes, head: fmt.TiledHeader, name: str, source: object
+              ) -> TiledLayer:
+        offsets, lengths = fmt.read_index(prefix, head, name=name)
+        palette = fmt.read_palette(prefix, head)
+        palette.setflags(write=False)
+        return cls(head.width, head.height, head.tile_bits, palette, head.identity, head.squeeze,
+                   fmt.read_colours(prefix, head), name, source, offsets, lengths)
+
+    # ------------------------------------------------------------ the grid
+
+    @property
+    def tile_side(self) -> int:
+        """Texels along a tile's side."""
+        return 1 << self.tile_bits
+
+    @property
+    def tiles_x(self) -> int:
+        """Tiles across."""
+        return fmt.tiles_along(self.width, self.tile_bits)
+
+    @property
+    def tiles_y(self) -> int:
+        """Tiles down."""
+        return fmt.tiles_along(self.height, self.tile_bits)
+
+    @property
+    def channels(self) -> int:
+        """Colour channels of a texel."""
+        return int(self.palette.shape[1])
+
+    def tile_rect(self, i: int) -> tuple[int, int, int, int]:
+        """``(x, y, w, h)`` of tile ``i`` (rows from the top-left), row 0 = top."""
+        ty, tx = divmod(int(i), self.tiles_x)
+        x, y = tx * self.tile_side, ty * self.tile_side
+        return x, y, min(self.tile_side, self.width - x), min(self.tile_side, self.height - y)
+
+    def _blob(self, i: int, size: int | None = None) -> bytes:
+        off, n = int(self._offsets[i]), int(self._lengths[i]) if size is None else size
+        if isinstance(self._source, bytes):
+            return self._source[off: off + n]
+        with open(self._source, "rb") as fh:
+            fh.seek(off)
+            return fh.read(n)
+
+    def tile_header(self, i: int):
+        """The packed-layer header of tile ``i`` (read without decoding the tile)."""
+        return read_header(self._blob(i, LAYER_HEADER.size + 4), name=self._tile_name(i))
+
+    def _tile_name(self, i: int) -> str:
+        ty, tx = divmod(int(i), self.tiles_x)
+        return f"{self._name} tile ({tx}, {ty})"
+
+    def _decode(self, i: int) -> PackedLayer:
+        name = self._tile_name(i)
+        tile = PackedLayer.from_bytes(self._blob(i), name=name)
+        _, _, w, h = self.tile_rect(i)
+        if (tile.width, tile.height) != (w, h) or not tile.identity:
+            raise CorruptFileError(f"{name}: a {tile.width} x {tile.height} "
+                                   f"{'index' if tile.identity else 'colour'} layer where a "
+                                   f"{w} x {h} index tile belongs")
+        if len(tile.palette) > len(self.palette):
+            raise CorruptFileError(f"{name}: palette index {len(tile.palette) - 1} out of range "
+                                   f"(the layer's palette has {len(self.palette)})")
+        return dataclasses.replace(tile, threads=self.threads)
+
+    def tile(self, i: int) -> PackedLayer:
+        """Tile ``i`` (rows from the top-left) as a packed layer of palette indices."""
+        if not 0 <= int(i) < len(self._lengths):
+            raise TerrathemeError(f"tile {i} of {len(self._lengths)}")
+        if "table" in self._cache:
+            return self._cache["tiles"][int(i)]
+        return self._decode(int(i))
+
+    @property
+    def run_count(self) -> int:
+        """Runs of all tiles (from the tiles' headers)."""
+        return sum(self.tile_header(i).runs for i in range(len(self._lengths)))
+
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes of the random-access tables of all tiles (decodes them)."""
+        return int(self._tables()[0].nbytes)
+
+    # ------------------------------------------------------------ reading texels
+
+    def _tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """All tiles' tables end to end, and the tile words the kernels read (built once)."""
+        if "table" not in self._cache:
+            # Decode every tile, then keep their tables end to end and each tile as a view.
+            decoded = [self._decode(i) for i in range(len(self._lengths))]
+            starts = np.concatenate([[0], np.cumsum([t.table.size for t in decoded])])
+            table = np.concatenate([t.table for t in decoded])
+            tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
+                                                                   strict=True)]
+            words = (np.array([self.width, self.height, self.tile_bits, self.tiles_x], np.int64),
+                     tile_rows(table, starts[:-1]))
+            self._cache.update(table=table, words=words, tiles=tiles)
+        return self._cache["table"], self._cache["words"]
+
+    def lookup(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
+        """Texel values at columns ``xs``, rows ``ys`` (as :meth:`PackedLayer.lookup`).
+
+        Raises
+        ------
+        TerrathemeError
+            A coordinate outside the layer.
+        """
+        table, words = self._tables()
+        if isinstance(xs, int | np.integer) and isinstance(ys, int | np.integer):
+            # One texel: its tile's scalar lookup, then the layer's palette.
+            x, row = int(xs), int(ys)
+            if not (0 <= x < self.width and 0 <= row < self.height):
+                raise TerrathemeError(f"texel ({x}, {row}) is outside the {self.width} x "
+                                      f"{self.height} layer")
+            mask = self.tile_side - 1
+            tile = self._cache["tiles"][(row >> self.tile_bits) * self.tiles_x
+                                        + (x >> self.tile_bits)]
+            return self.values_of(np.asarray(tile.lookup(x & mask, row & mask)))[()]
+        xs_b, ys_b = np.broadcast_arrays(np.asarray(xs), np.asarray(ys))
+        if xs_b.dtype.kind not in "iu" or ys_b.dtype.kind not in "iu":
+            raise TerrathemeError("texel coordinates must be integers")
+        shape = xs_b.shape
+        flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
+        flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
+        idx = np.empty(flat_x.size, np.uint8)
+        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
+            bad = -1 if tiled_batch_parallel(flat_x, flat_y, table, *words, idx) == 0 else int(
+                np.flatnonzero((flat_x < 0) | (flat_x >= self.width) | (flat_y < 0)
+                               | (flat_y >= self.height))[0])
+        else:
+            bad = tiled_batch(flat_x, flat_y, table, *words, idx)
+        if bad >= 0:
+            raise TerrathemeError(f"texel ({int(flat_x[bad])}, {int(flat_y[bad])}) is outside "
+                                  f"the {self.width} x {self.height} layer")
+        out = self.values_of(idx).reshape(shape + ((self.channels,) if not self.squeeze else ()))
+        return out[()] if out.ndim == 0 else out
+
+    def values_of(self, indices: np.ndarray) -> np.ndarray:
+        """Texel values of palette indices (as :meth:`PackedLayer.values_of`)."""
+        return palette_values(self.palette, self.identity, self.squeeze, indices)
+
+    def bands(self, rows: int = 256) -> Iterator[tuple[int, np.ndarray]]:
+        """Palette-index bands, top to bottom, one tile row decoded at a time.
+
+        Yields ``(y, band)`` with ``band`` a ``(h, width)`` uint8 ndarray (reused).
+        """
+        rows = max(1, int(rows))
+        buf = np.empty((min(rows, self.height), self.width), np.uint8)
+        for ty in range(self.tiles_y):
+            runs = []
+            for tx in range(self.tiles_x):
+                tile = self.tile(ty * self.tiles_x + tx)
+                runs.append((tile, *table_runs(tile.table)))
+            y0 = ty * self.tile_side
+            th = runs[0][0].height
+            for y in range(0, th, rows):
+                h = min(rows, th - y)
+                for tx, (tile, steps, values) in enumerate(runs):
+                    x0 = tx * self.tile_side
+                    fill_window(steps, values, tile.width, tile.height, tile.curve, 0, y,
+                                tile.width, h, out=buf[:h, x0: x0 + tile.width],
+                                threads=self.threads)
+                yield y0 + y, buf[:h]
+
+    def unpack(self, *, indices_only: bool = False) -> np.ndarray:
+        """The whole image (for layers that fit in memory; see :meth:`bands`)."""
+        idx = np.empty((self.height, self.width), np.uint8)
+        for y, band in self.bands(self.tile_side):
+            idx[y: y + band.shape[0]] = band
+        return idx if indices_only else self.values_of(idx)
+
+    # ------------------------------------------------------------ files
+
+    def to_bytes(self, *, format: str = "compact") -> bytes:
+        """The container's bytes, every tile re-encoded in ``format``."""
+        tiles = [self.tile(i) for i in range(len(self._lengths))]
+        head = _header(self.width, self.height, self.tile_bits, self.palette, self.identity,
+                       self.squeeze, self.colours)
+        blobs = [t.to_bytes(format=format) for t in tiles]
+        return fmt.encode_head(head, self.palette, self.colours,
+                               [len(b) for b in blobs]) + b"".join(blobs)
+
+    def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
+        """Write the container atomically; returns the bytes written."""
+        data = self.to_bytes(format=format)
+        write_bytes_atomic(path, data)
+        return len(data)
+
+
+def _header(width: int, height: int, tile_bits: int, palette: np.ndarray, identity: bool,
+            squeeze: bool, colours: np.ndarray | None) -> fmt.TiledHeader:
+    if not fmt.MIN_TILE_BITS <= tile_bits <= fmt.MAX_TILE_BITS:
+        raise TerrathemeError(f"tile side 2^{tile_bits}: 2^{fmt.MIN_TILE_BITS} to "
+                              f"2^{fmt.MAX_TILE_BITS} texels expected")
+    if not (1 <= width <= fmt.MAX_TILED_SIDE and 1 <= height <= fmt.MAX_TILED_SIDE):
+        raise TerrathemeError(f"layer of {width} x {height} texels: sides of 1 to "
+                              f"{fmt.MAX_TILED_SIDE} expected")
+    tx, ty = fmt.tiles_along(width, tile_bits), fmt.tiles_along(height, tile_bits)
+    if tx * ty > fmt.MAX_TILES:
+        raise TerrathemeError(f"{tx * ty} tiles: at most {fmt.MAX_TILES}; use larger tiles")
+    palette = np.asarray(palette)
+    return fmt.TiledHeader(bool(squeeze), bool(identity),
+                           0 if colours is None else int(np.asarray(colours).shape[1]),
+                           int(palette.shape[1]), int(palette.dtype.itemsize),
+                           int(palette.shape[0]), int(tile_bits), int(width), int(height),
+                           tx, ty, 0)
+
+
+def needs_tiles(width: int, height: int) -> bool:
+    """Whether a layer of this size must be tiled (a side over 65536)."""
+    return width > MAX_SIDE or height > MAX_SIDE
+
+
+def load_layer(path: str | os.PathLike) -> PackedLayer | TiledLayer:
+    """Open a packed-layer file of either kind (one layer, or a tiled container).
+
+    Raises
+    ------
+    TerrathemeError
+        Missing file; :class:`CorruptFileError` for a damaged or foreign file.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise TerrathemeError(f"{p}: no such file")
+    with open(p, "rb") as fh:
+        magic = fh.read(4)
+    return TiledLayer.load(p) if magic == fmt.MAGIC else PackedLayer.load(p)

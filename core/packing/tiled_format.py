@@ -1,0 +1,211 @@
+"""The tiled container file: packed layers beyond 65536 x 65536, with an index (issue 15).
+
+A layer of any size up to 2^31 - 1 texels a side is cut into square tiles of
+``2^t`` texels (the last column and row of tiles smaller); each tile is a
+complete packed-layer file (``core.packing.container``, its own curve,
+encoding and checksum) of **palette indices**, an identity layer into the
+container's one palette. Layout (little-endian)::
+
+    offset size  field
+    0      4     magic b"TTPT"
+    4      1     format version (1)
+    5      1     flags: bit 0 = 2-D image, bit 1 = identity palette,
+                 bit 2 = display colours stored, bit 3 = they have alpha
+    6      1     channels C (1..4)
+    7      1     bytes per sample (1 or 2)
+    8      2     palette entries K (1..256)
+    10     1     t, log2 of the tile side (6..16)
+    11     1     reserved, 0
+    12     4     width  (1 .. 2^31 - 1)
+    16     4     height (1 .. 2^31 - 1)
+    20     4     tiles across = ceil(width / 2^t)
+    24     4     tiles down = ceil(height / 2^t)
+    28     8     bytes of all tiles
+    36     ...   palette, K*C samples (absent for an identity palette)
+    ...    ...   display colours, K*3 or K*4 bytes (flag bit 2)
+    ...    16*N  index, tiles in rows from the top-left: byte offset (from the first
+                 tile's first byte) and length of each tile, u64 each
+    ...    4     CRC-32 of every byte above
+    ...    ...   the tiles, end to end in index order
+
+Checked before any tile is read: the fields, ``N <= MAX_TILES``, the index
+against the file's length, offsets that run end to end and add up to the
+stored total. Each tile is then checked as it is decoded (on first use), so
+opening a container costs its header and index only.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from typing import NamedTuple
+
+import numpy as np
+
+from core.errors import CorruptFileError, UnsupportedVersionError
+
+MAGIC = b"TTPT"
+VERSION = 1
+HEADER = struct.Struct("<4sBBBBHBBIIIIQ")
+INDEX_ENTRY = struct.Struct("<QQ")
+FLAG_SQUEEZE, FLAG_IDENTITY, FLAG_COLOURS, FLAG_ALPHA = 1, 2, 4, 8
+#: Largest side of a tiled layer.
+MAX_TILED_SIDE = (1 << 31) - 1
+#: Tile sides, log2.
+MIN_TILE_BITS, MAX_TILE_BITS = 6, 16
+#: Most tiles in one container (a 16 MiB index).
+MAX_TILES = 1 << 20
+
+
+class TiledHeader(NamedTuple):
+    """The fixed part of a tiled container, checked (:func:`read_tiled_header`)."""
+
+    squeeze: bool
+    identity: bool
+    colour_channels: int
+    channels: int
+    sample: int
+    k: int
+    tile_bits: int
+    width: int
+    height: int
+    tiles_x: int
+    tiles_y: int
+    tile_bytes: int
+
+    @property
+    def tiles(self) -> int:
+        """Number of tiles ``N``."""
+        return self.tiles_x * self.tiles_y
+
+    @property
+    def palette_bytes(self) -> int:
+        """Bytes of the stored palette."""
+        return 0 if self.identity else self.k * self.channels * self.sample
+
+    @property
+    def index_at(self) -> int:
+        """Offset of the tile index."""
+        return HEADER.size + self.palette_bytes + self.k * self.colour_channels
+
+    @property
+    def tiles_at(self) -> int:
+        """Offset of the first tile (after the index and its checksum)."""
+        return self.index_at + INDEX_ENTRY.size * self.tiles + 4
+
+    @property
+    def file_bytes(self) -> int:
+        """Length of the whole file."""
+        return self.tiles_at + self.tile_bytes
+
+
+def tiles_along(size: int, tile_bits: int) -> int:
+    """Tiles of side ``2^tile_bits`` that cover ``size`` texels."""
+    return -(-int(size) // (1 << int(tile_bits)))
+
+
+def encode_head(head: TiledHeader, palette: np.ndarray, colours: np.ndarray | None,
+                lengths: list[int]) -> bytes:
+    """Header, palette, colours, index and checksum of a container whose tiles have
+    ``lengths`` bytes (the tiles follow)."""
+    flags = ((FLAG_SQUEEZE if head.squeeze else 0) | (FLAG_IDENTITY if head.identity else 0)
+             | (FLAG_COLOURS if colours is not None else 0)
+             | (FLAG_ALPHA if colours is not None and colours.shape[1] == 4 else 0))
+    out = HEADER.pack(MAGIC, VERSION, flags, head.channels, head.sample, head.k,
+                      head.tile_bits, 0, head.width, head.height, head.tiles_x, head.tiles_y,
+                      sum(lengths))
+    if not head.identity:
+        out += palette.astype(palette.dtype.newbyteorder("<")).tobytes()
+    if colours is not None:
+        out += np.ascontiguousarray(colours, np.uint8).tobytes()
+    offsets = np.concatenate([[0], np.cumsum(lengths, dtype=np.int64)[:-1]])
+    out += b"".join(INDEX_ENTRY.pack(int(o), int(n)) for o, n in zip(offsets, lengths,
+                                                                      strict=True))
+    return out + struct.pack("<I", zlib.crc32(out))
+
+
+def read_tiled_header(data: bytes, *, name: str, file_bytes: int) -> TiledHeader:
+    """Parse and check the fixed header of a container of ``file_bytes`` bytes.
+
+    Raises
+    ------
+    CorruptFileError
+        Not a container, truncated, a field out of range, a file shorter than it says.
+    UnsupportedVersionError
+        A version newer than :data:`VERSION`.
+    """
+    if len(data) < HEADER.size:
+        raise CorruptFileError(f"{name}: truncated tiled-layer header ({len(data)} bytes)")
+    (magic, version, flags, channels, sample, k, tile_bits, reserved, width, height, tx, ty,
+     tile_bytes) = HEADER.unpack_from(data)
+    if magic != MAGIC:
+        raise CorruptFileError(f"{name}: not a terratheme tiled layer (magic {magic!r})")
+    if version > VERSION:
+        raise UnsupportedVersionError(
+            f"{name}: tiled-layer format version {version}; this build reads up to {VERSION}")
+    checks = (
+        (version >= 1, f"format version {version}"),
+        (not flags & ~15, f"flags {flags:#x}"),
+        (1 <= channels <= 4 and sample in (1, 2), f"{channels} channels of {sample} bytes"),
+        (1 <= k <= 256, f"palette of {k} colours"),
+        (not flags & FLAG_IDENTITY or channels == 1, "identity palette with colour channels"),
+        (not flags & (FLAG_COLOURS | FLAG_ALPHA) or flags & FLAG_IDENTITY and flags & FLAG_COLOURS,
+         "display colours without an identity palette"),
+        (MIN_TILE_BITS <= tile_bits <= MAX_TILE_BITS and reserved == 0,
+         f"tile side 2^{tile_bits}"),
+        (1 <= width <= MAX_TILED_SIDE and 1 <= height <= MAX_TILED_SIDE,
+         f"size {width} x {height}"),
+        (tx == tiles_along(width, tile_bits) and ty == tiles_along(height, tile_bits),
+         f"{tx} x {ty} tiles for {width} x {height} texels"),
+        (tx * ty <= MAX_TILES, f"{tx * ty} tiles (at most {MAX_TILES})"),
+    )
+    for ok, what in checks:
+        if not ok:
+            raise CorruptFileError(f"{name}: bad tiled-layer header: {what}")
+    colour_channels = (4 if flags & FLAG_ALPHA else 3) if flags & FLAG_COLOURS else 0
+    head = TiledHeader(bool(flags & FLAG_SQUEEZE), bool(flags & FLAG_IDENTITY), colour_channels,
+                       channels, sample, k, tile_bits, width, height, tx, ty, tile_bytes)
+    if file_bytes != head.file_bytes:
+        raise CorruptFileError(
+            f"{name}: {file_bytes} bytes, but the tiled-layer header says {head.file_bytes}")
+    return head
+
+
+def read_index(data: bytes, head: TiledHeader, *, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Check the index and its checksum (``data`` holds the file up to the first tile).
+
+    Returns
+    -------
+    offsets, lengths : (N,) int64 ndarrays
+        Byte offset (in the file) and length of each tile.
+    """
+    if len(data) < head.tiles_at:
+        raise CorruptFileError(f"{name}: truncated tile index")
+    (stored,) = struct.unpack_from("<I", data, head.tiles_at - 4)
+    if zlib.crc32(memoryview(data)[: head.tiles_at - 4]) != stored:
+        raise CorruptFileError(f"{name}: checksum mismatch in the tiled-layer header or index")
+    index = np.frombuffer(data, "<u8", count=2 * head.tiles, offset=head.index_at)
+    offsets, lengths = index[0::2].astype(np.int64), index[1::2].astype(np.int64)
+    ends = np.cumsum(lengths)
+    if (lengths.min() < 40 or ends[-1] != head.tile_bytes
+            or not np.array_equal(offsets, ends - lengths)):
+        raise CorruptFileError(f"{name}: tile index does not run end to end over the tiles")
+    return offsets + head.tiles_at, lengths
+
+
+def read_palette(data: bytes, head: TiledHeader) -> np.ndarray:
+    """The ``(K, C)`` palette (identity ``0 .. K-1`` when not stored)."""
+    dtype = np.dtype("<u1" if head.sample == 1 else "<u2")
+    if head.identity:
+        return np.arange(head.k, dtype=dtype.newbyteorder("="))[:, None]
+    flat = np.frombuffer(data, dtype, count=head.k * head.channels, offset=HEADER.size)
+    return flat.reshape(head.k, head.channels).astype(dtype.newbyteorder("="))
+
+
+def read_colours(data: bytes, head: TiledHeader) -> np.ndarray | None:
+    """The display colours, or None."""
+    if not head.colour_channels:
+        return None
+    flat = np.frombuffer(data, np.uint8, count=head.k * head.colour_channels,
+                         offset=HEADER.size + head.palette_bytes)
+    return flat.reshape(head.k, head.colour_channels).copy()
