@@ -111,6 +111,10 @@ def _flag(value, name):
     return value
 
 
+def _optional_flag(value, name):
+    return None if value is None else _flag(value, name)
+
+
 def _choice(enum_type):
     def check(value, name):
         try:
@@ -127,7 +131,7 @@ _FEATURE_RULES = {
     "feature_set": _choice(FeatureSet), "normalise": _choice(Normalise),
     "scale": _number(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
     "skimage_sigma_max": _number(1, 64), "hessian": _flag, "position": _flag,
-    "ridge_sigmas": _numbers(1e-3, 64),
+    "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag,
 }
 _REGULARISE_RULES = {
     "method": _choice(Regularisation), "sigma": _number(1e-3, 64),
@@ -143,6 +147,8 @@ _OPTION_RULES = {
     "seed": _number(0, 2**32 - 1, whole=True), "tile": _number(16, 1 << 16, whole=True),
     "prior_power": _number(0, 1, optional=True),
     "grow_colour": _number(0, 1e4, optional=True),
+    "samples_per_pair": _number(1, 1 << 30, whole=True),
+    "adapt": _optional_flag, "target_prior_power": _number(0, 1),
 }
 
 

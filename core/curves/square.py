@@ -64,7 +64,7 @@ def hilbert_transposed(n: int) -> bool:
     The square curve of :func:`hilbert_xy2d` always visits its quadrants
     bottom-left, top-left, top-right, bottom-right, so its very first move is
     upward only when ``n`` is odd (the seed's 8 x 8 figure). The image curve
-    keeps the first move upward for every size (DESIGN.md section 2) by
+    keeps the first move upward for every size (design.md §4) by
     swapping x and y when ``n`` is even.
     """
     return n % 2 == 0
