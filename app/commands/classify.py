@@ -50,7 +50,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "(helps photos of large whole regions; the model then fits "
                              "PHOTO only)")
     parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
-    parser.add_argument("--model", metavar="M", help="classify with a saved classifier")
+    parser.add_argument("--model", metavar="M",
+                        help="classify with a saved classifier or a shipped one by name (aerial)")
 
 
 def _read_mask(path: str):
@@ -96,9 +97,9 @@ def run(args: argparse.Namespace) -> int:
 
     from app.outputs import check_outputs
     from core.classify import (
-        Classifier,
         SupervisedOptions,
         classify_unsupervised,
+        load_model,
         train_classifier,
     )
     from core.errors import TerrathemeError
@@ -124,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.
     if args.model:
-        model = Classifier.load(args.model)
+        model = load_model(args.model)
     elif supervised:
         pairs = []
         if args.scribbles:

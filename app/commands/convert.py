@@ -103,7 +103,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="brush strokes on PHOTO (0 = unlabelled, k > 0 = class k): "
                              "supervised classification")
     parser.add_argument("--model", metavar="M",
-                        help="classify with a saved classifier (terratheme classify --model-out)")
+                        help="classify with a saved classifier (terratheme classify --model-out) "
+                             "or a shipped one by name (aerial: building, land, road, vegetation, "
+                             "water; the themes take its class names)")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
                              "(N pixels a side; with --model or unsupervised, themes fitted on "
@@ -207,11 +209,11 @@ def run(args: argparse.Namespace) -> int:
         return _run_tiled(args, project, preview, packed, themes)
     model = None
     if args.model:
-        from core.classify import Classifier
+        from core.classify import load_model
 
         if args.scribbles:
             raise TerrathemeError("--model and --scribbles both give the classes: pick one")
-        model = Classifier.load(args.model)
+        model = load_model(args.model)
     photo, meta = read_photo(args.photo)
     scribbles = _read_mask(args.scribbles) if args.scribbles else None
     if (scribbles is not None or model is not None) and isinstance(themes, int):
@@ -275,7 +277,7 @@ def _print_written(written) -> None:
 
 def _run_tiled(args, project, preview, packed, themes) -> int:
     """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
-    from core.classify import Classifier
+    from core.classify import load_model
     from core.convert.photo import write_outputs
     from core.convert.tiled import convert_file_tiled
     from core.errors import TerrathemeError
@@ -290,7 +292,7 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
         raise TerrathemeError("--themes K is for unsupervised classification; with --model "
                               "the classes are given (use auto or 1=name,2=name)")
     # Without --model: unsupervised themes fitted on windows spread over the photo.
-    model = Classifier.load(args.model) if args.model else None
+    model = load_model(args.model) if args.model else None
     names = None if isinstance(themes, str | int) else themes
     k = themes if isinstance(themes, int) else "auto"
     colour, boundary = _style(args)

@@ -155,7 +155,9 @@ def convert_photo(
     scribbles : (H, W) integer ndarray, optional
         0 = unlabelled, k > 0 = class k: supervised classification.
     model : core.classify.Classifier, optional
-        A trained classifier to use instead (``terratheme classify --model-out``).
+        A trained classifier to use instead (``terratheme classify --model-out``,
+        or a shipped one, :func:`core.classify.load_model`); with ``themes``
+        "auto" the themes take its class names when it has them.
     metadata : dict, optional
         Extra project metadata (source path, georeference, ...).
     progress : callable(done, total), optional
@@ -181,7 +183,9 @@ def convert_photo(
                                progress=_stage(progress, 0, 35))
     labels = result.labels
     # Themes: cut from the photo and named, or shipped themes by name (15%).
-    mapping = assign_themes(rgb, labels, result.classes, options.themes, patch=options.patch)
+    names = getattr(model, "class_names", None) if options.themes == "auto" else None
+    mapping = assign_themes(rgb, labels, result.classes, options.themes, patch=options.patch,
+                            names=names)
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).

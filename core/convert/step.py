@@ -96,7 +96,8 @@ def classify_photo(
 
 def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                   themes: ThemesSpec = "auto", *,
-                  patch: PatchOptions = PatchOptions()) -> ThemeMapping:
+                  patch: PatchOptions = PatchOptions(),
+                  names: Mapping[int, str] | None = None) -> ThemeMapping:
     """One theme per class (see the module docstring).
 
     Parameters
@@ -110,6 +111,10 @@ def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         A ThemeLibrary: each class takes its nearest theme of it (themes may
         be shared) and the mapping's library is that library.
     patch : PatchOptions
+    names : {class: name}, optional
+        With ``themes`` "auto"/K: the names of the themes cut from the photo
+        (a shipped classifier's class names, ``Classifier.class_names``);
+        default: the closest shipped theme's name.
 
     Returns
     -------
@@ -125,7 +130,7 @@ def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         return ThemeMapping(themes, lut, tuple(present))
     if isinstance(themes, Mapping) or not isinstance(themes, str | int):
         return themes_by_name(rgb, labels, themes)
-    return themes_from_photo(rgb, labels, classes=classes, options=patch)
+    return themes_from_photo(rgb, labels, classes=classes, options=patch, names=names)
 
 
 @dataclass(frozen=True)
