@@ -29,6 +29,7 @@ class Mode(Enum):
     UNSUPERVISED_MAP = "Unsupervised, map classes to the current themes"
     UNSUPERVISED_NEW = "Unsupervised, new themes cut from the photo"
     SCRIBBLES = "From scribbles (random forest)"
+    AERIAL = "Shipped aerial model (building, land, road, vegetation, water)"
 
 
 _LIVE: set[QThread] = set()
@@ -75,7 +76,8 @@ class ClassifyResult:
 
 
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
-                 taken: list[str]) -> tuple[list[Theme], np.ndarray]:
+                 taken: list[str], names: Mapping[int, str] | None = None
+                 ) -> tuple[list[Theme], np.ndarray]:
     """Themes cut from the photo for every class (``core.convert.step.assign_themes``).
 
     Returns the themes (renamed where a name is taken, and given distinct
@@ -84,7 +86,7 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
     """
     from core.convert.step import assign_themes
 
-    mapping = assign_themes(photo[..., :3], labels, classes)
+    mapping = assign_themes(photo[..., :3], labels, classes, names=names)
     out = []
     for i, theme in enumerate(mapping.library):
         name = theme.name
@@ -106,7 +108,7 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
     passed to ``train_classifier``. ``position`` (scribbles only): the forest
     also uses where the strokes lie (``FeatureOptions.position``).
     """
-    from core.classify import SupervisedOptions
+    from core.classify import SupervisedOptions, load_model
     from core.convert.labels_to_grid import labels_to_grid
     from core.convert.step import assign_themes, classify_photo
     from core.errors import TerrathemeError
@@ -124,6 +126,14 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
         # Scribble value v marks theme v - 1.
         lut = np.clip(np.arange(256) - 1, 0, len(library) - 1)
         new_themes: list[Theme] = []
+    elif mode is Mode.AERIAL:
+        # The shipped classifier: new themes cut from the photo, named by its classes.
+        weights, painted = None, frozenset()
+        model = load_model("aerial")
+        result, _ = classify_photo(photo, model=model, progress=progress)
+        new_themes, lut = class_themes(photo, result.labels, result.classes,
+                                       list(library.names), names=model.class_names)
+        lut = lut + len(library)
     else:
         weights, painted = None, frozenset()
         result, _ = classify_photo(photo, progress=progress)
