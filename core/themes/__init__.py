@@ -4,7 +4,9 @@ Modules: ``library`` (Theme, ThemeLibrary, the shipped themes), ``tileable``
 (periodic-plus-smooth wrap, flattening, crossfade and cut seams; the seam
 score), ``quality`` (banding, repetition and landmark scores), ``seam_cut``
 (minimum-error boundary cuts), ``histogram`` (Gaussianisation for the
-histogram-preserving blend), ``from_photo`` (themes for a classified photo).
+histogram-preserving blend), ``from_photo`` (themes for a classified photo),
+``matching`` (classes to themes by colour and texture), ``looks`` (aerial
+exemplars of the shipped themes' classes, for naming).
 """
 
 from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
@@ -16,6 +18,7 @@ from core.themes.library import (
     read_theme_library,
     shipped_theme_library,
 )
+from core.themes.looks import read_looks
 from core.themes.quality import landmark_score, lowfreq_score, repeat_score
 from core.themes.tileable import SEAM_THRESHOLD, TileableOptions, make_tileable, seam_score
 
@@ -31,6 +34,7 @@ __all__ = [
     "landmark_score",
     "lowfreq_score",
     "make_tileable",
+    "read_looks",
     "read_theme_library",
     "repeat_score",
     "seam_score",

@@ -34,6 +34,7 @@ import numpy as np
 
 from core.errors import TerrathemeError
 from core.themes.library import Theme, ThemeLibrary, flat_theme, shipped_theme_library
+from core.themes.looks import read_looks
 from core.themes.matching import (
     class_appearances,
     match_classes,
@@ -230,8 +231,10 @@ def themes_from_photo(
     windows = WindowStats(stats)
     if names is None:
         # Named after the closest shipped theme (water, sand, grass, ...), never "class 1".
-        looks = class_appearances(stats, labels, wanted)
-        names = dict(zip(wanted, shipped_names(looks, shipped_theme_library()), strict=True))
+        # A class takes the name of its nearest look: theme textures and aerial exemplars.
+        appearances = class_appearances(stats, labels, wanted)
+        named = shipped_names(appearances, shipped_theme_library(), read_looks())
+        names = dict(zip(wanted, named, strict=True))
     themes = []
     for c in wanted:
         name = names.get(c, f"class {c}")

@@ -110,12 +110,25 @@ def match_classes(classes: Sequence[Appearance], themes: Sequence[Appearance], *
     return out
 
 
-def shipped_names(appearances: Sequence[Appearance], library: ThemeLibrary) -> list[str]:
-    """A name for each class after its closest theme of ``library`` ("water", "water 2", ...)."""
+def shipped_names(appearances: Sequence[Appearance], library: ThemeLibrary,
+                  looks: Sequence[tuple[str, Appearance]] = ()) -> list[str]:
+    """A name for each class after its closest theme of ``library`` ("water", "water 2", ...).
+
+    ``looks``: more ``(theme name, appearance)`` exemplars of the themes'
+    classes (:func:`core.themes.looks.read_looks`); a class takes the name of
+    its nearest exemplar, the theme textures' and these together (looks of
+    names not in ``library`` are skipped).
+    """
     names = list(library.names)
-    nearest = match_classes(appearances, theme_appearances(library), distinct=False)
+    owners = list(range(len(names)))
+    exemplars = theme_appearances(library)
+    for name, look in looks:
+        if name in names:
+            owners.append(names.index(name))
+            exemplars.append(look)
+    nearest = match_classes(appearances, exemplars, distinct=False)
     out: list[str] = []
-    for k in nearest:
+    for k in (owners[i] for i in nearest):
         base, n = names[k], 1
         name = base
         while name in out:
