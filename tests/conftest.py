@@ -26,22 +26,24 @@ def shared_dir() -> Path:
     return SHARED
 
 
+def _shared_folder(shared_dir: Path, name: str, kind: str) -> Path:
+    """../shared/NAME, or skip the ``kind`` test."""
+    folder = shared_dir / name
+    if not folder.is_dir():
+        pytest.skip(f"../shared/{name} is absent: {kind} test skipped")
+    return folder
+
+
 @pytest.fixture(scope="session")
 def shared_data(shared_dir: Path) -> Path:
     """../shared/data, or skip."""
-    data = shared_dir / "data"
-    if not data.is_dir():
-        pytest.skip("../shared/data is absent: real-data test skipped")
-    return data
+    return _shared_folder(shared_dir, "data", "real-data")
 
 
 @pytest.fixture(scope="session")
 def shared_vectors(shared_dir: Path) -> Path:
     """../shared/vectors, or skip."""
-    vec = shared_dir / "vectors"
-    if not vec.is_dir():
-        pytest.skip("../shared/vectors is absent: vector test skipped")
-    return vec
+    return _shared_folder(shared_dir, "vectors", "vector")
 
 
 @pytest.fixture(scope="session")
