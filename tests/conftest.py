@@ -64,6 +64,30 @@ def block_photo():
     return make
 
 
+@pytest.fixture(scope="session")
+def small_texture():
+    """Factory: a small project of theme 0 everywhere, for the editor and document tests.
+
+    ``small_texture(themes=3, seed=5, **layers)`` returns a ThematicTexture of
+    9 x 13 vertices and 8 x 8-texel cells over the first ``themes`` of grass,
+    water and sand (random 8 x 8 texels drawn from ``seed``); ``layers``
+    (``photo``, ``scribbles``, ...) go to ThematicTexture as they are.
+    """
+
+    def make(themes: int = 3, seed: int = 5, **layers):
+        from core.model.grid import IndexGrid
+        from core.model.project import ThematicTexture
+        from core.themes.library import Theme, ThemeLibrary
+
+        rng = np.random.default_rng(seed)
+        named = (("grass", (90, 160, 60)), ("water", (40, 80, 170)), ("sand", (210, 190, 120)))
+        lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
+                           for n, c in named[:themes])
+        return ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib, **layers)
+
+    return make
+
+
 @pytest.fixture
 def open_window(qtbot, monkeypatch):
     """Factory: ``open_window(document)`` shows an editor window on it, offscreen.
