@@ -329,6 +329,14 @@ def test_export_packed_index_layer_round_trips(window, tmp_path):
     np.testing.assert_array_equal(PackedLayer.load(out).unpack(), doc.texture.grid.indices)
 
 
+@pytest.mark.parametrize("export", ["export_render", "export_packed"])
+def test_an_export_that_cannot_be_written_shows_one_error(window, tmp_path, export):
+    out = tmp_path / "no such folder" / "out.png"
+    assert not getattr(window, export)(str(out))
+    assert len(window.errors) == 1 and window.errors[0].startswith(f"Cannot export {out}:")
+    assert not out.exists()
+
+
 def test_app_command_reports_a_damaged_project_in_one_line(tmp_path, capsys):
     from app.cli import main
 
