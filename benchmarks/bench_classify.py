@@ -96,6 +96,8 @@ from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribble
     ilastik_features,
     ilastik_predict,
     kmeans_predict,
+    labelled_pixels,
+    timed_votes,
     whole_window,
 )
 from classify_scribbles import scribbles  # noqa: E402
@@ -167,11 +169,9 @@ def across_tiles(log):
             samples[m][n] = _pair_samples(photo, mask, i, classes, opts)
         if n in subset:
             feats, secs = ilastik_features(photo)
-            sel = np.flatnonzero(np.isin(mask.ravel(), classes))
-            sel = rng.choice(sel, min(20000, len(sel)), replace=False)
+            sel = labelled_pixels(mask, classes, 20000, rng)
             samples["ilastik"][n] = (feats.reshape(-1, feats.shape[2])[sel], mask.ravel()[sel])
-            cand = np.flatnonzero(np.isin(mask.ravel(), classes))
-            pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
+            pick = labelled_pixels(mask, classes, ILASTIK_TEST_PIXELS, rng)
             ila_feats[n] = (feats.reshape(-1, feats.shape[2])[pick], mask.ravel()[pick], secs,
                             mask.size)
             del feats
@@ -198,10 +198,7 @@ def across_tiles(log):
                     if n not in ila_feats:
                         continue
                     fx, fy, secs, npx = ila_feats[n]
-                    t = time.perf_counter()
-                    probs = model.probabilities(fx[None])[0]
-                    dt = time.perf_counter() - t
-                    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
+                    pred, dt = timed_votes(model, fx)
                     per_photo[m][n] = confusion(fy, pred, classes)
                     speed[m][0] += npx
                     speed[m][1] += secs + dt * npx / len(fx)

@@ -37,11 +37,12 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+from mosaic import crop_sources, write_mosaic  # noqa: E402
+
 SHARED = REPO.parent / "shared" / "data" / "dubai"
 SAMPLE = REPO / "sample_maps" / "dubai_marina.jpg"
 SAMPLE_MASK = SHARED / "masks" / "image_part_004t5.png"
 RESULTS = REPO / "benchmarks" / "results"
-BLOCK = 512
 
 
 def _status_kib(key: str) -> int:
@@ -107,28 +108,8 @@ def part_a(quick: bool) -> dict:
 
 def make_big_tiff(path: Path, side: int, seed: int = 0) -> None:
     """A ``side x side`` RGB tiled TIFF made of 512-pixel crops of the Dubai photos."""
-    from core.io.images import image_info, read_image
-    from core.io.tiles import TiledImageWriter
-
-    photos = [p for p in sorted((SHARED / "images").glob("*.jpg"))
-              if min(image_info(p).width, image_info(p).height) >= BLOCK]
-    if not photos:
-        photos = [SAMPLE]
-    rng = np.random.default_rng(seed)
-    cache: dict = {}
-    with TiledImageWriter(path, side, side, 3, np.uint8, tile=256, compression="zip") as out:
-        for by in range(0, side, BLOCK):
-            band = np.empty((BLOCK, side, 3), np.uint8)
-            for bx in range(0, side, BLOCK):
-                p = photos[int(rng.integers(len(photos)))]
-                if p not in cache:
-                    cache.clear()
-                    cache[p] = read_image(p, dtype=np.uint8)[..., :3]
-                img = cache[p]
-                y = int(rng.integers(0, img.shape[0] - BLOCK + 1))
-                x = int(rng.integers(0, img.shape[1] - BLOCK + 1))
-                band[:, bx : bx + BLOCK] = img[y : y + BLOCK, x : x + BLOCK]
-            out.write(0, by, band)
+    photos = crop_sources(SHARED / "images") or [SAMPLE]
+    write_mosaic(path, side, photos, seed, compression="zip")
 
 
 def _nearest_colour_fn(centres: np.ndarray):

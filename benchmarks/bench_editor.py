@@ -148,6 +148,17 @@ class Setup:
         }
 
 
+def _grouped_log_bars(ax, sizes: list[str], series: list[tuple[str, list[float]]],
+                      width: float) -> None:
+    """Bars of every ``(label, value per size)`` side by side in one group per size, log y."""
+    xs = np.arange(len(sizes))
+    for i, (label, vals) in enumerate(series):
+        bars = ax.bar(xs + (i - (len(series) - 1) / 2) * width, vals, width, label=label)
+        ax.bar_label(bars, fmt="%.3g", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_xticks(xs, [f"{s} x {s}" for s in sizes])
+
+
 def chart(results: dict, path: Path) -> None:
     import matplotlib
 
@@ -160,26 +171,17 @@ def chart(results: dict, path: Path) -> None:
               ("stroke_ms_median", "ours: 9-move stroke, all 9 updates"),
               ("region_api_ms_median", "peer: render_cells(region) alone"),
               ("full_rerender_ms_median", "peer: full re-render")]
-    xs = np.arange(len(sizes))
-    for i, (key, label) in enumerate(series):
-        vals = [results[s][key] for s in sizes]
-        bars = ax1.bar(xs + (i - 1.5) * 0.2, vals, 0.2, label=label)
-        ax1.bar_label(bars, fmt="%.3g", fontsize=7)
+    _grouped_log_bars(ax1, sizes, [(label, [results[s][key] for s in sizes])
+                                   for key, label in series], 0.2)
     ax1.axhline(30, color="red", ls="--", lw=1, label="goal 30 ms")
-    ax1.set_yscale("log")
-    ax1.set_xticks(xs, [f"{s} x {s}" for s in sizes])
     ax1.set_ylabel("milliseconds (median, log)")
     ax1.set_title("Brush stroke -> updated preview")
     ax1.legend(fontsize=7, loc="upper left")
     mem = [("undo_1000_steps_bytes", "ours: 1,000 undo steps"),
            ("grid_snapshots_1000_bytes", "1,000 grid snapshots"),
            ("render_snapshots_1000_bytes", "1,000 render snapshots")]
-    for i, (key, label) in enumerate(mem):
-        vals = [results[s][key] / 2**20 for s in sizes]
-        bars = ax2.bar(xs + (i - 1) * 0.27, vals, 0.27, label=label)
-        ax2.bar_label(bars, fmt="%.3g", fontsize=7)
-    ax2.set_yscale("log")
-    ax2.set_xticks(xs, [f"{s} x {s}" for s in sizes])
+    _grouped_log_bars(ax2, sizes, [(label, [results[s][key] / 2**20 for s in sizes])
+                                   for key, label in mem], 0.27)
     ax2.set_ylabel("MiB (log)")
     ax2.set_title("Undo memory")
     ax2.legend(fontsize=7, loc="upper left")

@@ -47,6 +47,7 @@ from dataclasses import replace
 
 import numpy as np
 from classify_eval import confusion, scores
+from classify_peers import labelled_pixels, timed_votes
 
 from core.classify import FeatureOptions, Normalise, SupervisedOptions, train_classifier
 from core.classify.sample_cache import SampleCache
@@ -184,12 +185,10 @@ def _ilastik(bench, photos, train_set, subset, log):
         f, secs = bench.ilastik_features(photo)
         flat, truth = f.reshape(-1, f.shape[2]), mask.ravel()
         if n in train_set:
-            cand = np.flatnonzero(np.isin(truth, CLASSES))
-            pick = rng.choice(cand, min(ILASTIK_TRAIN_PIXELS, len(cand)), replace=False)
+            pick = labelled_pixels(truth, CLASSES, ILASTIK_TRAIN_PIXELS, rng)
             samples[n] = (flat[pick], truth[pick].astype(np.int32))
         if n in subset:
-            cand = np.flatnonzero(np.isin(truth, CLASSES))
-            pick = rng.choice(cand, min(bench.ILASTIK_TEST_PIXELS, len(cand)), replace=False)
+            pick = labelled_pixels(truth, CLASSES, bench.ILASTIK_TEST_PIXELS, rng)
             feats[n] = (flat[pick], truth[pick], secs, mask.size)
         del f, flat
     cms = {}
@@ -203,10 +202,8 @@ def _ilastik(bench, photos, train_set, subset, log):
             if tile_of(n) != tile:
                 continue
             fx, fy, secs, npx = feats[n]
-            t = time.perf_counter()
-            probs = model.probabilities(fx[None])[0]
-            dt = time.perf_counter() - t
-            cms[n] = confusion(fy, np.asarray(model.classes, np.uint8)[probs.argmax(1)], CLASSES)
+            pred, dt = timed_votes(model, fx)
+            cms[n] = confusion(fy, pred, CLASSES)
             pixels += npx
             seconds += secs + dt * npx / len(fx)
     row = rows_of([cms], subset)

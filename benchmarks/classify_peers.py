@@ -55,15 +55,24 @@ def ilastik_features(photo):
     return feats, time.perf_counter() - t
 
 
+def labelled_pixels(truth, classes, count, rng):
+    """Flat indices of at most ``count`` random pixels of ``truth`` of a class in ``classes``."""
+    cand = np.flatnonzero(np.isin(truth.ravel(), classes))
+    return rng.choice(cand, min(count, len(cand)), replace=False)
+
+
+def timed_votes(model, x):
+    """The forest's class of every row of ``x`` ((n, F) float32) -> (uint8 classes, seconds)."""
+    t = time.perf_counter()
+    probs = model.probabilities(x[None])[0]
+    dt = time.perf_counter() - t
+    return np.asarray(model.classes, np.uint8)[probs.argmax(1)], dt
+
+
 def ilastik_predict(model, feats, truth, classes, rng, seconds_feat):
     """Votes on random labelled pixels -> (confusion, Mpx/s of features + votes)."""
-    cand = np.flatnonzero(np.isin(truth.ravel(), classes))
-    pick = rng.choice(cand, min(ILASTIK_TEST_PIXELS, len(cand)), replace=False)
-    x = feats.reshape(-1, feats.shape[2])[pick][None]
-    t = time.perf_counter()
-    probs = model.probabilities(x)[0]
-    dt = time.perf_counter() - t
-    pred = np.asarray(model.classes, np.uint8)[probs.argmax(1)]
+    pick = labelled_pixels(truth, classes, ILASTIK_TEST_PIXELS, rng)
+    pred, dt = timed_votes(model, feats.reshape(-1, feats.shape[2])[pick])
     per_px = seconds_feat / truth.size + dt / len(pick)
     return confusion(truth.ravel()[pick], pred, classes), 1e-6 / per_px
 

@@ -26,22 +26,24 @@ def shared_dir() -> Path:
     return SHARED
 
 
+def _shared_folder(shared_dir: Path, name: str, kind: str) -> Path:
+    """../shared/NAME, or skip the ``kind`` test."""
+    folder = shared_dir / name
+    if not folder.is_dir():
+        pytest.skip(f"../shared/{name} is absent: {kind} test skipped")
+    return folder
+
+
 @pytest.fixture(scope="session")
 def shared_data(shared_dir: Path) -> Path:
     """../shared/data, or skip."""
-    data = shared_dir / "data"
-    if not data.is_dir():
-        pytest.skip("../shared/data is absent: real-data test skipped")
-    return data
+    return _shared_folder(shared_dir, "data", "real-data")
 
 
 @pytest.fixture(scope="session")
 def shared_vectors(shared_dir: Path) -> Path:
     """../shared/vectors, or skip."""
-    vec = shared_dir / "vectors"
-    if not vec.is_dir():
-        pytest.skip("../shared/vectors is absent: vector test skipped")
-    return vec
+    return _shared_folder(shared_dir, "vectors", "vector")
 
 
 @pytest.fixture(scope="session")
@@ -58,6 +60,30 @@ def block_photo():
         classes = np.kron(rng.integers(0, 3, grid), np.ones((block, block), int))
         photo = colours[classes] + rng.normal(0, noise, classes.shape + (3,))
         return np.clip(photo, 0, 255).astype(np.uint8), classes
+
+    return make
+
+
+@pytest.fixture(scope="session")
+def small_texture():
+    """Factory: a small project of theme 0 everywhere, for the editor and document tests.
+
+    ``small_texture(themes=3, seed=5, **layers)`` returns a ThematicTexture of
+    9 x 13 vertices and 8 x 8-texel cells over the first ``themes`` of grass,
+    water and sand (random 8 x 8 texels drawn from ``seed``); ``layers``
+    (``photo``, ``scribbles``, ...) go to ThematicTexture as they are.
+    """
+
+    def make(themes: int = 3, seed: int = 5, **layers):
+        from core.model.grid import IndexGrid
+        from core.model.project import ThematicTexture
+        from core.themes.library import Theme, ThemeLibrary
+
+        rng = np.random.default_rng(seed)
+        named = (("grass", (90, 160, 60)), ("water", (40, 80, 170)), ("sand", (210, 190, 120)))
+        lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
+                           for n, c in named[:themes])
+        return ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib, **layers)
 
     return make
 

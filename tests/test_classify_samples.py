@@ -15,7 +15,12 @@ from core.classify import (
     SupervisedOptions,
     train_classifier,
 )
-from core.classify.samples import GROW_COLOUR, grow_labels, looks_like_scribbles
+from core.classify.samples import (
+    GROW_COLOUR,
+    check_class_image,
+    grow_labels,
+    looks_like_scribbles,
+)
 from core.classify.supervised import collect_samples
 from core.errors import TerrathemeError
 
@@ -118,3 +123,31 @@ def test_a_model_file_from_before_edge_and_growing_still_loads(tmp_path):
     assert old.options.grow_colour is None
     labels = old.predict(photo).labels
     assert (labels[:, :12] == 1).all() and (labels[:, 20:] == 2).all()
+
+
+def test_a_class_image_comes_back_as_two_dimensional_uint8():
+    grey = np.array([[[0], [3]], [[255], [7]]], np.uint8)
+    out = check_class_image(grey, "label mask 0", (2, 2))
+    assert out.shape == (2, 2) and out.dtype == np.uint8 and out.tolist() == [[0, 3], [255, 7]]
+    assert np.shares_memory(out, grey)
+    wide = check_class_image(np.array([[1, 200]], np.int64), "label image")
+    assert wide.dtype == np.uint8 and wide.tolist() == [[1, 200]]
+    assert check_class_image(np.array([[True, False]]), "label image").tolist() == [[1, 0]]
+
+
+@pytest.mark.parametrize(
+    ("image", "shape", "match"),
+    [
+        (np.zeros((2, 2, 3), np.uint8), None, r"^mask 4: shape \(2, 2, 3\) is not single-channel"),
+        (np.zeros(5, np.uint8), None, r"^mask 4: shape \(5,\) is not single-channel"),
+        (np.zeros((3, 2), np.uint8), (2, 2),
+         r"^mask 4 is 2 x 3 pixels but its photo is 2 x 2: a mask must have the photo's size"),
+        (np.zeros((0, 4), np.uint8), None, r"^mask 4 has no pixels \(shape \(0, 4\)\)"),
+        (np.zeros((2, 2), np.float32), None, "^mask 4: values must be integers, not float32"),
+        (np.array([[-1, 2]]), None, r"^mask 4: class values must be 0\.\.255, got -1\.\.2"),
+        (np.array([[0, 256]]), None, r"^mask 4: class values must be 0\.\.255, got 0\.\.256"),
+    ],
+)
+def test_a_bad_class_image_is_one_clear_error(image, shape, match):
+    with pytest.raises(TerrathemeError, match=match):
+        check_class_image(image, "mask 4", shape)

@@ -196,6 +196,15 @@ def test_convert_photo_progress_and_options():
         convert_photo(_halves(), ConvertOptions(cell=0))
 
 
+def test_convert_photo_checks_the_scribbles_before_it_classifies():
+    photo = _halves()
+    with pytest.raises(TerrathemeError, match="^scribble mask is 10 x 10 pixels but its photo "
+                                              "is 64 x 48: a mask must have the photo's size"):
+        convert_photo(photo, scribbles=np.zeros((10, 10), np.uint8))
+    with pytest.raises(TerrathemeError, match="^scribble mask: values must be integers"):
+        convert_photo(photo, scribbles=np.zeros(photo.shape[:2], np.float32))
+
+
 @pytest.mark.slow
 def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
     from core.classify import train_classifier

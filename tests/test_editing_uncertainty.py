@@ -17,9 +17,6 @@ from core.edit import (
 )
 from core.edit.uncertainty import TINT
 from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.themes.library import Theme, ThemeLibrary
 
 
 def test_the_lowest_tenth_without_filter_is_the_smallest_values():
@@ -78,18 +75,12 @@ def test_kept_prior_lifecycle():
     assert not first.applies_to(frozenset())
 
 
-def small_doc() -> EditDocument:
-    rng = np.random.default_rng(5)
-    lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
-                       for n, c in (("grass", (90, 160, 60)), ("water", (40, 80, 170)),
-                                    ("sand", (210, 190, 120))))
-    photo = np.zeros((64, 96, 3), np.uint8)
-    return EditDocument(ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib,
-                                        photo=photo))
+@pytest.fixture
+def doc(small_texture) -> EditDocument:
+    return EditDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8)))
 
 
-def test_document_keeps_the_confidence_until_the_photo_changes():
-    doc = small_doc()
+def test_document_keeps_the_confidence_until_the_photo_changes(doc):
     seen = []
     doc.events.confidence.connect(lambda e: seen.append((e, doc.confidence is not None)))
     assert doc.confidence is None and doc.uncertain() is None
@@ -112,8 +103,7 @@ def test_document_keeps_the_confidence_until_the_photo_changes():
     np.testing.assert_array_equal(doc.confidence, conf.astype(np.float32))
 
 
-def test_document_kept_prior():
-    doc = small_doc()
+def test_document_kept_prior(doc):
     # Strokes of classes 1 and 2 (themes grass and water), in photo pixels.
     for value, (a, b) in ((1, ((5, 5), (20, 5))), (2, ((50, 40), (70, 40)))):
         doc.begin_stroke(value, a, 1.0, Layer.SCRIBBLES)

@@ -10,19 +10,9 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
 
-from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture, save_project
-from core.themes.library import Theme, ThemeLibrary
 
 pytestmark = pytest.mark.qt
-
-
-def small_texture(photo=None, scribbles=None) -> ThematicTexture:
-    rng = np.random.default_rng(2)
-    lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
-                       for n, c in (("grass", (90, 160, 60)), ("water", (40, 80, 170))))
-    return ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib, photo=photo,
-                           scribbles=scribbles)
 
 
 def screen_of(canvas, texel: QPointF) -> QPoint:
@@ -31,10 +21,17 @@ def screen_of(canvas, texel: QPointF) -> QPoint:
 
 
 @pytest.fixture
-def window(open_window):
+def texture(small_texture) -> ThematicTexture:
+    """Two themes (grass, water) over a 9 x 13 grid of theme 0."""
+    return small_texture(themes=2, seed=2)
+
+
+@pytest.fixture
+def window(open_window, small_texture):
     from app.editor.document import EditorDocument
 
-    return open_window(EditorDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8))))
+    texture = small_texture(themes=2, seed=2, photo=np.zeros((64, 96, 3), np.uint8))
+    return open_window(EditorDocument(texture))
 
 
 def test_edit_menu_and_title_follow_the_core_history(window, qtbot, tmp_path):
@@ -96,13 +93,13 @@ ODD_LAYERS = [
 ]
 
 
-def _odd_project(path, layers: dict) -> None:
+def _odd_project(path, texture: ThematicTexture, layers: dict) -> None:
     """A project file holding layers no ThematicTexture accepts (written member by member)."""
     import io
     import json
     import zipfile
 
-    save_project(path, small_texture())
+    save_project(path, texture)
     with zipfile.ZipFile(path) as zf:
         members = {n: zf.read(n) for n in zf.namelist()}
     manifest = json.loads(members["manifest.json"])
@@ -118,13 +115,13 @@ def _odd_project(path, layers: dict) -> None:
 
 
 @pytest.mark.parametrize(("layers", "message"), ODD_LAYERS)
-def test_a_project_with_an_odd_layer_is_refused_with_one_line(window, tmp_path, layers,
+def test_a_project_with_an_odd_layer_is_refused_with_one_line(window, texture, tmp_path, layers,
                                                                message):
     import re
 
     before = window.doc
     path = tmp_path / "odd.ttproj"
-    _odd_project(path, layers)
+    _odd_project(path, texture, layers)
     assert not window.open_path(path)
     assert len(window.errors) == 1 and re.search(message, window.errors[0])
     assert "odd.ttproj" in window.errors[0]
@@ -134,7 +131,8 @@ def test_a_project_with_an_odd_layer_is_refused_with_one_line(window, tmp_path, 
     window.index_canvas.repaint()
 
 
-def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, capsys, monkeypatch):
+def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, texture, capsys,
+                                                                  monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
     from app.cli import main
@@ -142,7 +140,7 @@ def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, capsy
     dialogs = []
     monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: dialogs.append(a[2]))
     path = tmp_path / "odd.ttproj"
-    _odd_project(path, {"photo": np.zeros(5, np.uint8)})
+    _odd_project(path, texture, {"photo": np.zeros(5, np.uint8)})
     out = tmp_path / "shot.png"
     assert main(["app", str(path), "--screenshot", str(out), "--size", "640x400"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -42,8 +42,8 @@ def styled_texture() -> ThematicTexture:
                            metadata={"render": {"boundary": {"width": 2.0}}})
 
 
-@pytest.fixture
-def tab(qtbot):
+def shown_tab(qtbot):
+    """A Perspective tab on :func:`styled_texture`, shown offscreen at 700 x 360."""
     from app.editor.document import EditorDocument
     from app.editor.perspective_tab import PerspectiveTab
 
@@ -53,6 +53,12 @@ def tab(qtbot):
     widget.resize(700, 360)
     widget.show()
     qtbot.waitExposed(widget)
+    return widget
+
+
+@pytest.fixture
+def tab(qtbot):
+    widget = shown_tab(qtbot)
     yield widget
     widget.wait()
 
@@ -223,15 +229,7 @@ def test_qt_opengl_widget_draws_where_qt_has_a_context(qtbot):
         gl_context()
     except GpuUnavailableError as exc:
         pytest.skip(str(exc))
-    from app.editor.document import EditorDocument
-    from app.editor.perspective_tab import PerspectiveTab
-
-    widget = PerspectiveTab()
-    qtbot.addWidget(widget)
-    widget.set_document(EditorDocument(styled_texture()))
-    widget.resize(700, 360)
-    widget.show()
-    qtbot.waitExposed(widget)
+    widget = shown_tab(qtbot)
     assert isinstance(widget.view, FlyoverGL)
     frame = _frame(widget, qtbot)
     want = _fresh(widget, (frame.shape[1], frame.shape[0]))

@@ -10,34 +10,26 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
 
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, save_project
+from core.model.project import save_project
 from core.render.renderer import render_cells
-from core.themes.library import Theme, ThemeLibrary
+from core.themes.library import Theme
 
 pytestmark = pytest.mark.qt
 
 
-def small_texture(photo: bool = False) -> ThematicTexture:
-    rng = np.random.default_rng(5)
-    lib = ThemeLibrary(
-        Theme(name, colour, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
-        for name, colour in (("grass", (90, 160, 60)), ("water", (40, 80, 170)),
-                             ("sand", (210, 190, 120)))
-    )
-    ph = None
-    if photo:
-        ph = np.zeros((64, 96, 3), dtype=np.uint8)
-        ph[:, :48] = (30, 140, 40)
-        ph[:, 48:] = (40, 60, 200)
-    return ThematicTexture(IndexGrid(np.zeros((9, 13), dtype=np.uint8), (8, 8)), lib, photo=ph)
+def halves_photo() -> np.ndarray:
+    """(64, 96, 3) uint8: green left half, blue right half (fits the ``small_texture`` grid)."""
+    photo = np.zeros((64, 96, 3), dtype=np.uint8)
+    photo[:, :48] = (30, 140, 40)
+    photo[:, 48:] = (40, 60, 200)
+    return photo
 
 
 @pytest.fixture
-def window(open_window):
+def window(open_window, small_texture):
     from app.editor.document import EditorDocument
 
-    return open_window(EditorDocument(small_texture(photo=True)))
+    return open_window(EditorDocument(small_texture(photo=halves_photo())))
 
 
 def screen_of(canvas, texel: QPointF) -> QPoint:
@@ -150,7 +142,7 @@ def test_save_open_round_trip(window, tmp_path):
     assert window.windowTitle().startswith("edited.ttproj")
 
 
-def test_damaged_project_shows_an_error_dialog(window, tmp_path):
+def test_damaged_project_shows_an_error_dialog(window, small_texture, tmp_path):
     bad = tmp_path / "bad.ttproj"
     save_project(bad, small_texture())
     data = bytearray(bad.read_bytes())
@@ -221,24 +213,24 @@ def test_classification_can_be_cancelled(window, qtbot):
     assert len(doc.texture.library) == n_themes and len(doc.model.history.undo_steps) == 0
 
 
-def test_classification_without_photo_or_scribbles_reports(window, qtbot):
+def test_classification_without_photo_or_scribbles_reports(window, small_texture, qtbot):
     from app.editor.classify_job import Mode
     from app.editor.document import EditorDocument
 
     job = window.start_classification(Mode.SCRIBBLES)
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
     assert job is not None and "no scribbles" in window.errors[-1]
-    window.set_document(EditorDocument(small_texture(photo=False)))
+    window.set_document(EditorDocument(small_texture()))
     assert window.start_classification(Mode.UNSUPERVISED_MAP) is None
     assert "needs a photo" in window.errors[-1]
 
 
-def test_screenshot_command_writes_a_png(tmp_path, monkeypatch):
+def test_screenshot_command_writes_a_png(small_texture, tmp_path, monkeypatch):
     from app.cli import main
     from core.io.images import read_image
 
     project = tmp_path / "p.ttproj"
-    save_project(project, small_texture(photo=True))
+    save_project(project, small_texture(photo=halves_photo()))
     out = tmp_path / "shot.png"
     assert main(["app", str(project), "--screenshot", str(out), "--size", "640x400"]) == 0
     img = read_image(out)
@@ -335,6 +327,14 @@ def test_export_packed_index_layer_round_trips(window, tmp_path):
     out = tmp_path / "index.sfc"
     assert window.export_packed(str(out)), window.errors
     np.testing.assert_array_equal(PackedLayer.load(out).unpack(), doc.texture.grid.indices)
+
+
+@pytest.mark.parametrize("export", ["export_render", "export_packed"])
+def test_an_export_that_cannot_be_written_shows_one_error(window, tmp_path, export):
+    out = tmp_path / "no such folder" / "out.png"
+    assert not getattr(window, export)(str(out))
+    assert len(window.errors) == 1 and window.errors[0].startswith(f"Cannot export {out}:")
+    assert not out.exists()
 
 
 def test_app_command_reports_a_damaged_project_in_one_line(tmp_path, capsys):

@@ -18,25 +18,16 @@ from PySide6.QtCore import QPoint, QPointF, Qt
 from core.edit import uncertain_mask, uncertainty_rgba
 
 
-def small_doc():
+@pytest.fixture
+def doc(small_texture):
     from app.editor.document import EditorDocument
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture
-    from core.themes.library import Theme, ThemeLibrary
 
-    rng = np.random.default_rng(5)
-    lib = ThemeLibrary(Theme(n, c, rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
-                       for n, c in (("grass", (90, 160, 60)), ("water", (40, 80, 170)),
-                                    ("sand", (210, 190, 120))))
-    photo = np.zeros((64, 96, 3), np.uint8)
-    return EditorDocument(ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), (8, 8)), lib,
-                                          photo=photo))
+    return EditorDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8)))
 
 
-def test_scribble_run_uses_and_reports_the_class_weights():
+def test_scribble_run_uses_and_reports_the_class_weights(doc):
     from app.editor.classify_job import Mode, run_classification
 
-    doc = small_doc()
     photo = np.zeros((64, 96, 3), np.uint8)
     photo[:, :48] = (30, 140, 40)
     photo[:, 48:] = (40, 60, 200)
@@ -56,7 +47,7 @@ def test_scribble_run_uses_and_reports_the_class_weights():
 
 
 
-def test_scribble_run_passes_the_position_option(monkeypatch):
+def test_scribble_run_passes_the_position_option(monkeypatch, doc):
     import core.convert.step
     from app.editor.classify_job import Mode, run_classification
 
@@ -72,7 +63,7 @@ def test_scribble_run_passes_the_position_option(monkeypatch):
     photo[:, 48:] = (40, 60, 200)
     sc = np.zeros((64, 96), np.uint8)
     sc[30:33, 10:30], sc[30:33, 60:80] = 1, 2
-    lib = small_doc().texture.library
+    lib = doc.texture.library
     for position in (False, True):
         out = run_classification(Mode.SCRIBBLES, photo, sc, lib, (8, 8), (9, 13), None,
                                  position=position)
@@ -84,8 +75,7 @@ def test_scribble_run_passes_the_position_option(monkeypatch):
 
 
 @pytest.fixture
-def window(open_window):
-    doc = small_doc()
+def window(open_window, doc):
     doc.texture.photo[:, :48] = (30, 140, 40)
     doc.texture.photo[:, 48:] = (40, 60, 200)
     return open_window(doc)

@@ -26,25 +26,25 @@ def _run(*argv, cache=None):
     return main(["perspective", *map(str, argv), *extra])
 
 
+def _nearest(tmp_path, texture, size, mapping, *extra) -> np.ndarray:
+    """What ``perspective --method nearest --size SIZE --mapping M`` renders of ``texture``."""
+    src, out = tmp_path / "tex.png", tmp_path / "out.png"
+    write_image(src, texture)
+    assert _run(src, out, "--method", "nearest", "--size", size, "--mapping", mapping,
+                *extra) == 0
+    return read_image(out)
+
+
 def test_identity_mapping_nearest_round_trips(tmp_path):
     tex = _random_texture(6, 9)
-    src, out = tmp_path / "tex.png", tmp_path / "out.png"
-    write_image(src, tex)
-    assert _run(src, out, "--method", "nearest", "--size", "9x6",
-                "--mapping", "1,0,0,0,1,0,0,0,1") == 0
-    np.testing.assert_array_equal(read_image(out), tex)
+    np.testing.assert_array_equal(_nearest(tmp_path, tex, "9x6", "1,0,0,0,1,0,0,0,1"), tex)
 
 
 def test_a_negative_first_value_is_a_value_not_an_option(tmp_path):
     # U = 9 - x: the texture mirrored left-right
     tex = _random_texture(6, 9)
-    src, out = tmp_path / "tex.png", tmp_path / "out.png"
-    write_image(src, tex)
-    assert _run(src, out, "--method", "nearest", "--size", "9x6",
-                "--mapping", "-1,0,9,0,1,0,0,0,1") == 0
-    np.testing.assert_array_equal(read_image(out), tex[:, ::-1])
-    assert _run(src, out, "--method", "nearest", "--size", "9x6",
-                "--mapping", "-1e0,0,9,0,1,0,0,0,1") == 0
+    for mapping in ("-1,0,9,0,1,0,0,0,1", "-1e0,0,9,0,1,0,0,0,1"):
+        np.testing.assert_array_equal(_nearest(tmp_path, tex, "9x6", mapping), tex[:, ::-1])
 
 
 def test_a_negative_camera_height_is_a_clear_error(src, tmp_path, capsys):
@@ -56,11 +56,8 @@ def test_max_texture_downscales_and_keeps_the_view_in_input_texels(tmp_path, cap
     # 2 x 2 blocks of one value: area-averaging to half size keeps every block
     small = _random_texture(4, 6)
     big = np.repeat(np.repeat(small, 2, axis=0), 2, axis=1)
-    src, out = tmp_path / "tex.png", tmp_path / "out.png"
-    write_image(src, big)
-    assert _run(src, out, "--method", "nearest", "--size", "6x4",
-                "--mapping", "2,0,0,0,2,0,0,0,1", "--max-texture", "6") == 0
-    np.testing.assert_array_equal(read_image(out), small)
+    frame = _nearest(tmp_path, big, "6x4", "2,0,0,0,2,0,0,0,1", "--max-texture", "6")
+    np.testing.assert_array_equal(frame, small)
     assert "used at 6 x 4" in capsys.readouterr().out
 
 
@@ -68,11 +65,7 @@ def test_a_frame_that_needs_less_detail_reads_a_reduced_texture(tmp_path, capsys
     # 4 texels per pixel everywhere: the texture at a quarter is enough
     small = _random_texture(4, 4)
     big = np.repeat(np.repeat(small, 4, axis=0), 4, axis=1)
-    src, out = tmp_path / "tex.png", tmp_path / "out.png"
-    write_image(src, big)
-    assert _run(src, out, "--method", "nearest", "--size", "4x4",
-                "--mapping", "4,0,0,0,4,0,0,0,1") == 0
-    np.testing.assert_array_equal(read_image(out), small)
+    np.testing.assert_array_equal(_nearest(tmp_path, big, "4x4", "4,0,0,0,4,0,0,0,1"), small)
     assert "used at 4 x 4" in capsys.readouterr().out
 
 

@@ -5,6 +5,7 @@ Help is in :mod:`app.editor.help`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -180,35 +181,36 @@ class MenuMixin:
         return True
 
     def export_render(self, path: str | None = None) -> bool:
+        """The preview render as an image (PNG, TIFF or EXR)."""
         from core.io.images import write_image
 
-        if not path:
-            path, _ = QFileDialog.getSaveFileName(
-                self, "Export render", "render.png", "Images (*.png *.tif *.tiff *.exr)")
-        if not path:
-            return False
-        try:
-            write_image(path, self.doc.preview.image)
-        except (TerrathemeError, OSError) as exc:
-            self.show_error(f"Cannot export {path}:\n{exc}")
-            return False
-        self.statusBar().showMessage(f"exported {path}", 4000)
-        return True
+        return self._export(path, "Export render", "render.png",
+                            "Images (*.png *.tif *.tiff *.exr)",
+                            lambda out: write_image(out, self.doc.preview.image))
 
     def export_packed(self, path: str | None = None) -> bool:
         """The vertex index grid packed along a Hilbert curve (``core.packing``)."""
+
+        def write(out: str) -> None:
+            try:
+                from core.packing import pack
+            except ImportError as exc:
+                raise TerrathemeError("the packer (core.packing.pack) is not available "
+                                      "in this build") from exc
+            pack(self.doc.texture.grid.indices).save(out)
+
+        return self._export(path, "Export packed index layer", "index.sfc",
+                            "Packed layer (*.sfc)", write)
+
+    def _export(self, path: str | None, title: str, default_name: str, file_filter: str,
+                write: Callable[[str], None]) -> bool:
+        """``write(path)``, asking for the path unless given; errors go to a dialog."""
         if not path:
-            path, _ = QFileDialog.getSaveFileName(self, "Export packed index layer",
-                                                  "index.sfc", "Packed layer (*.sfc)")
+            path, _ = QFileDialog.getSaveFileName(self, title, default_name, file_filter)
         if not path:
             return False
         try:
-            from core.packing import pack
-
-            pack(self.doc.texture.grid.indices).save(path)
-        except ImportError:
-            self.show_error("the packer (core.packing.pack) is not available in this build")
-            return False
+            write(path)
         except (TerrathemeError, OSError) as exc:
             self.show_error(f"Cannot export {path}:\n{exc}")
             return False

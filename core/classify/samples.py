@@ -14,6 +14,10 @@ is left out). It is a cautious, one-step form of seeded region growing
 (Adams & Bischof 1994), used for the training samples only. On the tuning
 photos (bench_classify.py's Dubai parts 001-003, simulated scribbles) it
 raised mean mIoU by about +0.01 (see SupervisedOptions.grow_colour).
+
+:func:`check_class_image` is the one check of a class-value image (label
+mask, scribble mask, label image) that training, conversion and the grid vote
+share.
 """
 
 from __future__ import annotations
@@ -114,22 +118,40 @@ def grow_labels(coarse: np.ndarray, lab: np.ndarray, threshold: float) -> np.nda
     return np.where(coarse > 0, coarse, taken).astype(np.uint8)
 
 
-def check_mask(mask: np.ndarray, shape: tuple[int, int], index: int) -> np.ndarray:
-    """Label mask ``index`` checked against its photo's ``(H, W)``: (H, W) uint8 ndarray."""
-    m = np.asarray(mask)
-    if m.ndim == 3 and m.shape[2] == 1:
-        m = m[:, :, 0]
-    if m.ndim != 2:
+def check_class_image(
+    image: object, what: str, shape: tuple[int, int] | None = None
+) -> np.ndarray:
+    """A label mask, scribble mask or label image as (H, W) uint8 class values 0..255.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 1) integer or bool array-like
+    what : str
+        What it is, for the errors ("label mask 2", "label image", ...).
+    shape : (H, W), optional
+        The photo's size, which the image must have.
+
+    Returns
+    -------
+    (H, W) uint8 ndarray
+        A view of ``image`` when it is uint8 already.
+    """
+    arr = np.asarray(image)
+    # A one-channel third axis (a grey image read as (H, W, 1)) is dropped.
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[:, :, 0]
+    if arr.ndim != 2:
+        raise TerrathemeError(f"{what}: shape {arr.shape} is not single-channel (H, W)")
+    if shape is not None and arr.shape != tuple(shape):
         raise TerrathemeError(
-            f"label mask {index}: shape {m.shape} is not single-channel (H, W)"
-        )
-    if m.shape != shape:
-        raise TerrathemeError(
-            f"label mask {index} is {m.shape[1]} x {m.shape[0]} pixels but its photo is "
+            f"{what} is {arr.shape[1]} x {arr.shape[0]} pixels but its photo is "
             f"{shape[1]} x {shape[0]}: a mask must have the photo's size"
         )
-    if not np.issubdtype(m.dtype, np.integer):
-        raise TerrathemeError(f"label mask {index}: values must be integers, not {m.dtype}")
-    if m.size and (int(m.min()) < 0 or int(m.max()) > 255):
-        raise TerrathemeError(f"label mask {index}: class values must be 0..255")
-    return m.astype(np.uint8, copy=False)
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise TerrathemeError(f"{what} has no pixels (shape {arr.shape})")
+    if arr.dtype.kind not in "iub":
+        raise TerrathemeError(f"{what}: values must be integers, not {arr.dtype}")
+    lo, hi = int(arr.min()), int(arr.max())
+    if lo < 0 or hi > 255:
+        raise TerrathemeError(f"{what}: class values must be 0..255, got {lo}..{hi}")
+    return arr.astype(np.uint8, copy=False)

@@ -64,7 +64,7 @@ from core.classify.result import Classification
 from core.classify.sample_cache import SampleCache, sample_key
 from core.classify.samples import (
     GROW_COLOUR,
-    check_mask,
+    check_class_image,
     coarse_mask,
     grow_labels,
     looks_like_scribbles,
@@ -84,7 +84,7 @@ def _pair_samples(photo, mask, index, classes, options, grow=0.0):
     ``grow`` > 0 adds the coarse pixels :func:`grow_labels` finds next to the labels.
     """
     rgb, valid = prepare_photo(photo)
-    m = check_mask(mask, rgb.shape[:2], index)
+    m = check_class_image(mask, f"label mask {index}", rgb.shape[:2])
     if valid is not None:
         m = np.where(valid, m, 0).astype(np.uint8)
     fo, scale = options.features, options.features.scale
@@ -137,7 +137,7 @@ def collect_samples(
     if len(pairs) == 0:
         raise TerrathemeError("no training data: give at least one photo with a label mask")
     for i, (photo, mask) in enumerate(pairs):
-        check_mask(mask, np.asarray(photo).shape[:2], i)
+        check_class_image(mask, f"label mask {i}", np.asarray(photo).shape[:2])
     classes = _mask_classes(pairs, options.ignore_classes)
     if not classes:
         raise TerrathemeError(

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.classify.samples import check_class_image
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid, validate_cell
 from core.render.renderer import render_labels
@@ -47,25 +48,6 @@ DEFAULT_SAMPLE_PIXELS = 1 << 20
 CLASS_MIN_SHARE = 0.005
 
 ProgressFn = Callable[[int, int], None]
-
-
-def _check_labels(labels: object) -> np.ndarray:
-    arr = np.asarray(labels)
-    if arr.ndim == 3 and arr.shape[2] == 1:
-        arr = arr[:, :, 0]
-    if arr.ndim != 2:
-        raise TerrathemeError(
-            f"labels must be a single-channel (H, W) image, got shape {arr.shape}"
-        )
-    if arr.shape[0] == 0 or arr.shape[1] == 0:
-        raise TerrathemeError(f"labels image has no pixels (shape {arr.shape})")
-    if arr.dtype.kind not in "iub":
-        raise TerrathemeError(f"labels must be integers, got dtype {arr.dtype}")
-    if int(arr.min()) < 0 or int(arr.max()) > 255:
-        raise TerrathemeError(
-            f"labels must be in 0..255, got {int(arr.min())}..{int(arr.max())}"
-        )
-    return arr.astype(np.uint8, copy=False)
 
 
 def grid_shape_for(width: int, height: int, cell: tuple[int, int]) -> tuple[int, int]:
@@ -97,7 +79,7 @@ def vote_grid(
         The most frequent label of each vertex's window (ties: the pixel
         under the vertex, then the lowest label).
     """
-    labels = _check_labels(labels)
+    labels = check_class_image(labels, "label image")
     n, m = validate_cell(cell)
     h, w = labels.shape
     rows, cols = grid_shape_for(w, h, (n, m))
@@ -240,7 +222,7 @@ def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.
     -------
     themes : (H, W) uint8 ndarray
     """
-    labels = _check_labels(labels)
+    labels = check_class_image(labels, "label image")
     if lut is None:
         return labels
     table = np.asarray(lut)
@@ -271,7 +253,7 @@ def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
     -------
     (K, K) int64 ndarray, ``K = max(label, index) + 1``
     """
-    labels = _check_labels(labels)
+    labels = check_class_image(labels, "label image")
     h, w = labels.shape
     tw, th = grid.texture_size
     if tw < w or th < h:
@@ -391,7 +373,7 @@ def choose_cell_size(
     CellChoice
         With the full curve (cell, agreement, grid bytes) for a chart.
     """
-    labels = _check_labels(labels)
+    labels = check_class_image(labels, "label image")
     if not 0.0 < float(target_agreement) <= 1.0:
         raise TerrathemeError(f"target agreement must be in (0, 1], got {target_agreement}")
     h, w = labels.shape

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from core.classify.photo import prepare_photo
+from core.classify.samples import check_class_image
 from core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from core.convert.labels_to_grid import CONVERT_CELL_CANDIDATES, CellChoice, apply_lut
 from core.convert.step import assign_themes, classify_photo, grid_and_colour
@@ -169,13 +170,7 @@ def convert_photo(
     rgb, _ = prepare_photo(photo)
     h, w = rgb.shape[:2]
     if scribbles is not None:
-        scribbles = np.asarray(scribbles)
-        if scribbles.ndim == 3 and scribbles.shape[2] == 1:
-            scribbles = scribbles[:, :, 0]
-        if scribbles.shape != (h, w):
-            raise TerrathemeError(
-                f"scribble mask is {scribbles.shape[1::-1]} but the photo is {w} x {h}"
-            )
+        scribbles = check_class_image(scribbles, "scribble mask", (h, w))
     if options.cell != "auto" and (not isinstance(options.cell, int) or options.cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {options.cell!r}")
     # Classify the photo (35% of the progress).

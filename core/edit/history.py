@@ -88,20 +88,19 @@ class History:
     # -- moving ----------------------------------------------------------------
     def pop_undo(self) -> Step | None:
         """The step to revert now (moved to the redo stack), or None."""
-        self._check_not_grouping("undo")
-        if not self._undo:
-            return None
-        step = self._undo.pop()
-        self._redo.append(step)
-        return step
+        return self._move("undo", self._undo, self._redo)
 
     def pop_redo(self) -> Step | None:
         """The step to apply again now (moved back to the undo stack), or None."""
-        self._check_not_grouping("redo")
-        if not self._redo:
+        return self._move("redo", self._redo, self._undo)
+
+    def _move(self, what: str, source: list[Step], target: list[Step]) -> Step | None:
+        """The last step of ``source`` moved onto ``target`` (None when ``source`` is empty)."""
+        self._check_not_grouping(what)
+        if not source:
             return None
-        step = self._redo.pop()
-        self._undo.append(step)
+        step = source.pop()
+        target.append(step)
         return step
 
     def _check_not_grouping(self, what: str) -> None:

@@ -25,8 +25,44 @@ TOWARD_V = 1
 
 
 @njit(cache=True, inline="always")
+def footprint_sides(dux, dvx, duy, dvy):
+    """The pixel's own parallelogram in the sheared frame of eq. 4.
+
+    With the long side ``(1, tan)`` toward U (or ``(tan, 1)`` toward V) chosen as
+    in eqs. 3-4, the coordinates ``x`` along the tilted axis and ``y`` across it
+    minus ``tan x`` map the pixel's sides to ``(A, 0)`` and ``(bs, Ls)``: the
+    pixel is ``{(s A + t bs, t Ls) : |s|, |t| <= 1/2}``. Eq. 4's ``H`` is
+    ``A + |bs|`` (the whole extent along) and ``L`` is ``|Ls|``.
+
+    Returns
+    -------
+    A, bs, Ls, tan, toward : float, float, float, float, int
+        ``A >= 0`` is the long side's extent along, ``bs`` and ``Ls`` the short
+        side's (signed) extents along and across.
+    """
+    aux, avx, auy, avy = abs(dux), abs(dvx), abs(duy), abs(dvy)
+    # eq. 3: approximate side lengths
+    dx = max(aux, avx) + 0.5 * min(aux, avx)
+    dy = max(auy, avy) + 0.5 * min(auy, avy)
+    # eq. 4: the longer side (the step along y or along x) sets the slope
+    if dy >= dx:
+        long_u, long_v, short_u, short_v = duy, dvy, dux, dvx
+    else:
+        long_u, long_v, short_u, short_v = dux, dvx, duy, dvy
+    # the axis the long side leans toward is "along", the other "across"
+    if abs(long_u) >= abs(long_v):
+        along, across, short_along, short_across, toward = (
+            long_u, long_v, short_u, short_v, TOWARD_U)
+    else:
+        along, across, short_along, short_across, toward = (
+            long_v, long_u, short_v, short_u, TOWARD_V)
+    tan = across / along if along != 0.0 else 0.0
+    return abs(along), short_along, short_across - short_along * tan, tan, toward
+
+
+@njit(cache=True, inline="always")
 def footprint(dux, dvx, duy, dvy):
-    """Eqs. 3-4 for one pixel.
+    """Eqs. 3-4 for one pixel: :func:`footprint_sides` with ``H = A + |bs|``, ``L = |Ls|``.
 
     Returns
     -------
@@ -35,33 +71,9 @@ def footprint(dux, dvx, duy, dvy):
         short sides parallel to V) or ``TOWARD_V`` (long side along
         ``(tan, 1)``, short sides parallel to U).
     """
-    aux, avx, auy, avy = abs(dux), abs(dvx), abs(duy), abs(dvy)
-    # eq. 3: approximate side lengths (within about 6 %)
-    dx = max(aux, avx) + 0.5 * min(aux, avx)
-    dy = max(auy, avy) + 0.5 * min(auy, avy)
-    # eq. 4: the longer side sets the slope, the other one the base
-    if dy >= dx:
-        if auy >= avy:
-            toward = TOWARD_U
-            tan = dvy / duy if duy != 0.0 else 0.0
-            h = aux + auy
-            l = abs(dvx - dux * tan)
-        else:
-            toward = TOWARD_V
-            tan = duy / dvy if dvy != 0.0 else 0.0
-            h = avx + avy
-            l = abs(dux - dvx * tan)
-    else:
-        if aux >= avx:
-            toward = TOWARD_U
-            tan = dvx / dux if dux != 0.0 else 0.0
-            h = aux + auy
-            l = abs(dvy - duy * tan)
-        else:
-            toward = TOWARD_V
-            tan = dux / dvx if dvx != 0.0 else 0.0
-            h = avx + avy
-            l = abs(duy - dvy * tan)
+    along, short_along, short_across, tan, toward = footprint_sides(dux, dvx, duy, dvy)
+    h = along + abs(short_along)
+    l = abs(short_across)
     # H >= L by definition (guards rounding)
     if l > h:
         l = h
@@ -99,36 +111,3 @@ def footprint_parameters(dudx, dvdx, dudy, dvdy) -> Footprint:
     shape = arrs[0].shape
     h, l, t, o = _footprint_arrays(*(a.ravel() for a in arrs))
     return Footprint(h.reshape(shape), l.reshape(shape), t.reshape(shape), o.reshape(shape))
-
-
-@njit(cache=True, inline="always")
-def footprint_sides(dux, dvx, duy, dvy):
-    """The pixel's own parallelogram in the sheared frame of eq. 4.
-
-    With the long side ``(1, tan)`` toward U (or ``(tan, 1)`` toward V) chosen as
-    in eqs. 3-4, the coordinates ``x`` along the tilted axis and ``y`` across it
-    minus ``tan x`` map the pixel's sides to ``(A, 0)`` and ``(bs, Ls)``: the
-    pixel is ``{(s A + t bs, t Ls) : |s|, |t| <= 1/2}``. Eq. 4's ``H`` is
-    ``A + |bs|`` (the whole extent along) and ``L`` is ``|Ls|``.
-
-    Returns
-    -------
-    A, bs, Ls, tan, toward : float, float, float, float, int
-        ``A >= 0`` is the long side's extent along, ``bs`` and ``Ls`` the short
-        side's (signed) extents along and across.
-    """
-    aux, avx, auy, avy = abs(dux), abs(dvx), abs(duy), abs(dvy)
-    # eq. 3: approximate side lengths; eq. 4: the longer one sets the slope
-    dx = max(aux, avx) + 0.5 * min(aux, avx)
-    dy = max(auy, avy) + 0.5 * min(auy, avy)
-    if dy >= dx:
-        if auy >= avy:
-            tan = dvy / duy if duy != 0.0 else 0.0
-            return auy, dux, dvx - dux * tan, tan, TOWARD_U
-        tan = duy / dvy if dvy != 0.0 else 0.0
-        return avy, dvx, dux - dvx * tan, tan, TOWARD_V
-    if aux >= avx:
-        tan = dvx / dux if dux != 0.0 else 0.0
-        return aux, duy, dvy - duy * tan, tan, TOWARD_U
-    tan = dux / dvx if dvx != 0.0 else 0.0
-    return avx, dvy, duy - dvy * tan, tan, TOWARD_V

@@ -41,7 +41,14 @@ import numba as nb
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.render.kernels import RegionBlock, ThemeRows, cell_corners, merged_weights
+from core.render.kernels import (
+    RegionBlock,
+    ThemeRows,
+    cell_columns,
+    cell_corners,
+    cell_span,
+    merged_weights,
+)
 from core.render.theme_pack import pack_themes
 
 _M32 = np.uint64(0xFFFFFFFF)
@@ -201,8 +208,7 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
     flat, off, stride, th, tw = themes
     rw = out.shape[1] // 3
     d = n * m
-    cx0 = rx // n
-    cx1 = (rx + rw - 1) // n
+    cx0, cx1 = cell_columns(rx, rw, n)
     ks = np.zeros(4, np.int64)
     ws = np.zeros(4, np.int64)
     bs = np.zeros(4, np.int64)
@@ -212,8 +218,7 @@ def shaped_rows(out, r0, r1, block, themes, params):  # pragma: no cover - numba
         cy = gy // m
         yi = (gy - cy * m) * n
         for cx in range(cx0, cx1 + 1):
-            xa = max(cx * n, rx)
-            xb = min(cx * n + n, rx + rw)
+            xa, xb = cell_span(cx, n, rx, rw)
             sp = cell_corners(block, themes, cx, gy, xa, ks, bs)
             if sp == 0:
                 # A uniform cell: one contiguous copy, as the paper's rule.

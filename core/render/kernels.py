@@ -116,6 +116,18 @@ def texel_weights(split, xi, yi, d):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def cell_columns(rx, rw, n):  # pragma: no cover - numba
+    """First and last cell column of the region row's texels ``rx .. rx + rw - 1``."""
+    return rx // n, (rx + rw - 1) // n
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def cell_span(cx, n, rx, rw):  # pragma: no cover - numba
+    """Texels ``xa .. xb - 1`` of cell column ``cx`` that lie in the region row."""
+    return max(cx * n, rx), min(cx * n + n, rx + rw)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def cell_corners(block, themes, cx, gy, xa, ks, bs):  # pragma: no cover - numba
     """Corner themes of cell ``cx`` on texel row ``gy`` into ``ks``, their row offsets into ``bs``.
 
@@ -203,15 +215,13 @@ def linear_rows(out, r0, r1, block, themes, weights):
     d = n * m
     half = d >> 1
     q = 2 * d
-    cx0 = rx // n
-    cx1 = (rx + rw - 1) // n
+    cx0, cx1 = cell_columns(rx, rw, n)
     for r in range(r0, r1):
         gy = ry + r
         cy = gy // m
         ys = gy - cy * m
         for cx in range(cx0, cx1 + 1):
-            xa = max(cx * n, rx)
-            xb = min(cx * n + n, rx + rw)
+            xa, xb = cell_span(cx, n, rx, rw)
             length = (xb - xa) * 3
             dst = (xa - rx) * 3
             k00 = grid[cy - ocy, cx - ocx]
@@ -288,8 +298,7 @@ def histogram_rows(out, r0, r1, block, themes, gauss):
     gflat, inv_lut, g_range = gauss
     rw = out.shape[1] // 3
     d = n * m
-    cx0 = rx // n
-    cx1 = (rx + rw - 1) // n
+    cx0, cx1 = cell_columns(rx, rw, n)
     ks = np.zeros(4, dtype=np.int64)
     ws = np.zeros(4, dtype=np.int64)
     bs = np.zeros(4, dtype=np.int64)
@@ -298,8 +307,7 @@ def histogram_rows(out, r0, r1, block, themes, gauss):
         cy = gy // m
         yi = (gy - cy * m) * n
         for cx in range(cx0, cx1 + 1):
-            xa = max(cx * n, rx)
-            xb = min(cx * n + n, rx + rw)
+            xa, xb = cell_span(cx, n, rx, rw)
             sp = cell_corners(block, themes, cx, gy, xa, ks, bs)
             for x in range(xa, xb):
                 o = (x - xa) * 3
@@ -345,8 +353,7 @@ def label_rows(out, r0, r1, block, tab, trow):
     """
     grid, splits, ocx, ocy, rx, ry, n, m = block
     rw = out.shape[1]
-    cx0 = rx // n
-    cx1 = (rx + rw - 1) // n
+    cx0, cx1 = cell_columns(rx, rw, n)
     ks = np.zeros(4, dtype=np.int64)
     ws = np.zeros(4, dtype=np.int64)
     for r in range(r0, r1):
@@ -354,8 +361,7 @@ def label_rows(out, r0, r1, block, tab, trow):
         cy = gy // m
         ys = gy - cy * m
         for cx in range(cx0, cx1 + 1):
-            xa = max(cx * n, rx)
-            xb = min(cx * n + n, rx + rw)
+            xa, xb = cell_span(cx, n, rx, rw)
             ks[0] = grid[cy - ocy, cx - ocx]
             sp = splits[cy - ocy, cx - ocx]
             if sp == 0:
