@@ -42,11 +42,14 @@ def _layer_info(args: argparse.Namespace) -> dict:
     """The header, palette and checksum (fast whatever the size); the runs with ``--runs``."""
     import dataclasses
 
-    from core.errors import TerrathemeError
-    from core.packing import PackedLayer, layer_info
+    from core.packing import layer_info
 
+    # The header, palette and checksum only (numba is not even imported).
     info = dataclasses.asdict(layer_info(args.input))
     if args.runs:
+        from core.errors import TerrathemeError
+        from core.packing import PackedLayer
+
         if info["tiles"] > 1:
             raise TerrathemeError(f"{args.input}: a tiled container; --runs lists one layer's runs")
         layer = PackedLayer.load(args.input)
