@@ -60,8 +60,11 @@ def _image(rng, h: int, w: int, kind: str) -> np.ndarray:
     return img
 
 
-def _check_lookups(ctx, img: np.ndarray, curve: str, rng, n: int = 4000) -> int:
+def _check_lookups(ctx, img: np.ndarray, curve: str, rng, n: int = 4000,
+                   bits: int | None = None) -> int:
     layer = pack(img, curve=curve)
+    if bits is not None:
+        layer = layer.with_grid_bits(bits)
     h, w = img.shape
     xs = rng.integers(-4, w + 4, n)
     ys = rng.integers(-4, h + 4, n)
@@ -96,6 +99,15 @@ def test_every_grid_block_side_is_searched(ctx):
         for curve in ("hilbert", "morton"):
             seen.add(_check_lookups(ctx, img, curve, rng))
     assert {4, 5, 6, 7} <= seen
+
+
+@pytest.mark.parametrize("curve", ["hilbert", "morton"])
+def test_shader_reads_every_block_side(ctx, curve):
+    # Blocks of 1 texel (no walk) to 4096 (three four-level steps), quartered or not.
+    rng = np.random.default_rng(12)
+    img = _image(rng, 1100, 700, "mixed")
+    for bits in (0, 1, 2, 3, 5, 8, 11, 12):
+        assert _check_lookups(ctx, img, curve, rng, bits=bits) == min(bits, 11)
 
 
 @settings(max_examples=25, deadline=None)
