@@ -65,7 +65,7 @@ DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
 RNG = np.random.default_rng(7)
 #: paired rounds of the batched random-access measurement
-LOOKUP_ROUNDS = 7
+LOOKUP_ROUNDS = 21
 E10_CROP = 2048
 
 
