@@ -192,6 +192,8 @@ def test_packed_grid_errors(renderer):
         renderer.render(pack(np.zeros((3, 3, 3), np.uint8)), (2, 2))
     with pytest.raises(TerrathemeError, match="outside"):
         renderer.render(layer, (4, 4), region=(0, 0, 50, 4))
+    with pytest.raises(TerrathemeError, match="tiled packed layer"):
+        renderer.render(pack(np.zeros((300, 200), np.uint8), tile_bits=7), (2, 2))
 
 
 def _project_and_layer(tmp_path):

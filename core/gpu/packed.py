@@ -20,7 +20,7 @@ import numpy as np
 from core.errors import TerrathemeError
 from core.gpu.pipeline import capacity, rect_vertices
 from core.gpu.programs import UNITS, Variant, compile_program, set_uniform
-from core.packing import PackedLayer
+from core.packing import PackedLayer, TiledLayer
 from core.render.rules import SaddleRule
 
 #: log2 of the table texture's width (``TT_PACKED_ROW_BITS`` of ``tt_packed.glsl``)
@@ -29,7 +29,7 @@ ROW_BITS = 12
 POINT_ROW = 1024
 
 
-def check_grid_layer(layer: PackedLayer, themes: int) -> None:
+def check_grid_layer(layer: PackedLayer | TiledLayer, themes: int) -> None:
     """Refuse a layer that cannot be a vertex index grid over ``themes`` themes.
 
     Reads the runs' palette indices only (``O(R)``), never the texels.
@@ -37,9 +37,12 @@ def check_grid_layer(layer: PackedLayer, themes: int) -> None:
     Raises
     ------
     TerrathemeError
-        Not an identity (index) layer of a 2-D grid, fewer than 2 x 2
+        A tiled layer; not an identity (index) layer of a 2-D grid, fewer than 2 x 2
         vertices, or an index not below ``themes``.
     """
+    if isinstance(layer, TiledLayer):
+        raise TerrathemeError("a tiled packed layer: the GPU reads single packed layers "
+                              "(up to 65536 vertices a side)")
     if not layer.identity or layer.channels != 1:
         raise TerrathemeError("a packed index grid must be an index layer (one channel, the "
                               "texel value its palette index), not a colour layer")

@@ -39,7 +39,7 @@ from core.gpu.style import Style, StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
 from core.model.grid import validate_cell
-from core.packing import PackedLayer
+from core.packing import PackedLayer, TiledLayer
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import region_splits
 from core.themes.library import Theme
@@ -247,7 +247,7 @@ class GpuRenderer:
     def _grid(self, grid: object, cell: object) -> tuple[np.ndarray | None, PackedGrid | None,
                                                           tuple[int, int]]:
         """The checked dense indices, or the packed layer on the GPU (kept for the next render)."""
-        if not isinstance(grid, PackedLayer):
+        if not isinstance(grid, PackedLayer | TiledLayer):
             indices, cell = prepare_grid(grid, cell, len(self.themes.textures))
             return indices, None, cell
         if cell is None:
