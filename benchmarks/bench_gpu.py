@@ -1,6 +1,6 @@
 """GPU renderer benchmark: ms per 1920 x 1080 frame, the shaders against the CPU render, same run.
 
-Run: ``.venv/bin/python benchmarks/bench_gpu.py [--quick]``
+Run: ``.venv/bin/python benchmarks/bench_gpu.py [--quick] [--frames-only]``
 Writes ``benchmarks/results/gpu.json`` and ``gpu.png``.
 
 Map: the ESA WorldCover 2020 crop of ``bench_render.py`` (CC BY 4.0, "© ESA
@@ -24,7 +24,11 @@ with every contender back to back, so machine load hits them alike:
 * ``gpu frame, uniform cells by copy shader``: runs of uniform cells drawn
   with ``tt_copy.frag.glsl`` instead of copied (a driver without OpenGL 4.3);
 * ``gpu blend shader alone``: every pixel by ``tt_terrain.frag.glsl``, as an
-  engine using that shader alone would draw it (no uniform-cell special case).
+  engine using that shader alone would draw it (no uniform-cell special case);
+* ``gpu frame from the packed layer``: the same, the grid read from the
+  packed layer (``pack(grid)``) by the shaders (``core.gpu.packed``: each
+  tile's vertices decoded and cells split on the GPU); its peer is the one
+  above. Accuracy: its frames must equal the dense GPU render (max 0).
 
 Accuracy: the largest difference between the GPU and CPU texels of every
 frame (linear: must be 0; histogram-preserving: at most 1).
@@ -69,6 +73,7 @@ from core.gpu import (  # noqa: E402
     GroundView,
     UniformCells,
 )
+from core.packing import pack  # noqa: E402
 from core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
 from core.render.rules import cell_splits  # noqa: E402
 
@@ -181,9 +186,10 @@ def contenders(grid, themes, gpu: GpuRenderer, blend: BlendMode) -> dict:
     alone = GpuRenderOptions(blend=blend, uniform_cells=UniformCells.BLEND)
     buf_cpu = np.empty((H, W, 3), np.uint8)
     buf_gpu = np.empty((H, W, 3), np.uint8)
+    layer = pack(grid)
 
-    def frame(region, options=gpu_opts):
-        gpu.draw(grid, (N, N), region, options=options)
+    def frame(region, options=gpu_opts, source=grid):
+        gpu.draw(source, (N, N), region, options=options)
         gpu.ctx.finish()
 
     return {
@@ -194,6 +200,7 @@ def contenders(grid, themes, gpu: GpuRenderer, blend: BlendMode) -> dict:
         "gpu to numpy": lambda r: gpu.render(grid, (N, N), r, options=gpu_opts, out=buf_gpu),
         "gpu frame, uniform cells by copy shader": lambda r: frame(r, shader),
         "gpu blend shader alone": lambda r: frame(r, alone),
+        "gpu frame from the packed layer": lambda r: frame(r, alone, layer),
     }
 
 
@@ -230,7 +237,7 @@ def accuracy(grid, themes, gpu: GpuRenderer, regions: list) -> dict:
     """Largest |GPU - CPU| over the frames, per blend, and the share of texels differing."""
     out = {}
     for blend in (BlendMode.LINEAR, BlendMode.HISTOGRAM):
-        worst, differ, total = 0, 0, 0
+        worst, differ, total, dense_worst = 0, 0, 0, 0
         for r in regions:
             cpu = render_cells(grid, themes, (N, N), r, options=RenderOptions(blend=blend))
             for fill in (UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND):
@@ -240,13 +247,19 @@ def accuracy(grid, themes, gpu: GpuRenderer, regions: list) -> dict:
                 worst = max(worst, int(d.max()))
                 differ += int((d > 0).sum())
                 total += d.size
-        out[blend.value] = {"max_abs_diff": worst, "share_of_values_differing": differ / total}
+            packed = gpu.render(pack(grid), (N, N), r, options=GpuRenderOptions(blend=blend))
+            dense_worst = max(dense_worst, int(np.abs(packed.astype(np.int16) - got).max()))
+        out[blend.value] = {"max_abs_diff": worst, "share_of_values_differing": differ / total,
+                            "packed_vs_dense_gpu_max_abs_diff": dense_worst}
     return out
 
 
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer viewports and rounds")
+    ap.add_argument("--frames-only", action="store_true",
+                    help="the flat frames only (into the last results: converted and "
+                         "perspective rows kept)")
     args = ap.parse_args()
     grid, themes, names = esa_grid(513)
     size = (grid.shape[1] - 1) * N
@@ -276,7 +289,10 @@ def main() -> int:
             print(label, blend.value, json.dumps(scen[blend.value]["median_ms"]), flush=True)
         res["scenarios"][label] = scen
     deepglobe = SHARED / "deepglobe" / "images" / "6399_sat.jpg"
-    if deepglobe.is_file():
+    if args.frames_only:
+        last = json.loads((HERE / "results" / "gpu.json").read_text())
+        res.update(converted=last["converted"], perspective=last["perspective"])
+    elif deepglobe.is_file():
         project = converted(deepglobe)
         gpu_style = GpuRenderer(project.library.textures)
         tw, th = project.grid.texture_size
@@ -287,12 +303,14 @@ def main() -> int:
                             **style_scenario(project, gpu_style, views, rounds)}
         print("converted", json.dumps(res["converted"]["linear"]["median_ms"]), flush=True)
         gpu_style.release()
-    sample = converted(HERE.parent / "sample_maps" / "dubai_marina.jpg")
-    res["perspective"] = {
-        "project": "sample_maps/dubai_marina.jpg, convert defaults", "frame": list(FRAME),
-        "camera": "height 24 texels, yaw 30, fov 60", "texture": list(sample.grid.texture_size),
-        "rows": perspective_rows(sample, 1 if args.quick else 3,
-                                 PITCHES[::2] if args.quick else PITCHES)}
+    if not args.frames_only:
+        sample = converted(HERE.parent / "sample_maps" / "dubai_marina.jpg")
+        res["perspective"] = {
+            "project": "sample_maps/dubai_marina.jpg, convert defaults", "frame": list(FRAME),
+            "camera": "height 24 texels, yaw 30, fov 60",
+            "texture": list(sample.grid.texture_size),
+            "rows": perspective_rows(sample, 1 if args.quick else 3,
+                                     PITCHES[::2] if args.quick else PITCHES)}
     res["load_average_end"] = os.getloadavg()[0]
     out = HERE / "results"
     out.mkdir(exist_ok=True)
@@ -328,7 +346,7 @@ def chart(res: dict, path: Path) -> None:
     fig, axes = plt.subplots(2, 4, figsize=(22, 10.5))
     colours = {"cpu": "C3", "cpu (reused buffer)": "C1", "gpu frame": "C0",
                "gpu to numpy": "C2", "gpu frame, uniform cells by copy shader": "C9",
-               "gpu blend shader alone": "C7"}
+               "gpu blend shader alone": "C7", "gpu frame from the packed layer": "C4"}
     flat = iter(axes[0])
     for label, sc in scen.items():
         for blend in ("linear", "histogram"):

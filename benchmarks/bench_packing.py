@@ -1,6 +1,7 @@
 """Benchmark of SFC-packed index layers (issues 2, 15, 19) against the codecs a user would try.
 
-Run ``.venv/bin/python benchmarks/bench_packing.py [--e10-timeout S] [--quick]``;
+Run ``.venv/bin/python benchmarks/bench_packing.py [--e10-timeout S] [--quick]
+[--lookups-only]``;
 writes ``benchmarks/results/packing.json`` and ``packing.png``. Needs the
 ``bench`` extra (imagecodecs: JPEG XL, AVIF, tifffile's zstd).
 
@@ -20,7 +21,10 @@ On the land-cover maps in ../shared/data/maps, all measured in the same run:
   numpy gather from the dense array and a compiled (numba) dense gather on
   one and two threads, in ``LOOKUP_ROUNDS`` paired rounds (the median ratio
   within a round, and the range); the same batch on the map packed as a
-  tiled container of 4096 x 4096 tiles, against the single layer;
+  tiled container of 4096 x 4096 tiles, against the single layer; and the
+  GPU shader's lookups (``core.gpu.PackedGrid.lookup`` on the table as a
+  texture, Mesa llvmpipe here: coordinates uploaded, indices read back),
+  checked equal to the CPU's;
 * scalar lookup time against a scalar numpy index;
 * pack time (scan + runs + random-access table) with the numpy peer of the
   numba scan on a 4096^2 crop.
@@ -61,7 +65,7 @@ DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
 RNG = np.random.default_rng(7)
 #: paired rounds of the batched random-access measurement
-LOOKUP_ROUNDS = 7
+LOOKUP_ROUNDS = 21
 E10_CROP = 2048
 
 
@@ -220,6 +224,9 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         assert np.array_equal(fn.lookup(xs, ys), img[ys, xs])
     dense_gather(img, xs, ys, out)
     dense_gather_parallel(img, xs, ys, out)
+    gpu = gpu_grid(layer)
+    if gpu is not None:
+        assert np.array_equal(gpu.lookup(xs, ys), img[ys, xs])  # the shader's = the CPU's
     peers = {
         "numpy_dense": lambda: img[ys, xs],
         "compiled_dense_1t": lambda: dense_gather(img, xs, ys, out),
@@ -228,6 +235,7 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         "packed_2t": lambda: layer.lookup(xs, ys),
         "tiled_1t": lambda: tiled_serial.lookup(xs, ys),
         "tiled_2t": lambda: tiled.lookup(xs, ys),
+        **({"gpu_shader": lambda: gpu.lookup(xs, ys)} if gpu is not None else {}),
     }
     # Paired rounds: on a shared machine the load drifts between rounds, so each ratio is
     # taken within a round, then the median over rounds.
@@ -239,7 +247,10 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
     rec = {f"{k}_ns": float(np.median(v)) for k, v in r.items()}
     for ours, peer in (("packed_2t", "compiled_dense_2t"), ("packed_1t", "compiled_dense_1t"),
                        ("packed_2t", "numpy_dense"), ("packed_1t", "numpy_dense"),
-                       ("tiled_1t", "packed_1t"), ("tiled_2t", "packed_2t")):
+                       ("tiled_1t", "packed_1t"), ("tiled_2t", "packed_2t"),
+                       ("gpu_shader", "numpy_dense")):
+        if ours not in r:
+            continue
         ratio = r[ours] / r[peer]
         rec[f"{ours}_vs_{peer}"] = float(np.median(ratio))
         rec[f"{ours}_vs_{peer}_range"] = [float(ratio.min()), float(ratio.max())]
@@ -257,6 +268,17 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
     rec["dense_bytes"] = int(img.nbytes)
     rec["memory_bytes"] = int(layer.memory_bytes)
     return rec
+
+
+def gpu_grid(layer: PackedLayer):
+    """The layer's table on the GPU (core.gpu.PackedGrid), or None without an OpenGL context."""
+    from core.gpu import GpuUnavailableError, PackedGrid, gl_context
+
+    try:
+        return PackedGrid(gl_context(), layer)
+    except GpuUnavailableError as exc:
+        print("no GPU lookups:", exc, flush=True)
+        return None
 
 
 def measure(name: str, img: np.ndarray, e10_timeout: float, work: Path, quick: bool) -> dict:
@@ -293,11 +315,15 @@ def measure(name: str, img: np.ndarray, e10_timeout: float, work: Path, quick: b
     if codecs:
         best = min(rec[k]["bytes"] for k in codecs)
         rec["compact_vs_best_of_e10_avif"] = rec["terratheme_compact"]["bytes"] / best
-    print(name, "lookups", flush=True)
+    return measure_lookups(rec, img)
+
+
+def measure_lookups(rec: dict, img: np.ndarray) -> dict:
+    """Pack time and random access of one map, into its record."""
+    print(rec["name"], "lookups", flush=True)
     layer = pack(img)
-    rec["runs_hilbert"] = layer.run_count
-    rec["pack_s"] = best_of(lambda: pack(img), 3)
-    rec.update(lookups(img, layer))
+    rec.update(runs_hilbert=layer.run_count, pack_s=best_of(lambda: pack(img), 3),
+               load_average=os.getloadavg(), **lookups(img, layer))
     return rec
 
 
@@ -324,13 +350,13 @@ def chart(maps: list[dict]) -> None:
     axes[1].set_title("Decode time (ours: to the random-access layer)")
     ax = axes[2]
     keys = ["numpy_dense_ns", "compiled_dense_1t_ns", "compiled_dense_2t_ns", "packed_1t_ns",
-            "packed_2t_ns", "tiled_2t_ns"]
+            "packed_2t_ns", "tiled_2t_ns", "gpu_shader_ns"]
     for i, k in enumerate(keys):
-        ax.bar(np.arange(len(maps)) + i * 0.8 / len(keys), [m[k] for m in maps],
+        ax.bar(np.arange(len(maps)) + i * 0.8 / len(keys), [m.get(k, np.nan) for m in maps],
                0.8 / len(keys), label=k[:-3])
     ax.set_xticks(np.arange(len(maps)) + 0.4, names, fontsize=8)
     ax.set_ylabel("ns per texel (10^6 random texels)")
-    ax.set_title("Batched random access")
+    ax.set_title("Batched random access (gpu_shader: llvmpipe, with upload and read-back)")
     ax.legend(fontsize=7)
     ax = axes[3]
     ax.bar(names, [m["pack_s"] for m in maps], color="tab:green", label="pack")
@@ -351,7 +377,19 @@ def main() -> None:
                         help="seconds JPEG XL effort 10 may take per map (default 900)")
     parser.add_argument("--quick", action="store_true",
                         help="skip JPEG XL and AVIF (the slow encoders)")
+    parser.add_argument("--lookups-only", action="store_true",
+                        help="rerun pack time and the lookups (all their peers) only, keeping "
+                             "the codec rows of the last results")
     args = parser.parse_args()
+    if args.lookups_only:
+        # The last results, their pack time and random access measured again.
+        result = json.loads((OUT / "packing.json").read_text())
+        for rec in result["maps"]:
+            path = next((DATA / "maps" / rec["name"]).glob("*.png"))
+            measure_lookups(rec, np.ascontiguousarray(read_image(path)[:, :, 0]))
+        result["load_average_at_end"] = os.getloadavg()
+        (OUT / "packing.json").write_text(json.dumps(result, indent=1))
+        return chart(result["maps"])
     OUT.mkdir(parents=True, exist_ok=True)
     work = OUT / ".work"
     work.mkdir(exist_ok=True)

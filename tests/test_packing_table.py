@@ -61,3 +61,40 @@ def test_table_is_read_only():
     layer = pack(np.zeros((5, 5), np.uint8))
     with pytest.raises(ValueError):
         layer.table[0] = 1
+
+
+@pytest.mark.parametrize("curve", ["hilbert", "morton"])
+def test_every_grid_block_side_gives_the_same_lookups(curve):
+    # Block sides from 1 texel to the whole square (odd ones walk the one-level table).
+    import dataclasses
+
+    from core.errors import TerrathemeError
+
+    rng = np.random.default_rng(9)
+    img = np.kron(rng.integers(0, 4, (9, 14)), np.ones((7, 7), int))[:61, :93].astype(np.uint8)
+    img[rng.random(img.shape) < 0.05] = 6
+    layer = pack(img, curve)
+    ys, xs = np.mgrid[: img.shape[0], : img.shape[1]]
+    for bits in range(0, 9):
+        other = dataclasses.replace(layer.with_grid_bits(bits), threads=1)
+        assert int(other.table[lay.W_GRID_BITS]) == min(bits, 7)
+        np.testing.assert_array_equal(other.lookup(xs, ys), img)
+        np.testing.assert_array_equal(other.S, layer.S)
+        assert other.lookup(int(xs[5, 7]), int(ys[5, 7])) == img[5, 7]
+    with pytest.raises(TerrathemeError, match="grid block bits -1"):
+        layer.with_grid_bits(-1)
+
+
+def test_tiles_of_a_tiled_layer_share_one_block_side():
+    rng = np.random.default_rng(4)
+    img = np.zeros((300, 200), np.uint8)
+    img[:128, :128] = rng.integers(0, 5, (128, 128))  # busy tile; the others nearly empty
+    img[200, 150] = 3
+    tiled = pack(img, tile_bits=7)
+    table, words = tiled._tables()
+    bits = words[1].reshape(-1, 8)[:, 1]
+    assert len(set(bits.tolist())) == 1
+    assert [int(pack(tiled.tile(i).unpack()).table[lay.W_GRID_BITS])
+            for i in range(len(bits))] != bits.tolist()  # their own choice would differ
+    ys, xs = np.mgrid[:300, :200]
+    np.testing.assert_array_equal(tiled.lookup(xs, ys), img)

@@ -42,6 +42,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="render through the OpenGL shaders (headless EGL; Mesa's llvmpipe "
                              "without a GPU), in the same style: at scale 1 the same texels as "
                              "the CPU render, below 1 mipmapped")
+    parser.add_argument("--packed", nargs="?", const="", default=None, metavar="LAYER",
+                        help="with --gpu: read the index grid from a packed layer (.ttpack) "
+                             "in the shaders, never unpacked (default LAYER: PROJECT's stem + "
+                             ".ttpack, what convert writes); the layer's indices are drawn, the "
+                             "project gives the themes, cell size and style")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,8 +65,10 @@ def run(args: argparse.Namespace) -> int:
     )
     from core.render.renderer import BlendMode, RenderOptions
 
-    check_outputs([args.out], inputs=[args.project])
+    packed = _packed_path(args)
+    check_outputs([args.out], inputs=[args.project] + ([packed] if packed else []))
     project = load_project(args.project)
+    grid = _packed_grid(packed, project) if packed else project.grid
     if args.blend is None:
         options = project_style(project)
     elif args.blend == "shaped":
@@ -81,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             bar.refresh()
 
         if gpu is not None:
-            image = _render_gpu(gpu, project, region, args.scale, options, progress)
+            image = _render_gpu(gpu, project, grid, region, args.scale, options, progress)
         else:
             image = render_project(project, region, args.scale, options=options,
                                    progress=progress)
@@ -89,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     h, w = image.shape[:2]
     made = write_georeference(args.out, render_georeference(project, region, (w, h)))
     geo = " with its georeference" if made else ""
-    print(f"{args.out}: {w} x {h} texels ({style} blend{', GPU' if gpu else ''}){geo}")
+    how = ", GPU from the packed layer" if packed else ", GPU" if gpu else ""
+    print(f"{args.out}: {w} x {h} texels ({style} blend{how}){geo}")
     for extra in made:
         if str(extra) != str(args.out):
             print(f"  world file: {extra}")
@@ -103,12 +111,40 @@ def _gpu_renderer(project):
     return GpuRenderer(project.library.textures)
 
 
-def _render_gpu(gpu, project, region, scale: float, style, progress):
-    """The project through the shaders in ``style`` (blend, saddle, borders) with its colour map."""
+def _packed_path(args: argparse.Namespace) -> str | None:
+    """The packed layer ``--packed`` names (its default beside the project), or None."""
+    from pathlib import Path
+
+    from core.errors import TerrathemeError
+
+    if args.packed is None:
+        return None
+    if not args.gpu:
+        raise TerrathemeError("--packed reads the index grid on the GPU: add --gpu")
+    return args.packed or str(Path(args.project).with_suffix(".ttpack"))
+
+
+def _packed_grid(path: str, project):
+    """The packed layer at ``path``, checked to be the size of the project's vertex grid."""
+    from core.errors import TerrathemeError
+    from core.packing import PackedLayer, load_layer
+
+    layer = load_layer(path)
+    if not isinstance(layer, PackedLayer):
+        raise TerrathemeError(f"{path}: a tiled container; the GPU reads single packed layers")
+    gh, gw = project.grid.indices.shape
+    if (layer.width, layer.height) != (gw, gh):
+        raise TerrathemeError(f"{path}: a {layer.width} x {layer.height} layer, but the "
+                              f"project's grid has {gw} x {gh} vertices")
+    return layer
+
+
+def _render_gpu(gpu, project, grid, region, scale: float, style, progress):
+    """``grid`` (the project's, or its packed layer) through the shaders in ``style``."""
     from core.gpu import GpuRenderOptions
 
     try:
-        return gpu.render(project.grid, region=region, scale=scale, progress=progress,
+        return gpu.render(grid, project.grid.cell, region=region, scale=scale, progress=progress,
                           options=GpuRenderOptions.from_render_options(style),
                           colour_map=project.colour_map)
     finally:

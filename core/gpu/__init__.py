@@ -12,7 +12,9 @@ and colour map, checked against the shaders' integer ranges), ``renderer``
 (:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any
 region, exact at scale 1, filtered with mipmaps and anisotropy below or on
 request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
-``ground_mesh`` (a height map as a mesh), ``base_map`` (the render itself,
+``packed`` (:class:`PackedGrid`: a packed index layer's table read by the
+shaders, never unpacked; ``GpuRenderer.render`` takes a ``PackedLayer`` as
+its grid), ``ground_mesh`` (a height map as a mesh), ``base_map`` (the render itself,
 mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
 :func:`render_perspective_gpu`: the texture on a ground plane in perspective).
 """
@@ -21,6 +23,7 @@ from core.gpu.context import GpuUnavailableError, create_context, gl_context
 from core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
 from core.gpu.ground import GroundView, render_perspective_gpu
 from core.gpu.options import Anisotropy, GpuRenderOptions, GroundOptions, Sampling, UniformCells
+from core.gpu.packed import PackedGrid
 from core.gpu.renderer import GpuRenderer, render_cells_gpu
 from core.gpu.shaders import SHADER_DIR, shader_source
 
@@ -35,6 +38,7 @@ __all__ = [
     "GpuUnavailableError",
     "GroundOptions",
     "GroundView",
+    "PackedGrid",
     "Sampling",
     "UniformCells",
     "clip_matrix",

@@ -54,7 +54,7 @@ def rect_vertices(edges: np.ndarray, themes: np.ndarray, sizes: np.ndarray) -> n
     return out
 
 
-def _capacity(n: int) -> int:
+def capacity(n: int) -> int:
     """Room for ``n`` rounded up to a power of two (at least 64), so growth is rare."""
     return max(64, 1 << (max(n, 1) - 1).bit_length())
 
@@ -108,7 +108,7 @@ class Pipeline:
         if tex is None or tex.width < w or tex.height < h:
             if tex is not None:
                 tex.release()
-            tex = self.ctx.texture((_capacity(w), _capacity(h)), 1, dtype="u1")
+            tex = self.ctx.texture((capacity(w), capacity(h)), 1, dtype="u1")
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._index[name] = tex
         tex.write(np.ascontiguousarray(values, dtype=np.uint8).tobytes(), viewport=(0, 0, w, h))
@@ -124,7 +124,7 @@ class Pipeline:
                     vao.release()
                 self._vaos.clear()
                 self._buffer.release()
-            self._buffer = self.ctx.buffer(reserve=_capacity(size))
+            self._buffer = self.ctx.buffer(reserve=capacity(size))
         self._buffer.write(vertices.tobytes())
 
     def draw(self, prog: moderngl.Program, first: int, count: int) -> None:

@@ -32,11 +32,14 @@ from core.gpu.context import gl_context
 from core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
 from core.gpu.cover import cell_rectangles
 from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from core.gpu.packed import PackedGrid, check_grid_layer
 from core.gpu.pipeline import Pipeline, rect_vertices
 from core.gpu.programs import UNITS, Variant
 from core.gpu.style import Style, StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
+from core.model.grid import validate_cell
+from core.packing import PackedLayer, TiledLayer
 from core.render.inputs import prepare_grid, theme_textures, validate_region
 from core.render.rules import region_splits
 from core.themes.library import Theme
@@ -60,9 +63,14 @@ class _Mode(NamedTuple):
 
 
 class _Plan(NamedTuple):
-    """What a render draws: the checked inputs, the output size, the variant, the tile side."""
+    """What a render draws: the checked inputs, the output size, the variant, the tile side.
 
-    indices: np.ndarray
+    ``indices`` is the dense grid, or None when ``packed`` (the GPU reads the layer).
+    """
+
+    indices: np.ndarray | None
+    packed: PackedGrid | None
+    cells: tuple[int, int]
     cell: tuple[int, int]
     size: tuple[int, int]
     region: tuple[int, int, int, int]
@@ -106,6 +114,7 @@ class GpuRenderer:
         self._copy = copy_image_function(self.ctx)
         self._max_viewport = min(self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
         self.style = StyleTextures(self.ctx, self.themes)
+        self._packed: PackedGrid | None = None
 
     @property
     def can_copy(self) -> bool:
@@ -128,10 +137,13 @@ class GpuRenderer:
 
         Parameters
         ----------
-        grid : (gh+1, gw+1) integer array-like or IndexGrid
-            Theme index at every grid vertex (row 0 at the top).
+        grid : (gh+1, gw+1) integer array-like, IndexGrid or PackedLayer
+            Theme index at every grid vertex (row 0 at the top). A packed index
+            layer of ``(gw+1) x (gh+1)`` texels stays packed: the shaders read it
+            (``core.gpu.packed``; uniform cells are then drawn by the blend shader).
         cell : (N, M)
-            Texel columns and rows per cell (default: the IndexGrid's).
+            Texel columns and rows per cell (default: the IndexGrid's; required
+            with an array or a PackedLayer).
         region : (x, y, w, h), optional
             Full-resolution texels (default: the whole ``(gw*N, gh*M)`` texture).
         scale : float in (0, 1]
@@ -205,8 +217,9 @@ class GpuRenderer:
               region: tuple[int, int, int, int] | None, scale: float,
               options: GpuRenderOptions, colour_map: ColourMap | None) -> _Plan:
         """Check every input (before any GPU work) and fix what the tiles draw."""
-        indices, (n, m) = prepare_grid(grid, cell, len(self.themes.textures))
-        gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
+        indices, packed, (n, m) = self._grid(grid, cell)
+        gw, gh = (packed.layer.width - 1, packed.layer.height - 1) if packed else \
+            (indices.shape[1] - 1, indices.shape[0] - 1)
         size = (gw * n, gh * m)
         region = validate_region(region, size)
         if not 0.0 < float(scale) <= 1.0:
@@ -220,11 +233,32 @@ class GpuRenderer:
         if sampling is Sampling.EXACT and float(scale) != 1.0:
             raise TerrathemeError(f"exact sampling renders at scale 1 only, got scale {scale}")
         filtered = sampling is Sampling.FILTERED
-        mode = _Mode(style, filtered, self._uniform_cells(options.uniform_cells, filtered,
-                                                          colour_map is not None))
+        fill = options.uniform_cells
+        if packed is not None and fill in (UniformCells.COPY, UniformCells.SHADER):
+            raise TerrathemeError(f"uniform cells of a packed grid are drawn by the blend "
+                                  f"shader (UniformCells.BLEND or AUTO), not {fill.name}")
+        if packed is not None:
+            fill = UniformCells.BLEND
+        mode = _Mode(style, filtered, self._uniform_cells(fill, filtered, colour_map is not None))
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
         tile = min(options.tile, self._max_viewport)
-        return _Plan(indices, (n, m), size, region, out_size, mode, tile)
+        return _Plan(indices, packed, (gw, gh), (n, m), size, region, out_size, mode, tile)
+
+    def _grid(self, grid: object, cell: object) -> tuple[np.ndarray | None, PackedGrid | None,
+                                                          tuple[int, int]]:
+        """The checked dense indices, or the packed layer on the GPU (kept for the next render)."""
+        if not isinstance(grid, PackedLayer | TiledLayer):
+            indices, cell = prepare_grid(grid, cell, len(self.themes.textures))
+            return indices, None, cell
+        if cell is None:
+            raise TerrathemeError("cell size (N, M) is required with a packed index grid")
+        cell = validate_cell(cell)
+        if self._packed is None or self._packed.layer is not grid:
+            check_grid_layer(grid, len(self.themes.textures))
+            if self._packed is not None:
+                self._packed.release()
+            self._packed = PackedGrid(self.ctx, grid)
+        return None, self._packed, cell
 
     def _uniform_cells(self, asked: UniformCells, filtered: bool, coloured: bool) -> UniformCells:
         """How uniform cells are filled: ``asked`` with ``AUTO`` resolved, checked."""
@@ -257,17 +291,23 @@ class GpuRenderer:
         # The tile's part of the texture, in texel edges, and the cells under it
         # (the filtered path's sub-samples reach half a texel beyond).
         x0, y0, w, h = view = (rx + tx * fx, ry + ty * fy, tw * fx, th * fy)
-        self.ctx.viewport = (0, 0, tw, th)
-        gh, gw = plan.indices.shape[0] - 1, plan.indices.shape[1] - 1
+        gw, gh = plan.cells
         pad = int(plan.mode.filtered)
         cx0 = min(max(0, math.floor((x0 - pad) / n)), gw - 1)
         cy0 = min(max(0, math.floor((y0 - pad) / m)), gh - 1)
         cx1 = min(gw - 1, math.ceil((x0 + w) / n) - 1 + pad)
         cy1 = min(gh - 1, math.ceil((y0 + h) / m) - 1 + pad)
-        sub = plan.indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
-        splits = region_splits(plan.indices, None, options.saddle, (cy0, cy1, cx0, cx1))
-        self.pipeline.index_texture("tt_grid", sub)
-        self.pipeline.index_texture("tt_splits", splits)
+        block_shape = (cy1 - cy0 + 1, cx1 - cx0 + 1)
+        if plan.packed is not None:
+            # The GPU decodes the block and splits its cells from the packed layer.
+            plan.packed.bind_block((cx0, cy0, cx1, cy1), options.saddle)
+            self.pipeline.framebuffer(tw, th)
+        else:
+            sub = plan.indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+            splits = region_splits(plan.indices, None, options.saddle, (cy0, cy1, cx0, cx1))
+            self.pipeline.index_texture("tt_grid", sub)
+            self.pipeline.index_texture("tt_splits", splits)
+        self.ctx.viewport = (0, 0, tw, th)
         # Rectangles: runs of uniform cells by theme, then blended runs (or the whole tile).
         if plan.mode.uniform_cells is UniformCells.BLEND:
             edges, kinds = np.array([[x0, y0, x0 + w, y0 + h]]), np.array([-1])
@@ -281,7 +321,7 @@ class GpuRenderer:
                 self._copy_runs(edges[kinds >= 0], kinds[kinds >= 0], view)
                 edges, kinds = edges[kinds < 0], kinds[kinds < 0]
         if len(kinds):
-            values = self._uniforms(plan, options, view, (cx0, cy0), splits.shape)
+            values = self._uniforms(plan, options, view, (cx0, cy0), block_shape)
             self._draw_rects(plan.mode, edges, kinds, values)
         return tw, th
 
@@ -327,6 +367,9 @@ class GpuRenderer:
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays)."""
         self.pipeline.release()
+        if self._packed is not None:
+            self._packed.release()
+            self._packed = None
         self.style.release()
         self.themes.release()
 

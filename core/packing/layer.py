@@ -20,7 +20,7 @@ from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing.container import LayerFields, decode_layer, encode_layer
-from core.packing.layout import W_COUNT
+from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
 from core.packing.lookup import (
     build_table,
     layer_batch,
@@ -229,6 +229,15 @@ class PackedLayer:
         view = self._data.view()
         view.setflags(write=False)
         return view
+
+    def with_grid_bits(self, bits: int) -> PackedLayer:
+        """The same layer, its table's grid blocks ``2^bits`` a side (at most the curve's)."""
+        if int(self._data[W_GRID_BITS]) == min(int(bits), int(self._data[W_LEVELS])):
+            return self
+        steps, indices = table_runs(self._data)
+        data = build_table(self.width, self.height, int(self._data[W_LEVELS]),
+                           self.curve is Curve.MORTON, steps, indices, bits)
+        return dataclasses.replace(self, _data=data)
 
     def with_table(self, table: np.ndarray) -> PackedLayer:
         """The same layer over another copy of its table (e.g. a view into a larger array)."""

@@ -33,6 +33,7 @@ from core.errors import TerrathemeError
 from core.packing.layout import (
     ENDS,
     HEAD_WORDS,
+    MAX_GRID_BITS,
     QUARTER_FROM,
     SPAN_LAST,
     TABLE_AT,
@@ -139,6 +140,9 @@ def tile_rows(data: np.ndarray, bases: np.ndarray) -> np.ndarray:
     return rows.ravel()
 
 
+STRETCH = 16384  # texels per stretch of the batch kernels (and per parallel part)
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
     # The body of both batch kernels; inlined with a constant ``tiled``, so each
@@ -155,7 +159,7 @@ def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
     runs0 = np.int64(data[W_RUNS])
     gw0 = np.int64(data[W_GRID_WIDTH])
     morton0 = np.int64(data[W_MORTON])
-    stretch = 4096
+    stretch = STRETCH
     n = min(stretch, xs.size)
     gs = np.empty(n, np.int64)
     local = np.empty(n, np.int64)
@@ -184,15 +188,14 @@ def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
                 yup = height0 - 1 - row
                 gb = gb0
                 g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
-            if g & UNIFORM:
-                out[k] = g & 255
-                continue
+            # Branch-free: every texel takes the next slot, which only searches keep.
+            out[k] = g & 255
             mask = (np.int64(1) << gb) - 1
             gs[m] = g
             local[m] = ((yup & mask) << 32) | (x & mask)
             which[m] = k
             tile[m] = t
-            m += 1
+            m += (g & UNIFORM) == 0
         # Local steps, and the runs to search (the block's, or its quarter's).
         for i in range(m):
             g = gs[i]
@@ -207,25 +210,33 @@ def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
                 step = np.int64(morton_step(lx, ly))
             else:
                 step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-            at = spans + (g >> 3)
-            if g & 4:
-                at += step >> (2 * gb - 2)
-            local[i] = step
-            los[i] = np.int64(data[at])
-            his[i] = np.int64(data[at + 1]) & (SPAN_LAST - 1)
-        # The searches.
-        for i in range(m):
+            at = spans + (g >> 3) + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
             runs = rows[tile[i] + T_RUNS] if tiled else runs0
-            key = np.uint32(local[i]) << np.uint32(8)
-            at = los[i]
-            left = his[i] - at
-            while left > 1:
+            local[i] = np.int64(np.uint32(step) << np.uint32(8))
+            los[i] = runs + np.int64(data[at])
+            his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
+        # The searches, a halving step of each open one per sweep (independent loads).
+        openings = 0
+        for i in range(m):
+            gs[openings] = i
+            openings += his[i] > 1
+        while openings > 0:
+            still = 0
+            for j in range(openings):
+                i = gs[j]
+                left = his[i]
                 half = left >> 1
-                at = at + half if data[runs + at + half - 1] < key else at
-                left -= half
-            if left == 1 and data[runs + at] < key:
-                at += 1
-            out[which[i]] = data[runs + at] & 255
+                at = los[i]
+                los[i] = at + half if data[at + half - 1] < local[i] else at
+                his[i] = left - half
+                gs[still] = i
+                still += his[i] > 1
+            openings = still
+        # The last comparison: the run found, or the one after it.
+        for i in range(m):
+            at = los[i]
+            at += (his[i] == 1) & (data[at] < local[i])
+            out[which[i]] = data[at] & 255
     return -1
 
 
@@ -233,9 +244,10 @@ def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
 def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
     """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
 
-    Works in stretches of 4096 texels, each in three tight loops (grid words,
-    answering uniform blocks at once; local steps and spans; searches), with
-    the table's header read once, so the independent loads of a loop overlap.
+    Works in stretches of :data:`STRETCH` texels, each in tight loops without
+    branches on the data: grid words (uniform blocks answer at once), local
+    steps and spans, then the searches in sweeps (one halving step of every
+    open search per sweep), so the loads of a loop are independent and overlap.
     Returns the position of the first coordinate outside the layer, or -1.
     """
     return _batch(xs, ys, data, False, np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64),
@@ -253,7 +265,7 @@ def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
 @numba.njit(cache=True, nogil=True, parallel=True)
 def layer_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
     """:func:`layer_batch` over all cores; returns how many stretches held a bad coordinate."""
-    stretch = 16384
+    stretch = STRETCH
     parts = (xs.size + stretch - 1) // stretch
     bad = 0
     for p in numba.prange(parts):
@@ -267,7 +279,7 @@ def layer_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
 @numba.njit(cache=True, nogil=True, parallel=True)
 def tiled_batch_parallel(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     """:func:`tiled_batch` over all cores; returns how many stretches held a bad coordinate."""
-    stretch = 16384
+    stretch = STRETCH
     parts = (xs.size + stretch - 1) // stretch
     bad = 0
     for p in numba.prange(parts):
@@ -303,7 +315,8 @@ def scalar_lookup_function():
 
 
 def build_table(
-    width: int, height: int, n: int, morton: bool, steps: np.ndarray, indices: np.ndarray
+    width: int, height: int, n: int, morton: bool, steps: np.ndarray, indices: np.ndarray,
+    bits: int | None = None,
 ) -> np.ndarray:
     """The random-access structure of a layer, as one uint32 array (:mod:`.layout`).
 
@@ -313,6 +326,9 @@ def build_table(
         0-based curve step of each run's last texel, increasing, the last one
         the layer's last texel.
     indices : (R,) uint8 ndarray
+    bits : int, optional
+        Grid block side (log2, at most ``MAX_GRID_BITS``; ``n`` at most), default
+        :func:`.layout.grid_bits`'s; the tiles of a tiled layer share one.
 
     Returns
     -------
@@ -324,7 +340,9 @@ def build_table(
     indices = np.asarray(indices, np.uint8)
     r = steps.size
     curve = Curve.MORTON if morton else Curve.HILBERT
-    gb = grid_bits(n, width, height, r)
+    gb = grid_bits(n, width, height, r) if bits is None else min(int(bits), n)
+    if not 0 <= gb <= MAX_GRID_BITS:
+        raise TerrathemeError(f"grid block bits {bits}: 0 to {MAX_GRID_BITS}")
     side = np.uint64(1 << (2 * gb))
     coarse, state = block_grid(width, height, curve, gb)
     gh, gw = coarse.shape

@@ -29,6 +29,7 @@ from core.packing import tiled_format as fmt
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
+from core.packing.layout import grid_bits
 from core.packing.lookup import table_runs, tile_rows, tiled_batch, tiled_batch_parallel
 from core.packing.palette import palette_values
 
@@ -201,6 +202,11 @@ class TiledLayer:
         if "table" not in self._cache:
             # Decode every tile, then keep their tables end to end and each tile as a view.
             decoded = [self._decode(i) for i in range(len(self._lengths))]
+            # One grid block side for all tiles, the whole layer's: the kernels' walks and
+            # searches then have the same length whichever tile a texel falls in.
+            levels = (max(self.width, self.height) - 1).bit_length()
+            bits = grid_bits(levels, self.width, self.height, sum(t.run_count for t in decoded))
+            decoded = [t.with_grid_bits(bits) for t in decoded]
             starts = np.concatenate([[0], np.cumsum([t.table.size for t in decoded])])
             table = np.concatenate([t.table for t in decoded])
             tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
