@@ -21,7 +21,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from core.errors import TerrathemeError
 from core.themes.library import ThemeLibrary
@@ -103,6 +102,9 @@ def match_classes(classes: Sequence[Appearance], themes: Sequence[Appearance], *
     if len(themes) < len(classes):
         raise TerrathemeError(f"{len(classes)} classes but only {len(themes)} themes to give "
                               "them distinct themes")
+    # scipy.optimize takes 0.7 s to import: only the distinct assignment pays for it.
+    from scipy.optimize import linear_sum_assignment
+
     rows, cols = linear_sum_assignment(cost)
     out = [0] * len(classes)
     for r, c in zip(rows, cols, strict=True):
