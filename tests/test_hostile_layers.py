@@ -1,0 +1,172 @@
+"""Hostile packed layers from a file: the plane payload (version 2) and the tiled container.
+
+``tests/test_packing_fuzz.py`` parses hostile bytes in memory; this campaign
+takes the path a user's file takes: :func:`core.packing.load_layer` on a
+file (the tiled container reads its tiles lazily, so damage in a late tile
+shows only while unpacking), :func:`core.packing.layer_info`, every band of
+a streamed unpack, and the real ``unpack`` and ``info`` commands: status 2,
+one line, no output file and no temporary left behind.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from hostile_fuzz import (
+    EDITS,
+    campaign,
+    check_refused,
+    hidden_files,
+    run_cli,
+    run_edited,
+    run_truncations,
+)
+from hypothesis import strategies as st
+from test_hostile_harness import shared_reader
+
+from core.errors import TerrathemeError, UnsupportedVersionError
+from core.packing import layer_info, load_layer, pack, write_layer_image
+
+
+def _image() -> np.ndarray:
+    rng = np.random.default_rng(5)
+    return np.kron(rng.integers(0, 4, (9, 25)), np.ones((8, 8), int)).astype(np.uint8)
+
+
+@pytest.fixture(scope="module")
+def samples(tmp_path_factory) -> dict[str, bytes]:
+    """Small valid files: the plane payload and a tiled container of 4 x 2 tiles."""
+    folder = tmp_path_factory.mktemp("layers")
+    out = {}
+    for name, fmt, tile_bits in [("plane", "plane", None), ("streams", "streams", None),
+                                 ("tiled", "compact", 6), ("tiled_seed", "seed", 6)]:
+        path = folder / f"{name}.ttpack"
+        pack(_image(), tile_bits=tile_bits).save(path, format=fmt)
+        out[name] = path.read_bytes()
+    assert out["tiled"][:4] == b"TTPT" and len(out["tiled"]) < 4000
+    return out
+
+
+@pytest.fixture(scope="module")
+def bounded():
+    return shared_reader()
+
+
+NAMES = ["plane", "streams", "tiled", "tiled_seed"]
+
+
+@campaign
+@pytest.mark.parametrize("name", NAMES)
+def test_truncations_of_a_layer_file(budget, bounded, samples, tmp_path, name):
+    kinds = run_truncations(bounded, "layer", samples[name], tmp_path / "cut.ttpack", budget)
+    assert kinds == {"error"}
+
+
+@campaign
+def test_flips_and_insertions(budget, bounded, samples, tmp_path):
+    budget.explore(lambda name, edits: run_edited(bounded, "layer", samples[name],
+                                                  tmp_path / "mut.ttpack", edits),
+                   name=st.sampled_from(NAMES), edits=EDITS)
+
+
+def _damaged_last_tile(data: bytes) -> bytes:
+    """The tiled sample with one byte of its last tile flipped (the index left intact)."""
+    out = bytearray(data)
+    out[-10] ^= 0x40
+    return bytes(out)
+
+
+def test_a_damaged_late_tile_is_found_while_unpacking_and_leaves_no_file(samples, tmp_path):
+    path = tmp_path / "late.ttpack"
+    path.write_bytes(_damaged_last_tile(samples["tiled"]))
+    layer = load_layer(path)  # the header and index are sound: tiles are read on demand
+    with pytest.raises(TerrathemeError, match="late.ttpack") as exc:
+        write_layer_image(layer, tmp_path / "out.png")
+    assert "\n" not in str(exc.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["late.ttpack"]
+
+
+@pytest.mark.parametrize("name", ["plane", "tiled"])
+def test_a_newer_version_is_named_as_such(samples, tmp_path, name):
+    data = bytearray(samples[name])
+    data[4] += 1  # the format version byte of both layouts
+    path = tmp_path / "new.ttpack"
+    path.write_bytes(bytes(data))
+    with pytest.raises(UnsupportedVersionError, match="new.ttpack"):
+        load_layer(path)
+    with pytest.raises(UnsupportedVersionError, match="new.ttpack"):
+        layer_info(path)
+
+
+def test_a_declared_size_far_beyond_the_bytes_is_refused(samples, tmp_path):
+    data = bytearray(samples["tiled"])
+    struct.pack_into("<II", data, 12, 1 << 30, 1 << 30)  # width, height of the container
+    path = tmp_path / "huge.ttpack"
+    path.write_bytes(bytes(data))
+    with pytest.raises(TerrathemeError, match="huge.ttpack"):
+        load_layer(path).unpack()
+
+
+# -- the real command line --------------------------------------------------
+
+def _cases(samples) -> dict[str, bytes]:
+    return {"truncated.ttpack": samples["plane"][:40],
+            "flipped.ttpack": samples["plane"][:30] + bytes([samples["plane"][30] ^ 1])
+            + samples["plane"][31:],
+            "late.ttpack": _damaged_last_tile(samples["tiled"]),
+            "empty.ttpack": b"", "notalayer.ttpack": b"PK\x03\x04" + bytes(60)}
+
+
+@pytest.mark.parametrize("case", ["truncated.ttpack", "flipped.ttpack", "late.ttpack",
+                                  "empty.ttpack", "notalayer.ttpack"])
+@pytest.mark.parametrize("out", ["out.png", "out.tif"])
+def test_unpack_of_a_hostile_layer_is_one_line_and_leaves_nothing(samples, tmp_path, case,
+                                                                   out):
+    (tmp_path / case).write_bytes(_cases(samples)[case])
+    check_refused(run_cli("unpack", tmp_path / case, tmp_path / out), case)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [case] and not hidden_files(tmp_path)
+
+
+@pytest.mark.parametrize("case", ["truncated.ttpack", "empty.ttpack", "notalayer.ttpack"])
+def test_info_of_a_hostile_layer_is_one_line(samples, tmp_path, case):
+    (tmp_path / case).write_bytes(_cases(samples)[case])
+    check_refused(run_cli("info", tmp_path / case), case)
+
+
+# -- streamed unpack of tiled containers into tiled images ----------------------
+
+@pytest.mark.parametrize("out", ["back.tif", "back.png"])
+def test_a_tiled_container_unpacks_to_every_format(samples, tmp_path, out):
+    # Found by this campaign: the container's 64-row bands did not fit the TIFF's 256-row
+    # tiles, and unpack to .tif failed with an empty "cannot write out.tif:" line.
+    from core.io.images import read_labels
+
+    (tmp_path / "t.ttpack").write_bytes(samples["tiled"])
+    write_layer_image(load_layer(tmp_path / "t.ttpack"), tmp_path / out)
+    np.testing.assert_array_equal(read_labels(tmp_path / out), _image())
+
+
+def test_the_tiled_writer_gathers_bands_of_any_height(tmp_path):
+    from core.io import TiledImageWriter
+    from core.io.images import read_image
+
+    image = np.arange(70 * 40, dtype=np.uint16).reshape(70, 40) % 997
+    with TiledImageWriter(tmp_path / "b.tif", 40, 70, 1, np.uint16, tile=32) as out:
+        for y, h in [(0, 5), (5, 30), (35, 1), (36, 34)]:
+            out.write(0, y, image[y:y + h])
+    np.testing.assert_array_equal(read_image(tmp_path / "b.tif").reshape(70, 40), image)
+    with pytest.raises(TerrathemeError, match="bands must come in order from the top: row 9 "
+                                              "after row 4"), \
+            TiledImageWriter(tmp_path / "c.tif", 40, 70, 1, np.uint16, tile=32) as out:
+        out.write(0, 0, image[:5])
+        out.write(0, 9, image[9:12])
+    with pytest.raises(TerrathemeError, match="rows from 32 on were never written"), \
+            TiledImageWriter(tmp_path / "d.tif", 40, 70, 1, np.uint16, tile=32) as out:
+        out.write(0, 0, image[:40])
+    with pytest.raises(TerrathemeError, match=r"region at \(0, 0\) of 20 x 5 pixels is not on "
+                                              r"the 32-pixel tile grid"), \
+            TiledImageWriter(tmp_path / "e.tif", 40, 70, 1, np.uint16, tile=32) as out:
+        out.write(0, 0, image[:5, :20])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.tif"]
