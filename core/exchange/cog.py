@@ -22,9 +22,9 @@ band of ``2 * tile`` rows whatever the image size.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import struct
-import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -33,7 +33,7 @@ import numpy as np
 import tifffile
 
 from core.errors import TerrathemeError
-from core.io.atomic import atomic_path
+from core.io.atomic import atomic_path, scratch_path
 from core.io.images import read_region
 
 #: ``band(y0, y1)``: rows ``y0..y1`` of the full-resolution image, ``(y1 - y0, W[, C])``
@@ -128,8 +128,9 @@ def write_cog(
     final = Path(path)
     dtype = np.dtype(dtype)
     levels = overview_sizes(w, h, tile)
-    with tempfile.TemporaryDirectory(prefix=f".{final.name}.", dir=final.parent or ".") as tmp:
-        parts = [Path(tmp) / f"level{k}.tif" for k in range(len(levels))]
+    with contextlib.ExitStack() as stack:
+        # The levels go to temporaries beside the output, cleaned as its own (SIGTERM too).
+        parts = [stack.enter_context(scratch_path(final, suffix=".tif")) for _ in levels]
         source = band_of
         for k, (lw, lh) in enumerate(levels):
             # Each level from the bands of the level before it (the first from the caller).

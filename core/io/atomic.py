@@ -5,7 +5,8 @@ never a stray temporary one:
 
 * :func:`atomic_path` yields a hidden temporary path beside one target and
   renames it onto the target on success; on an exception (KeyboardInterrupt
-  included) it is removed.
+  included) it is removed. :func:`scratch_path` is the same temporary for
+  intermediate data, removed in every case.
 * :func:`atomic_file_set` does the same for several files that belong
   together (``convert``'s project, preview and packed layer): all are written
   to temporaries, then renamed in the given order, the manifest/project
@@ -141,13 +142,16 @@ def _new_temporary(final: Path, suffix: str | None) -> Path:
     while True:
         tmp = _new_name(folder, final.name, "tmp",
                         final.suffix if suffix is None else suffix, secrets.token_hex(6))
+        # Known before it exists: a Ctrl-C or SIGTERM at any point still finds it.
+        _STATE.live.add(tmp)
         try:
             _create(tmp)
-            break
+            return tmp
         except FileExistsError:
-            continue
-    _STATE.live.add(tmp)
-    return tmp
+            _STATE.live.discard(tmp)
+        except BaseException:
+            _drop(tmp)
+            raise
 
 
 def _drop(tmp: Path) -> None:
@@ -172,14 +176,32 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterat
     SIGTERM removes it too (module docstring).
     """
     final = Path(path)
-    tmp = _new_temporary(final, suffix)
+    tmp = None
     try:
+        tmp = _new_temporary(final, suffix)
         yield tmp
         os.replace(tmp, final)
         _STATE.live.discard(tmp)
     except BaseException:
-        _drop(tmp)
+        if tmp is not None:
+            _drop(tmp)
         raise
+
+
+@contextlib.contextmanager
+def scratch_path(beside: str | os.PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a hidden temporary file beside ``beside`` for intermediate data; always removed.
+
+    Named and cleaned as :func:`atomic_path`'s temporaries (SIGTERM removes
+    it; after a SIGKILL the next run in the folder does), but never renamed.
+    """
+    tmp = None
+    try:
+        tmp = _new_temporary(Path(beside), suffix)
+        yield tmp
+    finally:
+        if tmp is not None:
+            _drop(tmp)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
