@@ -103,21 +103,27 @@ def run_truncations(bounded: BoundedReader, reader: str, data: bytes, path: Path
 
 
 def run_cli(*args: str | os.PathLike, timeout: float = 180.0) -> subprocess.CompletedProcess:
-    """``python -m app.cli ARGS`` from this checkout (text output captured)."""
-    return subprocess.run([sys.executable, "-m", "app.cli", *map(str, args)], cwd=REPO,
-                          capture_output=True, text=True, timeout=timeout,
+    """``python -m app.cli ARGS`` from this checkout; stdout and stderr as text, with their
+    carriage returns kept (a progress bar redraws its line with them)."""
+    proc = subprocess.run([sys.executable, "-m", "app.cli", *map(str, args)], cwd=REPO,
+                          capture_output=True, timeout=timeout,
                           env=dict(os.environ, PYTHONPATH=str(REPO)))
+    return subprocess.CompletedProcess(proc.args, proc.returncode,
+                                       proc.stdout.decode(errors="replace"),
+                                       proc.stderr.decode(errors="replace"))
 
 
 def check_refused(proc: subprocess.CompletedProcess, *needles: str) -> str:
     """A CLI run refused its input as the brief says: status 2, one stderr line, no traceback;
-    the line holds every one of ``needles``. Returns the line."""
+    the line (what a terminal shows: after a progress bar's last carriage return) holds every
+    one of ``needles``. Returns the line."""
     err = proc.stderr
     assert proc.returncode == 2, (proc.returncode, err[-2000:])
-    assert err.count("\n") == 1 and "Traceback" not in err, err[-2000:]
+    assert err.count("\n") == 1 and err.endswith("\n") and "Traceback" not in err, err[-2000:]
+    line = err.rsplit("\r", 1)[-1].strip()
     for needle in needles:
-        assert needle in err, err
-    return err.strip()
+        assert needle in line, line
+    return line
 
 
 def hidden_files(folder: Path) -> list[str]:
