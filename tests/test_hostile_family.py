@@ -11,15 +11,28 @@ then fuzzing of a small family file through
 from __future__ import annotations
 
 import json
+import os
 import struct
+import subprocess
+import sys
 import zlib
 
 import numpy as np
 import pytest
-from hostile_fuzz import EDITS, campaign, run_bytes, run_edited, run_truncations
+from hostile_fuzz import (
+    EDITS,
+    REPO,
+    campaign,
+    check_refused,
+    run_bytes,
+    run_cli,
+    run_edited,
+    run_truncations,
+)
 from hypothesis import strategies as st
 from test_hostile_harness import shared_reader
 
+from core.io.images import write_image
 from core.perspective import FamilyCache
 from core.perspective.cache import FORMAT_VERSION, MAGIC
 from core.perspective.family import build_family
@@ -101,3 +114,38 @@ def test_hostile_header_values(budget, bounded, tmp_path):
                    changes=st.lists(st.tuples(st.sampled_from(["dtype", "cells", "grid", "k",
                                                                "so"]), VALUES),
                                     min_size=1, max_size=3))
+
+
+# -- a cache folder that cannot be used -----------------------------------------
+
+def test_a_cache_that_cannot_be_written_costs_the_caching_not_the_frame(tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    family = build_family(np.zeros((8, 8, 3), np.float32), 2, 1)
+    assert FamilyCache(tmp_path / "file" / "sub").store("k", family) is False
+    assert FamilyCache(tmp_path / "ok").store("k", family) is True
+
+
+@pytest.fixture(scope="module")
+def texture(tmp_path_factory):
+    path = tmp_path_factory.mktemp("tex") / "tex.png"
+    write_image(path, np.random.default_rng(0).integers(0, 255, (32, 32, 3)).astype(np.uint8))
+    return path
+
+
+def test_a_named_cache_folder_that_cannot_be_used_is_one_line_before_work(texture, tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    proc = run_cli("perspective", texture, tmp_path / "pv.png", "--size", "32x24",
+                   "--cache-dir", tmp_path / "file" / "sub")
+    check_refused(proc, "--cache-dir", "file/sub: cannot use the folder (Not a directory)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_an_unusable_default_cache_still_gives_the_frame(texture, tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    env = dict(os.environ, PYTHONPATH=str(REPO), XDG_CACHE_HOME=str(tmp_path / "file"))
+    proc = subprocess.run([sys.executable, "-m", "app.cli", "perspective", str(texture),
+                           str(tmp_path / "pv.png"), "--size", "32x24"], cwd=REPO, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "note: the family cache" in proc.stdout and "the family is not kept" in proc.stdout
+    assert "family cached" not in proc.stdout and (tmp_path / "pv.png").is_file()

@@ -88,15 +88,23 @@ class FamilyCache:
             os.utime(path)
         return family
 
-    def store(self, key: str, family: ParallelogramFamily) -> None:
-        """Write ``family`` under ``key`` (atomically), then bound the folder."""
+    def store(self, key: str, family: ParallelogramFamily) -> bool:
+        """Write ``family`` under ``key`` (atomically), then bound the folder.
+
+        Returns whether it was stored: a folder that cannot be made or written
+        (or a full disk) costs the caching, never the frame.
+        """
         size = family.buf.nbytes + 4096
         if size > self.max_bytes:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        with atomic_path(self.path(key)) as tmp:
-            _write(tmp, family)
+            return False
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            with atomic_path(self.path(key)) as tmp:
+                _write(tmp, family)
+        except (OSError, TerrathemeError):
+            return False
         self.trim(keep=self.path(key))
+        return True
 
     def trim(self, keep: Path | None = None) -> None:
         """Remove the least recently used files until the folder fits ``max_bytes``."""
