@@ -22,7 +22,7 @@ from test_hostile_harness import ZipMember, craft_zip, shared_reader
 
 from core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
 from core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
-from core.errors import CorruptFileError, TerrathemeError
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 
 def _photo_and_scribbles():
@@ -327,3 +327,17 @@ YAML_EDITS = st.lists(st.tuples(
 def test_hostile_opencv_forests(budget, bounded, opencv_model, tmp_path):
     budget.explore(lambda edits: _run_yaml(bounded, opencv_model, tmp_path, edits),
                    edits=YAML_EDITS)
+
+
+@pytest.mark.parametrize(("version", "error", "match"), [
+    (3, UnsupportedVersionError, "classifier file version 3 is newer than this terratheme "
+                                 r"reads \(2\)"),
+    (2**63, UnsupportedVersionError, "is newer than this terratheme"),
+    (0, CorruptFileError, "bad classifier file version 0"),
+    ("2", CorruptFileError, "bad classifier file version '2'"),
+    (2.0, CorruptFileError, "bad classifier file version 2.0"),
+])
+def test_version_bumps_are_named(model_parts, tmp_path, version, error, match):
+    meta, arrays, _ = model_parts
+    with pytest.raises(error, match=match):
+        Classifier.load(_model_file(tmp_path, dict(meta, version=version), arrays))
