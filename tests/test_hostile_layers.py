@@ -11,6 +11,7 @@ one line, no output file and no temporary left behind.
 from __future__ import annotations
 
 import struct
+import zlib
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from hostile_fuzz import (
     campaign,
     check_refused,
     hidden_files,
+    run_bytes,
     run_cli,
     run_edited,
     run_truncations,
@@ -69,6 +71,41 @@ def test_flips_and_insertions(budget, bounded, samples, tmp_path):
     budget.explore(lambda name, edits: run_edited(bounded, "layer", samples[name],
                                                   tmp_path / "mut.ttpack", edits),
                    name=st.sampled_from(NAMES), edits=EDITS)
+
+
+def _with_checksum(body: bytes) -> bytes:
+    """A single-layer file's body with its CRC-32 recomputed (so the decoders see the edit)."""
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+#: header fields a forger may set (offset, struct format, values): the payload size is
+#: left alone, so a file stays as long as it says it is
+HEADER_FIELDS = st.sampled_from([
+    (5, "<B", st.integers(0, 3)), (6, "<B", st.integers(0, 2)), (7, "<B", st.integers(0, 255)),
+    (8, "<B", st.integers(0, 5)), (10, "<H", st.integers(0, 300)),
+    (12, "<I", st.sampled_from([1, 199, 200, 201, 4096, 65536, 2**32 - 1])),
+    (16, "<I", st.sampled_from([1, 71, 72, 73, 4096, 65536])),
+    (20, "<Q", st.sampled_from([0, 1, 2, 100, 1 << 20, 1 << 32, 2**64 - 1]))])
+
+
+def _forged(data: bytes, fields: list, flips: list[tuple[int, int]]) -> bytes:
+    body = bytearray(data[:-4])
+    for (offset, fmt, _), value in fields:
+        struct.pack_into(fmt, body, offset, value)
+    for where, mask in flips:
+        body[36 + where % (len(body) - 36)] ^= mask or 0xFF
+    return _with_checksum(bytes(body))
+
+
+@campaign
+def test_consistent_flips_and_forged_headers_reach_the_decoders(budget, bounded, samples,
+                                                                 tmp_path):
+    # With the checksum made right, the payload decoders (plane, streams) see every edit.
+    fields = HEADER_FIELDS.flatmap(lambda f: st.tuples(st.just(f), f[2]))
+    budget.explore(lambda name, forged, flips: run_bytes(
+        bounded, "layer", tmp_path / "forged.ttpack", _forged(samples[name], forged, flips)),
+        name=st.sampled_from(["plane", "streams"]), forged=st.lists(fields, max_size=2),
+        flips=st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 255)), max_size=4))
 
 
 def _damaged_last_tile(data: bytes) -> bytes:
