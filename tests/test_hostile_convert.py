@@ -31,7 +31,7 @@ def _nothing_written(folder) -> None:
     assert list(folder.iterdir()) == [] and not hidden_files(folder)
 
 
-@pytest.mark.parametrize("name", ["cut.png", "cut.tif"])
+@pytest.mark.parametrize("name", ["cut.tif", pytest.param("cut.png", marks=pytest.mark.slow)])
 def test_a_damaged_photo_on_the_tiled_path_is_one_line(photos, tmp_path, name):
     proc = run_cli("convert", photos / name, tmp_path / "p.ttproj", "--tile", "256")
     check_refused(proc, f"{name}: damaged scanlines")
@@ -48,7 +48,8 @@ def test_a_damaged_photo_on_local_workers_is_one_line(photos, tmp_path):
 
 @pytest.mark.parametrize(("address", "why"), [
     ("nonsense", "missing port number"),
-    ("http://127.0.0.1:80", "unknown address scheme 'http'"),
+    pytest.param("http://127.0.0.1:80", "unknown address scheme 'http'",
+                 marks=pytest.mark.slow),
 ])
 def test_a_scheduler_address_that_cannot_work_is_one_line(photos, tmp_path, address, why):
     proc = run_cli("convert", photos / "photo.png", tmp_path / "p.ttproj", "--tile", "256",
@@ -70,7 +71,8 @@ def cut_model(tmp_path_factory):
     return folder / "cut.ttc"
 
 
-@pytest.mark.parametrize("command", ["convert", "convert --tile 256", "classify"])
+@pytest.mark.parametrize("command", [pytest.param("convert", marks=pytest.mark.slow),
+                                     "convert --tile 256", "classify"])
 def test_a_damaged_model_is_one_line_before_any_output(photos, tmp_path, cut_model, command):
     name, *extra = command.split()
     out = ["-o", tmp_path / "l.png"] if name == "classify" else [tmp_path / "p.ttproj"]

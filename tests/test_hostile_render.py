@@ -45,6 +45,7 @@ def test_an_output_folder_under_a_file_is_one_line(small, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
 
 
+@pytest.mark.slow
 def test_an_output_that_is_a_folder_is_one_line(small, tmp_path):
     (tmp_path / "out.tif").mkdir()
     check_refused(run_cli("render", small, tmp_path / "out.tif", "--tiled"),

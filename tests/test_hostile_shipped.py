@@ -180,7 +180,7 @@ def test_hostile_index_fields(budget, bounded, tmp_path, model_bytes):
 
 # -- the real command line --------------------------------------------------
 
-@pytest.mark.parametrize("command", ["classify", "convert"])
+@pytest.mark.parametrize("command", ["classify", pytest.param("convert", marks=pytest.mark.slow)])
 def test_a_shipped_name_that_does_not_exist_is_one_line_before_any_work(tmp_path, command):
     write_image(tmp_path / "photo.png", _photo())
     out = tmp_path / ("l.png" if command == "classify" else "p.ttproj")
