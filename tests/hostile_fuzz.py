@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import os
+import struct
 import subprocess
 import sys
 from collections.abc import Callable
@@ -69,6 +70,38 @@ campaign = pytest.mark.parametrize("budget", [
 #: up to four edits: flip the byte at a position (by a mask; 0 means 0xFF), insert bytes there
 EDITS = st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 255),
                            st.binary(max_size=8)), min_size=1, max_size=4)
+
+
+#: central-directory fields of a ZIP member (or the entry count) and values to put there
+ZIP_DIRECTORY_FIELDS = st.lists(
+    st.tuples(st.sampled_from(["file_size", "compressed", "method", "flags", "offset",
+                               "name_length", "entries"]),
+              st.sampled_from([0, 1, 7, 255, 0xFFFF, 0x7FFFFFFF, 0xFFFFFFFF])
+              | st.integers(0, 0xFFFFFFFF)),
+    min_size=1, max_size=3)
+_CD_FIELD = {"method": (10, "<H"), "flags": (8, "<H"), "compressed": (20, "<I"),
+             "file_size": (24, "<I"), "name_length": (28, "<H"), "offset": (42, "<I")}
+
+
+def hostile_directory(sample: bytes, member: int, fields) -> bytes:
+    """The ZIP ``sample`` with central-directory fields of one member (or the entry count)
+    replaced, as :data:`ZIP_DIRECTORY_FIELDS` draws them."""
+    data = bytearray(sample)
+    end = data.rindex(b"PK\x05\x06")
+    starts = []
+    pos = struct.unpack_from("<I", data, end + 16)[0]
+    while data[pos:pos + 4] == b"PK\x01\x02":
+        starts.append(pos)
+        n, m, k = struct.unpack_from("<HHH", data, pos + 28)
+        pos += 46 + n + m + k
+    for name, value in fields:
+        if name == "entries":
+            struct.pack_into("<HH", data, end + 8, value & 0xFFFF, value & 0xFFFF)
+            continue
+        off, fmt = _CD_FIELD[name]
+        struct.pack_into(fmt, data, starts[member % len(starts)] + off,
+                         value & (0xFFFF if fmt == "<H" else 0xFFFFFFFF))
+    return bytes(data)
 
 
 def mutate(data: bytes, edits: list[tuple[int, int, bytes]]) -> bytes:

@@ -16,7 +16,15 @@ import zipfile
 
 import numpy as np
 import pytest
-from hostile_fuzz import EDITS, campaign, run_bytes, run_edited, run_truncations
+from hostile_fuzz import (
+    EDITS,
+    ZIP_DIRECTORY_FIELDS,
+    campaign,
+    hostile_directory,
+    run_bytes,
+    run_edited,
+    run_truncations,
+)
 from hypothesis import strategies as st
 from test_hostile_harness import ZipMember, craft_zip, shared_reader
 
@@ -212,11 +220,9 @@ def test_truncations_of_a_model_file(budget, bounded, model_parts, tmp_path):
 
 def _stored_model(model_parts) -> bytes:
     """The model with stored (uncompressed) members: flips land in the JSON and arrays."""
-    meta, arrays, _ = model_parts
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    return craft_zip([ZipMember.of("meta.json", json.dumps(meta).encode(), method=0),
-                      ZipMember.of("forest.npz", buf.getvalue(), method=0)])
+    meta, npz = _stored_members(model_parts)
+    return craft_zip([ZipMember.of("meta.json", meta, method=0),
+                      ZipMember.of("forest.npz", npz, method=0)])
 
 
 @campaign
@@ -341,3 +347,28 @@ def test_version_bumps_are_named(model_parts, tmp_path, version, error, match):
     meta, arrays, _ = model_parts
     with pytest.raises(error, match=match):
         Classifier.load(_model_file(tmp_path, dict(meta, version=version), arrays))
+
+
+def _stored_members(model_parts) -> tuple[bytes, bytes]:
+    """(meta.json, forest.npz) bytes of the model, the arrays stored (not deflated)."""
+    meta, arrays, _ = model_parts
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return json.dumps(meta).encode(), buf.getvalue()
+
+
+def _directory_forged(model_parts, inner: bool, member: int, fields) -> bytes:
+    meta, npz = _stored_members(model_parts)
+    if inner:
+        # forest.npz is a ZIP of .npy members itself: forge its directory instead
+        npz = hostile_directory(npz, member, fields)
+        return craft_zip([ZipMember.of("meta.json", meta), ZipMember.of("forest.npz", npz)])
+    return hostile_directory(model_parts[2].read_bytes(), member, fields)
+
+
+@campaign
+def test_hostile_zip_directory_fields(budget, bounded, model_parts, tmp_path):
+    budget.explore(lambda inner, member, fields: run_bytes(
+        bounded, "model", tmp_path / "dir.ttc",
+        _directory_forged(model_parts, inner, member, fields)),
+        inner=st.booleans(), member=st.integers(0, 8), fields=ZIP_DIRECTORY_FIELDS)

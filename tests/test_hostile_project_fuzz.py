@@ -9,10 +9,16 @@ deterministic set; ``-m slow`` runs every truncation and 1500 examples each.
 
 from __future__ import annotations
 
-import struct
-
 import pytest
-from hostile_fuzz import EDITS, campaign, run_bytes, run_edited, run_truncations
+from hostile_fuzz import (
+    EDITS,
+    ZIP_DIRECTORY_FIELDS,
+    campaign,
+    hostile_directory,
+    run_bytes,
+    run_edited,
+    run_truncations,
+)
 from hypothesis import strategies as st
 from test_hostile_harness import npy_bytes, shared_reader
 from test_hostile_project import _manifest, _members, _small_project, _write
@@ -46,40 +52,11 @@ def test_flips_and_insertions(budget, bounded, sample, tmp_path):
                                             edits), edits=EDITS)
 
 
-FIELDS = st.lists(st.tuples(st.sampled_from(["file_size", "compressed", "method", "flags",
-                                             "offset", "name_length", "entries"]),
-                            st.sampled_from([0, 1, 7, 255, 0xFFFF, 0x7FFFFFFF, 0xFFFFFFFF])
-                            | st.integers(0, 0xFFFFFFFF)),
-                  min_size=1, max_size=3)
-_CD_FIELD = {"method": (10, "<H"), "flags": (8, "<H"), "compressed": (20, "<I"),
-             "file_size": (24, "<I"), "name_length": (28, "<H"), "offset": (42, "<I")}
-
-
-def _hostile_directory(sample: bytes, member: int, fields) -> bytes:
-    """The sample with central-directory fields of one member (or the entry count) replaced."""
-    data = bytearray(sample)
-    end = data.rindex(b"PK\x05\x06")
-    starts = []
-    pos = struct.unpack_from("<I", data, end + 16)[0]
-    while data[pos:pos + 4] == b"PK\x01\x02":
-        starts.append(pos)
-        n, m, k = struct.unpack_from("<HHH", data, pos + 28)
-        pos += 46 + n + m + k
-    for name, value in fields:
-        if name == "entries":
-            struct.pack_into("<HH", data, end + 8, value & 0xFFFF, value & 0xFFFF)
-            continue
-        off, fmt = _CD_FIELD[name]
-        struct.pack_into(fmt, data, starts[member % len(starts)] + off,
-                         value & (0xFFFF if fmt == "<H" else 0xFFFFFFFF))
-    return bytes(data)
-
-
 @campaign
 def test_hostile_zip_directory_fields(budget, bounded, sample, tmp_path):
     budget.explore(lambda member, fields: run_bytes(
-        bounded, "project", tmp_path / "dir.ttproj", _hostile_directory(sample, member, fields)),
-        member=st.integers(0, 8), fields=FIELDS)
+        bounded, "project", tmp_path / "dir.ttproj", hostile_directory(sample, member, fields)),
+        member=st.integers(0, 8), fields=ZIP_DIRECTORY_FIELDS)
 
 
 SHAPES = st.lists(st.sampled_from([0, 1, 2, 3, 5, 65535, 1 << 31, 1 << 62, -1]) |
