@@ -9,16 +9,8 @@ deterministic set; ``-m slow`` runs every truncation and 1500 examples each.
 
 from __future__ import annotations
 
+import hostile_fuzz as fuzz
 import pytest
-from hostile_fuzz import (
-    EDITS,
-    ZIP_DIRECTORY_FIELDS,
-    campaign,
-    hostile_directory,
-    run_bytes,
-    run_edited,
-    run_truncations,
-)
 from hypothesis import strategies as st
 from test_hostile_harness import npy_bytes, shared_reader
 from test_hostile_project import _manifest, _members, _small_project, _write
@@ -38,25 +30,27 @@ def sample(tmp_path_factory) -> bytes:
     return path.read_bytes()
 
 
-@campaign
+@fuzz.campaign
 def test_truncations_of_a_small_project(budget, bounded, sample, tmp_path):
     assert len(sample) < 4000
-    kinds = run_truncations(bounded, "project", sample, tmp_path / "cut.ttproj", budget,
+    kinds = fuzz.run_truncations(bounded, "project", sample, tmp_path / "cut.ttproj", budget,
                             quick_cases=len(sample) // 5)
     assert kinds == {"error"}
 
 
-@campaign
+@fuzz.campaign
 def test_flips_and_insertions(budget, bounded, sample, tmp_path):
-    budget.explore(lambda edits: run_edited(bounded, "project", sample, tmp_path / "mut.ttproj",
-                                            edits), edits=EDITS)
+    budget.explore(lambda edits: fuzz.run_edited(bounded, "project", sample,
+                                                 tmp_path / "mut.ttproj", edits),
+                   edits=fuzz.EDITS)
 
 
-@campaign
+@fuzz.campaign
 def test_hostile_zip_directory_fields(budget, bounded, sample, tmp_path):
-    budget.explore(lambda member, fields: run_bytes(
-        bounded, "project", tmp_path / "dir.ttproj", hostile_directory(sample, member, fields)),
-        member=st.integers(0, 8), fields=ZIP_DIRECTORY_FIELDS)
+    budget.explore(lambda member, fields: fuzz.run_bytes(
+        bounded, "project", tmp_path / "dir.ttproj",
+        fuzz.hostile_directory(sample, member, fields)),
+        member=st.integers(0, 8), fields=fuzz.ZIP_DIRECTORY_FIELDS)
 
 
 SHAPES = st.lists(st.sampled_from([0, 1, 2, 3, 5, 65535, 1 << 31, 1 << 62, -1]) |
@@ -76,10 +70,10 @@ def _run_npy(bounded, tmp_path, member, header, body):
     arrays = {member: npy_bytes(header, body)}
     layers = ["photo"] if member == "photo_npy" else []
     path = _write(tmp_path, _members(_manifest(layers=layers), **arrays), "npy.ttproj")
-    run_bytes(bounded, "project", path, path.read_bytes())
+    fuzz.run_bytes(bounded, "project", path, path.read_bytes())
 
 
-@campaign
+@fuzz.campaign
 def test_hostile_npy_headers(budget, bounded, tmp_path):
     budget.explore(lambda member, header, body: _run_npy(bounded, tmp_path, member, header, body),
                    member=st.sampled_from(["grid_npy", "themes__000_npy", "photo_npy"]),
