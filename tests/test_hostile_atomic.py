@@ -267,14 +267,13 @@ def test_sigterm_during_the_renames_waits_for_them(tmp_path):
 # -- temporaries for intermediate data, and Ctrl-C at the worst moment ----------
 
 def test_a_scratch_file_is_a_recognised_temporary_and_always_removed(tmp_path):
-    from core.io.atomic import scratch_path
-
-    with scratch_path(tmp_path / "out.tif", suffix=".tif") as part:
+    with atomic_path(tmp_path / "out.tif", suffix=".tif", rename=False) as part:
         match = TEMPORARY_NAME.match(part.name)
         assert match and match["suffix"] == ".tif" and part.exists()
         part.write_bytes(b"level 0")
     assert list(tmp_path.iterdir()) == []
-    with pytest.raises(RuntimeError, match="boom"), scratch_path(tmp_path / "out.tif") as part:
+    with pytest.raises(RuntimeError, match="boom"), atomic_path(tmp_path / "out.tif",
+                                                               rename=False):
         raise RuntimeError("boom")
     assert list(tmp_path.iterdir()) == []
 

@@ -33,7 +33,7 @@ import numpy as np
 import tifffile
 
 from core.errors import TerrathemeError
-from core.io.atomic import atomic_path, scratch_path
+from core.io.atomic import atomic_path
 from core.io.images import read_region
 
 #: ``band(y0, y1)``: rows ``y0..y1`` of the full-resolution image, ``(y1 - y0, W[, C])``
@@ -130,7 +130,8 @@ def write_cog(
     levels = overview_sizes(w, h, tile)
     with contextlib.ExitStack() as stack:
         # The levels go to temporaries beside the output, cleaned as its own (SIGTERM too).
-        parts = [stack.enter_context(scratch_path(final, suffix=".tif")) for _ in levels]
+        parts = [stack.enter_context(atomic_path(final, suffix=".tif", rename=False))
+                 for _ in levels]
         source = band_of
         for k, (lw, lh) in enumerate(levels):
             # Each level from the bands of the level before it (the first from the caller).

@@ -14,7 +14,6 @@ from core.io.atomic import (
     atomic_file_set,
     atomic_path,
     clean_stale_temporaries,
-    scratch_path,
     write_bytes_atomic,
 )
 from core.io.cluster import connect, local_cluster, map_ordered
@@ -67,7 +66,6 @@ __all__ = [
     "read_region",
     "run_tiles",
     "scale_georeference",
-    "scratch_path",
     "tile_windows",
     "validate_georeference",
     "write_bytes_atomic",

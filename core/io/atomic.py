@@ -5,8 +5,7 @@ never a stray temporary one:
 
 * :func:`atomic_path` yields a hidden temporary path beside one target and
   renames it onto the target on success; on an exception (KeyboardInterrupt
-  included) it is removed. :func:`scratch_path` is the same temporary for
-  intermediate data, removed in every case.
+  included) it is removed (``rename=False``: a scratch file, always removed).
 * :func:`atomic_file_set` does the same for several files that belong
   together (``convert``'s project, preview and packed layer): all are written
   to temporaries, then renamed in the given order, the manifest/project
@@ -161,7 +160,8 @@ def _drop(tmp: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
+                rename: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
 
     Parameters
@@ -171,34 +171,19 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterat
     suffix : str, optional
         Suffix of the temporary file (defaults to ``path``'s own suffix, so
         writers that pick a format by extension, like OpenImageIO, still work).
+    rename : bool
+        False: a scratch file for intermediate data beside ``path``, always
+        removed (named and cleaned as every temporary, SIGTERM and SIGKILL included).
 
     On any exception the temporary file is removed and ``path`` is untouched;
     SIGTERM removes it too (module docstring).
     """
-    final = Path(path)
     tmp = None
     try:
-        tmp = _new_temporary(final, suffix)
+        tmp = _new_temporary(Path(path), suffix)
         yield tmp
-        os.replace(tmp, final)
-        _STATE.live.discard(tmp)
-    except BaseException:
-        if tmp is not None:
-            _drop(tmp)
-        raise
-
-
-@contextlib.contextmanager
-def scratch_path(beside: str | os.PathLike, *, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a hidden temporary file beside ``beside`` for intermediate data; always removed.
-
-    Named and cleaned as :func:`atomic_path`'s temporaries (SIGTERM removes
-    it; after a SIGKILL the next run in the folder does), but never renamed.
-    """
-    tmp = None
-    try:
-        tmp = _new_temporary(Path(beside), suffix)
-        yield tmp
+        if rename:
+            os.replace(tmp, path)
     finally:
         if tmp is not None:
             _drop(tmp)
