@@ -7,6 +7,8 @@ problem, and no project, preview or packed layer left behind.
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 from hostile_fuzz import check_refused, hidden_files, run_cli
@@ -79,3 +81,26 @@ def test_a_damaged_model_is_one_line_before_any_output(photos, tmp_path, cut_mod
     proc = run_cli(name, photos / "photo.png", *out, *extra, "--model", cut_model)
     check_refused(proc, "cut.ttc")
     _nothing_written(tmp_path)
+
+
+@pytest.mark.slow
+def test_a_busy_dashboard_port_prints_no_warning(capfd):
+    # Found by this campaign: with port 8787 held (another cluster: another user's, or
+    # another test's), --workers printed distributed's four-line warning before our line.
+    import socket
+    import warnings
+
+    from core.io.cluster import local_cluster
+
+    holder = socket.socket()
+    with contextlib.suppress(OSError):  # already held by someone else: just as busy
+        holder.bind(("", 8787))
+        holder.listen(1)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            local_cluster(1).close()
+    finally:
+        holder.close()
+    assert not [w for w in caught if "already in use" in str(w.message)]
+    assert "already in use" not in capfd.readouterr().err
