@@ -262,3 +262,32 @@ def test_sigterm_during_the_renames_waits_for_them(tmp_path):
     assert done.returncode == -signal.SIGTERM and "not reached" not in done.stdout
     assert _contents(paths) == [b"new " + p.name.encode() for p in paths]
     assert _hidden(tmp_path) == []
+
+
+# -- temporaries for intermediate data, and Ctrl-C at the worst moment ----------
+
+def test_a_scratch_file_is_a_recognised_temporary_and_always_removed(tmp_path):
+    with atomic_path(tmp_path / "out.tif", suffix=".tif", rename=False) as part:
+        match = TEMPORARY_NAME.match(part.name)
+        assert match and match["suffix"] == ".tif" and part.exists()
+        part.write_bytes(b"level 0")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(RuntimeError, match="boom"), atomic_path(tmp_path / "out.tif",
+                                                               rename=False):
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_just_after_the_temporary_is_made_leaves_nothing(tmp_path, monkeypatch):
+    # Found by the render --tiled campaign: a Ctrl-C between creating the temporary
+    # and entering the try block left it behind.
+    real = atomic._create
+
+    def create_then_interrupted(path):
+        real(path)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic, "_create", create_then_interrupted)
+    with pytest.raises(KeyboardInterrupt), atomic_path(tmp_path / "out.bin") as tmp:
+        tmp.write_bytes(b"never")
+    assert list(tmp_path.iterdir()) == [] and not atomic._STATE.live

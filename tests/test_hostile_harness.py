@@ -35,6 +35,8 @@ REPO = Path(__file__).resolve().parents[1]
 #: the bounds every hostile file must meet
 MEMORY_MIB = 256
 CPU_SECONDS = 2.0
+#: the ``layer`` reader unpacks layers up to this size (a tiny file may rightly hold more)
+MAX_UNPACKED_TEXELS = 1 << 22
 
 
 @dataclass(frozen=True)
@@ -190,9 +192,13 @@ def _readers() -> dict:
 
     from core.classify import Classifier
     from core.classify.photo import prepare_photo
+    from core.classify.shipped import load_model, shipped_models
+    from core.errors import TerrathemeError
     from core.io.georef import read_georeference
     from core.io.images import Bands, image_info, read_image, read_labels, read_region
     from core.model.project import load_project
+    from core.packing import layer_info, load_layer
+    from core.perspective import FamilyCache
 
     photo = np.zeros((48, 48, 3), np.uint8)
     photo[:, 24:] = (200, 180, 120)
@@ -209,6 +215,27 @@ def _readers() -> dict:
     def as_photo(path):
         prepare_photo(read_image(path, bands=Bands.PHOTO))
 
+    def layer(path):
+        # What info, unpack and lookups do: the header, then every band of a small layer.
+        layer_info(path)
+        packed = load_layer(path)
+        packed.lookup(np.zeros(1, np.int64), np.zeros(1, np.int64))
+        if packed.width * packed.height <= MAX_UNPACKED_TEXELS:
+            for _ in packed.bands():
+                pass
+
+    def family(path):
+        # A damaged cache file is a miss (and removed), never an exception.
+        FamilyCache(path.parent).load(path.name.removesuffix(".ttfamily"))
+
+    def index(path):
+        # models.json: the index, then every model it lists (sizes and digests checked).
+        for name in shipped_models(path.parent):
+            try:
+                load_model(name, path.parent)
+            except TerrathemeError:
+                pass
+
     def allocate(path):
         # For the harness's own test: asks for 1 GiB.
         np.ones(1 << 30, np.uint8)
@@ -222,8 +249,8 @@ def _readers() -> dict:
         os.abort()
 
     return {"project": load_project, "model": model, "image": image, "labels": read_labels,
-            "georef": read_georeference, "photo": as_photo, "allocate": allocate,
-            "spin": spin, "crash": crash}
+            "georef": read_georeference, "photo": as_photo, "layer": layer, "family": family,
+            "index": index, "allocate": allocate, "spin": spin, "crash": crash}
 
 
 def _warm_up(readers: dict) -> None:
@@ -238,6 +265,9 @@ def _warm_up(readers: dict) -> None:
     from core.io.images import write_image
     from core.model.grid import IndexGrid
     from core.model.project import ThematicTexture, save_project
+    from core.packing import pack
+    from core.perspective import FamilyCache
+    from core.perspective.family import build_family
     from core.themes.library import ThemeLibrary, flat_theme
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -264,6 +294,16 @@ def _warm_up(readers: dict) -> None:
             readers["georef"](d / f"i{suffix}")
         write_image(d / "l.png", mask, palette=np.zeros((3, 3), np.uint8) + [[0], [1], [2]])
         readers["labels"](d / "l.png")
+        # Every payload kind and the tiled container load their own kernels.
+        for i, (fmt, tile_bits) in enumerate([("seed", None), ("streams", None),
+                                              ("plane", None), ("compact", 6)]):
+            pack(mask, tile_bits=tile_bits).save(d / f"{i}.ttpack", format=fmt)
+            readers["layer"](d / f"{i}.ttpack")
+        FamilyCache(d).store("f", build_family(img.astype(np.float32), 2, 2))
+        readers["family"](d / "f.ttfamily")
+        (d / "models.json").write_text(json.dumps({"models": {"m": {
+            "file": "m.ttc", "classes": {"1": "a", "2": "b"}}}}))
+        readers["index"](d / "models.json")
 
 
 def _worker(memory_mib: int) -> None:

@@ -15,19 +15,14 @@ import zlib
 import numpy as np
 import pytest
 import tifffile
-from hypothesis import HealthCheck, given, settings
+from hostile_fuzz import EDITS, campaign, run_bytes, run_edited, run_truncations
 from hypothesis import strategies as st
-from test_hostile_harness import check_bounded, shared_reader
+from test_hostile_harness import shared_reader
 
 from core.classify.photo import prepare_photo
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.georef import add_tiff_tags, read_georeference, validate_georeference
 from core.io.images import Bands, image_info, read_image, read_labels, read_region, write_image
-
-QUICK = settings(max_examples=25, derandomize=True, database=None, deadline=None,
-                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-LONG = settings(max_examples=1500, database=None, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -273,78 +268,47 @@ CASES = [("a.png", "image"), ("a.jpg", "image"), ("a.tif", "georef"), ("a.tif", 
          ("rgba.png", "photo"), ("l.png", "labels")]
 
 
-def _truncations(bounded, samples, tmp_path, name, reader, step: int) -> None:
-    data = samples[name]
-    path = tmp_path / f"cut{name[name.index('.'):]}"
-    for n in range(0, len(data), step):
-        path.write_bytes(data[:n])
-        check_bounded(bounded.run(reader, path), path)
-    path.write_bytes(data)
-    assert bounded.run(reader, path).kind == "ok"
+def _suffix(name: str) -> str:
+    return name[name.index("."):]
 
 
+@campaign
 @pytest.mark.parametrize(("name", "reader"), CASES)
-def test_truncations_of_small_images(bounded, samples, tmp_path, name, reader):
-    _truncations(bounded, samples, tmp_path, name, reader, max(1, len(samples[name]) // 120))
+def test_truncations_of_small_images(budget, bounded, samples, tmp_path, name, reader):
+    path = tmp_path / f"cut{_suffix(name)}"
+    run_truncations(bounded, reader, samples[name], path, budget)
+    assert run_bytes(bounded, reader, path, samples[name]).kind == "ok"
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize(("name", "reader"), CASES)
-def test_every_truncation_of_small_images(bounded, samples, tmp_path, name, reader):
-    _truncations(bounded, samples, tmp_path, name, reader, 1)
-
-
-def _mutate(data: bytes, edits) -> bytes:
-    out = bytearray(data)
-    for pos, flip, insert in edits:
-        pos %= max(len(out), 1)
-        out[pos] ^= flip or 0xFF
-        out[pos:pos] = insert
-    return bytes(out)
-
-
-EDITS = st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 255),
-                           st.binary(max_size=8)), min_size=1, max_size=4)
-
-
-def _run_edits(bounded, samples, tmp_path, case, edits):
-    name, reader = case
-    path = tmp_path / f"mut{name[name.index('.'):]}"
-    path.write_bytes(_mutate(samples[name], edits))
-    check_bounded(bounded.run(reader, path), path)
-
-
-@QUICK
-@given(case=st.sampled_from(CASES), edits=EDITS)
-def test_flips_and_insertions(bounded, samples, tmp_path, case, edits):
-    _run_edits(bounded, samples, tmp_path, case, edits)
-
-
-@pytest.mark.slow
-@LONG
-@given(case=st.sampled_from(CASES), edits=EDITS)
-def test_flips_and_insertions_long(bounded, samples, tmp_path, case, edits):
-    _run_edits(bounded, samples, tmp_path, case, edits)
+@campaign
+def test_flips_and_insertions(budget, bounded, samples, tmp_path):
+    budget.explore(lambda case, edits: run_edited(
+        bounded, case[1], samples[case[0]], tmp_path / f"mut{_suffix(case[0])}", edits),
+        case=st.sampled_from(CASES), edits=EDITS)
 
 
 SIZES = st.sampled_from([0, 1, 2, 255, 65535, 1 << 20, 1 << 24, 0x7FFFFFFF, 0xFFFFFFFF])
 
 
-@QUICK
-@given(width=SIZES, height=SIZES, colour_type=st.sampled_from([0, 2, 3, 4, 6, 7]))
-def test_hostile_png_header_sizes(bounded, tmp_path, width, height, colour_type):
-    path = tmp_path / "h.png"
-    path.write_bytes(_png(width, height, colour_type, b"\0" * 64))
-    check_bounded(bounded.run("image", path), path)
+@campaign
+def test_hostile_png_header_sizes(budget, bounded, tmp_path):
+    budget.explore(lambda width, height, colour_type: run_bytes(
+        bounded, "image", tmp_path / "h.png", _png(width, height, colour_type, b"\0" * 64)),
+        width=SIZES, height=SIZES, colour_type=st.sampled_from([0, 2, 3, 4, 6, 7]))
 
 
-@QUICK
-@given(width=SIZES, height=SIZES)
-def test_hostile_tiff_header_sizes(bounded, tmp_path, width, height):
-    path = tmp_path / "h.tif"
+def _forged_tiff(path, width, height) -> bytes:
     tifffile.imwrite(path, np.zeros((2, 2), np.uint8))
     _patch_tiff_size(path, width, height)
-    check_bounded(bounded.run("image", path), path)
+    return path.read_bytes()
+
+
+@campaign
+def test_hostile_tiff_header_sizes(budget, bounded, tmp_path):
+    path = tmp_path / "h.tif"
+    budget.explore(lambda width, height: run_bytes(bounded, "image", path,
+                                                   _forged_tiff(path, width, height)),
+                   width=SIZES, height=SIZES)
 
 
 def test_pack_and_unpack_keep_every_texel_of_an_rgba_index_image(tmp_path, capsys):

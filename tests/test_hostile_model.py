@@ -16,18 +16,21 @@ import zipfile
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hostile_fuzz import (
+    EDITS,
+    ZIP_DIRECTORY_FIELDS,
+    campaign,
+    hostile_directory,
+    run_bytes,
+    run_edited,
+    run_truncations,
+)
 from hypothesis import strategies as st
-from test_hostile_harness import ZipMember, check_bounded, craft_zip, shared_reader
+from test_hostile_harness import ZipMember, craft_zip, shared_reader
 
 from core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
 from core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
-from core.errors import CorruptFileError, TerrathemeError
-
-QUICK = settings(max_examples=25, derandomize=True, database=None, deadline=None,
-                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-LONG = settings(max_examples=1500, database=None, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 
 def _photo_and_scribbles():
@@ -206,64 +209,28 @@ def bounded():
     return shared_reader()
 
 
-def _truncations(bounded, model_parts, tmp_path, step: int) -> None:
+@campaign
+def test_truncations_of_a_model_file(budget, bounded, model_parts, tmp_path):
     data = model_parts[2].read_bytes()
     assert len(data) < 4000
-    path = tmp_path / "cut.ttc"
-    for n in range(0, len(data), step):
-        path.write_bytes(data[:n])
-        outcome = bounded.run("model", path)
-        check_bounded(outcome, path)
-        assert outcome.kind == "error"
+    kinds = run_truncations(bounded, "model", data, tmp_path / "cut.ttc", budget,
+                            quick_cases=len(data) // 7)
+    assert kinds == {"error"}
 
 
-def test_truncations_of_a_model_file(bounded, model_parts, tmp_path):
-    _truncations(bounded, model_parts, tmp_path, step=7)
+def _stored_model(model_parts) -> bytes:
+    """The model with stored (uncompressed) members: flips land in the JSON and arrays."""
+    meta, npz = _stored_members(model_parts)
+    return craft_zip([ZipMember.of("meta.json", meta, method=0),
+                      ZipMember.of("forest.npz", npz, method=0)])
 
 
-@pytest.mark.slow
-def test_every_truncation_of_a_model_file(bounded, model_parts, tmp_path):
-    _truncations(bounded, model_parts, tmp_path, step=1)
-
-
-EDITS = st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 255),
-                           st.binary(max_size=8)), min_size=1, max_size=4)
-
-
-def _mutate(data: bytes, edits) -> bytes:
-    out = bytearray(data)
-    for pos, flip, insert in edits:
-        pos %= max(len(out), 1)
-        out[pos] ^= flip or 0xFF
-        out[pos:pos] = insert
-    return bytes(out)
-
-
-def _run_edits(bounded, model_parts, tmp_path, edits, stored: bool):
-    meta, arrays, path = model_parts
-    data = path.read_bytes()
-    if stored:
-        # Stored (uncompressed) members: flips land in the JSON and arrays themselves.
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        data = craft_zip([ZipMember.of("meta.json", json.dumps(meta).encode(), method=0),
-                          ZipMember.of("forest.npz", buf.getvalue(), method=0)])
-    target = tmp_path / "mut.ttc"
-    target.write_bytes(_mutate(data, edits))
-    check_bounded(bounded.run("model", target), target)
-
-
-@QUICK
-@given(edits=EDITS, stored=st.booleans())
-def test_flips_and_insertions(bounded, model_parts, tmp_path, edits, stored):
-    _run_edits(bounded, model_parts, tmp_path, edits, stored)
-
-
-@pytest.mark.slow
-@LONG
-@given(edits=EDITS, stored=st.booleans())
-def test_flips_and_insertions_long(bounded, model_parts, tmp_path, edits, stored):
-    _run_edits(bounded, model_parts, tmp_path, edits, stored)
+@campaign
+def test_flips_and_insertions(budget, bounded, model_parts, tmp_path):
+    files = [model_parts[2].read_bytes(), _stored_model(model_parts)]
+    budget.explore(lambda edits, stored: run_edited(bounded, "model", files[stored],
+                                                    tmp_path / "mut.ttc", edits),
+                   edits=EDITS, stored=st.booleans())
 
 
 WILD = (st.none() | st.booleans() | st.integers(-(1 << 40), 1 << 40)
@@ -271,11 +238,14 @@ WILD = (st.none() | st.booleans() | st.integers(-(1 << 40), 1 << 40)
         | st.lists(st.floats(-1e9, 1e9), max_size=20))
 OPTION_PATHS = st.sampled_from([
     ("features", k) for k in ("feature_set", "normalise", "scale", "sigmas",
-                              "skimage_sigma_max", "hessian", "position", "ridge_sigmas")
+                              "skimage_sigma_max", "hessian", "position", "ridge_sigmas",
+                              "relative")
 ] + [("regularisation", k) for k in ("method", "sigma", "region_size", "ruler",
                                       "edge_sigma_spatial", "edge_sigma_colour")]
   + [(k,) for k in ("ignore_classes", "forest", "n_trees", "max_depth", "tile", "prior_power",
-                    "grow_colour", "balance")] + [("classes",), ("class_weights",)])
+                    "grow_colour", "balance", "min_samples", "active_vars",
+                    "max_samples_per_class", "seed", "samples_per_pair", "adapt",
+                    "target_prior_power")] + [("classes",), ("class_weights",)])
 
 
 def _run_option(bounded, model_parts, tmp_path, changes):
@@ -287,20 +257,13 @@ def _run_option(bounded, model_parts, tmp_path, changes):
             node = node[key]
         node[path[-1]] = value
     target = _model_file(tmp_path, meta, arrays, "opt.ttc")
-    check_bounded(bounded.run("model", target), target)
+    run_bytes(bounded, "model", target, target.read_bytes())
 
 
-@QUICK
-@given(changes=st.lists(st.tuples(OPTION_PATHS, WILD), min_size=1, max_size=3))
-def test_hostile_option_values(bounded, model_parts, tmp_path, changes):
-    _run_option(bounded, model_parts, tmp_path, changes)
-
-
-@pytest.mark.slow
-@LONG
-@given(changes=st.lists(st.tuples(OPTION_PATHS, WILD), min_size=1, max_size=3))
-def test_hostile_option_values_long(bounded, model_parts, tmp_path, changes):
-    _run_option(bounded, model_parts, tmp_path, changes)
+@campaign
+def test_hostile_option_values(budget, bounded, model_parts, tmp_path):
+    budget.explore(lambda changes: _run_option(bounded, model_parts, tmp_path, changes),
+                   changes=st.lists(st.tuples(OPTION_PATHS, WILD), min_size=1, max_size=3))
 
 
 def test_extreme_allowed_options_still_predict_within_the_bound(bounded, model_parts, tmp_path):
@@ -327,20 +290,13 @@ def _run_arrays(bounded, model_parts, tmp_path, edits):
             continue
         arr.flat[index % arr.size] = value
     target = _model_file(tmp_path, meta, arrays, "arr.ttc")
-    check_bounded(bounded.run("model", target), target)
+    run_bytes(bounded, "model", target, target.read_bytes())
 
 
-@QUICK
-@given(edits=ARRAY_EDITS)
-def test_hostile_forest_arrays(bounded, model_parts, tmp_path, edits):
-    _run_arrays(bounded, model_parts, tmp_path, edits)
-
-
-@pytest.mark.slow
-@LONG
-@given(edits=ARRAY_EDITS)
-def test_hostile_forest_arrays_long(bounded, model_parts, tmp_path, edits):
-    _run_arrays(bounded, model_parts, tmp_path, edits)
+@campaign
+def test_hostile_forest_arrays(budget, bounded, model_parts, tmp_path):
+    budget.explore(lambda edits: _run_arrays(bounded, model_parts, tmp_path, edits),
+                   edits=ARRAY_EDITS)
 
 
 @pytest.fixture(scope="module")
@@ -358,10 +314,8 @@ def _run_yaml(bounded, opencv_model, tmp_path, edits):
     text = yml
     for old, new in edits:
         text = text.replace(old, new, 1)
-    target = tmp_path / "yml.ttc"
-    target.write_bytes(craft_zip([ZipMember.of("meta.json", meta),
-                                  ZipMember.of("forest.yml", text.encode())]))
-    check_bounded(bounded.run("model", target), target)
+    run_bytes(bounded, "model", tmp_path / "yml.ttc", craft_zip(
+        [ZipMember.of("meta.json", meta), ZipMember.of("forest.yml", text.encode())]))
 
 
 YAML_EDITS = st.lists(st.tuples(
@@ -375,14 +329,46 @@ YAML_EDITS = st.lists(st.tuples(
     min_size=1, max_size=3)
 
 
-@QUICK
-@given(edits=YAML_EDITS)
-def test_hostile_opencv_forests(bounded, opencv_model, tmp_path, edits):
-    _run_yaml(bounded, opencv_model, tmp_path, edits)
+@campaign
+def test_hostile_opencv_forests(budget, bounded, opencv_model, tmp_path):
+    budget.explore(lambda edits: _run_yaml(bounded, opencv_model, tmp_path, edits),
+                   edits=YAML_EDITS)
 
 
-@pytest.mark.slow
-@LONG
-@given(edits=YAML_EDITS)
-def test_hostile_opencv_forests_long(bounded, opencv_model, tmp_path, edits):
-    _run_yaml(bounded, opencv_model, tmp_path, edits)
+@pytest.mark.parametrize(("version", "error", "match"), [
+    (3, UnsupportedVersionError, "classifier file version 3 is newer than this terratheme "
+                                 r"reads \(2\)"),
+    (2**63, UnsupportedVersionError, "is newer than this terratheme"),
+    (0, CorruptFileError, "bad classifier file version 0"),
+    ("2", CorruptFileError, "bad classifier file version '2'"),
+    (2.0, CorruptFileError, "bad classifier file version 2.0"),
+])
+def test_version_bumps_are_named(model_parts, tmp_path, version, error, match):
+    meta, arrays, _ = model_parts
+    with pytest.raises(error, match=match):
+        Classifier.load(_model_file(tmp_path, dict(meta, version=version), arrays))
+
+
+def _stored_members(model_parts) -> tuple[bytes, bytes]:
+    """(meta.json, forest.npz) bytes of the model, the arrays stored (not deflated)."""
+    meta, arrays, _ = model_parts
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return json.dumps(meta).encode(), buf.getvalue()
+
+
+def _directory_forged(model_parts, inner: bool, member: int, fields) -> bytes:
+    meta, npz = _stored_members(model_parts)
+    if inner:
+        # forest.npz is a ZIP of .npy members itself: forge its directory instead
+        npz = hostile_directory(npz, member, fields)
+        return craft_zip([ZipMember.of("meta.json", meta), ZipMember.of("forest.npz", npz)])
+    return hostile_directory(model_parts[2].read_bytes(), member, fields)
+
+
+@campaign
+def test_hostile_zip_directory_fields(budget, bounded, model_parts, tmp_path):
+    budget.explore(lambda inner, member, fields: run_bytes(
+        bounded, "model", tmp_path / "dir.ttc",
+        _directory_forged(model_parts, inner, member, fields)),
+        inner=st.booleans(), member=st.integers(0, 8), fields=ZIP_DIRECTORY_FIELDS)

@@ -265,3 +265,12 @@ def test_a_round_trip_of_every_layer_still_works(tmp_path):
     assert load_project(tmp_path / "a.ttproj") == project
     with zipfile.ZipFile(tmp_path / "a.ttproj") as zf:
         assert json.loads(zf.read("manifest.json"))["layers"] == ["photo", "scribbles"]
+
+
+@pytest.mark.parametrize(("version", "error", "match"), [
+    (2, UnsupportedVersionError, "newer"), (2**63, UnsupportedVersionError, "newer"),
+    (0, CorruptFileError, "bad format version"), ("1", CorruptFileError, "bad format version"),
+])
+def test_version_bumps_are_named(tmp_path, version, error, match):
+    with pytest.raises(error, match=match):
+        load_project(_write(tmp_path, _members(_manifest(version=version))))

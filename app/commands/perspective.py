@@ -132,6 +132,28 @@ def _warm_up(texture, options, project=None) -> None:
         timer.cancel()
 
 
+def _family_cache(args: argparse.Namespace):
+    """The family cache, checked before any work: a folder named by ``--cache-dir`` must
+    be usable; the default one is only an optimisation (unusable: no cache, and a note)."""
+    from core.errors import TerrathemeError
+    from core.perspective import FamilyCache
+
+    if args.no_cache:
+        return None
+    folder = Path(args.cache_dir) if args.cache_dir else default_cache_dir()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        why = None if os.access(folder, os.W_OK | os.X_OK) else "not writable"
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    if why is None:
+        return FamilyCache(folder)
+    if args.cache_dir:
+        raise TerrathemeError(f"--cache-dir {folder}: cannot use the folder ({why})")
+    print(f"note: the family cache {folder} cannot be used ({why}); the family is not kept")
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
@@ -141,7 +163,6 @@ def run(args: argparse.Namespace) -> int:
     from core.io.images import read_image, write_image
     from core.perspective import (
         Camera,
-        FamilyCache,
         FilterOptions,
         Method,
         PlaneMapping,
@@ -151,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
     from core.perspective.project_view import project_texture, texture_scale
 
     check_outputs([args.out], inputs=[args.input])
+    cache = _family_cache(args)
     if args.max_texture < 1:
         raise TerrathemeError(f"--max-texture must be at least 1, got {args.max_texture}")
     options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
@@ -196,7 +218,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: texture {full_size[0]} x {full_size[1]} used at "
               f"{texture.shape[1]} x {texture.shape[0]} (the detail the frame needs, "
               "--max-texture)")
-    cache = None if args.no_cache else FamilyCache(args.cache_dir or default_cache_dir())
     with tqdm(desc="prefiltering", unit="cell", leave=False, disable=None) as bar:
 
         def built(done: int, total: int) -> None:

@@ -17,18 +17,25 @@ class names (``Classifier.class_names``). ``models/train_aerial.py`` makes the
 
 from __future__ import annotations
 
-import json
+import hashlib
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from core.classify.supervised import Classifier
 from core.errors import CorruptFileError, TerrathemeError
+from core.io.archive import parse_json
 
 SHIPPED_MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 MODELS_INDEX = "models.json"
 #: an index larger than this is not an index
 MAX_INDEX_BYTES = 1 << 20
+#: a shipped model larger than this is not one (the classifier reader's own ceilings
+#: are checked again when it loads)
+MAX_MODEL_BYTES = 1 << 30
+_NAME = re.compile(r"[A-Za-z0-9_.\- ]{1,64}")
+_SHA256 = re.compile(r"[0-9a-fA-F]{64}")
 
 
 @dataclass(frozen=True)
@@ -43,39 +50,93 @@ class ShippedModel:
     class_names : dict of int -> str
         Name of each class value (theme names for ``convert``).
     description : str
+    size : int or None
+        The file's size in bytes, as the index says.
+    sha256 : str or None
+        The file's SHA-256 (hexadecimal), as the index says.
     """
 
     name: str
     path: Path
     class_names: dict[int, str]
     description: str = ""
+    size: int | None = None
+    sha256: str | None = None
+
+
+def _index_entry(name: object, entry: object, folder: Path) -> ShippedModel:
+    """One checked entry of the index (ValueError naming what is wrong)."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ValueError(f"model name {repr(name)[:40]} is not 1..64 letters, digits, "
+                         "' ', '_', '.' or '-'")
+    if not isinstance(entry, dict):
+        raise ValueError(f"model {name!r} must be an object")
+    file = entry.get("file")
+    # A plain file name in the models folder: no folders, no way out of it.
+    if (not isinstance(file, str) or not file.strip() or Path(file).name != file
+            or file in (".", "..") or not file.isprintable()):
+        raise ValueError(f"model {name!r}: file must be a file name in the models folder, "
+                         f"not {repr(file)[:60]}")
+    classes = entry.get("classes")
+    if not isinstance(classes, dict) or not 1 <= len(classes) <= 256:
+        raise ValueError(f"model {name!r}: classes must be an object of 1..256 names")
+    names = {}
+    for key, value in classes.items():
+        if not (key.isascii() and key.isdigit() and len(key) <= 3 and int(key) <= 255):
+            raise ValueError(f"model {name!r}: class value {key[:20]!r} is not 0..255")
+        if not isinstance(value, str) or not value.strip() or not value.isprintable():
+            raise ValueError(f"model {name!r}: class {key} needs a name, not "
+                             f"{repr(value)[:40]}")
+        names[int(key)] = value
+    fields = {"description": (str, "string"), "trained_on": (str, "string"),
+              "sha256": (str, "string"), "bytes": (int, "whole number")}
+    for key, (kind, what) in fields.items():
+        value = entry.get(key, kind())
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ValueError(f"model {name!r}: {key} must be a {what}")
+    size, digest = entry.get("bytes"), entry.get("sha256")
+    if size is not None and not 0 < size <= MAX_MODEL_BYTES:
+        raise ValueError(f"model {name!r}: bytes must be 1..{MAX_MODEL_BYTES}")
+    if digest is not None and not _SHA256.fullmatch(digest):
+        raise ValueError(f"model {name!r}: sha256 must be 64 hexadecimal digits")
+    return ShippedModel(name, folder / file, names, entry.get("description", ""), size, digest)
 
 
 def shipped_models(folder: str | os.PathLike = SHIPPED_MODELS_DIR) -> dict[str, ShippedModel]:
     """The models listed in ``folder/models.json`` (empty when there is no index).
 
+    Every field is checked: names of letters, digits, ``' _.-'``; ``file`` a
+    plain file name in ``folder`` (no path: an index cannot point outside
+    it); class values 0..255 with printable names; ``bytes`` and ``sha256``,
+    when present, of the right type (they are checked against the file by
+    :func:`resolve_model`).
+
     Raises
     ------
     CorruptFileError
-        An index that is not the JSON described in the module docstring.
+        An index that is not the JSON described in the module docstring
+        (over :data:`MAX_INDEX_BYTES`, not UTF-8, nested deeper than JSON
+        files may be, a field of the wrong type); one line naming the index.
     """
     index = Path(folder) / MODELS_INDEX
     if not index.is_file():
         return {}
     try:
-        if index.stat().st_size > MAX_INDEX_BYTES:
-            raise ValueError(f"larger than {MAX_INDEX_BYTES} bytes")
-        entries = json.loads(index.read_text(encoding="utf-8"))["models"]
-        out = {}
-        for name, entry in entries.items():
-            names = {int(k): str(v) for k, v in entry["classes"].items()}
-            if not all(0 <= k <= 255 for k in names) or not str(entry["file"]).strip():
-                raise ValueError(f"model {name!r}: class values 0..255 and a file name")
-            out[str(name)] = ShippedModel(str(name), Path(folder) / Path(entry["file"]).name,
-                                          names, str(entry.get("description", "")))
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        with open(index, "rb") as fh:
+            data = fh.read(MAX_INDEX_BYTES + 1)
+    except OSError as exc:
+        raise CorruptFileError(f"{index}: not a model index ({exc.strerror})") from None
+    if len(data) > MAX_INDEX_BYTES:
+        raise CorruptFileError(f"{index}: not a model index (larger than {MAX_INDEX_BYTES} "
+                               "bytes)")
+    top = parse_json(data, f"{index}: not a model index: its text")
+    try:
+        if not isinstance(top, dict) or not isinstance(top.get("models"), dict):
+            raise ValueError('it must be an object {"models": {name: entry, ...}}')
+        return {name: _index_entry(name, entry, Path(folder))
+                for name, entry in top["models"].items()}
+    except ValueError as exc:
         raise CorruptFileError(f"{index}: not a model index ({exc})") from None
-    return out
 
 
 def resolve_model(name_or_path: str | os.PathLike,
@@ -101,7 +162,25 @@ def resolve_model(name_or_path: str | os.PathLike,
                               f"(shipped: {known})")
     if not entry.path.is_file():
         raise TerrathemeError(f"shipped model {entry.name}: {entry.path} is missing")
+    _check_shipped_file(entry)
     return entry.path, dict(entry.class_names)
+
+
+def _check_shipped_file(entry: ShippedModel) -> None:
+    """The shipped file is the one the index describes (size, then SHA-256)."""
+    size = entry.path.stat().st_size
+    if entry.size is not None and size != entry.size:
+        hint = " (a Git LFS pointer: run git lfs pull)" if size < 1024 else ""
+        raise CorruptFileError(f"shipped model {entry.name}: {entry.path} is {size:,} bytes, "
+                               f"the index says {entry.size:,}{hint}")
+    if entry.sha256 is not None:
+        digest = hashlib.sha256()
+        with open(entry.path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                digest.update(block)
+        if digest.hexdigest() != entry.sha256.lower():
+            raise CorruptFileError(f"shipped model {entry.name}: {entry.path} is damaged "
+                                   "(its SHA-256 is not the index's)")
 
 
 def load_model(name_or_path: str | os.PathLike,

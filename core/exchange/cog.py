@@ -22,9 +22,9 @@ band of ``2 * tile`` rows whatever the image size.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import struct
-import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -128,8 +128,10 @@ def write_cog(
     final = Path(path)
     dtype = np.dtype(dtype)
     levels = overview_sizes(w, h, tile)
-    with tempfile.TemporaryDirectory(prefix=f".{final.name}.", dir=final.parent or ".") as tmp:
-        parts = [Path(tmp) / f"level{k}.tif" for k in range(len(levels))]
+    with contextlib.ExitStack() as stack:
+        # The levels go to temporaries beside the output, cleaned as its own (SIGTERM too).
+        parts = [stack.enter_context(atomic_path(final, suffix=".tif", rename=False))
+                 for _ in levels]
         source = band_of
         for k, (lw, lh) in enumerate(levels):
             # Each level from the bands of the level before it (the first from the caller).

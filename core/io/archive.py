@@ -270,9 +270,37 @@ def _finite_float(text: str) -> float:
     return value
 
 
+def parse_json(data: bytes, label: str) -> object:
+    """JSON bytes parsed as every reader wants them: UTF-8, finite numbers only,
+    nesting at most :data:`MAX_JSON_DEPTH`.
+
+    Parameters
+    ----------
+    data : bytes
+        The JSON text (the caller bounds its size).
+    label : str
+        How the message names the file (``"path"`` or ``"path: member"``).
+
+    Raises
+    ------
+    CorruptFileError
+        Not UTF-8 JSON, ``NaN`` or ``Infinity``, too deep; one line naming ``label``.
+    """
+    try:
+        value = json.loads(data.decode("utf-8"), parse_constant=_no_constant,
+                           parse_float=_finite_float)
+    except RecursionError:
+        raise CorruptFileError(f"{label} nests deeper than {MAX_JSON_DEPTH} levels") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise CorruptFileError(f"{label} is not valid JSON ({_one_line(exc)})") from None
+    if json_depth(value) > MAX_JSON_DEPTH:
+        raise CorruptFileError(f"{label} nests deeper than {MAX_JSON_DEPTH} levels")
+    return value
+
+
 def read_json_member(zf: zipfile.ZipFile, member: str, label: str, *,
                      max_bytes: int) -> object:
-    """One JSON member, parsed: finite numbers only, nesting at most :data:`MAX_JSON_DEPTH`.
+    """One JSON member, parsed by :func:`parse_json`.
 
     Raises
     ------
@@ -281,16 +309,4 @@ def read_json_member(zf: zipfile.ZipFile, member: str, label: str, *,
         or ``Infinity``, too deep.
     """
     data = read_member(zf, member, label, max_bytes=max_bytes)
-    try:
-        value = json.loads(data.decode("utf-8"), parse_constant=_no_constant,
-                           parse_float=_finite_float)
-    except RecursionError:
-        raise CorruptFileError(f"{_where(label, member)} nests deeper than "
-                               f"{MAX_JSON_DEPTH} levels") from None
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise CorruptFileError(f"{_where(label, member)} is not valid JSON ({_one_line(exc)})"
-                               ) from None
-    if json_depth(value) > MAX_JSON_DEPTH:
-        raise CorruptFileError(f"{_where(label, member)} nests deeper than {MAX_JSON_DEPTH} levels")
-    return value
-
+    return parse_json(data, _where(label, member))

@@ -5,7 +5,7 @@ never a stray temporary one:
 
 * :func:`atomic_path` yields a hidden temporary path beside one target and
   renames it onto the target on success; on an exception (KeyboardInterrupt
-  included) it is removed.
+  included) it is removed (``rename=False``: a scratch file, always removed).
 * :func:`atomic_file_set` does the same for several files that belong
   together (``convert``'s project, preview and packed layer): all are written
   to temporaries, then renamed in the given order, the manifest/project
@@ -141,13 +141,16 @@ def _new_temporary(final: Path, suffix: str | None) -> Path:
     while True:
         tmp = _new_name(folder, final.name, "tmp",
                         final.suffix if suffix is None else suffix, secrets.token_hex(6))
+        # Known before it exists: a Ctrl-C or SIGTERM at any point still finds it.
+        _STATE.live.add(tmp)
         try:
             _create(tmp)
-            break
+            return tmp
         except FileExistsError:
-            continue
-    _STATE.live.add(tmp)
-    return tmp
+            _STATE.live.discard(tmp)
+        except BaseException:
+            _drop(tmp)
+            raise
 
 
 def _drop(tmp: Path) -> None:
@@ -157,7 +160,8 @@ def _drop(tmp: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
+                rename: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
 
     Parameters
@@ -167,19 +171,22 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterat
     suffix : str, optional
         Suffix of the temporary file (defaults to ``path``'s own suffix, so
         writers that pick a format by extension, like OpenImageIO, still work).
+    rename : bool
+        False: a scratch file for intermediate data beside ``path``, always
+        removed (named and cleaned as every temporary, SIGTERM and SIGKILL included).
 
     On any exception the temporary file is removed and ``path`` is untouched;
     SIGTERM removes it too (module docstring).
     """
-    final = Path(path)
-    tmp = _new_temporary(final, suffix)
+    tmp = None
     try:
+        tmp = _new_temporary(Path(path), suffix)
         yield tmp
-        os.replace(tmp, final)
-        _STATE.live.discard(tmp)
-    except BaseException:
-        _drop(tmp)
-        raise
+        if rename:
+            os.replace(tmp, path)
+    finally:
+        if tmp is not None:
+            _drop(tmp)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:

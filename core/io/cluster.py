@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -73,8 +74,13 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
                               f"{workers} x {threads}")
     from distributed import Client
 
-    return Client(n_workers=int(workers), threads_per_worker=int(threads), processes=True,
-                  dashboard_address=None, silence_logs=logging.ERROR)
+    with warnings.catch_warnings():
+        # The scheduler's HTTP server falls back from port 8787 to a free one when another
+        # cluster holds it, with a four-line warning on stderr; any free port will do.
+        warnings.filterwarnings("ignore", message="Port .* is already in use",
+                                module=r"distributed\.")
+        return Client(n_workers=int(workers), threads_per_worker=int(threads), processes=True,
+                      dashboard_address=None, silence_logs=logging.ERROR)
 
 
 def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:

@@ -19,7 +19,9 @@ class TiledImageWriter:
     Use as a context manager; the file appears (atomically renamed) on a
     clean exit only. Regions passed to :meth:`write` must start on tile
     boundaries; their width and height are multiples of the tile size except
-    at the right and bottom edges.
+    at the right and bottom edges. Full-width bands of rows may have any
+    height (written in order from the top: they are gathered into strips of
+    one tile row, so memory holds one strip).
 
     Parameters
     ----------
@@ -66,6 +68,10 @@ class TiledImageWriter:
             self.spec.attribute(key, value)
         self._ctx = None
         self._out = None
+        # rows of full-width bands not yet written: one strip of tile height
+        self._strip: np.ndarray | None = None
+        self._strip_y = 0
+        self._strip_rows = 0
 
     def __enter__(self) -> TiledImageWriter:
         self._ctx = atomic_path(self.path)
@@ -88,19 +94,58 @@ class TiledImageWriter:
             arr = arr[:, :, None]
         h, w = arr.shape[:2]
         s = self.spec
-        if arr.shape[2] != s.nchannels or x % s.tile_width or y % s.tile_height:
-            raise TerrathemeError(
-                f"{self.path}: region at ({x}, {y}) of shape {arr.shape} does not match "
-                f"{s.nchannels} channels on a {s.tile_width}-pixel tile grid"
-            )
+        if arr.shape[2] != s.nchannels:
+            raise TerrathemeError(f"{self.path}: region of shape {arr.shape} does not have the "
+                                  f"file's {s.nchannels} channels")
         arr = np.ascontiguousarray(arr, dtype=self.dtype)
+        ragged = h % s.tile_height and y + h != s.height
+        if x == 0 and w == s.width and (ragged or self._strip_rows or y % s.tile_height):
+            self._gather_rows(y, arr)
+            return
+        if (x % s.tile_width or y % s.tile_height or ragged
+                or (w % s.tile_width and x + w != s.width)):
+            raise TerrathemeError(f"{self.path}: region at ({x}, {y}) of {w} x {h} pixels is "
+                                  f"not on the {s.tile_width}-pixel tile grid")
+        self._write_tiles(x, y, arr)
+
+    def _write_tiles(self, x: int, y: int, arr: np.ndarray) -> None:
+        h, w = arr.shape[:2]
         if not self._out.write_tiles(x, x + w, y, y + h, 0, 1, arr):
-            raise TerrathemeError(f"cannot write {self.path}: {self._out.geterror().strip()}")
+            why = self._out.geterror().strip() or "OpenImageIO refused the tiles"
+            raise TerrathemeError(f"cannot write {self.path}: {why}")
+
+    def _gather_rows(self, y: int, arr: np.ndarray) -> None:
+        """Add a full-width band to the strip; write each strip as it fills."""
+        s = self.spec
+        if self._strip is None:
+            self._strip = np.empty((s.tile_height, s.width, s.nchannels), self.dtype)
+        if not self._strip_rows and y % s.tile_height:
+            raise TerrathemeError(f"{self.path}: a band starting at row {y} is not on the "
+                                  f"{s.tile_height}-row tile grid")
+        if not self._strip_rows:
+            self._strip_y = y
+        elif y != self._strip_y + self._strip_rows:
+            raise TerrathemeError(f"{self.path}: bands must come in order from the top: row "
+                                  f"{y} after row {self._strip_y + self._strip_rows - 1}")
+        done = 0
+        while done < arr.shape[0]:
+            # Fill the strip, then write it once it is a whole tile row (or the last one).
+            take = min(arr.shape[0] - done, s.tile_height - self._strip_rows)
+            self._strip[self._strip_rows:self._strip_rows + take] = arr[done:done + take]
+            self._strip_rows += take
+            done += take
+            if (self._strip_rows == s.tile_height
+                    or self._strip_y + self._strip_rows == s.height):
+                self._write_tiles(0, self._strip_y, self._strip[:self._strip_rows])
+                self._strip_y += self._strip_rows
+                self._strip_rows = 0
 
     def __exit__(self, exc_type, exc, tb) -> None:
         ok = self._out.close()
-        if exc_type is None and not ok:
-            err = TerrathemeError(f"cannot finish {self.path}: {oiio.geterror().strip()}")
+        if exc_type is None and (self._strip_rows or not ok):
+            why = (f"rows from {self._strip_y} on were never written" if self._strip_rows
+                   else oiio.geterror().strip())
+            err = TerrathemeError(f"cannot finish {self.path}: {why}")
             self._ctx.__exit__(TerrathemeError, err, None)
             raise err
         # On success the temporary file is renamed; on an exception it is removed.

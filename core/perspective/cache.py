@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from core.errors import TerrathemeError
+from core.io.archive import parse_json
 from core.io.atomic import atomic_path
 from core.perspective.family import ParallelogramFamily, family_layout
 
@@ -77,7 +79,7 @@ class FamilyCache:
             family = _read(path)
         except FileNotFoundError:
             return None
-        except (OSError, ValueError, KeyError, TypeError, struct.error):
+        except (OSError, ValueError, struct.error, TerrathemeError):
             with contextlib.suppress(OSError):
                 path.unlink()
             return None
@@ -86,15 +88,23 @@ class FamilyCache:
             os.utime(path)
         return family
 
-    def store(self, key: str, family: ParallelogramFamily) -> None:
-        """Write ``family`` under ``key`` (atomically), then bound the folder."""
+    def store(self, key: str, family: ParallelogramFamily) -> bool:
+        """Write ``family`` under ``key`` (atomically), then bound the folder.
+
+        Returns whether it was stored: a folder that cannot be made or written
+        (or a full disk) costs the caching, never the frame.
+        """
         size = family.buf.nbytes + 4096
         if size > self.max_bytes:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        with atomic_path(self.path(key)) as tmp:
-            _write(tmp, family)
+            return False
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            with atomic_path(self.path(key)) as tmp:
+                _write(tmp, family)
+        except (OSError, TerrathemeError):
+            return False
         self.trim(keep=self.path(key))
+        return True
 
     def trim(self, keep: Path | None = None) -> None:
         """Remove the least recently used files until the folder fits ``max_bytes``."""
@@ -130,8 +140,16 @@ def _write(path: Path, family: ParallelogramFamily) -> None:
         f.write(struct.pack("<I", crc))
 
 
+def _whole_numbers(value: object, n: int) -> list[int]:
+    """``value`` as a list of ``n`` whole numbers (JSON ints, not bools); ValueError if not."""
+    if (not isinstance(value, list) or len(value) != n
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
+        raise ValueError(f"not {n} whole numbers")
+    return value
+
+
 def _read(path: Path) -> ParallelogramFamily:
-    """Read and check a family file; ValueError on any damage."""
+    """Read and check a family file; ValueError (or CorruptFileError) on any damage."""
     size = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(_HEADER.size)
@@ -139,11 +157,14 @@ def _read(path: Path) -> ParallelogramFamily:
         if magic != MAGIC or version != FORMAT_VERSION or hlen > 4096:
             raise ValueError("not a family file of this version")
         raw = f.read(hlen)
-        meta = json.loads(raw)
+        meta = parse_json(raw, str(path))
+        if (not isinstance(meta, dict) or not isinstance(meta.get("dtype"), str)
+                or meta["dtype"] not in _TYPES):
+            raise ValueError("bad header")
         dtype = np.dtype(_TYPES[meta["dtype"]])
-        rows, channels = (int(x) for x in meta["cells"])
-        w, h = (int(x) for x in meta["grid"])
-        k, so = int(meta["k"]), int(meta["so"])
+        rows, channels = _whole_numbers(meta.get("cells"), 2)
+        w, h = _whole_numbers(meta.get("grid"), 2)
+        k, so = _whole_numbers([meta.get("k"), meta.get("so")], 2)
         if not (1 <= channels <= 4 and 0 <= k <= 64 and so in (1, 2) and 1 <= w <= 1 << 20
                 and 1 <= h <= 1 << 20 and not w & (w - 1) and not h & (h - 1)):
             raise ValueError("bad header values")
