@@ -354,8 +354,9 @@ def estimate(result: dict) -> dict:
                        "dedicated core: from the workers' CPU seconds per megapixel); the "
                        "client's serial part (theme fit and cell/colour scale on the centre "
                        "2048^2 window) is the 2-worker run's, independent of the region; the "
-                       "client's CPU per tile (scheduling, sink) bounds the rate at "
-                       "1 / client_cpu_per_px whatever N; the render runs on one machine; "
+                       "client's CPU per tile (scheduling, sink; a local cluster's scheduler "
+                       "runs in the client process) bounds the rate at 1 / client_cpu_per_px "
+                       "whatever N; the render runs on one machine; "
                        "bytes scale per vertex and map pixel from the largest photo (a "
                        "mosaic of 512-px crops, busier than real land, so the packed layer "
                        "is an upper estimate); the photo is read once from a shared file "
@@ -365,6 +366,11 @@ def estimate(result: dict) -> dict:
         "per_worker_tile_mpx_per_s_dedicated_core": core_rate / 1e6,
         "client_tile_cpu_s_per_mpx": client_per_px * 1e6,
         "client_bound_mpx_per_s": 1 / client_per_px / 1e6 if client_per_px else None,
+        # The client's (and the in-process dask scheduler's) CPU per megapixel falls with
+        # fewer, larger tiles: the 2-worker runs of the smallest photo at every tile.
+        "client_tile_cpu_s_per_mpx_by_tile": {
+            r["tile"]: r["client_tile_cpu_s_per_mpx"] for r in result["records"]
+            if r["workers"] == 2 and r["side"] == min(x["side"] for x in result["records"])},
         "client_seconds": client,
         "convert_hours_on_n_workers_shared": {n: hours(shared_rate, n) for n in counts},
         "convert_hours_on_n_workers_dedicated": {n: hours(core_rate, n) for n in counts},
@@ -396,6 +402,7 @@ def main() -> None:
                         help="largest side run on 1 worker too")
     parser.add_argument("--repeat-sides", type=int, nargs="*", default=[16384],
                         help="sides whose serial and 2-worker runs are repeated, interleaved")
+    parser.add_argument("--name", help="results name (default scale, or scale_quick)")
     parser.add_argument("--replot", action="store_true",
                         help="recompute pairs, estimate and chart from the saved JSON")
     parser.add_argument("--child", choices=["convert", "render"])
@@ -413,7 +420,7 @@ def main() -> None:
     sides = [2048, 4096] if args.quick else args.sides
     repeat = [4096] if args.quick else args.repeat_sides
     RESULTS.mkdir(parents=True, exist_ok=True)
-    name = "scale_quick" if args.quick else "scale"
+    name = args.name or ("scale_quick" if args.quick else "scale")
     head = {"tile": args.tile, "cpus": os.cpu_count(), "sides": sides,
             "note": "2 cores shared with other sessions' processes (load averages recorded); "
                     "Linux autogroup gives this session's processes (client and workers) one "
