@@ -27,8 +27,12 @@ Mpx/s, peak RSS above start, file bytes. The load average is recorded with
 every run, and the CPU seconds of every process: on a shared machine a
 session's processes share one CPU share (Linux autogroup), which caps what
 2 workers can gain in wall-clock time whatever the code does; CPU seconds
-per megapixel show what the parallel path costs. From the figures, an
-estimate of the hours and bytes of a 400 x 400 km region at 1 m on N workers.
+per megapixel show what the parallel path costs. Serial and 2-worker runs
+alternate (serial, 2, 1 worker, then 2 and serial again on ``--repeat-sides``);
+``pairs`` ratios each 2-worker run to the serial run next to it in time. From
+the figures, an estimate of the hours and bytes of a 400 x 400 km region at
+1 m on N workers (``estimate_400km``). Results kept: ``scale`` (4096, 16384,
+32768), ``scale_8192`` and ``scale_8192_tile2048`` (``--name``, a quiet hour).
 """
 
 from __future__ import annotations
