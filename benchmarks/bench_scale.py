@@ -1,6 +1,7 @@
 """Benchmark of whole regions: tiled conversion serially and on 1 and 2 workers; streamed render.
 
-Run: ``.venv/bin/python benchmarks/bench_scale.py [--quick] [--sides 8192 32768] [--tile 1024]``
+Run: ``.venv/bin/python benchmarks/bench_scale.py [--quick] [--sides 4096 16384 32768]
+[--tile 1024] [--repeat-sides 16384] [--one-worker-max 16384]``
 
 Writes ``benchmarks/results/scale.json`` and ``scale.png``.
 
@@ -26,8 +27,12 @@ Mpx/s, peak RSS above start, file bytes. The load average is recorded with
 every run, and the CPU seconds of every process: on a shared machine a
 session's processes share one CPU share (Linux autogroup), which caps what
 2 workers can gain in wall-clock time whatever the code does; CPU seconds
-per megapixel show what the parallel path costs. From the figures, an
-estimate of the hours and bytes of a 400 x 400 km region at 1 m on N workers.
+per megapixel show what the parallel path costs. Serial and 2-worker runs
+alternate (serial, 2, 1 worker, then 2 and serial again on ``--repeat-sides``);
+``pairs`` ratios each 2-worker run to the serial run next to it in time. From
+the figures, an estimate of the hours and bytes of a 400 x 400 km region at
+1 m on N workers (``estimate_400km``). Results kept: ``scale`` (4096, 16384,
+32768), ``scale_8192`` and ``scale_8192_tile2048`` (``--name``, a quiet hour).
 """
 
 from __future__ import annotations
@@ -50,8 +55,11 @@ sys.path.insert(0, str(REPO))
 SHARED = REPO.parent / "shared" / "data" / "dubai" / "images"
 SAMPLE = REPO / "sample_maps" / "dubai_marina.jpg"
 RESULTS = REPO / "benchmarks" / "results"
+sys.path.insert(0, str(REPO / "benchmarks"))
+from scale_chart import chart  # noqa: E402
+from scale_estimate import estimate, pairs  # noqa: E402
+
 BLOCK = 512
-REGION_PIXELS = 400_000 * 400_000  # 400 x 400 km at 1 m
 
 
 def _status_kib(key: str) -> int:
@@ -68,6 +76,12 @@ def _peak_rss_mib() -> float:
 
 def _rss_mib() -> float:
     return _status_kib("VmRSS") / 1024
+
+
+def _import_core() -> None:
+    """Import the tile jobs' code (what ``core.io.cluster.warm_up`` starts on a worker)."""
+    import core.convert.colour_fit
+    import core.convert.tiled  # noqa: F401
 
 
 def _cpu_seconds() -> float:
@@ -124,18 +138,30 @@ def child_convert(args: argparse.Namespace) -> None:
     start_rss = _rss_mib()
     stages: list[list[float]] = []
 
+    client = local_cluster(args.workers) if args.workers else None
+    marks: list[dict] = []
+
+    def cpu_now() -> dict:
+        # Client and worker CPU seconds and the load at a stage boundary.
+        workers = sum(client.run(_cpu_seconds).values()) if client is not None else 0.0
+        return {"t": time.perf_counter(), "client_cpu": _cpu_seconds(), "worker_cpu": workers,
+                "load": os.getloadavg()[0]}
+
     def progress(done: int, total: int) -> None:
         # Stage boundaries: (0, total) opens one, (total, total) closes it.
         if done == 0:
             stages.append([time.perf_counter(), 0.0, total])
+            marks.append({"start": cpu_now()})
         elif done == total:
             stages[-1][1] = time.perf_counter()
+            marks[-1]["end"] = cpu_now()
 
-    client = local_cluster(args.workers) if args.workers else None
     worker_start = {}
     try:
         if client is not None:
-            # Workers ready and their baseline taken before the clock starts.
+            # Workers ready (terratheme imported, as a running cluster's are) and their
+            # baseline taken before the clock starts.
+            client.run(_import_core)
             worker_start = client.run(_rss_mib)
         worker_cpu0 = client.run(_cpu_seconds) if client is not None else {}
         load0, cpu0 = os.getloadavg(), _cpu_seconds()
@@ -150,6 +176,10 @@ def child_convert(args: argparse.Namespace) -> None:
     finally:
         if client is not None:
             client.close()
+    # CPU seconds inside the tile stages (the part that runs on the workers).
+    stage_cpu = [{"client": m["end"]["client_cpu"] - m["start"]["client_cpu"],
+                  "workers": m["end"]["worker_cpu"] - m["start"]["worker_cpu"],
+                  "load": [m["start"]["load"], m["end"]["load"]]} for m in marks]
     packed = pack(project.grid.indices, curve="auto").to_bytes()
     cost = texture_cost(project)
     assert cost.grid_bytes == len(packed)
@@ -158,6 +188,7 @@ def child_convert(args: argparse.Namespace) -> None:
     print(json.dumps({
         "seconds": seconds,
         "stage_seconds": [b - a for a, b, _ in stages], "stage_tiles": [t for _, _, t in stages],
+        "stage_cpu_seconds": stage_cpu,
         "load_before": load0, "load_after": load1,
         "client_cpu_seconds": cpu1 - cpu0, "worker_cpu_seconds": worker_cpu,
         "client_peak_rss_mib": _peak_rss_mib(), "client_start_rss_mib": start_rss,
@@ -207,149 +238,74 @@ def _child(kind: str, *extra: str) -> dict:
 # --------------------------------------------------------------------------- main parts
 
 
-def measure(sides: list[int], tile: int, tmp: Path) -> dict:
-    records, renders = [], []
+def _convert_run(image: Path, side: int, workers: int, tile: int, tmp: Path) -> dict:
+    """One conversion child and its derived figures."""
+    name = f"{workers} workers" if workers else "serial"
+    rec = _child("convert", "--image", str(image), "--tile", str(tile), "--workers", str(workers),
+                 "--project", str(tmp / f"p_{side}_{workers}_{tile}.ttproj"))
+    px = rec["pixels"] / 1e6
+    tiles_s = sum(rec["stage_seconds"])
+    client_cpu = sum(c["client"] for c in rec["stage_cpu_seconds"])
+    tile_cpu = client_cpu + sum(c["workers"] for c in rec["stage_cpu_seconds"])
+    # Tile throughput: photo pixels through both tile stages (grid, colour map).
+    rec.update({"side": side, "mode": name, "workers": workers, "tile": tile,
+                "mpx_per_s": px / rec["seconds"], "tile_mpx_per_s": px / tiles_s,
+                "client_seconds": rec["seconds"] - tiles_s,
+                "tile_cpu_s_per_mpx": tile_cpu / px,
+                "client_tile_cpu_s_per_mpx": client_cpu / px if workers else None,
+                "cores_obtained": tile_cpu / tiles_s,
+                "image_file_bytes": image.stat().st_size})
+    print(f"  {side}^2 {name:9s} tile {tile}: {rec['seconds']:6.1f} s "
+          f"({rec['mpx_per_s']:5.2f} Mpx/s; tile stages "
+          f"{[round(v, 1) for v in rec['stage_seconds']]} s, {rec['tile_mpx_per_s']:.2f} Mpx/s, "
+          f"{rec['tile_cpu_s_per_mpx']:.2f} CPU s/Mpx on {rec['cores_obtained']:.2f} cores), "
+          f"client peak {rec['client_peak_rss_mib']:.0f} MiB, workers "
+          f"{[round(v) for v in rec['worker_peak_rss_mib']]} MiB, "
+          f"load {rec['load_before'][0]:.1f}->{rec['load_after'][0]:.1f}", flush=True)
+    return rec
+
+
+def measure(sides: list[int], tile: int, tmp: Path, one_worker_max: int,
+            repeat_sides: list[int], save) -> dict:
+    result = {"records": [], "renders": []}
     for side in sides:
         image = tmp / f"mosaic_{side}.tif"
         t0 = time.perf_counter()
         make_mosaic(image, side)
         print(f"made {side}^2 tiled BigTIFF in {time.perf_counter() - t0:.0f} s "
               f"({image.stat().st_size / 2**30:.2f} GiB)", flush=True)
-        # The three ways side by side; on the smallest photo, 2 workers at other tile sizes.
-        runs = [(w, tile) for w in (0, 2, 1)]
+        # Serial and 2 workers interleaved (each 2-worker run next to a serial one), 1 worker.
+        runs = [(0, tile), (2, tile)]
+        if side <= one_worker_max:
+            runs.append((1, tile))
+        if side in repeat_sides:
+            runs += [(2, tile), (0, tile)]
         if side == min(sides):
             runs += [(2, t) for t in (tile // 2, tile * 2)]
-        for workers, run_tile in runs:
-            name = f"{workers} workers" if workers else "serial"
-            rec = _child("convert", "--image", str(image), "--tile", str(run_tile),
-                         "--workers", str(workers),
-                         "--project", str(tmp / f"p_{side}_{workers}_{run_tile}.ttproj"))
-            px = rec["pixels"] / 1e6
-            tiles_s = sum(rec["stage_seconds"])
-            # Tile throughput: photo pixels through both tile stages (grid, colour map).
-            rec.update({"side": side, "mode": name, "workers": workers, "tile": run_tile,
-                        "mpx_per_s": px / rec["seconds"], "tile_mpx_per_s": px / tiles_s,
-                        "client_seconds": rec["seconds"] - tiles_s,
-                        "image_file_bytes": image.stat().st_size})
-            records.append(rec)
-            print(f"  {side}^2 {name:9s} tile {run_tile}: {rec['seconds']:6.1f} s "
-                  f"({rec['mpx_per_s']:5.2f} Mpx/s; tile stages "
-                  f"{[round(v, 1) for v in rec['stage_seconds']]} s), client peak "
-                  f"{rec['client_peak_rss_mib']:.0f} MiB, workers {rec['worker_peak_rss_mib']} "
-                  f"MiB, CPU {rec['client_cpu_seconds']:.0f}+{rec['worker_cpu_seconds']:.0f} s, "
-                  f"load {rec['load_before'][0]:.1f}->{rec['load_after'][0]:.1f}",
-                  flush=True)
+        for order, (workers, run_tile) in enumerate(runs):
+            rec = _convert_run(image, side, workers, run_tile, tmp)
+            rec["order"] = order
+            serial = [r for r in [*result["records"], rec] if r["side"] == side
+                      and r["workers"] == 0 and r["tile"] == tile]
+            # Grid, themes, colour map and packed layer against the serial run's (sha256):
+            # at the same tile (the claim), and other tiles against the main tile's (tiles
+            # agree when the overlap covers the classifier's support).
+            key = "identical_to_serial" if run_tile == tile else "same_as_serial_at_main_tile"
+            rec[key] = rec["sha"] == serial[0]["sha"]
+            result["records"].append(rec)
+            save(result)
         rend = _child("render", "--project", str(tmp / f"p_{side}_0_{tile}.ttproj"),
                       "--out", str(tmp / f"render_{side}.tif"))
         rend["side"] = side
-        renders.append(rend)
+        result["renders"].append(rend)
         print(f"  {side}^2 render --tiled: {rend['seconds']:.1f} s ({rend['mpx_per_s']:.1f} "
               f"Mpx/s), peak +{rend['peak_rss_above_start_mib']:.0f} MiB, "
               f"{rend['file_bytes'] / 2**30:.2f} GiB, {rend['overviews']} overviews", flush=True)
+        for stale in tmp.glob(f"p_{side}_*"):
+            stale.unlink()
         image.unlink()
-    return {"records": records, "renders": renders}
-
-
-def estimate(result: dict) -> dict:
-    """Hours and bytes of a 400 x 400 km region at 1 m from the largest photo's figures."""
-    big = max(r["side"] for r in result["records"])
-    rec = {r["workers"]: r for r in result["records"]
-           if r["side"] == big and r["tile"] == result["tile"]}
-    rend = next(r for r in result["renders"] if r["side"] == big)
-    px = rec[0]["pixels"]
-    # Tile stages per worker: the 1-worker rate, scaled by the measured 2-worker efficiency.
-    per_worker = px / sum(rec[1]["stage_seconds"])
-    efficiency = (px / sum(rec[2]["stage_seconds"])) / (2 * per_worker)
-    client = rec[2]["client_seconds"]
-    hours = {n: (client + REGION_PIXELS / (n * per_worker * efficiency)) / 3600
-             for n in (1, 2, 8, 32, 128)}
-    scale = REGION_PIXELS / px
-    cell, cmap_scale = rec[0]["cell"], rec[0]["colour_map_scale"]
-    vertices = (400_000 // cell + 1) ** 2
-    grid_bytes = vertices  # one byte a vertex, on the client and (colour stage) every worker
-    return {
-        "assumptions": "tile stages scale to N workers at the measured 2-worker efficiency; "
-                       "the client's serial part (theme fit, centre window) is the 2-worker "
-                       "run's; the render runs on one machine; bytes scale per vertex, map "
-                       "pixel and texel from the largest photo (a mosaic of 512-px crops, "
-                       "busier than real land)",
-        "measured_on_side": big, "per_worker_tile_mpx_per_s": per_worker / 1e6,
-        "worker_peak_rss_mib": max(rec[2]["worker_peak_rss_mib"]) + grid_bytes / 2**20,
-        "client_peak_rss_mib": rec[2]["client_peak_rss_mib"] + grid_bytes / 2**20,
-        "two_worker_efficiency": efficiency, "client_seconds": client,
-        "convert_hours_on_n_workers": hours,
-        "render_hours_one_machine": REGION_PIXELS / (rend["mpx_per_s"] * 1e6) / 3600,
-        "bytes": {
-            "grid_vertices": vertices,
-            "packed_layer": rec[0]["packed_bytes"] / np.prod(rec[0]["grid_shape"]) * vertices,
-            "colour_map": rec[0]["colour_map_bytes"] / np.prod(rec[0]["colour_map_shape"])
-            * REGION_PIXELS / cmap_scale ** 2,
-            "themes": rec[0]["theme_bytes"],
-            "rendered_geotiff": rend["file_bytes"] * scale,
-            "photo_rgb_raw": 3 * REGION_PIXELS,
-        },
-    }
-
-
-def chart(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    tile = result["tile"]
-    recs = [r for r in result["records"] if r["tile"] == tile]
-    sides = sorted({r["side"] for r in recs})
-    fig, ((ax, axm), (axt, axr)) = plt.subplots(2, 2, figsize=(12, 9), dpi=100)
-    width = 0.25
-    for k, workers in enumerate((0, 1, 2)):
-        rows = [next(r for r in recs if r["side"] == s and r["workers"] == workers)
-                for s in sides]
-        xs = np.arange(len(sides)) + (k - 1) * width
-        label = f"{workers} worker{'s' if workers > 1 else ''}" if workers else "serial (peer)"
-        ax.bar(xs, [r["tile_mpx_per_s"] for r in rows], width, label=f"{label}: tile stages")
-        ax.plot(xs, [r["mpx_per_s"] for r in rows], "k_", ms=18, mew=2)
-        peaks = [max(r["worker_peak_rss_mib"]) if r["worker_peak_rss_mib"]
-                 else r["client_peak_rss_mib"] for r in rows]
-        axm.plot(sides, peaks, "o-", label=("serial process (client and tiles)" if not workers
-                                            else f"each of {workers} worker(s)"))
-    axm.plot(sides, [next(r for r in recs if r["side"] == s and r["workers"] == 2)
-                     ["client_peak_rss_mib"] for s in sides], "s--", label="client (2 workers)")
-    loads = [f"{r['load_before'][0]:.1f}" for r in recs]
-    ax.set_xticks(np.arange(len(sides)), [f"{s}²" for s in sides])
-    ax.set_ylabel("Mpx/s (bars: tile stages; black: end to end)")
-    ax.set_title(f"tiled conversion, tile {tile} (load avg at start: {', '.join(loads)})",
-                 fontsize=9)
-    ax.legend(fontsize=8)
-    axm.set_xscale("log", base=2)
-    axm.set_xlabel("photo side (pixels)")
-    axm.set_ylabel("peak RSS (MiB)")
-    axm.set_ylim(bottom=0)
-    axm.set_title(f"peak memory per process vs photo size (tile {tile})")
-    axm.legend(fontsize=8)
-    small = min(sides)
-    by_tile = sorted((r["tile"], max(r["worker_peak_rss_mib"])) for r in result["records"]
-                     if r["side"] == small and r["workers"] == 2)
-    axt.plot(*zip(*by_tile, strict=True), "o-", label=f"each of 2 workers, {small}² photo")
-    axt.set_xscale("log", base=2)
-    axt.set_xlabel("tile side (pixels)")
-    axt.set_ylabel("peak RSS (MiB)")
-    axt.set_ylim(bottom=0)
-    axt.set_title("peak memory per worker vs tile size")
-    axt.legend(fontsize=8)
-    rend = result["renders"]
-    axr.plot([r["side"] for r in rend], [r["peak_rss_above_start_mib"] for r in rend], "o-",
-             label="render --tiled: peak RSS above start (MiB)")
-    axr.plot([r["side"] for r in rend], [r["file_bytes"] / 2**20 for r in rend], "s--",
-             label="its GeoTIFF with overviews (MiB)")
-    axr.set_xscale("log", base=2)
-    axr.set_yscale("log")
-    axr.set_xlabel("photo side (pixels)")
-    axr.set_title("streamed render: memory vs output size")
-    axr.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+        save(result)
+    return result
 
 
 def main() -> None:
@@ -357,6 +313,13 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="2048^2 and 4096^2 photos only")
     parser.add_argument("--sides", type=int, nargs="+", default=[8192, 32768])
     parser.add_argument("--tile", type=int, default=1024)
+    parser.add_argument("--one-worker-max", type=int, default=16384,
+                        help="largest side run on 1 worker too")
+    parser.add_argument("--repeat-sides", type=int, nargs="*", default=[16384],
+                        help="sides whose serial and 2-worker runs are repeated, interleaved")
+    parser.add_argument("--name", help="results name (default scale, or scale_quick)")
+    parser.add_argument("--replot", action="store_true",
+                        help="recompute pairs, estimate and chart from the saved JSON")
     parser.add_argument("--child", choices=["convert", "render"])
     parser.add_argument("--image")
     parser.add_argument("--workers", type=int, default=0)
@@ -370,14 +333,32 @@ def main() -> None:
         child_render(args)
         return
     sides = [2048, 4096] if args.quick else args.sides
+    repeat = [4096] if args.quick else args.repeat_sides
     RESULTS.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="bench_scale_") as tmp:
-        result = {"tile": args.tile, "cpus": os.cpu_count(), **measure(sides, args.tile,
-                                                                       Path(tmp))}
+    name = args.name or ("scale_quick" if args.quick else "scale")
+    head = {"tile": args.tile, "cpus": os.cpu_count(), "sides": sides,
+            "note": "2 cores shared with other sessions' processes (load averages recorded); "
+                    "Linux autogroup gives this session's processes (client and workers) one "
+                    "share of the CPU, so wall-clock ratios show that share, CPU seconds per "
+                    "megapixel what each path costs"}
+
+    def save(part: dict) -> None:
+        # Partial results after every run: a long run stopped early keeps its figures.
+        full = {**head, **part, "pairs": pairs({**head, **part})}
+        (RESULTS / f"{name}.json").write_text(json.dumps(full, indent=1))
+
+    if args.replot:
+        # A run stopped after some sides: its partial figures, summed up again.
+        result = json.loads((RESULTS / f"{name}.json").read_text())
+    else:
+        with tempfile.TemporaryDirectory(prefix="bench_scale_") as tmp:
+            result = {**head, **measure(sides, args.tile, Path(tmp), args.one_worker_max,
+                                        repeat, save)}
+    result["pairs"] = pairs(result)
     result["estimate_400km"] = estimate(result)
-    name = "scale_quick" if args.quick else "scale"
     (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1))
     chart(result, RESULTS / f"{name}.png")
+    print(json.dumps(result["pairs"], indent=1))
     print(json.dumps(result["estimate_400km"], indent=1))
     print(f"wrote {RESULTS / name}.json and .png")
 

@@ -14,6 +14,8 @@ import signal
 import numpy as np
 import pytest
 
+from core.convert.colour_fit import ColourMapOptions
+from core.convert.photo import CODEC_SUFFIX
 from core.convert.tile_vote import PredictLabels
 from core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
 from core.errors import TerrathemeError
@@ -179,7 +181,10 @@ def test_cli_on_local_workers_writes_the_serial_outputs(tmp_path):
     assert main(["convert", str(path), str(tmp_path / "s.ttproj"), "--tile", "256"]) == 0
     assert main(["convert", str(path), str(tmp_path / "w.ttproj"), "--tile", "256",
                  "--workers", "2"]) == 0
-    for suffix in (".ttpack", "_colour.webp", "_preview.png"):
+    # The colour map file is in the default codec's format (JPEG XL today).
+    colour = f"_colour{CODEC_SUFFIX[ColourMapOptions().codec]}"
+    for suffix in (".ttpack", colour, "_preview.png"):
+        assert (tmp_path / f"s{suffix}").is_file()
         assert (tmp_path / f"s{suffix}").read_bytes() == (tmp_path / f"w{suffix}").read_bytes()
     from core.model.project import load_project
 

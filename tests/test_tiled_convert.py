@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.convert.labels_to_grid import vote_grid
+from core.convert.labels_to_grid import CONVERT_CELL_CANDIDATES, DEFAULT_CELL_CANDIDATES, vote_grid
+from core.convert.photo import ConvertOptions, convert_photo
 from core.convert.tile_vote import vertex_tiles
-from core.convert.tiled import grid_from_file
+from core.convert.tiled import convert_file_tiled, grid_from_file
 from core.errors import TerrathemeError
 from core.io.images import write_image
 from core.io.tiles import Scheduler
@@ -65,3 +66,26 @@ def test_a_short_last_vertex_block_joins_the_one_before():
     assert sorted({t.rows for t in tiles}) == [(0, 4), (4, 8), (8, 12), (12, 17)]
     # A last block of at least half a block stays on its own: 288 px, 19 vertices -> ..., 3.
     assert sorted({t.cols for t in vertex_tiles((288, 16), (16, 16), 64, 0)})[-1] == (16, 19)
+
+
+def test_auto_cell_of_a_one_tile_photo_is_the_whole_image_conversions(tmp_path):
+    # Three flat regions (green left; sand above blue on the right), a little noise:
+    # any cell keeps the labels, so the choice is the largest candidate allowed.
+    rng = np.random.default_rng(1)
+    img = np.empty((192, 256, 3), np.float64)
+    img[:, :128] = (40, 120, 40)
+    img[:96, 128:] = (225, 200, 140)
+    img[96:, 128:] = (40, 90, 200)
+    img = np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
+    path = tmp_path / "photo.tif"
+    write_image(path, img, tile=64)
+    whole = convert_photo(img, ConvertOptions()).project
+    tiled = convert_file_tiled(path, None, "auto", tile=1024)
+    # The same candidates as convert's: the cell is capped at 16, as the whole image's.
+    assert tiled.grid.cell == whole.grid.cell == (max(CONVERT_CELL_CANDIDATES),) * 2
+    assert np.array_equal(tiled.grid.indices, whole.grid.indices)
+    assert tiled.library.names == whole.library.names
+    # Other candidates still reach the choice (the flat photo takes a larger cell).
+    wide = convert_file_tiled(path, None, "auto", tile=1024, colour_map=None,
+                              candidates=DEFAULT_CELL_CANDIDATES)
+    assert wide.grid.cell[0] > max(CONVERT_CELL_CANDIDATES)

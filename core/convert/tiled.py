@@ -30,7 +30,12 @@ import numpy as np
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
 from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
-from core.convert.labels_to_grid import apply_lut, choose_cell_size, grid_shape_for
+from core.convert.labels_to_grid import (
+    CONVERT_CELL_CANDIDATES,
+    apply_lut,
+    choose_cell_size,
+    grid_shape_for,
+)
 from core.convert.step import assign_themes
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
@@ -191,6 +196,7 @@ def convert_file_tiled(
     scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
     class_target: float = 0.5,
+    candidates: Sequence[int] = CONVERT_CELL_CANDIDATES,
     colour_map: ColourMapOptions | None = ColourMapOptions(),
     boundary: BoundaryOptions | None = BoundaryOptions(),
 ):
@@ -220,6 +226,11 @@ def convert_file_tiled(
         Tiles of the grid, then (from ``(0, total)`` again) of the colour map.
     class_target : float
         Per-class IoU target of the cell choice (as ``convert_photo``'s).
+    candidates : sequence of int
+        Cell sizes ``cell="auto"`` tries: by default ``convert``'s
+        (:data:`core.convert.labels_to_grid.CONVERT_CELL_CANDIDATES`, as
+        :class:`core.convert.photo.ConvertOptions`), so a tiled conversion
+        picks its cell from the same sizes as the whole-image one.
     colour_map : ColourMapOptions or None
         Its scale chosen on the centre window, then fitted tile by tile
         (:func:`core.convert.colour_fit.colour_map_from_file`); None: none.
@@ -282,9 +293,8 @@ def convert_file_tiled(
     choice = None
     if cell == "auto":
         # Cell size from the agreement curve of the centre window (an estimate).
-
         choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement,
-                                  class_target=class_target)
+                                  class_target=class_target, candidates=candidates)
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
