@@ -48,8 +48,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SHARED = REPO.parent / "shared" / "data" / "dubai" / "images"
@@ -58,8 +56,6 @@ RESULTS = REPO / "benchmarks" / "results"
 sys.path.insert(0, str(REPO / "benchmarks"))
 from scale_chart import chart  # noqa: E402
 from scale_estimate import estimate, pairs  # noqa: E402
-
-BLOCK = 512
 
 
 def _status_kib(key: str) -> int:
@@ -92,26 +88,10 @@ def _cpu_seconds() -> float:
 
 def make_mosaic(path: Path, side: int, seed: int = 0) -> None:
     """A ``side x side`` RGB tiled BigTIFF of 512-pixel crops of the Dubai photos."""
-    from core.io.images import image_info, read_image
-    from core.io.tiled_writer import TiledImageWriter
+    # Imported here: the children measure their memory before core is loaded.
+    from mosaic import crop_sources, write_mosaic
 
-    photos = [SAMPLE] + [p for p in sorted(SHARED.glob("*.jpg")) if SHARED.is_dir()
-                         and min(image_info(p).width, image_info(p).height) >= BLOCK]
-    rng = np.random.default_rng(seed)
-    cache: dict = {}
-    with TiledImageWriter(path, side, side, 3, np.uint8, tile=256, bigtiff=True) as out:
-        for by in range(0, side, BLOCK):
-            band = np.empty((BLOCK, side, 3), np.uint8)
-            for bx in range(0, side, BLOCK):
-                p = photos[int(rng.integers(len(photos)))]
-                if p not in cache:
-                    cache.clear()
-                    cache[p] = read_image(p, dtype=np.uint8)[..., :3]
-                img = cache[p]
-                y = int(rng.integers(0, img.shape[0] - BLOCK + 1))
-                x = int(rng.integers(0, img.shape[1] - BLOCK + 1))
-                band[:, bx : bx + BLOCK] = img[y : y + BLOCK, x : x + BLOCK]
-            out.write(0, by, band)
+    write_mosaic(path, side, [SAMPLE] + crop_sources(SHARED), seed, bigtiff=True)
 
 
 def _sha(*parts: bytes) -> str:
