@@ -63,3 +63,11 @@ def test_an_unknown_model_name_is_one_line_listing_the_shipped_ones(command, cro
     assert err.count("\n") == 0
     assert "arial" in err and "aerial" in err
     assert not out.exists()
+
+
+def test_the_tiled_path_names_the_themes_after_the_models_classes_too(crop, tmp_path):
+    project = tmp_path / "tiled.ttproj"
+    assert main(["convert", str(crop), str(project), "--model", "aerial", "--cell", "16",
+                 "--tile", "128"]) == 0
+    names = set(load_project(project).library.names) - {"no data"}
+    assert names and names <= set(shipped_models()["aerial"].class_names.values())

@@ -289,7 +289,9 @@ def convert_file_tiled(
             )
         mapping = assign_themes(rgb, win_result.labels, model.classes, named)
     else:
-        mapping = assign_themes(rgb, win_result.labels, model.classes)
+        # Themes cut from the photo, named by a shipped model's classes where it has them.
+        mapping = assign_themes(rgb, win_result.labels, model.classes,
+                                names=getattr(model, "class_names", None))
     choice = None
     if cell == "auto":
         # Cell size from the agreement curve of the centre window (an estimate).
