@@ -1,7 +1,7 @@
 """A packed index layer read by the shaders, never unpacked (issue 19; docs/gpu.md).
 
 The layer's random-access table (``PackedLayer.table``, the ``uint32`` words
-of :func:`core.packing.lookup.build_table`, docs/formats-ttpack.md section 3)
+of :func:`core.packing.lookup.build_table`, docs/formats.md, packed layers §P3)
 goes to the GPU as it is, one ``R32UI`` texture 4096 words wide, and
 ``tt_packed.glsl`` finds a texel there as the CPU kernels do (block grid
 word, local curve step, span, binary search). For a render, each tile's

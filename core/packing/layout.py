@@ -2,7 +2,7 @@
 
 Kept free of numba so that ``terratheme info`` can size a layer from its file
 header without loading any kernel. The table (also read by GPU shaders, so
-its layout is part of the format documentation, ``docs/formats-ttpack.md``)::
+its layout is part of the format documentation, ``docs/formats.md`` (packed index layers))::
 
     word               content
     0 .. 11            width W, height H, curve levels n, morton flag, grid block bits b,

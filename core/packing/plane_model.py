@@ -1,7 +1,7 @@
 """The plane payload's model: one numba kernel that codes and decodes a segment.
 
 The model is described in :mod:`core.packing.plane_format` (and
-``docs/formats-ttpack.md``); this module holds its kernel
+``docs/formats.md`` (packed index layers)); this module holds its kernel
 (:func:`code_segment`: block flags, texel flags, candidate hits, class trees,
 all mixed and range coded) and its adaptive state (:class:`PlaneModel`).
 """

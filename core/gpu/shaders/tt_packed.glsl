@@ -1,4 +1,4 @@
-// terratheme packed index layer, read in the shader (docs/formats-ttpack.md
+// terratheme packed index layer, read in the shader (docs/formats.md
 // section 3; docs/gpu.md "Packed layers"), GLSL 3.30 library.
 //
 // The layer stays packed on the GPU: its random-access table (the uint32
