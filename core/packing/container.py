@@ -1,4 +1,4 @@
-"""The packed-layer file: header, palette, run payload, checksum (``docs/formats.md`` (packed index layers)).
+"""The packed-layer file: header, palette, run payload, checksum (``docs/formats.md``).
 
 Layout (little-endian), the seed's Tables 1-2 plus a magic number, a version
 and a checksum::
