@@ -6,7 +6,7 @@ Writes ``benchmarks/results/convert.json`` and ``convert.png``.
 
 Part A (Dubai sample photo, ``sample_maps/dubai_marina.jpg``, with its mask
 from ``../shared/data/dubai`` when present): the agreement curve of
-:func:`core.convert.labels_to_grid.choose_cell_size` for the unsupervised labels and
+:func:`core.convert.cell_choice.choose_cell_size` for the unsupervised labels and
 for the ground-truth mask, the grid's bytes (1 per vertex; packed along a
 space-filling curve) against the peer "the full-resolution label map packed
 the same way", and the end-to-end ``convert_photo`` time.
@@ -57,7 +57,8 @@ def _status_kib(key: str) -> int:
 
 def part_a(quick: bool) -> dict:
     from core.classify import classify_unsupervised
-    from core.convert.labels_to_grid import choose_cell_size, vote_grid
+    from core.convert.cell_choice import choose_cell_size
+    from core.convert.labels_to_grid import vote_grid
     from core.convert.photo import ConvertOptions, convert_photo
     from core.io.images import read_image
     from core.packing import pack

@@ -52,11 +52,12 @@ import numpy as np
 
 matplotlib.use("Agg")
 import imagecodecs
-import matplotlib.pyplot as plt
 import tifffile
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from packing_chart import chart  # noqa: E402
+
 from core.curves.square import curve_order, hilbert_transposed  # noqa: E402
 from core.io.images import read_image  # noqa: E402
 from core.packing import PackedLayer, pack  # noqa: E402
@@ -327,49 +328,6 @@ def measure_lookups(rec: dict, img: np.ndarray) -> dict:
     return rec
 
 
-CHART_FORMATS = ["terratheme_compact", "terratheme_streams", "jpegxl_e10", "jpegxl_e9",
-                 "avif_lossless", "webp_lossless", "geotiff_zstd19", "png9"]
-
-
-def chart(maps: list[dict]) -> None:
-    """Four panels: bytes, decode time, batched lookup, pack time."""
-    fig, axes = plt.subplots(1, 4, figsize=(22, 5.5))
-    names = [m["name"] for m in maps]
-    width = 0.8 / len(CHART_FORMATS)
-    for ax, key, label, log in ((axes[0], "bytes", "file kB (log)", True),
-                                (axes[1], "decode_s", "decode whole map, s (log)", True)):
-        for i, f in enumerate(CHART_FORMATS):
-            vals = [m.get(f, {}).get(key, np.nan) for m in maps]
-            vals = [v / 1e3 if key == "bytes" else v for v in vals]
-            ax.bar(np.arange(len(maps)) + i * width, vals, width, label=f)
-        ax.set_xticks(np.arange(len(maps)) + 0.4, names, fontsize=8)
-        ax.set_yscale("log" if log else "linear")
-        ax.set_ylabel(label)
-        ax.legend(fontsize=7)
-    axes[0].set_title("File size (lower is better; no bar: did not finish)")
-    axes[1].set_title("Decode time (ours: to the random-access layer)")
-    ax = axes[2]
-    keys = ["numpy_dense_ns", "compiled_dense_1t_ns", "compiled_dense_2t_ns", "packed_1t_ns",
-            "packed_2t_ns", "tiled_2t_ns", "gpu_shader_ns"]
-    for i, k in enumerate(keys):
-        ax.bar(np.arange(len(maps)) + i * 0.8 / len(keys), [m.get(k, np.nan) for m in maps],
-               0.8 / len(keys), label=k[:-3])
-    ax.set_xticks(np.arange(len(maps)) + 0.4, names, fontsize=8)
-    ax.set_ylabel("ns per texel (10^6 random texels)")
-    ax.set_title("Batched random access (gpu_shader: llvmpipe, with upload and read-back)")
-    ax.legend(fontsize=7)
-    ax = axes[3]
-    ax.bar(names, [m["pack_s"] for m in maps], color="tab:green", label="pack")
-    ax.axhline(1.5, color="red", ls="--", label="goal 1.5 s")
-    ax.set_ylabel("seconds")
-    ax.set_title("Pack time (scan, runs, random-access table)")
-    ax.legend(fontsize=8)
-    for lab in ax.get_xticklabels():
-        lab.set_fontsize(8)
-    fig.tight_layout()
-    fig.savefig(OUT / "packing.png", dpi=110)
-
-
 def main() -> None:
     """Run everything and write the results."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -389,7 +347,7 @@ def main() -> None:
             measure_lookups(rec, np.ascontiguousarray(read_image(path)[:, :, 0]))
         result["load_average_at_end"] = os.getloadavg()
         (OUT / "packing.json").write_text(json.dumps(result, indent=1))
-        return chart(result["maps"])
+        return chart(result["maps"], OUT / "packing.png")
     OUT.mkdir(parents=True, exist_ok=True)
     work = OUT / ".work"
     work.mkdir(exist_ok=True)
@@ -409,7 +367,7 @@ def main() -> None:
     for f in work.iterdir():
         f.unlink()
     work.rmdir()
-    chart(maps)
+    chart(maps, OUT / "packing.png")
 
 
 if __name__ == "__main__":

@@ -7,14 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.convert.labels_to_grid import (
-    agreement,
-    apply_lut,
-    choose_cell_size,
-    grid_shape_for,
-    labels_to_grid,
-    vote_grid,
-)
+from core.convert.cell_choice import agreement, choose_cell_size
+from core.convert.labels_to_grid import apply_lut, grid_shape_for, labels_to_grid, vote_grid
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.convert.labels_to_grid import CONVERT_CELL_CANDIDATES, DEFAULT_CELL_CANDIDATES, vote_grid
+from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, DEFAULT_CELL_CANDIDATES
+from core.convert.labels_to_grid import vote_grid
 from core.convert.photo import ConvertOptions, convert_photo
 from core.convert.tile_vote import vertex_tiles
 from core.convert.tiled import convert_file_tiled, grid_from_file

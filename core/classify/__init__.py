@@ -21,7 +21,8 @@ photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
 ``unsupervised_model``, ``supervised``, ``forest`` and ``extra_trees`` (the tree
 ensembles), ``samples`` (training samples from masks and
 scribbles), ``sample_cache``, ``prior`` (class-prior correction and EM shares),
-``adapt`` (test-time adaptation), ``model_file``, ``shipped`` (models by name).
+``adapt`` (test-time adaptation), ``model_file`` (the file), ``model_options``
+(its options as checked JSON), ``shipped`` (models by name).
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise

@@ -12,7 +12,7 @@ UnsupportedVersionError, a damaged file CorruptFileError.
 
 A model file may come from anyone, so reading bounds its work
 (:mod:`core.io.archive`: sizes checked before reading, a capped inflate) and
-checks every number: each option against a type and range (``_OPTION_RULES``:
+checks every number: each option against a type and range (:mod:`core.classify.model_options`:
 feature scale 1..64, sigmas up to 64, at most ``MAX_TREES`` trees of depth
 ``MAX_DEPTH``, ...), class values 0..255, class weights finite and positive,
 and the forest's arrays (:meth:`ExtraTreesForest.from_arrays`) against the
@@ -27,7 +27,6 @@ import json
 import math
 import os
 import zipfile
-from dataclasses import asdict
 from pathlib import Path
 from typing import NamedTuple
 
@@ -37,15 +36,12 @@ import numpy as np
 from core.classify.extra_trees import (
     ARRAY_NAMES,
     MAX_CLASSES,
-    MAX_DEPTH,
     MAX_FEATURES,
     MAX_NODES,
     MAX_TREES,
     ExtraTreesForest,
 )
-from core.classify.features import FeatureOptions, FeatureSet, Normalise
-from core.classify.forest import ForestKind
-from core.classify.regularise import Regularisation, RegulariseOptions
+from core.classify.model_options import number_rule, options_from_json, options_to_json
 from core.classify.supervised_options import SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.io.archive import open_archive, read_json_member, read_member, read_npy_member
@@ -71,108 +67,6 @@ class ModelParts(NamedTuple):
     class_weights: tuple[float, ...] | None
 
 
-def _options_to_json(options: SupervisedOptions) -> dict:
-    d = asdict(options)
-    d["features"]["feature_set"] = options.features.feature_set.value
-    d["features"]["normalise"] = options.features.normalise.value
-    d["regularisation"]["method"] = options.regularisation.method.value
-    d["forest"] = options.forest.value
-    return d
-
-
-def _number(lo: float, hi: float, *, whole: bool = False, optional: bool = False):
-    """A rule: a finite number (a whole one if ``whole``) in ``lo..hi`` (None if ``optional``)."""
-    def check(value, name):
-        if value is None and optional:
-            return None
-        kinds = int if whole else int | float
-        if (not isinstance(value, kinds) or isinstance(value, bool)
-                or not math.isfinite(value) or not lo <= value <= hi):
-            raise ValueError(f"{name} must be a {'whole ' if whole else ''}number in "
-                             f"{lo:g}..{hi:g}, not {repr(value)[:30]}")
-        return value
-    return check
-
-
-def _numbers(lo: float, hi: float, *, whole: bool = False, most: int = 16):
-    """A rule: a list of at most ``most`` numbers, each as :func:`_number`."""
-    one = _number(lo, hi, whole=whole)
-
-    def check(value, name):
-        if not isinstance(value, list) or len(value) > most:
-            raise ValueError(f"{name} must be a list of at most {most} numbers")
-        return tuple(one(v, name) for v in value)
-    return check
-
-
-def _flag(value, name):
-    if not isinstance(value, bool):
-        raise ValueError(f"{name} must be true or false, not {repr(value)[:30]}")
-    return value
-
-
-def _optional_flag(value, name):
-    return None if value is None else _flag(value, name)
-
-
-def _choice(enum_type):
-    def check(value, name):
-        try:
-            return enum_type(value)
-        except (ValueError, TypeError):
-            raise ValueError(f"{name} must be one of "
-                             f"{', '.join(e.value for e in enum_type)}") from None
-    return check
-
-
-#: every option a model file may hold, with its type and range (missing ones take
-#: their defaults; bounds keep a hostile file from costing unbounded work at predict time)
-_FEATURE_RULES = {
-    "feature_set": _choice(FeatureSet), "normalise": _choice(Normalise),
-    "scale": _number(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
-    "skimage_sigma_max": _number(1, 64), "hessian": _flag, "position": _flag,
-    "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag,
-}
-_REGULARISE_RULES = {
-    "method": _choice(Regularisation), "sigma": _number(1e-3, 64),
-    "region_size": _number(2, 256, whole=True), "ruler": _number(1e-3, 1e4),
-    "edge_sigma_spatial": _number(1e-3, 256), "edge_sigma_colour": _number(1e-3, 1e4),
-}
-_OPTION_RULES = {
-    "ignore_classes": _numbers(0, 255, whole=True, most=256), "forest": _choice(ForestKind),
-    "n_trees": _number(1, MAX_TREES, whole=True), "max_depth": _number(1, MAX_DEPTH, whole=True),
-    "min_samples": _number(1, 1 << 30, whole=True),
-    "active_vars": _number(0, MAX_FEATURES, whole=True),
-    "max_samples_per_class": _number(1, 1 << 30, whole=True), "balance": _flag,
-    "seed": _number(0, 2**32 - 1, whole=True), "tile": _number(16, 1 << 16, whole=True),
-    "prior_power": _number(0, 1, optional=True),
-    "grow_colour": _number(0, 1e4, optional=True),
-    "samples_per_pair": _number(1, 1 << 30, whole=True),
-    "adapt": _optional_flag, "target_prior_power": _number(0, 1),
-}
-
-
-def _apply_rules(d: object, rules: dict, where: str) -> dict:
-    if not isinstance(d, dict):
-        raise ValueError(f"{where} must be an object")
-    unknown = sorted(set(d) - set(rules) - {"features", "regularisation"})
-    if unknown:
-        raise ValueError(f"unknown option {where}.{unknown[0][:40]}")
-    return {k: rule(d[k], f"{where}.{k}") for k, rule in rules.items() if k in d}
-
-
-def _options_from_json(d: object) -> SupervisedOptions:
-    rest = _apply_rules(d, _OPTION_RULES, "options")
-    features = FeatureOptions(**_apply_rules(d.get("features"), _FEATURE_RULES,
-                                             "options.features"))
-    regularisation = RegulariseOptions(**_apply_rules(d.get("regularisation"),
-                                                      _REGULARISE_RULES,
-                                                      "options.regularisation"))
-    # Version 1 files predate Extra-Trees: their forests are OpenCV's.
-    rest.setdefault("forest", ForestKind.RANDOM_FOREST)
-    return SupervisedOptions(features=features, regularisation=regularisation, **rest)
-
-
 def write_model(path: str | os.PathLike, model: ModelParts) -> None:
     """Write a model to ``path`` (atomic).
 
@@ -181,9 +75,9 @@ def write_model(path: str | os.PathLike, model: ModelParts) -> None:
     TerrathemeError
         Options or class weights :func:`read_model` would refuse (nothing is written).
     """
-    options = _options_to_json(model.options)
+    options = options_to_json(model.options)
     try:
-        _options_from_json(json.loads(json.dumps(options)))
+        options_from_json(json.loads(json.dumps(options)))
         _class_weights(list(model.class_weights) if model.class_weights is not None else None,
                        list(model.classes))
     except ValueError as exc:
@@ -212,13 +106,13 @@ def _class_weights(weights: object, classes: list) -> list[float] | None:
     if not isinstance(weights, list) or len(weights) != len(classes):
         count = len(weights) if isinstance(weights, list) else "no list of"
         raise ValueError(f"{count} class weights for {len(classes)} classes")
-    return [float(_number(1e-12, 1e12)(v, "class weight")) for v in weights]
+    return [float(number_rule(1e-12, 1e12)(v, "class weight")) for v in weights]
 
 
 def _classes(value: object) -> list[int]:
     if not isinstance(value, list) or not 1 <= len(value) <= MAX_CLASSES:
         raise ValueError(f"classes must be a list of 1..{MAX_CLASSES} class values")
-    classes = [_number(0, 255, whole=True)(c, "class") for c in value]
+    classes = [number_rule(0, 255, whole=True)(c, "class") for c in value]
     if len(set(classes)) != len(classes):
         raise ValueError(f"classes {classes} repeat a value")
     return classes
@@ -380,7 +274,7 @@ def read_model(path: str | os.PathLike) -> ModelParts:
             f"terratheme reads ({VERSION})"
         )
     try:
-        options = _options_from_json(meta.get("options"))
+        options = options_from_json(meta.get("options"))
         classes = _classes(meta.get("classes"))
         weights = _class_weights(meta.get("class_weights"), classes)
     except (ValueError, TerrathemeError) as exc:

@@ -1,4 +1,4 @@
-"""Per-pixel labels to a vertex index grid, and the cell size chosen from an agreement target.
+"""Per-pixel labels to a vertex index grid (the majority vote of each vertex's window).
 
 Conventions follow :mod:`core.render.rules`: global texel column ``X`` sits at
 grid position ``X / N``, so vertex ``i`` sits on texel column ``i*N`` and a
@@ -14,38 +14,21 @@ window does (a window entirely outside the photo takes the nearest border
 pixels). Ties go to the label of the pixel under the vertex (the texel the
 render reproduces exactly), then to the lowest label: deterministic.
 
-The agreement of a grid is the fraction of photo pixels whose label equals
-the grid's *label view* (the theme with the largest blend weight at that
-texel, :func:`core.render.renderer.render_labels`). :func:`choose_cell_size`
-returns the largest cell whose agreement meets the target (design.md §2-3:
-"cell size chosen from an error target").
+The cell size itself is chosen in :mod:`core.convert.cell_choice`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from core.classify.samples import check_class_image
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid, validate_cell
-from core.render.renderer import render_labels
 
-#: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
-DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
-#: cell sizes ``convert --cell auto`` tries: larger automatic cells broke the structure and
-#: the colour layout of some photos (benchmarks/bench_fidelity.py, trial cells<=16)
-CONVERT_CELL_CANDIDATES = tuple(c for c in DEFAULT_CELL_CANDIDATES if c <= 16)
 #: pixels voted per band of vertex rows (bounded memory)
 _MAX_PIXELS = 1 << 23
-#: rows per sample strip when the agreement is measured on a sample
-_STRIP = 8
-#: pixels on which :func:`choose_cell_size` measures each candidate by default
-DEFAULT_SAMPLE_PIXELS = 1 << 20
-#: classes smaller than this share of the photo do not constrain the cell size
-CLASS_MIN_SHARE = 0.005
 
 ProgressFn = Callable[[int, int], None]
 
@@ -231,175 +214,3 @@ def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.
     if int(table.min()) < 0 or int(table.max()) > 255:
         raise TerrathemeError("class-to-theme table holds values outside 0..255")
     return table.astype(np.uint8)[labels]
-
-
-def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
-                    max_pixels: int | None = None) -> np.ndarray:
-    """Counts of (label, label view) pairs over the photo: ``(K, K)`` int64, rows = labels.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Per-pixel theme indices.
-    grid : IndexGrid
-        Must cover the photo: ``grid.texture_size >= (W, H)``.
-    max_pixels : int, optional
-        Above this many pixels, count on evenly spaced full-width strips of
-        ``_STRIP`` rows holding about ``max_pixels`` pixels (the renderer's
-        regions are exact crops of the full render, so this is an unbiased
-        row sample). Default: every pixel.
-
-    Returns
-    -------
-    (K, K) int64 ndarray, ``K = max(label, index) + 1``
-    """
-    labels = check_class_image(labels, "label image")
-    h, w = labels.shape
-    tw, th = grid.texture_size
-    if tw < w or th < h:
-        raise TerrathemeError(f"grid renders {tw} x {th} texels, smaller than the {w} x {h} labels")
-    if max_pixels is None or labels.size <= max_pixels:
-        strips = [(0, h)]
-    else:
-        # Evenly spaced strips (start rows on a fixed lattice, independent of the cell size).
-        n_strips = max(1, int(max_pixels) // (w * _STRIP))
-        starts = np.linspace(0, h - _STRIP, n_strips).astype(int)
-        strips = [(int(y), _STRIP) for y in np.unique(starts)]
-    k = int(max(labels.max(initial=0), grid.indices.max(initial=0))) + 1
-    counts = np.zeros(k * k, np.int64)
-    for y, sh in strips:
-        # A region render touches only the vertex rows under it (an exact crop of the full view).
-        view = render_labels(grid, region=(0, y, w, sh))
-        pairs = labels[y : y + sh].astype(np.int64) * k + view
-        counts += np.bincount(pairs.ravel(), minlength=k * k)
-    return counts.reshape(k, k)
-
-
-def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = None) -> float:
-    """Fraction of pixels whose label equals the grid's label view (cropped to the photo).
-
-    See :func:`label_confusion` for the arguments.
-    """
-    cm = label_confusion(labels, grid, max_pixels=max_pixels)
-    return float(np.trace(cm) / max(cm.sum(), 1))
-
-
-def class_iou(confusion: np.ndarray, min_share: float = 0.0) -> dict[int, float]:
-    """IoU of each label with its label view, for labels covering at least ``min_share``."""
-    tp = np.diag(confusion).astype(np.float64)
-    rows, cols = confusion.sum(axis=1), confusion.sum(axis=0)
-    total = max(int(confusion.sum()), 1)
-    return {int(k): float(tp[k] / max(rows[k] + cols[k] - tp[k], 1))
-            for k in range(confusion.shape[0]) if rows[k] > 0 and rows[k] / total >= min_share}
-
-
-@dataclass(frozen=True)
-class CellPoint:
-    """One point of the agreement curve."""
-
-    cell: int
-    agreement: float
-    #: vertex count of the grid: 1 byte per vertex, uncompressed
-    grid_bytes: int
-    #: the lowest IoU of a class (covering at least CLASS_MIN_SHARE) with its label view
-    worst_class_iou: float = 1.0
-
-
-@dataclass(frozen=True)
-class CellChoice:
-    """The chosen cell size and the curve it was chosen from."""
-
-    cell: tuple[int, int]
-    agreement: float
-    target: float
-    curve: tuple[CellPoint, ...]
-    #: False when no candidate met the target (then the best-agreeing cell was taken)
-    target_met: bool
-    #: the per-class IoU target the cell also had to meet (0: none)
-    class_target: float = 0.0
-
-    def as_dict(self) -> dict:
-        """JSON-ready summary (for the project metadata and the benchmark)."""
-        return {
-            "cell": list(self.cell),
-            "agreement": self.agreement,
-            "target": self.target,
-            "target_met": self.target_met,
-            "class_target": self.class_target,
-            "curve": [
-                {"cell": p.cell, "agreement": p.agreement, "grid_bytes": p.grid_bytes,
-                 "worst_class_iou": p.worst_class_iou}
-                for p in self.curve
-            ],
-        }
-
-
-def choose_cell_size(
-    labels: np.ndarray,
-    target_agreement: float = 0.9,
-    *,
-    candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
-    sample_pixels: int | None = DEFAULT_SAMPLE_PIXELS,
-    progress: ProgressFn | None = None,
-    class_target: float = 0.0,
-) -> CellChoice:
-    """The largest square cell whose label view keeps ``target_agreement`` of the labels.
-
-    Every candidate cell that fits the photo (``cell <= max(W, H)``) is tried:
-    vote the grid (:func:`vote_grid`), render its label view and count the
-    pixels that keep their label. The answer is the largest candidate whose
-    agreement is at least the target and whose every class covering at least
-    ``CLASS_MIN_SHARE`` of the photo keeps an IoU with its label view of at
-    least ``class_target`` (so a thin class such as roads does not vanish
-    while the whole photo's agreement stays high). A higher target never
-    gives a larger cell. When none meets them (possible only if cell 1 is
-    not a candidate), the candidate with the best agreement is returned with
-    ``target_met=False``.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Per-pixel theme indices.
-    target_agreement : float in (0, 1]
-    candidates : sequence of int
-        Square cell sizes to try.
-    sample_pixels : int or None
-        Measure agreement on about this many pixels (row strips, see
-        :func:`agreement`); None: on every pixel.
-    progress : callable(done, total), optional
-
-    Returns
-    -------
-    CellChoice
-        With the full curve (cell, agreement, grid bytes) for a chart.
-    """
-    labels = check_class_image(labels, "label image")
-    if not 0.0 < float(target_agreement) <= 1.0:
-        raise TerrathemeError(f"target agreement must be in (0, 1], got {target_agreement}")
-    h, w = labels.shape
-    sizes = sorted({int(c) for c in candidates if 1 <= int(c) <= max(w, h)})
-    if not sizes:
-        raise TerrathemeError(
-            f"no candidate cell size fits the {w} x {h} labels (candidates {list(candidates)})"
-        )
-    if not 0.0 <= float(class_target) <= 1.0:
-        raise TerrathemeError(f"class target must be in [0, 1], got {class_target}")
-    curve = []
-    for done, c in enumerate(sizes, start=1):
-        grid = IndexGrid(vote_grid(labels, (c, c)), (c, c))
-        cm = label_confusion(labels, grid, max_pixels=sample_pixels)
-        ious = class_iou(cm, CLASS_MIN_SHARE)
-        curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), int(grid.indices.size),
-                               min(ious.values(), default=1.0)))
-        if progress is not None:
-            progress(done, len(sizes))
-    meeting = [p for p in curve if p.agreement >= target_agreement
-               and p.worst_class_iou >= class_target]
-    if meeting:
-        best = max(meeting, key=lambda p: p.cell)
-    else:
-        best = max(curve, key=lambda p: (p.agreement, -p.cell))
-    return CellChoice(
-        (best.cell, best.cell), best.agreement, float(target_agreement), tuple(curve),
-        target_met=bool(meeting), class_target=float(class_target),
-    )

@@ -29,8 +29,9 @@ import numpy as np
 
 from core.classify.photo import prepare_photo
 from core.classify.samples import check_class_image
+from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
 from core.convert.colour_fit import ColourMapOptions, FittedColourMap
-from core.convert.labels_to_grid import CONVERT_CELL_CANDIDATES, CellChoice, apply_lut
+from core.convert.labels_to_grid import apply_lut
 from core.convert.step import assign_themes, classify_photo, grid_and_colour
 from core.errors import TerrathemeError
 from core.io.atomic import atomic_file_set, write_bytes_atomic

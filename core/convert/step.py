@@ -23,14 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.classify import Classification, SupervisedOptions, classify_unsupervised, train_classifier
-from core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
-from core.convert.labels_to_grid import (
+from core.convert.cell_choice import (
     DEFAULT_CELL_CANDIDATES,
     CellChoice,
     agreement,
     choose_cell_size,
-    vote_grid,
 )
+from core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
+from core.convert.labels_to_grid import vote_grid
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
 from core.render.renderer import RenderOptions, render_cells
@@ -178,7 +178,7 @@ def grid_and_colour(
     cell : "auto" or int
     target_agreement, class_target : float
         Targets of the automatic cell choice
-        (:func:`core.convert.labels_to_grid.choose_cell_size`).
+        (:func:`core.convert.cell_choice.choose_cell_size`).
     candidates : sequence of int
     colour_map : ColourMapOptions or None
         None: the paper's pure rule, no colour map.

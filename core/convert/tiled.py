@@ -29,13 +29,9 @@ import numpy as np
 
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
+from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, choose_cell_size
 from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
-from core.convert.labels_to_grid import (
-    CONVERT_CELL_CANDIDATES,
-    apply_lut,
-    choose_cell_size,
-    grid_shape_for,
-)
+from core.convert.labels_to_grid import apply_lut, grid_shape_for
 from core.convert.step import assign_themes
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
@@ -212,7 +208,7 @@ def convert_file_tiled(
         the same themes in every tile.
     cell : int or "auto"
         Square cell size; "auto" chooses it on the centre window's labels
-        (:func:`core.convert.labels_to_grid.choose_cell_size`, ``target_agreement``):
+        (:func:`core.convert.cell_choice.choose_cell_size`, ``target_agreement``):
         an estimate from ``THEME_WINDOW``^2 pixels, recorded as such in the
         metadata (``cell_choice["measured_on"]``).
     names : list or {class: name}, optional
@@ -228,7 +224,7 @@ def convert_file_tiled(
         Per-class IoU target of the cell choice (as ``convert_photo``'s).
     candidates : sequence of int
         Cell sizes ``cell="auto"`` tries: by default ``convert``'s
-        (:data:`core.convert.labels_to_grid.CONVERT_CELL_CANDIDATES`, as
+        (:data:`core.convert.cell_choice.CONVERT_CELL_CANDIDATES`, as
         :class:`core.convert.photo.ConvertOptions`), so a tiled conversion
         picks its cell from the same sizes as the whole-image one.
     colour_map : ColourMapOptions or None
