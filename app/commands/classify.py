@@ -49,6 +49,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="with --scribbles: where the strokes lie counts as evidence too "
                              "(helps photos of large whole regions; the model then fits "
                              "PHOTO only)")
+    parser.add_argument("--legend", metavar="FILE",
+                        help="names of the mask classes (JSON {\"1\": \"Building\", ...}, a "
+                             "list of {\"id\", \"name\"} or CSV lines \"1,Building\"): kept "
+                             "in --model-out, so convert --model names its themes by them")
     parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
     parser.add_argument("--model", metavar="M",
                         help="classify with a saved classifier or a shipped one by name (aerial)")
@@ -104,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from core.errors import TerrathemeError
     from core.io.images import Bands, read_image, write_image
+    from core.io.legend import read_legend
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -117,10 +122,13 @@ def run(args: argparse.Namespace) -> int:
                               "another photo says nothing about this one")
     if args.model_out and not supervised:
         raise TerrathemeError("--model-out needs training data (--scribbles or --train)")
+    if args.legend and not (supervised or args.model):
+        raise TerrathemeError("--legend names the classes of --scribbles, --train or --model")
     # Every output path is checked before any work (and before the labels are written).
     check_outputs([args.output, args.confidence, args.model_out],
-                  inputs=[args.photo, args.scribbles, args.model,
+                  inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
+    legend = read_legend(args.legend) if args.legend else {}
 
     photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.
@@ -136,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
         model = train_classifier(pairs, options.with_positions(args.position))
     else:
         model = None
+    if model is not None and legend:
+        model.name_classes(legend)
 
     bars: list = []
 
@@ -167,6 +177,8 @@ def run(args: argparse.Namespace) -> int:
     if args.model_out:
         model.save(args.model_out)
     counts = np.bincount(result.labels.ravel(), minlength=256)
-    shown = ", ".join(f"{k}: {counts[k] / result.labels.size:.1%}" for k in result.classes)
+    names = (model.class_names if model is not None else None) or {}
+    shown = ", ".join(f"{k}{' ' + names[k] if k in names else ''}: "
+                      f"{counts[k] / result.labels.size:.1%}" for k in result.classes)
     print(f"{args.output}: {len(result.classes)} classes ({shown})")
     return 0

@@ -106,6 +106,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="classify with a saved classifier (terratheme classify --model-out) "
                              "or a shipped one by name (aerial: building, land, road, vegetation, "
                              "water; the themes take its class names)")
+    parser.add_argument("--legend", metavar="FILE",
+                        help="names of the classes of --scribbles or --model (JSON "
+                             '{"1": "Building", ...}, a list of {"id", "name"} or CSV lines '
+                             '"1,Building"): the themes take them',)
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
                              "(N pixels a side; with --model or unsupervised, themes fitted on "
@@ -204,16 +208,15 @@ def run(args: argparse.Namespace) -> int:
                               "pick one")
     # Output paths checked (and their folders made) before any work.
     check_outputs([project, preview, packed, args.curve],
-                  inputs=[args.photo, args.scribbles, args.model])
+                  inputs=[args.photo, args.scribbles, args.model, args.legend])
+    legend = _read_legend(args, themes)
     if args.tile is not None:
-        return _run_tiled(args, project, preview, packed, themes)
+        return _run_tiled(args, project, preview, packed, themes, legend)
     model = None
     if args.model:
-        from core.classify import load_model
-
         if args.scribbles:
             raise TerrathemeError("--model and --scribbles both give the classes: pick one")
-        model = load_model(args.model)
+        model = _load_model(args.model, legend)
     photo, meta = read_photo(args.photo)
     scribbles = _read_mask(args.scribbles) if args.scribbles else None
     if (scribbles is not None or model is not None) and isinstance(themes, int):
@@ -229,8 +232,8 @@ def run(args: argparse.Namespace) -> int:
             bar.n = min(100, done * 100 // max(total, 1))
             bar.refresh()
 
-        result = convert_photo(photo, options, scribbles=scribbles, model=model, metadata=meta,
-                               progress=progress)
+        result = convert_photo(photo, options, scribbles=scribbles, model=model,
+                               class_names=legend, metadata=meta, progress=progress)
         bar.set_description("write")
         written = write_outputs(result.project, project, preview_path=preview,
                                 packed_path=packed)
@@ -275,9 +278,33 @@ def _print_written(written) -> None:
             print(f"  {key}: {path}")
 
 
-def _run_tiled(args, project, preview, packed, themes) -> int:
-    """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
+def _read_legend(args: argparse.Namespace, themes) -> dict[int, str] | None:
+    """The class names of ``--legend``, checked against the other options before any work."""
+    if not args.legend:
+        return None
+    from core.io.legend import read_legend
+
+    if not (args.scribbles or args.model):
+        raise TerrathemeError("--legend names the classes of --scribbles or --model; "
+                              "unsupervised themes are named by their looks")
+    if themes != "auto":
+        raise TerrathemeError("--legend names the themes cut from the photo: it does not go "
+                              "with --themes names")
+    return read_legend(args.legend)
+
+
+def _load_model(name: str, legend: dict[int, str] | None):
+    """A saved or shipped classifier; a legend renames its classes."""
     from core.classify import load_model
+
+    model = load_model(name)
+    if legend:
+        model.name_classes(legend)
+    return model
+
+
+def _run_tiled(args, project, preview, packed, themes, legend) -> int:
+    """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
     from core.convert.photo import write_outputs
     from core.convert.tiled import convert_file_tiled
     from core.errors import TerrathemeError
@@ -292,7 +319,7 @@ def _run_tiled(args, project, preview, packed, themes) -> int:
         raise TerrathemeError("--themes K is for unsupervised classification; with --model "
                               "the classes are given (use auto or 1=name,2=name)")
     # Without --model: unsupervised themes fitted on windows spread over the photo.
-    model = load_model(args.model) if args.model else None
+    model = _load_model(args.model, legend) if args.model else None
     names = None if isinstance(themes, str | int) else themes
     k = themes if isinstance(themes, int) else "auto"
     colour, boundary = _style(args)

@@ -1,8 +1,10 @@
 """The trained-classifier file: a zip holding ``meta.json`` and the forest.
 
 ``meta.json`` : ``{"format": "terratheme-classifier", "version": 2,
-"classes": [...], "options": {...}, "class_weights": [...]}`` (options as plain
-JSON, enums by value; class weights only when the model has a prior correction).
+"classes": [...], "options": {...}, "class_weights": [...], "class_names": {...}}``
+(options as plain JSON, enums by value; class weights only when the model has
+a prior correction; class names, ``{"value": name}``, only when it was
+trained with a legend, :mod:`core.io.legend`).
 The forest (absent when the model has a single class): ``forest.npz``, the
 Extra-Trees node arrays (:class:`core.classify.extra_trees.ExtraTreesForest`,
 read with ``allow_pickle=False``: numbers only), or ``forest.yml``, an OpenCV
@@ -46,6 +48,7 @@ from core.classify.supervised_options import SupervisedOptions
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.io.archive import open_archive, read_json_member, read_member, read_npy_member
 from core.io.atomic import write_bytes_atomic
+from core.io.legend import parse_legend
 
 FORMAT = "terratheme-classifier"
 VERSION = 2
@@ -59,12 +62,14 @@ _FLOAT_DTYPES = [np.float32, np.float64]
 
 
 class ModelParts(NamedTuple):
-    """What a model file holds: the forest (None for one class), classes, options, weights."""
+    """What a model file holds: the forest (None for one class), classes, options, weights,
+    and the classes' names (None when it has none)."""
 
     forest: object
     classes: tuple[int, ...]
     options: SupervisedOptions
     class_weights: tuple[float, ...] | None
+    class_names: dict[int, str] | None = None
 
 
 def write_model(path: str | os.PathLike, model: ModelParts) -> None:
@@ -80,12 +85,15 @@ def write_model(path: str | os.PathLike, model: ModelParts) -> None:
         options_from_json(json.loads(json.dumps(options)))
         _class_weights(list(model.class_weights) if model.class_weights is not None else None,
                        list(model.classes))
+        names = _class_names(_names_json(model.class_names), list(model.classes), "")
     except ValueError as exc:
         raise TerrathemeError(f"cannot save the classifier: {exc}") from None
     meta = {"format": FORMAT, "version": VERSION, "classes": list(model.classes),
             "options": options}
     if model.class_weights is not None:
         meta["class_weights"] = list(model.class_weights)
+    if names is not None:
+        meta["class_names"] = _names_json(names)
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr(META, json.dumps(meta, indent=1, allow_nan=False))
@@ -107,6 +115,26 @@ def _class_weights(weights: object, classes: list) -> list[float] | None:
         count = len(weights) if isinstance(weights, list) else "no list of"
         raise ValueError(f"{count} class weights for {len(classes)} classes")
     return [float(number_rule(1e-12, 1e12)(v, "class weight")) for v in weights]
+
+
+def _names_json(names: dict[int, str] | None) -> dict[str, str] | None:
+    return None if names is None else {str(k): v for k, v in names.items()}
+
+
+def _class_names(value: object, classes: list, label: str) -> dict[int, str] | None:
+    """The stored names, checked as a legend is (:func:`core.io.legend.parse_legend`)."""
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        raise ValueError("class names must be an object of class value -> name")
+    try:
+        names = parse_legend(json.dumps(value).encode(), label or "class names")
+    except CorruptFileError as exc:
+        raise ValueError(str(exc)) from None
+    if not set(names) <= set(classes):
+        raise ValueError(f"class names for {sorted(set(names) - set(classes))}, which the "
+                         f"model does not have")
+    return names
 
 
 def _classes(value: object) -> list[int]:
@@ -277,6 +305,7 @@ def read_model(path: str | os.PathLike) -> ModelParts:
         options = options_from_json(meta.get("options"))
         classes = _classes(meta.get("classes"))
         weights = _class_weights(meta.get("class_weights"), classes)
+        names = _class_names(meta.get("class_names"), classes, "class names")
     except (ValueError, TerrathemeError) as exc:
         raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
     n_features = options.features.n_features
@@ -294,4 +323,4 @@ def read_model(path: str | os.PathLike) -> ModelParts:
     if (forest is None) != (len(classes) == 1):
         raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
     return ModelParts(forest, tuple(classes), options,
-                      None if weights is None else tuple(weights))
+                      None if weights is None else tuple(weights), names)

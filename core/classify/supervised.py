@@ -282,13 +282,23 @@ class Classifier:
     def save(self, path: str | os.PathLike) -> None:
         """Write the model to a file (atomic); see :mod:`core.classify.model_file`."""
         write_model(path, ModelParts(self.forest, tuple(self.classes), self.options,
-                                     self.class_weights))
+                                     self.class_weights, self.class_names))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Classifier:
         """Read a model written by :meth:`save`."""
         parts = read_model(path)
-        return cls(parts.forest, parts.classes, parts.options, parts.class_weights)
+        return cls(parts.forest, parts.classes, parts.options, parts.class_weights,
+                   parts.class_names)
+
+    def name_classes(self, names: Mapping[int, str]) -> None:
+        """Name the classes after a legend (:mod:`core.io.legend`).
+
+        A name given here replaces the model's own; values the model does not
+        classify are skipped.
+        """
+        given = {int(c): str(n) for c, n in names.items() if int(c) in self.classes}
+        self.class_names = {**(self.class_names or {}), **given} or None
 
 
 def train_classifier(

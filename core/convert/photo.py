@@ -144,6 +144,7 @@ def convert_photo(
     *,
     scribbles: np.ndarray | None = None,
     model=None,
+    class_names: Mapping[int, str] | None = None,
     metadata: dict | None = None,
     progress: ProgressFn | None = None,
 ) -> ConvertResult:
@@ -160,6 +161,9 @@ def convert_photo(
         A trained classifier to use instead (``terratheme classify --model-out``,
         or a shipped one, :func:`core.classify.load_model`); with ``themes``
         "auto" the themes take its class names when it has them.
+    class_names : {class: name}, optional
+        With ``themes`` "auto": the themes' names, e.g. the scribble mask's
+        legend (:func:`core.io.legend.read_legend`); before the model's own.
     metadata : dict, optional
         Extra project metadata (source path, georeference, ...).
     progress : callable(done, total), optional
@@ -179,7 +183,9 @@ def convert_photo(
                                progress=_stage(progress, 0, 35))
     labels = result.labels
     # Themes: cut from the photo and named, or shipped themes by name (15%).
-    names = getattr(model, "class_names", None) if options.themes == "auto" else None
+    names = None
+    if options.themes == "auto":
+        names = {**(getattr(model, "class_names", None) or {}), **(class_names or {})} or None
     mapping = assign_themes(rgb, labels, result.classes, options.themes, patch=options.patch,
                             names=names)
     if progress is not None:

@@ -33,7 +33,13 @@ import cv2
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.themes.library import Theme, ThemeLibrary, flat_theme, shipped_theme_library
+from core.themes.library import (
+    Theme,
+    ThemeLibrary,
+    distinct_names,
+    flat_theme,
+    shipped_theme_library,
+)
 from core.themes.looks import read_looks
 from core.themes.matching import (
     class_appearances,
@@ -41,7 +47,16 @@ from core.themes.matching import (
     shipped_names,
     theme_appearances,
 )
-from core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
+from core.themes.patch_search import (
+    ClassTarget,
+    PatchOptions,
+    WindowStats,
+    best_windows,
+    class_means,
+    class_targets,
+    find_patch,
+    texture_stats,
+)
 from core.themes.quality import (
     LANDMARK_CONTRAST,
     LANDMARK_SIZE,
@@ -49,6 +64,7 @@ from core.themes.quality import (
     landmark_score,
     repeat_score,
 )
+from core.themes.quilt import QuiltOptions, quilt_tileable
 from core.themes.tileable import make_tileable
 
 NO_DATA_NAME = "no data"
@@ -153,13 +169,13 @@ LANDMARK_LIMIT = 0.04
 PATCH_TRIES = 3
 
 
-def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats,
+def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
                 options: PatchOptions) -> tuple[np.ndarray, str] | None:
     """The tileable patch of one class and where it came from, or None when none fits."""
     tried: list[tuple[int, int, int]] = []
     fallback = None
     for _ in range(PATCH_TRIES):
-        found = find_patch(windows, mask, options, exclude=tried)
+        found = find_patch(windows, mask, options, exclude=tried, target=target)
         if found is None:
             break
         x, y, s = found
@@ -174,12 +190,21 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats,
         if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
             return tile, source
         fallback = fallback or (tile, source + " (repeats)")
-    return fallback
-
-
-def _mean_colour(photo: np.ndarray, mask: np.ndarray) -> tuple[int, int, int]:
-    mean = photo[mask].reshape(-1, 3).mean(axis=0)
-    return tuple(int(v) for v in np.clip(np.rint(mean), 0, 255))
+    if fallback is None or not options.quilt:
+        return fallback
+    # No window tiles without repeating: quilt the theme from many small blocks instead,
+    # when that repeats less.
+    # The blocks: the class's windows whose texture statistics are closest to its own.
+    quilting = QuiltOptions(size=options.size)
+    corners = best_windows(windows, mask, quilting.block, quilting.candidates, options,
+                           spacing=quilting.block // 6, target=target)
+    quilt = quilt_tileable(rgb, corners, quilting)
+    if quilt is None:
+        return fallback
+    tile = make_tileable(quilt)
+    if repeat_score(tile) >= repeat_score(fallback[0]):
+        return fallback
+    return tile, f"quilted from {quilting.steps() ** 2} blocks of the class"
 
 
 def _lut_for(classes: Sequence[int], has_no_data: bool) -> np.ndarray:
@@ -217,8 +242,9 @@ def themes_from_photo(
         Class values to make themes for (default: those present, ascending).
         A class absent from the labels gets a mid-grey flat theme.
     names : {class: name}, optional
-        Theme names; default: the closest shipped theme's name
-        (:func:`core.themes.matching.shipped_names`).
+        Theme names (a legend's, :mod:`core.io.legend`); a class without one
+        is named after its closest shipped theme
+        (:func:`core.themes.matching.shipped_names`), made distinct from the given names.
     options : PatchOptions
 
     Returns
@@ -229,21 +255,28 @@ def themes_from_photo(
     wanted = _present_classes(labels, classes)
     stats = texture_stats(rgb, options)
     windows = WindowStats(stats)
-    if names is None:
+    names = {int(c): n for c, n in (names or {}).items()}
+    unnamed = [c for c in wanted if c not in names]
+    if unnamed:
         # Named after the closest shipped theme (water, sand, grass, ...), never "class 1".
         # A class takes the name of its nearest look: theme textures and aerial exemplars.
-        appearances = class_appearances(stats, labels, wanted)
+        appearances = class_appearances(stats, labels, unnamed)
         named = shipped_names(appearances, shipped_theme_library(), read_looks())
-        names = dict(zip(wanted, named, strict=True))
+        names.update(zip(unnamed, named, strict=True))
+    # Given names first, so a guessed name that repeats one takes the number.
+    order = sorted(wanted, key=lambda c: c in unnamed)
+    names = dict(zip(order, distinct_names(names[c] for c in order), strict=True))
+    # Every class's colour and texture statistics in one pass over the photo.
+    colours, counts = class_means(labels, rgb)
+    targets = class_targets(stats, labels, [c for c in wanted if counts[c]])
     themes = []
     for c in wanted:
-        name = names.get(c, f"class {c}")
-        mask = labels == c
-        if not mask.any():
+        name = names[c]
+        if not counts[c]:
             themes.append(flat_theme(name, (128, 128, 128)).with_(source="class absent from photo"))
             continue
-        colour = _mean_colour(rgb, mask)
-        found = _class_tile(rgb, mask, windows, options)
+        colour = tuple(int(v) for v in np.clip(np.rint(colours[c]), 0, 255))
+        found = _class_tile(rgb, labels == c, windows, targets[c], options)
         if found is None:
             theme = flat_theme(name, colour).with_(
                 source=f"flat mean colour (no {options.min_size}px patch inside the class)"
@@ -253,7 +286,9 @@ def themes_from_photo(
         themes.append(theme)
     has_no_data = bool((labels == 0).any())
     if has_no_data:
-        themes.append(flat_theme(NO_DATA_NAME, NO_DATA_COLOUR).with_(source="transparent pixels"))
+        # A class a legend calls "no data" keeps its name; the transparent pixels' is numbered.
+        no_data = distinct_names([*names.values(), NO_DATA_NAME])[-1]
+        themes.append(flat_theme(no_data, NO_DATA_COLOUR).with_(source="transparent pixels"))
     return ThemeMapping(ThemeLibrary(themes), _lut_for(wanted, has_no_data), tuple(wanted))
 
 

@@ -67,6 +67,30 @@ def _validate_colour(colour: object, name: str) -> tuple[int, int, int]:
     return r, g, b
 
 
+def distinct_names(names: Iterable[str]) -> list[str]:
+    """Theme names made distinct (case-insensitive): a repeat takes a number ("sand 2").
+
+    Parameters
+    ----------
+    names : iterable of str
+
+    Returns
+    -------
+    list of str
+        The first of each name as it is, each later repeat as ``"<name> <n>"``
+        with the smallest ``n >= 2`` not taken yet.
+    """
+    out: list[str] = []
+    taken: set[str] = set()
+    for name in names:
+        unique, n = name, 2
+        while unique.lower() in taken:
+            unique, n = f"{name} {n}", n + 1
+        taken.add(unique.lower())
+        out.append(unique)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Theme:
     """One theme: a name, a display colour and a tileable texture.

@@ -19,12 +19,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.themes.library import ThemeLibrary
-from core.themes.patch_search import TextureStats, texture_stats
+from core.themes.library import ThemeLibrary, distinct_names
+from core.themes.patch_search import TextureStats, class_means, texture_stats
 
 #: Lab units per unit of |log energy ratio|
 TEXTURE_WEIGHT = 6.0
@@ -56,22 +57,32 @@ def class_appearances(stats: TextureStats, labels: np.ndarray,
     labels : (H, W) integer ndarray
     classes : sequence of int
     """
+    means, counts = class_means(np.asarray(labels, np.uint8),
+                                np.concatenate([stats.lab, stats.band[:, :, None]], axis=2))
     out = []
-    for c in classes:
-        m = labels == c
-        if m.any():
-            out.append(Appearance(stats.lab[m].mean(axis=0), float(stats.band[m].mean())))
+    for c in (int(c) for c in classes):
+        if counts[c]:
+            out.append(Appearance(means[c, :3], float(means[c, 3])))
         else:
             out.append(Appearance(np.array([53.4, 0.0, 0.0]), 0.0))
     return out
 
 
+@lru_cache(maxsize=32)
+def _texture_appearance(data: bytes, shape: tuple[int, ...]) -> Appearance:
+    """Appearance of a texture given as its bytes (cached: the shipped themes recur)."""
+    st = texture_stats(np.frombuffer(data, np.uint8).reshape(shape))
+    lab = st.lab.reshape(-1, 3).mean(axis=0)
+    lab.setflags(write=False)
+    return Appearance(lab, float(st.band.mean()))
+
+
 def theme_appearances(library: ThemeLibrary) -> list[Appearance]:
-    """Appearance of each theme's texture."""
+    """Appearance of each theme's texture (by content, so a texture met before costs nothing)."""
     out = []
     for theme in library:
-        st = texture_stats(theme.texture)
-        out.append(Appearance(st.lab.reshape(-1, 3).mean(axis=0), float(st.band.mean())))
+        tex = np.ascontiguousarray(theme.texture[:, :, :3], np.uint8)
+        out.append(_texture_appearance(tex.tobytes(), tex.shape))
     return out
 
 
@@ -129,12 +140,4 @@ def shipped_names(appearances: Sequence[Appearance], library: ThemeLibrary,
             owners.append(names.index(name))
             exemplars.append(look)
     nearest = match_classes(appearances, exemplars, distinct=False)
-    out: list[str] = []
-    for k in (owners[i] for i in nearest):
-        base, n = names[k], 1
-        name = base
-        while name in out:
-            n += 1
-            name = f"{base} {n}"
-        out.append(name)
-    return out
+    return distinct_names(names[owners[i]] for i in nearest)

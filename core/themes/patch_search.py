@@ -25,6 +25,7 @@ windows on that lattice), so the search costs about the same on any photo.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -60,6 +61,10 @@ class PatchOptions:
         Weight of the mean-colour term.
     highpass_sigma : float
         The local mean the Lab spread is measured about (pixels).
+    quilt : bool
+        A class none of whose windows tiles without repeating gets a theme
+        quilted from small blocks of it (:mod:`core.themes.quilt`) where that
+        repeats less.
     """
 
     size: int = 256
@@ -68,6 +73,7 @@ class PatchOptions:
     size_weight: float = 0.15
     colour_weight: float = 0.25
     highpass_sigma: float = 16.0
+    quilt: bool = True
 
     def __post_init__(self) -> None:
         if not 4 <= self.min_size <= self.size:
@@ -125,23 +131,76 @@ class ClassTarget:
     mean: np.ndarray
 
 
-def class_target(stats: TextureStats, mask: np.ndarray) -> ClassTarget:
-    """The texture of the inside of a class region (``mask``, (H, W) bool, not empty).
+def class_means(labels: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-label means of per-pixel values, in one pass (``np.bincount``).
+
+    Parameters
+    ----------
+    labels : (H, W) uint8 ndarray
+    values : (H, W) or (H, W, k) float ndarray
+
+    Returns
+    -------
+    means : (256, k) float64 ndarray
+        Row ``c``: the mean of the values over the pixels labelled ``c`` (0 where none).
+    counts : (256,) int64 ndarray
+    """
+    flat = labels.ravel()
+    counts = np.bincount(flat, minlength=256)
+    cols = values.reshape(flat.size, -1)
+    sums = np.stack([np.bincount(flat, weights=cols[:, k], minlength=256)
+                     for k in range(cols.shape[1])], axis=1)
+    return sums / np.maximum(counts, 1)[:, None], counts
+
+
+def class_targets(stats: TextureStats, labels: np.ndarray,
+                  classes: Sequence[int]) -> dict[int, ClassTarget]:
+    """The texture of the inside of every class region of a label image.
 
     Energy and spread are measured on the class's pixels at least
     ``INTERIOR`` pixels from its border (its own pixels when none are that
     far): the edge along a class border is drawn by the render's border, not
     by the theme, and a theme that carried it too would double it (a calm
     lake whose shore is busy). The colour is the whole class's mean.
+
+    Parameters
+    ----------
+    stats : TextureStats
+    labels : (H, W) uint8 ndarray
+    classes : sequence of int
+        Classes present in ``labels``.
+
+    Returns
+    -------
+    {class: ClassTarget}
     """
+    present = np.bincount(labels.ravel(), minlength=256)
+    if any(present[int(c)] == 0 for c in classes):
+        raise TerrathemeError("the class has no pixel to take a patch's statistics from")
+    # Interior pixels: every label within the disc is their own (a min and a max filter).
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
+    lo = cv2.erode(labels, kernel, borderType=cv2.BORDER_REPLICATE)
+    hi = cv2.dilate(labels, kernel, borderType=cv2.BORDER_REPLICATE)
+    inner = np.where((lo == labels) & (hi == labels), labels, 0).astype(np.uint8)
+    whole, _ = class_means(labels, np.concatenate(
+        [stats.lab, stats.band[:, :, None], stats.detail, stats.detail ** 2], axis=2))
+    inside, n_inside = class_means(inner, np.concatenate(
+        [stats.band[:, :, None], stats.detail, stats.detail ** 2], axis=2))
+    out = {}
+    for c in (int(c) for c in classes):
+        # A class with no interior pixel is measured on all its pixels.
+        band, det, sq = (inside[c, 0], inside[c, 1:4], inside[c, 4:7]) if n_inside[c] else (
+            whole[c, 3], whole[c, 4:7], whole[c, 7:10])
+        out[c] = ClassTarget(float(band), np.sqrt(np.maximum(sq - det * det, 0.0)),
+                             whole[c, 0:3])
+    return out
+
+
+def class_target(stats: TextureStats, mask: np.ndarray) -> ClassTarget:
+    """:func:`class_targets` of one class region (``mask``, (H, W) bool, not empty)."""
     if not mask.any():
         raise TerrathemeError("the class has no pixel to take a patch's statistics from")
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
-    inner = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE) > 0
-    if not inner.any():
-        inner = mask
-    return ClassTarget(float(stats.band[inner].mean()), stats.detail[inner].std(axis=0),
-                       stats.lab[mask].mean(axis=0))
+    return class_targets(stats, mask.astype(np.uint8), [1])[1]
 
 
 def _coarsen(arr: np.ndarray, f: int) -> np.ndarray:
@@ -210,7 +269,8 @@ def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
 
 
 def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
-               *, exclude: list[tuple[int, int, int]] = ()) -> tuple[int, int, int] | None:
+               *, exclude: list[tuple[int, int, int]] = (),
+               target: ClassTarget | None = None) -> tuple[int, int, int] | None:
     """The window whose statistics are closest to those of a class region.
 
     Parameters
@@ -222,6 +282,8 @@ def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = P
     options : PatchOptions
     exclude : list of (x, y, size)
         Windows already rejected: windows overlapping them by more than half are skipped.
+    target : ClassTarget, optional
+        The class's :func:`class_target` when the caller has it already.
 
     Returns
     -------
@@ -232,7 +294,7 @@ def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = P
     """
     h, w = mask.shape
     f = windows.factor
-    target = class_target(windows.stats, mask)
+    target = target or class_target(windows.stats, mask)
     best: tuple[float, int, int, int] | None = None
     for size in options.sizes(h, w):
         cover = windows.cover(mask, size)
@@ -254,3 +316,46 @@ def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = P
             j, i = divmod(int(at[k]), cover.shape[1])
             best = (float(score[k]), i * f, j * f, max(1, size // f) * f)
     return None if best is None else best[1:]
+
+
+def best_windows(windows: WindowStats, mask: np.ndarray, size: int, count: int,
+                 options: PatchOptions = PatchOptions(), *, spacing: int = 1,
+                 target: ClassTarget | None = None) -> np.ndarray:
+    """The ``count`` windows of one side whose statistics are closest to the class's.
+
+    Parameters
+    ----------
+    windows : WindowStats
+    mask : (H, W) bool ndarray
+        The class region (not empty).
+    size : int
+        Window side.
+    count : int
+    options : PatchOptions
+        Its ``inside`` share and score weights (:func:`patch_scores`).
+    spacing : int
+        Windows are taken on a lattice of this step (pixels), so no two are near-copies.
+    target : ClassTarget, optional
+        As :func:`find_patch`.
+
+    Returns
+    -------
+    (n, 2) int64 ndarray
+        ``(x, y)`` top-left corners, best first, ``n <= count``.
+    """
+    h, w = mask.shape
+    f = windows.factor
+    target = target or class_target(windows.stats, mask)
+    cover = windows.cover(mask, size)
+    step = max(1, spacing // f)
+    ok = np.zeros(cover.shape, bool)
+    ok[: (h - size) // f + 1 : step, : (w - size) // f + 1 : step] = True
+    ok &= cover >= options.inside - 1e-6
+    at = np.flatnonzero(ok)
+    if at.size == 0:
+        return np.zeros((0, 2), np.int64)
+    score = patch_scores(windows.at(size).reshape(-1, 10)[at], target, size, options)
+    best = at[np.argsort(score, kind="stable")[:count]]
+    j, i = np.divmod(best, cover.shape[1])
+    return np.stack([i * f, j * f], axis=1).astype(np.int64)
+

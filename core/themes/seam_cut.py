@@ -30,13 +30,15 @@ def _dp_path(err: np.ndarray, start: int | None) -> tuple[np.ndarray, float]:
         cost = np.where(np.arange(k) == start, cost, np.inf)
     back = np.zeros((h, k), np.int64)
     pad = np.full(k + 2, np.inf)
+    left, mid, right = pad[:-2], pad[1:-1], pad[2:]
+    cols = np.arange(k)
     for i in range(1, h):
-        # E[i, j] = e[i, j] + min(E[i-1, j-1 .. j+1]) (Efros & Freeman 2001, §2.1).
-        pad[1:-1] = cost
-        choices = np.stack([pad[:-2], pad[1:-1], pad[2:]])
-        arg = np.argmin(choices, axis=0)
-        back[i] = np.arange(k) + arg - 1
-        cost = err[i] + choices[arg, np.arange(k)]
+        # E[i, j] = e[i, j] + min(E[i-1, j-1 .. j+1]) (Efros & Freeman 2001, §2.1);
+        # ties go to the leftmost of the three, as argmin does.
+        mid[:] = cost
+        arg = np.where((left <= mid) & (left <= right), -1, np.where(mid <= right, 0, 1))
+        back[i] = cols + arg
+        cost = err[i] + np.minimum(np.minimum(left, mid), right)
     return back, cost
 
 

@@ -1,0 +1,157 @@
+"""A label mask's legend: the name of each class value, read from a JSON or CSV file.
+
+Land-cover masks come with their legend beside them in one of a few shapes;
+each is read to ``{class value: name}``:
+
+* ``{"classes": {"1": "Building", "2": "Land"}}`` or the bare mapping
+  ``{"1": "Building", ...}``;
+* ``{"classes": [{"id": 1, "name": "Building"}, ...]}`` or the bare list
+  (``"value"`` or ``"class"`` also name the number, ``"label"`` the name;
+  other keys such as ``"rgb"`` are ignored);
+* CSV or plain text, one class a line: ``1,Building`` (a header line and
+  lines starting with ``#`` are skipped).
+
+Names become theme names (``classify --legend`` stores them in the model,
+``convert`` names its themes by them), so each is trimmed, at most
+:data:`MAX_NAME` characters and printable (two classes may share
+one: their themes are numbered, ``Vegetation``, ``Vegetation 2``). A legend may come from anyone:
+the file is read only up to :data:`MAX_LEGEND_BYTES`, and anything else is
+refused with one line naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from core.errors import CorruptFileError, TerrathemeError
+from core.io.archive import parse_json
+
+#: largest legend file read
+MAX_LEGEND_BYTES = 1 << 20
+#: longest class name kept
+MAX_NAME = 64
+_NUMBER_KEYS = ("id", "value", "class")
+_NAME_KEYS = ("name", "label")
+
+
+def _value(raw: object, label: str) -> int:
+    if isinstance(raw, bool):
+        raise CorruptFileError(f"{label}: class value {raw!r} is not a whole number 0..255")
+    try:
+        value = int(raw) if isinstance(raw, int) else int(str(raw).strip())
+    except ValueError:
+        raise CorruptFileError(
+            f"{label}: class value {str(raw)[:20]!r} is not a whole number 0..255") from None
+    if not 0 <= value <= 255:
+        raise CorruptFileError(f"{label}: class value {value} is outside 0..255")
+    return value
+
+
+def _name(raw: object, label: str, value: int) -> str:
+    if not isinstance(raw, str) or not raw.strip():
+        raise CorruptFileError(f"{label}: class {value} has no name")
+    name = " ".join(raw.split())
+    if len(name) > MAX_NAME or not name.isprintable():
+        raise CorruptFileError(
+            f"{label}: the name of class {value} is not printable text of at most "
+            f"{MAX_NAME} characters")
+    return name
+
+
+def _entries_of(data: object, label: str) -> list[tuple[object, object]]:
+    """(value, name) pairs of a parsed JSON legend in any of the accepted shapes."""
+    if isinstance(data, dict) and "classes" in data:
+        data = data["classes"]
+    if isinstance(data, dict):
+        return list(data.items())
+    if isinstance(data, list):
+        pairs = []
+        for item in data:
+            if not isinstance(item, dict):
+                raise CorruptFileError(f"{label}: a class entry is not an object with id and name")
+            number = next((item[k] for k in _NUMBER_KEYS if k in item), None)
+            name = next((item[k] for k in _NAME_KEYS if k in item), None)
+            if number is None or name is None:
+                raise CorruptFileError(f"{label}: a class entry has no id or no name")
+            pairs.append((number, name))
+        return pairs
+    raise CorruptFileError(f"{label}: not a legend (expected class values and names)")
+
+
+def _csv_entries(text: str) -> list[tuple[object, object]]:
+    pairs = []
+    for n, line in enumerate(text.splitlines()):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        value, sep, name = line.partition(",")
+        if not sep:
+            value, _, name = line.partition(" ")
+        if n == 0 and not value.strip().isdigit():
+            continue  # a header line
+        pairs.append((value, name))
+    return pairs
+
+
+def parse_legend(data: bytes, label: str) -> dict[int, str]:
+    """The legend in ``data`` (JSON or CSV bytes); ``label`` names the file in errors.
+
+    Returns
+    -------
+    {int: str}
+        Class value -> name (two classes may share a name; themes made from
+        them are numbered, :func:`core.themes.library.distinct_names`).
+
+    Raises
+    ------
+    CorruptFileError
+        Not a legend in an accepted shape, a value outside 0..255 or given
+        twice, a missing or unprintable name, no class at all.
+    """
+    text = data.lstrip()
+    if text[:1] in (b"{", b"["):
+        pairs = _entries_of(parse_json(data, label), label)
+    else:
+        try:
+            pairs = _csv_entries(data.decode("utf-8"))
+        except UnicodeDecodeError:
+            raise CorruptFileError(f"{label}: not a legend (not UTF-8 text)") from None
+    names: dict[int, str] = {}
+    for raw_value, raw_name in pairs:
+        value = _value(raw_value, label)
+        if value in names:
+            raise CorruptFileError(f"{label}: class {value} is named twice")
+        names[value] = _name(raw_name, label, value)
+    if not names:
+        raise CorruptFileError(f"{label}: the legend names no class")
+    return names
+
+
+def read_legend(path: str | os.PathLike) -> dict[int, str]:
+    """Read a legend file (see the module docstring for the shapes accepted).
+
+    Parameters
+    ----------
+    path : str or PathLike
+
+    Returns
+    -------
+    {int: str}
+        Class value -> name.
+
+    Raises
+    ------
+    TerrathemeError
+        No such file, or larger than :data:`MAX_LEGEND_BYTES`.
+    CorruptFileError
+        See :func:`parse_legend`.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise TerrathemeError(f"{p}: no such legend file")
+    with open(p, "rb") as fh:
+        data = fh.read(MAX_LEGEND_BYTES + 1)
+    if len(data) > MAX_LEGEND_BYTES:
+        raise TerrathemeError(f"{p}: legend file is over {MAX_LEGEND_BYTES >> 20} MiB")
+    return parse_legend(data, str(p))
