@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import int_tuple
+
 NAME = "export"
 HELP = ("export a project for Unity, Unreal, Godot Terrain3D or GIS: weight or control maps, "
         "theme textures, GeoTIFFs (docs/engines.md)")
 ORDER = 25
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"size must be WxH (integers), got {text!r}") from exc
-    return w, h
+_size = int_tuple("size", "WxH (integers)", 2)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -9,6 +9,8 @@ import threading
 import time
 from pathlib import Path
 
+from app.arg_types import int_tuple
+
 NAME = "perspective"
 HELP = ("render an image or a project on a ground plane seen in perspective, "
         "with the parallelogram anisotropic filter or a baseline")
@@ -51,12 +53,7 @@ def _floats(count: tuple[int, ...], what: str):
     return parse
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"size must be WxH, e.g. 640x360, got {text!r}") from exc
-    return w, h
+_size = int_tuple("size", "WxH, e.g. 640x360", 2)
 
 
 def default_cache_dir() -> Path:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import int_tuple
+
 NAME = "render"
 HELP = "render a project (.ttproj) to an image, whole or a region, full size or scaled down"
 ORDER = 20
@@ -12,13 +14,7 @@ ORDER = 20
 STREAM_TEXELS = 1 << 28
 
 
-def _region(text: str) -> tuple[int, int, int, int]:
-    try:
-        x, y, w, h = (int(v) for v in text.split(","))
-    except ValueError as exc:
-        msg = f"region must be x,y,w,h (integers), got {text!r}"
-        raise argparse.ArgumentTypeError(msg) from exc
-    return x, y, w, h
+_region = int_tuple("region", "x,y,w,h (integers)", 4, ",")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
