@@ -153,9 +153,9 @@ def _family_cache(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-    from tqdm import tqdm
 
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.errors import TerrathemeError
     from core.io.images import read_image, write_image
     from core.perspective import (
@@ -215,22 +215,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: texture {full_size[0]} x {full_size[1]} used at "
               f"{texture.shape[1]} x {texture.shape[0]} (the detail the frame needs, "
               "--max-texture)")
-    with tqdm(desc="prefiltering", unit="cell", leave=False, disable=None) as bar:
-
-        def built(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("prefiltering", None, unit="cell", disable=None) as built:
         prepared = PreparedTexture(texture, options, progress=built, cache=cache)
-    with tqdm(total=args.size[1], desc="perspective", unit="row", leave=False,
-              disable=None) as bar:
-
-        def rendered(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("perspective", args.size[1], unit="row", disable=None) as rendered:
         result = prepared.render(view, args.size, progress=rendered)
     seconds = time.perf_counter() - t0
     # back to the input's number type (integers were read as [0, 1])

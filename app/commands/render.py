@@ -46,9 +46,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.io.georef import write_georeference
     from core.io.images import write_image
     from core.model.project import load_project
@@ -76,13 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if _streamed(args, region):
         return _render_tiled(args, project, region, options, style)
     gpu = _gpu_renderer(project) if args.gpu else None
-    with tqdm(total=1, desc="render", unit="tile" if gpu else "band", leave=False) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("render", unit="tile" if gpu else "band") as progress:
         if gpu is not None:
             image = _render_gpu(gpu, project, grid, region, args.scale, options, progress)
         else:
@@ -167,16 +160,10 @@ def _streamed(args: argparse.Namespace, region) -> bool:
 
 def _render_tiled(args, project, region, options, style: str) -> int:
     """The streamed output: tiled GeoTIFF with overviews, band by band (bounded memory)."""
-    from tqdm import tqdm
-
+    from app.progress import progress_bar
     from core.exchange.texture_tiff import write_texture_tiff
 
-    with tqdm(total=1, desc="render (tiled)", unit="band", leave=False) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total, bar.n = total, done
-            bar.refresh()
-
+    with progress_bar("render (tiled)", unit="band") as progress:
         (w, h), overviews = write_texture_tiff(project, args.out, region, options=options,
                                                progress=progress)
     geo = " with its georeference" if project.metadata.get("georeference") else ""
