@@ -120,3 +120,33 @@ def open_window(qtbot, monkeypatch):
     yield make
     for win in windows:
         win.wait_for_jobs()
+
+
+@pytest.fixture(scope="session")
+def gl_ctx():
+    """The shared OpenGL 3.3 context (``core.gpu.gl_context``), or skip with the reason."""
+    from core.gpu import GpuUnavailableError, gl_context
+
+    try:
+        return gl_context()
+    except GpuUnavailableError as exc:
+        pytest.skip(f"no OpenGL 3.3 context: {exc}")
+
+
+@pytest.fixture(scope="module")
+def gpu_renderer(gl_ctx):
+    """Factory: ``gpu_renderer(themes)`` is a GpuRenderer on the shared context.
+
+    The renderers made are released when the test module ends.
+    """
+    from core.gpu import GpuRenderer
+
+    made = []
+
+    def make(themes):
+        made.append(GpuRenderer(themes))
+        return made[-1]
+
+    yield make
+    for renderer in made:
+        renderer.release()

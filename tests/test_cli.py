@@ -48,3 +48,34 @@ def test_help_does_not_import_qt():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(("argv", "value", "parsed"), [
+    (["export", "p.ttproj", "out", "--engine", "unity", "--size"], "640X360", (640, 360)),
+    (["perspective", "in.png", "out.png", "--size"], "64x36", (64, 36)),
+    (["new", "map.png", "p.ttproj", "--themes", "water", "--cell"], "16", (16, 16)),
+    (["new", "map.png", "p.ttproj", "--themes", "water", "--cell"], "8x4", (8, 4)),
+    (["render", "p.ttproj", "out.png", "--region"], "1,2,30,40", (1, 2, 30, 40)),
+])
+def test_integer_tuples_parse(argv, value, parsed):
+    args = build_parser().parse_args([*argv, value])
+    assert parsed in vars(args).values()
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["export", "p.ttproj", "out", "--engine", "unity", "--size", "64"],
+     "argument --size: size must be WxH (integers), got '64'"),
+    (["perspective", "in.png", "out.png", "--size", "64x36x2"],
+     "argument --size: size must be WxH, e.g. 640x360, got '64x36x2'"),
+    (["new", "map.png", "p.ttproj", "--themes", "water", "--cell", "8x4x2"],
+     "argument --cell: cell must be N or NxM, got '8x4x2'"),
+    (["new", "map.png", "p.ttproj", "--themes", "water", "--cell", "eight"],
+     "argument --cell: cell must be N or NxM, got 'eight'"),
+    (["render", "p.ttproj", "out.png", "--region", "1,2,3"],
+     "argument --region: region must be x,y,w,h (integers), got '1,2,3'"),
+])
+def test_bad_integer_tuples_are_one_line_and_exit_2(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1].endswith(message)

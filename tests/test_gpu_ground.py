@@ -17,10 +17,8 @@ import pytest
 from core.errors import TerrathemeError
 from core.gpu import (
     Anisotropy,
-    GpuUnavailableError,
     GroundOptions,
     GroundView,
-    gl_context,
     render_perspective_gpu,
 )
 from core.model.colour_map import ColourMap
@@ -34,14 +32,6 @@ from core.themes.library import Theme, ThemeLibrary
 SHAPED = RenderOptions(boundary=BoundaryOptions())
 #: the shader's own probes, so results do not depend on the driver's anisotropic filter
 PROBES = GroundOptions(anisotropy=Anisotropy.SHADER)
-
-
-@pytest.fixture(scope="module")
-def context():
-    try:
-        return gl_context()
-    except GpuUnavailableError as exc:
-        pytest.skip(f"no OpenGL 3.3 context: {exc}")
 
 
 def _themes(seed: int, k: int = 3, size: int = 32) -> list[np.ndarray]:
@@ -71,11 +61,11 @@ def _top_down(texture_size, x0, y0, w, h) -> Camera:
 @pytest.mark.parametrize("options", [PROBES, GroundOptions(base_map=0)],
                          ids=["base map", "per-pixel blend"])
 @pytest.mark.parametrize("style", [RenderOptions(), SHAPED])
-def test_straight_down_at_one_texel_per_pixel_is_the_render(context, style, options):
+def test_straight_down_at_one_texel_per_pixel_is_the_render(gl_ctx, style, options):
     themes, grid = _themes(1), _grid(2)
     cell = (8, 6)
     cmap = ColourMap(np.random.default_rng(3).integers(70, 200, (12, 20, 3), dtype=np.uint8), 8)
-    view = GroundView(grid, themes, cell, style=style, colour_map=cmap, context=context,
+    view = GroundView(grid, themes, cell, style=style, colour_map=cmap, context=gl_ctx,
                       options=options)
     try:
         # A window crossing the texture's right and bottom edges: the plane repeats there.
@@ -91,8 +81,8 @@ def test_straight_down_at_one_texel_per_pixel_is_the_render(context, style, opti
         view.release()
 
 
-def test_the_sky_is_above_the_horizon_and_a_mapping_draws_as_its_camera(context):
-    view = GroundView(_grid(4), _themes(4), (8, 8), context=context,
+def test_the_sky_is_above_the_horizon_and_a_mapping_draws_as_its_camera(gl_ctx):
+    view = GroundView(_grid(4), _themes(4), (8, 8), context=gl_ctx,
                       options=GroundOptions(sky=(0.0, 0.5, 1.0)))
     try:
         camera = Camera(height=20.0, pitch=0.0, yaw=30.0)
@@ -106,7 +96,7 @@ def test_the_sky_is_above_the_horizon_and_a_mapping_draws_as_its_camera(context)
 
 
 @pytest.mark.parametrize("pitch", [6.0, 20.0])
-def test_grazing_frames_are_closer_to_the_reference_than_trilinear(context, pitch):
+def test_grazing_frames_are_closer_to_the_reference_than_trilinear(gl_ctx, pitch):
     themes, grid = _themes(5), _grid(6, (33, 33))
     cell = (8, 8)
     texture = render_cells(grid, themes, cell)
@@ -120,7 +110,7 @@ def test_grazing_frames_are_closer_to_the_reference_than_trilinear(context, pitc
 
     trilinear = PreparedTexture(texture, FilterOptions(method=Method.TRILINEAR)).render(
         camera, size).image
-    view = GroundView(grid, themes, cell, options=PROBES, context=context)
+    view = GroundView(grid, themes, cell, options=PROBES, context=gl_ctx)
     try:
         gpu = view.render(camera, size).astype(np.float32) / 255
     finally:
@@ -128,9 +118,9 @@ def test_grazing_frames_are_closer_to_the_reference_than_trilinear(context, pitc
     assert psnr(gpu) >= psnr(trilinear) + 2.0  # measured +3.3 and +7.9 dB
 
 
-def test_a_constant_height_map_is_a_lower_camera(context):
+def test_a_constant_height_map_is_a_lower_camera(gl_ctx):
     themes, grid = _themes(7), _grid(8)
-    view = GroundView(grid, themes, (8, 8), options=PROBES, context=context)
+    view = GroundView(grid, themes, (8, 8), options=PROBES, context=gl_ctx)
     try:
         low = Camera(height=30.0, pitch=70.0, yaw=10.0, x=80.0, y=64.0)
         flat = view.render(low, (96, 64))
@@ -153,10 +143,10 @@ def test_a_constant_height_map_is_a_lower_camera(context):
         view.release()
 
 
-def test_edits_upload_only_the_dirty_cells(context):
+def test_edits_upload_only_the_dirty_cells(gl_ctx):
     themes = _themes(9)
     indices = _grid(10, (33, 41))
-    view = GroundView(indices, themes, (6, 6), style=SHAPED, options=PROBES, context=context)
+    view = GroundView(indices, themes, (6, 6), style=SHAPED, options=PROBES, context=gl_ctx)
     try:
         camera = Camera(height=40.0, pitch=35.0, yaw=-20.0, x=120.0, y=100.0)
         view.render(camera, (96, 64))
@@ -168,7 +158,7 @@ def test_edits_upload_only_the_dirty_cells(context):
         # Cells 11..14 x 19..23 touch the box; one more ring for the saddle rule.
         assert view.uploaded == [(18, 10, 7, 6)]
         fresh = GroundView(indices.copy(), themes, (6, 6), style=SHAPED, options=PROBES,
-                           context=context)
+                           context=gl_ctx)
         try:
             assert np.array_equal(edited, fresh.render(camera, (96, 64)))
         finally:
@@ -177,7 +167,7 @@ def test_edits_upload_only_the_dirty_cells(context):
         view.release()
 
 
-def test_render_perspective_gpu_draws_a_project_in_its_style(context):
+def test_render_perspective_gpu_draws_a_project_in_its_style(gl_ctx):
     themes, grid = _themes(11), _grid(12)
     library = ThemeLibrary([Theme(f"t{k}", (60 * k, 90, 120), t) for k, t in enumerate(themes)])
     cmap = ColourMap(np.full((13, 16, 3), 64, np.uint8), 10)
@@ -194,8 +184,8 @@ def test_render_perspective_gpu_draws_a_project_in_its_style(context):
     assert np.abs(ground.astype(np.float64) - neutral[20:] / 2).mean() < 1.0
 
 
-def test_bad_views_and_options_are_refused(context):
-    view = GroundView(_grid(13), _themes(13), (8, 8), context=context)
+def test_bad_views_and_options_are_refused(gl_ctx):
+    view = GroundView(_grid(13), _themes(13), (8, 8), context=gl_ctx)
     try:
         camera = Camera(height=10.0, pitch=20.0)
         with pytest.raises(TerrathemeError, match="frame size"):
@@ -220,22 +210,22 @@ def test_bad_views_and_options_are_refused(context):
     with pytest.raises(TerrathemeError, match="base_map"):
         GroundOptions(base_map=-1)
     with pytest.raises(TerrathemeError, match="theme"):
-        GroundView(np.full((3, 3), 9), _themes(1), (4, 4), context=context)
+        GroundView(np.full((3, 3), 9), _themes(1), (4, 4), context=gl_ctx)
     with pytest.raises(TerrathemeError, match="colour map is"):
-        GroundView(_grid(1), _themes(1), (4, 4), context=context,
+        GroundView(_grid(1), _themes(1), (4, 4), context=gl_ctx,
                    colour_map=ColourMap(np.zeros((2, 2, 3), np.uint8), 4))
 
 
-def test_a_large_texture_gets_a_reduced_base_map(context):
+def test_a_large_texture_gets_a_reduced_base_map(gl_ctx):
     # 256 x 192 texels with base maps of at most 64 a side: 4 texels per base texel.
     themes, grid = _themes(15), _grid(16, (25, 33))
-    view = GroundView(grid, themes, (8, 8), options=GroundOptions(base_map=64), context=context)
+    view = GroundView(grid, themes, (8, 8), options=GroundOptions(base_map=64), context=gl_ctx)
     try:
         assert view.base.step == 4 and view.base.size == (64, 48)
         far = Camera(height=30.0, pitch=4.0, yaw=10.0)
         frame = view.render(far, (96, 64))
         whole = GroundView(grid, themes, (8, 8), options=GroundOptions(base_map=0),
-                           context=context)
+                           context=gl_ctx)
         try:
             # The far field from the reduced render, the rest per pixel: close to no base map.
             assert np.abs(frame.astype(np.int16) - whole.render(far, (96, 64))).mean() < 6
@@ -245,11 +235,11 @@ def test_a_large_texture_gets_a_reduced_base_map(context):
         view.release()
 
 
-def test_a_reduced_frame_is_the_small_frame_stretched(context):
+def test_a_reduced_frame_is_the_small_frame_stretched(gl_ctx):
     # A moving camera draws half the pixels a side, stretched bilinearly over the frame.
     import cv2
 
-    view = GroundView(_grid(14), _themes(14), (8, 8), options=PROBES, context=context)
+    view = GroundView(_grid(14), _themes(14), (8, 8), options=PROBES, context=gl_ctx)
     try:
         camera = Camera(height=20.0, pitch=25.0, yaw=15.0)
         small = view.render(camera, (48, 32))
@@ -262,7 +252,7 @@ def test_a_reduced_frame_is_the_small_frame_stretched(context):
         view.release()
 
 
-def test_cli_perspective_gpu_renders_a_project_frame(context, tmp_path, capsys):
+def test_cli_perspective_gpu_renders_a_project_frame(gl_ctx, tmp_path, capsys):
     from app.cli import main
     from core.io.images import read_image
 

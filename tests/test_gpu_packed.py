@@ -18,8 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from core.errors import TerrathemeError
-from core.gpu import GpuRenderer, GpuRenderOptions, GpuUnavailableError, PackedGrid, UniformCells
-from core.gpu import gl_context as _gl_context
+from core.gpu import GpuRenderOptions, PackedGrid, UniformCells
 from core.model.colour_map import ColourMap
 from core.packing import pack
 from core.packing.layout import W_GRID_BITS
@@ -32,18 +31,8 @@ THEMES = [np.random.default_rng(k).integers(0, 256, (h, w, 3), dtype=np.uint8)
 
 
 @pytest.fixture(scope="module")
-def ctx():
-    try:
-        return _gl_context()
-    except GpuUnavailableError as exc:
-        pytest.skip(f"no OpenGL 3.3 context: {exc}")
-
-
-@pytest.fixture(scope="module")
-def renderer(ctx):
-    r = GpuRenderer(THEMES)
-    yield r
-    r.release()
+def renderer(gpu_renderer):
+    return gpu_renderer(THEMES)
 
 
 def _image(rng, h: int, w: int, kind: str) -> np.ndarray:
@@ -84,12 +73,12 @@ def _check_lookups(ctx, img: np.ndarray, curve: str, rng, n: int = 4000,
 @pytest.mark.parametrize("curve", ["hilbert", "morton"])
 @pytest.mark.parametrize("kind", ["noise", "blobs", "mixed"])
 @pytest.mark.parametrize("shape", [(1, 1), (1, 37), (29, 3), (37, 53), (300, 211), (513, 1029)])
-def test_shader_lookups_equal_cpu(ctx, curve, kind, shape):
+def test_shader_lookups_equal_cpu(gl_ctx, curve, kind, shape):
     rng = np.random.default_rng(zlib.crc32(repr((curve, kind, shape)).encode()))
-    _check_lookups(ctx, _image(rng, *shape, kind), curve, rng)
+    _check_lookups(gl_ctx, _image(rng, *shape, kind), curve, rng)
 
 
-def test_every_grid_block_side_is_searched(ctx):
+def test_every_grid_block_side_is_searched(gl_ctx):
     # Blocks of 2^4 .. 2^9 texels a side: odd sides walk the one-level Hilbert table first.
     rng = np.random.default_rng(5)
     seen = set()
@@ -97,31 +86,31 @@ def test_every_grid_block_side_is_searched(ctx):
         img = (rng.random((700, 900)) < density).astype(np.uint8) * 3
         img[10:20, 10:600] = 1
         for curve in ("hilbert", "morton"):
-            seen.add(_check_lookups(ctx, img, curve, rng))
+            seen.add(_check_lookups(gl_ctx, img, curve, rng))
     assert {4, 5, 6, 7} <= seen
 
 
 @pytest.mark.parametrize("curve", ["hilbert", "morton"])
-def test_shader_reads_every_block_side(ctx, curve):
+def test_shader_reads_every_block_side(gl_ctx, curve):
     # Blocks of 1 texel (no walk) to 4096 (three four-level steps), quartered or not.
     rng = np.random.default_rng(12)
     img = _image(rng, 1100, 700, "mixed")
     for bits in (0, 1, 2, 3, 5, 8, 11, 12):
-        assert _check_lookups(ctx, img, curve, rng, bits=bits) == min(bits, 11)
+        assert _check_lookups(gl_ctx, img, curve, rng, bits=bits) == min(bits, 11)
 
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**31), h=st.integers(1, 90), w=st.integers(1, 90),
        curve=st.sampled_from(["hilbert", "morton"]), k=st.integers(1, 5))
-def test_shader_lookups_equal_cpu_hypothesis(ctx, seed, h, w, curve, k):
+def test_shader_lookups_equal_cpu_hypothesis(gl_ctx, seed, h, w, curve, k):
     rng = np.random.default_rng(seed)
     img = rng.integers(0, k, (h, w)).astype(np.uint8)
     img[: h // 2, : w // 2] = k - 1
-    _check_lookups(ctx, img, curve, rng, n=500)
+    _check_lookups(gl_ctx, img, curve, rng, n=500)
 
 
-def test_lookup_refuses_bad_coordinates(ctx):
-    grid = PackedGrid(ctx, pack(np.zeros((4, 4), np.uint8)))
+def test_lookup_refuses_bad_coordinates(gl_ctx):
+    grid = PackedGrid(gl_ctx, pack(np.zeros((4, 4), np.uint8)))
     try:
         with pytest.raises(TerrathemeError, match="one of each per texel"):
             grid.lookup(np.arange(3), np.arange(2))

@@ -17,6 +17,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 import pytest
+from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -43,45 +44,23 @@ REPO = Path(__file__).resolve().parents[1]
 LINEAR, HISTOGRAM = BlendMode.LINEAR, BlendMode.HISTOGRAM
 
 
-def _themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return [rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for w, h in sizes]
-
-
-#: four themes whose sizes divide neither each other nor the textures rendered
-ODD_THEMES = _themes(1, [(7, 5), (13, 17), (16, 16), (3, 11)])
 #: three themes of one size, not a power of two (REPEAT wraps them; the filtered path keeps them)
-EVEN_THEMES = _themes(2, [(24, 20)] * 3)
+EVEN_THEMES = random_themes(2, [(24, 20)] * 3)
 
 
 @pytest.fixture(scope="module")
-def odd() -> GpuRenderer:
-    try:
-        renderer = GpuRenderer(ODD_THEMES)
-    except GpuUnavailableError as exc:
-        pytest.skip(f"no OpenGL 3.3 context: {exc}")
-    yield renderer
-    renderer.release()
+def odd(gpu_renderer) -> GpuRenderer:
+    return gpu_renderer(ODD_THEMES)
 
 
 @pytest.fixture(scope="module")
-def even() -> GpuRenderer:
-    try:
-        renderer = GpuRenderer(EVEN_THEMES)
-    except GpuUnavailableError as exc:
-        pytest.skip(f"no OpenGL 3.3 context: {exc}")
-    yield renderer
-    renderer.release()
-
-
-#: every way the exact path can fill uniform cells
-FILLS = [UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND]
+def even(gpu_renderer) -> GpuRenderer:
+    return gpu_renderer(EVEN_THEMES)
 
 
 def _options(renderer: GpuRenderer, fill: UniformCells, **kwargs) -> GpuRenderOptions:
     """Options with ``fill``, skipping where this driver cannot copy images."""
-    if fill is UniformCells.COPY and not renderer.can_copy:
-        pytest.skip("this OpenGL driver has no glCopyImageSubData")
+    skip_without_copy(renderer, fill)
     return GpuRenderOptions(uniform_cells=fill, **kwargs)
 
 

@@ -15,12 +15,13 @@ import cv2
 import moderngl
 import numpy as np
 import pytest
+from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from app.cli import main
 from core.errors import TerrathemeError
-from core.gpu import GpuRenderer, GpuRenderOptions, GpuUnavailableError, Sampling, UniformCells
+from core.gpu import GpuRenderer, GpuRenderOptions, Sampling, UniformCells
 from core.gpu.programs import set_uniform
 from core.gpu.shaders import SHADER_DIR
 from core.io.images import read_image, write_image
@@ -31,27 +32,12 @@ from core.render.overview import render_overview
 from core.render.project import project_style, render_project
 from core.render.renderer import BlendMode, RenderOptions, render_cells
 
-FILLS = [UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND]
 SHAPED = BoundaryOptions()
 
 
-def _themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return [rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for w, h in sizes]
-
-
-#: four themes whose sizes divide neither each other nor the textures rendered
-ODD_THEMES = _themes(1, [(7, 5), (13, 17), (16, 16), (3, 11)])
-
-
 @pytest.fixture(scope="module")
-def odd() -> GpuRenderer:
-    try:
-        renderer = GpuRenderer(ODD_THEMES)
-    except GpuUnavailableError as exc:
-        pytest.skip(f"no OpenGL 3.3 context: {exc}")
-    yield renderer
-    renderer.release()
+def odd(gpu_renderer) -> GpuRenderer:
+    return gpu_renderer(ODD_THEMES)
 
 
 def _colour_map(rng, texture_size: tuple[int, int], scale: int) -> ColourMap:
@@ -61,8 +47,7 @@ def _colour_map(rng, texture_size: tuple[int, int], scale: int) -> ColourMap:
 
 def _gpu(renderer, grid, cell, region=None, *, boundary=None, colour_map=None,
          fill=UniformCells.AUTO, **kwargs):
-    if fill is UniformCells.COPY and not renderer.can_copy:
-        pytest.skip("this OpenGL driver has no glCopyImageSubData")
+    skip_without_copy(renderer, fill)
     options = GpuRenderOptions(boundary=boundary, uniform_cells=fill, **kwargs)
     return renderer.render(grid, cell, region, options=options, colour_map=colour_map)
 
@@ -166,7 +151,7 @@ def test_the_extremes_of_the_integer_ranges_stay_exact(odd, cell, cells, feature
 
 def test_filtered_path_draws_the_style_within_two_levels(odd):
     # Weights in 1/4096 and the hardware's bilinear colour map: close, not exact.
-    themes = _themes(2, [(24, 20)] * 3)
+    themes = random_themes(2, [(24, 20)] * 3)
     renderer = GpuRenderer(themes)
     try:
         rng = np.random.default_rng(5)

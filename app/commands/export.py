@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import int_tuple
+
 NAME = "export"
 HELP = ("export a project for Unity, Unreal, Godot Terrain3D or GIS: weight or control maps, "
         "theme textures, GeoTIFFs (docs/engines.md)")
 ORDER = 25
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"size must be WxH (integers), got {text!r}") from exc
-    return w, h
+_size = int_tuple("size", "WxH (integers)", 2)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -41,9 +38,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from tqdm import tqdm
-
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.errors import TerrathemeError
     from core.exchange import (
         Engine,
@@ -63,13 +59,7 @@ def run(args: argparse.Namespace) -> int:
                             style=WeightStyle(args.style))
     plan = plan_export(project, options)
     check_outputs(plan.paths(outdir), inputs=[args.project])
-    with tqdm(total=1, desc=f"export {args.engine}", unit="part", leave=False) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar(f"export {args.engine}", unit="part") as progress:
         paths = write_export(project, plan, outdir, progress=progress)
     if plan.layout is not None:
         (w, h), (kx, ky) = plan.layout.size, plan.layout.tiles

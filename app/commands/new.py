@@ -4,22 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import int_tuple
+
 NAME = "new"
 HELP = ("make a project from an index image (vertex = pixel), or from Unity splatmaps, weight "
         "maps or a Terrain3D control map, with shipped themes chosen by name")
 ORDER = 10
 
 
-def _cell(text: str) -> tuple[int, int]:
-    try:
-        parts = [int(v) for v in text.lower().split("x")]
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"cell must be N or NxM, got {text!r}") from exc
-    if len(parts) == 1:
-        parts *= 2
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"cell must be N or NxM, got {text!r}")
-    return parts[0], parts[1]
+_cell = int_tuple("cell", "N or NxM", 2, one_for_all=True)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -39,9 +39,8 @@ def run(args: argparse.Namespace) -> int:
     """Pack ``args.input`` into ``args.output`` and print a one-line summary."""
     import math
 
-    from tqdm import tqdm
-
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.errors import TerrathemeError
     from core.io.images import image_info
     from core.packing import pack, pack_file
@@ -51,12 +50,7 @@ def run(args: argparse.Namespace) -> int:
     info = image_info(args.input)
     tile_bits = None if args.tile is None else int(math.log2(args.tile))
     big = info.width * info.height > STREAM_FROM or max(info.width, info.height) > 65536
-    with tqdm(total=1, desc="pack", leave=False) as bar:
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("pack") as progress:
         if big:
             # Band by band: memory holds one band of pixels and the runs.
             if args.reduce_palette:

@@ -9,6 +9,8 @@ import threading
 import time
 from pathlib import Path
 
+from app.arg_types import int_tuple
+
 NAME = "perspective"
 HELP = ("render an image or a project on a ground plane seen in perspective, "
         "with the parallelogram anisotropic filter or a baseline")
@@ -51,12 +53,7 @@ def _floats(count: tuple[int, ...], what: str):
     return parse
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"size must be WxH, e.g. 640x360, got {text!r}") from exc
-    return w, h
+_size = int_tuple("size", "WxH, e.g. 640x360", 2)
 
 
 def default_cache_dir() -> Path:
@@ -156,9 +153,9 @@ def _family_cache(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-    from tqdm import tqdm
 
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.errors import TerrathemeError
     from core.io.images import read_image, write_image
     from core.perspective import (
@@ -218,22 +215,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: texture {full_size[0]} x {full_size[1]} used at "
               f"{texture.shape[1]} x {texture.shape[0]} (the detail the frame needs, "
               "--max-texture)")
-    with tqdm(desc="prefiltering", unit="cell", leave=False, disable=None) as bar:
-
-        def built(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("prefiltering", None, unit="cell", disable=None) as built:
         prepared = PreparedTexture(texture, options, progress=built, cache=cache)
-    with tqdm(total=args.size[1], desc="perspective", unit="row", leave=False,
-              disable=None) as bar:
-
-        def rendered(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("perspective", args.size[1], unit="row", disable=None) as rendered:
         result = prepared.render(view, args.size, progress=rendered)
     seconds = time.perf_counter() - t0
     # back to the input's number type (integers were read as [0, 1])

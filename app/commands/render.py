@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import int_tuple
+
 NAME = "render"
 HELP = "render a project (.ttproj) to an image, whole or a region, full size or scaled down"
 ORDER = 20
@@ -12,13 +14,7 @@ ORDER = 20
 STREAM_TEXELS = 1 << 28
 
 
-def _region(text: str) -> tuple[int, int, int, int]:
-    try:
-        x, y, w, h = (int(v) for v in text.split(","))
-    except ValueError as exc:
-        msg = f"region must be x,y,w,h (integers), got {text!r}"
-        raise argparse.ArgumentTypeError(msg) from exc
-    return x, y, w, h
+_region = int_tuple("region", "x,y,w,h (integers)", 4, ",")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -50,9 +46,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from app.outputs import check_outputs
+    from app.progress import progress_bar
     from core.io.georef import write_georeference
     from core.io.images import write_image
     from core.model.project import load_project
@@ -80,13 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if _streamed(args, region):
         return _render_tiled(args, project, region, options, style)
     gpu = _gpu_renderer(project) if args.gpu else None
-    with tqdm(total=1, desc="render", unit="tile" if gpu else "band", leave=False) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with progress_bar("render", unit="tile" if gpu else "band") as progress:
         if gpu is not None:
             image = _render_gpu(gpu, project, grid, region, args.scale, options, progress)
         else:
@@ -171,16 +160,10 @@ def _streamed(args: argparse.Namespace, region) -> bool:
 
 def _render_tiled(args, project, region, options, style: str) -> int:
     """The streamed output: tiled GeoTIFF with overviews, band by band (bounded memory)."""
-    from tqdm import tqdm
-
+    from app.progress import progress_bar
     from core.exchange.texture_tiff import write_texture_tiff
 
-    with tqdm(total=1, desc="render (tiled)", unit="band", leave=False) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total, bar.n = total, done
-            bar.refresh()
-
+    with progress_bar("render (tiled)", unit="band") as progress:
         (w, h), overviews = write_texture_tiff(project, args.out, region, options=options,
                                                progress=progress)
     geo = " with its georeference" if project.metadata.get("georeference") else ""

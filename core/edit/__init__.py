@@ -13,6 +13,7 @@ Modules, from the bottom up:
 * ``changes`` -- the undoable changes (paint, swap a layer, theme edits, prior);
 * ``history`` -- the one undo history: steps, groups, the saved mark;
 * ``strokes`` -- a brush stroke in progress (one undo step when it ends);
+* ``classification`` -- a classification result as the changes it makes;
 * ``document`` -- :class:`EditDocument`: everything the editor edits;
 * ``preview`` -- a render kept current by re-rendering dirty cells;
 * ``fidelity`` -- per-cell colour difference between render and photo.
@@ -20,6 +21,7 @@ Modules, from the bottom up:
 
 from core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
 from core.edit.changes import Change
+from core.edit.classification import classification_changes
 from core.edit.document import EditDocument
 from core.edit.events import (
     ColourMapChange,
@@ -86,6 +88,7 @@ __all__ = [
     "ThemeChange",
     "VertexSelection",
     "capsule_footprint",
+    "classification_changes",
     "dirty_cells",
     "dirty_region",
     "display_photo",

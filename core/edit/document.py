@@ -24,9 +24,6 @@ from core.edit.changes import (
     Change,
     Paint,
     RemoveLastTheme,
-    SetColourMap,
-    SetLibrary,
-    SetPrior,
     SetTheme,
     SwapLayer,
     drop_prior_without_classes,
@@ -34,6 +31,7 @@ from core.edit.changes import (
     neutral_under,
     photo_replacement,
 )
+from core.edit.classification import classification_changes
 from core.edit.events import DocumentEvents, Event, HistoryChange
 from core.edit.history import History, Step
 from core.edit.layers import (
@@ -55,7 +53,7 @@ from core.edit.tools import (
     flood_footprint,
     rect_footprint,
 )
-from core.edit.uncertainty import KeptPrior, next_kept_prior, uncertain_mask
+from core.edit.uncertainty import KeptPrior, uncertain_mask
 from core.errors import TerrathemeError
 from core.model.project import ThematicTexture, save_project
 from core.themes.library import Theme, ThemeLibrary
@@ -349,32 +347,10 @@ class EditDocument:
 
         Returns None when nothing changed (the same grid and themes, no map).
         """
-        # Check everything before anything changes.
-        if replace_themes:
-            library = ThemeLibrary(new_themes)
-            if not len(library):
-                raise TerrathemeError("a classification that replaces the themes needs themes")
-        else:
-            library = ThemeLibrary([*self.library, *new_themes])
-        changes: list[Change] = []
-        if replace_themes and library != self.library:
-            changes.append(SetLibrary(self.library, library))
-        elif not replace_themes:
-            changes += [AppendTheme(t) for t in new_themes]
-        new_conf = None if confidence is None else validate_confidence(confidence, self.photo)
-        if new_conf is not None or self.confidence is not None:
-            changes.append(SwapLayer(Layer.CONFIDENCE, self.confidence, new_conf))
-        if scribble_classes is not None:
-            prior = next_kept_prior(self.kept_prior, frozenset(scribble_classes), class_weights)
-            if prior != self.kept_prior:
-                changes.append(SetPrior(self.kept_prior, prior))
-        # New themes of their own: the colour map fitted to the old ones goes.
-        grid = grid_replacement(self.data, indices, len(library), neutral=not replace_themes)
-        if replace_themes and self.data.texture.colour_map is not None:
-            changes.append(SetColourMap(self.data.texture.colour_map, None))
-        # Themes first (the new grid refers to them), then the grid, then the rest.
-        n_themes = sum(isinstance(c, SetLibrary | AppendTheme) for c in changes)
-        changes[n_themes:n_themes] = grid
+        changes = classification_changes(
+            self.data, indices, new_themes=new_themes, replace_themes=replace_themes,
+            confidence=confidence, scribble_classes=scribble_classes,
+            class_weights=class_weights)
         return self._commit(label, changes) if changes else None
 
     # -- history -------------------------------------------------------------------

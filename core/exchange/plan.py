@@ -11,16 +11,17 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.exchange.colour import colour_manifest
-from core.exchange.layout import ExportLayout, WorldFrame
+from core.exchange.colour import COLOUR_MAP, colour_manifest, write_colour_map
+from core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
 from core.exchange.options import ExportOptions
-from core.exchange.style import export_boundary
+from core.exchange.style import export_boundary, map_weights
 from core.io.atomic import write_bytes_atomic
 from core.io.images import write_image
 from core.model.project import ThematicTexture
@@ -54,6 +55,16 @@ class ExportPlan:
         return [Path(folder) / f for f in self.files]
 
 
+def map_plan(project: ThematicTexture, options: ExportOptions, layout: ExportLayout,
+             files: list[str], manifest: str, notes: list[str]) -> ExportPlan:
+    """The plan of a map export: ``files``, the colour map when the project has one
+    (:data:`core.exchange.colour.COLOUR_MAP`), then the ``manifest``, in the
+    project's world frame (its georeference, else texels)."""
+    colour = [COLOUR_MAP] if project.colour_map is not None else []
+    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    return ExportPlan(options, layout, world, (*files, *colour, manifest), tuple(notes))
+
+
 def safe_name(name: str) -> str:
     """A theme name as a file- and engine-safe identifier (letters, digits, ``_``)."""
     return re.sub(r"[^A-Za-z0-9_]+", "_", name.strip()).strip("_") or "theme"
@@ -70,6 +81,32 @@ def write_theme_textures(project: ThematicTexture, folder: Path,
     texs = textures if textures is not None else project.library.textures
     for name, tex in zip(theme_files(project), texs, strict=True):
         write_image(folder / name, tex)
+
+
+def write_shared_files(project: ThematicTexture, folder: Path) -> None:
+    """Write the theme textures and, when the project has one, the colour map
+    (:data:`core.exchange.colour.COLOUR_MAP`)."""
+    write_theme_textures(project, folder)
+    if project.colour_map is not None:
+        write_colour_map(folder / COLOUR_MAP, project.colour_map)
+
+
+def piece_weights(project: ThematicTexture, plan: ExportPlan,
+                  progress: Callable[[int, int], None] | None = None
+                  ) -> Iterator[tuple[TilePiece, np.ndarray]]:
+    """Every tile of ``plan``'s map with its ``(K, h, w)`` theme weights.
+
+    Each tile's weights are taken at its own pixels of the whole map
+    (:func:`core.exchange.style.map_weights`), so shared borders agree.
+    ``progress(done, total)`` is called once the caller is done with a tile.
+    """
+    layout = plan.layout
+    pieces = layout.pieces()
+    for i, piece in enumerate(pieces):
+        yield piece, map_weights(project, layout.size, (piece.x, piece.y, piece.w, piece.h),
+                                 plan.options)
+        if progress:
+            progress(i + 1, len(pieces))
 
 
 def write_manifest(path: Path, manifest: dict) -> None:

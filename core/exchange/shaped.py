@@ -26,13 +26,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from core.errors import TerrathemeError
 from core.exchange.layout import nearest_texels
-from core.exchange.weights import CornerSlots, check_window
+from core.exchange.weights import CornerSlots, map_cells
 from core.model.grid import validate_indices
 from core.render.boundary import BoundaryOptions, shaped_weights
 from core.render.inputs import theme_textures
-from core.render.rules import SaddleRule, cell_splits
+from core.render.rules import SaddleRule
 
 
 def shaped_slots(
@@ -50,19 +49,13 @@ def shaped_slots(
 
     Parameters
     ----------
-    grid : (gh+1, gw+1) uint8 ndarray
-        Vertex theme indices.
+    grid, size, window, saddle, splits
+        As :func:`core.exchange.weights.sample_corners`.
     themes : sequence of (h, w, 3) uint8 ndarrays
         The textures the render blends (their luminance shapes the borders).
     cell : (N, M)
-    size : (W, H)
-        The whole map, spanning the grid corner to corner (both >= 2).
-    window : (x, y, w, h), optional
     boundary : BoundaryOptions
         The project's border style (``core.render.project.project_style``).
-    saddle : SaddleRule
-    splits : (gh, gw) uint8 ndarray, optional
-        ``cell_splits(grid, saddle)`` when the caller has it already.
 
     Returns
     -------
@@ -75,11 +68,7 @@ def shaped_slots(
     indices = np.require(validate_indices(grid, n_themes=len(textures)), np.uint8, ("C", "W"))
     n, m = (int(v) for v in cell)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
-    if size[0] < 2 or size[1] < 2:
-        raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {size}")
-    x, y, w, h = check_window(window, size)
-    if splits is None:
-        splits = cell_splits(indices, saddle)
+    (x, y, w, h), splits = map_cells(indices, size, window, saddle, splits)
     xs = nearest_texels(size[0], gw * n, x, w)
     ys = nearest_texels(size[1], gh * m, y, h)
     ids, weights, denom = shaped_weights(indices, splits, textures, (n, m), xs, ys,

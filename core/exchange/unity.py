@@ -33,20 +33,21 @@ import numpy as np
 import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
-from core.exchange.colour import COLOUR_MAP, unity_colour_st, write_colour_map
-from core.exchange.layout import ExportLayout, tiled_length, world_frame
+from core.exchange.colour import COLOUR_MAP, unity_colour_st
+from core.exchange.layout import ExportLayout, tiled_length
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
     STORED_ALPHA,
     ExportPlan,
     common_manifest,
+    map_plan,
+    piece_weights,
     pixel_spacing,
     safe_name,
     theme_files,
     write_manifest,
-    write_theme_textures,
+    write_shared_files,
 )
-from core.exchange.style import map_weights
 from core.io.atomic import write_bytes_atomic
 from core.io.images import image_info, write_image
 from core.model.project import ThematicTexture
@@ -103,12 +104,8 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     n_splat = -(-len(project.library) // 4)
     files = [f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
              for piece in layout.pieces() for s in range(n_splat)]
-    files += theme_files(project) + [SCRIPT]
-    if project.colour_map is not None:
-        files.append(COLOUR_MAP)
-    files.append(MANIFEST)
-    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
-    return ExportPlan(options, layout, world, tuple(files), tuple(notes))
+    return map_plan(project, options, layout, files + theme_files(project) + [SCRIPT], MANIFEST,
+                    notes)
 
 
 def splatmaps(weights: np.ndarray) -> list[np.ndarray]:
@@ -165,16 +162,12 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
           progress: Progress | None = None) -> None:
     """Write the splatmaps, theme textures, editor script and manifest of ``plan``."""
     layout = plan.layout
-    pieces = layout.pieces()
     tiles = []
     spacing = pixel_spacing(project, plan)
     tile_world = ((layout.size[0] - 1 if layout.tile is None else layout.tile - 1) * spacing[0],
                   (layout.size[1] - 1 if layout.tile is None else layout.tile - 1) * spacing[1])
     ky = layout.tiles[1]
-    for i, piece in enumerate(pieces):
-        # Each tile's weights at its own pixels of the whole map (shared borders agree).
-        weights = map_weights(project, layout.size, (piece.x, piece.y, piece.w, piece.h),
-                              plan.options)
+    for piece, weights in piece_weights(project, plan, progress):
         names = []
         for s, image in enumerate(splatmaps(weights)):
             name = f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
@@ -186,11 +179,7 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         if project.colour_map is not None:
             tile["colour_map_st"] = unity_colour_st(project, layout, piece)
         tiles.append(tile)
-        if progress:
-            progress(i + 1, len(pieces))
-    write_theme_textures(project, folder)
-    if project.colour_map is not None:
-        write_colour_map(folder / COLOUR_MAP, project.colour_map)
+    write_shared_files(project, folder)
     (folder / SCRIPT).parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(folder / SCRIPT, SCRIPT_SOURCE.read_bytes())
     sx, sy = plan.world.texel_size

@@ -25,19 +25,20 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.exchange.colour import COLOUR_MAP, vertex_colour_uv, write_colour_map
-from core.exchange.layout import ExportLayout, tiled_length, world_frame
+from core.exchange.colour import COLOUR_MAP, vertex_colour_uv
+from core.exchange.layout import ExportLayout, tiled_length
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
     ExportPlan,
     common_manifest,
+    map_plan,
+    piece_weights,
     pixel_spacing,
     safe_name,
     theme_files,
     write_manifest,
-    write_theme_textures,
+    write_shared_files,
 )
-from core.exchange.style import map_weights
 from core.io.images import read_image, write_image
 from core.model.project import ThematicTexture
 
@@ -105,12 +106,7 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         suffix = piece.suffix if layout.tile else ""
         files.append(f"heightmap{suffix}.png")
         files += [weight_file(project, k, suffix) for k in range(len(project.library))]
-    files += theme_files(project)
-    if project.colour_map is not None:
-        files.append(COLOUR_MAP)
-    files.append(MANIFEST)
-    world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
-    return ExportPlan(options, layout, world, tuple(files), tuple(notes))
+    return map_plan(project, options, layout, files + theme_files(project), MANIFEST, notes)
 
 
 def read_weight_maps(paths: list[str]) -> np.ndarray:
@@ -135,21 +131,13 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     """Write the heightmaps, weight maps, theme textures and manifest of ``plan``."""
     layout = plan.layout
     k = len(project.library)
-    pieces = layout.pieces()
-    for i, piece in enumerate(pieces):
+    for piece, weights in piece_weights(project, plan, progress):
         suffix = piece.suffix if layout.tile else ""
         write_image(folder / f"heightmap{suffix}.png",
                     np.full((piece.h, piece.w, 1), FLAT_HEIGHT, dtype=np.uint16))
-        # Each tile's weights at its own vertices of the whole map (shared borders agree).
-        weights = map_weights(project, layout.size, (piece.x, piece.y, piece.w, piece.h),
-                              plan.options)
         for t in range(k):
             write_image(folder / weight_file(project, t, suffix), weights[t][:, :, None])
-        if progress:
-            progress(i + 1, len(pieces))
-    write_theme_textures(project, folder)
-    if project.colour_map is not None:
-        write_colour_map(folder / COLOUR_MAP, project.colour_map)
+    write_shared_files(project, folder)
     # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
     spacing = pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size

@@ -82,6 +82,34 @@ def check_window(window: tuple[int, int, int, int] | None, size: tuple[int, int]
     return x, y, w, h
 
 
+def map_cells(indices: np.ndarray, size: tuple[int, int],
+              window: tuple[int, int, int, int] | None, saddle: SaddleRule,
+              splits: np.ndarray | None) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    """The checked window of a ``size = (W, H)`` export map and the grid's cell splits.
+
+    Parameters
+    ----------
+    indices : (gh+1, gw+1) uint8 ndarray
+        Checked vertex theme indices.
+    size : (W, H)
+        Both at least 2.
+    window : (x, y, w, h) or None
+        None: the whole map.
+    saddle : SaddleRule
+    splits : (gh, gw) uint8 ndarray or None
+        ``cell_splits(indices, saddle)`` when the caller has it already.
+
+    Returns
+    -------
+    window : (x, y, w, h)
+    splits : (gh, gw) uint8 ndarray
+    """
+    if size[0] < 2 or size[1] < 2:
+        raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {size}")
+    window = check_window(window, size)
+    return window, cell_splits(indices, saddle) if splits is None else splits
+
+
 def sample_corners(
     grid: np.ndarray,
     size: tuple[int, int],
@@ -111,17 +139,13 @@ def sample_corners(
     """
     indices = validate_indices(grid)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
-    if size[0] < 2 or size[1] < 2:
-        raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {size}")
-    x, y, w, h = check_window(window, size)
+    (x, y, w, h), splits = map_cells(indices, size, window, saddle, splits)
     cx, lx, dx = _axis(size[0], gw, x, w)
     cy, ly, dy = _axis(size[1], gh, y, h)
     # Denominators too large for corner_weights' int32: round local coordinates to 1/16384.
     if dx * dy > _EXACT_LIMIT:
         lx, dx = (lx * _QUANT + dx // 2) // dx, _QUANT
         ly, dy = (ly * _QUANT + dy // 2) // dy, _QUANT
-    if splits is None:
-        splits = cell_splits(indices, saddle)
     cell_split = splits[cy[:, None], cx[None, :]]
     # Barycentric weights of the four corners, times D = dx * dy.
     ws = corner_weights(cell_split, (lx * dy)[None, :], (ly * dx)[:, None], dx * dy)

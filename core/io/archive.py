@@ -32,7 +32,9 @@ import math
 import os
 import zipfile
 import zlib
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
+from typing import BinaryIO
 
 import numpy as np
 
@@ -134,7 +136,8 @@ def _checked_info(zf: zipfile.ZipFile, member: str, label: str, max_bytes: int
     return info
 
 
-def _read_into(fh, buffer: memoryview, label: str, member: str) -> None:
+def _read_exactly(fh, buffer: memoryview, label: str, member: str) -> None:
+    """Fill ``buffer`` from ``fh``, which must hold exactly that many bytes."""
     filled = 0
     while filled < len(buffer):
         chunk = fh.read(min(_READ_CHUNK, len(buffer) - filled))
@@ -143,6 +146,21 @@ def _read_into(fh, buffer: memoryview, label: str, member: str) -> None:
                                    f"({filled:,} of {len(buffer):,} bytes)")
         buffer[filled:filled + len(chunk)] = chunk
         filled += len(chunk)
+    if fh.read(1):
+        raise CorruptFileError(f"{_where(label, member)} is longer than it declares")
+
+
+@contextmanager
+def _opened(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str, member: str
+            ) -> Iterator[BinaryIO]:
+    """``zf.open(info)``; a ZIP or zlib error inside the block is a CorruptFileError."""
+    try:
+        with zf.open(info) as fh:
+            yield fh
+    except CorruptFileError:
+        raise
+    except _ZIP_ERRORS as exc:
+        raise CorruptFileError(f"{_where(label, member)} is damaged ({_one_line(exc)})") from None
 
 
 def read_member(zf: zipfile.ZipFile, member: str, label: str, *, max_bytes: int) -> bytes:
@@ -156,15 +174,8 @@ def read_member(zf: zipfile.ZipFile, member: str, label: str, *, max_bytes: int)
     """
     info = _checked_info(zf, member, label, max_bytes)
     out = bytearray(info.file_size)
-    try:
-        with zf.open(info) as fh:
-            _read_into(fh, memoryview(out), label, member)
-            if fh.read(1):
-                raise CorruptFileError(f"{_where(label, member)} is longer than it declares")
-    except CorruptFileError:
-        raise
-    except _ZIP_ERRORS as exc:
-        raise CorruptFileError(f"{_where(label, member)} is damaged ({_one_line(exc)})") from None
+    with _opened(zf, info, label, member) as fh:
+        _read_exactly(fh, memoryview(out), label, member)
     return bytes(out)
 
 
@@ -214,33 +225,26 @@ def read_npy_member(zf: zipfile.ZipFile, member: str, label: str, *, max_bytes: 
     """
     info = _checked_info(zf, member, label, max_bytes + MAX_NPY_HEADER + 128)
     allowed = {np.dtype(d).newbyteorder("=") for d in dtypes}
-    try:
-        with zf.open(info) as fh:
-            shape, fortran, dtype = _npy_header(fh, label, member)
-            if dtype.newbyteorder("=") not in allowed or dtype.fields or dtype.subdtype:
-                want = ", ".join(sorted(str(d) for d in allowed))
-                raise CorruptFileError(f"{_where(label, member)} holds {dtype}, not {want}")
-            if len(shape) not in ndims or not all(isinstance(s, int) and s >= 0
-                                                  for s in shape):
-                raise CorruptFileError(f"{_where(label, member)} has shape {shape}; "
-                                       f"expected {' or '.join(map(str, sorted(ndims)))} "
-                                       "dimensions")
-            nbytes = math.prod(shape) * dtype.itemsize
-            body = info.file_size - fh.tell()
-            if nbytes != body:
-                raise CorruptFileError(f"{_where(label, member)} declares shape {shape} "
-                                       f"({nbytes:,} bytes) but holds {body:,}")
-            if nbytes > max_bytes:
-                raise CorruptFileError(f"{_where(label, member)} of shape {shape} is {nbytes:,} "
-                                       f"bytes, over the {max_bytes:,}-byte limit for it")
-            arr = np.empty(shape[::-1] if fortran else shape, dtype)
-            _read_into(fh, memoryview(arr.reshape(-1).view(np.uint8)), label, member)
-            if fh.read(1):
-                raise CorruptFileError(f"{_where(label, member)} is longer than it declares")
-    except CorruptFileError:
-        raise
-    except _ZIP_ERRORS as exc:
-        raise CorruptFileError(f"{_where(label, member)} is damaged ({_one_line(exc)})") from None
+    with _opened(zf, info, label, member) as fh:
+        shape, fortran, dtype = _npy_header(fh, label, member)
+        if dtype.newbyteorder("=") not in allowed or dtype.fields or dtype.subdtype:
+            want = ", ".join(sorted(str(d) for d in allowed))
+            raise CorruptFileError(f"{_where(label, member)} holds {dtype}, not {want}")
+        if len(shape) not in ndims or not all(isinstance(s, int) and s >= 0
+                                              for s in shape):
+            raise CorruptFileError(f"{_where(label, member)} has shape {shape}; "
+                                   f"expected {' or '.join(map(str, sorted(ndims)))} "
+                                   "dimensions")
+        nbytes = math.prod(shape) * dtype.itemsize
+        body = info.file_size - fh.tell()
+        if nbytes != body:
+            raise CorruptFileError(f"{_where(label, member)} declares shape {shape} "
+                                   f"({nbytes:,} bytes) but holds {body:,}")
+        if nbytes > max_bytes:
+            raise CorruptFileError(f"{_where(label, member)} of shape {shape} is {nbytes:,} "
+                                   f"bytes, over the {max_bytes:,}-byte limit for it")
+        arr = np.empty(shape[::-1] if fortran else shape, dtype)
+        _read_exactly(fh, memoryview(arr.reshape(-1).view(np.uint8)), label, member)
     if fortran:
         arr = arr.T
     return np.ascontiguousarray(arr, dtype=dtype.newbyteorder("="))

@@ -70,23 +70,23 @@ vec3 tt_colour_filtered(vec2 p, vec2 dx, vec2 dy) {
 }
 #endif
 
-// Theme k at texel position p, filtered over the footprint (dx, dy) in texels.
-vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
+// Layer k of a theme array (tt_themes or tt_gauss) at texel position p, filtered over
+// the footprint (dx, dy) in texels.
+vec3 tt_sample_layer(sampler2DArray tex, uint k, vec2 p, vec2 dx, vec2 dy) {
     vec4 s = tt_theme_size[k];
 #if TT_PROBES > 1
-    return tt_probe(tt_themes, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw);
+    return tt_probe(tex, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw);
 #else
-    return textureGrad(tt_themes, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
+    return textureGrad(tex, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
 #endif
+}
+// Theme k at texel position p, filtered over the footprint (dx, dy) in texels.
+vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
+    return tt_sample_layer(tt_themes, k, p, dx, dy);
 }
 #if TT_BLEND == 1
 vec3 tt_sample_gauss(uint k, vec2 p, vec2 dx, vec2 dy) {
-    vec4 s = tt_theme_size[k];
-#if TT_PROBES > 1
-    return tt_probe(tt_gauss, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw);
-#else
-    return textureGrad(tt_gauss, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
-#endif
+    return tt_sample_layer(tt_gauss, k, p, dx, dy);
 }
 #endif
 
