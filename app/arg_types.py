@@ -46,3 +46,14 @@ def int_tuple(what: str, form: str, count: int, separator: str = "x", *,
         return tuple(values)
 
     return parse
+
+
+#: how ``--legend FILE`` is described, after what it names
+LEGEND_FORMS = ('(JSON {"1": "Building", ...}, a list of {"id", "name"} or CSV lines '
+                '"1,Building"; docs/formats.md)')
+
+
+def add_legend_option(parser: argparse.ArgumentParser, names: str) -> None:
+    """``--legend FILE``: the class names of a mask (:mod:`core.io.legend`); ``names`` says
+    what they name, for the help text."""
+    parser.add_argument("--legend", metavar="FILE", help=f"{names} {LEGEND_FORMS}")

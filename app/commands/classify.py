@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 
+from app.arg_types import add_legend_option
+
 NAME = "classify"
 HELP = "classify an orthophoto into themes (unsupervised, or from scribbles/label masks)"
 ORDER = 30
@@ -49,10 +51,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="with --scribbles: where the strokes lie counts as evidence too "
                              "(helps photos of large whole regions; the model then fits "
                              "PHOTO only)")
-    parser.add_argument("--legend", metavar="FILE",
-                        help="names of the mask classes (JSON {\"1\": \"Building\", ...}, a "
-                             "list of {\"id\", \"name\"} or CSV lines \"1,Building\"): kept "
-                             "in --model-out, so convert --model names its themes by them")
+    add_legend_option(parser, "names of the mask classes, kept in --model-out (convert --model "
+                              "then names its themes by them)")
     parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
     parser.add_argument("--model", metavar="M",
                         help="classify with a saved classifier or a shipped one by name (aerial)")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
+from app.arg_types import add_legend_option
 from core.errors import TerrathemeError
 
 NAME = "convert"
@@ -106,10 +107,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="classify with a saved classifier (terratheme classify --model-out) "
                              "or a shipped one by name (aerial: building, land, road, vegetation, "
                              "water; the themes take its class names)")
-    parser.add_argument("--legend", metavar="FILE",
-                        help="names of the classes of --scribbles or --model (JSON "
-                             '{"1": "Building", ...}, a list of {"id", "name"} or CSV lines '
-                             '"1,Building"): the themes take them',)
+    add_legend_option(parser, "names of the classes of --scribbles or --model: the themes take "
+                              "them")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
                              "(N pixels a side; with --model or unsupervised, themes fitted on "
