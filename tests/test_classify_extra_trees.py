@@ -52,6 +52,32 @@ def test_flat_arrays_give_sklearns_probabilities() -> None:
     np.testing.assert_array_equal(forest.classes, [2, 3, 5, 6])
 
 
+def test_walk_is_the_float64_comparison_at_every_threshold() -> None:
+    # Samples on, just below and just above each float64 threshold in float32 (the
+    # kernel's thresholds are rounded down to float32), in counts that leave partial
+    # lanes and blocks; the reference is a numpy walk comparing in float64.
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(600, 5)).astype(np.float32)
+    y = (x[:, 0] > 0).astype(int) + 2 * (x[:, 2] > 0.5)
+    forest = fit_extra_trees(x, y, n_trees=7, max_depth=9, seed=2)
+    inner = np.flatnonzero(forest.feature >= 0)
+    pick = rng.choice(inner, 500)
+    test = rng.normal(size=(3 * pick.size + 3, 5)).astype(np.float32)
+    near = forest.threshold[pick].astype(np.float32)
+    for k, v in enumerate((near, np.nextafter(near, np.float32(-np.inf)),
+                           np.nextafter(near, np.float32(np.inf)))):
+        test[k * pick.size + np.arange(pick.size), forest.feature[pick]] = v
+    node = np.repeat(forest.roots[None, :].astype(np.int64), len(test), 0)
+    for _ in range(10):
+        go_left = test[np.arange(len(test))[:, None], np.maximum(forest.feature[node], 0)
+                       ].astype(np.float64) <= forest.threshold[node]
+        node = np.where(forest.left[node] < 0, node,
+                        np.where(go_left, forest.left[node], forest.right[node]))
+    expect = forest.value[node].astype(np.float64).mean(1)
+    for n in (len(test), 1, 5, 1027):
+        np.testing.assert_allclose(forest.predict_proba(test[:n]), expect[:n], atol=1e-6)
+
+
 def test_training_is_seeded_and_balanced() -> None:
     rng = np.random.default_rng(1)
     x = rng.normal(size=(200, 4))

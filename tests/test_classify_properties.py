@@ -9,6 +9,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from core.classify import classify_unsupervised, train_classifier
+from core.classify.features import FeatureOptions, FeatureSet
+from core.classify.regularise import Regularisation, RegulariseOptions
+from core.classify.tiled import predict_tiled
 
 photos = st.integers(1, 24).flatmap(
     lambda h: st.integers(1, 24).flatmap(
@@ -54,3 +57,15 @@ def test_supervised_is_well_formed(photo, seed):
     # A coarse pixel takes the majority class of its labelled pixels, so a class painted
     # only where another one wins can drop out, never appear from nowhere.
     assert res.classes and set(res.classes) <= set(np.unique(mask)) - {0}
+
+
+@settings(max_examples=25, deadline=None)
+@given(arrays(np.float32, (3, 4, 3), elements=st.sampled_from([0.0, 0.25, 0.5, 1.0])))
+def test_labels_are_the_first_most_probable_class_and_confidence_its_share(coarse):
+    # predict_tiled's arg-max: the first of equal maxima (numpy's argmax), confidence the max.
+    photo = np.zeros((3, 4, 3), np.uint8)
+    res = predict_tiled(photo, None, lambda feats: coarse[: feats.shape[0], : feats.shape[1]],
+                        (7, 3, 9), FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
+                        RegulariseOptions(method=Regularisation.NONE), 16)
+    np.testing.assert_array_equal(res.labels, np.array([7, 3, 9], np.uint8)[coarse.argmax(2)])
+    np.testing.assert_array_equal(res.confidence, np.clip(coarse.max(2), 0, 1))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -90,3 +91,14 @@ def test_tiles_with_the_halo_reproduce_the_whole_photo():
         core = part[oy:oy + (win.y1 - win.y) // 8, ox:ox + (win.x1 - win.x) // 8, -4:]
         np.testing.assert_allclose(
             core, whole[win.y // 8:win.y1 // 8, win.x // 8:win.x1 // 8, -4:], atol=1e-3)
+
+
+def test_full_lab_is_opencvs_8_bit_lab_rescaled():
+    # OpenCV's 8-bit codes: L * 100/255, a and b - 128, in float32 arithmetic.
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (64, 300, 3), dtype=np.uint8)
+    lab8 = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
+    expect = (lab8 * np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
+              - np.array([0.0, 128.0, 128.0], np.float32))
+    np.testing.assert_array_equal(full_lab(rgb), expect)
+    assert full_lab(rgb).dtype == np.float32

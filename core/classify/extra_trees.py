@@ -15,12 +15,22 @@ numbers only (no pickle, so loading one runs no code, and it does not depend
 on the scikit-learn version), and prediction is a small numba kernel over
 the arrays, parallel over samples, that gives scikit-learn's
 ``predict_proba`` to float32 rounding (tests/test_classify_extra_trees.py).
+
+The kernel walks a tree for a block of ``PREDICT_BLOCK`` samples before the
+next tree (the tree's nodes stay in cache), four samples at a time in
+lockstep, each walk a fixed number of steps (the tree's depth: a leaf is its
+own child) with no branch on the node kind, so the four chains of dependent
+loads overlap (:meth:`ExtraTreesForest.walk_arrays`). Thresholds are rounded
+*down* to float32 there: for a float32 feature ``x``, ``x <= t`` exactly when
+``x <= floor32(t)``, so the walks are the float64 comparisons' exactly. 2.5-3x
+the speed of one walk per sample and tree on a Dubai photo's features.
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numba
 import numpy as np
@@ -36,6 +46,8 @@ MAX_NODES = 1 << 24
 MAX_CLASSES = 256
 MAX_DEPTH = 64
 MAX_FEATURES = 4096
+#: samples each parallel job of the prediction kernel takes through a tree before the next
+PREDICT_BLOCK = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,9 +99,38 @@ class ExtraTreesForest:
             raise TerrathemeError(f"samples of shape {x.shape} for a forest that reads "
                                   f"{need} features")
         out = np.zeros((x.shape[0], self.classes.size), np.float64)
-        _predict(x, self.roots, self.feature, self.threshold, self.left, self.right,
-                 self.value, out)
+        _predict(x, *self.walk_arrays, self.value, out, PREDICT_BLOCK)
         return out.astype(np.float32)
+
+    @cached_property
+    def walk_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The node arrays as the prediction kernel walks them (computed once).
+
+        Returns
+        -------
+        roots : (T,) int32 ndarray
+        depths : (T,) int32 ndarray
+            Depth of each tree (steps from the root to its deepest leaf).
+        feature : (N,) int32 ndarray
+            As ``feature``, 0 at a leaf.
+        threshold : (N,) float32 ndarray
+            The largest float32 <= ``threshold`` (+inf at a leaf).
+        child : (2N,) int32 ndarray
+            ``child[2n]`` left and ``child[2n + 1]`` right child of node n; a leaf's
+            are itself.
+        """
+        leaf = self.left < 0
+        nodes = np.arange(self.feature.size, dtype=np.int32)
+        thr = self.threshold.astype(np.float32)
+        up = thr.astype(np.float64) > self.threshold
+        thr[up] = np.nextafter(thr[up], np.float32(-np.inf))
+        thr[leaf] = np.inf
+        child = np.empty(2 * nodes.size, np.int32)
+        child[0::2] = np.where(leaf, nodes, self.left)
+        child[1::2] = np.where(leaf, nodes, self.right)
+        depths = _tree_depths(self.roots, self.left, self.right)
+        return (self.roots, depths, np.where(leaf, 0, self.feature).astype(np.int32), thr,
+                child)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays by name (for a file)."""
@@ -241,16 +282,58 @@ def from_sklearn(model) -> ExtraTreesForest:
     return ExtraTreesForest.from_arrays(arrays, n_features=int(model.n_features_in_))
 
 
+@numba.njit(cache=True, nogil=True)
+def _tree_depths(roots, left, right):  # pragma: no cover
+    """Depth of each tree: children come after their parent (checked in from_arrays)."""
+    depth = np.zeros(left.size, np.int32)
+    out = np.zeros(roots.size, np.int32)
+    for t in range(roots.size):
+        stack = [roots[t]]
+        depth[roots[t]] = 0
+        while stack:
+            node = stack.pop()
+            out[t] = max(out[t], depth[node])
+            if left[node] >= 0:
+                depth[left[node]] = depth[node] + 1
+                depth[right[node]] = depth[node] + 1
+                stack.append(left[node])
+                stack.append(right[node])
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _step(x, i, node, feature, threshold, child):  # pragma: no cover
+    return child[2 * node + (0 if x[i, feature[node]] <= threshold[node] else 1)]
+
+
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _predict(x, roots, feature, threshold, left, right, value, out):  # pragma: no cover
-    n_trees = roots.size
-    for i in numba.prange(x.shape[0]):
+def _predict(x, roots, depths, feature, threshold, child, value, out, block):  # pragma: no cover
+    n_trees, n = roots.size, x.shape[0]
+    for b in numba.prange((n + block - 1) // block):
+        i0, i1 = b * block, min(n, (b + 1) * block)
         for t in range(n_trees):
-            # Walk from the root to a leaf: left when x[feature] <= threshold.
-            node = roots[t]
-            while left[node] >= 0:
-                node = left[node] if x[i, feature[node]] <= threshold[node] else right[node]
-            for c in range(out.shape[1]):
-                out[i, c] += value[node, c]
+            root, steps = roots[t], depths[t]
+            i = i0
+            # Four walks in lockstep (independent load chains), then the rest one by one.
+            while i + 4 <= i1:
+                a0 = a1 = a2 = a3 = root
+                for _ in range(steps):
+                    a0 = _step(x, i, a0, feature, threshold, child)
+                    a1 = _step(x, i + 1, a1, feature, threshold, child)
+                    a2 = _step(x, i + 2, a2, feature, threshold, child)
+                    a3 = _step(x, i + 3, a3, feature, threshold, child)
+                for c in range(out.shape[1]):
+                    out[i, c] += value[a0, c]
+                    out[i + 1, c] += value[a1, c]
+                    out[i + 2, c] += value[a2, c]
+                    out[i + 3, c] += value[a3, c]
+                i += 4
+            for k in range(i, i1):
+                a0 = root
+                for _ in range(steps):
+                    a0 = _step(x, k, a0, feature, threshold, child)
+                for c in range(out.shape[1]):
+                    out[k, c] += value[a0, c]
+    for i in numba.prange(n):
         for c in range(out.shape[1]):
             out[i, c] /= n_trees

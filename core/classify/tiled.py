@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import cv2
+import numba
 import numpy as np
 
 from core.classify.features import FeatureOptions, image_features, with_position
@@ -211,11 +212,8 @@ def predict_tiled(
         probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
         core = _core_probabilities(probs, win, scale)
-        best = np.argmax(core, axis=2)
-        labels[win.y : win.y1, win.x : win.x1] = lut[best]
-        # The arg-max class's probability is the largest one (a gather: 10x a max over axis 2).
-        confidence[win.y : win.y1, win.x : win.x1] = np.take_along_axis(
-            core, best[:, :, None], axis=2)[:, :, 0]
+        _arg_max(core, lut, labels[win.y : win.y1, win.x : win.x1],
+                 confidence[win.y : win.y1, win.x : win.x1])
         if progress is not None:
             progress(done, len(windows))
     np.clip(confidence, 0.0, 1.0, out=confidence)
@@ -223,3 +221,19 @@ def predict_tiled(
         labels[~valid] = 0
         confidence[~valid] = 0.0
     return Classification(labels=labels, confidence=confidence, classes=tuple(classes))
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _arg_max(probs, lut, labels, confidence):  # pragma: no cover
+    """Per pixel: ``labels = lut[argmax(probs)]`` (first of equal maxima, as numpy's
+    ``argmax``) and ``confidence`` = that maximum; rows in parallel (3x numpy's
+    ``argmax`` + ``take_along_axis`` over a small last axis)."""
+    h, w, c = probs.shape
+    for y in numba.prange(h):
+        for x in range(w):
+            best, top = 0, probs[y, x, 0]
+            for k in range(1, c):
+                if probs[y, x, k] > top:
+                    best, top = k, probs[y, x, k]
+            labels[y, x] = lut[best]
+            confidence[y, x] = top
