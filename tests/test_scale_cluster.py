@@ -45,6 +45,11 @@ def per_process_fingerprint() -> tuple[str, str]:
     return str(os.getpid()), f"/elsewhere/{os.getpid()}/core"
 
 
+def sum_with_part(win, pixels: np.ndarray, part: int) -> int:
+    """A tile job with a per-tile part (``run_tiles(parts=...)``)."""
+    return int(pixels.astype(np.int64).sum()) * 1000 + part
+
+
 def square(item: int, shared: int) -> int:
     return item * item + shared
 
@@ -109,6 +114,20 @@ def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)
     assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
+
+
+def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):
+    path = tmp_path / "p.png"
+    _photo(path, 100, 140)
+    got = {}
+    for name, where in [("serial", Scheduler.SERIAL), ("dask", Scheduler.DASK),
+                        ("cluster", cluster)]:
+        out = []
+        run_tiles(path, sum_with_part, lambda w, r, out=out: out.append((w.x, w.y, r)), tile=48,
+                  scheduler=where, parts=lambda w: w.x + 7 * w.y)
+        got[name] = out
+    assert got["serial"] == got["dask"] == got["cluster"]
+    assert [r % 1000 for _, _, r in got["serial"]] == [x + 7 * y for x, y, _ in got["serial"]]
 
 
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):

@@ -203,6 +203,7 @@ def map_ordered(
     in_flight: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     describe: Callable[[Any], str] = repr,
+    payload: Callable[[Any], Any] | None = None,
 ) -> int:
     """Run ``func(item, shared)`` for every item on the cluster; ``sink(item, result)`` in order.
 
@@ -224,6 +225,10 @@ def map_ordered(
     progress : callable(done, total), optional
     describe : callable(item) -> str
         Names an item in error messages.
+    payload : callable(item) -> object, optional
+        Per-item data made here when the item is submitted (at most
+        ``in_flight`` at a time) and sent with it: the task is then
+        ``func((item, payload(item)), shared)``; ``sink`` still gets the item.
 
     Returns
     -------
@@ -245,8 +250,10 @@ def map_ordered(
         while sunk < total:
             # Keep ``limit`` tasks between submission and the sink.
             while submitted < total and submitted - sunk < limit:
-                fut = client.submit(_one_thread, func, items[submitted], shared_ref,
-                                    pure=False)
+                task = items[submitted]
+                if payload is not None:
+                    task = (task, payload(task))
+                fut = client.submit(_one_thread, func, task, shared_ref, pure=False)
                 live[fut.key] = (submitted, fut)
                 pending.add(fut)
                 submitted += 1
