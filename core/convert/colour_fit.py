@@ -35,7 +35,6 @@ from scipy import ndimage
 from core.classify.photo import prepare_photo
 from core.errors import TerrathemeError
 from core.fidelity.metrics import COLOUR_SIGMA, colour_error
-from core.io.codec import encode_image
 from core.io.images import Bands
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.colour_map import NEUTRAL, ColourMap
@@ -86,8 +85,10 @@ class FittedColourMap:
     ----------
     colour_map : ColourMap
         Decoded from ``data``.
-    data : bytes
-        The map in ``codec`` (what the packed output holds).
+    data : bytes or None
+        The map in ``codec`` (what the packed output holds); None for a map
+        beyond the codec's single-image limit, shipped in tiles
+        (``colour_map.tiles``, :meth:`core.model.colour_map.ColourMap.encode`).
     codec : str
     colour_error : float
         Estimated dE8 of the render with this map.
@@ -96,7 +97,7 @@ class FittedColourMap:
     """
 
     colour_map: ColourMap
-    data: bytes
+    data: bytes | None
     codec: str
     colour_error: float
     curve: tuple[tuple[int, int, float], ...]
@@ -180,13 +181,12 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     best: tuple[ColourMap, bytes, float] | None = None
     for scale in options.scales:
         gain = fit_gain(photo, render, int(scale), options.iterations)
-        data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
-        cmap = ColourMap.from_bytes(data, options.codec, int(scale))
+        cmap = ColourMap.encode(_quantise(gain), int(scale), options.codec, options.quality)
         # The photo's extent of the render, as a renderer shows it with this map.
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
         err = _quick_error(photo, shown)
-        curve.append((int(scale), len(data), err))
-        best = (cmap, data, err)
+        curve.append((int(scale), cmap.nbytes, err))
+        best = (cmap, cmap.data, err)
         if err <= options.target:
             break
     cmap, data, err = best  # type: ignore[misc]  (scales is never empty)
@@ -307,6 +307,6 @@ def colour_map_from_file(
         # Map pixels past the photo take the gain of the nearest covered one.
         _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
         stored = stored[iy, ix]
-    data = encode_image(stored, codec=options.codec, quality=options.quality)
-    cmap = ColourMap.from_bytes(data, options.codec, int(scale))
-    return FittedColourMap(cmap, data, options.codec, float("nan"), ())
+    # One image of the codec, or tiles when the map is beyond its single-image limit.
+    cmap = ColourMap.encode(stored, int(scale), options.codec, options.quality)
+    return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())

@@ -317,7 +317,7 @@ def convert_file_tiled(
     if boundary is not None:
         meta["render"] = {"boundary": asdict(boundary)}
     if fitted is not None:
-        meta["colour_map"] = {"codec": fitted.codec, "bytes": len(fitted.data),
+        meta["colour_map"] = {"codec": fitted.codec, "bytes": fitted.colour_map.nbytes,
                               "scale_measured_on": [x0, y0, side_w, side_h]}
     geo = read_georeference(path)
     if geo:
