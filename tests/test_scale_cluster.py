@@ -130,6 +130,20 @@ def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):
     assert [r % 1000 for _, _, r in got["serial"]] == [x + 7 * y for x, y, _ in got["serial"]]
 
 
+def _worker_settings() -> tuple:
+    import dask
+
+    return (dask.config.get("distributed.worker.profile.enabled"),
+            dask.config.get("distributed.admin.tick.interval"))
+
+
+def test_local_workers_run_without_the_profiler(cluster):
+    # The statistical profiler feeds only the dashboard (off): each worker has it off.
+    settings = cluster.run(_worker_settings)
+    assert len(settings) == 2
+    assert set(settings.values()) == {(False, "1s")}
+
+
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
     path = tmp_path / "photo.png"
     _photo(path, 96, 128)
