@@ -50,6 +50,15 @@ def sum_with_part(win, pixels: np.ndarray, part: int) -> int:
     return int(pixels.astype(np.int64).sum()) * 1000 + part
 
 
+def mark_warm() -> None:
+    """A warm-up call: leaves a mark in the worker process."""
+    os.environ["TERRATHEME_TEST_WARMED"] = "1"
+
+
+def warm_mark() -> str | None:
+    return os.environ.get("TERRATHEME_TEST_WARMED")
+
+
 def square(item: int, shared: int) -> int:
     return item * item + shared
 
@@ -114,6 +123,24 @@ def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)
     assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
+
+
+def test_warm_up_runs_its_calls_on_every_worker(cluster):
+    from core.convert.tiled import WarmKernels
+    from core.render.boundary import BoundaryOptions
+    from core.render.renderer import RenderOptions
+
+    # The tile jobs' kernels on tiny inputs, as convert_file_tiled sends them, then a mark.
+    warm = WarmKernels(brightest, RenderOptions(threads=1, boundary=BoundaryOptions()))
+    warm_up(cluster, ["core.convert.tiled"], [warm, mark_warm])
+    # The warm-up tasks are pinned one per worker and nobody waits: poll for the marks.
+    import time
+
+    for _ in range(200):
+        if set(cluster.run(warm_mark).values()) == {"1"}:
+            break
+        time.sleep(0.1)
+    assert list(cluster.run(warm_mark).values()) == ["1", "1"]
 
 
 def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):

@@ -158,26 +158,32 @@ def check_workers(client: Client, path: str) -> None:
                               "from its path, so it must be on a file system they all see")
 
 
-def _import_all(modules: tuple[str, ...]) -> None:
+def _import_all(modules: tuple[str, ...], calls: tuple[Callable[[], Any], ...]) -> None:
     import importlib
 
     for name in modules:
         importlib.import_module(name)
+    for call in calls:
+        call()
 
 
-def warm_up(client: Client, modules: Sequence[str]) -> None:
-    """Start importing ``modules`` on every worker and return at once.
+def warm_up(client: Client, modules: Sequence[str],
+            calls: Sequence[Callable[[], Any]] = ()) -> None:
+    """Start importing ``modules`` and running ``calls`` on every worker; return at once.
 
     A fresh worker spends seconds importing terratheme's stack before its
-    first tile; started early, that overlaps the client's own serial work.
+    first tile, and numba loads each cached kernel on its first call; started
+    early, both overlap the client's own serial work. ``calls``: picklable
+    zero-argument callables (module-level dataclasses), run in order.
     """
     from distributed import fire_and_forget
 
     # One task pinned to each worker (a task, not client.run: it must not block the
     # worker's event loop); nobody waits for them.
     for address in client.nthreads():
-        fire_and_forget(client.submit(_import_all, tuple(modules), workers=[address],
-                                      allow_other_workers=False, pure=False))
+        fire_and_forget(client.submit(_import_all, tuple(modules), tuple(calls),
+                                      workers=[address], allow_other_workers=False,
+                                      pure=False))
 
 
 def worker_threads(client: Client) -> int:
