@@ -161,14 +161,16 @@ def _worker_settings() -> tuple:
     import dask
 
     return (dask.config.get("distributed.worker.profile.enabled"),
-            dask.config.get("distributed.admin.tick.interval"))
+            dask.config.get("distributed.admin.tick.interval"),
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"))
 
 
-def test_local_workers_run_without_the_profiler(cluster):
-    # The statistical profiler feeds only the dashboard (off): each worker has it off.
+def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
+    # The statistical profiler feeds only the dashboard (off): each worker has it off, and
+    # glibc's adaptive reuse of freed arrays is left on (no forced trim threshold).
     settings = cluster.run(_worker_settings)
     assert len(settings) == 2
-    assert set(settings.values()) == {(False, "1s")}
+    assert set(settings.values()) == {(False, "1s", None)}
 
 
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
