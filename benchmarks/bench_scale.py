@@ -182,7 +182,9 @@ def child_convert(args: argparse.Namespace) -> None:
         "packed_bytes": len(packed), "project_file_bytes": Path(args.project).stat().st_size,
         "sha": {"grid": _sha(project.grid.indices.tobytes()),
                 "themes": _sha(*[t.texture.tobytes() for t in lib], " ".join(lib.names).encode()),
-                "colour_map": _sha(project.colour_map.data), "packed": _sha(packed)},
+                "colour_map": _sha(project.colour_map.data or b"",
+                                   *(project.colour_map.tiles or ())),
+                "packed": _sha(packed)},
     }))
 
 

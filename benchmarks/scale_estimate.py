@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.model.colour_map import MAP_TILE, ColourMap
+
 REGION_PIXELS = 400_000 * 400_000  # 400 x 400 km at 1 m
 
 
@@ -22,6 +24,12 @@ def pairs(result: dict) -> list[dict]:
                 "end_to_end_ratio": r["mpx_per_s"] / s["mpx_per_s"],
                 "cpu_per_mpx_ratio": s["tile_cpu_s_per_mpx"] / r["tile_cpu_s_per_mpx"],
                 "cores_obtained": [s["cores_obtained"], r["cores_obtained"]],
+                # The serial peer's CPU seconds per wall second in its tile stages, and the
+                # tile ratio 2 workers would reach on both cores whole at their own CPU cost
+                # per megapixel: above 1.7 only if the peer uses under 2 / 1.7 cores.
+                "serial_cpu_s_per_wall_s": s["cores_obtained"],
+                "tile_ratio_cap_on_2_cores": 2 / s["cores_obtained"]
+                * s["tile_cpu_s_per_mpx"] / r["tile_cpu_s_per_mpx"],
                 "load_at_start": [s["load_before"][0], r["load_before"][0]],
             })
     return out
@@ -45,7 +53,8 @@ def estimate(result: dict) -> dict:
     counts = (1, 2, 8, 32, 128)
     cell, cmap_scale = serial["cell"], serial["colour_map_scale"]
     vertices = (400_000 // cell + 1) ** 2
-    map_pixels = (-(-400_000 // cmap_scale)) ** 2
+    map_side = -(-400_000 // cmap_scale)
+    map_pixels = map_side**2
 
     def hours(rate: float, n: int) -> float:
         # The client's serial part, then the tiles on n workers or the client's own share.
@@ -77,10 +86,9 @@ def estimate(result: dict) -> dict:
         "client_seconds": client,
         "convert_hours_on_n_workers_shared": {n: hours(shared_rate, n) for n in counts},
         "convert_hours_on_n_workers_dedicated": {n: hours(core_rate, n) for n in counts},
-        # Whole-region arrays: the grid on the client and every worker (colour stage), the
-        # colour map's stored gain and coverage on the client.
-        "worker_peak_rss_mib": max(max(r["worker_peak_rss_mib"]) for r in two)
-        + vertices / 2**20,
+        # Whole-region arrays on the client only: the grid, the colour map's stored gain and
+        # coverage (a worker gets its tile's window of the grid, so its peak is the measured one).
+        "worker_peak_rss_mib": max(max(r["worker_peak_rss_mib"]) for r in two),
         "client_peak_rss_mib": max(r["client_peak_rss_mib"] for r in two)
         + (vertices + 4 * map_pixels) / 2**20,
         "render_hours_one_machine": REGION_PIXELS / (rend["mpx_per_s"] * 1e6) / 3600,
@@ -90,6 +98,9 @@ def estimate(result: dict) -> dict:
             "colour_map": serial["colour_map_bytes"] / np.prod(serial["colour_map_shape"])
             * map_pixels,
             "themes": serial["theme_bytes"],
+            # Beyond JPEG XL level 5 (2^28 pixels) the map ships in MAP_TILE^2 tiles.
+            "colour_map_tiles": 1 if ColourMap.fits_one_image((map_side, map_side), "jpegxl")
+            else int(np.prod(ColourMap.tile_counts((map_side, map_side), MAP_TILE))),
             "rendered_geotiff": rend["file_bytes"] * REGION_PIXELS / rend["texels"],
             "photo_rgb_raw": 3 * REGION_PIXELS,
         },

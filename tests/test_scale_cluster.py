@@ -45,6 +45,20 @@ def per_process_fingerprint() -> tuple[str, str]:
     return str(os.getpid()), f"/elsewhere/{os.getpid()}/core"
 
 
+def sum_with_part(win, pixels: np.ndarray, part: int) -> int:
+    """A tile job with a per-tile part (``run_tiles(parts=...)``)."""
+    return int(pixels.astype(np.int64).sum()) * 1000 + part
+
+
+def mark_warm() -> None:
+    """A warm-up call: leaves a mark in the worker process."""
+    os.environ["TERRATHEME_TEST_WARMED"] = "1"
+
+
+def warm_mark() -> str | None:
+    return os.environ.get("TERRATHEME_TEST_WARMED")
+
+
 def square(item: int, shared: int) -> int:
     return item * item + shared
 
@@ -109,6 +123,54 @@ def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)
     assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
+
+
+def test_warm_up_runs_its_calls_on_every_worker(cluster):
+    from core.convert.tiled import WarmKernels
+    from core.render.boundary import BoundaryOptions
+    from core.render.renderer import RenderOptions
+
+    # The tile jobs' kernels on tiny inputs, as convert_file_tiled sends them, then a mark.
+    warm = WarmKernels(brightest, RenderOptions(threads=1, boundary=BoundaryOptions()))
+    warm_up(cluster, ["core.convert.tiled"], [warm, mark_warm])
+    # The warm-up tasks are pinned one per worker and nobody waits: poll for the marks.
+    import time
+
+    for _ in range(200):
+        if set(cluster.run(warm_mark).values()) == {"1"}:
+            break
+        time.sleep(0.1)
+    assert list(cluster.run(warm_mark).values()) == ["1", "1"]
+
+
+def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):
+    path = tmp_path / "p.png"
+    _photo(path, 100, 140)
+    got = {}
+    for name, where in [("serial", Scheduler.SERIAL), ("dask", Scheduler.DASK),
+                        ("cluster", cluster)]:
+        out = []
+        run_tiles(path, sum_with_part, lambda w, r, out=out: out.append((w.x, w.y, r)), tile=48,
+                  scheduler=where, parts=lambda w: w.x + 7 * w.y)
+        got[name] = out
+    assert got["serial"] == got["dask"] == got["cluster"]
+    assert [r % 1000 for _, _, r in got["serial"]] == [x + 7 * y for x, y, _ in got["serial"]]
+
+
+def _worker_settings() -> tuple:
+    import dask
+
+    return (dask.config.get("distributed.worker.profile.enabled"),
+            dask.config.get("distributed.admin.tick.interval"),
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+
+
+def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
+    # The statistical profiler feeds only the dashboard (off): each worker has it off, and
+    # glibc's adaptive reuse of freed arrays is left on (no forced trim threshold).
+    settings = cluster.run(_worker_settings)
+    assert len(settings) == 2
+    assert set(settings.values()) == {(False, "1s", None)}
 
 
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):

@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 import cv2
@@ -34,7 +35,6 @@ from scipy import ndimage
 from core.classify.photo import prepare_photo
 from core.errors import TerrathemeError
 from core.fidelity.metrics import COLOUR_SIGMA, colour_error
-from core.io.codec import encode_image
 from core.io.images import Bands
 from core.io.tiles import Scheduler, TileWindow, run_tiles
 from core.model.colour_map import NEUTRAL, ColourMap
@@ -85,8 +85,10 @@ class FittedColourMap:
     ----------
     colour_map : ColourMap
         Decoded from ``data``.
-    data : bytes
-        The map in ``codec`` (what the packed output holds).
+    data : bytes or None
+        The map in ``codec`` (what the packed output holds); None for a map
+        beyond the codec's single-image limit, shipped in tiles
+        (``colour_map.tiles``, :meth:`core.model.colour_map.ColourMap.encode`).
     codec : str
     colour_error : float
         Estimated dE8 of the render with this map.
@@ -95,7 +97,7 @@ class FittedColourMap:
     """
 
     colour_map: ColourMap
-    data: bytes
+    data: bytes | None
     codec: str
     colour_error: float
     curve: tuple[tuple[int, int, float], ...]
@@ -179,13 +181,12 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     best: tuple[ColourMap, bytes, float] | None = None
     for scale in options.scales:
         gain = fit_gain(photo, render, int(scale), options.iterations)
-        data = encode_image(_quantise(gain), codec=options.codec, quality=options.quality)
-        cmap = ColourMap.from_bytes(data, options.codec, int(scale))
+        cmap = ColourMap.encode(_quantise(gain), int(scale), options.codec, options.quality)
         # The photo's extent of the render, as a renderer shows it with this map.
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
         err = _quick_error(photo, shown)
-        curve.append((int(scale), len(data), err))
-        best = (cmap, data, err)
+        curve.append((int(scale), cmap.nbytes, err))
+        best = (cmap, cmap.data, err)
         if err <= options.target:
             break
     cmap, data, err = best  # type: ignore[misc]  (scales is never empty)
@@ -201,29 +202,55 @@ def _block_sums(image: np.ndarray, s: int) -> np.ndarray:
     return pad.reshape(bh, s, bw, s, 3).sum(axis=(1, 3))
 
 
+def grid_window(grid: IndexGrid, win: TileWindow) -> tuple[tuple[int, int], np.ndarray]:
+    """The vertices a render of tile ``win``'s core needs: ``(origin, block)``.
+
+    The cells under the core plus one vertex on every side where the grid
+    goes on (the saddle rule's ring), so
+    ``render_cells(block, ..., region=core, origin=origin)`` equals the
+    whole grid's render of the core (:func:`core.render.renderer.render_cells`).
+
+    Returns
+    -------
+    origin : (row, col) of ``block[0, 0]`` in the grid
+    block : (r, c) uint8 ndarray, at most ``(h/M + 4) x (w/N + 4)``
+    """
+    n, m = grid.cell
+    rows, cols = grid.indices.shape
+    r0, c0 = max(win.y // m - 1, 0), max(win.x // n - 1, 0)
+    r1, c1 = min((win.y1 - 1) // m + 3, rows), min((win.x1 - 1) // n + 3, cols)
+    return (r0, c0), np.ascontiguousarray(grid.indices[r0:r1, c0:c1])
+
+
 @dataclass(frozen=True)
 class BlockGainJob:
     """The tile job of :func:`colour_map_from_file`: the stored gain of its map pixels.
 
+    Called ``job(win, pixels, (origin, block))`` with the tile's
+    :func:`grid_window`: the job holds no grid, so what a worker receives
+    is set by the tile and the themes, not the image.
+
     Attributes
     ----------
-    grid : IndexGrid
     textures : list of (h, w, 3) uint8 ndarray
+    cell : (N, M)
     render : RenderOptions
     scale : int
         Texels per map pixel; tiles start on whole map pixels.
     """
 
-    grid: IndexGrid
     textures: list[np.ndarray]
+    cell: tuple[int, int]
     render: RenderOptions
     scale: int
 
-    def __call__(self, win: TileWindow, pixels: np.ndarray) -> np.ndarray:
+    def __call__(self, win: TileWindow, pixels: np.ndarray,
+                 part: tuple[tuple[int, int], np.ndarray]) -> np.ndarray:
         # Step 1 on this tile's map pixels: the photo's sums over the render's, quantised.
         rgb, _ = prepare_photo(pixels)
-        shown = render_cells(self.grid, self.textures, region=(win.x, win.y, win.w, win.h),
-                             options=self.render)
+        origin, block = part
+        shown = render_cells(block, self.textures, self.cell, region=(win.x, win.y, win.w, win.h),
+                             options=self.render, origin=origin)
         return _quantise(_block_sums(rgb, self.scale)
                          / np.maximum(_block_sums(shown, self.scale), 1.0))
 
@@ -248,8 +275,9 @@ def colour_map_from_file(
     map (3 bytes a map pixel), not the photo. Map pixels beyond the photo
     (the last cells) take the nearest pixel's gain. The refinement of step 2
     needs every neighbour's gain and is not done here. On a cluster
-    (``scheduler`` a ``distributed.Client``) every worker gets the grid and the
-    themes once; the map is the serial one, bit for bit.
+    (``scheduler`` a ``distributed.Client``) every worker gets the themes
+    once and each tile its window of the grid (:func:`grid_window`), so a
+    worker's memory is set by the tile; the map is the serial one, bit for bit.
 
     Returns
     -------
@@ -272,13 +300,13 @@ def colour_map_from_file(
     if not isinstance(scheduler, Scheduler):
         # On a cluster each task runs on one worker thread, its render too (same texels).
         render = replace(render, threads=1)
-    job = BlockGainJob(grid, list(textures), render, int(scale))
+    job = BlockGainJob(list(textures), grid.cell, render, int(scale))
     run_tiles(path, job, sink, tile=side, scheduler=scheduler, progress=progress,
-              bands=Bands.PHOTO)
+              bands=Bands.PHOTO, parts=partial(grid_window, grid))
     if not covered.all():
         # Map pixels past the photo take the gain of the nearest covered one.
         _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
         stored = stored[iy, ix]
-    data = encode_image(stored, codec=options.codec, quality=options.quality)
-    cmap = ColourMap.from_bytes(data, options.codec, int(scale))
-    return FittedColourMap(cmap, data, options.codec, float("nan"), ())
+    # One image of the codec, or tiles when the map is beyond its single-image limit.
+    cmap = ColourMap.encode(stored, int(scale), options.codec, options.quality)
+    return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())

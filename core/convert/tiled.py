@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -117,6 +117,40 @@ def grid_from_file(
 
 #: side of the centre window themes are cut from on the tiled path
 THEME_WINDOW = 2048
+
+
+@dataclass(frozen=True)
+class WarmKernels:
+    """A warm-up task: the tile jobs' compiled code run once on tiny inputs, on a worker.
+
+    numba loads each cached kernel on its first call: a fresh worker's first
+    tile of each stage cost 0.3-0.5 CPU seconds more than the next ones
+    (``benchmarks/bench_scale.py``, 2048^2: 1.78 and 1.72 CPU s for 4 tiles
+    on 2 workers against 1.11 and 0.55 serially). Sent by
+    :func:`core.io.cluster.warm_up` while the client cuts themes and
+    chooses the cell, the tiles do not pay it.
+
+    Attributes
+    ----------
+    classify : ClassifyFn
+    render : RenderOptions
+        The colour-map stage's render style.
+    """
+
+    classify: ClassifyFn
+    render: RenderOptions
+
+    def __call__(self) -> None:
+        # As a tile task runs: numba and OpenCV on this thread alone.
+        import cv2
+        import numba
+
+        numba.set_num_threads(1)
+        cv2.setNumThreads(1)
+        pixels = np.zeros((64, 64, 3), np.uint8)
+        self.classify(pixels)
+        prepare_photo(pixels)
+        render_cells(np.zeros((3, 3), np.uint8), [pixels[:8, :8]], (8, 8), options=self.render)
 
 
 #: pieces per side of the grid of windows an unsupervised model is fitted on
@@ -262,6 +296,10 @@ def convert_file_tiled(
         # Each tile would see its own positions, not the photo's.
         raise TerrathemeError("this classifier uses pixel positions (features.position): it "
                               "only classifies the whole photo it was trained on, not tiles")
+    style = RenderOptions(boundary=boundary)
+    if not isinstance(scheduler, Scheduler):
+        # The workers load the tile jobs' kernels while the themes are cut here.
+        warm_up(scheduler, [], [WarmKernels(PredictLabels(model), replace(style, threads=1))])
     # Themes from the centre window of the photo, classified by the model.
     side_w, side_h = min(THEME_WINDOW, info.width), min(THEME_WINDOW, info.height)
     x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
@@ -296,7 +334,6 @@ def convert_file_tiled(
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
-    style = RenderOptions(boundary=boundary)
     fitted = None
     if colour_map is not None:
         # The map's scale from the centre window, then the map itself tile by tile.
@@ -317,7 +354,7 @@ def convert_file_tiled(
     if boundary is not None:
         meta["render"] = {"boundary": asdict(boundary)}
     if fitted is not None:
-        meta["colour_map"] = {"codec": fitted.codec, "bytes": len(fitted.data),
+        meta["colour_map"] = {"codec": fitted.codec, "bytes": fitted.colour_map.nbytes,
                               "scale_measured_on": [x0, y0, side_w, side_h]}
     geo = read_georeference(path)
     if geo:

@@ -57,10 +57,9 @@ def texture_cost(project: ThematicTexture) -> TextureCost:
     cmap = 0
     if project.colour_map is not None:
         # As it ships (its codec bytes), else as convert would ship it.
-        data = project.colour_map.data
-        if data is None:
-            data = encode_image(project.colour_map.pixels, codec=COLOUR_MAP_CODEC,
-                                quality=COLOUR_MAP_QUALITY)
-        cmap = len(data)
+        shipped = project.colour_map
+        cmap = (shipped.nbytes if shipped.data is not None or shipped.tiles is not None else
+                len(encode_image(shipped.pixels, codec=COLOUR_MAP_CODEC,
+                                 quality=COLOUR_MAP_QUALITY)))
     themes = sum(len(encode_image(t.texture, codec="png")) for t in project.library)
     return TextureCost(grid, cmap, themes)

@@ -148,17 +148,28 @@ class Scheduler(enum.Enum):
     DASK = "dask"
 
 
-TileJob = Callable[[TileWindow, np.ndarray], object]
+TileJob = Callable[..., object]
 TileSink = Callable[[TileWindow, object], None]
+TilePart = Callable[[TileWindow], object]
 
 
-def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands) -> object:
-    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands))
+def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands, *part) -> object:
+    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands),
+               *part)
 
 
 def _run_shared(win: TileWindow, shared: tuple) -> object:
     """One tile on a cluster worker: ``shared`` is ``(path, job, dtype, bands)``."""
     return _run_one(shared[0], win, shared[1], shared[2], shared[3])
+
+
+def _run_shared_part(item: tuple[TileWindow, object], shared: tuple) -> object:
+    """One tile and its part (``run_tiles(parts=...)``) on a cluster worker."""
+    return _run_one(shared[0], item[0], shared[1], shared[2], shared[3], item[1])
+
+
+def _part_of(parts: TilePart | None, win: TileWindow) -> tuple:
+    return () if parts is None else (parts(win),)
 
 
 def _describe(win: TileWindow) -> str:
@@ -178,6 +189,7 @@ def run_tiles(
     windows: list[TileWindow] | None = None,
     progress: ProgressFn | None = None,
     bands: Bands = Bands.ALL,
+    parts: TilePart | None = None,
 ) -> int:
     """Run ``job(window, pixels)`` on every tile of a file and hand each result to ``sink``.
 
@@ -206,6 +218,11 @@ def run_tiles(
         Called with ``(0, total)`` first, then after each tile is sunk.
     bands : Bands
         Which channels each tile holds (``Bands.PHOTO`` for photos).
+    parts : callable(TileWindow) -> object, optional
+        The part of this process's data a tile needs (its window of a grid),
+        made here as the tile is submitted and sent with it, not to every
+        worker, so a job's payload is set by the tile, not the image; the job
+        is then called ``job(window, pixels, part)``.
 
     Returns
     -------
@@ -219,7 +236,7 @@ def run_tiles(
         progress(0, total)
     if scheduler is Scheduler.SERIAL:
         for done, win in enumerate(wins, start=1):
-            sink(win, _run_one(path, win, job, dtype, bands))
+            sink(win, _run_one(path, win, job, dtype, bands, *_part_of(parts, win)))
             if progress is not None:
                 progress(done, total)
         return total
@@ -229,15 +246,20 @@ def run_tiles(
         # Workers open the file by its absolute path and must run this code: checked first.
         path = os.path.abspath(path)
         check_workers(scheduler, path)
-        return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
-                           in_flight=batch, progress=progress, describe=_describe)
+        if parts is None:
+            return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
+                               in_flight=batch, progress=progress, describe=_describe)
+        return map_ordered(scheduler, _run_shared_part, wins, (path, job, dtype, bands), sink,
+                           in_flight=batch, progress=progress, describe=_describe,
+                           payload=parts)
     import dask
 
     # Batches of delayed tasks keep at most ``batch`` results in memory.
     step = max(1, int(batch or 4))
     for start in range(0, total, step):
         part = wins[start : start + step]
-        results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype, bands)
+        results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype, bands,
+                                                        *_part_of(parts, w))
                                  for w in part], scheduler="threads")
         for win, res in zip(part, results, strict=True):
             sink(win, res)

@@ -16,21 +16,41 @@ terratheme's colour map is that image:
   ``(X + 0.5) / scale - 0.5`` (clamped at the edges), in exact integer
   arithmetic (:mod:`core.render.colour_map`), so every renderer and every
   region agrees.
+
+A map ships in one image of its codec (:meth:`ColourMap.encode`) when it
+fits the codec's single-image limit (:data:`ONE_IMAGE_LIMITS`: JPEG XL's
+level 5, which every decoder reads, is 2^18 pixels a side and 2^28 in all),
+else as a row-major grid of :data:`MAP_TILE`-pixel tiles, each its own image:
+a 400 x 400 km region at 1/16 of 1 m is a 25000^2 map, beyond level 5, and
+encoding it whole would take libjxl about 20 bytes a pixel (12 GB); tile by
+tile it takes one tile's. What renders is the decoded tiles, so seams
+between them are in the pixels every renderer sees alike.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.io.codec import decode_image
+from core.io.codec import decode_image, encode_image
 
 #: the stored value that leaves a texel unchanged
 NEUTRAL = 128
 #: largest texels per map pixel
 MAX_SCALE = 4096
+#: codec -> (largest side, most pixels) of a map shipped as one image: JPEG XL level 5
+#: (ISO/IEC 18181-1 profile limits), WebP's 14-bit sizes, baseline JPEG's 16-bit ones
+ONE_IMAGE_LIMITS = {
+    "jpegxl": (1 << 18, 1 << 28),
+    "webp": (16383, 16383 * 16383),
+    "jpeg": (65535, 65535 * 65535),
+    "png": ((1 << 31) - 1, 1 << 62),
+}
+#: map pixels a side of the tiles of a map beyond its codec's single-image limit
+MAP_TILE = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,12 +66,19 @@ class ColourMap:
     codec, data : str and bytes, or None
         The map as it ships (:mod:`core.io.codec`): ``pixels`` are these bytes
         decoded (:meth:`from_bytes`), so every copy renders alike.
+    tiles : tuple of bytes, or None
+        Instead of ``data``, a map beyond its codec's single-image limit: the
+        ``tile x tile`` pieces in ``codec``, row by row (:meth:`from_tiles`).
+    tile : int or None
+        Map pixels a side of ``tiles`` (the last row and column are smaller).
     """
 
     pixels: np.ndarray
     scale: int
     codec: str | None = None
     data: bytes | None = None
+    tiles: tuple[bytes, ...] | None = None
+    tile: int | None = None
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.pixels)
@@ -67,6 +94,15 @@ class ColourMap:
         frozen.setflags(write=False)
         object.__setattr__(self, "pixels", frozen)
         object.__setattr__(self, "scale", int(self.scale))
+        if self.tiles is not None:
+            if self.data is not None or self.codec is None:
+                raise TerrathemeError("a tiled colour map has a codec and no single image")
+            rows, cols = self.tile_counts(frozen.shape[:2], self.tile)
+            if len(self.tiles) != rows * cols:
+                raise TerrathemeError(f"a {frozen.shape[1]} x {frozen.shape[0]} colour map in "
+                                      f"tiles of {self.tile} has {rows * cols} tiles, "
+                                      f"not {len(self.tiles)}")
+            object.__setattr__(self, "tiles", tuple(bytes(t) for t in self.tiles))
 
     @classmethod
     def from_bytes(cls, data: bytes, codec: str, scale: int,
@@ -77,6 +113,66 @@ class ColourMap:
             raise TerrathemeError(f"colour map must be RGB, the {codec} image has "
                                   f"{pixels.shape[2]} channel(s)")
         return cls(pixels[:, :, :3], scale, codec, bytes(data))
+
+    @staticmethod
+    def tile_counts(shape: tuple[int, int], tile: object) -> tuple[int, int]:
+        """``(rows, cols)`` of ``tile``-pixel tiles over an ``(mh, mw)`` map."""
+        if isinstance(tile, bool) or not isinstance(tile, int | np.integer) or int(tile) < 1:
+            raise TerrathemeError(f"colour map tile must be a positive integer, got {tile!r}")
+        return -(-int(shape[0]) // int(tile)), -(-int(shape[1]) // int(tile))
+
+    @staticmethod
+    def fits_one_image(shape: tuple[int, int], codec: str) -> bool:
+        """Whether an ``(mh, mw)`` map ships as one ``codec`` image (:data:`ONE_IMAGE_LIMITS`)."""
+        side, pixels = ONE_IMAGE_LIMITS.get(codec, ONE_IMAGE_LIMITS["png"])
+        return max(shape) <= side and shape[0] * shape[1] <= pixels
+
+    @classmethod
+    def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int) -> ColourMap:
+        """The map of stored gains ``pixels`` as it ships in ``codec`` (decoded back).
+
+        One image when it fits the codec's single-image limit, else tiles of
+        :data:`MAP_TILE` (module docstring), each encoded on its own.
+
+        Parameters
+        ----------
+        pixels : (mh, mw, 3) uint8 ndarray
+        scale : int
+        codec : str
+            :mod:`core.io.codec` name.
+        quality : int
+            1..100.
+        """
+        arr = np.ascontiguousarray(pixels)
+        if cls.fits_one_image(arr.shape[:2], codec):
+            return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale)
+        t = MAP_TILE
+        tiles = [encode_image(arr[y:y + t, x:x + t], codec=codec, quality=quality)
+                 for y in range(0, arr.shape[0], t) for x in range(0, arr.shape[1], t)]
+        return cls.from_tiles(tiles, codec, scale, arr.shape[:2], t)
+
+    @classmethod
+    def from_tiles(cls, tiles: Sequence[bytes], codec: str, scale: int,
+                   shape: tuple[int, int], tile: int) -> ColourMap:
+        """The map shipped as ``tile``-pixel tiles in ``codec``, row by row; ``shape`` ``(mh, mw)``.
+
+        Each tile's size is checked on its header before it is decoded.
+        """
+        rows, cols = cls.tile_counts(shape, tile)
+        if len(tiles) != rows * cols:
+            raise TerrathemeError(f"a {shape[1]} x {shape[0]} colour map in tiles of {tile} "
+                                  f"has {rows * cols} tiles, not {len(tiles)}")
+        mh, mw = int(shape[0]), int(shape[1])
+        pixels = np.empty((mh, mw, 3), np.uint8)
+        for k, data in enumerate(tiles):
+            y, x = (k // cols) * tile, (k % cols) * tile
+            want = (min(tile, mh - y), min(tile, mw - x))
+            piece = decode_image(data, codec=codec, shape=want)
+            if piece.shape[2] < 3:
+                raise TerrathemeError(f"colour map must be RGB, tile {k} has "
+                                      f"{piece.shape[2]} channel(s)")
+            pixels[y:y + want[0], x:x + want[1]] = piece[:, :, :3]
+        return cls(pixels, scale, codec, None, tuple(tiles), int(tile))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ColourMap):
@@ -101,5 +197,7 @@ class ColourMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes as shipped (``data``), else of the raw pixels."""
+        """Bytes as shipped (``data`` or ``tiles``), else of the raw pixels."""
+        if self.tiles is not None:
+            return sum(len(t) for t in self.tiles)
         return len(self.data) if self.data is not None else int(self.pixels.nbytes)

@@ -18,7 +18,10 @@ CRC-32 on reading:
 ``colour_map.jxl`` (or another codec of core.io.codec), or ``colour_map.npy`` (optional)
     the colour gain over the texture (:mod:`core.model.colour_map`) as it
     ships; the manifest's ``"colour_map": {"scale", "codec", "member"}``
-    says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``).
+    says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``). A map
+    beyond its codec's single-image limit ships as ``colour_map/RRR_CCC.jxl``
+    tiles instead: ``{"scale", "codec", "tile", "members": [row by row]}``
+    (version 2; a project without one stays version 1).
 
 ``metadata`` is a JSON object: ``source_photo`` (path), ``georeference`` (the
 photo's GeoTIFF/CRS attributes, checked by
@@ -67,7 +70,9 @@ from core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_lay
 from core.themes.library import Theme, ThemeLibrary
 
 FORMAT_NAME = "terratheme-project"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: the version a project is written in without a tiled colour map (readable by older readers)
+BASE_VERSION = 1
 PROJECT_SUFFIX = ".ttproj"
 MANIFEST = "manifest.json"
 GRID_MEMBER = "grid.npy"
@@ -176,13 +181,16 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     """The colour map the manifest names, checked against the grid before decoding."""
     if entry is None:
         return None
-    if not isinstance(entry, dict) or not isinstance(entry.get("member"), str):
+    tiled = isinstance(entry, dict) and "tile" in entry
+    if not isinstance(entry, dict) or not (tiled or isinstance(entry.get("member"), str)):
         raise CorruptFileError(f"{path}: bad colour_map entry in the manifest")
     scale, codec = entry.get("scale"), entry.get("codec")
     if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
         raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
     shape = ColourMap.shape_for(grid.texture_size, scale)
     label = str(path)
+    if tiled:
+        return _load_tiled_colour_map(zf, entry, shape, label)
     if codec is None:
         pixels = read_npy_member(zf, entry["member"], label, dtypes=[np.uint8], ndims=[3],
                                  max_bytes=shape[0] * shape[1] * 3)
@@ -192,6 +200,23 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     # The codec's bytes: at most the raw map's size (a compressed map is smaller).
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
     return ColourMap.from_bytes(data, codec, scale, shape)
+
+
+def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, int],
+                           label: str) -> ColourMap:
+    """A colour map shipped in tiles, every field checked before a tile is read."""
+    tile, codec, names = entry.get("tile"), entry.get("codec"), entry.get("members")
+    if codec not in CODECS:
+        raise CorruptFileError(f"{label}: unknown colour map codec {codec!r}")
+    rows, cols = ColourMap.tile_counts(shape, tile)
+    if (not isinstance(names, list) or len(names) != rows * cols
+            or not all(isinstance(n, str) for n in names)):
+        raise CorruptFileError(f"{label}: a {shape[1]} x {shape[0]} colour map in tiles of "
+                               f"{tile} needs {rows * cols} tile members")
+    # Each tile's bytes: at most its raw size (a compressed tile is smaller).
+    limit = min(tile, shape[0]) * min(tile, shape[1]) * 3 + 4096
+    tiles = [read_member(zf, name, label, max_bytes=limit) for name in names]
+    return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile)
 
 
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
@@ -221,7 +246,14 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
             layers.append(spec.name)
     extra = {}
     cmap = project.colour_map
-    if cmap is not None:
+    if cmap is not None and cmap.tiles is not None:
+        rows, cols = ColourMap.tile_counts(cmap.pixels.shape[:2], cmap.tile)
+        names = [f"colour_map/{k // cols:03d}_{k % cols:03d}{CODECS[cmap.codec][0]}"
+                 for k in range(rows * cols)]
+        members.update(zip(names, cmap.tiles, strict=True))
+        extra["colour_map"] = {"scale": cmap.scale, "codec": cmap.codec, "tile": cmap.tile,
+                               "members": names}
+    elif cmap is not None:
         if cmap.data is not None:
             member = "colour_map" + CODECS[cmap.codec][0]
             members[member] = cmap.data
@@ -231,7 +263,7 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
         extra["colour_map"] = {"scale": cmap.scale, "codec": cmap.codec, "member": member}
     manifest = {
         "format": FORMAT_NAME,
-        "version": FORMAT_VERSION,
+        "version": FORMAT_VERSION if "tile" in extra.get("colour_map", {}) else BASE_VERSION,
         "cell": list(project.grid.cell),
         "grid_shape": list(project.grid.indices.shape),
         "themes": themes,

@@ -111,6 +111,7 @@ def render_cells(
     progress: Progress | None = None,
     out: np.ndarray | None = None,
     colour_map: ColourMap | None = None,
+    origin: tuple[int, int] = (0, 0),
 ) -> np.ndarray:
     """Render a thematic texture (design.md §1, steps 1-3).
 
@@ -137,6 +138,13 @@ def render_cells(
     colour_map : ColourMap, optional
         Colour gain over the full texture, applied to every texel rendered
         (:mod:`core.render.colour_map`).
+    origin : (row, col), optional
+        ``grid`` is the block of a larger grid whose vertex ``(row, col)`` it
+        starts at; ``region`` is in the larger texture's texels and within the
+        block. The render equals the larger grid's when the block holds one
+        vertex more than the region's cells on every side where the larger
+        grid goes on (the saddle rule's ring), so a tile job renders from its
+        window of a huge grid alone. No ``splits`` or ``colour_map`` with it.
 
     Returns
     -------
@@ -152,11 +160,19 @@ def render_cells(
     textures = theme_textures(themes)
     indices, (n, m) = prepare_grid(grid, cell, len(textures))
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
+    oy, ox = (int(v) for v in origin)
+    if oy < 0 or ox < 0 or ((oy or ox) and (splits is not None or colour_map is not None)):
+        raise TerrathemeError(f"origin must be two vertex numbers >= 0, without splits or a "
+                              f"colour map, got {origin}")
+    if region is not None and (oy or ox):
+        # The block's own texels from here on; the kernels get the global position.
+        region = (region[0] - ox * n, region[1] - oy * m, *region[2:])
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     # Only the block of cells under the region (a viewport of a huge grid stays cheap).
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
     sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
     splits = region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
+    cx0, cy0, rx, ry = cx0 + ox, cy0 + oy, rx + ox * n, ry + oy * m
     hist = options.blend is BlendMode.HISTOGRAM
     packed = pack_themes(textures, n, gaussian=hist)
     if out is None:

@@ -1,0 +1,117 @@
+"""The colour-map stage of a whole region: each tile job gets its window of the grid only.
+
+A tile's render from its :func:`core.convert.colour_fit.grid_window` must equal
+the whole grid's render of that tile (bit for bit: the map is the serial one),
+and what a job and its window weigh when pickled for a worker must be set by
+the tile, not by the image.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from core.convert.colour_fit import BlockGainJob, grid_window
+from core.errors import TerrathemeError
+from core.io.tiles import tile_windows
+from core.model.grid import IndexGrid
+from core.render.boundary import BoundaryOptions
+from core.render.renderer import BlendMode, RenderOptions, render_cells
+from core.render.rules import SaddleRule
+
+
+def _themes(rng, k=3):
+    return [rng.integers(0, 256, (24, 20, 3), dtype=np.uint8) for _ in range(k)]
+
+
+@pytest.mark.parametrize("options", [
+    RenderOptions(),
+    RenderOptions(saddle=SaddleRule.MAIN),
+    RenderOptions(boundary=BoundaryOptions()),
+    RenderOptions(blend=BlendMode.HISTOGRAM),
+], ids=["linear", "main-saddle", "shaped", "histogram"])
+def test_a_tile_rendered_from_its_window_equals_the_whole_grid(options):
+    rng = np.random.default_rng(5)
+    # Two themes in a checkerboard-like noise: saddle cells everywhere (the ring rule counts).
+    grid = IndexGrid(rng.integers(0, 2, (23, 31)).astype(np.uint8), (8, 6))
+    themes = _themes(rng, 2)
+    w, h = grid.texture_size
+    whole = render_cells(grid, themes, options=options)
+    for tile in (17, 40, (64, 30)):
+        for win in tile_windows(w, h, tile):
+            origin, block = grid_window(grid, win)
+            got = render_cells(block, themes, grid.cell, region=(win.x, win.y, win.w, win.h),
+                               options=options, origin=origin)
+            assert np.array_equal(got, whole[win.y:win.y1, win.x:win.x1]), (tile, win)
+
+
+def test_a_window_one_vertex_short_of_the_ring_can_differ():
+    # The halo is needed: without the ring's extra vertex the saddle rule sees a false border.
+    rng = np.random.default_rng(2)
+    grid = IndexGrid(rng.integers(0, 2, (40, 40)).astype(np.uint8), (4, 4))
+    themes = _themes(rng, 2)
+    w, h = grid.texture_size
+    whole = render_cells(grid, themes)
+    differ = 0
+    for win in tile_windows(w, h, 12):
+        (r0, c0), block = grid_window(grid, win)
+        if r0 == 0 or c0 == 0:
+            continue
+        got = render_cells(block[1:, 1:], themes, grid.cell, region=(win.x, win.y, win.w, win.h),
+                           origin=(r0 + 1, c0 + 1))
+        differ += not np.array_equal(got, whole[win.y:win.y1, win.x:win.x1])
+    assert differ > 0
+
+
+def test_origin_errors():
+    grid = np.zeros((5, 5), np.uint8)
+    themes = [np.zeros((4, 4, 3), np.uint8)]
+    with pytest.raises(TerrathemeError, match="origin"):
+        render_cells(grid, themes, (4, 4), origin=(-1, 0))
+    with pytest.raises(TerrathemeError, match="origin"):
+        render_cells(grid, themes, (4, 4), origin=(1, 0), splits=np.zeros((4, 4), np.uint8))
+    with pytest.raises(TerrathemeError):
+        # A region outside the block.
+        render_cells(grid, themes, (4, 4), region=(0, 0, 4, 4), origin=(2, 2))
+
+
+def test_block_job_payload_is_set_by_the_tile_not_the_image():
+    rng = np.random.default_rng(1)
+    themes = _themes(rng)
+    tile, cell = 256, 16
+    job = BlockGainJob(themes, (cell, cell), RenderOptions(threads=1), 16)
+    sent = {}
+    for side in (1024, 8192):  # photos of 1 and 64 Mpx
+        grid = IndexGrid(rng.integers(0, 3, (side // cell + 1,) * 2).astype(np.uint8),
+                         (cell, cell))
+        wins = tile_windows(side, side, tile)
+        part = max(len(pickle.dumps((win, grid_window(grid, win)))) for win in wins)
+        sent[side] = (len(pickle.dumps(job)), part, grid.indices.nbytes)
+    (job_small, part_small, _), (job_big, part_big, grid_big) = sent[1024], sent[8192]
+    # What every worker gets once (the themes, the options) does not depend on the image...
+    assert job_small == job_big
+    # ... and each tile's window is at most (tile / cell + 4)^2 vertices plus framing.
+    # (the same for both images, to the pickled width of the window's position).
+    assert abs(part_small - part_big) < 16
+    assert max(part_small, part_big) <= (tile // cell + 4) ** 2 + 1024
+    assert part_big * 100 < grid_big
+
+
+def test_block_job_equals_the_whole_grid_block_gain():
+    from core.convert.colour_fit import _block_sums, _quantise
+
+    rng = np.random.default_rng(4)
+    grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
+    themes = _themes(rng)
+    options = RenderOptions(boundary=BoundaryOptions(), threads=1)
+    w, h = grid.texture_size
+    photo = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    whole = render_cells(grid, themes, options=options)
+    job = BlockGainJob(themes, grid.cell, options, 16)
+    for win in tile_windows(w, h, 64):
+        pixels = photo[win.ry:win.ry1, win.rx:win.rx1]
+        want = _quantise(_block_sums(pixels, 16)
+                         / np.maximum(_block_sums(whole[win.y:win.y1, win.x:win.x1], 16), 1.0))
+        assert np.array_equal(job(win, pixels, grid_window(grid, win)), want)
