@@ -307,10 +307,9 @@ def _undo(folder: Path, entries: list[dict], renamed: list[dict]) -> list[Path]:
 
 
 def _inode(path: Path) -> int | None:
-    try:
+    with contextlib.suppress(OSError):
         return os.lstat(path).st_ino
-    except OSError:
-        return None
+    return None
 
 
 def _owner_gone(match: re.Match) -> bool:
@@ -320,11 +319,11 @@ def _owner_gone(match: re.Match) -> bool:
     if pid == os.getpid():
         return False
     try:
-        os.kill(pid, 0)
+        os.kill(pid, 0)  # raises ProcessLookupError when no such process
     except ProcessLookupError:
         return True
     except OSError:
-        return False
+        pass
     return False
 
 
