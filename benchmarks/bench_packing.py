@@ -51,8 +51,6 @@ import numba
 import numpy as np
 
 matplotlib.use("Agg")
-import imagecodecs
-import tifffile
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -92,7 +90,16 @@ def dense_gather_parallel(img, xs, ys, out):  # pragma: no cover - numba
 # ---------------------------------------------------------------- peer codecs
 
 
+def _imagecodecs():
+    # Imported when a peer codec runs: --lookups-only needs neither imagecodecs nor tifffile.
+    import imagecodecs
+
+    return imagecodecs
+
+
 def _geotiff(img: np.ndarray) -> bytes:
+    import tifffile
+
     buf = io.BytesIO()
     tifffile.imwrite(buf, img, tile=(256, 256), compression="zstd",
                      compressionargs={"level": 19})
@@ -100,6 +107,8 @@ def _geotiff(img: np.ndarray) -> bytes:
 
 
 def _geotiff_read(data: bytes) -> np.ndarray:
+    import tifffile
+
     return tifffile.imread(io.BytesIO(data))
 
 
@@ -112,10 +121,11 @@ def _cv2_read(data: bytes) -> np.ndarray:
 CODECS = {
     "webp_lossless": (lambda a: cv2.imencode(".webp", a, [cv2.IMWRITE_WEBP_QUALITY, 101])[1]
                       .tobytes(), _cv2_read),
-    "jpegxl_e9": (lambda a: imagecodecs.jpegxl_encode(a, lossless=True, effort=9, numthreads=2),
-                  imagecodecs.jpegxl_decode),
-    "avif_lossless": (lambda a: imagecodecs.avif_encode(a, level=100, speed=0, numthreads=2),
-                      imagecodecs.avif_decode),
+    "jpegxl_e9": (lambda a: _imagecodecs().jpegxl_encode(a, lossless=True, effort=9,
+                                                         numthreads=2),
+                  lambda d: _imagecodecs().jpegxl_decode(d)),
+    "avif_lossless": (lambda a: _imagecodecs().avif_encode(a, level=100, speed=0, numthreads=2),
+                      lambda d: _imagecodecs().avif_decode(d)),
     "geotiff_zstd19": (_geotiff, _geotiff_read),
     "png9": (lambda a: cv2.imencode(".png", a, [cv2.IMWRITE_PNG_COMPRESSION, 9])[1].tobytes(),
              _cv2_read),
