@@ -42,9 +42,9 @@ from core.packing.layout import (
     W_HEIGHT,
     W_WIDTH,
 )
-from core.packing.lookup import _local_step, _search, _span
+from core.packing.lookup import local_step, run_span, search_runs
 
-#: Columns of the tile rows (:func:`tile_rows`), 8 words a tile.
+#: Columns of the tile rows (:func:`tiled_words`), 8 words a tile.
 T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET = range(6)
 TILE_COLUMNS = 8
 #: Texels per chunk of a batch.
@@ -199,9 +199,9 @@ def _answer(b0, b1, starts, srt, data, rows, out):  # pragma: no cover - numba
             e = srt[j]
             place = e & 0xFFFFFFFF
             g = np.int64(data[grid + (place >> (2 * gb))])
-            local = _local_step(g, place & mask, (place >> gb) & mask, gb, data, base)
-            lo, hi = _span(g, local, gb, data, base)
-            out[e >> 32] = _search(data, base, local, lo, hi) & 255
+            local = local_step(g, place & mask, (place >> gb) & mask, gb, data, base)
+            lo, hi = run_span(g, local, gb, data, base)
+            out[e >> 32] = search_runs(data, base, local, lo, hi) & 255
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

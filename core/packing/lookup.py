@@ -69,7 +69,7 @@ def _grid_word(x, row, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
+def local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
     # Step within its block of a texel at (lx, ly) (y up), the block's grid word g.
     if data[base + W_MORTON]:
         return np.int64(morton_step(lx, ly))
@@ -78,7 +78,7 @@ def _local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _span(g, local, gb, data, base):  # pragma: no cover - numba
+def run_span(g, local, gb, data, base):  # pragma: no cover - numba
     # The runs [lo, hi) to search for local step `local` of the block with grid word g:
     # the block's, or its quarter's when the block has a quarter directory.
     at = base + np.int64(data[base + W_SPANS]) + (g >> 3)
@@ -89,7 +89,7 @@ def _span(g, local, gb, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _search(data, base, local, lo, hi):  # pragma: no cover - numba
+def search_runs(data, base, local, lo, hi):  # pragma: no cover - numba
     # Packed word of the first run in [lo, hi) whose low step bits are >= local
     # (branch-free lower bound), or of run hi when there is none.
     runs = base + np.int64(data[base + W_RUNS])
@@ -113,9 +113,9 @@ def _find(x, row, data, base):  # pragma: no cover - numba
     g, lx, ly, gb = _grid_word(x, row, data, base)
     if g & UNIFORM:
         return g
-    local = _local_step(g, lx, ly, gb, data, base)
-    lo, hi = _span(g, local, gb, data, base)
-    return _search(data, base, local, lo, hi)
+    local = local_step(g, lx, ly, gb, data, base)
+    lo, hi = run_span(g, local, gb, data, base)
+    return search_runs(data, base, local, lo, hi)
 
 
 @numba.njit(cache=True, nogil=True)
