@@ -14,9 +14,12 @@ from core.packing import PackedLayer, pack
 from core.packing.batch import (
     BUCKET_RUNS,
     CHUNK,
+    SWEEP_BYTES,
+    batch_strategy,
     bucket_shift,
     layer_batch,
     layer_batch_parallel,
+    lookup_batch,
     tiled_batch_parallel,
 )
 from core.packing.layout import UNIFORM, W_GRID, W_GRID_BITS, W_GRID_HEIGHT, W_GRID_WIDTH
@@ -93,6 +96,41 @@ def test_tiled_batch_equals_dense(w, h, tile_bits, parts, seed):
     assert tiled_batch_parallel(xs, ys, table, tiles, rows, out, parts) == -1
     assert np.array_equal(out, img[ys, xs])
     assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), img[ys, xs])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 260), st.integers(1, 260), st.sampled_from(["hilbert", "morton"]),
+       st.sampled_from([None, 6, 7]), st.integers(1, 3), st.integers(0, 2**31))
+def test_both_strategies_answer_alike(w, h, curve, tile_bits, threads, seed):
+    # Sweeps and buckets on the same table (one layer or a tiled one): the same
+    # indices, those of the dense image, and the same first bad texel.
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, int(rng.integers(1, 30)), 7)
+    layer = pack(img, curve, tile_bits=tile_bits)
+    table, words = layer._tables() if tile_bits else (layer.table, None)
+    xs = rng.integers(0, w, 5000)
+    ys = rng.integers(0, h, 5000)
+    answers = {}
+    for strategy in ("sweep", "buckets"):
+        out = np.zeros(xs.size, np.uint8)
+        assert lookup_batch(xs, ys, table, out, threads, words, strategy) == -1
+        answers[strategy] = out
+    assert np.array_equal(answers["sweep"], answers["buckets"])
+    assert np.array_equal(answers["sweep"], img[ys, xs])
+    k = int(rng.integers(0, xs.size))
+    xs[k] = w
+    xs[min(xs.size - 1, k + 17)] = -1
+    assert [lookup_batch(xs, ys, table, np.zeros(xs.size, np.uint8), threads, words, s)
+            for s in ("sweep", "buckets")] == [k, k]
+
+
+def test_strategy_follows_table_size():
+    small = np.zeros(SWEEP_BYTES // 4, np.uint32)
+    assert batch_strategy(small) == "sweep"
+    assert batch_strategy(np.zeros(small.size + 1, np.uint32)) == "buckets"
+    with pytest.raises(ValueError, match="batch strategy 'fast'"):
+        lookup_batch(np.zeros(1, np.int64), np.zeros(1, np.int64), small, np.zeros(1, np.uint8),
+                     strategy="fast")
 
 
 @given(st.integers(1, 2**26), st.integers(1, 2**30))

@@ -19,11 +19,16 @@ search is a chain of dependent loads. So a batch is worked in three passes
    in a few kilobytes that stay in L1 while the bucket's queries are answered.
 
 Batches are taken :data:`CHUNK` texels at a time (bounded scratch, about 20
-bytes a texel); on several threads, passes 1 and 2 split the texels and
-pass 3 the buckets (equal numbers of searches each). A tiled container's
-tiles lie end to end in one array; each tile's words are a row of
-:func:`tiled_words`' rows and its buckets follow the previous tile's, so one pass
-serves all tiles (:func:`tiled_words`). Results are those of the scalar lookup, bit for bit.
+bytes a texel); on several threads, each thread does the three passes on its
+own slice of the batch (no barrier between passes, so a thread the system
+holds back delays only its slice). A tiled container's tiles lie end to end
+in one array; each tile's words are a row of :func:`tiled_words`' rows and
+its buckets follow the previous tile's, so one pass serves all tiles.
+
+Tables that stay in a core's cache are as cheap or cheaper in sweeps
+(:mod:`core.packing.sweep`, no sort); :func:`lookup_batch`, the one entry
+point, picks the strategy per table (:func:`batch_strategy`). Results are
+those of the scalar lookup, bit for bit, whichever strategy runs.
 """
 
 from __future__ import annotations
@@ -40,13 +45,26 @@ from core.packing.layout import (
     W_GRID_HEIGHT,
     W_GRID_WIDTH,
     W_HEIGHT,
+    W_RUNS,
+    W_SPANS,
     W_WIDTH,
 )
 from core.packing.lookup import local_step, run_span, search_runs
+from core.packing.sweep import (
+    STRETCH,
+    T_BASE,
+    T_BUCKET,
+    T_GRID,
+    T_GRID_BITS,
+    T_GRID_WIDTH,
+    T_HEIGHT,
+    T_RUNS,
+    T_SPANS,
+    TILE_COLUMNS,
+    sweep_layer,
+    sweep_tiled,
+)
 
-#: Columns of the tile rows (:func:`tiled_words`), 8 words a tile.
-T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET = range(6)
-TILE_COLUMNS = 8
 #: Texels per chunk of a batch.
 CHUNK = 1 << 20
 #: Runs in a bucket's blocks, about (their words and spans: a few kB, in L1).
@@ -75,7 +93,7 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
         ``2^shift`` grid words, :func:`bucket_shift` over all tiles), buckets.
     rows : (8 * tiles,) int64 ndarray
         Per tile: its table's offset, height, grid bits, grid offset (absolute),
-        grid width, first bucket, 0, 0.
+        grid width, first bucket, spans and runs offsets (absolute).
     """
     heads = np.stack([data[b: b + HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
         np.int64)
@@ -89,6 +107,8 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
     rows[:, T_GRID] = rows[:, T_BASE] + heads[:, W_GRID]
     rows[:, T_GRID_WIDTH] = heads[:, W_GRID_WIDTH]
     rows[:, T_BUCKET] = np.cumsum(buckets) - buckets
+    rows[:, T_SPANS] = rows[:, T_BASE] + heads[:, W_SPANS]
+    rows[:, T_RUNS] = rows[:, T_BASE] + heads[:, W_RUNS]
     tiles = np.array([width, height, tile_bits, across, shift, buckets.sum()], np.int64)
     return tiles, rows.ravel()
 
@@ -157,18 +177,17 @@ def _grid_tiled(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # prag
 
 
 @numba.njit(cache=True, nogil=True)
-def _offsets(counts, parts):  # pragma: no cover - numba
-    # Exclusive prefix sums, bucket-major then part: counts[p, bucket] becomes where
-    # part p's first entry of that bucket goes; also each bucket's first entry.
-    buckets = counts.shape[1]
+def _offsets(counts):  # pragma: no cover - numba
+    # Exclusive prefix sums: counts[bucket] becomes where that bucket's first entry
+    # goes; also each bucket's first entry (and the end).
+    buckets = counts.size
     starts = np.empty(buckets + 1, np.int64)
     pos = 0
     for bucket in range(buckets):
         starts[bucket] = pos
-        for p in range(parts):
-            c = counts[p, bucket]
-            counts[p, bucket] = pos
-            pos += c
+        c = counts[bucket]
+        counts[bucket] = pos
+        pos += c
     starts[buckets] = pos
     return starts
 
@@ -205,48 +224,25 @@ def _answer(b0, b1, starts, srt, data, rows, out):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _ranges(starts, parts):  # pragma: no cover - numba
-    # Bucket ranges of about equal numbers of searches, one per part.
-    buckets = starts.size - 1
-    lim = np.empty(parts + 1, np.int64)
-    lim[0] = 0
-    lim[parts] = buckets
-    for p in range(1, parts):
-        lim[p] = min(buckets, np.searchsorted(starts, (starts[buckets] * p) // parts))
-    return lim
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _batch(xs, ys, data, tiled, tiles, rows, out, parts):  # pragma: no cover - numba
-    # The three passes, chunk by chunk, each split into ``parts`` (numba.prange: on
-    # threads when inlined into a parallel kernel). Returns the first bad texel or -1.
+def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
+    # The three passes, chunk by chunk. Returns the first bad texel or -1.
     n = xs.size
     size = min(n, CHUNK)
     ent = np.empty(size, np.int64)
     bkt = np.empty(size, np.int32)
     srt = np.empty(size, np.int64)
-    counts = np.zeros((parts, tiles[5]), np.int64)
-    found = np.zeros(parts, np.int64)
-    bad = np.zeros(parts, np.int64)
+    counts = np.zeros(tiles[5], np.int64)
     for c in range(0, n, CHUNK):
         cn = min(CHUNK, n - c)
-        share = -(-cn // parts)
         counts[:] = 0
-        for p in numba.prange(parts):
-            a = min(cn, p * share)
-            b = min(cn, a + share)
-            args = (xs[c: c + cn], ys[c: c + cn], a, b, data, tiles, rows, out[c: c + cn],
-                    ent, bkt, counts[p])
-            found[p], bad[p] = _grid_tiled(*args) if tiled else _grid_layer(*args)
-        for p in range(parts):
-            if bad[p] >= 0:
-                return c + bad[p]
-        starts = _offsets(counts, parts)
-        for p in numba.prange(parts):
-            _place(ent, bkt, min(cn, p * share), found[p], counts[p], srt)
-        lim = _ranges(starts, parts)
-        for p in numba.prange(parts):
-            _answer(lim[p], lim[p + 1], starts, srt, data, rows, out[c: c + cn])
+        args = (xs[c: c + cn], ys[c: c + cn], 0, cn, data, tiles, rows, out[c: c + cn],
+                ent, bkt, counts)
+        found, bad = _grid_tiled(*args) if tiled else _grid_layer(*args)
+        if bad >= 0:
+            return c + bad
+        starts = _offsets(counts)
+        _place(ent, bkt, 0, found, counts, srt)
+        _answer(0, starts.size - 1, starts, srt, data, rows, out[c: c + cn])
     return -1
 
 
@@ -257,24 +253,101 @@ def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
     Returns the position of the first coordinate outside the layer, or -1.
     """
     tiles, rows = _layer_words(data)
-    return _batch(xs, ys, data, False, tiles, rows, out, 1)
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def layer_batch_parallel(xs, ys, data, out, parts):  # pragma: no cover - numba
-    """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    tiles, rows = _layer_words(data)
-    return _batch(xs, ys, data, False, tiles, rows, out, parts)
+    return _batch(xs, ys, data, False, tiles, rows, out)
 
 
 @numba.njit(cache=True, nogil=True)
 def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     """:func:`layer_batch` for a tiled layer: its tables end to end in ``data``, ``tiles``
     and ``rows`` from :func:`tiled_words`."""
-    return _batch(xs, ys, data, True, tiles, rows, out, 1)
+    return _batch(xs, ys, data, True, tiles, rows, out)
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def tiled_batch_parallel(xs, ys, data, tiles, rows, out, parts):  # pragma: no cover - numba
+def _parts(xs, ys, data, sweep, tiled, tiles, rows, out, parts):  # pragma: no cover - numba
+    # The batch in ``parts`` equal slices on threads, each slice one kernel's (no barrier
+    # between the passes: a thread the system holds back delays only its own slice).
+    # Returns the first bad texel of the first slice holding one, or -1.
+    share = -(-xs.size // parts)
+    bad = np.full(parts, -1, np.int64)
+    for p in numba.prange(parts):
+        a = min(xs.size, p * share)
+        b = min(xs.size, a + share)
+        x, y, o = xs[a:b], ys[a:b], out[a:b]
+        if sweep:
+            k = sweep_tiled(x, y, data, tiles, rows, o) if tiled else sweep_layer(x, y, data, o)
+        else:
+            k = tiled_batch(x, y, data, tiles, rows, o) if tiled else layer_batch(x, y, data, o)
+        bad[p] = k if k < 0 else a + k
+    for p in range(parts):
+        if bad[p] >= 0:
+            return bad[p]
+    return -1
+
+
+def layer_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
+                         parts: int) -> int:
+    """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
+    return int(_parts(xs, ys, data, False, False, np.zeros(TILE_WORDS, np.int64),
+                      np.zeros(TILE_COLUMNS, np.int64), out, parts))
+
+
+def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles: np.ndarray,
+                         rows: np.ndarray, out: np.ndarray, parts: int) -> int:
     """:func:`tiled_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    return _batch(xs, ys, data, True, tiles, rows, out, parts)
+    return int(_parts(xs, ys, data, False, True, tiles, rows, out, parts))
+
+
+#: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
+#: bucket: the sweeps need no sort while the runs stay in a core's L2 cache (1 MiB
+#: here); measured crossover between 0.9 MB (ESA: sweeps faster) and 4.3 MB (DRCOG).
+SWEEP_BYTES = 1 << 21
+STRATEGIES = ("sweep", "buckets")
+
+
+def batch_strategy(data: np.ndarray) -> str:
+    """``"sweep"`` or ``"buckets"``: the faster batched lookup for a table of ``data.nbytes``."""
+    return "sweep" if data.nbytes <= SWEEP_BYTES else "buckets"
+
+
+def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
+                 threads: int = 1, words: tuple[np.ndarray, np.ndarray] | None = None,
+                 strategy: str | None = None) -> int:
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
+
+    Parameters
+    ----------
+    xs, ys : (N,) int64 ndarray
+    data : (M,) uint32 ndarray
+        One layer's table, or a tiled layer's tables end to end.
+    out : (N,) uint8 ndarray
+    threads : int
+        Threads to share the batch (1: this one).
+    words : (tiles, rows), optional
+        A tiled layer's :func:`tiled_words`; None for one layer.
+    strategy : {"sweep", "buckets"}, optional
+        Default :func:`batch_strategy`'s; both give the same answers.
+
+    Returns
+    -------
+    bad : int
+        Position of the first coordinate outside the layer, or -1.
+    """
+    strategy = strategy or batch_strategy(data)
+    if strategy not in STRATEGIES:
+        raise ValueError(f"batch strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
+    tiles, rows = (None, None) if words is None else words
+    if strategy == "sweep":
+        if threads > 1:
+            # Stretches of the sweep kernels' size on the threads (shared out by numba).
+            parts = max(1, -(-xs.size // STRETCH))
+            tiles0 = np.zeros(TILE_WORDS, np.int64) if tiles is None else tiles
+            rows0 = np.zeros(TILE_COLUMNS, np.int64) if rows is None else rows
+            return int(_parts(xs, ys, data, True, tiles is not None, tiles0, rows0, out, parts))
+        return int(sweep_layer(xs, ys, data, out) if tiles is None
+                   else sweep_tiled(xs, ys, data, tiles, rows, out))
+    if threads > 1:
+        return (layer_batch_parallel(xs, ys, data, out, threads) if tiles is None
+                else tiled_batch_parallel(xs, ys, data, tiles, rows, out, threads))
+    return int(layer_batch(xs, ys, data, out) if tiles is None
+               else tiled_batch(xs, ys, data, tiles, rows, out))

@@ -19,7 +19,7 @@ from core.curves.scan import ranks_to_steps, steps_to_ranks
 from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
-from core.packing.batch import layer_batch, layer_batch_parallel
+from core.packing.batch import lookup_batch
 from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
 from core.packing.lookup import build_table, quick_grid, scalar_lookup_function, table_runs
@@ -276,10 +276,8 @@ class PackedLayer:
         flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, dtype=np.uint8)
-        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = layer_batch_parallel(flat_x, flat_y, self._data, idx, self.threads)
-        else:
-            bad = layer_batch(flat_x, flat_y, self._data, idx)
+        threads = self.threads if flat_x.size >= PARALLEL_FROM else 1
+        bad = lookup_batch(flat_x, flat_y, self._data, idx, threads)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
         values = self.values_of(idx)

@@ -8,7 +8,7 @@ one palette of the whole layer (file layout: :mod:`.tiled_format`).
 Opening a container reads its header and index only; tiles are decoded when
 first needed. Random access decodes every tile once into **one** ``uint32``
 array, the tiles' tables end to end (each tile a view into it), and the
-compiled batch kernels of :mod:`.lookup` pick a tile's table by a shift and
+compiled batch kernels of :mod:`.batch` pick a tile's table by a shift and
 an offset, so a batch costs about what it costs on one layer.
 """
 
@@ -26,7 +26,7 @@ from core.curves.square import MAX_SIDE
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing import tiled_format as fmt
-from core.packing.batch import tiled_batch, tiled_batch_parallel, tiled_words
+from core.packing.batch import lookup_batch, tiled_words
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
@@ -243,10 +243,8 @@ class TiledLayer:
         flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, np.uint8)
-        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = tiled_batch_parallel(flat_x, flat_y, table, *words, idx, self.threads)
-        else:
-            bad = tiled_batch(flat_x, flat_y, table, *words, idx)
+        threads = self.threads if flat_x.size >= PARALLEL_FROM else 1
+        bad = lookup_batch(flat_x, flat_y, table, idx, threads, words)
         if bad >= 0:
             raise TerrathemeError(f"texel ({int(flat_x[bad])}, {int(flat_y[bad])}) is outside "
                                   f"the {self.width} x {self.height} layer")
