@@ -21,7 +21,8 @@ On the land-cover maps in ../shared/data/maps, all measured in the same run:
   numpy gather from the dense array and a compiled (numba) dense gather on
   one and two threads, in ``LOOKUP_ROUNDS`` paired rounds (the median ratio
   within a round, and the range); the same batch on the map packed as a
-  tiled container of 4096 x 4096 tiles, against the single layer; and the
+  tiled container of 4096 x 4096 tiles, against the single layer; both
+  strategies of ``core.packing.batch`` forced, against the one it picks; and the
   GPU shader's lookups (``core.gpu.PackedGrid.lookup`` on the table as a
   texture, Mesa llvmpipe here: coordinates uploaded, indices read back),
   checked equal to the CPU's;
@@ -51,8 +52,6 @@ import numba
 import numpy as np
 
 matplotlib.use("Agg")
-import imagecodecs
-import tifffile
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -61,6 +60,7 @@ from packing_chart import chart  # noqa: E402
 from core.curves.square import curve_order, hilbert_transposed  # noqa: E402
 from core.io.images import read_image  # noqa: E402
 from core.packing import PackedLayer, pack  # noqa: E402
+from core.packing.batch import STRATEGIES, batch_strategy, lookup_batch  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
@@ -92,7 +92,16 @@ def dense_gather_parallel(img, xs, ys, out):  # pragma: no cover - numba
 # ---------------------------------------------------------------- peer codecs
 
 
+def _imagecodecs():
+    # Imported when a peer codec runs: --lookups-only needs neither imagecodecs nor tifffile.
+    import imagecodecs
+
+    return imagecodecs
+
+
 def _geotiff(img: np.ndarray) -> bytes:
+    import tifffile
+
     buf = io.BytesIO()
     tifffile.imwrite(buf, img, tile=(256, 256), compression="zstd",
                      compressionargs={"level": 19})
@@ -100,6 +109,8 @@ def _geotiff(img: np.ndarray) -> bytes:
 
 
 def _geotiff_read(data: bytes) -> np.ndarray:
+    import tifffile
+
     return tifffile.imread(io.BytesIO(data))
 
 
@@ -112,10 +123,11 @@ def _cv2_read(data: bytes) -> np.ndarray:
 CODECS = {
     "webp_lossless": (lambda a: cv2.imencode(".webp", a, [cv2.IMWRITE_WEBP_QUALITY, 101])[1]
                       .tobytes(), _cv2_read),
-    "jpegxl_e9": (lambda a: imagecodecs.jpegxl_encode(a, lossless=True, effort=9, numthreads=2),
-                  imagecodecs.jpegxl_decode),
-    "avif_lossless": (lambda a: imagecodecs.avif_encode(a, level=100, speed=0, numthreads=2),
-                      imagecodecs.avif_decode),
+    "jpegxl_e9": (lambda a: _imagecodecs().jpegxl_encode(a, lossless=True, effort=9,
+                                                         numthreads=2),
+                  lambda d: _imagecodecs().jpegxl_decode(d)),
+    "avif_lossless": (lambda a: _imagecodecs().avif_encode(a, level=100, speed=0, numthreads=2),
+                      lambda d: _imagecodecs().avif_decode(d)),
     "geotiff_zstd19": (_geotiff, _geotiff_read),
     "png9": (lambda a: cv2.imencode(".png", a, [cv2.IMWRITE_PNG_COMPRESSION, 9])[1].tobytes(),
              _cv2_read),
@@ -236,6 +248,9 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         "packed_2t": lambda: layer.lookup(xs, ys),
         "tiled_1t": lambda: tiled_serial.lookup(xs, ys),
         "tiled_2t": lambda: tiled.lookup(xs, ys),
+        # Both strategies of core.packing.batch forced, to show the one chosen is the faster.
+        **{f"{s}_{t}t": (lambda s=s, t=t: lookup_batch(xs, ys, layer.table, out, t, strategy=s))
+           for s in STRATEGIES for t in (1, 2)},
         **({"gpu_shader": lambda: gpu.lookup(xs, ys)} if gpu is not None else {}),
     }
     # Paired rounds: on a shared machine the load drifts between rounds, so each ratio is
@@ -246,10 +261,12 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
             rounds[k].append(best_of(fn, 3) * 1e9 / xs.size)
     r = {k: np.array(v) for k, v in rounds.items()}
     rec = {f"{k}_ns": float(np.median(v)) for k, v in r.items()}
+    rec["strategy"] = batch_strategy(layer.table)
     for ours, peer in (("packed_2t", "compiled_dense_2t"), ("packed_1t", "compiled_dense_1t"),
                        ("packed_2t", "numpy_dense"), ("packed_1t", "numpy_dense"),
                        ("tiled_1t", "packed_1t"), ("tiled_2t", "packed_2t"),
-                       ("gpu_shader", "numpy_dense")):
+                       ("gpu_shader", "numpy_dense"),
+                       *((f"{s}_{t}t", f"packed_{t}t") for s in STRATEGIES for t in (1, 2))):
         if ours not in r:
             continue
         ratio = r[ours] / r[peer]

@@ -7,6 +7,7 @@ import pytest
 
 from core.packing import layout as lay
 from core.packing import pack
+from core.packing.batch import T_GRID_BITS, TILE_COLUMNS
 
 
 def _words(layer):
@@ -92,7 +93,7 @@ def test_tiles_of_a_tiled_layer_share_one_block_side():
     img[200, 150] = 3
     tiled = pack(img, tile_bits=7)
     table, words = tiled._tables()
-    bits = words[1].reshape(-1, 8)[:, 1]
+    bits = words[1].reshape(-1, TILE_COLUMNS)[:, T_GRID_BITS]
     assert len(set(bits.tolist())) == 1
     assert [int(pack(tiled.tile(i).unpack()).table[lay.W_GRID_BITS])
             for i in range(len(bits))] != bits.tolist()  # their own choice would differ

@@ -19,26 +19,13 @@ from core.curves.scan import ranks_to_steps, steps_to_ranks
 from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
+from core.packing.batch import lookup_batch
 from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
-from core.packing.lookup import (
-    build_table,
-    layer_batch,
-    layer_batch_parallel,
-    scalar_lookup_function,
-    table_runs,
-)
+from core.packing.lookup import build_table, quick_grid, scalar_lookup_function, table_runs
 from core.packing.palette import PaletteReport, check_colours, palette_values
 
-_SCALAR: list = []
-
-
-def _scalar():
-    _SCALAR.append(scalar_lookup_function())
-    return _SCALAR[0]
-
-
-_SCALAR_TYPES = frozenset({int, np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
+_SCALAR_TYPES = frozenset({np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
 #: Batches at least this large are looked up on all threads.
 PARALLEL_FROM = 1 << 16
 
@@ -82,6 +69,7 @@ class PackedLayer:
     squeeze: bool
     _data: np.ndarray = field(repr=False)
     _scalars: list = field(repr=False)
+    _quick: tuple | None = field(default=None, init=False, repr=False)
     report: PaletteReport | None = None
     colours: np.ndarray | None = None
     threads: int = 2
@@ -269,15 +257,16 @@ class PackedLayer:
         TerrathemeError
             A coordinate outside the image.
         """
+        if type(xs) is int and type(ys) is int:
+            # Scalar fast path: a uniform block's byte (most texels), else one compiled
+            # call with three arguments; then the ready-made value (like image[y, x]).
+            w, h, top, gb, gw, quick, values, call, data = self._quick or self._quick_setup()
+            if 0 <= xs < w and 0 <= ys < h:
+                i = quick[((top - ys) >> gb) * gw + (xs >> gb)]
+                return values[i] if i != 255 else values[call(xs, ys, data)]
+            raise TerrathemeError(self._outside(xs, ys))
         if type(xs) in _SCALAR_TYPES and type(ys) in _SCALAR_TYPES:
-            # Scalar fast path: one compiled call with three arguments, a list lookup.
-            try:
-                idx = (_SCALAR[0] if _SCALAR else _scalar())(xs, ys, self._data)
-            except OverflowError:
-                idx = -1
-            if idx < 0:
-                raise TerrathemeError(self._outside(xs, ys))
-            return self._scalars[idx]
+            return self.lookup(int(xs), int(ys))
         xs_arr = np.asarray(xs)
         ys_arr = np.asarray(ys)
         if xs_arr.dtype.kind not in "iu" or ys_arr.dtype.kind not in "iu":
@@ -287,18 +276,21 @@ class PackedLayer:
         flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, dtype=np.uint8)
-        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = layer_batch_parallel(flat_x, flat_y, self._data, idx)
-            bad = -1 if bad == 0 else int(np.flatnonzero(
-                (flat_x < 0) | (flat_x >= self.width) | (flat_y < 0) | (flat_y >= self.height)
-            )[0])
-        else:
-            bad = layer_batch(flat_x, flat_y, self._data, idx)
+        threads = self.threads if flat_x.size >= PARALLEL_FROM else 1
+        bad = lookup_batch(flat_x, flat_y, self._data, idx, threads)
         if bad >= 0:
             raise TerrathemeError(self._outside(flat_x[bad], flat_y[bad]))
         values = self.values_of(idx)
         out = values.reshape(shape + values.shape[1:])
         return out[()] if out.ndim == 0 else out
+
+    def _quick_setup(self) -> tuple:
+        # What the scalar path reads, built on its first call (:func:`.lookup.quick_grid`).
+        gb, gw, quick = quick_grid(self._data)
+        quick_words = (self.width, self.height, self.height - 1, gb, gw, quick, self._scalars,
+                       scalar_lookup_function(), self._data)
+        object.__setattr__(self, "_quick", quick_words)
+        return quick_words
 
     def _outside(self, x: int, y: int) -> str:
         return f"texel ({int(x)}, {int(y)}) is outside the {self.width} x {self.height} layer"

@@ -17,8 +17,8 @@ word per 4 runs) does most of the work:
 
 Everything lives in one ``uint32`` array, so a scalar call passes three
 arguments to the compiled kernel, and a tiled layer's tiles lie end to end in
-one array (the kernels take each tile's offset). Batches are worked in
-stretches, phase by phase (:func:`layer_batch`), on all cores for large ones.
+one array (the kernels take each tile's offset). Batches are sorted by where
+their runs lie first (:mod:`core.packing.batch`), on all cores for large ones.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from core.packing.layout import (
     UNIFORM,
     W_GRID,
     W_GRID_BITS,
+    W_GRID_HEIGHT,
     W_GRID_WIDTH,
     W_HEIGHT,
     W_MORTON,
@@ -68,7 +69,7 @@ def _grid_word(x, row, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
+def local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
     # Step within its block of a texel at (lx, ly) (y up), the block's grid word g.
     if data[base + W_MORTON]:
         return np.int64(morton_step(lx, ly))
@@ -77,7 +78,7 @@ def _local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _span(g, local, gb, data, base):  # pragma: no cover - numba
+def run_span(g, local, gb, data, base):  # pragma: no cover - numba
     # The runs [lo, hi) to search for local step `local` of the block with grid word g:
     # the block's, or its quarter's when the block has a quarter directory.
     at = base + np.int64(data[base + W_SPANS]) + (g >> 3)
@@ -88,7 +89,7 @@ def _span(g, local, gb, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _search(data, base, local, lo, hi):  # pragma: no cover - numba
+def search_runs(data, base, local, lo, hi):  # pragma: no cover - numba
     # Packed word of the first run in [lo, hi) whose low step bits are >= local
     # (branch-free lower bound), or of run hi when there is none.
     runs = base + np.int64(data[base + W_RUNS])
@@ -112,182 +113,9 @@ def _find(x, row, data, base):  # pragma: no cover - numba
     g, lx, ly, gb = _grid_word(x, row, data, base)
     if g & UNIFORM:
         return g
-    local = _local_step(g, lx, ly, gb, data, base)
-    lo, hi = _span(g, local, gb, data, base)
-    return _search(data, base, local, lo, hi)
-
-
-#: Columns of a tiled layer's tile rows (:func:`tile_rows`), 8 words a tile.
-T_HEIGHT, T_GRID_BITS, T_GRID, T_SPANS, T_RUNS, T_GRID_WIDTH, T_MORTON = range(7)
-TILE_COLUMNS = 8
-
-
-def tile_rows(data: np.ndarray, bases: np.ndarray) -> np.ndarray:
-    """The header words the kernels use of each tile whose table starts at ``bases[t]``.
-
-    Returns
-    -------
-    rows : (8 * tiles,) int64 ndarray
-        Per tile: height, grid bits, grid, spans and runs offsets (absolute), grid
-        width, Morton flag, 0.
-    """
-    rows = np.zeros((len(bases), TILE_COLUMNS), np.int64)
-    for t, base in enumerate(np.asarray(bases, np.int64)):
-        head = data[base: base + HEAD_WORDS].astype(np.int64)
-        rows[t, :7] = (head[W_HEIGHT], head[W_GRID_BITS], base + head[W_GRID],
-                       base + head[W_SPANS], base + head[W_RUNS], head[W_GRID_WIDTH],
-                       head[W_MORTON])
-    return rows.ravel()
-
-
-STRETCH = 16384  # texels per stretch of the batch kernels (and per parallel part)
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
-    # The body of both batch kernels; inlined with a constant ``tiled``, so each
-    # kernel keeps only its own branch (one layer: header read once, not per texel).
-    if tiled:
-        width, height, tb, across = tiles[0], tiles[1], tiles[2], tiles[3]
-    else:
-        width, height, tb, across = np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1
-    tmask = (np.int64(1) << tb) - 1
-    height0 = np.int64(data[W_HEIGHT])
-    gb0 = np.int64(data[W_GRID_BITS])
-    grid0 = np.int64(data[W_GRID])
-    spans0 = np.int64(data[W_SPANS])
-    runs0 = np.int64(data[W_RUNS])
-    gw0 = np.int64(data[W_GRID_WIDTH])
-    morton0 = np.int64(data[W_MORTON])
-    stretch = STRETCH
-    n = min(stretch, xs.size)
-    gs = np.empty(n, np.int64)
-    local = np.empty(n, np.int64)
-    los = np.empty(n, np.int64)
-    his = np.empty(n, np.int64)
-    which = np.empty(n, np.int64)
-    tile = np.zeros(n, np.int64)
-    for a in range(0, xs.size, stretch):
-        b = min(xs.size, a + stretch)
-        m = 0
-        # Grid words: uniform blocks answer at once, the others wait for a search.
-        for k in range(a, b):
-            x = np.int64(xs[k])
-            row = np.int64(ys[k])
-            if not (0 <= x < width and 0 <= row < height):
-                return k
-            t = 0
-            if tiled:
-                t = ((row >> tb) * across + (x >> tb)) << 3
-                x &= tmask
-                yup = rows[t + T_HEIGHT] - 1 - (row & tmask)
-                gb = rows[t + T_GRID_BITS]
-                g = np.int64(data[rows[t + T_GRID] + (yup >> gb) * rows[t + T_GRID_WIDTH]
-                                  + (x >> gb)])
-            else:
-                yup = height0 - 1 - row
-                gb = gb0
-                g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
-            # Branch-free: every texel takes the next slot, which only searches keep.
-            out[k] = g & 255
-            mask = (np.int64(1) << gb) - 1
-            gs[m] = g
-            local[m] = ((yup & mask) << 32) | (x & mask)
-            which[m] = k
-            tile[m] = t
-            m += (g & UNIFORM) == 0
-        # Local steps, and the runs to search (the block's, or its quarter's).
-        for i in range(m):
-            g = gs[i]
-            if tiled:
-                gb, spans, morton = (rows[tile[i] + T_GRID_BITS], rows[tile[i] + T_SPANS],
-                                     rows[tile[i] + T_MORTON])
-            else:
-                gb, spans, morton = gb0, spans0, morton0
-            lx = local[i] & 0xFFFFFFFF
-            ly = local[i] >> 32
-            if morton:
-                step = np.int64(morton_step(lx, ly))
-            else:
-                step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-            at = spans + (g >> 3) + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
-            runs = rows[tile[i] + T_RUNS] if tiled else runs0
-            local[i] = np.int64(np.uint32(step) << np.uint32(8))
-            los[i] = runs + np.int64(data[at])
-            his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
-        # The searches, a halving step of each open one per sweep (independent loads).
-        openings = 0
-        for i in range(m):
-            gs[openings] = i
-            openings += his[i] > 1
-        while openings > 0:
-            still = 0
-            for j in range(openings):
-                i = gs[j]
-                left = his[i]
-                half = left >> 1
-                at = los[i]
-                los[i] = at + half if data[at + half - 1] < local[i] else at
-                his[i] = left - half
-                gs[still] = i
-                still += his[i] > 1
-            openings = still
-        # The last comparison: the run found, or the one after it.
-        for i in range(m):
-            at = los[i]
-            at += (his[i] == 1) & (data[at] < local[i])
-            out[which[i]] = data[at] & 255
-    return -1
-
-
-@numba.njit(cache=True, nogil=True)
-def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
-
-    Works in stretches of :data:`STRETCH` texels, each in tight loops without
-    branches on the data: grid words (uniform blocks answer at once), local
-    steps and spans, then the searches in sweeps (one halving step of every
-    open search per sweep), so the loads of a loop are independent and overlap.
-    Returns the position of the first coordinate outside the layer, or -1.
-    """
-    return _batch(xs, ys, data, False, np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64),
-                  out)
-
-
-@numba.njit(cache=True, nogil=True)
-def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
-    """:func:`layer_batch` for a tiled layer: its tables end to end in ``data``,
-    ``tiles`` = ``[width, height, log2 tile side, tiles across]`` and ``rows`` the
-    tiles' header words (:func:`tile_rows`)."""
-    return _batch(xs, ys, data, True, tiles, rows, out)
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def layer_batch_parallel(xs, ys, data, out):  # pragma: no cover - numba
-    """:func:`layer_batch` over all cores; returns how many stretches held a bad coordinate."""
-    stretch = STRETCH
-    parts = (xs.size + stretch - 1) // stretch
-    bad = 0
-    for p in numba.prange(parts):
-        a = p * stretch
-        b = min(xs.size, a + stretch)
-        if layer_batch(xs[a:b], ys[a:b], data, out[a:b]) >= 0:
-            bad += 1
-    return bad
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def tiled_batch_parallel(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
-    """:func:`tiled_batch` over all cores; returns how many stretches held a bad coordinate."""
-    stretch = STRETCH
-    parts = (xs.size + stretch - 1) // stretch
-    bad = 0
-    for p in numba.prange(parts):
-        a = p * stretch
-        b = min(xs.size, a + stretch)
-        if tiled_batch(xs[a:b], ys[a:b], data, tiles, rows, out[a:b]) >= 0:
-            bad += 1
-    return bad
+    local = local_step(g, lx, ly, gb, data, base)
+    lo, hi = run_span(g, local, gb, data, base)
+    return search_runs(data, base, local, lo, hi)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -312,6 +140,32 @@ def scalar_lookup_function():
         lookup_one.compile(sig)
         _SCALAR_CALL.append(lookup_one.overloads[sig].entry_point)
     return _SCALAR_CALL[0]
+
+
+#: Most grid blocks :func:`quick_grid` keeps a byte for (4 MB); larger grids go without.
+QUICK_BLOCKS = 1 << 22
+
+
+def quick_grid(data: np.ndarray) -> tuple[int, int, bytes]:
+    """A byte per grid block for scalar lookups from Python: its palette index if uniform.
+
+    Returns
+    -------
+    bits, width : int
+        The grid's block side (log2) and blocks across.
+    quick : bytes
+        Per block (rows from the bottom, like the grid), the palette index of a
+        uniform block, 255 for any other (and for index 255, which is then looked
+        up as in any other block). A grid of more than :data:`QUICK_BLOCKS`
+        blocks gets one byte 255 for all, with ``bits`` 62.
+    """
+    blocks = int(data[W_GRID_WIDTH]) * int(data[W_GRID_HEIGHT])
+    if blocks > QUICK_BLOCKS:
+        return 62, 0, b"\xff"
+    grid = data[int(data[W_GRID]): int(data[W_GRID]) + blocks]
+    index = grid & np.uint32(255)
+    quick = np.where((grid & np.uint32(UNIFORM)) != 0, index, 255).astype(np.uint8)
+    return int(data[W_GRID_BITS]), int(data[W_GRID_WIDTH]), quick.tobytes()
 
 
 def build_table(

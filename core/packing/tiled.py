@@ -8,7 +8,7 @@ one palette of the whole layer (file layout: :mod:`.tiled_format`).
 Opening a container reads its header and index only; tiles are decoded when
 first needed. Random access decodes every tile once into **one** ``uint32``
 array, the tiles' tables end to end (each tile a view into it), and the
-compiled batch kernels of :mod:`.lookup` pick a tile's table by a shift and
+compiled batch kernels of :mod:`.batch` pick a tile's table by a shift and
 an offset, so a batch costs about what it costs on one layer.
 """
 
@@ -26,11 +26,12 @@ from core.curves.square import MAX_SIDE
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing import tiled_format as fmt
+from core.packing.batch import lookup_batch, tiled_words
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
-from core.packing.lookup import table_runs, tile_rows, tiled_batch, tiled_batch_parallel
+from core.packing.lookup import table_runs
 from core.packing.palette import palette_values
 
 #: Tile side used when none is asked for: the largest a packed layer has.
@@ -211,8 +212,8 @@ class TiledLayer:
             table = np.concatenate([t.table for t in decoded])
             tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
                                                                    strict=True)]
-            words = (np.array([self.width, self.height, self.tile_bits, self.tiles_x], np.int64),
-                     tile_rows(table, starts[:-1]))
+            words = tiled_words(table, starts[:-1], self.width, self.height, self.tile_bits,
+                                self.tiles_x)
             self._cache.update(table=table, words=words, tiles=tiles)
         return self._cache["table"], self._cache["words"]
 
@@ -242,12 +243,8 @@ class TiledLayer:
         flat_x = np.ascontiguousarray(xs_b.reshape(-1), dtype=np.int64)
         flat_y = np.ascontiguousarray(ys_b.reshape(-1), dtype=np.int64)
         idx = np.empty(flat_x.size, np.uint8)
-        if flat_x.size >= PARALLEL_FROM and self.threads > 1:
-            bad = -1 if tiled_batch_parallel(flat_x, flat_y, table, *words, idx) == 0 else int(
-                np.flatnonzero((flat_x < 0) | (flat_x >= self.width) | (flat_y < 0)
-                               | (flat_y >= self.height))[0])
-        else:
-            bad = tiled_batch(flat_x, flat_y, table, *words, idx)
+        threads = self.threads if flat_x.size >= PARALLEL_FROM else 1
+        bad = lookup_batch(flat_x, flat_y, table, idx, threads, words)
         if bad >= 0:
             raise TerrathemeError(f"texel ({int(flat_x[bad])}, {int(flat_y[bad])}) is outside "
                                   f"the {self.width} x {self.height} layer")

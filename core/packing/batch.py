@@ -1,0 +1,353 @@
+"""Batched random access into packed layers and tiled containers (issue 19).
+
+One texel's lookup is :func:`core.packing.lookup.lookup_one`'s: its grid word
+(a block that one run covers answers at once), then, in any other block, its
+local step and a binary search over that block's (or quarter's) runs. A
+batch of random texels done one by one spends its time waiting on memory:
+the runs (4 MB for a 9144^2 map) do not stay in a core's cache, and each
+search is a chain of dependent loads. So a batch is worked in three passes
+(a radix partition of the searches by where their runs lie):
+
+1. every texel's grid word, in input order (the grid, a word per block, is
+   small); a texel in a uniform block is answered, any other leaves an entry
+   ``texel << 32 | grid index << 2b | place in block`` and the number of its
+   **bucket**, a run of ``2^shift`` consecutive grid words holding about
+   :data:`BUCKET_RUNS` runs (:func:`bucket_shift`);
+2. a counting sort of the entries by bucket (a few thousand buckets, so the
+   counts stay in L1 and the writes go to a few thousand streams);
+3. bucket after bucket, the searches, whose blocks, spans and runs now lie
+   in a few kilobytes that stay in L1 while the bucket's queries are answered.
+
+Batches are taken :data:`CHUNK` texels at a time (bounded scratch, about 20
+bytes a texel); on several threads, each thread does the three passes on its
+own slice of the batch (no barrier between passes, so a thread the system
+holds back delays only its slice). A tiled container's tiles lie end to end
+in one array; each tile's words are a row of :func:`tiled_words`' rows and
+its buckets follow the previous tile's, so one pass serves all tiles.
+
+Tables that stay in a core's cache are as cheap or cheaper in sweeps
+(:mod:`core.packing.sweep`, no sort); :func:`lookup_batch`, the one entry
+point, picks the strategy per table (:func:`batch_strategy`). Results are
+those of the scalar lookup, bit for bit, whichever strategy runs.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from core.packing.layout import (
+    HEAD_WORDS,
+    UNIFORM,
+    W_COUNT,
+    W_GRID,
+    W_GRID_BITS,
+    W_GRID_HEIGHT,
+    W_GRID_WIDTH,
+    W_HEIGHT,
+    W_RUNS,
+    W_SPANS,
+    W_WIDTH,
+)
+from core.packing.lookup import local_step, run_span, search_runs
+from core.packing.sweep import (
+    STRETCH,
+    T_BASE,
+    T_BUCKET,
+    T_GRID,
+    T_GRID_BITS,
+    T_GRID_WIDTH,
+    T_HEIGHT,
+    T_RUNS,
+    T_SPANS,
+    TILE_COLUMNS,
+    sweep_layer,
+    sweep_tiled,
+)
+
+#: Texels per chunk of a batch.
+CHUNK = 1 << 20
+#: Runs in a bucket's blocks, about (their words and spans: a few kB, in L1).
+BUCKET_RUNS = 1024
+#: Words of ``tiles``: width, height, log2 tile side, tiles across, bucket shift, buckets.
+TILE_WORDS = 6
+
+
+@numba.njit(cache=True, nogil=True)
+def bucket_shift(blocks, runs):  # pragma: no cover - numba
+    """log2 of the grid words per bucket: the most with about ``BUCKET_RUNS`` runs in them."""
+    s = 0
+    while s < 40 and (np.int64(2) << s) * max(runs, 1) <= BUCKET_RUNS * max(blocks, 1):
+        s += 1
+    return s
+
+
+def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, tile_bits: int,
+                across: int) -> tuple[np.ndarray, np.ndarray]:
+    """What the batch kernels read of a tiled layer whose tile ``t``'s table starts at ``bases[t]``.
+
+    Returns
+    -------
+    tiles : (6,) int64 ndarray
+        Width, height, log2 tile side, tiles across, bucket shift (buckets of
+        ``2^shift`` grid words, :func:`bucket_shift` over all tiles), buckets.
+    rows : (8 * tiles,) int64 ndarray
+        Per tile: its table's offset, height, grid bits, grid offset (absolute),
+        grid width, first bucket, spans and runs offsets (absolute).
+    """
+    heads = np.stack([data[b: b + HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
+        np.int64)
+    blocks = heads[:, W_GRID_WIDTH] * heads[:, W_GRID_HEIGHT]
+    shift = int(bucket_shift(int(blocks.sum()), int(heads[:, W_COUNT].sum())))
+    buckets = ((blocks - 1) >> shift) + 1
+    rows = np.zeros((len(heads), TILE_COLUMNS), np.int64)
+    rows[:, T_BASE] = bases
+    rows[:, T_HEIGHT] = heads[:, W_HEIGHT]
+    rows[:, T_GRID_BITS] = heads[:, W_GRID_BITS]
+    rows[:, T_GRID] = rows[:, T_BASE] + heads[:, W_GRID]
+    rows[:, T_GRID_WIDTH] = heads[:, W_GRID_WIDTH]
+    rows[:, T_BUCKET] = np.cumsum(buckets) - buckets
+    rows[:, T_SPANS] = rows[:, T_BASE] + heads[:, W_SPANS]
+    rows[:, T_RUNS] = rows[:, T_BASE] + heads[:, W_RUNS]
+    tiles = np.array([width, height, tile_bits, across, shift, buckets.sum()], np.int64)
+    return tiles, rows.ravel()
+
+
+@numba.njit(cache=True, nogil=True)
+def _layer_words(data):  # pragma: no cover - numba
+    # tiles and rows of one layer: a single tile as wide as the layer.
+    blocks = np.int64(data[W_GRID_WIDTH]) * np.int64(data[W_GRID_HEIGHT])
+    shift = bucket_shift(blocks, np.int64(data[W_COUNT]))
+    tiles = np.array([np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1, shift,
+                      ((blocks - 1) >> shift) + 1])
+    rows = np.zeros(TILE_COLUMNS, np.int64)
+    rows[T_HEIGHT] = data[W_HEIGHT]
+    rows[T_GRID_BITS] = data[W_GRID_BITS]
+    rows[T_GRID] = data[W_GRID]
+    rows[T_GRID_WIDTH] = data[W_GRID_WIDTH]
+    return tiles, rows
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _grid_pass(xs, ys, a, b, data, tiled, tiles, rows, out, ent, bkt, counts):
+    # Pass 1 over texels [a, b): uniform texels answered, the others' entries in
+    # ent[a:], bkt[a:], counted in counts (per bucket). Returns (entries, bad texel or -1).
+    width, height, tb, across, shift = tiles[0], tiles[1], tiles[2], tiles[3], tiles[4]
+    tmask = (np.int64(1) << tb) - 1
+    height0, gb0, grid0, gw0 = rows[T_HEIGHT], rows[T_GRID_BITS], rows[T_GRID], rows[T_GRID_WIDTH]
+    m = a
+    for k in range(a, b):
+        x = np.int64(xs[k])
+        row = np.int64(ys[k])
+        if not (0 <= x < width and 0 <= row < height):
+            return m - a, k
+        if tiled:
+            r = ((row >> tb) * across + (x >> tb)) * TILE_COLUMNS
+            x &= tmask
+            yup = rows[r + T_HEIGHT] - 1 - (row & tmask)
+            gb = rows[r + T_GRID_BITS]
+            gi = (yup >> gb) * rows[r + T_GRID_WIDTH] + (x >> gb)
+            g = np.int64(data[rows[r + T_GRID] + gi])
+            bucket = rows[r + T_BUCKET] + (gi >> shift)
+        else:
+            yup = height0 - 1 - row
+            gb = gb0
+            gi = (yup >> gb) * gw0 + (x >> gb)
+            g = np.int64(data[grid0 + gi])
+            bucket = gi >> shift
+        # Branch-free: every texel takes the next slot, which only searches keep.
+        out[k] = g & 255
+        mask = (np.int64(1) << gb) - 1
+        ent[m] = (np.int64(k) << 32) | (gi << (2 * gb)) | ((yup & mask) << gb) | (x & mask)
+        bkt[m] = bucket
+        search = (g & UNIFORM) == 0
+        counts[bucket] += search
+        m += search
+    return m - a, -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _grid_layer(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # pragma: no cover
+    return _grid_pass(xs, ys, a, b, data, False, tiles, rows, out, ent, bkt, counts)
+
+
+@numba.njit(cache=True, nogil=True)
+def _grid_tiled(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # pragma: no cover
+    return _grid_pass(xs, ys, a, b, data, True, tiles, rows, out, ent, bkt, counts)
+
+
+@numba.njit(cache=True, nogil=True)
+def _offsets(counts):  # pragma: no cover - numba
+    # Exclusive prefix sums: counts[bucket] becomes where that bucket's first entry
+    # goes; also each bucket's first entry (and the end).
+    buckets = counts.size
+    starts = np.empty(buckets + 1, np.int64)
+    pos = 0
+    for bucket in range(buckets):
+        starts[bucket] = pos
+        c = counts[bucket]
+        counts[bucket] = pos
+        pos += c
+    starts[buckets] = pos
+    return starts
+
+
+@numba.njit(cache=True, nogil=True)
+def _place(ent, bkt, a, m, at, srt):  # pragma: no cover - numba
+    # Pass 2: entries a .. a + m - 1 to their bucket's place (``at`` advances).
+    for i in range(a, a + m):
+        bucket = bkt[i]
+        srt[at[bucket]] = ent[i]
+        at[bucket] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _answer(b0, b1, starts, srt, data, rows, out):  # pragma: no cover - numba
+    # Pass 3: the searches of buckets [b0, b1), their tile found by walking the rows.
+    t = 0
+    while (t + 1) * TILE_COLUMNS < rows.size and rows[(t + 1) * TILE_COLUMNS + T_BUCKET] <= b0:
+        t += 1
+    for bucket in range(b0, b1):
+        while (t + 1) * TILE_COLUMNS < rows.size and \
+                rows[(t + 1) * TILE_COLUMNS + T_BUCKET] <= bucket:
+            t += 1
+        r = t * TILE_COLUMNS
+        base, gb, grid = rows[r + T_BASE], rows[r + T_GRID_BITS], rows[r + T_GRID]
+        mask = (np.int64(1) << gb) - 1
+        for j in range(starts[bucket], starts[bucket + 1]):
+            e = srt[j]
+            place = e & 0xFFFFFFFF
+            g = np.int64(data[grid + (place >> (2 * gb))])
+            local = local_step(g, place & mask, (place >> gb) & mask, gb, data, base)
+            lo, hi = run_span(g, local, gb, data, base)
+            out[e >> 32] = search_runs(data, base, local, lo, hi) & 255
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
+    # The three passes, chunk by chunk. Returns the first bad texel or -1.
+    n = xs.size
+    size = min(n, CHUNK)
+    ent = np.empty(size, np.int64)
+    bkt = np.empty(size, np.int32)
+    srt = np.empty(size, np.int64)
+    counts = np.zeros(tiles[5], np.int64)
+    for c in range(0, n, CHUNK):
+        cn = min(CHUNK, n - c)
+        counts[:] = 0
+        args = (xs[c: c + cn], ys[c: c + cn], 0, cn, data, tiles, rows, out[c: c + cn],
+                ent, bkt, counts)
+        found, bad = _grid_tiled(*args) if tiled else _grid_layer(*args)
+        if bad >= 0:
+            return c + bad
+        starts = _offsets(counts)
+        _place(ent, bkt, 0, found, counts, srt)
+        _answer(0, starts.size - 1, starts, srt, data, rows, out[c: c + cn])
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
+def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
+
+    Returns the position of the first coordinate outside the layer, or -1.
+    """
+    tiles, rows = _layer_words(data)
+    return _batch(xs, ys, data, False, tiles, rows, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
+    """:func:`layer_batch` for a tiled layer: its tables end to end in ``data``, ``tiles``
+    and ``rows`` from :func:`tiled_words`."""
+    return _batch(xs, ys, data, True, tiles, rows, out)
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _parts(xs, ys, data, sweep, tiled, tiles, rows, out, parts):  # pragma: no cover - numba
+    # The batch in ``parts`` equal slices on threads, each slice one kernel's (no barrier
+    # between the passes: a thread the system holds back delays only its own slice).
+    # Returns the first bad texel of the first slice holding one, or -1.
+    share = -(-xs.size // parts)
+    bad = np.full(parts, -1, np.int64)
+    for p in numba.prange(parts):
+        a = min(xs.size, p * share)
+        b = min(xs.size, a + share)
+        x, y, o = xs[a:b], ys[a:b], out[a:b]
+        if sweep:
+            k = sweep_tiled(x, y, data, tiles, rows, o) if tiled else sweep_layer(x, y, data, o)
+        else:
+            k = tiled_batch(x, y, data, tiles, rows, o) if tiled else layer_batch(x, y, data, o)
+        bad[p] = k if k < 0 else a + k
+    for p in range(parts):
+        if bad[p] >= 0:
+            return bad[p]
+    return -1
+
+
+def layer_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
+                         parts: int) -> int:
+    """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
+    return int(_parts(xs, ys, data, False, False, np.zeros(TILE_WORDS, np.int64),
+                      np.zeros(TILE_COLUMNS, np.int64), out, parts))
+
+
+def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles: np.ndarray,
+                         rows: np.ndarray, out: np.ndarray, parts: int) -> int:
+    """:func:`tiled_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
+    return int(_parts(xs, ys, data, False, True, tiles, rows, out, parts))
+
+
+#: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
+#: bucket: the sweeps need no sort while the runs stay in a core's L2 cache (1 MiB
+#: here); measured crossover between 0.9 MB (ESA: sweeps faster) and 4.3 MB (DRCOG).
+SWEEP_BYTES = 1 << 21
+STRATEGIES = ("sweep", "buckets")
+
+
+def batch_strategy(data: np.ndarray) -> str:
+    """``"sweep"`` or ``"buckets"``: the faster batched lookup for a table of ``data.nbytes``."""
+    return "sweep" if data.nbytes <= SWEEP_BYTES else "buckets"
+
+
+def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
+                 threads: int = 1, words: tuple[np.ndarray, np.ndarray] | None = None,
+                 strategy: str | None = None) -> int:
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
+
+    Parameters
+    ----------
+    xs, ys : (N,) int64 ndarray
+    data : (M,) uint32 ndarray
+        One layer's table, or a tiled layer's tables end to end.
+    out : (N,) uint8 ndarray
+    threads : int
+        Threads to share the batch (1: this one).
+    words : (tiles, rows), optional
+        A tiled layer's :func:`tiled_words`; None for one layer.
+    strategy : {"sweep", "buckets"}, optional
+        Default :func:`batch_strategy`'s; both give the same answers.
+
+    Returns
+    -------
+    bad : int
+        Position of the first coordinate outside the layer, or -1.
+    """
+    strategy = strategy or batch_strategy(data)
+    if strategy not in STRATEGIES:
+        raise ValueError(f"batch strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
+    tiles, rows = (None, None) if words is None else words
+    if strategy == "sweep":
+        if threads > 1:
+            # Stretches of the sweep kernels' size on the threads (shared out by numba).
+            parts = max(1, -(-xs.size // STRETCH))
+            tiles0 = np.zeros(TILE_WORDS, np.int64) if tiles is None else tiles
+            rows0 = np.zeros(TILE_COLUMNS, np.int64) if rows is None else rows
+            return int(_parts(xs, ys, data, True, tiles is not None, tiles0, rows0, out, parts))
+        return int(sweep_layer(xs, ys, data, out) if tiles is None
+                   else sweep_tiled(xs, ys, data, tiles, rows, out))
+    if threads > 1:
+        return (layer_batch_parallel(xs, ys, data, out, threads) if tiles is None
+                else tiled_batch_parallel(xs, ys, data, tiles, rows, out, threads))
+    return int(layer_batch(xs, ys, data, out) if tiles is None
+               else tiled_batch(xs, ys, data, tiles, rows, out))

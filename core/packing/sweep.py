@@ -1,0 +1,151 @@
+"""Batched lookups in sweeps: the searches of a stretch advance together (issue 19).
+
+The other strategy of :mod:`core.packing.batch` (which picks one per layer,
+:func:`core.packing.batch.batch_strategy`). A batch is worked in stretches of
+:data:`STRETCH` texels, each in tight loops without branches on the data:
+every texel's grid word (a uniform block answers at once, ``lookup_one``'s
+first step), then the local steps and run spans of the others, then their
+binary searches in sweeps, one halving step of every open search per sweep,
+so the loads of a sweep are independent and overlap. No sort and no scratch
+beyond the stretch's (about 50 bytes a texel of it): the cheaper strategy
+while a layer's runs stay in cache. Results are those of the scalar lookup,
+bit for bit. Tiles are read from the rows of :func:`core.packing.batch.tiled_words`
+(columns :data:`T_HEIGHT` ... :data:`T_RUNS`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
+from core.packing.layout import (
+    SPAN_LAST,
+    UNIFORM,
+    W_GRID,
+    W_GRID_BITS,
+    W_GRID_WIDTH,
+    W_HEIGHT,
+    W_MORTON,
+    W_RUNS,
+    W_SPANS,
+    W_WIDTH,
+)
+
+#: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
+T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_SPANS, T_RUNS = range(8)
+TILE_COLUMNS = 8
+#: Texels per stretch of the sweep kernels (and per parallel part).
+STRETCH = 16384
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
+    # The body of both kernels; inlined with a constant ``tiled``, so each keeps
+    # only its own branch (one layer: header read once, not per texel).
+    if tiled:
+        width, height, tb, across = tiles[0], tiles[1], tiles[2], tiles[3]
+    else:
+        width, height, tb, across = np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1
+    tmask = (np.int64(1) << tb) - 1
+    height0 = np.int64(data[W_HEIGHT])
+    gb0 = np.int64(data[W_GRID_BITS])
+    grid0 = np.int64(data[W_GRID])
+    spans0 = np.int64(data[W_SPANS])
+    runs0 = np.int64(data[W_RUNS])
+    gw0 = np.int64(data[W_GRID_WIDTH])
+    morton0 = np.int64(data[W_MORTON])
+    n = min(STRETCH, xs.size)
+    gs = np.empty(n, np.int64)
+    local = np.empty(n, np.int64)
+    los = np.empty(n, np.int64)
+    his = np.empty(n, np.int64)
+    which = np.empty(n, np.int64)
+    tile = np.zeros(n, np.int64)
+    for a in range(0, xs.size, STRETCH):
+        b = min(xs.size, a + STRETCH)
+        m = 0
+        # Grid words: uniform blocks answer at once, the others wait for a search.
+        for k in range(a, b):
+            x = np.int64(xs[k])
+            row = np.int64(ys[k])
+            if not (0 <= x < width and 0 <= row < height):
+                return k
+            t = 0
+            if tiled:
+                t = ((row >> tb) * across + (x >> tb)) * TILE_COLUMNS
+                x &= tmask
+                yup = rows[t + T_HEIGHT] - 1 - (row & tmask)
+                gb = rows[t + T_GRID_BITS]
+                g = np.int64(data[rows[t + T_GRID] + (yup >> gb) * rows[t + T_GRID_WIDTH]
+                                  + (x >> gb)])
+            else:
+                yup = height0 - 1 - row
+                gb = gb0
+                g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
+            # Branch-free: every texel takes the next slot, which only searches keep.
+            out[k] = g & 255
+            mask = (np.int64(1) << gb) - 1
+            gs[m] = g
+            local[m] = ((yup & mask) << 32) | (x & mask)
+            which[m] = k
+            tile[m] = t
+            m += (g & UNIFORM) == 0
+        # Local steps, and the runs to search (the block's, or its quarter's).
+        for i in range(m):
+            g = gs[i]
+            if tiled:
+                gb, spans = rows[tile[i] + T_GRID_BITS], rows[tile[i] + T_SPANS]
+                morton = np.int64(data[rows[tile[i] + T_BASE] + W_MORTON])
+            else:
+                gb, spans, morton = gb0, spans0, morton0
+            lx = local[i] & 0xFFFFFFFF
+            ly = local[i] >> 32
+            if morton:
+                step = np.int64(morton_step(lx, ly))
+            else:
+                step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
+            at = spans + (g >> 3) + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
+            runs = rows[tile[i] + T_RUNS] if tiled else runs0
+            local[i] = np.int64(np.uint32(step) << np.uint32(8))
+            los[i] = runs + np.int64(data[at])
+            his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
+        # The searches, a halving step of each open one per sweep (independent loads).
+        openings = 0
+        for i in range(m):
+            gs[openings] = i
+            openings += his[i] > 1
+        while openings > 0:
+            still = 0
+            for j in range(openings):
+                i = gs[j]
+                left = his[i]
+                half = left >> 1
+                at = los[i]
+                los[i] = at + half if data[at + half - 1] < local[i] else at
+                his[i] = left - half
+                gs[still] = i
+                still += his[i] > 1
+            openings = still
+        # The last comparison: the run found, or the one after it.
+        for i in range(m):
+            at = los[i]
+            at += (his[i] == 1) & (data[at] < local[i])
+            out[which[i]] = data[at] & 255
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
+def sweep_layer(xs, ys, data, out):  # pragma: no cover - numba
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
+
+    Returns the position of the first coordinate outside the layer, or -1.
+    """
+    return _sweep(xs, ys, data, False, np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64),
+                  out)
+
+
+@numba.njit(cache=True, nogil=True)
+def sweep_tiled(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
+    """:func:`sweep_layer` for a tiled layer (``tiles``, ``rows``: :func:`.batch.tiled_words`)."""
+    return _sweep(xs, ys, data, True, tiles, rows, out)

@@ -1,0 +1,189 @@
+"""Batched lookups sorted by bucket, and the scalar path's quick grid (issue 19)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from core.errors import TerrathemeError
+from core.packing import PackedLayer, pack
+from core.packing.batch import (
+    BUCKET_RUNS,
+    CHUNK,
+    SWEEP_BYTES,
+    batch_strategy,
+    bucket_shift,
+    layer_batch,
+    layer_batch_parallel,
+    lookup_batch,
+    tiled_batch_parallel,
+)
+from core.packing.layout import UNIFORM, W_GRID, W_GRID_BITS, W_GRID_HEIGHT, W_GRID_WIDTH
+from core.packing.lookup import quick_grid
+
+
+def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:
+    # Rectangles of one index with noise on top: uniform blocks and busy ones.
+    img = rng.integers(0, k, (-(-h // cell), -(-w // cell))).repeat(cell, 0).repeat(cell, 1)
+    img = img[:h, :w].astype(np.uint8)
+    noise = rng.random((h, w)) < 0.02
+    img[noise] = rng.integers(0, k, int(noise.sum()))
+    return img
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(1, 300), st.sampled_from(["hilbert", "morton"]),
+       st.integers(1, 40), st.integers(1, 4), st.integers(0, 2**31))
+def test_batch_equals_dense_on_any_parts(w, h, curve, cell, parts, seed):
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, cell, 6)
+    layer = pack(img, curve)
+    xs = rng.integers(0, w, 3000)
+    ys = rng.integers(0, h, 3000)
+    out = np.zeros(xs.size, np.uint8)
+    assert layer_batch(xs, ys, layer.table, out) == -1
+    assert np.array_equal(out, img[ys, xs])
+    out[:] = 0
+    assert layer_batch_parallel(xs, ys, layer.table, out, parts) == -1
+    assert np.array_equal(out, img[ys, xs])
+    # Every texel once, in scan order and in reverse.
+    rows, cols = np.mgrid[0:h, 0:w]
+    assert np.array_equal(layer.lookup(cols, rows), img)
+    assert np.array_equal(layer.lookup(cols[::-1, ::-1], rows[::-1, ::-1]), img[::-1, ::-1])
+
+
+@pytest.mark.parametrize("parts", [1, 2, 3])
+def test_first_bad_texel_is_reported(parts):
+    img = _blocks(np.random.default_rng(1), 70, 90, 5, 4)
+    layer = pack(img)
+    xs = np.arange(5000) % 90
+    ys = np.arange(5000) % 70
+    xs[4000], xs[4500] = 90, -1
+    out = np.zeros(xs.size, np.uint8)
+    bad = (layer_batch(xs, ys, layer.table, out) if parts == 1
+           else layer_batch_parallel(xs, ys, layer.table, out, parts))
+    assert bad == 4000
+
+
+def test_batch_over_several_chunks():
+    rng = np.random.default_rng(4)
+    img = _blocks(rng, 400, 500, 7, 9)
+    layer = pack(img)
+    xs = rng.integers(0, 500, CHUNK + 4321)
+    ys = rng.integers(0, 400, CHUNK + 4321)
+    assert np.array_equal(layer.lookup(xs, ys), img[ys, xs])
+    assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), img[ys, xs])
+    ys[CHUNK + 7] = 400
+    with pytest.raises(TerrathemeError, match=r"\(\d+, 400\) is outside the 500 x 400"):
+        layer.lookup(xs, ys)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(1, 200), st.integers(1, 200), st.integers(6, 7), st.integers(1, 3),
+       st.integers(0, 2**31))
+def test_tiled_batch_equals_dense(w, h, tile_bits, parts, seed):
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, 3, 5)
+    layer = pack(img, tile_bits=tile_bits)
+    table, (tiles, rows) = layer._tables()
+    xs = rng.integers(0, w, 4000)
+    ys = rng.integers(0, h, 4000)
+    out = np.zeros(xs.size, np.uint8)
+    assert tiled_batch_parallel(xs, ys, table, tiles, rows, out, parts) == -1
+    assert np.array_equal(out, img[ys, xs])
+    assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), img[ys, xs])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 260), st.integers(1, 260), st.sampled_from(["hilbert", "morton"]),
+       st.sampled_from([None, 6, 7]), st.integers(1, 3), st.integers(0, 2**31))
+def test_both_strategies_answer_alike(w, h, curve, tile_bits, threads, seed):
+    # Sweeps and buckets on the same table (one layer or a tiled one): the same
+    # indices, those of the dense image, and the same first bad texel.
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, int(rng.integers(1, 30)), 7)
+    layer = pack(img, curve, tile_bits=tile_bits)
+    table, words = layer._tables() if tile_bits else (layer.table, None)
+    xs = rng.integers(0, w, 5000)
+    ys = rng.integers(0, h, 5000)
+    answers = {}
+    for strategy in ("sweep", "buckets"):
+        out = np.zeros(xs.size, np.uint8)
+        assert lookup_batch(xs, ys, table, out, threads, words, strategy) == -1
+        answers[strategy] = out
+    assert np.array_equal(answers["sweep"], answers["buckets"])
+    assert np.array_equal(answers["sweep"], img[ys, xs])
+    k = int(rng.integers(0, xs.size))
+    xs[k] = w
+    xs[min(xs.size - 1, k + 17)] = -1
+    assert [lookup_batch(xs, ys, table, np.zeros(xs.size, np.uint8), threads, words, s)
+            for s in ("sweep", "buckets")] == [k, k]
+
+
+def test_strategy_follows_table_size():
+    small = np.zeros(SWEEP_BYTES // 4, np.uint32)
+    assert batch_strategy(small) == "sweep"
+    assert batch_strategy(np.zeros(small.size + 1, np.uint32)) == "buckets"
+    with pytest.raises(ValueError, match="batch strategy 'fast'"):
+        lookup_batch(np.zeros(1, np.int64), np.zeros(1, np.int64), small, np.zeros(1, np.uint8),
+                     strategy="fast")
+
+
+@given(st.integers(1, 2**26), st.integers(1, 2**30))
+def test_bucket_shift_holds_about_bucket_runs(blocks, runs):
+    s = bucket_shift(blocks, runs)
+    # The most grid words per bucket whose share of the runs stays within BUCKET_RUNS.
+    assert s == 0 or (1 << s) * runs <= BUCKET_RUNS * blocks
+    assert (2 << s) * runs > BUCKET_RUNS * blocks or s == 40
+
+
+def test_quick_grid_is_the_uniform_blocks_index():
+    img = _blocks(np.random.default_rng(2), 300, 260, 20, 7)
+    data = pack(img).table
+    bits, width, quick = quick_grid(data)
+    grid = data[data[W_GRID]: data[W_GRID] + data[W_GRID_WIDTH] * data[W_GRID_HEIGHT]]
+    assert bits == data[W_GRID_BITS] and width == data[W_GRID_WIDTH]
+    q = np.frombuffer(quick, np.uint8)
+    uniform = (grid & UNIFORM) != 0
+    assert 0 < uniform.sum() < grid.size
+    assert np.array_equal(q[uniform], grid[uniform] & 255) and np.all(q[~uniform] == 255)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 90), st.integers(1, 90), st.sampled_from(["hilbert", "morton"]),
+       st.integers(0, 2**31))
+def test_scalar_lookup_equals_dense(w, h, curve, seed):
+    rng = np.random.default_rng(seed)
+    # 256 colours: uniform blocks of index 255 (the quick grid's "look it up") too.
+    img = _blocks(rng, h, w, 17, 3)
+    img = np.where(img == 0, 255, img * 100).astype(np.uint8)
+    layer = pack(img, curve)
+    for y in range(h):
+        for x in range(w):
+            assert layer.lookup(x, y) == img[y, x]
+    x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+    for kind in (np.int64, np.int32, np.uint16, np.uint8):
+        if x < 256 and y < 256:
+            assert layer.lookup(kind(x), kind(y)) == img[y, x]
+
+
+def test_scalar_lookup_colours_and_errors():
+    rng = np.random.default_rng(8)
+    idx = _blocks(rng, 50, 70, 9, 4)
+    colours = np.array([[10, 20, 30], [40, 50, 60], [70, 80, 90], [1, 2, 3]], np.uint8)
+    img = colours[idx]
+    layer = pack(img)
+    assert all(np.array_equal(layer.lookup(x, y), img[y, x])
+               for y in range(0, 50, 3) for x in range(0, 70, 4))
+    for x, y in ((70, 0), (0, 50), (-1, 0), (0, -1), (2**70, 0), (0, -(2**70))):
+        with pytest.raises(TerrathemeError, match="outside the 70 x 50 layer"):
+            layer.lookup(x, y)
+    # A copy over another table (with_table, with_grid_bits) answers from its own table.
+    other = layer.with_grid_bits(6)
+    assert isinstance(other, PackedLayer)
+    assert all(np.array_equal(other.lookup(x, y), img[y, x])
+               for y in range(0, 50, 5) for x in range(0, 70, 3))
