@@ -128,9 +128,14 @@ def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         for c, k in zip(present, nearest, strict=True):
             lut[c] = k
         return ThemeMapping(themes, lut, tuple(present))
-    if isinstance(themes, Mapping) or not isinstance(themes, str | int):
+    if not cuts_themes(themes):
         return themes_by_name(rgb, labels, themes)
     return themes_from_photo(rgb, labels, classes=classes, options=patch, names=names)
+
+
+def cuts_themes(themes: ThemesSpec) -> bool:
+    """True when :func:`assign_themes` cuts the themes from the photo ("auto" or K)."""
+    return isinstance(themes, str | int) and not isinstance(themes, ThemeLibrary)
 
 
 @dataclass(frozen=True)
@@ -166,6 +171,7 @@ def grid_and_colour(
     colour_map: ColourMapOptions | None = ColourMapOptions(),
     render: RenderOptions = RenderOptions(),
     progress: ProgressFn | None = None,
+    choice: CellChoice | None = None,
 ) -> GridResult:
     """Vote the theme labels to a grid and fit the colour map.
 
@@ -185,16 +191,19 @@ def grid_and_colour(
     render : RenderOptions
         How the project will be rendered (the colour map is fitted to that render).
     progress : callable(done, total), optional
+    choice : CellChoice, optional
+        With ``cell`` "auto": the choice :func:`choose_cell_size` made already
+        on these labels with these targets (it is not made again).
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
-    choice = None
-    if cell == "auto":
-        choice = choose_cell_size(theme_labels, target_agreement, candidates=candidates,
-                                  class_target=class_target, progress=progress)
-        size = choice.cell
+    if cell != "auto":
+        choice, size = None, (int(cell), int(cell))
     else:
-        size = (int(cell), int(cell))
+        if choice is None:
+            choice = choose_cell_size(theme_labels, target_agreement, candidates=candidates,
+                                      class_target=class_target, progress=progress)
+        size = choice.cell
     grid = IndexGrid(vote_grid(theme_labels, size), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
                                                                   max_pixels=1 << 22)

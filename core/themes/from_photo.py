@@ -223,6 +223,26 @@ def _present_classes(labels: np.ndarray, classes: Sequence[int] | None) -> list[
     return sorted({int(c) for c in classes if int(c) != 0} | set(found))
 
 
+def photo_theme_lut(labels: np.ndarray, classes: Sequence[int] | None = None) -> np.ndarray:
+    """The class -> theme index table :func:`themes_from_photo` gives, without cutting a theme.
+
+    It depends on the classes only (theme ``k`` is the ``k``-th class, then
+    ``no data``), so a caller can use the theme labels while the themes are cut.
+
+    Parameters
+    ----------
+    labels : (H, W) uint8 ndarray
+    classes : sequence of int, optional
+        As :func:`themes_from_photo`.
+
+    Returns
+    -------
+    lut : (256,) uint8 ndarray
+    """
+    labels = np.asarray(labels)
+    return _lut_for(_present_classes(labels, classes), bool((labels == 0).any()))
+
+
 def themes_from_photo(
     photo: np.ndarray,
     labels: np.ndarray,

@@ -1,0 +1,52 @@
+"""convert_photo chooses the cell while the themes are cut: as if one after the other."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.convert.cell_choice import choose_cell_size
+from core.convert.labels_to_grid import apply_lut
+from core.convert.photo import ConvertOptions, convert_photo
+from core.convert.step import cuts_themes, grid_and_colour
+from core.themes import ThemeLibrary, shipped_theme_library
+from core.themes.from_photo import photo_theme_lut, themes_from_photo
+
+
+def _photo() -> np.ndarray:
+    rng = np.random.default_rng(1)
+    img = np.empty((160, 200, 3), np.uint8)
+    img[:, :90] = (40, 110, 50)
+    img[:, 90:] = (200, 180, 150)
+    img[60:100, 120:180] = (30, 40, 90)
+    return np.clip(img + rng.normal(0, 8, img.shape), 0, 255).astype(np.uint8)
+
+
+def test_theme_lut_is_known_before_the_themes_are_cut() -> None:
+    labels = np.ones((40, 50), np.uint8)
+    labels[:, 25:] = 4
+    labels[:3, :3] = 0
+    mapping = themes_from_photo(_photo()[:40, :50], labels)
+    np.testing.assert_array_equal(photo_theme_lut(labels), mapping.lut)
+    np.testing.assert_array_equal(photo_theme_lut(labels, [1, 2, 4]),
+                                  themes_from_photo(_photo()[:40, :50], labels,
+                                                    classes=[1, 2, 4]).lut)
+
+
+def test_overlapped_cell_choice_equals_the_sequential_one() -> None:
+    photo = _photo()
+    result = convert_photo(photo, ConvertOptions())
+    theme_labels = apply_lut(result.labels, result.mapping.lut)
+    alone = choose_cell_size(theme_labels, 0.9, candidates=ConvertOptions().candidates,
+                             class_target=ConvertOptions().class_target)
+    assert result.choice == alone
+    again = grid_and_colour(photo, theme_labels, result.mapping,
+                            class_target=ConvertOptions().class_target,
+                            candidates=ConvertOptions().candidates)
+    np.testing.assert_array_equal(again.grid.indices, result.project.grid.indices)
+    assert again.choice == result.choice
+
+
+def test_which_theme_specs_cut_from_the_photo() -> None:
+    assert cuts_themes("auto") and cuts_themes(3)
+    assert not cuts_themes(["water", "sand"]) and not cuts_themes({1: "water"})
+    assert not cuts_themes(ThemeLibrary(list(shipped_theme_library())[:2]))
