@@ -7,7 +7,7 @@ import numpy as np
 from core.convert.cell_choice import choose_cell_size
 from core.convert.labels_to_grid import apply_lut
 from core.convert.photo import ConvertOptions, convert_photo
-from core.convert.step import cuts_themes, grid_and_colour
+from core.convert.step import cuts_themes, grid_and_colour, themes_and_cell
 from core.themes import ThemeLibrary, shipped_theme_library
 from core.themes.from_photo import photo_theme_lut, themes_from_photo
 
@@ -50,3 +50,14 @@ def test_which_theme_specs_cut_from_the_photo() -> None:
     assert cuts_themes("auto") and cuts_themes(3)
     assert not cuts_themes(["water", "sand"]) and not cuts_themes({1: "water"})
     assert not cuts_themes(ThemeLibrary(list(shipped_theme_library())[:2]))
+
+
+def test_themes_and_cell_for_every_kind_of_theme_spec() -> None:
+    photo = _photo()
+    labels = np.ones(photo.shape[:2], np.uint8)
+    labels[:, 90:] = 2
+    for spec in ("auto", 2, ["grass", "sand"], {1: "grass", 2: "sand"}):
+        mapping, choice = themes_and_cell(photo, labels, [1, 2], spec, class_target=0.5)
+        alone = choose_cell_size(apply_lut(labels, mapping.lut), 0.9, class_target=0.5)
+        assert choice == alone, spec
+        assert themes_and_cell(photo, labels, [1, 2], spec, cell=8)[1] is None

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -30,10 +29,10 @@ import numpy as np
 
 from core.classify.photo import prepare_photo
 from core.classify.samples import check_class_image
-from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice, choose_cell_size
+from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
 from core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from core.convert.labels_to_grid import apply_lut
-from core.convert.step import assign_themes, classify_photo, cuts_themes, grid_and_colour
+from core.convert.step import classify_photo, grid_and_colour, themes_and_cell
 from core.errors import TerrathemeError
 from core.io.atomic import atomic_file_set, write_bytes_atomic
 from core.io.codec import CODECS
@@ -44,7 +43,7 @@ from core.packing import pack
 from core.render.boundary import BoundaryOptions
 from core.render.project import photo_extent, render_georeference, render_project
 from core.render.renderer import RenderOptions
-from core.themes.from_photo import ThemeMapping, photo_theme_lut
+from core.themes.from_photo import ThemeMapping
 from core.themes.patch_search import PatchOptions
 
 ProgressFn = Callable[[int, int], None]
@@ -187,20 +186,10 @@ def convert_photo(
     names = None
     if options.themes == "auto":
         names = {**(getattr(model, "class_names", None) or {}), **(class_names or {})} or None
-    choice = None
-    if cuts_themes(options.themes) and options.cell == "auto":
-        # The cell choice needs the theme labels only, not the themes: it runs on a
-        # second thread while the themes are cut (its kernels release the GIL).
-        theme_labels = apply_lut(labels, photo_theme_lut(labels, result.classes))
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            job = pool.submit(choose_cell_size, theme_labels, options.target_agreement,
-                              candidates=options.candidates, class_target=options.class_target)
-            mapping = assign_themes(rgb, labels, result.classes, options.themes,
-                                    patch=options.patch, names=names)
-            choice = job.result()
-    else:
-        mapping = assign_themes(rgb, labels, result.classes, options.themes,
-                                patch=options.patch, names=names)
+    mapping, choice = themes_and_cell(
+        rgb, labels, result.classes, options.themes, cell=options.cell,
+        target_agreement=options.target_agreement, class_target=options.class_target,
+        candidates=options.candidates, patch=options.patch, names=names)
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).

@@ -18,6 +18,7 @@ through these functions, so the same photo gives the same themes everywhere:
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,11 +31,16 @@ from core.convert.cell_choice import (
     choose_cell_size,
 )
 from core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
-from core.convert.labels_to_grid import vote_grid
+from core.convert.labels_to_grid import apply_lut, vote_grid
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid
 from core.render.renderer import RenderOptions, render_cells
-from core.themes.from_photo import ThemeMapping, themes_by_name, themes_from_photo
+from core.themes.from_photo import (
+    ThemeMapping,
+    photo_theme_lut,
+    themes_by_name,
+    themes_from_photo,
+)
 from core.themes.library import ThemeLibrary
 from core.themes.matching import class_appearances, match_classes, theme_appearances
 from core.themes.patch_search import PatchOptions, texture_stats
@@ -136,6 +142,41 @@ def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
 def cuts_themes(themes: ThemesSpec) -> bool:
     """True when :func:`assign_themes` cuts the themes from the photo ("auto" or K)."""
     return isinstance(themes, str | int) and not isinstance(themes, ThemeLibrary)
+
+
+def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
+                    themes: ThemesSpec = "auto", *, cell: str | int = "auto",
+                    target_agreement: float = 0.9, class_target: float = 0.0,
+                    candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
+                    patch: PatchOptions = PatchOptions(),
+                    names: Mapping[int, str] | None = None,
+                    ) -> tuple[ThemeMapping, CellChoice | None]:
+    """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
+
+    When the themes are cut from the photo the class -> theme table is known
+    before any theme is cut (:func:`core.themes.from_photo.photo_theme_lut`),
+    so :func:`choose_cell_size` runs on a second thread meanwhile (its kernels
+    release the GIL); the result is the same as one after the other.
+
+    Returns
+    -------
+    mapping : ThemeMapping
+    choice : CellChoice or None
+        None unless ``cell`` is "auto".
+    """
+    def choose(lut: np.ndarray) -> CellChoice:
+        return choose_cell_size(apply_lut(labels, lut), target_agreement,
+                                candidates=candidates, class_target=class_target)
+
+    if cell != "auto":
+        return assign_themes(rgb, labels, classes, themes, patch=patch, names=names), None
+    if not cuts_themes(themes):
+        mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
+        return mapping, choose(mapping.lut)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        job = pool.submit(choose, photo_theme_lut(labels, classes))
+        mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
+        return mapping, job.result()
 
 
 @dataclass(frozen=True)

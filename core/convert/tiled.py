@@ -29,10 +29,10 @@ import numpy as np
 
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
-from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, choose_cell_size
+from core.convert.cell_choice import CONVERT_CELL_CANDIDATES
 from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
-from core.convert.labels_to_grid import apply_lut, grid_shape_for
-from core.convert.step import assign_themes
+from core.convert.labels_to_grid import grid_shape_for
+from core.convert.step import themes_and_cell
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
 from core.io.cluster import check_workers, warm_up
@@ -310,7 +310,7 @@ def convert_file_tiled(
     unsupervised = not hasattr(model, "forest")
     if names and unsupervised:
         # Names are assigned to the unsupervised themes by appearance.
-        mapping = assign_themes(rgb, win_result.labels, model.classes, list(names))
+        spec, class_names = list(names), None
     elif names:
         # Every class the model can give needs a name (list: in class order).
         named = dict(names) if isinstance(names, dict) else dict(zip(model.classes, names,
@@ -321,16 +321,17 @@ def convert_file_tiled(
                 f"the classifier gives classes {list(model.classes)}: name each one "
                 f"({', '.join(f'{c}=name' for c in model.classes)})"
             )
-        mapping = assign_themes(rgb, win_result.labels, model.classes, named)
+        spec, class_names = named, None
     else:
         # Themes cut from the photo, named by a shipped model's classes where it has them.
-        mapping = assign_themes(rgb, win_result.labels, model.classes,
-                                names=getattr(model, "class_names", None))
-    choice = None
-    if cell == "auto":
-        # Cell size from the agreement curve of the centre window (an estimate).
-        choice = choose_cell_size(apply_lut(win_result.labels, mapping.lut), target_agreement,
-                                  class_target=class_target, candidates=candidates)
+        spec, class_names = "auto", getattr(model, "class_names", None)
+    # With cell "auto": the cell size from the agreement curve of the centre window (an
+    # estimate), chosen while the themes are cut.
+    mapping, choice = themes_and_cell(rgb, win_result.labels, model.classes, spec, cell=cell,
+                                      target_agreement=target_agreement,
+                                      class_target=class_target, candidates=candidates,
+                                      names=class_names)
+    if choice is not None:
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
