@@ -1,7 +1,7 @@
 """What every hostile-file campaign shares: budgets, byte edits, truncation runs, the CLI check.
 
 A campaign runs twice: ``quick`` in the default suite (25 derandomised
-examples, a truncation every few bytes) and ``long`` under ``-m slow`` (1500
+examples, a truncation every few bytes) and ``long`` under ``-m slow`` (1000
 examples, every truncation). A test takes the ``budget`` parameter of
 :data:`campaign` and hands its case function to :meth:`Budget.explore` (a
 hypothesis run) or walks :meth:`Budget.cuts`::
@@ -62,7 +62,7 @@ class Budget:
 
 
 QUICK = Budget("quick", 25, every_byte=False)
-LONG = Budget("long", 1500, every_byte=True)
+LONG = Budget("long", 1000, every_byte=True)
 #: parametrize a test over both budgets (the long one is ``@pytest.mark.slow``)
 campaign = pytest.mark.parametrize("budget", [
     pytest.param(QUICK, id="quick"), pytest.param(LONG, id="long", marks=pytest.mark.slow)])
