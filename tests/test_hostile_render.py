@@ -71,19 +71,27 @@ def test_tiled_to_a_png_is_one_line(small, tmp_path):
 
 
 def _writing(folder) -> bool:
-    """Whether a temporary in ``folder`` holds tiles already (not just a TIFF header)."""
+    """Whether the full-resolution level is being written: its temporary holds tiles already
+    (not just a TIFF header) and no other temporary has started.
+
+    The levels' temporaries are all made empty at the start and filled one after the other,
+    the output's own last: a signal sent now lands seconds before the commit, however
+    loaded the machine (sent while the last temporary is written, it could arrive after
+    the rename, and the finished render rightly exits 0).
+    """
+    sizes = []
     for p in folder.iterdir():
         if TEMPORARY_NAME.match(p.name):
             try:
-                if p.stat().st_size > 1 << 16:
-                    return True
+                sizes.append(p.stat().st_size)
             except FileNotFoundError:
-                pass
-    return False
+                return False
+    started = [size for size in sizes if size > 0]
+    return len(sizes) > 1 and len(started) == 1 and started[0] > 1 << 16
 
 
 def _interrupt_mid_write(project, out, signum: int) -> subprocess.CompletedProcess:
-    """Start ``render --tiled``, send ``signum`` once its temporary file holds tiles.
+    """Start ``render --tiled``, send ``signum`` while its full-resolution level is written.
 
     (Not at the very first moment: a Ctrl-C while the renderer's thread pool starts
     can hang the process at exit or be lost, see the report on issue 16.)
