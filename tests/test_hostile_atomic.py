@@ -17,15 +17,10 @@ from pathlib import Path
 import pytest
 
 from core.errors import TerrathemeError
-from core.io import atomic
-from core.io.atomic import (
-    HOST_TAG,
-    TEMPORARY_NAME,
-    atomic_file_set,
-    atomic_path,
-    clean_stale_temporaries,
-    write_bytes_atomic,
-)
+from core.io import atomic, temporaries
+from core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
+from core.io.stale import clean_stale_temporaries
+from core.io.temporaries import HOST_TAG, TEMPORARY_NAME
 
 REPO = Path(__file__).resolve().parents[1]
 DEAD_PID = 999_999_999  # above any pid_max: no such process
@@ -290,4 +285,4 @@ def test_ctrl_c_just_after_the_temporary_is_made_leaves_nothing(tmp_path, monkey
     monkeypatch.setattr(atomic, "_create", create_then_interrupted)
     with pytest.raises(KeyboardInterrupt), atomic_path(tmp_path / "out.bin") as tmp:
         tmp.write_bytes(b"never")
-    assert list(tmp_path.iterdir()) == [] and not atomic._STATE.live
+    assert list(tmp_path.iterdir()) == [] and not temporaries._STATE.live

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from hostile_fuzz import REPO, check_refused, hidden_files, run_cli
 
-from core.io.atomic import TEMPORARY_NAME
+from core.io.temporaries import TEMPORARY_NAME
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture, save_project
 from core.themes.library import ThemeLibrary, flat_theme

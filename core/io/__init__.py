@@ -5,17 +5,13 @@ windows, bounded-memory tile jobs here or on a cluster), ``cluster`` (a
 dask.distributed cluster: start or join one, tasks in order with bounded
 results in flight), ``tiled_writer`` (images written tile by tile),
 ``georef`` (GeoTIFF tags and world files), ``atomic`` (write to a temporary
-file, then rename; sets of files; clean-up after signals), ``codec`` (images
+file, then rename; sets of files) over ``temporaries`` (their names, the signals
+that remove them) and ``stale`` (what killed processes left), ``codec`` (images
 as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
 ``png`` (PNG chunks: palettes).
 """
 
-from core.io.atomic import (
-    atomic_file_set,
-    atomic_path,
-    clean_stale_temporaries,
-    write_bytes_atomic,
-)
+from core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
 from core.io.cluster import connect, local_cluster, map_ordered
 from core.io.codec import decode_image, encode_image
 from core.io.georef import (
@@ -34,6 +30,7 @@ from core.io.images import (
     read_region,
     write_image,
 )
+from core.io.stale import clean_stale_temporaries
 from core.io.tiled_writer import TiledImageWriter
 from core.io.tiles import (
     Scheduler,

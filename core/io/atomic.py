@@ -25,97 +25,24 @@ never a stray temporary one:
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
-import re
 import secrets
 import shutil
-import signal
-import socket
-import stat
-import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from core.errors import TerrathemeError
-
-#: this machine, as temporaries' names carry it
-HOST_TAG = hashlib.sha1(socket.gethostname().encode()).hexdigest()[:8]
-#: what a temporary, backup or journal of ours is called
-TEMPORARY_NAME = re.compile(
-    r"^\.(?P<name>.{1,100})~tt(?P<host>[0-9a-f]{8})-(?P<pid>[1-9][0-9]{0,9})-"
-    r"(?P<token>[0-9a-f]{12})\.(?P<kind>tmp|bak|set)(?P<suffix>\.[A-Za-z0-9_-]{1,16})?$")
-_SUFFIX = re.compile(r"^\.[A-Za-z0-9_-]{1,16}$")
-_TERMINATING = (signal.SIGTERM, signal.SIGHUP)
-
-
-class _State:
-    """Temporaries alive in this process, and signals deferred during a commit."""
-
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.live: set[Path] = set()
-        self.installed = False
-        self.critical = 0
-        self.pending: list[int] = []
-        self.cleaned: set[Path] = set()
-
-
-_STATE = _State()
-
-
-def _remove_live() -> None:
-    for tmp in list(_STATE.live):
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-    _STATE.live.clear()
-
-
-def _on_terminate(signum: int, frame: object) -> None:
-    if _STATE.critical:
-        _STATE.pending.append(signum)
-        return
-    # Remove our temporaries, then die of the signal as its default action would.
-    _remove_live()
-    signal.signal(signum, signal.SIG_DFL)
-    os.kill(os.getpid(), signum)
-
-
-def _install_handlers() -> None:
-    if _STATE.installed or threading.current_thread() is not threading.main_thread():
-        return
-    _STATE.installed = True
-    for signum in _TERMINATING:
-        if signal.getsignal(signum) is signal.SIG_DFL:
-            signal.signal(signum, _on_terminate)
-
-
-@contextlib.contextmanager
-def _critical() -> Iterator[None]:
-    """Renames and their undoing run whole: SIGTERM/SIGHUP (and, in the main thread,
-    Ctrl-C) wait until the section ends."""
-    main = threading.current_thread() is threading.main_thread()
-    interrupts: list[int] = []
-    old_int = signal.getsignal(signal.SIGINT) if main else None
-    if main and old_int is signal.default_int_handler:
-        signal.signal(signal.SIGINT, lambda s, f: interrupts.append(s))
-    _STATE.critical += 1
-    try:
-        yield
-    finally:
-        _STATE.critical -= 1
-        if main and old_int is signal.default_int_handler:
-            signal.signal(signal.SIGINT, old_int)
-        if not _STATE.critical and _STATE.pending:
-            _on_terminate(_STATE.pending.pop(0), None)
-        if interrupts:
-            raise KeyboardInterrupt
-
-
-def _new_name(folder: Path, final_name: str, kind: str, suffix: str, token: str) -> Path:
-    suffix = suffix if _SUFFIX.match(suffix or "") else ""
-    return folder / f".{final_name[:100]}~tt{HOST_TAG}-{os.getpid()}-{token}.{kind}{suffix}"
+from core.io.stale import clean_once
+from core.io.temporaries import (
+    critical_section,
+    drop,
+    forget,
+    install_signal_handlers,
+    register,
+    temporary_name,
+    undo_set,
+)
 
 
 def _create(path: Path) -> None:
@@ -136,27 +63,21 @@ def _folder_of(path: Path) -> Path:
 
 def _new_temporary(final: Path, suffix: str | None) -> Path:
     folder = _folder_of(final)
-    _clean_once(folder)
-    _install_handlers()
+    clean_once(folder)
+    install_signal_handlers()
     while True:
-        tmp = _new_name(folder, final.name, "tmp",
+        tmp = temporary_name(folder, final.name, "tmp",
                         final.suffix if suffix is None else suffix, secrets.token_hex(6))
         # Known before it exists: a Ctrl-C or SIGTERM at any point still finds it.
-        _STATE.live.add(tmp)
+        register(tmp)
         try:
             _create(tmp)
             return tmp
         except FileExistsError:
-            _STATE.live.discard(tmp)
+            forget(tmp)
         except BaseException:
-            _drop(tmp)
+            drop(tmp)
             raise
-
-
-def _drop(tmp: Path) -> None:
-    _STATE.live.discard(tmp)
-    with contextlib.suppress(FileNotFoundError):
-        tmp.unlink()
 
 
 @contextlib.contextmanager
@@ -186,7 +107,7 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
             os.replace(tmp, path)
     finally:
         if tmp is not None:
-            _drop(tmp)
+            drop(tmp)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
@@ -238,7 +159,7 @@ def atomic_file_set(paths: Sequence[str | os.PathLike]) -> Iterator[list[Path]]:
         yield list(temps)
     except BaseException:
         for tmp in temps:
-            _drop(tmp)
+            drop(tmp)
         raise
     _commit(finals, temps)
 
@@ -246,15 +167,15 @@ def atomic_file_set(paths: Sequence[str | os.PathLike]) -> Iterator[list[Path]]:
 def _commit(finals: list[Path], temps: list[Path]) -> None:
     folder = _folder_of(finals[-1])
     token = secrets.token_hex(6)
-    journal = _new_name(folder, finals[-1].name, "set", "", token)
+    journal = temporary_name(folder, finals[-1].name, "set", "", token)
     entries = []
     for final, tmp in zip(finals, temps, strict=True):
-        backup = _new_name(folder, final.name, "bak", "", token) if final.exists() else None
+        backup = temporary_name(folder, final.name, "bak", "", token) if final.exists() else None
         entries.append({"final": final.name, "temp": tmp.name,
                         "backup": None if backup is None else backup.name,
                         "inode": os.stat(tmp).st_ino})
     done: list[dict] = []
-    with _critical():
+    with critical_section():
         try:
             # Journal first, then backups of the old files, then the renames in order.
             with open(journal, "x", encoding="utf-8") as fh:
@@ -264,10 +185,10 @@ def _commit(finals: list[Path], temps: list[Path]) -> None:
                     _link_or_copy(folder / e["final"], folder / e["backup"])
             for e in entries:
                 os.replace(folder / e["temp"], folder / e["final"])
-                _STATE.live.discard(folder / e["temp"])
+                forget(folder / e["temp"])
                 done.append(e)
         except BaseException:
-            _undo(folder, entries, renamed=done)
+            undo_set(folder, entries, renamed=done)
             with contextlib.suppress(FileNotFoundError):
                 journal.unlink()
             raise
@@ -285,119 +206,3 @@ def _link_or_copy(src: Path, dst: Path) -> None:
         shutil.copy2(src, dst)
 
 
-def _undo(folder: Path, entries: list[dict], renamed: list[dict]) -> list[Path]:
-    """Put a set's old files back: renamed entries from backups, the rest untouched."""
-    touched = []
-    for e in entries:
-        final, tmp = folder / e["final"], folder / e["temp"]
-        backup = None if e["backup"] is None else folder / e["backup"]
-        if e in renamed:
-            if backup is not None and backup.exists():
-                os.replace(backup, final)
-                touched.append(final)
-            elif backup is None and _inode(final) == e["inode"]:
-                final.unlink()
-                touched.append(final)
-        for leftover in (tmp, backup):
-            if leftover is not None and leftover.exists():
-                leftover.unlink()
-                _STATE.live.discard(leftover)
-                touched.append(leftover)
-    return touched
-
-
-def _inode(path: Path) -> int | None:
-    with contextlib.suppress(OSError):
-        return os.lstat(path).st_ino
-    return None
-
-
-def _owner_gone(match: re.Match) -> bool:
-    if match["host"] != HOST_TAG:
-        return False
-    pid = int(match["pid"])
-    if pid == os.getpid():
-        return False
-    try:
-        os.kill(pid, 0)  # raises ProcessLookupError when no such process
-    except ProcessLookupError:
-        return True
-    except OSError:
-        pass
-    return False
-
-
-def _same_owner(name: object, kind: str, journal: re.Match) -> bool:
-    match = TEMPORARY_NAME.match(name) if isinstance(name, str) else None
-    return bool(match and match["kind"] == kind and match["pid"] == journal["pid"]
-                and match["host"] == journal["host"])
-
-
-def _journal_entries(journal: Path, match: re.Match) -> list[dict] | None:
-    """A journal's entries if every name in it is a plain name of the same dead process."""
-    try:
-        entries = json.loads(journal.read_text(encoding="utf-8"))["entries"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-    for e in entries if isinstance(entries, list) else [None]:
-        if not (isinstance(e, dict) and isinstance(e.get("final"), str)
-                and "/" not in e["final"] and e["final"] not in ("", ".", "..")
-                and _same_owner(e.get("temp"), "tmp", match)
-                and (e.get("backup") is None or _same_owner(e["backup"], "bak", match))
-                and isinstance(e.get("inode"), int)):
-            return None
-    return entries
-
-
-def _recover_journal(folder: Path, journal: Path, match: re.Match) -> list[Path]:
-    """Undo the renames of a set whose process died mid-commit (module docstring)."""
-    entries = _journal_entries(journal, match)
-    touched = []
-    if entries:
-        # A temporary that is gone was renamed onto its final file (all of them
-        # existed when the journal was written).
-        renamed = [e for e in entries if not (folder / e["temp"]).exists()]
-        touched = _undo(folder, entries, renamed)
-    journal.unlink()
-    return [*touched, journal]
-
-
-def clean_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove the temporaries dead processes of this machine left in ``folder``.
-
-    Journals of interrupted file sets are undone first (the old files come
-    back), then orphaned temporaries and backups are removed. Only regular
-    files named as :data:`TEMPORARY_NAME` describes, made on this host by a
-    process that no longer exists, are touched.
-
-    Returns
-    -------
-    touched : list of Path, the files removed or restored
-    """
-    folder = Path(folder)
-    found = []
-    with contextlib.suppress(OSError), os.scandir(folder) as it:
-        for entry in it:
-            match = TEMPORARY_NAME.match(entry.name)
-            if match and entry.is_file(follow_symlinks=False) and stat.S_ISREG(
-                    entry.stat(follow_symlinks=False).st_mode) and _owner_gone(match):
-                found.append((match, folder / entry.name))
-    touched: list[Path] = []
-    with _critical():
-        for match, path in sorted(found, key=lambda f: f[0]["kind"] != "set"):
-            with contextlib.suppress(OSError):
-                if match["kind"] == "set":
-                    touched += _recover_journal(folder, path, match)
-                elif path.exists():
-                    path.unlink()
-                    touched.append(path)
-    return touched
-
-
-def _clean_once(folder: Path) -> None:
-    key = folder.resolve()
-    with _STATE.lock:
-        if key in _STATE.cleaned:
-            return
-        _STATE.cleaned.add(key)
-    clean_stale_temporaries(folder)
