@@ -20,9 +20,7 @@ Large outputs are rendered in tiles of ``GpuRenderOptions.tile`` pixels
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
 
 import moderngl
 import numpy as np
@@ -34,8 +32,9 @@ from core.gpu.cover import cell_rectangles
 from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
 from core.gpu.packed import PackedGrid, check_grid_layer
 from core.gpu.pipeline import Pipeline, rect_vertices
-from core.gpu.programs import UNITS, Variant
-from core.gpu.style import Style, StyleTextures, gpu_style
+from core.gpu.plan import RenderMode, RenderPlan, tile_geometry
+from core.gpu.programs import UNITS
+from core.gpu.style import StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
 from core.model.grid import validate_cell
@@ -45,38 +44,6 @@ from core.render.rules import region_splits
 from core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
-
-
-class _Mode(NamedTuple):
-    """The style of a render, its sampling path and how its uniform cells are filled."""
-
-    style: Style
-    filtered: bool
-    uniform_cells: UniformCells
-
-    def variant(self, kind: str, lut_size: int) -> Variant:
-        """The program of ``kind`` drawing this mode."""
-        blend = kind == "blend"
-        return Variant(kind, histogram=self.style.histogram and blend,
-                       shaped=self.style.border is not None and blend, filtered=self.filtered,
-                       colour_map=self.style.colour_map is not None, lut_size=lut_size)
-
-
-class _Plan(NamedTuple):
-    """What a render draws: the checked inputs, the output size, the variant, the tile side.
-
-    ``indices`` is the dense grid, or None when ``packed`` (the GPU reads the layer).
-    """
-
-    indices: np.ndarray | None
-    packed: PackedGrid | None
-    cells: tuple[int, int]
-    cell: tuple[int, int]
-    size: tuple[int, int]
-    region: tuple[int, int, int, int]
-    out_size: tuple[int, int]
-    mode: _Mode
-    tile: int
 
 
 def _check_out(out: np.ndarray | None, shape: tuple[int, int, int]) -> np.ndarray:
@@ -215,7 +182,7 @@ class GpuRenderer:
 
     def _plan(self, grid: object, cell: tuple[int, int] | None,
               region: tuple[int, int, int, int] | None, scale: float,
-              options: GpuRenderOptions, colour_map: ColourMap | None) -> _Plan:
+              options: GpuRenderOptions, colour_map: ColourMap | None) -> RenderPlan:
         """Check every input (before any GPU work) and fix what the tiles draw."""
         indices, packed, (n, m) = self._grid(grid, cell)
         gw, gh = (packed.layer.width - 1, packed.layer.height - 1) if packed else \
@@ -239,10 +206,11 @@ class GpuRenderer:
                                   f"shader (UniformCells.BLEND or AUTO), not {fill.name}")
         if packed is not None:
             fill = UniformCells.BLEND
-        mode = _Mode(style, filtered, self._uniform_cells(fill, filtered, colour_map is not None))
+        fill = self._uniform_cells(fill, filtered, colour_map is not None)
+        mode = RenderMode(style, filtered, fill)
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
         tile = min(options.tile, self._max_viewport)
-        return _Plan(indices, packed, (gw, gh), (n, m), size, region, out_size, mode, tile)
+        return RenderPlan(indices, packed, (gw, gh), (n, m), size, region, out_size, mode, tile)
 
     def _grid(self, grid: object, cell: object) -> tuple[np.ndarray | None, PackedGrid | None,
                                                           tuple[int, int]]:
@@ -273,30 +241,19 @@ class GpuRenderer:
                 f"whose 2 x 2 tiling fits a {self.themes.max_size} texture and no colour map")
         return asked
 
-    def _start(self, plan: _Plan, options: GpuRenderOptions) -> None:
+    def _start(self, plan: RenderPlan, options: GpuRenderOptions) -> None:
         """Bind the textures and make the framebuffer current."""
         self.style.bind(plan.mode.style, plan.mode.filtered, options.max_anisotropy)
         ow, oh = plan.out_size
         self.pipeline.framebuffer(min(plan.tile, ow), min(plan.tile, oh))
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
 
-    def _draw_tile(self, plan: _Plan, options: GpuRenderOptions, tx: int,
+    def _draw_tile(self, plan: RenderPlan, options: GpuRenderOptions, tx: int,
                    ty: int) -> tuple[int, int]:
         """Draw output pixels ``[tx, tx + tile) x [ty, ty + tile)``; returns their size."""
         n, m = plan.cell
-        rx, ry, rw, rh = plan.region
-        ow, oh = plan.out_size
-        fx, fy = rw / ow, rh / oh
-        tw, th = min(plan.tile, ow - tx), min(plan.tile, oh - ty)
-        # The tile's part of the texture, in texel edges, and the cells under it
-        # (the filtered path's sub-samples reach half a texel beyond).
-        x0, y0, w, h = view = (rx + tx * fx, ry + ty * fy, tw * fx, th * fy)
-        gw, gh = plan.cells
-        pad = int(plan.mode.filtered)
-        cx0 = min(max(0, math.floor((x0 - pad) / n)), gw - 1)
-        cy0 = min(max(0, math.floor((y0 - pad) / m)), gh - 1)
-        cx1 = min(gw - 1, math.ceil((x0 + w) / n) - 1 + pad)
-        cy1 = min(gh - 1, math.ceil((y0 + h) / m) - 1 + pad)
+        (tw, th), view, (cx0, cy0, cx1, cy1) = tile_geometry(plan, tx, ty)
+        x0, y0, w, h = view
         block_shape = (cy1 - cy0 + 1, cx1 - cx0 + 1)
         if plan.packed is not None:
             # The GPU decodes the block and splits its cells from the packed layer.
@@ -325,7 +282,7 @@ class GpuRenderer:
             self._draw_rects(plan.mode, edges, kinds, values)
         return tw, th
 
-    def _uniforms(self, plan: _Plan, options: GpuRenderOptions,
+    def _uniforms(self, plan: RenderPlan, options: GpuRenderOptions,
                   view: tuple[float, float, float, float], block_cell: tuple[int, int],
                   block_shape: tuple[int, int]) -> dict[str, object]:
         """The uniform values of one tile's draws (``tt_blend.glsl`` documents each)."""
@@ -337,7 +294,7 @@ class GpuRenderer:
             **self.style.uniforms(plan.mode.style, plan.size, options.max_supersample),
         }
 
-    def _draw_rects(self, mode: _Mode, edges: np.ndarray, kinds: np.ndarray,
+    def _draw_rects(self, mode: RenderMode, edges: np.ndarray, kinds: np.ndarray,
                     values: dict[str, object]) -> None:
         """One draw per theme of uniform rectangles (copy shader), one for the blended ones."""
         self.pipeline.upload_vertices(rect_vertices(edges, kinds, self.themes.sizes))
