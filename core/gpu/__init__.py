@@ -8,7 +8,8 @@ programs, textures and buffers a renderer reuses between frames),
 textures), ``cover`` (rectangles of uniform and blended cells),
 ``copy_image`` (uniform cells as image copies), ``options``
 (sampling path, blend, tiles), ``style`` (a project's blend, shaped borders
-and colour map, checked against the shaders' integer ranges), ``renderer``
+and colour map, checked against the shaders' integer ranges), ``plan`` (what a
+render draws and each tile's geometry, no GPU), ``renderer``
 (:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any
 region, exact at scale 1, filtered with mipmaps and anisotropy below or on
 request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
