@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 
 from core.errors import TerrathemeError
@@ -145,12 +146,23 @@ def class_means(labels: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.
         Row ``c``: the mean of the values over the pixels labelled ``c`` (0 where none).
     counts : (256,) int64 ndarray
     """
-    flat = labels.ravel()
-    counts = np.bincount(flat, minlength=256)
-    cols = values.reshape(flat.size, -1)
-    sums = np.stack([np.bincount(flat, weights=cols[:, k], minlength=256)
-                     for k in range(cols.shape[1])], axis=1)
+    flat = np.ascontiguousarray(labels, np.uint8).ravel()
+    cols = np.ascontiguousarray(values).reshape(flat.size, -1)
+    counts = np.zeros(256, np.int64)
+    sums = np.zeros((256, cols.shape[1]), np.float64)
+    _label_sums(flat, cols, counts, sums)
     return sums / np.maximum(counts, 1)[:, None], counts
+
+
+@numba.njit(cache=True, nogil=True)
+def _label_sums(flat, cols, counts, sums):  # pragma: no cover
+    """``counts[c]`` pixels labelled ``c`` and ``sums[c]`` their values, in pixel order
+    (float64, as ``np.bincount`` adds them: the same sums, in one pass, no column copies)."""
+    for i in range(flat.size):
+        c = flat[i]
+        counts[c] += 1
+        for k in range(cols.shape[1]):
+            sums[c, k] += cols[i, k]
 
 
 def class_targets(stats: TextureStats, labels: np.ndarray,
