@@ -116,6 +116,27 @@ def test_choose_cell_size_monotone_in_target():
     assert sizes == sorted(sizes, reverse=True)
 
 
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), block=st.integers(2, 20),
+       target=st.sampled_from([0.6, 0.8, 0.9, 0.97]), class_target=st.sampled_from([0.0, 0.5]))
+def test_stopping_at_the_first_cell_that_meets_the_targets_chooses_the_same_cell(
+        seed, block, target, class_target):
+    labels = _blocks(seed, block, (5, 7))
+    full = choose_cell_size(labels, target, class_target=class_target)
+    quick = choose_cell_size(labels, target, class_target=class_target, full_curve=False)
+    assert (quick.cell, quick.agreement, quick.target_met) == (
+        full.cell, full.agreement, full.target_met)
+    # The quick curve is the full curve's points from the chosen cell up.
+    assert quick.curve == tuple(p for p in full.curve if p.cell >= quick.cell[0])
+
+
+def test_the_quick_choice_without_a_cell_that_meets_the_target_measures_every_cell():
+    labels = _blocks(3, 5, (6, 6))
+    full = choose_cell_size(labels, 1.0, candidates=(4, 8, 16))
+    quick = choose_cell_size(labels, 1.0, candidates=(4, 8, 16), full_curve=False)
+    assert not full.target_met and quick == full
+
+
 def test_flat_labels_choose_the_largest_cell():
     labels = np.full((40, 30), 2, np.uint8)
     choice = choose_cell_size(labels, 0.99)

@@ -145,6 +145,7 @@ def choose_cell_size(
     sample_pixels: int | None = DEFAULT_SAMPLE_PIXELS,
     progress: ProgressFn | None = None,
     class_target: float = 0.0,
+    full_curve: bool = True,
 ) -> CellChoice:
     """The largest square cell whose label view keeps ``target_agreement`` of the labels.
 
@@ -170,11 +171,17 @@ def choose_cell_size(
         Measure agreement on about this many pixels (row strips, see
         :func:`agreement`); None: on every pixel.
     progress : callable(done, total), optional
+    full_curve : bool
+        True: measure every candidate (the curve for a chart). False: from the
+        largest candidate down, stopping at the first that meets the targets
+        (the same cell, found with the fewest and cheapest grids: a small
+        cell's grid has the most vertices).
 
     Returns
     -------
     CellChoice
-        With the full curve (cell, agreement, grid bytes) for a chart.
+        With the curve (cell, agreement, grid bytes) of the candidates measured,
+        smallest cell first.
     """
     labels = check_class_image(labels, "label image")
     if not 0.0 < float(target_agreement) <= 1.0:
@@ -188,7 +195,8 @@ def choose_cell_size(
     if not 0.0 <= float(class_target) <= 1.0:
         raise TerrathemeError(f"class target must be in [0, 1], got {class_target}")
     curve = []
-    for done, c in enumerate(sizes, start=1):
+    for done, c in enumerate(sizes if full_curve else sizes[::-1], start=1):
+        # Vote the grid, render its label view, count the pixels that keep their label.
         grid = IndexGrid(vote_grid(labels, (c, c)), (c, c))
         cm = label_confusion(labels, grid, max_pixels=sample_pixels)
         ious = class_iou(cm, CLASS_MIN_SHARE)
@@ -196,8 +204,10 @@ def choose_cell_size(
                                min(ious.values(), default=1.0)))
         if progress is not None:
             progress(done, len(sizes))
-    meeting = [p for p in curve if p.agreement >= target_agreement
-               and p.worst_class_iou >= class_target]
+        if not full_curve and _meets(curve[-1], target_agreement, class_target):
+            break
+    curve.sort(key=lambda p: p.cell)
+    meeting = [p for p in curve if _meets(p, target_agreement, class_target)]
     if meeting:
         best = max(meeting, key=lambda p: p.cell)
     else:
@@ -206,3 +216,7 @@ def choose_cell_size(
         (best.cell, best.cell), best.agreement, float(target_agreement), tuple(curve),
         target_met=bool(meeting), class_target=float(class_target),
     )
+
+
+def _meets(point: CellPoint, target_agreement: float, class_target: float) -> bool:
+    return point.agreement >= target_agreement and point.worst_class_iou >= class_target

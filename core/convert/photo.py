@@ -86,6 +86,11 @@ class ConvertOptions:
     boundary : BoundaryOptions or None
         Borders shaped by the themes' content and noise, stored as the
         project's render style; None: the paper's barycentric ramp.
+    full_curve : bool
+        ``cell="auto"``: measure every candidate cell, for a chart of the
+        agreement curve (``convert --curve``); False: from the largest down to
+        the first that meets the targets, the same cell in less time
+        (:func:`core.convert.cell_choice.choose_cell_size`).
     """
 
     cell: str | int = "auto"
@@ -96,6 +101,7 @@ class ConvertOptions:
     patch: PatchOptions = field(default_factory=PatchOptions)
     colour_map: ColourMapOptions | None = field(default_factory=ColourMapOptions)
     boundary: BoundaryOptions | None = field(default_factory=BoundaryOptions)
+    full_curve: bool = False
 
 
 @dataclass(frozen=True)
@@ -189,7 +195,8 @@ def convert_photo(
     mapping, choice = themes_and_cell(
         rgb, labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
-        candidates=options.candidates, patch=options.patch, names=names)
+        candidates=options.candidates, patch=options.patch, names=names,
+        full_curve=options.full_curve)
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).
@@ -199,7 +206,8 @@ def convert_photo(
                            class_target=options.class_target, candidates=options.candidates,
                            colour_map=options.colour_map,
                            render=RenderOptions(boundary=options.boundary),
-                           progress=_stage(progress, 50, 35), choice=choice)
+                           progress=_stage(progress, 50, 35), choice=choice,
+                           full_curve=options.full_curve)
     if progress is not None:
         progress(95, 100)
     meta = dict(metadata or {})

@@ -150,6 +150,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
                     patch: PatchOptions = PatchOptions(),
                     names: Mapping[int, str] | None = None,
+                    full_curve: bool = True,
                     ) -> tuple[ThemeMapping, CellChoice | None]:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -157,6 +158,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     before any theme is cut (:func:`core.themes.from_photo.photo_theme_lut`),
     so :func:`choose_cell_size` runs on a second thread meanwhile (its kernels
     release the GIL); the result is the same as one after the other.
+    ``full_curve`` as :func:`choose_cell_size`'s.
 
     Returns
     -------
@@ -166,7 +168,8 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     """
     def choose(lut: np.ndarray) -> CellChoice:
         return choose_cell_size(apply_lut(labels, lut), target_agreement,
-                                candidates=candidates, class_target=class_target)
+                                candidates=candidates, class_target=class_target,
+                                full_curve=full_curve)
 
     if cell != "auto":
         return assign_themes(rgb, labels, classes, themes, patch=patch, names=names), None
@@ -213,6 +216,7 @@ def grid_and_colour(
     render: RenderOptions = RenderOptions(),
     progress: ProgressFn | None = None,
     choice: CellChoice | None = None,
+    full_curve: bool = True,
 ) -> GridResult:
     """Vote the theme labels to a grid and fit the colour map.
 
@@ -235,6 +239,8 @@ def grid_and_colour(
     choice : CellChoice, optional
         With ``cell`` "auto": the choice :func:`choose_cell_size` made already
         on these labels with these targets (it is not made again).
+    full_curve : bool
+        Measure every candidate cell (:func:`choose_cell_size`).
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
@@ -243,7 +249,8 @@ def grid_and_colour(
     else:
         if choice is None:
             choice = choose_cell_size(theme_labels, target_agreement, candidates=candidates,
-                                      class_target=class_target, progress=progress)
+                                      class_target=class_target, progress=progress,
+                                      full_curve=full_curve)
         size = choice.cell
     grid = IndexGrid(vote_grid(theme_labels, size), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
