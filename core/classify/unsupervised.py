@@ -26,6 +26,7 @@ reusable model and classifying with it is :mod:`core.classify.unsupervised_model
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -134,7 +135,8 @@ def sample_features(
     fo, scale = options.features, options.features.scale
     h, w = rgb.shape[:2]
     n_coarse = (-(-h // scale)) * (-(-w // scale))
-    stride = max(1, int(np.sqrt(n_coarse / options.max_samples)))
+    # The smallest stride whose grid keeps to the budget.
+    stride = max(1, math.ceil(math.sqrt(n_coarse / options.max_samples)))
     weights = feature_weights(fo)
     wc = -(-w // scale)
     chunks, order = [], []
