@@ -180,16 +180,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     from pathlib import Path
 
-    from tqdm import tqdm
-
     from app.outputs import check_outputs
-    from core.convert.photo import (
-        ConvertOptions,
-        convert_photo,
-        read_photo,
-        write_outputs,
-    )
-    from core.fidelity import texture_cost
+    from app.warmup import start_numba
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -211,6 +203,23 @@ def run(args: argparse.Namespace) -> int:
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)
+    numba_start = start_numba()
+    try:
+        return _run_whole(args, project, preview, packed, themes, legend)
+    finally:
+        numba_start.join()
+
+
+def _run_whole(args: argparse.Namespace, project, preview: str, packed: str, themes,
+               legend) -> int:
+    """The whole-photo conversion (in memory)."""
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
+    from core.fidelity import texture_cost
+
     model = None
     if args.model:
         if args.scribbles:
@@ -224,7 +233,8 @@ def run(args: argparse.Namespace) -> int:
     colour, boundary = _style(args)
     options = ConvertOptions(
         cell=args.cell, themes=themes, target_agreement=args.target_agreement,
-        class_target=args.class_target, colour_map=colour, boundary=boundary)
+        class_target=args.class_target, colour_map=colour, boundary=boundary,
+        full_curve=bool(args.curve))
     with tqdm(total=100, desc="convert", unit="%", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
