@@ -27,6 +27,7 @@ Label 0 (no data: transparent pixels) gets a theme of its own, ``no data``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -167,6 +168,8 @@ REPEAT_LIMIT = 0.3
 LANDMARK_LIMIT = 0.04
 #: windows tried per class before the best rejected one is kept
 PATCH_TRIES = 3
+#: classes whose tiles are cut at once (each tile depends on its class alone)
+TILE_THREADS = 2
 
 
 def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
@@ -289,6 +292,11 @@ def themes_from_photo(
     # Every class's colour and texture statistics in one pass over the photo.
     colours, counts = class_means(labels, rgb)
     targets = class_targets(stats, labels, [c for c in wanted if counts[c]])
+    # The classes' tiles on two threads (OpenCV, numpy and the seam kernels release the GIL).
+    with ThreadPoolExecutor(max_workers=TILE_THREADS) as pool:
+        tiles = dict(zip(targets, pool.map(
+            lambda c: _class_tile(rgb, labels == c, windows, targets[c], options), targets),
+            strict=True))
     themes = []
     for c in wanted:
         name = names[c]
@@ -296,7 +304,7 @@ def themes_from_photo(
             themes.append(flat_theme(name, (128, 128, 128)).with_(source="class absent from photo"))
             continue
         colour = tuple(int(v) for v in np.clip(np.rint(colours[c]), 0, 255))
-        found = _class_tile(rgb, labels == c, windows, targets[c], options)
+        found = tiles[c]
         if found is None:
             theme = flat_theme(name, colour).with_(
                 source=f"flat mean colour (no {options.min_size}px patch inside the class)"
