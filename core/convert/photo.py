@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -328,10 +329,17 @@ def write_outputs(
 
     finals = [path for _, path in plan]
     if len({p.parent.resolve() for p in finals}) == 1:
-        with atomic_file_set(finals) as temps:
+        with atomic_file_set(finals) as temps, ThreadPoolExecutor(max_workers=1) as pool:
             where = {key: tmp for (key, _), tmp in zip(plan, temps, strict=True)}
+            # The preview PNG is encoded on a second thread while the rest is written
+            # (zlib in both releases the GIL); all are written before the set is renamed.
+            beside = pool.submit(write, "preview", where["preview"], where) \
+                if "preview" in where else None
             for key, tmp in where.items():
-                write(key, tmp, where)
+                if key != "preview":
+                    write(key, tmp, where)
+            if beside is not None:
+                beside.result()
     else:
         where = dict(plan)
         for key, path in plan:
