@@ -156,3 +156,16 @@ def test_other_scales_keep_the_photo_size(scale):
     assert res.labels.shape == (95, 143)
     assert res.classes == (1, 2)
     assert (res.labels[:, :55] == 2).all() and (res.labels[:, 67:] == 1).all()
+
+
+def test_distinct_rows_cap_k_even_when_their_first_feature_is_the_same():
+    from core.classify.unsupervised import UnsupervisedOptions, choose_themes
+
+    rows = np.array([[1.0, 0.0, 0.0], [1.0, 40.0, 0.0], [1.0, 0.0, 40.0]], np.float32)
+    samples = np.repeat(rows, 50, axis=0)
+    centres, sizes, _ = choose_themes(samples, UnsupervisedOptions(), themes=5)
+    assert len(centres) == 3 and np.allclose(sizes, 1 / 3)
+    # Distinct in the first feature already: K as asked.
+    step = np.array([1e-3, 0.0, 0.0], np.float32)
+    spread = samples + np.arange(len(samples), dtype=np.float32)[:, None] * step
+    assert len(choose_themes(spread, UnsupervisedOptions(), themes=5)[0]) == 5

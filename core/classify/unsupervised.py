@@ -219,6 +219,13 @@ def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: fl
     return False
 
 
+def _distinct_rows(samples: np.ndarray, enough: int) -> int:
+    """``min(number of distinct rows, enough)``; the first column alone often settles it."""
+    if len(np.unique(samples[:, 0])) >= enough:
+        return enough
+    return min(len(np.unique(samples, axis=0)), enough)
+
+
 def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str | int = "auto"):
     """Fit k-means with K from the criterion in the module docstring (or fixed K).
 
@@ -235,7 +242,8 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
     within : float
         Pooled mean squared distance to the nearest centre, ``W_K``.
     """
-    n_distinct = len(np.unique(samples, axis=0)) if len(samples) <= 50000 else len(samples)
+    wanted = options.max_themes if themes == "auto" else int(themes)
+    n_distinct = _distinct_rows(samples, wanted) if len(samples) <= 50000 else len(samples)
     # One theme: the mean.
     w1 = float(((samples - samples.mean(0)) ** 2).sum(1).mean())
     best = (w1, np.zeros(len(samples), np.int32), samples.mean(0, keepdims=True))
