@@ -3,8 +3,9 @@
 A :class:`core.packing.tiled.TiledLayer`'s tiles are packed layers, each
 with its own table (:func:`core.packing.lookup.build_table`). Looked up
 through those tables, every texel first finds its tile (a row of tile words,
-:func:`core.packing.batch.tiled_words`), which costs 25-40% on maps whose
-texels are cheap (most in uniform blocks). The **joined table** is one table
+:func:`core.packing.batch.tiled_words`), which cost 10-43% more than one
+layer on the shared maps (1 thread), most where texels are cheap (most in
+uniform blocks). The **joined table** is one table
 in the layout of :mod:`.layout` whose grid is the tiles' grids side by side
 (their blocks are aligned, the tile side being a multiple of the block side),
 whose spans and runs are theirs end to end with their offsets shifted: the
