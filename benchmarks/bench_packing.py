@@ -61,6 +61,7 @@ from core.curves.square import curve_order, hilbert_transposed  # noqa: E402
 from core.io.images import read_image  # noqa: E402
 from core.packing import PackedLayer, pack  # noqa: E402
 from core.packing.batch import STRATEGIES, batch_strategy, lookup_batch  # noqa: E402
+from core.packing.scalar import quick_cells  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
@@ -274,7 +275,12 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         rec[f"{ours}_vs_{peer}_range"] = [float(ratio.min()), float(ratio.max())]
     # Scalar calls from Python, paired with numpy's scalar index round by round.
     pts = [(int(x), int(y)) for x, y in zip(xs[:20000], ys[:20000], strict=True)]
-    layer.lookup(*pts[0])
+    t0 = time.perf_counter()
+    layer.lookup(*pts[0])  # builds the quick cells (core.packing.scalar)
+    rec["scalar_setup_s"] = time.perf_counter() - t0
+    bits, cells = quick_cells(layer.table)
+    rec["scalar_cell_bits"] = bits
+    rec["scalar_compiled_share"] = float(np.mean([cells[y][x >> bits] == 255 for x, y in pts]))
     ours, dense = [], []
     for _ in range(LOOKUP_ROUNDS):
         ours.append(best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)

@@ -1,4 +1,4 @@
-"""Batched lookups sorted by bucket, and the scalar path's quick grid (issue 19)."""
+"""Batched lookups sorted by bucket, and the scalar path's quick cells (issue 19)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from core.errors import TerrathemeError
-from core.packing import PackedLayer, pack
+from core.packing import PackedLayer, TiledLayer, pack, scalar
 from core.packing.batch import (
     BUCKET_RUNS,
     CHUNK,
@@ -22,8 +22,8 @@ from core.packing.batch import (
     lookup_batch,
     tiled_batch_parallel,
 )
-from core.packing.layout import UNIFORM, W_GRID, W_GRID_BITS, W_GRID_HEIGHT, W_GRID_WIDTH
-from core.packing.lookup import quick_grid
+from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
+from core.packing.scalar import quick_cells
 
 
 def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:
@@ -82,20 +82,56 @@ def test_batch_over_several_chunks():
         layer.lookup(xs, ys)
 
 
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(st.integers(1, 200), st.integers(1, 200), st.integers(6, 7), st.integers(1, 3),
-       st.integers(0, 2**31))
-def test_tiled_batch_equals_dense(w, h, tile_bits, parts, seed):
+       st.booleans(), st.integers(0, 2**31))
+def test_tiled_batch_equals_dense(w, h, tile_bits, parts, join, seed):
+    # Through the joined table (when the tiles join) or each tile's own table.
     rng = np.random.default_rng(seed)
     img = _blocks(rng, h, w, 3, 5)
-    layer = pack(img, tile_bits=tile_bits)
-    table, (tiles, rows) = layer._tables()
+    layer = dataclasses.replace(pack(img, tile_bits=tile_bits), join=join)
+    table, words = layer._tables()
+    assert join or words is not None
     xs = rng.integers(0, w, 4000)
     ys = rng.integers(0, h, 4000)
     out = np.zeros(xs.size, np.uint8)
-    assert tiled_batch_parallel(xs, ys, table, tiles, rows, out, parts) == -1
+    if words is None:
+        assert table[W_MORTON] == JOINED
+        assert layer_batch_parallel(xs, ys, table, out, parts) == -1
+    else:
+        assert tiled_batch_parallel(xs, ys, table, *words, out, parts) == -1
     assert np.array_equal(out, img[ys, xs])
     assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), img[ys, xs])
+    k = int(rng.integers(0, xs.size))
+    assert layer.lookup(int(xs[k]), int(ys[k])) == img[ys[k], xs[k]]
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(1, 330), st.integers(1, 330), st.integers(0, 2**31))
+def test_joined_table_of_mixed_curves_equals_dense(w, h, seed):
+    # Tiles of both curves (chosen at random) in one joined table, the last tile row
+    # shorter than the others (the cut): every texel, both strategies, 1 and 2 threads.
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, int(rng.integers(1, 20)), 4)
+    blobs = [pack(np.ascontiguousarray(img[y: y + 64, x: x + 64]),
+                  ("hilbert", "morton")[int(rng.integers(0, 2))]).to_bytes()
+             for y in range(0, h, 64) for x in range(0, w, 64)]
+    layer = TiledLayer.from_tile_bytes(w, h, 6, blobs, np.arange(4, dtype=np.uint8)[:, None],
+                                       identity=True, squeeze=True)
+    table, words = layer._tables()
+    if words is not None:
+        # Only a corner tile smaller than the grid's blocks keeps the tiles apart.
+        bits = int(layer.tile(0).table[W_GRID_BITS])
+        assert max(w % 64 or 64, h % 64 or 64) <= 1 << (bits - 1)
+        return
+    ys, xs = (a.ravel() for a in np.mgrid[:h, :w])
+    for strategy in ("sweep", "buckets"):
+        for threads in (1, 2):
+            out = np.zeros(xs.size, np.uint8)
+            assert lookup_batch(xs, ys, table, out, threads, None, strategy) == -1
+            assert np.array_equal(out, img[ys, xs])
+    assert all(layer.lookup(int(x), int(y)) == img[y, x]
+               for x, y in zip(xs[::97], ys[::97], strict=True))
 
 
 @settings(max_examples=25, deadline=None)
@@ -141,16 +177,34 @@ def test_bucket_shift_holds_about_bucket_runs(blocks, runs):
     assert (2 << s) * runs > BUCKET_RUNS * blocks or s == 40
 
 
-def test_quick_grid_is_the_uniform_blocks_index():
-    img = _blocks(np.random.default_rng(2), 300, 260, 20, 7)
-    data = pack(img).table
-    bits, width, quick = quick_grid(data)
-    grid = data[data[W_GRID]: data[W_GRID] + data[W_GRID_WIDTH] * data[W_GRID_HEIGHT]]
-    assert bits == data[W_GRID_BITS] and width == data[W_GRID_WIDTH]
-    q = np.frombuffer(quick, np.uint8)
-    uniform = (grid & UNIFORM) != 0
-    assert 0 < uniform.sum() < grid.size
-    assert np.array_equal(q[uniform], grid[uniform] & 255) and np.all(q[~uniform] == 255)
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 300), st.integers(1, 300), st.sampled_from(["hilbert", "morton"]),
+       st.sampled_from([1 << 22, 64, 1]), st.integers(0, 2**31))
+def test_quick_cells_are_the_uniform_cells_index(w, h, curve, cap, seed):
+    # Every cell (aligned to the bottom-left corner) with a byte below 255 holds that index
+    # only; every cell inside the image of one index (below 255) says so; the cells fit
+    # the cap when any can.
+    rng = np.random.default_rng(seed)
+    img = _blocks(rng, h, w, int(rng.integers(1, 40)), 5)
+    layer = pack(img, curve)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(scalar, "QUICK_CELLS", cap)
+        bits, rows = quick_cells(layer.table)
+    assert len(rows) == h
+    side = 1 << bits
+    cells_across = -(-w >> bits)
+    assert all(len(r) == cells_across for r in rows)
+    assert bits == 0 or cells_across * -(-h >> bits) <= cap or side >= max(w, h)
+    yup = h - 1 - np.arange(h)
+    for cy in range(-(-h >> bits)):
+        band = img[(yup >> bits) == cy]
+        row = rows[int(np.flatnonzero((yup >> bits) == cy)[0])]
+        for cx in range(cells_across):
+            cell = band[:, cx * side: (cx + 1) * side]
+            if row[cx] != 255:
+                assert np.all(cell == row[cx])
+            elif cell.size == side * side and cell.min() == cell.max():
+                assert cell.min() == 255  # (cells at the edges may be marked 255 anyway)
 
 
 @settings(max_examples=25, deadline=None)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -91,7 +93,7 @@ def test_tiles_of_a_tiled_layer_share_one_block_side():
     img = np.zeros((300, 200), np.uint8)
     img[:128, :128] = rng.integers(0, 5, (128, 128))  # busy tile; the others nearly empty
     img[200, 150] = 3
-    tiled = pack(img, tile_bits=7)
+    tiled = dataclasses.replace(pack(img, tile_bits=7), join=False)
     table, words = tiled._tables()
     bits = words[1].reshape(-1, TILE_COLUMNS)[:, T_GRID_BITS]
     assert len(set(bits.tolist())) == 1

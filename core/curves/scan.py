@@ -303,3 +303,32 @@ def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curv
     plan = block_plan(width, height, curve)
     steps = np.ascontiguousarray(steps, dtype=np.uint32)
     return _steps_to_ranks_kernel(steps, height, width, *plan_args(plan))
+
+
+def check_run_ends(steps: np.ndarray, width: int, height: int, curve: str | Curve) -> None:
+    """Check the 0-based last steps of an image's runs along a curve.
+
+    Parameters
+    ----------
+    steps : (R,) int64 ndarray
+
+    Raises
+    ------
+    TerrathemeError
+        Steps that are not strictly increasing from 0 or more, a last step that is
+        not the image's last texel's, or a step on no image texel.
+    """
+    curve = Curve.parse(curve)
+    if steps[0] < 0 or np.any(np.diff(steps) <= 0):
+        raise TerrathemeError("run steps must be strictly increasing and non-negative")
+    last = int(ranks_to_steps(np.array([width * height]), width, height, curve)[0])
+    if steps[-1] != last:
+        raise TerrathemeError(
+            f"the last run ends at step {int(steps[-1])}, but the image's last texel "
+            f"along the {curve.name.lower()} curve is step {last}"
+        )
+    # Every run must end on an image texel (round trip through ranks).
+    ranks = steps_to_ranks(steps.astype(np.uint32), width, height, curve)
+    if ranks.min() < 1 or not np.array_equal(
+            ranks_to_steps(ranks, width, height, curve).astype(np.int64), steps):
+        raise TerrathemeError("a run ends on a curve step outside the image")

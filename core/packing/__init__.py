@@ -13,8 +13,10 @@ file band by band (a palette PNG for index layers).
 Modules: :mod:`.packer` (``pack``), :mod:`.stream_pack` (``pack_file``),
 :mod:`.palette` (image -> palette and runs), :mod:`.layer` (the in-memory
 layer), :mod:`.tiled` and :mod:`.tiled_format` (the tiled container),
-:mod:`.lookup` (random access kernels and block directory), :mod:`.layout`
-(the random-access table's layout), :mod:`.container` (file header, magic,
+:mod:`.lookup` (random access kernels and block directory), :mod:`.batch`
+and :mod:`.sweep` (batched lookups), :mod:`.joined` (one table over a tiled
+layer's tiles), :mod:`.scalar` (the quick cells of scalar lookups),
+:mod:`.layout` (the random-access table's layout), :mod:`.container` (file header, magic,
 version, checksum, ceilings), :mod:`.seed_format` (the seed's varint pairs),
 :mod:`.compact_format` and :mod:`.range_coder` (entropy-coded run streams),
 :mod:`.plane_format`, :mod:`.plane_model` and :mod:`.mixing` (the 2-D

@@ -38,13 +38,16 @@ import numpy as np
 
 from core.packing.layout import (
     HEAD_WORDS,
+    JOINED,
     UNIFORM,
     W_COUNT,
+    W_CUT,
     W_GRID,
     W_GRID_BITS,
     W_GRID_HEIGHT,
     W_GRID_WIDTH,
     W_HEIGHT,
+    W_MORTON,
     W_RUNS,
     W_SPANS,
     W_WIDTH,
@@ -129,12 +132,15 @@ def _layer_words(data):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _grid_pass(xs, ys, a, b, data, tiled, tiles, rows, out, ent, bkt, counts):
+def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, counts):
     # Pass 1 over texels [a, b): uniform texels answered, the others' entries in
     # ent[a:], bkt[a:], counted in counts (per bucket). Returns (entries, bad texel or -1).
     width, height, tb, across, shift = tiles[0], tiles[1], tiles[2], tiles[3], tiles[4]
     tmask = (np.int64(1) << tb) - 1
     height0, gb0, grid0, gw0 = rows[T_HEIGHT], rows[T_GRID_BITS], rows[T_GRID], rows[T_GRID_WIDTH]
+    # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
+    cut0 = np.int64(data[W_CUT])
+    pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
     m = a
     for k in range(a, b):
         x = np.int64(xs[k])
@@ -151,6 +157,8 @@ def _grid_pass(xs, ys, a, b, data, tiled, tiles, rows, out, ent, bkt, counts):
             bucket = rows[r + T_BUCKET] + (gi >> shift)
         else:
             yup = height0 - 1 - row
+            if joined:
+                yup += pad0 * (row < cut0)
             gb = gb0
             gi = (yup >> gb) * gw0 + (x >> gb)
             g = np.int64(data[grid0 + gi])
@@ -168,12 +176,14 @@ def _grid_pass(xs, ys, a, b, data, tiled, tiles, rows, out, ent, bkt, counts):
 
 @numba.njit(cache=True, nogil=True)
 def _grid_layer(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # pragma: no cover
-    return _grid_pass(xs, ys, a, b, data, False, tiles, rows, out, ent, bkt, counts)
+    if data[W_MORTON] == JOINED:
+        return _grid_pass(xs, ys, a, b, data, False, True, tiles, rows, out, ent, bkt, counts)
+    return _grid_pass(xs, ys, a, b, data, False, False, tiles, rows, out, ent, bkt, counts)
 
 
 @numba.njit(cache=True, nogil=True)
 def _grid_tiled(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # pragma: no cover
-    return _grid_pass(xs, ys, a, b, data, True, tiles, rows, out, ent, bkt, counts)
+    return _grid_pass(xs, ys, a, b, data, True, False, tiles, rows, out, ent, bkt, counts)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -15,15 +15,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.curves.fill import fill_runs, fill_window
-from core.curves.scan import ranks_to_steps, steps_to_ranks
+from core.curves.scan import check_run_ends, ranks_to_steps, steps_to_ranks
 from core.curves.square import Curve, curve_order
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import write_bytes_atomic
 from core.packing.batch import lookup_batch
 from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
-from core.packing.lookup import build_table, quick_grid, scalar_lookup_function, table_runs
-from core.packing.palette import PaletteReport, check_colours, palette_values
+from core.packing.lookup import build_table, scalar_lookup_function, table_runs
+from core.packing.palette import PaletteReport, as_palette, check_colours, palette_values
+from core.packing.scalar import quick_cells
 
 _SCALAR_TYPES = frozenset({np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
 #: Batches at least this large are looked up on all threads.
@@ -108,39 +109,15 @@ class PackedLayer:
         n = curve_order(width, height)
         steps = np.asarray(steps, dtype=np.int64) - (1 if one_based else 0)
         indices = np.asarray(indices)
-        palette = np.asarray(palette)
-        if palette.ndim == 1:
-            palette = palette[:, None]
-        if palette.dtype not in (np.uint8, np.uint16):
-            # Plain integer palettes (e.g. Python lists) take the smallest fitting type.
-            if palette.dtype.kind not in "iu" or palette.min() < 0 or palette.max() > 65535:
-                raise TerrathemeError(
-                    f"palette of {palette.dtype}: uint8 or uint16 colours expected")
-            palette = palette.astype(np.uint8 if palette.max() < 256 else np.uint16)
+        palette = as_palette(palette)
         if steps.ndim != 1 or steps.shape != indices.shape or steps.size == 0:
             raise TerrathemeError(f"runs: {steps.shape} steps and {indices.shape} indices")
-        if not 1 <= palette.shape[0] <= 256 or palette.ndim != 2:
-            raise TerrathemeError(f"palette of shape {palette.shape}: 1 to 256 colours expected")
         if indices.min() < 0 or indices.max() >= palette.shape[0]:
             raise TerrathemeError(
                 f"palette index {int(indices.max())} out of range: the palette has "
                 f"{palette.shape[0]} colours"
             )
-        if steps[0] < 0 or np.any(np.diff(steps) <= 0):
-            raise TerrathemeError("run steps must be strictly increasing and non-negative")
-        last = int(ranks_to_steps(np.array([width * height]), width, height, curve)[0])
-        if steps[-1] != last:
-            raise TerrathemeError(
-                f"the last run ends at step {int(steps[-1])}, but the image's last texel "
-                f"along the {curve.name.lower()} curve is step {last}"
-            )
-        # Every run must end on an image texel (round trip through ranks).
-        ranks = steps_to_ranks(steps.astype(np.uint32), width, height, curve)
-        if ranks.min() < 1:
-            raise TerrathemeError("a run ends on a curve step outside the image")
-        back = ranks_to_steps(ranks, width, height, curve)
-        if not np.array_equal(back.astype(np.int64), steps):
-            raise TerrathemeError("a run ends on a curve step outside the image")
+        check_run_ends(steps, width, height, curve)
         colours = check_colours(colours, palette.shape[0], identity)
         data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
         palette = np.ascontiguousarray(palette)
@@ -258,11 +235,11 @@ class PackedLayer:
             A coordinate outside the image.
         """
         if type(xs) is int and type(ys) is int:
-            # Scalar fast path: a uniform block's byte (most texels), else one compiled
-            # call with three arguments; then the ready-made value (like image[y, x]).
-            w, h, top, gb, gw, quick, values, call, data = self._quick or self._quick_setup()
+            # Scalar fast path (:mod:`.scalar`): a uniform quick cell's byte (most texels),
+            # else one compiled call; then the ready-made value (like image[y, x]).
+            rows, bits, w, h, values, call, data = self._quick or self._quick_setup()
             if 0 <= xs < w and 0 <= ys < h:
-                i = quick[((top - ys) >> gb) * gw + (xs >> gb)]
+                i = rows[ys][xs >> bits]
                 return values[i] if i != 255 else values[call(xs, ys, data)]
             raise TerrathemeError(self._outside(xs, ys))
         if type(xs) in _SCALAR_TYPES and type(ys) in _SCALAR_TYPES:
@@ -285,12 +262,12 @@ class PackedLayer:
         return out[()] if out.ndim == 0 else out
 
     def _quick_setup(self) -> tuple:
-        # What the scalar path reads, built on its first call (:func:`.lookup.quick_grid`).
-        gb, gw, quick = quick_grid(self._data)
-        quick_words = (self.width, self.height, self.height - 1, gb, gw, quick, self._scalars,
-                       scalar_lookup_function(), self._data)
-        object.__setattr__(self, "_quick", quick_words)
-        return quick_words
+        # What the scalar path reads, built on its first call (:func:`.scalar.quick_cells`).
+        bits, rows = quick_cells(self._data)
+        quick = (rows, bits, self.width, self.height, self._scalars, scalar_lookup_function(),
+                 self._data)
+        object.__setattr__(self, "_quick", quick)
+        return quick
 
     def _outside(self, x: int, y: int) -> str:
         return f"texel ({int(x)}, {int(y)}) is outside the {self.width} x {self.height} layer"

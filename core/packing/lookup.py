@@ -33,14 +33,17 @@ from core.errors import TerrathemeError
 from core.packing.layout import (
     ENDS,
     HEAD_WORDS,
+    JOINED,
     MAX_GRID_BITS,
+    MORTON_BLOCK,
     QUARTER_FROM,
     SPAN_LAST,
+    SPAN_OFFSET_MASK,
     TABLE_AT,
     UNIFORM,
+    W_CUT,
     W_GRID,
     W_GRID_BITS,
-    W_GRID_HEIGHT,
     W_GRID_WIDTH,
     W_HEIGHT,
     W_MORTON,
@@ -59,9 +62,12 @@ def _inside(x, row, data, base):  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _grid_word(x, row, data, base):  # pragma: no cover - numba
-    # Grid word of texel (x, row), row 0 = top, and its place in the block (y up).
-    yup = np.int64(data[base + W_HEIGHT]) - 1 - row
+    # Grid word of texel (x, row), row 0 = top, and its place in the block (y up);
+    # rows above a joined table's cut are read `pad` higher (:mod:`.layout`).
+    height = np.int64(data[base + W_HEIGHT])
+    cut = np.int64(data[base + W_CUT])
     gb = np.int64(data[base + W_GRID_BITS])
+    yup = height - 1 - row + ((cut - height) & ((np.int64(1) << gb) - 1)) * (row < cut)
     g = np.int64(data[base + np.int64(data[base + W_GRID]) + (yup >> gb)
                       * np.int64(data[base + W_GRID_WIDTH]) + (x >> gb)])
     mask = (np.int64(1) << gb) - 1
@@ -71,7 +77,8 @@ def _grid_word(x, row, data, base):  # pragma: no cover - numba
 @numba.njit(cache=True, nogil=True, inline="always")
 def local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
     # Step within its block of a texel at (lx, ly) (y up), the block's grid word g.
-    if data[base + W_MORTON]:
+    curve = data[base + W_MORTON]
+    if curve == 1 or (curve == JOINED and g & MORTON_BLOCK):
         return np.int64(morton_step(lx, ly))
     tables = data[base + TABLE_AT: base + TABLE_AT + HILBERT_TABLES.size]
     return np.int64(hilbert_walk(lx, ly, gb, tables, np.int64(g & 3))[0])
@@ -81,7 +88,7 @@ def local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
 def run_span(g, local, gb, data, base):  # pragma: no cover - numba
     # The runs [lo, hi) to search for local step `local` of the block with grid word g:
     # the block's, or its quarter's when the block has a quarter directory.
-    at = base + np.int64(data[base + W_SPANS]) + (g >> 3)
+    at = base + np.int64(data[base + W_SPANS]) + ((g >> 3) & SPAN_OFFSET_MASK)
     if g & 4:
         q = local >> (2 * gb - 2)
         return np.int64(data[at + q]), np.int64(data[at + q + 1]) & (SPAN_LAST - 1)
@@ -142,30 +149,29 @@ def scalar_lookup_function():
     return _SCALAR_CALL[0]
 
 
-#: Most grid blocks :func:`quick_grid` keeps a byte for (4 MB); larger grids go without.
-QUICK_BLOCKS = 1 << 22
+def block_runs(steps: np.ndarray, coarse: np.ndarray, bits: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The runs covering each curve block's first and last steps, and whether it is uniform.
 
-
-def quick_grid(data: np.ndarray) -> tuple[int, int, bytes]:
-    """A byte per grid block for scalar lookups from Python: its palette index if uniform.
+    Parameters
+    ----------
+    steps : (R,) uint64 ndarray
+        0-based last step of each run, increasing.
+    coarse : (B,) integer ndarray
+        Coarse curve step of each block of side ``2^bits`` (:func:`core.curves.plan.block_grid`).
 
     Returns
     -------
-    bits, width : int
-        The grid's block side (log2) and blocks across.
-    quick : bytes
-        Per block (rows from the bottom, like the grid), the palette index of a
-        uniform block, 255 for any other (and for index 255, which is then looked
-        up as in any other block). A grid of more than :data:`QUICK_BLOCKS`
-        blocks gets one byte 255 for all, with ``bits`` 62.
+    run0, run1 : (B,) int64 ndarrays
+        The run covering the block's first step, the one covering its last (``R``
+        when the last step lies past the layer's last texel).
+    uniform : (B,) bool ndarray
+        One run covers the block (its image texels all have that run's index).
     """
-    blocks = int(data[W_GRID_WIDTH]) * int(data[W_GRID_HEIGHT])
-    if blocks > QUICK_BLOCKS:
-        return 62, 0, b"\xff"
-    grid = data[int(data[W_GRID]): int(data[W_GRID]) + blocks]
-    index = grid & np.uint32(255)
-    quick = np.where((grid & np.uint32(UNIFORM)) != 0, index, 255).astype(np.uint8)
-    return int(data[W_GRID_BITS]), int(data[W_GRID_WIDTH]), quick.tobytes()
+    first = np.asarray(coarse, np.uint64) << np.uint64(2 * bits)
+    run0 = np.searchsorted(steps, first)
+    run1 = np.searchsorted(steps, first + np.uint64((1 << (2 * bits)) - 1))
+    return run0, run1, run0 == run1
 
 
 def build_table(
@@ -197,16 +203,12 @@ def build_table(
     gb = grid_bits(n, width, height, r) if bits is None else min(int(bits), n)
     if not 0 <= gb <= MAX_GRID_BITS:
         raise TerrathemeError(f"grid block bits {bits}: 0 to {MAX_GRID_BITS}")
-    side = np.uint64(1 << (2 * gb))
     coarse, state = block_grid(width, height, curve, gb)
     gh, gw = coarse.shape
     coarse, state = coarse.ravel(), state.ravel()
     first = coarse.astype(np.uint64) << np.uint64(2 * gb)
-    last = first + side - np.uint64(1)
-    # The run covering each block's first step, and the one covering its last step.
-    run0 = np.searchsorted(steps, first)
-    run1 = np.searchsorted(steps, last)
-    uniform = run0 == run1
+    last = first + np.uint64((1 << (2 * gb)) - 1)
+    run0, run1, uniform = block_runs(steps, coarse, gb)
     # Whether a run ends on the block's last step (or, past the layer's end, inside it).
     cover = np.minimum(run1, r - 1)
     ends = (run1 >= r) | (steps[cover] == last)
@@ -229,7 +231,7 @@ def build_table(
     grid = np.where(uniform, UNIFORM | np.where(ends, ENDS, 0) | indices[cover].astype(np.int64),
                     0)
     grid[nu] = (offset << 3) | (split.astype(np.int64) << 2) | state[nu].astype(np.int64)
-    words = ((steps & (side - np.uint64(1))) << np.uint64(8)) | indices
+    words = ((steps & np.uint64((1 << (2 * gb)) - 1)) << np.uint64(8)) | indices
     grid_at = TABLE_AT + HILBERT_TABLES.size
     spans_at = grid_at + grid.size
     runs_at = spans_at + spans.size

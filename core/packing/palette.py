@@ -184,6 +184,27 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
                                   float(per_texel.mean()))
 
 
+def as_palette(palette: np.ndarray) -> np.ndarray:
+    """A palette as a ``(K, C)`` uint8 or uint16 array (plain integers: the smallest that fits).
+
+    Raises
+    ------
+    TerrathemeError
+        Colours that are not integers of 0 to 65535, or not 1 to 256 of them.
+    """
+    palette = np.asarray(palette)
+    if palette.ndim == 1:
+        palette = palette[:, None]
+    if palette.dtype not in (np.uint8, np.uint16):
+        # Plain integer palettes (e.g. Python lists) take the smallest fitting type.
+        if palette.dtype.kind not in "iu" or palette.min() < 0 or palette.max() > 65535:
+            raise TerrathemeError(f"palette of {palette.dtype}: uint8 or uint16 colours expected")
+        palette = palette.astype(np.uint8 if palette.max() < 256 else np.uint16)
+    if not 1 <= palette.shape[0] <= 256 or palette.ndim != 2:
+        raise TerrathemeError(f"palette of shape {palette.shape}: 1 to 256 colours expected")
+    return palette
+
+
 def check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndarray | None:
     """Display colours cut to the palette's ``k`` entries, read-only, or None."""
     if colours is None:

@@ -20,8 +20,12 @@ import numpy as np
 
 from core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
 from core.packing.layout import (
+    JOINED,
+    MORTON_BLOCK,
     SPAN_LAST,
+    SPAN_OFFSET_MASK,
     UNIFORM,
+    W_CUT,
     W_GRID,
     W_GRID_BITS,
     W_GRID_WIDTH,
@@ -40,9 +44,10 @@ STRETCH = 16384
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
-    # The body of both kernels; inlined with a constant ``tiled``, so each keeps
-    # only its own branch (one layer: header read once, not per texel).
+def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover - numba
+    # The body of the kernels; inlined with constant ``tiled`` and ``joined``, so each
+    # keeps only its own branches (one layer: header read once, not per texel; a joined
+    # table, :mod:`.joined`: its cut and each block's curve).
     if tiled:
         width, height, tb, across = tiles[0], tiles[1], tiles[2], tiles[3]
     else:
@@ -50,11 +55,14 @@ def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
     tmask = (np.int64(1) << tb) - 1
     height0 = np.int64(data[W_HEIGHT])
     gb0 = np.int64(data[W_GRID_BITS])
+    # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
+    cut0 = np.int64(data[W_CUT])
+    pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
     grid0 = np.int64(data[W_GRID])
     spans0 = np.int64(data[W_SPANS])
     runs0 = np.int64(data[W_RUNS])
     gw0 = np.int64(data[W_GRID_WIDTH])
-    morton0 = np.int64(data[W_MORTON])
+    morton0 = np.int64(data[W_MORTON] == 1)
     n = min(STRETCH, xs.size)
     gs = np.empty(n, np.int64)
     local = np.empty(n, np.int64)
@@ -81,6 +89,8 @@ def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
                                   + (x >> gb)])
             else:
                 yup = height0 - 1 - row
+                if joined:
+                    yup += pad0 * (row < cut0)
                 gb = gb0
                 g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
             # Branch-free: every texel takes the next slot, which only searches keep.
@@ -101,11 +111,12 @@ def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
                 gb, spans, morton = gb0, spans0, morton0
             lx = local[i] & 0xFFFFFFFF
             ly = local[i] >> 32
-            if morton:
+            if morton or (joined and g & MORTON_BLOCK):
                 step = np.int64(morton_step(lx, ly))
             else:
                 step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-            at = spans + (g >> 3) + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
+            offset = ((g >> 3) & SPAN_OFFSET_MASK) if joined else g >> 3
+            at = spans + offset + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
             runs = rows[tile[i] + T_RUNS] if tiled else runs0
             local[i] = np.int64(np.uint32(step) << np.uint32(8))
             los[i] = runs + np.int64(data[at])
@@ -137,15 +148,18 @@ def _sweep(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True)
 def sweep_layer(xs, ys, data, out):  # pragma: no cover - numba
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer (or of a
+    joined table, :mod:`.joined`) into ``out``.
 
     Returns the position of the first coordinate outside the layer, or -1.
     """
-    return _sweep(xs, ys, data, False, np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64),
-                  out)
+    tiles, rows = np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64)
+    if data[W_MORTON] == JOINED:
+        return _sweep(xs, ys, data, False, True, tiles, rows, out)
+    return _sweep(xs, ys, data, False, False, tiles, rows, out)
 
 
 @numba.njit(cache=True, nogil=True)
 def sweep_tiled(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     """:func:`sweep_layer` for a tiled layer (``tiles``, ``rows``: :func:`.batch.tiled_words`)."""
-    return _sweep(xs, ys, data, True, tiles, rows, out)
+    return _sweep(xs, ys, data, True, False, tiles, rows, out)

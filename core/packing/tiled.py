@@ -7,9 +7,11 @@ one palette of the whole layer (file layout: :mod:`.tiled_format`).
 
 Opening a container reads its header and index only; tiles are decoded when
 first needed. Random access decodes every tile once into **one** ``uint32``
-array, the tiles' tables end to end (each tile a view into it), and the
-compiled batch kernels of :mod:`.batch` pick a tile's table by a shift and
-an offset, so a batch costs about what it costs on one layer.
+array: the joined table (:mod:`.joined`), which the single layer's kernels
+read as they read one layer's, so a batch costs what it costs on one layer;
+or, for containers that do not join, the tiles' tables end to end (each tile
+a view into it), in which the compiled batch kernels of :mod:`.batch` pick a
+tile's table by a shift and an offset.
 """
 
 from __future__ import annotations
@@ -29,9 +31,10 @@ from core.packing import tiled_format as fmt
 from core.packing.batch import lookup_batch, tiled_words
 from core.packing.container import HEADER as LAYER_HEADER
 from core.packing.container import read_header
+from core.packing.joined import join_tables
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
-from core.packing.lookup import table_runs
+from core.packing.lookup import scalar_lookup_function, table_runs
 from core.packing.palette import palette_values
 
 #: Tile side used when none is asked for: the largest a packed layer has.
@@ -59,6 +62,10 @@ class TiledLayer:
         Display colours of an identity layer.
     threads : int
         Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
+    join : bool
+        Look texels up through one table over all tiles (:mod:`.joined`) when
+        the tiles allow it; False: always through each tile's own table (the
+        path of containers that do not join). Both give the same answers.
     """
 
     width: int
@@ -74,6 +81,7 @@ class TiledLayer:
     _lengths: np.ndarray = field(repr=False)
     _cache: dict = field(repr=False, default_factory=dict)
     threads: int = 2
+    join: bool = True
 
     # ------------------------------------------------------------ construction
 
@@ -182,8 +190,8 @@ class TiledLayer:
         """Tile ``i`` (rows from the top-left) as a packed layer of palette indices."""
         if not 0 <= int(i) < len(self._lengths):
             raise TerrathemeError(f"tile {i} of {len(self._lengths)}")
-        if "table" in self._cache:
-            return self._cache["tiles"][int(i)]
+        if ("tiles", False) in self._cache:
+            return self._cache["tiles", False][int(i)]
         return self._decode(int(i))
 
     @property
@@ -198,24 +206,32 @@ class TiledLayer:
 
     # ------------------------------------------------------------ reading texels
 
-    def _tables(self) -> tuple[np.ndarray, np.ndarray]:
-        """All tiles' tables end to end, and the tile words the kernels read (built once)."""
-        if "table" not in self._cache:
-            # Decode every tile, then keep their tables end to end and each tile as a view.
+    def _tables(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        """The table the kernels read, built once: the joined table (and None), or all
+        tiles' tables end to end and the tile words the kernels read (:mod:`.batch`)."""
+        key = ("tables", self.join)
+        if key not in self._cache:
             decoded = [self._decode(i) for i in range(len(self._lengths))]
             # One grid block side for all tiles, the whole layer's: the kernels' walks and
             # searches then have the same length whichever tile a texel falls in.
             levels = (max(self.width, self.height) - 1).bit_length()
             bits = grid_bits(levels, self.width, self.height, sum(t.run_count for t in decoded))
             decoded = [t.with_grid_bits(bits) for t in decoded]
+            joined = join_tables([t.table for t in decoded], self.width, self.height,
+                                 self.tile_bits, self.tiles_x) if self.join else None
+            if joined is not None:
+                self._cache[key] = (joined, None)
+                return self._cache[key]
+            # Their tables end to end, each tile kept as a view into them.
             starts = np.concatenate([[0], np.cumsum([t.table.size for t in decoded])])
             table = np.concatenate([t.table for t in decoded])
             tiles = [t.with_table(table[a:b]) for t, a, b in zip(decoded, starts[:-1], starts[1:],
                                                                    strict=True)]
             words = tiled_words(table, starts[:-1], self.width, self.height, self.tile_bits,
                                 self.tiles_x)
-            self._cache.update(table=table, words=words, tiles=tiles)
-        return self._cache["table"], self._cache["words"]
+            self._cache[key] = (table, words)
+            self._cache["tiles", False] = tiles
+        return self._cache[key]
 
     def lookup(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
         """Texel values at columns ``xs``, rows ``ys`` (as :meth:`PackedLayer.lookup`).
@@ -232,9 +248,11 @@ class TiledLayer:
             if not (0 <= x < self.width and 0 <= row < self.height):
                 raise TerrathemeError(f"texel ({x}, {row}) is outside the {self.width} x "
                                       f"{self.height} layer")
+            if words is None:
+                return self.values_of(np.asarray(scalar_lookup_function()(x, row, table)))[()]
             mask = self.tile_side - 1
-            tile = self._cache["tiles"][(row >> self.tile_bits) * self.tiles_x
-                                        + (x >> self.tile_bits)]
+            tile = self._cache["tiles", False][(row >> self.tile_bits) * self.tiles_x
+                                               + (x >> self.tile_bits)]
             return self.values_of(np.asarray(tile.lookup(x & mask, row & mask)))[()]
         xs_b, ys_b = np.broadcast_arrays(np.asarray(xs), np.asarray(ys))
         if xs_b.dtype.kind not in "iu" or ys_b.dtype.kind not in "iu":
