@@ -115,3 +115,26 @@ def test_block_job_equals_the_whole_grid_block_gain():
         want = _quantise(_block_sums(pixels, 16)
                          / np.maximum(_block_sums(whole[win.y:win.y1, win.x:win.x1], 16), 1.0))
         assert np.array_equal(job(win, pixels, grid_window(grid, win)), want)
+
+
+def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
+    from scipy import ndimage
+
+    from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+    from core.io.images import write_image
+
+    rng = np.random.default_rng(6)
+    # A 13 x 17 vertex grid at cell 16 is a 256 x 192 texture; the photo covers 201 x 139 of
+    # it, so the map at scale 8 has photo gains in its top-left 18 x 26 pixels only.
+    photo = rng.integers(30, 220, (139, 201, 3), dtype=np.uint8)
+    write_image(tmp_path / "p.png", photo)
+    grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
+    fitted = colour_map_from_file(tmp_path / "p.png", grid, _themes(rng), 8,
+                                  options=ColourMapOptions(codec="png"), tile=64)
+    got = fitted.colour_map.pixels
+    assert got.shape == (24, 32, 3)
+    covered = np.zeros(got.shape[:2], bool)
+    covered[:18, :26] = True
+    _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
+    assert np.array_equal(got, got[iy, ix])
+    assert not np.array_equal(got[:18, :26][:, -1], got[:18, :26][:, -2])
