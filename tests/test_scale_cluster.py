@@ -334,3 +334,18 @@ def test_serial_and_threaded_schedulers_unchanged(tmp_path):
     a = grid_from_file(path, 8, brightest, tile=40, overlap=3)
     b = grid_from_file(path, 8, brightest, tile=40, overlap=3, scheduler=Scheduler.DASK)
     assert np.array_equal(a.indices, b.indices)
+
+
+def test_a_passed_check_is_not_run_again_for_the_same_workers_and_path(tmp_path, cluster,
+                                                                       monkeypatch):
+    import core.io.cluster as cl
+
+    seen, other = tmp_path / "a.png", tmp_path / "b.png"
+    _photo(seen, 32, 32)
+    _photo(other, 32, 32)
+    check_workers(cluster, str(seen))
+    # The same workers and path: passed before, not asked again; a new path is checked.
+    monkeypatch.setattr(cl, "code_fingerprint", per_process_fingerprint)
+    check_workers(cluster, str(seen))
+    with pytest.raises(TerrathemeError, match="runs another terratheme"):
+        check_workers(cluster, str(other))

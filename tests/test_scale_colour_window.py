@@ -138,3 +138,18 @@ def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
     _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
     assert np.array_equal(got, got[iy, ix])
     assert not np.array_equal(got[:18, :26][:, -1], got[:18, :26][:, -2])
+
+
+@pytest.mark.parametrize(("shape", "s"), [((64, 96, 3), 16), ((61, 70, 4), 16), ((37, 50, 3), 64),
+                                          ((128, 128, 3), 1)])
+def test_block_sums_are_the_exact_sums_of_each_block(shape, s):
+    from core.convert.colour_fit import _block_sums
+
+    image = np.random.default_rng(3).integers(0, 256, shape, dtype=np.uint8)
+    got = _block_sums(image, s)
+    bh, bw = -(-shape[0] // s), -(-shape[1] // s)
+    assert got.shape == (bh, bw, 3) and got.dtype == np.float64
+    for j in range(bh):
+        for i in range(bw):
+            block = image[j * s:(j + 1) * s, i * s:(i + 1) * s, :3].astype(np.int64)
+            assert np.array_equal(got[j, i], block.sum(axis=(0, 1)))
