@@ -220,7 +220,9 @@ def _worker_settings() -> tuple:
 
     return (dask.config.get("distributed.worker.profile.enabled"),
             dask.config.get("distributed.admin.tick.interval"),
-            os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            dask.config.get("distributed.worker.memory.monitor-interval"),
+            dask.config.get("distributed.admin.system-monitor.interval"))
 
 
 def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
@@ -228,7 +230,7 @@ def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
     # glibc's adaptive reuse of freed arrays is left on (no forced trim threshold).
     settings = cluster.run(_worker_settings)
     assert len(settings) == 2
-    assert set(settings.values()) == {(False, "1s", None)}
+    assert set(settings.values()) == {(False, "1s", None, "1s", "2s")}
 
 
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
