@@ -1,8 +1,17 @@
 """Benchmark of the client's cost per task on a local dask cluster: one tile a task or several.
 
-Run: ``.venv/bin/python benchmarks/bench_cluster_tasks.py [--side 4096] [--tiles 512 1024]``
+Run: ``.venv/bin/python benchmarks/bench_cluster_tasks.py [--side 4096] [--tiles 512 1024]
+[--idle] [--encode]``
 
-Writes ``benchmarks/results/scale_tasks.json``.
+Writes ``benchmarks/results/scale_tasks.json`` (``--idle``: ``scale_idle.json``, ``--encode``:
+``scale_encode.json``).
+
+``--idle``: the CPU an idle 2-worker local cluster costs (client process, workers) over
+15 s, with ``core.io.cluster.QUIET_LOCAL`` and with dask's memory-monitor and
+system-monitor intervals (100 ms, 500 ms), alternately. ``--encode``: a colour map of
+4 JPEG XL tiles (2048^2 each, the single-image limit forced low) encoded on the client
+(``ColourMap.encode``) and on 2 workers (``ClusterTiles``): wall and client CPU seconds,
+and whether the bytes are identical.
 
 ``core.io.cluster.map_ordered`` runs several consecutive items a task
 (``MAX_GROUP``, guided); ``MAX_GROUP = 1`` is the one-item-a-task path it
@@ -72,12 +81,73 @@ def _run(what, client, counts, group_max: int, items: int) -> dict:
             "client_cpu_ms_per_task": 1e3 * cpu / counts[0], "load": load, "out": out}
 
 
+def idle(repeat: int) -> dict:
+    """Cores an idle local cluster costs, quiet monitors or dask's defaults, alternately."""
+    quiet = dict(cluster.QUIET_LOCAL)
+    default = {**quiet, "distributed.worker.memory.monitor-interval": "100ms",
+               "distributed.admin.system-monitor.interval": "500ms"}
+    records = []
+    for rep in range(repeat):
+        for name, settings in [("quiet", quiet), ("dask monitors", default)][::1 - 2 * (rep % 2)]:
+            cluster.QUIET_LOCAL = settings
+            with cluster.local_cluster(2) as client:
+                time.sleep(3)
+                w0, c0, t0 = sum(client.run(_cpu).values()), _cpu(), time.perf_counter()
+                time.sleep(15)
+                w1, c1, t1 = sum(client.run(_cpu).values()), _cpu(), time.perf_counter()
+            records.append({"settings": name, "client_cores": (c1 - c0) / (t1 - t0),
+                            "worker_cores": (w1 - w0) / (t1 - t0), "load": os.getloadavg()[0]})
+            print(records[-1], flush=True)
+    cluster.QUIET_LOCAL = quiet
+    return {"records": records}
+
+
+def encode(repeat: int) -> dict:
+    """A 4-tile JPEG XL colour map encoded on the client and on 2 workers."""
+    import cv2
+    import numpy as np
+
+    import core.model.colour_map as colour_map
+    from core.convert.colour_fit import ClusterTiles
+
+    rng = np.random.default_rng(0)
+    side = 4096
+    gains = cv2.resize(rng.integers(100, 160, (side // 32, side // 32, 3), dtype=np.uint8),
+                       (side, side), interpolation=cv2.INTER_CUBIC)
+    gains = np.clip(gains.astype(int) + rng.integers(-2, 3, gains.shape), 0, 255)
+    gains = gains.astype(np.uint8)
+    colour_map.ONE_IMAGE_LIMITS = {**colour_map.ONE_IMAGE_LIMITS, "jpegxl": (2048, 2048**2)}
+    colour_map.MAP_TILE = 2048
+    records = []
+    with cluster.local_cluster(2) as client:
+        cluster.warm_up(client, ["core.convert.colour_fit"])
+        for rep in range(repeat):
+            for where in ("client", "2 workers")[::1 - 2 * (rep % 2)]:
+                run = ClusterTiles(client) if where != "client" else None
+                load, c0, t0 = os.getloadavg()[0], _cpu(), time.perf_counter()
+                cmap = colour_map.ColourMap.encode(gains, 16, "jpegxl", 99, run=run)
+                records.append({"where": where, "wall_s": time.perf_counter() - t0,
+                                "client_cpu_s": _cpu() - c0, "load": load,
+                                "tiles": len(cmap.tiles),
+                                "sha": hashlib.sha256(b"".join(cmap.tiles)).hexdigest()[:16]})
+                print(records[-1], flush=True)
+    return {"records": records, "identical": len({r["sha"] for r in records}) == 1}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--side", type=int, default=4096)
     parser.add_argument("--tiles", type=int, nargs="+", default=[512, 1024])
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--idle", action="store_true")
+    parser.add_argument("--encode", action="store_true")
     args = parser.parse_args()
+    if args.idle or args.encode:
+        name, result = (("scale_idle", idle(args.repeat)) if args.idle
+                        else ("scale_encode", encode(args.repeat)))
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1))
+        return
     from mosaic import crop_sources, write_mosaic
 
     grouped = cluster.MAX_GROUP

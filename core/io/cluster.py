@@ -321,7 +321,13 @@ def map_ordered(
                 batch = list(items[submitted:submitted + size])
                 if payload is not None:
                     batch = [(item, payload(item)) for item in batch]
-                fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
+                with warnings.catch_warnings():
+                    # A payload (a colour-map tile's pixels, 48 MiB) travels with its task on
+                    # purpose: made as it is submitted, a few in flight. dask warns of a large
+                    # graph and advises scattering it first, which moves the same bytes.
+                    warnings.filterwarnings("ignore", message="Sending large graph",
+                                            module=r"distributed\.")
+                    fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
                 live[fut.key] = (submitted, len(batch), fut)
                 pending.add(fut)
                 submitted += len(batch)
