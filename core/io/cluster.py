@@ -60,8 +60,8 @@ MAX_GROUP = 8
 #: processes of a running cluster, set ``distributed.nanny.pre-spawn-environ`` alike. And the
 #: nannies' memory checks every second (not 100 ms: a tile job's memory is bounded by its tile)
 #: and the system monitor (it feeds the dashboard) every 2 s, not 0.5 s: an idle 2-worker
-#: cluster then costs 0.014 cores in the client's process and 0.010 in the workers, against
-#: 0.034-0.037 and 0.027 (``python benchmarks/bench_cluster_tasks.py --idle``).
+#: cluster then costs 0.012-0.014 cores in the client's process and 0.009-0.011 in the workers,
+#: against 0.029-0.037 and 0.023-0.027 (``python benchmarks/bench_cluster_tasks.py --idle``).
 QUIET_LOCAL = {"distributed.worker.profile.enabled": False,
                "distributed.admin.tick.interval": "1s",
                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
