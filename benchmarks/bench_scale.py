@@ -248,7 +248,7 @@ def _convert_run(image: Path, side: int, workers: int, tile: int, tmp: Path) -> 
 
 
 def measure(sides: list[int], tile: int, tmp: Path, one_worker_max: int,
-            repeat_sides: list[int], save) -> dict:
+            repeat_sides: list[int], save, tile_variants: bool = True) -> dict:
     result = {"records": [], "renders": []}
     for side in sides:
         image = tmp / f"mosaic_{side}.tif"
@@ -262,7 +262,7 @@ def measure(sides: list[int], tile: int, tmp: Path, one_worker_max: int,
             runs.append((1, tile))
         if side in repeat_sides:
             runs += [(2, tile), (0, tile)]
-        if side == min(sides):
+        if side == min(sides) and tile_variants:
             runs += [(2, t) for t in (tile // 2, tile * 2)]
         for order, (workers, run_tile) in enumerate(runs):
             rec = _convert_run(image, side, workers, run_tile, tmp)
@@ -299,6 +299,8 @@ def main() -> None:
                         help="largest side run on 1 worker too")
     parser.add_argument("--repeat-sides", type=int, nargs="*", default=[16384],
                         help="sides whose serial and 2-worker runs are repeated, interleaved")
+    parser.add_argument("--no-tile-variants", action="store_true",
+                        help="no 2-worker runs at half and twice the tile on the smallest side")
     parser.add_argument("--name", help="results name (default scale, or scale_quick)")
     parser.add_argument("--replot", action="store_true",
                         help="recompute pairs, estimate and chart from the saved JSON")
@@ -335,7 +337,7 @@ def main() -> None:
     else:
         with tempfile.TemporaryDirectory(prefix="bench_scale_") as tmp:
             result = {**head, **measure(sides, args.tile, Path(tmp), args.one_worker_max,
-                                        repeat, save)}
+                                        repeat, save, not args.no_tile_variants)}
     result["pairs"] = pairs(result)
     result["estimate_400km"] = estimate(result)
     (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1))

@@ -63,6 +63,11 @@ def square(item: int, shared: int) -> int:
     return item * item + shared
 
 
+def square_or_fail(item: int, shared: int) -> int:
+    """Fails on item 17 (inside a task of several items)."""
+    return square(item, shared) // (item - 17)
+
+
 def _photo(path, h=160, w=224, seed=3):
     rng = np.random.default_rng(seed)
     coarse = rng.integers(0, 256, (h // 16 + 1, w // 16 + 1, 3), dtype=np.uint8)
@@ -125,6 +130,59 @@ def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
 
 
+def test_tasks_of_several_items_keep_the_order_and_shrink_to_one_at_the_end(cluster,
+                                                                          monkeypatch):
+    from core.io.cluster import MAX_GROUP, group_size
+
+    submits = []
+    real = cluster.submit
+
+    def counting(func, *args, **kw):
+        submits.append(len(args[1]))
+        return real(func, *args, **kw)
+
+    monkeypatch.setattr(cluster, "submit", counting)
+    got = []
+    n = map_ordered(cluster, square, list(range(101)), 2, lambda i, r: got.append((i, r)))
+    assert n == 101 and got == [(i, i * i + 2) for i in range(101)]
+    # Several items a task while many remain, one each at the end.
+    assert sum(submits) == 101 and len(submits) < 101 // 2
+    assert max(submits) <= MAX_GROUP and submits[-4:] == [1, 1, 1, 1]
+    assert submits == sorted(submits, reverse=True)
+    submits.clear()
+    map_ordered(cluster, square, list(range(9)), 0, lambda i, r: None, group=1)
+    assert submits == [1] * 9
+    assert group_size(10_000, 4) == MAX_GROUP and group_size(7, 4) == 1
+
+
+def test_a_failing_item_inside_a_group_fails_the_run(cluster):
+    with pytest.raises(ZeroDivisionError):
+        map_ordered(cluster, square_or_fail, list(range(40)), 0, lambda i, r: None)
+
+
+def test_colour_map_tiles_are_encoded_on_the_workers(cluster, monkeypatch):
+    import core.model.colour_map as colour_map_module
+    from core.convert.colour_fit import ClusterTiles
+    from core.model.colour_map import ColourMap
+
+    rng = np.random.default_rng(5)
+    gains = rng.integers(90, 170, (50, 70, 3), dtype=np.uint8)
+    limits = dict(colour_map_module.ONE_IMAGE_LIMITS, jpegxl=(40, 1200))
+    monkeypatch.setattr(colour_map_module, "ONE_IMAGE_LIMITS", limits)
+    monkeypatch.setattr(colour_map_module, "MAP_TILE", 16)
+    serial = ColourMap.encode(gains, 8, "jpegxl", 95)
+
+    def not_here(*args, **kw):
+        raise AssertionError("the client encoded a tile")
+
+    # The client encodes nothing: its codec fails (the workers' is their own).
+    monkeypatch.setattr(colour_map_module, "encode_image", not_here)
+    on_cluster = ColourMap.encode(gains, 8, "jpegxl", 95, run=ClusterTiles(cluster))
+    assert len(serial.tiles) == 4 * 5
+    assert on_cluster.tiles == serial.tiles and on_cluster.tile == serial.tile
+    assert np.array_equal(on_cluster.pixels, serial.pixels)
+
+
 def test_warm_up_runs_its_calls_on_every_worker(cluster):
     from core.convert.tiled import WarmKernels
     from core.render.boundary import BoundaryOptions
@@ -162,7 +220,9 @@ def _worker_settings() -> tuple:
 
     return (dask.config.get("distributed.worker.profile.enabled"),
             dask.config.get("distributed.admin.tick.interval"),
-            os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            dask.config.get("distributed.worker.memory.monitor-interval"),
+            dask.config.get("distributed.admin.system-monitor.interval"))
 
 
 def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
@@ -170,7 +230,7 @@ def test_local_workers_run_without_the_profiler_and_reuse_memory(cluster):
     # glibc's adaptive reuse of freed arrays is left on (no forced trim threshold).
     settings = cluster.run(_worker_settings)
     assert len(settings) == 2
-    assert set(settings.values()) == {(False, "1s", None)}
+    assert set(settings.values()) == {(False, "1s", None, "1s", "2s")}
 
 
 def test_a_failing_tile_fails_the_run_in_one_line(tmp_path, cluster):
@@ -276,3 +336,18 @@ def test_serial_and_threaded_schedulers_unchanged(tmp_path):
     a = grid_from_file(path, 8, brightest, tile=40, overlap=3)
     b = grid_from_file(path, 8, brightest, tile=40, overlap=3, scheduler=Scheduler.DASK)
     assert np.array_equal(a.indices, b.indices)
+
+
+def test_a_passed_check_is_not_run_again_for_the_same_workers_and_path(tmp_path, cluster,
+                                                                       monkeypatch):
+    import core.io.cluster as cl
+
+    seen, other = tmp_path / "a.png", tmp_path / "b.png"
+    _photo(seen, 32, 32)
+    _photo(other, 32, 32)
+    check_workers(cluster, str(seen))
+    # The same workers and path: passed before, not asked again; a new path is checked.
+    monkeypatch.setattr(cl, "code_fingerprint", per_process_fingerprint)
+    check_workers(cluster, str(seen))
+    with pytest.raises(TerrathemeError, match="runs another terratheme"):
+        check_workers(cluster, str(other))

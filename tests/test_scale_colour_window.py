@@ -115,3 +115,68 @@ def test_block_job_equals_the_whole_grid_block_gain():
         want = _quantise(_block_sums(pixels, 16)
                          / np.maximum(_block_sums(whole[win.y:win.y1, win.x:win.x1], 16), 1.0))
         assert np.array_equal(job(win, pixels, grid_window(grid, win)), want)
+
+
+def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
+    from scipy import ndimage
+
+    from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+    from core.io.images import write_image
+
+    rng = np.random.default_rng(6)
+    # A 13 x 17 vertex grid at cell 16 is a 256 x 192 texture; the photo covers 201 x 139 of
+    # it, so the map at scale 8 has photo gains in its top-left 18 x 26 pixels only.
+    photo = rng.integers(30, 220, (139, 201, 3), dtype=np.uint8)
+    write_image(tmp_path / "p.png", photo)
+    grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
+    fitted = colour_map_from_file(tmp_path / "p.png", grid, _themes(rng), 8,
+                                  options=ColourMapOptions(codec="png"), tile=64)
+    got = fitted.colour_map.pixels
+    assert got.shape == (24, 32, 3)
+    covered = np.zeros(got.shape[:2], bool)
+    covered[:18, :26] = True
+    _, (iy, ix) = ndimage.distance_transform_edt(~covered, return_indices=True)
+    assert np.array_equal(got, got[iy, ix])
+    assert not np.array_equal(got[:18, :26][:, -1], got[:18, :26][:, -2])
+
+
+@pytest.mark.parametrize(("shape", "s"), [((64, 96, 3), 16), ((61, 70, 4), 16), ((37, 50, 3), 64),
+                                          ((128, 128, 3), 1)])
+def test_block_sums_are_the_exact_sums_of_each_block(shape, s):
+    from core.convert.colour_fit import _block_sums
+
+    image = np.random.default_rng(3).integers(0, 256, shape, dtype=np.uint8)
+    got = _block_sums(image, s)
+    bh, bw = -(-shape[0] // s), -(-shape[1] // s)
+    assert got.shape == (bh, bw, 3) and got.dtype == np.float64
+    for j in range(bh):
+        for i in range(bw):
+            block = image[j * s:(j + 1) * s, i * s:(i + 1) * s, :3].astype(np.int64)
+            assert np.array_equal(got[j, i], block.sum(axis=(0, 1)))
+
+
+def test_the_centre_scale_starts_once_its_rows_are_final_and_is_the_whole_grids():
+    from core.convert.colour_fit import ColourMapOptions
+    from core.convert.colour_scale import CentreScale, window_scale
+
+    rng = np.random.default_rng(7)
+    grid = IndexGrid(rng.integers(0, 3, (33, 41)).astype(np.uint8), (16, 16))
+    themes = _themes(rng)
+    window = (160, 128, 320, 224)
+    photo = rng.integers(40, 200, (224, 320, 3), dtype=np.uint8)
+    style = RenderOptions(boundary=BoundaryOptions())
+    opts = ColourMapOptions(scales=(64, 32, 16), target=0.5)
+    want = window_scale(grid, themes, photo, window, style, opts)
+    # Rows arrive in bands, as grid_from_file stitches them; the rows below the window's
+    # ring are garbage until their band is final.
+    partial = IndexGrid(np.full_like(grid.indices, 2), grid.cell)
+    job = CentreScale(themes, photo, window, style, opts, background=True)
+    # The window's render reads vertex rows 7..(128 + 224 - 1) // 16 + 3 = 24.
+    for rows in range(0, 34, 4):
+        partial.indices[:rows] = grid.indices[:rows]
+        job.rows_final(partial, rows)
+        assert job.started == (rows >= 24)
+    assert job.result(grid) == want
+    serial = CentreScale(themes, photo, window, style, opts, background=False)
+    serial.rows_final(grid, 33)
+    assert not serial.started and serial.result(grid) == want

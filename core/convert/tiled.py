@@ -30,7 +30,8 @@ import numpy as np
 from core.classify import fit_unsupervised
 from core.classify.photo import prepare_photo
 from core.convert.cell_choice import CONVERT_CELL_CANDIDATES
-from core.convert.colour_fit import ColourMapOptions, choose_colour_map, colour_map_from_file
+from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+from core.convert.colour_scale import CentreScale
 from core.convert.labels_to_grid import grid_shape_for
 from core.convert.step import themes_and_cell
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
@@ -64,6 +65,7 @@ def grid_from_file(
     overlap: int = DEFAULT_OVERLAP,
     scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
+    rows_final: Callable[[IndexGrid, int], None] | None = None,
 ) -> IndexGrid:
     """The vertex grid of an image file, classified and voted tile by tile.
 
@@ -85,6 +87,10 @@ def grid_from_file(
         Where the tiles run (:func:`core.io.tiles.run_tiles`); every
         scheduler gives the same grid.
     progress : callable(done, total), optional
+    rows_final : callable(IndexGrid, int), optional
+        Called in this process after each tile, with the grid so far and
+        how many of its first vertex rows are final (tiles are stitched in
+        order): work on the top of the grid can start before the rest is done.
 
     Returns
     -------
@@ -104,15 +110,19 @@ def grid_from_file(
         table = table.astype(np.uint8)
     tiles = vertex_tiles(size, (n, m), tile, overlap)
     rows, cols = grid_shape_for(info.width, info.height, (n, m))
-    grid = np.zeros((rows, cols), np.uint8)
+    so_far = IndexGrid(np.zeros((rows, cols), np.uint8), (n, m))
+    grid = so_far.indices
 
     def sink(win: VertexTile, block: np.ndarray) -> None:
         (r0, r1), (c0, c1) = win.rows, win.cols
         grid[r0:r1, c0:c1] = block
+        if rows_final is not None:
+            # The last tile of a band of rows finishes them.
+            rows_final(so_far, r1 if c1 == cols else r0)
 
     run_tiles(path, VoteJob(classify, table, size, (n, m)), sink, windows=tiles,
               scheduler=scheduler, progress=progress, bands=Bands.PHOTO)
-    return IndexGrid(grid, (n, m))
+    return so_far
 
 
 #: side of the centre window themes are cut from on the tiled path
@@ -333,14 +343,16 @@ def convert_file_tiled(
                                       names=class_names)
     if choice is not None:
         cell = choice.cell[0]
+    centre = (x0, y0, side_w, side_h)
+    scale_of = CentreScale(mapping.library.textures, rgb, centre, style, colour_map,
+                           background=not isinstance(scheduler, Scheduler))
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
-                          tile=tile, overlap=overlap, scheduler=scheduler, progress=progress)
+                          tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
+                          rows_final=None if colour_map is None else scale_of.rows_final)
     fitted = None
     if colour_map is not None:
         # The map's scale from the centre window, then the map itself tile by tile.
-        shown = render_cells(grid, mapping.library.textures, options=style,
-                             region=(x0, y0, side_w, side_h))
-        scale = choose_colour_map(rgb, shown, colour_map).colour_map.scale
+        scale = scale_of.result(grid)
         fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
                                       options=colour_map, tile=tile, scheduler=scheduler,
                                       progress=progress)

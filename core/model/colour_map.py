@@ -23,13 +23,17 @@ level 5, which every decoder reads, is 2^18 pixels a side and 2^28 in all),
 else as a row-major grid of :data:`MAP_TILE`-pixel tiles, each its own image:
 a 400 x 400 km region at 1/16 of 1 m is a 25000^2 map, beyond level 5, and
 encoding it whole would take libjxl about 20 bytes a pixel (12 GB); tile by
-tile it takes one tile's. What renders is the decoded tiles, so seams
-between them are in the pixels every renderer sees alike.
+tile it takes one tile's (about 30 s of one core for a 4096^2 tile, 49 of
+them for that region): :meth:`ColourMap.encode` hands the tiles to a
+``run`` callable that may encode them in parallel (on a dask cluster's
+workers, :func:`core.convert.colour_fit.colour_map_from_file`), each with
+:class:`TileEncoder`. What renders is the decoded tiles, so seams between
+them are in the pixels every renderer sees alike.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +55,45 @@ ONE_IMAGE_LIMITS = {
 }
 #: map pixels a side of the tiles of a map beyond its codec's single-image limit
 MAP_TILE = 4096
+
+#: a map tile's place: ``(rows, cols)`` slices of the map
+TileBox = tuple[slice, slice]
+
+
+@dataclass(frozen=True)
+class TileEncoder:
+    """One tile of a map beyond the single-image limit: its bytes and what they decode to.
+
+    A picklable job (a worker process runs it as the client would).
+
+    Attributes
+    ----------
+    codec : str
+        :mod:`core.io.codec` name.
+    quality : int
+    """
+
+    codec: str
+    quality: int
+
+    def __call__(self, piece: np.ndarray) -> tuple[bytes, np.ndarray]:
+        """``(bytes, (h, w, 3) uint8 decoded pixels)`` of an ``(h, w, 3)`` uint8 ``piece``."""
+        data = encode_image(np.ascontiguousarray(piece), codec=self.codec, quality=self.quality)
+        decoded = decode_image(data, codec=self.codec, shape=piece.shape[:2])
+        return data, np.ascontiguousarray(decoded[:, :, :3])
+
+
+#: ``run(encoder, boxes, piece, sink)``: ``sink(box, encoder(piece(box)))`` for every box, in
+#: order (serially or in parallel; ``piece(box)`` is the map's pixels there)
+TileRunner = Callable[[TileEncoder, list[TileBox], Callable[[TileBox], np.ndarray],
+                       Callable[[TileBox, tuple[bytes, np.ndarray]], None]], object]
+
+
+def tile_boxes(shape: tuple[int, int], tile: int) -> list[TileBox]:
+    """The ``tile``-pixel tiles of an ``(mh, mw)`` map, row by row (the last ones smaller)."""
+    mh, mw = int(shape[0]), int(shape[1])
+    return [(slice(y, min(y + tile, mh)), slice(x, min(x + tile, mw)))
+            for y in range(0, mh, tile) for x in range(0, mw, tile)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,11 +171,13 @@ class ColourMap:
         return max(shape) <= side and shape[0] * shape[1] <= pixels
 
     @classmethod
-    def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int) -> ColourMap:
+    def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int, *,
+               run: TileRunner | None = None) -> ColourMap:
         """The map of stored gains ``pixels`` as it ships in ``codec`` (decoded back).
 
         One image when it fits the codec's single-image limit, else tiles of
-        :data:`MAP_TILE` (module docstring), each encoded on its own.
+        :data:`MAP_TILE` (module docstring), each encoded on its own by a
+        :class:`TileEncoder`: one after the other here, or by ``run``.
 
         Parameters
         ----------
@@ -142,14 +187,32 @@ class ColourMap:
             :mod:`core.io.codec` name.
         quality : int
             1..100.
+        run : TileRunner, optional
+            Encodes the tiles (e.g. in parallel); every runner gives the same map.
         """
         arr = np.ascontiguousarray(pixels)
         if cls.fits_one_image(arr.shape[:2], codec):
             return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale)
         t = MAP_TILE
-        tiles = [encode_image(arr[y:y + t, x:x + t], codec=codec, quality=quality)
-                 for y in range(0, arr.shape[0], t) for x in range(0, arr.shape[1], t)]
-        return cls.from_tiles(tiles, codec, scale, arr.shape[:2], t)
+        boxes = tile_boxes(arr.shape[:2], t)
+        shown = np.empty_like(arr)
+        tiles: list[bytes] = []
+
+        def sink(box: TileBox, done: tuple[bytes, np.ndarray]) -> None:
+            # What the tile decodes to is what renders (as from_tiles gives it on loading).
+            tiles.append(done[0])
+            shown[box] = done[1]
+
+        encoder = TileEncoder(codec, int(quality))
+        if run is None:
+            for box in boxes:
+                sink(box, encoder(arr[box]))
+        else:
+            run(encoder, boxes, arr.__getitem__, sink)
+        if len(tiles) != len(boxes):
+            raise TerrathemeError(f"{len(tiles)} of the colour map's {len(boxes)} tiles came "
+                                  "back encoded")
+        return cls(shown, scale, codec, None, tuple(tiles), t)
 
     @classmethod
     def from_tiles(cls, tiles: Sequence[bytes], codec: str, scale: int,
