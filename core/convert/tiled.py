@@ -340,7 +340,7 @@ def convert_file_tiled(
     mapping, choice = themes_and_cell(rgb, win_result.labels, model.classes, spec, cell=cell,
                                       target_agreement=target_agreement,
                                       class_target=class_target, candidates=candidates,
-                                      names=class_names)
+                                      names=class_names, full_curve=False)
     if choice is not None:
         cell = choice.cell[0]
     centre = (x0, y0, side_w, side_h)
