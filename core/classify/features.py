@@ -52,6 +52,7 @@ import cv2
 import numpy as np
 
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
+from core.classify.texture import texture_count, texture_features
 from core.errors import TerrathemeError
 
 
@@ -111,6 +112,10 @@ class FeatureOptions:
     relative : bool
         DEFAULT set: add the lightness relative to the context (module
         docstring), ``len(sigmas)`` features after the ridges.
+    structure : bool
+        DEFAULT set: add edge density and structure-tensor coherence
+        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features), last
+        before the position.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -122,6 +127,7 @@ class FeatureOptions:
     position: bool = False
     ridge_sigmas: tuple[float, ...] = ()
     relative: bool = False
+    structure: bool = False
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -145,7 +151,8 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.DEFAULT:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
-                    + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0))
+                    + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
+                    + texture_count(self.sigmas, self.structure))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -252,6 +259,7 @@ def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
 def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
     stats: np.ndarray | None = None, ridges: np.ndarray | None = None,
+    texture: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
@@ -265,11 +273,14 @@ def features_from_lab(
     ridges : (h, w, 2 * len(options.ridge_sigmas)) float32 ndarray, optional
         :func:`core.classify.ridges.block_ridges` of the same photo pixels;
         required when ``options.ridge_sigmas`` is set (DEFAULT set).
+    texture : (h, w, T) float32 ndarray, optional
+        :func:`core.classify.texture.texture_features` of the same photo pixels;
+        required when ``options.structure`` is set.
 
     Raises
     ------
     TerrathemeError
-        Ridge sigmas without the ridges.
+        Ridge sigmas without the ridges, texture options without the texture.
 
     Returns
     -------
@@ -330,6 +341,12 @@ def features_from_lab(
         context = smooth_lum[-1] + np.float32(RELATIVE_FLOOR)
         for j, near in enumerate([lum, *smooth_lum[:-1]]):
             out[:, :, i + j] = near / context
+        i += len(options.sigmas)
+    n_texture = texture_count(options.sigmas, options.structure)
+    if n_texture:
+        if texture is None or texture.shape != (h, w, n_texture):
+            raise TerrathemeError("structure needs the texture_features of the same pixels")
+        out[:, :, i:] = texture
     return out
 
 
@@ -347,7 +364,9 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
     lab, block_std = block_lab(full, options.scale)
     ridges = (block_ridges(full[:, :, 0], options.scale, options.ridge_sigmas)
               if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
-    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges)
+    texture = (texture_features(full, lab, options.scale, options.sigmas)
+               if options.structure and options.feature_set is FeatureSet.DEFAULT else None)
+    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture)
 
 
 def position_features(shape: tuple[int, int], origin: tuple[int, int],
