@@ -30,6 +30,10 @@ smoothed lightness at the largest sigma (+ ``RELATIVE_FLOOR``): darker or
 brighter than the surroundings, whatever the photo's exposure (``len(sigmas)``
 features after the ridges; measured in SupervisedOptions).
 
+Optional structure features (``structure``, on in the supervised default):
+edge density per block and the structure-tensor coherence at every sigma,
+:mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
+
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
 for a model fitted to the one photo it classifies (scribbles): there, where
@@ -52,7 +56,7 @@ import cv2
 import numpy as np
 
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.classify.texture import texture_count, texture_features
+from core.classify.texture import block_mean, context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
 
 
@@ -173,12 +177,6 @@ def _radius(sigma: float) -> int:
     return int(math.ceil(3.0 * sigma))
 
 
-def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    # Explicit 3-sigma kernel, so the tile overlap (halo) is exact.
-    k = 2 * _radius(sigma) + 1
-    return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
-
-
 def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
     """Area-average an RGB photo by ``scale`` and convert it to CIE Lab.
 
@@ -212,14 +210,9 @@ def block_lab(lab8: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
     h, w = lab8.shape[:2]
     if scale == 1:
         return lab8, np.zeros((h, w), np.float32)
-    # Pad to whole blocks by edge replication so block (i, j) covers rows i*s..i*s+s-1.
-    ph, pw = -h % scale, -w % scale
-    if ph or pw:
-        lab8 = cv2.copyMakeBorder(lab8, 0, ph, 0, pw, cv2.BORDER_REPLICATE)
-    hc, wc = (h + ph) // scale, (w + pw) // scale
-    # Block means of Lab and of L^2 (INTER_AREA at an integer factor is an exact block mean).
-    lab = cv2.resize(lab8, (wc, hc), interpolation=cv2.INTER_AREA)
-    l_sq = cv2.resize(lab8[:, :, 0] * lab8[:, :, 0], (wc, hc), interpolation=cv2.INTER_AREA)
+    # Block means of Lab and of L^2 (edge-replicated to whole blocks).
+    lab = block_mean(lab8, scale)
+    l_sq = block_mean(np.ascontiguousarray(lab8[:, :, 0] * lab8[:, :, 0]), scale)
     block_std = np.sqrt(np.maximum(l_sq - lab[:, :, 0] ** 2, 0.0))
     return lab, block_std.astype(np.float32)
 
@@ -311,11 +304,11 @@ def features_from_lab(
     smooth_lum = []
     for sigma in options.sigmas:
         # Context colour: Lab smoothed at this scale.
-        smooth = _blur(lab, sigma)
+        smooth = context_blur(lab, sigma)
         out[:, :, i : i + 3] = smooth
         smooth_lum.append(out[:, :, i])
         # Local lightness std of the photo pixels: sqrt(G*L^2 - (G*L)^2).
-        mean_sq = _blur(lum_sq, sigma)
+        mean_sq = context_blur(lum_sq, sigma)
         out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
         # Edge strength: gradient magnitude of the smoothed lightness (Sobel, 1/8 normalised).
         gx = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 1, 0, ksize=3, scale=0.125,

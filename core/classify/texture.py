@@ -40,14 +40,17 @@ def texture_count(sigmas: Sequence[float], structure: bool) -> int:
     return 1 + len(sigmas) if structure else 0
 
 
-def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    # The explicit 3-sigma kernel of core.classify.features (the tile overlap is exact).
+def context_blur(img: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur with an explicit 3-sigma kernel (so a tile overlap of
+    ``ceil(3 sigma)`` pixels is exact), reflected at the border; any channel count up to 4."""
     k = 2 * int(math.ceil(3.0 * sigma)) + 1
     return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
 
 
-def _block_mean(img: np.ndarray, scale: int) -> np.ndarray:
-    """Block means (blocks of :func:`core.classify.features.block_lab`, edge-replicated)."""
+def block_mean(img: np.ndarray, scale: int) -> np.ndarray:
+    """Means of ``scale x scale`` blocks, block (i, j) covering rows ``i*scale..i*scale+scale-1``;
+    the photo is edge-replicated to whole blocks (INTER_AREA at an integer factor is an
+    exact block mean)."""
     h, w = img.shape[:2]
     ph, pw = -h % scale, -w % scale
     if ph or pw:
@@ -78,11 +81,11 @@ def texture_features(full: np.ndarray, lab: np.ndarray, scale: int,
     out = np.empty((h, w, texture_count(sigmas, True)), np.float32)
     gx, gy = _gradient(np.ascontiguousarray(full[:, :, 0]))
     magnitude = cv2.magnitude(gx, gy)
-    out[:, :, 0] = _block_mean(magnitude, scale) if scale > 1 else magnitude
+    out[:, :, 0] = block_mean(magnitude, scale) if scale > 1 else magnitude
     cx, cy = _gradient(np.ascontiguousarray(lab[:, :, 0]))
     products = np.dstack([cx * cx, cy * cy, cx * cy])
     for i, sigma in enumerate(sigmas, 1):
-        jxx, jyy, jxy = np.moveaxis(_blur(products, sigma), 2, 0)
+        jxx, jyy, jxy = np.moveaxis(context_blur(products, sigma), 2, 0)
         # (mu_1 - mu_2)^2 = (jxx - jyy)^2 + 4 jxy^2; mu_1 + mu_2 = trace.
         spread = (jxx - jyy) ** 2 + 4.0 * jxy * jxy
         out[:, :, i] = spread / (jxx + jyy + np.float32(COHERENCE_FLOOR)) ** 2
