@@ -127,7 +127,7 @@ ADAPT = "rf-adapt"
 METHODS = {
     "rf-default": SupervisedOptions(),
     "rf-cv2": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24),
-    "rf-noridges": SupervisedOptions(features=FeatureOptions(hessian=True)),
+    "rf-noridges": SupervisedOptions(features=FeatureOptions(hessian=True, structure=True)),
     "rf-smooth": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24,
                                    features=FeatureOptions(), regularisation=RegulariseOptions(
                                        method=Regularisation.SMOOTH)),

@@ -30,6 +30,7 @@ Methods, each the robustness piece of issue 17 on its own, then together:
                    (Saerens et al. 2002; ``target_prior_power`` 1);
   +adapt           plain + test-time adaptation (core/classify/adapt.py);
   rf-default       the library default now;
+  rf-nostructure   rf-default without the structure features (core/classify/texture.py);
   rf-previous      the library default of before issue 17 (15000 samples per class,
                    no adaptation);
   ilastik          draw 0 only, the ilastik recipe (classify_peers.py), trained on
@@ -82,6 +83,7 @@ def methods() -> dict[str, SupervisedOptions]:
         "+target-prior": replace(plain, target_prior_power=1.0),
         "+adapt": replace(plain, adapt=True),
         "rf-default": default,
+        "rf-nostructure": replace(default, features=replace(fo, structure=False)),
         "rf-previous": replace(plain, max_samples_per_class=15000, samples_per_pair=15000,
                                features=FeatureOptions(hessian=True, ridge_sigmas=(1.0, 2.0, 4.0))),
     }

@@ -13,6 +13,7 @@ from __future__ import annotations
 import io
 import json
 import zipfile
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -31,6 +32,9 @@ from test_hostile_harness import ZipMember, craft_zip, shared_reader
 from core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
 from core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+
+#: features of the default model (an index of N is the first out of range)
+N = SupervisedOptions().features.n_features
 
 
 def _photo_and_scribbles():
@@ -76,7 +80,7 @@ def _inner_node(arrays) -> int:
     return int(np.flatnonzero(arrays["left"] >= 0)[0])
 
 
-@pytest.mark.parametrize("value", [1 << 31, (1 << 31) + 5, MAX_FEATURES, 38, -2])
+@pytest.mark.parametrize("value", [1 << 31, (1 << 31) + 5, MAX_FEATURES, N, -2])
 def test_a_feature_index_out_of_range_is_refused_at_load(model_parts, tmp_path, value):
     meta, arrays, _ = model_parts
     feature = arrays["feature"].astype(np.int64)
@@ -198,7 +202,8 @@ def test_an_opencv_forest_for_other_features_is_refused(tmp_path):
     path = tmp_path / "rf2.ttc"
     path.write_bytes(craft_zip([ZipMember.of("meta.json", json.dumps(meta).encode()),
                                 ZipMember.of("forest.yml", yml)]))
-    with pytest.raises(CorruptFileError, match="not trained for 30 features"):
+    fewer = replace(SupervisedOptions().features, hessian=False).n_features
+    with pytest.raises(CorruptFileError, match=f"not trained for {fewer} features"):
         Classifier.load(path)
 
 
@@ -276,7 +281,7 @@ def test_extreme_allowed_options_still_predict_within_the_bound(bounded, model_p
 ARRAY_EDITS = st.lists(st.tuples(
     st.sampled_from(["classes", "roots", "feature", "threshold", "left", "right", "value"]),
     st.integers(0, 100),
-    st.sampled_from([-1, 0, 1, 2, 37, 38, 1 << 31, -(1 << 31), 1 << 40, float("nan"),
+    st.sampled_from([-1, 0, 1, 2, N - 1, N, 1 << 31, -(1 << 31), 1 << 40, float("nan"),
                      float("inf"), 0.5, -0.5, 1e300])), min_size=1, max_size=3)
 
 
@@ -319,10 +324,10 @@ def _run_yaml(bounded, opencv_model, tmp_path, edits):
 
 
 YAML_EDITS = st.lists(st.tuples(
-    st.sampled_from(["var:0", "var_count: 38", "ntrees: 2", "le:", "depth: 1", "value: 2.",
+    st.sampled_from(["var:0", f"var_count: {N}", "ntrees: 2", "le:", "depth: 1", "value: 2.",
                      "class_labels: [ 1, 2 ]", "norm_class_idx: 1", "splits:", "nodes:",
-                     "var_all: 39", "- {", "cat_var_count: 1", "rows: 1", "cols: 2"]),
-    st.sampled_from(["var:38", "var:-1", "var:100000", "var_count: 1", "var_count: 100000",
+                     f"var_all: {N + 1}", "- {", "cat_var_count: 1", "rows: 1", "cols: 2"]),
+    st.sampled_from([f"var:{N}", "var:-1", "var:100000", "var_count: 1", "var_count: 100000",
                      "ntrees: 100000", "ntrees: 0", "le:nan", "depth: 99", "value: 1e300",
                      "class_labels: [ 1 ]", "norm_class_idx: 99", "", "var_all: 1",
                      "cat_var_count: 99", "rows: 100000", "cols: 100000"])),

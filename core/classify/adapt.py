@@ -184,7 +184,8 @@ def predict_adapted(
         adapt_opts = replace(forest_options, forest=ForestKind.EXTRA_TREES, n_trees=ADAPT_TREES,
                              balance=True)
         labels = np.asarray(classes, np.int64)[column]
-        adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts), classes)
+        adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts, n_jobs=1),
+                                           classes)
 
     def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # Pass 2: the mean of the trained and the photo's own forests' probabilities.

@@ -30,6 +30,10 @@ smoothed lightness at the largest sigma (+ ``RELATIVE_FLOOR``): darker or
 brighter than the surroundings, whatever the photo's exposure (``len(sigmas)``
 features after the ridges; measured in SupervisedOptions).
 
+Optional structure features (``structure``, on in the supervised default):
+edge density per block and the structure-tensor coherence at every sigma,
+:mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
+
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
 for a model fitted to the one photo it classifies (scribbles): there, where
@@ -52,6 +56,7 @@ import cv2
 import numpy as np
 
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
+from core.classify.texture import block_mean, context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
 
 
@@ -111,6 +116,10 @@ class FeatureOptions:
     relative : bool
         DEFAULT set: add the lightness relative to the context (module
         docstring), ``len(sigmas)`` features after the ridges.
+    structure : bool
+        DEFAULT set: add edge density and structure-tensor coherence
+        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features), last
+        before the position.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -122,6 +131,7 @@ class FeatureOptions:
     position: bool = False
     ridge_sigmas: tuple[float, ...] = ()
     relative: bool = False
+    structure: bool = False
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -145,7 +155,8 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.DEFAULT:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
-                    + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0))
+                    + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
+                    + texture_count(self.sigmas, self.structure))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -164,12 +175,6 @@ class FeatureOptions:
 
 def _radius(sigma: float) -> int:
     return int(math.ceil(3.0 * sigma))
-
-
-def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    # Explicit 3-sigma kernel, so the tile overlap (halo) is exact.
-    k = 2 * _radius(sigma) + 1
-    return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
 
 
 def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
@@ -205,14 +210,9 @@ def block_lab(lab8: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
     h, w = lab8.shape[:2]
     if scale == 1:
         return lab8, np.zeros((h, w), np.float32)
-    # Pad to whole blocks by edge replication so block (i, j) covers rows i*s..i*s+s-1.
-    ph, pw = -h % scale, -w % scale
-    if ph or pw:
-        lab8 = cv2.copyMakeBorder(lab8, 0, ph, 0, pw, cv2.BORDER_REPLICATE)
-    hc, wc = (h + ph) // scale, (w + pw) // scale
-    # Block means of Lab and of L^2 (INTER_AREA at an integer factor is an exact block mean).
-    lab = cv2.resize(lab8, (wc, hc), interpolation=cv2.INTER_AREA)
-    l_sq = cv2.resize(lab8[:, :, 0] * lab8[:, :, 0], (wc, hc), interpolation=cv2.INTER_AREA)
+    # Block means of Lab and of L^2 (edge-replicated to whole blocks).
+    lab = block_mean(lab8, scale)
+    l_sq = block_mean(np.ascontiguousarray(lab8[:, :, 0] * lab8[:, :, 0]), scale)
     block_std = np.sqrt(np.maximum(l_sq - lab[:, :, 0] ** 2, 0.0))
     return lab, block_std.astype(np.float32)
 
@@ -252,6 +252,7 @@ def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
 def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
     stats: np.ndarray | None = None, ridges: np.ndarray | None = None,
+    texture: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
@@ -265,11 +266,14 @@ def features_from_lab(
     ridges : (h, w, 2 * len(options.ridge_sigmas)) float32 ndarray, optional
         :func:`core.classify.ridges.block_ridges` of the same photo pixels;
         required when ``options.ridge_sigmas`` is set (DEFAULT set).
+    texture : (h, w, T) float32 ndarray, optional
+        :func:`core.classify.texture.texture_features` of the same photo pixels;
+        required when ``options.structure`` is set.
 
     Raises
     ------
     TerrathemeError
-        Ridge sigmas without the ridges.
+        Ridge sigmas without the ridges, texture options without the texture.
 
     Returns
     -------
@@ -300,11 +304,11 @@ def features_from_lab(
     smooth_lum = []
     for sigma in options.sigmas:
         # Context colour: Lab smoothed at this scale.
-        smooth = _blur(lab, sigma)
+        smooth = context_blur(lab, sigma)
         out[:, :, i : i + 3] = smooth
         smooth_lum.append(out[:, :, i])
         # Local lightness std of the photo pixels: sqrt(G*L^2 - (G*L)^2).
-        mean_sq = _blur(lum_sq, sigma)
+        mean_sq = context_blur(lum_sq, sigma)
         out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
         # Edge strength: gradient magnitude of the smoothed lightness (Sobel, 1/8 normalised).
         gx = cv2.Sobel(smooth[:, :, 0], cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
@@ -330,6 +334,12 @@ def features_from_lab(
         context = smooth_lum[-1] + np.float32(RELATIVE_FLOOR)
         for j, near in enumerate([lum, *smooth_lum[:-1]]):
             out[:, :, i + j] = near / context
+        i += len(options.sigmas)
+    n_texture = texture_count(options.sigmas, options.structure)
+    if n_texture:
+        if texture is None or texture.shape != (h, w, n_texture):
+            raise TerrathemeError("structure needs the texture_features of the same pixels")
+        out[:, :, i:] = texture
     return out
 
 
@@ -347,7 +357,9 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
     lab, block_std = block_lab(full, options.scale)
     ridges = (block_ridges(full[:, :, 0], options.scale, options.ridge_sigmas)
               if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
-    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges)
+    texture = (texture_features(full, lab, options.scale, options.sigmas)
+               if options.structure and options.feature_set is FeatureSet.DEFAULT else None)
+    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture)
 
 
 def position_features(shape: tuple[int, int], origin: tuple[int, int],

@@ -41,12 +41,16 @@ class ForestOptions(Protocol):
 Forest = ExtraTreesForest | cv2.ml.RTrees
 
 
-def build_forest(x: np.ndarray, y: np.ndarray, options: ForestOptions) -> Forest:
-    """Train the ensemble ``options.forest`` on samples ``x`` (n, F), class values ``y`` (n,)."""
+def build_forest(x: np.ndarray, y: np.ndarray, options: ForestOptions,
+                 n_jobs: int | None = None) -> Forest:
+    """Train the ensemble ``options.forest`` on samples ``x`` (n, F), class values ``y`` (n,).
+
+    ``n_jobs``: Extra-Trees fitting threads (:func:`core.classify.extra_trees.fit_extra_trees`).
+    """
     if options.forest is ForestKind.EXTRA_TREES:
         return fit_extra_trees(x, y, n_trees=options.n_trees, max_depth=options.max_depth,
                                min_samples_split=options.min_samples, balance=options.balance,
-                               seed=options.seed)
+                               seed=options.seed, n_jobs=n_jobs)
     classes, counts = np.unique(y, return_counts=True)
     rt = cv2.ml.RTrees_create()
     rt.setMaxDepth(options.max_depth)

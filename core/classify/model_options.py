@@ -82,7 +82,7 @@ _FEATURE_RULES = {
     "feature_set": _choice(FeatureSet), "normalise": _choice(Normalise),
     "scale": number_rule(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
     "skimage_sigma_max": number_rule(1, 64), "hessian": _flag, "position": _flag,
-    "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag,
+    "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag, "structure": _flag,
 }
 _REGULARISE_RULES = {
     "method": _choice(Regularisation), "sigma": number_rule(1e-3, 64),

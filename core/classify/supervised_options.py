@@ -27,7 +27,9 @@ class SupervisedOptions:
     ----------
     features : FeatureOptions
         Default: the DEFAULT set with Hessian eigenvalues (+0.009 mean scribble mIoU on
-        the tuning photos) and fine ridges at 1, 2, 4 px (:mod:`core.classify.ridges`).
+        the tuning photos), fine ridges at 1, 2, 4 px (:mod:`core.classify.ridges`) and
+        the structure features (:mod:`core.classify.texture`: one photo per tile mean
+        tile mIoU 0.417 -> 0.425).
     regularisation : RegulariseOptions
         Default: edge-aware, confidence-weighted averaging (``Regularisation.EDGE``,
         :func:`core.classify.regularise.edge_aware_probabilities`); on the
@@ -95,7 +97,7 @@ class SupervisedOptions:
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(
-        hessian=True, ridge_sigmas=(1.0, 2.0, 4.0)))
+        hessian=True, ridge_sigmas=(1.0, 2.0, 4.0), structure=True))
     regularisation: RegulariseOptions = field(
         default_factory=lambda: RegulariseOptions(method=Regularisation.EDGE))
     ignore_classes: tuple[int, ...] = ()
