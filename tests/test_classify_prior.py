@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from core.classify import Classifier, FeatureOptions, SupervisedOptions, train_classifier
-from core.classify.features import position_features
+from core.classify.position import position_features
 from core.classify.prior import SCRIBBLE_PRIOR_POWER, predicted_shares, prior_weights
 from core.errors import CorruptFileError, TerrathemeError
 

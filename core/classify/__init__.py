@@ -16,7 +16,8 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   classifier file or a shipped model by name (``aerial``), with class names.
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
-photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
+photo), ``texture`` (edge density and structure-tensor coherence), ``position``
+(where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
 (smoothing / superpixels / edge-aware averaging), ``unsupervised`` (K criterion),
 ``unsupervised_model``, ``supervised``, ``forest`` and ``extra_trees`` (the tree
 ensembles), ``samples`` (training samples from masks and

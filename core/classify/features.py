@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from core.classify.position import position_features
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.classify.texture import block_mean, context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
@@ -360,31 +361,6 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
     texture = (texture_features(full, lab, options.scale, options.sigmas)
                if options.structure and options.feature_set is FeatureSet.DEFAULT else None)
     return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture)
-
-
-def position_features(shape: tuple[int, int], origin: tuple[int, int],
-                      photo_size: tuple[int, int], scale: int) -> np.ndarray:
-    """Position of coarse pixels in the photo, as fractions of its height and width.
-
-    Parameters
-    ----------
-    shape : (h, w)
-        Coarse pixels of the piece.
-    origin : (y0, x0)
-        Photo pixel of the piece's top-left corner (a multiple of ``scale``).
-    photo_size : (H, W)
-        The whole photo's size in pixels.
-    scale : int
-
-    Returns
-    -------
-    position : (h, w, 2) float32 ndarray
-        Row and column of each coarse pixel's centre over H and W.
-    """
-    h, w = shape
-    rows = (origin[0] + (np.arange(h, dtype=np.float32) + 0.5) * scale) / photo_size[0]
-    cols = (origin[1] + (np.arange(w, dtype=np.float32) + 0.5) * scale) / photo_size[1]
-    return np.stack(np.broadcast_arrays(rows[:, None], cols[None, :]), axis=2)
 
 
 def with_position(feats: np.ndarray, origin: tuple[int, int], photo_size: tuple[int, int],
