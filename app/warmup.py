@@ -3,16 +3,11 @@
 Every kernel is ``cache=True``: the machine code lands beside the sources, so
 after this a first conversion, render, lookup or preview starts as fast as a
 second one. Each part runs on a tiny input; nothing is written but the cache.
-
-Even from the cache, the first kernel a process calls starts numba itself
-(its type system and LLVM: about 0.6 s); :func:`start_numba` does that on a
-thread while a command reads and classifies its photo.
 """
 
 from __future__ import annotations
 
 import sys
-import threading
 import time
 
 import numpy as np
@@ -83,23 +78,6 @@ def _boundary() -> None:
     # The exports' weights of the same borders.
     shaped_slots(np.zeros((2, 2), np.uint8), [np.zeros((4, 4, 3), np.uint8)], (2, 2), (3, 3),
                  boundary=BoundaryOptions())
-
-
-def _first_kernel() -> None:
-    from core.curves.steps import hilbert_xy2d
-
-    hilbert_xy2d(np.zeros(1, np.int64), np.zeros(1, np.int64), 1)
-
-
-def start_numba() -> threading.Thread:
-    """Start numba on a background thread; join the thread before the command returns.
-
-    The main thread meanwhile decodes and classifies a photo in OpenImageIO and
-    OpenCV, which release the GIL (and numba's start is partly LLVM, outside it).
-    """
-    thread = threading.Thread(target=_first_kernel, name="terratheme-numba-start", daemon=True)
-    thread.start()
-    return thread
 
 
 PARTS = {"render": _render, "boundary": _boundary, "packing": _curves_and_packing,

@@ -181,7 +181,6 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from app.outputs import check_outputs
-    from app.warmup import start_numba
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -203,11 +202,7 @@ def run(args: argparse.Namespace) -> int:
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)
-    numba_start = start_numba()
-    try:
-        return _run_whole(args, project, preview, packed, themes, legend)
-    finally:
-        numba_start.join()
+    return _run_whole(args, project, preview, packed, themes, legend)
 
 
 def _run_whole(args: argparse.Namespace, project, preview: str, packed: str, themes,

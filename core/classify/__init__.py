@@ -17,13 +17,14 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 
 Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
 photo), ``texture`` (edge density and structure-tensor coherence), ``position``
-(where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with overlap), ``regularise``
-(smoothing / superpixels / edge-aware averaging), ``unsupervised`` (K criterion),
-``unsupervised_model``, ``supervised``, ``forest`` and ``extra_trees`` (the tree
-ensembles), ``samples`` (training samples from masks and
-scribbles), ``sample_cache``, ``prior`` (class-prior correction and EM shares),
-``adapt`` (test-time adaptation), ``model_file`` (the file), ``model_options``
-(its options as checked JSON), ``shipped`` (models by name).
+(where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with
+overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
+``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,
+``forest`` and ``extra_trees`` (the tree ensembles), ``samples`` (training
+samples from masks and scribbles), ``sample_cache``, ``prior`` (class-prior
+correction and EM shares), ``adapt`` (test-time adaptation), ``model_file`` (the
+file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
+name).
 """
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
