@@ -32,6 +32,14 @@ def _curves_and_packing() -> None:
         layer.lookup(np.array([0, 9]), np.array([0, 11]))
         layer.lookup(3, 4)
         PackedLayer.from_bytes(layer.to_bytes()).unpack()
+    # A tiled container of several tiles: its joined table, batched and scalar lookups.
+    rng = np.random.default_rng(0)
+    big = (rng.integers(0, 3, (5, 6)).repeat(40, 0).repeat(40, 1)).astype(np.uint8)
+    tiled = pack(big, tile_bits=6)
+    xs, ys = rng.integers(0, 240, 4096), rng.integers(0, 200, 4096)
+    tiled.lookup(xs, ys)
+    tiled.lookup(5, 7)
+    tiled.unpack()
 
 
 def _classify() -> None:

@@ -20,13 +20,15 @@ def _run(code: str) -> str:
 
 @pytest.mark.skipif(sys.version_info >= (3, 12), reason="None is immortal from Python 3.12")
 def test_a_leaking_build_gets_none_a_huge_count():
+    # The guard adds 2^48; other references to None come and go meanwhile (one fewer
+    # made it 2^48 - 1 in a clean clone), so half of that is asked for.
     got = _run(
         "import sys\n"
         "import app.editor.qt_compat as q\n"
         "q._applied = False\n"
         "q.void_call_leaks_none = lambda: True\n"
         "before = sys.getrefcount(None)\n"
-        "print(q.guard_none_refcount(), sys.getrefcount(None) - before >= 1 << 48)\n"
+        "print(q.guard_none_refcount(), sys.getrefcount(None) - before >= 1 << 47)\n"
     )
     assert got == "True True"
 

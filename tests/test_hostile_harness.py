@@ -299,6 +299,9 @@ def _warm_up(readers: dict) -> None:
                                               ("plane", None), ("compact", 6)]):
             pack(mask, tile_bits=tile_bits).save(d / f"{i}.ttpack", format=fmt)
             readers["layer"](d / f"{i}.ttpack")
+        # A container of several tiles looks up through its joined table (kernels of its own).
+        pack(np.tile(mask, (5, 5)), tile_bits=6).save(d / "tiles.ttpack")
+        readers["layer"](d / "tiles.ttpack")
         FamilyCache(d).store("f", build_family(img.astype(np.float32), 2, 2))
         readers["family"](d / "f.ttfamily")
         (d / "models.json").write_text(json.dumps({"models": {"m": {
