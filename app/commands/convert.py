@@ -180,7 +180,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     from pathlib import Path
 
+    from tqdm import tqdm
+
     from app.outputs import check_outputs
+    from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
+    from core.fidelity import texture_cost
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -202,19 +206,6 @@ def run(args: argparse.Namespace) -> int:
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)
-    return _run_whole(args, project, preview, packed, themes, legend)
-
-
-def _run_whole(args: argparse.Namespace, project, preview: str, packed: str, themes,
-               legend) -> int:
-    """The whole-photo conversion (in memory)."""
-    from pathlib import Path
-
-    from tqdm import tqdm
-
-    from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
-    from core.fidelity import texture_cost
-
     model = None
     if args.model:
         if args.scribbles:
