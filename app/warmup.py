@@ -7,6 +7,7 @@ second one. Each part runs on a tiny input; nothing is written but the cache.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 
@@ -24,7 +25,7 @@ def _render() -> None:
 
 
 def _curves_and_packing() -> None:
-    from core.packing import PackedLayer, pack
+    from core.packing import PackedLayer, TiledLayer, pack
 
     image = (np.arange(12 * 10).reshape(12, 10) // 7 % 3).astype(np.uint8)
     for curve in ("hilbert", "morton"):
@@ -32,14 +33,19 @@ def _curves_and_packing() -> None:
         layer.lookup(np.array([0, 9]), np.array([0, 11]))
         layer.lookup(3, 4)
         PackedLayer.from_bytes(layer.to_bytes()).unpack()
-    # A tiled container of several tiles: its joined table, batched and scalar lookups.
+    # Tiled containers of several tiles, either curve, each payload format, read back from
+    # bytes: the joined table and the per-tile path, batched and scalar lookups.
     rng = np.random.default_rng(0)
     big = (rng.integers(0, 3, (5, 6)).repeat(40, 0).repeat(40, 1)).astype(np.uint8)
-    tiled = pack(big, tile_bits=6)
     xs, ys = rng.integers(0, 240, 4096), rng.integers(0, 200, 4096)
-    tiled.lookup(xs, ys)
-    tiled.lookup(5, 7)
-    tiled.unpack()
+    for curve in ("hilbert", "morton"):
+        for fmt in ("compact", "seed", "plane", "streams"):
+            data = pack(big, curve=curve, tile_bits=6).to_bytes(format=fmt)
+            for join in (True, False):
+                tiled = dataclasses.replace(TiledLayer.from_bytes(data), join=join)
+                tiled.lookup(xs, ys)
+                tiled.lookup(5, 7)
+                tiled.unpack()
 
 
 def _classify() -> None:
