@@ -14,11 +14,21 @@ features in fixed Delta-E-like units, see :mod:`core.classify.features`):
    covering under ``transition_share`` of the photo has its centre near the
    segment between two other centres (that is the blend that smoothed
    features make along a border, not a theme of the scene);
-3. K never exceeds ``max_themes`` nor the number of distinct samples.
+3. a theme whose coarse pixels fall into two groups of clearly different
+   chroma (their a*b* means at least ``min_hue_separation`` apart, the smaller
+   covering at least ``min_hue_share`` of the photo) is split in two when the
+   split passes the separation and transition tests of 2 (the variance gain
+   of 2 is blind there: textured themes spread mostly in lightness, so a
+   small region of another hue -- a light-green channel beside grey town --
+   explains a fraction of a percent of the variance, yet a viewer sees it as
+   another theme);
+4. K never exceeds ``max_themes`` nor the number of distinct samples.
 
 Themes are numbered 1..K by decreasing area. Confidence is the winning
-theme's posterior under an isotropic Gaussian mixture with the centres as
-means, the theme areas as weights and the pooled within-theme variance.
+theme's posterior under a Gaussian mixture with the centres as means and
+the theme areas as weights (:mod:`core.classify.mixture`): the pooled
+within-theme variance for k-means themes, per-theme diagonal variances once
+a theme has been split by hue.
 
 This module holds the options, the sampling and the choice of K; fitting a
 reusable model and classifying with it is :mod:`core.classify.unsupervised_model`.
@@ -27,13 +37,13 @@ reusable model and classifying with it is :mod:`core.classify.unsupervised_model
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from core.classify.features import FeatureOptions, FeatureSet
+from core.classify.mixture import fit_diagonal_mixture, isotropic_variances
 from core.classify.regularise import RegulariseOptions
 from core.classify.tiled import iter_tile_features, strided_core
 from core.errors import TerrathemeError
@@ -60,6 +70,11 @@ class UnsupervisedOptions:
     transition_share : float
         A theme smaller than this share of the photo whose centre lies
         between two others is a border blend, not a theme (criterion 2).
+    min_hue_separation : float
+        Smallest distance between the a*b* means of a theme's two chroma groups
+        for a split by hue (criterion 3); ``inf`` turns the split off.
+    min_hue_share : float
+        Smallest share of the photo the smaller chroma group covers (criterion 3).
     max_samples : int
         Coarse pixels sampled for k-means.
     attempts : int
@@ -78,6 +93,8 @@ class UnsupervisedOptions:
     min_gain: float = 0.03
     min_separation: float = 6.0
     transition_share: float = 0.15
+    min_hue_separation: float = 8.0
+    min_hue_share: float = 0.02
     max_samples: int = 20000
     attempts: int = 3
     seed: int = 0
@@ -198,25 +215,103 @@ def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: fl
     within a quarter of the segment's length of the segment joining two other
     centres' colours, and by covering less than ``max_share`` of the photo.
     """
-    centres = centres[:, colour]
+    shares = np.bincount(labels, minlength=len(centres)) / len(labels)
+    return any(shares[c] < max_share and _lies_between(centres[:, colour], c)
+               for c in range(len(centres)))
+
+
+def _lies_between(centres: np.ndarray, c: int) -> bool:
+    """True if centre ``c`` lies within a quarter of the segment's length of the
+    segment joining two other centres (strictly between its ends)."""
     k = len(centres)
-    shares = np.bincount(labels, minlength=k) / len(labels)
-    for c in range(k):
-        if shares[c] >= max_share:
-            continue
-        for a in range(k):
-            for b in range(a + 1, k):
-                if c in (a, b):
-                    continue
-                ab = centres[b] - centres[a]
-                length2 = float(ab @ ab)
-                if length2 == 0.0:
-                    continue
-                t = float(np.clip((centres[c] - centres[a]) @ ab / length2, 0.0, 1.0))
-                dist = float(np.linalg.norm(centres[a] + t * ab - centres[c]))
-                if 0.0 < t < 1.0 and dist < 0.25 * np.sqrt(length2):
-                    return True
+    for a in range(k):
+        for b in range(a + 1, k):
+            if c in (a, b):
+                continue
+            ab = centres[b] - centres[a]
+            length2 = float(ab @ ab)
+            if length2 == 0.0:
+                continue
+            t = float(np.clip((centres[c] - centres[a]) @ ab / length2, 0.0, 1.0))
+            dist = float(np.linalg.norm(centres[a] + t * ab - centres[c]))
+            if 0.0 < t < 1.0 and dist < 0.25 * np.sqrt(length2):
+                return True
     return False
+
+
+def _rejects(fit, options: UnsupervisedOptions) -> bool:
+    """True if a fit's themes fail the separation or the transition test (criterion 2)."""
+    return (_min_centre_distance(fit[2]) < options.min_separation
+            or _has_transition_theme(fit[2], fit[1], options.transition_share,
+                                     colour_columns(options.features)))
+
+
+def _has_blend_theme(centres: np.ndarray, labels: np.ndarray,
+                     options: UnsupervisedOptions) -> bool:
+    """The transition test of criterion 2 for a split by hue: a small theme that lies
+    between two others both in smoothed Lab and in a*b* alone.
+
+    A blend of two themes lies between them in chroma as well, whereas a theme
+    of another hue may well lie between two in lightness only.
+    """
+    colour = colour_columns(options.features)
+    shares = np.bincount(labels, minlength=len(centres)) / len(labels)
+    return any(shares[c] < options.transition_share
+               and _lies_between(centres[:, colour], c)
+               and _lies_between(centres[:, colour[1:3]], c)
+               for c in range(len(centres)))
+
+
+def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOptions):
+    """The themes with one split by chroma (criterion 3), or None if no split qualifies.
+
+    Each theme's samples are split in two by 2-means on their smoothed a*b*;
+    each qualifying split, from the largest chroma distance down, starts a
+    diagonal Gaussian mixture of K + 1 themes (:func:`core.classify.mixture.fit_diagonal_mixture`:
+    the textured theme keeps its wide lightness spread, the new one its narrow
+    chroma), kept if the new theme still covers ``min_hue_share``, still
+    differs from the theme it came from by ``min_hue_separation`` in chroma,
+    the themes stay ``min_separation`` apart, the new theme's chroma does not
+    lie between two other themes' (a hue between two hues is more likely their
+    blend, e.g. along a shadow's edge) and no small theme is a blend of two
+    others (:func:`_has_blend_theme`); the first that is kept wins.
+
+    Returns
+    -------
+    None or (labels (n,), centres (K+1, F), sizes (K+1,), variances (K+1, F))
+    """
+    k, n = int(labels.max()) + 1, len(samples)
+    chroma = colour_columns(options.features)[1:3]
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
+    candidates = []
+    for c in range(k):
+        members = np.flatnonzero(labels == c)
+        if len(members) < max(2.0, 2 * options.min_hue_share * n):
+            continue
+        # Two chroma groups of the theme's samples; the smaller one may become a theme.
+        cv2.setRNGSeed(options.seed)
+        _, groups, means = cv2.kmeans(np.ascontiguousarray(samples[members][:, chroma]), 2,
+                                      None, criteria, options.attempts, cv2.KMEANS_PP_CENTERS)
+        groups = groups.ravel()
+        smaller = int(np.count_nonzero(groups) * 2 < len(groups))
+        separation = float(np.linalg.norm(means[0] - means[1]))
+        if (separation >= options.min_hue_separation
+                and np.count_nonzero(groups == smaller) >= options.min_hue_share * n):
+            candidates.append((separation, c, members[groups == smaller]))
+    # The splits from the largest chroma distance down: the first that holds.
+    for _, c, group in sorted(candidates, key=lambda cand: -cand[0]):
+        start = labels.astype(np.int64).copy()
+        start[group] = k
+        split = fit_diagonal_mixture(samples, start)
+        split_labels, centres = split[0], split[1]
+        hue_gap = float(np.linalg.norm(centres[k, chroma] - centres[c, chroma]))
+        if (np.count_nonzero(split_labels == k) >= options.min_hue_share * n
+                and hue_gap >= options.min_hue_separation
+                and _min_centre_distance(centres) >= options.min_separation
+                and not _lies_between(centres[:, chroma], k)
+                and not _has_blend_theme(centres, split_labels, options)):
+            return split
+    return None
 
 
 def _distinct_rows(samples: np.ndarray, enough: int) -> int:
@@ -239,8 +334,10 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
     -------
     centres : (K, F) float32 ndarray, ordered by decreasing cluster size
     sizes : (K,) float64 ndarray, share of samples per theme
-    within : float
-        Pooled mean squared distance to the nearest centre, ``W_K``.
+    variances : (K, F) float32 ndarray
+        Per-theme, per-feature variances: the pooled k-means spread
+        (:func:`core.classify.mixture.isotropic_variances`), or the diagonal
+        mixture's after a split by hue (criterion 3).
     """
     wanted = options.max_themes if themes == "auto" else int(themes)
     n_distinct = _distinct_rows(samples, wanted) if len(samples) <= 50000 else len(samples)
@@ -253,12 +350,7 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
             for k in range(2, min(options.max_themes, n_distinct) + 1):
                 fit = _kmeans(samples, k, options)
                 gain = (best[0] - fit[0]) / w1
-                if (
-                    gain < options.min_gain
-                    or _min_centre_distance(fit[2]) < options.min_separation
-                    or _has_transition_theme(fit[2], fit[1], options.transition_share,
-                                          colour_columns(options.features))
-                ):
+                if gain < options.min_gain or _rejects(fit, options):
                     break
                 best = fit
     else:
@@ -267,27 +359,13 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
             best = _kmeans(samples, k, options)
     within, labels, centres = best
     sizes = np.bincount(labels, minlength=len(centres)) / len(labels)
+    variances = isotropic_variances(within, centres)
+    if themes == "auto" and np.sqrt(w1) >= options.min_separation / 2.0:
+        # Themes of another hue inside a theme (criterion 3).
+        while len(centres) < min(options.max_themes, n_distinct):
+            split = _hue_split(samples, labels, options)
+            if split is None:
+                break
+            labels, centres, sizes, variances = split
     order = np.argsort(-sizes, kind="stable")
-    return centres[order].astype(np.float32), sizes[order], float(within)
-
-
-def posterior_fn(centres: np.ndarray, sizes: np.ndarray, within: float,
-                  weights: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """Gaussian-mixture posterior of each theme for a coarse feature stack."""
-    k, f = centres.shape
-    # Pooled per-dimension variance, floored at 1 Delta-E^2 so flat themes stay sharp.
-    var = max(within / f, 1.0)
-    log_prior = np.log(np.maximum(sizes, 1e-6)).astype(np.float32)
-
-    def probs(feats: np.ndarray) -> np.ndarray:
-        h, w, _ = feats.shape
-        x = feats.reshape(-1, f) * weights
-        # Squared distances via |x|^2 - 2 x.c + |c|^2.
-        d2 = (x * x).sum(1)[:, None] - 2.0 * x @ centres.T + (centres * centres).sum(1)[None]
-        logit = log_prior[None] - np.maximum(d2, 0.0) / (2.0 * var)
-        logit -= logit.max(1, keepdims=True)
-        p = np.exp(logit)
-        p /= p.sum(1, keepdims=True)
-        return p.reshape(h, w, k).astype(np.float32)
-
-    return probs
+    return centres[order].astype(np.float32), sizes[order], variances[order]

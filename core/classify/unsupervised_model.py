@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from core.classify.mixture import posterior_fn
 from core.classify.photo import prepare_photo
 from core.classify.result import Classification
 from core.classify.tiled import predict_tiled
@@ -23,7 +24,6 @@ from core.classify.unsupervised import (
     UnsupervisedOptions,
     choose_themes,
     feature_weights,
-    posterior_fn,
     sample_features,
 )
 from core.errors import TerrathemeError
@@ -39,14 +39,15 @@ class UnsupervisedModel:
         Theme centres in weighted feature space, theme 1 first (largest).
     sizes : (K,) float64 ndarray
         Share of the sample in each theme (the mixture weights).
-    within : float
-        Pooled mean squared distance to the nearest centre, ``W_K``.
+    variances : (K, F) float32 ndarray
+        Per-theme, per-feature variances of the mixture
+        (:func:`core.classify.unsupervised.choose_themes`).
     options : UnsupervisedOptions
     """
 
     centres: np.ndarray
     sizes: np.ndarray
-    within: float
+    variances: np.ndarray
     options: UnsupervisedOptions
 
     @property
@@ -83,7 +84,7 @@ class UnsupervisedModel:
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
-        fn = posterior_fn(self.centres, self.sizes, self.within, feature_weights(opts.features))
+        fn = posterior_fn(self.centres, self.sizes, self.variances, feature_weights(opts.features))
         return predict_tiled(rgb, valid, fn, self.classes, opts.features, opts.regularisation,
                              opts.tile, progress)
 
@@ -141,8 +142,8 @@ def fit_unsupervised(
         budget = max(1, int(round(opts.max_samples * share)))
         chunks.append(sample_features(rgb, valid, replace(opts, max_samples=budget)))
     samples = np.concatenate(chunks).astype(np.float32)
-    centres, sizes, within = choose_themes(samples, opts, themes)
-    return UnsupervisedModel(centres, sizes, within, opts)
+    centres, sizes, variances = choose_themes(samples, opts, themes)
+    return UnsupervisedModel(centres, sizes, variances, opts)
 
 
 def classify_unsupervised(
