@@ -181,21 +181,8 @@ def scan_runs(
     parts = [(int(a), int(z)) for a, z in zip(cuts[:-1], cuts[1:], strict=True) if z > a]
 
     def one(part: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-        j, j1 = part
         cap = max(2 * (1 << 2 * plan.b), keys.size // (64 * len(parts)))
-        steps, values = np.empty(cap, np.uint32), np.empty(cap, keys.dtype)
-        count, cur, last = 0, keys[_first_texel(plan, j, keys.shape)], np.uint64(0)
-        while True:
-            count, j, cur, last = _runs_kernel(
-                keys, 0, 0, keys.shape[1], keys.shape[0], *plan_args(plan), j, j1, steps,
-                values, count, cur, last)
-            if j == j1:
-                break
-            # Out of room: double the run arrays and resume at block j.
-            steps = np.concatenate([steps, np.empty_like(steps)])
-            values = np.concatenate([values, np.empty_like(values)])
-        return (np.append(steps[:count], np.uint32(last)),
-                np.append(values[:count], values.dtype.type(cur)))
+        return _scan_stretch(keys, (0, 0), keys.shape[::-1], plan, part, cap)
 
     if len(parts) == 1:
         results = [one(parts[0])]
@@ -238,9 +225,23 @@ def scan_square(
     keys = np.ascontiguousarray(keys)
     if keys.shape != (h, w):
         raise TerrathemeError(f"square {k} is {w} x {h} texels, got a {keys.shape} window")
-    j, j1 = int(squares.j0[k]), int(squares.j1[k])
     cap = max(2 * (1 << 2 * plan.b), keys.size // 64)
+    return _scan_stretch(keys, (x, y), (width, height), plan,
+                         (int(squares.j0[k]), int(squares.j1[k])), cap)
+
+
+def _scan_stretch(keys: np.ndarray, origin: tuple[int, int], size: tuple[int, int],
+                  plan: BlockPlan, blocks: tuple[int, int], cap: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of blocks ``j .. j1-1`` of a ``(width, height)`` image (``blocks = (j, j1)``).
+
+    ``keys`` is a window of the image with its top-left texel at ``origin``
+    ``(x, y)`` that holds those blocks' texels; the run arrays start with room
+    for ``cap`` runs. Returns ``(steps, values)`` as :func:`scan_runs`.
+    """
+    (x, y), (width, height), (j, j1) = origin, size, blocks
     steps, values = np.empty(cap, np.uint32), np.empty(cap, keys.dtype)
+    # The stretch's first value, at its first texel inside the image.
     row, col = _first_texel(plan, j, (height, width))
     count, cur, last = 0, keys[row - y, col - x], np.uint64(0)
     while True:

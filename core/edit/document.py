@@ -13,7 +13,7 @@ confidence (:meth:`EditDocument.apply_classification`).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 
 import numpy as np
@@ -81,8 +81,8 @@ class EditDocument:
         self.events = DocumentEvents.new()
         self.history = History()
         self._stroke: Stroke | None = None
-        self._photo_rgb: tuple[np.ndarray, np.ndarray] | None = None
-        self._uncertain: tuple[np.ndarray, np.ndarray] | None = None
+        #: what photo_rgb and uncertain derived, by name: (source array, derived array)
+        self._derived: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     # -- what the document holds ------------------------------------------------
     @property
@@ -117,12 +117,7 @@ class EditDocument:
 
     def photo_rgb(self) -> np.ndarray | None:
         """The photo as (H, W, 3) C-contiguous uint8 for display (a view when it is RGB)."""
-        photo = self.photo
-        if photo is None:
-            return None
-        if self._photo_rgb is None or self._photo_rgb[0] is not photo:
-            self._photo_rgb = (photo, display_photo(photo))
-        return self._photo_rgb[1]
+        return self._derive("photo_rgb", self.photo, display_photo)
 
     def photo_extent(self) -> tuple[float, float] | None:
         """``(width, height)`` in texels the photo covers (None without a photo)."""
@@ -154,12 +149,17 @@ class EditDocument:
 
     def uncertain(self) -> np.ndarray | None:
         """(H, W) bool: the least confident share of the photo, as regions (None: no map)."""
-        conf = self.confidence
-        if conf is None:
+        return self._derive("uncertain", self.confidence, uncertain_mask)
+
+    def _derive(self, name: str, source: np.ndarray | None,
+                make: Callable[[np.ndarray], np.ndarray]) -> np.ndarray | None:
+        """``make(source)``, computed again only when ``source`` is another array (None: None)."""
+        if source is None:
             return None
-        if self._uncertain is None or self._uncertain[0] is not conf:
-            self._uncertain = (conf, uncertain_mask(conf))
-        return self._uncertain[1]
+        kept = self._derived.get(name)
+        if kept is None or kept[0] is not source:
+            kept = self._derived[name] = (source, make(source))
+        return kept[1]
 
     # -- applying changes ---------------------------------------------------------
     def _fire(self, events: Iterable[Event], history: bool = True) -> None:

@@ -109,6 +109,15 @@ def tiled_length(length: int, tile: int) -> int:
     return k * (tile - 1) + 1
 
 
+def tiled_layout(texture_size: tuple[int, int], tile: int,
+                 size: tuple[int, int] | None = None) -> ExportLayout:
+    """A map cut into ``tile``-pixel tiles: ``size`` ``(W, H)`` or, by default, the fewest
+    tiles that hold one pixel per texel of a ``(Wtex, Htex)`` texture and its far edge."""
+    wtex, htex = texture_size
+    return ExportLayout(size or (tiled_length(wtex + 1, tile), tiled_length(htex + 1, tile)),
+                        tile)
+
+
 def nearest_texels(n_pixels: int, n_texels: int, start: int, count: int) -> np.ndarray:
     """The texel nearest each of pixels ``start .. start+count-1`` of an ``n_pixels`` map axis.
 

@@ -34,7 +34,7 @@ import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
 from core.exchange.colour import COLOUR_MAP, unity_colour_st
-from core.exchange.layout import ExportLayout, tiled_length
+from core.exchange.layout import ExportLayout, tiled_layout
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
     STORED_ALPHA,
@@ -93,9 +93,7 @@ def unity_layout(texture_size: tuple[int, int], options: ExportOptions
                          "use --tile 4096 (or smaller) to keep every texel")
         return ExportLayout((r, r)), notes
     _check_resolution(options.tile, "--tile")
-    size = options.size or (tiled_length(wtex + 1, options.tile),
-                            tiled_length(htex + 1, options.tile))
-    return ExportLayout(size, options.tile), notes
+    return tiled_layout(texture_size, options.tile, options.size), notes
 
 
 def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:

@@ -26,7 +26,7 @@ import numpy as np
 
 from core.errors import TerrathemeError
 from core.exchange.colour import COLOUR_MAP, vertex_colour_uv
-from core.exchange.layout import ExportLayout, tiled_length
+from core.exchange.layout import ExportLayout, tiled_layout
 from core.exchange.options import ExportOptions
 from core.exchange.plan import (
     ExportPlan,
@@ -88,9 +88,7 @@ def unreal_layout(texture_size: tuple[int, int], options: ExportOptions
             w = h = max(w, h)
         return ExportLayout((w, h)), notes
     _check_size(options.tile, "--tile")
-    size = options.size or (tiled_length(wtex + 1, options.tile),
-                            tiled_length(htex + 1, options.tile))
-    return ExportLayout(size, options.tile), notes
+    return tiled_layout(texture_size, options.tile, options.size), notes
 
 
 def weight_file(project: ThematicTexture, k: int, suffix: str = "") -> str:
