@@ -11,7 +11,6 @@ import os
 from dataclasses import dataclass
 
 from core.curves.square import Curve, curve_order
-from core.errors import TerrathemeError
 from core.packing import tiled_format
 from core.packing.container import HEADER, check_file, read_header, read_palette
 from core.packing.layout import table_words_max
@@ -70,13 +69,10 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
     TerrathemeError
         Missing file; :class:`CorruptFileError` for a damaged or foreign file.
     """
-    p = os.fspath(path)
-    if not os.path.isfile(p):
-        raise TerrathemeError(f"{p}: no such file")
+    p, tiled = tiled_format.layer_file_kind(path)
     with open(p, "rb") as fh:
-        if fh.read(4) == tiled_format.MAGIC:
+        if tiled:
             return _tiled_info(fh, p)
-        fh.seek(0)
         data = fh.read()
     head = check_file(data, name=p)
     n = curve_order(head.width, head.height)

@@ -178,12 +178,19 @@ def decode_symbols(buf, count, n_used, depth, pair_context, sym):  # pragma: no 
 
 
 @numba.njit(cache=True, nogil=True)
+def _length_models(n_used):  # pragma: no cover - numba
+    # The length coder's bit probabilities, the same for the encoder and the decoder: bit
+    # length per symbol (6-level tree), prefix tree of the top mantissa bits, the others.
+    return (np.full(n_used * 64, PROB_INIT, np.int64),
+            np.full(n_used * 34 << (MANTISSA_TREE_BITS + 1), PROB_INIT, np.int64),
+            np.full(34 * 34, PROB_INIT, np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
 def encode_lengths(lengths, sym, n_used, out):  # pragma: no cover - numba
     """Code run lengths (>= 1, < 2^33) in the context of each run's symbol rank."""
     tb = MANTISSA_TREE_BITS
-    pe = np.full(n_used * 64, PROB_INIT, np.int64)
-    pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
-    pr = np.full(34 * 34, PROB_INIT, np.int64)
+    pe, pm, pr = _length_models(n_used)
     st = start_encoder()
     for i in range(lengths.size):
         v = np.int64(lengths[i])
@@ -213,9 +220,7 @@ def encode_lengths(lengths, sym, n_used, out):  # pragma: no cover - numba
 def decode_lengths(buf, sym, n_used, lengths):  # pragma: no cover - numba
     """Inverse of :func:`encode_lengths`; returns an error code."""
     tb = MANTISSA_TREE_BITS
-    pe = np.full(n_used * 64, PROB_INIT, np.int64)
-    pm = np.full(n_used * 34 << (tb + 1), PROB_INIT, np.int64)
-    pr = np.full(34 * 34, PROB_INIT, np.int64)
+    pe, pm, pr = _length_models(n_used)
     dec = start_decoder(buf)
     for i in range(sym.size):
         c = sym[i]

@@ -353,9 +353,5 @@ def load_layer(path: str | os.PathLike) -> PackedLayer | TiledLayer:
     TerrathemeError
         Missing file; :class:`CorruptFileError` for a damaged or foreign file.
     """
-    p = os.fspath(path)
-    if not os.path.isfile(p):
-        raise TerrathemeError(f"{p}: no such file")
-    with open(p, "rb") as fh:
-        magic = fh.read(4)
-    return TiledLayer.load(p) if magic == fmt.MAGIC else PackedLayer.load(p)
+    p, tiled = fmt.layer_file_kind(path)
+    return TiledLayer.load(p) if tiled else PackedLayer.load(p)

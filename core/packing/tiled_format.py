@@ -36,13 +36,14 @@ opening a container costs its header and index only.
 
 from __future__ import annotations
 
+import os
 import struct
 import zlib
 from typing import NamedTuple
 
 import numpy as np
 
-from core.errors import CorruptFileError, UnsupportedVersionError
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 MAGIC = b"TTPT"
 VERSION = 1
@@ -209,3 +210,19 @@ def read_colours(data: bytes, head: TiledHeader) -> np.ndarray | None:
     flat = np.frombuffer(data, np.uint8, count=head.k * head.colour_channels,
                          offset=HEADER.size + head.palette_bytes)
     return flat.reshape(head.k, head.colour_channels).copy()
+
+
+def layer_file_kind(path: str | os.PathLike) -> tuple[str, bool]:
+    """A packed-layer file's path as a string, and whether it is a tiled container.
+
+    Raises
+    ------
+    TerrathemeError
+        Missing file.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise TerrathemeError(f"{p}: no such file")
+    # The magic number tells a tiled container from a single layer's file.
+    with open(p, "rb") as fh:
+        return p, fh.read(4) == MAGIC
