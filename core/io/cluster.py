@@ -36,6 +36,7 @@ import os
 import warnings
 import weakref
 from collections.abc import Callable, Sequence
+from concurrent.futures import CancelledError
 from typing import TYPE_CHECKING, Any
 
 from core.errors import TerrathemeError
@@ -49,6 +50,8 @@ CONNECT_TIMEOUT = 20.0
 IN_FLIGHT_PER_THREAD = 2
 #: most items one task runs (:func:`map_ordered`)
 MAX_GROUP = 8
+#: most tasks :func:`map_ordered` resubmits after the cluster cancelled them (lost workers)
+MAX_RESUBMITS = 64
 #: dask settings of a local cluster: no statistical profiler in the workers (it feeds only
 #: the dashboard, which is off) and the event-loop watchdog ticking every second, not 20 ms:
 #: an idle 2-worker cluster then costs 0.06 cores instead of 0.17 (client 0.067 and workers
@@ -309,10 +312,10 @@ def map_ordered(
     # Everything the tasks share goes to every worker once.
     (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
     pending = as_completed()
-    # task key -> (first item, items, future); first item -> results of a finished task
+    # task key -> (first item, items, batch, future); first item -> results of a finished task
     live: dict[str, tuple[int, int, Any]] = {}
     ready: dict[int, list] = {}
-    submitted = sunk = 0
+    submitted = sunk = resubmitted = 0
     try:
         while sunk < total:
             # Keep ``limit`` tasks between submission and the sink.
@@ -328,13 +331,26 @@ def map_ordered(
                     warnings.filterwarnings("ignore", message="Sending large graph",
                                             module=r"distributed\.")
                     fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
-                live[fut.key] = (submitted, len(batch), fut)
+                live[fut.key] = (submitted, len(batch), batch, fut)
                 pending.add(fut)
                 submitted += len(batch)
             fut = next(pending)
-            i, n, _ = live.pop(fut.key)
+            i, n, batch, _ = live.pop(fut.key)
             try:
                 ready[i] = fut.result()
+            except CancelledError:
+                # A worker died with what the task needed (the scattered shared data, which
+                # dask cannot recompute): scatter it again and resubmit the task, boundedly.
+                resubmitted += 1
+                if resubmitted > MAX_RESUBMITS:
+                    raise TerrathemeError(f"tile {describe(items[i])}: the cluster lost its "
+                                          f"tasks {MAX_RESUBMITS} times (workers dying?)") from None
+                if shared_ref.status != "finished":
+                    (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
+                fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
+                live[fut.key] = (i, n, batch, fut)
+                pending.add(fut)
+                continue
             except Exception as exc:
                 # Re-raised as the caller should see it (ours as they are, the rest named).
                 what = describe(items[i]) + (f" or one of the {n - 1} after it" if n > 1 else "")
@@ -349,5 +365,5 @@ def map_ordered(
                         progress(sunk, total)
     finally:
         # Nothing of this run stays on the cluster, whatever stopped it.
-        client.cancel([fut for _, _, fut in live.values()] + [shared_ref])
+        client.cancel([fut for *_, fut in live.values()] + [shared_ref])
     return total
