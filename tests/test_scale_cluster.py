@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 
 import numpy as np
 import pytest
+from distributed import Future
 
 from core.convert.colour_fit import ColourMapOptions
 from core.convert.photo import CODEC_SUFFIX
@@ -128,6 +130,28 @@ def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)
     assert n == 23 and got == [(i, i * i + 5) for i in range(23)]
+
+
+def slow_square(item: int, shared: int) -> int:
+    time.sleep(0.2)
+    return square(item, shared)
+
+
+def test_tasks_the_cluster_cancels_are_resubmitted_and_keep_the_order(cluster):
+    # As when a worker dies with the scattered shared data: the run's futures are cancelled.
+    got, cancelled = [], []
+
+    def cancel_once(done: int, total: int) -> None:
+        if done == 3 and not cancelled:
+            keys = list(cluster.futures)
+            cluster.cancel([Future(k, cluster) for k in keys], force=True)
+            cancelled.append(len(keys))
+
+    n = map_ordered(cluster, slow_square, list(range(12)), 0,
+                    lambda i, r: got.append((i, r)), in_flight=4, group=1,
+                    progress=cancel_once)
+    assert cancelled and cancelled[0] > 1
+    assert n == 12 and got == [(i, i * i) for i in range(12)]
 
 
 def test_tasks_of_several_items_keep_the_order_and_shrink_to_one_at_the_end(cluster,
