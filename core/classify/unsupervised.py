@@ -206,7 +206,7 @@ def colour_columns(options: FeatureOptions) -> np.ndarray:
 
 
 def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: float,
-                          colour: np.ndarray) -> bool:
+                          *columns: np.ndarray) -> bool:
     """True if a small theme's colour lies near the segment between two other themes' colours.
 
     Smoothed features blend across a border between two themes; k-means then
@@ -214,9 +214,12 @@ def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: fl
     a theme. Such a theme is recognised by its centre's colour part lying
     within a quarter of the segment's length of the segment joining two other
     centres' colours, and by covering less than ``max_share`` of the photo.
+    With several column sets (``columns``) it must lie between two others in
+    each of them.
     """
     shares = np.bincount(labels, minlength=len(centres)) / len(labels)
-    return any(shares[c] < max_share and _lies_between(centres[:, colour], c)
+    return any(shares[c] < max_share and all(_lies_between(centres[:, cols], c)
+                                             for cols in columns)
                for c in range(len(centres)))
 
 
@@ -246,22 +249,6 @@ def _rejects(fit, options: UnsupervisedOptions) -> bool:
                                      colour_columns(options.features)))
 
 
-def _has_blend_theme(centres: np.ndarray, labels: np.ndarray,
-                     options: UnsupervisedOptions) -> bool:
-    """The transition test of criterion 2 for a split by hue: a small theme that lies
-    between two others both in smoothed Lab and in a*b* alone.
-
-    A blend of two themes lies between them in chroma as well, whereas a theme
-    of another hue may well lie between two in lightness only.
-    """
-    colour = colour_columns(options.features)
-    shares = np.bincount(labels, minlength=len(centres)) / len(labels)
-    return any(shares[c] < options.transition_share
-               and _lies_between(centres[:, colour], c)
-               and _lies_between(centres[:, colour[1:3]], c)
-               for c in range(len(centres)))
-
-
 def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOptions):
     """The themes with one split by chroma (criterion 3), or None if no split qualifies.
 
@@ -274,25 +261,25 @@ def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOpt
     the themes stay ``min_separation`` apart, the new theme's chroma does not
     lie between two other themes' (a hue between two hues is more likely their
     blend, e.g. along a shadow's edge) and no small theme is a blend of two
-    others (:func:`_has_blend_theme`); the first that is kept wins.
+    others in both smoothed Lab and a*b* (a blend of two themes lies between
+    them in chroma as well, whereas a theme of another hue may well lie between
+    two in lightness only); the first that is kept wins.
 
     Returns
     -------
     None or (labels (n,), centres (K+1, F), sizes (K+1,), variances (K+1, F))
     """
     k, n = int(labels.max()) + 1, len(samples)
-    chroma = colour_columns(options.features)[1:3]
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
+    colour = colour_columns(options.features)
+    chroma = colour[1:3]
     candidates = []
     for c in range(k):
         members = np.flatnonzero(labels == c)
         if len(members) < max(2.0, 2 * options.min_hue_share * n):
             continue
         # Two chroma groups of the theme's samples; the smaller one may become a theme.
-        cv2.setRNGSeed(options.seed)
-        _, groups, means = cv2.kmeans(np.ascontiguousarray(samples[members][:, chroma]), 2,
-                                      None, criteria, options.attempts, cv2.KMEANS_PP_CENTERS)
-        groups = groups.ravel()
+        _, groups, means = _kmeans(np.ascontiguousarray(samples[members][:, chroma]), 2,
+                                   options)
         smaller = int(np.count_nonzero(groups) * 2 < len(groups))
         separation = float(np.linalg.norm(means[0] - means[1]))
         if (separation >= options.min_hue_separation
@@ -309,7 +296,8 @@ def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOpt
                 and hue_gap >= options.min_hue_separation
                 and _min_centre_distance(centres) >= options.min_separation
                 and not _lies_between(centres[:, chroma], k)
-                and not _has_blend_theme(centres, split_labels, options)):
+                and not _has_transition_theme(centres, split_labels, options.transition_share,
+                                              colour, chroma)):
             return split
     return None
 
@@ -344,23 +332,23 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
     # One theme: the mean.
     w1 = float(((samples - samples.mean(0)) ** 2).sum(1).mean())
     best = (w1, np.zeros(len(samples), np.int32), samples.mean(0, keepdims=True))
-    if themes == "auto":
-        # Noise floor: a photo whose spread is under half the separation is flat.
-        if np.sqrt(w1) >= options.min_separation / 2.0:
-            for k in range(2, min(options.max_themes, n_distinct) + 1):
-                fit = _kmeans(samples, k, options)
-                gain = (best[0] - fit[0]) / w1
-                if gain < options.min_gain or _rejects(fit, options):
-                    break
-                best = fit
-    else:
+    # Noise floor: a photo whose spread is under half the separation is flat.
+    grows = themes == "auto" and np.sqrt(w1) >= options.min_separation / 2.0
+    if grows:
+        for k in range(2, min(options.max_themes, n_distinct) + 1):
+            fit = _kmeans(samples, k, options)
+            gain = (best[0] - fit[0]) / w1
+            if gain < options.min_gain or _rejects(fit, options):
+                break
+            best = fit
+    elif themes != "auto":
         k = min(int(themes), n_distinct)
         if k > 1:
             best = _kmeans(samples, k, options)
     within, labels, centres = best
     sizes = np.bincount(labels, minlength=len(centres)) / len(labels)
     variances = isotropic_variances(within, centres)
-    if themes == "auto" and np.sqrt(w1) >= options.min_separation / 2.0:
+    if grows:
         # Themes of another hue inside a theme (criterion 3).
         while len(centres) < min(options.max_themes, n_distinct):
             split = _hue_split(samples, labels, options)

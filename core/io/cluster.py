@@ -313,9 +313,21 @@ def map_ordered(
     (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
     pending = as_completed()
     # task key -> (first item, items, batch, future); first item -> results of a finished task
-    live: dict[str, tuple[int, int, Any]] = {}
+    live: dict[str, tuple[int, int, list, Any]] = {}
     ready: dict[int, list] = {}
     submitted = sunk = resubmitted = 0
+
+    def submit(first: int, batch: list) -> None:
+        with warnings.catch_warnings():
+            # A payload (a colour-map tile's pixels, 48 MiB) travels with its task on
+            # purpose: made as it is submitted, a few in flight. dask warns of a large
+            # graph and advises scattering it first, which moves the same bytes.
+            warnings.filterwarnings("ignore", message="Sending large graph",
+                                    module=r"distributed\.")
+            fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
+        live[fut.key] = (first, len(batch), batch, fut)
+        pending.add(fut)
+
     try:
         while sunk < total:
             # Keep ``limit`` tasks between submission and the sink.
@@ -324,15 +336,7 @@ def map_ordered(
                 batch = list(items[submitted:submitted + size])
                 if payload is not None:
                     batch = [(item, payload(item)) for item in batch]
-                with warnings.catch_warnings():
-                    # A payload (a colour-map tile's pixels, 48 MiB) travels with its task on
-                    # purpose: made as it is submitted, a few in flight. dask warns of a large
-                    # graph and advises scattering it first, which moves the same bytes.
-                    warnings.filterwarnings("ignore", message="Sending large graph",
-                                            module=r"distributed\.")
-                    fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
-                live[fut.key] = (submitted, len(batch), batch, fut)
-                pending.add(fut)
+                submit(submitted, batch)
                 submitted += len(batch)
             fut = next(pending)
             i, n, batch, _ = live.pop(fut.key)
@@ -347,9 +351,7 @@ def map_ordered(
                                           f"tasks {MAX_RESUBMITS} times (workers dying?)") from None
                 if shared_ref.status != "finished":
                     (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
-                fut = client.submit(_run_group, func, batch, shared_ref, pure=False)
-                live[fut.key] = (i, n, batch, fut)
-                pending.add(fut)
+                submit(i, batch)
                 continue
             except Exception as exc:
                 # Re-raised as the caller should see it (ours as they are, the rest named).
