@@ -349,8 +349,10 @@ def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarr
     tiles, rows = (None, None) if words is None else words
     if strategy == "sweep":
         if threads > 1:
-            # Stretches of the sweep kernels' size on the threads (shared out by numba).
-            parts = max(1, -(-xs.size // STRETCH))
+            # One slice per thread, each swept in stretches with one scratch allocation
+            # (numba's prange shares iterations out statically, so more slices than threads
+            # only allocate more scratch: 62 slices of a 10^6 batch were 1.1x slower).
+            parts = min(threads, max(1, -(-xs.size // STRETCH)))
             tiles0 = np.zeros(TILE_WORDS, np.int64) if tiles is None else tiles
             rows0 = np.zeros(TILE_COLUMNS, np.int64) if rows is None else rows
             return int(_parts(xs, ys, data, True, tiles is not None, tiles0, rows0, out, parts))
