@@ -217,7 +217,7 @@ def predict_tiled(
         # Back to photo pixels: arg-max class and its probability.
         # The whole arrays and offsets, not views: every photo size (one tile or several)
         # calls the kernel with the same C-contiguous types, the one signature the warmup
-        # compiles (a view's 'A' layout compiled again on the first run, 1.2 s).
+        # compiles (a view's 'A' layout was compiled again at the first run after setup).
         up, oy, ox = _upsampled(probs, win, scale)
         _arg_max(up, oy, ox, lut, labels, confidence, win.y, win.x, win.y1 - win.y,
                  win.x1 - win.x)
