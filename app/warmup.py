@@ -94,8 +94,22 @@ def _boundary() -> None:
                  boundary=BoundaryOptions())
 
 
+def _convert() -> None:
+    from core.convert.photo import convert_photo
+
+    # The default conversion end to end on a small photo of three regions, so the kernels
+    # on its way (the themes' class sums over uint8 colours and float32 statistics, the
+    # classification's arg-max) are compiled with the types a real photo gives them.
+    rng = np.random.default_rng(2)
+    photo = rng.integers(0, 40, (160, 192, 3), dtype=np.uint8)
+    photo[:, 64:] += np.array([150, 120, 40], np.uint8)
+    photo[80:, 128:] = rng.integers(20, 60, (80, 64, 3), dtype=np.uint8) + np.array(
+        [0, 60, 160], np.uint8)
+    convert_photo(photo)
+
+
 PARTS = {"render": _render, "boundary": _boundary, "packing": _curves_and_packing,
-         "classify": _classify, "perspective": _perspective}
+         "classify": _classify, "perspective": _perspective, "convert": _convert}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -134,8 +134,8 @@ def strided_core(
             np.arange(gx0 + rx, gx0 + cw, stride, dtype=np.int64))
 
 
-def _core_probabilities(probs: np.ndarray, win: TileWindow, scale: int) -> np.ndarray:
-    """Upsample a tile's coarse probabilities to the photo pixels of its core.
+def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarray, int, int]:
+    """Upsample a tile's coarse probabilities to photo pixels, and where its core starts.
 
     Parameters
     ----------
@@ -143,14 +143,18 @@ def _core_probabilities(probs: np.ndarray, win: TileWindow, scale: int) -> np.nd
 
     Returns
     -------
-    probs : (y1 - y0, x1 - x0, C) float32 ndarray
+    probs : (h * scale, w * scale, C) float32 C-contiguous ndarray
+        Over the window's read rectangle; the core is the ``(y1 - y0, x1 - x0)``
+        block at the offsets.
+    oy, ox : int
+        Row and column of the core's first pixel in ``probs``.
     """
+    offsets = win.y - win.ry, win.x - win.rx
     if scale == 1:
-        return probs[win.y - win.ry : win.y1 - win.ry, win.x - win.rx : win.x1 - win.rx]
+        return np.ascontiguousarray(probs), *offsets
     h, w, c = probs.shape
     up = cv2.resize(probs, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR)
-    up = up.reshape(h * scale, w * scale, c)
-    return up[win.y - win.ry : win.y1 - win.ry, win.x - win.rx : win.x1 - win.rx]
+    return up.reshape(h * scale, w * scale, c), *offsets
 
 
 def predict_tiled(
@@ -211,9 +215,12 @@ def predict_tiled(
         # Spatial regularisation on the coarse grid.
         probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
-        core = _core_probabilities(probs, win, scale)
-        _arg_max(core, lut, labels[win.y : win.y1, win.x : win.x1],
-                 confidence[win.y : win.y1, win.x : win.x1])
+        # The whole arrays and offsets, not views: every photo size (one tile or several)
+        # calls the kernel with the same C-contiguous types, the one signature the warmup
+        # compiles (a view's 'A' layout was compiled again at the first run after setup).
+        up, oy, ox = _upsampled(probs, win, scale)
+        _arg_max(up, oy, ox, lut, labels, confidence, win.y, win.x, win.y1 - win.y,
+                 win.x1 - win.x)
         if progress is not None:
             progress(done, len(windows))
     np.clip(confidence, 0.0, 1.0, out=confidence)
@@ -224,16 +231,16 @@ def predict_tiled(
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _arg_max(probs, lut, labels, confidence):  # pragma: no cover
-    """Per pixel: ``labels = lut[argmax(probs)]`` (first of equal maxima, as numpy's
-    ``argmax``) and ``confidence`` = that maximum; rows in parallel (3x numpy's
-    ``argmax`` + ``take_along_axis`` over a small last axis)."""
-    h, w, c = probs.shape
+def _arg_max(probs, oy, ox, lut, labels, confidence, y0, x0, h, w):  # pragma: no cover
+    """Over an ``h x w`` block: ``labels[y0 + y, x0 + x] = lut[argmax(probs[oy + y, ox + x])]``
+    (first of equal maxima, as numpy's ``argmax``) and ``confidence`` = that maximum; rows
+    in parallel (3x numpy's ``argmax`` + ``take_along_axis`` over a small last axis)."""
+    c = probs.shape[2]
     for y in numba.prange(h):
         for x in range(w):
-            best, top = 0, probs[y, x, 0]
+            best, top = 0, probs[oy + y, ox + x, 0]
             for k in range(1, c):
-                if probs[y, x, k] > top:
-                    best, top = k, probs[y, x, k]
-            labels[y, x] = lut[best]
-            confidence[y, x] = top
+                if probs[oy + y, ox + x, k] > top:
+                    best, top = k, probs[oy + y, ox + x, k]
+            labels[y0 + y, x0 + x] = lut[best]
+            confidence[y0 + y, x0 + x] = top

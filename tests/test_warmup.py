@@ -1,0 +1,57 @@
+"""``python -m app.warmup`` compiles what a real conversion runs: its first run compiles nothing.
+
+A numba kernel is compiled once per argument types (layout included: a view is
+'A', a whole array 'C'); a type the warmup does not give it is compiled at the
+user's first run (seconds). These tests run the warmup's part, then a
+conversion of a photo larger than a classification tile, and look for new
+signatures.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from numba.core.registry import CPUDispatcher
+
+from app import warmup
+from core.classify import classify_unsupervised
+from core.classify.tiled import _arg_max
+from core.convert.photo import convert_photo
+
+
+def _signatures() -> set[tuple[str, str]]:
+    """(kernel, signature) of every numba kernel of core compiled in this process."""
+    out = set()
+    for name, module in list(sys.modules.items()):
+        if name.startswith("core."):
+            for attr, value in vars(module).items():
+                if isinstance(value, CPUDispatcher) and value.__module__ == name:
+                    out.update((f"{name}.{attr}", str(s)) for s in value.signatures)
+    return out
+
+
+def _photo(h: int, w: int) -> np.ndarray:
+    """Three regions of noisy colour (sand, dark, blue)."""
+    rng = np.random.default_rng(5)
+    photo = rng.integers(0, 40, (h, w, 3), dtype=np.uint8)
+    photo[:, w // 3 :] += np.array([150, 120, 40], np.uint8)
+    photo[h // 2 :, 2 * w // 3 :] = rng.integers(20, 60, (h - h // 2, w - 2 * w // 3, 3),
+                                                 dtype=np.uint8) + np.array([0, 60, 160],
+                                                                            np.uint8)
+    return photo
+
+
+def test_arg_max_has_one_signature_for_one_tile_and_many():
+    # A photo within one 1024 px tile and one of two tiles (its tiles are views of the
+    # labels: the kernel must not see them as such).
+    classify_unsupervised(_photo(96, 128))
+    classify_unsupervised(_photo(64, 1100))
+    assert len(_arg_max.signatures) == 1
+
+
+def test_convert_after_the_warmup_compiles_nothing_new():
+    warmup.main(["convert"])
+    before = _signatures()
+    convert_photo(_photo(200, 1100))
+    assert sorted(_signatures() - before) == []
