@@ -24,6 +24,15 @@ written by another version) is a miss: the model is fitted again and the
 file replaced. Only Extra-Trees models are kept (OpenCV's forest reads back
 from a model file as the equivalent node arrays, not the same object), and
 on disk only those a model file can hold (options within its bounds).
+
+The pairs stay keyed by their decoded pixels, not by their files' bytes or
+(path, size, mtime): on six Dubai pairs (0.5-1.2 Mpx) a warm training costs
+reading them 0.036 s CPU, checking them and finding the classes 0.012 s,
+their keys 0.009 s and the model's file 0.015 s, against 0.19 s for
+predicting the 1.5 Mpx target; a file key would save about 0.06 s (the
+warm path 1.5x -> about 1.2x predict) but would go stale with a decoder's
+or the reading code's change, and (path, size, mtime) with a file edited in
+place within the clock's resolution.
 """
 
 from __future__ import annotations
