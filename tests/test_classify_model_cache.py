@@ -5,11 +5,13 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import zipfile
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from classify_cases import block_pairs as pairs
 
 from core.classify import ForestKind, ModelCache, SampleCache, SupervisedOptions, train_classifier
 from core.classify import model_cache as model_cache_module
@@ -22,17 +24,6 @@ from core.errors import TerrathemeError
 OPTS = SupervisedOptions(n_trees=8)
 FOREST = ("classes", "roots", "feature", "threshold", "left", "right", "value")
 
-
-def pairs(n=3, seed=0):
-    """``n`` photos of coloured blocks with their full label masks."""
-    rng = np.random.default_rng(seed)
-    colours = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.float64)
-    out = []
-    for _ in range(n):
-        classes = np.kron(rng.integers(0, 3, (6, 7)), np.ones((16, 16), int))
-        photo = np.clip(colours[classes] + rng.normal(0, 12, classes.shape + (3,)), 0, 255)
-        out.append((photo.astype(np.uint8), (classes + 1).astype(np.uint8)))
-    return out
 
 
 def assert_same_model(a, b, target):
@@ -195,24 +186,27 @@ def test_a_model_no_file_can_hold_is_kept_in_memory_only(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0,
-                    reason="root writes into read-only folders")
-def test_an_unwritable_folder_is_one_clear_error(tmp_path):
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    folder.chmod(0o500)
+@pytest.mark.parametrize("folder", ["unwritable", "under_a_file"])
+@pytest.mark.parametrize(("cache", "what"), [("cache", "training samples"),
+                                             ("model_cache", "trained models")])
+def test_a_folder_that_cannot_be_written_is_one_clear_error(tmp_path, folder, cache, what):
+    if folder == "unwritable":
+        if hasattr(os, "geteuid") and os.geteuid() == 0:
+            pytest.skip("root writes into read-only folders")
+        path = tmp_path / "ro"
+        path.mkdir()
+        path.chmod(0o500)
+    else:
+        (tmp_path / "file").write_bytes(b"x")
+        path = tmp_path / "file" / "cache"
+    made = SampleCache(path) if cache == "cache" else ModelCache(path)
     try:
-        with pytest.raises(TerrathemeError, match="cannot keep trained models there"):
-            train_classifier(pairs(1), OPTS, model_cache=ModelCache(folder))
+        with pytest.raises(TerrathemeError, match=f"{re.escape(str(path))}: cannot keep {what} "
+                                                  f"there"):
+            train_classifier(pairs(1), OPTS, **{cache: made})
     finally:
-        folder.chmod(0o700)
-
-
-def test_a_folder_that_is_a_file_is_one_clear_error(tmp_path):
-    blocker = tmp_path / "file"
-    blocker.write_bytes(b"x")
-    with pytest.raises(TerrathemeError, match="cannot keep trained models there"):
-        train_classifier(pairs(1), OPTS, model_cache=ModelCache(blocker / "cache"))
+        if folder == "unwritable":
+            path.chmod(0o700)
 
 
 def test_the_memory_keeps_the_most_recent_entries():

@@ -16,6 +16,7 @@ import io
 import os
 import zipfile
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,18 @@ class KeyedStore:
         self._memory.move_to_end(key)
         while len(self._memory) > self.memory_entries:
             self._memory.popitem(last=False)
+
+    def lookup(self, key: str, names: tuple[str, ...],
+               parse: Callable[[dict[str, np.ndarray]], object | None]) -> object | None:
+        """The value of ``key``: from memory, else ``parse`` of its file's arrays ``names``
+        (then kept in memory); None when neither has it (or ``parse`` refuses the file's)."""
+        found = self.recall(key)
+        if found is None:
+            arrays = self.read_arrays(key, names)
+            found = None if arrays is None else parse(arrays)
+            if found is not None:
+                self.remember(key, found)
+        return found
 
     def path(self, key: str) -> Path | None:
         """The file of ``key`` (None without a folder)."""

@@ -117,11 +117,8 @@ class ModelCache:
         fit : callable
             ``() -> ModelParts``.
         """
-        found = self._store.recall(key)
-        if found is None:
-            found = self._read(key, options)
-            if found is not None:
-                self._store.remember(key, found)
+        found = self._store.lookup(key, ("model",),
+                                   lambda arrays: self._parse(arrays, key, options))
         if found is not None:
             self.hits += 1
             return found
@@ -138,9 +135,10 @@ class ModelCache:
             self._store.write_arrays(key, {"model": np.frombuffer(data, np.uint8)})
         return parts
 
-    def _read(self, key: str, options: SupervisedOptions) -> ModelParts | None:
-        arrays = self._store.read_arrays(key, ("model",))
-        if arrays is None or arrays["model"].dtype != np.uint8 or arrays["model"].ndim != 1:
+    def _parse(self, arrays: dict[str, np.ndarray], key: str,
+               options: SupervisedOptions) -> ModelParts | None:
+        """The model of an entry's arrays, if they hold a model file of ``options``."""
+        if arrays["model"].dtype != np.uint8 or arrays["model"].ndim != 1:
             return None
         try:
             parts = read_model_bytes(arrays["model"].tobytes(), str(self._store.path(key)))

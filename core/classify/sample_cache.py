@@ -104,11 +104,8 @@ class SampleCache:
         compute : callable
             ``() -> (features (n, F) float32, labels (n,) uint8)``.
         """
-        found = self._store.recall(key)
-        if found is None:
-            found = self._read(key, n_features)
-            if found is not None:
-                self._store.remember(key, found)
+        found = self._store.lookup(key, ("features", "labels"),
+                                   lambda arrays: _samples(arrays, n_features))
         if found is not None:
             self.hits += 1
             return found
@@ -120,13 +117,11 @@ class SampleCache:
         self._store.write_arrays(key, {"features": x, "labels": y})
         return x, y
 
-    def _read(self, key: str, n_features: int) -> Samples | None:
-        arrays = self._store.read_arrays(key, ("features", "labels"))
-        if arrays is None:
-            return None
-        x, y = arrays["features"], arrays["labels"]
-        # Only samples with the shapes and types the key implies.
-        if (x.dtype != np.float32 or y.dtype != np.uint8 or x.ndim != 2
-                or x.shape[1] != n_features or y.shape != (x.shape[0],)):
-            return None
-        return x, y
+
+def _samples(arrays: dict[str, np.ndarray], n_features: int) -> Samples | None:
+    """The samples of an entry's arrays, if they have the shapes and types of samples."""
+    x, y = arrays["features"], arrays["labels"]
+    if (x.dtype != np.float32 or y.dtype != np.uint8 or x.ndim != 2
+            or x.shape[1] != n_features or y.shape != (x.shape[0],)):
+        return None
+    return x, y
