@@ -33,9 +33,8 @@ across tiles (the deep trees trained on whole masks).
 Across photos (label masks of a few other photos, the issue-17 protocol of
 bench_classify.py part ``one_per_tile``), a model adapts to each photo it
 classifies by default (:mod:`core.classify.adapt`, ``SupervisedOptions.adapt``),
-and training samples and fitted models can be kept by content between runs
-(:class:`core.classify.sample_cache.SampleCache`,
-:class:`core.classify.model_cache.ModelCache`).
+and training samples and fitted models can be kept by content between runs (the
+caches of :mod:`core.classify.sample_cache` and :mod:`core.classify.model_cache`).
 
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
@@ -348,9 +347,8 @@ def train_classifier(
     cache : SampleCache, optional
         Keeps the pairs' training samples by content (the model is the same).
     model_cache : ModelCache, optional
-        Keeps the fitted model by content (:func:`core.classify.model_cache.model_key`):
-        a training seen before costs the pairs' keys only, and gives the same
-        model. Extra-Trees only (``options.forest``); ignored otherwise.
+        Keeps the fitted model by content (:mod:`core.classify.model_cache`): a training
+        seen before gives the same model for the pairs' keys only. Extra-Trees only.
 
     Returns
     -------
@@ -368,10 +366,10 @@ def train_classifier(
     # Adapt to each photo when trained on a few other photos (scribbles lie on the photo).
     opts = opts.resolved(len(pairs_or_scribbles), scribbles)
     classes, grow = _training_plan(pairs_or_scribbles, opts)
+    keys = (None if cache is None and model_cache is None
+            else _sample_keys(pairs_or_scribbles, classes, grow, opts))
     if model_cache is None or opts.forest is not ForestKind.EXTRA_TREES:
-        keys = None if cache is None else _sample_keys(pairs_or_scribbles, classes, grow, opts)
         return _fit(pairs_or_scribbles, opts, classes, grow, cache, keys, class_weights)
-    keys = _sample_keys(pairs_or_scribbles, classes, grow, opts)
     parts = model_cache.model(
         model_key(keys, classes, opts, class_weights), opts,
         lambda: _fit(pairs_or_scribbles, opts, classes, grow, cache, keys,
