@@ -20,8 +20,9 @@ Writes ``benchmarks/results/classify.json`` and ``classify.png``.
 (d) one_per_tile: issue 17's protocol, train on one photo of each other tile, score
     every photo of the held-out tile; the robustness pieces one by one; see
     classify_one_per_tile.py.
-(e) train_cost: train on six photos + classify a seventh (1.5 Mpx), without and with
-    the sample cache, against classifying it twice; see classify_train_cost.py.
+(e) train_cost: train on six photos + classify a seventh (1.5 Mpx), without a cache,
+    with the sample cache, with the sample and model caches, against classifying it
+    alone (paired rounds, wall and CPU); see classify_train_cost.py.
 (f) aerial: the shipped model (models/aerial) on LoveDA, Potsdam and DeepGlobe; see
     classify_aerial.py.
 

@@ -2,28 +2,15 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from classify_cases import block_pairs as pairs
 
 from core.classify import SupervisedOptions, train_classifier
 from core.classify.sample_cache import SampleCache, sample_key
 from core.classify.supervised import collect_samples
-from core.errors import TerrathemeError
-
-
-def pairs(n=3, seed=0):
-    """``n`` photos of coloured blocks with their full label masks."""
-    rng = np.random.default_rng(seed)
-    colours = np.array([(40, 110, 40), (60, 80, 170), (200, 185, 150)], np.float64)
-    out = []
-    for _ in range(n):
-        classes = np.kron(rng.integers(0, 3, (6, 7)), np.ones((16, 16), int))
-        photo = np.clip(colours[classes] + rng.normal(0, 6, classes.shape + (3,)), 0, 255)
-        out.append((photo.astype(np.uint8), (classes + 1).astype(np.uint8)))
-    return out
 
 
 def test_cached_samples_are_identical_to_computed_ones(tmp_path):
@@ -108,23 +95,3 @@ def test_a_damaged_entry_is_computed_again(tmp_path, damage):
     again = SampleCache(tmp_path)
     collect_samples(data, opts, again)
     assert again.hits == 1
-
-
-@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0,
-                    reason="root writes into read-only folders")
-def test_an_unwritable_folder_is_one_clear_error(tmp_path):
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    folder.chmod(0o500)
-    try:
-        with pytest.raises(TerrathemeError, match="cannot keep training samples there"):
-            collect_samples(pairs(1), SupervisedOptions(), SampleCache(folder))
-    finally:
-        folder.chmod(0o700)
-
-
-def test_a_folder_that_is_a_file_is_one_clear_error(tmp_path):
-    blocker = tmp_path / "file"
-    blocker.write_bytes(b"x")
-    with pytest.raises(TerrathemeError, match="cannot keep training samples there"):
-        collect_samples(pairs(1), SupervisedOptions(), SampleCache(blocker / "cache"))

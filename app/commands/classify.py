@@ -8,6 +8,8 @@ the job (see :mod:`core.classify`).
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import Path
 
 from app.arg_types import add_legend_option
 
@@ -56,6 +58,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model-out", metavar="M", help="save the trained classifier")
     parser.add_argument("--model", metavar="M",
                         help="classify with a saved classifier or a shipped one by name (aerial)")
+    parser.add_argument("--cache-dir", type=Path, default=None, metavar="DIR",
+                        help="keep the training pairs' samples and the fitted model in DIR, by "
+                             "content: training again on the same pairs and options (another "
+                             "photo to classify) skips their features and the fit")
 
 
 def _read_mask(path: str):
@@ -94,6 +100,24 @@ def label_palette():
     return np.array(colours[:256], np.uint8)
 
 
+def _training_caches(folder: Path | None):
+    """(SampleCache, ModelCache) in ``folder``, checked before any work; (None, None)
+    without one."""
+    from core.classify import ModelCache, SampleCache
+    from core.errors import TerrathemeError
+
+    if folder is None:
+        return None, None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        why = None if os.access(folder, os.W_OK | os.X_OK) else "not writable"
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    if why is not None:
+        raise TerrathemeError(f"--cache-dir {folder}: cannot use the folder ({why})")
+    return SampleCache(folder), ModelCache(folder)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     import numpy as np
@@ -122,6 +146,9 @@ def run(args: argparse.Namespace) -> int:
                               "another photo says nothing about this one")
     if args.model_out and not supervised:
         raise TerrathemeError("--model-out needs training data (--scribbles or --train)")
+    if args.cache_dir is not None and not supervised:
+        raise TerrathemeError("--cache-dir keeps training samples and models: it needs "
+                              "--scribbles or --train")
     if args.legend and not (supervised or args.model):
         raise TerrathemeError("--legend names the classes of --scribbles, --train or --model")
     # Every output path is checked before any work (and before the labels are written).
@@ -129,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
     legend = read_legend(args.legend) if args.legend else {}
+    samples, models = _training_caches(args.cache_dir)
 
     photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.
@@ -141,7 +169,10 @@ def run(args: argparse.Namespace) -> int:
         for train_photo, train_mask in args.train:
             pairs.append((read_image(train_photo, bands=Bands.PHOTO), _read_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
-        model = train_classifier(pairs, options.with_positions(args.position))
+        model = train_classifier(pairs, options.with_positions(args.position), cache=samples,
+                                 model_cache=models)
+        if models is not None and models.hits:
+            print(f"model from the cache {args.cache_dir}")
     else:
         model = None
     if model is not None and legend:

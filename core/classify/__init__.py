@@ -11,7 +11,8 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
   float32 in [0, 1];
 * :class:`SampleCache` -- training samples kept by content between trainings
-  (``train_classifier(..., cache=...)``);
+  (``train_classifier(..., cache=...)``), :class:`ModelCache` -- fitted models
+  so (``model_cache=...``);
 * :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
   classifier file or a shipped model by name (``aerial``), with class names.
 
@@ -21,7 +22,8 @@ photo), ``texture`` (edge density and structure-tensor coherence), ``position``
 overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,
 ``forest`` and ``extra_trees`` (the tree ensembles), ``samples`` (training
-samples from masks and scribbles), ``sample_cache``, ``prior`` (class-prior
+samples from masks and scribbles), ``sample_cache``, ``model_cache`` and
+``keyed_store`` (their storage), ``prior`` (class-prior
 correction and EM shares), ``adapt`` (test-time adaptation), ``model_file`` (the
 file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
 name).
@@ -29,6 +31,7 @@ name).
 
 from core.classify.features import FeatureOptions, FeatureSet, Normalise
 from core.classify.forest import ForestKind
+from core.classify.model_cache import ModelCache
 from core.classify.regularise import Regularisation, RegulariseOptions
 from core.classify.result import Classification
 from core.classify.sample_cache import SampleCache
@@ -48,6 +51,7 @@ __all__ = [
     "FeatureOptions",
     "FeatureSet",
     "ForestKind",
+    "ModelCache",
     "Normalise",
     "Regularisation",
     "RegulariseOptions",

@@ -80,6 +80,17 @@ def write_model(path: str | os.PathLike, model: ModelParts) -> None:
     TerrathemeError
         Options or class weights :func:`read_model` would refuse (nothing is written).
     """
+    write_bytes_atomic(path, model_bytes(model))
+
+
+def model_bytes(model: ModelParts) -> bytes:
+    """The bytes of the model file of ``model`` (what :func:`write_model` writes).
+
+    Raises
+    ------
+    TerrathemeError
+        Options or class weights :func:`read_model` would refuse.
+    """
     options = options_to_json(model.options)
     try:
         options_from_json(json.loads(json.dumps(options)))
@@ -105,7 +116,7 @@ def write_model(path: str | os.PathLike, model: ModelParts) -> None:
             fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
             model.forest.write(fs)
             zf.writestr(FOREST_YML, fs.releaseAndGetString())
-    write_bytes_atomic(path, buf.getvalue())
+    return buf.getvalue()
 
 
 def _class_weights(weights: object, classes: list) -> list[float] | None:
@@ -280,25 +291,39 @@ def read_model(path: str | os.PathLike) -> ModelParts:
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such model file")
-    label = str(p)
-    with open_archive(p, label, kind="terratheme classifier file",
+    return read_model_bytes(p, str(p))
+
+
+def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelParts:
+    """Read a model file's bytes (or the file at a path), checked as :func:`read_model` does.
+
+    ``label`` names the source in messages.
+
+    Raises
+    ------
+    CorruptFileError
+        Not a classifier file, or damaged (see :func:`read_model`).
+    UnsupportedVersionError
+        Written by a newer version.
+    """
+    with open_archive(source, label, kind="terratheme classifier file",
                       max_members=MAX_MEMBERS) as zf:
         names = zf.namelist()
         if META not in names:
-            raise CorruptFileError(f"{p}: not a terratheme classifier file (no {META})")
+            raise CorruptFileError(f"{label}: not a terratheme classifier file (no {META})")
         meta = read_json_member(zf, META, label, max_bytes=MAX_META_BYTES)
         forest_npz = (read_member(zf, FOREST_NPZ, label, max_bytes=MAX_FOREST_BYTES)
                       if FOREST_NPZ in names else None)
         forest_yml = (read_member(zf, FOREST_YML, label, max_bytes=MAX_FOREST_BYTES)
                       if FOREST_YML in names else None)
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise CorruptFileError(f"{p}: not a terratheme classifier file")
+        raise CorruptFileError(f"{label}: not a terratheme classifier file")
     version = meta.get("version")
     if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-        raise CorruptFileError(f"{p}: bad classifier file version {repr(version)[:20]}")
+        raise CorruptFileError(f"{label}: bad classifier file version {repr(version)[:20]}")
     if version > VERSION:
         raise UnsupportedVersionError(
-            f"{p}: classifier file version {version} is newer than this "
+            f"{label}: classifier file version {version} is newer than this "
             f"terratheme reads ({VERSION})"
         )
     try:
@@ -307,20 +332,20 @@ def read_model(path: str | os.PathLike) -> ModelParts:
         weights = _class_weights(meta.get("class_weights"), classes)
         names = _class_names(meta.get("class_names"), classes, "class names")
     except (ValueError, TerrathemeError) as exc:
-        raise CorruptFileError(f"{p}: damaged classifier metadata ({exc})") from None
+        raise CorruptFileError(f"{label}: damaged classifier metadata ({exc})") from None
     n_features = options.features.n_features
     forest: object = None
     if forest_npz is not None:
         forest = _read_extra_trees(forest_npz, label, n_features)
         if [int(c) for c in forest.classes] != sorted(classes):
-            raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
+            raise CorruptFileError(f"{label}: classes {classes} do not match the stored forest")
     elif forest_yml is not None:
         try:
             text = forest_yml.decode("utf-8")
         except UnicodeDecodeError:
-            raise CorruptFileError(f"{p}: damaged forest (not UTF-8 text)") from None
+            raise CorruptFileError(f"{label}: damaged forest (not UTF-8 text)") from None
         forest = _read_opencv_forest(text, label, n_features, classes)
     if (forest is None) != (len(classes) == 1):
-        raise CorruptFileError(f"{p}: classes {classes} do not match the stored forest")
+        raise CorruptFileError(f"{label}: classes {classes} do not match the stored forest")
     return ModelParts(forest, tuple(classes), options,
                       None if weights is None else tuple(weights), names)

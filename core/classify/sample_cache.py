@@ -19,20 +19,15 @@ computed again and the file replaced.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
-import zipfile
-from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 
 from core.classify.features import FeatureOptions
-from core.errors import TerrathemeError
-from core.io.atomic import write_bytes_atomic
+from core.classify.keyed_store import KeyedStore
 
 #: entries kept in memory (least recently used dropped first)
 MEMORY_ENTRIES = 64
@@ -91,8 +86,8 @@ class SampleCache:
     """
 
     def __init__(self, directory: str | os.PathLike | None = None) -> None:
-        self.directory = None if directory is None else Path(directory)
-        self._memory: OrderedDict[str, Samples] = OrderedDict()
+        self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples")
+        self.directory = self._store.directory
         #: lookups answered from the cache / computed, since creation
         self.hits = 0
         self.misses = 0
@@ -109,13 +104,8 @@ class SampleCache:
         compute : callable
             ``() -> (features (n, F) float32, labels (n,) uint8)``.
         """
-        found = self._memory.get(key)
-        if found is None:
-            found = self._read(key, n_features)
-            if found is not None:
-                self._remember(key, found)
-        else:
-            self._memory.move_to_end(key)
+        found = self._store.lookup(key, ("features", "labels"),
+                                   lambda arrays: _samples(arrays, n_features))
         if found is not None:
             self.hits += 1
             return found
@@ -123,44 +113,15 @@ class SampleCache:
         x, y = compute()
         x = np.ascontiguousarray(x, np.float32)
         y = np.ascontiguousarray(y, np.uint8)
-        self._remember(key, (x, y))
-        self._write(key, x, y)
+        self._store.remember(key, (x, y))
+        self._store.write_arrays(key, {"features": x, "labels": y})
         return x, y
 
-    def _remember(self, key: str, samples: Samples) -> None:
-        self._memory[key] = samples
-        self._memory.move_to_end(key)
-        while len(self._memory) > MEMORY_ENTRIES:
-            self._memory.popitem(last=False)
 
-    def _path(self, key: str) -> Path | None:
-        return None if self.directory is None else self.directory / f"{key}.npz"
-
-    def _read(self, key: str, n_features: int) -> Samples | None:
-        path = self._path(key)
-        if path is None or not path.is_file():
-            return None
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                stored_key = bytes(npz["key"]).decode("ascii")
-                x, y = npz["features"], npz["labels"]
-        except (OSError, ValueError, KeyError, UnicodeDecodeError, zipfile.BadZipFile, EOFError):
-            return None
-        # Only samples of this very key, with the shapes and types it implies.
-        if (stored_key != key or x.dtype != np.float32 or y.dtype != np.uint8 or x.ndim != 2
-                or x.shape[1] != n_features or y.shape != (x.shape[0],)):
-            return None
-        return x, y
-
-    def _write(self, key: str, x: np.ndarray, y: np.ndarray) -> None:
-        path = self._path(key)
-        if path is None:
-            return
-        buf = io.BytesIO()
-        np.savez(buf, key=np.frombuffer(key.encode("ascii"), np.uint8), features=x, labels=y)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_bytes_atomic(path, buf.getvalue())
-        except OSError as exc:
-            raise TerrathemeError(f"{path.parent}: cannot keep training samples there "
-                                  f"({exc.strerror or exc})") from None
+def _samples(arrays: dict[str, np.ndarray], n_features: int) -> Samples | None:
+    """The samples of an entry's arrays, if they have the shapes and types of samples."""
+    x, y = arrays["features"], arrays["labels"]
+    if (x.dtype != np.float32 or y.dtype != np.uint8 or x.ndim != 2
+            or x.shape[1] != n_features or y.shape != (x.shape[0],)):
+        return None
+    return x, y

@@ -33,8 +33,8 @@ across tiles (the deep trees trained on whole masks).
 Across photos (label masks of a few other photos, the issue-17 protocol of
 bench_classify.py part ``one_per_tile``), a model adapts to each photo it
 classifies by default (:mod:`core.classify.adapt`, ``SupervisedOptions.adapt``),
-and training samples can be kept by content between runs
-(:class:`core.classify.sample_cache.SampleCache`).
+and training samples and fitted models can be kept by content between runs (the
+caches of :mod:`core.classify.sample_cache` and :mod:`core.classify.model_cache`).
 
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
@@ -49,7 +49,8 @@ import numpy as np
 
 from core.classify.adapt import predict_adapted
 from core.classify.features import FeatureOptions, Normalise, photo_statistics
-from core.classify.forest import Forest, build_forest, forest_scores
+from core.classify.forest import Forest, ForestKind, build_forest, forest_scores
+from core.classify.model_cache import ModelCache, model_key
 from core.classify.model_file import ModelParts, read_model, write_model
 from core.classify.photo import prepare_photo
 from core.classify.prior import (
@@ -120,6 +121,28 @@ def _mask_classes(pairs, ignore) -> list[int]:
     return sorted(found - {0} - set(ignore))
 
 
+def _training_plan(pairs, options) -> tuple[list[int], float]:
+    """Check the pairs -> (the classes to sample, the label growing threshold)."""
+    if len(pairs) == 0:
+        raise TerrathemeError("no training data: give at least one photo with a label mask")
+    for i, (photo, mask) in enumerate(pairs):
+        check_class_image(mask, f"label mask {i}", np.asarray(photo).shape[:2])
+    classes = _mask_classes(pairs, options.ignore_classes)
+    if not classes:
+        raise TerrathemeError(
+            "the label masks name no class (all pixels 0 or ignored): paint at least one class"
+        )
+    grow = options.grow_colour
+    if grow is None:
+        grow = GROW_COLOUR if looks_like_scribbles(pairs, options.ignore_classes) else 0.0
+    return classes, grow
+
+
+def _sample_keys(pairs, classes, grow, options) -> list[str]:
+    return [sample_key(photo, mask, classes, options.features, options.tile, grow)
+            for photo, mask in pairs]
+
+
 def collect_samples(
     pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions,
     cache: SampleCache | None = None,
@@ -134,28 +157,22 @@ def collect_samples(
     features : (n, F) float32 ndarray
     labels : (n,) int32 ndarray of class values
     """
-    if len(pairs) == 0:
-        raise TerrathemeError("no training data: give at least one photo with a label mask")
-    for i, (photo, mask) in enumerate(pairs):
-        check_class_image(mask, f"label mask {i}", np.asarray(photo).shape[:2])
-    classes = _mask_classes(pairs, options.ignore_classes)
-    if not classes:
-        raise TerrathemeError(
-            "the label masks name no class (all pixels 0 or ignored): paint at least one class"
-        )
+    classes, grow = _training_plan(pairs, options)
+    keys = None if cache is None else _sample_keys(pairs, classes, grow, options)
+    return _capped_samples(pairs, options, classes, grow, cache, keys)
+
+
+def _capped_samples(pairs, options, classes, grow, cache, keys):
+    """:func:`collect_samples` once planned (``keys``: the pairs' sample keys, with ``cache``)."""
     rng = np.random.default_rng(options.seed)
     cap = options.samples_per_class(len(pairs))
     per_class: dict[int, list[np.ndarray]] = {k: [] for k in classes}
-    grow = options.grow_colour
-    if grow is None:
-        grow = GROW_COLOUR if looks_like_scribbles(pairs, options.ignore_classes) else 0.0
     for i, (photo, mask) in enumerate(pairs):
         if cache is None:
             feats, labels = _pair_samples(photo, mask, i, classes, options, grow)
         else:
-            key = sample_key(photo, mask, classes, options.features, options.tile, grow)
             feats, labels = cache.samples(
-                key, options.features.n_features,
+                keys[i], options.features.n_features,
                 lambda photo=photo, mask=mask, i=i: _pair_samples(photo, mask, i, classes,
                                                                   options, grow))
         for k in classes:
@@ -279,10 +296,14 @@ class Classifier:
             return probs / np.maximum(probs.sum(2, keepdims=True), 1e-12)
         return probabilities
 
+    def parts(self) -> ModelParts:
+        """What a model file of this model holds (:mod:`core.classify.model_file`)."""
+        return ModelParts(self.forest, tuple(self.classes), self.options, self.class_weights,
+                          self.class_names)
+
     def save(self, path: str | os.PathLike) -> None:
         """Write the model to a file (atomic); see :mod:`core.classify.model_file`."""
-        write_model(path, ModelParts(self.forest, tuple(self.classes), self.options,
-                                     self.class_weights, self.class_names))
+        write_model(path, self.parts())
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Classifier:
@@ -307,6 +328,7 @@ def train_classifier(
     *,
     class_weights: Mapping[int, float] | None = None,
     cache: SampleCache | None = None,
+    model_cache: ModelCache | None = None,
 ) -> Classifier:
     """Train a classifier from scribbles or full label masks.
 
@@ -324,6 +346,9 @@ def train_classifier(
         and the forest has two classes or more; otherwise estimated as usual.
     cache : SampleCache, optional
         Keeps the pairs' training samples by content (the model is the same).
+    model_cache : ModelCache, optional
+        Keeps the fitted model by content (:mod:`core.classify.model_cache`): a training
+        seen before gives the same model for the pairs' keys only. Extra-Trees only.
 
     Returns
     -------
@@ -340,7 +365,21 @@ def train_classifier(
     scribbles = looks_like_scribbles(pairs_or_scribbles, opts.ignore_classes)
     # Adapt to each photo when trained on a few other photos (scribbles lie on the photo).
     opts = opts.resolved(len(pairs_or_scribbles), scribbles)
-    x, y = collect_samples(pairs_or_scribbles, opts, cache)
+    classes, grow = _training_plan(pairs_or_scribbles, opts)
+    keys = (None if cache is None and model_cache is None
+            else _sample_keys(pairs_or_scribbles, classes, grow, opts))
+    if model_cache is None or opts.forest is not ForestKind.EXTRA_TREES:
+        return _fit(pairs_or_scribbles, opts, classes, grow, cache, keys, class_weights)
+    parts = model_cache.model(
+        model_key(keys, classes, opts, class_weights), opts,
+        lambda: _fit(pairs_or_scribbles, opts, classes, grow, cache, keys,
+                     class_weights).parts())
+    return Classifier(parts.forest, parts.classes, parts.options, parts.class_weights)
+
+
+def _fit(pairs, opts, classes, grow, cache, keys, class_weights) -> Classifier:
+    """:func:`train_classifier` once planned: samples, forest, prior weights."""
+    x, y = _capped_samples(pairs, opts, classes, grow, cache, keys)
     classes, counts = np.unique(y, return_counts=True)
     forest = build_forest(x, y, opts) if len(classes) > 1 else None
     model = Classifier(forest, classes, opts)
@@ -349,14 +388,13 @@ def train_classifier(
     if forest is not None and kept is not None:
         model.class_weights = kept
         return model
-    power = prior_power_for(pairs_or_scribbles, opts.prior_power, opts.ignore_classes)
+    power = prior_power_for(pairs, opts.prior_power, opts.ignore_classes)
     if forest is not None and power > 0:
         # Class shares of the scribbled photo from the forest's votes on it, as weights.
-        rgb, valid = prepare_photo(pairs_or_scribbles[0][0])
+        rgb, valid = prepare_photo(pairs[0][0])
         probs = photo_probabilities(rgb, valid, model.probabilities, opts.features, opts.tile,
                                     _stats(rgb, valid, opts.features))
         train = np.full(len(classes), 1.0 / len(classes)) if opts.balance else counts / len(y)
         weights = prior_weights(predicted_shares(probs), train, power)
         model.class_weights = tuple(float(v) for v in weights)
     return model
-

@@ -1,0 +1,73 @@
+"""``terratheme classify --cache-dir``: a second training on the same pairs is the cached model."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from core.errors import TerrathemeError
+from core.io.images import read_labels, write_image
+
+
+@pytest.fixture()
+def files(tmp_path):
+    rng = np.random.default_rng(0)
+    truth = np.kron(rng.integers(0, 2, (4, 6)), np.ones((16, 16), np.uint8)) * 5 + 2
+    colours = np.array([[0, 0, 0]] * 2 + [[40, 120, 40]] + [[0, 0, 0]] * 4 + [[190, 170, 140]])
+    photo = np.clip(colours[truth] + rng.normal(0, 10, truth.shape + (3,)), 0, 255)
+    write_image(tmp_path / "photo.png", photo.astype(np.uint8))
+    write_image(tmp_path / "truth.png", truth.astype(np.uint8))
+    return tmp_path, truth
+
+
+def _classify(d, out, *extra):
+    return main(["classify", str(d / "photo.png"), "-o", str(d / out),
+                 "--train", str(d / "photo.png"), str(d / "truth.png"), *extra])
+
+
+def test_the_second_run_takes_the_model_from_the_cache(files, capsys):
+    d, truth = files
+    cache = d / "cache"
+    assert _classify(d, "plain.png") == 0
+    assert _classify(d, "first.png", "--cache-dir", str(cache)) == 0
+    assert "model from the cache" not in capsys.readouterr().out
+    assert len(list(cache.glob("*.model.npz"))) == 1
+    assert len(list(cache.glob("*.npz"))) == 2            # and the pair's samples
+    assert _classify(d, "second.png", "--cache-dir", str(cache), "--legend",
+                     str(_legend(d))) == 0
+    out = capsys.readouterr().out
+    assert f"model from the cache {cache}" in out and "2 grass" in out
+    first, second = read_labels(d / "first.png"), read_labels(d / "second.png")
+    np.testing.assert_array_equal(second, first)
+    assert (first == truth).mean() > 0.95
+    assert (read_labels(d / "plain.png") == first).mean() > 0.999
+
+
+def _legend(d):
+    (d / "legend.json").write_text('{"2": "grass", "7": "sand"}')
+    return d / "legend.json"
+
+
+@pytest.mark.parametrize(("extra", "match"), [
+    (["--train", "{d}/photo.png", "{d}/truth.png", "--cache-dir", "{d}/blocker/cache"],
+     "--cache-dir {d}/blocker/cache: cannot use the folder"),
+    (["--cache-dir", "{d}/cache"], "--cache-dir keeps training samples and models: it needs "
+                                   "--scribbles or --train"),
+])
+def test_a_bad_cache_folder_is_one_line_before_any_work(files, capsys, extra, match):
+    d, _ = files
+    (d / "blocker").write_bytes(b"x")
+    args = ["classify", str(d / "photo.png"), "-o", str(d / "l.png"),
+            *(a.format(d=d) for a in extra)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match.format(d=d) in err[0]
+    assert not (d / "l.png").exists() and not (d / "cache").exists()
+    from app.cli import build_parser
+    from app.commands import classify
+
+    with pytest.raises(TerrathemeError, match=re.escape(match.format(d=d))):
+        classify.run(build_parser().parse_args(args))
