@@ -309,9 +309,11 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
 
 
 #: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
-#: bucket: the sweeps need no sort while the runs stay in a core's L2 cache (1 MiB
-#: here); measured crossover between 0.9 MB (ESA: sweeps faster) and 4.3 MB (DRCOG).
-SWEEP_BYTES = 1 << 21
+#: bucket: the sweeps need no sort while the runs stay in the shared cache (32 MiB of L3
+#: here). Measured in CPU time, 10^6 random texels on one thread at load 2.5: sweeps
+#: 10.7 / 5.3 / 5.7 ns against buckets 15.7 / 7.9 / 8.8 on DRCOG (4.3 MB table) /
+#: Chesapeake / ESA (an earlier run at load 4.7, in wall time, had DRCOG the other way).
+SWEEP_BYTES = 1 << 23
 STRATEGIES = ("sweep", "buckets")
 
 
