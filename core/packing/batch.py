@@ -33,6 +33,9 @@ those of the scalar lookup, bit for bit, whichever strategy runs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
 import numba
 import numpy as np
 
@@ -273,39 +276,61 @@ def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     return _batch(xs, ys, data, True, tiles, rows, out)
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def _parts(xs, ys, data, sweep, tiled, tiles, rows, out, parts):  # pragma: no cover - numba
-    # The batch in ``parts`` equal slices on threads, each slice one kernel's (no barrier
-    # between the passes: a thread the system holds back delays only its own slice).
-    # Returns the first bad texel of the first slice holding one, or -1.
-    share = -(-xs.size // parts)
-    bad = np.full(parts, -1, np.int64)
-    for p in numba.prange(parts):
-        a = min(xs.size, p * share)
-        b = min(xs.size, a + share)
-        x, y, o = xs[a:b], ys[a:b], out[a:b]
-        if sweep:
-            k = sweep_tiled(x, y, data, tiles, rows, o) if tiled else sweep_layer(x, y, data, o)
-        else:
-            k = tiled_batch(x, y, data, tiles, rows, o) if tiled else layer_batch(x, y, data, o)
-        bad[p] = k if k < 0 else a + k
-    for p in range(parts):
-        if bad[p] >= 0:
-            return bad[p]
+def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, tables: tuple,
+               out: np.ndarray, parts: int) -> int:
+    """``kernel(xs, ys, *tables, out)`` over ``parts`` equal slices of a batch on threads.
+
+    The kernels release the GIL (``nogil``); the first slice runs on the calling
+    thread, the others on a shared pool of Python threads. Each slice is one
+    kernel's from start to end (no barrier between its passes, so a thread the
+    system holds back delays only its own slice). Python threads rather than a
+    numba ``prange``: OpenMP's workers spin while they wait, which on a busy
+    machine took CPU from the slice still working (10^6 texels on 2 threads,
+    load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
+    one thread 6.7 ns).
+
+    Returns
+    -------
+    bad : int
+        Position of the first coordinate outside the layer in the first slice
+        holding one, or -1.
+    """
+    if xs.size == 0:
+        return -1
+    share = -(-xs.size // max(1, parts))
+    starts = range(0, xs.size, share)
+    pool = _pool(len(starts) - 1)
+    later = [pool.submit(kernel, xs[a: a + share], ys[a: a + share], *tables,
+                         out[a: a + share]) for a in starts[1:]]
+    bads = [int(kernel(xs[:share], ys[:share], *tables, out[:share]))]
+    bads += [int(f.result()) for f in later]
+    for a, k in zip(starts, bads, strict=True):
+        if k >= 0:
+            return a + k
     return -1
+
+
+#: The lookup threads: (their number, the pool), made on first use, remade larger on demand.
+_POOL: list[tuple[int, ThreadPoolExecutor]] = []
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    threads = max(1, threads)
+    if not _POOL or _POOL[0][0] < threads:
+        _POOL[:] = [(threads, ThreadPoolExecutor(threads, thread_name_prefix="tt-lookup"))]
+    return _POOL[0][1]
 
 
 def layer_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
                          parts: int) -> int:
     """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    return int(_parts(xs, ys, data, False, False, np.zeros(TILE_WORDS, np.int64),
-                      np.zeros(TILE_COLUMNS, np.int64), out, parts))
+    return on_threads(layer_batch, xs, ys, (data,), out, parts)
 
 
 def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles: np.ndarray,
                          rows: np.ndarray, out: np.ndarray, parts: int) -> int:
     """:func:`tiled_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    return int(_parts(xs, ys, data, False, True, tiles, rows, out, parts))
+    return on_threads(tiled_batch, xs, ys, (data, tiles, rows), out, parts)
 
 
 #: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
@@ -352,12 +377,10 @@ def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarr
     if strategy == "sweep":
         if threads > 1:
             # One slice per thread, each swept in stretches with one scratch allocation
-            # (numba's prange shares iterations out statically, so more slices than threads
-            # only allocate more scratch: 62 slices of a 10^6 batch were 1.1x slower).
+            # (62 slices of a 10^6 batch, one per stretch, were 1.1x slower).
             parts = min(threads, max(1, -(-xs.size // STRETCH)))
-            tiles0 = np.zeros(TILE_WORDS, np.int64) if tiles is None else tiles
-            rows0 = np.zeros(TILE_COLUMNS, np.int64) if rows is None else rows
-            return int(_parts(xs, ys, data, True, tiles is not None, tiles0, rows0, out, parts))
+            return (on_threads(sweep_layer, xs, ys, (data,), out, parts) if tiles is None
+                    else on_threads(sweep_tiled, xs, ys, (data, tiles, rows), out, parts))
         return int(sweep_layer(xs, ys, data, out) if tiles is None
                    else sweep_tiled(xs, ys, data, tiles, rows, out))
     if threads > 1:
