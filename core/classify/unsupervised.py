@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from core.classify.bands import BandOptions, lies_between
 from core.classify.features import FeatureOptions, FeatureSet
 from core.classify.mixture import fit_diagonal_mixture, isotropic_variances
 from core.classify.regularise import RegulariseOptions
@@ -60,6 +61,9 @@ class UnsupervisedOptions:
         pixel). Larger scales blur class borders into bands that k-means
         would take for themes.
     regularisation : RegulariseOptions
+    bands : BandOptions
+        Border bands of a blend theme relabelled by pixel colour
+        (:mod:`core.classify.bands`); DEFAULT feature set only.
     max_themes : int
         Upper bound on K for ``themes="auto"``.
     min_gain : float
@@ -89,6 +93,7 @@ class UnsupervisedOptions:
         default_factory=lambda: FeatureOptions(scale=4, sigmas=(1.0,), hessian=False)
     )
     regularisation: RegulariseOptions = field(default_factory=RegulariseOptions)
+    bands: BandOptions = field(default_factory=BandOptions)
     max_themes: int = 8
     min_gain: float = 0.03
     min_separation: float = 6.0
@@ -218,28 +223,9 @@ def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: fl
     each of them.
     """
     shares = np.bincount(labels, minlength=len(centres)) / len(labels)
-    return any(shares[c] < max_share and all(_lies_between(centres[:, cols], c)
+    return any(shares[c] < max_share and all(lies_between(centres[:, cols], c)
                                              for cols in columns)
                for c in range(len(centres)))
-
-
-def _lies_between(centres: np.ndarray, c: int) -> bool:
-    """True if centre ``c`` lies within a quarter of the segment's length of the
-    segment joining two other centres (strictly between its ends)."""
-    k = len(centres)
-    for a in range(k):
-        for b in range(a + 1, k):
-            if c in (a, b):
-                continue
-            ab = centres[b] - centres[a]
-            length2 = float(ab @ ab)
-            if length2 == 0.0:
-                continue
-            t = float(np.clip((centres[c] - centres[a]) @ ab / length2, 0.0, 1.0))
-            dist = float(np.linalg.norm(centres[a] + t * ab - centres[c]))
-            if 0.0 < t < 1.0 and dist < 0.25 * np.sqrt(length2):
-                return True
-    return False
 
 
 def _rejects(fit, options: UnsupervisedOptions) -> bool:
@@ -295,7 +281,7 @@ def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOpt
         if (np.count_nonzero(split_labels == k) >= options.min_hue_share * n
                 and hue_gap >= options.min_hue_separation
                 and _min_centre_distance(centres) >= options.min_separation
-                and not _lies_between(centres[:, chroma], k)
+                and not lies_between(centres[:, chroma], k)
                 and not _has_transition_theme(centres, split_labels, options.transition_share,
                                               colour, chroma)):
             return split

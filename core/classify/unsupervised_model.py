@@ -16,6 +16,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from core.classify.bands import relabel_bands
+from core.classify.features import FeatureSet
 from core.classify.mixture import posterior_fn
 from core.classify.photo import prepare_photo
 from core.classify.result import Classification
@@ -23,6 +25,7 @@ from core.classify.tiled import predict_tiled
 from core.classify.unsupervised import (
     UnsupervisedOptions,
     choose_themes,
+    colour_columns,
     feature_weights,
     sample_features,
 )
@@ -63,7 +66,31 @@ class UnsupervisedModel:
         ``options.features.scale``, gets the labels of the whole photo there.
         """
         fo, reg = self.options.features, self.options.regularisation
-        return (fo.halo + reg.halo + 1) * fo.scale
+        return (fo.halo + reg.halo + 1) * fo.scale + self.options.bands.reach
+
+    def pixel_colours(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Each theme's Lab mean and variance over photo pixels, for :mod:`core.classify.bands`.
+
+        The mean is the centre's smoothed Lab at the smallest sigma; the
+        variance its spread across the theme's coarse pixels plus, for the
+        lightness, the squared local lightness std of the centre (the spread
+        of photo pixels around a smoothed value).
+
+        Returns
+        -------
+        None (feature sets other than DEFAULT, or no sigma), or
+        means, variances : (K, 3) float64 ndarrays
+        """
+        fo = self.options.features
+        if fo.feature_set is not FeatureSet.DEFAULT or not fo.sigmas:
+            return None
+        weights = feature_weights(fo).astype(np.float64)
+        cols = colour_columns(fo)[:3]
+        means = self.centres[:, cols] / weights[cols]
+        variances = self.variances[:, cols] / weights[cols] ** 2
+        local_std = self.centres[:, cols[0] + 3] / weights[cols[0] + 3]
+        variances[:, 0] += local_std * local_std
+        return means, variances
 
     def predict(self, photo: np.ndarray,
                 progress: Callable[[int, int], None] | None = None) -> Classification:
@@ -80,13 +107,21 @@ class UnsupervisedModel:
         -------
         Classification
             labels (H, W) uint8 in 1..K, confidence (H, W) float32 (the
-            mixture posterior, module docstring of ``unsupervised``).
+            mixture posterior, module docstring of ``unsupervised``; a pixel
+            relabelled in a border band, :mod:`core.classify.bands`, keeps
+            its posterior's confidence).
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
         fn = posterior_fn(self.centres, self.sizes, self.variances, feature_weights(opts.features))
-        return predict_tiled(rgb, valid, fn, self.classes, opts.features, opts.regularisation,
-                             opts.tile, progress)
+        result = predict_tiled(rgb, valid, fn, self.classes, opts.features,
+                               opts.regularisation, opts.tile, progress)
+        colours = self.pixel_colours()
+        if colours is None or opts.bands.reach == 0:
+            return result
+        # Border bands of a blend theme: each pixel's own colour decides (module bands).
+        labels = relabel_bands(result.labels, rgb, *colours, opts.bands)
+        return replace(result, labels=labels)
 
 
 def _check_themes(themes) -> None:
