@@ -14,12 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.errors import TerrathemeError
-from core.perspective.baselines import (
-    aniso_kernel,
-    bilinear_kernel,
-    nearest_kernel,
-    trilinear_kernel,
-)
+from core.perspective.baselines import TRILINEAR, mip_kernel, texel_kernel
 from core.perspective.cache import FamilyCache, family_key
 from core.perspective.ewa import EWA_LUT, ewa_kernel
 from core.perspective.family import ParallelogramFamily, build_family
@@ -240,10 +235,8 @@ class PreparedTexture:
             # these read the input texture itself
             u, v, z, dux, dvx, duy, dvy = _grid(mapping, w, y0, y1)
             valid = (z > 0) & np.isfinite(u) & np.isfinite(v)
-            if m == Method.NEAREST:
-                reads = nearest_kernel(tex, th, tw, u, v, valid, out)
-            elif m == Method.BILINEAR:
-                reads = bilinear_kernel(tex, th, tw, u, v, valid, out)
+            if m in (Method.NEAREST, Method.BILINEAR):
+                reads = texel_kernel(tex, th, tw, u, v, m == Method.BILINEAR, valid, out)
             else:
                 reads = reference_kernel(
                     tex, th, tw, mapping.coefficients(), w, bh, y0, dux, dvx, duy, dvy,
@@ -273,10 +266,9 @@ class PreparedTexture:
             else:
                 pyr = self.pyramid
                 args = (pyr.buf, pyr.offsets, pyr.heights, pyr.widths, u, v, dux, dvx, duy, dvy)
-                if m == Method.TRILINEAR:
-                    reads = trilinear_kernel(*args, valid, out)
-                elif m == Method.ANISO:
-                    reads = aniso_kernel(*args, int(opt.max_anisotropy), valid, out)
+                if m in (Method.TRILINEAR, Method.ANISO):
+                    probes = TRILINEAR if m == Method.TRILINEAR else int(opt.max_anisotropy)
+                    reads = mip_kernel(*args, probes, valid, out)
                 else:
                     reads = ewa_kernel(*args, float(opt.max_anisotropy), EWA_LUT, valid, out)
         if top != 1.0:
