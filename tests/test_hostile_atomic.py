@@ -26,12 +26,20 @@ REPO = Path(__file__).resolve().parents[1]
 DEAD_PID = 999_999_999  # above any pid_max: no such process
 
 
+def _default_signals() -> None:
+    # A program started from a terminal: a suite run in the background or under nohup
+    # ignores SIGINT and SIGHUP, and a child would inherit that (and rightly keep it).
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
+
+
 def _child(code: str, *, wait_for: str | None = None, send: int | None = None
            ) -> subprocess.CompletedProcess:
     """Run ``code`` in a fresh interpreter; optionally signal it once it prints ``wait_for``."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], cwd=REPO, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_signals)
     if wait_for is not None:
         line = proc.stdout.readline()
         assert wait_for in line, line + proc.stderr.read()
