@@ -26,13 +26,20 @@ def _render() -> None:
 
 def _curves_and_packing() -> None:
     from core.packing import PackedLayer, TiledLayer, pack
+    from core.packing.batch import STRATEGIES, lookup_batch
 
     image = (np.arange(12 * 10).reshape(12, 10) // 7 % 3).astype(np.uint8)
+    bx, by = np.array([0, 9, 4]), np.array([0, 11, 6])
     for curve in ("hilbert", "morton"):
         layer = pack(image, curve=curve)
-        layer.lookup(np.array([0, 9]), np.array([0, 11]))
+        layer.lookup(bx[:2], by[:2])
         layer.lookup(3, 4)
         PackedLayer.from_bytes(layer.to_bytes()).unpack()
+        # Both batch strategies (the buckets serve tables over 8 MiB), on the layer's
+        # read-only `table` view as a caller of lookup_batch passes it, and on a copy.
+        for table in (layer.table, layer.table.copy()):
+            for strategy in STRATEGIES:
+                lookup_batch(bx, by, table, np.empty(3, np.uint8), 2, strategy=strategy)
     # Tiled containers of several tiles, either curve, each payload format, read back from
     # bytes: the joined table and the per-tile path, batched and scalar lookups.
     rng = np.random.default_rng(0)
@@ -66,15 +73,18 @@ def _perspective() -> None:
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
-    for method in Method:
-        for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
-            opts = FilterOptions(method=method, skew_blend=skew_blend)
-            PreparedTexture(texture, opts).render(Camera(height=8, pitch=20), (16, 12))
+    # Every method on 8-bit and on float textures (heights, HDR colour).
+    for tex in (texture, texture.astype(np.float32) / 255):
+        for method in Method:
+            for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
+                opts = FilterOptions(method=method, skew_blend=skew_blend)
+                PreparedTexture(tex, opts).render(Camera(height=8, pitch=20), (16, 12))
     for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2),
                   texture.astype(np.float32) / 255):
         PreparedTexture(other, FilterOptions()).render(Camera(height=8, pitch=20), (16, 12))
     seed = FilterOptions(lookup=Lookup.SEED)
-    PreparedTexture(texture, seed).render(Camera(height=8, pitch=20), (16, 12))
+    for tex in (texture, texture.astype(np.float32) / 255):
+        PreparedTexture(tex, seed).render(Camera(height=8, pitch=20), (16, 12))
 
 
 def _boundary() -> None:
