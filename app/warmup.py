@@ -73,18 +73,16 @@ def _perspective() -> None:
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
-    # Every method on 8-bit and on float textures (heights, HDR colour).
+    camera, size = Camera(height=8, pitch=20), (16, 12)
+    # Every method, and the seed's lookup, on 8-bit and on float textures (heights, HDR).
     for tex in (texture, texture.astype(np.float32) / 255):
         for method in Method:
             for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
                 opts = FilterOptions(method=method, skew_blend=skew_blend)
-                PreparedTexture(tex, opts).render(Camera(height=8, pitch=20), (16, 12))
-    for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2),
-                  texture.astype(np.float32) / 255):
-        PreparedTexture(other, FilterOptions()).render(Camera(height=8, pitch=20), (16, 12))
-    seed = FilterOptions(lookup=Lookup.SEED)
-    for tex in (texture, texture.astype(np.float32) / 255):
-        PreparedTexture(tex, seed).render(Camera(height=8, pitch=20), (16, 12))
+                PreparedTexture(tex, opts).render(camera, size)
+        PreparedTexture(tex, FilterOptions(lookup=Lookup.SEED)).render(camera, size)
+    for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
+        PreparedTexture(other, FilterOptions()).render(camera, size)
 
 
 def _boundary() -> None:

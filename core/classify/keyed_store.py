@@ -50,6 +50,31 @@ class KeyedStore:
         self.memory_entries = memory_entries
         self.what = what
         self._memory: OrderedDict[str, object] = OrderedDict()
+        #: lookups of :meth:`fetch` answered from the store / computed, since creation
+        self.hits = 0
+        self.misses = 0
+
+    def fetch(self, key: str, names: tuple[str, ...],
+              parse: Callable[[dict[str, np.ndarray]], object | None],
+              compute: Callable[[], object],
+              arrays_of: Callable[[object], dict[str, np.ndarray] | None]) -> object:
+        """The value of ``key``: kept (:meth:`lookup`), or ``compute()`` then kept.
+
+        A computed value is remembered, and written as ``arrays_of(value)``
+        unless that is None (a value the files cannot hold stays in memory).
+        """
+        found = self.lookup(key, names, parse)
+        if found is not None:
+            self.hits += 1
+            return found
+        self.misses += 1
+        value = compute()
+        self.remember(key, value)
+        if self.directory is not None:
+            arrays = arrays_of(value)
+            if arrays is not None:
+                self.write_arrays(key, arrays)
+        return value
 
     def recall(self, key: str) -> object | None:
         """The value kept in memory under ``key`` (now the most recent), or None."""

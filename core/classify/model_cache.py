@@ -100,9 +100,16 @@ class ModelCache:
     def __init__(self, directory: str | os.PathLike | None = None) -> None:
         self._store = KeyedStore(directory, SUFFIX, MEMORY_ENTRIES, "trained models")
         self.directory = self._store.directory
-        #: lookups answered from the cache / fitted, since creation
-        self.hits = 0
-        self.misses = 0
+
+    @property
+    def hits(self) -> int:
+        """Lookups answered from the cache since creation."""
+        return self._store.hits
+
+    @property
+    def misses(self) -> int:
+        """Models fitted since creation."""
+        return self._store.misses
 
     def model(self, key: str, options: SupervisedOptions,
               fit: Callable[[], ModelParts]) -> ModelParts:
@@ -117,23 +124,9 @@ class ModelCache:
         fit : callable
             ``() -> ModelParts``.
         """
-        found = self._store.lookup(key, ("model",),
-                                   lambda arrays: self._parse(arrays, key, options))
-        if found is not None:
-            self.hits += 1
-            return found
-        self.misses += 1
-        parts = fit()
-        self._store.remember(key, parts)
-        if self._store.directory is not None:
-            try:
-                data = model_bytes(parts)
-            except TerrathemeError:
-                # Options a model file cannot hold (e.g. trees deeper than it allows):
-                # kept in memory only, as a model of them cannot be saved either.
-                return parts
-            self._store.write_arrays(key, {"model": np.frombuffer(data, np.uint8)})
-        return parts
+        return self._store.fetch(key, ("model",),
+                                 lambda arrays: self._parse(arrays, key, options), fit,
+                                 _model_arrays)
 
     def _parse(self, arrays: dict[str, np.ndarray], key: str,
                options: SupervisedOptions) -> ModelParts | None:
@@ -145,3 +138,13 @@ class ModelCache:
         except TerrathemeError:
             return None
         return parts if parts.options == options else None
+
+
+def _model_arrays(parts: ModelParts) -> dict[str, np.ndarray] | None:
+    """What an entry's file holds: the model file's bytes; None for options a model file
+    cannot hold (e.g. trees deeper than it allows), kept in memory only, as a model of
+    them cannot be saved either."""
+    try:
+        return {"model": np.frombuffer(model_bytes(parts), np.uint8)}
+    except TerrathemeError:
+        return None

@@ -88,9 +88,16 @@ class SampleCache:
     def __init__(self, directory: str | os.PathLike | None = None) -> None:
         self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples")
         self.directory = self._store.directory
-        #: lookups answered from the cache / computed, since creation
-        self.hits = 0
-        self.misses = 0
+
+    @property
+    def hits(self) -> int:
+        """Lookups answered from the cache since creation."""
+        return self._store.hits
+
+    @property
+    def misses(self) -> int:
+        """Lookups computed since creation."""
+        return self._store.misses
 
     def samples(self, key: str, n_features: int, compute: Callable[[], Samples]) -> Samples:
         """The samples of ``key``: cached, or ``compute()`` then kept.
@@ -104,18 +111,13 @@ class SampleCache:
         compute : callable
             ``() -> (features (n, F) float32, labels (n,) uint8)``.
         """
-        found = self._store.lookup(key, ("features", "labels"),
-                                   lambda arrays: _samples(arrays, n_features))
-        if found is not None:
-            self.hits += 1
-            return found
-        self.misses += 1
-        x, y = compute()
-        x = np.ascontiguousarray(x, np.float32)
-        y = np.ascontiguousarray(y, np.uint8)
-        self._store.remember(key, (x, y))
-        self._store.write_arrays(key, {"features": x, "labels": y})
-        return x, y
+        def computed() -> Samples:
+            x, y = compute()
+            return np.ascontiguousarray(x, np.float32), np.ascontiguousarray(y, np.uint8)
+
+        return self._store.fetch(key, ("features", "labels"),
+                                 lambda arrays: _samples(arrays, n_features), computed,
+                                 lambda xy: {"features": xy[0], "labels": xy[1]})
 
 
 def _samples(arrays: dict[str, np.ndarray], n_features: int) -> Samples | None:
