@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from core.convert.cell_choice import choose_cell_size
-from core.convert.labels_to_grid import vote_grid
+from core.convert.cell_choice import agreement, choose_cell_size
+from core.convert.labels_to_grid import apply_lut, labels_to_grid, vote_grid
+from core.convert.photo import ConvertOptions, convert_photo
 from core.convert.specks import SpeckStream, clean_rows, remove_specks
 from core.convert.tiled import grid_from_file
 from core.errors import TerrathemeError
@@ -174,6 +177,8 @@ def test_vote_grid_keeps_specks_unless_asked():
     kept = vote_grid(labels, (4, 4))
     assert kept[4, 4] == 2 and (np.delete(kept.ravel(), 4 * 9 + 4) == 0).all()
     assert (vote_grid(labels, (4, 4), keep_specks=False) == 0).all()
+    assert (labels_to_grid(labels, 4, keep_specks=False).indices == 0).all()
+    assert labels_to_grid(labels, 4).indices[4, 4] == 2
 
 
 def test_cell_choice_is_measured_on_the_cleaned_grid():
@@ -213,3 +218,54 @@ def test_tiled_grid_without_specks_equals_the_whole_vote(tmp_path, cell, tile):
                              keep_specks=False, rows_final=rows_final)
         np.testing.assert_array_equal(got.indices, want)
         assert seen[-1] == want.shape[0] and seen == sorted(seen)
+
+
+def test_convert_chooses_the_cell_on_the_grid_it_keeps():
+    # Sand with 12 dark 8 x 8 islands: one vertex each at cell 8, fewer at larger cells.
+    rng = np.random.default_rng(2)
+    img = np.empty((128, 128, 3), np.float64)
+    img[:] = (225, 200, 140)
+    for i in range(12):
+        y, x = 16 + 32 * (i // 4), 16 + 32 * (i % 4)
+        img[y - 4:y + 4, x - 4:x + 4] = (40, 40, 60)
+    img = np.clip(img + rng.normal(0, 3, img.shape), 0, 255).astype(np.uint8)
+    opts = ConvertOptions(themes=2, colour_map=None, full_curve=True)
+    kept = convert_photo(img, replace(opts, keep_specks=True))
+    removed = convert_photo(img, opts)
+    assert not ConvertOptions().keep_specks
+    theme_labels = apply_lut(removed.labels, removed.mapping.lut)
+    # Without its specks the islands' class loses IoU at cell 8: the choice sees it.
+    at8 = {p.cell: p for p in removed.choice.curve}[8]
+    assert at8.worst_class_iou < {p.cell: p for p in kept.choice.curve}[8].worst_class_iou
+    assert removed.choice.cell[0] < kept.choice.cell[0]
+    # The curve was measured on the grid the project holds.
+    assert removed.agreement == pytest.approx(agreement(theme_labels, removed.project.grid))
+    np.testing.assert_array_equal(removed.project.grid.indices,
+                                  remove_specks(vote_grid(theme_labels, removed.choice.cell)))
+
+
+def test_cli_removes_specks_unless_kept(tmp_path, capsys):
+    from app.cli import main
+    from core.model.project import load_project
+
+    # A sand field with one dark vertex window at cell 8 (the vertex at (3, 4)).
+    rng = np.random.default_rng(4)
+    img = np.empty((64, 96, 3), np.float64)
+    img[:] = (225, 200, 140)
+    img[:, 72:] = (40, 90, 200)
+    img[20:28, 28:36] = (30, 30, 40)
+    img = np.clip(img + rng.normal(0, 3, img.shape), 0, 255).astype(np.uint8)
+    photo = tmp_path / "photo.png"
+    write_image(photo, img)
+    for flag in ([], ["--specks", "keep"]):
+        out = tmp_path / f"p{len(flag)}.ttproj"
+        assert main(["convert", str(photo), str(out), "--cell", "8", "--themes", "3",
+                     "--colour-map", "off", *flag]) == 0
+    removed, kept = (load_project(tmp_path / f"p{k}.ttproj").grid.indices for k in (0, 2))
+    assert kept[3, 4] != kept[3, 3] and removed[3, 4] == removed[3, 3] == kept[3, 3]
+    np.testing.assert_array_equal(np.delete(removed.ravel(), 3 * 13 + 4),
+                                  np.delete(kept.ravel(), 3 * 13 + 4))
+    with pytest.raises(SystemExit) as exc:
+        main(["convert", str(photo), str(tmp_path / "x.ttproj"), "--specks", "drop"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'drop'" in capsys.readouterr().err

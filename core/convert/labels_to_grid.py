@@ -183,6 +183,7 @@ def labels_to_grid(
     cell: tuple[int, int] | int,
     *,
     lut: Sequence[int] | np.ndarray | None = None,
+    keep_specks: bool = True,
 ) -> IndexGrid:
     """An :class:`IndexGrid` from per-pixel labels.
 
@@ -195,6 +196,8 @@ def labels_to_grid(
     lut : (256,) int array-like, optional
         Class value -> theme index, applied before the vote (so two classes
         that share a theme vote together). Default: the labels are theme indices.
+    keep_specks : bool
+        As :func:`vote_grid`'s.
 
     Returns
     -------
@@ -202,7 +205,7 @@ def labels_to_grid(
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else cell
     themes = apply_lut(labels, lut)
-    return IndexGrid(vote_grid(themes, cell), validate_cell(cell))
+    return IndexGrid(vote_grid(themes, cell, keep_specks=keep_specks), validate_cell(cell))
 
 
 def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.ndarray:
