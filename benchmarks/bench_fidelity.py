@@ -24,7 +24,8 @@ variant from the same classification and themes (they depend on neither
 the cell, the colour map nor the boundary) through
 ``core.convert.step.grid_and_colour``, as ``convert_photo`` calls it;
 variants whose cell is chosen automatically reuse the defaults' choice (the
-choice depends on the labels only) and their time counts the defaults'
+choice depends on the labels and ``keep_specks`` only; ``keep-specks``
+chooses its own) and their time counts the defaults'
 classification, themes and cell-choice times (progress timestamps) plus
 their own. The composition is checked against ``convert_photo`` on the
 first photo (same grid, same colour map).
@@ -82,6 +83,7 @@ VARIANTS = {
     "no-colour-map": replace(DEFAULT, colour_map=None),
     "linear-ramp": replace(DEFAULT, boundary=None),
     "paper-rule": PAPER,
+    "keep-specks": replace(DEFAULT, keep_specks=True),
     **{f"cell-{c}": replace(DEFAULT, cell=c) for c in (8, 16, 32, 64)},
     **{f"paper-cell-{c}": replace(PAPER, cell=c) for c in (8, 16, 32, 64)},
     **{f"cmap-{t}": replace(DEFAULT, colour_map=ColourMapOptions(target=t))
@@ -138,7 +140,8 @@ def variant_project(rgb, res, opts, cell):
                            target_agreement=opts.target_agreement,
                            class_target=opts.class_target, candidates=opts.candidates,
                            colour_map=opts.colour_map,
-                           render=RenderOptions(boundary=opts.boundary))
+                           render=RenderOptions(boundary=opts.boundary),
+                           keep_specks=opts.keep_specks)
     h, w = rgb.shape[:2]
     return ThematicTexture(made.grid, res.mapping.library, {"photo_size": [w, h]},
                            colour_map=None if made.colour is None else made.colour.colour_map)
@@ -183,10 +186,11 @@ def measure_photo(folder, name, classes, crop, variants, check, base=DEFAULT):
         if vname == "default":
             project, seconds = res.project, secs
         else:
-            cell = res.choice.cell[0] if opts.cell == "auto" else opts.cell
+            # The defaults' cell choice, unless the variant's grids differ (keep_specks).
+            reuse = opts.cell == "auto" and opts.keep_specks == base.keep_specks
+            cell = res.choice.cell[0] if reuse else opts.cell
             project = variant_project(photo, res, opts, cell)
-            seconds = (time.perf_counter() - t + shared
-                       + (choice if opts.cell == "auto" else 0.0))
+            seconds = time.perf_counter() - t + shared + (choice if reuse else 0.0)
         if check and vname == "default":
             again = variant_project(photo, res, opts, res.choice.cell[0])
             same_map = (again.colour_map is None) == (project.colour_map is None) and (

@@ -37,11 +37,13 @@ def test_overlapped_cell_choice_equals_the_sequential_one() -> None:
     result = convert_photo(photo, ConvertOptions())
     theme_labels = apply_lut(result.labels, result.mapping.lut)
     alone = choose_cell_size(theme_labels, 0.9, candidates=ConvertOptions().candidates,
-                             class_target=ConvertOptions().class_target, full_curve=False)
+                             class_target=ConvertOptions().class_target, full_curve=False,
+                             keep_specks=ConvertOptions().keep_specks)
     assert result.choice == alone
     again = grid_and_colour(photo, theme_labels, result.mapping,
                             class_target=ConvertOptions().class_target,
-                            candidates=ConvertOptions().candidates, full_curve=False)
+                            candidates=ConvertOptions().candidates, full_curve=False,
+                            keep_specks=ConvertOptions().keep_specks)
     np.testing.assert_array_equal(again.grid.indices, result.project.grid.indices)
     assert again.choice == result.choice
 

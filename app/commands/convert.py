@@ -135,6 +135,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--boundary", choices=["shaped", "linear"], default="shaped",
                         help="shaped (default): borders of a few texels shaped by the themes and "
                              "noise; linear: the paper's ramp across the cell")
+    parser.add_argument("--specks", choices=["remove", "keep"], default="remove",
+                        help="remove (default): a vertex none of whose 8 neighbours shares its "
+                             "theme takes theirs (it would render as a diamond); keep: the vote "
+                             "as it is")
 
 
 def _read_mask(path: str):
@@ -220,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     options = ConvertOptions(
         cell=args.cell, themes=themes, target_agreement=args.target_agreement,
         class_target=args.class_target, colour_map=colour, boundary=boundary,
-        full_curve=bool(args.curve))
+        full_curve=bool(args.curve), keep_specks=args.specks == "keep")
     with tqdm(total=100, desc="convert", unit="%", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -322,7 +326,8 @@ def _run_tiled(args, project, preview, packed, themes, legend) -> int:
         proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
                                   tile=args.tile, target_agreement=args.target_agreement,
                                   progress=progress, class_target=args.class_target,
-                                  colour_map=colour, boundary=boundary, scheduler=scheduler)
+                                  colour_map=colour, boundary=boundary, scheduler=scheduler,
+                                  keep_specks=args.specks == "keep")
         written = write_outputs(proj, project, preview_path=preview, packed_path=packed)
     gh, gw = proj.grid.cells_shape
     k = len(proj.library)

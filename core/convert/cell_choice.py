@@ -5,7 +5,9 @@ the grid's *label view* (the theme with the largest blend weight at that
 texel, :func:`core.render.renderer.render_labels`). :func:`choose_cell_size`
 returns the largest cell whose agreement meets the target (design.md §2-3:
 "cell size chosen from an error target") and whose every class keeps its
-IoU target; the grids are voted by :func:`core.convert.labels_to_grid.vote_grid`.
+IoU target; the grids are voted by :func:`core.convert.labels_to_grid.vote_grid`
+(and, unless the specks are kept, cleaned by :func:`core.convert.specks.remove_specks`:
+each candidate is measured on the grid the conversion would use).
 """
 
 from __future__ import annotations
@@ -146,6 +148,7 @@ def choose_cell_size(
     progress: ProgressFn | None = None,
     class_target: float = 0.0,
     full_curve: bool = True,
+    keep_specks: bool = True,
 ) -> CellChoice:
     """The largest square cell whose label view keeps ``target_agreement`` of the labels.
 
@@ -176,6 +179,9 @@ def choose_cell_size(
         largest candidate down, stopping at the first that meets the targets
         (the same cell, found with the fewest and cheapest grids: a small
         cell's grid has the most vertices).
+    keep_specks : bool
+        False: each candidate's grid is cleaned of lone vertices
+        (:func:`core.convert.specks.remove_specks`) before it is measured.
 
     Returns
     -------
@@ -197,7 +203,7 @@ def choose_cell_size(
     curve = []
     for done, c in enumerate(sizes if full_curve else sizes[::-1], start=1):
         # Vote the grid, render its label view, count the pixels that keep their label.
-        grid = IndexGrid(vote_grid(labels, (c, c)), (c, c))
+        grid = IndexGrid(vote_grid(labels, (c, c), keep_specks=keep_specks), (c, c))
         cm = label_confusion(labels, grid, max_pixels=sample_pixels)
         ious = class_iou(cm, CLASS_MIN_SHARE)
         curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), int(grid.indices.size),

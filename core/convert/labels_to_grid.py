@@ -14,7 +14,9 @@ window does (a window entirely outside the photo takes the nearest border
 pixels). Ties go to the label of the pixel under the vertex (the texel the
 render reproduces exactly), then to the lowest label: deterministic.
 
-The cell size itself is chosen in :mod:`core.convert.cell_choice`.
+With ``keep_specks=False`` the voted grid is then cleaned of lone vertices
+(:func:`core.convert.specks.remove_specks`). The cell size itself is chosen in
+:mod:`core.convert.cell_choice`.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from core.classify.samples import check_class_image
+from core.convert.specks import remove_specks
 from core.errors import TerrathemeError
 from core.model.grid import IndexGrid, validate_cell
 
@@ -44,6 +47,7 @@ def vote_grid(
     cell: tuple[int, int],
     *,
     progress: ProgressFn | None = None,
+    keep_specks: bool = True,
 ) -> np.ndarray:
     """Vertex indices by a majority vote over each vertex's ``N x M`` window.
 
@@ -55,6 +59,9 @@ def vote_grid(
         Texel columns and rows per cell.
     progress : callable(done, total), optional
         Called after each band of vertex rows.
+    keep_specks : bool
+        False: then every lone vertex takes its neighbours' most frequent
+        label (:func:`core.convert.specks.remove_specks`).
 
     Returns
     -------
@@ -75,7 +82,7 @@ def vote_grid(
         out[r0:r1] = vote_vertices(labels, (0, 0), (w, h), (n, m), (r0, r1), (0, cols), k)
         if progress is not None:
             progress(r1, rows)
-    return out
+    return out if keep_specks else remove_specks(out)
 
 
 def vertex_window(
@@ -176,6 +183,7 @@ def labels_to_grid(
     cell: tuple[int, int] | int,
     *,
     lut: Sequence[int] | np.ndarray | None = None,
+    keep_specks: bool = True,
 ) -> IndexGrid:
     """An :class:`IndexGrid` from per-pixel labels.
 
@@ -188,6 +196,8 @@ def labels_to_grid(
     lut : (256,) int array-like, optional
         Class value -> theme index, applied before the vote (so two classes
         that share a theme vote together). Default: the labels are theme indices.
+    keep_specks : bool
+        As :func:`vote_grid`'s.
 
     Returns
     -------
@@ -195,7 +205,7 @@ def labels_to_grid(
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else cell
     themes = apply_lut(labels, lut)
-    return IndexGrid(vote_grid(themes, cell), validate_cell(cell))
+    return IndexGrid(vote_grid(themes, cell, keep_specks=keep_specks), validate_cell(cell))
 
 
 def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.ndarray:

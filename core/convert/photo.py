@@ -92,6 +92,11 @@ class ConvertOptions:
         agreement curve (``convert --curve``); False: from the largest down to
         the first that meets the targets, the same cell in less time
         (:func:`core.convert.cell_choice.choose_cell_size`).
+    keep_specks : bool
+        False: a vertex none of whose 8 neighbours shares its theme (a
+        speck, rendered as a diamond) takes its neighbours' theme
+        (:func:`core.convert.specks.remove_specks`), in the grid and in the
+        cell choice; True: the vote as it is.
     """
 
     cell: str | int = "auto"
@@ -103,6 +108,7 @@ class ConvertOptions:
     colour_map: ColourMapOptions | None = field(default_factory=ColourMapOptions)
     boundary: BoundaryOptions | None = field(default_factory=BoundaryOptions)
     full_curve: bool = False
+    keep_specks: bool = False
 
 
 @dataclass(frozen=True)
@@ -197,7 +203,7 @@ def convert_photo(
         rgb, labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=options.candidates, patch=options.patch, names=names,
-        full_curve=options.full_curve)
+        full_curve=options.full_curve, keep_specks=options.keep_specks)
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).
@@ -208,7 +214,7 @@ def convert_photo(
                            colour_map=options.colour_map,
                            render=RenderOptions(boundary=options.boundary),
                            progress=_stage(progress, 50, 35), choice=choice,
-                           full_curve=options.full_curve)
+                           full_curve=options.full_curve, keep_specks=options.keep_specks)
     if progress is not None:
         progress(95, 100)
     meta = dict(metadata or {})

@@ -151,6 +151,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     patch: PatchOptions = PatchOptions(),
                     names: Mapping[int, str] | None = None,
                     full_curve: bool = True,
+                    keep_specks: bool = True,
                     ) -> tuple[ThemeMapping, CellChoice | None]:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -158,7 +159,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     before any theme is cut (:func:`core.themes.from_photo.photo_theme_lut`),
     so :func:`choose_cell_size` runs on a second thread meanwhile (its kernels
     release the GIL); the result is the same as one after the other.
-    ``full_curve`` as :func:`choose_cell_size`'s.
+    ``full_curve`` and ``keep_specks`` as :func:`choose_cell_size`'s.
 
     Returns
     -------
@@ -169,7 +170,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     def choose(lut: np.ndarray) -> CellChoice:
         return choose_cell_size(apply_lut(labels, lut), target_agreement,
                                 candidates=candidates, class_target=class_target,
-                                full_curve=full_curve)
+                                full_curve=full_curve, keep_specks=keep_specks)
 
     if cell != "auto":
         return assign_themes(rgb, labels, classes, themes, patch=patch, names=names), None
@@ -217,6 +218,7 @@ def grid_and_colour(
     progress: ProgressFn | None = None,
     choice: CellChoice | None = None,
     full_curve: bool = True,
+    keep_specks: bool = True,
 ) -> GridResult:
     """Vote the theme labels to a grid and fit the colour map.
 
@@ -241,6 +243,10 @@ def grid_and_colour(
         on these labels with these targets (it is not made again).
     full_curve : bool
         Measure every candidate cell (:func:`choose_cell_size`).
+    keep_specks : bool
+        False: lone vertices take their neighbours' theme
+        (:func:`core.convert.specks.remove_specks`), in the grid and in the
+        cell choice's grids alike (a ``choice`` given must be made so too).
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
@@ -250,9 +256,9 @@ def grid_and_colour(
         if choice is None:
             choice = choose_cell_size(theme_labels, target_agreement, candidates=candidates,
                                       class_target=class_target, progress=progress,
-                                      full_curve=full_curve)
+                                      full_curve=full_curve, keep_specks=keep_specks)
         size = choice.cell
-    grid = IndexGrid(vote_grid(theme_labels, size), size)
+    grid = IndexGrid(vote_grid(theme_labels, size, keep_specks=keep_specks), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
                                                                   max_pixels=1 << 22)
     fitted = None

@@ -10,6 +10,8 @@ the tile size, not the photo size (``benchmarks/bench_convert.py``). The
 result equals :func:`core.convert.labels_to_grid.vote_grid` on the whole label image
 whenever the classifier's output on a tile with ``overlap`` context equals
 its output on the whole photo there (tested with a per-pixel classifier).
+Lone vertices are removed as the rows are stitched
+(:class:`core.convert.specks.SpeckStream`), the same as on the whole grid.
 
 Jobs run serially, on Dask's threads or on a dask.distributed cluster
 (:func:`core.io.tiles.run_tiles`); the jobs are module-level dataclasses
@@ -33,6 +35,7 @@ from core.convert.cell_choice import CONVERT_CELL_CANDIDATES
 from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
 from core.convert.colour_scale import CentreScale
 from core.convert.labels_to_grid import grid_shape_for
+from core.convert.specks import SpeckStream
 from core.convert.step import themes_and_cell
 from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
 from core.errors import TerrathemeError
@@ -66,6 +69,7 @@ def grid_from_file(
     scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
     rows_final: Callable[[IndexGrid, int], None] | None = None,
+    keep_specks: bool = True,
 ) -> IndexGrid:
     """The vertex grid of an image file, classified and voted tile by tile.
 
@@ -91,6 +95,10 @@ def grid_from_file(
         Called in this process after each tile, with the grid so far and
         how many of its first vertex rows are final (tiles are stitched in
         order): work on the top of the grid can start before the rest is done.
+    keep_specks : bool
+        False: lone vertices take their neighbours' theme
+        (:func:`core.convert.specks.remove_specks`); a row is then final one
+        row later (its cleaning needs the row below), the last at the end.
 
     Returns
     -------
@@ -112,16 +120,24 @@ def grid_from_file(
     rows, cols = grid_shape_for(info.width, info.height, (n, m))
     so_far = IndexGrid(np.zeros((rows, cols), np.uint8), (n, m))
     grid = so_far.indices
+    specks = None if keep_specks else SpeckStream(grid)
 
     def sink(win: VertexTile, block: np.ndarray) -> None:
         (r0, r1), (c0, c1) = win.rows, win.cols
         grid[r0:r1, c0:c1] = block
-        if rows_final is not None:
-            # The last tile of a band of rows finishes them.
-            rows_final(so_far, r1 if c1 == cols else r0)
+        # The last tile of a band of rows finishes them (cleaned: all but the last).
+        final = r1 if c1 == cols else r0
+        if specks is not None:
+            final = specks.advance(final)
+        if rows_final is not None and final < rows:
+            rows_final(so_far, final)
 
     run_tiles(path, VoteJob(classify, table, size, (n, m)), sink, windows=tiles,
               scheduler=scheduler, progress=progress, bands=Bands.PHOTO)
+    if specks is not None:
+        specks.finish()
+    if rows_final is not None:
+        rows_final(so_far, rows)
     return so_far
 
 
@@ -239,6 +255,7 @@ def convert_file_tiled(
     candidates: Sequence[int] = CONVERT_CELL_CANDIDATES,
     colour_map: ColourMapOptions | None = ColourMapOptions(),
     boundary: BoundaryOptions | None = BoundaryOptions(),
+    keep_specks: bool = False,
 ):
     """A project for a photo larger than memory, with a trained classifier or unsupervised.
 
@@ -276,6 +293,9 @@ def convert_file_tiled(
         (:func:`core.convert.colour_fit.colour_map_from_file`); None: none.
     boundary : BoundaryOptions or None
         The project's render style (shaped borders), as ``convert_photo``'s.
+    keep_specks : bool
+        As :class:`core.convert.photo.ConvertOptions`' (default False: lone
+        vertices removed, in the cell choice and the grid).
 
     Returns
     -------
@@ -340,7 +360,8 @@ def convert_file_tiled(
     mapping, choice = themes_and_cell(rgb, win_result.labels, model.classes, spec, cell=cell,
                                       target_agreement=target_agreement,
                                       class_target=class_target, candidates=candidates,
-                                      names=class_names, full_curve=False)
+                                      names=class_names, full_curve=False,
+                                      keep_specks=keep_specks)
     if choice is not None:
         cell = choice.cell[0]
     centre = (x0, y0, side_w, side_h)
@@ -348,7 +369,8 @@ def convert_file_tiled(
                            background=not isinstance(scheduler, Scheduler))
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
-                          rows_final=None if colour_map is None else scale_of.rows_final)
+                          rows_final=None if colour_map is None else scale_of.rows_final,
+                          keep_specks=keep_specks)
     fitted = None
     if colour_map is not None:
         # The map's scale from the centre window, then the map itself tile by tile.
