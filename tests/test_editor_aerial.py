@@ -35,3 +35,24 @@ def test_aerial_mode_appends_themes_named_after_the_models_classes():
     assert result.indices.min() >= len(library)
     assert result.indices.max() < len(library) + len(result.new_themes)
     assert result.confidence.shape == photo.shape[:2]
+
+
+def _lone_vertices(indices: np.ndarray) -> int:
+    """Vertices none of whose 8 neighbours inside the grid shares their index (a plain loop)."""
+    rows, cols = indices.shape
+    count = 0
+    for r in range(rows):
+        for c in range(cols):
+            around = [indices[rr, cc] for rr in range(max(r - 1, 0), min(r + 2, rows))
+                      for cc in range(max(c - 1, 0), min(c + 2, cols)) if (rr, cc) != (r, c)]
+            count += bool(around) and indices[r, c] not in around
+    return count
+
+
+def test_the_editors_grid_has_no_lone_specks_as_convert_does():
+    photo = np.ascontiguousarray(read_image(SAMPLE)[:, :, :3])
+    library = ThemeLibrary([flat_theme("land", (200, 190, 170))])
+    cell = (16, 16)
+    shape = labels_to_grid(np.zeros(photo.shape[:2], np.uint8), cell).indices.shape
+    result = run_classification(Mode.AERIAL, photo, None, library, cell, shape, None)
+    assert _lone_vertices(result.indices) == 0

@@ -145,7 +145,8 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
         else:
             new_themes, lut = class_themes(photo, labels, classes, list(library.names))
             lut = lut + len(library)
-    grid = labels_to_grid(result.labels, cell, lut=lut)
+    # Lone specks removed, as convert does (core.convert.specks).
+    grid = labels_to_grid(result.labels, cell, lut=lut, keep_specks=False)
     if grid.indices.shape != grid_shape:
         raise TerrathemeError(
             f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
