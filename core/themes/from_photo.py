@@ -49,6 +49,7 @@ from core.themes.matching import (
     theme_appearances,
 )
 from core.themes.patch_search import (
+    INTERIOR,
     ClassTarget,
     PatchOptions,
     WindowStats,
@@ -163,6 +164,34 @@ def lone_objects(window: np.ndarray) -> np.ndarray:
     return grown.astype(bool)
 
 
+def class_interior(mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
+    """The class's pixels of an ``s x s`` window at least ``INTERIOR`` pixels from its border.
+
+    Pixels along a class border are blends of the two sides (the dark rim of a
+    shore on sand); cut into a theme they repeat as a line once per tile, and
+    the render draws the border itself. The border is the class region's own,
+    not the window's: the mask is read ``INTERIOR`` pixels beyond the window.
+
+    Parameters
+    ----------
+    mask : (H, W) bool ndarray
+        The class region in the photo.
+    x, y, s : the window
+
+    Returns
+    -------
+    (s, s) bool ndarray
+    """
+    h, w = mask.shape
+    r = INTERIOR
+    x0, y0, x1, y1 = max(0, x - r), max(0, y - r), min(w, x + s + r), min(h, y + s + r)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    # Outside the photo the class goes on (replicated border): the photo's edge is no border.
+    inner = cv2.erode(mask[y0:y1, x0:x1].astype(np.uint8), kernel,
+                      borderType=cv2.BORDER_REPLICATE)
+    return inner[y - y0 : y - y0 + s, x - x0 : x - x0 + s].astype(bool)
+
+
 #: a tile repeating more than this (repeat_score) or holding a larger landmark is replaced
 REPEAT_LIMIT = 0.3
 LANDMARK_LIMIT = 0.04
@@ -183,11 +212,18 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
             break
         x, y, s = found
         tried.append(found)
-        # Other classes' pixels, and lone objects that would repeat once per tile,
-        # are filled from the class's own pixels of the window.
+        # Other classes' pixels, the class's border rim and lone objects that would
+        # repeat once per tile are filled from the class's own pixels of the window.
         window = rgb[y : y + s, x : x + s]
-        keep = mask[y : y + s, x : x + s] & ~lone_objects(window)
-        cut = window if keep.all() else fill_from_class(window, keep)
+        inner = class_interior(mask, x, y, s)
+        if not inner.any():
+            inner = mask[y : y + s, x : x + s]
+        # Objects are found with the other classes painted in the class's median colour:
+        # a dark rim left along a shore is then a line on sand, not the edge of the water.
+        seen = window.copy()
+        seen[~inner] = np.median(window[inner], axis=0).astype(np.uint8)
+        keep = inner & ~lone_objects(seen)
+        cut = window if keep.all() else fill_from_class(window, keep if keep.any() else inner)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
         if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
