@@ -44,6 +44,7 @@ VARIANTS = {
     "prior1": SupervisedOptions(prior_power=1.0),
     "nogrow": SupervisedOptions(grow_colour=0.0),
     "nostructure": _features(structure=False),
+    "adapt": SupervisedOptions(adapt=True),
 }
 
 
