@@ -34,6 +34,8 @@ _DEFAULT = SupervisedOptions(ignore_classes=IGNORE)
 VARIANTS = {
     "default": _DEFAULT,
     "noadapt": replace(_DEFAULT, adapt=False),
+    "depth8": replace(_DEFAULT, max_depth=8),
+    "min-samples20": replace(_DEFAULT, min_samples=20),
     "target-prior0.3": replace(_DEFAULT, target_prior_power=0.3),
     "target-prior0.5": replace(_DEFAULT, target_prior_power=0.5),
 }
