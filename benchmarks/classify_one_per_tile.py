@@ -93,14 +93,37 @@ def tile_of(name: str) -> int:
     return int(name.split("t")[-1].split(".")[0])
 
 
+def random_draw(names, seed) -> tuple[str, ...]:
+    """One photo of each tile at random (``numpy.random.default_rng(seed)``)."""
+    rng = np.random.default_rng(seed)
+    return tuple(rng.choice(sorted(n for n in names if tile_of(n) == t)) for t in range(1, 7))
+
+
 def training_draws(names) -> list[tuple[str, ...]]:
     """One photo per tile for each draw (draw 0: the issue's set)."""
-    draws = [ISSUE_SET]
-    for d in range(1, DRAWS):
-        rng = np.random.default_rng(DRAW_SEED + d)
-        draws.append(tuple(rng.choice(sorted(n for n in names if tile_of(n) == t))
-                           for t in range(1, 7)))
-    return draws
+    return [ISSUE_SET] + [random_draw(names, DRAW_SEED + d) for d in range(1, DRAWS)]
+
+
+def score_draw(photos, train, opts, cache=None) -> tuple[dict[str, np.ndarray], int, float]:
+    """Every held-out tile of one draw -> ({photo: confusion}, pixels, predict seconds).
+
+    ``photos``: ``{name: (photo, mask)}`` of every Dubai photo; ``train``: one
+    photo name per tile (the held-out tile's is left out of its training).
+    """
+    cms, pixels, seconds = {}, 0, 0.0
+    for tile in range(1, 7):
+        model = train_classifier([photos[n] for n in train if tile_of(n) != tile], opts,
+                                 cache=cache)
+        for n in sorted(photos):
+            if tile_of(n) != tile:
+                continue
+            photo, mask = photos[n]
+            t = time.perf_counter()
+            res = model.predict(photo)
+            seconds += time.perf_counter() - t
+            pixels += mask.size
+            cms[n] = confusion(mask, res.labels, CLASSES)
+    return cms, pixels, seconds
 
 
 def _tile_mious(cms: dict[str, np.ndarray]) -> list[float]:
@@ -154,19 +177,9 @@ def one_per_tile(log):
         per_draw = []
         pixels, seconds = 0, 0.0
         for d, train in enumerate(draws):
-            cms = {}
-            for tile in range(1, 7):
-                model = train_classifier([photos[n] for n in train if tile_of(n) != tile], opts,
-                                         cache=cache)
-                for n in names:
-                    if tile_of(n) != tile:
-                        continue
-                    photo, mask = photos[n]
-                    t = time.perf_counter()
-                    res = model.predict(photo)
-                    seconds += time.perf_counter() - t
-                    pixels += mask.size
-                    cms[n] = confusion(mask, res.labels, CLASSES)
+            cms, px, secs = score_draw(photos, train, opts, cache)
+            pixels += px
+            seconds += secs
             per_draw.append(cms)
             log(f"  one_per_tile {m} draw {d}: mean tile mIoU "
                 f"{rows_of([cms], subset)['mean_tile_miou']:.3f}")
