@@ -23,7 +23,7 @@ from pathlib import Path
 
 from core.errors import TerrathemeError
 
-#: the default bound of a cache folder, in bytes (2 GiB: some 700 fitted 50-tree models)
+#: the default bound of a cache folder, in bytes (2 GiB)
 DEFAULT_CACHE_BYTES = 2 << 30
 
 _ENTRY = re.compile(r"[0-9a-f]{64}(\.[A-Za-z0-9_-]+)*\.npz")
