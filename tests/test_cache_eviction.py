@@ -74,7 +74,7 @@ def test_a_bad_size_is_one_clear_error(text, match):
 def test_the_default_bound_is_two_gib():
     assert DEFAULT_CACHE_BYTES == 2 * 1024 ** 3
     assert KeyedStore(None, ".npz", 1, "x").max_bytes == DEFAULT_CACHE_BYTES
-    assert SampleCache()._store.max_bytes == ModelCache()._store.max_bytes == 2 * 1024 ** 3
+    assert SampleCache().max_bytes == ModelCache().max_bytes == 2 * 1024 ** 3
 
 
 @pytest.mark.parametrize("cache", [SampleCache, ModelCache])
@@ -224,3 +224,29 @@ def test_an_entry_that_cannot_be_removed_is_passed_over(tmp_path, monkeypatch):
 def test_a_missing_folder_has_no_entries(tmp_path):
     assert cb.entries(tmp_path / "nowhere") == []
     assert evict(tmp_path / "nowhere", 1) == []
+
+
+def _churn(folder: str, seed: int, bound: int, rounds: int) -> None:
+    """Fetch random keys of a small folder shared with another process (a child's job)."""
+    rng = np.random.default_rng(seed)
+    store = KeyedStore(folder, ".npz", 0, "test values", max_bytes=bound)
+    for n in rng.integers(0, 12, rounds):
+        value = _fetch(store, int(n))
+        if not (value == n).all():
+            raise SystemExit(3)
+
+
+def test_processes_sharing_a_folder_evict_each_other_s_entries_without_errors(tmp_path):
+    import multiprocessing
+
+    size = _fill(tmp_path, [0])
+    context = multiprocessing.get_context("fork")
+    children = [context.Process(target=_churn, args=(str(tmp_path), seed, 3 * size, 200))
+                for seed in (1, 2, 3)]
+    for child in children:
+        child.start()
+    for child in children:
+        child.join(60)
+    assert [child.exitcode for child in children] == [0, 0, 0]
+    assert sum(size for _, _, size in cb.entries(tmp_path)) <= 3 * size
+    assert not [p for p in tmp_path.iterdir() if not cb.is_entry(p.name)]   # no temporaries

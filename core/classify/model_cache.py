@@ -108,6 +108,7 @@ class ModelCache:
         self._store = KeyedStore(directory, SUFFIX, MEMORY_ENTRIES, "trained models",
                                  max_bytes)
         self.directory = self._store.directory
+        self.max_bytes = self._store.max_bytes
 
     @property
     def hits(self) -> int:

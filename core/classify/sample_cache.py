@@ -96,6 +96,7 @@ class SampleCache:
         self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples",
                                  max_bytes)
         self.directory = self._store.directory
+        self.max_bytes = self._store.max_bytes
 
     @property
     def hits(self) -> int:
