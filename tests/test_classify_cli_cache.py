@@ -94,3 +94,13 @@ def test_the_cache_size_bounds_the_folder(files, capsys):
     assert f"model from the cache {cache}" in capsys.readouterr().out
     assert sum(p.stat().st_size for p in cache.iterdir()) <= 20 * 1024
     np.testing.assert_array_equal(read_labels(d / "second.png"), read_labels(d / "first.png"))
+
+
+def test_the_help_names_the_default_bound(capsys):
+    from core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
+
+    with pytest.raises(SystemExit):
+        main(["classify", "-h"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    default = re.search(r"--cache-size SIZE bound [^)]*default (\w+)\)", help_text).group(1)
+    assert parse_size(default) == DEFAULT_CACHE_BYTES
