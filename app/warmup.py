@@ -19,13 +19,9 @@ def _render() -> None:
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
-    # Whole renders, and a region narrower than the grid (a viewport: the rows kernels then
-    # get a strided block of the grid).
-    for region in (None, (1, 1, 3, 6)):
-        for blend in BlendMode:
-            render_cells(grid, themes, (4, 4), region,
-                         options=RenderOptions(blend=blend, threads=1))
-        render_labels(grid, (4, 4), region, threads=1)
+    for blend in BlendMode:
+        render_cells(grid, themes, (4, 4), options=RenderOptions(blend=blend, threads=1))
+    render_labels(grid, (4, 4), threads=1)
     # Cells too large for the cached weight tables: each band computes its own rows.
     render_cells(grid[:2, :2], themes, (300, 300), (0, 0, 300, 2),
                  options=RenderOptions(threads=1))
@@ -119,9 +115,7 @@ def _boundary() -> None:
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
-    for region in ((1, 1, 3, 6), None):
-        img = render_cells(grid, themes, (4, 4), region,
-                           options=RenderOptions(boundary=BoundaryOptions()))
+    img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
     noise_field(0, 0, 4, 4, 1, 8)
     render_overview(grid, themes, (4, 4), scale=0.5, boundary=BoundaryOptions())
     apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
