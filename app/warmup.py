@@ -22,11 +22,15 @@ def _render() -> None:
     for blend in BlendMode:
         render_cells(grid, themes, (4, 4), options=RenderOptions(blend=blend, threads=1))
     render_labels(grid, (4, 4), threads=1)
+    # Cells too large for the cached weight tables: each band computes its own rows.
+    render_cells(grid[:2, :2], themes, (300, 300), (0, 0, 300, 2),
+                 options=RenderOptions(threads=1))
 
 
 def _curves_and_packing() -> None:
+    from core.curves import scan_order
     from core.packing import PackedLayer, TiledLayer, pack
-    from core.packing.batch import STRATEGIES, lookup_batch
+    from core.packing.batch import STRATEGIES, lookup_batch, tiled_words
 
     image = (np.arange(12 * 10).reshape(12, 10) // 7 % 3).astype(np.uint8)
     bx, by = np.array([0, 9, 4]), np.array([0, 11, 6])
@@ -53,6 +57,17 @@ def _curves_and_packing() -> None:
                 tiled.lookup(xs, ys)
                 tiled.lookup(5, 7)
                 tiled.unpack()
+        # The tiles' tables end to end, looked up by bucket (the strategy of tables over
+        # 8 MiB, which a layer this small never picks itself).
+        tables = [tiled.tile(i).table for i in range(tiled.tiles_x * tiled.tiles_y)]
+        table = np.concatenate(tables)
+        starts = np.cumsum([0] + [t.size for t in tables[:-1]])
+        words = tiled_words(table, starts, tiled.width, tiled.height, tiled.tile_bits,
+                            tiled.tiles_x)
+        lookup_batch(xs, ys, table, np.empty(xs.size, np.uint8), 1, words, strategy="buckets")
+    # A colour image (runs of packed colours).
+    pack(np.array([[0, 40, 80], [200, 10, 10]], np.uint8)[image % 2])
+    scan_order(5, 3, "hilbert")
 
 
 def _classify() -> None:
@@ -69,6 +84,8 @@ def _classify() -> None:
 
 def _perspective() -> None:
     from core.perspective import Camera, FilterOptions, Method, PreparedTexture
+    from core.perspective.family import build_family
+    from core.perspective.footprint import footprint_parameters
     from core.perspective.options import Lookup
 
     rng = np.random.default_rng(1)
@@ -83,18 +100,23 @@ def _perspective() -> None:
         PreparedTexture(tex, FilterOptions(lookup=Lookup.SEED)).render(camera, size)
     for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
         PreparedTexture(other, FilterOptions()).render(camera, size)
+    # The family of a float grid stored in 8 and 16 bits; the footprints alone.
+    for dtype in (np.uint8, np.uint16):
+        build_family(texture[:16, :16].astype(np.float32), 2, 1, dtype=dtype)
+    footprint_parameters(*np.ones((4, 3)))
 
 
 def _boundary() -> None:
     from core.exchange import shaped_slots
     from core.model.colour_map import ColourMap
     from core.render import RenderOptions, render_cells, render_overview
-    from core.render.boundary import BoundaryOptions
+    from core.render.boundary import BoundaryOptions, noise_field
     from core.render.colour_map import apply_colour_map
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
     img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
+    noise_field(0, 0, 4, 4, 1, 8)
     render_overview(grid, themes, (4, 4), scale=0.5, boundary=BoundaryOptions())
     apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
     # The exports' weights of the same borders.

@@ -56,6 +56,13 @@ def _legend(d):
      "--cache-dir {d}/blocker/cache: cannot use the folder"),
     (["--cache-dir", "{d}/cache"], "--cache-dir keeps training samples and models: it needs "
                                    "--scribbles or --train"),
+    (["--train", "{d}/photo.png", "{d}/truth.png", "--cache-dir", "{d}/cache", "--cache-size",
+      "2X"], "--cache-size must be a number of bytes with an optional unit K, M, G or T "
+             "(e.g. 2G, 500M), not '2X'"),
+    (["--train", "{d}/photo.png", "{d}/truth.png", "--cache-dir", "{d}/cache", "--cache-size",
+      "0M"], "--cache-size must be at least one byte, not '0M'"),
+    (["--train", "{d}/photo.png", "{d}/truth.png", "--cache-size", "2G"],
+     "--cache-size bounds the --cache-dir folder: give --cache-dir too"),
 ])
 def test_a_bad_cache_folder_is_one_line_before_any_work(files, capsys, extra, match):
     d, _ = files
@@ -71,3 +78,29 @@ def test_a_bad_cache_folder_is_one_line_before_any_work(files, capsys, extra, ma
 
     with pytest.raises(TerrathemeError, match=re.escape(match.format(d=d))):
         classify.run(build_parser().parse_args(args))
+
+
+def test_the_cache_size_bounds_the_folder(files, capsys):
+    d, _ = files
+    cache = d / "cache"
+    # The pair's samples (about 17 KB) and then the model (about 4 KB) do not fit 20 KiB
+    # together: the samples, used least recently, go.
+    assert _classify(d, "first.png", "--cache-dir", str(cache), "--cache-size", "20K") == 0
+    kept = list(cache.iterdir())
+    assert [p.name.endswith(".model.npz") for p in kept] == [True]
+    assert kept[0].stat().st_size <= 20 * 1024
+    capsys.readouterr()
+    assert _classify(d, "second.png", "--cache-dir", str(cache), "--cache-size", "20K") == 0
+    assert f"model from the cache {cache}" in capsys.readouterr().out
+    assert sum(p.stat().st_size for p in cache.iterdir()) <= 20 * 1024
+    np.testing.assert_array_equal(read_labels(d / "second.png"), read_labels(d / "first.png"))
+
+
+def test_the_help_names_the_default_bound(capsys):
+    from core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
+
+    with pytest.raises(SystemExit):
+        main(["classify", "-h"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    default = re.search(r"--cache-size SIZE bound [^)]*default (\w+)\)", help_text).group(1)
+    assert parse_size(default) == DEFAULT_CACHE_BYTES

@@ -55,3 +55,23 @@ def test_convert_after_the_warmup_compiles_nothing_new():
     before = _signatures()
     convert_photo(_photo(200, 1100))
     assert sorted(_signatures() - before) == []
+
+
+def test_a_region_narrower_than_the_grid_renders_with_the_whole_grid_s_signatures():
+    # A viewport's block of the grid is a strided view: passed as it is, each rows kernel
+    # compiled a second ('A') signature at the first viewport render after the warmup.
+    from core.render import BlendMode, RenderOptions, render_cells, render_labels
+    from core.render import kernels as rk
+    from core.render.boundary import BoundaryOptions, shaped_rows
+
+    grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
+    themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
+    for options in (RenderOptions(blend=BlendMode.LINEAR), RenderOptions(
+            blend=BlendMode.HISTOGRAM), RenderOptions(boundary=BoundaryOptions())):
+        whole = render_cells(grid, themes, (4, 4), options=options)
+        np.testing.assert_array_equal(render_cells(grid, themes, (4, 4), (1, 1, 3, 6),
+                                                   options=options), whole[1:7, 1:4])
+    labels = render_labels(grid, (4, 4))
+    np.testing.assert_array_equal(render_labels(grid, (4, 4), (5, 0, 2, 8)), labels[:, 5:7])
+    for kernel in (rk.linear_rows, rk.histogram_rows, rk.label_rows, shaped_rows):
+        assert {sig[3][0].layout for sig in kernel.signatures} == {"C"}, kernel

@@ -62,6 +62,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="keep the training pairs' samples and the fitted model in DIR, by "
                              "content: training again on the same pairs and options (another "
                              "photo to classify) skips their features and the fit")
+    parser.add_argument("--cache-size", metavar="SIZE", default=None,
+                        help="bound of the --cache-dir folder, e.g. 500M or 2G (binary units; "
+                             "default 2G): the least recently used entries are removed first")
 
 
 def _read_mask(path: str):
@@ -100,14 +103,19 @@ def label_palette():
     return np.array(colours[:256], np.uint8)
 
 
-def _training_caches(folder: Path | None):
-    """(SampleCache, ModelCache) in ``folder``, checked before any work; (None, None)
-    without one."""
+def _training_caches(folder: Path | None, size: str | None):
+    """(SampleCache, ModelCache) in ``folder`` bounded to ``size`` (text, e.g. "2G"; None:
+    the default), checked before any work; (None, None) without a folder."""
     from core.classify import ModelCache, SampleCache
+    from core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
     from core.errors import TerrathemeError
 
     if folder is None:
+        if size is not None:
+            raise TerrathemeError("--cache-size bounds the --cache-dir folder: give "
+                                  "--cache-dir too")
         return None, None
+    max_bytes = DEFAULT_CACHE_BYTES if size is None else parse_size(size, "--cache-size")
     try:
         folder.mkdir(parents=True, exist_ok=True)
         why = None if os.access(folder, os.W_OK | os.X_OK) else "not writable"
@@ -115,7 +123,7 @@ def _training_caches(folder: Path | None):
         why = exc.strerror or str(exc)
     if why is not None:
         raise TerrathemeError(f"--cache-dir {folder}: cannot use the folder ({why})")
-    return SampleCache(folder), ModelCache(folder)
+    return SampleCache(folder, max_bytes), ModelCache(folder, max_bytes)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -156,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
     legend = read_legend(args.legend) if args.legend else {}
-    samples, models = _training_caches(args.cache_dir)
+    samples, models = _training_caches(args.cache_dir, args.cache_size)
 
     photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.

@@ -8,6 +8,11 @@ arrays that also holds the key itself, read with ``allow_pickle=False`` (no
 code runs) and written atomically (:mod:`core.io.atomic`). A file that does
 not read back as arrays of its own key (damaged, truncated, renamed) reads as
 None: the cache computes the entry again and replaces the file.
+
+The folder is bounded (:mod:`core.classify.cache_bound`): a hit refreshes its
+file's time, and after each miss the least recently used entries are removed
+until the folder's entries fit ``max_bytes`` (an entry larger than that alone
+is kept in memory only). A file another process removes meanwhile is a miss.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, touch
 from core.errors import TerrathemeError
 from core.io.atomic import write_bytes_atomic
 
@@ -41,14 +47,25 @@ class KeyedStore:
         Values kept in memory.
     what : str
         What the entries are, for the error message ("training samples").
+    max_bytes : int
+        Bound of the folder's entries (those of every store sharing it), in bytes.
+
+    Raises
+    ------
+    TerrathemeError
+        ``max_bytes`` below 1.
     """
 
     def __init__(self, directory: str | os.PathLike | None, suffix: str, memory_entries: int,
-                 what: str) -> None:
+                 what: str, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        if max_bytes < 1:
+            raise TerrathemeError(f"the bound of a cache of {what} must be at least one byte, "
+                                  f"not {max_bytes}")
         self.directory = None if directory is None else Path(directory)
         self.suffix = suffix
         self.memory_entries = memory_entries
         self.what = what
+        self.max_bytes = int(max_bytes)
         self._memory: OrderedDict[str, object] = OrderedDict()
         #: lookups of :meth:`fetch` answered from the store / computed, since creation
         self.hits = 0
@@ -61,7 +78,8 @@ class KeyedStore:
         """The value of ``key``: kept (:meth:`lookup`), or ``compute()`` then kept.
 
         A computed value is remembered, and written as ``arrays_of(value)``
-        unless that is None (a value the files cannot hold stays in memory).
+        unless that is None (a value the files cannot hold stays in memory);
+        then the folder is brought within its bound.
         """
         found = self.lookup(key, names, parse)
         if found is not None:
@@ -74,6 +92,7 @@ class KeyedStore:
             arrays = arrays_of(value)
             if arrays is not None:
                 self.write_arrays(key, arrays)
+            evict(self.directory, self.max_bytes)
         return value
 
     def recall(self, key: str) -> object | None:
@@ -93,13 +112,16 @@ class KeyedStore:
     def lookup(self, key: str, names: tuple[str, ...],
                parse: Callable[[dict[str, np.ndarray]], object | None]) -> object | None:
         """The value of ``key``: from memory, else ``parse`` of its file's arrays ``names``
-        (then kept in memory); None when neither has it (or ``parse`` refuses the file's)."""
+        (then kept in memory); None when neither has it (or ``parse`` refuses the file's).
+        A value found refreshes its file's recency (if it has one)."""
         found = self.recall(key)
         if found is None:
             arrays = self.read_arrays(key, names)
             found = None if arrays is None else parse(arrays)
             if found is not None:
                 self.remember(key, found)
+        if found is not None and self.directory is not None:
+            touch(self.path(key))
         return found
 
     def path(self, key: str) -> Path | None:
@@ -125,7 +147,7 @@ class KeyedStore:
 
     def write_arrays(self, key: str, arrays: dict[str, np.ndarray]) -> None:
         """Write ``arrays`` (and the key) as the file of ``key``, atomically; no-op without
-        a folder.
+        a folder or when the file would be larger than ``max_bytes``.
 
         Raises
         ------
@@ -137,9 +159,12 @@ class KeyedStore:
             return
         buf = io.BytesIO()
         np.savez(buf, key=np.frombuffer(key.encode("ascii"), np.uint8), **arrays)
+        data = buf.getvalue()
+        if len(data) > self.max_bytes:
+            return            # alone over the bound: memory only
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_bytes_atomic(path, buf.getvalue())
+            write_bytes_atomic(path, data)
         except OSError as exc:
             raise TerrathemeError(f"{path.parent}: cannot keep {self.what} there "
                                   f"({exc.strerror or exc})") from None

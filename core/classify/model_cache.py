@@ -21,7 +21,9 @@ clash), as ``<key>.model.npz``: the key and the model file's bytes
 reading), read with ``allow_pickle=False``, written atomically. A file that
 does not read back as a model of its key and options (damaged, truncated,
 written by another version) is a miss: the model is fitted again and the
-file replaced. Only Extra-Trees models are kept (OpenCV's forest reads back
+file replaced. The folder is bounded (``max_bytes``, 2 GiB by default, the
+least recently used entries of the folder removed first:
+:mod:`core.classify.cache_bound`). Only Extra-Trees models are kept (OpenCV's forest reads back
 from a model file as the equivalent node arrays, not the same object), and
 on disk only those a model file can hold (options within its bounds).
 
@@ -45,6 +47,7 @@ from importlib.metadata import version
 
 import numpy as np
 
+from core.classify.cache_bound import DEFAULT_CACHE_BYTES
 from core.classify.keyed_store import KeyedStore
 from core.classify.model_file import ModelParts, model_bytes, read_model_bytes
 from core.classify.model_options import options_to_json
@@ -90,16 +93,22 @@ class ModelCache:
     directory : path, optional
         Folder of the ``<key>.model.npz`` entries (made when the first entry is
         written). None: memory only.
+    max_bytes : int
+        Bound of the folder's entries (this cache's and any other's sharing the
+        folder), least recently used removed first (:mod:`core.classify.cache_bound`).
 
     Raises
     ------
     TerrathemeError
-        From :meth:`model`: the folder cannot be made or written.
+        ``max_bytes`` below 1. From :meth:`model`: the folder cannot be made or written.
     """
 
-    def __init__(self, directory: str | os.PathLike | None = None) -> None:
-        self._store = KeyedStore(directory, SUFFIX, MEMORY_ENTRIES, "trained models")
+    def __init__(self, directory: str | os.PathLike | None = None,
+                 max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self._store = KeyedStore(directory, SUFFIX, MEMORY_ENTRIES, "trained models",
+                                 max_bytes)
         self.directory = self._store.directory
+        self.max_bytes = self._store.max_bytes
 
     @property
     def hits(self) -> int:

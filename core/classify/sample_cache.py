@@ -13,7 +13,9 @@ Entries live in memory and, when a folder is given, in one ``.npz`` file per
 key there (numbers only, read with ``allow_pickle=False``, written
 atomically). A file that does not read back as the samples of its key
 (damaged, truncated, written by another version) is a miss: the samples are
-computed again and the file replaced.
+computed again and the file replaced. The folder is bounded (``max_bytes``,
+2 GiB by default, the least recently used entries removed first:
+:mod:`core.classify.cache_bound`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from dataclasses import asdict
 
 import numpy as np
 
+from core.classify.cache_bound import DEFAULT_CACHE_BYTES
 from core.classify.features import FeatureOptions
 from core.classify.keyed_store import KeyedStore
 
@@ -78,16 +81,22 @@ class SampleCache:
     directory : path, optional
         Folder of the ``.npz`` entries (made when the first entry is written).
         None: memory only.
+    max_bytes : int
+        Bound of the folder's entries (this cache's and any other's sharing the
+        folder), least recently used removed first (:mod:`core.classify.cache_bound`).
 
     Raises
     ------
     TerrathemeError
-        From :meth:`samples`: the folder cannot be made or written.
+        ``max_bytes`` below 1. From :meth:`samples`: the folder cannot be made or written.
     """
 
-    def __init__(self, directory: str | os.PathLike | None = None) -> None:
-        self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples")
+    def __init__(self, directory: str | os.PathLike | None = None,
+                 max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples",
+                                 max_bytes)
         self.directory = self._store.directory
+        self.max_bytes = self._store.max_bytes
 
     @property
     def hits(self) -> int:

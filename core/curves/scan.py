@@ -249,7 +249,10 @@ def _scan_stretch(keys: np.ndarray, origin: tuple[int, int], size: tuple[int, in
                                            steps, values, count, cur, last)
         if j == j1:
             break
-        # Out of room: double the run arrays and resume at block j.
+        # Out of room: double the run arrays and resume at block j, with the first call's
+        # types (the kernel returns Python ints: as they are, each resume compiled two more
+        # signatures, the second with a float64 step).
+        cur, last = keys.dtype.type(cur), np.uint64(last)
         steps = np.concatenate([steps, np.empty_like(steps)])
         values = np.concatenate([values, np.empty_like(values)])
     return (np.append(steps[:count], np.uint32(last)),

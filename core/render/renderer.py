@@ -170,7 +170,8 @@ def render_cells(
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     # Only the block of cells under the region (a viewport of a huge grid stays cheap).
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
-    sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+    # A copy when the region is narrower than the grid: the kernels' one signature ('C').
+    sub = np.ascontiguousarray(indices[cy0 : cy1 + 2, cx0 : cx1 + 2])
     splits = region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
     cx0, cy0, rx, ry = cx0 + ox, cy0 + oy, rx + ox * n, ry + oy * m
     hist = options.blend is BlendMode.HISTOGRAM
@@ -249,7 +250,7 @@ def render_labels(
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
-    sub = indices[cy0 : cy1 + 2, cx0 : cx1 + 2]
+    sub = np.ascontiguousarray(indices[cy0 : cy1 + 2, cx0 : cx1 + 2])
     splits = region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
     out = np.empty((rh, rw), dtype=np.uint8)
     block = rk.RegionBlock(sub, splits, cx0, cy0, rx, ry, n, m)
