@@ -12,7 +12,7 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   float32 in [0, 1];
 * :class:`SampleCache` -- training samples kept by content between trainings
   (``train_classifier(..., cache=...)``), :class:`ModelCache` -- fitted models
-  so (``model_cache=...``);
+  so (``model_cache=...``); both bound their folder (2 GiB by default);
 * :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
   classifier file or a shipped model by name (``aerial``), with class names.
 
@@ -23,7 +23,8 @@ overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,
 ``forest`` and ``extra_trees`` (the tree ensembles), ``samples`` (training
 samples from masks and scribbles), ``sample_cache``, ``model_cache`` and
-``keyed_store`` (their storage), ``prior`` (class-prior
+``keyed_store`` (their storage), ``cache_bound`` (the folder's size bound,
+least recently used entries removed first), ``prior`` (class-prior
 correction and EM shares), ``adapt`` (test-time adaptation), ``model_file`` (the
 file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
 name).
