@@ -168,3 +168,41 @@ class KeyedStore:
         except OSError as exc:
             raise TerrathemeError(f"{path.parent}: cannot keep {self.what} there "
                                   f"({exc.strerror or exc})") from None
+
+
+class StoreFront:
+    """What a cache over a :class:`KeyedStore` shares: its folder, bound and counters.
+
+    Subclasses name their entries with the class attributes ``SUFFIX``
+    (file name ending), ``MEMORY_ENTRIES`` and ``WHAT`` (for messages), and
+    reach the store as ``self._store``.
+
+    Parameters
+    ----------
+    directory : path, optional
+        Folder of the entries (made when the first one is written). None: memory only.
+    max_bytes : int
+        Bound of the folder's entries (this cache's and any other's sharing the
+        folder), least recently used removed first (:mod:`core.classify.cache_bound`).
+    """
+
+    SUFFIX = ".npz"
+    MEMORY_ENTRIES = 1
+    WHAT = "entries"
+
+    def __init__(self, directory: str | os.PathLike | None = None,
+                 max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self._store = KeyedStore(directory, self.SUFFIX, self.MEMORY_ENTRIES, self.WHAT,
+                                 max_bytes)
+        self.directory = self._store.directory
+        self.max_bytes = self._store.max_bytes
+
+    @property
+    def hits(self) -> int:
+        """Lookups answered from the cache since creation."""
+        return self._store.hits
+
+    @property
+    def misses(self) -> int:
+        """Lookups computed (not in the cache) since creation."""
+        return self._store.misses

@@ -41,14 +41,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Callable, Mapping, Sequence
 from importlib.metadata import version
 
 import numpy as np
 
-from core.classify.cache_bound import DEFAULT_CACHE_BYTES
-from core.classify.keyed_store import KeyedStore
+from core.classify.keyed_store import StoreFront
 from core.classify.model_file import ModelParts, model_bytes, read_model_bytes
 from core.classify.model_options import options_to_json
 from core.classify.supervised_options import SupervisedOptions
@@ -85,7 +83,7 @@ def model_key(sample_keys: Sequence[str], classes: Sequence[int], options: Super
     return hashlib.sha256(json.dumps(ingredients, sort_keys=True).encode()).hexdigest()
 
 
-class ModelCache:
+class ModelCache(StoreFront):
     """Fitted models by :func:`model_key`, in memory and optionally on disk.
 
     Parameters
@@ -103,22 +101,9 @@ class ModelCache:
         ``max_bytes`` below 1. From :meth:`model`: the folder cannot be made or written.
     """
 
-    def __init__(self, directory: str | os.PathLike | None = None,
-                 max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
-        self._store = KeyedStore(directory, SUFFIX, MEMORY_ENTRIES, "trained models",
-                                 max_bytes)
-        self.directory = self._store.directory
-        self.max_bytes = self._store.max_bytes
-
-    @property
-    def hits(self) -> int:
-        """Lookups answered from the cache since creation."""
-        return self._store.hits
-
-    @property
-    def misses(self) -> int:
-        """Models fitted since creation."""
-        return self._store.misses
+    SUFFIX = SUFFIX
+    MEMORY_ENTRIES = MEMORY_ENTRIES
+    WHAT = "trained models"
 
     def model(self, key: str, options: SupervisedOptions,
               fit: Callable[[], ModelParts]) -> ModelParts:

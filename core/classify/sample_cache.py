@@ -22,15 +22,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 
 import numpy as np
 
-from core.classify.cache_bound import DEFAULT_CACHE_BYTES
 from core.classify.features import FeatureOptions
-from core.classify.keyed_store import KeyedStore
+from core.classify.keyed_store import StoreFront
 
 #: entries kept in memory (least recently used dropped first)
 MEMORY_ENTRIES = 64
@@ -73,7 +71,7 @@ def _plain(value):
     return getattr(value, "value", value)
 
 
-class SampleCache:
+class SampleCache(StoreFront):
     """Per-pair training samples by :func:`sample_key`, in memory and optionally on disk.
 
     Parameters
@@ -91,22 +89,9 @@ class SampleCache:
         ``max_bytes`` below 1. From :meth:`samples`: the folder cannot be made or written.
     """
 
-    def __init__(self, directory: str | os.PathLike | None = None,
-                 max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
-        self._store = KeyedStore(directory, ".npz", MEMORY_ENTRIES, "training samples",
-                                 max_bytes)
-        self.directory = self._store.directory
-        self.max_bytes = self._store.max_bytes
-
-    @property
-    def hits(self) -> int:
-        """Lookups answered from the cache since creation."""
-        return self._store.hits
-
-    @property
-    def misses(self) -> int:
-        """Lookups computed since creation."""
-        return self._store.misses
+    SUFFIX = ".npz"
+    MEMORY_ENTRIES = MEMORY_ENTRIES
+    WHAT = "training samples"
 
     def samples(self, key: str, n_features: int, compute: Callable[[], Samples]) -> Samples:
         """The samples of ``key``: cached, or ``compute()`` then kept.
