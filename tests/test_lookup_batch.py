@@ -20,10 +20,12 @@ from core.packing.batch import (
     layer_batch,
     layer_batch_parallel,
     lookup_batch,
+    on_threads,
     tiled_batch_parallel,
 )
 from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
 from core.packing.scalar import quick_cells
+from core.packing.sweep import sweep_layer
 
 
 def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:
@@ -158,6 +160,42 @@ def test_both_strategies_answer_alike(w, h, curve, tile_bits, threads, seed):
     xs[min(xs.size - 1, k + 17)] = -1
     assert [lookup_batch(xs, ys, table, np.zeros(xs.size, np.uint8), threads, words, s)
             for s in ("sweep", "buckets")] == [k, k]
+
+
+@pytest.mark.parametrize(("parts", "piece"), [(2, 1), (2, 777), (3, 1000), (3, 4096), (2, None)])
+def test_pieces_cover_the_batch_once(parts, piece):
+    # Whichever thread takes a piece, every texel is looked up once, in a slice of
+    # `piece` texels starting at a multiple of it (one slice per thread without one).
+    n = 10007
+    taken = []
+
+    def record(xs, ys, out):
+        taken.append((int(xs[0]), xs.size))
+        out[:] = 1
+        return -1
+
+    xs = np.arange(n, dtype=np.int64)
+    out = np.zeros(n, np.uint8)
+    assert on_threads(record, xs, xs, (), out, parts, piece) == -1
+    size = -(-n // parts) if piece is None else piece
+    assert sorted(taken) == [(a, min(size, n - a)) for a in range(0, n, size)]
+    assert out.all()
+
+
+@pytest.mark.parametrize(("parts", "piece"), [(2, 100), (3, 1), (2, None)])
+def test_pieces_answer_as_dense_and_report_the_first_bad_texel(parts, piece):
+    rng = np.random.default_rng(5)
+    img = _blocks(rng, 90, 70, 6, 5)
+    table = pack(img).table
+    xs = rng.integers(0, 70, 4000)
+    ys = rng.integers(0, 90, 4000)
+    out = np.zeros(xs.size, np.uint8)
+    assert on_threads(sweep_layer, xs, ys, (table,), out, parts, piece) == -1
+    assert np.array_equal(out, img[ys, xs])
+    # Bad texels in several pieces: the first of them, whichever piece ends first.
+    xs[[3500, 2100, 650]] = [70, -3, 71]
+    assert on_threads(sweep_layer, xs, ys, (table,), out, parts, piece) == 650
+    assert on_threads(sweep_layer, xs[:0], ys[:0], (table,), out[:0], parts, piece) == -1
 
 
 def test_strategy_follows_table_size():
