@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import numpy as np
 import pytest
@@ -179,6 +180,34 @@ def test_pieces_cover_the_batch_once(parts, piece):
     assert on_threads(record, xs, xs, (), out, parts, piece) == -1
     size = -(-n // parts) if piece is None else piece
     assert sorted(taken) == [(a, min(size, n - a)) for a in range(0, n, size)]
+    assert out.all()
+
+
+def test_a_thread_held_back_leaves_its_share_to_the_others():
+    # The pool's thread stops in its first piece until the calling thread has done
+    # all the others: the batch ends with every piece done, 1 by the pool's thread.
+    pieces = 9
+    started, rest_done = threading.Event(), threading.Event()
+    done = {"main": 0, "pool": 0}
+    main = threading.get_ident()
+
+    def held(xs, ys, out):
+        out[:] = 1
+        if threading.get_ident() != main:
+            started.set()
+            assert rest_done.wait(10)
+            done["pool"] += 1
+            return -1
+        assert started.wait(10)
+        done["main"] += 1
+        if done["main"] == pieces - 1:
+            rest_done.set()
+        return -1
+
+    xs = np.zeros(pieces * 10, np.int64)
+    out = np.zeros(xs.size, np.uint8)
+    assert on_threads(held, xs, xs, (), out, 2, 10) == -1
+    assert done == {"main": pieces - 1, "pool": 1}
     assert out.all()
 
 

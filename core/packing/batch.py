@@ -282,13 +282,13 @@ def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, table
     """``kernel(xs, ys, *tables, out)`` over pieces of a batch on ``parts`` threads.
 
     The kernels release the GIL (``nogil``); the calling thread works too, the
-    others are a shared pool of Python threads. With ``piece`` None the batch
-    is cut in ``parts`` equal slices, a slice per thread, each one kernel's
-    from start to end (the bucket strategy: a larger slice sorts into fuller
-    buckets). Given a ``piece`` size, each thread takes the next piece of that
-    many texels until none is left, so a thread the system holds back (the
-    machine shared with other work) leaves its share to the threads still
-    running instead of delaying the batch. Python threads rather than a numba
+    others are a shared pool of Python threads. The batch is cut in pieces of
+    ``piece`` texels (None: ``parts`` equal slices, each one kernel's from
+    start to end, for the bucket strategy, whose larger slices sort into
+    fuller buckets), and each thread takes the next piece until none is left:
+    a thread the system holds back (the machine shared with other work), or
+    one slow to wake, leaves its share to the threads still running instead
+    of delaying the batch. Python threads rather than a numba
     ``prange``: OpenMP's workers spin while they wait, which on a busy
     machine took CPU from the slice still working (10^6 texels on 2 threads,
     load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
