@@ -35,6 +35,7 @@ from core.packing.layout import (
     W_SPANS,
     W_WIDTH,
 )
+from core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
 T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_SPANS, T_RUNS = range(8)
@@ -121,6 +122,10 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
             local[i] = np.int64(np.uint32(step) << np.uint32(8))
             los[i] = runs + np.int64(data[at])
             his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
+            # The first probe's line, asked for now: it arrives while the other texels'
+            # steps are worked out (DRCOG 9144^2, 10^6 random texels, 21 paired rounds
+            # at load 4.0-4.4, CPU time 0.71x; ESA 0.81x; Chesapeake, in cache, 1.00x).
+            prefetch(data, los[i] + (his[i] >> 1))
         # The searches, a halving step of each open one per sweep (independent loads).
         openings = 0
         for i in range(m):
