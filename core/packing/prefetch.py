@@ -3,9 +3,9 @@
 :func:`prefetch` (usable inside ``numba.njit`` code only) emits LLVM's
 ``llvm.prefetch`` for ``array[index]``: a hint, which changes no result.
 The sweep kernels (:mod:`.sweep`) issue it for each search's first probe
-into the runs as soon as its span is known, so the line arrives while the
-other texels' local steps are being worked out rather than in the search
-sweep that needs it.
+into the runs as soon as its span is known, and for its next probe in each
+sweep, so the line arrives while other texels are being worked on rather
+than in the sweep that needs it.
 """
 
 from __future__ import annotations
