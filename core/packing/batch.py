@@ -282,13 +282,11 @@ def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, table
     """``kernel(xs, ys, *tables, out)`` over pieces of a batch on ``parts`` threads.
 
     The kernels release the GIL (``nogil``); the calling thread works too, the
-    others are a shared pool of Python threads. The batch is cut in pieces of
-    ``piece`` texels (None: ``parts`` equal slices, each one kernel's from
-    start to end, for the bucket strategy, whose larger slices sort into
-    fuller buckets), and each thread takes the next piece until none is left:
-    a thread the system holds back (the machine shared with other work), or
-    one slow to wake, leaves its share to the threads still running instead
-    of delaying the batch. Python threads rather than a numba
+    others are a shared pool of Python threads. Each thread takes the next
+    piece of ``piece`` texels (None: of ``parts`` equal slices, for the bucket
+    strategy, whose larger slices sort into fuller buckets) until none is
+    left, so a thread held back (by other work on the machine) or slow to wake
+    leaves its share to the others. Python threads rather than a numba
     ``prange``: OpenMP's workers spin while they wait, which on a busy
     machine took CPU from the slice still working (10^6 texels on 2 threads,
     load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
@@ -356,10 +354,8 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
 #: Chesapeake / ESA (an earlier run at load 4.7, in wall time, had DRCOG the other way).
 SWEEP_BYTES = 1 << 23
 STRATEGIES = ("sweep", "buckets")
-#: Texels per piece of a swept batch on several threads (:func:`on_threads`): a stretch.
-#: DRCOG 9144^2, 10^6 random texels on 2 threads, 21 paired rounds at load 4.5-4.8, median
-#: wall time over the compiled dense gather's: 1.90x in one slice per thread, 1.57x in
-#: pieces of 4 stretches, 1.44x in pieces of one (at load 5.2-6.7: 3.35x, 3.29x, 2.82x).
+#: Texels per piece of a swept batch on threads (:func:`on_threads`). DRCOG, 10^6 texels, 2 threads,
+#: load 4.5/6/9, over the dense gather: a slice a thread 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
 SWEEP_PIECE = STRETCH
 
 
@@ -396,15 +392,11 @@ def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarr
         raise ValueError(f"batch strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
     tiles, rows = (None, None) if words is None else words
     if strategy == "sweep":
-        if threads > 1:
-            # Pieces taken by whichever thread is free (a thread held back by other work
-            # on the machine leaves its share to the others).
-            return (on_threads(sweep_layer, xs, ys, (data,), out, threads, SWEEP_PIECE)
-                    if tiles is None else
-                    on_threads(sweep_tiled, xs, ys, (data, tiles, rows), out, threads,
-                               SWEEP_PIECE))
-        return int(sweep_layer(xs, ys, data, out) if tiles is None
-                   else sweep_tiled(xs, ys, data, tiles, rows, out))
+        kernel, tables = ((sweep_layer, (data,)) if tiles is None
+                          else (sweep_tiled, (data, tiles, rows)))
+        if threads > 1:  # in pieces, taken by whichever thread is free
+            return on_threads(kernel, xs, ys, tables, out, threads, SWEEP_PIECE)
+        return int(kernel(xs, ys, *tables, out))
     if threads > 1:
         return (layer_batch_parallel(xs, ys, data, out, threads) if tiles is None
                 else tiled_batch_parallel(xs, ys, data, tiles, rows, out, threads))
