@@ -348,11 +348,11 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
 
 
 #: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
-#: bucket: the sweeps need no sort while the runs stay in the shared cache (32 MiB of L3
-#: here). Measured in CPU time, 10^6 random texels on one thread at load 2.5: sweeps
-#: 10.7 / 5.3 / 5.7 ns against buckets 15.7 / 7.9 / 8.8 on DRCOG (4.3 MB table) /
-#: Chesapeake / ESA (an earlier run at load 4.7, in wall time, had DRCOG the other way).
-SWEEP_BYTES = 1 << 23
+#: bucket (measured no further). With the sweeps' prefetches, 10^6 random texels at load
+#: 2.4-3, DRCOG side by side 3 x 1 (13.7 MB table) and 3 x 3 (41 MB, past the 32 MiB of
+#: L3): sweeps 0.48x and 0.68x the buckets' CPU time on one thread, 0.54x their wall
+#: time on two (13.7 MB); in the bench, 0.52-0.82x on the three maps (4.5 MB at most).
+SWEEP_BYTES = 1 << 26
 STRATEGIES = ("sweep", "buckets")
 #: Texels per piece of a swept batch on threads (:func:`on_threads`). DRCOG, 10^6 texels, 2 threads,
 #: load 4.5/6/9, over the dense gather: a slice a thread 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
