@@ -25,8 +25,8 @@ holds back delays only its slice). A tiled container's tiles lie end to end
 in one array; each tile's words are a row of :func:`tiled_words`' rows and
 its buckets follow the previous tile's, so one pass serves all tiles.
 
-Tables that stay in a core's cache are as cheap or cheaper in sweeps
-(:mod:`core.packing.sweep`, no sort); :func:`lookup_batch`, the one entry
+Sweeps (:mod:`core.packing.sweep`: no sort, each search's probes prefetched)
+are faster up to :data:`SWEEP_BYTES` at least; :func:`lookup_batch`, the one entry
 point, picks the strategy per table (:func:`batch_strategy`). Results are
 those of the scalar lookup, bit for bit, whichever strategy runs.
 """
