@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -25,6 +26,7 @@ from core.packing.batch import (
     tiled_batch_parallel,
 )
 from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
+from core.packing.prefetch import prefetch
 from core.packing.scalar import quick_cells
 from core.packing.sweep import sweep_layer
 
@@ -308,3 +310,14 @@ def test_scalar_lookup_colours_and_errors():
     assert isinstance(other, PackedLayer)
     assert all(np.array_equal(other.lookup(x, y), img[y, x])
                for y in range(0, 50, 5) for x in range(0, 70, 3))
+
+
+def test_prefetch_takes_a_1d_array_and_an_integer():
+    @numba.njit
+    def hint(a, i):
+        prefetch(a, i)
+
+    with pytest.raises(numba.TypingError, match="prefetch"):
+        hint(np.zeros((2, 2), np.uint32), 0)
+    with pytest.raises(numba.TypingError, match="prefetch"):
+        hint(np.zeros(4, np.uint32), 1.5)
