@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -20,10 +22,13 @@ from core.packing.batch import (
     layer_batch,
     layer_batch_parallel,
     lookup_batch,
+    on_threads,
     tiled_batch_parallel,
 )
 from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
+from core.packing.prefetch import prefetch
 from core.packing.scalar import quick_cells
+from core.packing.sweep import sweep_layer
 
 
 def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:
@@ -160,6 +165,70 @@ def test_both_strategies_answer_alike(w, h, curve, tile_bits, threads, seed):
             for s in ("sweep", "buckets")] == [k, k]
 
 
+@pytest.mark.parametrize(("parts", "piece"), [(2, 1), (2, 777), (3, 1000), (3, 4096), (2, None)])
+def test_pieces_cover_the_batch_once(parts, piece):
+    # Whichever thread takes a piece, every texel is looked up once, in a slice of
+    # `piece` texels starting at a multiple of it (one slice per thread without one).
+    n = 10007
+    taken = []
+
+    def record(xs, ys, out):
+        taken.append((int(xs[0]), xs.size))
+        out[:] = 1
+        return -1
+
+    xs = np.arange(n, dtype=np.int64)
+    out = np.zeros(n, np.uint8)
+    assert on_threads(record, xs, xs, (), out, parts, piece) == -1
+    size = -(-n // parts) if piece is None else piece
+    assert sorted(taken) == [(a, min(size, n - a)) for a in range(0, n, size)]
+    assert out.all()
+
+
+def test_a_thread_held_back_leaves_its_share_to_the_others():
+    # The pool's thread stops in its first piece until the calling thread has done
+    # all the others: the batch ends with every piece done, 1 by the pool's thread.
+    pieces = 9
+    started, rest_done = threading.Event(), threading.Event()
+    done = {"main": 0, "pool": 0}
+    main = threading.get_ident()
+
+    def held(xs, ys, out):
+        out[:] = 1
+        if threading.get_ident() != main:
+            started.set()
+            assert rest_done.wait(10)
+            done["pool"] += 1
+            return -1
+        assert started.wait(10)
+        done["main"] += 1
+        if done["main"] == pieces - 1:
+            rest_done.set()
+        return -1
+
+    xs = np.zeros(pieces * 10, np.int64)
+    out = np.zeros(xs.size, np.uint8)
+    assert on_threads(held, xs, xs, (), out, 2, 10) == -1
+    assert done == {"main": pieces - 1, "pool": 1}
+    assert out.all()
+
+
+@pytest.mark.parametrize(("parts", "piece"), [(2, 100), (3, 1), (2, None)])
+def test_pieces_answer_as_dense_and_report_the_first_bad_texel(parts, piece):
+    rng = np.random.default_rng(5)
+    img = _blocks(rng, 90, 70, 6, 5)
+    table = pack(img).table
+    xs = rng.integers(0, 70, 4000)
+    ys = rng.integers(0, 90, 4000)
+    out = np.zeros(xs.size, np.uint8)
+    assert on_threads(sweep_layer, xs, ys, (table,), out, parts, piece) == -1
+    assert np.array_equal(out, img[ys, xs])
+    # Bad texels in several pieces: the first of them, whichever piece ends first.
+    xs[[3500, 2100, 650]] = [70, -3, 71]
+    assert on_threads(sweep_layer, xs, ys, (table,), out, parts, piece) == 650
+    assert on_threads(sweep_layer, xs[:0], ys[:0], (table,), out[:0], parts, piece) == -1
+
+
 def test_strategy_follows_table_size():
     small = np.zeros(SWEEP_BYTES // 4, np.uint32)
     assert batch_strategy(small) == "sweep"
@@ -241,3 +310,14 @@ def test_scalar_lookup_colours_and_errors():
     assert isinstance(other, PackedLayer)
     assert all(np.array_equal(other.lookup(x, y), img[y, x])
                for y in range(0, 50, 5) for x in range(0, 70, 3))
+
+
+def test_prefetch_takes_a_1d_array_and_an_integer():
+    @numba.njit
+    def hint(a, i):
+        prefetch(a, i)
+
+    with pytest.raises(numba.TypingError, match="prefetch"):
+        hint(np.zeros((2, 2), np.uint32), 0)
+    with pytest.raises(numba.TypingError, match="prefetch"):
+        hint(np.zeros(4, np.uint32), 1.5)

@@ -25,8 +25,8 @@ holds back delays only its slice). A tiled container's tiles lie end to end
 in one array; each tile's words are a row of :func:`tiled_words`' rows and
 its buckets follow the previous tile's, so one pass serves all tiles.
 
-Tables that stay in a core's cache are as cheap or cheaper in sweeps
-(:mod:`core.packing.sweep`, no sort); :func:`lookup_batch`, the one entry
+Sweeps (:mod:`core.packing.sweep`: no sort, each search's probes prefetched)
+are faster up to :data:`SWEEP_BYTES` at least; :func:`lookup_batch`, the one entry
 point, picks the strategy per table (:func:`batch_strategy`). Results are
 those of the scalar lookup, bit for bit, whichever strategy runs.
 """
@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from threading import Lock
 
 import numba
 import numpy as np
@@ -277,14 +278,16 @@ def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
 
 
 def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, tables: tuple,
-               out: np.ndarray, parts: int) -> int:
-    """``kernel(xs, ys, *tables, out)`` over ``parts`` equal slices of a batch on threads.
+               out: np.ndarray, parts: int, piece: int | None = None) -> int:
+    """``kernel(xs, ys, *tables, out)`` over pieces of a batch on ``parts`` threads.
 
-    The kernels release the GIL (``nogil``); the first slice runs on the calling
-    thread, the others on a shared pool of Python threads. Each slice is one
-    kernel's from start to end (no barrier between its passes, so a thread the
-    system holds back delays only its own slice). Python threads rather than a
-    numba ``prange``: OpenMP's workers spin while they wait, which on a busy
+    The kernels release the GIL (``nogil``); the calling thread works too, the
+    others are a shared pool of Python threads. Each thread takes the next
+    piece of ``piece`` texels (None: of ``parts`` equal slices, for the bucket
+    strategy, whose larger slices sort into fuller buckets) until none is
+    left, so a thread held back (by other work on the machine) or slow to wake
+    leaves its share to the others. Python threads rather than a numba
+    ``prange``: OpenMP's workers spin while they wait, which on a busy
     machine took CPU from the slice still working (10^6 texels on 2 threads,
     load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
     one thread 6.7 ns).
@@ -292,22 +295,33 @@ def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, table
     Returns
     -------
     bad : int
-        Position of the first coordinate outside the layer in the first slice
-        holding one, or -1.
+        Position of the first coordinate outside the layer, or -1.
     """
-    if xs.size == 0:
+    n = xs.size
+    if n == 0:
         return -1
-    share = -(-xs.size // max(1, parts))
-    starts = range(0, xs.size, share)
-    pool = _pool(len(starts) - 1)
-    later = [pool.submit(kernel, xs[a: a + share], ys[a: a + share], *tables,
-                         out[a: a + share]) for a in starts[1:]]
-    bads = [int(kernel(xs[:share], ys[:share], *tables, out[:share]))]
-    bads += [int(f.result()) for f in later]
-    for a, k in zip(starts, bads, strict=True):
-        if k >= 0:
-            return a + k
-    return -1
+    parts = max(1, parts)
+    size = -(-n // parts) if piece is None else max(1, piece)
+    starts = range(0, n, size)
+    threads = min(parts, len(starts))
+    todo = iter(starts)
+    lock = Lock()
+
+    def work() -> int:
+        # The first bad texel among the pieces this thread took, or n.
+        first = n
+        while True:
+            with lock:
+                a = next(todo, -1)
+            if a < 0:
+                return first
+            k = int(kernel(xs[a: a + size], ys[a: a + size], *tables, out[a: a + size]))
+            if k >= 0:
+                first = min(first, a + k)
+
+    later = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
+    first = min([work()] + [f.result() for f in later])
+    return first if first < n else -1
 
 
 #: The lookup threads: (their number, the pool), made on first use, remade larger on demand.
@@ -334,12 +348,15 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
 
 
 #: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
-#: bucket: the sweeps need no sort while the runs stay in the shared cache (32 MiB of L3
-#: here). Measured in CPU time, 10^6 random texels on one thread at load 2.5: sweeps
-#: 10.7 / 5.3 / 5.7 ns against buckets 15.7 / 7.9 / 8.8 on DRCOG (4.3 MB table) /
-#: Chesapeake / ESA (an earlier run at load 4.7, in wall time, had DRCOG the other way).
-SWEEP_BYTES = 1 << 23
+#: bucket (measured no further). With the sweeps' prefetches, 10^6 random texels at load
+#: 2.4-3, DRCOG side by side 3 x 1 (13.7 MB table) and 3 x 3 (41 MB, past the 32 MiB of
+#: L3): sweeps 0.48x and 0.68x the buckets' CPU time on one thread, 0.54x their wall
+#: time on two (13.7 MB); in the bench, 0.52-0.82x on the three maps (4.5 MB at most).
+SWEEP_BYTES = 1 << 26
 STRATEGIES = ("sweep", "buckets")
+#: Texels per piece of a swept batch on threads (:func:`on_threads`). DRCOG, 10^6 texels, 2 threads,
+#: load 4.5/6/9, over the dense gather: a slice a thread 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
+SWEEP_PIECE = STRETCH
 
 
 def batch_strategy(data: np.ndarray) -> str:
@@ -375,14 +392,11 @@ def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarr
         raise ValueError(f"batch strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
     tiles, rows = (None, None) if words is None else words
     if strategy == "sweep":
-        if threads > 1:
-            # One slice per thread, each swept in stretches with one scratch allocation
-            # (62 slices of a 10^6 batch, one per stretch, were 1.1x slower).
-            parts = min(threads, max(1, -(-xs.size // STRETCH)))
-            return (on_threads(sweep_layer, xs, ys, (data,), out, parts) if tiles is None
-                    else on_threads(sweep_tiled, xs, ys, (data, tiles, rows), out, parts))
-        return int(sweep_layer(xs, ys, data, out) if tiles is None
-                   else sweep_tiled(xs, ys, data, tiles, rows, out))
+        kernel, tables = ((sweep_layer, (data,)) if tiles is None
+                          else (sweep_tiled, (data, tiles, rows)))
+        if threads > 1:  # in pieces, taken by whichever thread is free
+            return on_threads(kernel, xs, ys, tables, out, threads, SWEEP_PIECE)
+        return int(kernel(xs, ys, *tables, out))
     if threads > 1:
         return (layer_batch_parallel(xs, ys, data, out, threads) if tiles is None
                 else tiled_batch_parallel(xs, ys, data, tiles, rows, out, threads))

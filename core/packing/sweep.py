@@ -35,6 +35,7 @@ from core.packing.layout import (
     W_SPANS,
     W_WIDTH,
 )
+from core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
 T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_SPANS, T_RUNS = range(8)
@@ -121,6 +122,12 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
             local[i] = np.int64(np.uint32(step) << np.uint32(8))
             los[i] = runs + np.int64(data[at])
             his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
+            # The first probe's line, asked for now: it arrives while the other texels'
+            # steps are worked out. With the next probes' below, 10^6 random texels,
+            # paired rounds at load 5-5.5, CPU time over the kernel without prefetches:
+            # DRCOG 9144^2 0.52x (joined 0.52x, tiled 0.62x), ESA 0.91x, Chesapeake
+            # (runs in cache) 0.98x.
+            prefetch(data, los[i] + (his[i] >> 1) - 1)
         # The searches, a halving step of each open one per sweep (independent loads).
         openings = 0
         for i in range(m):
@@ -135,6 +142,8 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
                 at = los[i]
                 los[i] = at + half if data[at + half - 1] < local[i] else at
                 his[i] = left - half
+                # The next sweep's probe (DRCOG 0.84x over the first probe's alone, load 6).
+                prefetch(data, los[i] + (his[i] >> 1) - 1)
                 gs[still] = i
                 still += his[i] > 1
             openings = still
