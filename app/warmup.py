@@ -39,7 +39,7 @@ def _curves_and_packing() -> None:
         layer.lookup(bx[:2], by[:2])
         layer.lookup(3, 4)
         PackedLayer.from_bytes(layer.to_bytes()).unpack()
-        # Both batch strategies (the buckets serve tables over 8 MiB), on the layer's
+        # Both batch strategies (the buckets serve tables over 64 MiB), on the layer's
         # read-only `table` view as a caller of lookup_batch passes it, and on a copy.
         for table in (layer.table, layer.table.copy()):
             for strategy in STRATEGIES:
@@ -58,7 +58,7 @@ def _curves_and_packing() -> None:
                 tiled.lookup(5, 7)
                 tiled.unpack()
         # The tiles' tables end to end, looked up by bucket (the strategy of tables over
-        # 8 MiB, which a layer this small never picks itself).
+        # 64 MiB, which a layer this small never picks itself).
         tables = [tiled.tile(i).table for i in range(tiled.tiles_x * tiled.tiles_y)]
         table = np.concatenate(tables)
         starts = np.cumsum([0] + [t.size for t in tables[:-1]])
