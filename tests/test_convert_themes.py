@@ -6,10 +6,9 @@ import numpy as np
 import pytest
 
 from core.errors import TerrathemeError
+from core.themes.cut_mask import fill_from_class, lone_objects
 from core.themes.from_photo import (
     NO_DATA_NAME,
-    fill_from_class,
-    lone_objects,
     themes_by_name,
     themes_from_photo,
 )

@@ -22,13 +22,13 @@ from core.packing.batch import (
     layer_batch,
     layer_batch_parallel,
     lookup_batch,
-    on_threads,
     tiled_batch_parallel,
 )
 from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
 from core.packing.prefetch import prefetch
 from core.packing.scalar import quick_cells
 from core.packing.sweep import sweep_layer
+from core.packing.threads import on_threads
 
 
 def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.themes.from_photo import class_interior, lone_objects, themes_from_photo
+from core.themes.cut_mask import class_interior, lone_objects
+from core.themes.from_photo import themes_from_photo
 from core.themes.patch_search import INTERIOR, PatchOptions
 
 _LUMA = np.array([0.299, 0.587, 0.114])

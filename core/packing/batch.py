@@ -19,11 +19,12 @@ search is a chain of dependent loads. So a batch is worked in three passes
    in a few kilobytes that stay in L1 while the bucket's queries are answered.
 
 Batches are taken :data:`CHUNK` texels at a time (bounded scratch, about 20
-bytes a texel); on several threads, each thread does the three passes on its
-own slice of the batch (no barrier between passes, so a thread the system
-holds back delays only its slice). A tiled container's tiles lie end to end
-in one array; each tile's words are a row of :func:`tiled_words`' rows and
-its buckets follow the previous tile's, so one pass serves all tiles.
+bytes a texel); on several threads (:mod:`core.packing.threads`), each
+thread does the three passes on its own slice of the batch (no barrier
+between passes, so a thread the system holds back delays only its slice).
+A tiled container's tiles lie end to end in one array; each tile's words are
+a row of :func:`tiled_words`' rows and its buckets follow the previous
+tile's, so one pass serves all tiles.
 
 Sweeps (:mod:`core.packing.sweep`: no sort, each search's probes prefetched)
 are faster up to :data:`SWEEP_BYTES` at least; :func:`lookup_batch`, the one entry
@@ -32,10 +33,6 @@ those of the scalar lookup, bit for bit, whichever strategy runs.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
-from threading import Lock
 
 import numba
 import numpy as np
@@ -71,6 +68,7 @@ from core.packing.sweep import (
     sweep_layer,
     sweep_tiled,
 )
+from core.packing.threads import on_threads
 
 #: Texels per chunk of a batch.
 CHUNK = 1 << 20
@@ -277,64 +275,6 @@ def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     return _batch(xs, ys, data, True, tiles, rows, out)
 
 
-def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, tables: tuple,
-               out: np.ndarray, parts: int, piece: int | None = None) -> int:
-    """``kernel(xs, ys, *tables, out)`` over pieces of a batch on ``parts`` threads.
-
-    The kernels release the GIL (``nogil``); the calling thread works too, the
-    others are a shared pool of Python threads. Each thread takes the next
-    piece of ``piece`` texels (None: of ``parts`` equal slices, for the bucket
-    strategy, whose larger slices sort into fuller buckets) until none is
-    left, so a thread held back (by other work on the machine) or slow to wake
-    leaves its share to the others. Python threads rather than a numba
-    ``prange``: OpenMP's workers spin while they wait, which on a busy
-    machine took CPU from the slice still working (10^6 texels on 2 threads,
-    load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
-    one thread 6.7 ns).
-
-    Returns
-    -------
-    bad : int
-        Position of the first coordinate outside the layer, or -1.
-    """
-    n = xs.size
-    if n == 0:
-        return -1
-    parts = max(1, parts)
-    size = -(-n // parts) if piece is None else max(1, piece)
-    starts = range(0, n, size)
-    threads = min(parts, len(starts))
-    todo = iter(starts)
-    lock = Lock()
-
-    def work() -> int:
-        # The first bad texel among the pieces this thread took, or n.
-        first = n
-        while True:
-            with lock:
-                a = next(todo, -1)
-            if a < 0:
-                return first
-            k = int(kernel(xs[a: a + size], ys[a: a + size], *tables, out[a: a + size]))
-            if k >= 0:
-                first = min(first, a + k)
-
-    later = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
-    first = min([work()] + [f.result() for f in later])
-    return first if first < n else -1
-
-
-#: The lookup threads: (their number, the pool), made on first use, remade larger on demand.
-_POOL: list[tuple[int, ThreadPoolExecutor]] = []
-
-
-def _pool(threads: int) -> ThreadPoolExecutor:
-    threads = max(1, threads)
-    if not _POOL or _POOL[0][0] < threads:
-        _POOL[:] = [(threads, ThreadPoolExecutor(threads, thread_name_prefix="tt-lookup"))]
-    return _POOL[0][1]
-
-
 def layer_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
                          parts: int) -> int:
     """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
@@ -354,8 +294,9 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
 #: time on two (13.7 MB); in the bench, 0.52-0.82x on the three maps (4.5 MB at most).
 SWEEP_BYTES = 1 << 26
 STRATEGIES = ("sweep", "buckets")
-#: Texels per piece of a swept batch on threads (:func:`on_threads`). DRCOG, 10^6 texels, 2 threads,
-#: load 4.5/6/9, over the dense gather: a slice a thread 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
+#: Texels per piece of a swept batch on threads (:func:`~core.packing.threads.on_threads`).
+#: DRCOG, 10^6 texels, 2 threads, load 4.5/6/9, over the dense gather: a slice a thread
+#: 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
 SWEEP_PIECE = STRETCH
 
 

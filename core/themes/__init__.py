@@ -5,6 +5,8 @@ Modules: ``library`` (Theme, ThemeLibrary, the shipped themes), ``tileable``
 score), ``quality`` (banding, repetition and landmark scores), ``seam_cut``
 (minimum-error boundary cuts), ``histogram`` (Gaussianisation for the
 histogram-preserving blend), ``from_photo`` (themes for a classified photo),
+``cut_mask`` (what a cut keeps of its window: no other class, border rim or
+lone object),
 ``matching`` (classes to themes by colour and texture), ``looks`` (aerial
 exemplars of the shipped themes' classes, for naming).
 """

@@ -4,7 +4,8 @@
 made tileable"): for every class, the window whose texture statistics are
 closest to the class's (band-pass energy, Lab spread and mean;
 :mod:`core.themes.patch_search`) is cut out, the few pixels of other classes
-in it are filled from the class's own pixels of the window (shifted copies),
+in it, its border rim and lone objects are filled from the class's own pixels
+of the window (:mod:`core.themes.cut_mask`),
 and it is made tileable with :func:`core.themes.tileable.make_tileable`. A
 tile that would visibly repeat (:func:`core.themes.quality.repeat_score` or
 :func:`core.themes.quality.landmark_score` over their limits) is replaced by
@@ -30,10 +31,10 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.themes.cut_mask import cut_window
 from core.themes.library import (
     Theme,
     ThemeLibrary,
@@ -49,7 +50,6 @@ from core.themes.matching import (
     theme_appearances,
 )
 from core.themes.patch_search import (
-    INTERIOR,
     ClassTarget,
     PatchOptions,
     WindowStats,
@@ -60,9 +60,6 @@ from core.themes.patch_search import (
     texture_stats,
 )
 from core.themes.quality import (
-    LANDMARK_CONTRAST,
-    LANDMARK_SIZE,
-    landmark_mask,
     landmark_score,
     repeat_score,
 )
@@ -103,95 +100,6 @@ def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.ascontiguousarray(rgb[:, :, :3]), lab.astype(np.uint8, copy=False)
 
 
-def fill_from_class(patch: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """Fill the pixels of ``patch`` outside ``keep`` from shifted copies of its kept pixels.
-
-    Parameters
-    ----------
-    patch : (s, s, 3) uint8 ndarray
-    keep : (s, s) bool ndarray
-        The class's own pixels (at least one).
-
-    Returns
-    -------
-    (s, s, 3) uint8 ndarray
-        Every pixel a pixel of the class: holes take the texel at the smallest
-        circular shift (of a fixed list, nearest first) that lands on a kept one.
-    """
-    out = patch.copy()
-    have = keep.copy()
-    s = patch.shape[0]
-    steps = sorted({(dy, dx) for dy in range(-s // 2, s // 2 + 1, max(1, s // 16))
-                    for dx in range(-s // 2, s // 2 + 1, max(1, s // 16)) if (dy, dx) != (0, 0)},
-                   key=lambda d: (d[0] ** 2 + d[1] ** 2, d))
-    for dy, dx in steps:
-        if have.all():
-            break
-        # Holes take this shift's texel where the shifted pixel is the class's own.
-        src_keep = np.roll(keep, (dy, dx), axis=(0, 1))
-        take = ~have & src_keep
-        if take.any():
-            out[take] = np.roll(patch, (dy, dx), axis=(0, 1))[take]
-            have |= take
-    if not have.all():
-        out[~have] = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.uint8)
-    return out
-
-
-#: an object stands out of its texture when it passes this many luma spreads (and 20 levels)
-OBJECT_SPREADS = 4.0
-
-
-def lone_objects(window: np.ndarray) -> np.ndarray:
-    """Pixels of objects that stand out of a patch's texture (a lone building in water).
-
-    Dark or bright features narrower than
-    :data:`core.themes.quality.LANDMARK_SIZE` whose contrast passes
-    ``OBJECT_SPREADS`` times the patch's own luma spread
-    (:func:`core.themes.quality.landmark_mask`), grown by two pixels. Tiled,
-    such an object repeats on a grid the eye picks out at once; in a busy
-    texture (town) the threshold rises with the spread, so its streets stay.
-
-    Returns
-    -------
-    (s, s) bool ndarray
-    """
-    lum = window.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-    spread = float(np.std(lum - cv2.GaussianBlur(lum, (0, 0), LANDMARK_SIZE / 4)))
-    dark, bright = landmark_mask(window, periodic=False,
-                                 contrast=max(LANDMARK_CONTRAST, OBJECT_SPREADS * spread))
-    grown = cv2.dilate((dark | bright).astype(np.uint8), np.ones((5, 5), np.uint8))
-    return grown.astype(bool)
-
-
-def class_interior(mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
-    """The class's pixels of an ``s x s`` window at least ``INTERIOR`` pixels from its border.
-
-    Pixels along a class border are blends of the two sides (the dark rim of a
-    shore on sand); cut into a theme they repeat as a line once per tile, and
-    the render draws the border itself. The border is the class region's own,
-    not the window's: the mask is read ``INTERIOR`` pixels beyond the window.
-
-    Parameters
-    ----------
-    mask : (H, W) bool ndarray
-        The class region in the photo.
-    x, y, s : the window
-
-    Returns
-    -------
-    (s, s) bool ndarray
-    """
-    h, w = mask.shape
-    r = INTERIOR
-    x0, y0, x1, y1 = max(0, x - r), max(0, y - r), min(w, x + s + r), min(h, y + s + r)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-    # Outside the photo the class goes on (replicated border): the photo's edge is no border.
-    inner = cv2.erode(mask[y0:y1, x0:x1].astype(np.uint8), kernel,
-                      borderType=cv2.BORDER_REPLICATE)
-    return inner[y - y0 : y - y0 + s, x - x0 : x - x0 + s].astype(bool)
-
-
 #: a tile repeating more than this (repeat_score) or holding a larger landmark is replaced
 REPEAT_LIMIT = 0.3
 LANDMARK_LIMIT = 0.04
@@ -212,18 +120,8 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
             break
         x, y, s = found
         tried.append(found)
-        # Other classes' pixels, the class's border rim and lone objects that would
-        # repeat once per tile are filled from the class's own pixels of the window.
-        window = rgb[y : y + s, x : x + s]
-        inner = class_interior(mask, x, y, s)
-        if not inner.any():
-            inner = mask[y : y + s, x : x + s]
-        # Objects are found with the other classes painted in the class's median colour:
-        # a dark rim left along a shore is then a line on sand, not the edge of the water.
-        seen = window.copy()
-        seen[~inner] = np.median(window[inner], axis=0).astype(np.uint8)
-        keep = inner & ~lone_objects(seen)
-        cut = window if keep.all() else fill_from_class(window, keep if keep.any() else inner)
+        # Other classes, the class's rim and lone objects filled from its own pixels.
+        cut = cut_window(rgb, mask, x, y, s)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
         if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
