@@ -48,6 +48,27 @@ def int_tuple(what: str, form: str, count: int, separator: str = "x", *,
     return parse
 
 
+
+def unit_fraction(what: str) -> Callable[[str], float]:
+    """An argparse type: a number in (0, 1] (``what`` names it in the message).
+
+    Examples
+    --------
+    >>> unit_fraction("scale")("0.25")
+    0.25
+    """
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(f"{what} must be a number, got {text!r}") from exc
+        if not 0.0 < value <= 1.0:
+            raise argparse.ArgumentTypeError(f"{what} must be in (0, 1], got {text!r}")
+        return value
+
+    return parse
+
 #: how ``--legend FILE`` is described, after what it names
 LEGEND_FORMS = ('(JSON {"1": "Building", ...}, a list of {"id", "name"} or CSV lines '
                 '"1,Building"; docs/formats.md)')

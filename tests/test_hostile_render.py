@@ -70,6 +70,21 @@ def test_tiled_to_a_png_is_one_line(small, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(("option", "needle"), [
+    (["--region", "0,0,0,5"], "region 0 x 5 is empty"),
+    (["--region", "8,0,32,16"], "region x=8 y=0 w=32 h=16 is outside the 32 x 32 texture"),
+    (["--scale", "0"], "scale must be in (0, 1], got '0'"),
+    (["--scale", "1.5"], "scale must be in (0, 1], got '1.5'"),
+    (["--scale", "half"], "scale must be a number, got 'half'"),
+])
+def test_a_bad_region_or_scale_is_refused_before_any_work(small, tmp_path, option, needle):
+    # One line, no progress bar started (no carriage return), nothing written.
+    proc = run_cli("render", small, tmp_path / "out.png", *option)
+    assert proc.returncode == 2 and "\r" not in proc.stderr, proc.stderr
+    assert needle in proc.stderr.strip().splitlines()[-1], proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def _writing(folder) -> bool:
     """Whether the full-resolution level is being written: its temporary holds tiles already
     (not just a TIFF header) and no other temporary has started.

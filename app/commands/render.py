@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.arg_types import int_tuple
+from app.arg_types import int_tuple, unit_fraction
 
 NAME = "render"
 HELP = "render a project (.ttproj) to an image, whole or a region, full size or scaled down"
@@ -23,7 +23,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--region", type=_region, metavar="X,Y,W,H",
                         help="render only this window (full-resolution texels; default: the "
                              "photo's extent, or the whole texture of a hand-made project)")
-    parser.add_argument("--scale", type=float, default=1.0,
+    parser.add_argument("--scale", type=unit_fraction("scale"), default=1.0,
                         help="output pixels per texel, in (0, 1] (overview render below 1)")
     parser.add_argument("--blend", choices=["linear", "histogram", "shaped"], default=None,
                         help="default: the project's own style (shaped borders for converted "
@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from core.io.images import write_image
     from core.model.project import load_project
     from core.render.boundary import BoundaryOptions
+    from core.render.inputs import validate_region
     from core.render.project import (
         photo_extent,
         project_style,
@@ -71,7 +72,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         options = RenderOptions(blend=BlendMode(args.blend))
     style = "shaped" if options.boundary is not None else options.blend.value
-    region = args.region or (0, 0, *photo_extent(project))
+    # The region is checked before the progress bar starts, not in the render.
+    region = validate_region(args.region or (0, 0, *photo_extent(project)),
+                             project.grid.texture_size)
     if _streamed(args, region):
         return _render_tiled(args, project, region, options, style)
     gpu = _gpu_renderer(project) if args.gpu else None
