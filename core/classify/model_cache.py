@@ -86,19 +86,9 @@ def model_key(sample_keys: Sequence[str], classes: Sequence[int], options: Super
 class ModelCache(StoreFront):
     """Fitted models by :func:`model_key`, in memory and optionally on disk.
 
-    Parameters
-    ----------
-    directory : path, optional
-        Folder of the ``<key>.model.npz`` entries (made when the first entry is
-        written). None: memory only.
-    max_bytes : int
-        Bound of the folder's entries (this cache's and any other's sharing the
-        folder), least recently used removed first (:mod:`core.classify.cache_bound`).
-
-    Raises
-    ------
-    TerrathemeError
-        ``max_bytes`` below 1. From :meth:`model`: the folder cannot be made or written.
+    Parameters as :class:`~core.classify.keyed_store.StoreFront` (entries ``<key>.model.npz``);
+    ``max_bytes`` below 1 raises TerrathemeError, and :meth:`model` does when the
+    folder cannot be made or written.
     """
 
     SUFFIX = SUFFIX

@@ -74,19 +74,9 @@ def _plain(value):
 class SampleCache(StoreFront):
     """Per-pair training samples by :func:`sample_key`, in memory and optionally on disk.
 
-    Parameters
-    ----------
-    directory : path, optional
-        Folder of the ``.npz`` entries (made when the first entry is written).
-        None: memory only.
-    max_bytes : int
-        Bound of the folder's entries (this cache's and any other's sharing the
-        folder), least recently used removed first (:mod:`core.classify.cache_bound`).
-
-    Raises
-    ------
-    TerrathemeError
-        ``max_bytes`` below 1. From :meth:`samples`: the folder cannot be made or written.
+    Parameters as :class:`~core.classify.keyed_store.StoreFront` (entries ``.npz``);
+    ``max_bytes`` below 1 raises TerrathemeError, and :meth:`samples` does when the
+    folder cannot be made or written.
     """
 
     SUFFIX = ".npz"
