@@ -48,6 +48,12 @@ TUNE_SEED = 2017
 
 _DEFAULT = SupervisedOptions(ignore_classes=IGNORE)
 
+
+def _features(**changes) -> SupervisedOptions:
+    """The default with some feature options changed."""
+    return replace(_DEFAULT, features=replace(_DEFAULT.features, **changes))
+
+
 #: the variants by name
 VARIANTS = {
     "default": _DEFAULT,
@@ -66,6 +72,11 @@ VARIANTS = {
         _DEFAULT.regularisation, edge_sigma_spatial=24.0, edge_sigma_colour=30.0)),
     "target-prior0.3": replace(_DEFAULT, target_prior_power=0.3),
     "target-prior0.5": replace(_DEFAULT, target_prior_power=0.5),
+    "profile-1-2-4": _features(profile_radii=(1, 2, 4)),
+    "profile-2-4-8": _features(profile_radii=(2, 4, 8)),
+    "ratios": _features(ratios=True),
+    "lbp": _features(lbp=True),
+    "rank-2-4-8": _features(rank_radii=(2, 4, 8)),
 }
 
 

@@ -34,6 +34,9 @@ Optional structure features (``structure``, on in the supervised default):
 edge density per block and the structure-tensor coherence at every sigma,
 :mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
 
+Optional invariant features (``profile_radii``, ``ratios``, ``lbp``, ``rank_radii``):
+:mod:`core.classify.invariants`, after the structure ones.
+
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
 for a model fitted to the one photo it classifies (scribbles): there, where
@@ -55,6 +58,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from core.classify.invariants import (
+    invariant_count,
+    invariant_features,
+    invariant_halo,
+    lbp_shares,
+)
 from core.classify.position import position_features
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.classify.texture import block_mean, context_blur, texture_count, texture_features
@@ -119,8 +128,10 @@ class FeatureOptions:
         docstring), ``len(sigmas)`` features after the ridges.
     structure : bool
         DEFAULT set: add edge density and structure-tensor coherence
-        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features), last
-        before the position.
+        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features).
+    profile_radii, ratios, lbp, rank_radii : tuple of int, bool, bool, tuple of int
+        DEFAULT set: morphological profile, colour ratios, LBP shares, local
+        lightness rank (:mod:`core.classify.invariants`), last before the position.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -133,6 +144,10 @@ class FeatureOptions:
     ridge_sigmas: tuple[float, ...] = ()
     relative: bool = False
     structure: bool = False
+    profile_radii: tuple[int, ...] = ()
+    ratios: bool = False
+    lbp: bool = False
+    rank_radii: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -142,6 +157,9 @@ class FeatureOptions:
                                   f"{self.ridge_sigmas}")
         if self.relative and not self.sigmas:
             raise TerrathemeError("relative lightness needs at least one sigma (its context)")
+        if any(int(r) != r or r < 1 for r in (*self.profile_radii, *self.rank_radii)):
+            raise TerrathemeError(f"profile and rank radii must be whole numbers >= 1, not "
+                                  f"{self.profile_radii} / {self.rank_radii}")
 
     @property
     def n_features(self) -> int:
@@ -157,7 +175,7 @@ class FeatureOptions:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
                     + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
-                    + texture_count(self.sigmas, self.structure))
+                    + texture_count(self.sigmas, self.structure) + invariant_count(self))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -169,7 +187,8 @@ class FeatureOptions:
             return 0
         if self.feature_set is FeatureSet.DEFAULT:
             fine = -(-ridge_halo(self.ridge_sigmas) // self.scale)
-            return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1)
+            return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1,
+                       invariant_halo(self))
         # scipy's gaussian_filter truncates at 4 sigma; Hessian adds 2 pixels
         return int(math.ceil(4.0 * self.skimage_sigma_max)) + 2
 
@@ -253,7 +272,7 @@ def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
 def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
     stats: np.ndarray | None = None, ridges: np.ndarray | None = None,
-    texture: np.ndarray | None = None,
+    texture: np.ndarray | None = None, lbp: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
@@ -270,11 +289,14 @@ def features_from_lab(
     texture : (h, w, T) float32 ndarray, optional
         :func:`core.classify.texture.texture_features` of the same photo pixels;
         required when ``options.structure`` is set.
+    lbp : (h, w, 10) float32 ndarray, optional
+        :func:`core.classify.invariants.lbp_shares`, required with ``options.lbp``.
 
     Raises
     ------
     TerrathemeError
-        Ridge sigmas without the ridges, texture options without the texture.
+        Ridge sigmas without the ridges, texture options without the texture, LBP
+        without the LBP shares.
 
     Returns
     -------
@@ -340,7 +362,10 @@ def features_from_lab(
     if n_texture:
         if texture is None or texture.shape != (h, w, n_texture):
             raise TerrathemeError("structure needs the texture_features of the same pixels")
-        out[:, :, i:] = texture
+        out[:, :, i : i + n_texture] = texture
+        i += n_texture
+    # Features meant to carry over between photos (core.classify.invariants).
+    out[:, :, i:] = invariant_features(lab, lbp, options)
     return out
 
 
@@ -360,7 +385,10 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
               if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
     texture = (texture_features(full, lab, options.scale, options.sigmas)
                if options.structure and options.feature_set is FeatureSet.DEFAULT else None)
-    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture)
+    lbp = (lbp_shares(full[:, :, 0], options.scale)
+           if options.lbp and options.feature_set is FeatureSet.DEFAULT else None)
+    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture,
+                                             lbp)
 
 
 def with_position(feats: np.ndarray, origin: tuple[int, int], photo_size: tuple[int, int],
