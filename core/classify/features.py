@@ -34,8 +34,8 @@ Optional structure features (``structure``, on in the supervised default):
 edge density per block and the structure-tensor coherence at every sigma,
 :mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
 
-Optional invariant features (``profile_radii``, ``ratios``, ``lbp``, ``rank_radii``):
-:mod:`core.classify.invariants`, after the structure ones.
+Optional morphological profile (``profile_radii``, off by default):
+:mod:`core.classify.profiles`, ``2 * len(profile_radii)`` features after the structure ones.
 
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
@@ -58,13 +58,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from core.classify.invariants import (
-    invariant_count,
-    invariant_features,
-    invariant_halo,
-    lbp_shares,
-)
 from core.classify.position import position_features
+from core.classify.profiles import profile_count, profile_halo, reconstruction_profile
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.classify.texture import block_mean, context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
@@ -129,9 +124,10 @@ class FeatureOptions:
     structure : bool
         DEFAULT set: add edge density and structure-tensor coherence
         (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features).
-    profile_radii, ratios, lbp, rank_radii : tuple of int, bool, bool, tuple of int
-        DEFAULT set: morphological profile, colour ratios, LBP shares, local
-        lightness rank (:mod:`core.classify.invariants`), last before the position.
+    profile_radii : tuple of int
+        DEFAULT set: add the morphological profile by reconstruction at these
+        disk radii in coarse pixels (:mod:`core.classify.profiles`, two per
+        radius), last before the position.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -145,9 +141,6 @@ class FeatureOptions:
     relative: bool = False
     structure: bool = False
     profile_radii: tuple[int, ...] = ()
-    ratios: bool = False
-    lbp: bool = False
-    rank_radii: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -157,9 +150,9 @@ class FeatureOptions:
                                   f"{self.ridge_sigmas}")
         if self.relative and not self.sigmas:
             raise TerrathemeError("relative lightness needs at least one sigma (its context)")
-        if any(int(r) != r or r < 1 for r in (*self.profile_radii, *self.rank_radii)):
-            raise TerrathemeError(f"profile and rank radii must be whole numbers >= 1, not "
-                                  f"{self.profile_radii} / {self.rank_radii}")
+        if any(int(r) != r or r < 1 for r in self.profile_radii):
+            raise TerrathemeError(f"profile radii must be whole numbers >= 1, not "
+                                  f"{self.profile_radii}")
 
     @property
     def n_features(self) -> int:
@@ -175,7 +168,8 @@ class FeatureOptions:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
                     + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
-                    + texture_count(self.sigmas, self.structure) + invariant_count(self))
+                    + texture_count(self.sigmas, self.structure)
+                    + profile_count(self.profile_radii))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -188,7 +182,7 @@ class FeatureOptions:
         if self.feature_set is FeatureSet.DEFAULT:
             fine = -(-ridge_halo(self.ridge_sigmas) // self.scale)
             return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1,
-                       invariant_halo(self))
+                       profile_halo(self.profile_radii))
         # scipy's gaussian_filter truncates at 4 sigma; Hessian adds 2 pixels
         return int(math.ceil(4.0 * self.skimage_sigma_max)) + 2
 
@@ -272,7 +266,7 @@ def normalise_lab(lab: np.ndarray, block_std: np.ndarray, stats: np.ndarray,
 def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
     stats: np.ndarray | None = None, ridges: np.ndarray | None = None,
-    texture: np.ndarray | None = None, lbp: np.ndarray | None = None,
+    texture: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feature stack of a coarse Lab image.
 
@@ -289,14 +283,11 @@ def features_from_lab(
     texture : (h, w, T) float32 ndarray, optional
         :func:`core.classify.texture.texture_features` of the same photo pixels;
         required when ``options.structure`` is set.
-    lbp : (h, w, 10) float32 ndarray, optional
-        :func:`core.classify.invariants.lbp_shares`, required with ``options.lbp``.
 
     Raises
     ------
     TerrathemeError
-        Ridge sigmas without the ridges, texture options without the texture, LBP
-        without the LBP shares.
+        Ridge sigmas without the ridges, texture options without the texture.
 
     Returns
     -------
@@ -364,8 +355,9 @@ def features_from_lab(
             raise TerrathemeError("structure needs the texture_features of the same pixels")
         out[:, :, i : i + n_texture] = texture
         i += n_texture
-    # Features meant to carry over between photos (core.classify.invariants).
-    out[:, :, i:] = invariant_features(lab, lbp, options)
+    if options.profile_radii:
+        # Bright and dark objects smaller than each disk (core.classify.profiles).
+        out[:, :, i:] = reconstruction_profile(lum, options.profile_radii)
     return out
 
 
@@ -385,10 +377,7 @@ def image_features(rgb: np.ndarray, options: FeatureOptions, stats: np.ndarray |
               if options.ridge_sigmas and options.feature_set is FeatureSet.DEFAULT else None)
     texture = (texture_features(full, lab, options.scale, options.sigmas)
                if options.structure and options.feature_set is FeatureSet.DEFAULT else None)
-    lbp = (lbp_shares(full[:, :, 0], options.scale)
-           if options.lbp and options.feature_set is FeatureSet.DEFAULT else None)
-    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture,
-                                             lbp)
+    return lab, block_std, features_from_lab(lab, block_std, options, stats, ridges, texture)
 
 
 def with_position(feats: np.ndarray, origin: tuple[int, int], photo_size: tuple[int, int],
