@@ -36,13 +36,14 @@ seeds; tuning draws 2 and 3: 0.3808 / 0.4359 against 0.3773 / 0.4309), 1-2-4-8
 0.4455 / 0.4549, 3-6-12 0.4477 / 0.4546, 4-8-16 0.4487 / 0.4540, 2-4-8-16 0.4464 /
 0.4518, 2-4-8 with 4 / 16 steps 0.4468 / 0.4553, 0.4452 / 0.4571, 2-4-8 as contrast
 ratios (residue / (reconstruction + 5)) 0.4447 / 0.4554 (seed 1 0.4436 / 0.4531),
-2-4-8 + relative lightness 0.4472 / 0.4543: up on every draw, but draw 1 by less
-than 0.005, so off by default. Patched in (commit 9355ce3 on h8-features), not
-kept: colour ratios (chromaticity r, g, (g - r) / (g + r), Lab hue, chroma / L)
-0.4391 / 0.4472; uniform LBP (8 neighbours, radius 1, half resolution) code shares
-per block, smoothed at sigma 1, 0.4410 / 0.4552 (30 ms per Mpx more), with profile
-2-4-8 0.4446 / 0.4584; local lightness rank (skimage local equalisation) in disks of
-2-4-8 / 4-8-16 coarse px 0.4448 / 0.4549, 0.4413 / 0.4517, with profile 2-4-8
+2-4-8 + relative lightness 0.4472 / 0.4543. Radii 2-4-8 are up on every draw and
+seed, but on draw 1 by less than 0.005: kept as an option, off by default.
+Patched in, not kept (the first three in commit 9355ce3 of h8-features): colour
+ratios (chromaticity r, g, (g - r) / (g + r), Lab hue, chroma / L) 0.4391 /
+0.4472; uniform LBP (8 neighbours, radius 1, half resolution) code shares per
+block, smoothed at sigma 1, 0.4410 / 0.4552 (30 ms per Mpx more), with profile
+2-4-8 0.4446 / 0.4584; local lightness rank (skimage local equalisation) in disks
+of 2-4-8 / 4-8-16 coarse px 0.4448 / 0.4549, 0.4413 / 0.4517, with profile 2-4-8
 0.4425 / 0.4529; lightness mapped to its percentile in the photo (per-photo
 histogram equalisation, block std scaled by the map's slope) 0.3222 / 0.2954.
 """
