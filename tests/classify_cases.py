@@ -1,8 +1,11 @@
-"""Small synthetic training pairs shared by the classifier cache tests."""
+"""Small synthetic cases shared by the classifier tests: training pairs, tiled features."""
 
 from __future__ import annotations
 
 import numpy as np
+
+from core.classify.features import FeatureOptions, compute_features, image_features
+from core.classify.tiled import feature_windows
 
 
 def block_pairs(n: int = 3, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -16,3 +19,17 @@ def block_pairs(n: int = 3, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]
         photo = np.clip(colours[classes] + rng.normal(0, 6, classes.shape + (3,)), 0, 255)
         out.append((photo.astype(np.uint8), (classes + 1).astype(np.uint8)))
     return out
+
+
+def assert_tiles_match_whole(photo: np.ndarray, options: FeatureOptions, tile: int,
+                             channels: slice = slice(None)) -> None:
+    """Features of every tile (with ``options.halo`` of overlap) equal the whole photo's
+    in its core, to 1e-3 (``options.scale`` 8; ``channels`` picks the features compared)."""
+    h, w = photo.shape[:2]
+    whole = compute_features(photo, options)
+    for win in feature_windows(h, w, tile, 8, options.halo):
+        _lab, _std, part = image_features(photo[win.ry:win.ry1, win.rx:win.rx1], options)
+        oy, ox = (win.y - win.ry) // 8, (win.x - win.rx) // 8
+        core = part[oy:oy + (win.y1 - win.y) // 8, ox:ox + (win.x1 - win.x) // 8, channels]
+        np.testing.assert_allclose(
+            core, whole[win.y // 8:win.y1 // 8, win.x // 8:win.x1 // 8, channels], atol=1e-3)

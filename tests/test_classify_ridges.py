@@ -5,10 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from classify_cases import assert_tiles_match_whole
 
 from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.classify.tiled import feature_windows
 from core.errors import TerrathemeError
 
 
@@ -81,16 +81,9 @@ def test_features_carry_the_ridges_last():
 
 
 def test_tiles_with_the_halo_reproduce_the_whole_photo():
-    rng = np.random.default_rng(6)
-    photo = rng.integers(0, 256, (72, 96, 3), dtype=np.uint8)
+    photo = np.random.default_rng(6).integers(0, 256, (72, 96, 3), dtype=np.uint8)
     fo = FeatureOptions(sigmas=(0.5,), ridge_sigmas=(1.0, 4.0))
-    whole = compute_features(photo, fo)
-    for win in feature_windows(72, 96, 32, 8, fo.halo):
-        _lab, _std, part = image_features(photo[win.ry:win.ry1, win.rx:win.rx1], fo)
-        oy, ox = (win.y - win.ry) // 8, (win.x - win.rx) // 8
-        core = part[oy:oy + (win.y1 - win.y) // 8, ox:ox + (win.x1 - win.x) // 8, -4:]
-        np.testing.assert_allclose(
-            core, whole[win.y // 8:win.y1 // 8, win.x // 8:win.x1 // 8, -4:], atol=1e-3)
+    assert_tiles_match_whole(photo, fo, 32, slice(-4, None))
 
 
 def test_full_lab_is_opencvs_8_bit_lab_rescaled():

@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
+from classify_cases import assert_tiles_match_whole
 
 from core.classify import SupervisedOptions
 from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
 from core.classify.model_options import options_from_json, options_to_json
-from core.classify.tiled import feature_windows
 from core.errors import TerrathemeError
 
 SIGMAS = (1.0, 2.0)
@@ -81,15 +81,8 @@ def test_edge_density_is_the_block_mean_of_the_gradient():
 
 
 def test_tiles_with_the_halo_reproduce_the_whole_photo():
-    rng = np.random.default_rng(6)
-    photo = rng.integers(0, 256, (72, 96, 3), dtype=np.uint8)
-    whole = compute_features(photo, OPTIONS)
-    for win in feature_windows(72, 96, 32, 8, OPTIONS.halo):
-        _lab, _std, part = image_features(photo[win.ry:win.ry1, win.rx:win.rx1], OPTIONS)
-        oy, ox = (win.y - win.ry) // 8, (win.x - win.rx) // 8
-        core = part[oy:oy + (win.y1 - win.y) // 8, ox:ox + (win.x1 - win.x) // 8]
-        np.testing.assert_allclose(
-            core, whole[win.y // 8:win.y1 // 8, win.x // 8:win.x1 // 8], atol=1e-3)
+    photo = np.random.default_rng(6).integers(0, 256, (72, 96, 3), dtype=np.uint8)
+    assert_tiles_match_whole(photo, OPTIONS, 32)
 
 
 def test_model_options_keep_the_flag_and_old_files_read_without_it():

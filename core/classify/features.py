@@ -34,6 +34,9 @@ Optional structure features (``structure``, on in the supervised default):
 edge density per block and the structure-tensor coherence at every sigma,
 :mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
 
+Optional morphological profile (``profile_radii``, off by default):
+:mod:`core.classify.profiles`, ``2 * len(profile_radii)`` features after the structure ones.
+
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
 for a model fitted to the one photo it classifies (scribbles): there, where
@@ -56,6 +59,7 @@ import cv2
 import numpy as np
 
 from core.classify.position import position_features
+from core.classify.profiles import profile_count, profile_halo, reconstruction_profile
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.classify.texture import block_mean, context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
@@ -119,8 +123,11 @@ class FeatureOptions:
         docstring), ``len(sigmas)`` features after the ridges.
     structure : bool
         DEFAULT set: add edge density and structure-tensor coherence
-        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features), last
-        before the position.
+        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features).
+    profile_radii : tuple of int
+        DEFAULT set: add the morphological profile by reconstruction at these
+        disk radii in coarse pixels (:mod:`core.classify.profiles`, two per
+        radius), last before the position.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -133,6 +140,7 @@ class FeatureOptions:
     ridge_sigmas: tuple[float, ...] = ()
     relative: bool = False
     structure: bool = False
+    profile_radii: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if int(self.scale) != self.scale or self.scale < 1:
@@ -142,6 +150,9 @@ class FeatureOptions:
                                   f"{self.ridge_sigmas}")
         if self.relative and not self.sigmas:
             raise TerrathemeError("relative lightness needs at least one sigma (its context)")
+        if any(int(r) != r or r < 1 for r in self.profile_radii):
+            raise TerrathemeError(f"profile radii must be whole numbers >= 1, not "
+                                  f"{self.profile_radii}")
 
     @property
     def n_features(self) -> int:
@@ -157,7 +168,8 @@ class FeatureOptions:
             per_sigma = 7 if self.hessian else 5
             return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
                     + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
-                    + texture_count(self.sigmas, self.structure))
+                    + texture_count(self.sigmas, self.structure)
+                    + profile_count(self.profile_radii))
         # multiscale_basic_features: per channel and sigma, intensity + edges + 2 Hessian
         n_sig = int(np.floor(np.log2(self.skimage_sigma_max))) + 1
         return 3 * n_sig * 4
@@ -169,7 +181,8 @@ class FeatureOptions:
             return 0
         if self.feature_set is FeatureSet.DEFAULT:
             fine = -(-ridge_halo(self.ridge_sigmas) // self.scale)
-            return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1)
+            return max(_radius(max(self.sigmas, default=0.0)) + 1, fine + 1,
+                       profile_halo(self.profile_radii))
         # scipy's gaussian_filter truncates at 4 sigma; Hessian adds 2 pixels
         return int(math.ceil(4.0 * self.skimage_sigma_max)) + 2
 
@@ -340,7 +353,11 @@ def features_from_lab(
     if n_texture:
         if texture is None or texture.shape != (h, w, n_texture):
             raise TerrathemeError("structure needs the texture_features of the same pixels")
-        out[:, :, i:] = texture
+        out[:, :, i : i + n_texture] = texture
+        i += n_texture
+    if options.profile_radii:
+        # Bright and dark objects smaller than each disk (core.classify.profiles).
+        out[:, :, i:] = reconstruction_profile(lum, options.profile_radii)
     return out
 
 

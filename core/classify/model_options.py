@@ -83,6 +83,7 @@ _FEATURE_RULES = {
     "scale": number_rule(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
     "skimage_sigma_max": number_rule(1, 64), "hessian": _flag, "position": _flag,
     "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag, "structure": _flag,
+    "profile_radii": _numbers(1, 64, whole=True),
 }
 _REGULARISE_RULES = {
     "method": _choice(Regularisation), "sigma": number_rule(1e-3, 64),
