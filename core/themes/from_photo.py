@@ -109,6 +109,11 @@ PATCH_TRIES = 3
 TILE_THREADS = 2
 
 
+def _tiles_unseen(tile: np.ndarray) -> bool:
+    """Whether a tile's repetition stays under both limits (repeat and landmark score)."""
+    return repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT
+
+
 def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
                 options: PatchOptions) -> tuple[np.ndarray, str] | None:
     """The tileable patch of one class and where it came from, or None when none fits."""
@@ -124,7 +129,7 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
         cut = cut_window(rgb, mask, x, y, s)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
-        if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
+        if _tiles_unseen(tile):
             return tile, source
         fallback = fallback or (tile, source + " (repeats)")
     if fallback is None or not options.quilt:
@@ -139,7 +144,8 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
     if quilt is None:
         return fallback
     tile = make_tileable(quilt)
-    if repeat_score(tile) >= repeat_score(fallback[0]):
+    # The quilt unless it repeats more than the best window and fails a limit too.
+    if not _tiles_unseen(tile) and repeat_score(tile) >= repeat_score(fallback[0]):
         return fallback
     return tile, f"quilted from {quilting.steps() ** 2} blocks of the class"
 
