@@ -2,10 +2,12 @@
 
 A window chosen for a class (:mod:`core.themes.patch_search`) holds pixels
 that must not repeat once per tile: other classes', the class's own rim
-along its border (blends of the two sides), and lone high-contrast objects
-(a building in water, a dark rim wider than the rim). :func:`cut_window`
-fills them from shifted copies of the class's own pixels
-(:func:`fill_from_class`) before the patch is made tileable.
+along its border (blends of the two sides), lone high-contrast objects (a
+building in water, a dark rim wider than the rim) and faint lone marks (a
+thin track on sand, :func:`band_marks`: low contrast, but far above the
+texture's own band energy). :func:`cut_window` fills them with whole shifted
+pieces of the class's own pixels, from around the window first
+(:func:`fill_from_class`), before the patch is made tileable.
 """
 
 from __future__ import annotations

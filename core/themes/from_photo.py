@@ -4,12 +4,13 @@
 made tileable"): for every class, the window whose texture statistics are
 closest to the class's (band-pass energy, Lab spread and mean;
 :mod:`core.themes.patch_search`) is cut out, the few pixels of other classes
-in it, its border rim and lone objects are filled from the class's own pixels
-of the window (:mod:`core.themes.cut_mask`),
+in it, its border rim, lone objects and faint lone marks are filled with
+pieces of the class's own pixels around the window (:mod:`core.themes.cut_mask`),
 and it is made tileable with :func:`core.themes.tileable.make_tileable`. A
 tile that would visibly repeat (:func:`core.themes.quality.repeat_score` or
 :func:`core.themes.quality.landmark_score` over their limits) is replaced by
-the next best window. A class with no window of ``min_size`` inside it (a
+the next best window; when none passes, by a quilt of small blocks of the
+class if that passes or repeats less. A class with no window of ``min_size`` inside it (a
 few scattered pixels, or a photo smaller than ``min_size``) gets a flat theme
 of its mean colour, and says so in ``Theme.source``.
 
