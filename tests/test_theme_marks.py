@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from core.themes.cut_mask import band_marks, cut_window, fill_from_class, lone_objects
@@ -11,15 +12,17 @@ _LUMA = np.array([0.299, 0.587, 0.114])
 
 
 def _sand(h, w, seed=0, sd=2.0):
+    """Sand of a grain about 3 texels across (blurred noise of luma spread ``sd``)."""
     rng = np.random.default_rng(seed)
-    return np.clip(np.array([215, 210, 205]) + rng.normal(0, sd, (h, w, 3)), 0, 255).astype(
-        np.uint8)
+    grain = cv2.GaussianBlur(rng.normal(0, 1, (h, w)).astype(np.float32), (0, 0), 1.5)
+    grain *= sd / grain.std()
+    return np.clip(np.array([215, 210, 205]) + grain[..., None], 0, 255).astype(np.uint8)
 
 
 def _stroked(seed=0):
-    """96 x 96 sand with a faint thin dark stroke (2 px wide, 12 levels) at rows 30..60, col 40."""
-    sand = _sand(96, 96, seed)
-    sand[30:60, 40:42] -= 12
+    """192 x 192 sand with a faint thin dark stroke (3 px, 20 levels) at rows 30..60, col 40."""
+    sand = _sand(192, 192, seed)
+    sand[30:60, 40:43] -= 20
     return sand
 
 
@@ -30,10 +33,10 @@ def test_a_faint_thin_stroke_the_landmark_test_misses_is_a_band_mark():
     assert not dark.any() and not bright.any()
     # ... but its band energy is far above the sand's own grain.
     marks = band_marks(sand)
-    assert marks[32:58, 40:42].all()
+    assert marks[32:58, 40:43].all()
     assert not marks[:, 60:].any() and not marks[75:].any()
     found = lone_objects(sand)
-    assert found[30:60, 40:42].all() and found.mean() < 0.1
+    assert found[30:60, 40:43].all() and found.mean() < 0.05
 
 
 def test_regular_ripples_hold_no_mark():
@@ -46,13 +49,13 @@ def test_regular_ripples_hold_no_mark():
 
 
 def test_the_edge_of_a_region_across_the_window_is_no_mark():
-    sand = _sand(96, 96, seed=2)
-    sand[:40] -= 15  # a faintly darker region along the top, its edge across the window
-    assert not band_marks(sand).any()
-    # The same edge cut short (a third of the side) is a lone mark.
-    short = _sand(96, 96, seed=2)
-    short[38:42, 30:62] -= 15
-    assert band_marks(short)[38:42, 30:62].all()
+    sand = _sand(192, 192, seed=2)
+    sand[:80] -= 12  # a faintly darker region along the top, its edge across the window
+    assert not band_marks(sand).any() and not lone_objects(sand).any()
+    # The same step cut short (a third of the side) is a lone mark.
+    short = _sand(192, 192, seed=2)
+    short[76:80, 64:128] -= 12
+    assert lone_objects(short)[76:80, 64:128].all()
 
 
 def test_marks_everywhere_are_the_texture_itself():

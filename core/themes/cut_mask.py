@@ -133,8 +133,8 @@ MARK_SPAN = 0.75
 MARK_CEILING = 60.0
 #: a mark's pixels are those where its band reaches this share of its peak
 MARK_CORE = 0.25
-#: marks over this share of the window are the texture's own grain
-MARK_SHARE = 0.1
+#: marks carrying over this share of the window's band energy are its texture's own grain
+MARK_SHARE = 0.25
 
 
 def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
@@ -152,8 +152,8 @@ def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
     faint thin stroke on sand passes (its contrast is low, but the sand's own
     grain is lower); regular ripples, grass grain or a town's streets, whose
     energy is much the same everywhere, do not; nor does the edge of a region
-    running across the window. Marks covering over ``MARK_SHARE`` of the
-    window are its texture and none is returned.
+    running across the window. Marks carrying over ``MARK_SHARE`` of the
+    window's band energy are its texture and none is returned.
 
     Parameters
     ----------
@@ -194,8 +194,10 @@ def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
     # the texture's spread (so a town keeps its houses).
     lone &= peak < MARK_CEILING
     marks = lone[labels] & (strength >= MARK_CORE * peak[labels])
-    # Marks everywhere are the texture's own grain (a dense scatter of stones).
-    return marks if marks.mean() <= MARK_SHARE else np.zeros_like(marks)
+    # Marks carrying much of the band energy are the texture's own grain (scattered stones).
+    energy_in = band[marks] ** 2
+    total = float((band[inside] ** 2).sum() if inside is not None else (band**2).sum())
+    return marks if energy_in.sum() <= MARK_SHARE * total else np.zeros_like(marks)
 
 
 def lone_objects(window: np.ndarray, inside: np.ndarray | None = None,
