@@ -5,7 +5,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from core.themes.cut_mask import band_marks, cut_window, fill_from_class, lone_objects
+from core.themes.cut_mask import (
+    band_marks,
+    cut_window,
+    fill_from_class,
+    lone_objects,
+    match_surroundings,
+)
 from core.themes.quality import landmark_mask
 
 _LUMA = np.array([0.299, 0.587, 0.114])
@@ -98,17 +104,23 @@ def test_a_hole_beside_a_dark_channel_is_not_filled_with_the_channel():
 
 
 def test_cut_window_fills_its_holes_from_the_class_around_it():
-    photo = _coded(200, 200)
+    yy, xx = np.mgrid[:200, :200]
+    # Around the window a checkerboard of 2 px squares; inside it stripes of the same colours.
+    checker = ((yy // 2 + xx // 2) % 2).astype(bool)
+    stripes = ((xx // 2) % 2).astype(bool)
+    inside = (yy >= 64) & (yy < 128) & (xx >= 64) & (xx < 128)
+    photo = np.where((np.where(inside, stripes, checker))[..., None], 160, 140).astype(np.uint8)
+    photo = np.repeat(photo, 3, axis=2)
     mask = np.ones((200, 200), bool)
     mask[90:106, 90:106] = False  # another class inside the window at (64, 64), side 64
-    photo[90:106, 90:106] = (0, 0, 0)
-    cut = cut_window(photo, mask, 64, 64, 64)
-    filled = cut[26:42, 26:42]  # the hole, in window coordinates
-    y, x = filled[..., 0].astype(int), filled[..., 1].astype(int)
-    # Copied from outside the window, so the tile holds no second copy of a part of itself.
-    outside = (y < 64) | (y >= 128) | (x < 64) | (x >= 128)
-    assert outside.all()
-    assert mask[y, x].all()
+    photo[90:106, 90:106] = 0
+    cut = cut_window(photo, mask, 64, 64, 64).astype(int)
+    hole = cut[28:40, 28:40, 0]  # inside the hole (window coordinates), off its edge
+    # The hole holds the checkerboard (a 2-row shift flips it), not a second copy of the stripes.
+    assert np.abs(hole[2:] - hole[:-2]).mean() > 15
+    assert np.abs(cut[:20, :, 0] - cut[2:22, :, 0]).mean() < 1  # the window's own stripes stay
+    # Its brightness is the class's: no blob.
+    assert abs(hole.mean() - 150) < 5
 
 
 def test_a_strong_feature_is_left_to_the_landmark_test():
@@ -117,3 +129,18 @@ def test_a_strong_feature_is_left_to_the_landmark_test():
     assert not band_marks(sand).any()
     # In calm sand the landmark test takes it.
     assert lone_objects(sand)[38:42, 30:62].all()
+
+
+def test_a_piece_copied_from_a_shaded_part_takes_the_brightness_around_it():
+    yy, xx = np.mgrid[:96, :96]
+    grain = np.where(((yy // 2 + xx // 2) % 2).astype(bool), 10, -10)
+    patch = np.repeat((200 + grain)[..., None], 3, axis=2).astype(np.uint8)
+    hole = np.zeros((96, 96), bool)
+    hole[40:56, 40:56] = True
+    filled = patch.copy()
+    filled[hole] -= 100  # a piece of the same grain from a shaded part
+    out = match_surroundings(filled, patch, ~hole, hole).astype(int)
+    assert abs(out[hole].mean() - 200) < 3
+    # Its grain stays (the checkerboard's +-10), and the kept pixels are untouched.
+    assert np.abs(out[42:54, 42:54, 0] - 200 - grain[42:54, 42:54]).max() <= 3
+    assert np.array_equal(out[~hole], patch[~hole])

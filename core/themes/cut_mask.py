@@ -57,15 +57,12 @@ def _shifted(image: np.ndarray, dy: int, dx: int, size: tuple[int, int]) -> np.n
     return np.roll(pad, (dy, dx), axis=(0, 1))[:h, :w]
 
 
-def _typical(patch: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """(s, s) bool: kept pixels whose low-pass luma is near the kept pixels' median."""
-    lum = patch.astype(np.float32) @ _LUMA
-    low = cv2.GaussianBlur(lum, (0, 0), TYPICAL_SIGMA)[keep]
-    mid = float(np.median(low))
-    spread = 1.4826 * float(np.median(np.abs(low - mid))) + 1.0
-    out = np.zeros_like(keep)
-    out[keep] = np.abs(low - mid) <= TYPICAL_SPREADS * spread
-    return out
+def _typical(patch: np.ndarray, pixels: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """(s, t) bool: ``pixels`` whose low-pass luma is near the median of the ``reference`` ones."""
+    low = cv2.GaussianBlur(patch.astype(np.float32) @ _LUMA, (0, 0), TYPICAL_SIGMA)
+    mid = float(np.median(low[reference]))
+    spread = 1.4826 * float(np.median(np.abs(low[reference] - mid))) + 1.0
+    return pixels & (np.abs(low - mid) <= TYPICAL_SPREADS * spread)
 
 
 def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None = None, *,
@@ -88,16 +85,19 @@ def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None
         Every hole pixel a pixel of the class. The holes are covered greedily
         by shifted copies of the patch (never wrapping across its edge), each
         the one that covers the most of what is left with source pixels:
-        those of ``first`` of typical brightness (:func:`_typical`), any of
+        those of ``first`` of the brightness typical of the other kept
+        pixels (:func:`_typical`), any of
         ``first``, then the same of ``keep``. A hole takes a few coherent
         pieces of the texture, not the onion shells of its rim that copying
         each pixel from its nearest kept one lays (stripes once per tile).
     """
     out = patch.copy()
     hole = ~keep if hole is None else hole & ~keep
-    sources = [] if first is None or not first.any() else [_typical(patch, first), first]
+    # Typical is measured on the patch's own kept pixels (a window's, not those around it).
+    own = keep if first is None or not (keep & ~first).any() else keep & ~first
+    sources = [] if first is None or not first.any() else [_typical(patch, first, own), first]
     size = _fft_size(keep.shape)
-    for source in (*sources, _typical(patch, keep), keep):
+    for source in (*sources, _typical(patch, keep, own), keep):
         spectrum = rfft2(source.astype(np.float32), size)
         for _ in range(FILL_COPIES):
             if not hole.any():
@@ -310,4 +310,47 @@ def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.
     hole[at] = ~keep[at]
     outside = keep.copy()
     outside[at] = False
-    return fill_from_class(around, keep, hole, first=outside)[at]
+    filled = fill_from_class(around, keep, hole, first=outside)
+    return match_surroundings(filled, around, keep, hole)[at]
+
+
+def _masked_lowpass(image: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised-convolution Gaussian low-pass (sigma ``TYPICAL_SIGMA``) of the ``pixels`` only.
+
+    Returns the (s, t, 3) float32 low-pass and the (s, t, 1) float32 share in
+    [0, 1] of it that ``pixels`` reach (1 where their weight passes 5 %).
+    """
+    weight = cv2.GaussianBlur(pixels.astype(np.float32), (0, 0), TYPICAL_SIGMA)
+    values = np.where(pixels[..., None], image, 0).astype(np.float32)
+    low = cv2.GaussianBlur(values, (0, 0), TYPICAL_SIGMA) / np.maximum(weight, 1e-6)[..., None]
+    return low, np.minimum(weight / 0.05, 1.0)[..., None]
+
+
+def match_surroundings(filled: np.ndarray, patch: np.ndarray, keep: np.ndarray,
+                       hole: np.ndarray) -> np.ndarray:
+    """The filled pixels with the low-frequency colour of the kept pixels around them.
+
+    A copied piece keeps its grain but takes, in place of its own Gaussian
+    low-pass (sigma ``TYPICAL_SIGMA``), the normalised-convolution low-pass
+    of the patch's kept pixels there: a piece of a shaded part copied into a
+    sunlit one shows no dark blob.
+
+    Parameters
+    ----------
+    filled : (s, t, 3) uint8 ndarray
+        ``patch`` with its ``hole`` filled (:func:`fill_from_class`).
+    patch : (s, t, 3) uint8 ndarray
+    keep, hole : (s, t) bool ndarrays
+
+    Returns
+    -------
+    (s, t, 3) uint8 ndarray
+    """
+    around, reach = _masked_lowpass(patch, keep)
+    # Far inside a large hole no kept pixel reaches: the kept pixels' mean colour there.
+    mean = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.float32)
+    around = reach * around + (1.0 - reach) * mean
+    own, _ = _masked_lowpass(filled, hole)
+    out = filled.copy()
+    out[hole] = np.clip(np.rint(filled[hole] - own[hole] + around[hole]), 0, 255).astype(np.uint8)
+    return out
