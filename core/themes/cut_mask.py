@@ -2,79 +2,235 @@
 
 A window chosen for a class (:mod:`core.themes.patch_search`) holds pixels
 that must not repeat once per tile: other classes', the class's own rim
-along its border (blends of the two sides), and lone high-contrast objects
-(a building in water, a dark rim wider than the rim). :func:`cut_window`
-fills them from shifted copies of the class's own pixels
-(:func:`fill_from_class`) before the patch is made tileable.
+along its border (blends of the two sides), lone high-contrast objects (a
+building in water, a dark rim wider than the rim) and faint lone marks (a
+thin track on sand, :func:`band_marks`: low contrast, but far above the
+texture's own band energy). :func:`cut_window` fills them with whole shifted
+pieces of the class's own pixels, from around the window first
+(:func:`fill_from_class`), before the patch is made tileable.
 """
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy.fft import irfft2, next_fast_len, rfft2
+from scipy.ndimage import maximum
+from skimage.filters import apply_hysteresis_threshold
 
 from core.themes.patch_search import INTERIOR
 from core.themes.quality import LANDMARK_CONTRAST, LANDMARK_SIZE, landmark_mask
 
+#: Rec. 601 luma weights
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 
-def fill_from_class(patch: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """Fill the pixels of ``patch`` outside ``keep`` from shifted copies of its kept pixels.
+
+#: a filled hole copies the class's pixels whose low-pass luma lies within this many
+#: robust spreads of their median first (not a dark channel next to the hole)
+TYPICAL_SPREADS = 2.5
+#: Gaussian sigma (texels) of that low-pass
+TYPICAL_SIGMA = 6.0
+#: copies laid at most per fill (each the shift covering the most of what is left)
+FILL_COPIES = 32
+
+
+def _fft_size(shape: tuple[int, ...]) -> tuple[int, int]:
+    """A fast FFT size of at least twice each side: shifts by it never wrap a patch onto itself."""
+    return next_fast_len(2 * shape[0], real=True), next_fast_len(2 * shape[1], real=True)
+
+
+def _coverage(hole: np.ndarray, source: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(size) float32: at every shift ``d``, the hole pixels ``p`` with ``source[p - d]``.
+
+    The linear cross-correlation of the hole mask with a source mask given as
+    its ``rfft2`` at ``size`` (:func:`_fft_size`, zero-padded), so a copy never
+    wraps across the patch's edge; shifts are indexed modulo ``size`` (:func:`_shifted`).
+    """
+    return irfft2(rfft2(hole.astype(np.float32), size) * np.conj(source), size)
+
+
+def _shifted(image: np.ndarray, dy: int, dx: int, size: tuple[int, int]) -> np.ndarray:
+    """``image`` moved by ``(dy, dx)`` (modulo ``size``), zero where it moved in."""
+    h, w = image.shape[:2]
+    pad = np.zeros((*size, *image.shape[2:]), image.dtype)
+    pad[:h, :w] = image
+    return np.roll(pad, (dy, dx), axis=(0, 1))[:h, :w]
+
+
+def _typical(patch: np.ndarray, pixels: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """(s, t) bool: ``pixels`` whose low-pass luma is near the median of the ``reference`` ones."""
+    low = cv2.GaussianBlur(patch.astype(np.float32) @ _LUMA, (0, 0), TYPICAL_SIGMA)
+    mid = float(np.median(low[reference]))
+    spread = 1.4826 * float(np.median(np.abs(low[reference] - mid))) + 1.0
+    return pixels & (np.abs(low - mid) <= TYPICAL_SPREADS * spread)
+
+
+def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None = None, *,
+                    first: np.ndarray | None = None) -> np.ndarray:
+    """Fill the holes of ``patch`` with whole shifted copies of its kept pixels.
 
     Parameters
     ----------
-    patch : (s, s, 3) uint8 ndarray
-    keep : (s, s) bool ndarray
+    patch : (s, t, 3) uint8 ndarray
+    keep : (s, t) bool ndarray
         The class's own pixels (at least one).
+    hole : (s, t) bool ndarray, optional
+        The pixels to fill (default: all but ``keep``).
+    first : (s, t) bool ndarray, optional
+        Kept pixels to copy from before the others (those around a window).
 
     Returns
     -------
-    (s, s, 3) uint8 ndarray
-        Every pixel a pixel of the class: holes take the texel at the smallest
-        circular shift (of a fixed list, nearest first) that lands on a kept one.
+    (s, t, 3) uint8 ndarray
+        Every hole pixel a pixel of the class. The holes are covered greedily
+        by shifted copies of the patch (never wrapping across its edge), each
+        the one that covers the most of what is left with source pixels:
+        those of ``first`` of the brightness typical of the other kept
+        pixels (:func:`_typical`), any of
+        ``first``, then the same of ``keep``. A hole takes a few coherent
+        pieces of the texture, not the onion shells of its rim that copying
+        each pixel from its nearest kept one lays (stripes once per tile).
     """
     out = patch.copy()
-    have = keep.copy()
-    s = patch.shape[0]
-    steps = sorted({(dy, dx) for dy in range(-s // 2, s // 2 + 1, max(1, s // 16))
-                    for dx in range(-s // 2, s // 2 + 1, max(1, s // 16)) if (dy, dx) != (0, 0)},
-                   key=lambda d: (d[0] ** 2 + d[1] ** 2, d))
-    for dy, dx in steps:
-        if have.all():
-            break
-        # Holes take this shift's texel where the shifted pixel is the class's own.
-        src_keep = np.roll(keep, (dy, dx), axis=(0, 1))
-        take = ~have & src_keep
-        if take.any():
-            out[take] = np.roll(patch, (dy, dx), axis=(0, 1))[take]
-            have |= take
-    if not have.all():
-        out[~have] = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.uint8)
+    hole = ~keep if hole is None else hole & ~keep
+    # Typical is measured on the patch's own kept pixels (a window's, not those around it).
+    own = keep if first is None or not (keep & ~first).any() else keep & ~first
+    sources = [] if first is None or not first.any() else [_typical(patch, first, own), first]
+    size = _fft_size(keep.shape)
+    for source in (*sources, _typical(patch, keep, own), keep):
+        spectrum = rfft2(source.astype(np.float32), size)
+        for _ in range(FILL_COPIES):
+            if not hole.any():
+                return out
+            # The shift whose copy of the source covers the most of the hole still open.
+            coverage = _coverage(hole, spectrum, size)
+            dy, dx = np.unravel_index(int(np.argmax(coverage)), size)
+            take = hole & _shifted(source, dy, dx, size)
+            if not take.any():
+                break
+            out[take] = _shifted(patch, dy, dx, size)[take]
+            hole &= ~take
+    if hole.any():
+        out[hole] = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.uint8)
     return out
 
 
 #: an object stands out of its texture when it passes this many luma spreads (and 20 levels)
 OBJECT_SPREADS = 4.0
+#: the band marks are searched in: luma Gaussian sigmas (texels), thin strokes to small blobs
+MARK_SIGMAS = (1.5, 6.0)
+#: the local band energy is the squared band averaged over this Gaussian sigma (texels)
+MARK_REACH = 4.0
+#: a mark's local band energy passes this many times the window's median somewhere ...
+MARK_RATIO = 12.0
+#: ... and the mark reaches as far as it passes this many times
+MARK_EXTENT = 6.0
+#: band amplitude (luma levels) under which nothing is a mark
+MARK_FLOOR = 2.0
+#: a mark spans at most this share of the window's side (longer: a region's edge)
+MARK_SPAN = 0.75
+#: band amplitude (luma levels) from which a feature is no faint mark (landmark_mask rates it)
+MARK_CEILING = 60.0
+#: a mark's pixels are those where its band reaches this share of its peak
+MARK_CORE = 0.25
+#: marks carrying over this share of the window's band energy are its texture's own grain
+MARK_SHARE = 0.25
 
 
-def lone_objects(window: np.ndarray) -> np.ndarray:
+def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
+               span: float | None = None) -> np.ndarray:
+    """Lone marks of a window: spots of band-pass energy far above the window's own.
+
+    The luma's band-pass (Gaussian sigmas :data:`MARK_SIGMAS`) is squared and
+    averaged over :data:`MARK_REACH` texels; a mark is where that local energy
+    passes ``MARK_RATIO`` times its median over the window (and
+    ``MARK_FLOOR`` levels), grown by hysteresis while it passes
+    ``MARK_EXTENT`` times, spanning at most ``span``, its band under
+    ``MARK_CEILING`` (a stronger feature is :func:`lone_objects`' landmark
+    test's); its pixels are those where the band reaches ``MARK_CORE`` of
+    the mark's peak. A
+    faint thin stroke on sand passes (its contrast is low, but the sand's own
+    grain is lower); regular ripples, grass grain or a town's streets, whose
+    energy is much the same everywhere, do not; nor does the edge of a region
+    running across the window. Marks carrying over ``MARK_SHARE`` of the
+    window's band energy are its texture and none is returned.
+
+    Parameters
+    ----------
+    window : (s, t, 3) uint8 ndarray
+    inside : (s, t) bool ndarray, optional
+        The pixels the median is taken over (default: all).
+    span : float, optional
+        The longest side (texels) of a mark's bounding box (default:
+        ``MARK_SPAN`` of the shorter side).
+
+    Returns
+    -------
+    (s, t) bool ndarray
+    """
+    lum = window.astype(np.float32) @ _LUMA
+    # Band-pass of the luma: strokes and blobs, not the window's shading.
+    band = (cv2.GaussianBlur(lum, (0, 0), MARK_SIGMAS[0])
+            - cv2.GaussianBlur(lum, (0, 0), MARK_SIGMAS[1]))
+    # Local band energy against the window's typical (median) energy.
+    energy = cv2.GaussianBlur(band * band, (0, 0), MARK_REACH)
+    typical = float(np.median(energy if inside is None or not inside.any() else energy[inside]))
+    high = max(MARK_RATIO * typical, MARK_FLOOR**2)
+    # The band clipped at twice a seed's amplitude: a strong mark's energy reaches no farther
+    # than a faint one's.
+    reach = 2.0 * np.sqrt(high)
+    energy = cv2.GaussianBlur(np.clip(band, -reach, reach) ** 2, (0, 0), MARK_REACH)
+    marks = apply_hysteresis_threshold(energy, high * MARK_EXTENT / MARK_RATIO, high)
+    # Lone marks only: a feature spanning most of the window is a region's edge.
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(marks.astype(np.uint8), connectivity=8)
+    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    longest = MARK_SPAN * min(lum.shape) if span is None else span
+    lone = (extent <= longest) & (np.arange(n) > 0)
+    # A mark's pixels: where its band reaches MARK_CORE of its own peak (not the energy's halo).
+    strength = np.abs(band)
+    peak = np.zeros(n, np.float32)
+    peak[1:] = maximum(strength, labels, np.arange(1, n))
+    # Faint marks only: a stronger feature is the landmark test's, whose contrast rises with
+    # the texture's spread (so a town keeps its houses).
+    lone &= peak < MARK_CEILING
+    marks = lone[labels] & (strength >= MARK_CORE * peak[labels])
+    # Marks carrying much of the band energy are the texture's own grain (scattered stones).
+    energy_in = band[marks] ** 2
+    total = float((band[inside] ** 2).sum() if inside is not None else (band**2).sum())
+    return marks if energy_in.sum() <= MARK_SHARE * total else np.zeros_like(marks)
+
+
+def lone_objects(window: np.ndarray, inside: np.ndarray | None = None,
+                 span: float | None = None) -> np.ndarray:
     """Pixels of objects that stand out of a patch's texture (a lone building in water).
 
     Dark or bright features narrower than
     :data:`core.themes.quality.LANDMARK_SIZE` whose contrast passes
     ``OBJECT_SPREADS`` times the patch's own luma spread
-    (:func:`core.themes.quality.landmark_mask`), grown by two pixels. Tiled,
-    such an object repeats on a grid the eye picks out at once; in a busy
-    texture (town) the threshold rises with the spread, so its streets stay.
+    (:func:`core.themes.quality.landmark_mask`), and faint lone marks of
+    band-pass energy far above the patch's own (:func:`band_marks`), grown
+    by two pixels. Tiled, such an object repeats on a grid the eye picks out
+    at once; in a busy texture (town) the thresholds rise with the spread,
+    so its streets stay.
+
+    Parameters
+    ----------
+    window : (s, s, 3) uint8 ndarray
+    inside : (s, s) bool ndarray, optional
+        The class's pixels, whose band energy is the patch's own (default: all).
+    span : float, optional
+        The longest lone mark, as :func:`band_marks`.
 
     Returns
     -------
     (s, s) bool ndarray
     """
-    lum = window.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+    lum = window.astype(np.float32) @ _LUMA
     spread = float(np.std(lum - cv2.GaussianBlur(lum, (0, 0), LANDMARK_SIZE / 4)))
     dark, bright = landmark_mask(window, periodic=False,
                                  contrast=max(LANDMARK_CONTRAST, OBJECT_SPREADS * spread))
-    grown = cv2.dilate((dark | bright).astype(np.uint8), np.ones((5, 5), np.uint8))
+    found = dark | bright | band_marks(window, inside, span)
+    grown = cv2.dilate(found.astype(np.uint8), np.ones((5, 5), np.uint8))
     return grown.astype(bool)
 
 
@@ -96,14 +252,19 @@ def class_interior(mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
     -------
     (s, s) bool ndarray
     """
+    return _interior_box(mask, x, y, x + s, y + s)
+
+
+def _interior_box(mask: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """:func:`class_interior` of the box ``[y0:y1, x0:x1]`` (inside the photo)."""
     h, w = mask.shape
     r = INTERIOR
-    x0, y0, x1, y1 = max(0, x - r), max(0, y - r), min(w, x + s + r), min(h, y + s + r)
+    bx0, by0, bx1, by1 = max(0, x0 - r), max(0, y0 - r), min(w, x1 + r), min(h, y1 + r)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     # Outside the photo the class goes on (replicated border): the photo's edge is no border.
-    inner = cv2.erode(mask[y0:y1, x0:x1].astype(np.uint8), kernel,
+    inner = cv2.erode(mask[by0:by1, bx0:bx1].astype(np.uint8), kernel,
                       borderType=cv2.BORDER_REPLICATE)
-    return inner[y - y0 : y - y0 + s, x - x0 : x - x0 + s].astype(bool)
+    return inner[y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0].astype(bool)
 
 
 def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
@@ -111,7 +272,8 @@ def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.
 
     Other classes' pixels, the class's border rim (:func:`class_interior`) and
     lone objects (:func:`lone_objects`) are filled from the class's own pixels
-    of the window (:func:`fill_from_class`).
+    (:func:`fill_from_class`): those within half a side around it first,
+    so the tile holds no second copy of a part of itself, then the window's.
 
     Parameters
     ----------
@@ -124,13 +286,71 @@ def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.
     -------
     (s, s, 3) uint8 ndarray
     """
+    h, w = mask.shape
     window = rgb[y : y + s, x : x + s]
-    inner = class_interior(mask, x, y, s)
-    if not inner.any():
-        inner = mask[y : y + s, x : x + s]
+    # The window and up to half a side around it (the class's texture the holes are filled from).
+    m = s // 2
+    x0, y0, x1, y1 = max(0, x - m), max(0, y - m), min(w, x + s + m), min(h, y + s + m)
+    around = rgb[y0:y1, x0:x1]
+    inner = _interior_box(mask, x0, y0, x1, y1)
+    at = (slice(y - y0, y - y0 + s), slice(x - x0, x - x0 + s))
+    if not inner[at].any():
+        inner[at] = mask[y : y + s, x : x + s]
     # Objects are found with the other classes painted in the class's median colour:
     # a dark rim left along a shore is then a line on sand, not the edge of the water.
-    seen = window.copy()
-    seen[~inner] = np.median(window[inner], axis=0).astype(np.uint8)
-    keep = inner & ~lone_objects(seen)
-    return window if keep.all() else fill_from_class(window, keep if keep.any() else inner)
+    seen = around.copy()
+    seen[~inner] = np.median(around[inner], axis=0).astype(np.uint8)
+    keep = inner & ~lone_objects(seen, inner, span=MARK_SPAN * s)
+    if keep[at].all():
+        return window
+    if not keep[at].any():
+        keep[at] = inner[at]
+    # The holes are the window's; the class's pixels around it are copied first.
+    hole = np.zeros_like(keep)
+    hole[at] = ~keep[at]
+    outside = keep.copy()
+    outside[at] = False
+    filled = fill_from_class(around, keep, hole, first=outside)
+    return match_surroundings(filled, around, keep, hole)[at]
+
+
+def _masked_lowpass(image: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised-convolution Gaussian low-pass (sigma ``TYPICAL_SIGMA``) of the ``pixels`` only.
+
+    Returns the (s, t, 3) float32 low-pass and the (s, t, 1) float32 share in
+    [0, 1] of it that ``pixels`` reach (1 where their weight passes 5 %).
+    """
+    weight = cv2.GaussianBlur(pixels.astype(np.float32), (0, 0), TYPICAL_SIGMA)
+    values = np.where(pixels[..., None], image, 0).astype(np.float32)
+    low = cv2.GaussianBlur(values, (0, 0), TYPICAL_SIGMA) / np.maximum(weight, 1e-6)[..., None]
+    return low, np.minimum(weight / 0.05, 1.0)[..., None]
+
+
+def match_surroundings(filled: np.ndarray, patch: np.ndarray, keep: np.ndarray,
+                       hole: np.ndarray) -> np.ndarray:
+    """The filled pixels with the low-frequency colour of the kept pixels around them.
+
+    A copied piece keeps its grain but takes, in place of its own Gaussian
+    low-pass (sigma ``TYPICAL_SIGMA``), the normalised-convolution low-pass
+    of the patch's kept pixels there: a piece of a shaded part copied into a
+    sunlit one shows no dark blob.
+
+    Parameters
+    ----------
+    filled : (s, t, 3) uint8 ndarray
+        ``patch`` with its ``hole`` filled (:func:`fill_from_class`).
+    patch : (s, t, 3) uint8 ndarray
+    keep, hole : (s, t) bool ndarrays
+
+    Returns
+    -------
+    (s, t, 3) uint8 ndarray
+    """
+    around, reach = _masked_lowpass(patch, keep)
+    # Far inside a large hole no kept pixel reaches: the kept pixels' mean colour there.
+    mean = patch[keep].reshape(-1, 3).mean(axis=0).astype(np.float32)
+    around = reach * around + (1.0 - reach) * mean
+    own, _ = _masked_lowpass(filled, hole)
+    out = filled.copy()
+    out[hole] = np.clip(np.rint(filled[hole] - own[hole] + around[hole]), 0, 255).astype(np.uint8)
+    return out

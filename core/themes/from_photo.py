@@ -4,12 +4,13 @@
 made tileable"): for every class, the window whose texture statistics are
 closest to the class's (band-pass energy, Lab spread and mean;
 :mod:`core.themes.patch_search`) is cut out, the few pixels of other classes
-in it, its border rim and lone objects are filled from the class's own pixels
-of the window (:mod:`core.themes.cut_mask`),
+in it, its border rim, lone objects and faint lone marks are filled with
+pieces of the class's own pixels around the window (:mod:`core.themes.cut_mask`),
 and it is made tileable with :func:`core.themes.tileable.make_tileable`. A
 tile that would visibly repeat (:func:`core.themes.quality.repeat_score` or
 :func:`core.themes.quality.landmark_score` over their limits) is replaced by
-the next best window. A class with no window of ``min_size`` inside it (a
+the next best window; when none passes, by a quilt of small blocks of the
+class if that passes or repeats less. A class with no window of ``min_size`` inside it (a
 few scattered pixels, or a photo smaller than ``min_size``) gets a flat theme
 of its mean colour, and says so in ``Theme.source``.
 
@@ -109,6 +110,11 @@ PATCH_TRIES = 3
 TILE_THREADS = 2
 
 
+def _tiles_unseen(tile: np.ndarray) -> bool:
+    """Whether a tile's repetition stays under both limits (repeat and landmark score)."""
+    return repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT
+
+
 def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
                 options: PatchOptions) -> tuple[np.ndarray, str] | None:
     """The tileable patch of one class and where it came from, or None when none fits."""
@@ -124,7 +130,7 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
         cut = cut_window(rgb, mask, x, y, s)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
-        if repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT:
+        if _tiles_unseen(tile):
             return tile, source
         fallback = fallback or (tile, source + " (repeats)")
     if fallback is None or not options.quilt:
@@ -139,7 +145,8 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
     if quilt is None:
         return fallback
     tile = make_tileable(quilt)
-    if repeat_score(tile) >= repeat_score(fallback[0]):
+    # The quilt unless it repeats more than the best window and fails a limit too.
+    if not _tiles_unseen(tile) and repeat_score(tile) >= repeat_score(fallback[0]):
         return fallback
     return tile, f"quilted from {quilting.steps() ** 2} blocks of the class"
 
