@@ -32,10 +32,8 @@ features after the ridges; measured in SupervisedOptions).
 
 Optional structure features (``structure``, on in the supervised default):
 edge density per block and the structure-tensor coherence at every sigma,
-:mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones).
-
-Optional morphological profile (``profile_radii``, off by default):
-:mod:`core.classify.profiles`, ``2 * len(profile_radii)`` features after the structure ones.
+:mod:`core.classify.texture` (``1 + len(sigmas)`` features after the relative ones), then
+the optional morphological profile (``profile_radii``, off; :mod:`core.classify.profiles`).
 
 Optional position features (``position``): the coarse pixel's centre as a
 fraction of the photo's height and width (2 features, appended last). Only
