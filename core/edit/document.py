@@ -18,6 +18,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from core.edit import layers
 from core.edit.atoms import EditAtom
 from core.edit.changes import (
     AppendTheme,
@@ -34,17 +35,7 @@ from core.edit.changes import (
 from core.edit.classification import classification_changes
 from core.edit.events import DocumentEvents, Event, HistoryChange
 from core.edit.history import History, Step
-from core.edit.layers import (
-    DocumentData,
-    Layer,
-    check_theme_name,
-    check_value,
-    display_photo,
-    photo_extent,
-    validate_confidence,
-    validate_photo,
-    validate_scribbles,
-)
+from core.edit.layers import DocumentData, Layer
 from core.edit.strokes import Stroke
 from core.edit.tools import (
     Connectivity,
@@ -117,11 +108,11 @@ class EditDocument:
 
     def photo_rgb(self) -> np.ndarray | None:
         """The photo as (H, W, 3) C-contiguous uint8 for display (a view when it is RGB)."""
-        return self._derive("photo_rgb", self.photo, display_photo)
+        return self._derive("photo_rgb", self.photo, layers.display_photo)
 
     def photo_extent(self) -> tuple[float, float] | None:
         """``(width, height)`` in texels the photo covers (None without a photo)."""
-        return None if self.photo is None else photo_extent(self.photo.shape,
+        return None if self.photo is None else layers.photo_extent(self.photo.shape,
                                                             self.texture.grid)
 
     def texel_to_vertex(self, x: float, y: float) -> tuple[float, float]:
@@ -203,7 +194,7 @@ class EditDocument:
         0 erases), ``point`` and ``radius`` in photo pixels.
         """
         self.end_stroke()
-        stroke = Stroke(self.data, layer, check_value(layer, value, len(self.library)))
+        stroke = Stroke(self.data, layer, layers.check_value(layer, value, len(self.library)))
         events = stroke.start(point, radius)
         self._stroke = stroke
         self._fire(events, history=False)
@@ -232,7 +223,8 @@ class EditDocument:
         return self._stroke is not None
 
     def _paint(self, label: str, fp: VertexSelection, value: int) -> Step | None:
-        atom = EditAtom.record(self.indices, fp, check_value(Layer.GRID, value, len(self.library)))
+        value = layers.check_value(Layer.GRID, value, len(self.library))
+        atom = EditAtom.record(self.indices, fp, value)
         if atom is None:
             return None
         neutral = neutral_under(self.data, atom.rows, atom.cols)
@@ -261,7 +253,7 @@ class EditDocument:
     def replace_scribbles(self, scribbles: np.ndarray | None, label: str = "replace scribbles"
                           ) -> Step | None:
         """Put a whole scribble layer (a copy of ``scribbles``; None removes it) in place."""
-        new = None if scribbles is None else validate_scribbles(scribbles, self.photo).copy()
+        new = None if scribbles is None else layers.validate_scribbles(scribbles, self.photo).copy()
         old = self.scribbles
         if (old is None and new is None) or (old is not None and new is not None
                                              and np.array_equal(old, new)):
@@ -275,14 +267,14 @@ class EditDocument:
         """Rename / recolour / retexture theme ``k`` (None when ``theme`` equals it)."""
         old = self.library[k]
         k = k % len(self.library)
-        check_theme_name(self.library, theme.name, skip=k)
+        layers.check_theme_name(self.library, theme.name, skip=k)
         if theme == old:
             return None
         return self._commit(label or f"change theme {old.name}", [SetTheme(k, old, theme)])
 
     def add_theme(self, theme: Theme) -> int:
         """Append a theme as one undo step; returns its index."""
-        check_theme_name(self.library, theme.name)
+        layers.check_theme_name(self.library, theme.name)
         if len(self.library) >= 256:
             raise TerrathemeError("a theme library holds at most 256 themes")
         self._commit(f"add theme {theme.name}", [AppendTheme(theme)])
@@ -306,13 +298,13 @@ class EditDocument:
         The confidence map (it was for the old photo) goes in the same step;
         so do the scribbles and the kept prior when they do not fit the new photo.
         """
-        new = None if photo is None else validate_photo(photo)
+        new = None if photo is None else layers.validate_photo(photo)
         return None if new is self.photo else self._commit(label, photo_replacement(self.data, new))
 
     def set_confidence(self, confidence: np.ndarray | None, label: str = "confidence map"
                        ) -> Step | None:
         """Keep a classification's (H, W) confidence map (the photo's size); None clears it."""
-        new = None if confidence is None else validate_confidence(confidence, self.photo)
+        new = None if confidence is None else layers.validate_confidence(confidence, self.photo)
         if new is None and self.confidence is None:
             return None
         return self._commit(label, [SwapLayer(Layer.CONFIDENCE, self.confidence, new)])

@@ -25,20 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import TerrathemeError
+from core.exchange import plan as export_plan
 from core.exchange.colour import COLOUR_MAP, vertex_colour_uv
 from core.exchange.layout import ExportLayout, tiled_layout
 from core.exchange.options import ExportOptions
-from core.exchange.plan import (
-    ExportPlan,
-    common_manifest,
-    map_plan,
-    piece_weights,
-    pixel_spacing,
-    safe_name,
-    theme_files,
-    write_manifest,
-    write_shared_files,
-)
 from core.io.images import read_image, write_image
 from core.model.project import ThematicTexture
 
@@ -93,10 +83,10 @@ def unreal_layout(texture_size: tuple[int, int], options: ExportOptions
 
 def weight_file(project: ThematicTexture, k: int, suffix: str = "") -> str:
     """``weight_KK_name[_xI_yJ].png``: the weight map of theme ``k``."""
-    return f"weight_{k:02d}_{safe_name(project.library[k].name)}{suffix}.png"
+    return f"weight_{k:02d}_{export_plan.safe_name(project.library[k].name)}{suffix}.png"
 
 
-def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
+def plan(project: ThematicTexture, options: ExportOptions) -> export_plan.ExportPlan:
     """Decide the layout and list the files of an Unreal export."""
     layout, notes = unreal_layout(project.grid.texture_size, options)
     files = []
@@ -104,7 +94,8 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         suffix = piece.suffix if layout.tile else ""
         files.append(f"heightmap{suffix}.png")
         files += [weight_file(project, k, suffix) for k in range(len(project.library))]
-    return map_plan(project, options, layout, files + theme_files(project), MANIFEST, notes)
+    files += export_plan.theme_files(project)
+    return export_plan.map_plan(project, options, layout, files, MANIFEST, notes)
 
 
 def read_weight_maps(paths: list[str]) -> np.ndarray:
@@ -124,30 +115,30 @@ def read_weight_maps(paths: list[str]) -> np.ndarray:
     return np.stack(planes)
 
 
-def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
+def write(project: ThematicTexture, plan: export_plan.ExportPlan, folder: Path,
           progress: Progress | None = None) -> None:
     """Write the heightmaps, weight maps, theme textures and manifest of ``plan``."""
     layout = plan.layout
     k = len(project.library)
-    for piece, weights in piece_weights(project, plan, progress):
+    for piece, weights in export_plan.piece_weights(project, plan, progress):
         suffix = piece.suffix if layout.tile else ""
         write_image(folder / f"heightmap{suffix}.png",
                     np.full((piece.h, piece.w, 1), FLAT_HEIGHT, dtype=np.uint16))
         for t in range(k):
             write_image(folder / weight_file(project, t, suffix), weights[t][:, :, None])
-    write_shared_files(project, folder)
+    export_plan.write_shared_files(project, folder)
     # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
-    spacing = pixel_spacing(project, plan)
+    spacing = export_plan.pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size
     # LandscapeLayerCoords' Mapping Scale: landscape quads per repeat of the theme.
-    layers = [{"name": safe_name(t.name), "weightmap": weight_file(project, j),
+    layers = [{"name": export_plan.safe_name(t.name), "weightmap": weight_file(project, j),
                "texture": tex, "texture_world_size_cm": [t.texture.shape[1] * sx * 100,
                                                          t.texture.shape[0] * sy * 100],
                "mapping_scale": t.texture.shape[1] * sx / spacing[0]}
-              for j, (t, tex) in enumerate(zip(project.library, theme_files(project),
+              for j, (t, tex) in enumerate(zip(project.library, export_plan.theme_files(project),
                                                strict=True))]
     quads = UNREAL_SIZES.get(layout.tile or layout.size[0])
-    manifest = common_manifest(project, plan, COLOUR_MAP)
+    manifest = export_plan.common_manifest(project, plan, COLOUR_MAP)
     if project.colour_map is not None:
         manifest["colour_map"].update(vertex_colour_uv(project, layout))
     manifest.update({
@@ -163,4 +154,4 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         "flat_height": FLAT_HEIGHT,
         "layers": layers,
     })
-    write_manifest(folder / MANIFEST, manifest)
+    export_plan.write_manifest(folder / MANIFEST, manifest)

@@ -37,22 +37,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from core.packing.layout import (
-    HEAD_WORDS,
-    JOINED,
-    UNIFORM,
-    W_COUNT,
-    W_CUT,
-    W_GRID,
-    W_GRID_BITS,
-    W_GRID_HEIGHT,
-    W_GRID_WIDTH,
-    W_HEIGHT,
-    W_MORTON,
-    W_RUNS,
-    W_SPANS,
-    W_WIDTH,
-)
+from core.packing import layout
 from core.packing.lookup import local_step, run_span, search_runs
 from core.packing.sweep import (
     STRETCH,
@@ -100,20 +85,20 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
         Per tile: its table's offset, height, grid bits, grid offset (absolute),
         grid width, first bucket, spans and runs offsets (absolute).
     """
-    heads = np.stack([data[b: b + HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
+    heads = np.stack([data[b: b + layout.HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
         np.int64)
-    blocks = heads[:, W_GRID_WIDTH] * heads[:, W_GRID_HEIGHT]
-    shift = int(bucket_shift(int(blocks.sum()), int(heads[:, W_COUNT].sum())))
+    blocks = heads[:, layout.W_GRID_WIDTH] * heads[:, layout.W_GRID_HEIGHT]
+    shift = int(bucket_shift(int(blocks.sum()), int(heads[:, layout.W_COUNT].sum())))
     buckets = ((blocks - 1) >> shift) + 1
     rows = np.zeros((len(heads), TILE_COLUMNS), np.int64)
     rows[:, T_BASE] = bases
-    rows[:, T_HEIGHT] = heads[:, W_HEIGHT]
-    rows[:, T_GRID_BITS] = heads[:, W_GRID_BITS]
-    rows[:, T_GRID] = rows[:, T_BASE] + heads[:, W_GRID]
-    rows[:, T_GRID_WIDTH] = heads[:, W_GRID_WIDTH]
+    rows[:, T_HEIGHT] = heads[:, layout.W_HEIGHT]
+    rows[:, T_GRID_BITS] = heads[:, layout.W_GRID_BITS]
+    rows[:, T_GRID] = rows[:, T_BASE] + heads[:, layout.W_GRID]
+    rows[:, T_GRID_WIDTH] = heads[:, layout.W_GRID_WIDTH]
     rows[:, T_BUCKET] = np.cumsum(buckets) - buckets
-    rows[:, T_SPANS] = rows[:, T_BASE] + heads[:, W_SPANS]
-    rows[:, T_RUNS] = rows[:, T_BASE] + heads[:, W_RUNS]
+    rows[:, T_SPANS] = rows[:, T_BASE] + heads[:, layout.W_SPANS]
+    rows[:, T_RUNS] = rows[:, T_BASE] + heads[:, layout.W_RUNS]
     tiles = np.array([width, height, tile_bits, across, shift, buckets.sum()], np.int64)
     return tiles, rows.ravel()
 
@@ -121,15 +106,15 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
 @numba.njit(cache=True, nogil=True)
 def _layer_words(data):  # pragma: no cover - numba
     # tiles and rows of one layer: a single tile as wide as the layer.
-    blocks = np.int64(data[W_GRID_WIDTH]) * np.int64(data[W_GRID_HEIGHT])
-    shift = bucket_shift(blocks, np.int64(data[W_COUNT]))
-    tiles = np.array([np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1, shift,
+    blocks = np.int64(data[layout.W_GRID_WIDTH]) * np.int64(data[layout.W_GRID_HEIGHT])
+    shift = bucket_shift(blocks, np.int64(data[layout.W_COUNT]))
+    tiles = np.array([np.int64(data[layout.W_WIDTH]), np.int64(data[layout.W_HEIGHT]), 62, 1, shift,
                       ((blocks - 1) >> shift) + 1])
     rows = np.zeros(TILE_COLUMNS, np.int64)
-    rows[T_HEIGHT] = data[W_HEIGHT]
-    rows[T_GRID_BITS] = data[W_GRID_BITS]
-    rows[T_GRID] = data[W_GRID]
-    rows[T_GRID_WIDTH] = data[W_GRID_WIDTH]
+    rows[T_HEIGHT] = data[layout.W_HEIGHT]
+    rows[T_GRID_BITS] = data[layout.W_GRID_BITS]
+    rows[T_GRID] = data[layout.W_GRID]
+    rows[T_GRID_WIDTH] = data[layout.W_GRID_WIDTH]
     return tiles, rows
 
 
@@ -141,7 +126,7 @@ def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, co
     tmask = (np.int64(1) << tb) - 1
     height0, gb0, grid0, gw0 = rows[T_HEIGHT], rows[T_GRID_BITS], rows[T_GRID], rows[T_GRID_WIDTH]
     # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
-    cut0 = np.int64(data[W_CUT])
+    cut0 = np.int64(data[layout.W_CUT])
     pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
     m = a
     for k in range(a, b):
@@ -170,7 +155,7 @@ def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, co
         mask = (np.int64(1) << gb) - 1
         ent[m] = (np.int64(k) << 32) | (gi << (2 * gb)) | ((yup & mask) << gb) | (x & mask)
         bkt[m] = bucket
-        search = (g & UNIFORM) == 0
+        search = (g & layout.UNIFORM) == 0
         counts[bucket] += search
         m += search
     return m - a, -1
@@ -178,7 +163,7 @@ def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, co
 
 @numba.njit(cache=True, nogil=True)
 def _grid_layer(xs, ys, a, b, data, tiles, rows, out, ent, bkt, counts):  # pragma: no cover
-    if data[W_MORTON] == JOINED:
+    if data[layout.W_MORTON] == layout.JOINED:
         return _grid_pass(xs, ys, a, b, data, False, True, tiles, rows, out, ent, bkt, counts)
     return _grid_pass(xs, ys, a, b, data, False, False, tiles, rows, out, ent, bkt, counts)
 

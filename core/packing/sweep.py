@@ -19,22 +19,7 @@ import numba
 import numpy as np
 
 from core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
-from core.packing.layout import (
-    JOINED,
-    MORTON_BLOCK,
-    SPAN_LAST,
-    SPAN_OFFSET_MASK,
-    UNIFORM,
-    W_CUT,
-    W_GRID,
-    W_GRID_BITS,
-    W_GRID_WIDTH,
-    W_HEIGHT,
-    W_MORTON,
-    W_RUNS,
-    W_SPANS,
-    W_WIDTH,
-)
+from core.packing import layout
 from core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
@@ -52,18 +37,19 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
     if tiled:
         width, height, tb, across = tiles[0], tiles[1], tiles[2], tiles[3]
     else:
-        width, height, tb, across = np.int64(data[W_WIDTH]), np.int64(data[W_HEIGHT]), 62, 1
+        width, height = np.int64(data[layout.W_WIDTH]), np.int64(data[layout.W_HEIGHT])
+        tb, across = 62, 1
     tmask = (np.int64(1) << tb) - 1
-    height0 = np.int64(data[W_HEIGHT])
-    gb0 = np.int64(data[W_GRID_BITS])
+    height0 = np.int64(data[layout.W_HEIGHT])
+    gb0 = np.int64(data[layout.W_GRID_BITS])
     # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
-    cut0 = np.int64(data[W_CUT])
+    cut0 = np.int64(data[layout.W_CUT])
     pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
-    grid0 = np.int64(data[W_GRID])
-    spans0 = np.int64(data[W_SPANS])
-    runs0 = np.int64(data[W_RUNS])
-    gw0 = np.int64(data[W_GRID_WIDTH])
-    morton0 = np.int64(data[W_MORTON] == 1)
+    grid0 = np.int64(data[layout.W_GRID])
+    spans0 = np.int64(data[layout.W_SPANS])
+    runs0 = np.int64(data[layout.W_RUNS])
+    gw0 = np.int64(data[layout.W_GRID_WIDTH])
+    morton0 = np.int64(data[layout.W_MORTON] == 1)
     n = min(STRETCH, xs.size)
     gs = np.empty(n, np.int64)
     local = np.empty(n, np.int64)
@@ -101,27 +87,27 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
             local[m] = ((yup & mask) << 32) | (x & mask)
             which[m] = k
             tile[m] = t
-            m += (g & UNIFORM) == 0
+            m += (g & layout.UNIFORM) == 0
         # Local steps, and the runs to search (the block's, or its quarter's).
         for i in range(m):
             g = gs[i]
             if tiled:
                 gb, spans = rows[tile[i] + T_GRID_BITS], rows[tile[i] + T_SPANS]
-                morton = np.int64(data[rows[tile[i] + T_BASE] + W_MORTON])
+                morton = np.int64(data[rows[tile[i] + T_BASE] + layout.W_MORTON])
             else:
                 gb, spans, morton = gb0, spans0, morton0
             lx = local[i] & 0xFFFFFFFF
             ly = local[i] >> 32
-            if morton or (joined and g & MORTON_BLOCK):
+            if morton or (joined and g & layout.MORTON_BLOCK):
                 step = np.int64(morton_step(lx, ly))
             else:
                 step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-            offset = ((g >> 3) & SPAN_OFFSET_MASK) if joined else g >> 3
+            offset = ((g >> 3) & layout.SPAN_OFFSET_MASK) if joined else g >> 3
             at = spans + offset + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
             runs = rows[tile[i] + T_RUNS] if tiled else runs0
             local[i] = np.int64(np.uint32(step) << np.uint32(8))
             los[i] = runs + np.int64(data[at])
-            his[i] = (np.int64(data[at + 1]) & (SPAN_LAST - 1)) - np.int64(data[at])
+            his[i] = (np.int64(data[at + 1]) & (layout.SPAN_LAST - 1)) - np.int64(data[at])
             # The first probe's line, asked for now: it arrives while the other texels'
             # steps are worked out. With the next probes' below, 10^6 random texels,
             # paired rounds at load 5-5.5, CPU time over the kernel without prefetches:
@@ -163,7 +149,7 @@ def sweep_layer(xs, ys, data, out):  # pragma: no cover - numba
     Returns the position of the first coordinate outside the layer, or -1.
     """
     tiles, rows = np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64)
-    if data[W_MORTON] == JOINED:
+    if data[layout.W_MORTON] == layout.JOINED:
         return _sweep(xs, ys, data, False, True, tiles, rows, out)
     return _sweep(xs, ys, data, False, False, tiles, rows, out)
 
