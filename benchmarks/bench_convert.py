@@ -273,10 +273,8 @@ def chart(result: dict, path: Path) -> None:
             axm.plot(xs, ys, style, label=f"{mode} image, {clf} classifier"
                      + (" (tile 1024)" if mode == "tiled" else ""))
     axm.set_xscale("log", base=2)
-    axm.set_yscale("log")
-    axm.set_xlabel("image side (pixels)")
-    axm.set_ylabel("peak RSS above start (MiB)")
-    axm.set_title("peak memory vs image size")
+    axm.set(yscale="log", xlabel="image side (pixels)", ylabel="peak RSS above start (MiB)",
+            title="peak memory vs image size")
     axm.legend(fontsize=8)
     big = max(result["part_b"]["sides"])
     pts = sorted((r["tile"], r["peak_rss_above_start_mib"]) for r in recs
@@ -289,10 +287,8 @@ def chart(result: dict, path: Path) -> None:
         axt.plot([1024], [dk[0]["peak_rss_above_start_mib"]], "r^",
                  label="Dask, batch of 4 tiles")
     axt.set_xscale("log", base=2)
-    axt.set_yscale("log")
-    axt.set_xlabel("tile side (pixels)")
-    axt.set_ylabel("peak RSS above start (MiB)")
-    axt.set_title(f"peak memory vs tile size ({big}x{big} image)")
+    axt.set(yscale="log", xlabel="tile side (pixels)", ylabel="peak RSS above start (MiB)",
+            title=f"peak memory vs tile size ({big}x{big} image)")
     axt.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path)

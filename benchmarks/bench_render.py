@@ -364,10 +364,8 @@ def chart(res: dict, path: Path) -> None:
     ax.axhline(st["photo_png"], color="C3", ls="--", label="photo as PNG")
     ax.axhline(st["photo_jpeg_q90"], color="C4", ls="--", label="photo as JPEG q90")
     ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xlabel("cell size N = M (texels)")
-    ax.set_ylabel("bytes")
-    ax.set_title(f"storage: {st['photo']} ({st['size'][0]}x{st['size'][1]})")
+    ax.set(yscale="log", xlabel="cell size N = M (texels)", ylabel="bytes",
+           title=f"storage: {st['photo']} ({st['size'][0]}x{st['size'][1]})")
     ax.legend(fontsize=8)
     ax = axes[3]
     s8 = res["storage_8192"]

@@ -15,16 +15,7 @@ import cv2
 import numpy as np
 from classify_eval import confusion
 
-from core.classify import (
-    FeatureOptions,
-    FeatureSet,
-    ForestKind,
-    Regularisation,
-    RegulariseOptions,
-    SupervisedOptions,
-    UnsupervisedOptions,
-    classify_unsupervised,
-)
+from core import classify
 from core.classify.features import coarse_lab
 from core.classify.photo import prepare_photo
 from core.classify.tiled import tile_features
@@ -33,14 +24,14 @@ from core.io.tiles import TileWindow
 RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000
 
-ILASTIK = SupervisedOptions(
-    forest=ForestKind.RANDOM_FOREST, n_trees=24,
-    features=FeatureOptions(feature_set=FeatureSet.SKIMAGE, scale=1),
-    regularisation=RegulariseOptions(method=Regularisation.NONE),
+ILASTIK = classify.SupervisedOptions(
+    forest=classify.ForestKind.RANDOM_FOREST, n_trees=24,
+    features=classify.FeatureOptions(feature_set=classify.FeatureSet.SKIMAGE, scale=1),
+    regularisation=classify.RegulariseOptions(method=classify.Regularisation.NONE),
 )
-KMEANS = UnsupervisedOptions(
-    features=FeatureOptions(feature_set=FeatureSet.COLOUR, scale=1),
-    regularisation=RegulariseOptions(method=Regularisation.NONE),
+KMEANS = classify.UnsupervisedOptions(
+    features=classify.FeatureOptions(feature_set=classify.FeatureSet.COLOUR, scale=1),
+    regularisation=classify.RegulariseOptions(method=classify.Regularisation.NONE),
 )
 
 
@@ -80,7 +71,7 @@ def ilastik_predict(model, feats, truth, classes, rng, seconds_feat):
 def kmeans_predict(photo, truth, classes, mapping_mask):
     """k-means on colour, clusters -> classes by majority of ``mapping_mask`` (0 = unlabelled)."""
     t = time.perf_counter()
-    res = classify_unsupervised(photo, themes=len(classes), options=KMEANS)
+    res = classify.classify_unsupervised(photo, themes=len(classes), options=KMEANS)
     dt = time.perf_counter() - t
     lut = np.zeros(256, np.uint8)
     fallback = np.bincount(mapping_mask[np.isin(mapping_mask, classes)], minlength=256).argmax()

@@ -271,9 +271,8 @@ def themes_by_name(
 
     Parameters
     ----------
-    photo : (H, W, 3) uint8 ndarray
-    labels : (H, W) uint8 ndarray
-        Class values; 0 = no data.
+    photo, labels
+        As for :func:`themes_from_photo`.
     names : sequence of str or {class: name}
         A mapping is taken as given. A sequence is assigned by colour: each
         class present goes to a distinct named theme, the assignment that
