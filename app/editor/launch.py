@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from app.editor.display import prepare_display
 from core.errors import TerrathemeError
 from core.model.project import PROJECT_SUFFIX
 
@@ -36,6 +37,8 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     """Open the editor; with ``screenshot`` render the laid-out window to that PNG and exit."""
     import sys
 
+    # A missing or unreachable display is one line, not Qt's abort (:mod:`.display`).
+    prepare_display(screenshot=screenshot is not None)
     from PySide6.QtCore import QElapsedTimer, QEventLoop
     from PySide6.QtWidgets import QApplication
 
