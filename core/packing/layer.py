@@ -70,7 +70,7 @@ class PackedLayer:
     squeeze: bool
     _data: np.ndarray = field(repr=False)
     _scalars: list = field(repr=False)
-    _quick: tuple | None = field(default=None, init=False, repr=False)
+    _quick: tuple = field(default=(), init=False, repr=False)  # built by _quick_setup
     report: PaletteReport | None = None
     colours: np.ndarray | None = None
     threads: int = 2
@@ -236,12 +236,24 @@ class PackedLayer:
         """
         if type(xs) is int and type(ys) is int:
             # Scalar fast path (:mod:`.scalar`): a uniform quick cell's byte (most texels),
-            # else one compiled call; then the ready-made value (like image[y, x]).
-            rows, bits, w, h, values, call, data = self._quick or self._quick_setup()
-            if 0 <= xs < w and 0 <= ys < h:
-                i = rows[ys][xs >> bits]
+            # else one compiled call; then the ready-made value (like image[y, x]). Kept
+            # short, the rest in _lookup_many: each line here is a measured cost.
+            try:
+                rows, bits, w, values, call, data = self._quick
+            except ValueError:  # () until the first scalar lookup builds the cells
+                rows, bits, w, values, call, data = self._quick_setup()
+            # Bounds: one test for both signs and x's end; a row past the end is not in rows.
+            if (xs | ys) >= 0 and xs < w:
+                try:
+                    i = rows[ys][xs >> bits]
+                except IndexError:
+                    raise TerrathemeError(self._outside(xs, ys)) from None
                 return values[i] if i != 255 else values[call(xs, ys, data)]
             raise TerrathemeError(self._outside(xs, ys))
+        return self._lookup_many(xs, ys)
+
+    def _lookup_many(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
+        # lookup() of numpy scalars and arrays.
         if type(xs) in _SCALAR_TYPES and type(ys) in _SCALAR_TYPES:
             return self.lookup(int(xs), int(ys))
         xs_arr = np.asarray(xs)
@@ -264,8 +276,7 @@ class PackedLayer:
     def _quick_setup(self) -> tuple:
         # What the scalar path reads, built on its first call (:func:`.scalar.quick_cells`).
         bits, rows = quick_cells(self._data)
-        quick = (rows, bits, self.width, self.height, self._scalars, scalar_lookup_function(),
-                 self._data)
+        quick = (rows, bits, self.width, self._scalars, scalar_lookup_function(), self._data)
         object.__setattr__(self, "_quick", quick)
         return quick
 

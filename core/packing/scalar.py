@@ -1,14 +1,15 @@
 """What a scalar lookup from Python reads: a byte per small cell of the layer (issue 19).
 
 A scalar lookup from Python is bound by the interpreter: numpy's ``img[y, x]``
-costs 0.25-0.4 us on this project's 2-core machine, a call into a compiled
-kernel 0.1 us when the table is in cache and up to 0.8 us when it is not
-(numba's entry point unboxes the arguments, then the search's dependent
-loads miss), while a method that does a few integer operations and indexes a
-``bytes`` costs about what numpy's index costs. So a scalar lookup reads the
-**quick cells** first: a byte per aligned ``2^c x 2^c`` curve block, the
-palette index of a cell that one run covers, 255 for any other; rows of
-cells shared by the image rows they hold, so a texel's byte is
+costs 0.08-0.4 us on this project's 2-core machine (by its load), a call into
+a compiled kernel 0.1 us when the table is in cache and up to 0.8 us when it
+is not (numba's entry point unboxes the arguments, then the search's
+dependent loads miss), while a method that does a few integer operations and
+indexes a ``bytes`` costs 1-2 times numpy's index (a Python call alone costs
+0.025 us). So a scalar lookup reads the **quick cells** first: a byte per
+aligned ``2^c x 2^c`` curve block, the palette index of a cell that one run
+covers, 255 for any other; rows of cells shared by the image rows they hold,
+so a texel's byte is
 ``rows[y][x >> c]`` (no arithmetic on ``y``). ``c`` is the smallest from
 :data:`QUICK_MIN_BITS` whose cells fit :data:`QUICK_CELLS` bytes, so memory
 stays bounded whatever the layer's size. 16 x 16 cells leave 7-19% of the
@@ -16,7 +17,31 @@ shared maps' random texels to the compiled call (the table's 32 x 32 blocks:
 12-29%); finer cells leave fewer, but their bytes (1-5 MB) fall out of cache
 and were no faster in total. The cells are built on the first scalar lookup,
 from the runs (:func:`core.packing.lookup.block_runs`, the test the table's
-grid uses).
+grid uses); they cost a byte per cell and a pointer per image row: 61 + 40 KB
+(Chesapeake 3115 x 5010), 147 + 49 KB (ESA 6144^2), 327 + 73 KB (DRCOG 9144^2).
+
+The method itself is kept short (its array path in another method) and tests
+bounds with ``(x | y) >= 0 and x < W`` (a row past the end is not in
+``rows``): measured in 31 paired rounds of 20,000 random texels (load 3.2 on
+the 2 cores), us per call, the path before / this one / numpy's ``img[y, x]``:
+Chesapeake 0.140 / 0.127 / 0.081, ESA 0.154 / 0.134 / 0.085, DRCOG 0.199 /
+0.184 / 0.094 (paired ratios 0.91, 0.87, 0.93); 8.6%, 7.1%, 18.4% of the
+texels took the compiled call. Two pure-Python answers for the other cells
+were measured in the same rounds, behind the same fast path, and dropped:
+
+* each such cell's runs as their last local curve steps (a byte each, 16 x 16
+  cells) beside their palette indices in one ``bytes``, a word per cell
+  (offset, run count, Hilbert state) in an ``array`` row shared like
+  ``rows``, the texel's local step from a (state, y & 15, x & 15) table
+  inverted from :func:`core.curves.plan.local_patterns`, then
+  ``bisect.bisect_left``: 1.01 / 0.98 / 1.09 x the path before, 12-18% slower
+  than the compiled call, for 0.7 / 1.7 / 5.0 MB more. Its dozen bytecodes
+  and dependent reads (row list, array, its buffer, the run bytes) cost more
+  than numba's entry point (0.08 us with the table's unboxing) and kernel;
+* those cells kept dense (``4^c`` bytes each, at ``((y & m) << c) | (x & m)``):
+  2-6% faster than the compiled call (0.88 / 0.85 / 0.87 x the path before),
+  but 256 bytes per such cell, 1.9 / 4.0 / 18.7 MB more: up to the dense
+  image's size on a busy map.
 """
 
 from __future__ import annotations
