@@ -26,6 +26,33 @@ blocks a stroke covers under 3 / 6 / 12 of 64 pixels left out 0.5893 / 0.5882 /
 morphological profile radii 2-4-8 (``FeatureOptions.profile_radii``) 0.5919
 (0.6003 / 0.5930 / 0.5825), same speed; uniform LBP shares (patched in, commit
 9355ce3) 0.5897 (0.5917 / 0.6005 / 0.5769) at 0.67x the speed.
+
+Issue 17, random walker (Grady 2006, ``skimage.segmentation.random_walker``, mode
+``cg_j``, tol 1e-3; pyamg is not installed, so no ``cg_mg``) on the coarse grid, seeds =
+the strokes' coarse pixels (``coarse_mask``), patched in (a scratch harness on these
+photos, draws and models that reproduces the default's per-draw figures exactly), not
+kept. 3 draws, default 0.5863 (0.5942 / 0.5890 / 0.5759). Walker alone (Lab, beta 30)
+0.4210. (a) Mixed into EDGE's output, 0.9 EDGE + 0.1 walker, beta 10 / 30 / 130: 0.5858
+/ 0.5866 / 0.5862 (weight 0.05: 0.5862 / 0.5867 / 0.5863; 0.2: 0.5816 / 0.5841 /
+0.5853); texture as a fourth channel 0.5867; grown seeds 0.5864; mixed into the raw
+votes before EDGE 0.5858; EDGE x walker^0.1 0.5841 (^0.25 / ^0.5 on 6 photos, 1 draw:
+-0.03 / -0.08). (b) Seeds = strokes + the surest 80% of each predicted class: walker
+after EDGE 0.5695, in place of EDGE (seeds from the raw votes) 0.5694, half-and-half
+with EDGE 0.5780. Grady's (2005) prior as a seeded twin plane (each pixel tied to a seed
+of its arg-max class, more loosely where the forest's margin is small, kappa 5): after
+EDGE 0.5835, before it 0.5844 (kappa 20 / 60 on 6 photos: -0.02 to -0.05 / -0.07 to
+-0.16). (c) The forest's votes as walker channels beside Lab (0.7 EDGE + 0.3 walker):
+Lab + 10 / 20 / 30 x raw votes at beta 60: 0.5851 / 0.5888 / 0.5887, at beta 130: 0.5864
+/ 0.5887 (+0.0017 / +0.0019 / +0.0035 per draw) / 0.5879; beta 500 0.5706-0.5820; walker
+weight 0.5 / 0.7 0.5691-0.5866 / 0.5537-0.5818; the votes alone as data 0.5833 (weight
+0.1). Best +0.0024, under the forest-seed noise (~0.008 a draw): the more weight the
+walker gets, the lower the mIoU. Its diffusion from 0.5% of short strokes knows colour
+edges only, which EDGE already follows. Cost (same runs, load 2-4 on the 2 cores;
+prediction 11-20 Mpx/s there): the stroke-seeded Lab walker adds 0.13-0.18 s per Mpx
+(0.24-0.30x the speed), with forest seeds 0.012-0.03 s (0.65-0.82x: dense seeds, few CG
+iterations), with the votes as channels 0.34-0.94 s (0.08-0.16x, 1-2.5 Mpx/s, under the
+5 Mpx/s goal); and a model would have to keep its strokes to walk from them at
+prediction.
 """
 
 from __future__ import annotations
