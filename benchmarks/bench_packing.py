@@ -26,7 +26,7 @@ On the land-cover maps in ../shared/data/maps, all measured in the same run:
   GPU shader's lookups (``core.gpu.PackedGrid.lookup`` on the table as a
   texture, Mesa llvmpipe here: coordinates uploaded, indices read back),
   checked equal to the CPU's;
-* scalar lookup time against a scalar numpy index;
+* scalar lookup time (the layer and the tiled container) against a scalar numpy index;
 * pack time (scan + runs + random-access table) with the numpy peer of the
   numba scan on a 4096^2 crop.
 
@@ -281,13 +281,17 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
     bits, cells = quick_cells(layer.table)
     rec["scalar_cell_bits"] = bits
     rec["scalar_compiled_share"] = float(np.mean([cells[y][x >> bits] == 255 for x, y in pts]))
-    ours, dense = [], []
+    tiled.lookup(*pts[0])
+    ours, dense, tiles = [], [], []
     for _ in range(LOOKUP_ROUNDS):
         ours.append(best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
         dense.append(best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6)
+        tiles.append(best_of(lambda: [tiled.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
     rec["scalar_lookup_us"] = float(np.median(ours))
     rec["scalar_dense_us"] = float(np.median(dense))
     rec["scalar_vs_dense"] = float(np.median(np.array(ours) / np.array(dense)))
+    rec["scalar_tiled_us"] = float(np.median(tiles))
+    rec["scalar_tiled_vs_dense"] = float(np.median(np.array(tiles) / np.array(dense)))
     rec["memory_bytes_per_run"] = layer.memory_bytes / layer.run_count
     rec["dense_bytes"] = int(img.nbytes)
     rec["memory_bytes"] = int(layer.memory_bytes)

@@ -105,3 +105,25 @@ def test_scalar_lookup_outside_the_layer_is_refused(img, curve, dx, dy):
             layer.lookup(x, y)
         assert layer.lookup(w - 1, h - 1) == img[h - 1, w - 1]
         assert layer.lookup(0, 0) == img[0, 0]
+
+
+@pytest.mark.parametrize("size", [(65, 65), (130, 70), (64, 64), (1, 1), (200, 9), (72, 136)])
+@pytest.mark.parametrize("cap", [1 << 22, 4])
+@pytest.mark.parametrize("join", [True, False])
+def test_tiled_quick_cells_at_tile_edges_and_beyond_their_bound(size, cap, join):
+    # Corner tiles of 1-8 texels have cells of another side (all looked up the long way);
+    # cap 4: more cells than the bound, no quick cells at all.
+    w, h = size
+    rng = np.random.default_rng(w * 1000 + h)
+    img = rng.integers(0, 3, (-(-h // 8), -(-w // 8))).repeat(8, 0).repeat(8, 1)[:h, :w]
+    img = img.astype(np.uint8)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(scalar, "QUICK_CELLS", cap)
+        tiled = dataclasses.replace(pack(img, tile_bits=6), join=join)
+        _assert_every_texel(tiled, img)
+    with pytest.raises(TerrathemeError, match=rf"\({w}, 0\) is outside"):
+        tiled.lookup(w, 0)
+    with pytest.raises(TerrathemeError, match=rf"\(0, {h}\) is outside"):
+        tiled.lookup(0, h)
+    with pytest.raises(TerrathemeError, match=r"\(-1, 0\) is outside"):
+        tiled.lookup(-1, 0)

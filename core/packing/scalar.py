@@ -19,6 +19,11 @@ and were no faster in total. The cells are built on the first scalar lookup,
 from the runs (:func:`core.packing.lookup.block_runs`, the test the table's
 grid uses); they cost a byte per cell and a pointer per image row: 61 + 40 KB
 (Chesapeake 3115 x 5010), 147 + 49 KB (ESA 6144^2), 327 + 73 KB (DRCOG 9144^2).
+A tiled container's cells are its tiles' side by side (:func:`tiled_quick_cells`,
+built with its tables), the other cells answered by the compiled call on its
+joined table: DRCOG in 4096^2 tiles 1.39 -> 0.33 us a call against the single
+layer's 0.26 and numpy's 0.24 in the same run (each call had gone through the
+tile arithmetic, ``int()`` and the palette's numpy gather).
 
 The method itself is kept short (its array path in another method) and tests
 bounds with ``(x | y) >= 0 and x < W`` (a row past the end is not in
@@ -91,3 +96,48 @@ def quick_cells(data: np.ndarray) -> tuple[int, list[bytes]]:
     quick = np.where(uniform, indices[np.minimum(run1, steps.size - 1)], 255).astype(np.uint8)
     cell_rows = [r.tobytes() for r in quick.reshape(coarse.shape)]  # from the bottom
     return c, [cell_rows[(height - 1 - y) >> c] for y in range(height)]
+
+
+def tiled_quick_cells(tables: list[np.ndarray], tiles_x: int, width: int,
+                      height: int) -> list[bytes] | None:
+    """The quick cells of a tiled layer: its tiles' (:func:`quick_cells`) side by side.
+
+    Parameters
+    ----------
+    tables : list of (M_t,) uint32 ndarrays
+        Each tile's own table, rows of tiles from the top-left, ``tiles_x`` a row
+        (tile sides are powers of two from 64, so cells of every tile but the
+        last of a row end on the tile's right edge).
+    tiles_x : int
+    width, height : int
+        The tiled layer's size in texels.
+
+    Returns
+    -------
+    rows : list of H bytes, or None
+        ``rows[y][x >> QUICK_MIN_BITS]`` as :func:`quick_cells`' rows, over the
+        whole layer (a tile whose cells are not :data:`QUICK_MIN_BITS` a side, a
+        tiny one at the layer's corner, is all 255). None when the layer has
+        more cells than :data:`QUICK_CELLS`.
+    """
+    bits = QUICK_MIN_BITS
+    if (-(-width >> bits)) * (-(-height >> bits)) > QUICK_CELLS:
+        return None
+    rows: list[bytes] = []
+    for first in range(0, len(tables), tiles_x):
+        # One tile row: every tile's image rows, joined per cell row (all share one height).
+        per_tile = []
+        for data in tables[first:first + tiles_x]:
+            c, tile_rows = quick_cells(data)
+            if c != bits:
+                mixed = b"\xff" * (-(-int(data[W_WIDTH]) >> bits))
+                tile_rows = [mixed] * int(data[W_HEIGHT])
+            per_tile.append(tile_rows)
+        tile_height = len(per_tile[0])
+        joined: dict[int, bytes] = {}
+        for y in range(tile_height):
+            key = (tile_height - 1 - y) >> bits
+            if key not in joined:
+                joined[key] = b"".join(tile_rows[y] for tile_rows in per_tile)
+            rows.append(joined[key])
+    return rows

@@ -36,6 +36,7 @@ from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
 from core.packing.lookup import scalar_lookup_function, table_runs
 from core.packing.palette import palette_values
+from core.packing.scalar import QUICK_MIN_BITS, tiled_quick_cells
 
 #: Tile side used when none is asked for: the largest a packed layer has.
 DEFAULT_TILE_BITS = 16
@@ -219,6 +220,15 @@ class TiledLayer:
             decoded = [t.with_grid_bits(bits) for t in decoded]
             joined = join_tables([t.table for t in decoded], self.width, self.height,
                                  self.tile_bits, self.tiles_x) if self.join else None
+            # What scalar calls read first (:func:`.scalar.tiled_quick_cells`): the cells, the
+            # values of palette indices, and for a joined table the compiled call on it.
+            cells = tiled_quick_cells([t.table for t in decoded], self.tiles_x, self.width,
+                                      self.height)
+            values = [self.values_of(np.asarray(i, np.uint8))[()]
+                      for i in range(len(self.palette))]
+            self._cache["quick"] = () if cells is None else (
+                cells, self.width, values, None if joined is None else scalar_lookup_function(),
+                joined)
             if joined is not None:
                 self._cache[key] = (joined, None)
                 return self._cache[key]
@@ -241,6 +251,17 @@ class TiledLayer:
         TerrathemeError
             A coordinate outside the layer.
         """
+        quick = self._cache.get("quick")
+        if quick and type(xs) is int and type(ys) is int:
+            # Scalar fast path (:mod:`.scalar`): a uniform quick cell's value, or the compiled
+            # call on the joined table; tiles looked up on their own go the way below.
+            rows, w, values, call, joined = quick
+            if (xs | ys) >= 0 and xs < w and ys < len(rows):
+                i = rows[ys][xs >> QUICK_MIN_BITS]
+                if i != 255:
+                    return values[i]
+                if call is not None:
+                    return values[call(xs, ys, joined)]
         table, words = self._tables()
         if isinstance(xs, int | np.integer) and isinstance(ys, int | np.integer):
             # One texel: its tile's scalar lookup, then the layer's palette.
