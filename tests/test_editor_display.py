@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import os
+import shutil
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
+from app.editor import display
 from app.editor.display import display_problem, prepare_display
 from core.errors import TerrathemeError
 
@@ -40,12 +44,61 @@ def test_platforms_without_an_x_server_are_left_to_qt(env):
     assert display_problem(env) is None
 
 
+@pytest.fixture
+def x_server():
+    """A display number served by a fresh Xvfb over TCP (skips without Xvfb)."""
+    if not shutil.which("Xvfb"):
+        pytest.skip("Xvfb is not installed")
+    number = 200 + os.getpid() % 300
+    server = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "64x64x24", "-nolisten",
+                               "unix", "-listen", "tcp", "-nolock"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", 6000 + number), timeout=1).close()
+                break
+            except OSError:
+                if server.poll() is not None:
+                    pytest.skip("Xvfb did not start")
+                time.sleep(0.1)
+        yield f"127.0.0.1:{number}"
+    finally:
+        server.terminate()
+        server.wait(10)
+
+
 @linux_only
-@pytest.mark.skipif(not os.environ.get("DISPLAY"), reason="no X display in this environment")
-def test_a_running_x_server_passes():
-    if os.environ.get("QT_QPA_PLATFORM", "xcb").split(":")[0] not in ("", "xcb"):
-        pytest.skip("tests run on a headless Qt platform")
-    assert display_problem(os.environ) is None
+def test_a_running_x_server_passes_and_a_screen_it_lacks_is_named(x_server):
+    assert display_problem({"DISPLAY": x_server}) is None
+    assert display_problem({"DISPLAY": x_server + ".0"}) is None
+    problem = display_problem({"DISPLAY": x_server + ".3"})
+    assert problem is not None and x_server + ".3" in problem
+
+
+@linux_only
+def test_a_server_that_never_answers_is_named_after_the_timeout(monkeypatch):
+    monkeypatch.setattr(display, "CONNECT_TIMEOUT_S", 0.5)
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(1)
+        port = silent.getsockname()[1]
+        if not 6000 < port < 6000 + 65536:
+            pytest.skip("no free port above 6000")
+        where = f"127.0.0.1:{port - 6000}"
+        t0 = time.monotonic()
+        problem = display_problem({"DISPLAY": where})
+        assert time.monotonic() - t0 < 5
+    assert problem == f"the X display {where!r} does not answer within 0.5 s"
+
+
+@linux_only
+def test_a_missing_library_is_named_with_its_package(monkeypatch):
+    monkeypatch.setattr(display, "XCB_PACKAGES", {"libterratheme-absent.so.7": "libabsent7",
+                                                  **display.XCB_PACKAGES})
+    problem = display_problem({"DISPLAY": NO_SERVER})
+    assert "libterratheme-absent.so.7" in problem and "apt-get install libabsent7" in problem
 
 
 @linux_only
@@ -85,5 +138,17 @@ def test_a_screenshot_without_a_display_is_drawn_offscreen(tmp_path):
     done = subprocess.run([sys.executable, "-m", "app", "app", "--screenshot", str(shot),
                            "--size", "640x400"], env=_headless_env(), cwd=tmp_path,
                           capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert shot.stat().st_size > 1000
+
+
+@linux_only
+@pytest.mark.qt
+def test_a_screenshot_on_a_real_x_display(tmp_path, x_server):
+    shot = tmp_path / "shot.png"
+    env = {**_headless_env(), "DISPLAY": x_server, "QT_QPA_PLATFORM": "xcb"}
+    done = subprocess.run([sys.executable, "-m", "app", "app", "--screenshot", str(shot),
+                           "--size", "640x400"], env=env, cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert shot.stat().st_size > 1000

@@ -127,3 +127,14 @@ def test_tiled_quick_cells_at_tile_edges_and_beyond_their_bound(size, cap, join)
         tiled.lookup(0, h)
     with pytest.raises(TerrathemeError, match=r"\(-1, 0\) is outside"):
         tiled.lookup(-1, 0)
+
+
+def test_numpy_integer_coordinates_take_the_same_answer_and_bools_are_refused():
+    img = np.arange(12 * 9, dtype=np.uint8).reshape(9, 12) % 5
+    for layer in (pack(img), pack(img, tile_bits=6)):
+        for x, y in [(0, 0), (11, 8), (5, 3)]:
+            for kind in (np.int64, np.int32, np.uint16, np.uint8):
+                assert layer.lookup(kind(x), kind(y)) == img[y, x]
+        for xs, ys in [(np.array([True]), np.array([0])), (True, 0), (0, False)]:
+            with pytest.raises(TerrathemeError, match="integers"):
+                layer.lookup(xs, ys)

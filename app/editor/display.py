@@ -2,37 +2,38 @@
 
 Qt ends the process with an abort (exit 134 and a page of plugin hints) when
 its platform plugin cannot start: no ``DISPLAY``, an X server that does not
-answer, or a system library the xcb plugin needs missing. The editor checks
-those first, so a user gets one line naming the problem (exit 2). A
-screenshot needs no display: without one it is drawn offscreen.
+answer or has no such screen, or a system library the xcb plugin needs
+missing. The editor checks those first, so a user gets one line naming the
+problem (exit 2). A screenshot needs no display: without one it is drawn
+offscreen.
 """
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import os
+import re
 import sys
+import threading
 from collections.abc import Mapping
+from pathlib import Path
 
 from core.errors import TerrathemeError
 
 #: Qt platforms that need no display server.
 HEADLESS_PLATFORMS = frozenset({"offscreen", "minimal", "minimalegl", "vnc", "linuxfb",
                                 "eglfs", "vkkhrdisplay"})
-#: Libraries Qt's xcb platform plugin loads (from Qt 6.5), and their Debian packages.
-XCB_LIBRARIES = (
-    ("libxcb-cursor.so.0", "libxcb-cursor0"),
-    ("libxcb-icccm.so.4", "libxcb-icccm4"),
-    ("libxcb-keysyms.so.1", "libxcb-keysyms1"),
-    ("libxcb-image.so.0", "libxcb-image0"),
-    ("libxcb-render-util.so.0", "libxcb-render-util0"),
-    ("libxcb-randr.so.0", "libxcb-randr0"),
-    ("libxcb-shape.so.0", "libxcb-shape0"),
-    ("libxcb-xkb.so.1", "libxcb-xkb1"),
-    ("libxkbcommon-x11.so.0", "libxkbcommon-x11-0"),
-    ("libX11-xcb.so.1", "libx11-xcb1"),
-)
+#: Debian packages of the libraries Qt's xcb platform plugin loads (from Qt 6.5).
+XCB_PACKAGES = {
+    "libxcb.so.1": "libxcb1", "libxcb-cursor.so.0": "libxcb-cursor0",
+    "libxcb-icccm.so.4": "libxcb-icccm4", "libxcb-keysyms.so.1": "libxcb-keysyms1",
+    "libxcb-image.so.0": "libxcb-image0", "libxcb-render-util.so.0": "libxcb-render-util0",
+    "libxcb-randr.so.0": "libxcb-randr0", "libxcb-shape.so.0": "libxcb-shape0",
+    "libxcb-xkb.so.1": "libxcb-xkb1", "libxcb-sync.so.1": "libxcb-sync1",
+    "libxcb-xfixes.so.0": "libxcb-xfixes0", "libxkbcommon-x11.so.0": "libxkbcommon-x11-0",
+    "libX11-xcb.so.1": "libx11-xcb1",
+}
+#: Seconds an X server has to accept the connection.
+CONNECT_TIMEOUT_S = 3.0
 
 
 def display_problem(env: Mapping[str, str] | None = None) -> str | None:
@@ -41,6 +42,17 @@ def display_problem(env: Mapping[str, str] | None = None) -> str | None:
     Only Linux's X11 path (Qt's default there) is checked: an explicit headless
     platform (``QT_QPA_PLATFORM=offscreen`` ...), a Wayland session and other
     systems are left to Qt.
+
+    Parameters
+    ----------
+    env : mapping of str to str, optional
+        The environment Qt will see (default: ``os.environ``).
+
+    Returns
+    -------
+    problem : str or None
+        One line naming what is missing: the display variable, a library of the
+        xcb plugin (with its Debian package), the server or its screen.
     """
     env = os.environ if env is None else env
     platform = env.get("QT_QPA_PLATFORM", "").split(":")[0].strip().lower()
@@ -52,29 +64,76 @@ def display_problem(env: Mapping[str, str] | None = None) -> str | None:
     if not display:
         return ("no display: DISPLAY is not set (run it on a desktop or through ssh -X; "
                 "a --screenshot works without one)")
-    # Each library the xcb plugin needs, then a connection to the server.
-    for name, package in XCB_LIBRARIES:
+    try:
+        import ctypes
+    except ImportError:  # a Python without ctypes: leave it to Qt
+        return None
+    # Every library the xcb plugin needs (the plugin itself pulls them all in), then the server.
+    missing = _missing_library(ctypes)
+    if missing is not None:
+        package = XCB_PACKAGES.get(missing)
+        hint = f"Debian/Ubuntu: apt-get install {package}; " if package else ""
+        return (f"the editor needs the system library {missing} for an X display "
+                f"({hint}setup.sh installs it as root)")
+    return _server_problem(ctypes, display)
+
+
+def _missing_library(ctypes) -> str | None:
+    """The first library of the xcb plugin that cannot be loaded, or None."""
+    for name in XCB_PACKAGES:
         try:
             ctypes.CDLL(name)
         except OSError:
-            return (f"the editor needs the system library {name} for an X display "
-                    f"(Debian/Ubuntu: apt-get install {package}; setup.sh installs it as root)")
-    path = ctypes.util.find_library("xcb")
-    if path is None:
-        return "the editor needs the system library libxcb.so.1 for an X display"
-    xcb = ctypes.CDLL(path)
+            return name
+    try:
+        import PySide6
+    except ImportError:
+        return None
+    plugin = Path(PySide6.__path__[0]) / "Qt" / "plugins" / "platforms" / "libqxcb.so"
+    if not plugin.is_file():
+        return None
+    try:
+        ctypes.CDLL(str(plugin))
+    except OSError as exc:
+        found = re.search(r"([\w.+-]+\.so[\w.]*): cannot open shared object", str(exc))
+        return found.group(1) if found else str(plugin)
+    return None
+
+
+def _server_problem(ctypes, display: str) -> str | None:
+    """Why the X server of ``display`` cannot be used (connection, screen), or None."""
+    xcb = ctypes.CDLL("libxcb.so.1")
     xcb.xcb_connect.restype = ctypes.c_void_p
-    xcb.xcb_connect.argtypes = [ctypes.c_char_p, ctypes.c_void_p]
+    xcb.xcb_connect.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
     xcb.xcb_connection_has_error.argtypes = [ctypes.c_void_p]
     xcb.xcb_disconnect.argtypes = [ctypes.c_void_p]
-    connection = xcb.xcb_connect(display.encode(), None)
-    try:
-        failed = xcb.xcb_connection_has_error(connection)
-    finally:
-        xcb.xcb_disconnect(connection)
-    if failed:
-        return f"cannot connect to the X display {display!r} (is the X server running?)"
-    return None
+    xcb.xcb_get_setup.restype = ctypes.c_void_p
+    xcb.xcb_get_setup.argtypes = [ctypes.c_void_p]
+    xcb.xcb_setup_roots_length.argtypes = [ctypes.c_void_p]
+    result: list = []
+
+    def connect() -> None:
+        screen = ctypes.c_int(0)
+        connection = xcb.xcb_connect(display.encode(), ctypes.byref(screen))
+        try:
+            if xcb.xcb_connection_has_error(connection):
+                result.append(f"cannot connect to the X display {display!r} "
+                              "(is the X server running?)")
+            elif not 0 <= screen.value < xcb.xcb_setup_roots_length(xcb.xcb_get_setup(
+                    connection)):
+                result.append(f"the X display {display!r} has no screen {screen.value}")
+            else:
+                result.append(None)
+        finally:
+            xcb.xcb_disconnect(connection)
+
+    # A server that accepts and never answers would hold Qt (and this check) for good.
+    worker = threading.Thread(target=connect, daemon=True, name="x-display-check")
+    worker.start()
+    worker.join(CONNECT_TIMEOUT_S)
+    if not result:
+        return f"the X display {display!r} does not answer within {CONNECT_TIMEOUT_S:g} s"
+    return result[0]
 
 
 def prepare_display(*, screenshot: bool) -> None:

@@ -112,8 +112,9 @@ class EditDocument:
 
     def photo_extent(self) -> tuple[float, float] | None:
         """``(width, height)`` in texels the photo covers (None without a photo)."""
-        return None if self.photo is None else layers.photo_extent(self.photo.shape,
-                                                            self.texture.grid)
+        if self.photo is None:
+            return None
+        return layers.photo_extent(self.photo.shape, self.texture.grid)
 
     def texel_to_vertex(self, x: float, y: float) -> tuple[float, float]:
         """Texel position -> vertex units (texel X sits at grid position X / N)."""

@@ -99,10 +99,19 @@ def _decode_kernel(buf, count, lengths, indices, paired):  # pragma: no cover - 
 
 
 def decode_seed_runs(payload: bytes, count: int, *, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`encode_seed_runs`: the ``count`` runs' lengths (int64) and palette
-    indices (uint8), as every layout's decoder returns them (``core.packing.compact_format``);
-    a stream that ends early, holds an over-long varint or has bytes left over raises
-    :class:`CorruptFileError`."""
+    """Inverse of :func:`encode_seed_runs`.
+
+    Returns
+    -------
+    lengths, indices
+        The ``count`` runs' lengths (int64) and palette indices (uint8), as every
+        layout's decoder returns them (:func:`core.packing.compact_format.decode_runs`).
+
+    Raises
+    ------
+    CorruptFileError
+        The stream ends early, holds an over-long varint, or has bytes left over.
+    """
     buf = np.frombuffer(payload, dtype=np.uint8)
     if count > buf.size // 2:
         raise CorruptFileError(

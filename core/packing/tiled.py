@@ -263,7 +263,8 @@ class TiledLayer:
                 if call is not None:
                     return values[call(xs, ys, joined)]
         table, words = self._tables()
-        if isinstance(xs, int | np.integer) and isinstance(ys, int | np.integer):
+        if (isinstance(xs, int | np.integer) and isinstance(ys, int | np.integer)
+                and not isinstance(xs, bool) and not isinstance(ys, bool)):
             # One texel: its tile's scalar lookup, then the layer's palette.
             x, row = int(xs), int(ys)
             if not (0 <= x < self.width and 0 <= row < self.height):
