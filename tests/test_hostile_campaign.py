@@ -132,7 +132,7 @@ def test_classify_ignore_values_outside_0_255_are_refused(files, capfd, argv, ne
 ])
 def test_a_mask_of_the_wrong_size_names_both_files_before_work(files, capfd, argv):
     _refused(capfd, [a.format(d=files) for a in argv],
-             f"{files}/half.png: the mask is 32 x 16 pixels but its photo "
+             f"{files}/half.png: the ", "mask is 32 x 16 pixels but its photo "
              f"{files}/photo.png is 32 x 32")
     assert _outputs(files) == []
 
@@ -293,8 +293,8 @@ GOOD = {"name": "a", "colour": [1, 2, 3], "file": "a.png"}
 @pytest.mark.parametrize(("meta", "error", "match"), [
     (b"\xff\xfe{", CorruptFileError, "is not valid JSON"),  # found: UnicodeDecodeError
     ("[" * 100_000, CorruptFileError, "nests deeper than 32"),  # found: RecursionError
-    ({"themes": 5}, CorruptFileError, "not a theme list"),  # found: TypeError
-    ({"themes": []}, CorruptFileError, "not a theme list"),
+    ({"themes": 5}, CorruptFileError, "not a valid theme list"),  # found: TypeError
+    ({"themes": []}, CorruptFileError, "not a valid theme list"),
     ({"themes": [dict(GOOD, file=5)]}, CorruptFileError, "file must be a file name"),
     ({"themes": [dict(GOOD, file="/etc/passwd")]}, CorruptFileError, "not '/etc/passwd'"),
     ({"themes": [dict(GOOD, file="../x/a.png")]}, CorruptFileError, "not '../x/a.png'"),

@@ -176,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
                           *(p for pair in args.train for p in pair)])
     check_image_outputs([args.output, args.confidence])
     # Masks of the wrong size are refused from the headers, before any pixel is read.
-    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [])
+    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     check_mask_sizes([tuple(pair) for pair in args.train])
     legend = read_legend(args.legend) if args.legend else {}
     samples, models = _training_caches(args.cache_dir, args.cache_size)

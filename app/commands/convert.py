@@ -210,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([project, preview, packed, args.curve],
                   inputs=[args.photo, args.scribbles, args.model, args.legend])
     check_image_outputs([preview])
-    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [])
+    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)

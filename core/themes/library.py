@@ -249,10 +249,13 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
         data = fh.read(MAX_THEMES_METADATA_BYTES + 1)
     if len(data) > MAX_THEMES_METADATA_BYTES:
         raise CorruptFileError(f"{meta_path}: larger than {MAX_THEMES_METADATA_BYTES} bytes")
-    meta = parse_json(data, str(meta_path))
+    try:
+        meta = parse_json(data, "its text")
+    except CorruptFileError as exc:
+        raise CorruptFileError(f"{meta_path}: not a valid theme list: {exc}") from None
     entries = meta.get("themes") if isinstance(meta, dict) else None
     if not isinstance(entries, list) or not entries:
-        raise CorruptFileError(f"{meta_path}: not a theme list (expected "
+        raise CorruptFileError(f"{meta_path}: not a valid theme list (expected "
                                '{"version": 1, "themes": [{"name", "colour", "file"}, ...]})')
     version = meta.get("version", THEMES_VERSION)
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
@@ -279,6 +282,9 @@ def _entry_file(entry: object, where: str) -> str:
     """The checked ``file`` of a ``themes.json`` entry (its name checked too)."""
     if not isinstance(entry, dict):
         raise CorruptFileError(f"{where} is not an object with name, colour and file")
+    missing = [key for key in ("name", "colour", "file") if key not in entry]
+    if missing:
+        raise CorruptFileError(f"{where} lacks {missing[0]!r}")
     name = entry.get("name")
     if not isinstance(name, str) or not name.strip() or len(name) > MAX_THEME_NAME \
             or not name.isprintable():
