@@ -15,10 +15,12 @@ from __future__ import annotations
 import io
 import json
 import random
+import struct
 import zipfile
 
 import numpy as np
 import pytest
+import tifffile
 from hostile_fuzz import campaign, hidden_files
 
 from app.cli import main
@@ -26,7 +28,7 @@ from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionErr
 from core.exchange import read_control_map, read_splatmaps
 from core.exchange.terrain3d import write_control_map
 from core.io.archive import parse_json
-from core.io.images import read_image, write_image
+from core.io.images import read_image, read_region, write_image
 from core.io.legend import parse_legend
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture, load_project, save_project
@@ -254,6 +256,32 @@ def test_every_exr_header_byte_set_to_ff_is_read_or_one_line(tmp_path):
             read_image(path)
         except TerrathemeError as exc:
             assert "h.exr" in str(exc) and "\n" not in str(exc)
+
+
+def _tall_tiff(path, rows: int) -> None:
+    """A 2 x 2 RGB TIFF (one strip of 2 rows) whose header then claims 1 x ``rows`` pixels."""
+    tifffile.imwrite(path, np.full((2, 2, 3), 77, np.uint8), photometric="rgb")
+    data = bytearray(path.read_bytes())
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    for e in range(struct.unpack_from("<H", data, ifd)[0]):
+        at = ifd + 2 + 12 * e
+        tag, kind = struct.unpack_from("<HH", data, at)
+        if tag in (256, 257):
+            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, 1 if tag == 256 else rows)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("rows", [3, 1000, 65535])
+def test_a_tiff_listing_fewer_strips_than_its_rows_is_refused(tmp_path, capfd, rows):
+    # found: read as zeros and stray file bytes (convert, classify, pack, perspective: exit 0),
+    # while the tiled path said "damaged scanlines"
+    _tall_tiff(tmp_path / "tall.tif", rows)
+    with pytest.raises(CorruptFileError, match=rf"tall.tif: TIFF header declares 1 x {rows} "
+                                               r"pixels in [\d,]+ strips but lists 1"):
+        read_image(tmp_path / "tall.tif")
+    with pytest.raises(CorruptFileError, match="tall.tif: TIFF header declares"):
+        read_region(tmp_path / "tall.tif", 0, 0, 1, 1)
+    assert capfd.readouterr().err == ""  # tifffile's warnings are not shown
 
 
 def test_a_truncated_splatmap_prints_one_line_only(files, capfd):
