@@ -63,3 +63,28 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
         if not os.access(folder, os.W_OK | os.X_OK):
             raise TerrathemeError(f"{out}: the folder {folder} is not writable")
     return outs
+
+
+def check_image_outputs(paths: Iterable[str | os.PathLike | None]) -> None:
+    """Refuse, before any work, an image output whose extension no image writer takes
+    (None entries are skipped): :func:`core.io.image_format.check_writable_format`."""
+    from core.io.image_format import check_writable_format
+
+    for path in paths:
+        if path is not None:
+            check_writable_format(path)
+
+
+def check_mask_sizes(pairs: Iterable[tuple[str | os.PathLike, str | os.PathLike]],
+                     what: str = "label mask") -> None:
+    """Refuse a ``(photo, mask)`` pair whose sizes differ, from the two files' headers
+    (before any pixel is read or any work starts); the message names both files and
+    calls the mask ``what``."""
+    from core.io.images import image_info
+
+    for photo, mask in pairs:
+        p, m = image_info(photo), image_info(mask)
+        if (p.width, p.height) != (m.width, m.height):
+            raise TerrathemeError(f"{mask}: the {what} is {m.width} x {m.height} pixels but its "
+                                  f"photo {photo} is {p.width} x {p.height}: a mask must have "
+                                  "the photo's size")

@@ -23,13 +23,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="window size (default 1400x860)")
 
 
+#: window sides ``--size`` accepts (the screenshot is a pixmap of the whole window)
+MIN_SIDE, MAX_SIDE = 200, 8192
+
+
 def run(args: argparse.Namespace) -> int:
+    from app.outputs import check_outputs
     from core.errors import TerrathemeError
 
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError as exc:
         raise TerrathemeError(f"--size must look like 1400x860, got {args.size!r}") from exc
+    if not (MIN_SIDE <= w <= MAX_SIDE and MIN_SIDE <= h <= MAX_SIDE):
+        raise TerrathemeError(f"--size {w}x{h}: each side must be {MIN_SIDE}..{MAX_SIDE} pixels")
+    # The screenshot's path is checked before Qt starts (and its folder made).
+    check_outputs([args.screenshot], inputs=[args.target])
     from app.editor.launch import run_editor
 
     return run_editor(args.target, screenshot=args.screenshot,

@@ -30,6 +30,17 @@ def _themes(value: str) -> str | int:
     return k
 
 
+def _class_value(value: str) -> int:
+    try:
+        k = int(value)
+    except ValueError:
+        k = -1
+    if not 0 <= k <= 255:
+        raise argparse.ArgumentTypeError(f"a mask class value is a whole number 0..255, "
+                                         f"not {value!r}")
+    return k
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the command's arguments."""
     parser.add_argument("photo", metavar="PHOTO", help="orthophoto (PNG, JPEG, TIFF, EXR, ...)")
@@ -42,7 +53,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--train", nargs=2, action="append", default=[],
                         metavar=("PHOTO", "MASK"),
                         help="another photo with its label mask (repeatable)")
-    parser.add_argument("--ignore", type=int, nargs="+", default=[], metavar="K",
+    parser.add_argument("--ignore", type=_class_value, nargs="+", default=[], metavar="K",
                         help="mask class values to treat as unlabelled (e.g. 6 7)")
     parser.add_argument("--themes", type=_themes, default=None, metavar="auto|K",
                         help="unsupervised: number of themes, or 'auto' (default)")
@@ -131,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from app.outputs import check_outputs
+    from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
     from core.classify import (
         SupervisedOptions,
         classify_unsupervised,
@@ -163,6 +174,10 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([args.output, args.confidence, args.model_out],
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
+    check_image_outputs([args.output, args.confidence])
+    # Masks of the wrong size are refused from the headers, before any pixel is read.
+    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
+    check_mask_sizes([tuple(pair) for pair in args.train])
     legend = read_legend(args.legend) if args.legend else {}
     samples, models = _training_caches(args.cache_dir, args.cache_size)
 

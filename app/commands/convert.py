@@ -65,6 +65,8 @@ def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
             key, name = (s.strip() for s in p.split("=", 1))
             if not key.isdigit() or not 1 <= int(key) <= 255:
                 raise TerrathemeError(f"--themes {p!r}: class must be a number 1..255")
+            if int(key) in out:
+                raise TerrathemeError(f"--themes {text!r}: class {int(key)} is named twice")
             out[int(key)] = name
         return out
     if any("=" in p for p in parts):
@@ -186,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from app.outputs import check_outputs
+    from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
     from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
     from core.fidelity import texture_cost
 
@@ -207,6 +209,8 @@ def run(args: argparse.Namespace) -> int:
     # Output paths checked (and their folders made) before any work.
     check_outputs([project, preview, packed, args.curve],
                   inputs=[args.photo, args.scribbles, args.model, args.legend])
+    check_image_outputs([preview])
+    check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)

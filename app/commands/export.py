@@ -38,6 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from app.commands._project import load_checked_project
     from app.outputs import check_outputs
     from app.progress import progress_bar
     from core.errors import TerrathemeError
@@ -49,12 +50,11 @@ def run(args: argparse.Namespace) -> int:
         plan_export,
         write_export,
     )
-    from core.model.project import load_project
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():
         raise TerrathemeError(f"{outdir}: is a file, not an output folder")
-    project = load_project(args.project)
+    project = load_checked_project(args.project)
     options = ExportOptions(Engine(args.engine), args.size, args.tile,
                             style=WeightStyle(args.style))
     plan = plan_export(project, options)

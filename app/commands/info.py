@@ -60,14 +60,14 @@ def _layer_info(args: argparse.Namespace) -> dict:
 
 def _project_info(args: argparse.Namespace) -> dict:
     """Grid, themes, colour map, render style and bytes of a project."""
+    from app.commands._project import load_checked_project
     from core.errors import TerrathemeError
     from core.fidelity import texture_cost
-    from core.model.project import load_project
     from core.render.project import photo_extent, project_style
 
     if args.runs:
         raise TerrathemeError("--runs lists a packed layer's runs; a project has none")
-    project = load_project(args.input)
+    project = load_checked_project(args.input)
     grid = project.grid
     gh, gw = grid.cells_shape
     style = project_style(project)

@@ -15,6 +15,17 @@ ORDER = 10
 _cell = int_tuple("cell", "N or NxM", 2, one_for_all=True)
 
 
+def _step(text: str) -> int:
+    try:
+        step = int(text)
+    except ValueError:
+        step = 0
+    if step < 1:
+        raise argparse.ArgumentTypeError(f"--step must be a whole number of at least 1, "
+                                         f"got {text!r}")
+    return step
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "inputs", nargs="+", metavar="MAP",
@@ -33,7 +44,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "themes each, in order); one grey weight map per theme (Unreal); a "
                         "Terrain3D control map (32-bit float EXR). Maps: strongest theme per "
                         "pixel, ties to the lower theme")
-    parser.add_argument("--step", type=int, default=1, metavar="S",
+    parser.add_argument("--step", type=_step, default=1, metavar="S",
                         help="engine maps: map pixels per cell (a vertex every S pixels, the "
                         "map's edges on vertices; default 1 = every pixel a vertex)")
 
@@ -50,13 +61,16 @@ def run(args: argparse.Namespace) -> int:
         read_weight_maps,
     )
     from core.io.images import read_image
-    from core.model.grid import IndexGrid
+    from core.model.grid import IndexGrid, validate_cell
     from core.model.index_image import project_from_index_image
     from core.model.project import ThematicTexture, save_project
     from core.themes.library import shipped_theme_library
 
     check_outputs([args.project], inputs=args.inputs)
+    validate_cell(args.cell)
     names = [n.strip() for n in args.themes.split(",") if n.strip()]
+    if not names:
+        raise TerrathemeError(f"--themes {args.themes!r} names no theme (see terratheme themes)")
     library = shipped_theme_library().select(names)
     single = args.kind in ("index", "terrain3d")
     if single and len(args.inputs) != 1:
@@ -70,7 +84,11 @@ def run(args: argparse.Namespace) -> int:
         if args.step != 1:
             raise TerrathemeError("--step is for engine maps; index images have a pixel per vertex")
         metadata["source_index_image"] = sources[0]
-        project = project_from_index_image(read_image(sources[0]), library, args.cell, metadata)
+        image = read_image(sources[0])
+        try:
+            project = project_from_index_image(image, library, args.cell, metadata)
+        except TerrathemeError as exc:
+            raise TerrathemeError(f"{sources[0]}: {exc}") from None
     else:
         if args.kind == "splatmap":
             labels = labels_from_weights(read_splatmaps(sources), len(library))
@@ -79,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
         else:
             labels = control_labels(read_control_map(sources[0]))
         metadata.update({"source_maps": sources, "source_kind": args.kind})
-        grid = IndexGrid(grid_from_labels(labels, args.step), args.cell)
-        project = ThematicTexture(grid, library, metadata)
+        try:
+            grid = IndexGrid(grid_from_labels(labels, args.step), args.cell)
+            project = ThematicTexture(grid, library, metadata)
+        except TerrathemeError as exc:
+            raise TerrathemeError(f"{', '.join(sources)}: {exc}") from None
     save_project(args.project, project)
     w, h = project.grid.texture_size
     print(f"{args.project}: {project.grid.indices.shape[1]} x {project.grid.indices.shape[0]} "

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
 
 NAME = "pack"
 HELP = "pack an index image (<= 256 colours) into a random-access space-filling-curve layer"
@@ -16,6 +18,19 @@ def _tile(text: str) -> int:
     if side < 64 or side > 65536 or side & (side - 1):
         raise argparse.ArgumentTypeError(f"{text}: a power of two from 64 to 65536 expected")
     return side
+
+
+@contextlib.contextmanager
+def _naming(path: str) -> Iterator[None]:
+    """The library's errors about the image being packed, with the file's name in front."""
+    from core.errors import TerrathemeError
+
+    try:
+        yield
+    except TerrathemeError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise type(exc)(f"{path}: {exc}") from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -50,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     info = image_info(args.input)
     tile_bits = None if args.tile is None else int(math.log2(args.tile))
     big = info.width * info.height > STREAM_FROM or max(info.width, info.height) > 65536
-    with progress_bar("pack") as progress:
+    with progress_bar("pack") as progress, _naming(args.input):
         if big:
             # Band by band: memory holds one band of pixels and the runs.
             if args.reduce_palette:

@@ -154,7 +154,7 @@ def _family_cache(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from app.outputs import check_outputs
+    from app.outputs import check_image_outputs, check_outputs
     from app.progress import progress_bar
     from core.errors import TerrathemeError
     from core.io.images import read_image, write_image
@@ -167,17 +167,20 @@ def run(args: argparse.Namespace) -> int:
     )
     from core.perspective.mapping import camera_mapping, overview_camera, scaled_view
     from core.perspective.project_view import project_texture, texture_scale
+    from core.perspective.render import check_size
 
     check_outputs([args.out], inputs=[args.input])
+    check_image_outputs([args.out])
+    check_size(args.size)  # before the warm-up and the camera's mapping
     cache = _family_cache(args)
     if args.max_texture < 1:
         raise TerrathemeError(f"--max-texture must be at least 1, got {args.max_texture}")
     options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
     is_project = str(args.input).lower().endswith(".ttproj")
     if is_project:
-        from core.model.project import load_project
+        from app.commands._project import load_checked_project
 
-        project = load_project(args.input)
+        project = load_checked_project(args.input)
         full_size = project.grid.texture_size
     else:
         texture = read_image(args.input)

@@ -46,11 +46,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.outputs import check_outputs
+    from app.commands._project import load_checked_project
+    from app.outputs import check_image_outputs, check_outputs
     from app.progress import progress_bar
     from core.io.georef import write_georeference
     from core.io.images import write_image
-    from core.model.project import load_project
     from core.render.boundary import BoundaryOptions
     from core.render.inputs import validate_region
     from core.render.project import (
@@ -63,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
 
     packed = _packed_path(args)
     check_outputs([args.out], inputs=[args.project] + ([packed] if packed else []))
-    project = load_project(args.project)
+    check_image_outputs([args.out])
+    project = load_checked_project(args.project)
     grid = _packed_grid(packed, project) if packed else project.grid
     if args.blend is None:
         options = project_style(project)

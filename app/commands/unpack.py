@@ -18,10 +18,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Unpack ``args.input`` into the image ``args.output``."""
-    from app.outputs import check_outputs
+    from app.outputs import check_image_outputs, check_outputs
     from core.packing import load_layer, write_layer_image
 
     check_outputs([args.output], inputs=[args.input])
+    check_image_outputs([args.output])
     layer = load_layer(args.input)
     kind = write_layer_image(layer, args.output)
     print(f"{args.output}: {layer.width} x {layer.height}, {layer.channels} channel(s), {kind}")

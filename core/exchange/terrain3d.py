@@ -70,6 +70,7 @@ from core.exchange.plan import (
 from core.exchange.style import map_slots
 from core.exchange.weights import BAND_PIXELS, strongest_two
 from core.io.atomic import atomic_path
+from core.io.image_format import error_line
 from core.io.images import image_info, read_image, write_image
 from core.model.project import ThematicTexture
 from core.render.rules import cell_splits
@@ -157,9 +158,9 @@ def write_control_map(path: str | Path, control: np.ndarray) -> None:
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(path))
         if out is None or not out.open(str(tmp), spec):
-            raise TerrathemeError(f"cannot write {path}: {oiio.geterror().strip()}")
+            raise TerrathemeError(f"cannot write {path}: {error_line()}")
         ok = out.write_image(values.view(np.float32)[:, :, None])
-        err = out.geterror().strip()
+        err = error_line(out)
         out.close()
         if not ok:
             raise TerrathemeError(f"cannot write {path}: {err}")

@@ -30,7 +30,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
 from core.exchange.colour import COLOUR_MAP, unity_colour_st
@@ -49,7 +48,7 @@ from core.exchange.plan import (
     write_shared_files,
 )
 from core.io.atomic import write_bytes_atomic
-from core.io.images import image_info, write_image
+from core.io.images import image_info, read_image, write_image
 from core.model.project import ThematicTexture
 
 #: alphamap (control texture) resolutions Unity's terrain accepts
@@ -121,23 +120,14 @@ def splatmaps(weights: np.ndarray) -> list[np.ndarray]:
 def read_stored_rgba(path: str | Path) -> np.ndarray:
     """An 8-bit image's stored channel values, alpha not applied to colour.
 
-    OpenImageIO premultiplies colour by alpha when it reads an RGBA PNG
-    (weights under a small A would be lost) unless told the alpha is
-    unassociated; ``core.io.images.read_image`` has no such option yet.
+    :func:`core.io.images.read_image` reads alpha as unassociated (weights under
+    a small A are kept) and turns a damaged file into one line naming it.
     """
     info = image_info(path)
     if info.dtype != np.uint8 or info.channels not in (3, 4):
         raise TerrathemeError(f"{path}: a splatmap is an 8-bit RGBA image, got "
                               f"{info.channels} channels of {info.dtype}")
-    config = oiio.ImageSpec()
-    config.attribute("oiio:UnassociatedAlpha", 1)
-    inp = oiio.ImageInput.open(str(path), config)
-    pixels = None if inp is None else inp.read_image(0, 0, 0, info.channels, oiio.UINT8)
-    if inp is None or pixels is None or inp.has_error:
-        why = oiio.geterror() if inp is None else inp.geterror()
-        raise TerrathemeError(f"{path}: damaged or truncated image ({why.strip()})")
-    inp.close()
-    return np.asarray(pixels).reshape(info.height, info.width, info.channels)
+    return read_image(path)
 
 
 def read_splatmaps(paths: list[str]) -> np.ndarray:

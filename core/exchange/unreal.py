@@ -106,6 +106,10 @@ def read_weight_maps(paths: list[str]) -> np.ndarray:
         if image.dtype not in (np.uint8, np.uint16):
             raise TerrathemeError(f"{p}: a weight map is an 8 or 16-bit grey image, got "
                                   f"{image.dtype}")
+        if image.shape[2] >= 3 and not (np.array_equal(image[:, :, 0], image[:, :, 1])
+                                        and np.array_equal(image[:, :, 0], image[:, :, 2])):
+            raise TerrathemeError(f"{p}: a weight map is a grey image, this one has "
+                                  f"{image.shape[2]} channels of different values")
         if planes and (image.shape[:2] != planes[0].shape or image.dtype != planes[0].dtype):
             raise TerrathemeError(f"{p}: {image.shape[1]} x {image.shape[0]} {image.dtype} differs "
                                   f"from the first weight map's")

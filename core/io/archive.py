@@ -274,9 +274,18 @@ def _finite_float(text: str) -> float:
     return value
 
 
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {key[:40]!r} appears twice in an object")
+        out[key] = value
+    return out
+
+
 def parse_json(data: bytes, label: str) -> object:
-    """JSON bytes parsed as every reader wants them: UTF-8, finite numbers only,
-    nesting at most :data:`MAX_JSON_DEPTH`.
+    """JSON bytes parsed as every reader wants them: UTF-8, finite numbers only, each
+    key once per object (not silently the last), nesting at most :data:`MAX_JSON_DEPTH`.
 
     Parameters
     ----------
@@ -288,11 +297,12 @@ def parse_json(data: bytes, label: str) -> object:
     Raises
     ------
     CorruptFileError
-        Not UTF-8 JSON, ``NaN`` or ``Infinity``, too deep; one line naming ``label``.
+        Not UTF-8 JSON, ``NaN`` or ``Infinity``, a key twice in an object, too deep; one
+        line naming ``label``.
     """
     try:
         value = json.loads(data.decode("utf-8"), parse_constant=_no_constant,
-                           parse_float=_finite_float)
+                           parse_float=_finite_float, object_pairs_hook=_unique_keys)
     except RecursionError:
         raise CorruptFileError(f"{label} nests deeper than {MAX_JSON_DEPTH} levels") from None
     except (UnicodeDecodeError, ValueError) as exc:

@@ -15,6 +15,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from core.errors import CorruptFileError, TerrathemeError
+from core.io.image_format import error_line
 
 #: codec name -> (file extension, OpenImageIO "Compression" attribute with {q} for the quality)
 CODECS = {
@@ -49,7 +50,7 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
         spec = oiio.ImageSpec(arr.shape[1], arr.shape[0], arr.shape[2], "uint8")
         spec.attribute("Compression", attr.format(q=int(quality)))
         if out is None or not out.open(path, spec) or not out.write_image(arr) or not out.close():
-            raise TerrathemeError(f"cannot encode a {codec} image: {oiio.geterror()}")
+            raise TerrathemeError(f"cannot encode a {codec} image: {error_line()}")
         return Path(path).read_bytes()
 
 
@@ -66,7 +67,7 @@ def decode_image(data: bytes, *, codec: str = "webp",
         Path(path).write_bytes(bytes(data))
         inp = oiio.ImageInput.open(path)
         if inp is None:
-            raise CorruptFileError(f"not a {codec} image ({oiio.geterror().strip()})")
+            raise CorruptFileError(f"not a {codec} image ({error_line()})")
         try:
             spec = inp.spec()
             if shape is not None and (spec.height, spec.width) != tuple(shape):
@@ -76,5 +77,5 @@ def decode_image(data: bytes, *, codec: str = "webp",
         finally:
             inp.close()
     if pixels is None or not hasattr(pixels, "ndim"):
-        raise CorruptFileError(f"damaged {codec} image ({oiio.geterror().strip()})")
+        raise CorruptFileError(f"damaged {codec} image ({error_line()})")
     return np.ascontiguousarray(pixels if pixels.ndim == 3 else pixels[:, :, None])

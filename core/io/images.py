@@ -38,6 +38,7 @@ import OpenImageIO as oiio
 
 from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import atomic_path
+from core.io.image_format import error_line
 from core.io.png import (
     is_png,
     libpng_quiet,
@@ -46,6 +47,7 @@ from core.io.png import (
     png_header_size,
     relabel_grey_png_as_palette,
 )
+from core.io.tiff_check import check_tiff_chunks, is_tiff
 
 #: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
 OIIO_PIXEL_TYPES = {
@@ -102,11 +104,6 @@ class ImageInfo:
         return colour + alpha
 
 
-def _first_line(text: str) -> str:
-    lines = [ln.strip() for ln in text.strip().splitlines() if ln.strip()]
-    return lines[0] if lines else ""
-
-
 def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     p = Path(path)
     if not p.exists():
@@ -121,7 +118,7 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     with libpng_quiet(is_png(p)):
         inp = oiio.ImageInput.open(str(p), config)
     if inp is None:
-        why = _first_line(oiio.geterror()) or "unknown format"
+        why = error_line() or "unknown format"
         raise CorruptFileError(f"{p}: cannot read as an image ({why})")
     spec = inp.spec()
     if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
@@ -138,6 +135,12 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
             f"{p}: header declares {spec.width} x {spec.height} x {spec.nchannels} pixels "
             f"({declared / 2**20:,.0f} MiB) from a {p.stat().st_size:,}-byte file: damaged "
             "or forged")
+    if is_tiff(p):
+        try:
+            check_tiff_chunks(p)
+        except CorruptFileError:
+            inp.close()
+            raise
     return inp
 
 
@@ -221,7 +224,7 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
                                   f"{info.height} x {info.channels} pixels") from None
         if pixels is None or inp.has_error:
             raise CorruptFileError(
-                f"{path}: damaged or truncated image ({_first_line(inp.geterror())})")
+                f"{path}: damaged or truncated image ({error_line(inp) or 'no reason given'})")
     finally:
         inp.close()
     pixels = np.asarray(pixels)
@@ -266,14 +269,14 @@ def read_region(
                 block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
                 if block is None:
                     raise CorruptFileError(
-                        f"{path}: damaged tiles ({_first_line(inp.geterror())})")
+                        f"{path}: damaged tiles ({error_line(inp)})")
                 block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
                 out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
             else:
                 rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
                 if rows is None:
                     raise CorruptFileError(
-                        f"{path}: damaged scanlines ({_first_line(inp.geterror())})")
+                        f"{path}: damaged scanlines ({error_line(inp)})")
                 out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
     finally:
         inp.close()
@@ -363,12 +366,12 @@ def write_image(
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(path))
         if out is None:
-            why = _first_line(oiio.geterror()) or "unknown format"
+            why = error_line() or "unknown format"
             raise TerrathemeError(f"cannot write {path}: {why}")
         if not out.open(str(tmp), spec):
-            raise TerrathemeError(f"cannot write {path}: {_first_line(out.geterror())}")
+            raise TerrathemeError(f"cannot write {path}: {error_line(out)}")
         ok = out.write_image(arr)
-        err = _first_line(out.geterror())
+        err = error_line(out)
         out.close()
         if not ok:
             raise TerrathemeError(f"cannot write {path}: {err}")

@@ -109,6 +109,7 @@ def parse_legend(data: bytes, label: str) -> dict[int, str]:
         Not a legend in an accepted shape, a value outside 0..255 or given
         twice, a missing or unprintable name, no class at all.
     """
+    data = data.removeprefix(b"\xef\xbb\xbf")  # the byte-order mark some editors write
     text = data.lstrip()
     if text[:1] in (b"{", b"["):
         pairs = _entries_of(parse_json(data, label), label)

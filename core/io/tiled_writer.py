@@ -10,6 +10,7 @@ import OpenImageIO as oiio
 
 from core.errors import TerrathemeError
 from core.io.atomic import atomic_path
+from core.io.image_format import error_line
 from core.io.images import OIIO_PIXEL_TYPES
 
 
@@ -81,7 +82,7 @@ class TiledImageWriter:
             self._ctx.__exit__(TerrathemeError, None, None)
             raise TerrathemeError(f"cannot write {self.path} tiled: format has no tiles")
         if not out.open(str(tmp), self.spec):
-            err = out.geterror().strip()
+            err = error_line(out)
             self._ctx.__exit__(TerrathemeError, None, None)
             raise TerrathemeError(f"cannot write {self.path}: {err}")
         self._out = out
@@ -111,7 +112,7 @@ class TiledImageWriter:
     def _write_tiles(self, x: int, y: int, arr: np.ndarray) -> None:
         h, w = arr.shape[:2]
         if not self._out.write_tiles(x, x + w, y, y + h, 0, 1, arr):
-            why = self._out.geterror().strip() or "OpenImageIO refused the tiles"
+            why = error_line(self._out) or "OpenImageIO refused the tiles"
             raise TerrathemeError(f"cannot write {self.path}: {why}")
 
     def _gather_rows(self, y: int, arr: np.ndarray) -> None:
@@ -144,7 +145,7 @@ class TiledImageWriter:
         ok = self._out.close()
         if exc_type is None and (self._strip_rows or not ok):
             why = (f"rows from {self._strip_y} on were never written" if self._strip_rows
-                   else oiio.geterror().strip())
+                   else error_line())
             err = TerrathemeError(f"cannot finish {self.path}: {why}")
             self._ctx.__exit__(TerrathemeError, err, None)
             raise err

@@ -200,7 +200,10 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
         raise CorruptFileError(f"{path}: unknown colour map codec {codec!r}")
     # The codec's bytes: at most the raw map's size (a compressed map is smaller).
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
-    return ColourMap.from_bytes(data, codec, scale, shape)
+    try:
+        return ColourMap.from_bytes(data, codec, scale, shape)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{path}: {entry['member']}: {exc}") from None
 
 
 def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, int],
@@ -217,7 +220,10 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
     # Each tile's bytes: at most its raw size (a compressed tile is smaller).
     limit = min(tile, shape[0]) * min(tile, shape[1]) * 3 + 4096
     tiles = [read_member(zf, name, label, max_bytes=limit) for name in names]
-    return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile)
+    try:
+        return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{label}: colour map tiles: {exc}") from None
 
 
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:

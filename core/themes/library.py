@@ -8,7 +8,6 @@ display colour and its texture file.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
@@ -16,11 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import CorruptFileError, TerrathemeError
+from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.io.archive import parse_json
 from core.io.images import read_image
 
 SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[2] / "themes"
 THEMES_METADATA = "themes.json"
+#: the newest ``themes.json`` version this build reads
+THEMES_VERSION = 1
+#: largest ``themes.json`` read
+MAX_THEMES_METADATA_BYTES = 1 << 20
+#: longest theme name a theme folder may give
+MAX_THEME_NAME = 64
 
 
 def validate_texture(texture: object, *, name: str = "theme") -> np.ndarray:
@@ -222,25 +228,82 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
         {"version": 1,
          "themes": [{"name": "forest", "colour": [34, 90, 40], "file": "forest.png",
                      "description": "..."}, ...]}
+
+    Raises
+    ------
+    TerrathemeError
+        No ``themes.json`` in ``folder``.
+    CorruptFileError
+        ``themes.json`` over :data:`MAX_THEMES_METADATA_BYTES`, not JSON, or a field of
+        the wrong type or range (a name that is not one printable line, a colour that is
+        not three whole numbers 0..255, a ``file`` that is not a bare file name in the
+        folder), an unreadable texture; one line naming the file (and the entry).
+    UnsupportedVersionError
+        A ``version`` above :data:`THEMES_VERSION`.
     """
     folder = Path(folder)
     meta_path = folder / THEMES_METADATA
     if not meta_path.is_file():
         raise TerrathemeError(f"{folder}: no {THEMES_METADATA} (not a theme folder)")
+    with open(meta_path, "rb") as fh:
+        data = fh.read(MAX_THEMES_METADATA_BYTES + 1)
+    if len(data) > MAX_THEMES_METADATA_BYTES:
+        raise CorruptFileError(f"{meta_path}: larger than {MAX_THEMES_METADATA_BYTES} bytes")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        entries = meta["themes"]
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise CorruptFileError(f"{meta_path}: not a valid theme list ({exc})") from exc
+        meta = parse_json(data, "its text")
+    except CorruptFileError as exc:
+        raise CorruptFileError(f"{meta_path}: not a valid theme list: {exc}") from None
+    entries = meta.get("themes") if isinstance(meta, dict) else None
+    if not isinstance(entries, list) or not entries:
+        raise CorruptFileError(f"{meta_path}: not a valid theme list (expected "
+                               '{"version": 1, "themes": [{"name", "colour", "file"}, ...]})')
+    version = meta.get("version", THEMES_VERSION)
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise CorruptFileError(f"{meta_path}: bad version {str(version)[:20]!r}")
+    if version > THEMES_VERSION:
+        raise UnsupportedVersionError(f"{meta_path}: theme list version {version}; this "
+                                      f"terratheme reads up to {THEMES_VERSION}")
     lib = ThemeLibrary()
-    for entry in entries:
+    for k, entry in enumerate(entries):
+        where = f"{meta_path}: theme {k}"
+        file = _entry_file(entry, where)
         try:
-            name, colour, file = entry["name"], entry["colour"], entry["file"]
-        except (KeyError, TypeError) as exc:
-            raise CorruptFileError(f"{meta_path}: theme entry {entry!r} lacks {exc}") from exc
-        tex = read_image(folder / file, dtype=np.uint8)
-        lib.append(Theme(name, colour, tex, source=f"{folder.name}/{file}"))
+            tex = read_image(folder / file, dtype=np.uint8)
+            lib.append(Theme(entry["name"], _entry_colour(entry, where), tex,
+                             source=f"{folder.name}/{file}"))
+        except CorruptFileError:
+            raise
+        except TerrathemeError as exc:
+            raise CorruptFileError(f"{where}: {exc}") from None
     return lib
+
+
+def _entry_file(entry: object, where: str) -> str:
+    """The checked ``file`` of a ``themes.json`` entry (its name checked too)."""
+    if not isinstance(entry, dict):
+        raise CorruptFileError(f"{where} is not an object with name, colour and file")
+    missing = [key for key in ("name", "colour", "file") if key not in entry]
+    if missing:
+        raise CorruptFileError(f"{where} lacks {missing[0]!r}")
+    name = entry.get("name")
+    if not isinstance(name, str) or not name.strip() or len(name) > MAX_THEME_NAME \
+            or not name.isprintable():
+        raise CorruptFileError(f"{where}: name must be one printable line of 1.."
+                               f"{MAX_THEME_NAME} characters, got {str(name)[:40]!r}")
+    file = entry.get("file")
+    if not isinstance(file, str) or file in ("", ".", "..") or Path(file).name != file:
+        raise CorruptFileError(f"{where}: file must be a file name in the theme folder, "
+                               f"not {str(file)[:60]!r}")
+    return file
+
+
+def _entry_colour(entry: dict, where: str) -> tuple[int, int, int]:
+    colour = entry.get("colour")
+    if not (isinstance(colour, list) and len(colour) == 3 and all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 255 for c in colour)):
+        raise CorruptFileError(f"{where}: colour must be three whole numbers 0..255, got "
+                               f"{str(colour)[:40]}")
+    return (colour[0], colour[1], colour[2])
 
 
 def shipped_theme_library() -> ThemeLibrary:

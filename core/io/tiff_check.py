@@ -1,0 +1,85 @@
+"""A TIFF's strip or tile table checked against its declared size, before OpenImageIO reads it.
+
+libtiff reads a TIFF whose header declares more rows than its strip table
+covers (a damaged ``ImageLength``, a truncated ``StripOffsets``) without an
+error: the missing strips come back as zeros or as whatever bytes follow in
+the file. :func:`check_tiff_chunks` reads the first image's tags with
+tifffile (its warnings silenced: they would be extra lines on stderr) and
+refuses such a file with one line.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from pathlib import Path
+
+from core.errors import CorruptFileError
+
+TIFF_MAGICS = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
+
+
+def is_tiff(path: Path) -> bool:
+    """Whether the file starts with a TIFF or BigTIFF signature."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(4) in TIFF_MAGICS
+    except OSError:
+        return False
+
+
+def _expected_chunks(page) -> int:
+    separate = page.planarconfig == 2 and page.samplesperpixel > 1
+    planes = page.samplesperpixel if separate else 1
+    if page.is_tiled:
+        tw, tl, td = page.tilewidth, page.tilelength, max(1, page.tiledepth or 1)
+        return (math.ceil(page.imagewidth / tw) * math.ceil(page.imagelength / tl)
+                * math.ceil(max(1, page.imagedepth) / td) * planes)
+    rows = page.rowsperstrip if 0 < page.rowsperstrip < page.imagelength else page.imagelength
+    return math.ceil(page.imagelength / max(1, rows)) * max(1, page.imagedepth) * planes
+
+
+def check_tiff_chunks(path: Path) -> None:
+    """Refuse a TIFF whose first image lists fewer strips or tiles than its size needs.
+
+    A file tifffile cannot parse is left to OpenImageIO (which says why). The
+    answer is kept per file state (size, modification time), so the many region
+    reads of a tiled conversion parse the tags once.
+
+    Raises
+    ------
+    CorruptFileError
+        ``path: TIFF header declares W x H pixels in N strips but lists M: damaged or forged``.
+    """
+    stat = path.stat()
+    problem = _chunk_problem(str(path), stat.st_size, stat.st_mtime_ns)
+    if problem:
+        raise CorruptFileError(f"{path}: {problem}")
+
+
+@functools.lru_cache(maxsize=64)
+def _chunk_problem(path: str, size: int, mtime_ns: int) -> str:
+    """What is wrong with the chunk table of the TIFF at ``path`` ("" if nothing)."""
+    import tifffile
+
+    log = logging.getLogger("tifffile")
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages.first
+            if page.imagewidth <= 0 or page.imagelength <= 0:
+                return ""
+            want = _expected_chunks(page)
+            have = min(len(page.dataoffsets), len(page.databytecounts))
+            kind = "tiles" if page.is_tiled else "strips"
+            size = (page.imagewidth, page.imagelength)
+    except Exception:
+        return ""
+    finally:
+        log.setLevel(level)
+    if have < want:
+        return (f"TIFF header declares {size[0]} x {size[1]} pixels in {want:,} {kind} but "
+                f"lists {have:,}: damaged or forged")
+    return ""
