@@ -287,11 +287,10 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
         ours.append(best_of(lambda: [layer.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
         dense.append(best_of(lambda: [img[y, x] for x, y in pts], 3) / len(pts) * 1e6)
         tiles.append(best_of(lambda: [tiled.lookup(x, y) for x, y in pts], 3) / len(pts) * 1e6)
-    rec["scalar_lookup_us"] = float(np.median(ours))
-    rec["scalar_dense_us"] = float(np.median(dense))
+    rec["scalar_lookup_us"], rec["scalar_dense_us"] = np.median(ours), np.median(dense)
     rec["scalar_vs_dense"] = float(np.median(np.array(ours) / np.array(dense)))
-    rec["scalar_tiled_us"] = float(np.median(tiles))
-    rec["scalar_tiled_vs_dense"] = float(np.median(np.array(tiles) / np.array(dense)))
+    rec["scalar_tiled_us"], rec["scalar_tiled_vs_dense"] = float(np.median(tiles)), float(
+        np.median(np.array(tiles) / np.array(dense)))
     rec["memory_bytes_per_run"] = layer.memory_bytes / layer.run_count
     rec["dense_bytes"] = int(img.nbytes)
     rec["memory_bytes"] = int(layer.memory_bytes)
