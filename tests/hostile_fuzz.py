@@ -162,3 +162,16 @@ def check_refused(proc: subprocess.CompletedProcess, *needles: str) -> str:
 def hidden_files(folder: Path) -> list[str]:
     """Names of the dot files in ``folder`` (where temporaries would be left)."""
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def patch_tiff_size(path, width: int, height: int) -> None:
+    """Set a little-endian TIFF's first image width and height tags (its strips unchanged)."""
+    data = bytearray(path.read_bytes())
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    for e in range(struct.unpack_from("<H", data, ifd)[0]):
+        at = ifd + 2 + 12 * e
+        tag, kind = struct.unpack_from("<HH", data, at)
+        if tag in (256, 257):
+            value = width if tag == 256 else height
+            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, value)
+    path.write_bytes(bytes(data))

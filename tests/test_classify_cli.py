@@ -113,3 +113,22 @@ def test_position_needs_scribbles_alone(photo, capsys, extra):
                  *args]) == 2
     assert "--position needs --scribbles and no --train" in capsys.readouterr().err
     assert not (d / "x.png").exists()
+
+
+def test_outputs_are_written_as_one_set(photo, monkeypatch, capsys):
+    # A failure writing the last output (the model) leaves none of them, nor temporaries.
+    from core.classify.supervised import Classifier
+    from core.errors import TerrathemeError
+
+    d, _ = photo
+    before = sorted(p.name for p in d.iterdir())
+
+    def fail(self, path):
+        raise TerrathemeError(f"{path}: disk full")
+
+    monkeypatch.setattr(Classifier, "save", fail)
+    assert main(["classify", str(d / "photo.png"), "-o", str(d / "a.png"),
+                 "--scribbles", str(d / "scribbles.png"), "--model-out", str(d / "m.ttc"),
+                 "--confidence", str(d / "conf.png")]) == 2
+    assert "disk full" in capsys.readouterr().err
+    assert sorted(p.name for p in d.iterdir()) == before

@@ -15,13 +15,12 @@ from __future__ import annotations
 import io
 import json
 import random
-import struct
 import zipfile
 
 import numpy as np
 import pytest
 import tifffile
-from hostile_fuzz import campaign, hidden_files
+from hostile_fuzz import campaign, hidden_files, patch_tiff_size
 
 from app.cli import main
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
@@ -227,7 +226,7 @@ def test_a_damaged_colour_map_names_the_project_and_member(coloured, tmp_path, j
     ({"boundary": {"zzz": 1}}, "bad boundary options"),
     ({"blend": "histogram"}, "project render style must be"),
 ])
-@pytest.mark.parametrize("command", ["info", "render", "export", "perspective"])
+@pytest.mark.parametrize("command", ["info", "render", "export", "perspective", "app"])
 def test_a_bad_render_style_names_the_project(coloured, tmp_path, capfd, render, needle,
                                               command):
     with zipfile.ZipFile(coloured) as zf:
@@ -237,7 +236,8 @@ def test_a_bad_render_style_names_the_project(coloured, tmp_path, capfd, render,
     path.write_bytes(_rezip(coloured, manifest_json=json.dumps(manifest).encode()))
     tail = {"info": [], "render": [tmp_path / "o.png"],
             "export": [tmp_path / "out", "--engine", "geotiff"],
-            "perspective": [tmp_path / "o.png", "--no-cache"]}[command]
+            "perspective": [tmp_path / "o.png", "--no-cache"],
+            "app": ["--screenshot", tmp_path / "o.png"]}[command]
     _refused(capfd, [command, path, *tail], "style.ttproj: ", needle)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["style.ttproj"]
 
@@ -261,14 +261,7 @@ def test_every_exr_header_byte_set_to_ff_is_read_or_one_line(tmp_path):
 def _tall_tiff(path, rows: int) -> None:
     """A 2 x 2 RGB TIFF (one strip of 2 rows) whose header then claims 1 x ``rows`` pixels."""
     tifffile.imwrite(path, np.full((2, 2, 3), 77, np.uint8), photometric="rgb")
-    data = bytearray(path.read_bytes())
-    ifd = struct.unpack_from("<I", data, 4)[0]
-    for e in range(struct.unpack_from("<H", data, ifd)[0]):
-        at = ifd + 2 + 12 * e
-        tag, kind = struct.unpack_from("<HH", data, at)
-        if tag in (256, 257):
-            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, 1 if tag == 256 else rows)
-    path.write_bytes(bytes(data))
+    patch_tiff_size(path, 1, rows)
 
 
 @pytest.mark.parametrize("rows", [3, 1000, 65535])

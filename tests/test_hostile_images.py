@@ -15,7 +15,14 @@ import zlib
 import numpy as np
 import pytest
 import tifffile
-from hostile_fuzz import EDITS, campaign, run_bytes, run_edited, run_truncations
+from hostile_fuzz import (
+    EDITS,
+    campaign,
+    patch_tiff_size,
+    run_bytes,
+    run_edited,
+    run_truncations,
+)
 from hypothesis import strategies as st
 from test_hostile_harness import shared_reader
 
@@ -136,22 +143,10 @@ def test_a_forged_png_size_is_refused_at_once(tmp_path):
         read_image(path)
 
 
-def _patch_tiff_size(path, width: int, height: int) -> None:
-    data = bytearray(path.read_bytes())
-    ifd = struct.unpack_from("<I", data, 4)[0]
-    for e in range(struct.unpack_from("<H", data, ifd)[0]):
-        at = ifd + 2 + 12 * e
-        tag, kind = struct.unpack_from("<HH", data, at)
-        if tag in (256, 257):
-            value = width if tag == 256 else height
-            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, value)
-    path.write_bytes(bytes(data))
-
-
 def test_a_tiff_declaring_more_pixels_than_its_bytes_can_hold_is_refused(tmp_path):
     path = tmp_path / "forged.tif"
     tifffile.imwrite(path, np.zeros((2, 2), np.uint8))
-    _patch_tiff_size(path, 30000, 30000)
+    patch_tiff_size(path, 30000, 30000)
     with pytest.raises(CorruptFileError, match=r"forged.tif: header declares 30000 x 30000 x 1 "
                                                r"pixels \(858 MiB\) from a \d+-byte file"):
         read_image(path)
@@ -299,7 +294,7 @@ def test_hostile_png_header_sizes(budget, bounded, tmp_path):
 
 def _forged_tiff(path, width, height) -> bytes:
     tifffile.imwrite(path, np.zeros((2, 2), np.uint8))
-    _patch_tiff_size(path, width, height)
+    patch_tiff_size(path, width, height)
     return path.read_bytes()
 
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from app.cli import main
+from core.errors import TerrathemeError
 from core.io.images import read_image, write_image
-from core.packing import PackedLayer
+from core.packing import PackedLayer, load_layer, write_layer_image
 from core.packing.index_png import display_colours, read_index_image
 
 
@@ -165,7 +166,8 @@ STREAMED_UNPACK = r"""
 import resource, sys
 import numpy as np
 from app.cli import main
-from core.packing import PackedLayer
+from core.errors import TerrathemeError
+from core.packing import PackedLayer, load_layer, write_layer_image
 
 # Warm the kernels and writers on a small layer, then cap the address space.
 small = PackedLayer.from_runs(64, 64, "hilbert", [4095], [1], np.arange(2, dtype=np.uint8),
@@ -203,5 +205,20 @@ def test_unpack_of_a_huge_layer_to_a_format_written_whole_is_refused(tmp_path, c
     layer = PackedLayer.from_runs(65536, 65536, "hilbert", [2**32 - 1], [3],
                                   np.arange(4, dtype=np.uint8), identity=True, squeeze=True)
     layer.save(tmp_path / "big.ttp")
-    assert main(["unpack", str(tmp_path / "big.ttp"), str(tmp_path / "big.jpg")]) == 2
+    assert main(["unpack", str(tmp_path / "big.ttp"), str(tmp_path / "big.bmp")]) == 2
     assert "band by band only as .png" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".JPEG", ".webp", ".avif"])
+def test_unpack_to_a_lossy_format_is_refused_before_any_work(tmp_path, vector_png, capsys,
+                                                             suffix):
+    png, _ = vector_png
+    assert main(["pack", str(png), str(tmp_path / "v.ttpack")]) == 0
+    capsys.readouterr()
+    out = tmp_path / f"v{suffix}"
+    assert main(["unpack", str(tmp_path / "v.ttpack"), str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "lossy" in err and str(out) in err
+    assert not out.exists()
+    with pytest.raises(TerrathemeError, match="lossy"):
+        write_layer_image(load_layer(tmp_path / "v.ttpack"), out)

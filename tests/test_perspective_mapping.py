@@ -157,3 +157,9 @@ def test_bad_mappings_are_clear_errors():
 def test_bad_options_are_clear_errors(kwargs, match):
     with pytest.raises(TerrathemeError, match=match):
         FilterOptions(**kwargs)
+
+
+@pytest.mark.parametrize("size", [(0, 10), (10, 0), (16385, 4), (-1, 5), ("a", 3), (3,)])
+def test_a_frame_size_out_of_range_is_refused_by_the_mapping(size):
+    with pytest.raises(TerrathemeError, match="frame size"):
+        camera_mapping(Camera(height=50.0, pitch=10.0), size)

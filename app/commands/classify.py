@@ -150,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
         train_classifier,
     )
     from core.errors import TerrathemeError
+    from core.io.atomic import write_files
     from core.io.images import Bands, read_image, write_image
     from core.io.legend import read_legend
 
@@ -219,17 +220,20 @@ def run(args: argparse.Namespace) -> int:
         for bar in bars:
             bar.close()
 
-    # Labels as a palette PNG (values stay the class numbers) or a grey image.
+    # Labels as a palette PNG (values stay the class numbers) or a grey image; the outputs
+    # as one set (all replaced or none) when they share a folder.
     palette = label_palette() if args.output.lower().endswith(".png") else None
-    write_image(args.output, result.labels[:, :, None], palette=palette)
+    writers = [(args.output, lambda p: write_image(p, result.labels[:, :, None],
+                                                   palette=palette))]
     if args.confidence:
         if args.confidence.lower().endswith((".tif", ".tiff", ".exr")):
             conf = result.confidence
         else:
             conf = np.round(result.confidence * 255.0).astype(np.uint8)
-        write_image(args.confidence, conf[:, :, None])
+        writers.append((args.confidence, lambda p: write_image(p, conf[:, :, None])))
     if args.model_out:
-        model.save(args.model_out)
+        writers.append((args.model_out, model.save))
+    write_files(writers)
     counts = np.bincount(result.labels.ravel(), minlength=256)
     names = (model.class_names if model is not None else None) or {}
     shown = ", ".join(f"{k}{' ' + names[k] if k in names else ''}: "

@@ -38,7 +38,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from app.commands._project import load_checked_project
     from app.outputs import check_outputs
     from app.progress import progress_bar
     from core.errors import TerrathemeError
@@ -50,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
         plan_export,
         write_export,
     )
+    from core.render.project import load_checked_project
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():

@@ -60,10 +60,9 @@ def _layer_info(args: argparse.Namespace) -> dict:
 
 def _project_info(args: argparse.Namespace) -> dict:
     """Grid, themes, colour map, render style and bytes of a project."""
-    from app.commands._project import load_checked_project
     from core.errors import TerrathemeError
     from core.fidelity import texture_cost
-    from core.render.project import photo_extent, project_style
+    from core.render.project import load_checked_project, photo_extent, project_style
 
     if args.runs:
         raise TerrathemeError("--runs lists a packed layer's runs; a project has none")

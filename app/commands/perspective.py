@@ -164,10 +164,10 @@ def run(args: argparse.Namespace) -> int:
         Method,
         PlaneMapping,
         PreparedTexture,
+        check_size,
     )
     from core.perspective.mapping import camera_mapping, overview_camera, scaled_view
     from core.perspective.project_view import project_texture, texture_scale
-    from core.perspective.render import check_size
 
     check_outputs([args.out], inputs=[args.input])
     check_image_outputs([args.out])
@@ -178,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
     is_project = str(args.input).lower().endswith(".ttproj")
     if is_project:
-        from app.commands._project import load_checked_project
+        from core.render.project import load_checked_project
 
         project = load_checked_project(args.input)
         full_size = project.grid.texture_size

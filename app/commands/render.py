@@ -46,7 +46,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.commands._project import load_checked_project
     from app.outputs import check_image_outputs, check_outputs
     from app.progress import progress_bar
     from core.io.georef import write_georeference
@@ -54,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from core.render.boundary import BoundaryOptions
     from core.render.inputs import validate_region
     from core.render.project import (
+        load_checked_project,
         photo_extent,
         project_style,
         render_georeference,

@@ -20,9 +20,11 @@ def run(args: argparse.Namespace) -> int:
     """Unpack ``args.input`` into the image ``args.output``."""
     from app.outputs import check_image_outputs, check_outputs
     from core.packing import load_layer, write_layer_image
+    from core.packing.export import check_layer_image_path
 
     check_outputs([args.output], inputs=[args.input])
     check_image_outputs([args.output])
+    check_layer_image_path(args.output)
     layer = load_layer(args.input)
     kind = write_layer_image(layer, args.output)
     print(f"{args.output}: {layer.width} x {layer.height}, {layer.channels} channel(s), {kind}")

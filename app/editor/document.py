@@ -35,7 +35,8 @@ from core.edit import (
     heat_colours,
 )
 from core.fidelity import fidelity, texture_cost
-from core.model.project import ThematicTexture, load_project
+from core.model.project import ThematicTexture
+from core.render.project import load_checked_project
 
 EVERYWHERE = QRectF(-1e9, -1e9, 2e9, 2e9)
 
@@ -240,4 +241,4 @@ class EditorDocument(QObject):
 
         ``progress(done, total)`` follows the first full render.
         """
-        return cls(load_project(path), path, progress)
+        return cls(load_checked_project(path), path, progress)

@@ -39,12 +39,13 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
 
     # A missing or unreachable display is one line, not Qt's abort (:mod:`.display`).
     prepare_display(screenshot=screenshot is not None)
-    from PySide6.QtCore import QElapsedTimer, QEventLoop
+    from PySide6.QtCore import QElapsedTimer, QEventLoop, qInstallMessageHandler
     from PySide6.QtWidgets import QApplication
 
     from app.editor.classify_job import Mode
     from app.editor.window import MainWindow
 
+    qInstallMessageHandler(_qt_message)
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("terratheme")
     error = None
@@ -82,3 +83,15 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     win.doc.model.history.mark_saved()
     win.close()
     return 0
+
+
+#: Qt messages that say nothing to a user (the offscreen platform's, on every screenshot).
+QUIET_QT_MESSAGES = ("does not support propagateSizeHints",)
+
+
+def _qt_message(mode, context, message: str) -> None:
+    """Qt's messages on stderr as Qt prints them, but for :data:`QUIET_QT_MESSAGES`."""
+    import sys
+
+    if not any(quiet in message for quiet in QUIET_QT_MESSAGES):
+        print(message, file=sys.stderr)

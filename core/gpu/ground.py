@@ -38,7 +38,7 @@ from core.gpu.style import StyleTextures, gpu_style
 from core.gpu.textures import ThemeTextures
 from core.model.colour_map import ColourMap
 from core.model.project import ThematicTexture
-from core.perspective import Camera, PlaneMapping, camera_mapping
+from core.perspective import Camera, PlaneMapping, camera_mapping, check_size
 from core.render.inputs import prepare_grid, theme_textures
 from core.render.project import project_style
 from core.render.renderer import RenderOptions
@@ -230,7 +230,7 @@ class GroundView:
         draws ``scale`` of the pixels along each side and stretches them over
         the frame (a moving camera at a quarter of the cost).
         """
-        w, h = _check_size(size)
+        w, h = check_size(size)
         if scale < 1.0:
             small = (max(1, round(w * scale)), max(1, round(h * scale)))
             frame = self._reduced_target(small)
@@ -309,7 +309,7 @@ class GroundView:
     def render(self, view: Camera | PlaneMapping, size: tuple[int, int] = (640, 360),
                scale: float = 1.0) -> np.ndarray:
         """One frame read back: ``(h, w, 3) uint8``, row 0 at the top (``scale``: :meth:`draw`)."""
-        w, h = _check_size(size)
+        w, h = check_size(size)
         self.draw(view, (w, h), scale=scale)
         rgba = np.empty((h, w, 4), np.uint8)
         self._fbo.read_into(rgba, viewport=(0, 0, w, h), components=4, alignment=1)
@@ -340,16 +340,6 @@ def _release_framebuffer(fbo: moderngl.Framebuffer | None) -> None:
         for attachment in (*fbo.color_attachments, fbo.depth_attachment):
             attachment.release()
         fbo.release()
-
-
-def _check_size(size: tuple[int, int]) -> tuple[int, int]:
-    try:
-        w, h = (int(s) for s in size)
-    except (TypeError, ValueError):
-        raise TerrathemeError(f"frame size must be (width, height), got {size!r}") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise TerrathemeError(f"frame size {w}x{h} must be within 1..16384 per side")
-    return w, h
 
 
 def render_perspective_gpu(project: ThematicTexture, view: Camera | PlaneMapping,

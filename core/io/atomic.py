@@ -29,7 +29,7 @@ import json
 import os
 import secrets
 import shutil
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from core.errors import TerrathemeError
@@ -162,6 +162,27 @@ def atomic_file_set(paths: Sequence[str | os.PathLike]) -> Iterator[list[Path]]:
             drop(tmp)
         raise
     _commit(finals, temps)
+
+
+def write_files(writers: Sequence[tuple[str | os.PathLike, Callable[[Path], None]]]) -> None:
+    """Write files by their writers: as one set when they share a folder, else one by one.
+
+    Parameters
+    ----------
+    writers : sequence of (path, writer)
+        Each final path and the function that writes the file to the path it is
+        given: a temporary of :func:`atomic_file_set` when every path is in one
+        folder (all replaced, or none), else the final path itself (each writer
+        then writes atomically on its own), in order.
+    """
+    finals = [Path(p) for p, _ in writers]
+    if len(finals) > 1 and len({_folder_of(p).resolve() for p in finals}) == 1:
+        with atomic_file_set(finals) as temps:
+            for (_, write), tmp in zip(writers, temps, strict=True):
+                write(tmp)
+        return
+    for final, (_, write) in zip(finals, writers, strict=True):
+        write(final)
 
 
 def _commit(finals: list[Path], temps: list[Path]) -> None:

@@ -52,6 +52,25 @@ class BandedLayer(Protocol):
     def channels(self) -> int: ...
 
 
+#: Image formats that store values approximately: a layer's indices or values would change.
+LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".heic", ".heif",
+                            ".avif", ".jxr"})
+
+
+def check_layer_image_path(path: str | os.PathLike) -> None:
+    """Refuse an output a layer's values would not survive (a lossy format), before any work.
+
+    Raises
+    ------
+    TerrathemeError
+        ``path`` ends in one of :data:`LOSSY_SUFFIXES`.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in LOSSY_SUFFIXES:
+        raise TerrathemeError(f"{path}: {suffix} images are lossy and would change the layer's "
+                              "values; write .png, .tif or .exr")
+
+
 def write_layer_image(
     layer: BandedLayer, path: str | os.PathLike, *,
     progress: Callable[[int, int], None] | None = None,
@@ -72,8 +91,10 @@ def write_layer_image(
     Raises
     ------
     TerrathemeError
-        A layer too large for a format written whole, or a write failure.
+        A lossy format (:func:`check_layer_image_path`), a layer too large for a
+        format written whole, or a write failure.
     """
+    check_layer_image_path(path)
     suffix = Path(path).suffix.lower()
     texels = layer.width * layer.height
     rows = BAND_ROWS if layer.width <= 65536 else BAND_ROWS // 4

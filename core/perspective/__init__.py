@@ -22,11 +22,18 @@ reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``cache``
 
 from core.perspective.cache import FamilyCache, family_key
 from core.perspective.footprint import Footprint, footprint_parameters
-from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
+from core.perspective.mapping import (
+    MAX_FRAME_SIDE,
+    Camera,
+    PlaneMapping,
+    camera_mapping,
+    check_size,
+)
 from core.perspective.options import FilterOptions, Lookup, Method
 from core.perspective.render import PreparedTexture, RenderResult, render_perspective
 
 __all__ = [
+    "MAX_FRAME_SIDE",
     "Camera",
     "FamilyCache",
     "FilterOptions",
@@ -37,6 +44,7 @@ __all__ = [
     "PreparedTexture",
     "RenderResult",
     "camera_mapping",
+    "check_size",
     "family_key",
     "footprint_parameters",
     "render_perspective",

@@ -176,6 +176,22 @@ class Camera:
             raise TerrathemeError(f"camera fov must be in (0, 170] degrees, got {self.fov}")
 
 
+#: largest frame side accepted
+MAX_FRAME_SIDE = 16384
+
+
+def check_size(size: tuple[int, int]) -> tuple[int, int]:
+    """A frame size ``(w, h)`` as ints, each in ``[1, MAX_FRAME_SIDE]`` (raises
+    :class:`TerrathemeError` otherwise)."""
+    try:
+        w, h = (int(s) for s in size)
+    except (TypeError, ValueError):
+        raise TerrathemeError(f"frame size must be (width, height), got {size!r}") from None
+    if not (1 <= w <= MAX_FRAME_SIDE and 1 <= h <= MAX_FRAME_SIDE):
+        raise TerrathemeError(f"frame size {w}x{h} must be within 1..{MAX_FRAME_SIDE} per side")
+    return w, h
+
+
 def camera_mapping(
     camera: Camera, size: tuple[int, int], texture_size: tuple[int, int] = (1, 1)
 ) -> PlaneMapping:
@@ -195,7 +211,7 @@ def camera_mapping(
         ``z`` is the ray's downward component times the focal length, so
         ``z > 0`` exactly below the horizon.
     """
-    w, h = size
+    w, h = check_size(size)
     th, ps = math.radians(camera.pitch), math.radians(camera.yaw)
     ct, st, cp, sp = math.cos(th), math.sin(th), math.cos(ps), math.sin(ps)
     # focal length in pixels from the horizontal field of view

@@ -19,7 +19,7 @@ from core.perspective.cache import FamilyCache, family_key
 from core.perspective.ewa import EWA_LUT, ewa_kernel
 from core.perspective.family import ParallelogramFamily, build_family
 from core.perspective.lookup import coverage_kernel, seed_kernel
-from core.perspective.mapping import Camera, PlaneMapping, camera_mapping
+from core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
 from core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
 from core.perspective.reference import reference_kernel
 from core.perspective.texture import (
@@ -34,8 +34,6 @@ Progress = Callable[[int, int], None]
 
 #: rows rendered between two progress reports
 BAND_ROWS = 64
-#: largest frame side accepted
-MAX_FRAME_SIDE = 16384
 
 
 @dataclass(frozen=True)
@@ -77,17 +75,6 @@ def sky_vector(sky: tuple[float, ...], channels: int) -> np.ndarray:
     if channels == 2 and len(s) >= 3:
         return np.array([float(np.mean(s[:3])), 1.0])
     raise TerrathemeError(f"sky colour has {len(s)} values for a {channels}-channel texture")
-
-
-def check_size(size: tuple[int, int]) -> tuple[int, int]:
-    """``(w, h)`` as ints, each in ``[1, MAX_FRAME_SIDE]``."""
-    try:
-        w, h = (int(s) for s in size)
-    except (TypeError, ValueError):
-        raise TerrathemeError(f"frame size must be (width, height), got {size!r}") from None
-    if not (1 <= w <= MAX_FRAME_SIDE and 1 <= h <= MAX_FRAME_SIDE):
-        raise TerrathemeError(f"frame size {w}x{h} must be within 1..{MAX_FRAME_SIDE} per side")
-    return w, h
 
 
 class PreparedTexture:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import CorruptFileError, TerrathemeError
 from core.io.georef import scale_georeference
-from core.model.project import ThematicTexture
+from core.model.project import ThematicTexture, load_project
 from core.render.boundary import BoundaryOptions
 from core.render.overview import render_overview
 from core.render.renderer import RenderOptions, render_cells
@@ -109,3 +110,23 @@ def render_georeference(project: ThematicTexture, region: tuple[int, int, int, i
         return {}
     x, y, w, h = region
     return scale_georeference(geo, w / out_size[0], h / out_size[1], offset=(x, y))
+
+
+def load_checked_project(path: str | os.PathLike) -> ThematicTexture:
+    """:func:`core.model.project.load_project`, then its render style checked.
+
+    ``metadata["render"]`` is parsed here (:func:`project_style`), not by core.model,
+    which core.render builds on; a command or the editor that opens a project
+    calls this, so a bad style is one line naming the file before any work.
+
+    Raises
+    ------
+    CorruptFileError
+        A damaged project or a bad render style (the message names ``path``).
+    """
+    project = load_project(path)
+    try:
+        project_style(project)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{path}: {exc}") from None
+    return project
