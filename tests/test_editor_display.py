@@ -152,3 +152,4 @@ def test_a_screenshot_on_a_real_x_display(tmp_path, x_server):
                           text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert shot.stat().st_size > 1000
+

@@ -41,8 +41,8 @@ def project_from_photo(path: str | Path, cell: tuple[int, int] = DEFAULT_CELL) -
     from core.io.images import Bands, read_image
 
     photo = read_image(path, dtype=np.uint8, bands=Bands.PHOTO)
-    if photo.shape[2] == 1:
-        photo = np.repeat(photo, 3, axis=2)
+    if photo.shape[2] <= 2:  # grey, or grey + alpha (the editor shows the photo opaque)
+        photo = np.repeat(photo[..., :1], 3, axis=2)
     photo = np.ascontiguousarray(photo[..., :3])
     rows, cols = grid_shape_for(photo.shape[1], photo.shape[0], cell)
     lib = default_library()
