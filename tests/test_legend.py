@@ -66,7 +66,7 @@ def test_read_legend_bounds_the_file(tmp_path) -> None:
         read_legend(tmp_path / "missing.json")
     big = tmp_path / "big.csv"
     big.write_bytes(b"1," + b"x" * MAX_LEGEND_BYTES)
-    with pytest.raises(TerrathemeError, match="over 1 MiB"):
+    with pytest.raises(TerrathemeError, match="legend file: larger than 1048576 bytes"):
         read_legend(big)
     ok = tmp_path / "legend.json"
     ok.write_text(json.dumps({"classes": {"4": "Vegetation"}}))

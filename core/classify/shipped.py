@@ -25,7 +25,7 @@ from pathlib import Path
 
 from core.classify.supervised import Classifier
 from core.errors import CorruptFileError, TerrathemeError
-from core.io.archive import parse_json
+from core.io.archive import parse_json, read_bounded
 
 SHIPPED_MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 MODELS_INDEX = "models.json"
@@ -121,14 +121,7 @@ def shipped_models(folder: str | os.PathLike = SHIPPED_MODELS_DIR) -> dict[str, 
     index = Path(folder) / MODELS_INDEX
     if not index.is_file():
         return {}
-    try:
-        with open(index, "rb") as fh:
-            data = fh.read(MAX_INDEX_BYTES + 1)
-    except OSError as exc:
-        raise CorruptFileError(f"{index}: not a model index ({exc.strerror})") from None
-    if len(data) > MAX_INDEX_BYTES:
-        raise CorruptFileError(f"{index}: not a model index (larger than {MAX_INDEX_BYTES} "
-                               "bytes)")
+    data = read_bounded(index, MAX_INDEX_BYTES, f"{index}: not a model index")
     top = parse_json(data, f"{index}: not a model index: its text")
     try:
         if not isinstance(top, dict) or not isinstance(top.get("models"), dict):

@@ -283,6 +283,26 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
     return out
 
 
+def read_bounded(path: str | os.PathLike, limit: int, label: str) -> bytes:
+    """The bytes of a small file (a legend, an index, a metadata file), at most ``limit``.
+
+    Reads ``limit + 1`` bytes at the most, so a huge file costs no more than a small one.
+
+    Raises
+    ------
+    CorruptFileError
+        ``"{label}: larger than {limit} bytes"``, or a file that cannot be read.
+    """
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise CorruptFileError(f"{label}: cannot be read ({exc.strerror})") from None
+    if len(data) > limit:
+        raise CorruptFileError(f"{label}: larger than {limit} bytes")
+    return data
+
+
 def parse_json(data: bytes, label: str) -> object:
     """JSON bytes parsed as every reader wants them: UTF-8, finite numbers only, each
     key once per object (not silently the last), nesting at most :data:`MAX_JSON_DEPTH`.

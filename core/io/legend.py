@@ -25,7 +25,7 @@ import os
 from pathlib import Path
 
 from core.errors import CorruptFileError, TerrathemeError
-from core.io.archive import parse_json
+from core.io.archive import parse_json, read_bounded
 
 #: largest legend file read
 MAX_LEGEND_BYTES = 1 << 20
@@ -144,15 +144,12 @@ def read_legend(path: str | os.PathLike) -> dict[int, str]:
     Raises
     ------
     TerrathemeError
-        No such file, or larger than :data:`MAX_LEGEND_BYTES`.
+        No such file.
     CorruptFileError
-        See :func:`parse_legend`.
+        Larger than :data:`MAX_LEGEND_BYTES` (:func:`core.io.archive.read_bounded`), or
+        see :func:`parse_legend`.
     """
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such legend file")
-    with open(p, "rb") as fh:
-        data = fh.read(MAX_LEGEND_BYTES + 1)
-    if len(data) > MAX_LEGEND_BYTES:
-        raise TerrathemeError(f"{p}: legend file is over {MAX_LEGEND_BYTES >> 20} MiB")
-    return parse_legend(data, str(p))
+    return parse_legend(read_bounded(p, MAX_LEGEND_BYTES, f"{p}: legend file"), str(p))

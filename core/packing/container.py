@@ -43,11 +43,14 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+
+if TYPE_CHECKING:
+    from core.packing.tiled_format import TiledHeader
 
 MAGIC = b"TTPK"
 #: Highest format version this build reads.
@@ -256,23 +259,31 @@ def check_file(data: bytes, *, name: str) -> LayerHeader:
     return head
 
 
-def read_palette(data: bytes, head: LayerHeader) -> np.ndarray:
-    """The ``(K, C)`` palette of a checked file (the identity ``0 .. K-1`` when not stored)."""
+def read_palette(data: bytes, head: LayerHeader | TiledHeader, *,
+                 at: int = HEADER.size) -> np.ndarray:
+    """The ``(K, C)`` palette of a checked file (the identity ``0 .. K-1`` when not stored).
+
+    ``head`` is a layer's or a tiled container's header; the palette starts at
+    byte ``at``, right after that header (``core.packing.tiled_format.HEADER.size``
+    for a container), and the display colours follow it.
+    """
     dtype = np.dtype("<u1" if head.sample == 1 else "<u2")
     if head.identity:
         palette = np.arange(head.k, dtype=dtype)[:, None]
     else:
         palette = np.frombuffer(data, dtype=dtype, count=head.k * head.channels,
-                                offset=HEADER.size).reshape(head.k, head.channels)
+                                offset=at).reshape(head.k, head.channels)
     return palette.astype(dtype.newbyteorder("="))
 
 
-def read_colours(data: bytes, head: LayerHeader) -> np.ndarray | None:
-    """The ``(K, 3|4)`` uint8 display colours of a checked file, or None."""
+def read_colours(data: bytes, head: LayerHeader | TiledHeader, *,
+                 at: int = HEADER.size) -> np.ndarray | None:
+    """The ``(K, 3|4)`` uint8 display colours of a checked file, or None (``at`` as for
+    :func:`read_palette`)."""
     if not head.colour_channels:
         return None
-    flat = np.frombuffer(data, np.uint8, count=head.colour_bytes,
-                         offset=HEADER.size + head.palette_bytes)
+    flat = np.frombuffer(data, np.uint8, count=head.k * head.colour_channels,
+                         offset=at + head.palette_bytes)
     return flat.reshape(head.k, head.colour_channels).copy()
 
 

@@ -105,10 +105,11 @@ def _tiled_info(fh, name: str) -> LayerInfo:
                                  curve_order(tile.width, tile.height), tile.runs)
         curves.add(Curve(tile.curve).name.lower())
         formats.add(tile.encoding_name)
+    palette = read_palette(prefix, head, at=tiled_format.HEADER.size)
     return LayerInfo(
         width=head.width, height=head.height,
         curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.channels,
-        identity_palette=head.identity, palette=tiled_format.read_palette(prefix, head).tolist(),
+        identity_palette=head.identity, palette=palette.tolist(),
         run_count=runs, file_bytes=size, memory_bytes_max=memory, format="+".join(sorted(formats)),
         version=tiled_format.VERSION, tiles=head.tiles, tile_side=1 << head.tile_bits,
     )

@@ -30,7 +30,7 @@ from core.io.atomic import write_bytes_atomic
 from core.packing import tiled_format as fmt
 from core.packing.batch import lookup_batch, tiled_words
 from core.packing.container import HEADER as LAYER_HEADER
-from core.packing.container import read_header
+from core.packing.container import read_colours, read_header, read_palette
 from core.packing.joined import join_tables
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
@@ -125,10 +125,10 @@ class TiledLayer:
     def _open(cls, prefix: bytes, head: fmt.TiledHeader, name: str, source: object
               ) -> TiledLayer:
         offsets, lengths = fmt.read_index(prefix, head, name=name)
-        palette = fmt.read_palette(prefix, head)
+        palette = read_palette(prefix, head, at=fmt.HEADER.size)
         palette.setflags(write=False)
         return cls(head.width, head.height, head.tile_bits, palette, head.identity, head.squeeze,
-                   fmt.read_colours(prefix, head), name, source, offsets, lengths)
+                   read_colours(prefix, head, at=fmt.HEADER.size), name, source, offsets, lengths)
 
     # ------------------------------------------------------------ the grid
 

@@ -194,24 +194,6 @@ def read_index(data: bytes, head: TiledHeader, *, name: str) -> tuple[np.ndarray
     return offsets + head.tiles_at, lengths
 
 
-def read_palette(data: bytes, head: TiledHeader) -> np.ndarray:
-    """The ``(K, C)`` palette (identity ``0 .. K-1`` when not stored)."""
-    dtype = np.dtype("<u1" if head.sample == 1 else "<u2")
-    if head.identity:
-        return np.arange(head.k, dtype=dtype.newbyteorder("="))[:, None]
-    flat = np.frombuffer(data, dtype, count=head.k * head.channels, offset=HEADER.size)
-    return flat.reshape(head.k, head.channels).astype(dtype.newbyteorder("="))
-
-
-def read_colours(data: bytes, head: TiledHeader) -> np.ndarray | None:
-    """The display colours, or None."""
-    if not head.colour_channels:
-        return None
-    flat = np.frombuffer(data, np.uint8, count=head.k * head.colour_channels,
-                         offset=HEADER.size + head.palette_bytes)
-    return flat.reshape(head.k, head.colour_channels).copy()
-
-
 def layer_file_kind(path: str | os.PathLike) -> tuple[str, bool]:
     """A packed-layer file's path as a string, and whether it is a tiled container.
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.archive import parse_json
+from core.io.archive import parse_json, read_bounded
 from core.io.images import read_image
 
 SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[2] / "themes"
@@ -245,10 +245,7 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
     meta_path = folder / THEMES_METADATA
     if not meta_path.is_file():
         raise TerrathemeError(f"{folder}: no {THEMES_METADATA} (not a theme folder)")
-    with open(meta_path, "rb") as fh:
-        data = fh.read(MAX_THEMES_METADATA_BYTES + 1)
-    if len(data) > MAX_THEMES_METADATA_BYTES:
-        raise CorruptFileError(f"{meta_path}: larger than {MAX_THEMES_METADATA_BYTES} bytes")
+    data = read_bounded(meta_path, MAX_THEMES_METADATA_BYTES, str(meta_path))
     try:
         meta = parse_json(data, "its text")
     except CorruptFileError as exc:
