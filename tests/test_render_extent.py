@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from app.cli import main
+from core.errors import TerrathemeError
 from core.io.georef import read_georeference, scale_georeference, world_file_lines
 from core.io.images import read_image
 from core.model.grid import IndexGrid
@@ -26,7 +27,18 @@ def test_extent_is_the_photo_size_cut_to_the_texture():
     assert photo_extent(_project({"photo_size": [27, 13]})) == (27, 13)
     assert photo_extent(_project({"photo_size": [40, 13]})) == (32, 13)
     assert photo_extent(_project({})) == (32, 16)
-    assert photo_extent(_project({"photo_size": "big"})) == (32, 16)
+    assert photo_extent(_project({"photo_size": (27.0, 13)})) == (27, 13)
+
+
+@pytest.mark.parametrize("size", ["big", "12", [27], [27, 13, 1], [0, 13], [27, -1], [27.5, 13],
+                                  [True, 13], ["27", 13], [float("nan"), 13], None])
+def test_a_photo_size_that_is_not_two_positive_whole_numbers_is_refused(size):
+    project = _project({"photo_size": size})
+    if size is None:
+        assert photo_extent(project) == (32, 16)  # absent: the texture's extent
+        return
+    with pytest.raises(TerrathemeError, match="photo_size must be two positive whole numbers"):
+        photo_extent(project)
 
 
 def test_region_georeference_moves_the_tie_point_and_scales():
@@ -67,3 +79,11 @@ def test_cli_render_gives_the_photo_size_with_a_world_file(tmp_path, capsys):
     assert main(["render", str(path), str(tif), "--region", "4,2,8,8"]) == 0
     assert read_image(tif).shape == (8, 8, 3)
     assert read_georeference(tif)["ModelTiepoint"][3:5] == [508.0, 896.0]
+
+
+def test_a_project_with_a_bad_photo_size_is_one_line_naming_it(tmp_path, capsys):
+    save_project(tmp_path / "p.ttproj", _project({"photo_size": [27, "wide"]}))
+    assert main(["render", str(tmp_path / "p.ttproj"), str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "p.ttproj: metadata photo_size" in err
+    assert not (tmp_path / "o.png").exists()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
 
@@ -85,15 +86,23 @@ def photo_extent(project: ThematicTexture) -> tuple[int, int]:
     A converted project's grid covers whole cells, so its texture can be a
     little larger than the photo; renders of the project default to the
     photo's extent (the last cells cut to it) so they lie on its pixel grid.
+
+    Raises
+    ------
+    TerrathemeError
+        ``metadata["photo_size"]`` present but not two positive whole numbers.
     """
     tw, th = project.grid.texture_size
     size = project.metadata.get("photo_size")
-    try:
-        w, h = (int(v) for v in size)  # type: ignore[union-attr]
-    except (TypeError, ValueError):
+    if size is None:
         return tw, th
-    if w < 1 or h < 1:
-        return tw, th
+    whole = isinstance(size, list | tuple) and len(size) == 2 and all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        and v == int(v) for v in size)
+    w, h = (int(v) for v in size) if whole else (0, 0)
+    if not whole or w < 1 or h < 1:
+        raise TerrathemeError(f"metadata photo_size must be two positive whole numbers "
+                              f"(width, height), got {size!r}"[:200])
     return min(w, tw), min(h, th)
 
 
@@ -113,7 +122,7 @@ def render_georeference(project: ThematicTexture, region: tuple[int, int, int, i
 
 
 def load_checked_project(path: str | os.PathLike) -> ThematicTexture:
-    """:func:`core.model.project.load_project`, then its render style checked.
+    """:func:`core.model.project.load_project`, then its render style and photo size checked.
 
     ``metadata["render"]`` is parsed here (:func:`project_style`), not by core.model,
     which core.render builds on; a command or the editor that opens a project
@@ -127,6 +136,7 @@ def load_checked_project(path: str | os.PathLike) -> ThematicTexture:
     project = load_project(path)
     try:
         project_style(project)
+        photo_extent(project)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{path}: {exc}") from None
     return project
