@@ -70,7 +70,49 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from classify_eval import confusion, draw_seeds, scores, simulate_scribbles
 
+import core.classify.tiled as _tiled
 from core.classify import SupervisedOptions, train_classifier
+from core.classify.features import full_lab
+from core.classify.patch_words import NORMALISE, encode_words, learn_words
+
+#: experiment patch: the dictionary in use (None = off) and the original feature function
+WORDS = {"words": None, "lab": False}
+_IMAGE_FEATURES = _tiled.image_features
+
+
+def _with_words(rgb, options, stats=None):
+    lab, block_std, feats = _IMAGE_FEATURES(rgb, options, stats)
+    if WORDS["words"] is None:
+        return lab, block_std, feats
+    full = full_lab(rgb)
+    words = encode_words(full if WORDS["lab"] else full[:, :, 0], WORDS["words"],
+                         options.scale)
+    return lab, block_std, np.concatenate([feats, words], axis=2)
+
+
+_tiled.image_features = _with_words
+#: patch-word variants: name -> (count, side, level)
+WORD_VARIANTS = {"words-k32-s5-l8": (32, 5, 8), "words-k32-s5-l4": (32, 5, 4),
+                 "words-k16-s5-l4": (16, 5, 4), "words-k64-s5-l8": (64, 5, 8),
+                 "words-k32-s7-l8": (32, 7, 8), "words-k16-s5-l8": (16, 5, 8),
+                 "words-k8-s5-l8": (8, 5, 8), "words-lab-k32-s5-l4": (32, 5, 4),
+                 "words-lab-k32-s5-l8": (32, 5, 8), "words-nonorm-k32-s5-l4": (32, 5, 4),
+                 "words-lab-k32-s5-l4-seed1": (32, 5, 4), "words-k32-s5-l4-seed1": (32, 5, 4),
+                 "words-k16-s5-l8-seed1": (16, 5, 8),
+                 "words-lab-k32-s5-l4-seed2": (32, 5, 4)}
+
+
+def set_words(variant: str, photos) -> None:
+    """Learn the variant's dictionary on the photos (or switch the words off)."""
+    if variant not in WORD_VARIANTS:
+        WORDS["words"] = None
+        return
+    k, side, level = WORD_VARIANTS[variant]
+    WORDS["lab"] = "-lab-" in variant
+    NORMALISE["contrast"] = "-nonorm-" not in variant
+    labs = [full_lab(np.asarray(p)[:, :, :3]) for p in photos]
+    WORDS["words"] = learn_words(labs if WORDS["lab"] else [lab[:, :, 0] for lab in labs],
+                                 k, side, level)
 
 CLASSES = [1, 2, 3, 4, 5]
 #: stroke draws of the tuning photos (the evaluation part draws from RNG_SEED + 1)
@@ -91,6 +133,9 @@ VARIANTS = {
     "nostructure": _features(structure=False),
     "adapt": SupervisedOptions(adapt=True),
     "profile-2-4-8": _features(profile_radii=(2, 4, 8)),
+    "seed1": SupervisedOptions(seed=1),
+    "seed2": SupervisedOptions(seed=2),
+    **{v: SupervisedOptions(seed=int(v[-1]) if v[-5:-1] == "seed" else 0) for v in WORD_VARIANTS},
 }
 
 
@@ -115,6 +160,7 @@ def run(variants: dict[str, SupervisedOptions], budget: float, draws: int, log=p
                                          int(name.split("t")[-1].split(".")[0])])
             scr = simulate_scribbles(mask, CLASSES, rng, budget)
             for v, opts in variants.items():
+                set_words(v, [photo])
                 model = train_classifier([(photo, scr)], opts)
                 t = time.perf_counter()
                 res = model.predict(photo)

@@ -59,7 +59,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import classify_one_per_tile
 from classify_one_per_tile import IGNORE, random_draw, rows_of, score_draw
+from classify_tune import WORD_VARIANTS, set_words
 
 from core.classify import SupervisedOptions
 from core.classify.sample_cache import SampleCache
@@ -104,7 +106,18 @@ VARIANTS = {
     "profile-2-4-8-seed1": replace(_features(profile_radii=(2, 4, 8)), seed=1),
     "profile-2-4-8-seed2": replace(_features(profile_radii=(2, 4, 8)), seed=2),
     "profile-2-4-8+relative": _features(profile_radii=(2, 4, 8), relative=True),
+    **{v: replace(_DEFAULT, seed=int(v[-1]) if v[-5:-1] == "seed" else 0) for v in WORD_VARIANTS},
 }
+_TRAIN = classify_one_per_tile.train_classifier
+CURRENT = {"variant": ""}
+
+
+def _train_with_words(pairs, opts, cache=None):
+    set_words(CURRENT["variant"], [p for p, _m in pairs])
+    return _TRAIN(pairs, opts, cache=cache)
+
+
+classify_one_per_tile.train_classifier = _train_with_words
 
 
 def run(variants: dict[str, SupervisedOptions], draws: int, log=print) -> dict:
@@ -118,7 +131,8 @@ def run(variants: dict[str, SupervisedOptions], draws: int, log=print) -> dict:
     rows = {}
     for v, opts in variants.items():
         # A cache per variant: its keys hold the options, but not code changed in between.
-        cache = SampleCache()
+        cache = None if v in WORD_VARIANTS else SampleCache()
+        CURRENT["variant"] = v
         per_draw, pixels, cpu = [], 0, 0.0
         for train in trains:
             t = time.process_time()
