@@ -53,6 +53,23 @@ prediction 11-20 Mpx/s there): the stroke-seeded Lab walker adds 0.13-0.18 s per
 iterations), with the votes as channels 0.34-0.94 s (0.08-0.16x, 1-2.5 Mpx/s, under the
 5 Mpx/s goal); and a model would have to keep its strokes to walk from them at
 prediction.
+
+Issue 17, learned patch words (Coates & Ng 2011), patched in (commit ec4a3a3, its
+core/classify/patch_words.py and the variants here), not kept: K MiniBatchKMeans
+centroids of contrast-normalised (each patch minus its mean, over sqrt(var + 2)),
+ZCA-whitened (eps 0.1) 5 x 5 patches of the lightness (or Lab) block-averaged by
+``level`` photo px, learned on the scribbled photo itself (20000 patches), each
+patch encoded by the triangle activation max(0, mean(z) - z_k) of its centroid
+distances, mean-pooled over the coarse pixel, K features appended. 2 draws,
+default 0.5916 (0.5942 / 0.5890), prediction 9.1-15.2 Mpx/s in the same runs (load
+0.7-5.4): L, K 32 at level 8 (40 px patches) 0.5928 (0.5978 / 0.5878) at 7.1 Mpx/s,
+level 4 0.5956 (0.5966 / 0.5945) at 5.6; K 16 / 64 at level 8 0.5917 / 0.5908;
+7 x 7 at level 8 0.5928; level 4 without contrast normalisation 0.5964; Lab patches
+at level 4 / 8 0.5971 (0.6007 / 0.5935; 4.5 against 11.2 Mpx/s) / 0.5917. Lab at
+level 4 over forest seeds 0 / 1 / 2: +0.0055 / +0.0068 / +0.0019 on the same seed's
+default (seed 1 0.5923 -> 0.5991, seed 2 0.5905 -> 0.5924), mean +0.0047, under the
+seed noise (~0.008 a draw), at 0.35-0.40x the speed (4.5-5.4 Mpx/s, the goal 5);
+one photo per tile it gives +0.0008 over the three seeds (classify_tune_tiles.py).
 """
 
 from __future__ import annotations

@@ -46,6 +46,17 @@ block, smoothed at sigma 1, 0.4410 / 0.4552 (30 ms per Mpx more), with profile
 of 2-4-8 / 4-8-16 coarse px 0.4448 / 0.4549, 0.4413 / 0.4517, with profile 2-4-8
 0.4425 / 0.4529; lightness mapped to its percentile in the photo (per-photo
 histogram equalisation, block std scaled by the map's slope) 0.3222 / 0.2954.
+Learned patch words (Coates & Ng 2011; commit ec4a3a3, not kept; the recipe in
+classify_tune.py's docstring), the dictionary learned on each model's five
+training photos, no sample cache: lightness 5 x 5 patches, K 32 at level 8 / 4
+(photo px per patch px) 0.4356 / 0.4546, 0.4368 / 0.4534; K 8 / 16 / 64 at level 8
+0.4404 / 0.4515, 0.4470 / 0.4493, 0.4371 / 0.4522; 7 x 7 at level 8 0.4420 / 0.4525;
+level 4 without contrast normalisation 0.4400 / 0.4533; Lab patches at level 4 / 8
+0.4391 / 0.4528, 0.4338 / 0.4503. Forest seed 1 (default 0.4349 / 0.4504): K 16
+level 8 0.4417 / 0.4568, Lab K 32 level 4 0.4414 / 0.4543; seed 2 (0.4361 / 0.4497):
+Lab K 32 level 4 0.4338 / 0.4478. Lab level 4 over seeds 0 / 1 / 2 mean +0.0008,
+K 16 level 8 over seeds 0 / 1 +0.0041 (draw 0 +0.0112, draw 1 -0.0081 at seed 0):
+within noise, and the dictionary would have to be learned and kept in the model.
 """
 
 from __future__ import annotations
