@@ -16,7 +16,7 @@ import numpy as np
 from classify_eval import confusion
 
 from core import classify
-from core.classify.features import coarse_lab
+from core.classify.lab import coarse_lab
 from core.classify.photo import prepare_photo
 from core.classify.tiled import tile_features
 from core.io.tiles import TileWindow

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from classify_cases import assert_tiles_match_whole
 
-from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
+from core.classify.features import FeatureOptions, compute_features, image_features
+from core.classify.lab import full_lab
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from core.errors import TerrathemeError
 

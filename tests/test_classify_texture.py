@@ -9,7 +9,8 @@ import pytest
 from classify_cases import assert_tiles_match_whole
 
 from core.classify import SupervisedOptions
-from core.classify.features import FeatureOptions, compute_features, full_lab, image_features
+from core.classify.features import FeatureOptions, compute_features, image_features
+from core.classify.lab import full_lab
 from core.classify.model_options import options_from_json, options_to_json
 from core.errors import TerrathemeError
 

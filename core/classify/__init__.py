@@ -16,8 +16,8 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 * :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
   classifier file or a shipped model by name (``aerial``), with class names.
 
-Modules: ``photo`` (input checks), ``features`` (Lab + texture on a downscaled
-photo), ``texture`` (edge density and structure-tensor coherence), ``position``
+Modules: ``photo`` (input checks), ``lab`` (the photo in Lab, per pixel and
+per block), ``features`` (the feature stack on a downscaled photo), ``texture`` (edge density and structure-tensor coherence), ``position``
 (where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with
 overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,

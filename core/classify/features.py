@@ -56,10 +56,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from core.classify.lab import block_lab, coarse_lab, full_lab
 from core.classify.position import position_features
 from core.classify.profiles import profile_count, profile_halo, reconstruction_profile
 from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.classify.texture import block_mean, context_blur, texture_count, texture_features
+from core.classify.texture import context_blur, texture_count, texture_features
 from core.errors import TerrathemeError
 
 
@@ -84,12 +85,6 @@ REFERENCE_MEAN = np.array([50.0, 0.0, 8.0], np.float32)
 REFERENCE_STD = np.array([18.0, 6.0, 10.0], np.float32)
 #: relative lightness: added to the context lightness (L units) so dark context stays finite
 RELATIVE_FLOOR = 5.0
-#: (1, 256, 3) float32: each 8-bit Lab code as L* (x 100/255) and a*, b* (- 128), as full_lab
-_LAB8_TABLE = (np.repeat(np.arange(256, dtype=np.float32)[None, :, None], 3, axis=2)
-               * np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
-               - np.array([0.0, 128.0, 128.0], np.float32))
-
-
 @dataclass(frozen=True)
 class FeatureOptions:
     """How features are computed.
@@ -187,46 +182,6 @@ class FeatureOptions:
 
 def _radius(sigma: float) -> int:
     return int(math.ceil(3.0 * sigma))
-
-
-def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-average an RGB photo by ``scale`` and convert it to CIE Lab.
-
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    scale : int
-
-    Returns
-    -------
-    lab : (ceil(H/scale), ceil(W/scale), 3) float32 ndarray
-        L in 0..100, a and b about -128..127 (mean over each block).
-    block_std : same shape without the last axis, float32
-        Standard deviation of L inside each block (0 when ``scale == 1``).
-    """
-    return block_lab(full_lab(rgb), scale)
-
-
-def full_lab(rgb: np.ndarray) -> np.ndarray:
-    """CIE Lab of every pixel: (H, W, 3) float32, L in 0..100, a and b about -128..127.
-
-    OpenCV's 8-bit conversion (L scaled to 0..255, a/b offset by 128), rescaled
-    through a 256-entry table (:data:`_LAB8_TABLE`, one pass: 2.7x the float
-    arithmetic on the whole image, the same floats).
-    """
-    return cv2.LUT(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab), _LAB8_TABLE)
-
-
-def block_lab(lab8: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`coarse_lab` of a :func:`full_lab` image: block means and block L std."""
-    h, w = lab8.shape[:2]
-    if scale == 1:
-        return lab8, np.zeros((h, w), np.float32)
-    # Block means of Lab and of L^2 (edge-replicated to whole blocks).
-    lab = block_mean(lab8, scale)
-    l_sq = block_mean(np.ascontiguousarray(lab8[:, :, 0] * lab8[:, :, 0]), scale)
-    block_std = np.sqrt(np.maximum(l_sq - lab[:, :, 0] ** 2, 0.0))
-    return lab, block_std.astype(np.float32)
 
 
 def photo_statistics(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Fine ridge features: lines narrower than a block, found before the block average.
 
 The DEFAULT feature set works on ``scale x scale`` block means
-(:func:`core.classify.features.coarse_lab`). A sand track or a channel a few
+(:func:`core.classify.lab.coarse_lab`). A sand track or a channel a few
 pixels wide changes a block's mean lightness by little and is then told
 apart from a grey patch of land only by context. Here the photo's
 lightness is filtered at full resolution first: the two eigenvalues of its
@@ -68,9 +68,9 @@ def block_ridges(lightness: np.ndarray, scale: int, sigmas: Sequence[float]) -> 
     ----------
     lightness : (H, W) float32 ndarray
         The photo's CIE L* (0..100) at full resolution
-        (:func:`core.classify.features.full_lab` ``[..., 0]``).
+        (:func:`core.classify.lab.full_lab` ``[..., 0]``).
     scale : int
-        Block size in pixels (the blocks of :func:`~core.classify.features.coarse_lab`:
+        Block size in pixels (the blocks of :func:`~core.classify.lab.coarse_lab`:
         block (i, j) covers rows ``i*scale .. i*scale+scale-1``, edge-replicated
         past the photo).
     sigmas : sequence of float

@@ -65,9 +65,9 @@ def texture_features(full: np.ndarray, lab: np.ndarray, scale: int,
     Parameters
     ----------
     full : (H, W, 3) float32 ndarray
-        The photo's Lab at full resolution (:func:`core.classify.features.full_lab`).
+        The photo's Lab at full resolution (:func:`core.classify.lab.full_lab`).
     lab : (h, w, 3) float32 ndarray
-        Its block means (:func:`core.classify.features.block_lab` of ``full``).
+        Its block means (:func:`core.classify.lab.block_lab` of ``full``).
     scale : int
     sigmas : sequence of float
         Context scales in coarse pixels.
