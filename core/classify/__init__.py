@@ -17,7 +17,8 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   classifier file or a shipped model by name (``aerial``), with class names.
 
 Modules: ``photo`` (input checks), ``lab`` (the photo in Lab, per pixel and
-per block), ``features`` (the feature stack on a downscaled photo), ``texture`` (edge density and structure-tensor coherence), ``position``
+per block), ``features`` (the feature stack on a downscaled photo),
+``texture`` (edge density and structure-tensor coherence), ``position``
 (where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with
 overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,

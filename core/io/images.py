@@ -47,7 +47,7 @@ from core.io.png import (
     png_header_size,
     relabel_grey_png_as_palette,
 )
-from core.io.tiff_check import check_tiff_chunks, is_tiff
+from core.io.tiff_check import check_tiff_chunks
 
 #: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
 OIIO_PIXEL_TYPES = {
@@ -135,7 +135,7 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
             f"{p}: header declares {spec.width} x {spec.height} x {spec.nchannels} pixels "
             f"({declared / 2**20:,.0f} MiB) from a {p.stat().st_size:,}-byte file: damaged "
             "or forged")
-    if is_tiff(p):
+    if inp.format_name() == "tiff":
         try:
             check_tiff_chunks(p)
         except CorruptFileError:

@@ -17,17 +17,6 @@ from pathlib import Path
 
 from core.errors import CorruptFileError
 
-TIFF_MAGICS = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
-
-
-def is_tiff(path: Path) -> bool:
-    """Whether the file starts with a TIFF or BigTIFF signature."""
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(4) in TIFF_MAGICS
-    except OSError:
-        return False
-
 
 def _expected_chunks(page) -> int:
     separate = page.planarconfig == 2 and page.samplesperpixel > 1

@@ -23,7 +23,13 @@ from core.packing.batch import lookup_batch
 from core.packing.container import LayerFields, decode_layer, encode_layer
 from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
 from core.packing.lookup import build_table, scalar_lookup_function, table_runs
-from core.packing.palette import PaletteReport, as_palette, check_colours, palette_values
+from core.packing.palette import (
+    PaletteReport,
+    as_palette,
+    check_colours,
+    palette_values,
+    scalar_values,
+)
 from core.packing.scalar import quick_cells
 
 _SCALAR_TYPES = frozenset({np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
@@ -122,8 +128,7 @@ class PackedLayer:
         data = build_table(width, height, n, curve is Curve.MORTON, steps, indices)
         palette = np.ascontiguousarray(palette)
         palette.setflags(write=False)
-        # What a scalar lookup returns for each palette index, ready-made (like image[y, x]).
-        scalars = list(palette[:, 0]) if squeeze else list(palette)
+        scalars = scalar_values(palette, bool(squeeze))
         return cls(int(width), int(height), curve, palette, bool(identity), bool(squeeze),
                    data, scalars, report, colours)
 

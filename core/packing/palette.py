@@ -243,3 +243,16 @@ def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
         return values if squeeze else values[..., None]
     values = palette[indices]
     return values[..., 0] if squeeze else values
+
+
+def scalar_values(palette: np.ndarray, squeeze: bool) -> list:
+    """What a scalar lookup returns for each palette index, ready-made (as ``image[y, x]``).
+
+    Parameters
+    ----------
+    palette : (K, C) ndarray
+    squeeze : bool
+        The layer is a 2-D image: each value is the palette's first channel (a numpy
+        scalar), else its ``(C,)`` row.
+    """
+    return list(palette[:, 0]) if squeeze else list(palette)

@@ -35,7 +35,7 @@ from core.packing.joined import join_tables
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
 from core.packing.lookup import scalar_lookup_function, table_runs
-from core.packing.palette import palette_values
+from core.packing.palette import palette_values, scalar_values
 from core.packing.scalar import QUICK_MIN_BITS, tiled_quick_cells
 
 #: Tile side used when none is asked for: the largest a packed layer has.
@@ -224,11 +224,9 @@ class TiledLayer:
             # values of palette indices, and for a joined table the compiled call on it.
             cells = tiled_quick_cells([t.table for t in decoded], self.tiles_x, self.width,
                                       self.height)
-            values = [self.values_of(np.asarray(i, np.uint8))[()]
-                      for i in range(len(self.palette))]
             self._cache["quick"] = () if cells is None else (
-                cells, self.width, values, None if joined is None else scalar_lookup_function(),
-                joined)
+                cells, self.width, scalar_values(self.palette, self.squeeze),
+                None if joined is None else scalar_lookup_function(), joined)
             if joined is not None:
                 self._cache[key] = (joined, None)
                 return self._cache[key]

@@ -96,14 +96,12 @@ def photo_extent(project: ThematicTexture) -> tuple[int, int]:
     size = project.metadata.get("photo_size")
     if size is None:
         return tw, th
-    whole = isinstance(size, list | tuple) and len(size) == 2 and all(
-        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-        and v == int(v) for v in size)
-    w, h = (int(v) for v in size) if whole else (0, 0)
-    if not whole or w < 1 or h < 1:
+    # Two JSON numbers (not bools), finite, whole and at least 1.
+    if not (isinstance(size, list | tuple) and len(size) == 2 and all(
+            type(v) in (int, float) and math.isfinite(v) and v == int(v) >= 1 for v in size)):
         raise TerrathemeError(f"metadata photo_size must be two positive whole numbers "
                               f"(width, height), got {size!r}"[:200])
-    return min(w, tw), min(h, th)
+    return min(int(size[0]), tw), min(int(size[1]), th)
 
 
 def render_georeference(project: ThematicTexture, region: tuple[int, int, int, int],
