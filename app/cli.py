@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import app.commands
 from core import __version__
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 
 
 def _command_modules() -> list:
@@ -51,6 +51,16 @@ def _one_line(text: str) -> str:
     return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
 
 
+def flag_of(field: str) -> str:
+    """The CLI flag of an options field (``reduce_palette`` -> ``--reduce-palette``)."""
+    return "--" + field.replace("_", "-")
+
+
+def _error_text(exc: TerrathemeError) -> str:
+    """The library's message, options spelled as this CLI's flags."""
+    return exc.spelled(flag_of) if isinstance(exc, OptionError) else str(exc)
+
+
 def _os_error(exc: OSError) -> str:
     where = exc.filename if exc.filename is not None else ""
     why = exc.strerror or str(exc)
@@ -74,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except TerrathemeError as exc:
-        print(f"{name}: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"{name}: error: {_one_line(_error_text(exc))}", file=sys.stderr)
     except MemoryError:
         print(f"{name}: error: not enough memory for this input", file=sys.stderr)
     except BrokenPipeError:

@@ -86,7 +86,14 @@ def test_errors_are_one_line_and_write_nothing(tmp_path, project, capsys):
     path, _ = project
     capsys.readouterr()
     _error(capsys, ["export", str(path), str(tmp_path / "x"), "--engine", "unity",
-                    "--size", "100x100"], "not a Unity alphamap resolution")
+                    "--size", "100x100"], "--size 100 is not a Unity alphamap resolution")
+    assert not (tmp_path / "x").exists()
+    _error(capsys, ["export", str(path), str(tmp_path / "x"), "--engine", "unreal",
+                    "--tile", "100"], "--tile 100 is not a recommended Unreal landscape size")
+    _error(capsys, ["export", str(path), str(tmp_path / "x"), "--engine", "godot",
+                    "--tile", "64"], "export it without --tile")
+    _error(capsys, ["export", str(path), str(tmp_path / "x"), "--engine", "geotiff",
+                    "--size", "64x64"], "--size and --tile are for engine exports")
     assert not (tmp_path / "x").exists()
     _error(capsys, ["export", str(path), str(path), "--engine", "unity"], "is a file")
     _error(capsys, ["export", str(tmp_path / "none.ttproj"), str(tmp_path / "y"), "--engine",

@@ -112,7 +112,7 @@ def test_manifest_and_no_georeference(tmp_path, exported):
     plain = ThematicTexture(project.grid, project.library, {})
     plan = plan_export(plain, ExportOptions(Engine.GEOTIFF))
     assert "no georeference" in plan.notes[0]
-    with pytest.raises(TerrathemeError, match="--size and --tile are for engine exports"):
+    with pytest.raises(TerrathemeError, match="size and tile are for engine exports"):
         plan_export(plain, ExportOptions(Engine.GEOTIFF, tile=512))
 
 

@@ -122,7 +122,7 @@ def test_textures_of_different_sizes_are_resampled_to_one(tmp_path):
 
 def test_what_terrain3d_cannot_take_is_refused(tmp_path):
     project = _project(np.zeros((3, 5), np.uint8))
-    with pytest.raises(TerrathemeError, match="without --tile"):
+    with pytest.raises(TerrathemeError, match="without tile"):
         plan_export(project, ExportOptions(Engine.GODOT, tile=64))
     with pytest.raises(TerrathemeError, match="one vertex spacing"):
         plan_export(project, ExportOptions(Engine.GODOT, size=(9, 9)))

@@ -121,10 +121,10 @@ def test_sizes_unity_refuses(grid):
         plan_export(project, ExportOptions(Engine.UNITY, size=(100, 100)))
     with pytest.raises(TerrathemeError, match="square"):
         plan_export(project, ExportOptions(Engine.UNITY, size=(64, 128)))
-    with pytest.raises(TerrathemeError, match="--tile 17 is not a Unity"):
+    with pytest.raises(TerrathemeError, match="^tile 17 is not a Unity"):
         plan_export(project, ExportOptions(Engine.UNITY, tile=17))
     with pytest.raises(TerrathemeError, match=r"k \* 31 \+ 1"):
         plan_export(project, ExportOptions(Engine.UNITY, size=(100, 94), tile=32))
     wide = _project(np.zeros((2, 313), np.uint8), (16, 16))
     plan = plan_export(wide, ExportOptions(Engine.UNITY))
-    assert plan.layout.size == (4096, 4096) and "--tile" in plan.notes[0]
+    assert plan.layout.size == (4096, 4096) and "tiles of 4096" in plan.notes[0]

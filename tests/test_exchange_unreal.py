@@ -81,7 +81,7 @@ def test_sizes_unreal_refuses():
         plan_export(project, ExportOptions(Engine.UNREAL, size=(500, 505)))
     with pytest.raises(TerrathemeError, match="mixes component sizes"):
         plan_export(project, ExportOptions(Engine.UNREAL, size=(505, 8129)))
-    with pytest.raises(TerrathemeError, match="--tile 100 is not"):
+    with pytest.raises(TerrathemeError, match="^tile 100 is not"):
         plan_export(project, ExportOptions(Engine.UNREAL, tile=100))
     assert plan_export(project, ExportOptions(Engine.UNREAL, size=(1009, 505))).layout.size == \
         (1009, 505)

@@ -112,7 +112,7 @@ def test_rgb_palette_reduction(tmp_path, capsys):
     out = tmp_path / "photo.ttp"
     assert main(["pack", str(png), str(out)]) == 2
     err = capsys.readouterr().err
-    assert "more than the 256" in err and err.count("\n") == 1
+    assert "more than the 256" in err and "(--reduce-palette)" in err and err.count("\n") == 1
     assert not out.exists()
     assert main(["pack", str(png), str(out), "--reduce-palette"]) == 0
     assert "palette reduced from" in capsys.readouterr().out

@@ -6,6 +6,8 @@ import argparse
 import contextlib
 from collections.abc import Iterator
 
+from core.errors import TerrathemeError
+
 NAME = "pack"
 HELP = "pack an index image (<= 256 colours) into a random-access space-filling-curve layer"
 ORDER = 50
@@ -23,14 +25,12 @@ def _tile(text: str) -> int:
 @contextlib.contextmanager
 def _naming(path: str) -> Iterator[None]:
     """The library's errors about the image being packed, with the file's name in front."""
-    from core.errors import TerrathemeError
-
     try:
         yield
     except TerrathemeError as exc:
         if str(exc).startswith(str(path)):
             raise
-        raise type(exc)(f"{path}: {exc}") from None
+        raise exc.at(path) from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -56,7 +56,6 @@ def run(args: argparse.Namespace) -> int:
 
     from app.outputs import check_outputs
     from app.progress import progress_bar
-    from core.errors import TerrathemeError
     from core.io.images import image_info
     from core.packing import pack, pack_file
     from core.packing.index_png import read_index_image

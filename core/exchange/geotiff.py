@@ -29,7 +29,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import OptionError
 from core.exchange.cog import box_half, nearest_half, write_cog
 from core.exchange.layout import world_frame
 from core.exchange.options import ExportOptions
@@ -51,10 +51,10 @@ Progress = Callable[[int, int], None]
 
 
 def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
-    """List the files of a GIS export (``--size`` and ``--tile`` are for engine maps)."""
+    """List the files of a GIS export (``size`` and ``tile`` are for engine maps)."""
     if options.size is not None or options.tile is not None:
-        raise TerrathemeError("the GeoTIFF export is at one pixel per texel, tiled inside the "
-                              "file with overviews: --size and --tile are for engine exports")
+        raise OptionError("the GeoTIFF export is at one pixel per texel, tiled inside the "
+                          "file with overviews: {size} and {tile} are for engine exports")
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     notes = () if project.metadata.get("georeference") else (
         "the project has no georeference (not made from a GeoTIFF): the TIFFs carry none",)

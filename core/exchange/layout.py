@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 from core.io.georef import world_file_lines
 
 #: most pixels one weight or control map may hold (bounded work per export)
@@ -72,9 +72,9 @@ class ExportLayout:
         if w < 2 or h < 2:
             raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {w} x {h}")
         if w * h > MAX_MAP_PIXELS:
-            raise TerrathemeError(
+            raise OptionError(
                 f"an export map of {w} x {h} pixels is larger than {MAX_MAP_PIXELS:,} pixels; "
-                "use --tile or a smaller --size"
+                "use {tile} or a smaller {size}"
             )
         if self.tile is not None:
             t = self.tile

@@ -54,7 +54,7 @@ import cv2
 import numpy as np
 import OpenImageIO as oiio
 
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 from core.exchange.colour import gain_at_pixels, linear_gain
 from core.exchange.layout import ExportLayout, world_frame
 from core.exchange.options import ExportOptions
@@ -168,19 +168,19 @@ def write_control_map(path: str | Path, control: np.ndarray) -> None:
 
 def terrain3d_layout(grid_shape: tuple[int, int], texture_size: tuple[int, int],
                      texel_size: tuple[float, float], options: ExportOptions) -> ExportLayout:
-    """One control map: one pixel per grid vertex by default, or ``--size``; never tiled."""
+    """One control map: one pixel per grid vertex by default, or ``size``; never tiled."""
     if options.tile is not None:
-        raise TerrathemeError("Terrain3D cuts one control map into regions itself on import: "
-                              "export it without --tile")
+        raise OptionError("Terrain3D cuts one control map into regions itself on import: "
+                          "export it without {tile}")
     size = options.size or (grid_shape[1], grid_shape[0])
     layout = ExportLayout(size)
     # Terrain3D has one vertex spacing for both axes.
     (wtex, htex), (sx, sy) = texture_size, texel_size
     gx, gy = wtex * sx / (size[0] - 1), htex * sy / (size[1] - 1)
     if abs(gx - gy) > 1e-6 * max(gx, gy):
-        raise TerrathemeError(
+        raise OptionError(
             f"a {size[0]} x {size[1]} control map spaces its vertices {gx:.6g} x {gy:.6g} apart; "
-            "Terrain3D needs one vertex spacing: pick --size with (W - 1) : (H - 1) = "
+            "Terrain3D needs one vertex spacing: pick {size} with (W - 1) : (H - 1) = "
             f"{wtex * sx:.6g} : {htex * sy:.6g}")
     return layout
 
@@ -205,7 +205,7 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     if project.colour_map is not None and spacing > project.colour_map.scale:
         notes.append(f"the colour map (a pixel per {project.colour_map.scale} texels) is sampled "
                      f"at the control map's vertices (one per {spacing:g} texels); "
-                     f"--size {wtex + 1}x{htex + 1} keeps it (a vertex per texel)")
+                     f"a {wtex + 1} x {htex + 1} map keeps it (a vertex per texel)")
     colour = () if project.colour_map is None else (COLOUR_MAP,)
     files = (CONTROL_MAP, *colour, *theme_files(project), MANIFEST)
     return ExportPlan(options, layout, world, files, tuple(notes))

@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import OptionError
 from core.exchange.cog import box_half, write_cog
 from core.exchange.geotiff import geotiff_tags
 from core.model.project import ThematicTexture
@@ -74,10 +74,10 @@ def write_texture_tiff(
         region = (0, 0, *photo_extent(project))
     x, y, w, h = validate_region(region, project.grid.texture_size)
     if 3 * w * h > MAX_LEVEL_BYTES:
-        raise TerrathemeError(f"{path}: a {w} x {h} render is {3 * w * h / 2**30:.1f} GiB of "
-                              f"pixels; the tiled GeoTIFF writer holds at most "
-                              f"{MAX_LEVEL_BYTES / 2**30:.1f} GiB (classic TIFF levels): render "
-                              "it in regions (--region)")
+        raise OptionError(f"{path}: a {w} x {h} render is {3 * w * h / 2**30:.1f} GiB of "
+                          f"pixels; the tiled GeoTIFF writer holds at most "
+                          f"{MAX_LEVEL_BYTES / 2**30:.1f} GiB (classic TIFF levels): render "
+                          "it in regions ({region})")
     bands = -(-h // TILE)
     done = [0]
 

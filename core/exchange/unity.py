@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 from core.exchange.colour import COLOUR_MAP, unity_colour_st
 from core.exchange.layout import ExportLayout, tiled_layout
 from core.exchange.options import ExportOptions
@@ -59,10 +59,10 @@ SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / "TerrathemeImporte
 Progress = Callable[[int, int], None]
 
 
-def _check_resolution(r: int, what: str) -> None:
+def _check_resolution(r: int, field: str) -> None:
     if r not in UNITY_RESOLUTIONS:
-        raise TerrathemeError(
-            f"{what} {r} is not a Unity alphamap resolution (a power of two from 16 to 4096: "
+        raise OptionError(
+            f"{{{field}}} {r} is not a Unity alphamap resolution (a power of two from 16 to 4096: "
             f"{', '.join(map(str, UNITY_RESOLUTIONS))})"
         )
 
@@ -82,16 +82,16 @@ def unity_layout(texture_size: tuple[int, int], options: ExportOptions
         if options.size is not None:
             w, h = options.size
             if w != h:
-                raise TerrathemeError(f"Unity's alphamap is square: --size {w}x{h} is not")
-            _check_resolution(w, "--size")
+                raise OptionError(f"Unity's alphamap is square: {{size}} {w}x{h} is not")
+            _check_resolution(w, "size")
             return ExportLayout((w, w)), notes
         want = max(wtex, htex, 16)
         r = min(4096, 1 << (want - 1).bit_length())
         if r < want:
             notes.append(f"the {wtex} x {htex} texture is sampled on one 4096 alphamap; "
-                         "use --tile 4096 (or smaller) to keep every texel")
+                         "tiles of 4096 (or smaller) keep every texel")
         return ExportLayout((r, r)), notes
-    _check_resolution(options.tile, "--tile")
+    _check_resolution(options.tile, "tile")
     return tiled_layout(texture_size, options.tile, options.size), notes
 
 

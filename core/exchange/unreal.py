@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 from core.exchange import plan as export_plan
 from core.exchange.colour import COLOUR_MAP, vertex_colour_uv
 from core.exchange.layout import ExportLayout, tiled_layout
@@ -41,9 +41,10 @@ Progress = Callable[[int, int], None]
 
 
 def _check_size(n: int, what: str) -> None:
+    """``what``: the option, as an :class:`OptionError` template (``{tile}``)."""
     if n not in UNREAL_SIZES:
-        raise TerrathemeError(f"{what} {n} is not a recommended Unreal landscape size "
-                              f"({', '.join(map(str, UNREAL_SIZES))} vertices)")
+        raise OptionError(f"{what} {n} is not a recommended Unreal landscape size "
+                          f"({', '.join(map(str, UNREAL_SIZES))} vertices)")
 
 
 def _fit(n: int) -> int:
@@ -64,20 +65,20 @@ def unreal_layout(texture_size: tuple[int, int], options: ExportOptions
     if options.tile is None:
         if options.size is not None:
             w, h = options.size
-            _check_size(w, "--size width")
-            _check_size(h, "--size height")
+            _check_size(w, "{size} width")
+            _check_size(h, "{size} height")
         else:
             w, h = _fit(wtex + 1), _fit(htex + 1)
             if max(w, h) < max(wtex, htex) + 1:
                 notes.append(f"the {wtex} x {htex} texture is sampled on an 8129 landscape; "
-                             "use --tile to keep every texel")
+                             "a tiled export keeps every texel")
         if UNREAL_SIZES[w] != UNREAL_SIZES[h]:
             if options.size is not None:
                 raise TerrathemeError(f"a {w} x {h} landscape mixes component sizes "
                                       f"({UNREAL_SIZES[w]} and {UNREAL_SIZES[h]} quads)")
             w = h = max(w, h)
         return ExportLayout((w, h)), notes
-    _check_size(options.tile, "--tile")
+    _check_size(options.tile, "{tile}")
     return tiled_layout(texture_size, options.tile, options.size), notes
 
 

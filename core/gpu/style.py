@@ -59,7 +59,7 @@ def gpu_style(options: GpuRenderOptions, cell: tuple[int, int], texture_size: tu
     if border is not None and border.lattice > MAX_LATTICE:
         raise TerrathemeError(f"shaped borders with a {border.lattice}-texel noise lattice "
                               f"are beyond the GPU renderer's exact range (up to "
-                              f"{MAX_LATTICE}): render without --gpu")
+                              f"{MAX_LATTICE}): render it on the CPU")
     return Style(options.blend is BlendMode.HISTOGRAM, border, colour_map)
 
 

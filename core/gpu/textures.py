@@ -208,7 +208,7 @@ def check_colour_map(colour_map: ColourMap | None, texture_size: tuple[int, int]
     if colour_map.scale > MAX_COLOUR_SCALE:
         raise TerrathemeError(f"colour map scale {colour_map.scale} is beyond the GPU "
                               f"renderer's exact range (up to {MAX_COLOUR_SCALE} texels per "
-                              "map pixel): render without --gpu")
+                              "map pixel): render it on the CPU")
 
 
 def colour_map_texture(ctx: moderngl.Context, colour_map: ColourMap) -> moderngl.Texture:

@@ -251,7 +251,7 @@ def _remote_error(exc: BaseException, what: str) -> BaseException:
         return exc
     if isinstance(exc, KilledWorker):
         return TerrathemeError(f"{what} killed every dask worker that ran it (out of memory? "
-                               "try a smaller --tile)")
+                               "try smaller tiles)")
     if isinstance(exc, ImportError):
         return TerrathemeError(f"a dask worker cannot run terratheme ({exc}): install the same "
                                "terratheme on every worker")

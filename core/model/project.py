@@ -324,7 +324,7 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
         try:
             check_manifest(manifest)
         except (CorruptFileError, UnsupportedVersionError) as exc:
-            raise type(exc)(f"{path}: {exc}") from None
+            raise exc.at(path) from None
         except TerrathemeError as exc:
             raise CorruptFileError(f"{path}: {exc}") from None
         # Arrays: each checked against its limit and the bytes present before it is read.

@@ -9,7 +9,7 @@ import numpy as np
 
 from core.curves.scan import scan_runs
 from core.curves.square import Curve
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 from core.packing import palette as _palette
 from core.packing.layer import PackedLayer
 from core.packing.palette import MAX_COLOURS, PaletteReport, check_image, colour_keys, image_runs
@@ -80,9 +80,9 @@ class TilePalette:
         fresh, first = np.unique(keys[~known], return_index=True)
         self.keys = np.concatenate([self.keys, fresh[np.argsort(first, kind="stable")]])
         if self.keys.size > MAX_COLOURS:
-            raise TerrathemeError(
+            raise OptionError(
                 f"image has more than the {MAX_COLOURS} colours a packed layer holds: "
-                "reduce the palette (--reduce-palette / reduce_palette=True)")
+                "reduce the palette ({reduce_palette})")
         # Sorted keys, then each key's place in the palette.
         order = np.argsort(self.keys)
         return order[np.searchsorted(self.keys[order], keys)].astype(np.uint8)

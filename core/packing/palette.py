@@ -22,7 +22,7 @@ import numpy as np
 
 from core.curves.scan import scan_runs
 from core.curves.square import MAX_SIDE, Curve
-from core.errors import TerrathemeError
+from core.errors import OptionError, TerrathemeError
 
 MAX_COLOURS = 256
 SUPPORTED_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))
@@ -134,9 +134,9 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
     steps, values = scan_runs(colour_keys(arr), curve)
     uniq, first, inverse = np.unique(values, return_index=True, return_inverse=True)
     if uniq.size > MAX_COLOURS:
-        raise TerrathemeError(
+        raise OptionError(
             f"image has {uniq.size} colours, more than the {MAX_COLOURS} a packed layer holds: "
-            "reduce the palette (--reduce-palette / reduce_palette=True)"
+            "reduce the palette ({reduce_palette})"
         )
     order = np.argsort(first, kind="stable")
     rank = np.empty(uniq.size, dtype=np.uint8)
