@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.edit import EditDocument, RenderPreview
+from core.edit import ClassificationUpdate, EditDocument, RenderPreview
 from core.model.colour_map import NEUTRAL, ColourMap
 from core.model.grid import IndexGrid
 from core.model.project import ThematicTexture
@@ -68,7 +68,8 @@ def test_the_live_preview_follows_the_map():
 def test_new_themes_of_a_classification_drop_the_map():
     doc = _doc()
     new = [Theme("rock", (90, 90, 90), np.full((4, 4, 3), 90, np.uint8))]
-    doc.apply_classification(np.zeros((9, 11), np.uint8), new_themes=new, replace_themes=True)
+    doc.apply_classification(ClassificationUpdate(np.zeros((9, 11), np.uint8), new_themes=new,
+                                                  replace_themes=True))
     assert doc.texture.colour_map is None
     doc.undo()
     assert doc.texture.colour_map is not None

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core.edit import (
+    ClassificationUpdate,
     EditDocument,
     Emitter,
     GridChange,
@@ -190,7 +191,7 @@ def test_a_classification_with_new_themes_is_one_undo_step():
     grid = np.zeros((7, 9), np.uint8)
     grid[:, 4:] = 4  # the second new theme
     conf = np.full(PHOTO, 0.5)
-    step = doc.apply_classification(grid, new_themes=new, confidence=conf)
+    step = doc.apply_classification(ClassificationUpdate(grid, new_themes=new, confidence=conf))
     assert step.label == "classification" and len(doc.history.undo_steps) == 1
     assert doc.library.names[3:] == ["class 0", "class 1"] and doc.confidence.mean() == 0.5
     np.testing.assert_array_equal(doc.indices, grid)
@@ -207,7 +208,7 @@ def test_a_classification_can_replace_the_themes():
     before = list(doc.library)
     classes = [Theme(f"c{i}", (i, 0, 0), np.full((2, 2, 3), i, np.uint8)) for i in range(2)]
     grid = np.ones((7, 9), np.int64)
-    doc.apply_classification(grid, new_themes=classes, replace_themes=True)
+    doc.apply_classification(ClassificationUpdate(grid, new_themes=classes, replace_themes=True))
     assert doc.library.names == ["c0", "c1"] and (doc.indices == 1).all()
     doc.undo()
     assert list(doc.library) == before and not doc.indices.any()
@@ -218,16 +219,18 @@ def test_a_classification_can_replace_the_themes():
 def test_classification_results_are_checked_first():
     doc = make_doc()
     with pytest.raises(TerrathemeError, match=r"theme indices 0\.\.2"):
-        doc.apply_classification(np.full((7, 9), 3))
+        doc.apply_classification(ClassificationUpdate(np.full((7, 9), 3)))
     with pytest.raises(TerrathemeError, match="shape"):
-        doc.apply_classification(np.zeros((3, 3), np.uint8))
+        doc.apply_classification(ClassificationUpdate(np.zeros((3, 3), np.uint8)))
     with pytest.raises(TerrathemeError, match="needs themes"):
-        doc.apply_classification(np.zeros((7, 9), np.uint8), replace_themes=True)
+        doc.apply_classification(ClassificationUpdate(np.zeros((7, 9), np.uint8),
+                                                      replace_themes=True))
     with pytest.raises(TerrathemeError, match="confidence map does not fit"):
-        doc.apply_classification(np.zeros((7, 9), np.uint8), confidence=np.ones((2, 2)))
+        doc.apply_classification(ClassificationUpdate(np.zeros((7, 9), np.uint8),
+                                                      confidence=np.ones((2, 2))))
     assert len(doc.library) == 3 and not doc.history.can_undo
     # The same grid and no map: nothing to record.
-    assert doc.apply_classification(np.zeros((7, 9), np.uint8)) is None
+    assert doc.apply_classification(ClassificationUpdate(np.zeros((7, 9), np.uint8))) is None
 
 
 def test_a_new_photo_takes_the_scribbles_that_no_longer_fit():

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core.edit import (
+    ClassificationUpdate,
     ConfidenceChange,
     EditDocument,
     KeptPrior,
@@ -111,21 +112,21 @@ def test_document_kept_prior(doc):
         doc.end_stroke()
     assert doc.scribble_classes() == {1, 2} and doc.prior_for_scribbles() is None
     grid = doc.indices.copy()
-    doc.apply_classification(grid, scribble_classes=frozenset({1, 2}),
-                             class_weights={1: 1.0, 2: 0.3})
+    doc.apply_classification(ClassificationUpdate(grid, scribble_classes=frozenset({1, 2}),
+                                                  class_weights={1: 1.0, 2: 0.3}))
     assert doc.prior_for_scribbles() == {1: 1.0, 2: 0.3}
     # Correction strokes of the same classes keep it; the kept run's own weights do not win.
     doc.begin_stroke(2, (10, 50), 1.0, Layer.SCRIBBLES)
     doc.end_stroke()
-    doc.apply_classification(grid, scribble_classes=frozenset({1, 2}),
-                             class_weights={1: 0.6, 2: 1.0})
+    doc.apply_classification(ClassificationUpdate(grid, scribble_classes=frozenset({1, 2}),
+                                                  class_weights={1: 0.6, 2: 1.0}))
     assert doc.prior_for_scribbles() == {1: 1.0, 2: 0.3}
     # A new class: estimate afresh (and that run's weights are kept).
     doc.begin_stroke(3, (60, 60), 1.0, Layer.SCRIBBLES)
     doc.end_stroke()
     assert doc.prior_for_scribbles() is None
-    doc.apply_classification(grid, scribble_classes=frozenset({1, 2, 3}),
-                             class_weights={1: 1.0, 2: 0.5, 3: 0.25})
+    doc.apply_classification(ClassificationUpdate(grid, scribble_classes=frozenset({1, 2, 3}),
+                                                  class_weights={1: 1.0, 2: 0.5, 3: 0.25}))
     assert doc.kept_prior.classes == {1, 2, 3}
     # Erasing every stroke drops it, in the erasing step; undo brings both back.
     doc.replace_scribbles(np.zeros((64, 96), np.uint8))

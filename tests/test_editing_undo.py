@@ -32,7 +32,7 @@ from hypothesis.stateful import (
     run_state_machine_as_test,
 )
 
-from core.edit import EditAtom, EditDocument, Layer, RenderPreview
+from core.edit import ClassificationUpdate, EditAtom, EditDocument, Layer, RenderPreview
 from core.errors import TerrathemeError
 from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid
@@ -247,9 +247,9 @@ class UndoMachine(RuleBasedStateMachine):
         conf = rng.random(d.photo.shape[:2]) if with_conf and d.photo is not None else None
         classes = d.scribble_classes() if scribble_run else None
         weights = {c: float(rng.random()) for c in classes} if classes else None
-        self._edit(lambda: d.apply_classification(
+        self._edit(lambda: d.apply_classification(ClassificationUpdate(
             indices, new_themes=themes, replace_themes=replace, confidence=conf,
-            scribble_classes=classes, class_weights=weights))
+            scribble_classes=classes, class_weights=weights)))
 
     # -- history ------------------------------------------------------------------
     @rule()

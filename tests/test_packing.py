@@ -174,7 +174,8 @@ def test_lookup_errors():
 def test_too_many_colours_refused_then_reduced():
     rng = np.random.default_rng(3)
     img = rng.integers(0, 256, (40, 50, 3)).astype(np.uint8)
-    with pytest.raises(TerrathemeError, match=r"2\d\d\d colours, more than the 256.*palette \(reduce_palette\)$"):
+    with pytest.raises(TerrathemeError,
+                       match=r"2\d\d\d colours, more than the 256.*palette \(reduce_palette\)$"):
         pack(img)
     layer = pack(img, reduce_palette=True)
     report = layer.report

@@ -86,7 +86,8 @@ def test_memory_is_set_by_the_band_not_the_height(tmp_path):
 def test_too_large_for_the_writer_is_refused_before_work(tmp_path):
     big = ThematicTexture(IndexGrid(np.zeros((2401, 2401), np.uint8), (16, 16)),
                           shipped_theme_library().select(("sand",)), {})
-    with pytest.raises(TerrathemeError, match=r"38400 x 38400 render is 4\.1 GiB.*regions \(region\)"):
+    with pytest.raises(TerrathemeError,
+                       match=r"38400 x 38400 render is 4\.1 GiB.*regions \(region\)"):
         write_texture_tiff(big, tmp_path / "big.tif")
     assert not list(tmp_path.iterdir())
 

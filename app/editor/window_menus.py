@@ -15,6 +15,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressBar, QPushButto
 from app.editor.classify_job import ClassifyJob, ClassifyResult, Mode, keep_alive
 from app.editor.document import EditorDocument
 from app.editor.newproject import empty_project
+from core.edit import ClassificationUpdate
 from core.errors import TerrathemeError
 
 PROJECT_FILTER = "terratheme project (*.ttproj)"
@@ -273,11 +274,11 @@ class MenuMixin:
         unchanged = not result.new_themes and np.array_equal(indices, doc.texture.grid.indices)
         scribble_run = job.args[0] is Mode.SCRIBBLES
         try:
-            model.apply_classification(
+            model.apply_classification(ClassificationUpdate(
                 indices, new_themes=result.new_themes, replace_themes=fresh,
                 confidence=result.confidence,
                 scribble_classes=result.scribble_classes if scribble_run else None,
-                class_weights=result.class_weights)
+                class_weights=result.class_weights))
         except TerrathemeError as exc:
             self.show_error(f"Classification result not applied:\n{exc}")
             return

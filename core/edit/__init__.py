@@ -21,7 +21,7 @@ Modules, from the bottom up:
 
 from core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
 from core.edit.changes import Change
-from core.edit.classification import classification_changes
+from core.edit.classification import ClassificationUpdate, classification_changes
 from core.edit.document import EditDocument
 from core.edit.events import (
     ColourMapChange,
@@ -67,6 +67,7 @@ __all__ = [
     "UNCERTAIN_SHARE",
     "Atom",
     "Change",
+    "ClassificationUpdate",
     "ConfidenceChange",
     "Connectivity",
     "DocumentEvents",

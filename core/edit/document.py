@@ -13,7 +13,7 @@ confidence (:meth:`EditDocument.apply_classification`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 
 import numpy as np
@@ -32,7 +32,7 @@ from core.edit.changes import (
     neutral_under,
     photo_replacement,
 )
-from core.edit.classification import classification_changes
+from core.edit.classification import ClassificationUpdate, classification_changes
 from core.edit.events import DocumentEvents, Event, HistoryChange
 from core.edit.history import History, Step
 from core.edit.layers import DocumentData, Layer
@@ -310,40 +310,13 @@ class EditDocument:
             return None
         return self._commit(label, [SwapLayer(Layer.CONFIDENCE, self.confidence, new)])
 
-    def apply_classification(
-        self,
-        indices: np.ndarray,
-        *,
-        new_themes: Sequence[Theme] = (),
-        replace_themes: bool = False,
-        confidence: np.ndarray | None = None,
-        scribble_classes: frozenset[int] | None = None,
-        class_weights: Mapping[int, float] | None = None,
-        label: str = "classification",
-    ) -> Step | None:
+    def apply_classification(self, update: ClassificationUpdate, label: str = "classification"
+                             ) -> Step | None:
         """A classification result as one undo step: themes, grid, confidence, prior.
-
-        Parameters
-        ----------
-        indices : (gh+1, gw+1) integer ndarray
-            The new grid, indexing the library after the change: the current
-            themes then ``new_themes``, or (``replace_themes``) ``new_themes`` alone.
-        new_themes : sequence of Theme
-            Themes cut from the photo for the classes.
-        replace_themes : bool
-            The library becomes ``new_themes`` (a project just started over a photo).
-        confidence : (H, W) float ndarray in [0, 1] or None
-            Replaces the old map (None clears it: it was another result's).
-        scribble_classes, class_weights :
-            Scribble runs: the classes trained on and the model's class-prior
-            weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
 
         Returns None when nothing changed (the same grid and themes, no map).
         """
-        changes = classification_changes(
-            self.data, indices, new_themes=new_themes, replace_themes=replace_themes,
-            confidence=confidence, scribble_classes=scribble_classes,
-            class_weights=class_weights)
+        changes = classification_changes(self.data, update)
         return self._commit(label, changes) if changes else None
 
     # -- history -------------------------------------------------------------------

@@ -43,14 +43,11 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-
-if TYPE_CHECKING:
-    from core.packing.tiled_format import TiledHeader
 
 MAGIC = b"TTPK"
 #: Highest format version this build reads.
@@ -93,22 +90,33 @@ class LayerFields(NamedTuple):
     colours: np.ndarray | None = None
 
 
-class LayerHeader(NamedTuple):
-    """The fixed header of a layer file, checked (:func:`read_header`)."""
+class ValueFormat(NamedTuple):
+    """How texel values are stored: the palette and display colours after a header.
 
-    version: int
-    encoding: int
-    curve: int
+    Shared by a layer file's header (:class:`LayerHeader`) and a tiled
+    container's (``core.packing.tiled_format.TiledHeader``).
+    """
+
     squeeze: bool
     identity: bool
     colour_channels: int
     channels: int
     sample: int
     k: int
-    width: int
-    height: int
-    runs: int
-    payload: int
+
+    @classmethod
+    def from_flags(cls, flags: int, channels: int, sample: int, k: int) -> ValueFormat:
+        """The format a header's flag bits and palette fields describe."""
+        colour_channels = (4 if flags & FLAG_ALPHA else 3) if flags & FLAG_COLOURS else 0
+        return cls(bool(flags & FLAG_SQUEEZE), bool(flags & FLAG_IDENTITY), colour_channels,
+                   channels, sample, k)
+
+    @property
+    def flags(self) -> int:
+        """The header's flag bits of this format."""
+        return ((FLAG_SQUEEZE if self.squeeze else 0) | (FLAG_IDENTITY if self.identity else 0)
+                | (FLAG_COLOURS if self.colour_channels else 0)
+                | (FLAG_ALPHA if self.colour_channels == 4 else 0))
 
     @property
     def palette_bytes(self) -> int:
@@ -121,9 +129,27 @@ class LayerHeader(NamedTuple):
         return self.k * self.colour_channels
 
     @property
+    def table_bytes(self) -> int:
+        """Bytes of the palette and the colours together."""
+        return self.palette_bytes + self.colour_bytes
+
+
+class LayerHeader(NamedTuple):
+    """The fixed header of a layer file, checked (:func:`read_header`)."""
+
+    version: int
+    encoding: int
+    curve: int
+    values: ValueFormat
+    width: int
+    height: int
+    runs: int
+    payload: int
+
+    @property
     def payload_at(self) -> int:
         """Offset of the payload in the file."""
-        return HEADER.size + self.palette_bytes + self.colour_bytes
+        return HEADER.size + self.values.table_bytes
 
     @property
     def file_bytes(self) -> int:
@@ -239,10 +265,8 @@ def read_header(data: bytes, *, name: str) -> LayerHeader:
     for ok, what in checks:
         if not ok:
             raise CorruptFileError(f"{name}: bad header: {what}")
-    colour_channels = (4 if flags & FLAG_ALPHA else 3) if flags & FLAG_COLOURS else 0
-    return LayerHeader(version, encoding, curve, bool(flags & FLAG_SQUEEZE),
-                       bool(flags & FLAG_IDENTITY), colour_channels, channels, sample, k,
-                       width, height, runs, payload)
+    values = ValueFormat.from_flags(flags, channels, sample, k)
+    return LayerHeader(version, encoding, curve, values, width, height, runs, payload)
 
 
 def check_file(data: bytes, *, name: str) -> LayerHeader:
@@ -259,32 +283,31 @@ def check_file(data: bytes, *, name: str) -> LayerHeader:
     return head
 
 
-def read_palette(data: bytes, head: LayerHeader | TiledHeader, *,
-                 at: int = HEADER.size) -> np.ndarray:
+def read_palette(data: bytes, values: ValueFormat, *, at: int = HEADER.size) -> np.ndarray:
     """The ``(K, C)`` palette of a checked file (the identity ``0 .. K-1`` when not stored).
 
-    ``head`` is a layer's or a tiled container's header; the palette starts at
-    byte ``at``, right after that header (``core.packing.tiled_format.HEADER.size``
+    ``values`` is a layer's or a tiled container's header's; the palette starts
+    at byte ``at``, right after that header (``core.packing.tiled_format.HEADER.size``
     for a container), and the display colours follow it.
     """
-    dtype = np.dtype("<u1" if head.sample == 1 else "<u2")
-    if head.identity:
-        palette = np.arange(head.k, dtype=dtype)[:, None]
+    dtype = np.dtype("<u1" if values.sample == 1 else "<u2")
+    if values.identity:
+        palette = np.arange(values.k, dtype=dtype)[:, None]
     else:
-        palette = np.frombuffer(data, dtype=dtype, count=head.k * head.channels,
-                                offset=at).reshape(head.k, head.channels)
+        palette = np.frombuffer(data, dtype=dtype, count=values.k * values.channels,
+                                offset=at).reshape(values.k, values.channels)
     return palette.astype(dtype.newbyteorder("="))
 
 
-def read_colours(data: bytes, head: LayerHeader | TiledHeader, *,
+def read_colours(data: bytes, values: ValueFormat, *,
                  at: int = HEADER.size) -> np.ndarray | None:
     """The ``(K, 3|4)`` uint8 display colours of a checked file, or None (``at`` as for
     :func:`read_palette`)."""
-    if not head.colour_channels:
+    if not values.colour_channels:
         return None
-    flat = np.frombuffer(data, np.uint8, count=head.k * head.colour_channels,
-                         offset=at + head.palette_bytes)
-    return flat.reshape(head.k, head.colour_channels).copy()
+    flat = np.frombuffer(data, np.uint8, count=values.k * values.colour_channels,
+                         offset=at + values.palette_bytes)
+    return flat.reshape(values.k, values.colour_channels).copy()
 
 
 def decode_layer(data: bytes, *, name: str) -> LayerFields:
@@ -292,18 +315,19 @@ def decode_layer(data: bytes, *, name: str) -> LayerFields:
     from core.packing import compact_format, plane_format, seed_format
 
     head = check_file(data, name=name)
-    palette = read_palette(data, head)
+    palette = read_palette(data, head.values)
     payload = bytes(memoryview(data)[head.payload_at: head.file_bytes - 4])
     if head.encoding == ENCODINGS["seed"]:
         lengths, indices = seed_format.decode_seed_runs(payload, head.runs, name=name)
     elif head.encoding == ENCODINGS["compact"]:
-        lengths, indices = compact_format.decode_runs(payload, head.runs, head.k, name=name)
+        lengths, indices = compact_format.decode_runs(payload, head.runs, head.values.k,
+                                                      name=name)
     else:
         lengths, indices = plane_format.decode_plane(payload, head.width, head.height,
                                                      head.curve, head.runs, name=name)
-    if indices.max() >= head.k:
-        raise CorruptFileError(
-            f"{name}: palette index {int(indices.max())} out of range (palette has {head.k})"
-        )
+    if indices.max() >= head.values.k:
+        raise CorruptFileError(f"{name}: palette index {int(indices.max())} out of range "
+                               f"(palette has {head.values.k})")
     return LayerFields(head.width, head.height, head.curve, lengths, indices, palette,
-                       head.identity, head.squeeze, read_colours(data, head))
+                       head.values.identity, head.values.squeeze,
+                       read_colours(data, head.values))

@@ -78,8 +78,8 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
     n = curve_order(head.width, head.height)
     return LayerInfo(
         width=head.width, height=head.height, curve=Curve(head.curve).name.lower(),
-        channels=head.channels, identity_palette=head.identity,
-        palette=read_palette(data, head).tolist(), run_count=head.runs,
+        channels=head.values.channels, identity_palette=head.values.identity,
+        palette=read_palette(data, head.values).tolist(), run_count=head.runs,
         file_bytes=len(data),
         memory_bytes_max=4 * table_words_max(head.width, head.height, n, head.runs),
         format=head.encoding_name, version=head.version,
@@ -105,11 +105,11 @@ def _tiled_info(fh, name: str) -> LayerInfo:
                                  curve_order(tile.width, tile.height), tile.runs)
         curves.add(Curve(tile.curve).name.lower())
         formats.add(tile.encoding_name)
-    palette = read_palette(prefix, head, at=tiled_format.HEADER.size)
+    palette = read_palette(prefix, head.values, at=tiled_format.HEADER.size)
     return LayerInfo(
         width=head.width, height=head.height,
-        curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.channels,
-        identity_palette=head.identity, palette=palette.tolist(),
+        curve=curves.pop() if len(curves) == 1 else "mixed", channels=head.values.channels,
+        identity_palette=head.values.identity, palette=palette.tolist(),
         run_count=runs, file_bytes=size, memory_bytes_max=memory, format="+".join(sorted(formats)),
         version=tiled_format.VERSION, tiles=head.tiles, tile_side=1 << head.tile_bits,
     )

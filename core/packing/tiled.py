@@ -30,7 +30,13 @@ from core.io.atomic import write_bytes_atomic
 from core.packing import tiled_format as fmt
 from core.packing.batch import lookup_batch, tiled_words
 from core.packing.container import HEADER as LAYER_HEADER
-from core.packing.container import read_colours, read_header, read_palette
+from core.packing.container import (
+    LayerHeader,
+    ValueFormat,
+    read_colours,
+    read_header,
+    read_palette,
+)
 from core.packing.joined import join_tables
 from core.packing.layer import PARALLEL_FROM, PackedLayer
 from core.packing.layout import grid_bits
@@ -125,10 +131,11 @@ class TiledLayer:
     def _open(cls, prefix: bytes, head: fmt.TiledHeader, name: str, source: object
               ) -> TiledLayer:
         offsets, lengths = fmt.read_index(prefix, head, name=name)
-        palette = read_palette(prefix, head, at=fmt.HEADER.size)
+        v = head.values
+        palette = read_palette(prefix, v, at=fmt.HEADER.size)
         palette.setflags(write=False)
-        return cls(head.width, head.height, head.tile_bits, palette, head.identity, head.squeeze,
-                   read_colours(prefix, head, at=fmt.HEADER.size), name, source, offsets, lengths)
+        return cls(head.width, head.height, head.tile_bits, palette, v.identity, v.squeeze,
+                   read_colours(prefix, v, at=fmt.HEADER.size), name, source, offsets, lengths)
 
     # ------------------------------------------------------------ the grid
 
@@ -166,7 +173,7 @@ class TiledLayer:
             fh.seek(off)
             return fh.read(n)
 
-    def tile_header(self, i: int):
+    def tile_header(self, i: int) -> LayerHeader:
         """The packed-layer header of tile ``i`` (read without decoding the tile)."""
         return read_header(self._blob(i, LAYER_HEADER.size + 4), name=self._tile_name(i))
 
@@ -353,11 +360,10 @@ def _header(width: int, height: int, tile_bits: int, palette: np.ndarray, identi
     if tx * ty > fmt.MAX_TILES:
         raise TerrathemeError(f"{tx * ty} tiles: at most {fmt.MAX_TILES}; use larger tiles")
     palette = np.asarray(palette)
-    return fmt.TiledHeader(bool(squeeze), bool(identity),
-                           0 if colours is None else int(np.asarray(colours).shape[1]),
-                           int(palette.shape[1]), int(palette.dtype.itemsize),
-                           int(palette.shape[0]), int(tile_bits), int(width), int(height),
-                           tx, ty, 0)
+    values = ValueFormat(bool(squeeze), bool(identity),
+                         0 if colours is None else int(np.asarray(colours).shape[1]),
+                         int(palette.shape[1]), int(palette.dtype.itemsize), int(palette.shape[0]))
+    return fmt.TiledHeader(values, int(tile_bits), int(width), int(height), tx, ty, 0)
 
 
 def needs_tiles(width: int, height: int) -> bool:

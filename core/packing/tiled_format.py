@@ -44,12 +44,12 @@ from typing import NamedTuple
 import numpy as np
 
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from core.packing.container import FLAG_ALPHA, FLAG_COLOURS, FLAG_IDENTITY, ValueFormat
 
 MAGIC = b"TTPT"
 VERSION = 1
 HEADER = struct.Struct("<4sBBBBHBBIIIIQ")
 INDEX_ENTRY = struct.Struct("<QQ")
-FLAG_SQUEEZE, FLAG_IDENTITY, FLAG_COLOURS, FLAG_ALPHA = 1, 2, 4, 8
 #: Largest side of a tiled layer.
 MAX_TILED_SIDE = (1 << 31) - 1
 #: Tile sides, log2.
@@ -61,12 +61,7 @@ MAX_TILES = 1 << 20
 class TiledHeader(NamedTuple):
     """The fixed part of a tiled container, checked (:func:`read_tiled_header`)."""
 
-    squeeze: bool
-    identity: bool
-    colour_channels: int
-    channels: int
-    sample: int
-    k: int
+    values: ValueFormat
     tile_bits: int
     width: int
     height: int
@@ -80,14 +75,9 @@ class TiledHeader(NamedTuple):
         return self.tiles_x * self.tiles_y
 
     @property
-    def palette_bytes(self) -> int:
-        """Bytes of the stored palette."""
-        return 0 if self.identity else self.k * self.channels * self.sample
-
-    @property
     def index_at(self) -> int:
         """Offset of the tile index."""
-        return HEADER.size + self.palette_bytes + self.k * self.colour_channels
+        return HEADER.size + self.values.table_bytes
 
     @property
     def tiles_at(self) -> int:
@@ -109,13 +99,11 @@ def encode_head(head: TiledHeader, palette: np.ndarray, colours: np.ndarray | No
                 lengths: list[int]) -> bytes:
     """Header, palette, colours, index and checksum of a container whose tiles have
     ``lengths`` bytes (the tiles follow)."""
-    flags = ((FLAG_SQUEEZE if head.squeeze else 0) | (FLAG_IDENTITY if head.identity else 0)
-             | (FLAG_COLOURS if colours is not None else 0)
-             | (FLAG_ALPHA if colours is not None and colours.shape[1] == 4 else 0))
-    out = HEADER.pack(MAGIC, VERSION, flags, head.channels, head.sample, head.k,
-                      head.tile_bits, 0, head.width, head.height, head.tiles_x, head.tiles_y,
+    v = head.values
+    out = HEADER.pack(MAGIC, VERSION, v.flags, v.channels, v.sample, v.k, head.tile_bits, 0,
+                      head.width, head.height, head.tiles_x, head.tiles_y,
                       sum(lengths))
-    if not head.identity:
+    if not v.identity:
         out += palette.astype(palette.dtype.newbyteorder("<")).tobytes()
     if colours is not None:
         out += np.ascontiguousarray(colours, np.uint8).tobytes()
@@ -163,9 +151,8 @@ def read_tiled_header(data: bytes, *, name: str, file_bytes: int) -> TiledHeader
     for ok, what in checks:
         if not ok:
             raise CorruptFileError(f"{name}: bad tiled-layer header: {what}")
-    colour_channels = (4 if flags & FLAG_ALPHA else 3) if flags & FLAG_COLOURS else 0
-    head = TiledHeader(bool(flags & FLAG_SQUEEZE), bool(flags & FLAG_IDENTITY), colour_channels,
-                       channels, sample, k, tile_bits, width, height, tx, ty, tile_bytes)
+    head = TiledHeader(ValueFormat.from_flags(flags, channels, sample, k), tile_bits, width,
+                       height, tx, ty, tile_bytes)
     if file_bytes != head.file_bytes:
         raise CorruptFileError(
             f"{name}: {file_bytes} bytes, but the tiled-layer header says {head.file_bytes}")
