@@ -141,7 +141,7 @@ def test_terrain3d_colour_map_is_the_gain_at_every_vertex(tmp_path):
     assert "terrain3d_colour.png" in plan.files
     assert not any("colour map" in note for note in plan.notes)  # a vertex per 16 texels, map 1/24
     finer = plan_export(_project(grid, (16, 16), scale=8), ExportOptions(Engine.GODOT))
-    assert any("--size 193x129 keeps it" in note for note in finer.notes)
+    assert any("a 193 x 129 map keeps it" in note for note in finer.notes)
     write_export(project, plan, tmp_path)
     colour = _png(tmp_path / "terrain3d_colour.png")
     assert colour.shape == (9, 13, 4)  # the control map's size, as Terrain3D's import needs
