@@ -3,8 +3,9 @@
 A classifier's run gives a new grid, themes cut from the photo, a confidence
 map and, for scribble runs, the class prior to keep
 (:mod:`core.edit.uncertainty`). :class:`ClassificationUpdate` holds it;
-:func:`classification_changes` checks all of it against the document and lists the undoable changes
-(:mod:`core.edit.changes`) that put it in place, in the order they apply:
+:func:`classification_changes` checks all of it against the document and
+lists the undoable changes (:mod:`core.edit.changes`) that put it in place,
+in the order they apply:
 the themes first (the new grid refers to them), then the grid, then the
 rest. :meth:`core.edit.document.EditDocument.apply_classification` commits
 them as one undo step.

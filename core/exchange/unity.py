@@ -59,10 +59,11 @@ SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / "TerrathemeImporte
 Progress = Callable[[int, int], None]
 
 
-def _check_resolution(r: int, field: str) -> None:
+def _check_resolution(r: int, what: str) -> None:
+    """``what``: the option, as an :class:`OptionError` template (``{tile}``)."""
     if r not in UNITY_RESOLUTIONS:
         raise OptionError(
-            f"{{{field}}} {r} is not a Unity alphamap resolution (a power of two from 16 to 4096: "
+            f"{what} {r} is not a Unity alphamap resolution (a power of two from 16 to 4096: "
             f"{', '.join(map(str, UNITY_RESOLUTIONS))})"
         )
 
@@ -83,7 +84,7 @@ def unity_layout(texture_size: tuple[int, int], options: ExportOptions
             w, h = options.size
             if w != h:
                 raise OptionError(f"Unity's alphamap is square: {{size}} {w}x{h} is not")
-            _check_resolution(w, "size")
+            _check_resolution(w, "{size}")
             return ExportLayout((w, w)), notes
         want = max(wtex, htex, 16)
         r = min(4096, 1 << (want - 1).bit_length())
@@ -91,7 +92,7 @@ def unity_layout(texture_size: tuple[int, int], options: ExportOptions
             notes.append(f"the {wtex} x {htex} texture is sampled on one 4096 alphamap; "
                          "tiles of 4096 (or smaller) keep every texel")
         return ExportLayout((r, r)), notes
-    _check_resolution(options.tile, "tile")
+    _check_resolution(options.tile, "{tile}")
     return tiled_layout(texture_size, options.tile, options.size), notes
 
 

@@ -111,6 +111,15 @@ class ValueFormat(NamedTuple):
         return cls(bool(flags & FLAG_SQUEEZE), bool(flags & FLAG_IDENTITY), colour_channels,
                    channels, sample, k)
 
+    @classmethod
+    def of(cls, palette: np.ndarray, identity: bool, squeeze: bool,
+           colours: np.ndarray | None) -> ValueFormat:
+        """The format of a ``(K, C)`` palette and its ``(K, 3|4)`` display colours (or None)."""
+        palette = np.asarray(palette)
+        return cls(bool(squeeze), bool(identity),
+                   0 if colours is None else int(np.asarray(colours).shape[1]),
+                   int(palette.shape[1]), int(palette.dtype.itemsize), int(palette.shape[0]))
+
     @property
     def flags(self) -> int:
         """The header's flag bits of this format."""
@@ -201,13 +210,13 @@ def encode_layer(layer: LayerFields, encoding: str) -> bytes:
     channels = layer.palette.shape[1]
     palette = b"" if layer.identity else layer.palette.astype(
         layer.palette.dtype.newbyteorder("<")).tobytes()
-    flags = (FLAG_SQUEEZE if layer.squeeze else 0) | (FLAG_IDENTITY if layer.identity else 0)
     version = ENCODING_VERSION[code]
-    if layer.identity and layer.colours is not None:
-        colours = np.ascontiguousarray(layer.colours, np.uint8)
-        flags |= FLAG_COLOURS | (FLAG_ALPHA if colours.shape[1] == 4 else 0)
+    colours = layer.colours if layer.identity else None
+    if colours is not None:
+        colours = np.ascontiguousarray(colours, np.uint8)
         palette += colours.tobytes()
         version = max(version, 2)
+    flags = ValueFormat.of(layer.palette, layer.identity, layer.squeeze, colours).flags
     header = HEADER.pack(
         MAGIC, version, code, int(layer.curve), flags, channels,
         layer.palette.dtype.itemsize, layer.palette.shape[0], layer.width, layer.height,

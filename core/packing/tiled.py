@@ -359,10 +359,7 @@ def _header(width: int, height: int, tile_bits: int, palette: np.ndarray, identi
     tx, ty = fmt.tiles_along(width, tile_bits), fmt.tiles_along(height, tile_bits)
     if tx * ty > fmt.MAX_TILES:
         raise TerrathemeError(f"{tx * ty} tiles: at most {fmt.MAX_TILES}; use larger tiles")
-    palette = np.asarray(palette)
-    values = ValueFormat(bool(squeeze), bool(identity),
-                         0 if colours is None else int(np.asarray(colours).shape[1]),
-                         int(palette.shape[1]), int(palette.dtype.itemsize), int(palette.shape[0]))
+    values = ValueFormat.of(palette, identity, squeeze, colours)
     return fmt.TiledHeader(values, int(tile_bits), int(width), int(height), tx, ty, 0)
 
 
