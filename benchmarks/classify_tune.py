@@ -70,6 +70,24 @@ level 4 over forest seeds 0 / 1 / 2: +0.0055 / +0.0068 / +0.0019 on the same see
 default (seed 1 0.5923 -> 0.5991, seed 2 0.5905 -> 0.5924), mean +0.0047, under the
 seed noise (~0.008 a draw), at 0.35-0.40x the speed (4.5-5.4 Mpx/s, the goal 5);
 one photo per tile it gives +0.0008 over the three seeds (classify_tune_tiles.py).
+
+Issue 17, what limits the strokes (tuning draw 0): the same features and forest
+trained on the photo's full mask and scored on it reach 0.712 mean mIoU (0.615-0.880
+by photo; pooled IoU building / land / road / vegetation / water 0.75 / 0.78 / 0.50 /
+0.87 / 0.97) against the strokes' 0.59 (0.59 / 0.67 / 0.34 / 0.82 / 0.95): road is
+predicted on 14.1% of the pixels (true 7.1%; 17.8% of land goes to road), building
+loses 15.8% to land and 12.6% to road. Other classifiers on the strokes' samples
+(scikit-learn, patched in, 2 draws, Extra-Trees default 0.5916 at 15.6 Mpx/s in the
+same run): shrinkage LDA 0.5426, logistic regression 0.5454, RBF SVM (C 3,
+balanced) 0.5754 at 5.5 Mpx/s, Extra-Trees averaged half-and-half with LDA /
+logistic regression 0.5854 / 0.5859. Label spreading of the strokes over 10,000
+coarse pixels of the photo (Zhou et al. 2004, scikit-learn LabelSpreading, knn
+kernel k 7, alpha 0.2; branch h9-adapt, core/classify/spread.py, not kept), first
+three tuning photos, mean of 3 draws, default 0.547 / 0.461 / 0.507: the surest
+spread labels (peak >= 0.8) as extra forest samples 0.384 / 0.447 / 0.506; its
+probabilities mixed 0.2 into the forest's 0.001 / 0.280 / 0.108 (the knn kernel
+gives no distribution, NaN, to a pixel none of whose neighbours was reached).
+Larger Gaussian scales did not help one photo per tile (classify_tune_tiles.py).
 """
 
 from __future__ import annotations
