@@ -88,6 +88,16 @@ spread labels (peak >= 0.8) as extra forest samples 0.384 / 0.447 / 0.506; its
 probabilities mixed 0.2 into the forest's 0.001 / 0.280 / 0.108 (the knn kernel
 gives no distribution, NaN, to a pixel none of whose neighbours was reached).
 Larger Gaussian scales did not help one photo per tile (classify_tune_tiles.py).
+The class shares are a lever: the prior weights from the photo's true shares
+(an oracle, 2 draws) give 0.6237 / 0.6230 / 0.6026 at power 0.5 / 0.75 / 1 against
+the default's 0.5916 (classify-and-count shares, L1 error 0.341 from the true
+ones). Adjusted classify-and-count (Forman 2008: the count corrected by the
+forest's confusion rates, estimated by 3-fold cross-validation over whole strokes,
+shares by non-negative least squares; patched in, not kept) is further off (L1
+0.410 with arg-max counts, 0.399 with mean probabilities) and scores 0.5273 /
+0.5084 (counts, power 0.75 / 1), 0.5228 / 0.4956 (probabilities): a stroke's
+inside is classified far better than the photo's borders and mixed blocks, so
+the rates measured on strokes do not hold on the photo.
 """
 
 from __future__ import annotations
