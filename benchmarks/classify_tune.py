@@ -106,6 +106,9 @@ building / land / road / vegetation / water 0.164 / 0.461 / 0.097 / 0.090 / 0.18
 counted 0.172 / 0.327 / 0.230 / 0.090 / 0.180, EM (3 steps) 0.157 / 0.364 / 0.237 /
 0.075 / 0.167: every estimate from the forest's votes puts land's missing share in
 road (2.4x its true share), the confusion itself, which the shares cannot undo.
+The photo's own k-means clusters of its standardised coarse features (MiniBatchKMeans
+on 20,000 of them) as one-hot forest features, patched in, 2 draws: K 12 / 24 0.5910
+/ 0.5929 (0.5933 / 0.5888, 0.5950 / 0.5909) against 0.5916, within noise.
 """
 
 from __future__ import annotations
