@@ -165,6 +165,9 @@ def test_new_option_values(files, capfd, argv, needle):
     (np.full((5, 5), 7, np.uint8), "index grid uses theme index 7"),
     (np.zeros((1, 1), np.uint8), "index grid needs at least 2 x 2 vertices"),
     (np.full((5, 5), 1.5, np.float32), "index grid must hold integers"),
+    # found: whole floats past int64 wrapped in a cast (a warning, then a wrong index)
+    (np.full((5, 5), 1e30, np.float32), "index grid has index 1000000015047466219876688855040"),
+    (np.full((5, 5), -1e30, np.float32), "index grid has a negative index (-1000000015047"),
 ])
 def test_new_index_image_errors_name_the_image(files, capfd, image, needle):
     suffix = ".tif" if image.dtype == np.float32 else ".png"
@@ -182,6 +185,14 @@ def test_pack_errors_name_the_image(files, capfd, image, needle):
     write_image(files / f"i{suffix}", image)
     _refused(capfd, ["pack", files / f"i{suffix}", files / "o.ttpack"], f"i{suffix}: ")
     assert not (files / "o.ttpack").exists()
+
+
+def test_a_texture_past_float32_range_is_one_line(files, capfd):
+    # found: the cast to float32 warned on stderr before the error line
+    write_image(files / "big.tif", np.full((16, 16, 3), 1e39, np.float64))
+    _refused(capfd, ["perspective", "--no-cache", "--size", "32x24", files / "big.tif",
+                     files / "o.png"], "big.tif", "out-of-float32-range")
+    assert not (files / "o.png").exists()
 
 
 def test_a_grey_weight_map_must_be_grey(files, capfd):

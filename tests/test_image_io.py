@@ -43,6 +43,17 @@ def test_read_with_dtype_rescales_16_bit_to_8_bit(tmp_path):
     np.testing.assert_array_equal(read_image(tmp_path / "a.tif", dtype=np.uint8), [[[0, 255, 128]]])
 
 
+def test_gif_reads_as_colour_plus_its_alpha(tmp_path):
+    # OpenImageIO's GIF reader marks alpha as channel 4 of R, G, B, A: the A channel is used.
+    rgb = np.random.default_rng(0).integers(0, 256, (6, 8, 3), dtype=np.uint8)
+    write_image(tmp_path / "a.gif", rgb)
+    assert image_info(tmp_path / "a.gif").alpha_channel == 3
+    back = read_image(tmp_path / "a.gif")
+    assert back.shape == (6, 8, 4)
+    np.testing.assert_array_equal(back[..., :3], rgb)
+    assert (back[..., 3] == 255).all()
+
+
 @pytest.mark.parametrize("tile", [None, 16])
 def test_read_region_equals_crop_of_whole_image(tmp_path, tile):
     rng = np.random.default_rng(2)

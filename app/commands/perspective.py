@@ -168,6 +168,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from core.perspective.mapping import camera_mapping, overview_camera, scaled_view
     from core.perspective.project_view import project_texture, texture_scale
+    from core.perspective.texture import stored_texture
 
     check_outputs([args.out], inputs=[args.input])
     check_image_outputs([args.out])
@@ -184,6 +185,10 @@ def run(args: argparse.Namespace) -> int:
         full_size = project.grid.texture_size
     else:
         texture = read_image(args.input)
+        try:
+            stored_texture(texture)  # NaN / out-of-range values, before the warm-up
+        except TerrathemeError as exc:
+            raise TerrathemeError(f"{args.input}: {exc}") from None
         full_size = (texture.shape[1], texture.shape[0])
     # the view, in texels of the full texture
     if args.camera is not None:

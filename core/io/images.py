@@ -151,12 +151,20 @@ def _np_dtype(spec: oiio.ImageSpec) -> np.dtype:
     return np.dtype(np.float32)
 
 
+def _alpha_channel(spec: oiio.ImageSpec) -> int:
+    """The alpha channel's index, or -1 (past the last one, as GIF's 4 of RGBA: the one named A)."""
+    if 0 <= spec.alpha_channel < spec.nchannels:
+        return spec.alpha_channel
+    names = list(spec.channelnames)
+    return names.index("A") if spec.alpha_channel >= 0 and "A" in names else -1
+
+
 def _info(inp: oiio.ImageInput) -> ImageInfo:
     spec = inp.spec()
     return ImageInfo(width=spec.width, height=spec.height, channels=spec.nchannels,
                      dtype=_np_dtype(spec), tiled=spec.tile_width > 0,
                      tile_width=spec.tile_width, tile_height=spec.tile_height,
-                     format_name=inp.format_name(), alpha_channel=spec.alpha_channel)
+                     format_name=inp.format_name(), alpha_channel=_alpha_channel(spec))
 
 
 def image_info(path: str | os.PathLike) -> ImageInfo:

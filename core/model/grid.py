@@ -50,11 +50,11 @@ def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndar
             "index grid needs at least 2 x 2 vertices (one cell), "
             f"got {arr.shape[1]} x {arr.shape[0]}"
         )
-    if arr.dtype.kind not in "iub":
-        if arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):
-            arr = arr.astype(np.int64)
-        else:
-            raise TerrathemeError(f"index grid must hold integers, got dtype {arr.dtype}")
+    whole_floats = (arr.dtype.kind == "f" and np.all(np.isfinite(arr))
+                    and np.all(arr == np.round(arr)))
+    if arr.dtype.kind not in "iub" and not whole_floats:
+        raise TerrathemeError(f"index grid must hold integers, got dtype {arr.dtype}")
+    # Range checks on the values as they are (a cast of 1e30 to int64 would wrap).
     if arr.size and int(arr.min()) < 0:
         raise TerrathemeError(f"index grid has a negative index ({int(arr.min())})")
     if arr.size and int(arr.max()) >= MAX_THEMES:

@@ -77,11 +77,13 @@ def stored_texture(texture: np.ndarray) -> StoredTexture:
     elif np.issubdtype(arr.dtype, np.integer):
         arr = arr.astype(np.float32) / np.float32(np.iinfo(arr.dtype).max)
     elif np.issubdtype(arr.dtype, np.floating):
-        arr = arr.astype(np.float32)
+        # Values past float32's range become infinite here and are refused below.
+        with np.errstate(over="ignore", invalid="ignore"):
+            arr = arr.astype(np.float32)
     else:
         raise TerrathemeError(f"texture dtype {arr.dtype} is not a number type")
     if not np.all(np.isfinite(arr)):
-        raise TerrathemeError("texture holds NaN or infinite values")
+        raise TerrathemeError("texture holds NaN, infinite or out-of-float32-range values")
     return StoredTexture(np.ascontiguousarray(arr), 1.0)
 
 
