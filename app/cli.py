@@ -86,7 +86,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TerrathemeError as exc:
         print(f"{name}: error: {_one_line(_error_text(exc))}", file=sys.stderr)
     except MemoryError:
-        print(f"{name}: error: not enough memory for this input", file=sys.stderr)
+        # Commands with a bounded-memory path say so when it was not taken.
+        hint = " (--tile N works in bounded memory)" if getattr(args, "tile", 0) is None else ""
+        print(f"{name}: error: not enough memory for this input{hint}", file=sys.stderr)
     except BrokenPipeError:
         # The reader of our output went away: say nothing more on stdout.
         with contextlib.suppress(OSError, ValueError):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import tifffile
 
+import app.commands.convert
 import app.commands.themes
 from app.cli import main
 from core.errors import TerrathemeError
@@ -42,6 +43,20 @@ def test_user_errors_are_one_line(monkeypatch, capsys, exc, status, text):
     monkeypatch.setattr(app.commands.themes, "run", fail)
     assert main(["themes"]) == status
     assert _one_error_line(capsys, "terratheme themes").strip() == text
+
+
+@pytest.mark.parametrize(("argv", "hint"), [
+    (["convert", "photo.jpg", "p.ttproj"], True),
+    (["convert", "photo.jpg", "p.ttproj", "--tile", "512"], False),
+])
+def test_out_of_memory_names_the_bounded_memory_path(monkeypatch, capsys, argv, hint):
+    def fail(args):
+        raise MemoryError
+
+    monkeypatch.setattr(app.commands.convert, "run", fail)
+    assert main(argv) == 2
+    line = _one_error_line(capsys, "terratheme convert: error: not enough memory for this input")
+    assert ("--tile N works in bounded memory" in line) is hint
 
 
 def test_a_closed_pipe_is_not_a_traceback():
