@@ -189,8 +189,10 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from core.convert.memory_check import check_fits
     from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
     from core.fidelity import texture_cost
+    from core.io.images import image_info
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -219,6 +221,8 @@ def run(args: argparse.Namespace) -> int:
         if args.scribbles:
             raise TerrathemeError("--model and --scribbles both give the classes: pick one")
         model = _load_model(args.model, legend)
+    info = image_info(args.photo)
+    check_fits(args.photo, info.width, info.height)  # before any pixel is read
     photo, meta = read_photo(args.photo)
     scribbles = _read_mask(args.scribbles) if args.scribbles else None
     if (scribbles is not None or model is not None) and isinstance(themes, int):
