@@ -2,12 +2,12 @@
 
 ``convert`` without ``--tile`` holds the photo and its per-pixel stages at
 once: its peak grows by about 90 bytes per photo pixel (peak resident size
-0.47 GB for the 1.2 Mpx sample, 1.44 GB for a 12 Mpx photo, 3.55 GB for
-the sample tiled to 6000 x 6000). A photo that
-cannot fit would otherwise run for minutes before running out of memory (a
-874 KB PNG of 30000 x 30000 pixels: 77 s to the error under an 8 GB cap).
-:func:`check_fits` refuses it at once, taking fewer bytes per pixel than
-measured, so it refuses only what cannot fit.
+0.47 GB for the 1.2 Mpx sample, 1.44 GB for a 12 Mpx photo, 3.55 GB for the
+sample tiled to 6000 x 6000). A photo that cannot fit would otherwise run for
+minutes before running out of memory (a 874 KB PNG of 30000 x 30000 pixels:
+77 s to the error under an 8 GB cap). :func:`check_fits` refuses it at once,
+counting fewer bytes per pixel than measured, so it refuses only what cannot
+fit.
 """
 
 from __future__ import annotations
