@@ -151,8 +151,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from core.errors import TerrathemeError
     from core.io.atomic import write_files
-    from core.io.images import Bands, read_image, write_image
+    from core.io.images import Bands, image_info, read_image, write_image
     from core.io.legend import read_legend
+    from core.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -182,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
     legend = read_legend(args.legend) if args.legend else {}
     samples, models = _training_caches(args.cache_dir, args.cache_size)
 
+    info = image_info(args.photo)
+    check_fits(args.photo, info.width, info.height, CLASSIFY_BYTES_PER_PIXEL)  # before reading
     photo = read_image(args.photo, bands=Bands.PHOTO)
     # Read and train first, so input errors come before any progress bar is drawn.
     if args.model:

@@ -189,10 +189,10 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
-    from core.convert.memory_check import check_fits
     from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
     from core.fidelity import texture_cost
     from core.io.images import image_info
+    from core.memory import CONVERT_BYTES_PER_PIXEL, check_fits
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -222,7 +222,8 @@ def run(args: argparse.Namespace) -> int:
             raise TerrathemeError("--model and --scribbles both give the classes: pick one")
         model = _load_model(args.model, legend)
     info = image_info(args.photo)
-    check_fits(args.photo, info.width, info.height)  # before any pixel is read
+    check_fits(args.photo, info.width, info.height, CONVERT_BYTES_PER_PIXEL,  # before reading
+               remedy="convert it tile by tile (--tile 2048)")
     photo, meta = read_photo(args.photo)
     scribbles = _read_mask(args.scribbles) if args.scribbles else None
     if (scribbles is not None or model is not None) and isinstance(themes, int):

@@ -5,13 +5,11 @@ removed), ``cell_choice`` (the cell size chosen from a target), ``photo``
 (the whole-image pipeline and its outputs), ``tiled`` (photos larger than
 memory, tile by tile, here or on a dask.distributed cluster), ``tile_vote``
 (its picklable tile jobs), ``colour_fit`` (the colour map, whole or tile by
-tile), ``memory_check`` (a photo the whole-image path cannot hold, refused
-before its pixels are read).
+tile).
 """
 
 from core.convert.cell_choice import CellChoice, choose_cell_size
 from core.convert.labels_to_grid import labels_to_grid, vote_grid
-from core.convert.memory_check import available_memory, check_fits
 from core.convert.photo import ConvertOptions, ConvertResult, convert_photo, write_outputs
 from core.convert.specks import remove_specks
 from core.convert.tiled import convert_file_tiled
@@ -20,8 +18,6 @@ __all__ = [
     "CellChoice",
     "ConvertOptions",
     "ConvertResult",
-    "available_memory",
-    "check_fits",
     "choose_cell_size",
     "convert_file_tiled",
     "convert_photo",

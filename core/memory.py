@@ -1,13 +1,17 @@
-"""Whether a photo fits in memory on the whole-photo path, checked before any pixel is read.
+"""Whether a photo's whole-photo work fits in memory, checked before any pixel is read.
 
-``convert`` without ``--tile`` holds the photo and its per-pixel stages at
-once: its peak grows by about 90 bytes per photo pixel (peak resident size
-0.47 GB for the 1.2 Mpx sample, 1.44 GB for a 12 Mpx photo, 3.55 GB for the
-sample tiled to 6000 x 6000). A photo that cannot fit would otherwise run for
-minutes before running out of memory (a 874 KB PNG of 30000 x 30000 pixels:
-77 s to the error under an 8 GB cap). :func:`check_fits` refuses it at once,
-counting fewer bytes per pixel than measured, so it refuses only what cannot
-fit.
+A command that holds a whole photo and its per-pixel stages at once would
+otherwise run for seconds or minutes before running out of memory (a 874 KB
+PNG of 30000 x 30000 pixels, legal at 1030:1: convert 77 s, classify 25 s to
+the error under an 8 GB cap). :func:`check_fits` refuses it at once, counting
+fewer bytes per pixel than measured (peak resident size, start-up taken
+off), so it refuses only what cannot fit:
+
+* ``convert`` without ``--tile``: about 88-90 bytes per pixel (0.47 GB for the
+  1.2 Mpx sample, 1.44 GB for a 12 Mpx photo, 3.55 GB for the sample tiled to
+  6000 x 6000);
+* ``classify``: about 26 bytes per pixel unsupervised, 16 with ``--model
+  aerial`` (the 6000 x 6000 photo: 1.18 / 0.86 GB, the sample 0.26 GB).
 """
 
 from __future__ import annotations
@@ -17,11 +21,10 @@ from pathlib import Path
 
 from core.errors import TerrathemeError
 
-#: bytes per photo pixel the check counts (measured: about 90; fewer, so no photo that fits
-#: is refused)
-BYTES_PER_PIXEL = 60
-#: the tile size the refusal suggests
-SUGGESTED_TILE = 2048
+#: bytes per photo pixel counted for convert's whole-photo path (measured about 90)
+CONVERT_BYTES_PER_PIXEL = 60
+#: bytes per photo pixel counted for classify (measured 16-26)
+CLASSIFY_BYTES_PER_PIXEL = 12
 
 
 def meminfo_available(text: str) -> int | None:
@@ -71,8 +74,9 @@ def available_memory() -> int | None:
     return min(found) if found else None
 
 
-def check_fits(name: str, width: int, height: int, available: int | None = None) -> None:
-    """Refuse a ``width`` x ``height`` photo the whole-photo path cannot hold.
+def check_fits(name: str, width: int, height: int, bytes_per_pixel: int, *,
+               remedy: str = "", available: int | None = None) -> None:
+    """Refuse a ``width`` x ``height`` photo whose work cannot fit in free memory.
 
     Parameters
     ----------
@@ -80,19 +84,21 @@ def check_fits(name: str, width: int, height: int, available: int | None = None)
         The photo's path, for the message.
     width, height : int
         Photo pixels.
+    bytes_per_pixel : int
+        What the work holds per photo pixel (``CONVERT_BYTES_PER_PIXEL``, ...).
+    remedy : str
+        Appended to the message after a colon (e.g. the bounded-memory option).
     available : int, optional
         Bytes free (default :func:`available_memory`; no check where it is unknown).
 
     Raises
     ------
     TerrathemeError
-        ``BYTES_PER_PIXEL`` per pixel is more than is free; the message names
-        ``--tile``.
+        ``bytes_per_pixel`` per pixel is more than is free.
     """
     free = available_memory() if available is None else available
-    need = width * height * BYTES_PER_PIXEL
+    need = width * height * bytes_per_pixel
     if free is not None and need > free:
         raise TerrathemeError(
             f"{name}: {width} x {height} pixels need at least {need / 2**30:.1f} GiB in one "
-            f"piece and {free / 2**30:.1f} GiB are free: convert it tile by tile "
-            f"(--tile {SUGGESTED_TILE})")
+            f"piece and {free / 2**30:.1f} GiB are free" + (f": {remedy}" if remedy else ""))

@@ -1,0 +1,57 @@
+"""Whole-photo work that cannot fit in free memory: free memory read, the photo refused at once."""
+
+import numpy as np
+import pytest
+
+import core.memory as memory_check
+from app.cli import main
+from core.errors import TerrathemeError
+from core.io.images import write_image
+from core.memory import (
+    CLASSIFY_BYTES_PER_PIXEL,
+    CONVERT_BYTES_PER_PIXEL,
+    check_fits,
+    meminfo_available,
+)
+
+
+def test_meminfo_counts_available_memory_and_free_swap():
+    text = "MemTotal:  100 kB\nMemFree: 20 kB\nMemAvailable:  50 kB\nSwapFree: 10 kB\n"
+    assert meminfo_available(text) == 60 * 1024
+    assert meminfo_available("MemAvailable: 7 kB") == 7 * 1024
+
+
+@pytest.mark.parametrize("text", ["", "MemTotal: 100 kB", "MemAvailable: lots", "garbage"])
+def test_meminfo_without_available_memory_is_unknown(text):
+    assert meminfo_available(text) is None
+
+
+def test_a_photo_is_refused_only_past_the_free_memory():
+    check_fits("p.png", 30, 20, 7, available=30 * 20 * 7)
+    with pytest.raises(TerrathemeError, match=r"p\.png: 30 x 20 pixels need .* are free: do X$"):
+        check_fits("p.png", 30, 20, 7, remedy="do X", available=30 * 20 * 7 - 1)
+    with pytest.raises(TerrathemeError, match=r"are free$"):
+        check_fits("p.png", 30, 20, 7, available=0)
+
+
+def test_available_memory_is_positive_or_unknown():
+    free = memory_check.available_memory()
+    assert free is None or free >= 0
+
+
+@pytest.mark.parametrize(("argv", "per_pixel", "remedy"), [
+    (["convert", "{d}/photo.png", "{d}/p.ttproj"], CONVERT_BYTES_PER_PIXEL, "--tile 2048"),
+    (["classify", "{d}/photo.png", "-o", "{d}/l.png"], CLASSIFY_BYTES_PER_PIXEL, ""),
+])
+def test_a_photo_that_cannot_fit_is_refused_before_reading(tmp_path, monkeypatch, capfd,
+                                                           argv, per_pixel, remedy):
+    write_image(tmp_path / "photo.png", np.full((32, 32, 3), 120, np.uint8))
+    monkeypatch.setattr(memory_check, "available_memory", lambda: 32 * 32 * per_pixel - 1)
+    assert main([a.format(d=tmp_path) for a in argv]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and "photo.png: 32 x 32 pixels need" in err, err
+    assert remedy in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+    # with the memory it needs, the same command runs
+    monkeypatch.setattr(memory_check, "available_memory", lambda: 32 * 32 * per_pixel)
+    assert main([a.format(d=tmp_path) for a in argv]) == 0
