@@ -3,7 +3,7 @@
 One package per part, lowest first (a package imports only those above it):
 
 * ``core.errors`` -- the exceptions every part raises for bad input;
-* ``core.io`` -- image files, tiles of large images, georeference, atomic writes;
+* ``core.io`` -- image files, tiles of large images, free memory, georeference, atomic writes;
 * ``core.curves`` -- Hilbert and Morton space-filling curves;
 * ``core.themes`` -- tileable theme textures: the library, making and scoring them;
 * ``core.model`` -- the index grid and the project (its file format);

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-import core.memory as memory_check
+import core.io.memory as memory_check
 from app.cli import main
 from core.errors import TerrathemeError
 from core.io.images import write_image
-from core.memory import (
+from core.io.memory import (
     CLASSIFY_BYTES_PER_PIXEL,
     CONVERT_BYTES_PER_PIXEL,
     check_fits,

@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     from core.io.atomic import write_files
     from core.io.images import Bands, image_info, read_image, write_image
     from core.io.legend import read_legend
-    from core.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
+    from core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:

@@ -192,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
     from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
     from core.fidelity import texture_cost
     from core.io.images import image_info
-    from core.memory import CONVERT_BYTES_PER_PIXEL, check_fits
+    from core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":

@@ -8,7 +8,8 @@ results in flight), ``tiled_writer`` (images written tile by tile),
 file, then rename; sets of files) over ``temporaries`` (their names, the signals
 that remove them) and ``stale`` (what killed processes left), ``codec`` (images
 as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
-``png`` (PNG chunks: palettes).
+``png`` (PNG chunks: palettes), ``memory`` (free memory; whole-photo work
+that cannot fit refused before its pixels are read).
 """
 
 from core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
@@ -30,6 +31,7 @@ from core.io.images import (
     read_region,
     write_image,
 )
+from core.io.memory import available_memory, check_fits
 from core.io.stale import clean_stale_temporaries
 from core.io.tiled_writer import TiledImageWriter
 from core.io.tiles import (
@@ -48,6 +50,8 @@ __all__ = [
     "TiledImageWriter",
     "atomic_file_set",
     "atomic_path",
+    "available_memory",
+    "check_fits",
     "clean_stale_temporaries",
     "connect",
     "decode_image",
