@@ -16,10 +16,14 @@ off), so it refuses only what cannot fit:
 
 from __future__ import annotations
 
-import resource
 from pathlib import Path
 
 from core.errors import TerrathemeError
+
+try:
+    import resource  # Unix only: elsewhere there is no address-space limit to read
+except ImportError:  # pragma: no cover - Windows
+    resource = None
 
 #: bytes per photo pixel counted for convert's whole-photo path (measured about 90)
 CONVERT_BYTES_PER_PIXEL = 60
@@ -57,6 +61,8 @@ def _cgroup_free() -> int | None:
 
 def _address_space_free() -> int | None:
     """Bytes of address space left under ``ulimit -v``, or None without a limit."""
+    if resource is None:  # pragma: no cover - Windows
+        return None
     soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
     if soft == resource.RLIM_INFINITY:
         return None
