@@ -1,9 +1,14 @@
 """Whole-photo work that cannot fit in free memory: free memory read, the photo refused at once."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-import core.io.memory as memory_check
+import core.io.memory as memory
 from app.cli import main
 from core.errors import TerrathemeError
 from core.io.images import write_image
@@ -13,6 +18,8 @@ from core.io.memory import (
     check_fits,
     meminfo_available,
 )
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_meminfo_counts_available_memory_and_free_swap():
@@ -35,7 +42,7 @@ def test_a_photo_is_refused_only_past_the_free_memory():
 
 
 def test_available_memory_is_positive_or_unknown():
-    free = memory_check.available_memory()
+    free = memory.available_memory()
     assert free is None or free >= 0
 
 
@@ -46,12 +53,24 @@ def test_available_memory_is_positive_or_unknown():
 def test_a_photo_that_cannot_fit_is_refused_before_reading(tmp_path, monkeypatch, capfd,
                                                            argv, per_pixel, remedy):
     write_image(tmp_path / "photo.png", np.full((32, 32, 3), 120, np.uint8))
-    monkeypatch.setattr(memory_check, "available_memory", lambda: 32 * 32 * per_pixel - 1)
+    monkeypatch.setattr(memory, "available_memory", lambda: 32 * 32 * per_pixel - 1)
     assert main([a.format(d=tmp_path) for a in argv]) == 2
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and "photo.png: 32 x 32 pixels need" in err, err
     assert remedy in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
     # with the memory it needs, the same command runs
-    monkeypatch.setattr(memory_check, "available_memory", lambda: 32 * 32 * per_pixel)
+    monkeypatch.setattr(memory, "available_memory", lambda: 32 * 32 * per_pixel)
     assert main([a.format(d=tmp_path) for a in argv]) == 0
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no address-space limit on Windows")
+def test_the_address_space_limit_bounds_available_memory():
+    # as under "ulimit -v 8000000": what is left of 8 GiB once the process is loaded
+    code = ("import resource; _, hard = resource.getrlimit(resource.RLIMIT_AS); "
+            "resource.setrlimit(resource.RLIMIT_AS, (8 << 30, hard)); "
+            "from core.io.memory import available_memory; print(available_memory())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)), timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert 0 < int(out.stdout) < 8 << 30
