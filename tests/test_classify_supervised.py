@@ -83,6 +83,19 @@ def test_ignored_classes_are_never_predicted():
     assert set(np.unique(model.predict(img).labels)) <= {3, 5, 9}
 
 
+def test_more_classes_than_one_resize_takes():
+    # found: 129 classes broke the probabilities' upsampling (OpenCV takes 128 channels)
+    rng = np.random.default_rng(0)
+    colours = rng.integers(0, 256, (130, 3))
+    truth = np.kron(np.arange(1, 131).reshape(13, 10), np.ones((16, 16), np.int64))
+    img = colours[truth - 1].astype(np.uint8)
+    model = train_classifier([(img, truth.astype(np.uint8))], SupervisedOptions())
+    labels = model.predict(img).labels
+    assert len(model.classes) == 130
+    # the centres of the 16 x 16 squares keep their class
+    assert (labels[8::16, 8::16] == truth[8::16, 8::16]).mean() > 0.9
+
+
 def test_scribbles_naming_one_class_give_that_class_everywhere():
     img, truth = three_stripes()
     mask = np.zeros_like(truth)

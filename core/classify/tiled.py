@@ -27,6 +27,8 @@ ProgressFn = Callable[[int, int], None]
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
 #: a window's coarse Lab (h, w, 3), block lightness std (h, w) and class probabilities (h, w, C)
 TileProbabilitiesFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
+#: most channels one cv2.resize takes (OpenCV's limit)
+RESIZE_CHANNELS = 128
 
 
 def feature_windows(height: int, width: int, tile: int, scale: int,
@@ -153,8 +155,14 @@ def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarr
     if scale == 1:
         return np.ascontiguousarray(probs), *offsets
     h, w, c = probs.shape
-    up = cv2.resize(probs, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR)
-    return up.reshape(h * scale, w * scale, c), *offsets
+    up = np.empty((h * scale, w * scale, c), np.float32)
+    # cv2.resize takes at most RESIZE_CHANNELS channels at once: more classes go in parts.
+    for k in range(0, c, RESIZE_CHANNELS):
+        part = np.ascontiguousarray(probs[:, :, k : k + RESIZE_CHANNELS])
+        up[:, :, k : k + RESIZE_CHANNELS] = cv2.resize(
+            part, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR
+        ).reshape(h * scale, w * scale, -1)
+    return up, *offsets
 
 
 def predict_tiled(
