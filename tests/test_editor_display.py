@@ -38,10 +38,22 @@ def test_a_display_nobody_answers_is_named():
 
 @pytest.mark.parametrize("env", [{"QT_QPA_PLATFORM": "offscreen"},
                                  {"QT_QPA_PLATFORM": "minimal:enable_fonts"},
-                                 {"WAYLAND_DISPLAY": "wayland-0"},
                                  {"QT_QPA_PLATFORM": "wayland", "DISPLAY": NO_SERVER}])
 def test_platforms_without_an_x_server_are_left_to_qt(env):
     assert display_problem(env) is None
+
+
+@linux_only
+def test_a_wayland_session_is_left_to_qt_and_a_stale_one_to_the_x_checks(tmp_path):
+    with socket.socket(socket.AF_UNIX) as server:
+        server.bind(str(tmp_path / "wayland-7"))
+        env = {"WAYLAND_DISPLAY": "wayland-7", "XDG_RUNTIME_DIR": str(tmp_path)}
+        assert display_problem(env) is None
+        assert display_problem({"WAYLAND_DISPLAY": str(tmp_path / "wayland-7")}) is None
+    # found: a stale WAYLAND_DISPLAY skipped the checks, then Qt aborted on the missing X display
+    stale = {"WAYLAND_DISPLAY": "wayland-8", "XDG_RUNTIME_DIR": str(tmp_path)}
+    assert "DISPLAY is not set" in display_problem(stale)
+    assert "DISPLAY is not set" in display_problem({"WAYLAND_DISPLAY": "wayland-0"})
 
 
 @pytest.fixture
@@ -111,6 +123,24 @@ def test_prepare_raises_for_the_window_and_goes_offscreen_for_a_screenshot(monke
     assert "QT_QPA_PLATFORM" not in os.environ
     prepare_display(screenshot=True)
     assert os.environ["QT_QPA_PLATFORM"] == "offscreen"
+
+
+@linux_only
+def test_a_screenshot_past_a_silent_display_forgets_it(monkeypatch):
+    # found: the offscreen platform's GL still connected to DISPLAY and waited for good
+    monkeypatch.setattr(display, "CONNECT_TIMEOUT_S", 0.5)
+    monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(1)
+        port = silent.getsockname()[1]
+        if not 6000 < port < 6000 + 65536:
+            pytest.skip("no free port above 6000")
+        monkeypatch.setenv("DISPLAY", f"127.0.0.1:{port - 6000}")
+        monkeypatch.setenv("WAYLAND_DISPLAY", "wayland-stale")
+        prepare_display(screenshot=True)
+    assert os.environ["QT_QPA_PLATFORM"] == "offscreen"
+    assert "DISPLAY" not in os.environ and "WAYLAND_DISPLAY" not in os.environ
 
 
 def _headless_env() -> dict[str, str]:

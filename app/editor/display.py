@@ -58,7 +58,7 @@ def display_problem(env: Mapping[str, str] | None = None) -> str | None:
     platform = env.get("QT_QPA_PLATFORM", "").split(":")[0].strip().lower()
     if not sys.platform.startswith("linux") or platform in HEADLESS_PLATFORMS:
         return None
-    if platform not in ("", "xcb") or (not platform and env.get("WAYLAND_DISPLAY")):
+    if platform not in ("", "xcb") or (not platform and _wayland_answers(env)):
         return None
     display = env.get("DISPLAY", "")
     if not display:
@@ -76,6 +76,15 @@ def display_problem(env: Mapping[str, str] | None = None) -> str | None:
         return (f"the editor needs the system library {missing} for an X display "
                 f"({hint}setup.sh installs it as root)")
     return _server_problem(ctypes, display)
+
+
+def _wayland_answers(env: Mapping[str, str]) -> bool:
+    """A Wayland session's socket exists (a stale WAYLAND_DISPLAY leaves Qt to X11)."""
+    name = env.get("WAYLAND_DISPLAY", "")
+    if not name:
+        return False
+    path = Path(name) if name.startswith("/") else Path(env.get("XDG_RUNTIME_DIR", "")) / name
+    return path.is_socket()
 
 
 def _missing_library(ctypes) -> str | None:
@@ -149,5 +158,8 @@ def prepare_display(*, screenshot: bool) -> None:
         return
     if screenshot:
         os.environ["QT_QPA_PLATFORM"] = "offscreen"
+        # The offscreen platform's GL would still reach for a display that never answers.
+        os.environ.pop("DISPLAY", None)
+        os.environ.pop("WAYLAND_DISPLAY", None)
         return
     raise TerrathemeError(problem)
