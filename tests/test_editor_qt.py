@@ -375,3 +375,22 @@ def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monke
     fresh = render_cells(doc.texture.grid.indices, lib.textures, (8, 8))
     np.testing.assert_array_equal(doc.preview.image, fresh)
 
+
+
+def test_screenshot_of_a_failed_classification_is_one_line_and_no_file(tmp_path, capsys,
+                                                                     monkeypatch):
+    # found: the failure opened a modal dialog nobody could close, and the command hung
+    from app.cli import main
+    from app.editor import classify_job
+    from core.io.images import write_image
+
+    def fail(*args, **kwargs):
+        raise MemoryError("Unable to allocate 3.02 GiB for an array")
+
+    monkeypatch.setattr(classify_job, "run_classification", fail)
+    write_image(tmp_path / "photo.png", halves_photo())
+    out = tmp_path / "shot.png"
+    assert main(["app", str(tmp_path / "photo.png"), "--screenshot", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Classification failed: Unable to allocate" in err, err
+    assert not out.exists()

@@ -74,6 +74,12 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     while win.job is not None and timer.elapsed() < timeout_s * 1000:
         app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 50)
     app.processEvents()
+    if win.failure is not None:
+        # A failed classification: no screenshot of a window that does not show it.
+        win.wait_for_jobs()
+        win.doc.model.history.mark_saved()
+        win.close()
+        raise TerrathemeError(win.failure)
     win.fit()
     app.processEvents()
     image = win.grab()

@@ -37,6 +37,8 @@ class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):
     def __init__(self, doc: EditorDocument, *, interactive: bool = True) -> None:
         super().__init__()
         self.interactive = interactive
+        #: the last problem reported while not interactive (the screenshot command fails on it)
+        self.failure: str | None = None
         self.resize(1400, 860)
         self.view = ViewState()
         self.index_canvas = MapCanvas(self.view, "Index map")
@@ -291,6 +293,11 @@ class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):
                 canvas.update()
 
     def show_error(self, message: str) -> None:
+        if not self.interactive:
+            # No dialog nobody could close: the status bar, and the caller's failure.
+            self.failure = " ".join(message.split())
+            self.statusBar().showMessage(self.failure)
+            return
         from PySide6.QtWidgets import QMessageBox
 
         QMessageBox.critical(self, "terratheme", message)
