@@ -60,10 +60,10 @@ def run(args: argparse.Namespace) -> int:
         read_splatmaps,
         read_weight_maps,
     )
-    from core.io.images import read_image
+    from core.io.images import image_info, read_image
     from core.model.grid import IndexGrid, validate_cell
     from core.model.index_image import project_from_index_image
-    from core.model.project import ThematicTexture, save_project
+    from core.model.project import ThematicTexture, check_vertex_count, save_project
     from core.themes.library import shipped_theme_library
 
     check_outputs([args.project], inputs=args.inputs)
@@ -79,6 +79,12 @@ def run(args: argparse.Namespace) -> int:
         raise TerrathemeError(f"--from weights needs one weight map per theme: "
                               f"{len(args.inputs)} maps for {len(library)} themes")
     sources = [str(p) for p in args.inputs]
+    # The grid's size from the first map's header, before any map is read.
+    info, step = image_info(sources[0]), max(1, args.step)
+    try:
+        check_vertex_count(((info.height - 1) // step + 1) * ((info.width - 1) // step + 1))
+    except TerrathemeError as exc:
+        raise TerrathemeError(f"{sources[0]}: {info.width} x {info.height} pixels: {exc}") from None
     metadata = {"created_by": "terratheme new"}
     if args.kind == "index":
         if args.step != 1:

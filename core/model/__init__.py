@@ -10,13 +10,20 @@ layers and their checks), ``colour_map`` (the colour gain over a texture),
 from core.model.colour_map import ColourMap
 from core.model.grid import IndexGrid
 from core.model.index_image import project_from_index_image
-from core.model.project import PROJECT_SUFFIX, ThematicTexture, load_project, save_project
+from core.model.project import (
+    PROJECT_SUFFIX,
+    ThematicTexture,
+    check_vertex_count,
+    load_project,
+    save_project,
+)
 
 __all__ = [
     "PROJECT_SUFFIX",
     "ColourMap",
     "IndexGrid",
     "ThematicTexture",
+    "check_vertex_count",
     "load_project",
     "project_from_index_image",
     "save_project",

@@ -159,12 +159,17 @@ def _npy_bytes(arr: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def check_vertex_count(count: int) -> None:
+    """Refuse a grid of ``count`` vertices a project file cannot hold (``MAX_GRID_VERTICES``)."""
+    if count > MAX_GRID_VERTICES:
+        raise TerrathemeError(f"grid of {count:,} vertices is over the "
+                              f"limit of {MAX_GRID_VERTICES:,} a project file holds")
+
+
 def _check_savable(project: ThematicTexture) -> None:
     """Refuse what load_project would refuse, before anything is written."""
     validate_indices(project.grid.indices, n_themes=len(project.library))
-    if project.grid.indices.size > MAX_GRID_VERTICES:
-        raise TerrathemeError(f"grid of {project.grid.indices.size:,} vertices is over the "
-                              f"limit of {MAX_GRID_VERTICES:,} a project file holds")
+    check_vertex_count(project.grid.indices.size)
     for theme in project.library:
         h, w = theme.texture.shape[:2]
         if max(h, w) > MAX_THEME_SIDE:
