@@ -96,3 +96,13 @@ def test_fidelity_is_zero_where_render_matches_photo_and_high_where_not():
     with pytest.raises(TerrathemeError, match="photo must be"):
         fidelity_map(render, photo[..., 0], (2, 2))
 
+
+
+def test_a_texture_past_the_preview_limit_is_refused_before_rendering():
+    # found: a 16 KB project of 4001 x 4001 vertices at cell 16 asked for a 64000^2 render
+    grid = IndexGrid(np.zeros((6, 6), np.uint8), (4096, 4096))  # 20480 x 20480 texels
+    with pytest.raises(TerrathemeError, match=r"20480 x 20480 texels is over its limit"):
+        RenderPreview(ThematicTexture(grid, textured_library(1)))
+    # a texture under the limit renders as before
+    assert RenderPreview(ThematicTexture(IndexGrid(np.zeros((2, 2), np.uint8), (64, 32)),
+                                         textured_library(1))).image.shape == (32, 64, 3)

@@ -34,6 +34,7 @@ from core.edit import (
     fidelity_map,
     heat_colours,
 )
+from core.errors import TerrathemeError
 from core.fidelity import fidelity, texture_cost
 from core.model.project import ThematicTexture
 from core.render.project import load_checked_project
@@ -241,4 +242,8 @@ class EditorDocument(QObject):
 
         ``progress(done, total)`` follows the first full render.
         """
-        return cls(load_checked_project(path), path, progress)
+        texture = load_checked_project(path)
+        try:
+            return cls(texture, path, progress)
+        except TerrathemeError as exc:  # the preview's limit: name the project
+            raise TerrathemeError(f"{path}: {exc}") from None

@@ -16,11 +16,15 @@ from collections.abc import Callable
 import numpy as np
 
 from core.edit.events import GridChange
+from core.errors import TerrathemeError
 from core.model.project import ThematicTexture
 from core.render.project import project_style
 from core.render.renderer import render_cells
 
 Progress = Callable[[int, int], None]
+#: most texels the live preview holds (16384 x 16384: 768 MiB of RGB, the editor's
+#: benchmark size); a larger texture is refused before any of it is rendered
+MAX_PREVIEW_TEXELS = 1 << 28
 
 
 def dirty_cells(change: GridChange, cells_shape: tuple[int, int], margin: int = 1
@@ -57,9 +61,20 @@ class RenderPreview:
         Extra cells around the touched ones (1 covers the saddle rule's ring).
     progress : callable(done, total), optional
         For the first full render.
+
+    Raises
+    ------
+    TerrathemeError
+        The texture has more than ``MAX_PREVIEW_TEXELS`` texels.
     """
     def __init__(self, texture: ThematicTexture, *, margin: int = 1,
                  progress: Progress | None = None) -> None:
+        w, h = texture.grid.texture_size
+        if w * h > MAX_PREVIEW_TEXELS:
+            raise TerrathemeError(
+                f"the editor's live preview holds the whole render: {w} x {h} texels is over "
+                f"its limit of {MAX_PREVIEW_TEXELS:,} (16384 x 16384); a smaller cell or "
+                "terratheme render --tiled shows it")
         self.texture = texture
         self.margin = margin
         self.image = self._render(None, progress)
