@@ -89,8 +89,9 @@ def test_a_running_x_server_passes_and_a_screen_it_lacks_is_named(x_server):
     assert problem is not None and x_server + ".3" in problem
 
 
-@linux_only
-def test_a_server_that_never_answers_is_named_after_the_timeout(monkeypatch):
+@pytest.fixture
+def silent_display(monkeypatch):
+    """A display (host:number) whose server accepts and never answers; a 0.5 s check timeout."""
     monkeypatch.setattr(display, "CONNECT_TIMEOUT_S", 0.5)
     with socket.socket() as silent:
         silent.bind(("127.0.0.1", 0))
@@ -98,11 +99,15 @@ def test_a_server_that_never_answers_is_named_after_the_timeout(monkeypatch):
         port = silent.getsockname()[1]
         if not 6000 < port < 6000 + 65536:
             pytest.skip("no free port above 6000")
-        where = f"127.0.0.1:{port - 6000}"
-        t0 = time.monotonic()
-        problem = display_problem({"DISPLAY": where})
-        assert time.monotonic() - t0 < 5
-    assert problem == f"the X display {where!r} does not answer within 0.5 s"
+        yield f"127.0.0.1:{port - 6000}"
+
+
+@linux_only
+def test_a_server_that_never_answers_is_named_after_the_timeout(silent_display):
+    t0 = time.monotonic()
+    problem = display_problem({"DISPLAY": silent_display})
+    assert time.monotonic() - t0 < 5
+    assert problem == f"the X display {silent_display!r} does not answer within 0.5 s"
 
 
 @linux_only
@@ -126,19 +131,12 @@ def test_prepare_raises_for_the_window_and_goes_offscreen_for_a_screenshot(monke
 
 
 @linux_only
-def test_a_screenshot_past_a_silent_display_forgets_it(monkeypatch):
+def test_a_screenshot_past_a_silent_display_forgets_it(monkeypatch, silent_display):
     # found: the offscreen platform's GL still connected to DISPLAY and waited for good
-    monkeypatch.setattr(display, "CONNECT_TIMEOUT_S", 0.5)
     monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
-    with socket.socket() as silent:
-        silent.bind(("127.0.0.1", 0))
-        silent.listen(1)
-        port = silent.getsockname()[1]
-        if not 6000 < port < 6000 + 65536:
-            pytest.skip("no free port above 6000")
-        monkeypatch.setenv("DISPLAY", f"127.0.0.1:{port - 6000}")
-        monkeypatch.setenv("WAYLAND_DISPLAY", "wayland-stale")
-        prepare_display(screenshot=True)
+    monkeypatch.setenv("DISPLAY", silent_display)
+    monkeypatch.setenv("WAYLAND_DISPLAY", "wayland-stale")
+    prepare_display(screenshot=True)
     assert os.environ["QT_QPA_PLATFORM"] == "offscreen"
     assert "DISPLAY" not in os.environ and "WAYLAND_DISPLAY" not in os.environ
 

@@ -376,37 +376,3 @@ def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monke
     np.testing.assert_array_equal(doc.preview.image, fresh)
 
 
-
-def test_screenshot_of_a_failed_classification_is_one_line_and_no_file(tmp_path, capsys,
-                                                                     monkeypatch):
-    # found: the failure opened a modal dialog nobody could close, and the command hung
-    from app.cli import main
-    from app.editor import classify_job
-    from core.io.images import write_image
-
-    def fail(*args, **kwargs):
-        raise MemoryError("Unable to allocate 3.02 GiB for an array")
-
-    monkeypatch.setattr(classify_job, "run_classification", fail)
-    write_image(tmp_path / "photo.png", halves_photo())
-    out = tmp_path / "shot.png"
-    assert main(["app", str(tmp_path / "photo.png"), "--screenshot", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Classification failed: Unable to allocate" in err, err
-    assert not out.exists()
-
-
-def test_a_project_past_the_preview_limit_is_one_line_naming_it(tmp_path, capsys):
-    from app.cli import main
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture
-    from core.themes.library import ThemeLibrary
-
-    library = ThemeLibrary([Theme("a", (10, 20, 30), np.zeros((4, 4, 3), np.uint8))])
-    big = tmp_path / "big.ttproj"
-    save_project(big, ThematicTexture(IndexGrid(np.zeros((6, 6), np.uint8), (4096, 4096)),
-                                      library))
-    assert main(["app", str(big), "--screenshot", str(tmp_path / "s.png")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "big.ttproj: the editor's live preview" in err, err
-    assert not (tmp_path / "s.png").exists()

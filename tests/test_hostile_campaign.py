@@ -22,8 +22,6 @@ import pytest
 import tifffile
 from hostile_fuzz import campaign, hidden_files, patch_tiff_size
 
-import core.exchange
-import core.model.project
 from app.cli import main
 from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from core.exchange import read_control_map, read_splatmaps
@@ -187,33 +185,6 @@ def test_pack_errors_name_the_image(files, capfd, image, needle):
     write_image(files / f"i{suffix}", image)
     _refused(capfd, ["pack", files / f"i{suffix}", files / "o.ttpack"], f"i{suffix}: ")
     assert not (files / "o.ttpack").exists()
-
-
-@pytest.mark.parametrize(("kind", "image"), [
-    ("index", np.zeros((20, 20), np.uint8)),
-    ("splatmap", np.pad(np.full((20, 20, 1), 255, np.uint8), ((0, 0), (0, 0), (0, 3)))),
-])
-def test_new_refuses_a_grid_over_the_limit_from_the_header(files, capfd, monkeypatch, kind,
-                                                           image):
-    # found: a 1 MB splatmap of 16385^2 pixels was read (3.6 GB) before the vertex limit
-    monkeypatch.setattr(core.model.project, "MAX_GRID_VERTICES", 399)
-    monkeypatch.setattr(core.exchange, "read_splatmaps", _never_read)
-    write_image(files / "m.png", image)
-    _refused(capfd, ["new", files / "m.png", files / "o.ttproj", "--themes", "water,sand",
-                     "--from", kind], "m.png: 20 x 20 pixels: grid of 400 vertices is over")
-    assert not (files / "o.ttproj").exists()
-
-
-def _never_read(*args, **kwargs):
-    raise AssertionError("the map was read before its size was checked")
-
-
-def test_a_texture_past_float32_range_is_one_line(files, capfd):
-    # found: the cast to float32 warned on stderr before the error line
-    write_image(files / "big.tif", np.full((16, 16, 3), 1e39, np.float64))
-    _refused(capfd, ["perspective", "--no-cache", "--size", "32x24", files / "big.tif",
-                     files / "o.png"], "big.tif", "out-of-float32-range")
-    assert not (files / "o.png").exists()
 
 
 def test_a_grey_weight_map_must_be_grey(files, capfd):
