@@ -74,20 +74,19 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     while win.job is not None and timer.elapsed() < timeout_s * 1000:
         app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 50)
     app.processEvents()
-    if win.failure is not None:
-        # A failed classification: no screenshot of a window that does not show it.
+    try:
+        if win.failure is not None:
+            # A failed classification: no screenshot of a window that does not show it.
+            raise TerrathemeError(win.failure)
+        win.fit()
+        app.processEvents()
+        image = win.grab()
+    finally:
         win.wait_for_jobs()
         win.doc.model.history.mark_saved()
         win.close()
-        raise TerrathemeError(win.failure)
-    win.fit()
-    app.processEvents()
-    image = win.grab()
-    win.wait_for_jobs()
     if not image.save(str(screenshot)):
         raise TerrathemeError(f"cannot write the screenshot {screenshot}")
-    win.doc.model.history.mark_saved()
-    win.close()
     return 0
 
 

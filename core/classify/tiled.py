@@ -155,13 +155,16 @@ def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarr
     if scale == 1:
         return np.ascontiguousarray(probs), *offsets
     h, w, c = probs.shape
-    up = np.empty((h * scale, w * scale, c), np.float32)
+    size = (w * scale, h * scale)
+    if c <= RESIZE_CHANNELS:
+        up = cv2.resize(probs, size, interpolation=cv2.INTER_LINEAR)
+        return up.reshape(h * scale, w * scale, c), *offsets
     # cv2.resize takes at most RESIZE_CHANNELS channels at once: more classes go in parts.
+    up = np.empty((h * scale, w * scale, c), np.float32)
     for k in range(0, c, RESIZE_CHANNELS):
         part = np.ascontiguousarray(probs[:, :, k : k + RESIZE_CHANNELS])
         up[:, :, k : k + RESIZE_CHANNELS] = cv2.resize(
-            part, (w * scale, h * scale), interpolation=cv2.INTER_LINEAR
-        ).reshape(h * scale, w * scale, -1)
+            part, size, interpolation=cv2.INTER_LINEAR).reshape(h * scale, w * scale, -1)
     return up, *offsets
 
 

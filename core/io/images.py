@@ -40,6 +40,7 @@ from core.errors import CorruptFileError, TerrathemeError
 from core.io.atomic import atomic_path
 from core.io.image_format import error_line
 from core.io.png import (
+    check_palette,
     is_png,
     libpng_quiet,
     palette_indices,
@@ -360,7 +361,7 @@ def write_image(
     if arr.dtype not in OIIO_PIXEL_TYPES:
         arr = arr.astype(np.float32)
     if palette is not None:
-        palette = _check_palette(path, arr, palette)
+        palette = check_palette(path, arr, palette)
     arr = np.ascontiguousarray(arr)
     h, w, c = arr.shape
     spec = oiio.ImageSpec(w, h, c, OIIO_PIXEL_TYPES[arr.dtype])
@@ -386,16 +387,3 @@ def write_image(
         if palette is not None:
             relabel_grey_png_as_palette(tmp, palette)
 
-
-def _check_palette(path, arr: np.ndarray, palette: np.ndarray) -> np.ndarray:
-    colours = np.asarray(palette)
-    if Path(path).suffix.lower() != ".png" or arr.shape[2] != 1 or arr.dtype != np.uint8:
-        raise TerrathemeError(f"cannot write {path}: a palette needs a single-channel "
-                              "8-bit PNG")
-    if colours.ndim != 2 or colours.shape[1] != 3 or not 1 <= len(colours) <= 256:
-        raise TerrathemeError(f"cannot write {path}: a palette is 1..256 RGB colours, "
-                              f"got shape {colours.shape}")
-    if int(arr.max()) >= len(colours):
-        raise TerrathemeError(f"cannot write {path}: value {int(arr.max())} has no colour in "
-                              f"a palette of {len(colours)}")
-    return np.ascontiguousarray(colours, dtype=np.uint8)

@@ -151,6 +151,21 @@ def palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
     return index.astype(np.uint8).reshape(image.shape[:2])
 
 
+def check_palette(path, arr: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """The palette of a palette PNG to write: (K, 3) uint8 for an (H, W, 1) uint8 ``arr``."""
+    colours = np.asarray(palette)
+    if Path(path).suffix.lower() != ".png" or arr.shape[2] != 1 or arr.dtype != np.uint8:
+        raise TerrathemeError(f"cannot write {path}: a palette needs a single-channel "
+                              "8-bit PNG")
+    if colours.ndim != 2 or colours.shape[1] != 3 or not 1 <= len(colours) <= 256:
+        raise TerrathemeError(f"cannot write {path}: a palette is 1..256 RGB colours, "
+                              f"got shape {colours.shape}")
+    if int(arr.max()) >= len(colours):
+        raise TerrathemeError(f"cannot write {path}: value {int(arr.max())} has no colour in "
+                              f"a palette of {len(colours)}")
+    return np.ascontiguousarray(colours, dtype=np.uint8)
+
+
 def relabel_grey_png_as_palette(path: Path, palette: np.ndarray) -> None:
     """Make the 8-bit grey PNG at ``path`` a palette PNG with ``palette`` (K, 3) uint8, in place."""
     data = Path(path).read_bytes()
