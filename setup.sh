@@ -47,7 +47,7 @@ PY=${PYTHON:-python3}
 # as a second. Old caches go first: numba notices edits to a kernel's own file only, not to
 # the kernels it inlines from other files.
 find core -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete 2>/dev/null || true
-.venv/bin/python -m app.warmup
+.venv/bin/python -m terratheme.app.warmup
 # The project's own bytecode, for interpreters that do not write it (PYTHONDONTWRITEBYTECODE):
 # compiling ~120 modules from source costs a quarter of a second on every command.
 .venv/bin/python -m compileall -q core app

@@ -16,15 +16,15 @@ import pkgutil
 import sys
 from collections.abc import Sequence
 
-import app.commands
-from core import __version__
-from core.errors import OptionError, TerrathemeError
+import terratheme.app.commands
+from terratheme.core import __version__
+from terratheme.core.errors import OptionError, TerrathemeError
 
 
 def _command_modules() -> list:
     mods = [
-        importlib.import_module(f"app.commands.{info.name}")
-        for info in pkgutil.iter_modules(app.commands.__path__)
+        importlib.import_module(f"terratheme.app.commands.{info.name}")
+        for info in pkgutil.iter_modules(terratheme.app.commands.__path__)
         if not info.name.startswith("_")
     ]
     return sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))

@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -68,7 +68,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
 def check_image_outputs(paths: Iterable[str | os.PathLike | None]) -> None:
     """Refuse, before any work, an image output whose extension no image writer takes
     (None entries are skipped): :func:`core.io.image_format.check_writable_format`."""
-    from core.io.image_format import check_writable_format
+    from terratheme.core.io.image_format import check_writable_format
 
     for path in paths:
         if path is not None:
@@ -80,7 +80,7 @@ def check_mask_sizes(pairs: Iterable[tuple[str | os.PathLike, str | os.PathLike]
     """Refuse a ``(photo, mask)`` pair whose sizes differ, from the two files' headers
     (before any pixel is read or any work starts); the message names both files and
     calls the mask ``what``."""
-    from core.io.images import image_info
+    from terratheme.core.io.images import image_info
 
     for photo, mask in pairs:
         p, m = image_info(photo), image_info(mask)

@@ -1,4 +1,4 @@
-"""Compile the numba kernels once (``python -m app.warmup``, run by ``setup.sh``).
+"""Compile the numba kernels once (``python -m terratheme.app.warmup``, run by ``setup.sh``).
 
 Every kernel is ``cache=True``: the machine code lands beside the sources, so
 after this a first conversion, render, lookup or preview starts as fast as a
@@ -15,7 +15,7 @@ import numpy as np
 
 
 def _render() -> None:
-    from core.render import BlendMode, RenderOptions, render_cells, render_labels
+    from terratheme.core.render import BlendMode, RenderOptions, render_cells, render_labels
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
@@ -28,9 +28,9 @@ def _render() -> None:
 
 
 def _curves_and_packing() -> None:
-    from core.curves import scan_order
-    from core.packing import PackedLayer, TiledLayer, pack
-    from core.packing.batch import STRATEGIES, lookup_batch, tiled_words
+    from terratheme.core.curves import scan_order
+    from terratheme.core.packing import PackedLayer, TiledLayer, pack
+    from terratheme.core.packing.batch import STRATEGIES, lookup_batch, tiled_words
 
     image = (np.arange(12 * 10).reshape(12, 10) // 7 % 3).astype(np.uint8)
     bx, by = np.array([0, 9, 4]), np.array([0, 11, 6])
@@ -71,7 +71,7 @@ def _curves_and_packing() -> None:
 
 
 def _classify() -> None:
-    from core.classify import classify_unsupervised, train_classifier
+    from terratheme.core.classify import classify_unsupervised, train_classifier
 
     rng = np.random.default_rng(0)
     photo = rng.integers(0, 255, (64, 64, 3), dtype=np.uint8)
@@ -83,10 +83,10 @@ def _classify() -> None:
 
 
 def _perspective() -> None:
-    from core.perspective import Camera, FilterOptions, Method, PreparedTexture
-    from core.perspective.family import build_family
-    from core.perspective.footprint import footprint_parameters
-    from core.perspective.options import Lookup
+    from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
+    from terratheme.core.perspective.family import build_family
+    from terratheme.core.perspective.footprint import footprint_parameters
+    from terratheme.core.perspective.options import Lookup
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
@@ -107,11 +107,11 @@ def _perspective() -> None:
 
 
 def _boundary() -> None:
-    from core.exchange import shaped_slots
-    from core.model.colour_map import ColourMap
-    from core.render import RenderOptions, render_cells, render_overview
-    from core.render.boundary import BoundaryOptions, noise_field
-    from core.render.colour_map import apply_colour_map
+    from terratheme.core.exchange import shaped_slots
+    from terratheme.core.model.colour_map import ColourMap
+    from terratheme.core.render import RenderOptions, render_cells, render_overview
+    from terratheme.core.render.boundary import BoundaryOptions, noise_field
+    from terratheme.core.render.colour_map import apply_colour_map
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
@@ -125,7 +125,7 @@ def _boundary() -> None:
 
 
 def _convert() -> None:
-    from core.convert.photo import convert_photo
+    from terratheme.core.convert.photo import convert_photo
 
     # The default conversion end to end on a small photo of three regions, so the kernels
     # on its way (the themes' class sums over uint8 colours and float32 statistics, the

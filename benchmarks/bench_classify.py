@@ -103,8 +103,7 @@ from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribble
 )
 from classify_scribbles import scribbles  # noqa: E402
 from classify_train_cost import train_cost  # noqa: E402
-
-from core.classify import (  # noqa: E402
+from terratheme.core.classify import (  # noqa: E402
     Classifier,
     FeatureOptions,
     FeatureSet,
@@ -113,8 +112,8 @@ from core.classify import (  # noqa: E402
     RegulariseOptions,
     SupervisedOptions,
 )
-from core.classify.supervised import _pair_samples, build_forest  # noqa: E402
-from core.io.images import read_image  # noqa: E402
+from terratheme.core.classify.supervised import _pair_samples, build_forest  # noqa: E402
+from terratheme.core.io.images import read_image  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 OUT = REPO / "benchmarks" / "results"
@@ -263,7 +262,7 @@ def scribble_sets():
 
 
 def _train_one(photo, scr, opts):
-    from core.classify import train_classifier
+    from terratheme.core.classify import train_classifier
 
     return train_classifier([(photo, scr)], opts)
 

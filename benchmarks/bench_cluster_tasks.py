@@ -42,9 +42,9 @@ SHARED = REPO.parent / "shared" / "data" / "dubai" / "images"
 SAMPLE = REPO / "sample_maps" / "dubai_marina.jpg"
 RESULTS = REPO / "benchmarks" / "results"
 
-import core.io.cluster as cluster  # noqa: E402
-from core.convert.tile_vote import PredictLabels  # noqa: E402
-from core.convert.tiled import fit_unsupervised_file, grid_from_file  # noqa: E402
+import terratheme.core.io.cluster as cluster  # noqa: E402
+from terratheme.core.convert.tile_vote import PredictLabels  # noqa: E402
+from terratheme.core.convert.tiled import fit_unsupervised_file, grid_from_file  # noqa: E402
 
 
 def _cpu() -> float:
@@ -106,9 +106,8 @@ def encode(repeat: int) -> dict:
     """A 4-tile JPEG XL colour map encoded on the client and on 2 workers."""
     import cv2
     import numpy as np
-
-    import core.model.colour_map as colour_map
-    from core.convert.colour_fit import ClusterTiles
+    import terratheme.core.model.colour_map as colour_map
+    from terratheme.core.convert.colour_fit import ClusterTiles
 
     rng = np.random.default_rng(0)
     side = 4096
@@ -120,7 +119,7 @@ def encode(repeat: int) -> dict:
     colour_map.MAP_TILE = 2048
     records = []
     with cluster.local_cluster(2) as client:
-        cluster.warm_up(client, ["core.convert.colour_fit"])
+        cluster.warm_up(client, ["terratheme.core.convert.colour_fit"])
         for rep in range(repeat):
             for where in ("client", "2 workers")[::1 - 2 * (rep % 2)]:
                 run = ClusterTiles(client) if where != "client" else None
@@ -159,7 +158,7 @@ def main() -> None:
         classify = PredictLabels(model)
         with cluster.local_cluster(2) as client:
             counts = _counting(client)
-            cluster.warm_up(client, ["core.convert.tiled"])
+            cluster.warm_up(client, ["terratheme.core.convert.tiled"])
             n = 400
 
             def trivial():

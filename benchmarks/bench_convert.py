@@ -56,12 +56,12 @@ def _status_kib(key: str) -> int:
 
 
 def part_a(quick: bool) -> dict:
-    from core.classify import classify_unsupervised
-    from core.convert.cell_choice import choose_cell_size
-    from core.convert.labels_to_grid import vote_grid
-    from core.convert.photo import ConvertOptions, convert_photo
-    from core.io.images import read_image
-    from core.packing import pack
+    from terratheme.core.classify import classify_unsupervised
+    from terratheme.core.convert.cell_choice import choose_cell_size
+    from terratheme.core.convert.labels_to_grid import vote_grid
+    from terratheme.core.convert.photo import ConvertOptions, convert_photo
+    from terratheme.core.io.images import read_image
+    from terratheme.core.packing import pack
 
     photo = read_image(SAMPLE)
     # Warm-up on a crop: numba kernels compile on first use, not part of the timings.
@@ -133,11 +133,11 @@ def child(args: argparse.Namespace) -> None:
     """One measurement in a fresh process; prints a JSON line."""
     import tracemalloc
 
-    from core.classify import Classifier
-    from core.convert.labels_to_grid import vote_grid
-    from core.convert.tiled import grid_from_file
-    from core.io.images import read_image
-    from core.io.tiles import Scheduler
+    from terratheme.core.classify import Classifier
+    from terratheme.core.convert.labels_to_grid import vote_grid
+    from terratheme.core.convert.tiled import grid_from_file
+    from terratheme.core.io.images import read_image
+    from terratheme.core.io.tiles import Scheduler
 
     if args.classifier == "forest":
         model = Classifier.load(args.model)
@@ -183,9 +183,8 @@ def _measure(mode, image, tile, classifier, extra) -> dict:
 
 def part_b(quick: bool) -> dict:
     import cv2
-
-    from core.classify import train_classifier
-    from core.io.images import read_image
+    from terratheme.core.classify import train_classifier
+    from terratheme.core.io.images import read_image
 
     photo = read_image(SAMPLE, dtype=np.uint8)[..., :3]
     # Nearest-colour classifier: 5 k-means colour centres of the sample (OpenCV).

@@ -30,12 +30,12 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.editor.imaging import ZoomPyramid  # noqa: E402
-from app.editor.newproject import default_library  # noqa: E402
-from core.edit import EditDocument, RenderPreview  # noqa: E402
-from core.model.grid import IndexGrid  # noqa: E402
-from core.model.project import ThematicTexture  # noqa: E402
-from core.render.renderer import render_cells  # noqa: E402
+from terratheme.app.editor.imaging import ZoomPyramid  # noqa: E402
+from terratheme.app.editor.newproject import default_library  # noqa: E402
+from terratheme.core.edit import EditDocument, RenderPreview  # noqa: E402
+from terratheme.core.model.grid import IndexGrid  # noqa: E402
+from terratheme.core.model.project import ThematicTexture  # noqa: E402
+from terratheme.core.render.renderer import render_cells  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
 CELL = (16, 16)

@@ -61,16 +61,15 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_classify import DATA, load, scribble_sets  # noqa: E402
 from fidelity_chart import chart  # noqa: E402
 from fidelity_peers import CODECS, score_peers  # noqa: E402
-
-from core.convert.colour_fit import ColourMapOptions  # noqa: E402
-from core.convert.labels_to_grid import apply_lut  # noqa: E402
-from core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
-from core.convert.step import grid_and_colour  # noqa: E402
-from core.fidelity import colour_error, detail_ratio, structure_scores, texture_cost  # noqa: E402
-from core.io.images import read_image, write_image  # noqa: E402
-from core.model.project import ThematicTexture  # noqa: E402
-from core.render.project import render_project  # noqa: E402
-from core.render.renderer import RenderOptions, render_labels  # noqa: E402
+from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
+from terratheme.core.convert.labels_to_grid import apply_lut  # noqa: E402
+from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
+from terratheme.core.convert.step import grid_and_colour  # noqa: E402
+from terratheme.core.fidelity import colour_error, detail_ratio, structure_scores, texture_cost  # noqa: E402
+from terratheme.core.io.images import read_image, write_image  # noqa: E402
+from terratheme.core.model.project import ThematicTexture  # noqa: E402
+from terratheme.core.render.project import render_project  # noqa: E402
+from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
 DOCS = REPO / "docs" / "fidelity"

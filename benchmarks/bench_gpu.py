@@ -66,17 +66,16 @@ sys.path.insert(0, str(HERE))
 
 from bench_render import N, esa_grid  # noqa: E402
 from gpu_chart import chart  # noqa: E402
-
-from core.gpu import (  # noqa: E402
+from terratheme.core.gpu import (  # noqa: E402
     GpuRenderer,
     GpuRenderOptions,
     GroundOptions,
     GroundView,
     UniformCells,
 )
-from core.packing import pack  # noqa: E402
-from core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
-from core.render.rules import cell_splits  # noqa: E402
+from terratheme.core.packing import pack  # noqa: E402
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
+from terratheme.core.render.rules import cell_splits  # noqa: E402
 
 W, H = 1920, 1080
 SHARED = HERE.parent.parent / "shared" / "data"
@@ -86,15 +85,15 @@ PITCHES = (20.0, 10.0, 5.0, 2.5)
 
 def converted(path: Path):
     """A photo converted with convert's defaults (shaped borders, colour map)."""
-    from core.convert.photo import convert_photo
-    from core.io.images import read_image
+    from terratheme.core.convert.photo import convert_photo
+    from terratheme.core.io.images import read_image
 
     return convert_photo(read_image(path)).project
 
 
 def style_scenario(project, gpu: GpuRenderer, regions: list, rounds: int) -> dict:
     """1920 x 1080 viewports of a converted project in its style: CPU against the shaders."""
-    from core.render.project import project_style
+    from terratheme.core.render.project import project_style
 
     style, cmap = project_style(project), project.colour_map
     textures, grid = project.library.textures, project.grid
@@ -129,9 +128,14 @@ def style_scenario(project, gpu: GpuRenderer, regions: list, rounds: int) -> dic
 def perspective_rows(project, rounds: int, pitches=PITCHES) -> list[dict]:
     """PSNR against the CPU reference and ms per frame, GPU and CPU filters, per pitch."""
     from skimage.metrics import peak_signal_noise_ratio
-
-    from core.perspective import Camera, FilterOptions, Method, PreparedTexture, camera_mapping
-    from core.render.project import render_project
+    from terratheme.core.perspective import (
+        Camera,
+        FilterOptions,
+        Method,
+        PreparedTexture,
+        camera_mapping,
+    )
+    from terratheme.core.render.project import render_project
 
     texture = render_project(project)
     prepared = PreparedTexture(texture)

@@ -56,12 +56,11 @@ matplotlib.use("Agg")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from packing_chart import chart  # noqa: E402
-
-from core.curves.square import curve_order, hilbert_transposed  # noqa: E402
-from core.io.images import read_image  # noqa: E402
-from core.packing import PackedLayer, pack  # noqa: E402
-from core.packing.batch import STRATEGIES, batch_strategy, lookup_batch  # noqa: E402
-from core.packing.scalar import quick_cells  # noqa: E402
+from terratheme.core.curves.square import curve_order, hilbert_transposed  # noqa: E402
+from terratheme.core.io.images import read_image  # noqa: E402
+from terratheme.core.packing import PackedLayer, pack  # noqa: E402
+from terratheme.core.packing.batch import STRATEGIES, batch_strategy, lookup_batch  # noqa: E402
+from terratheme.core.packing.scalar import quick_cells  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "benchmarks" / "results"
@@ -299,7 +298,7 @@ def lookups(img: np.ndarray, layer: PackedLayer) -> dict:
 
 def gpu_grid(layer: PackedLayer):
     """The layer's table on the GPU (core.gpu.PackedGrid), or None without an OpenGL context."""
-    from core.gpu import GpuUnavailableError, PackedGrid, gl_context
+    from terratheme.core.gpu import GpuUnavailableError, PackedGrid, gl_context
 
     try:
         return PackedGrid(gl_context(), layer)

@@ -33,8 +33,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
-
-from core.perspective import (
+from terratheme.core.perspective import (
     Camera,
     FamilyCache,
     FilterOptions,
@@ -43,9 +42,9 @@ from core.perspective import (
     PlaneMapping,
     PreparedTexture,
 )
-from core.perspective.family import build_family
-from core.perspective.mapping import camera_mapping, overview_camera
-from core.perspective.texture import build_pyramid, power_of_two_grid, stored_texture
+from terratheme.core.perspective.family import build_family
+from terratheme.core.perspective.mapping import camera_mapping, overview_camera
+from terratheme.core.perspective.texture import build_pyramid, power_of_two_grid, stored_texture
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
@@ -84,8 +83,8 @@ def checkerboard(n: int, square: int) -> np.ndarray:
 
 def thematic(n: int = 512) -> np.ndarray:
     """A crop of the rendered airfield project, ``(n, n, 3) uint8``."""
-    from core.model.project import load_project
-    from core.render.project import render_project
+    from terratheme.core.model.project import load_project
+    from terratheme.core.render.project import render_project
 
     img = render_project(load_project(REPO / "sample_maps" / "airfield.ttproj"))
     return np.ascontiguousarray(img[:n, :n])
@@ -96,7 +95,7 @@ def photo(n: int = 512) -> np.ndarray | None:
     path = REPO.parent / "shared" / "data" / "dubai" / "images" / "image_part_001t1.jpg"
     if not path.exists():
         return None
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     return np.ascontiguousarray(read_image(path)[:n, :n, :3])
 
@@ -188,8 +187,8 @@ def memory_per_texel() -> dict:
 def preview_timing(rounds: int) -> dict:
     """The coastline sample's default 480 x 270 preview: prefiltering plus one frame,
     trilinear against the family built afresh and the family from the cache."""
-    from core.model.project import load_project
-    from core.render.project import render_project
+    from terratheme.core.model.project import load_project
+    from terratheme.core.render.project import render_project
 
     tex = render_project(load_project(REPO / "sample_maps" / "coastline.ttproj"))
     cam = overview_camera((tex.shape[1], tex.shape[0]))

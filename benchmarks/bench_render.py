@@ -38,10 +38,10 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 
-from core.io.images import read_image, write_image  # noqa: E402
-from core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
-from core.render.rules import cell_splits, corner_weights  # noqa: E402
-from core.themes.library import shipped_theme_library  # noqa: E402
+from terratheme.core.io.images import read_image, write_image  # noqa: E402
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
+from terratheme.core.render.rules import cell_splits, corner_weights  # noqa: E402
+from terratheme.core.themes.library import shipped_theme_library  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
 ESA = {10: "forest", 20: "grass", 30: "grass", 40: "crop field", 50: "town", 60: "sand",

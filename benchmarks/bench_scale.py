@@ -76,8 +76,8 @@ def _rss_mib() -> float:
 
 def _import_core() -> None:
     """Import the tile jobs' code (what ``core.io.cluster.warm_up`` starts on a worker)."""
-    import core.convert.colour_fit
-    import core.convert.tiled  # noqa: F401
+    import terratheme.core.convert.colour_fit
+    import terratheme.core.convert.tiled  # noqa: F401
 
 
 def _cpu_seconds() -> float:
@@ -106,13 +106,13 @@ def _sha(*parts: bytes) -> str:
 
 def child_convert(args: argparse.Namespace) -> None:
     """One conversion in a fresh process; prints a JSON line."""
-    from core.convert.tiled import convert_file_tiled
-    from core.fidelity import texture_cost
-    from core.io.cluster import local_cluster
-    from core.io.images import image_info
-    from core.io.tiles import Scheduler
-    from core.model.project import save_project
-    from core.packing import pack
+    from terratheme.core.convert.tiled import convert_file_tiled
+    from terratheme.core.fidelity import texture_cost
+    from terratheme.core.io.cluster import local_cluster
+    from terratheme.core.io.images import image_info
+    from terratheme.core.io.tiles import Scheduler
+    from terratheme.core.model.project import save_project
+    from terratheme.core.packing import pack
 
     info = image_info(args.image)
     start_rss = _rss_mib()
@@ -190,8 +190,8 @@ def child_convert(args: argparse.Namespace) -> None:
 
 def child_render(args: argparse.Namespace) -> None:
     """One streamed render of a saved project in a fresh process; prints a JSON line."""
-    from core.exchange.texture_tiff import write_texture_tiff
-    from core.model.project import load_project
+    from terratheme.core.exchange.texture_tiff import write_texture_tiff
+    from terratheme.core.model.project import load_project
 
     project = load_project(args.project)
     start = _rss_mib()

@@ -34,9 +34,9 @@ from scipy.ndimage import gaussian_filter
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from core.io.images import read_image  # noqa: E402
-from core.themes.quality import lowfreq_score, repeat_score  # noqa: E402
-from core.themes.tileable import (  # noqa: E402
+from terratheme.core.io.images import read_image  # noqa: E402
+from terratheme.core.themes.quality import lowfreq_score, repeat_score  # noqa: E402
+from terratheme.core.themes.tileable import (  # noqa: E402
     FlattenMode,
     SeamMethod,
     TileableOptions,

@@ -26,9 +26,8 @@ from dataclasses import replace
 
 import numpy as np
 from classify_eval import scores, simulate_scribbles
-
-from core.classify import Classifier, SupervisedOptions, train_classifier
-from core.classify.shipped import resolve_model
+from terratheme.core.classify import Classifier, SupervisedOptions, train_classifier
+from terratheme.core.classify.shipped import resolve_model
 
 #: dataset -> (photos, {dataset class: shared name}, {model class: shared name})
 AERIAL = {1: "building", 2: "land", 3: "road", 4: "vegetation", 5: "water"}

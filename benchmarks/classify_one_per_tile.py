@@ -49,9 +49,8 @@ from dataclasses import replace
 import numpy as np
 from classify_eval import confusion, scores
 from classify_peers import labelled_pixels, timed_votes
-
-from core.classify import FeatureOptions, Normalise, SupervisedOptions, train_classifier
-from core.classify.sample_cache import SampleCache
+from terratheme.core.classify import FeatureOptions, Normalise, SupervisedOptions, train_classifier
+from terratheme.core.classify.sample_cache import SampleCache
 
 CLASSES = [1, 2, 3, 4, 5]
 IGNORE = (6, 7)

@@ -14,12 +14,11 @@ import time
 import cv2
 import numpy as np
 from classify_eval import confusion
-
-from core import classify
-from core.classify.lab import coarse_lab
-from core.classify.photo import prepare_photo
-from core.classify.tiled import tile_features
-from core.io.tiles import TileWindow
+from terratheme.core import classify
+from terratheme.core.classify.lab import coarse_lab
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.tiled import tile_features
+from terratheme.core.io.tiles import TileWindow
 
 RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000

@@ -19,7 +19,7 @@ disturbed by the other sessions on the machine), medians and ranges:
                  training (the pairs' keys and the model's file);
   previous       ``cold`` with the options of before issue 17 (15000 samples per class,
                  no adaptation): the peer;
-  cli            ``python -m app.cli classify TARGET -o L.png --train P M (x6) --ignore 6 7``
+  cli            ``terratheme classify TARGET -o L.png --train P M (x6) --ignore 6 7``
                  end to end in a subprocess (interpreter start and imports included),
                  once without a cache, once with ``--cache-dir`` (filled by a run
                  before): ``cli_s`` / ``cli_cached_s`` wall, ``..._cpu_s`` the child's CPU.
@@ -43,11 +43,10 @@ from pathlib import Path
 
 import numpy as np
 from classify_one_per_tile import IGNORE, ISSUE_SET
-
-from core.classify import FeatureOptions, SupervisedOptions, train_classifier
-from core.classify.model_cache import ModelCache
-from core.classify.sample_cache import SampleCache
-from core.io.images import read_image, write_image
+from terratheme.core.classify import FeatureOptions, SupervisedOptions, train_classifier
+from terratheme.core.classify.model_cache import ModelCache
+from terratheme.core.classify.sample_cache import SampleCache
+from terratheme.core.io.images import read_image, write_image
 
 REPEATS = 5
 TARGET_SIDE = 1224
@@ -91,7 +90,7 @@ def _run(bench, target_path, options, cache_dir=None, models=False):
 
 def _cli(bench, target_path, tmp, extra=()):
     """The CLI end to end in a subprocess -> (wall s, the child's CPU s)."""
-    cmd = [sys.executable, "-m", "app.cli", "classify", str(target_path), "-o",
+    cmd = [sys.executable, "-m", "terratheme.app.cli", "classify", str(target_path), "-o",
            str(Path(tmp) / "labels.png"), "--ignore", *map(str, IGNORE), *extra]
     for n in ISSUE_SET:
         cmd += ["--train", str(bench.DATA / "dubai" / "images" / n),

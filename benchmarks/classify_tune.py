@@ -128,8 +128,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from classify_eval import confusion, draw_seeds, scores, simulate_scribbles
-
-from core.classify import SupervisedOptions, train_classifier
+from terratheme.core.classify import SupervisedOptions, train_classifier
 
 CLASSES = [1, 2, 3, 4, 5]
 #: stroke draws of the tuning photos (the evaluation part draws from RNG_SEED + 1)

@@ -113,9 +113,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from classify_one_per_tile import IGNORE, random_draw, rows_of, score_draw
-
-from core.classify import SupervisedOptions
-from core.classify.sample_cache import SampleCache
+from terratheme.core.classify import SupervisedOptions
+from terratheme.core.classify.sample_cache import SampleCache
 
 #: training-photo draws of tuning (the evaluation part draws from DRAW_SEED + d, d >= 1)
 TUNE_SEED = 2017

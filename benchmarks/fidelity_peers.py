@@ -20,8 +20,7 @@ from dataclasses import dataclass
 import cv2
 import imagecodecs
 import numpy as np
-
-from core.fidelity import colour_error, detail_ratio
+from terratheme.core.fidelity import colour_error, detail_ratio
 
 #: the narrowest photo a peer may be downscaled to, pixels
 MIN_WIDTH = 8

@@ -11,9 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from core.io.images import image_info, read_image
-from core.io.tiled_writer import TiledImageWriter
+from terratheme.core.io.images import image_info, read_image
+from terratheme.core.io.tiled_writer import TiledImageWriter
 
 #: side of one crop (pixels); also the height of a band written at once
 BLOCK = 512

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.model.colour_map import MAP_TILE, ColourMap
+from terratheme.core.model.colour_map import MAP_TILE, ColourMap
 
 REGION_PIXELS = 400_000 * 400_000  # 400 x 400 km at 1 m
 

@@ -29,10 +29,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from core.classify import SupervisedOptions, train_classifier  # noqa: E402
-from core.classify.shipped import MODELS_INDEX  # noqa: E402
-from core.io.atomic import write_bytes_atomic  # noqa: E402
-from core.io.images import read_image  # noqa: E402
+from terratheme.core.classify import SupervisedOptions, train_classifier  # noqa: E402
+from terratheme.core.classify.shipped import MODELS_INDEX  # noqa: E402
+from terratheme.core.io.atomic import write_bytes_atomic  # noqa: E402
+from terratheme.core.io.images import read_image  # noqa: E402
 
 NAME = "aerial"
 FILE = "aerial.model"

@@ -21,12 +21,12 @@ from scipy import ndimage
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from core.io.atomic import write_bytes_atomic  # noqa: E402
-from core.io.images import write_image  # noqa: E402
-from core.model.index_image import project_from_index_image  # noqa: E402
-from core.model.project import save_project  # noqa: E402
-from core.render.project import render_project  # noqa: E402
-from core.themes.library import shipped_theme_library  # noqa: E402
+from terratheme.core.io.atomic import write_bytes_atomic  # noqa: E402
+from terratheme.core.io.images import write_image  # noqa: E402
+from terratheme.core.model.index_image import project_from_index_image  # noqa: E402
+from terratheme.core.model.project import save_project  # noqa: E402
+from terratheme.core.render.project import render_project  # noqa: E402
+from terratheme.core.themes.library import shipped_theme_library  # noqa: E402
 
 W, H = 97, 73  # vertices: 96 x 72 cells of 16 x 16 -> 1536 x 1152 texels
 CELL = (16, 16)

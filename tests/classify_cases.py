@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.classify.features import FeatureOptions, compute_features, image_features
-from core.classify.tiled import feature_windows
+from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.tiled import feature_windows
 
 
 def block_pairs(n: int = 3, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:

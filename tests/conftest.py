@@ -75,9 +75,9 @@ def small_texture():
     """
 
     def make(themes: int = 3, seed: int = 5, **layers):
-        from core.model.grid import IndexGrid
-        from core.model.project import ThematicTexture
-        from core.themes.library import Theme, ThemeLibrary
+        from terratheme.core.model.grid import IndexGrid
+        from terratheme.core.model.project import ThematicTexture
+        from terratheme.core.themes.library import Theme, ThemeLibrary
 
         rng = np.random.default_rng(seed)
         named = (("grass", (90, 160, 60)), ("water", (40, 80, 170)), ("sand", (210, 190, 120)))
@@ -100,8 +100,7 @@ def open_window(qtbot, monkeypatch):
 
     def make(document):
         from PySide6.QtWidgets import QMessageBox
-
-        from app.editor.window import MainWindow
+        from terratheme.app.editor.window import MainWindow
 
         errors: list[str] = []
         monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: errors.append(a[2]))
@@ -125,7 +124,7 @@ def open_window(qtbot, monkeypatch):
 @pytest.fixture(scope="session")
 def gl_ctx():
     """The shared OpenGL 3.3 context (``core.gpu.gl_context``), or skip with the reason."""
-    from core.gpu import GpuUnavailableError, gl_context
+    from terratheme.core.gpu import GpuUnavailableError, gl_context
 
     try:
         return gl_context()
@@ -139,7 +138,7 @@ def gpu_renderer(gl_ctx):
 
     The renderers made are released when the test module ends.
     """
-    from core.gpu import GpuRenderer
+    from terratheme.core.gpu import GpuRenderer
 
     made = []
 

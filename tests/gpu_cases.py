@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.gpu import GpuRenderer, UniformCells
+from terratheme.core.gpu import GpuRenderer, UniformCells
 
 
 def random_themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:

@@ -136,9 +136,9 @@ def run_truncations(bounded: BoundedReader, reader: str, data: bytes, path: Path
 
 
 def run_cli(*args: str | os.PathLike, timeout: float = 180.0) -> subprocess.CompletedProcess:
-    """``python -m app.cli ARGS`` from this checkout; stdout and stderr as text, with their
-    carriage returns kept (a progress bar redraws its line with them)."""
-    proc = subprocess.run([sys.executable, "-m", "app.cli", *map(str, args)], cwd=REPO,
+    """``python -m terratheme.app.cli ARGS`` from this checkout; stdout and stderr as
+    text, with their carriage returns kept (a progress bar redraws its line with them)."""
+    proc = subprocess.run([sys.executable, "-m", "terratheme.app.cli", *map(str, args)], cwd=REPO,
                           capture_output=True, timeout=timeout,
                           env=dict(os.environ, PYTHONPATH=str(REPO)))
     return subprocess.CompletedProcess(proc.args, proc.returncode,

@@ -31,14 +31,15 @@ def _imports(name: str, path: Path) -> list[tuple[str, list[str]]]:
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            out += [(a.name, []) for a in node.names if a.name.startswith("core")]
+            names = [a.name.removeprefix("terratheme.") for a in node.names]
+            out += [(n, []) for n in names if n.startswith("core")]
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")
                 base = base[: len(base) - node.level + 1]
                 mod = ".".join(base + ([node.module] if node.module else []))
             else:
-                mod = node.module or ""
+                mod = (node.module or "").removeprefix("terratheme.")
             if not mod.startswith("core"):
                 continue
             for a in node.names:

@@ -7,13 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from core.classify import ModelCache, SampleCache
-from core.classify import cache_bound as cb
-from core.classify import keyed_store as ks
-from core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, parse_size
-from core.classify.keyed_store import KeyedStore
-from core.errors import TerrathemeError
+from terratheme.core.classify import ModelCache, SampleCache
+from terratheme.core.classify import cache_bound as cb
+from terratheme.core.classify import keyed_store as ks
+from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, parse_size
+from terratheme.core.classify.keyed_store import KeyedStore
+from terratheme.core.errors import TerrathemeError
 
 NAMES = ("v",)
 

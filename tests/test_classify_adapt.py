@@ -6,11 +6,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-import core.classify.adapt as adapt
-from core.classify import SupervisedOptions, train_classifier
-from core.classify.adapt import pseudo_labels
-from core.classify.supervised_options import ADAPT_MAX_PAIRS
+import terratheme.core.classify.adapt as adapt
+from terratheme.core.classify import SupervisedOptions, train_classifier
+from terratheme.core.classify.adapt import pseudo_labels
+from terratheme.core.classify.supervised_options import ADAPT_MAX_PAIRS
 
 
 def test_pseudo_labels_keep_the_surest_share_of_each_class():

@@ -5,12 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-
-from core.classify.bands import BandOptions, between_pairs, lies_between, relabel_bands
-from core.classify.features import FeatureOptions, FeatureSet
-from core.classify.unsupervised import UnsupervisedOptions
-from core.classify.unsupervised_model import classify_unsupervised, fit_unsupervised
-from core.errors import TerrathemeError
+from terratheme.core.classify.bands import BandOptions, between_pairs, lies_between, relabel_bands
+from terratheme.core.classify.features import FeatureOptions, FeatureSet
+from terratheme.core.classify.unsupervised import UnsupervisedOptions
+from terratheme.core.classify.unsupervised_model import classify_unsupervised, fit_unsupervised
+from terratheme.core.errors import TerrathemeError
 
 # Theme colours (Lab): 1 bright sand, 2 dark grass, 3 mid-grey town (between them),
 # 4 green (not between any two).

@@ -11,8 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from core.classify import SupervisedOptions
+from terratheme.core.classify import SupervisedOptions
 
 _DIR = Path(__file__).resolve().parents[1] / "benchmarks"
 

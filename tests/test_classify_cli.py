@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.io.images import read_image, read_labels, write_image
+from terratheme.app.cli import main
+from terratheme.core.io.images import read_image, read_labels, write_image
 
 
 @pytest.fixture()
@@ -99,7 +98,7 @@ def test_position_trains_a_placed_model(photo):
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "p.png"), "--position",
                  "--scribbles", str(d / "scribbles.png"), "--model-out", str(d / "p.ttc")]) == 0
     assert (read_labels(d / "p.png") == truth).mean() > 0.95
-    from core.classify import Classifier
+    from terratheme.core.classify import Classifier
 
     assert Classifier.load(d / "p.ttc").options.features.position
 
@@ -117,8 +116,8 @@ def test_position_needs_scribbles_alone(photo, capsys, extra):
 
 def test_outputs_are_written_as_one_set(photo, monkeypatch, capsys):
     # A failure writing the last output (the model) leaves none of them, nor temporaries.
-    from core.classify.supervised import Classifier
-    from core.errors import TerrathemeError
+    from terratheme.core.classify.supervised import Classifier
+    from terratheme.core.errors import TerrathemeError
 
     d, _ = photo
     before = sorted(p.name for p in d.iterdir())

@@ -6,10 +6,9 @@ import re
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.images import read_labels, write_image
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import read_labels, write_image
 
 
 @pytest.fixture()
@@ -73,8 +72,8 @@ def test_a_bad_cache_folder_is_one_line_before_any_work(files, capsys, extra, ma
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match.format(d=d) in err[0]
     assert not (d / "l.png").exists() and not (d / "cache").exists()
-    from app.cli import build_parser
-    from app.commands import classify
+    from terratheme.app.cli import build_parser
+    from terratheme.app.commands import classify
 
     with pytest.raises(TerrathemeError, match=re.escape(match.format(d=d))):
         classify.run(build_parser().parse_args(args))
@@ -97,7 +96,7 @@ def test_the_cache_size_bounds_the_folder(files, capsys):
 
 
 def test_the_help_names_the_default_bound(capsys):
-    from core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
+    from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
 
     with pytest.raises(SystemExit):
         main(["classify", "-h"])

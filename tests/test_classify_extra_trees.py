@@ -9,11 +9,10 @@ import zipfile
 import numpy as np
 import pytest
 from sklearn.ensemble import ExtraTreesClassifier
-
-from core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
-from core.classify.extra_trees import ExtraTreesForest, fit_extra_trees, from_sklearn
-from core.classify.forest import build_forest, forest_scores
-from core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
+from terratheme.core.classify.extra_trees import ExtraTreesForest, fit_extra_trees, from_sklearn
+from terratheme.core.classify.forest import build_forest, forest_scores
+from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 
 def _stump_and_leaf() -> dict[str, np.ndarray]:

@@ -6,10 +6,9 @@ import math
 
 import numpy as np
 import pytest
-
-from core.classify import SupervisedOptions, train_classifier
-from core.classify.prior import kept_weights
-from core.errors import TerrathemeError
+from terratheme.core.classify import SupervisedOptions, train_classifier
+from terratheme.core.classify.prior import kept_weights
+from terratheme.core.errors import TerrathemeError
 
 COLOURS = {1: (40, 110, 40), 2: (60, 80, 170), 3: (200, 185, 150)}
 

@@ -6,9 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from core.classify import UnsupervisedOptions, classify_unsupervised
-from core.classify.mixture import (
+from terratheme.core.classify import UnsupervisedOptions, classify_unsupervised
+from terratheme.core.classify.mixture import (
     VARIANCE_FLOOR,
     fit_diagonal_mixture,
     isotropic_variances,

@@ -12,13 +12,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from classify_cases import block_pairs as pairs
-
-from core.classify import ForestKind, ModelCache, SampleCache, SupervisedOptions, train_classifier
-from core.classify import model_cache as model_cache_module
-from core.classify.keyed_store import KeyedStore
-from core.classify.model_cache import model_key
-from core.classify.model_file import model_bytes
-from core.errors import TerrathemeError
+from terratheme.core.classify import (
+    ForestKind,
+    ModelCache,
+    SampleCache,
+    SupervisedOptions,
+    train_classifier,
+)
+from terratheme.core.classify import model_cache as model_cache_module
+from terratheme.core.classify.keyed_store import KeyedStore
+from terratheme.core.classify.model_cache import model_key
+from terratheme.core.classify.model_file import model_bytes
+from terratheme.core.errors import TerrathemeError
 
 #: few trees: the tests fit often
 OPTS = SupervisedOptions(n_trees=8)

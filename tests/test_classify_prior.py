@@ -8,11 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from core.classify import Classifier, FeatureOptions, SupervisedOptions, train_classifier
-from core.classify.position import position_features
-from core.classify.prior import SCRIBBLE_PRIOR_POWER, predicted_shares, prior_weights
-from core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.classify import Classifier, FeatureOptions, SupervisedOptions, train_classifier
+from terratheme.core.classify.position import position_features
+from terratheme.core.classify.prior import SCRIBBLE_PRIOR_POWER, predicted_shares, prior_weights
+from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 COLOURS = {1: (40, 110, 40), 2: (60, 80, 170), 3: (200, 185, 150)}
 

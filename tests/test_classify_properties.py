@@ -7,11 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-
-from core.classify import classify_unsupervised, train_classifier
-from core.classify.features import FeatureOptions, FeatureSet
-from core.classify.regularise import Regularisation, RegulariseOptions
-from core.classify.tiled import predict_tiled
+from terratheme.core.classify import classify_unsupervised, train_classifier
+from terratheme.core.classify.features import FeatureOptions, FeatureSet
+from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
+from terratheme.core.classify.tiled import predict_tiled
 
 photos = st.integers(1, 24).flatmap(
     lambda h: st.integers(1, 24).flatmap(

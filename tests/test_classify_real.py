@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.classify import SupervisedOptions, classify_unsupervised, train_classifier
-from core.io.images import read_image
+from terratheme.core.classify import SupervisedOptions, classify_unsupervised, train_classifier
+from terratheme.core.io.images import read_image
 
 #: real photos: part of the slow suite
 pytestmark = pytest.mark.slow

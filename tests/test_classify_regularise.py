@@ -9,16 +9,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.classify import (
+from terratheme.core.classify import (
     Classifier,
     Regularisation,
     RegulariseOptions,
     SupervisedOptions,
     train_classifier,
 )
-from core.classify.regularise import edge_aware_probabilities, edge_reach, regularise
-from core.errors import TerrathemeError
+from terratheme.core.classify.regularise import edge_aware_probabilities, edge_reach, regularise
+from terratheme.core.errors import TerrathemeError
 
 
 def two_colour_guide(h=12, w=24, edge=12):

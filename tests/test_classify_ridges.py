@@ -6,11 +6,10 @@ import cv2
 import numpy as np
 import pytest
 from classify_cases import assert_tiles_match_whole
-
-from core.classify.features import FeatureOptions, compute_features, image_features
-from core.classify.lab import full_lab
-from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.errors import TerrathemeError
+from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.lab import full_lab
+from terratheme.core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
+from terratheme.core.errors import TerrathemeError
 
 
 def grey(h: int, w: int, value: int = 200) -> np.ndarray:

@@ -7,10 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from classify_cases import block_pairs as pairs
-
-from core.classify import SupervisedOptions, train_classifier
-from core.classify.sample_cache import SampleCache, sample_key
-from core.classify.supervised import collect_samples
+from terratheme.core.classify import SupervisedOptions, train_classifier
+from terratheme.core.classify.sample_cache import SampleCache, sample_key
+from terratheme.core.classify.supervised import collect_samples
 
 
 def test_cached_samples_are_identical_to_computed_ones(tmp_path):

@@ -7,22 +7,21 @@ import zipfile
 
 import numpy as np
 import pytest
-
-from core.classify import (
+from terratheme.core.classify import (
     Classifier,
     ForestKind,
     Regularisation,
     SupervisedOptions,
     train_classifier,
 )
-from core.classify.samples import (
+from terratheme.core.classify.samples import (
     GROW_COLOUR,
     check_class_image,
     grow_labels,
     looks_like_scribbles,
 )
-from core.classify.supervised import collect_samples
-from core.errors import TerrathemeError
+from terratheme.core.classify.supervised import collect_samples
+from terratheme.core.errors import TerrathemeError
 
 
 def test_grow_labels_by_hand():

@@ -6,16 +6,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.classify import FeatureOptions, Normalise
-from core.classify.features import (
+from terratheme.core.classify import FeatureOptions, Normalise
+from terratheme.core.classify.features import (
     REFERENCE_MEAN,
     REFERENCE_STD,
     RELATIVE_FLOOR,
     features_from_lab,
     normalise_lab,
 )
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 SIGMAS = (0.5, 1.0, 2.0)
 

@@ -6,16 +6,15 @@ import json
 
 import numpy as np
 import pytest
-
-from core.classify import (
+from terratheme.core.classify import (
     SupervisedOptions,
     load_model,
     resolve_model,
     shipped_models,
     train_classifier,
 )
-from core.classify.shipped import MODELS_INDEX, SHIPPED_MODELS_DIR
-from core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.classify.shipped import MODELS_INDEX, SHIPPED_MODELS_DIR
+from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 
 def two_class_model():

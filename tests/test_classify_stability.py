@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.classify import classify_unsupervised, train_classifier
-from core.errors import TerrathemeError
-from core.io.images import read_image, write_image
+from terratheme.core.classify import classify_unsupervised, train_classifier
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import read_image, write_image
 
 
 def field_and_road(h=96, w=128):

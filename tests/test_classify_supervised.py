@@ -6,11 +6,10 @@ import zipfile
 
 import numpy as np
 import pytest
-
-from core.classify import Classifier, SupervisedOptions, train_classifier
-from core.classify.model_file import FORMAT
-from core.classify.supervised import coarse_mask
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.classify import Classifier, SupervisedOptions, train_classifier
+from terratheme.core.classify.model_file import FORMAT
+from terratheme.core.classify.supervised import coarse_mask
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 COLOURS = {3: (40, 110, 40), 5: (60, 80, 170), 9: (200, 185, 150)}
 
@@ -210,7 +209,7 @@ def test_samples_per_class_grow_with_the_pairs():
 
 
 def test_training_samples_are_capped_per_class():
-    from core.classify.supervised import collect_samples
+    from terratheme.core.classify.supervised import collect_samples
 
     img, truth = three_stripes(h=480, w=480)
     # 60 x 60 coarse pixels, 1200 per stripe and photo: 2400 per class, two pairs cap 2000.

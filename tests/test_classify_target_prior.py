@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.classify import SupervisedOptions, train_classifier
-from core.classify.prior import em_shares
-from core.errors import TerrathemeError
+from terratheme.core.classify import SupervisedOptions, train_classifier
+from terratheme.core.classify.prior import em_shares
+from terratheme.core.errors import TerrathemeError
 
 
 def gaussian_posteriors(x: np.ndarray, means, priors) -> np.ndarray:

@@ -7,12 +7,11 @@ import json
 import numpy as np
 import pytest
 from classify_cases import assert_tiles_match_whole
-
-from core.classify import SupervisedOptions
-from core.classify.features import FeatureOptions, compute_features, image_features
-from core.classify.lab import full_lab
-from core.classify.model_options import options_from_json, options_to_json
-from core.errors import TerrathemeError
+from terratheme.core.classify import SupervisedOptions
+from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.lab import full_lab
+from terratheme.core.classify.model_options import options_from_json, options_to_json
+from terratheme.core.errors import TerrathemeError
 
 SIGMAS = (1.0, 2.0)
 OPTIONS = FeatureOptions(sigmas=SIGMAS, structure=True)

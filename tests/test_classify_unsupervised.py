@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.classify import (
+from terratheme.core.classify import (
     FeatureOptions,
     Regularisation,
     RegulariseOptions,
     UnsupervisedOptions,
     classify_unsupervised,
 )
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 def two_colours(h=64, w=100, split=60, left=(40, 120, 40), right=(200, 180, 150)):
@@ -159,7 +158,7 @@ def test_other_scales_keep_the_photo_size(scale):
 
 
 def test_distinct_rows_cap_k_even_when_their_first_feature_is_the_same():
-    from core.classify.unsupervised import UnsupervisedOptions, choose_themes
+    from terratheme.core.classify.unsupervised import UnsupervisedOptions, choose_themes
 
     rows = np.array([[1.0, 0.0, 0.0], [1.0, 40.0, 0.0], [1.0, 0.0, 40.0]], np.float32)
     samples = np.repeat(rows, 50, axis=0)

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.classify import (
+from terratheme.core.classify import (
     UnsupervisedModel,
     UnsupervisedOptions,
     classify_unsupervised,
     fit_unsupervised,
 )
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 GREEN, SAND, BLUE = (40, 120, 40), (200, 180, 150), (50, 70, 170)
 

@@ -4,8 +4,7 @@ import subprocess
 import sys
 
 import pytest
-
-from app.cli import build_parser, main
+from terratheme.app.cli import build_parser, main
 
 EXPECTED = {"new", "render", "classify", "convert", "pack", "unpack", "info", "perspective", "app",
             "export", "themes"}
@@ -43,7 +42,7 @@ def test_user_error_is_one_line_and_exit_2(tmp_path, capsys):
 
 def test_help_does_not_import_qt():
     code = (
-        "import sys\nfrom app.cli import build_parser\nbuild_parser()\n"
+        "import sys\nfrom terratheme.app.cli import build_parser\nbuild_parser()\n"
         "print([m for m in sys.modules if m.startswith('PySide6')])"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

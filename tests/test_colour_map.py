@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, load_project, save_project
-from core.render.colour_map import apply_colour_map, axis_weights, gain_image
-from core.render.overview import render_overview
-from core.render.project import render_project
-from core.render.renderer import render_cells
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, load_project, save_project
+from terratheme.core.render.colour_map import apply_colour_map, axis_weights, gain_image
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.project import render_project
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 def _reference_gain(pixels: np.ndarray, s: int, x: int, y: int) -> list[Fraction]:
@@ -104,7 +103,7 @@ def test_region_render_equals_the_crop_of_the_full_render():
 
 
 def test_threads_and_bands_do_not_change_the_result():
-    from core.render.renderer import RenderOptions
+    from terratheme.core.render.renderer import RenderOptions
 
     proj = _project(_map(scale=3))
     one = render_cells(proj.grid, proj.library.textures, colour_map=proj.colour_map,

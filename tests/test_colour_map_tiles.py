@@ -11,15 +11,14 @@ import zipfile
 
 import numpy as np
 import pytest
-
-import core.model.colour_map as colour_map_module
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.codec import decode_image
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, load_project, save_project
-from core.render.renderer import render_cells
-from core.themes.library import ThemeLibrary, flat_theme
+import terratheme.core.model.colour_map as colour_map_module
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.codec import decode_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, load_project, save_project
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 @pytest.fixture
@@ -137,8 +136,8 @@ def test_tiles_that_do_not_match_the_map_are_refused():
 
 
 def test_tiled_conversion_gives_the_untiled_gains(small_limit, tmp_path, monkeypatch):
-    from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
-    from core.io.images import write_image
+    from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+    from terratheme.core.io.images import write_image
 
     rng = np.random.default_rng(8)
     photo = rng.integers(30, 220, (300, 420, 3), dtype=np.uint8)
@@ -156,8 +155,8 @@ def test_tiled_conversion_gives_the_untiled_gains(small_limit, tmp_path, monkeyp
 
 
 def test_outputs_of_a_tiled_map_ship_it_in_the_project_only(small_limit, tmp_path):
-    from core.convert.photo import write_outputs
-    from core.fidelity import texture_cost
+    from terratheme.core.convert.photo import write_outputs
+    from terratheme.core.fidelity import texture_cost
 
     cmap = ColourMap.encode(_gains((50, 70)), 8, "jpegxl", 99)
     project = _project(cmap, (70 * 8, 50 * 8))

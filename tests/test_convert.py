@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from app.commands.convert import parse_themes
-from core.convert.photo import ConvertOptions, convert_photo
-from core.errors import TerrathemeError
-from core.io.georef import read_georeference, write_georeference
-from core.io.images import read_image, write_image
-from core.model.project import load_project
-from core.packing import PackedLayer
+from terratheme.app.cli import main
+from terratheme.app.commands.convert import parse_themes
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.georef import read_georeference, write_georeference
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.model.project import load_project
+from terratheme.core.packing import PackedLayer
 
 BLUE, SAND = (40, 90, 200), (225, 200, 140)
 
@@ -207,7 +206,7 @@ def test_convert_photo_checks_the_scribbles_before_it_classifies():
 
 @pytest.mark.slow
 def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
-    from core.classify import train_classifier
+    from terratheme.core.classify import train_classifier
 
     img = _halves(h=150, w=200)
     photo = tmp_path / "big.tif"
@@ -248,7 +247,7 @@ def test_one_class_scribbles_and_float_exr(tmp_path):
     assert _run([photo, proj, "--scribbles", tmp_path / "one.png", "--cell", "16"]) == 0
     project = load_project(proj)
     # Named after the closest shipped theme (the halves' mean is a sandy grey), never "class 4".
-    from core.themes.library import shipped_theme_library
+    from terratheme.core.themes.library import shipped_theme_library
 
     assert len(project.library) == 1
     assert project.library.names[0] in shipped_theme_library().names
@@ -258,7 +257,7 @@ def test_one_class_scribbles_and_float_exr(tmp_path):
 
 
 def test_reduced_preview_keeps_georeference_scaled(tmp_path):
-    from core.convert.photo import write_outputs
+    from terratheme.core.convert.photo import write_outputs
 
     geo = {"ModelPixelScale": [1.0, 1.0, 0.0], "ModelTiepoint": [0, 0, 0, 100.0, 200.0, 0]}
     res = convert_photo(_halves(h=40, w=80), ConvertOptions(cell=8),
@@ -272,7 +271,7 @@ def test_reduced_preview_keeps_georeference_scaled(tmp_path):
 
 
 def test_cli_colour_map_and_boundary_options(tmp_path):
-    from core.render.project import project_style
+    from terratheme.core.render.project import project_style
 
     photo = tmp_path / "h.png"
     write_image(photo, _halves())
@@ -307,7 +306,7 @@ def test_cli_refuses_before_any_work(tmp_path, capsys, args, match):
 
 
 def test_outputs_are_written_as_a_set(tmp_path, monkeypatch):
-    import core.convert.photo as photo_mod
+    import terratheme.core.convert.photo as photo_mod
 
     photo = tmp_path / "h.png"
     write_image(photo, _halves())

@@ -4,21 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.convert.colour_fit import ColourMapOptions, choose_colour_map, fit_gain
-from core.errors import TerrathemeError
-from core.fidelity import colour_error
-from core.io.codec import decode_image, encode_image
-from core.model.colour_map import ColourMap
-from core.render.colour_map import apply_colour_map
-from core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
-from core.themes.matching import (
+from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, fit_gain
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.fidelity import colour_error
+from terratheme.core.io.codec import decode_image, encode_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.render.colour_map import apply_colour_map
+from terratheme.core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
+from terratheme.core.themes.matching import (
     Appearance,
     class_appearances,
     match_classes,
     shipped_names,
 )
-from core.themes.patch_search import texture_stats
+from terratheme.core.themes.patch_search import texture_stats
 
 
 def _photo_and_render(seed=0):
@@ -110,10 +109,10 @@ def test_shipped_names_name_classes_and_number_repeats():
 
 
 def test_tile_by_tile_map_equals_the_whole_photo_block_gain(tmp_path):
-    from core.convert.colour_fit import colour_map_from_file
-    from core.io.images import write_image
-    from core.model.grid import IndexGrid
-    from core.render.renderer import render_cells
+    from terratheme.core.convert.colour_fit import colour_map_from_file
+    from terratheme.core.io.images import write_image
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.render.renderer import render_cells
 
     rng = np.random.default_rng(8)
     photo = rng.integers(30, 220, (100, 140, 3), dtype=np.uint8)

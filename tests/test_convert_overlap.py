@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.convert.cell_choice import choose_cell_size
-from core.convert.labels_to_grid import apply_lut
-from core.convert.photo import ConvertOptions, convert_photo
-from core.convert.step import cuts_themes, grid_and_colour, themes_and_cell
-from core.themes import ThemeLibrary, shipped_theme_library
-from core.themes.from_photo import photo_theme_lut, themes_from_photo
+from terratheme.core.convert.cell_choice import choose_cell_size
+from terratheme.core.convert.labels_to_grid import apply_lut
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.convert.step import cuts_themes, grid_and_colour, themes_and_cell
+from terratheme.core.themes import ThemeLibrary, shipped_theme_library
+from terratheme.core.themes.from_photo import photo_theme_lut, themes_from_photo
 
 
 def _photo() -> np.ndarray:

@@ -6,11 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.classify import shipped_models
-from core.io.images import read_image, read_labels, write_image
-from core.model.project import load_project
+from terratheme.app.cli import main
+from terratheme.core.classify import shipped_models
+from terratheme.core.io.images import read_image, read_labels, write_image
+from terratheme.core.model.project import load_project
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_maps" / "dubai_marina.jpg"
 

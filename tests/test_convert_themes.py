@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.themes.cut_mask import fill_from_class, lone_objects
-from core.themes.from_photo import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.cut_mask import fill_from_class, lone_objects
+from terratheme.core.themes.from_photo import (
     NO_DATA_NAME,
     themes_by_name,
     themes_from_photo,
 )
-from core.themes.library import shipped_theme_library
-from core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
-from core.themes.tileable import SEAM_THRESHOLD, seam_score
+from terratheme.core.themes.library import shipped_theme_library
+from terratheme.core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
+from terratheme.core.themes.tileable import SEAM_THRESHOLD, seam_score
 
 
 def _two_regions(h=96, w=128, seed=0):
@@ -102,7 +101,7 @@ def test_lone_objects_are_found_in_calm_texture_only():
 
 
 def test_themes_from_photo_are_tileable_patches_with_the_class_detail():
-    from core.fidelity import detail_energy
+    from terratheme.core.fidelity import detail_energy
 
     photo, labels = _two_regions()
     mapping = themes_from_photo(photo, labels, options=PatchOptions(size=32, min_size=8))

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import core.convert.tiled as ct
-from app.cli import main
-from core.convert.tiled import convert_file_tiled, sample_pieces
-from core.errors import TerrathemeError
-from core.io.images import write_image
-from core.model.project import load_project
+import terratheme.core.convert.tiled as ct
+from terratheme.app.cli import main
+from terratheme.core.convert.tiled import convert_file_tiled, sample_pieces
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.model.project import load_project
 
 GREEN, SAND, BLUE = (40, 120, 40), (225, 200, 140), (40, 90, 200)
 
@@ -97,7 +96,7 @@ def test_tiled_cli_errors(tmp_path, capsys):
 
 
 def test_trained_model_refuses_theme_count_and_position_features(tmp_path):
-    from core.classify import FeatureOptions, SupervisedOptions, train_classifier
+    from terratheme.core.classify import FeatureOptions, SupervisedOptions, train_classifier
 
     img = quadrants(h=64, w=64)
     photo = tmp_path / "big.tif"

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.edit import (
+from terratheme.core.edit import (
     EditAtom,
     EditDocument,
     GridChange,
@@ -18,11 +17,16 @@ from core.edit import (
     dirty_cells,
     dirty_region,
 )
-from core.edit.tools import Connectivity, capsule_footprint, flood_footprint, rect_footprint
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.edit.tools import (
+    Connectivity,
+    capsule_footprint,
+    flood_footprint,
+    rect_footprint,
+)
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 def make_texture(indices: np.ndarray, cell=(4, 4), k: int = 4) -> ThematicTexture:

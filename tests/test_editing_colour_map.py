@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.edit import ClassificationUpdate, EditDocument, RenderPreview
-from core.model.colour_map import NEUTRAL, ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.project import render_project
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit import ClassificationUpdate, EditDocument, RenderPreview
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import render_project
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 CELL = (8, 8)
 

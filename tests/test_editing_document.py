@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.edit import (
+from terratheme.core.edit import (
     ClassificationUpdate,
     EditDocument,
     Emitter,
@@ -17,10 +16,10 @@ from core.edit import (
     ThemeChange,
     photo_extent,
 )
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, load_project
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, load_project
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 PHOTO = (20, 30)  # rows, cols of the test photo: the grid below renders 32 x 24 texels
 

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.edit import EditDocument, RenderPreview
-from core.edit.fidelity import fidelity_map, heat_colours
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.renderer import render_cells
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit import EditDocument, RenderPreview
+from terratheme.core.edit.fidelity import fidelity_map, heat_colours
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
 def textured_library(k: int, seed: int = 0) -> ThemeLibrary:

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.edit import (
+from terratheme.core.edit import (
     ClassificationUpdate,
     ConfidenceChange,
     EditDocument,
@@ -16,8 +15,8 @@ from core.edit import (
     uncertain_mask,
     uncertainty_rgba,
 )
-from core.edit.uncertainty import TINT
-from core.errors import TerrathemeError
+from terratheme.core.edit.uncertainty import TINT
+from terratheme.core.errors import TerrathemeError
 
 
 def test_the_lowest_tenth_without_filter_is_the_smallest_values():

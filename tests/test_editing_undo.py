@@ -31,14 +31,13 @@ from hypothesis.stateful import (
     rule,
     run_state_machine_as_test,
 )
-
-from core.edit import ClassificationUpdate, EditAtom, EditDocument, Layer, RenderPreview
-from core.errors import TerrathemeError
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.project import render_project
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit import ClassificationUpdate, EditAtom, EditDocument, Layer, RenderPreview
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import render_project
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 CELL = (2, 2)
 POINT = st.tuples(st.floats(-2, 9), st.floats(-2, 9))
@@ -168,7 +167,7 @@ class UndoMachine(RuleBasedStateMachine):
 
     @rule(p=POINT, value=st.integers(0, 300), eight=st.booleans())
     def flood(self, p, value, eight) -> None:
-        from core.edit import Connectivity
+        from terratheme.core.edit import Connectivity
 
         conn = Connectivity.EIGHT if eight else Connectivity.FOUR
         self._edit(lambda: self.doc.flood_fill(p, value % len(self.doc.library), conn))

@@ -9,11 +9,11 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from app.editor.classify_job import Mode, run_classification
-from core.classify import shipped_models
-from core.convert.labels_to_grid import labels_to_grid
-from core.io.images import read_image
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.app.editor.classify_job import Mode, run_classification
+from terratheme.core.classify import shipped_models
+from terratheme.core.convert.labels_to_grid import labels_to_grid
+from terratheme.core.io.images import read_image
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_maps" / "dubai_marina.jpg"
 

@@ -9,8 +9,7 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
-
-from core.model.project import ThematicTexture, save_project
+from terratheme.core.model.project import ThematicTexture, save_project
 
 pytestmark = pytest.mark.qt
 
@@ -28,7 +27,7 @@ def texture(small_texture) -> ThematicTexture:
 
 @pytest.fixture
 def window(open_window, small_texture):
-    from app.editor.document import EditorDocument
+    from terratheme.app.editor.document import EditorDocument
 
     texture = small_texture(themes=2, seed=2, photo=np.zeros((64, 96, 3), np.uint8))
     return open_window(EditorDocument(texture))
@@ -134,8 +133,7 @@ def test_a_project_with_an_odd_layer_is_refused_with_one_line(window, texture, t
 def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, texture, capsys,
                                                                   monkeypatch):
     from PySide6.QtWidgets import QMessageBox
-
-    from app.cli import main
+    from terratheme.app.cli import main
 
     dialogs = []
     monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: dialogs.append(a[2]))
@@ -160,11 +158,10 @@ def test_photo_changes_reach_the_window(window):
 
 
 def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
+    import terratheme.core
     from PySide6.QtGui import QDesktopServices
     from PySide6.QtWidgets import QMessageBox
-
-    import core
-    from app.editor.help import DOCS
+    from terratheme.app.editor.help import DOCS
 
     shown, opened = [], []
     monkeypatch.setattr(QMessageBox, "exec", lambda box: shown.append(box.text()))
@@ -182,7 +179,7 @@ def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
         assert must in keys, must
     assert str(DOCS[0]) in docs
     assert opened and opened[0].toLocalFile() == str(DOCS[0])
-    assert f"terratheme {core.__version__}" in about and "PySide6" in about
+    assert f"terratheme {terratheme.core.__version__}" in about and "PySide6" in about
 
 
 def test_the_fidelity_view_names_the_whole_texture_figures(window):

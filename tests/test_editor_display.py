@@ -11,10 +11,9 @@ import time
 from pathlib import Path
 
 import pytest
-
-from app.editor import display
-from app.editor.display import display_problem, prepare_display
-from core.errors import TerrathemeError
+from terratheme.app.editor import display
+from terratheme.app.editor.display import display_problem, prepare_display
+from terratheme.core.errors import TerrathemeError
 
 ROOT = Path(__file__).resolve().parents[1]
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"),

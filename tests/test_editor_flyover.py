@@ -15,15 +15,14 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, Qt
-
-from core.gpu import Flight, GpuUnavailableError, GroundView, gl_context
-from core.io.images import write_image
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.perspective import FilterOptions, Method, PreparedTexture
-from core.render.project import render_project
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.gpu import Flight, GpuUnavailableError, GroundView, gl_context
+from terratheme.core.io.images import write_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.perspective import FilterOptions, Method, PreparedTexture
+from terratheme.core.render.project import render_project
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 pytestmark = pytest.mark.qt
 
@@ -44,8 +43,8 @@ def styled_texture() -> ThematicTexture:
 
 def shown_tab(qtbot):
     """A Perspective tab on :func:`styled_texture`, shown offscreen at 700 x 360."""
-    from app.editor.document import EditorDocument
-    from app.editor.perspective_tab import PerspectiveTab
+    from terratheme.app.editor.document import EditorDocument
+    from terratheme.app.editor.perspective_tab import PerspectiveTab
 
     widget = PerspectiveTab()
     qtbot.addWidget(widget)
@@ -70,7 +69,7 @@ def _needs_gpu(tab) -> None:
 
 def _frame(tab, qtbot) -> np.ndarray:
     """The fly-over's current frame as (h, w, 3) uint8, row 0 at the top."""
-    from app.editor.flyover import FlyoverImage
+    from terratheme.app.editor.flyover import FlyoverImage
 
     view = tab.view
     if isinstance(view, FlyoverImage):
@@ -200,14 +199,14 @@ def test_a_height_map_displaces_the_ground(tab, qtbot, tmp_path):
 
 
 def test_without_opengl_the_tab_says_so_and_keeps_the_cpu_filters(qtbot, monkeypatch):
-    import app.editor.perspective_tab as perspective_tab
-    from app.editor.document import EditorDocument
+    import terratheme.app.editor.perspective_tab as perspective_tab
+    from terratheme.app.editor.document import EditorDocument
 
     def no_egl():
         raise GpuUnavailableError("GPU rendering unavailable: no EGL (test)")
 
     monkeypatch.setattr(perspective_tab, "_QT_GL", ["Qt's test platform makes no OpenGL context"])
-    monkeypatch.setattr("core.gpu.gl_context", no_egl)
+    monkeypatch.setattr("terratheme.core.gpu.gl_context", no_egl)
     widget = perspective_tab.PerspectiveTab()
     qtbot.addWidget(widget)
     widget.set_document(EditorDocument(styled_texture()))
@@ -220,7 +219,7 @@ def test_without_opengl_the_tab_says_so_and_keeps_the_cpu_filters(qtbot, monkeyp
 
 
 def test_qt_opengl_widget_draws_where_qt_has_a_context(qtbot):
-    from app.editor.flyover import FlyoverGL, qt_gl_unavailable
+    from terratheme.app.editor.flyover import FlyoverGL, qt_gl_unavailable
 
     reason = qt_gl_unavailable()
     if reason is not None:

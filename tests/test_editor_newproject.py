@@ -8,8 +8,8 @@ import pytest
 
 @pytest.mark.parametrize("channels", [1, 2, 3, 4])
 def test_a_new_project_over_a_grey_or_alpha_photo(tmp_path, channels):
-    from app.editor.newproject import project_from_photo
-    from core.io.images import write_image
+    from terratheme.app.editor.newproject import project_from_photo
+    from terratheme.core.io.images import write_image
 
     photo = np.zeros((40, 56, channels), np.uint8)
     photo[..., 0] = np.arange(56, dtype=np.uint8)[None, :] * 4

@@ -9,10 +9,9 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
-
-from core.model.project import save_project
-from core.render.renderer import render_cells
-from core.themes.library import Theme
+from terratheme.core.model.project import save_project
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import Theme
 
 pytestmark = pytest.mark.qt
 
@@ -27,7 +26,7 @@ def halves_photo() -> np.ndarray:
 
 @pytest.fixture
 def window(open_window, small_texture):
-    from app.editor.document import EditorDocument
+    from terratheme.app.editor.document import EditorDocument
 
     return open_window(EditorDocument(small_texture(photo=halves_photo())))
 
@@ -102,7 +101,7 @@ def test_theme_rename_and_recolour_are_undoable(window):
     assert window.palette_widget.list.item(1).text().endswith("lake")
     doc.model.undo()
     assert doc.texture.library[1] == old
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     with pytest.raises(TerrathemeError, match="already in the library"):
         doc.model.replace_theme(1, old.with_(name="Grass"), "rename")
@@ -120,7 +119,7 @@ def test_adding_a_theme_is_undoable(window):
     assert window.palette_widget.list.count() == 3
     doc.model.redo()
     assert doc.texture.library.names == ["grass", "water", "sand", "snow"]
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     with pytest.raises(TerrathemeError, match="already in the library"):
         doc.model.add_theme(Theme("Snow", (1, 1, 1), tex))
@@ -157,7 +156,7 @@ def test_damaged_project_shows_an_error_dialog(window, small_texture, tmp_path):
 
 
 def test_export_render_writes_the_preview(window, tmp_path):
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     out = tmp_path / "render.png"
     assert window.export_render(str(out))
@@ -178,7 +177,7 @@ def test_fidelity_view_marks_the_cells_that_differ(window):
 
 
 def test_classification_from_the_menu_fills_the_grid(window, qtbot):
-    from app.editor.classify_job import Mode
+    from terratheme.app.editor.classify_job import Mode
 
     doc = window.doc
     job = window.start_classification(Mode.UNSUPERVISED_NEW)
@@ -200,7 +199,7 @@ def test_classification_from_the_menu_fills_the_grid(window, qtbot):
 
 
 def test_classification_can_be_cancelled(window, qtbot):
-    from app.editor.classify_job import Mode
+    from terratheme.app.editor.classify_job import Mode
 
     doc = window.doc
     n_themes = len(doc.texture.library)
@@ -214,8 +213,8 @@ def test_classification_can_be_cancelled(window, qtbot):
 
 
 def test_classification_without_photo_or_scribbles_reports(window, small_texture, qtbot):
-    from app.editor.classify_job import Mode
-    from app.editor.document import EditorDocument
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.document import EditorDocument
 
     job = window.start_classification(Mode.SCRIBBLES)
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
@@ -226,8 +225,8 @@ def test_classification_without_photo_or_scribbles_reports(window, small_texture
 
 
 def test_screenshot_command_writes_a_png(small_texture, tmp_path, monkeypatch):
-    from app.cli import main
-    from core.io.images import read_image
+    from terratheme.app.cli import main
+    from terratheme.core.io.images import read_image
 
     project = tmp_path / "p.ttproj"
     save_project(project, small_texture(photo=halves_photo()))
@@ -263,8 +262,8 @@ def drag(qtbot, canvas, points):
 
 
 def test_scribbles_train_a_classifier_from_the_menu(window, qtbot):
-    from app.editor.classify_job import Mode
-    from app.editor.tools import Tool
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.tools import Tool
 
     doc = window.doc
     canvas = window.index_canvas
@@ -291,10 +290,10 @@ def test_scribbles_train_a_classifier_from_the_menu(window, qtbot):
 
 
 def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, monkeypatch):
-    from app.editor.classify_job import Mode
-    from app.editor.launch import load_start_document
-    from app.editor.window import MainWindow
-    from core.io.images import write_image
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.launch import load_start_document
+    from terratheme.app.editor.window import MainWindow
+    from terratheme.core.io.images import write_image
 
     photo = np.zeros((64, 96, 3), dtype=np.uint8)
     photo[:, :48] = (30, 140, 40)
@@ -320,7 +319,7 @@ def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, mo
 
 
 def test_export_packed_index_layer_round_trips(window, tmp_path):
-    from core.packing.layer import PackedLayer
+    from terratheme.core.packing.layer import PackedLayer
 
     doc = window.doc
     doc.model.fill_rect((2, 1), (7, 5), 2)
@@ -338,7 +337,7 @@ def test_an_export_that_cannot_be_written_shows_one_error(window, tmp_path, expo
 
 
 def test_app_command_reports_a_damaged_project_in_one_line(tmp_path, capsys):
-    from app.cli import main
+    from terratheme.app.cli import main
 
     bad = tmp_path / "bad.ttproj"
     bad.write_bytes(b"not a zip at all")
@@ -350,8 +349,7 @@ def test_app_command_reports_a_damaged_project_in_one_line(tmp_path, capsys):
 
 def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monkeypatch):
     from PySide6.QtWidgets import QFileDialog, QInputDialog
-
-    from core.io.images import write_image
+    from terratheme.core.io.images import write_image
 
     tex = np.zeros((16, 16, 3), dtype=np.uint8)
     tex[..., 0] = 200

@@ -24,7 +24,7 @@ def test_a_leaking_build_gets_none_a_huge_count():
     # made it 2^48 - 1 in a clean clone), so half of that is asked for.
     got = _run(
         "import sys\n"
-        "import app.editor.qt_compat as q\n"
+        "import terratheme.app.editor.qt_compat as q\n"
         "q._applied = False\n"
         "q.void_call_leaks_none = lambda: True\n"
         "before = sys.getrefcount(None)\n"
@@ -36,7 +36,7 @@ def test_a_leaking_build_gets_none_a_huge_count():
 def test_a_sound_build_is_left_alone():
     got = _run(
         "import sys\n"
-        "import app.editor.qt_compat as q\n"
+        "import terratheme.app.editor.qt_compat as q\n"
         "q._applied = False\n"
         "q.void_call_leaks_none = lambda: False\n"
         "before = sys.getrefcount(None)\n"
@@ -50,7 +50,7 @@ def test_many_void_calls_do_not_abort_the_interpreter():
     # 200,000 void calls and the process aborts ("none_dealloc"): check=True fails then.
     got = _run(
         "from PySide6.QtCore import QObject\n"
-        "import app.editor\n"
+        "import terratheme.app.editor\n"
         "obj = QObject()\n"
         "for _ in range(200_000):\n"
         "    obj.setObjectName('x')\n"

@@ -7,8 +7,8 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from core.model.project import save_project
-from core.themes.library import Theme
+from terratheme.core.model.project import save_project
+from terratheme.core.themes.library import Theme
 
 
 def two_colour_photo() -> np.ndarray:
@@ -22,9 +22,9 @@ def two_colour_photo() -> np.ndarray:
 def test_screenshot_of_a_failed_classification_is_one_line_and_no_file(tmp_path, capsys,
                                                                      monkeypatch):
     # found: the failure opened a modal dialog nobody could close, and the command hung
-    from app.cli import main
-    from app.editor import classify_job
-    from core.io.images import write_image
+    from terratheme.app.cli import main
+    from terratheme.app.editor import classify_job
+    from terratheme.core.io.images import write_image
 
     def fail(*args, **kwargs):
         raise MemoryError("Unable to allocate 3.02 GiB for an array")
@@ -39,10 +39,10 @@ def test_screenshot_of_a_failed_classification_is_one_line_and_no_file(tmp_path,
 
 
 def test_a_project_past_the_preview_limit_is_one_line_naming_it(tmp_path, capsys):
-    from app.cli import main
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture
-    from core.themes.library import ThemeLibrary
+    from terratheme.app.cli import main
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.model.project import ThematicTexture
+    from terratheme.core.themes.library import ThemeLibrary
 
     library = ThemeLibrary([Theme("a", (10, 20, 30), np.zeros((4, 4, 3), np.uint8))])
     big = tmp_path / "big.ttproj"

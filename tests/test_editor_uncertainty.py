@@ -14,19 +14,18 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
-
-from core.edit import uncertain_mask, uncertainty_rgba
+from terratheme.core.edit import uncertain_mask, uncertainty_rgba
 
 
 @pytest.fixture
 def doc(small_texture):
-    from app.editor.document import EditorDocument
+    from terratheme.app.editor.document import EditorDocument
 
     return EditorDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8)))
 
 
 def test_scribble_run_uses_and_reports_the_class_weights(doc):
-    from app.editor.classify_job import Mode, run_classification
+    from terratheme.app.editor.classify_job import Mode, run_classification
 
     photo = np.zeros((64, 96, 3), np.uint8)
     photo[:, :48] = (30, 140, 40)
@@ -48,17 +47,17 @@ def test_scribble_run_uses_and_reports_the_class_weights(doc):
 
 
 def test_scribble_run_passes_the_position_option(monkeypatch, doc):
-    import core.convert.step
-    from app.editor.classify_job import Mode, run_classification
+    import terratheme.core.convert.step
+    from terratheme.app.editor.classify_job import Mode, run_classification
 
     seen = []
-    train = core.convert.step.train_classifier
+    train = terratheme.core.convert.step.train_classifier
 
     def spy(pairs, options=None, **kw):
         seen.append(options.features.position)
         return train(pairs, options, **kw)
 
-    monkeypatch.setattr(core.convert.step, "train_classifier", spy)
+    monkeypatch.setattr(terratheme.core.convert.step, "train_classifier", spy)
     photo = np.zeros((64, 96, 3), np.uint8)
     photo[:, 48:] = (40, 60, 200)
     sc = np.zeros((64, 96), np.uint8)
@@ -94,8 +93,8 @@ def drag(qtbot, canvas, points):
 
 @pytest.mark.qt
 def test_uncertainty_toggle_follows_the_confidence_map(window, qtbot):
-    from app.editor.classify_job import Mode
-    from app.editor.tools import Tool
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.tools import Tool
     doc = window.doc
     act = window.uncertainty_action
     assert act.shortcut().toString() == "U"
@@ -134,8 +133,8 @@ def test_uncertainty_toggle_follows_the_confidence_map(window, qtbot):
 
 @pytest.mark.qt
 def test_scribble_reruns_keep_the_first_class_prior(window, qtbot):
-    from app.editor.classify_job import Mode
-    from app.editor.tools import Tool
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.tools import Tool
 
     doc = window.doc
     window.set_tool(Tool.SCRIBBLE)

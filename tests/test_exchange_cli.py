@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.io.images import write_image
-from core.model.project import load_project, save_project
+from terratheme.app.cli import main
+from terratheme.core.io.images import write_image
+from terratheme.core.model.project import load_project, save_project
 
 THEMES = "water,sand,forest,grass,town"
 
@@ -125,7 +124,7 @@ def test_splatmap_channel_without_a_theme_is_refused(tmp_path, capsys):
 
 def test_a_styled_project_exports_its_look_and_comes_back(tmp_path, project, capsys):
     # The project as convert leaves it: shaped borders in metadata["render"] and a colour map.
-    from core.model.colour_map import ColourMap
+    from terratheme.core.model.colour_map import ColourMap
 
     path, grid = project
     p = load_project(path)

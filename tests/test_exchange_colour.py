@@ -14,15 +14,14 @@ import json
 import cv2
 import numpy as np
 import pytest
-
-from core.exchange import Engine, ExportOptions, WeightStyle, plan_export, write_export
-from core.exchange.terrain3d import read_control_map
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.project import render_project
-from core.render.renderer import RenderOptions, render_cells
-from core.themes.library import Theme, ThemeLibrary, flat_theme
+from terratheme.core.exchange import Engine, ExportOptions, WeightStyle, plan_export, write_export
+from terratheme.core.exchange.terrain3d import read_control_map
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import render_project
+from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.library import Theme, ThemeLibrary, flat_theme
 
 STYLE = {"width": 3.0, "noise": 90, "height": 40, "features": 2.0, "seed": 3}
 
@@ -171,7 +170,7 @@ def test_terrain3d_colour_map_is_the_gain_at_every_vertex(tmp_path):
 
 
 def test_gis_texture_is_the_project_render_in_its_style(tmp_path):
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     grid = _grid((6, 9), 4, 4)
     project = _project(grid, (16, 16), scale=10, seed=3, k=4)
@@ -204,12 +203,12 @@ def test_a_converted_photo_exports_its_look():
     # convert's defaults: shaped borders and a colour map; one weight pixel per texel.
     from pathlib import Path
 
-    from core.convert import convert_photo
-    from core.exchange import map_weights
-    from core.exchange.colour import vertex_colour_uv
-    from core.exchange.layout import ExportLayout
-    from core.io.images import read_image
-    from core.render.project import project_style
+    from terratheme.core.convert import convert_photo
+    from terratheme.core.exchange import map_weights
+    from terratheme.core.exchange.colour import vertex_colour_uv
+    from terratheme.core.exchange.layout import ExportLayout
+    from terratheme.core.io.images import read_image
+    from terratheme.core.render.project import project_style
 
     photo = read_image(Path(__file__).resolve().parents[1] / "sample_maps" / "dubai_marina.jpg")
     project = convert_photo(photo[:640, :640]).project

@@ -8,16 +8,15 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 import tifffile
-
-from core.errors import TerrathemeError
-from core.exchange import Engine, ExportOptions, plan_export, write_export
-from core.io.georef import read_georeference
-from core.io.images import read_image
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.project import render_project
-from core.render.renderer import render_labels
-from core.themes.library import shipped_theme_library
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange import Engine, ExportOptions, plan_export, write_export
+from terratheme.core.io.georef import read_georeference
+from terratheme.core.io.images import read_image
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import render_project
+from terratheme.core.render.renderer import render_labels
+from terratheme.core.themes.library import shipped_theme_library
 
 NAMES = ("water", "sand", "forest", "town")
 GEOREF = {

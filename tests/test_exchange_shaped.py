@@ -7,9 +7,8 @@ import json
 import cv2
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.exchange import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange import (
     Engine,
     ExportOptions,
     WeightStyle,
@@ -20,12 +19,12 @@ from core.exchange import (
     theme_weights,
     write_export,
 )
-from core.exchange.layout import nearest_texels
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import RenderOptions, render_cells, render_labels
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.exchange.layout import nearest_texels
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import RenderOptions, render_cells, render_labels
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 STYLE = BoundaryOptions(width=3.0, noise=90, height=40, features=2.0, seed=7)
 
@@ -124,7 +123,7 @@ def test_windows_bands_and_tiles_agree(monkeypatch):
     whole = map_weights(project, (41, 29), None, options)
     part = map_weights(project, (41, 29), (7, 3, 20, 11), options)
     np.testing.assert_array_equal(part, whole[:, 3:14, 7:27])
-    import core.exchange.weights as weights_module
+    import terratheme.core.exchange.weights as weights_module
 
     monkeypatch.setattr(weights_module, "BAND_PIXELS", 50)
     np.testing.assert_array_equal(map_weights(project, (41, 29), None, options), whole)

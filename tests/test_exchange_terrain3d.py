@@ -16,9 +16,8 @@ import OpenImageIO as oiio
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.exchange import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange import (
     Engine,
     ExportOptions,
     control_labels,
@@ -29,10 +28,10 @@ from core.exchange import (
     read_control_map,
     write_export,
 )
-from core.io.images import write_image
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
+from terratheme.core.io.images import write_image
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
 
 NAMES = ("water", "sand", "forest", "grass", "town", "road")
 

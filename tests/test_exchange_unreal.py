@@ -7,13 +7,18 @@ import json
 import cv2
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.exchange import Engine, ExportOptions, plan_export, read_weight_maps, write_export
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.render.renderer import render_cells
-from core.themes.library import shipped_theme_library
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange import (
+    Engine,
+    ExportOptions,
+    plan_export,
+    read_weight_maps,
+    write_export,
+)
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import shipped_theme_library
 
 NAMES = ("water", "sand", "forest", "crop field")
 SAFE = ("water", "sand", "forest", "crop_field")  # as file and layer names

@@ -6,12 +6,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.exchange import ExportLayout, sample_corners, strongest_two, theme_weights
-from core.exchange.layout import tiled_length
-from core.render.renderer import render_cells, render_labels
-from core.render.rules import SaddleRule
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange import ExportLayout, sample_corners, strongest_two, theme_weights
+from terratheme.core.exchange.layout import tiled_length
+from terratheme.core.render.renderer import render_cells, render_labels
+from terratheme.core.render.rules import SaddleRule
 
 
 def _onehot_render(grid: np.ndarray, cell: tuple[int, int], k: int) -> np.ndarray:
@@ -92,7 +91,7 @@ def test_windows_and_bands_agree_with_the_whole_map(monkeypatch):
     whole = theme_weights(grid, (41, 29), n_themes=3)
     part = theme_weights(grid, (41, 29), (7, 3, 20, 11), n_themes=3)
     np.testing.assert_array_equal(part, whole[:, 3:14, 7:27])
-    import core.exchange.weights as weights_module
+    import terratheme.core.exchange.weights as weights_module
 
     monkeypatch.setattr(weights_module, "BAND_PIXELS", 50)
     np.testing.assert_array_equal(theme_weights(grid, (41, 29), n_themes=3), whole)
@@ -158,7 +157,7 @@ def test_layout_tiles_share_their_borders():
 
 
 def test_world_frame_converts_crs_units_to_metres():
-    from core.exchange import world_frame
+    from terratheme.core.exchange import world_frame
 
     feet = {"ModelPixelScale": [2.0, 2.0, 0.0], "ModelTiepoint": [0, 0, 0, 100.0, 50.0, 0],
             "GeoKeyDirectory": [1, 1, 0, 2, 1024, 0, 1, 1, 3076, 0, 1, 9003]}

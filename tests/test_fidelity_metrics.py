@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.fidelity import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.fidelity import (
     colour_error,
     detail_energy,
     detail_ratio,
@@ -129,7 +128,7 @@ def test_errors():
 
 
 def test_fidelity_summary_line():
-    from core.fidelity import fidelity
+    from terratheme.core.fidelity import fidelity
 
     rng = np.random.default_rng(2)
     photo = (0.25 + 0.5 * rng.random((64, 64, 3))).astype(np.float32)

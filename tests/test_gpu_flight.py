@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.gpu.flight import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.flight import (
     MAX_PITCH,
     MIN_CLEARANCE,
     MIN_PITCH,
@@ -20,7 +19,7 @@ from core.gpu.flight import (
     camera_axes,
     clip_matrix,
 )
-from core.perspective import Camera, camera_mapping
+from terratheme.core.perspective import Camera, camera_mapping
 
 
 def test_forward_follows_the_heading_and_right_is_clockwise():

@@ -13,21 +13,26 @@ import math
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.gpu import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu import (
     Anisotropy,
     GroundOptions,
     GroundView,
     render_perspective_gpu,
 )
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture
-from core.perspective import Camera, FilterOptions, Method, PreparedTexture, camera_mapping
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import RenderOptions, render_cells
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.perspective import (
+    Camera,
+    FilterOptions,
+    Method,
+    PreparedTexture,
+    camera_mapping,
+)
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 SHAPED = RenderOptions(boundary=BoundaryOptions())
 #: the shader's own probes, so results do not depend on the driver's anisotropic filter
@@ -253,8 +258,8 @@ def test_a_reduced_frame_is_the_small_frame_stretched(gl_ctx):
 
 
 def test_cli_perspective_gpu_renders_a_project_frame(gl_ctx, tmp_path, capsys):
-    from app.cli import main
-    from core.io.images import read_image
+    from terratheme.app.cli import main
+    from terratheme.core.io.images import read_image
 
     out = tmp_path / "frame.png"
     assert main(["perspective", "sample_maps/coastline.ttproj", str(out), "--gpu",

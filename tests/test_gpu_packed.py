@@ -16,15 +16,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.gpu import GpuRenderOptions, PackedGrid, UniformCells
-from core.model.colour_map import ColourMap
-from core.packing import pack
-from core.packing.layout import W_GRID_BITS
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import BlendMode, RenderOptions, render_cells
-from core.render.rules import SaddleRule, cell_splits
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu import GpuRenderOptions, PackedGrid, UniformCells
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.packing import pack
+from terratheme.core.packing.layout import W_GRID_BITS
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
+from terratheme.core.render.rules import SaddleRule, cell_splits
 
 THEMES = [np.random.default_rng(k).integers(0, 256, (h, w, 3), dtype=np.uint8)
           for k, (w, h) in enumerate([(7, 5), (13, 17), (16, 16), (3, 11), (9, 9)])]
@@ -190,7 +189,7 @@ def _project_and_layer(tmp_path):
     import shutil
     from pathlib import Path
 
-    from core.model.project import load_project
+    from terratheme.core.model.project import load_project
 
     repo = Path(__file__).resolve().parents[1]
     project = tmp_path / "airfield.ttproj"
@@ -201,8 +200,8 @@ def _project_and_layer(tmp_path):
 
 
 def test_cli_render_gpu_from_the_packed_layer(renderer, tmp_path, capsys):
-    from app.cli import main
-    from core.io.images import read_image
+    from terratheme.app.cli import main
+    from terratheme.core.io.images import read_image
 
     project, _ = _project_and_layer(tmp_path)
     args = ["--region", "40,24,150,90"]
@@ -217,7 +216,7 @@ def test_cli_render_gpu_from_the_packed_layer(renderer, tmp_path, capsys):
 
 
 def test_cli_render_packed_errors(renderer, tmp_path, capsys):
-    from app.cli import main
+    from terratheme.app.cli import main
 
     project, grid = _project_and_layer(tmp_path)
     out = str(tmp_path / "x.png")

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
-
-from core.gpu.options import UniformCells
-from core.gpu.plan import RenderMode, RenderPlan, tile_geometry
-from core.gpu.style import Style
+from terratheme.core.gpu.options import UniformCells
+from terratheme.core.gpu.plan import RenderMode, RenderPlan, tile_geometry
+from terratheme.core.gpu.style import Style
 
 
 def _plan(filtered: bool, region=(0, 0, 64, 64), out_size=(64, 64), tile=32) -> RenderPlan:

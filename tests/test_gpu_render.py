@@ -20,10 +20,9 @@ import pytest
 from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.gpu import (
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu import (
     GpuRenderer,
     GpuRenderOptions,
     GpuUnavailableError,
@@ -33,12 +32,12 @@ from core.gpu import (
     gl_context,
     render_cells_gpu,
 )
-from core.io.images import read_image
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.render.overview import render_overview
-from core.render.renderer import BlendMode, RenderOptions, render_cells
-from core.render.rules import SaddleRule, cell_splits
+from terratheme.core.io.images import read_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
+from terratheme.core.render.rules import SaddleRule, cell_splits
 
 REPO = Path(__file__).resolve().parents[1]
 LINEAR, HISTOGRAM = BlendMode.LINEAR, BlendMode.HISTOGRAM
@@ -274,7 +273,7 @@ def test_no_context_is_one_clear_error(monkeypatch):
 def test_cli_without_egl_driver_prints_one_line_and_exits_2(tmp_path, broken):
     env = {**os.environ, broken: str(tmp_path / "none")}
     project = REPO / "sample_maps" / "airfield.ttproj"
-    out = subprocess.run([sys.executable, "-m", "app.cli", "render", str(project),
+    out = subprocess.run([sys.executable, "-m", "terratheme.app.cli", "render", str(project),
                           str(tmp_path / "x.png"), "--gpu", "--region", "0,0,8,8"],
                          cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
     if out.returncode == 0 and broken == "LIBGL_DRIVERS_PATH":

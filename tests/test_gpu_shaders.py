@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.gpu import SHADER_DIR, shader_source
-from core.gpu.cover import BLENDED, cell_rectangles
-from core.render.rules import cell_splits
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu import SHADER_DIR, shader_source
+from terratheme.core.gpu.cover import BLENDED, cell_rectangles
+from terratheme.core.render.rules import cell_splits
 
 REPO = Path(__file__).resolve().parents[1]
 ENTRY_POINTS = ["tt_terrain.frag.glsl", "tt_copy.frag.glsl", "tt_rect.vert.glsl"]
@@ -38,7 +37,7 @@ def test_every_shader_file_documents_its_inputs():
 
 def test_missing_include_is_an_error(tmp_path, monkeypatch):
     (tmp_path / "a.glsl").write_text('#version 330 core\n#include "b.glsl"\n')
-    monkeypatch.setattr("core.gpu.shaders.SHADER_DIR", tmp_path)
+    monkeypatch.setattr("terratheme.core.gpu.shaders.SHADER_DIR", tmp_path)
     with pytest.raises(TerrathemeError, match=r"b\.glsl: missing"):
         shader_source("a.glsl")
     (tmp_path / "b.glsl").write_text('#include "a.glsl"\n')
@@ -48,7 +47,7 @@ def test_missing_include_is_an_error(tmp_path, monkeypatch):
 
 def test_shaders_ship_as_package_data():
     config = tomllib.loads((REPO / "pyproject.toml").read_text())
-    assert "gpu/shaders/*.glsl" in config["tool"]["setuptools"]["package-data"]["core"]
+    assert "gpu/shaders/*.glsl" in config["tool"]["setuptools"]["package-data"]["terratheme.core"]
 
 
 @settings(max_examples=200, deadline=None)

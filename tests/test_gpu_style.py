@@ -18,19 +18,18 @@ import pytest
 from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.gpu import GpuRenderer, GpuRenderOptions, Sampling, UniformCells
-from core.gpu.programs import set_uniform
-from core.gpu.shaders import SHADER_DIR
-from core.io.images import read_image, write_image
-from core.model.colour_map import ColourMap
-from core.model.project import load_project
-from core.render.boundary import BoundaryOptions
-from core.render.overview import render_overview
-from core.render.project import project_style, render_project
-from core.render.renderer import BlendMode, RenderOptions, render_cells
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu import GpuRenderer, GpuRenderOptions, Sampling, UniformCells
+from terratheme.core.gpu.programs import set_uniform
+from terratheme.core.gpu.shaders import SHADER_DIR
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.project import load_project
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.project import project_style, render_project
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
 
 SHAPED = BoundaryOptions()
 

@@ -15,12 +15,11 @@ import textwrap
 from pathlib import Path
 
 import pytest
-
-from core.errors import TerrathemeError
-from core.io import atomic, temporaries
-from core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
-from core.io.stale import clean_stale_temporaries
-from core.io.temporaries import HOST_TAG, TEMPORARY_NAME
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io import atomic, temporaries
+from terratheme.core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
+from terratheme.core.io.stale import clean_stale_temporaries
+from terratheme.core.io.temporaries import HOST_TAG, TEMPORARY_NAME
 
 REPO = Path(__file__).resolve().parents[1]
 DEAD_PID = 999_999_999  # above any pid_max: no such process
@@ -67,7 +66,7 @@ def test_sigterm_removes_the_temporary_and_terminates(tmp_path, signum):
     target.write_bytes(b"old")
     done = _child(f"""
         import time
-        from core.io.atomic import atomic_path
+        from terratheme.core.io.atomic import atomic_path
         with atomic_path({str(target)!r}) as tmp:
             tmp.write_bytes(b"x" * 100_000)
             print("ready", flush=True)
@@ -81,7 +80,7 @@ def test_ctrl_c_removes_the_temporary(tmp_path):
     target = tmp_path / "out.bin"
     done = _child(f"""
         import time
-        from core.io.atomic import atomic_path
+        from terratheme.core.io.atomic import atomic_path
         try:
             with atomic_path({str(target)!r}) as tmp:
                 tmp.write_bytes(b"x")
@@ -97,7 +96,7 @@ def test_ctrl_c_removes_the_temporary(tmp_path):
 def test_a_handler_of_the_program_s_own_is_left_alone(tmp_path):
     done = _child(f"""
         import signal, time
-        from core.io.atomic import atomic_path
+        from terratheme.core.io.atomic import atomic_path
         mine = lambda s, f: print("mine", flush=True)
         signal.signal(signal.SIGTERM, mine)
         with atomic_path({str(tmp_path / "o.bin")!r}) as tmp:
@@ -110,7 +109,7 @@ def test_a_handler_of_the_program_s_own_is_left_alone(tmp_path):
 def test_sigkill_leftovers_are_removed_by_the_next_write_in_the_folder(tmp_path):
     done = _child(f"""
         import os, signal
-        from core.io.atomic import atomic_path
+        from terratheme.core.io.atomic import atomic_path
         with atomic_path({str(tmp_path / "out.bin")!r}) as tmp:
             tmp.write_bytes(b"x" * 1000)
             os.kill(os.getpid(), signal.SIGKILL)
@@ -211,7 +210,7 @@ def test_set_arguments_are_checked(tmp_path):
 _SET_CHILD = """
     import os, signal
     from pathlib import Path
-    from core.io import atomic
+    from terratheme.core.io import atomic
     paths = [Path(p) for p in {paths!r}]
     real = os.replace
     def replace_then_die(a, b):
@@ -249,7 +248,7 @@ def test_sigterm_during_the_renames_waits_for_them(tmp_path):
     done = _child(f"""
         import os, signal
         from pathlib import Path
-        from core.io import atomic
+        from terratheme.core.io import atomic
         paths = [Path(p) for p in {[str(p) for p in paths]!r}]
         real = os.replace
         def replace_and_signal(a, b):

@@ -21,18 +21,17 @@ import numpy as np
 import pytest
 import tifffile
 from hostile_fuzz import campaign, hidden_files, patch_tiff_size
-
-from app.cli import main
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.exchange import read_control_map, read_splatmaps
-from core.exchange.terrain3d import write_control_map
-from core.io.archive import parse_json
-from core.io.images import read_image, read_region, write_image
-from core.io.legend import parse_legend
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, load_project, save_project
-from core.packing import pack
-from core.themes.library import read_theme_library, shipped_theme_library
+from terratheme.app.cli import main
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.exchange import read_control_map, read_splatmaps
+from terratheme.core.exchange.terrain3d import write_control_map
+from terratheme.core.io.archive import parse_json
+from terratheme.core.io.images import read_image, read_region, write_image
+from terratheme.core.io.legend import parse_legend
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, load_project, save_project
+from terratheme.core.packing import pack
+from terratheme.core.themes.library import read_theme_library, shipped_theme_library
 
 
 def _refused(capfd, argv: list[str], *needles: str) -> str:

@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import terratheme.app.commands.convert
+import terratheme.app.commands.themes
 import tifffile
-
-import app.commands.convert
-import app.commands.themes
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.images import read_labels, write_image
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import read_labels, write_image
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -40,7 +39,7 @@ def test_user_errors_are_one_line(monkeypatch, capsys, exc, status, text):
     def fail(args):
         raise exc
 
-    monkeypatch.setattr(app.commands.themes, "run", fail)
+    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
     assert main(["themes"]) == status
     assert _one_error_line(capsys, "terratheme themes").strip() == text
 
@@ -53,7 +52,7 @@ def test_out_of_memory_names_the_bounded_memory_path(monkeypatch, capsys, argv, 
     def fail(args):
         raise MemoryError
 
-    monkeypatch.setattr(app.commands.convert, "run", fail)
+    monkeypatch.setattr(terratheme.app.commands.convert, "run", fail)
     assert main(argv) == 2
     line = _one_error_line(capsys, "terratheme convert: error: not enough memory for this input")
     assert ("--tile N works in bounded memory" in line) is hint
@@ -61,9 +60,9 @@ def test_out_of_memory_names_the_bounded_memory_path(monkeypatch, capsys, argv, 
 
 def test_a_closed_pipe_is_not_a_traceback():
     # A command printing more than a pipe holds, read by "head -c 10".
-    code = ("import sys, app.commands.themes as t; "
+    code = ("import sys, terratheme.app.commands.themes as t; "
             "t.run = lambda a: [print('x' * 1000) for _ in range(2000)] and 0; "
-            "from app.cli import main; sys.exit(main(['themes']))")
+            "from terratheme.app.cli import main; sys.exit(main(['themes']))")
     proc = subprocess.run(f"{sys.executable} -c \"{code}\" | head -c 10", shell=True, cwd=REPO,
                           env=dict(os.environ, PYTHONPATH=str(REPO)), capture_output=True,
                           text=True, timeout=60)
@@ -153,7 +152,8 @@ def test_a_hostile_project_through_the_real_cli_is_one_line(tmp_path):
                 "grid_shape": [2, 2], "themes": []}
     (tmp_path / "bad.ttproj").write_bytes(craft_zip([ZipMember.of(
         "manifest.json", json.dumps(manifest).encode())]))
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "render", str(tmp_path / "bad.ttproj"),
+    proc = subprocess.run([sys.executable, "-m", "terratheme.app.cli", "render",
+                           str(tmp_path / "bad.ttproj"),
                            str(tmp_path / "out.png")], cwd=REPO, capture_output=True, text=True,
                           env=dict(os.environ, PYTHONPATH=str(REPO)), timeout=120)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr

@@ -12,9 +12,8 @@ import contextlib
 import numpy as np
 import pytest
 from hostile_fuzz import check_refused, hidden_files, run_cli
-
-from core.classify import SupervisedOptions, train_classifier
-from core.io.images import write_image
+from terratheme.core.classify import SupervisedOptions, train_classifier
+from terratheme.core.io.images import write_image
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +89,7 @@ def test_a_busy_dashboard_port_prints_no_warning(capfd):
     import socket
     import warnings
 
-    from core.io.cluster import local_cluster
+    from terratheme.core.io.cluster import local_cluster
 
     holder = socket.socket()
     with contextlib.suppress(OSError):  # already held by someone else: just as busy

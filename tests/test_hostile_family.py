@@ -30,12 +30,11 @@ from hostile_fuzz import (
     run_truncations,
 )
 from hypothesis import strategies as st
+from terratheme.core.io.images import write_image
+from terratheme.core.perspective import FamilyCache
+from terratheme.core.perspective.cache import FORMAT_VERSION, MAGIC
+from terratheme.core.perspective.family import build_family
 from test_hostile_harness import shared_reader
-
-from core.io.images import write_image
-from core.perspective import FamilyCache
-from core.perspective.cache import FORMAT_VERSION, MAGIC
-from core.perspective.family import build_family
 
 #: the file's fixed header: magic, version, JSON length (core/perspective/cache.py)
 HEADER = struct.Struct("<8sII")
@@ -143,7 +142,7 @@ def test_a_named_cache_folder_that_cannot_be_used_is_one_line_before_work(textur
 def test_an_unusable_default_cache_still_gives_the_frame(texture, tmp_path):
     (tmp_path / "file").write_text("not a folder")
     env = dict(os.environ, PYTHONPATH=str(REPO), XDG_CACHE_HOME=str(tmp_path / "file"))
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "perspective", str(texture),
+    proc = subprocess.run([sys.executable, "-m", "terratheme.app.cli", "perspective", str(texture),
                            str(tmp_path / "pv.png"), "--size", "32x24"], cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr

@@ -189,16 +189,15 @@ def _vm_bytes() -> int:
 
 def _readers() -> dict:
     import numpy as np
-
-    from core.classify import Classifier
-    from core.classify.photo import prepare_photo
-    from core.classify.shipped import load_model, shipped_models
-    from core.errors import TerrathemeError
-    from core.io.georef import read_georeference
-    from core.io.images import Bands, image_info, read_image, read_labels, read_region
-    from core.model.project import load_project
-    from core.packing import layer_info, load_layer
-    from core.perspective import FamilyCache
+    from terratheme.core.classify import Classifier
+    from terratheme.core.classify.photo import prepare_photo
+    from terratheme.core.classify.shipped import load_model, shipped_models
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.georef import read_georeference
+    from terratheme.core.io.images import Bands, image_info, read_image, read_labels, read_region
+    from terratheme.core.model.project import load_project
+    from terratheme.core.packing import layer_info, load_layer
+    from terratheme.core.perspective import FamilyCache
 
     photo = np.zeros((48, 48, 3), np.uint8)
     photo[:, 24:] = (200, 180, 120)
@@ -258,17 +257,16 @@ def _warm_up(readers: dict) -> None:
     import tempfile
 
     import numpy as np
-
-    from core.classify import SupervisedOptions
-    from core.classify.extra_trees import ExtraTreesForest
-    from core.classify.model_file import ModelParts, write_model
-    from core.io.images import write_image
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture, save_project
-    from core.packing import pack
-    from core.perspective import FamilyCache
-    from core.perspective.family import build_family
-    from core.themes.library import ThemeLibrary, flat_theme
+    from terratheme.core.classify import SupervisedOptions
+    from terratheme.core.classify.extra_trees import ExtraTreesForest
+    from terratheme.core.classify.model_file import ModelParts, write_model
+    from terratheme.core.io.images import write_image
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.model.project import ThematicTexture, save_project
+    from terratheme.core.packing import pack
+    from terratheme.core.perspective import FamilyCache
+    from terratheme.core.perspective.family import build_family
+    from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
@@ -313,8 +311,7 @@ def _worker(memory_mib: int) -> None:
     import resource
 
     import OpenImageIO as oiio
-
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     oiio.attribute("threads", 1)
     readers = _readers()

@@ -24,12 +24,18 @@ from hostile_fuzz import (
     run_truncations,
 )
 from hypothesis import strategies as st
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.georef import add_tiff_tags, read_georeference, validate_georeference
+from terratheme.core.io.images import (
+    Bands,
+    image_info,
+    read_image,
+    read_labels,
+    read_region,
+    write_image,
+)
 from test_hostile_harness import shared_reader
-
-from core.classify.photo import prepare_photo
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.georef import add_tiff_tags, read_georeference, validate_georeference
-from core.io.images import Bands, image_info, read_image, read_labels, read_region, write_image
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -66,7 +72,7 @@ def test_damaged_pngs_print_nothing_but_our_one_line(tmp_path, capfd, cut):
 def test_other_stderr_output_during_a_png_read_is_kept(tmp_path, capfd):
     import os
 
-    from core.io.png import libpng_quiet
+    from terratheme.core.io.png import libpng_quiet
 
     with libpng_quiet():
         os.write(2, b"libpng error: dropped\nprogress 50%\n")
@@ -307,7 +313,7 @@ def test_hostile_tiff_header_sizes(budget, bounded, tmp_path):
 
 
 def test_pack_and_unpack_keep_every_texel_of_an_rgba_index_image(tmp_path, capsys):
-    from app.cli import main
+    from terratheme.app.cli import main
 
     # Issue 16: 32 of these 64 texels changed (alpha was premultiplied on reading).
     colours = np.array([[200, 100, 50, 255], [0, 255, 0, 128], [10, 20, 30, 0],

@@ -26,10 +26,9 @@ from hostile_fuzz import (
     run_truncations,
 )
 from hypothesis import strategies as st
+from terratheme.core.errors import TerrathemeError, UnsupportedVersionError
+from terratheme.core.packing import layer_info, load_layer, pack, write_layer_image
 from test_hostile_harness import shared_reader
-
-from core.errors import TerrathemeError, UnsupportedVersionError
-from core.packing import layer_info, load_layer, pack, write_layer_image
 
 
 def _image() -> np.ndarray:
@@ -186,7 +185,7 @@ def test_info_of_a_hostile_layer_is_one_line(samples, tmp_path, case):
 def test_a_tiled_container_unpacks_to_every_format(samples, tmp_path, out):
     # Found by this campaign: the container's 64-row bands did not fit the TIFF's 256-row
     # tiles, and unpack to .tif failed with an empty "cannot write out.tif:" line.
-    from core.io.images import read_labels
+    from terratheme.core.io.images import read_labels
 
     (tmp_path / "t.ttpack").write_bytes(samples["tiled"])
     write_layer_image(load_layer(tmp_path / "t.ttpack"), tmp_path / out)
@@ -194,8 +193,8 @@ def test_a_tiled_container_unpacks_to_every_format(samples, tmp_path, out):
 
 
 def test_the_tiled_writer_gathers_bands_of_any_height(tmp_path):
-    from core.io import TiledImageWriter
-    from core.io.images import read_image
+    from terratheme.core.io import TiledImageWriter
+    from terratheme.core.io.images import read_image
 
     image = np.arange(70 * 40, dtype=np.uint16).reshape(70, 40) % 997
     with TiledImageWriter(tmp_path / "b.tif", 40, 70, 1, np.uint16, tile=32) as out:

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import core.exchange
-import core.model.project
-from app.cli import main
-from core.io.images import write_image
+import terratheme.core.exchange
+import terratheme.core.model.project
+from terratheme.app.cli import main
+from terratheme.core.io.images import write_image
 
 
 def _refused(capfd, argv: list, *needles: str) -> None:
@@ -27,8 +26,8 @@ def _refused(capfd, argv: list, *needles: str) -> None:
 def test_new_refuses_a_grid_over_the_limit_from_the_header(tmp_path, capfd, monkeypatch, kind,
                                                            image):
     # found: a 1 MB splatmap of 16385^2 pixels was read (3.6 GB) before the vertex limit
-    monkeypatch.setattr(core.model.project, "MAX_GRID_VERTICES", 399)
-    monkeypatch.setattr(core.exchange, "read_splatmaps", _never_read)
+    monkeypatch.setattr(terratheme.core.model.project, "MAX_GRID_VERTICES", 399)
+    monkeypatch.setattr(terratheme.core.exchange, "read_splatmaps", _never_read)
     write_image(tmp_path / "m.png", image)
     _refused(capfd, ["new", tmp_path / "m.png", tmp_path / "o.ttproj", "--themes", "water,sand",
                      "--from", kind], "m.png: 20 x 20 pixels: grid of 400 vertices is over")

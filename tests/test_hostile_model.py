@@ -27,11 +27,10 @@ from hostile_fuzz import (
     run_truncations,
 )
 from hypothesis import strategies as st
+from terratheme.core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
+from terratheme.core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from test_hostile_harness import ZipMember, craft_zip, shared_reader
-
-from core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
-from core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 #: features of the default model (an index of N is the first out of range)
 N = SupervisedOptions().features.n_features

@@ -13,13 +13,17 @@ import zlib
 
 import numpy as np
 import pytest
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.model.grid import MAX_CELL, IndexGrid, validate_cell
+from terratheme.core.model.layers import LAYERS, LayerSpec, check_layer
+from terratheme.core.model.project import (
+    MAX_GRID_VERTICES,
+    ThematicTexture,
+    load_project,
+    save_project,
+)
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 from test_hostile_harness import ZipMember, craft_zip, npy_bytes
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.model.grid import MAX_CELL, IndexGrid, validate_cell
-from core.model.layers import LAYERS, LayerSpec, check_layer
-from core.model.project import MAX_GRID_VERTICES, ThematicTexture, load_project, save_project
-from core.themes.library import ThemeLibrary, flat_theme
 
 
 def _npy(arr: np.ndarray) -> bytes:

@@ -12,10 +12,9 @@ from __future__ import annotations
 import hostile_fuzz as fuzz
 import pytest
 from hypothesis import strategies as st
+from terratheme.core.model.project import save_project
 from test_hostile_harness import npy_bytes, shared_reader
 from test_hostile_project import _manifest, _members, _small_project, _write
-
-from core.model.project import save_project
 
 
 @pytest.fixture(scope="module")

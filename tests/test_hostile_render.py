@@ -17,11 +17,10 @@ import time
 import numpy as np
 import pytest
 from hostile_fuzz import REPO, check_refused, hidden_files, run_cli
-
-from core.io.temporaries import TEMPORARY_NAME
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, save_project
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.io.temporaries import TEMPORARY_NAME
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 def _project(path, vertices: int, cell: int = 128) -> None:
@@ -111,7 +110,8 @@ def _interrupt_mid_write(project, out, signum: int) -> subprocess.CompletedProce
     (Not at the very first moment: a Ctrl-C while the renderer's thread pool starts
     can hang the process at exit or be lost, see the report on issue 16.)
     """
-    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "render", str(project), str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "terratheme.app.cli", "render",
+                             str(project), str(out),
                              "--tiled"], cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120

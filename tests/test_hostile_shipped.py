@@ -18,12 +18,11 @@ import numpy as np
 import pytest
 from hostile_fuzz import EDITS, campaign, check_refused, run_bytes, run_cli, run_edited
 from hypothesis import strategies as st
+from terratheme.core.classify import SupervisedOptions, load_model, shipped_models, train_classifier
+from terratheme.core.classify.shipped import MAX_INDEX_BYTES, MODELS_INDEX, resolve_model
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.images import write_image
 from test_hostile_harness import shared_reader
-
-from core.classify import SupervisedOptions, load_model, shipped_models, train_classifier
-from core.classify.shipped import MAX_INDEX_BYTES, MODELS_INDEX, resolve_model
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.images import write_image
 
 
 def _photo():

@@ -4,10 +4,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import atomic_path, write_bytes_atomic
-from core.io.images import image_info, read_image, read_region, write_image
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import atomic_path, write_bytes_atomic
+from terratheme.core.io.images import image_info, read_image, read_region, write_image
 
 
 @pytest.mark.parametrize("shape", [(8, 8), (4, 6), (6, 4), (1, 1), (1, 9), (9, 1)])

@@ -6,13 +6,12 @@ import json
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.io.images import write_image
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, save_project
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.app.cli import main
+from terratheme.core.io.images import write_image
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 def _project(colour_map=None) -> ThematicTexture:

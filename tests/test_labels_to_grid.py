@@ -6,11 +6,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.convert.cell_choice import agreement, choose_cell_size
-from core.convert.labels_to_grid import apply_lut, grid_shape_for, labels_to_grid, vote_grid
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
+from terratheme.core.convert.cell_choice import agreement, choose_cell_size
+from terratheme.core.convert.labels_to_grid import (
+    apply_lut,
+    grid_shape_for,
+    labels_to_grid,
+    vote_grid,
+)
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
 
 
 def _naive_vote(labels: np.ndarray, n: int, m: int) -> np.ndarray:

@@ -7,15 +7,14 @@ import zipfile
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.classify import Classifier, load_model, train_classifier
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.images import write_image
-from core.io.legend import MAX_LEGEND_BYTES, parse_legend, read_legend
-from core.model.project import load_project
-from core.themes import themes_from_photo
-from core.themes.library import distinct_names
+from terratheme.app.cli import main
+from terratheme.core.classify import Classifier, load_model, train_classifier
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.io.legend import MAX_LEGEND_BYTES, parse_legend, read_legend
+from terratheme.core.model.project import load_project
+from terratheme.core.themes import themes_from_photo
+from terratheme.core.themes.library import distinct_names
 
 
 @pytest.mark.parametrize("text", [

@@ -10,10 +10,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.packing import PackedLayer, TiledLayer, pack, scalar
-from core.packing.batch import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing import PackedLayer, TiledLayer, pack, scalar
+from terratheme.core.packing.batch import (
     BUCKET_RUNS,
     CHUNK,
     SWEEP_BYTES,
@@ -24,11 +23,11 @@ from core.packing.batch import (
     lookup_batch,
     tiled_batch_parallel,
 )
-from core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
-from core.packing.prefetch import prefetch
-from core.packing.scalar import quick_cells
-from core.packing.sweep import sweep_layer
-from core.packing.threads import on_threads
+from terratheme.core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
+from terratheme.core.packing.prefetch import prefetch
+from terratheme.core.packing.scalar import quick_cells
+from terratheme.core.packing.sweep import sweep_layer
+from terratheme.core.packing.threads import on_threads
 
 
 def _blocks(rng: np.random.Generator, h: int, w: int, cell: int, k: int) -> np.ndarray:

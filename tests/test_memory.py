@@ -7,12 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import core.io.memory as memory
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.images import write_image
-from core.io.memory import (
+import terratheme.core.io.memory as memory
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.io.memory import (
     CLASSIFY_BYTES_PER_PIXEL,
     CONVERT_BYTES_PER_PIXEL,
     check_fits,
@@ -69,7 +68,7 @@ def test_the_address_space_limit_bounds_available_memory():
     # as under "ulimit -v 8000000": what is left of 8 GiB once the process is loaded
     code = ("import resource; _, hard = resource.getrlimit(resource.RLIMIT_AS); "
             "resource.setrlimit(resource.RLIMIT_AS, (8 << 30, hard)); "
-            "from core.io.memory import available_memory; print(available_memory())")
+            "from terratheme.core.io.memory import available_memory; print(available_memory())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)), timeout=60)
     assert out.returncode == 0, out.stderr

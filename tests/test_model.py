@@ -7,11 +7,10 @@ import zipfile
 
 import numpy as np
 import pytest
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.model.grid import IndexGrid, validate_cell, validate_indices
-from core.model.project import ThematicTexture, load_project, save_project
-from core.themes.library import (
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.model.grid import IndexGrid, validate_cell, validate_indices
+from terratheme.core.model.project import ThematicTexture, load_project, save_project
+from terratheme.core.themes.library import (
     Theme,
     ThemeLibrary,
     flat_theme,

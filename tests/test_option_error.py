@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
-from app.cli import flag_of
-from core.errors import CorruptFileError, OptionError, TerrathemeError
+from terratheme.app.cli import flag_of
+from terratheme.core.errors import CorruptFileError, OptionError, TerrathemeError
 
 
 def test_fields_spelled_by_name_or_by_the_callers_spelling():

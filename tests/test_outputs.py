@@ -5,9 +5,8 @@ from __future__ import annotations
 import os
 
 import pytest
-
-from app.outputs import check_outputs
-from core.errors import TerrathemeError
+from terratheme.app.outputs import check_outputs
+from terratheme.core.errors import TerrathemeError
 
 
 def test_missing_folders_are_made(tmp_path):

@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.curves import steps as sfc
-from core.curves.scan import ranks_to_steps
-from core.errors import TerrathemeError
-from core.packing import PackedLayer, pack
-from core.packing.seed_format import decode_varint_stream, encode_seed_runs, encode_varint
+from terratheme.core.curves import steps as sfc
+from terratheme.core.curves.scan import ranks_to_steps
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing import PackedLayer, pack
+from terratheme.core.packing.seed_format import (
+    decode_varint_stream,
+    encode_seed_runs,
+    encode_varint,
+)
 
 
 @pytest.fixture(scope="module")
@@ -237,7 +240,7 @@ def test_lookup_agrees_with_numpy_searchsorted(width, height, curve, runs, seed)
 
 
 def test_real_mask_round_trip(tmp_path, shared_data):
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     path = sorted((shared_data / "dubai" / "masks").glob("*.png"))[0]
     img = read_image(path)

@@ -6,12 +6,11 @@ import json
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.images import read_image, write_image
-from core.packing import PackedLayer, load_layer, write_layer_image
-from core.packing.index_png import display_colours, read_index_image
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.packing import PackedLayer, load_layer, write_layer_image
+from terratheme.core.packing.index_png import display_colours, read_index_image
 
 
 @pytest.fixture
@@ -155,7 +154,7 @@ def test_info_imports_no_numba(tmp_path, vector_png):
     png, _ = vector_png
     out = tmp_path / "fig2.ttp"
     main(["pack", str(png), str(out)])
-    code = ("import sys; from app.cli import main; main(['info', sys.argv[1]]); "
+    code = ("import sys; from terratheme.app.cli import main; main(['info', sys.argv[1]]); "
             "assert 'numba' not in sys.modules, 'numba loaded'")
     run = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
@@ -165,9 +164,9 @@ def test_info_imports_no_numba(tmp_path, vector_png):
 STREAMED_UNPACK = r"""
 import resource, sys
 import numpy as np
-from app.cli import main
-from core.errors import TerrathemeError
-from core.packing import PackedLayer, load_layer, write_layer_image
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing import PackedLayer, load_layer, write_layer_image
 
 # Warm the kernels and writers on a small layer, then cap the address space.
 small = PackedLayer.from_runs(64, 64, "hilbert", [4095], [1], np.arange(2, dtype=np.uint8),
@@ -196,7 +195,7 @@ def test_unpack_of_a_46_byte_65536_square_layer_streams(tmp_path, suffix):
                           str(tmp_path), suffix], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     # 4 Gi texels written within 256 MiB: read back a corner and the middle row.
-    from core.io.images import read_region
+    from terratheme.core.io.images import read_region
 
     assert (read_region(out, 65000, 0, 536, 3)[..., 0] == (3 if suffix == ".tif" else 242)).all()
 

@@ -8,13 +8,12 @@ import zlib
 
 import numpy as np
 import pytest
+import terratheme.core.io.atomic
 import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import core.io.atomic
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.packing import PackedLayer, pack
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.packing import PackedLayer, pack
 
 HEADER = struct.Struct("<4sBBBBBBHIIQQ")
 
@@ -214,7 +213,7 @@ def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
     def failing_replace(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(core.io.atomic.os, "replace", failing_replace)
+    monkeypatch.setattr(terratheme.core.io.atomic.os, "replace", failing_replace)
     with pytest.raises(OSError, match="disk full"):
         layer.save(target)
     assert target.read_bytes() == b"old content"

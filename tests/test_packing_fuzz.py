@@ -21,8 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from core.packing import PackedLayer, pack
+from terratheme.core.packing import PackedLayer, pack
 
 MEMORY_CAP = 256 << 20
 TIME_CAP = 2.0
@@ -32,8 +31,8 @@ HANG = 20.0
 WORKER = r"""
 import json, resource, struct, sys, time
 import numpy as np
-from core.errors import TerrathemeError
-from core.packing import PackedLayer, TiledLayer, pack
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing import PackedLayer, TiledLayer, pack
 
 # Warm every kernel a load can reach (compiled code is loaded once per process).
 for fmt in ("seed", "streams", "plane"):

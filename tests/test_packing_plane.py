@@ -10,10 +10,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import CorruptFileError
-from core.packing import PackedLayer, pack
-from core.packing import plane_format as plane
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.packing import PackedLayer, pack
+from terratheme.core.packing import plane_format as plane
 
 # Files written by the version-1 code (commit 172b7ed) for the seed's 8 x 8 figure.
 V1_COMPACT = bytes.fromhex(
@@ -142,7 +141,7 @@ def test_plane_payload_errors():
 
 
 def test_shared_map_crop_beats_the_run_streams(shared_data):
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     path = next((shared_data / "maps" / "esa_worldcover").glob("*.png"))
     crop = np.ascontiguousarray(read_image(path)[2000:3000, 2000:3200, 0])

@@ -7,12 +7,11 @@ import zlib
 
 import numpy as np
 import pytest
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.images import read_image, write_image
-from core.packing import pack
-from core.packing.export import write_layer_image
-from core.packing.index_png import (
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.packing import pack
+from terratheme.core.packing.export import write_layer_image
+from terratheme.core.packing.index_png import (
     PalettePngWriter,
     colours_to_indices,
     display_colours,

@@ -6,10 +6,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from core.packing import layout as lay
-from core.packing import pack
-from core.packing.batch import T_GRID_BITS, TILE_COLUMNS
+from terratheme.core.packing import layout as lay
+from terratheme.core.packing import pack
+from terratheme.core.packing.batch import T_GRID_BITS, TILE_COLUMNS
 
 
 def _words(layer):
@@ -71,7 +70,7 @@ def test_every_grid_block_side_gives_the_same_lookups(curve):
     # Block sides from 1 texel to the whole square (odd ones walk the one-level table).
     import dataclasses
 
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     rng = np.random.default_rng(9)
     img = np.kron(rng.integers(0, 4, (9, 14)), np.ones((7, 7), int))[:61, :93].astype(np.uint8)

@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from app.cli import main
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.images import read_image, write_image
-from core.packing import PackedLayer, TiledLayer, layer_info, load_layer, pack, pack_file
-from core.packing.index_png import PalettePngWriter, display_colours, read_index_image
+from terratheme.app.cli import main
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.packing import PackedLayer, TiledLayer, layer_info, load_layer, pack, pack_file
+from terratheme.core.packing.index_png import PalettePngWriter, display_colours, read_index_image
 
 
 def _blocks(rng, h, w, cell=5, k=4):

@@ -6,9 +6,14 @@ import os
 
 import numpy as np
 import pytest
-
-from core.perspective import Camera, FamilyCache, FilterOptions, PreparedTexture, family_key
-from core.perspective.family import build_family
+from terratheme.core.perspective import (
+    Camera,
+    FamilyCache,
+    FilterOptions,
+    PreparedTexture,
+    family_key,
+)
+from terratheme.core.perspective.family import build_family
 
 
 def _tex(seed=0, shape=(32, 48, 3)):

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import app.commands.perspective as command
-from app.cli import main
-from core.io.images import read_image, write_image
+import terratheme.app.commands.perspective as command
+from terratheme.app.cli import main
+from terratheme.core.io.images import read_image, write_image
 
 
 def _random_texture(h, w, c=3, seed=0):
@@ -136,9 +135,9 @@ def test_errors_exit_2(src, tmp_path, capsys):
 
 
 def _tiny_project(tmp_path):
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture, save_project
-    from core.themes.library import ThemeLibrary, flat_theme
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.model.project import ThematicTexture, save_project
+    from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
     lib = ThemeLibrary([flat_theme("field", (200, 180, 40)), flat_theme("water", (20, 60, 200))])
     grid = IndexGrid(np.array([[0, 1, 0], [1, 0, 1], [0, 0, 1]], np.uint8), (8, 8))
@@ -149,7 +148,7 @@ def _tiny_project(tmp_path):
 
 
 def test_renders_a_project(tmp_path):
-    from core.render.project import render_project
+    from terratheme.core.render.project import render_project
 
     path, project = _tiny_project(tmp_path)
     texture = render_project(project)

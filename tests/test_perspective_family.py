@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.perspective import Camera, FilterOptions, PreparedTexture
-from core.perspective.family import build_family, family_layout, skew_values
-from core.perspective.texture import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import Camera, FilterOptions, PreparedTexture
+from terratheme.core.perspective.family import build_family, family_layout, skew_values
+from terratheme.core.perspective.texture import (
     power_of_two_grid,
     power_of_two_side,
     stored_texture,
@@ -129,7 +128,7 @@ def test_thin_strips_build_small_and_render(shape):
 
 def test_strip_far_footprints_read_the_strip_mean():
     # V = 1000 y: every pixel winds round the 1-texel-tall strip; along U a 64-texel span
-    from core.perspective import PlaneMapping
+    from terratheme.core.perspective import PlaneMapping
 
     row = _random(1, 64, c=1, seed=2)
     img = PreparedTexture(row).render(PlaneMapping(64, 0, 0, 0, 1000, 0, 0, 0, 1), (3, 2)).image
@@ -199,7 +198,7 @@ def test_prepared_texture_memory_is_family_plus_input():
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 3000), st.integers(1, 3000))
 def test_an_rgb_texture_of_any_size_costs_at_most_48_bytes_per_texel(w, h):
-    from core.perspective.family import family_layout
+    from terratheme.core.perspective.family import family_layout
 
     cells = family_layout((power_of_two_side(w), power_of_two_side(h)), 4, 1)[2]
     assert cells * 3 + w * h * 3 <= 48 * w * h

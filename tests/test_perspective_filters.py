@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.perspective import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import (
     Camera,
     FilterOptions,
     Lookup,

@@ -6,9 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.perspective import Camera, FilterOptions, Lookup, PlaneMapping, render_perspective
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import (
+    Camera,
+    FilterOptions,
+    Lookup,
+    PlaneMapping,
+    render_perspective,
+)
 
 
 def _random_texture(h, w, c=3, seed=0):

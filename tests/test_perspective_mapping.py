@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.perspective import Camera, FilterOptions, PlaneMapping, camera_mapping
-from core.perspective.footprint import TOWARD_U, TOWARD_V, footprint_parameters
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import Camera, FilterOptions, PlaneMapping, camera_mapping
+from terratheme.core.perspective.footprint import TOWARD_U, TOWARD_V, footprint_parameters
 
 
 def test_straight_down_camera_is_one_texel_per_pixel():

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import core.perspective.project_view as project_view
-from core.errors import TerrathemeError
-from core.perspective import Camera, PlaneMapping, PreparedTexture, camera_mapping
-from core.perspective.mapping import overview_camera, scaled_view
-from core.perspective.project_view import finest_footprint, project_texture, texture_scale
+import terratheme.core.perspective.project_view as project_view
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import Camera, PlaneMapping, PreparedTexture, camera_mapping
+from terratheme.core.perspective.mapping import overview_camera, scaled_view
+from terratheme.core.perspective.project_view import (
+    finest_footprint,
+    project_texture,
+    texture_scale,
+)
 
 
 @pytest.mark.parametrize("size", [(256, 256), (1536, 1152), (4096, 512), (64, 2048)])
@@ -69,9 +72,9 @@ def test_scaled_view_keeps_the_frame():
 
 
 def _project():
-    from core.model.grid import IndexGrid
-    from core.model.project import ThematicTexture
-    from core.themes.library import ThemeLibrary, flat_theme
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.model.project import ThematicTexture
+    from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
     rng = np.random.default_rng(3)
     lib = ThemeLibrary([flat_theme("field", (200, 180, 40)), flat_theme("water", (20, 60, 200)),
@@ -81,7 +84,7 @@ def _project():
 
 
 def test_a_high_view_renders_the_project_reduced_never_at_full_resolution(monkeypatch):
-    from core.render.project import render_project
+    from terratheme.core.render.project import render_project
 
     project = _project()
     scales = []

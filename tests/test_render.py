@@ -8,11 +8,17 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
-from core.render.rules import ANTI, MAIN, UNIFORM, SaddleRule, cell_splits, corner_weights
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
+from terratheme.core.render.rules import (
+    ANTI,
+    MAIN,
+    UNIFORM,
+    SaddleRule,
+    cell_splits,
+    corner_weights,
+)
 
 
 def _split_ref(g: np.ndarray, i: int, j: int) -> str:

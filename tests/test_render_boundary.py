@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.render.boundary import BoundaryOptions, noise_field
-from core.render.renderer import BlendMode, RenderOptions, render_cells
-from core.render.rules import cell_splits
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.render.boundary import BoundaryOptions, noise_field
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
+from terratheme.core.render.rules import cell_splits
 
 M32 = 0xFFFFFFFF
 

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.georef import read_georeference, scale_georeference, world_file_lines
-from core.io.images import read_image
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, save_project
-from core.render.project import photo_extent, render_georeference
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.georef import read_georeference, scale_georeference, world_file_lines
+from terratheme.core.io.images import read_image
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.render.project import photo_extent, render_georeference
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 GEO = {"ModelPixelScale": [2.0, 2.0, 0.0], "ModelTiepoint": [0.0, 0.0, 0.0, 500.0, 900.0, 0.0]}
 

@@ -7,17 +7,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from app.cli import main
-from core.errors import TerrathemeError
-from core.io.images import read_image, write_image
-from core.model.grid import IndexGrid
-from core.model.index_image import indices_from_image
-from core.model.project import ThematicTexture, load_project
-from core.render.overview import render_overview
-from core.render.project import render_project
-from core.render.renderer import render_cells
-from core.themes.library import Theme, ThemeLibrary, shipped_theme_library
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.index_image import indices_from_image
+from terratheme.core.model.project import ThematicTexture, load_project
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.project import render_project
+from terratheme.core.render.renderer import render_cells
+from terratheme.core.themes.library import Theme, ThemeLibrary, shipped_theme_library
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_maps"
 
@@ -130,9 +129,8 @@ def test_cli_new_and_render(tmp_path, capsys) -> None:
 
 def test_overview_follows_shaped_borders():
     import cv2
-
-    from core.render.boundary import BoundaryOptions
-    from core.render.renderer import RenderOptions
+    from terratheme.core.render.boundary import BoundaryOptions
+    from terratheme.core.render.renderer import RenderOptions
 
     rng = np.random.default_rng(0)
     grid = rng.integers(0, 3, (20, 24)).astype(np.uint8)

@@ -6,10 +6,9 @@ import threading
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.render import renderer
-from core.render.renderer import RenderOptions, render_cells, render_labels
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.render import renderer
+from terratheme.core.render.renderer import RenderOptions, render_cells, render_labels
 
 
 def _scene():

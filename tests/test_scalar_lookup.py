@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.errors import TerrathemeError
-from core.packing import PackedLayer, TiledLayer, pack, scalar
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing import PackedLayer, TiledLayer, pack, scalar
 
 FORMATS = ("compact", "plane", "streams", "seed")
 

@@ -15,16 +15,15 @@ import time
 import numpy as np
 import pytest
 from distributed import Future
-
-from core.convert.colour_fit import ColourMapOptions
-from core.convert.photo import CODEC_SUFFIX
-from core.convert.tile_vote import PredictLabels
-from core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
-from core.errors import TerrathemeError
-from core.io.cluster import check_workers, connect, local_cluster, map_ordered, warm_up
-from core.io.images import read_image, write_image
-from core.io.tiles import Scheduler, run_tiles
-from core.packing import pack
+from terratheme.core.convert.colour_fit import ColourMapOptions
+from terratheme.core.convert.photo import CODEC_SUFFIX
+from terratheme.core.convert.tile_vote import PredictLabels
+from terratheme.core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.cluster import check_workers, connect, local_cluster, map_ordered, warm_up
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.io.tiles import Scheduler, run_tiles
+from terratheme.core.packing import pack
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SAMPLE = os.path.join(REPO, "sample_maps", "dubai_marina.jpg")
@@ -125,7 +124,7 @@ def test_cluster_conversion_equals_serial(tmp_path, cluster):
 
 def test_results_reach_the_sink_in_order_with_few_in_flight(cluster):
     # Warming the workers up queues one import task each, ahead of the run.
-    warm_up(cluster, ["core.convert.tiled"])
+    warm_up(cluster, ["terratheme.core.convert.tiled"])
     got = []
     n = map_ordered(cluster, square, list(range(23)), 5, lambda i, r: got.append((i, r)),
                     in_flight=3)
@@ -156,7 +155,7 @@ def test_tasks_the_cluster_cancels_are_resubmitted_and_keep_the_order(cluster):
 
 def test_tasks_of_several_items_keep_the_order_and_shrink_to_one_at_the_end(cluster,
                                                                           monkeypatch):
-    from core.io.cluster import MAX_GROUP, group_size
+    from terratheme.core.io.cluster import MAX_GROUP, group_size
 
     submits = []
     real = cluster.submit
@@ -185,9 +184,9 @@ def test_a_failing_item_inside_a_group_fails_the_run(cluster):
 
 
 def test_colour_map_tiles_are_encoded_on_the_workers(cluster, monkeypatch):
-    import core.model.colour_map as colour_map_module
-    from core.convert.colour_fit import ClusterTiles
-    from core.model.colour_map import ColourMap
+    import terratheme.core.model.colour_map as colour_map_module
+    from terratheme.core.convert.colour_fit import ClusterTiles
+    from terratheme.core.model.colour_map import ColourMap
 
     rng = np.random.default_rng(5)
     gains = rng.integers(90, 170, (50, 70, 3), dtype=np.uint8)
@@ -208,13 +207,13 @@ def test_colour_map_tiles_are_encoded_on_the_workers(cluster, monkeypatch):
 
 
 def test_warm_up_runs_its_calls_on_every_worker(cluster):
-    from core.convert.tiled import WarmKernels
-    from core.render.boundary import BoundaryOptions
-    from core.render.renderer import RenderOptions
+    from terratheme.core.convert.tiled import WarmKernels
+    from terratheme.core.render.boundary import BoundaryOptions
+    from terratheme.core.render.renderer import RenderOptions
 
     # The tile jobs' kernels on tiny inputs, as convert_file_tiled sends them, then a mark.
     warm = WarmKernels(brightest, RenderOptions(threads=1, boundary=BoundaryOptions()))
-    warm_up(cluster, ["core.convert.tiled"], [warm, mark_warm])
+    warm_up(cluster, ["terratheme.core.convert.tiled"], [warm, mark_warm])
     # The warm-up tasks are pinned one per worker and nobody waits: poll for the marks.
     import time
 
@@ -270,7 +269,7 @@ def test_a_file_the_workers_cannot_read_is_refused_first(tmp_path, cluster):
 
 
 def test_workers_running_other_code_are_refused_first(tmp_path, cluster, monkeypatch):
-    import core.io.cluster as cl
+    import terratheme.core.io.cluster as cl
 
     path = tmp_path / "photo.png"
     _photo(path, 64, 64)
@@ -320,7 +319,7 @@ def test_killing_a_worker_mid_run_gives_the_same_result(tmp_path):
 
 @pytest.mark.slow
 def test_cli_on_local_workers_writes_the_serial_outputs(tmp_path):
-    from app.cli import main
+    from terratheme.app.cli import main
 
     path = tmp_path / "photo.tif"
     write_image(path, read_image(SAMPLE)[..., :3], tile=64)
@@ -332,13 +331,13 @@ def test_cli_on_local_workers_writes_the_serial_outputs(tmp_path):
     for suffix in (".ttpack", colour, "_preview.png"):
         assert (tmp_path / f"s{suffix}").is_file()
         assert (tmp_path / f"s{suffix}").read_bytes() == (tmp_path / f"w{suffix}").read_bytes()
-    from core.model.project import load_project
+    from terratheme.core.model.project import load_project
 
     _same_project(load_project(tmp_path / "s.ttproj"), load_project(tmp_path / "w.ttproj"))
 
 
 def test_cli_refuses_cluster_options_without_tiles(tmp_path, capsys):
-    from app.cli import main
+    from terratheme.app.cli import main
 
     path = tmp_path / "photo.png"
     _photo(path, 64, 64)
@@ -364,7 +363,7 @@ def test_serial_and_threaded_schedulers_unchanged(tmp_path):
 
 def test_a_passed_check_is_not_run_again_for_the_same_workers_and_path(tmp_path, cluster,
                                                                        monkeypatch):
-    import core.io.cluster as cl
+    import terratheme.core.io.cluster as cl
 
     seen, other = tmp_path / "a.png", tmp_path / "b.png"
     _photo(seen, 32, 32)

@@ -12,14 +12,13 @@ import pickle
 
 import numpy as np
 import pytest
-
-from core.convert.colour_fit import BlockGainJob, grid_window
-from core.errors import TerrathemeError
-from core.io.tiles import tile_windows
-from core.model.grid import IndexGrid
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import BlendMode, RenderOptions, render_cells
-from core.render.rules import SaddleRule
+from terratheme.core.convert.colour_fit import BlockGainJob, grid_window
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.tiles import tile_windows
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
+from terratheme.core.render.rules import SaddleRule
 
 
 def _themes(rng, k=3):
@@ -100,7 +99,7 @@ def test_block_job_payload_is_set_by_the_tile_not_the_image():
 
 
 def test_block_job_equals_the_whole_grid_block_gain():
-    from core.convert.colour_fit import _block_sums, _quantise
+    from terratheme.core.convert.colour_fit import _block_sums, _quantise
 
     rng = np.random.default_rng(4)
     grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
@@ -119,9 +118,8 @@ def test_block_job_equals_the_whole_grid_block_gain():
 
 def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
     from scipy import ndimage
-
-    from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
-    from core.io.images import write_image
+    from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+    from terratheme.core.io.images import write_image
 
     rng = np.random.default_rng(6)
     # A 13 x 17 vertex grid at cell 16 is a 256 x 192 texture; the photo covers 201 x 139 of
@@ -143,7 +141,7 @@ def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
 @pytest.mark.parametrize(("shape", "s"), [((64, 96, 3), 16), ((61, 70, 4), 16), ((37, 50, 3), 64),
                                           ((128, 128, 3), 1)])
 def test_block_sums_are_the_exact_sums_of_each_block(shape, s):
-    from core.convert.colour_fit import _block_sums
+    from terratheme.core.convert.colour_fit import _block_sums
 
     image = np.random.default_rng(3).integers(0, 256, shape, dtype=np.uint8)
     got = _block_sums(image, s)
@@ -156,8 +154,8 @@ def test_block_sums_are_the_exact_sums_of_each_block(shape, s):
 
 
 def test_the_centre_scale_starts_once_its_rows_are_final_and_is_the_whole_grids():
-    from core.convert.colour_fit import ColourMapOptions
-    from core.convert.colour_scale import CentreScale, window_scale
+    from terratheme.core.convert.colour_fit import ColourMapOptions
+    from terratheme.core.convert.colour_scale import CentreScale, window_scale
 
     rng = np.random.default_rng(7)
     grid = IndexGrid(rng.integers(0, 3, (33, 41)).astype(np.uint8), (16, 16))

@@ -6,18 +6,17 @@ import tracemalloc
 
 import numpy as np
 import pytest
+import terratheme.app.commands.render as render_command
 import tifffile
-
-import app.commands.render as render_command
-from app.cli import main
-from core.errors import TerrathemeError
-from core.exchange.texture_tiff import TILE, write_texture_tiff
-from core.io.georef import read_georeference, scale_georeference
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.project import ThematicTexture, save_project
-from core.render.project import render_project
-from core.themes.library import shipped_theme_library
+from terratheme.app.cli import main
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange.texture_tiff import TILE, write_texture_tiff
+from terratheme.core.io.georef import read_georeference, scale_georeference
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.render.project import render_project
+from terratheme.core.themes.library import shipped_theme_library
 
 GEOREF = {
     "ModelPixelScale": [1.0, 1.0, 0.0],

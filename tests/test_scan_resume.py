@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.curves.fill import fill_runs
-from core.curves.scan import _runs_kernel, scan_runs
+from terratheme.core.curves.fill import fill_runs
+from terratheme.core.curves.scan import _runs_kernel, scan_runs
 
 
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint32])

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.curves import steps as sfc
-from core.curves.fill import fill_runs
-from core.curves.scan import ranks_to_steps, scan_order, scan_runs, steps_to_ranks
-from core.errors import TerrathemeError
+from terratheme.core.curves import steps as sfc
+from terratheme.core.curves.fill import fill_runs
+from terratheme.core.curves.scan import ranks_to_steps, scan_order, scan_runs, steps_to_ranks
+from terratheme.core.errors import TerrathemeError
 
 
 @pytest.fixture(scope="module")

@@ -6,15 +6,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from core.convert.cell_choice import agreement, choose_cell_size
-from core.convert.labels_to_grid import apply_lut, labels_to_grid, vote_grid
-from core.convert.photo import ConvertOptions, convert_photo
-from core.convert.specks import SpeckStream, clean_rows, remove_specks
-from core.convert.tiled import grid_from_file
-from core.errors import TerrathemeError
-from core.io.images import write_image
-from core.io.tiles import Scheduler
+from terratheme.core.convert.cell_choice import agreement, choose_cell_size
+from terratheme.core.convert.labels_to_grid import apply_lut, labels_to_grid, vote_grid
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.convert.specks import SpeckStream, clean_rows, remove_specks
+from terratheme.core.convert.tiled import grid_from_file
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.io.tiles import Scheduler
 
 
 def _grid(text: str) -> np.ndarray:
@@ -112,7 +111,7 @@ def test_tiny_grids():
 
 
 def test_bands_equal_one_pass(monkeypatch):
-    import core.convert.specks as cs
+    import terratheme.core.convert.specks as cs
 
     rng = np.random.default_rng(3)
     g = rng.integers(0, 3, (37, 23)).astype(np.uint8)
@@ -240,8 +239,8 @@ def test_convert_chooses_the_cell_on_the_grid_it_keeps():
 
 
 def test_cli_removes_specks_unless_kept(tmp_path, capsys):
-    from app.cli import main
-    from core.model.project import load_project
+    from terratheme.app.cli import main
+    from terratheme.core.model.project import load_project
 
     # A sand field with one dark vertex window at cell 8 (the vertex at (3, 4)).
     rng = np.random.default_rng(4)

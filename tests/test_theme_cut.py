@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.themes.cut_mask import class_interior, lone_objects
-from core.themes.from_photo import themes_from_photo
-from core.themes.patch_search import INTERIOR, PatchOptions
+from terratheme.core.themes.cut_mask import class_interior, lone_objects
+from terratheme.core.themes.from_photo import themes_from_photo
+from terratheme.core.themes.patch_search import INTERIOR, PatchOptions
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 

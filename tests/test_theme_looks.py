@@ -6,11 +6,10 @@ import json
 
 import numpy as np
 import pytest
-
-from core.errors import CorruptFileError
-from core.themes import read_looks, shipped_theme_library
-from core.themes.library import ThemeLibrary, flat_theme
-from core.themes.matching import Appearance, shipped_names
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.themes import read_looks, shipped_theme_library
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.themes.matching import Appearance, shipped_names
 
 
 def _library() -> ThemeLibrary:

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
-from core.themes.cut_mask import (
+from terratheme.core.themes.cut_mask import (
     band_marks,
     cut_window,
     fill_from_class,
     lone_objects,
     match_surroundings,
 )
-from core.themes.quality import landmark_mask
+from terratheme.core.themes.quality import landmark_mask
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 

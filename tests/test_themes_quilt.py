@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.themes import PatchOptions, themes_from_photo
-from core.themes.from_photo import REPEAT_LIMIT
-from core.themes.patch_search import WindowStats, best_windows, texture_stats
-from core.themes.quality import repeat_score
-from core.themes.quilt import QuiltOptions, candidate_blocks, quilt_tileable
-from core.themes.tileable import seam_score
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes import PatchOptions, themes_from_photo
+from terratheme.core.themes.from_photo import REPEAT_LIMIT
+from terratheme.core.themes.patch_search import WindowStats, best_windows, texture_stats
+from terratheme.core.themes.quality import repeat_score
+from terratheme.core.themes.quilt import QuiltOptions, candidate_blocks, quilt_tileable
+from terratheme.core.themes.tileable import seam_score
 
 
 def _grain(h: int, w: int, seed: int = 0) -> np.ndarray:

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.themes.library import SHIPPED_THEMES_DIR, shipped_theme_library
-from core.themes.quality import landmark_score, lowfreq_score, repeat_score
-from core.themes.tileable import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.library import SHIPPED_THEMES_DIR, shipped_theme_library
+from terratheme.core.themes.quality import landmark_score, lowfreq_score, repeat_score
+from terratheme.core.themes.tileable import (
     SEAM_THRESHOLD,
     FlattenMode,
     SeamMethod,
@@ -178,7 +177,7 @@ def test_make_tileable_errors() -> None:
 
 
 def test_make_tileable_on_dubai_photo(shared_data) -> None:
-    from core.io.images import read_image
+    from terratheme.core.io.images import read_image
 
     photo = read_image(shared_data / "dubai" / "images" / "image_part_001t1.jpg", dtype=np.uint8)
     patch = photo[100:228, 100:228, :3]

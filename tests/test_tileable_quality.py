@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.errors import TerrathemeError
-from core.themes.quality import landmark_mask, landmark_score, lowfreq_score, repeat_score
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.quality import (
+    landmark_mask,
+    landmark_score,
+    lowfreq_score,
+    repeat_score,
+)
 
 
 def _grey(lum: np.ndarray) -> np.ndarray:

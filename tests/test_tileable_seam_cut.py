@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from core.themes.seam_cut import cut_wrap, min_error_cut
+from terratheme.core.themes.seam_cut import cut_wrap, min_error_cut
 
 
 def test_min_error_cut_follows_the_free_path() -> None:

@@ -5,16 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import ndimage
-
-from core.errors import TerrathemeError
-from core.io.georef import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.georef import (
     read_georeference,
     scale_georeference,
     world_file_lines,
     write_georeference,
 )
-from core.io.images import image_info, read_image, read_region, write_image
-from core.io.tiles import (
+from terratheme.core.io.images import image_info, read_image, read_region, write_image
+from terratheme.core.io.tiles import (
     Scheduler,
     TiledImageWriter,
     dask_image,

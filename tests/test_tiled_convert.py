@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, DEFAULT_CELL_CANDIDATES
-from core.convert.labels_to_grid import vote_grid
-from core.convert.photo import ConvertOptions, convert_photo
-from core.convert.tile_vote import vertex_tiles
-from core.convert.tiled import convert_file_tiled, grid_from_file
-from core.errors import TerrathemeError
-from core.io.images import write_image
-from core.io.tiles import Scheduler
+from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES, DEFAULT_CELL_CANDIDATES
+from terratheme.core.convert.labels_to_grid import vote_grid
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.convert.tile_vote import vertex_tiles
+from terratheme.core.convert.tiled import convert_file_tiled, grid_from_file
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.io.tiles import Scheduler
 
 
 def _classes(pixels: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""``python -m app.warmup`` compiles what a real conversion runs: its first run compiles nothing.
+"""``python -m terratheme.app.warmup`` compiles what a conversion runs: no compile on first run.
 
 A numba kernel is compiled once per argument types (layout included: a view is
 'A', a whole array 'C'); a type the warmup does not give it is compiled at the
@@ -13,18 +13,17 @@ import sys
 
 import numpy as np
 from numba.core.registry import CPUDispatcher
-
-from app import warmup
-from core.classify import classify_unsupervised
-from core.classify.tiled import _arg_max
-from core.convert.photo import convert_photo
+from terratheme.app import warmup
+from terratheme.core.classify import classify_unsupervised
+from terratheme.core.classify.tiled import _arg_max
+from terratheme.core.convert.photo import convert_photo
 
 
 def _signatures() -> set[tuple[str, str]]:
     """(kernel, signature) of every numba kernel of core compiled in this process."""
     out = set()
     for name, module in list(sys.modules.items()):
-        if name.startswith("core."):
+        if name.startswith("terratheme.core."):
             for attr, value in vars(module).items():
                 if isinstance(value, CPUDispatcher) and value.__module__ == name:
                     out.update((f"{name}.{attr}", str(s)) for s in value.signatures)
@@ -60,9 +59,9 @@ def test_convert_after_the_warmup_compiles_nothing_new():
 def test_a_region_narrower_than_the_grid_renders_with_the_whole_grid_s_signatures():
     # A viewport's block of the grid is a strided view: passed as it is, each rows kernel
     # compiled a second ('A') signature at the first viewport render after the warmup.
-    from core.render import BlendMode, RenderOptions, render_cells, render_labels
-    from core.render import kernels as rk
-    from core.render.boundary import BoundaryOptions, shaped_rows
+    from terratheme.core.render import BlendMode, RenderOptions, render_cells, render_labels
+    from terratheme.core.render import kernels as rk
+    from terratheme.core.render.boundary import BoundaryOptions, shaped_rows
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]

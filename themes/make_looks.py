@@ -24,13 +24,13 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from core.classify import classify_unsupervised  # noqa: E402
-from core.io.atomic import write_bytes_atomic  # noqa: E402
-from core.io.images import read_image, read_labels  # noqa: E402
-from core.themes.library import read_theme_library  # noqa: E402
-from core.themes.looks import LOOKS_FILE  # noqa: E402
-from core.themes.matching import class_appearances, shipped_names  # noqa: E402
-from core.themes.patch_search import texture_stats  # noqa: E402
+from terratheme.core.classify import classify_unsupervised  # noqa: E402
+from terratheme.core.io.atomic import write_bytes_atomic  # noqa: E402
+from terratheme.core.io.images import read_image, read_labels  # noqa: E402
+from terratheme.core.themes.library import read_theme_library  # noqa: E402
+from terratheme.core.themes.looks import LOOKS_FILE  # noqa: E402
+from terratheme.core.themes.matching import class_appearances, shipped_names  # noqa: E402
+from terratheme.core.themes.patch_search import texture_stats  # noqa: E402
 
 #: Dubai mask class -> the shipped theme its looks are listed under
 THEME_OF_CLASS = {1: "town", 2: "sand", 3: "road", 4: "grass", 5: "water"}

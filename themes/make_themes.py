@@ -40,15 +40,15 @@ from scipy import ndimage
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from core.io.atomic import write_bytes_atomic  # noqa: E402
-from core.io.images import read_image, write_image  # noqa: E402
-from core.themes.quality import (  # noqa: E402
+from terratheme.core.io.atomic import write_bytes_atomic  # noqa: E402
+from terratheme.core.io.images import read_image, write_image  # noqa: E402
+from terratheme.core.themes.quality import (  # noqa: E402
     landmark_mask,
     landmark_score,
     lowfreq_score,
     repeat_score,
 )
-from core.themes.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
+from terratheme.core.themes.tileable import SEAM_THRESHOLD, make_tileable, seam_score  # noqa: E402
 
 SIZE = 256
 #: banding pass mark: share of contrast in waves of <= 2 periods per tile

@@ -28,8 +28,8 @@ MIN_SIDE, MAX_SIDE = 200, 8192
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.outputs import check_outputs
-    from core.errors import TerrathemeError
+    from terratheme.app.outputs import check_outputs
+    from terratheme.core.errors import TerrathemeError
 
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         raise TerrathemeError(f"--size {w}x{h}: each side must be {MIN_SIDE}..{MAX_SIDE} pixels")
     # The screenshot's path is checked before Qt starts (and its folder made).
     check_outputs([args.screenshot], inputs=[args.target])
-    from app.editor.launch import run_editor
+    from terratheme.app.editor.launch import run_editor
 
     return run_editor(args.target, screenshot=args.screenshot,
                       classify=not args.no_classify, size=(w, h))

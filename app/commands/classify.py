@@ -11,7 +11,7 @@ import argparse
 import os
 from pathlib import Path
 
-from app.arg_types import add_legend_option
+from terratheme.app.arg_types import add_legend_option
 
 NAME = "classify"
 HELP = "classify an orthophoto into themes (unsupervised, or from scribbles/label masks)"
@@ -80,9 +80,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def _read_mask(path: str):
     import numpy as np
-
-    from core.errors import TerrathemeError
-    from core.io.images import read_labels
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.images import read_labels
 
     mask = read_labels(path)
     if mask.size and int(mask.max()) > 255:
@@ -98,8 +97,7 @@ def label_palette():
     """
     import cv2
     import numpy as np
-
-    from core.themes.library import shipped_theme_library
+    from terratheme.core.themes.library import shipped_theme_library
 
     colours = [(0, 0, 0), *(tuple(int(c) for c in t.colour) for t in shipped_theme_library())]
     step = 0
@@ -117,9 +115,9 @@ def label_palette():
 def _training_caches(folder: Path | None, size: str | None):
     """(SampleCache, ModelCache) in ``folder`` bounded to ``size`` (text, e.g. "2G"; None:
     the default), checked before any work; (None, None) without a folder."""
-    from core.classify import ModelCache, SampleCache
-    from core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
-    from core.errors import TerrathemeError
+    from terratheme.core.classify import ModelCache, SampleCache
+    from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
+    from terratheme.core.errors import TerrathemeError
 
     if folder is None:
         if size is not None:
@@ -140,20 +138,19 @@ def _training_caches(folder: Path | None, size: str | None):
 def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     import numpy as np
-    from tqdm import tqdm
-
-    from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
-    from core.classify import (
+    from terratheme.app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from terratheme.core.classify import (
         SupervisedOptions,
         classify_unsupervised,
         load_model,
         train_classifier,
     )
-    from core.errors import TerrathemeError
-    from core.io.atomic import write_files
-    from core.io.images import Bands, image_info, read_image, write_image
-    from core.io.legend import read_legend
-    from core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.atomic import write_files
+    from terratheme.core.io.images import Bands, image_info, read_image, write_image
+    from terratheme.core.io.legend import read_legend
+    from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
+    from tqdm import tqdm
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:

@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from app.arg_types import add_legend_option
-from core.errors import TerrathemeError
+from terratheme.app.arg_types import add_legend_option
+from terratheme.core.errors import TerrathemeError
 
 NAME = "convert"
 HELP = "turn an orthophoto into a thematic texture project (+ preview render, packed layer)"
@@ -76,7 +76,7 @@ def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
 
 def _check_theme_names(themes) -> None:
     """Unknown shipped theme names are refused before any work."""
-    from core.themes.library import shipped_theme_library
+    from terratheme.core.themes.library import shipped_theme_library
 
     if isinstance(themes, str | int):
         return
@@ -146,8 +146,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def _read_mask(path: str):
     """Scribble class values (a grey PNG, or classify's palette PNG) as (H, W) uint8."""
     import numpy as np
-
-    from core.io.images import read_labels
+    from terratheme.core.io.images import read_labels
 
     mask = read_labels(path)
     if mask.size and (int(mask.max()) > 255 or int(mask.min()) < 0):
@@ -160,8 +159,7 @@ def _curve_chart(choice, path: str) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from core.io.atomic import atomic_path
+    from terratheme.core.io.atomic import atomic_path
 
     cells = [p.cell for p in choice.curve]
     fig, ax = plt.subplots(figsize=(6, 3.6), dpi=110)
@@ -186,13 +184,17 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     from pathlib import Path
 
+    from terratheme.app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from terratheme.core.convert.photo import (
+        ConvertOptions,
+        convert_photo,
+        read_photo,
+        write_outputs,
+    )
+    from terratheme.core.fidelity import texture_cost
+    from terratheme.core.io.images import image_info
+    from terratheme.core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
     from tqdm import tqdm
-
-    from app.outputs import check_image_outputs, check_mask_sizes, check_outputs
-    from core.convert.photo import ConvertOptions, convert_photo, read_photo, write_outputs
-    from core.fidelity import texture_cost
-    from core.io.images import image_info
-    from core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -268,8 +270,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _style(args: argparse.Namespace) -> tuple:
     """The colour-map and boundary options of ``--colour-map`` and ``--boundary``."""
-    from core.convert.colour_fit import ColourMapOptions
-    from core.render.boundary import BoundaryOptions
+    from terratheme.core.convert.colour_fit import ColourMapOptions
+    from terratheme.core.render.boundary import BoundaryOptions
 
     if args.colour_map == "off":
         colour = None
@@ -290,7 +292,7 @@ def _read_legend(args: argparse.Namespace, themes) -> dict[int, str] | None:
     """The class names of ``--legend``, checked against the other options before any work."""
     if not args.legend:
         return None
-    from core.io.legend import read_legend
+    from terratheme.core.io.legend import read_legend
 
     if not (args.scribbles or args.model):
         raise TerrathemeError("--legend names the classes of --scribbles or --model; "
@@ -303,7 +305,7 @@ def _read_legend(args: argparse.Namespace, themes) -> dict[int, str] | None:
 
 def _load_model(name: str, legend: dict[int, str] | None):
     """A saved or shipped classifier; a legend renames its classes."""
-    from core.classify import load_model
+    from terratheme.core.classify import load_model
 
     model = load_model(name)
     if legend:
@@ -313,9 +315,9 @@ def _load_model(name: str, legend: dict[int, str] | None):
 
 def _run_tiled(args, project, preview, packed, themes, legend) -> int:
     """The bounded-memory path: tile by tile with a saved classifier or unsupervised."""
-    from core.convert.photo import write_outputs
-    from core.convert.tiled import convert_file_tiled
-    from core.errors import TerrathemeError
+    from terratheme.core.convert.photo import write_outputs
+    from terratheme.core.convert.tiled import convert_file_tiled
+    from terratheme.core.errors import TerrathemeError
 
     if args.scribbles:
         raise TerrathemeError("--tile does not take --scribbles: train a model with "
@@ -352,8 +354,8 @@ def _run_tiled(args, project, preview, packed, themes, legend) -> int:
 @contextlib.contextmanager
 def _scheduler(args):
     """Where the tiles run: this process, a running cluster (--scheduler) or a local one."""
-    from core.io.cluster import connect, local_cluster
-    from core.io.tiles import Scheduler
+    from terratheme.core.io.cluster import connect, local_cluster
+    from terratheme.core.io.tiles import Scheduler
 
     if not (args.scheduler or args.workers):
         yield Scheduler.SERIAL
@@ -371,9 +373,8 @@ def _tile_progress(photo: str):
     """A progress bar of tiles done and megapixels per second, one stage after the other."""
     import time
 
+    from terratheme.core.io.images import image_info
     from tqdm import tqdm
-
-    from core.io.images import image_info
 
     info = image_info(photo)
     pixels = info.width * info.height

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.arg_types import int_tuple
+from terratheme.app.arg_types import int_tuple
 
 NAME = "export"
 HELP = ("export a project for Unity, Unreal, Godot Terrain3D or GIS: weight or control maps, "
@@ -38,10 +38,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from app.outputs import check_outputs
-    from app.progress import progress_bar
-    from core.errors import TerrathemeError
-    from core.exchange import (
+    from terratheme.app.outputs import check_outputs
+    from terratheme.app.progress import progress_bar
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.exchange import (
         Engine,
         ExportOptions,
         WeightStyle,
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         plan_export,
         write_export,
     )
-    from core.render.project import load_checked_project
+    from terratheme.core.render.project import load_checked_project
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():

@@ -42,13 +42,13 @@ def _layer_info(args: argparse.Namespace) -> dict:
     """The header, palette and checksum (fast whatever the size); the runs with ``--runs``."""
     import dataclasses
 
-    from core.packing import layer_info
+    from terratheme.core.packing import layer_info
 
     # The header, palette and checksum only (numba is not even imported).
     info = dataclasses.asdict(layer_info(args.input))
     if args.runs:
-        from core.errors import TerrathemeError
-        from core.packing import PackedLayer
+        from terratheme.core.errors import TerrathemeError
+        from terratheme.core.packing import PackedLayer
 
         if info["tiles"] > 1:
             raise TerrathemeError(f"{args.input}: a tiled container; --runs lists one layer's runs")
@@ -60,9 +60,9 @@ def _layer_info(args: argparse.Namespace) -> dict:
 
 def _project_info(args: argparse.Namespace) -> dict:
     """Grid, themes, colour map, render style and bytes of a project."""
-    from core.errors import TerrathemeError
-    from core.fidelity import texture_cost
-    from core.render.project import load_checked_project, photo_extent, project_style
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.fidelity import texture_cost
+    from terratheme.core.render.project import load_checked_project, photo_extent, project_style
 
     if args.runs:
         raise TerrathemeError("--runs lists a packed layer's runs; a project has none")

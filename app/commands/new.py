@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.arg_types import int_tuple
+from terratheme.app.arg_types import int_tuple
 
 NAME = "new"
 HELP = ("make a project from an index image (vertex = pixel), or from Unity splatmaps, weight "
@@ -50,9 +50,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.outputs import check_outputs
-    from core.errors import TerrathemeError
-    from core.exchange import (
+    from terratheme.app.outputs import check_outputs
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.exchange import (
         control_labels,
         grid_from_labels,
         labels_from_weights,
@@ -60,11 +60,11 @@ def run(args: argparse.Namespace) -> int:
         read_splatmaps,
         read_weight_maps,
     )
-    from core.io.images import image_info, read_image
-    from core.model.grid import IndexGrid, validate_cell
-    from core.model.index_image import project_from_index_image
-    from core.model.project import ThematicTexture, check_vertex_count, save_project
-    from core.themes.library import shipped_theme_library
+    from terratheme.core.io.images import image_info, read_image
+    from terratheme.core.model.grid import IndexGrid, validate_cell
+    from terratheme.core.model.index_image import project_from_index_image
+    from terratheme.core.model.project import ThematicTexture, check_vertex_count, save_project
+    from terratheme.core.themes.library import shipped_theme_library
 
     check_outputs([args.project], inputs=args.inputs)
     validate_cell(args.cell)

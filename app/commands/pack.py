@@ -6,7 +6,7 @@ import argparse
 import contextlib
 from collections.abc import Iterator
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 NAME = "pack"
 HELP = "pack an index image (<= 256 colours) into a random-access space-filling-curve layer"
@@ -54,11 +54,11 @@ def run(args: argparse.Namespace) -> int:
     """Pack ``args.input`` into ``args.output`` and print a one-line summary."""
     import math
 
-    from app.outputs import check_outputs
-    from app.progress import progress_bar
-    from core.io.images import image_info
-    from core.packing import pack, pack_file
-    from core.packing.index_png import read_index_image
+    from terratheme.app.outputs import check_outputs
+    from terratheme.app.progress import progress_bar
+    from terratheme.core.io.images import image_info
+    from terratheme.core.packing import pack, pack_file
+    from terratheme.core.packing.index_png import read_index_image
 
     check_outputs([args.output], inputs=[args.input])
     info = image_info(args.input)

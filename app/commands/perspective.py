@@ -9,7 +9,7 @@ import threading
 import time
 from pathlib import Path
 
-from app.arg_types import int_tuple
+from terratheme.app.arg_types import int_tuple
 
 NAME = "perspective"
 HELP = ("render an image or a project on a ground plane seen in perspective, "
@@ -106,12 +106,11 @@ def _warm_up(texture, options, project=None) -> None:
     """Load (or, on a first run, compile) the kernels this run needs on tiny inputs,
     saying so in one line when that takes long (a compile)."""
     import numpy as np
-
-    from core.perspective import Camera, PreparedTexture
+    from terratheme.core.perspective import Camera, PreparedTexture
 
     def note() -> None:
         print("note: compiling the preview kernels (first run only, a minute or two; "
-              "`python -m app.warmup` does it at install)", flush=True)
+              "`python -m terratheme.app.warmup` does it at install)", flush=True)
 
     timer = threading.Timer(COMPILE_NOTE_AFTER, note)
     timer.daemon = True
@@ -120,7 +119,7 @@ def _warm_up(texture, options, project=None) -> None:
         tiny = np.ascontiguousarray(texture[:8, :8])
         PreparedTexture(tiny, options).render(Camera(height=4, pitch=20), (8, 8), options)
         if project is not None:
-            from core.render.project import render_project
+            from terratheme.core.render.project import render_project
 
             w, h = project.grid.texture_size
             render_project(project, (0, 0, min(8, w), min(8, h)), 1.0)
@@ -132,8 +131,8 @@ def _warm_up(texture, options, project=None) -> None:
 def _family_cache(args: argparse.Namespace):
     """The family cache, checked before any work: a folder named by ``--cache-dir`` must
     be usable; the default one is only an optimisation (unusable: no cache, and a note)."""
-    from core.errors import TerrathemeError
-    from core.perspective import FamilyCache
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.perspective import FamilyCache
 
     if args.no_cache:
         return None
@@ -153,12 +152,11 @@ def _family_cache(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-
-    from app.outputs import check_image_outputs, check_outputs
-    from app.progress import progress_bar
-    from core.errors import TerrathemeError
-    from core.io.images import read_image, write_image
-    from core.perspective import (
+    from terratheme.app.outputs import check_image_outputs, check_outputs
+    from terratheme.app.progress import progress_bar
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.images import read_image, write_image
+    from terratheme.core.perspective import (
         Camera,
         FilterOptions,
         Method,
@@ -166,9 +164,9 @@ def run(args: argparse.Namespace) -> int:
         PreparedTexture,
         check_size,
     )
-    from core.perspective.mapping import camera_mapping, overview_camera, scaled_view
-    from core.perspective.project_view import project_texture, texture_scale
-    from core.perspective.texture import stored_texture
+    from terratheme.core.perspective.mapping import camera_mapping, overview_camera, scaled_view
+    from terratheme.core.perspective.project_view import project_texture, texture_scale
+    from terratheme.core.perspective.texture import stored_texture
 
     check_outputs([args.out], inputs=[args.input])
     check_image_outputs([args.out])
@@ -179,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     options = FilterOptions(method=Method(args.method), max_anisotropy=args.max_anisotropy)
     is_project = str(args.input).lower().endswith(".ttproj")
     if is_project:
-        from core.render.project import load_checked_project
+        from terratheme.core.render.project import load_checked_project
 
         project = load_checked_project(args.input)
         full_size = project.grid.texture_size
@@ -246,9 +244,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_gpu(args: argparse.Namespace, project, view) -> int:
     """``--gpu``: one frame of a project through :func:`core.gpu.render_perspective_gpu`."""
-    from core.errors import TerrathemeError
-    from core.gpu import GroundOptions, render_perspective_gpu
-    from core.io.images import write_image
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.gpu import GroundOptions, render_perspective_gpu
+    from terratheme.core.io.images import write_image
 
     if project is None:
         raise TerrathemeError("--gpu renders projects (.ttproj): give a project, or leave out "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.arg_types import int_tuple, unit_fraction
+from terratheme.app.arg_types import int_tuple, unit_fraction
 
 NAME = "render"
 HELP = "render a project (.ttproj) to an image, whole or a region, full size or scaled down"
@@ -46,20 +46,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.outputs import check_image_outputs, check_outputs
-    from app.progress import progress_bar
-    from core.io.georef import write_georeference
-    from core.io.images import write_image
-    from core.render.boundary import BoundaryOptions
-    from core.render.inputs import validate_region
-    from core.render.project import (
+    from terratheme.app.outputs import check_image_outputs, check_outputs
+    from terratheme.app.progress import progress_bar
+    from terratheme.core.io.georef import write_georeference
+    from terratheme.core.io.images import write_image
+    from terratheme.core.render.boundary import BoundaryOptions
+    from terratheme.core.render.inputs import validate_region
+    from terratheme.core.render.project import (
         load_checked_project,
         photo_extent,
         project_style,
         render_georeference,
         render_project,
     )
-    from core.render.renderer import BlendMode, RenderOptions
+    from terratheme.core.render.renderer import BlendMode, RenderOptions
 
     packed = _packed_path(args)
     check_outputs([args.out], inputs=[args.project] + ([packed] if packed else []))
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _gpu_renderer(project):
     """The project's themes on the GPU (fails with one line where no OpenGL context exists)."""
-    from core.gpu import GpuRenderer
+    from terratheme.core.gpu import GpuRenderer
 
     return GpuRenderer(project.library.textures)
 
@@ -108,7 +108,7 @@ def _packed_path(args: argparse.Namespace) -> str | None:
     """The packed layer ``--packed`` names (its default beside the project), or None."""
     from pathlib import Path
 
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     if args.packed is None:
         return None
@@ -119,8 +119,8 @@ def _packed_path(args: argparse.Namespace) -> str | None:
 
 def _packed_grid(path: str, project):
     """The packed layer at ``path``, checked to be the size of the project's vertex grid."""
-    from core.errors import TerrathemeError
-    from core.packing import PackedLayer, load_layer
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.packing import PackedLayer, load_layer
 
     layer = load_layer(path)
     if not isinstance(layer, PackedLayer):
@@ -134,7 +134,7 @@ def _packed_grid(path: str, project):
 
 def _render_gpu(gpu, project, grid, region, scale: float, style, progress):
     """``grid`` (the project's, or its packed layer) through the shaders in ``style``."""
-    from core.gpu import GpuRenderOptions
+    from terratheme.core.gpu import GpuRenderOptions
 
     try:
         return gpu.render(grid, project.grid.cell, region=region, scale=scale, progress=progress,
@@ -148,7 +148,7 @@ def _streamed(args: argparse.Namespace, region) -> bool:
     """Whether to stream a tiled GeoTIFF: ``--tiled``, or a large full-resolution .tif."""
     from pathlib import Path
 
-    from core.errors import TerrathemeError
+    from terratheme.core.errors import TerrathemeError
 
     tif = Path(args.out).suffix.lower() in (".tif", ".tiff")
     if not args.tiled:
@@ -164,8 +164,8 @@ def _streamed(args: argparse.Namespace, region) -> bool:
 
 def _render_tiled(args, project, region, options, style: str) -> int:
     """The streamed output: tiled GeoTIFF with overviews, band by band (bounded memory)."""
-    from app.progress import progress_bar
-    from core.exchange.texture_tiff import write_texture_tiff
+    from terratheme.app.progress import progress_bar
+    from terratheme.core.exchange.texture_tiff import write_texture_tiff
 
     with progress_bar("render (tiled)", unit="band") as progress:
         (w, h), overviews = write_texture_tiff(project, args.out, region, options=options,

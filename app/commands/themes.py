@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from core.themes.library import SHIPPED_THEMES_DIR, shipped_theme_library
+    from terratheme.core.themes.library import SHIPPED_THEMES_DIR, shipped_theme_library
 
     rows = []
     for index, theme in enumerate(shipped_theme_library()):

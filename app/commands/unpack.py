@@ -18,9 +18,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Unpack ``args.input`` into the image ``args.output``."""
-    from app.outputs import check_image_outputs, check_outputs
-    from core.packing import load_layer, write_layer_image
-    from core.packing.export import check_layer_image_path
+    from terratheme.app.outputs import check_image_outputs, check_outputs
+    from terratheme.core.packing import load_layer, write_layer_image
+    from terratheme.core.packing.export import check_layer_image_path
 
     check_outputs([args.output], inputs=[args.input])
     check_image_outputs([args.output])

@@ -6,6 +6,6 @@
 bug that otherwise aborts the interpreter after a few thousand Qt calls.
 """
 
-from app.editor.qt_compat import guard_none_refcount
+from terratheme.app.editor.qt_compat import guard_none_refcount
 
 guard_none_refcount()

@@ -16,9 +16,8 @@ from enum import Enum
 
 import numpy as np
 from PySide6.QtCore import QObject, QThread, Signal
-
-from core.edit.uncertainty import scribble_classes
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit.uncertainty import scribble_classes
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 #: display colours of new class themes (matplotlib's tab10, as 8-bit RGB)
 _QUALITATIVE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
@@ -84,7 +83,7 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
     display colours so the index map reads well; the texture keeps the
     photo's look) and the class -> position-in-that-list table.
     """
-    from core.convert.step import assign_themes
+    from terratheme.core.convert.step import assign_themes
 
     mapping = assign_themes(photo[..., :3], labels, classes, names=names)
     out = []
@@ -108,10 +107,10 @@ def run_classification(mode: Mode, photo: np.ndarray, scribbles: np.ndarray | No
     passed to ``train_classifier``. ``position`` (scribbles only): the forest
     also uses where the strokes lie (``FeatureOptions.position``).
     """
-    from core.classify import SupervisedOptions, load_model
-    from core.convert.labels_to_grid import labels_to_grid
-    from core.convert.step import assign_themes, classify_photo
-    from core.errors import TerrathemeError
+    from terratheme.core.classify import SupervisedOptions, load_model
+    from terratheme.core.convert.labels_to_grid import labels_to_grid
+    from terratheme.core.convert.step import assign_themes, classify_photo
+    from terratheme.core.errors import TerrathemeError
 
     # The one conversion step of core (core.convert.step), as terratheme convert runs it.
     if mode is Mode.SCRIBBLES:

@@ -17,7 +17,7 @@ import threading
 from collections.abc import Mapping
 from pathlib import Path
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: Qt platforms that need no display server.
 HEADLESS_PLATFORMS = frozenset({"offscreen", "minimal", "minimalegl", "vnc", "linuxfb",

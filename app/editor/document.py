@@ -22,9 +22,8 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import QObject, QRectF, Signal
-
-from app.editor.imaging import ZoomPyramid
-from core.edit import (
+from terratheme.app.editor.imaging import ZoomPyramid
+from terratheme.core.edit import (
     ColourMapChange,
     EditDocument,
     GridChange,
@@ -34,10 +33,10 @@ from core.edit import (
     fidelity_map,
     heat_colours,
 )
-from core.errors import TerrathemeError
-from core.fidelity import fidelity, texture_cost
-from core.model.project import ThematicTexture
-from core.render.project import load_checked_project
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.fidelity import fidelity, texture_cost
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import load_checked_project
 
 EVERYWHERE = QRectF(-1e9, -1e9, 2e9, 2e9)
 

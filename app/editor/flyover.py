@@ -25,10 +25,9 @@ from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QPainter, QSurfaceFormat
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
 from PySide6.QtWidgets import QWidget
-
-from app.editor.imaging import qimage_view
-from core.gpu import Flight, FlightInput, GroundView
-from core.perspective import Camera
+from terratheme.app.editor.imaging import qimage_view
+from terratheme.core.gpu import Flight, FlightInput, GroundView
+from terratheme.core.perspective import Camera
 
 #: keys held -> (FlightInput field, value)
 KEYS = {
@@ -332,7 +331,7 @@ class FlyoverImage(QWidget):
 
     def _ensure(self) -> GroundView:
         if self.ground is None:
-            from core.gpu import gl_context
+            from terratheme.core.gpu import gl_context
 
             self.ground = self.scene.make_ground(gl_context())
             if self.scene.heights is not None:

@@ -13,8 +13,7 @@ from pathlib import Path
 from PySide6.QtCore import QUrl, qVersion
 from PySide6.QtGui import QAction, QDesktopServices, QKeySequence
 from PySide6.QtWidgets import QMessageBox
-
-from app.editor.tools import TOOL_HELP, Tool
+from terratheme.app.editor.tools import TOOL_HELP, Tool
 
 REPO = Path(__file__).resolve().parents[2]
 #: the documents Help > Documentation points at, most useful first
@@ -73,10 +72,9 @@ def docs_text() -> str:
 def about_text() -> str:
     """Help > About: program, version and what it runs on."""
     import PySide6
+    import terratheme.core
 
-    import core
-
-    return (f"terratheme {core.__version__}\n"
+    return (f"terratheme {terratheme.core.__version__}\n"
             "Thematic terrain textures: a coarse grid of theme indices plus small "
             "tileable theme textures, edited by hand with a live preview.\n\n"
             f"Python {platform.python_version()}, PySide6 {PySide6.__version__}, "

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.editor.display import prepare_display
-from core.errors import TerrathemeError
-from core.model.project import PROJECT_SUFFIX
+from terratheme.app.editor.display import prepare_display
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.project import PROJECT_SUFFIX
 
 
 def load_start_document(target: str | None, *, classify: bool):
@@ -14,8 +14,12 @@ def load_start_document(target: str | None, *, classify: bool):
 
     Returns ``(doc, wants_classification)``.
     """
-    from app.editor.document import EditorDocument
-    from app.editor.newproject import empty_project, project_from_photo, sample_project_path
+    from terratheme.app.editor.document import EditorDocument
+    from terratheme.app.editor.newproject import (
+        empty_project,
+        project_from_photo,
+        sample_project_path,
+    )
 
     if target is None:
         sample = sample_project_path()
@@ -41,9 +45,8 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     prepare_display(screenshot=screenshot is not None)
     from PySide6.QtCore import QElapsedTimer, QEventLoop, qInstallMessageHandler
     from PySide6.QtWidgets import QApplication
-
-    from app.editor.classify_job import Mode
-    from app.editor.window import MainWindow
+    from terratheme.app.editor.classify_job import Mode
+    from terratheme.app.editor.window import MainWindow
 
     qInstallMessageHandler(_qt_message)
     app = QApplication.instance() or QApplication(sys.argv[:1])
@@ -55,8 +58,8 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
         if screenshot is not None:
             raise
         # Interactive: open an empty project and say what went wrong in a dialog.
-        from app.editor.document import EditorDocument
-        from app.editor.newproject import empty_project
+        from terratheme.app.editor.document import EditorDocument
+        from terratheme.app.editor.newproject import empty_project
 
         doc, wants_classification, error = EditorDocument(empty_project()), False, exc
     win = MainWindow(doc, interactive=screenshot is None)

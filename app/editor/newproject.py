@@ -5,11 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.project import PROJECT_SUFFIX, ThematicTexture
-from core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import PROJECT_SUFFIX, ThematicTexture
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 SAMPLE_DIR = Path(__file__).resolve().parents[2] / "sample_maps"
 DEFAULT_CELL = (16, 16)
@@ -17,7 +16,7 @@ DEFAULT_CELL = (16, 16)
 
 def default_library() -> ThemeLibrary:
     """The shipped themes, or a few flat colours when the themes folder is absent."""
-    from core.themes.library import shipped_theme_library
+    from terratheme.core.themes.library import shipped_theme_library
 
     try:
         return shipped_theme_library()
@@ -37,8 +36,8 @@ def empty_project(cells: tuple[int, int] = (64, 64), cell: tuple[int, int] = DEF
 
 def project_from_photo(path: str | Path, cell: tuple[int, int] = DEFAULT_CELL) -> ThematicTexture:
     """A one-theme project covering the photo at ``path`` 1:1 (classify it afterwards)."""
-    from core.convert.labels_to_grid import grid_shape_for
-    from core.io.images import Bands, read_image
+    from terratheme.core.convert.labels_to_grid import grid_shape_for
+    from terratheme.core.io.images import Bands, read_image
 
     photo = read_image(path, dtype=np.uint8, bands=Bands.PHOTO)
     if photo.shape[2] <= 2:  # grey, or grey + alpha (the editor shows the photo opaque)

@@ -16,11 +16,10 @@ from PySide6.QtWidgets import (
     QVBoxLayout,
     QWidget,
 )
-
-from app.editor.document import EditorDocument
-from app.editor.imaging import qimage_view
-from core.errors import TerrathemeError
-from core.themes.library import Theme
+from terratheme.app.editor.document import EditorDocument
+from terratheme.app.editor.imaging import qimage_view
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.library import Theme
 
 THUMB = 44
 
@@ -105,7 +104,7 @@ class ThemePalette(QWidget):
 
     # -- actions -------------------------------------------------------------
     def _texture_file(self) -> tuple[np.ndarray, str] | None:
-        from core.io.images import Bands, read_image
+        from terratheme.core.io.images import Bands, read_image
 
         path, _ = QFileDialog.getOpenFileName(self, "Theme texture", "",
                                               "Images (*.png *.jpg *.jpeg *.tif *.tiff *.exr)")

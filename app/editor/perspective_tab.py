@@ -27,13 +27,18 @@ from PySide6.QtWidgets import (
     QVBoxLayout,
     QWidget,
 )
-
-from app.editor.classify_job import keep_alive
-from app.editor.flyover import HELP, FlightDriver, FlyoverGL, FlyoverImage, qt_gl_unavailable
-from app.editor.imaging import qimage_view
-from core.gpu import Flight, GroundView
-from core.gpu.flight import MAX_PITCH, MIN_PITCH
-from core.perspective import Camera, FilterOptions, Method, PreparedTexture
+from terratheme.app.editor.classify_job import keep_alive
+from terratheme.app.editor.flyover import (
+    HELP,
+    FlightDriver,
+    FlyoverGL,
+    FlyoverImage,
+    qt_gl_unavailable,
+)
+from terratheme.app.editor.imaging import qimage_view
+from terratheme.core.gpu import Flight, GroundView
+from terratheme.core.gpu.flight import MAX_PITCH, MIN_PITCH
+from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
 
 MAX_TEXTURE = 2048
 FRAME = (640, 360)
@@ -108,7 +113,7 @@ class PerspectiveTab(QWidget):
         if reason is None:
             view = FlyoverGL(self)
         else:
-            from core.gpu import GpuUnavailableError, gl_context
+            from terratheme.core.gpu import GpuUnavailableError, gl_context
 
             try:
                 gl_context()
@@ -267,8 +272,8 @@ class PerspectiveTab(QWidget):
 
     def load_height_map(self, path: str) -> None:
         """Read a grey image and displace the ground by it (errors shown in the tab)."""
-        from core.errors import TerrathemeError
-        from core.io.images import read_image
+        from terratheme.core.errors import TerrathemeError
+        from terratheme.core.io.images import read_image
 
         try:
             self.set_height_map(read_image(path))
@@ -319,7 +324,7 @@ class PerspectiveTab(QWidget):
     def prepared(self) -> tuple[PreparedTexture, float]:
         """The project's render (reduced) prefiltered, and the reduction; built on the worker."""
         if self._prepared is None:
-            from core.render.project import render_project
+            from terratheme.core.render.project import render_project
 
             w, h = self.doc.extent
             scale = min(1.0, MAX_TEXTURE / max(w, h))

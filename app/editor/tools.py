@@ -13,10 +13,9 @@ from enum import Enum
 
 from PySide6.QtCore import QObject, QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPen
-
-from app.editor.document import EditorDocument
-from core.edit import Layer
-from core.errors import TerrathemeError
+from terratheme.app.editor.document import EditorDocument
+from terratheme.core.edit import Layer
+from terratheme.core.errors import TerrathemeError
 
 
 class Tool(Enum):

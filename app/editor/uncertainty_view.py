@@ -12,9 +12,8 @@ from __future__ import annotations
 from PySide6.QtCore import QRectF
 from PySide6.QtGui import QAction, QKeySequence, QPainter
 from PySide6.QtWidgets import QLabel
-
-from app.editor.imaging import ZoomPyramid
-from core.edit import UNCERTAIN_SHARE, uncertainty_rgba
+from terratheme.app.editor.imaging import ZoomPyramid
+from terratheme.core.edit import UNCERTAIN_SHARE, uncertainty_rgba
 
 
 class UncertaintyMixin:

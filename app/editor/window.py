@@ -15,16 +15,15 @@ from PySide6.QtWidgets import (
     QToolBar,
     QWidget,
 )
-
-from app.editor.canvas import MapCanvas, ViewState
-from app.editor.document import EditorDocument
-from app.editor.help import HelpMixin
-from app.editor.imaging import ZoomPyramid
-from app.editor.palette import ThemePalette
-from app.editor.tools import Tool, ToolController
-from app.editor.uncertainty_view import UncertaintyMixin
-from app.editor.window_menus import MenuMixin
-from core.edit import HistoryChange, ScribbleChange
+from terratheme.app.editor.canvas import MapCanvas, ViewState
+from terratheme.app.editor.document import EditorDocument
+from terratheme.app.editor.help import HelpMixin
+from terratheme.app.editor.imaging import ZoomPyramid
+from terratheme.app.editor.palette import ThemePalette
+from terratheme.app.editor.tools import Tool, ToolController
+from terratheme.app.editor.uncertainty_view import UncertaintyMixin
+from terratheme.app.editor.window_menus import MenuMixin
+from terratheme.core.edit import HistoryChange, ScribbleChange
 
 
 class MainWindow(MenuMixin, HelpMixin, UncertaintyMixin, QMainWindow):

@@ -11,12 +11,11 @@ from pathlib import Path
 import numpy as np
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressBar, QPushButton
-
-from app.editor.classify_job import ClassifyJob, ClassifyResult, Mode, keep_alive
-from app.editor.document import EditorDocument
-from app.editor.newproject import empty_project
-from core.edit import ClassificationUpdate
-from core.errors import TerrathemeError
+from terratheme.app.editor.classify_job import ClassifyJob, ClassifyResult, Mode, keep_alive
+from terratheme.app.editor.document import EditorDocument
+from terratheme.app.editor.newproject import empty_project
+from terratheme.core.edit import ClassificationUpdate
+from terratheme.core.errors import TerrathemeError
 
 PROJECT_FILTER = "terratheme project (*.ttproj)"
 
@@ -183,7 +182,7 @@ class MenuMixin:
 
     def export_render(self, path: str | None = None) -> bool:
         """The preview render as an image (PNG, TIFF or EXR)."""
-        from core.io.images import write_image
+        from terratheme.core.io.images import write_image
 
         return self._export(path, "Export render", "render.png",
                             "Images (*.png *.tif *.tiff *.exr)",
@@ -194,7 +193,7 @@ class MenuMixin:
 
         def write(out: str) -> None:
             try:
-                from core.packing import pack
+                from terratheme.core.packing import pack
             except ImportError as exc:
                 raise TerrathemeError("the packer (core.packing.pack) is not available "
                                       "in this build") from exc
@@ -317,7 +316,7 @@ class MenuMixin:
     def update_perspective_tab(self) -> None:
         """Add or refresh the perspective preview tab (when core.perspective is available)."""
         try:
-            from app.editor.perspective_tab import PerspectiveTab
+            from terratheme.app.editor.perspective_tab import PerspectiveTab
         except ImportError:
             return
         if getattr(self, "perspective_tab", None) is None:

@@ -31,17 +31,17 @@ file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
 name).
 """
 
-from core.classify.features import FeatureOptions, FeatureSet, Normalise
-from core.classify.forest import ForestKind
-from core.classify.model_cache import ModelCache
-from core.classify.regularise import Regularisation, RegulariseOptions
-from core.classify.result import Classification
-from core.classify.sample_cache import SampleCache
-from core.classify.shipped import load_model, resolve_model, shipped_models
-from core.classify.supervised import Classifier, train_classifier
-from core.classify.supervised_options import SupervisedOptions
-from core.classify.unsupervised import UnsupervisedOptions
-from core.classify.unsupervised_model import (
+from terratheme.core.classify.features import FeatureOptions, FeatureSet, Normalise
+from terratheme.core.classify.forest import ForestKind
+from terratheme.core.classify.model_cache import ModelCache
+from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
+from terratheme.core.classify.result import Classification
+from terratheme.core.classify.sample_cache import SampleCache
+from terratheme.core.classify.shipped import load_model, resolve_model, shipped_models
+from terratheme.core.classify.supervised import Classifier, train_classifier
+from terratheme.core.classify.supervised_options import SupervisedOptions
+from terratheme.core.classify.unsupervised import UnsupervisedOptions
+from terratheme.core.classify.unsupervised_model import (
     UnsupervisedModel,
     classify_unsupervised,
     fit_unsupervised,

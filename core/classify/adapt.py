@@ -32,12 +32,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-
-from core.classify.features import FeatureOptions
-from core.classify.forest import ForestKind, ForestOptions, build_forest, forest_scores
-from core.classify.regularise import RegulariseOptions, regularise
-from core.classify.result import Classification
-from core.classify.tiled import (
+from terratheme.core.classify.features import FeatureOptions
+from terratheme.core.classify.forest import ForestKind, ForestOptions, build_forest, forest_scores
+from terratheme.core.classify.regularise import RegulariseOptions, regularise
+from terratheme.core.classify.result import Classification
+from terratheme.core.classify.tiled import (
     ProbabilityFn,
     ProgressFn,
     predict_tiled,
@@ -45,7 +44,7 @@ from core.classify.tiled import (
     strided_core,
     tile_arrays,
 )
-from core.io.tiles import TileWindow
+from terratheme.core.io.tiles import TileWindow
 
 #: share of each predicted class's coarse pixels (the most confident) taken as pseudo-labels
 ADAPT_SHARE = 0.7

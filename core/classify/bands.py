@@ -30,9 +30,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-from core.classify.lab import full_lab
-from core.errors import TerrathemeError
+from terratheme.core.classify.lab import full_lab
+from terratheme.core.errors import TerrathemeError
 
 #: The pass needs a (themes + 1) x 2^themes table; with more themes it is skipped.
 MAX_BAND_THEMES = 12

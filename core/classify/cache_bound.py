@@ -21,7 +21,7 @@ import os
 import re
 from pathlib import Path
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: the default bound of a cache folder, in bytes (2 GiB)
 DEFAULT_CACHE_BYTES = 2 << 30

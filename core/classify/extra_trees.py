@@ -34,8 +34,7 @@ from functools import cached_property
 
 import numba
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: the arrays of an :class:`ExtraTreesForest`, in file order
 ARRAY_NAMES = ("classes", "roots", "feature", "threshold", "left", "right", "value")

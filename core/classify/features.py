@@ -55,13 +55,12 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-from core.classify.lab import block_lab, coarse_lab, full_lab
-from core.classify.position import position_features
-from core.classify.profiles import profile_count, profile_halo, reconstruction_profile
-from core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
-from core.classify.texture import context_blur, texture_count, texture_features
-from core.errors import TerrathemeError
+from terratheme.core.classify.lab import block_lab, coarse_lab, full_lab
+from terratheme.core.classify.position import position_features
+from terratheme.core.classify.profiles import profile_count, profile_halo, reconstruction_profile
+from terratheme.core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
+from terratheme.core.classify.texture import context_blur, texture_count, texture_features
+from terratheme.core.errors import TerrathemeError
 
 
 class FeatureSet(enum.Enum):

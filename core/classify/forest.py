@@ -15,8 +15,7 @@ from typing import Protocol
 
 import cv2
 import numpy as np
-
-from core.classify.extra_trees import ExtraTreesForest, fit_extra_trees
+from terratheme.core.classify.extra_trees import ExtraTreesForest, fit_extra_trees
 
 
 class ForestKind(enum.Enum):

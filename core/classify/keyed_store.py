@@ -25,10 +25,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-
-from core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, touch
-from core.errors import TerrathemeError
-from core.io.atomic import write_bytes_atomic
+from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, touch
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import write_bytes_atomic
 
 #: what np.load raises on a file that is not a whole .npz of plain arrays
 _UNREADABLE = (OSError, ValueError, KeyError, UnicodeDecodeError, zipfile.BadZipFile, EOFError)

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
-from core.classify.texture import block_mean
+from terratheme.core.classify.texture import block_mean
 
 #: (1, 256, 3) float32: each 8-bit Lab code as L* (x 100/255) and a*, b* (- 128), as full_lab
 _LAB8_TABLE = (np.repeat(np.arange(256, dtype=np.float32)[None, :, None], 3, axis=2)

@@ -45,12 +45,11 @@ from collections.abc import Callable, Mapping, Sequence
 from importlib.metadata import version
 
 import numpy as np
-
-from core.classify.keyed_store import StoreFront
-from core.classify.model_file import ModelParts, model_bytes, read_model_bytes
-from core.classify.model_options import options_to_json
-from core.classify.supervised_options import SupervisedOptions
-from core.errors import TerrathemeError
+from terratheme.core.classify.keyed_store import StoreFront
+from terratheme.core.classify.model_file import ModelParts, model_bytes, read_model_bytes
+from terratheme.core.classify.model_options import options_to_json
+from terratheme.core.classify.supervised_options import SupervisedOptions
+from terratheme.core.errors import TerrathemeError
 
 #: models kept in memory (a 50-tree model of 63,000 nodes is about 3 MB there)
 MEMORY_ENTRIES = 8

@@ -34,8 +34,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
-
-from core.classify.extra_trees import (
+from terratheme.core.classify.extra_trees import (
     ARRAY_NAMES,
     MAX_CLASSES,
     MAX_FEATURES,
@@ -43,12 +42,12 @@ from core.classify.extra_trees import (
     MAX_TREES,
     ExtraTreesForest,
 )
-from core.classify.model_options import number_rule, options_from_json, options_to_json
-from core.classify.supervised_options import SupervisedOptions
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.archive import open_archive, read_json_member, read_member, read_npy_member
-from core.io.atomic import write_bytes_atomic
-from core.io.legend import parse_legend
+from terratheme.core.classify.model_options import number_rule, options_from_json, options_to_json
+from terratheme.core.classify.supervised_options import SupervisedOptions
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.io.archive import open_archive, read_json_member, read_member, read_npy_member
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.legend import parse_legend
 
 FORMAT = "terratheme-classifier"
 VERSION = 2

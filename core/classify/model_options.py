@@ -13,11 +13,11 @@ from __future__ import annotations
 import math
 from dataclasses import asdict
 
-from core.classify.extra_trees import MAX_DEPTH, MAX_FEATURES, MAX_TREES
-from core.classify.features import FeatureOptions, FeatureSet, Normalise
-from core.classify.forest import ForestKind
-from core.classify.regularise import Regularisation, RegulariseOptions
-from core.classify.supervised_options import SupervisedOptions
+from terratheme.core.classify.extra_trees import MAX_DEPTH, MAX_FEATURES, MAX_TREES
+from terratheme.core.classify.features import FeatureOptions, FeatureSet, Normalise
+from terratheme.core.classify.forest import ForestKind
+from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
+from terratheme.core.classify.supervised_options import SupervisedOptions
 
 
 def options_to_json(options: SupervisedOptions) -> dict:

@@ -16,8 +16,7 @@ band only when the file marks it as alpha (TIFF ExtraSamples, PNG colour type).
 from __future__ import annotations
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:

@@ -39,11 +39,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-
-from core.classify.features import FeatureOptions
-from core.classify.samples import looks_like_scribbles
-from core.classify.tiled import iter_tile_features, strided_core
-from core.errors import TerrathemeError
+from terratheme.core.classify.features import FeatureOptions
+from terratheme.core.classify.samples import looks_like_scribbles
+from terratheme.core.classify.tiled import iter_tile_features, strided_core
+from terratheme.core.errors import TerrathemeError
 
 #: default correction for scribbles (benchmark: benchmarks/results/classify.json,
 #: scribbles "rf-default" vs "rf-noprior")

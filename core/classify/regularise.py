@@ -30,8 +30,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 class Regularisation(enum.Enum):

@@ -26,9 +26,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict
 
 import numpy as np
-
-from core.classify.features import FeatureOptions
-from core.classify.keyed_store import StoreFront
+from terratheme.core.classify.features import FeatureOptions
+from terratheme.core.classify.keyed_store import StoreFront
 
 #: entries kept in memory (least recently used dropped first)
 MEMORY_ENTRIES = 64

@@ -26,8 +26,7 @@ from collections.abc import Iterable, Sequence
 
 import cv2
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: a single mask labelling less than this share of its photo is taken for scribbles
 SCRIBBLE_SHARE = 0.5

@@ -23,9 +23,9 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.classify.supervised import Classifier
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.archive import parse_json, read_bounded
+from terratheme.core.classify.supervised import Classifier
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.archive import parse_json, read_bounded
 
 SHIPPED_MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 MODELS_INDEX = "models.json"

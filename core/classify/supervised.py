@@ -46,14 +46,13 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-
-from core.classify.adapt import predict_adapted
-from core.classify.features import FeatureOptions, Normalise, photo_statistics
-from core.classify.forest import Forest, ForestKind, build_forest, forest_scores
-from core.classify.model_cache import ModelCache, model_key
-from core.classify.model_file import ModelParts, read_model, write_model
-from core.classify.photo import prepare_photo
-from core.classify.prior import (
+from terratheme.core.classify.adapt import predict_adapted
+from terratheme.core.classify.features import FeatureOptions, Normalise, photo_statistics
+from terratheme.core.classify.forest import Forest, ForestKind, build_forest, forest_scores
+from terratheme.core.classify.model_cache import ModelCache, model_key
+from terratheme.core.classify.model_file import ModelParts, read_model, write_model
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.prior import (
     em_shares,
     kept_weights,
     photo_probabilities,
@@ -61,18 +60,18 @@ from core.classify.prior import (
     prior_power_for,
     prior_weights,
 )
-from core.classify.result import Classification
-from core.classify.sample_cache import SampleCache, sample_key
-from core.classify.samples import (
+from terratheme.core.classify.result import Classification
+from terratheme.core.classify.sample_cache import SampleCache, sample_key
+from terratheme.core.classify.samples import (
     GROW_COLOUR,
     check_class_image,
     coarse_mask,
     grow_labels,
     looks_like_scribbles,
 )
-from core.classify.supervised_options import SupervisedOptions
-from core.classify.tiled import iter_tile_features, predict_tiled
-from core.errors import TerrathemeError
+from terratheme.core.classify.supervised_options import SupervisedOptions
+from terratheme.core.classify.tiled import iter_tile_features, predict_tiled
+from terratheme.core.errors import TerrathemeError
 
 
 def _stats(rgb, valid, fo: FeatureOptions):

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from core.classify.features import FeatureOptions
-from core.classify.forest import ForestKind
-from core.classify.regularise import Regularisation, RegulariseOptions
-from core.errors import TerrathemeError
+from terratheme.core.classify.features import FeatureOptions
+from terratheme.core.classify.forest import ForestKind
+from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
+from terratheme.core.errors import TerrathemeError
 
 #: the smallest per-class cap on training samples (see SupervisedOptions.samples_per_pair)
 MIN_SAMPLES_PER_CLASS = 2000

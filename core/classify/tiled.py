@@ -15,12 +15,11 @@ from collections.abc import Callable, Iterator
 import cv2
 import numba
 import numpy as np
-
-from core.classify.features import FeatureOptions, image_features, with_position
-from core.classify.regularise import RegulariseOptions, regularise
-from core.classify.result import Classification
-from core.errors import TerrathemeError
-from core.io.tiles import TileWindow, tile_windows
+from terratheme.core.classify.features import FeatureOptions, image_features, with_position
+from terratheme.core.classify.regularise import RegulariseOptions, regularise
+from terratheme.core.classify.result import Classification
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.tiles import TileWindow, tile_windows
 
 ProgressFn = Callable[[int, int], None]
 #: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32

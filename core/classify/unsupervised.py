@@ -58,13 +58,12 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
-
-from core.classify.bands import BandOptions, lies_between
-from core.classify.features import FeatureOptions, FeatureSet
-from core.classify.mixture import fit_diagonal_mixture, isotropic_variances
-from core.classify.regularise import RegulariseOptions
-from core.classify.tiled import iter_tile_features, strided_core
-from core.errors import TerrathemeError
+from terratheme.core.classify.bands import BandOptions, lies_between
+from terratheme.core.classify.features import FeatureOptions, FeatureSet
+from terratheme.core.classify.mixture import fit_diagonal_mixture, isotropic_variances
+from terratheme.core.classify.regularise import RegulariseOptions
+from terratheme.core.classify.tiled import iter_tile_features, strided_core
+from terratheme.core.errors import TerrathemeError
 
 
 @dataclass(frozen=True)

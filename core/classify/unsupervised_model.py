@@ -15,21 +15,20 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-
-from core.classify.bands import relabel_bands
-from core.classify.features import FeatureSet
-from core.classify.mixture import posterior_fn
-from core.classify.photo import prepare_photo
-from core.classify.result import Classification
-from core.classify.tiled import predict_tiled
-from core.classify.unsupervised import (
+from terratheme.core.classify.bands import relabel_bands
+from terratheme.core.classify.features import FeatureSet
+from terratheme.core.classify.mixture import posterior_fn
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.result import Classification
+from terratheme.core.classify.tiled import predict_tiled
+from terratheme.core.classify.unsupervised import (
     UnsupervisedOptions,
     choose_themes,
     colour_columns,
     feature_weights,
     sample_features,
 )
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 @dataclass(frozen=True)

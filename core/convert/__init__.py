@@ -8,11 +8,16 @@ memory, tile by tile, here or on a dask.distributed cluster), ``tile_vote``
 tile).
 """
 
-from core.convert.cell_choice import CellChoice, choose_cell_size
-from core.convert.labels_to_grid import labels_to_grid, vote_grid
-from core.convert.photo import ConvertOptions, ConvertResult, convert_photo, write_outputs
-from core.convert.specks import remove_specks
-from core.convert.tiled import convert_file_tiled
+from terratheme.core.convert.cell_choice import CellChoice, choose_cell_size
+from terratheme.core.convert.labels_to_grid import labels_to_grid, vote_grid
+from terratheme.core.convert.photo import (
+    ConvertOptions,
+    ConvertResult,
+    convert_photo,
+    write_outputs,
+)
+from terratheme.core.convert.specks import remove_specks
+from terratheme.core.convert.tiled import convert_file_tiled
 
 __all__ = [
     "CellChoice",

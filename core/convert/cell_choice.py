@@ -16,12 +16,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.classify.samples import check_class_image
-from core.convert.labels_to_grid import vote_grid
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.render.renderer import render_labels
+from terratheme.core.classify.samples import check_class_image
+from terratheme.core.convert.labels_to_grid import vote_grid
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.renderer import render_labels
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
 DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)

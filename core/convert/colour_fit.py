@@ -30,17 +30,16 @@ from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-
-from core.classify.photo import prepare_photo
-from core.errors import TerrathemeError
-from core.fidelity.metrics import COLOUR_SIGMA, colour_error
-from core.io.cluster import map_ordered
-from core.io.images import Bands, image_info
-from core.io.tiles import Scheduler, TileWindow, run_tiles
-from core.model.colour_map import NEUTRAL, ColourMap, TileBox, TileEncoder
-from core.model.grid import IndexGrid
-from core.render.colour_map import apply_colour_map, gain_image
-from core.render.renderer import RenderOptions, render_cells
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.fidelity.metrics import COLOUR_SIGMA, colour_error
+from terratheme.core.io.cluster import map_ordered
+from terratheme.core.io.images import Bands, image_info
+from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap, TileBox, TileEncoder
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.colour_map import apply_colour_map, gain_image
+from terratheme.core.render.renderer import RenderOptions, render_cells
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -12,11 +12,10 @@ from __future__ import annotations
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
-
-from core.convert.colour_fit import ColourMapOptions, choose_colour_map, grid_window
-from core.io.tiles import TileWindow
-from core.model.grid import IndexGrid
-from core.render.renderer import RenderOptions, render_cells
+from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, grid_window
+from terratheme.core.io.tiles import TileWindow
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.renderer import RenderOptions, render_cells
 
 
 def window_scale(grid: IndexGrid, textures: list[np.ndarray], photo: np.ndarray,

@@ -24,11 +24,10 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-
-from core.classify.samples import check_class_image
-from core.convert.specks import remove_specks
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid, validate_cell
+from terratheme.core.classify.samples import check_class_image
+from terratheme.core.convert.specks import remove_specks
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid, validate_cell
 
 #: pixels voted per band of vertex rows (bounded memory)
 _MAX_PIXELS = 1 << 23

@@ -27,25 +27,24 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from core.classify.photo import prepare_photo
-from core.classify.samples import check_class_image
-from core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
-from core.convert.colour_fit import ColourMapOptions, FittedColourMap
-from core.convert.labels_to_grid import apply_lut
-from core.convert.step import classify_photo, grid_and_colour, themes_and_cell
-from core.errors import TerrathemeError
-from core.io.atomic import atomic_file_set, write_bytes_atomic
-from core.io.codec import CODECS
-from core.io.georef import read_georeference, world_file_for, write_georeference
-from core.io.images import Bands, read_image, write_image
-from core.model.project import ThematicTexture, save_project
-from core.packing import pack
-from core.render.boundary import BoundaryOptions
-from core.render.project import photo_extent, render_georeference, render_project
-from core.render.renderer import RenderOptions
-from core.themes.from_photo import ThemeMapping
-from core.themes.patch_search import PatchOptions
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.samples import check_class_image
+from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
+from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
+from terratheme.core.convert.labels_to_grid import apply_lut
+from terratheme.core.convert.step import classify_photo, grid_and_colour, themes_and_cell
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import atomic_file_set, write_bytes_atomic
+from terratheme.core.io.codec import CODECS
+from terratheme.core.io.georef import read_georeference, world_file_for, write_georeference
+from terratheme.core.io.images import Bands, read_image, write_image
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.packing import pack
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.project import photo_extent, render_georeference, render_project
+from terratheme.core.render.renderer import RenderOptions
+from terratheme.core.themes.from_photo import ThemeMapping
+from terratheme.core.themes.patch_search import PatchOptions
 
 ProgressFn = Callable[[int, int], None]
 

@@ -18,8 +18,7 @@ row is cleaned once the row below it is final, and the last at the end.
 from __future__ import annotations
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: vertices cleaned per band of rows (bounded memory on large grids)
 _BAND_VERTICES = 1 << 22

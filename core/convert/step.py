@@ -22,28 +22,32 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.classify import Classification, SupervisedOptions, classify_unsupervised, train_classifier
-from core.convert.cell_choice import (
+from terratheme.core.classify import (
+    Classification,
+    SupervisedOptions,
+    classify_unsupervised,
+    train_classifier,
+)
+from terratheme.core.convert.cell_choice import (
     DEFAULT_CELL_CANDIDATES,
     CellChoice,
     agreement,
     choose_cell_size,
 )
-from core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
-from core.convert.labels_to_grid import apply_lut, vote_grid
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.render.renderer import RenderOptions, render_cells
-from core.themes.from_photo import (
+from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
+from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
     themes_by_name,
     themes_from_photo,
 )
-from core.themes.library import ThemeLibrary
-from core.themes.matching import class_appearances, match_classes, theme_appearances
-from core.themes.patch_search import PatchOptions, texture_stats
+from terratheme.core.themes.library import ThemeLibrary
+from terratheme.core.themes.matching import class_appearances, match_classes, theme_appearances
+from terratheme.core.themes.patch_search import PatchOptions, texture_stats
 
 ProgressFn = Callable[[int, int], None]
 #: what the themes of a conversion are: "auto"/K (cut from the photo), names, {class: name},

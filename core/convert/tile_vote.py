@@ -12,10 +12,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
-from core.errors import TerrathemeError
-from core.io.tiles import TileWindow
+from terratheme.core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.tiles import TileWindow
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 

@@ -28,25 +28,30 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-
-from core.classify import fit_unsupervised
-from core.classify.photo import prepare_photo
-from core.convert.cell_choice import CONVERT_CELL_CANDIDATES
-from core.convert.colour_fit import ColourMapOptions, colour_map_from_file
-from core.convert.colour_scale import CentreScale
-from core.convert.labels_to_grid import grid_shape_for
-from core.convert.specks import SpeckStream
-from core.convert.step import themes_and_cell
-from core.convert.tile_vote import ClassifyFn, PredictLabels, VertexTile, VoteJob, vertex_tiles
-from core.errors import TerrathemeError
-from core.io.cluster import check_workers, warm_up
-from core.io.georef import read_georeference
-from core.io.images import Bands, image_info, read_region
-from core.io.tiles import Scheduler, run_tiles
-from core.model.grid import IndexGrid, validate_cell
-from core.model.project import ThematicTexture
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import RenderOptions, render_cells
+from terratheme.core.classify import fit_unsupervised
+from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES
+from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+from terratheme.core.convert.colour_scale import CentreScale
+from terratheme.core.convert.labels_to_grid import grid_shape_for
+from terratheme.core.convert.specks import SpeckStream
+from terratheme.core.convert.step import themes_and_cell
+from terratheme.core.convert.tile_vote import (
+    ClassifyFn,
+    PredictLabels,
+    VertexTile,
+    VoteJob,
+    vertex_tiles,
+)
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.cluster import check_workers, warm_up
+from terratheme.core.io.georef import read_georeference
+from terratheme.core.io.images import Bands, image_info, read_region
+from terratheme.core.io.tiles import Scheduler, run_tiles
+from terratheme.core.model.grid import IndexGrid, validate_cell
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import RenderOptions, render_cells
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -12,7 +12,7 @@ file readers do) does not load numba.
 
 from __future__ import annotations
 
-from core.curves.square import MAX_SIDE, Curve, curve_order
+from terratheme.core.curves.square import MAX_SIDE, Curve, curve_order
 
 __all__ = [
     "MAX_SIDE",
@@ -30,15 +30,15 @@ __all__ = [
 def __getattr__(name: str) -> object:
     """The numba-backed functions, imported when first asked for (PEP 562)."""
     if name in ("scan_order", "scan_runs"):
-        from core.curves import scan
+        from terratheme.core.curves import scan
 
         return getattr(scan, name)
     if name == "fill_runs":
-        from core.curves.fill import fill_runs
+        from terratheme.core.curves.fill import fill_runs
 
         return fill_runs
     if name in ("step_table", "steps_of", "texels_of"):
-        from core.curves import steps
+        from terratheme.core.curves import steps
 
         return getattr(steps, name)
-    raise AttributeError(f"module 'core.curves' has no attribute {name!r}")
+    raise AttributeError(f"module 'terratheme.core.curves' has no attribute {name!r}")

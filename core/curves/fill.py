@@ -13,10 +13,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-
-from core.curves.plan import CurveSquares, block_plan, plan_args
-from core.curves.square import Curve
-from core.errors import TerrathemeError
+from terratheme.core.curves.plan import CurveSquares, block_plan, plan_args
+from terratheme.core.curves.square import Curve
+from terratheme.core.errors import TerrathemeError
 
 
 @numba.njit(cache=True, nogil=True)

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-
-from core.curves.square import Curve, curve_order, hilbert_transposed
-from core.curves.steps import hilbert_d2xy, hilbert_xy2d, morton_d2xy, morton_xy2d
+from terratheme.core.curves.square import Curve, curve_order, hilbert_transposed
+from terratheme.core.curves.steps import hilbert_d2xy, hilbert_xy2d, morton_d2xy, morton_xy2d
 
 #: log2 of the scan block side (64 x 64 texels per block, 4 Hilbert patterns).
 BLOCK_BITS = 6

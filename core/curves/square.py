@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import enum
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: Largest side of one curve's square: 2^32 steps, 0-based steps fit uint32.
 MAX_SIDE = 65536

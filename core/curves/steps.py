@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.curves.square import Curve, curve_order, hilbert_transposed
-from core.errors import TerrathemeError
+from terratheme.core.curves.square import Curve, curve_order, hilbert_transposed
+from terratheme.core.errors import TerrathemeError
 
 # ---------------------------------------------------------------- square curves
 #

@@ -19,11 +19,11 @@ Modules, from the bottom up:
 * ``fidelity`` -- per-cell colour difference between render and photo.
 """
 
-from core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
-from core.edit.changes import Change
-from core.edit.classification import ClassificationUpdate, classification_changes
-from core.edit.document import EditDocument
-from core.edit.events import (
+from terratheme.core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
+from terratheme.core.edit.changes import Change
+from terratheme.core.edit.classification import ClassificationUpdate, classification_changes
+from terratheme.core.edit.document import EditDocument
+from terratheme.core.edit.events import (
     ColourMapChange,
     ConfidenceChange,
     DocumentEvents,
@@ -35,9 +35,9 @@ from core.edit.events import (
     ScribbleChange,
     ThemeChange,
 )
-from core.edit.fidelity import fidelity_map, heat_colours
-from core.edit.history import History, Step
-from core.edit.layers import (
+from terratheme.core.edit.fidelity import fidelity_map, heat_colours
+from terratheme.core.edit.history import History, Step
+from terratheme.core.edit.layers import (
     Layer,
     display_photo,
     photo_extent,
@@ -45,8 +45,8 @@ from core.edit.layers import (
     validate_photo,
     validate_scribbles,
 )
-from core.edit.preview import RenderPreview, dirty_cells, dirty_region
-from core.edit.tools import (
+from terratheme.core.edit.preview import RenderPreview, dirty_cells, dirty_region
+from terratheme.core.edit.tools import (
     Connectivity,
     VertexSelection,
     capsule_footprint,
@@ -54,7 +54,7 @@ from core.edit.tools import (
     flood_footprint,
     rect_footprint,
 )
-from core.edit.uncertainty import (
+from terratheme.core.edit.uncertainty import (
     UNCERTAIN_SHARE,
     KeptPrior,
     next_kept_prior,

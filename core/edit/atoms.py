@@ -14,8 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.edit.tools import VertexSelection
+from terratheme.core.edit.tools import VertexSelection
 
 
 @dataclass(frozen=True, eq=False)

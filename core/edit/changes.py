@@ -14,9 +14,8 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-
-from core.edit.atoms import Atom, atom_parts, replace_atoms
-from core.edit.events import (
+from terratheme.core.edit.atoms import Atom, atom_parts, replace_atoms
+from terratheme.core.edit.events import (
     ColourMapChange,
     ConfidenceChange,
     Event,
@@ -26,11 +25,11 @@ from core.edit.events import (
     ScribbleChange,
     ThemeChange,
 )
-from core.edit.layers import DocumentData, Layer
-from core.edit.uncertainty import KeptPrior
-from core.errors import TerrathemeError
-from core.model.colour_map import NEUTRAL, ColourMap
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit.layers import DocumentData, Layer
+from terratheme.core.edit.uncertainty import KeptPrior
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
 class Change(Protocol):

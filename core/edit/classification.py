@@ -17,8 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.edit.changes import (
+from terratheme.core.edit.changes import (
     AppendTheme,
     Change,
     SetColourMap,
@@ -27,10 +26,10 @@ from core.edit.changes import (
     SwapLayer,
     grid_replacement,
 )
-from core.edit.layers import DocumentData, Layer, validate_confidence
-from core.edit.uncertainty import next_kept_prior
-from core.errors import TerrathemeError
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit.layers import DocumentData, Layer, validate_confidence
+from terratheme.core.edit.uncertainty import next_kept_prior
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
 @dataclass(frozen=True)

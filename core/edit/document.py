@@ -17,10 +17,9 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 
 import numpy as np
-
-from core.edit import layers
-from core.edit.atoms import EditAtom
-from core.edit.changes import (
+from terratheme.core.edit import layers
+from terratheme.core.edit.atoms import EditAtom
+from terratheme.core.edit.changes import (
     AppendTheme,
     Change,
     Paint,
@@ -32,22 +31,22 @@ from core.edit.changes import (
     neutral_under,
     photo_replacement,
 )
-from core.edit.classification import ClassificationUpdate, classification_changes
-from core.edit.events import DocumentEvents, Event, HistoryChange
-from core.edit.history import History, Step
-from core.edit.layers import DocumentData, Layer
-from core.edit.strokes import Stroke
-from core.edit.tools import (
+from terratheme.core.edit.classification import ClassificationUpdate, classification_changes
+from terratheme.core.edit.events import DocumentEvents, Event, HistoryChange
+from terratheme.core.edit.history import History, Step
+from terratheme.core.edit.layers import DocumentData, Layer
+from terratheme.core.edit.strokes import Stroke
+from terratheme.core.edit.tools import (
     Connectivity,
     VertexSelection,
     eyedropper,
     flood_footprint,
     rect_footprint,
 )
-from core.edit.uncertainty import KeptPrior, uncertain_mask
-from core.errors import TerrathemeError
-from core.model.project import ThematicTexture, save_project
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.edit.uncertainty import KeptPrior, uncertain_mask
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
 class EditDocument:

@@ -13,8 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from skimage.color import deltaE_ciede2000, rgb2lab
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 def cell_means(image: np.ndarray, cells_shape: tuple[int, int]) -> np.ndarray:

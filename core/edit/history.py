@@ -15,8 +15,8 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-from core.edit.changes import Change
-from core.errors import TerrathemeError
+from terratheme.core.edit.changes import Change
+from terratheme.core.errors import TerrathemeError
 
 
 @dataclass(frozen=True, eq=False)

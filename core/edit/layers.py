@@ -20,13 +20,12 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
-
-from core.edit.uncertainty import KeptPrior
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid
-from core.model.layers import LAYER_BY_NAME, check_layer
-from core.model.project import ThematicTexture
-from core.themes.library import ThemeLibrary
+from terratheme.core.edit.uncertainty import KeptPrior
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.layers import LAYER_BY_NAME, check_layer
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.themes.library import ThemeLibrary
 
 
 class Layer(Enum):

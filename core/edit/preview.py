@@ -14,12 +14,11 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-
-from core.edit.events import GridChange
-from core.errors import TerrathemeError
-from core.model.project import ThematicTexture
-from core.render.project import project_style
-from core.render.renderer import render_cells
+from terratheme.core.edit.events import GridChange
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import project_style
+from terratheme.core.render.renderer import render_cells
 
 Progress = Callable[[int, int], None]
 #: most texels the live preview holds (16384 x 16384: 768 MiB of RGB, the editor's

@@ -10,19 +10,18 @@ into being, and that belongs to the same step.
 from __future__ import annotations
 
 import numpy as np
-
-from core.edit.atoms import EditAtom, merge_atoms
-from core.edit.changes import (
+from terratheme.core.edit.atoms import EditAtom, merge_atoms
+from terratheme.core.edit.changes import (
     Change,
     Paint,
     SwapLayer,
     drop_prior_without_classes,
     neutral_under,
 )
-from core.edit.events import Event
-from core.edit.layers import DocumentData, Layer
-from core.edit.tools import capsule_footprint
-from core.errors import TerrathemeError
+from terratheme.core.edit.events import Event
+from terratheme.core.edit.layers import DocumentData, Layer
+from terratheme.core.edit.tools import capsule_footprint
+from terratheme.core.errors import TerrathemeError
 
 #: the layers a brush paints, and the label of their strokes in the history
 STROKE_LABELS = {Layer.GRID: "brush stroke", Layer.SCRIBBLES: "scribble"}

@@ -19,8 +19,7 @@ from enum import IntEnum
 
 import numpy as np
 from skimage.segmentation import flood
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 @dataclass(frozen=True, eq=False)

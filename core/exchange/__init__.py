@@ -18,24 +18,24 @@ GeoTIFF, band by band: ``terratheme render --tiled``), ``export`` (plan,
 then write), ``maps_to_grid`` (the way back: engine maps to a vertex grid).
 """
 
-from core.exchange.colour import gain_at_pixels, linear_gain
-from core.exchange.export import plan_export, write_export
-from core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
-from core.exchange.maps_to_grid import grid_from_labels, labels_from_weights
-from core.exchange.options import Engine, ExportOptions, WeightStyle
-from core.exchange.plan import ExportPlan
-from core.exchange.shaped import shaped_slots
-from core.exchange.style import export_boundary, map_labels, map_weights
-from core.exchange.terrain3d import (
+from terratheme.core.exchange.colour import gain_at_pixels, linear_gain
+from terratheme.core.exchange.export import plan_export, write_export
+from terratheme.core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
+from terratheme.core.exchange.maps_to_grid import grid_from_labels, labels_from_weights
+from terratheme.core.exchange.options import Engine, ExportOptions, WeightStyle
+from terratheme.core.exchange.plan import ExportPlan
+from terratheme.core.exchange.shaped import shaped_slots
+from terratheme.core.exchange.style import export_boundary, map_labels, map_weights
+from terratheme.core.exchange.terrain3d import (
     control_labels,
     decode_control,
     encode_control,
     read_control_map,
 )
-from core.exchange.texture_tiff import write_texture_tiff
-from core.exchange.unity import read_splatmaps
-from core.exchange.unreal import read_weight_maps
-from core.exchange.weights import sample_corners, strongest_two, theme_weights
+from terratheme.core.exchange.texture_tiff import write_texture_tiff
+from terratheme.core.exchange.unity import read_splatmaps
+from terratheme.core.exchange.unreal import read_weight_maps
+from terratheme.core.exchange.weights import sample_corners, strongest_two, theme_weights
 
 __all__ = [
     "Engine",

@@ -31,10 +31,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import tifffile
-
-from core.errors import TerrathemeError
-from core.io.atomic import atomic_path
-from core.io.images import read_region
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.images import read_region
 
 #: ``band(y0, y1)``: rows ``y0..y1`` of the full-resolution image, ``(y1 - y0, W[, C])``
 BandSource = Callable[[int, int], np.ndarray]

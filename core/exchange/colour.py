@@ -29,13 +29,12 @@ from pathlib import Path
 
 import numpy as np
 from skimage.color import rgb2xyz
-
-from core.exchange.layout import ExportLayout, TilePiece, nearest_texels
-from core.exchange.weights import BAND_PIXELS, check_window
-from core.io.images import write_image
-from core.model.colour_map import NEUTRAL, ColourMap
-from core.model.project import ThematicTexture
-from core.render.colour_map import axis_weights
+from terratheme.core.exchange.layout import ExportLayout, TilePiece, nearest_texels
+from terratheme.core.exchange.weights import BAND_PIXELS, check_window
+from terratheme.core.io.images import write_image
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.colour_map import axis_weights
 
 COLOUR_MAP = "colour_map.png"
 

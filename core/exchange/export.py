@@ -6,11 +6,11 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from core.exchange import geotiff, terrain3d, unity, unreal
-from core.exchange.options import Engine, ExportOptions
-from core.exchange.plan import ExportPlan
-from core.exchange.style import export_boundary
-from core.model.project import ThematicTexture
+from terratheme.core.exchange import geotiff, terrain3d, unity, unreal
+from terratheme.core.exchange.options import Engine, ExportOptions
+from terratheme.core.exchange.plan import ExportPlan
+from terratheme.core.exchange.style import export_boundary
+from terratheme.core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
 _ENGINES = {Engine.UNITY: unity, Engine.UNREAL: unreal, Engine.GODOT: terrain3d,

@@ -28,18 +28,17 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-
-from core.errors import OptionError
-from core.exchange.cog import box_half, nearest_half, write_cog
-from core.exchange.layout import world_frame
-from core.exchange.options import ExportOptions
-from core.exchange.plan import ExportPlan, common_manifest, write_manifest
-from core.exchange.style import export_boundary, export_render_options, map_labels
-from core.io.atomic import write_bytes_atomic
-from core.io.georef import GEO_TAGS
-from core.model.project import ThematicTexture
-from core.render.project import photo_extent, render_georeference, render_project
-from core.render.renderer import render_labels
+from terratheme.core.errors import OptionError
+from terratheme.core.exchange.cog import box_half, nearest_half, write_cog
+from terratheme.core.exchange.layout import world_frame
+from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.exchange.plan import ExportPlan, common_manifest, write_manifest
+from terratheme.core.exchange.style import export_boundary, export_render_options, map_labels
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.georef import GEO_TAGS
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.project import photo_extent, render_georeference, render_project
+from terratheme.core.render.renderer import render_labels
 
 LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture.tif", \
     "terratheme_geotiff.json"

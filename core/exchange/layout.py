@@ -22,9 +22,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import OptionError, TerrathemeError
-from core.io.georef import world_file_lines
+from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.io.georef import world_file_lines
 
 #: most pixels one weight or control map may hold (bounded work per export)
 MAX_MAP_PIXELS = 1 << 28

@@ -11,8 +11,7 @@ vertex carries that vertex's theme alone.
 from __future__ import annotations
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 def labels_from_weights(weights: np.ndarray, n_themes: int) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from core.render.rules import SaddleRule
+from terratheme.core.render.rules import SaddleRule
 
 
 class Engine(Enum):

@@ -16,15 +16,14 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.exchange.colour import COLOUR_MAP, colour_manifest, write_colour_map
-from core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
-from core.exchange.options import ExportOptions
-from core.exchange.style import export_boundary, map_weights
-from core.io.atomic import write_bytes_atomic
-from core.io.images import write_image
-from core.model.project import ThematicTexture
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.exchange.colour import COLOUR_MAP, colour_manifest, write_colour_map
+from terratheme.core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
+from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.exchange.style import export_boundary, map_weights
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.images import write_image
+from terratheme.core.model.project import ThematicTexture
 
 
 @dataclass(frozen=True)

@@ -25,13 +25,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-
-from core.exchange.layout import nearest_texels
-from core.exchange.weights import CornerSlots, map_cells
-from core.model.grid import validate_indices
-from core.render.boundary import BoundaryOptions, shaped_weights
-from core.render.inputs import theme_textures
-from core.render.rules import SaddleRule
+from terratheme.core.exchange.layout import nearest_texels
+from terratheme.core.exchange.weights import CornerSlots, map_cells
+from terratheme.core.model.grid import validate_indices
+from terratheme.core.render.boundary import BoundaryOptions, shaped_weights
+from terratheme.core.render.inputs import theme_textures
+from terratheme.core.render.rules import SaddleRule
 
 
 def shaped_slots(

@@ -14,10 +14,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-
-from core.exchange.options import ExportOptions, WeightStyle
-from core.exchange.shaped import shaped_slots
-from core.exchange.weights import (
+from terratheme.core.exchange.options import ExportOptions, WeightStyle
+from terratheme.core.exchange.shaped import shaped_slots
+from terratheme.core.exchange.weights import (
     BAND_PIXELS,
     CornerSlots,
     check_window,
@@ -25,11 +24,11 @@ from core.exchange.weights import (
     sample_corners,
     strongest_two,
 )
-from core.model.project import ThematicTexture
-from core.render.boundary import BoundaryOptions
-from core.render.project import project_style
-from core.render.renderer import RenderOptions
-from core.render.rules import cell_splits
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.project import project_style
+from terratheme.core.render.renderer import RenderOptions
+from terratheme.core.render.rules import cell_splits
 
 
 def export_boundary(project: ThematicTexture, options: ExportOptions) -> BoundaryOptions | None:

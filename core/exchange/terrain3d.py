@@ -53,12 +53,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 import OpenImageIO as oiio
-
-from core.errors import OptionError, TerrathemeError
-from core.exchange.colour import gain_at_pixels, linear_gain
-from core.exchange.layout import ExportLayout, world_frame
-from core.exchange.options import ExportOptions
-from core.exchange.plan import (
+from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.exchange.colour import gain_at_pixels, linear_gain
+from terratheme.core.exchange.layout import ExportLayout, world_frame
+from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.exchange.plan import (
     STORED_ALPHA,
     ExportPlan,
     common_manifest,
@@ -67,13 +66,13 @@ from core.exchange.plan import (
     write_manifest,
     write_theme_textures,
 )
-from core.exchange.style import map_slots
-from core.exchange.weights import BAND_PIXELS, strongest_two
-from core.io.atomic import atomic_path
-from core.io.image_format import error_line
-from core.io.images import image_info, read_image, write_image
-from core.model.project import ThematicTexture
-from core.render.rules import cell_splits
+from terratheme.core.exchange.style import map_slots
+from terratheme.core.exchange.weights import BAND_PIXELS, strongest_two
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.image_format import error_line
+from terratheme.core.io.images import image_info, read_image, write_image
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.rules import cell_splits
 
 #: texture ids a control map holds (5 bits)
 MAX_TEXTURES = 32

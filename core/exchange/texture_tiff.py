@@ -24,14 +24,13 @@ import os
 from collections.abc import Callable
 
 import numpy as np
-
-from core.errors import OptionError
-from core.exchange.cog import box_half, write_cog
-from core.exchange.geotiff import geotiff_tags
-from core.model.project import ThematicTexture
-from core.render.inputs import validate_region
-from core.render.project import photo_extent, render_georeference, render_project
-from core.render.renderer import RenderOptions
+from terratheme.core.errors import OptionError
+from terratheme.core.exchange.cog import box_half, write_cog
+from terratheme.core.exchange.geotiff import geotiff_tags
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.render.inputs import validate_region
+from terratheme.core.render.project import photo_extent, render_georeference, render_project
+from terratheme.core.render.renderer import RenderOptions
 
 #: tile side of the file, and rows per rendered band
 TILE = 512

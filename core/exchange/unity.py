@@ -30,12 +30,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import OptionError, TerrathemeError
-from core.exchange.colour import COLOUR_MAP, unity_colour_st
-from core.exchange.layout import ExportLayout, tiled_layout
-from core.exchange.options import ExportOptions
-from core.exchange.plan import (
+from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.exchange.colour import COLOUR_MAP, unity_colour_st
+from terratheme.core.exchange.layout import ExportLayout, tiled_layout
+from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.exchange.plan import (
     STORED_ALPHA,
     ExportPlan,
     common_manifest,
@@ -47,9 +46,9 @@ from core.exchange.plan import (
     write_manifest,
     write_shared_files,
 )
-from core.io.atomic import write_bytes_atomic
-from core.io.images import image_info, read_image, write_image
-from core.model.project import ThematicTexture
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.images import image_info, read_image, write_image
+from terratheme.core.model.project import ThematicTexture
 
 #: alphamap (control texture) resolutions Unity's terrain accepts
 UNITY_RESOLUTIONS = tuple(1 << k for k in range(4, 13))

@@ -23,14 +23,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import OptionError, TerrathemeError
-from core.exchange import plan as export_plan
-from core.exchange.colour import COLOUR_MAP, vertex_colour_uv
-from core.exchange.layout import ExportLayout, tiled_layout
-from core.exchange.options import ExportOptions
-from core.io.images import read_image, write_image
-from core.model.project import ThematicTexture
+from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.exchange import plan as export_plan
+from terratheme.core.exchange.colour import COLOUR_MAP, vertex_colour_uv
+from terratheme.core.exchange.layout import ExportLayout, tiled_layout
+from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.io.images import read_image, write_image
+from terratheme.core.model.project import ThematicTexture
 
 #: Epic's recommended landscape sizes (vertices per side) and their component size in quads
 UNREAL_SIZES = {127: 126, 253: 126, 505: 126, 1009: 126, 2017: 126, 4033: 126, 8129: 254}

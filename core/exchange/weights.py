@@ -27,10 +27,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.grid import validate_indices
-from core.render.rules import SaddleRule, cell_splits, corner_weights
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import validate_indices
+from terratheme.core.render.rules import SaddleRule, cell_splits, corner_weights
 
 _EXACT_LIMIT = 1 << 28
 _QUANT = 1 << 14

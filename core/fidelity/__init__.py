@@ -5,8 +5,8 @@ structure IoU of the label view against ground truth), ``cost`` (bytes per
 area and of the shared themes).
 """
 
-from core.fidelity.cost import TextureCost, texture_cost
-from core.fidelity.metrics import (
+from terratheme.core.fidelity.cost import TextureCost, texture_cost
+from terratheme.core.fidelity.metrics import (
     COLOUR_SIGMA,
     DETAIL_SIGMAS,
     Fidelity,

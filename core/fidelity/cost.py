@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from core.io.codec import encode_image
-from core.model.project import ThematicTexture
-from core.packing import pack
+from terratheme.core.io.codec import encode_image
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.packing import pack
 
 #: how a colour map is counted (and shipped)
 COLOUR_MAP_CODEC = "jpegxl"

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from skimage.color import deltaE_ciede2000, rgb2gray, rgb2lab
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: blur of the colour-layout error, pixels
 COLOUR_SIGMA = 8.0

@@ -20,13 +20,19 @@ mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
 :func:`render_perspective_gpu`: the texture on a ground plane in perspective).
 """
 
-from core.gpu.context import GpuUnavailableError, create_context, gl_context
-from core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
-from core.gpu.ground import GroundView, render_perspective_gpu
-from core.gpu.options import Anisotropy, GpuRenderOptions, GroundOptions, Sampling, UniformCells
-from core.gpu.packed import PackedGrid
-from core.gpu.renderer import GpuRenderer, render_cells_gpu
-from core.gpu.shaders import SHADER_DIR, shader_source
+from terratheme.core.gpu.context import GpuUnavailableError, create_context, gl_context
+from terratheme.core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
+from terratheme.core.gpu.ground import GroundView, render_perspective_gpu
+from terratheme.core.gpu.options import (
+    Anisotropy,
+    GpuRenderOptions,
+    GroundOptions,
+    Sampling,
+    UniformCells,
+)
+from terratheme.core.gpu.packed import PackedGrid
+from terratheme.core.gpu.renderer import GpuRenderer, render_cells_gpu
+from terratheme.core.gpu.shaders import SHADER_DIR, shader_source
 
 __all__ = [
     "SHADER_DIR",

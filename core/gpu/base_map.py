@@ -19,11 +19,10 @@ import math
 
 import moderngl
 import numpy as np
-
-from core.gpu.options import GpuRenderOptions
-from core.gpu.programs import UNITS
-from core.gpu.renderer import GpuRenderer
-from core.model.colour_map import ColourMap
+from terratheme.core.gpu.options import GpuRenderOptions
+from terratheme.core.gpu.programs import UNITS
+from terratheme.core.gpu.renderer import GpuRenderer
+from terratheme.core.model.colour_map import ColourMap
 
 
 class BaseMap:

@@ -18,8 +18,7 @@ import threading
 from collections.abc import Iterator
 
 import moderngl
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: the OpenGL version the shaders need (GLSL 3.30 core)
 REQUIRED_GL = 330

@@ -19,9 +19,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.perspective import Camera
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective import Camera
 
 #: pitch limits of a flight, degrees below the horizontal (90 straight down)
 MIN_PITCH, MAX_PITCH = -45.0, 90.0

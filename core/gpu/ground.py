@@ -22,28 +22,32 @@ from collections.abc import Sequence
 
 import moderngl
 import numpy as np
-
-from core.edit.events import GridChange
-from core.edit.preview import dirty_cells
-from core.errors import TerrathemeError
-from core.gpu.base_map import BaseMap
-from core.gpu.context import gl_context
-from core.gpu.flight import clip_matrix
-from core.gpu.ground_mesh import HeightField
-from core.gpu.options import SOFTWARE_RENDERERS, Anisotropy, GpuRenderOptions, GroundOptions
-from core.gpu.pipeline import Pipeline
-from core.gpu.programs import UNITS, Variant
-from core.gpu.renderer import GpuRenderer
-from core.gpu.style import StyleTextures, gpu_style
-from core.gpu.textures import ThemeTextures
-from core.model.colour_map import ColourMap
-from core.model.project import ThematicTexture
-from core.perspective import Camera, PlaneMapping, camera_mapping, check_size
-from core.render.inputs import prepare_grid, theme_textures
-from core.render.project import project_style
-from core.render.renderer import RenderOptions
-from core.render.rules import region_splits
-from core.themes.library import Theme
+from terratheme.core.edit.events import GridChange
+from terratheme.core.edit.preview import dirty_cells
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.base_map import BaseMap
+from terratheme.core.gpu.context import gl_context
+from terratheme.core.gpu.flight import clip_matrix
+from terratheme.core.gpu.ground_mesh import HeightField
+from terratheme.core.gpu.options import (
+    SOFTWARE_RENDERERS,
+    Anisotropy,
+    GpuRenderOptions,
+    GroundOptions,
+)
+from terratheme.core.gpu.pipeline import Pipeline
+from terratheme.core.gpu.programs import UNITS, Variant
+from terratheme.core.gpu.renderer import GpuRenderer
+from terratheme.core.gpu.style import StyleTextures, gpu_style
+from terratheme.core.gpu.textures import ThemeTextures
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.perspective import Camera, PlaneMapping, camera_mapping, check_size
+from terratheme.core.render.inputs import prepare_grid, theme_textures
+from terratheme.core.render.project import project_style
+from terratheme.core.render.renderer import RenderOptions
+from terratheme.core.render.rules import region_splits
+from terratheme.core.themes.library import Theme
 
 
 class GroundView:

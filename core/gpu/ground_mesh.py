@@ -14,10 +14,9 @@ import math
 import cv2
 import moderngl
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.gpu.programs import UNITS
-from core.perspective import Camera
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.programs import UNITS
+from terratheme.core.perspective import Camera
 
 
 def grey_heights(heights: np.ndarray) -> np.ndarray:

@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
-from core.errors import TerrathemeError
-from core.render.boundary import BoundaryOptions
-from core.render.renderer import BlendMode, RenderOptions
-from core.render.rules import SaddleRule
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.renderer import BlendMode, RenderOptions
+from terratheme.core.render.rules import SaddleRule
 
 #: the CPU preview's sky colour (core.perspective.FilterOptions' default)
 SKY = (0.62, 0.74, 0.88)

@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import moderngl
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.gpu.pipeline import capacity, rect_vertices
-from core.gpu.programs import UNITS, Variant, compile_program, set_uniform
-from core.packing import PackedLayer, TiledLayer
-from core.render.rules import SaddleRule
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.pipeline import capacity, rect_vertices
+from terratheme.core.gpu.programs import UNITS, Variant, compile_program, set_uniform
+from terratheme.core.packing import PackedLayer, TiledLayer
+from terratheme.core.render.rules import SaddleRule
 
 #: log2 of the table texture's width (``TT_PACKED_ROW_BITS`` of ``tt_packed.glsl``)
 ROW_BITS = 12

@@ -12,8 +12,7 @@ from __future__ import annotations
 import cv2
 import moderngl
 import numpy as np
-
-from core.gpu.programs import UNITS, Variant, compile_program, set_uniform
+from terratheme.core.gpu.programs import UNITS, Variant, compile_program, set_uniform
 
 #: one vertex of a drawn rectangle: texel-edge position and the copy shader's theme coordinate
 VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])

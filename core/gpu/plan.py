@@ -10,11 +10,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-
-from core.gpu.options import UniformCells
-from core.gpu.packed import PackedGrid
-from core.gpu.programs import Variant
-from core.gpu.style import Style
+from terratheme.core.gpu.options import UniformCells
+from terratheme.core.gpu.packed import PackedGrid
+from terratheme.core.gpu.programs import Variant
+from terratheme.core.gpu.style import Style
 
 
 class RenderMode(NamedTuple):

@@ -19,9 +19,8 @@ from typing import NamedTuple
 
 import moderngl
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.gpu.shaders import shader_source
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.shaders import shader_source
 
 #: texture unit of every sampler uniform (the renderer binds its textures there)
 UNITS = {"tt_grid": 0, "tt_splits": 1, "tt_themes": 2, "tt_gauss": 3, "tt_inverse_lut": 4,

@@ -24,24 +24,23 @@ from collections.abc import Callable, Sequence
 
 import moderngl
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.gpu.context import gl_context
-from core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
-from core.gpu.cover import cell_rectangles
-from core.gpu.options import GpuRenderOptions, Sampling, UniformCells
-from core.gpu.packed import PackedGrid, check_grid_layer
-from core.gpu.pipeline import Pipeline, rect_vertices
-from core.gpu.plan import RenderMode, RenderPlan, tile_geometry
-from core.gpu.programs import UNITS
-from core.gpu.style import StyleTextures, gpu_style
-from core.gpu.textures import ThemeTextures
-from core.model.colour_map import ColourMap
-from core.model.grid import validate_cell
-from core.packing import PackedLayer, TiledLayer
-from core.render.inputs import prepare_grid, theme_textures, validate_region
-from core.render.rules import region_splits
-from core.themes.library import Theme
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.context import gl_context
+from terratheme.core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
+from terratheme.core.gpu.cover import cell_rectangles
+from terratheme.core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from terratheme.core.gpu.packed import PackedGrid, check_grid_layer
+from terratheme.core.gpu.pipeline import Pipeline, rect_vertices
+from terratheme.core.gpu.plan import RenderMode, RenderPlan, tile_geometry
+from terratheme.core.gpu.programs import UNITS
+from terratheme.core.gpu.style import StyleTextures, gpu_style
+from terratheme.core.gpu.textures import ThemeTextures
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import validate_cell
+from terratheme.core.packing import PackedLayer, TiledLayer
+from terratheme.core.render.inputs import prepare_grid, theme_textures, validate_region
+from terratheme.core.render.rules import region_splits
+from terratheme.core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
 

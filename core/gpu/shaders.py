@@ -12,7 +12,7 @@ import re
 from collections.abc import Mapping
 from pathlib import Path
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: the folder of the shader files
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"

@@ -13,15 +13,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import moderngl
-
-from core.errors import TerrathemeError
-from core.gpu.options import GpuRenderOptions
-from core.gpu.programs import UNITS
-from core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
-from core.model.colour_map import ColourMap
-from core.render.boundary import BoundaryParams
-from core.render.renderer import BlendMode
-from core.render.theme_pack import LUT_RANGE
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.gpu.options import GpuRenderOptions
+from terratheme.core.gpu.programs import UNITS
+from terratheme.core.gpu.textures import ThemeTextures, check_colour_map, colour_map_texture
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.render.boundary import BoundaryParams
+from terratheme.core.render.renderer import BlendMode
+from terratheme.core.render.theme_pack import LUT_RANGE
 
 #: largest texel coordinate and cell area the shaders' integer arithmetic keeps exact
 MAX_COORDINATE = 1 << 23

@@ -24,10 +24,9 @@ from collections.abc import Sequence
 import cv2
 import moderngl
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.colour_map import ColourMap
-from core.render.theme_pack import LUT_RANGE, pack_themes
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.render.theme_pack import LUT_RANGE, pack_themes
 
 
 def _rgba(rgb: np.ndarray) -> np.ndarray:

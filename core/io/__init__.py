@@ -12,16 +12,16 @@ as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
 that cannot fit refused before its pixels are read).
 """
 
-from core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
-from core.io.cluster import connect, local_cluster, map_ordered
-from core.io.codec import decode_image, encode_image
-from core.io.georef import (
+from terratheme.core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
+from terratheme.core.io.cluster import connect, local_cluster, map_ordered
+from terratheme.core.io.codec import decode_image, encode_image
+from terratheme.core.io.georef import (
     read_georeference,
     scale_georeference,
     validate_georeference,
     write_georeference,
 )
-from core.io.images import (
+from terratheme.core.io.images import (
     Bands,
     ImageInfo,
     image_attributes,
@@ -31,10 +31,10 @@ from core.io.images import (
     read_region,
     write_image,
 )
-from core.io.memory import available_memory, check_fits
-from core.io.stale import clean_stale_temporaries
-from core.io.tiled_writer import TiledImageWriter
-from core.io.tiles import (
+from terratheme.core.io.memory import available_memory, check_fits
+from terratheme.core.io.stale import clean_stale_temporaries
+from terratheme.core.io.tiled_writer import TiledImageWriter
+from terratheme.core.io.tiles import (
     Scheduler,
     TileWindow,
     map_tiles,

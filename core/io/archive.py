@@ -37,8 +37,7 @@ from contextlib import contextmanager
 from typing import BinaryIO
 
 import numpy as np
-
-from core.errors import CorruptFileError
+from terratheme.core.errors import CorruptFileError
 
 #: deflate's largest possible expansion: 258 bytes from 2 bits (zlib's technical notes: 1032:1)
 MAX_DEFLATE_RATIO = 1032

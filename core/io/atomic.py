@@ -32,9 +32,9 @@ import shutil
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
-from core.errors import TerrathemeError
-from core.io.stale import clean_once
-from core.io.temporaries import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.stale import clean_once
+from terratheme.core.io.temporaries import (
     critical_section,
     drop,
     forget,

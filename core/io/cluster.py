@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from typing import TYPE_CHECKING, Any
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -158,9 +158,9 @@ def code_fingerprint() -> tuple[str, str]:
     import hashlib
     from pathlib import Path
 
-    import core
+    import terratheme.core
 
-    root = Path(core.__file__).resolve().parent
+    root = Path(terratheme.core.__file__).resolve().parent
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())

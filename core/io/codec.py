@@ -13,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.image_format import error_line
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.image_format import error_line
 
 #: codec name -> (file extension, OpenImageIO "Compression" attribute with {q} for the quality)
 CODECS = {

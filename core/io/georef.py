@@ -32,9 +32,9 @@ import os
 import struct
 from pathlib import Path
 
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import write_bytes_atomic
-from core.io.images import image_attributes, image_info
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.images import image_attributes, image_info
 
 #: GeoTIFF / GDAL tags kept: code -> (name, TIFF type, struct code)
 GEO_TAGS = {

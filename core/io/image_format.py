@@ -14,8 +14,7 @@ import os
 from pathlib import Path
 
 import OpenImageIO as oiio
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: what the message on an unknown output extension suggests
 KNOWN_OUTPUTS = ".png, .tif, .exr, .jpg"

@@ -35,11 +35,10 @@ from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import atomic_path
-from core.io.image_format import error_line
-from core.io.png import (
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.image_format import error_line
+from terratheme.core.io.png import (
     check_palette,
     is_png,
     libpng_quiet,
@@ -48,7 +47,7 @@ from core.io.png import (
     png_header_size,
     relabel_grey_png_as_palette,
 )
-from core.io.tiff_check import check_tiff_chunks
+from terratheme.core.io.tiff_check import check_tiff_chunks
 
 #: numpy pixel types OpenImageIO stores, and their OpenImageIO type codes
 OIIO_PIXEL_TYPES = {

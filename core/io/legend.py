@@ -24,8 +24,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.archive import parse_json, read_bounded
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.archive import parse_json, read_bounded
 
 #: largest legend file read
 MAX_LEGEND_BYTES = 1 << 20

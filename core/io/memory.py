@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 try:
     import resource  # Unix only: elsewhere there is no address-space limit to read

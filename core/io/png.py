@@ -32,8 +32,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _COLOUR_TYPE_GREY = 0

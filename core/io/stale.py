@@ -15,7 +15,7 @@ import re
 import stat
 from pathlib import Path
 
-from core.io.temporaries import (
+from terratheme.core.io.temporaries import (
     HOST_TAG,
     TEMPORARY_NAME,
     critical_section,

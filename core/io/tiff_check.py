@@ -15,7 +15,7 @@ import logging
 import math
 from pathlib import Path
 
-from core.errors import CorruptFileError
+from terratheme.core.errors import CorruptFileError
 
 
 def _expected_chunks(page) -> int:

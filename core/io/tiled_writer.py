@@ -7,11 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
-
-from core.errors import TerrathemeError
-from core.io.atomic import atomic_path
-from core.io.image_format import error_line
-from core.io.images import OIIO_PIXEL_TYPES
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.image_format import error_line
+from terratheme.core.io.images import OIIO_PIXEL_TYPES
 
 
 class TiledImageWriter:

@@ -31,10 +31,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.io.images import Bands, image_info, read_region
-from core.io.tiled_writer import TiledImageWriter
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import Bands, image_info, read_region
+from terratheme.core.io.tiled_writer import TiledImageWriter
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -241,7 +240,7 @@ def run_tiles(
                 progress(done, total)
         return total
     if not isinstance(scheduler, Scheduler):
-        from core.io.cluster import check_workers, map_ordered
+        from terratheme.core.io.cluster import check_workers, map_ordered
 
         # Workers open the file by its absolute path and must run this code: checked first.
         path = os.path.abspath(path)

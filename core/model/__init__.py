@@ -7,10 +7,10 @@ layers and their checks), ``colour_map`` (the colour gain over a texture),
 ``index_image`` (grids stored as pictures, and projects made from them).
 """
 
-from core.model.colour_map import ColourMap
-from core.model.grid import IndexGrid
-from core.model.index_image import project_from_index_image
-from core.model.project import (
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.index_image import project_from_index_image
+from terratheme.core.model.project import (
     PROJECT_SUFFIX,
     ThematicTexture,
     check_vertex_count,

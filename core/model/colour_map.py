@@ -37,9 +37,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.io.codec import decode_image, encode_image
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.codec import decode_image, encode_image
 
 #: the stored value that leaves a texel unchanged
 NEUTRAL = 128

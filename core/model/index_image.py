@@ -13,11 +13,10 @@ image gives ``gh x gw`` cells). Two kinds are read:
 from __future__ import annotations
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid, validate_indices
-from core.model.project import ThematicTexture
-from core.themes.library import ThemeLibrary
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid, validate_indices
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.themes.library import ThemeLibrary
 
 COLOUR_TOLERANCE = 12
 

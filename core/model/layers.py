@@ -15,8 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: most pixels of one layer (``convert`` stores photos up to 40 Mpx)
 MAX_LAYER_PIXELS = 1 << 27

@@ -8,10 +8,10 @@ reads and writes the archive around it.
 
 from __future__ import annotations
 
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.georef import validate_georeference
-from core.model.grid import MAX_THEMES, validate_cell
-from core.model.layers import LAYER_BY_NAME
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.io.georef import validate_georeference
+from terratheme.core.model.grid import MAX_THEMES, validate_cell
+from terratheme.core.model.layers import LAYER_BY_NAME
 
 FORMAT_NAME = "terratheme-project"
 FORMAT_VERSION = 2

@@ -51,9 +51,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.archive import (
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.io.archive import (
     MAX_JSON_DEPTH,
     json_depth,
     open_archive,
@@ -61,13 +60,13 @@ from core.io.archive import (
     read_member,
     read_npy_member,
 )
-from core.io.atomic import atomic_path
-from core.io.codec import CODECS
-from core.io.georef import validate_georeference
-from core.model.colour_map import ColourMap
-from core.model.grid import MAX_THEMES, IndexGrid, validate_indices
-from core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
-from core.model.manifest import (
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.codec import CODECS
+from terratheme.core.io.georef import validate_georeference
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.grid import MAX_THEMES, IndexGrid, validate_indices
+from terratheme.core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
+from terratheme.core.model.manifest import (
     BASE_VERSION,
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -76,7 +75,7 @@ from core.model.manifest import (
     MAX_TEXT,
     check_manifest,
 )
-from core.themes.library import Theme, ThemeLibrary
+from terratheme.core.themes.library import Theme, ThemeLibrary
 
 PROJECT_SUFFIX = ".ttproj"
 #: most grid vertices a project holds (128 MiB of indices)

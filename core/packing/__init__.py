@@ -47,31 +47,31 @@ __all__ = [
 def __getattr__(name: str) -> object:
     """Import the module that defines ``name`` when it is first asked for."""
     if name in ("LayerInfo", "layer_info"):
-        from core.packing import info
+        from terratheme.core.packing import info
 
         return getattr(info, name)
     if name == "PackedLayer":
-        from core.packing.layer import PackedLayer
+        from terratheme.core.packing.layer import PackedLayer
 
         return PackedLayer
     if name in ("CurveChoice", "pack"):
-        from core.packing import packer
+        from terratheme.core.packing import packer
 
         return getattr(packer, name)
     if name in ("TiledLayer", "load_layer"):
-        from core.packing import tiled
+        from terratheme.core.packing import tiled
 
         return getattr(tiled, name)
     if name == "pack_file":
-        from core.packing.stream_pack import pack_file
+        from terratheme.core.packing.stream_pack import pack_file
 
         return pack_file
     if name == "write_layer_image":
-        from core.packing.export import write_layer_image
+        from terratheme.core.packing.export import write_layer_image
 
         return write_layer_image
     if name == "PaletteReport":
-        from core.packing.palette import PaletteReport
+        from terratheme.core.packing.palette import PaletteReport
 
         return PaletteReport
-    raise AttributeError(f"module 'core.packing' has no attribute {name!r}")
+    raise AttributeError(f"module 'terratheme.core.packing' has no attribute {name!r}")

@@ -36,10 +36,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.packing import layout
-from core.packing.lookup import local_step, run_span, search_runs
-from core.packing.sweep import (
+from terratheme.core.packing import layout
+from terratheme.core.packing.lookup import local_step, run_span, search_runs
+from terratheme.core.packing.sweep import (
     STRETCH,
     T_BASE,
     T_BUCKET,
@@ -53,7 +52,7 @@ from core.packing.sweep import (
     sweep_layer,
     sweep_tiled,
 )
-from core.packing.threads import on_threads
+from terratheme.core.packing.threads import on_threads
 
 #: Texels per chunk of a batch.
 CHUNK = 1 << 20

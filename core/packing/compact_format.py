@@ -30,10 +30,9 @@ import struct
 
 import numpy as np
 import zstandard
-
-from core.errors import CorruptFileError
-from core.packing import range_coder
-from core.packing.seed_format import decode_varint_stream, encode_varints
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.packing import range_coder
+from terratheme.core.packing.seed_format import decode_varint_stream, encode_varints
 
 _HEAD = struct.Struct("<BBQQ")
 

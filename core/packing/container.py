@@ -46,8 +46,7 @@ import zlib
 from typing import NamedTuple
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 
 MAGIC = b"TTPK"
 #: Highest format version this build reads.
@@ -184,7 +183,7 @@ def encode_layer(layer: LayerFields, encoding: str) -> bytes:
     them (the run streams when the plane payload cannot hold the layer);
     ``"seed"`` is the seed's varint pairs.
     """
-    from core.packing import compact_format, plane_format, seed_format
+    from terratheme.core.packing import compact_format, plane_format, seed_format
 
     if encoding not in (*ENCODINGS, "streams"):
         raise TerrathemeError(f"unknown packed format {encoding!r}: use 'compact' or 'seed'")
@@ -321,7 +320,7 @@ def read_colours(data: bytes, values: ValueFormat, *,
 
 def decode_layer(data: bytes, *, name: str) -> LayerFields:
     """Parse and check a layer file (any encoding)."""
-    from core.packing import compact_format, plane_format, seed_format
+    from terratheme.core.packing import compact_format, plane_format, seed_format
 
     head = check_file(data, name=name)
     palette = read_palette(data, head.values)

@@ -21,11 +21,10 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.io.images import write_image
-from core.io.tiles import TiledImageWriter
-from core.packing.index_png import PalettePngWriter, display_colours
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import write_image
+from terratheme.core.io.tiles import TiledImageWriter
+from terratheme.core.packing.index_png import PalettePngWriter, display_colours
 
 #: Largest layer written whole (formats with no streamed writer): 256 Mi texels.
 WHOLE_IMAGE_TEXELS = 1 << 28

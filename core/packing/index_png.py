@@ -21,10 +21,9 @@ import zlib
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import atomic_path
-from core.io.images import read_image
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.io.images import read_image
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Bytes of compressed data gathered before an IDAT chunk is written.

@@ -10,10 +10,10 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from core.curves.square import Curve, curve_order
-from core.packing import tiled_format
-from core.packing.container import HEADER, check_file, read_header, read_palette
-from core.packing.layout import table_words_max
+from terratheme.core.curves.square import Curve, curve_order
+from terratheme.core.packing import tiled_format
+from terratheme.core.packing.container import HEADER, check_file, read_header, read_palette
+from terratheme.core.packing.layout import table_words_max
 
 
 @dataclass(frozen=True)

@@ -23,9 +23,8 @@ its tiles are looked up through their own tables.
 from __future__ import annotations
 
 import numpy as np
-
-from core.curves.steps import HILBERT_TABLES
-from core.packing.layout import (
+from terratheme.core.curves.steps import HILBERT_TABLES
+from terratheme.core.packing.layout import (
     HEAD_WORDS,
     JOINED,
     MORTON_BLOCK,

@@ -13,24 +13,23 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from core.curves.fill import fill_runs, fill_window
-from core.curves.scan import check_run_ends, ranks_to_steps, steps_to_ranks
-from core.curves.square import Curve, curve_order
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import write_bytes_atomic
-from core.packing.batch import lookup_batch
-from core.packing.container import LayerFields, decode_layer, encode_layer
-from core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
-from core.packing.lookup import build_table, scalar_lookup_function, table_runs
-from core.packing.palette import (
+from terratheme.core.curves.fill import fill_runs, fill_window
+from terratheme.core.curves.scan import check_run_ends, ranks_to_steps, steps_to_ranks
+from terratheme.core.curves.square import Curve, curve_order
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.packing.batch import lookup_batch
+from terratheme.core.packing.container import LayerFields, decode_layer, encode_layer
+from terratheme.core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
+from terratheme.core.packing.lookup import build_table, scalar_lookup_function, table_runs
+from terratheme.core.packing.palette import (
     PaletteReport,
     as_palette,
     check_colours,
     palette_values,
     scalar_values,
 )
-from core.packing.scalar import quick_cells
+from terratheme.core.packing.scalar import quick_cells
 
 _SCALAR_TYPES = frozenset({np.int64, np.int32, np.int16, np.uint16, np.uint32, np.uint8})
 #: Batches at least this large are looked up on all threads.

@@ -25,12 +25,11 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.curves.plan import block_grid
-from core.curves.square import Curve
-from core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
-from core.errors import TerrathemeError
-from core.packing.layout import (
+from terratheme.core.curves.plan import block_grid
+from terratheme.core.curves.square import Curve
+from terratheme.core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.packing.layout import (
     ENDS,
     HEAD_WORDS,
     JOINED,

@@ -6,15 +6,20 @@ import enum
 from collections.abc import Callable
 
 import numpy as np
-
-from core.curves.scan import scan_runs
-from core.curves.square import Curve
-from core.errors import OptionError, TerrathemeError
-from core.packing import palette as _palette
-from core.packing.layer import PackedLayer
-from core.packing.palette import MAX_COLOURS, PaletteReport, check_image, colour_keys, image_runs
-from core.packing.tiled import TiledLayer, needs_tiles
-from core.packing.tiled_format import MAX_TILED_SIDE
+from terratheme.core.curves.scan import scan_runs
+from terratheme.core.curves.square import Curve
+from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.packing import palette as _palette
+from terratheme.core.packing.layer import PackedLayer
+from terratheme.core.packing.palette import (
+    MAX_COLOURS,
+    PaletteReport,
+    check_image,
+    colour_keys,
+    image_runs,
+)
+from terratheme.core.packing.tiled import TiledLayer, needs_tiles
+from terratheme.core.packing.tiled_format import MAX_TILED_SIDE
 
 ProgressFn = Callable[[int, int], None]
 

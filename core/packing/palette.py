@@ -19,10 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.curves.scan import scan_runs
-from core.curves.square import MAX_SIDE, Curve
-from core.errors import OptionError, TerrathemeError
+from terratheme.core.curves.scan import scan_runs
+from terratheme.core.curves.square import MAX_SIDE, Curve
+from terratheme.core.errors import OptionError, TerrathemeError
 
 MAX_COLOURS = 256
 SUPPORTED_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))

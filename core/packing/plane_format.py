@@ -48,14 +48,13 @@ the ceiling (the container then keeps the run streams).
 from __future__ import annotations
 
 import numpy as np
-
-from core.curves.fill import fill_square
-from core.curves.plan import curve_squares
-from core.curves.scan import join_runs, ranks_to_steps, scan_square, steps_to_ranks
-from core.curves.square import Curve
-from core.errors import CorruptFileError
-from core.packing.plane_model import BLOCK, MAX_USED, PlaneModel, code_segment
-from core.packing.range_coder import finish_encoder, start_decoder, start_encoder
+from terratheme.core.curves.fill import fill_square
+from terratheme.core.curves.plan import curve_squares
+from terratheme.core.curves.scan import join_runs, ranks_to_steps, scan_square, steps_to_ranks
+from terratheme.core.curves.square import Curve
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.packing.plane_model import BLOCK, MAX_USED, PlaneModel, code_segment
+from terratheme.core.packing.range_coder import finish_encoder, start_decoder, start_encoder
 
 #: log2 of the segment side.
 SEGMENT_BITS = 10

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.packing.mixing import (
+from terratheme.core.packing.mixing import (
     COUNTER_INIT,
     counter_p12,
     counter_update,
@@ -19,7 +18,7 @@ from core.packing.mixing import (
     mix,
     mix_update,
 )
-from core.packing.range_coder import get_bit, put_bit
+from terratheme.core.packing.range_coder import get_bit, put_bit
 
 BLOCK = 8
 #: Texel value meaning "not decoded yet" (so at most 254 classes are coded).

@@ -52,11 +52,10 @@ were measured in the same rounds, behind the same fast path, and dropped:
 from __future__ import annotations
 
 import numpy as np
-
-from core.curves.plan import block_grid
-from core.curves.square import Curve
-from core.packing.layout import W_HEIGHT, W_LEVELS, W_MORTON, W_WIDTH, grid_words
-from core.packing.lookup import block_runs, table_runs
+from terratheme.core.curves.plan import block_grid
+from terratheme.core.curves.square import Curve
+from terratheme.core.packing.layout import W_HEIGHT, W_LEVELS, W_MORTON, W_WIDTH, grid_words
+from terratheme.core.packing.lookup import block_runs, table_runs
 
 #: Most cells the quick cells keep a byte for (4 MiB).
 QUICK_CELLS = 1 << 22

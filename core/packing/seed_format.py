@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.errors import CorruptFileError
+from terratheme.core.errors import CorruptFileError
 
 #: A run length is at most 2^32 texels (a 65536^2 layer): 5 varint bytes.
 MAX_VARINT_BYTES = 5

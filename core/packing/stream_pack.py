@@ -20,17 +20,16 @@ from __future__ import annotations
 import os
 
 import numpy as np
-
-from core.curves.plan import curve_squares
-from core.curves.scan import join_runs, scan_square
-from core.errors import TerrathemeError
-from core.io.images import image_info, read_region
-from core.packing.index_png import colours_to_indices, png_palette
-from core.packing.layer import PackedLayer
-from core.packing.packer import CurveChoice, ProgressFn, TilePalette, tile_from_runs
-from core.packing.palette import MAX_COLOURS, SUPPORTED_DTYPES, colour_keys
-from core.packing.tiled import DEFAULT_TILE_BITS, TiledLayer, needs_tiles
-from core.packing.tiled_format import MAX_TILED_SIDE
+from terratheme.core.curves.plan import curve_squares
+from terratheme.core.curves.scan import join_runs, scan_square
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.images import image_info, read_region
+from terratheme.core.packing.index_png import colours_to_indices, png_palette
+from terratheme.core.packing.layer import PackedLayer
+from terratheme.core.packing.packer import CurveChoice, ProgressFn, TilePalette, tile_from_runs
+from terratheme.core.packing.palette import MAX_COLOURS, SUPPORTED_DTYPES, colour_keys
+from terratheme.core.packing.tiled import DEFAULT_TILE_BITS, TiledLayer, needs_tiles
+from terratheme.core.packing.tiled_format import MAX_TILED_SIDE
 
 #: Rows read at once, and the side of the curve squares scanned alone (log2).
 SQUARE_BITS = 9

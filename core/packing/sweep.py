@@ -17,10 +17,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-
-from core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
-from core.packing import layout
-from core.packing.prefetch import prefetch
+from terratheme.core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
+from terratheme.core.packing import layout
+from terratheme.core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
 T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_SPANS, T_RUNS = range(8)

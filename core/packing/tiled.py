@@ -22,27 +22,26 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from core.curves.fill import fill_window
-from core.curves.square import MAX_SIDE
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.atomic import write_bytes_atomic
-from core.packing import tiled_format as fmt
-from core.packing.batch import lookup_batch, tiled_words
-from core.packing.container import HEADER as LAYER_HEADER
-from core.packing.container import (
+from terratheme.core.curves.fill import fill_window
+from terratheme.core.curves.square import MAX_SIDE
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.packing import tiled_format as fmt
+from terratheme.core.packing.batch import lookup_batch, tiled_words
+from terratheme.core.packing.container import HEADER as LAYER_HEADER
+from terratheme.core.packing.container import (
     LayerHeader,
     ValueFormat,
     read_colours,
     read_header,
     read_palette,
 )
-from core.packing.joined import join_tables
-from core.packing.layer import PARALLEL_FROM, PackedLayer
-from core.packing.layout import grid_bits
-from core.packing.lookup import scalar_lookup_function, table_runs
-from core.packing.palette import palette_values, scalar_values
-from core.packing.scalar import QUICK_MIN_BITS, tiled_quick_cells
+from terratheme.core.packing.joined import join_tables
+from terratheme.core.packing.layer import PARALLEL_FROM, PackedLayer
+from terratheme.core.packing.layout import grid_bits
+from terratheme.core.packing.lookup import scalar_lookup_function, table_runs
+from terratheme.core.packing.palette import palette_values, scalar_values
+from terratheme.core.packing.scalar import QUICK_MIN_BITS, tiled_quick_cells
 
 #: Tile side used when none is asked for: the largest a packed layer has.
 DEFAULT_TILE_BITS = 16

@@ -42,9 +42,8 @@ import zlib
 from typing import NamedTuple
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.packing.container import FLAG_ALPHA, FLAG_COLOURS, FLAG_IDENTITY, ValueFormat
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.packing.container import FLAG_ALPHA, FLAG_COLOURS, FLAG_IDENTITY, ValueFormat
 
 MAGIC = b"TTPT"
 VERSION = 1

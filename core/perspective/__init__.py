@@ -5,7 +5,7 @@ design.md §6), read by summing the pixel's own parallelogram over the
 cells it covers, and its baselines, all with one set of conventions (see
 :mod:`.mapping`)::
 
-    from core.perspective import Camera, FamilyCache, FilterOptions, PreparedTexture
+    from terratheme.core.perspective import Camera, FamilyCache, FilterOptions, PreparedTexture
     prepared = PreparedTexture(texture, FilterOptions(), cache=FamilyCache(folder))
     frame = prepared.render(Camera(height=40, pitch=10, yaw=30), (640, 360)).image
 
@@ -20,17 +20,17 @@ reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``cache``
 ``render`` (entry points).
 """
 
-from core.perspective.cache import FamilyCache, family_key
-from core.perspective.footprint import Footprint, footprint_parameters
-from core.perspective.mapping import (
+from terratheme.core.perspective.cache import FamilyCache, family_key
+from terratheme.core.perspective.footprint import Footprint, footprint_parameters
+from terratheme.core.perspective.mapping import (
     MAX_FRAME_SIDE,
     Camera,
     PlaneMapping,
     camera_mapping,
     check_size,
 )
-from core.perspective.options import FilterOptions, Lookup, Method
-from core.perspective.render import PreparedTexture, RenderResult, render_perspective
+from terratheme.core.perspective.options import FilterOptions, Lookup, Method
+from terratheme.core.perspective.render import PreparedTexture, RenderResult, render_perspective
 
 __all__ = [
     "MAX_FRAME_SIDE",

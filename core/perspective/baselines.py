@@ -12,8 +12,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-from core.perspective.sampling import add_bilinear, add_texel, add_trilinear, wrap_coord
+from terratheme.core.perspective.sampling import add_bilinear, add_texel, add_trilinear, wrap_coord
 
 #: ``max_aniso`` of :func:`mip_kernel` that asks for trilinear filtering (one probe)
 TRILINEAR = 0

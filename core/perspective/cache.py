@@ -28,11 +28,10 @@ import zlib
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.io.archive import parse_json
-from core.io.atomic import atomic_path
-from core.perspective.family import ParallelogramFamily, family_layout
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.archive import parse_json
+from terratheme.core.io.atomic import atomic_path
+from terratheme.core.perspective.family import ParallelogramFamily, family_layout
 
 MAGIC = b"TTFAMILY"
 #: bump when the family's construction changes (old files then miss)

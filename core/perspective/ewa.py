@@ -15,8 +15,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-from core.perspective.sampling import add_bilinear, add_texel, wrap_coord
+from terratheme.core.perspective.sampling import add_bilinear, add_texel, wrap_coord
 
 #: pbrt's MIPFilterLUT: exp(-alpha r^2) - exp(-alpha), alpha = 2, 128 entries
 EWA_LUT = (np.exp(-2.0 * np.arange(128) / 127.0) - np.exp(-2.0)).astype(np.float64)

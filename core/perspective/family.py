@@ -42,9 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
-
-from core.errors import TerrathemeError
-from core.perspective.texture import level_shape, to_storage
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective.texture import level_shape, to_storage
 
 Progress = Callable[[int, int], None]
 

@@ -23,10 +23,9 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-from core.perspective.coverage import QUAD_WINDOW, cover_cells, quadrature_texels
-from core.perspective.footprint import TOWARD_U, footprint, footprint_sides
-from core.perspective.sampling import add_bilinear, add_column_lerp, wrap_coord
+from terratheme.core.perspective.coverage import QUAD_WINDOW, cover_cells, quadrature_texels
+from terratheme.core.perspective.footprint import TOWARD_U, footprint, footprint_sides
+from terratheme.core.perspective.sampling import add_bilinear, add_column_lerp, wrap_coord
 
 #: pixels per parallel chunk (scratch is allocated once per chunk)
 CHUNK = 256

@@ -19,8 +19,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: derivatives are clipped to this many texels per pixel (past the horizon
 #: they overflow; every filter treats this as "the whole texture")

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 
 class Method(StrEnum):

@@ -14,11 +14,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.project import ThematicTexture
-from core.perspective.mapping import Camera, PlaneMapping, camera_mapping, scaled_view
-from core.render.project import render_project
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.project import ThematicTexture
+from terratheme.core.perspective.mapping import Camera, PlaneMapping, camera_mapping, scaled_view
+from terratheme.core.render.project import render_project
 
 Progress = Callable[[int, int], None]
 

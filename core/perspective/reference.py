@@ -13,8 +13,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-from core.perspective.sampling import add_bilinear
+from terratheme.core.perspective.sampling import add_bilinear
 
 
 @njit(cache=True, parallel=True)

@@ -12,17 +12,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.perspective.baselines import TRILINEAR, mip_kernel, texel_kernel
-from core.perspective.cache import FamilyCache, family_key
-from core.perspective.ewa import EWA_LUT, ewa_kernel
-from core.perspective.family import ParallelogramFamily, build_family
-from core.perspective.lookup import coverage_kernel, seed_kernel
-from core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
-from core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
-from core.perspective.reference import reference_kernel
-from core.perspective.texture import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.perspective.baselines import TRILINEAR, mip_kernel, texel_kernel
+from terratheme.core.perspective.cache import FamilyCache, family_key
+from terratheme.core.perspective.ewa import EWA_LUT, ewa_kernel
+from terratheme.core.perspective.family import ParallelogramFamily, build_family
+from terratheme.core.perspective.lookup import coverage_kernel, seed_kernel
+from terratheme.core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
+from terratheme.core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
+from terratheme.core.perspective.reference import reference_kernel
+from terratheme.core.perspective.texture import (
     MipPyramid,
     build_pyramid,
     power_of_two_grid,

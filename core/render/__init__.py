@@ -8,10 +8,10 @@ full resolution first), ``project`` (a project at any scale), ``inputs`` (the
 checks every renderer shares).
 """
 
-from core.render.overview import render_overview
-from core.render.project import render_project
-from core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
-from core.render.rules import SaddleRule, cell_splits, corner_weights
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.project import render_project
+from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells, render_labels
+from terratheme.core.render.rules import SaddleRule, cell_splits, corner_weights
 
 __all__ = [
     "BlendMode",

@@ -39,9 +39,8 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.render.kernels import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.render.kernels import (
     RegionBlock,
     ThemeRows,
     cell_columns,
@@ -49,7 +48,7 @@ from core.render.kernels import (
     cell_span,
     merged_weights,
 )
-from core.render.theme_pack import pack_themes
+from terratheme.core.render.theme_pack import pack_themes
 
 _M32 = np.uint64(0xFFFFFFFF)
 #: widest border, in 1/1024 of a weight

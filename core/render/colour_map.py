@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
-
-from core.model.colour_map import NEUTRAL, ColourMap
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap
 
 
 def axis_weights(start: int, length: int, scale: int, size: int) -> tuple[np.ndarray, ...]:

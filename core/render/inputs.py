@@ -8,10 +8,9 @@ inputs and refuse them with the same messages.
 from __future__ import annotations
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.grid import IndexGrid, validate_cell, validate_indices
-from core.themes.library import Theme, validate_texture
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.grid import IndexGrid, validate_cell, validate_indices
+from terratheme.core.themes.library import Theme, validate_texture
 
 
 def theme_textures(themes: object) -> list[np.ndarray]:

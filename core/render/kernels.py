@@ -27,8 +27,7 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
-
-from core.render.rules import corner_weights
+from terratheme.core.render.rules import corner_weights
 
 _MAX_SHIFT = 54
 

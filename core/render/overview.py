@@ -27,13 +27,12 @@ from collections.abc import Sequence
 
 import numpy as np
 from scipy import ndimage
-
-from core.errors import TerrathemeError
-from core.model.colour_map import ColourMap
-from core.render.boundary import BoundaryOptions, shaped_weights
-from core.render.colour_map import gain_image
-from core.render.inputs import prepare_grid, theme_textures, validate_region
-from core.render.rules import SaddleRule, cell_splits, corner_weights
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.render.boundary import BoundaryOptions, shaped_weights
+from terratheme.core.render.colour_map import gain_image
+from terratheme.core.render.inputs import prepare_grid, theme_textures, validate_region
+from terratheme.core.render.rules import SaddleRule, cell_splits, corner_weights
 
 _FRAC = 4096  # fixed-point scale of the local coordinates
 

@@ -7,13 +7,12 @@ import os
 from collections.abc import Callable
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError
-from core.io.georef import scale_georeference
-from core.model.project import ThematicTexture, load_project
-from core.render.boundary import BoundaryOptions
-from core.render.overview import render_overview
-from core.render.renderer import RenderOptions, render_cells
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.io.georef import scale_georeference
+from terratheme.core.model.project import ThematicTexture, load_project
+from terratheme.core.render.boundary import BoundaryOptions
+from terratheme.core.render.overview import render_overview
+from terratheme.core.render.renderer import RenderOptions, render_cells
 
 Progress = Callable[[int, int], None]
 

@@ -21,16 +21,15 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.model.colour_map import ColourMap
-from core.render import kernels as rk
-from core.render.boundary import BoundaryOptions, shaped_rows
-from core.render.colour_map import RegionGain
-from core.render.inputs import prepare_grid, theme_textures, validate_region
-from core.render.rules import SaddleRule, region_splits
-from core.render.theme_pack import LUT_RANGE, pack_themes
-from core.themes.library import Theme
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.render import kernels as rk
+from terratheme.core.render.boundary import BoundaryOptions, shaped_rows
+from terratheme.core.render.colour_map import RegionGain
+from terratheme.core.render.inputs import prepare_grid, theme_textures, validate_region
+from terratheme.core.render.rules import SaddleRule, region_splits
+from terratheme.core.render.theme_pack import LUT_RANGE, pack_themes
+from terratheme.core.themes.library import Theme
 
 Progress = Callable[[int, int], None]
 

@@ -29,8 +29,7 @@ from __future__ import annotations
 from enum import Enum
 
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 UNIFORM, MAIN, ANTI = 0, 1, 2
 

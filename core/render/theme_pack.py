@@ -20,8 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import ndtr
-
-from core.themes.histogram import gaussianise
+from terratheme.core.themes.histogram import gaussianise
 
 _CACHE_SIZE = 16
 #: entries and half-range of the inverse-transform tables of the histogram blend

@@ -11,8 +11,13 @@ lone object),
 exemplars of the shipped themes' classes, for naming).
 """
 
-from core.themes.from_photo import PatchOptions, ThemeMapping, themes_by_name, themes_from_photo
-from core.themes.library import (
+from terratheme.core.themes.from_photo import (
+    PatchOptions,
+    ThemeMapping,
+    themes_by_name,
+    themes_from_photo,
+)
+from terratheme.core.themes.library import (
     SHIPPED_THEMES_DIR,
     Theme,
     ThemeLibrary,
@@ -20,9 +25,14 @@ from core.themes.library import (
     read_theme_library,
     shipped_theme_library,
 )
-from core.themes.looks import read_looks
-from core.themes.quality import landmark_score, lowfreq_score, repeat_score
-from core.themes.tileable import SEAM_THRESHOLD, TileableOptions, make_tileable, seam_score
+from terratheme.core.themes.looks import read_looks
+from terratheme.core.themes.quality import landmark_score, lowfreq_score, repeat_score
+from terratheme.core.themes.tileable import (
+    SEAM_THRESHOLD,
+    TileableOptions,
+    make_tileable,
+    seam_score,
+)
 
 __all__ = [
     "SEAM_THRESHOLD",

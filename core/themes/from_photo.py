@@ -33,24 +33,23 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.themes.cut_mask import cut_window
-from core.themes.library import (
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.cut_mask import cut_window
+from terratheme.core.themes.library import (
     Theme,
     ThemeLibrary,
     distinct_names,
     flat_theme,
     shipped_theme_library,
 )
-from core.themes.looks import read_looks
-from core.themes.matching import (
+from terratheme.core.themes.looks import read_looks
+from terratheme.core.themes.matching import (
     class_appearances,
     match_classes,
     shipped_names,
     theme_appearances,
 )
-from core.themes.patch_search import (
+from terratheme.core.themes.patch_search import (
     ClassTarget,
     PatchOptions,
     WindowStats,
@@ -60,12 +59,12 @@ from core.themes.patch_search import (
     find_patch,
     texture_stats,
 )
-from core.themes.quality import (
+from terratheme.core.themes.quality import (
     landmark_score,
     repeat_score,
 )
-from core.themes.quilt import QuiltOptions, quilt_tileable
-from core.themes.tileable import make_tileable
+from terratheme.core.themes.quilt import QuiltOptions, quilt_tileable
+from terratheme.core.themes.tileable import make_tileable
 
 NO_DATA_NAME = "no data"
 NO_DATA_COLOUR = (0, 0, 0)

@@ -14,10 +14,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from core.io.archive import parse_json, read_bounded
-from core.io.images import read_image
+from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.io.archive import parse_json, read_bounded
+from terratheme.core.io.images import read_image
 
 SHIPPED_THEMES_DIR = Path(__file__).resolve().parents[2] / "themes"
 THEMES_METADATA = "themes.json"

@@ -27,10 +27,9 @@ import os
 from pathlib import Path
 
 import numpy as np
-
-from core.errors import CorruptFileError
-from core.themes.library import SHIPPED_THEMES_DIR
-from core.themes.matching import Appearance
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.themes.library import SHIPPED_THEMES_DIR
+from terratheme.core.themes.matching import Appearance
 
 LOOKS_FILE = "looks.json"
 #: a looks file larger than this is not one

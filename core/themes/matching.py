@@ -22,10 +22,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.themes.library import ThemeLibrary, distinct_names
-from core.themes.patch_search import TextureStats, class_means, texture_stats
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.library import ThemeLibrary, distinct_names
+from terratheme.core.themes.patch_search import TextureStats, class_means, texture_stats
 
 #: Lab units per unit of |log energy ratio|
 TEXTURE_WEIGHT = 6.0

@@ -31,8 +31,7 @@ from dataclasses import dataclass
 import cv2
 import numba
 import numpy as np
-
-from core.errors import TerrathemeError
+from terratheme.core.errors import TerrathemeError
 
 #: Gaussian sigmas of the detail band (as core.fidelity.metrics.DETAIL_SIGMAS)
 BAND_SIGMAS = (0.7, 3.0)

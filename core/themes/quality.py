@@ -24,9 +24,8 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.themes.library import validate_texture
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.library import validate_texture
 
 #: Rec. 601 luma weights
 _LUMA = np.array([0.299, 0.587, 0.114], np.float64)

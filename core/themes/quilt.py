@@ -22,9 +22,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-from core.errors import TerrathemeError
-from core.themes.seam_cut import min_error_cut
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.seam_cut import min_error_cut
 
 
 @dataclass(frozen=True)

@@ -55,11 +55,10 @@ from enum import StrEnum
 import numpy as np
 from scipy.ndimage import gaussian_filter
 from scipy.special import ndtr
-
-from core.errors import TerrathemeError
-from core.themes.histogram import gaussianise
-from core.themes.library import validate_texture
-from core.themes.seam_cut import cut_wrap
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.histogram import gaussianise
+from terratheme.core.themes.library import validate_texture
+from terratheme.core.themes.seam_cut import cut_wrap
 
 #: the score below which a texture counts as seamless (the shipped themes' test)
 SEAM_THRESHOLD = 1.5
