@@ -43,6 +43,10 @@ def test_names_are_trimmed_and_may_repeat() -> None:
     (b'{"300": "x"}', "outside 0..255"),
     (b'{"-1": "x"}', "outside 0..255"),
     (b'{"one": "x"}', "not a whole number"),
+    ('{"\u0661": "x"}'.encode(), "not a whole number"),  # ARABIC-INDIC DIGIT ONE
+    (b'{"1_0": "x"}', "not a whole number"),
+    ("2,y\n\u0661,x\n".encode(), "not a whole number"),
+    (b"2,y\n1_0,x\n", "not a whole number"),
     (b'[{"id": true, "name": "x"}]', "not a whole number"),
     (b'[{"id": 1}]', "no id or no name"),
     (b"[1, 2]", "not an object"),

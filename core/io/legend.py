@@ -22,6 +22,7 @@ refused with one line naming the file and the problem.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 from terratheme.core.errors import CorruptFileError, TerrathemeError
@@ -38,11 +39,12 @@ _NAME_KEYS = ("name", "label")
 def _value(raw: object, label: str) -> int:
     if isinstance(raw, bool):
         raise CorruptFileError(f"{label}: class value {raw!r} is not a whole number 0..255")
-    try:
-        value = int(raw) if isinstance(raw, int) else int(str(raw).strip())
-    except ValueError:
+    text = str(raw).strip()
+    # ASCII digits only: int() also takes other scripts' digits and underscores (1_0).
+    if not isinstance(raw, int) and not re.fullmatch(r"[+-]?[0-9]+", text, re.ASCII):
         raise CorruptFileError(
-            f"{label}: class value {str(raw)[:20]!r} is not a whole number 0..255") from None
+            f"{label}: class value {text[:20]!r} is not a whole number 0..255")
+    value = int(raw) if isinstance(raw, int) else int(text)
     if not 0 <= value <= 255:
         raise CorruptFileError(f"{label}: class value {value} is outside 0..255")
     return value
@@ -88,7 +90,7 @@ def _csv_entries(text: str) -> list[tuple[object, object]]:
         value, sep, name = line.partition(",")
         if not sep:
             value, _, name = line.partition(" ")
-        if n == 0 and not value.strip().isdigit():
+        if n == 0 and not re.fullmatch(r"[0-9]+", value.strip(), re.ASCII):
             continue  # a header line
         pairs.append((value, name))
     return pairs
