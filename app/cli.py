@@ -30,9 +30,16 @@ def _command_modules() -> list:
     return sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors as one line (``terratheme CMD: error: ...``), not the usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {_one_line(message)}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="terratheme",
         description="Thematic terrain texture authoring: orthophotos to theme grids, "
         "rendering, editing, low-angle preview and space-filling-curve packing.",

@@ -77,4 +77,19 @@ def test_bad_integer_tuples_are_one_line_and_exit_2(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 2
-    assert capsys.readouterr().err.strip().splitlines()[-1].endswith(message)
+    assert capsys.readouterr().err == f"terratheme {argv[0]}: error: {message}\n"
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["render", "p.ttproj", "out.png", "--bogus"], "terratheme: error: unrecognized arguments"),
+    (["export", "p.ttproj", "out", "--engine", "doom"],
+     "terratheme export: error: argument --engine: invalid choice: 'doom'"),
+    (["new", "map.png", "p.ttproj"],
+     "terratheme new: error: the following arguments are required: --themes"),
+    (["nosuchcommand"], "terratheme: error: argument COMMAND: invalid choice"),
+])
+def test_argparse_errors_are_one_line(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1 and err.startswith(message), err
