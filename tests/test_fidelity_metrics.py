@@ -13,6 +13,7 @@ from terratheme.core.fidelity import (
     detail_ratio,
     majority_classes,
     structure_scores,
+    structure_similarity,
 )
 
 
@@ -137,3 +138,29 @@ def test_fidelity_summary_line():
     assert got.describe() == "dE8 0.0, detail 1.00"
     flat = fidelity(_flat(0.5, (64, 64)), _flat(0.5, (64, 64)))
     assert np.isnan(flat.detail) and "flat photo" in flat.describe()
+
+
+def test_structure_similarity_of_identical_images_is_one_and_of_a_flat_copy_low():
+    rng = np.random.default_rng(3)
+    blocks = rng.integers(0, 256, (8, 8, 1), dtype=np.uint8)
+    photo = np.repeat(np.repeat(np.repeat(blocks, 8, 0), 8, 1), 3, 2)
+    assert structure_similarity(photo, photo, 4) == pytest.approx(1.0)
+    flat = np.full_like(photo, int(photo.mean()))
+    assert structure_similarity(flat, photo, 4) < 0.1
+
+
+def test_structure_similarity_ignores_detail_inside_the_downscaled_pixel():
+    # Each 8 x 8 block holds a different checkerboard of the same mean: alike at 1/8.
+    board = (np.indices((64, 64)).sum(axis=0) % 2) * 200
+    photo = np.repeat(board[:, :, None], 3, axis=2).astype(np.uint8)
+    shifted = np.roll(photo, 1, axis=1)
+    assert structure_similarity(shifted, photo, 8) == pytest.approx(1.0)
+    assert structure_similarity(shifted, photo, 1) < 0.0
+
+
+def test_structure_similarity_sees_a_moved_road():
+    photo = np.full((64, 64, 3), 200, np.uint8)
+    photo[:, 24:32] = 40
+    moved = np.full_like(photo, 200)
+    moved[:, 40:48] = 40
+    assert structure_similarity(moved, photo, 4) < 0.5 < structure_similarity(photo, photo, 4)

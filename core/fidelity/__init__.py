@@ -16,6 +16,7 @@ from terratheme.core.fidelity.metrics import (
     fidelity,
     majority_classes,
     structure_scores,
+    structure_similarity,
 )
 
 __all__ = [
@@ -29,5 +30,6 @@ __all__ = [
     "fidelity",
     "majority_classes",
     "structure_scores",
+    "structure_similarity",
     "texture_cost",
 ]

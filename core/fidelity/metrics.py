@@ -10,9 +10,12 @@ The three measures of issue 13, each on whole images of the same size:
   as much fine texture as the photo, below 1 washed out or smeared, above 1
   noisier than the photo;
 * :func:`structure_scores`: per-class IoU of the texture's label view against
-  a ground-truth mask, each theme mapped to the class it covers most.
+  a ground-truth mask, each theme mapped to the class it covers most;
+* :func:`structure_similarity` (issue 34, ``structure 1/4``, ``1/8``): SSIM of
+  the luminance after a 4x (8x) area downscaling, whether each road, block and
+  shore is where the photo has it.
 
-Colour conversion and CIEDE2000 are scikit-image's, blurs OpenCV's.
+Colour conversion, CIEDE2000 and SSIM are scikit-image's, blurs and resizing OpenCV's.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from skimage.color import deltaE_ciede2000, rgb2gray, rgb2lab
+from skimage.metrics import structural_similarity
 from terratheme.core.errors import TerrathemeError
 
 #: blur of the colour-layout error, pixels
@@ -124,6 +128,32 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
     if ref <= 1e-12:
         raise TerrathemeError("the photo has no detail (flat): the detail ratio is undefined")
     return detail_energy(r, valid=valid) / ref
+
+
+def structure_similarity(render: np.ndarray, photo: np.ndarray, factor: int = 4) -> float:
+    """SSIM of the luminance of render and photo after a ``factor`` x area downscaling.
+
+    ``structure 1/4`` and ``structure 1/8`` of issue 34: whether the render puts
+    each road, block and shore where the photo has it, whatever the fine detail.
+
+    Parameters
+    ----------
+    render, photo : (H, W, 3) uint8/uint16/float ndarray
+    factor : int
+        Downscaling factor (``cv2.INTER_AREA``, sizes rounded down, at least 7
+        pixels a side: SSIM's window).
+
+    Returns
+    -------
+    float
+        Mean SSIM (scikit-image's defaults, data range 1): 1 = the same picture.
+    """
+    r, p = _pair(render, photo)
+    h, w = r.shape[:2]
+    size = (max(7, w // int(factor)), max(7, h // int(factor)))
+    small = [cv2.resize(rgb2gray(a).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+             for a in (r, p)]
+    return float(structural_similarity(small[0], small[1], data_range=1.0))
 
 
 @dataclass(frozen=True)
