@@ -229,8 +229,15 @@ def world_file_for(path: str | os.PathLike, georef: dict) -> Path | None:
 
     ``.pgw`` for PNG, ``.jgw`` for JPEG, ``.wld`` otherwise, beside the image.
     """
+    if not georef or world_file_lines(georef) is None:
+        return None
+    return world_file_name(path)
+
+
+def world_file_name(path: str | os.PathLike) -> Path | None:
+    """Where :func:`world_file_for` puts ``path``'s world file when it has one (None: TIFF)."""
     p = Path(path)
-    if not georef or p.suffix.lower() in _TIFF_SUFFIXES or world_file_lines(georef) is None:
+    if p.suffix.lower() in _TIFF_SUFFIXES:
         return None
     return p.with_suffix({".png": ".pgw", ".jpg": ".jgw", ".jpeg": ".jgw"}.get(
         p.suffix.lower(), ".wld"))
