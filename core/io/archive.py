@@ -38,6 +38,7 @@ from typing import BinaryIO
 
 import numpy as np
 from terratheme.core.errors import CorruptFileError
+from terratheme.core.io.inputs import check_input_file
 
 #: deflate's largest possible expansion: 258 bytes from 2 bits (zlib's technical notes: 1032:1)
 MAX_DEFLATE_RATIO = 1032
@@ -79,6 +80,8 @@ def open_archive(source: str | os.PathLike | bytes, label: str, *, kind: str,
     CorruptFileError
         Not a ZIP, a damaged directory, too many entries, duplicate names.
     """
+    if not isinstance(source, bytes):
+        check_input_file(source, f"a {kind}")
     try:
         zf = zipfile.ZipFile(io.BytesIO(source) if isinstance(source, bytes) else source)
     except _ZIP_ERRORS as exc:

@@ -38,6 +38,7 @@ import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.image_format import error_line
+from terratheme.core.io.inputs import check_input_file
 from terratheme.core.io.png import (
     check_palette,
     is_png,
@@ -105,11 +106,7 @@ class ImageInfo:
 
 
 def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
-    p = Path(path)
-    if not p.exists():
-        raise TerrathemeError(f"{p}: no such file")
-    if p.is_dir():
-        raise TerrathemeError(f"{p}: is a folder, not an image")
+    p = check_input_file(path, "an image")
     size = png_header_size(p)
     if size is not None and (size[0] == 0 or size[1] == 0):
         raise TerrathemeError(f"{p}: image has no pixels ({size[0]} x {size[1]})")
@@ -309,8 +306,8 @@ def read_labels(path: str | os.PathLike) -> np.ndarray:
         A colour image, non-integer pixels, or a palette whose colours
         repeat (so indices cannot be told apart).
     """
-    palette = palette_of_png(Path(path))
     image = read_image(path)
+    palette = palette_of_png(Path(path))
     if palette is not None:
         return palette_indices(image, palette, path)
     if image.shape[2] > 1 and not all(np.array_equal(image[:, :, 0], image[:, :, c])

@@ -317,7 +317,7 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
         Written by a newer terratheme (a newer format, or an unknown layer).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise TerrathemeError(f"{path}: no such project file")
     label = str(path)
     zf = open_archive(path, label, kind="terratheme project", max_members=_MAX_MEMBERS)

@@ -18,6 +18,7 @@ from terratheme.core.curves.scan import check_run_ends, ranks_to_steps, steps_to
 from terratheme.core.curves.square import Curve, curve_order
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.inputs import check_input_file
 from terratheme.core.packing.batch import lookup_batch
 from terratheme.core.packing.container import LayerFields, decode_layer, encode_layer
 from terratheme.core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
@@ -375,9 +376,7 @@ class PackedLayer:
         UnsupportedVersionError
             A file from a newer format version.
         """
-        p = os.fspath(path)
-        if not os.path.isfile(p):
-            raise TerrathemeError(f"{p}: no such file")
+        p = os.fspath(check_input_file(path, "a packed layer"))
         with open(p, "rb") as fh:
             return cls.from_bytes(fh.read(), name=p)
 

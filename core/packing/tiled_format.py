@@ -42,7 +42,8 @@ import zlib
 from typing import NamedTuple
 
 import numpy as np
-from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
+from terratheme.core.errors import CorruptFileError, UnsupportedVersionError
+from terratheme.core.io.inputs import check_input_file
 from terratheme.core.packing.container import FLAG_ALPHA, FLAG_COLOURS, FLAG_IDENTITY, ValueFormat
 
 MAGIC = b"TTPT"
@@ -188,9 +189,7 @@ def layer_file_kind(path: str | os.PathLike) -> tuple[str, bool]:
     TerrathemeError
         Missing file.
     """
-    p = os.fspath(path)
-    if not os.path.isfile(p):
-        raise TerrathemeError(f"{p}: no such file")
+    p = os.fspath(check_input_file(path, "a packed layer"))
     # The magic number tells a tiled container from a single layer's file.
     with open(p, "rb") as fh:
         return p, fh.read(4) == MAGIC

@@ -1,0 +1,49 @@
+"""Input paths checked before they are opened.
+
+Opening a named pipe (FIFO) blocks until some process writes to it, and a
+device may never end; a folder is no file. :func:`check_input_file` looks at
+the path with ``stat`` (which never blocks) and refuses anything but a
+regular file (symlinks followed), with one line naming the path.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from pathlib import Path
+
+from terratheme.core.errors import TerrathemeError
+
+_KINDS = {stat.S_ISFIFO: "a named pipe (FIFO)", stat.S_ISCHR: "a character device",
+          stat.S_ISBLK: "a block device", stat.S_ISSOCK: "a socket"}
+
+
+def check_input_file(path: str | os.PathLike, what: str = "a file") -> Path:
+    """``path`` as a Path, if it names a regular file; nothing is opened.
+
+    Parameters
+    ----------
+    path : path-like
+    what : str
+        What the file should be, for the message ("an image", "a project").
+
+    Raises
+    ------
+    TerrathemeError
+        No such file, a symlink loop, a folder, a FIFO, device or socket.
+    """
+    p = Path(path)
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        raise TerrathemeError(f"{p}: no such file") from None
+    except OSError as exc:
+        why = "a symlink loop" if exc.errno == errno.ELOOP else exc.strerror or str(exc)
+        raise TerrathemeError(f"{p}: cannot be read ({why})") from None
+    if stat.S_ISDIR(mode):
+        raise TerrathemeError(f"{p}: is a folder, not {what}")
+    if not stat.S_ISREG(mode):
+        kind = next((name for test, name in _KINDS.items() if test(mode)), "not a regular file")
+        raise TerrathemeError(f"{p}: is {kind}, not {what}")
+    return p
