@@ -13,6 +13,7 @@ import contextlib
 import importlib
 import os
 import pkgutil
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -108,14 +109,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 2
 
 
+def _on_terminate(signum: int, frame: object) -> None:
+    """SIGTERM/SIGHUP: remove this process's temporary files, then die of the signal."""
+    atomic = sys.modules.get("terratheme.core.io.atomic")
+    if atomic is not None:
+        atomic.remove_temporaries()
+    signal.signal(signum, signal.SIG_DFL)
+    os.kill(os.getpid(), signum)
+
+
 def console_main() -> None:
     """The ``terratheme`` console script: :func:`main`, then exit with its status.
+
+    SIGTERM and SIGHUP (when not ignored) remove the temporary files this
+    process made (:func:`core.io.atomic.remove_temporaries`) before it ends.
 
     After Ctrl-C the process ends at once: the temporaries are gone already
     (their context managers ran while the interrupt unwound), and a worker
     thread of a pool interrupted while it started must not hold the
     interpreter's exit (seen once in 25 interrupted ``render --tiled`` runs).
     """
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, _on_terminate)
     code = main()
     if code == 130:
         with contextlib.suppress(OSError, ValueError):
