@@ -214,3 +214,16 @@ def test_cli_packs_a_strip_wider_than_65536_band_by_band(tmp_path, capsys):
     assert np.array_equal(read_index_image(tmp_path / "back.png")[0], img)
     assert main(["unpack", str(out), str(tmp_path / "back.tif")]) == 0
     assert np.array_equal(read_image(tmp_path / "back.tif")[:, :, 0], img)
+
+
+def test_tiled_pack_of_a_palette_png_with_unused_colours(tmp_path, capsys):
+    # classify writes 256 colours for 3 used values: the container keeps the first 3 (issue 36).
+    table = np.array([[0, 0, 0], [200, 10, 10], [10, 200, 10]] + [[i, i, 255] for i in
+                                                                 range(253)], np.uint8)
+    values = np.tile(np.array([[0, 1, 2, 1]], np.uint8), (70, 33))
+    write_image(tmp_path / "labels.png", values[:, :, None], palette=table)
+    out = tmp_path / "t.ttpack"
+    assert main(["pack", str(tmp_path / "labels.png"), str(out), "--tile", "64"]) == 0
+    layer = load_layer(out)
+    assert layer.colours.tolist() == table[:3].tolist()
+    assert np.array_equal(layer.unpack(indices_only=True), values)

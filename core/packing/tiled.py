@@ -26,6 +26,7 @@ from terratheme.core.curves.fill import fill_window
 from terratheme.core.curves.square import MAX_SIDE
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import write_bytes_atomic
+from terratheme.core.io.inputs import check_input_file
 from terratheme.core.packing import tiled_format as fmt
 from terratheme.core.packing.batch import lookup_batch, tiled_words
 from terratheme.core.packing.container import HEADER as LAYER_HEADER
@@ -40,7 +41,7 @@ from terratheme.core.packing.joined import join_tables
 from terratheme.core.packing.layer import PARALLEL_FROM, PackedLayer
 from terratheme.core.packing.layout import grid_bits
 from terratheme.core.packing.lookup import scalar_lookup_function, table_runs
-from terratheme.core.packing.palette import palette_values, scalar_values
+from terratheme.core.packing.palette import check_colours, palette_values, scalar_values
 from terratheme.core.packing.scalar import QUICK_MIN_BITS, tiled_quick_cells
 
 #: Tile side used when none is asked for: the largest a packed layer has.
@@ -101,6 +102,8 @@ class TiledLayer:
         ``2^tile_bits`` texels a side except in the last column and row; tiles
         are checked when first decoded.
         """
+        # A palette PNG's table lists more colours than the image uses: keep the palette's K.
+        colours = check_colours(colours, len(palette), identity)
         head = _header(width, height, tile_bits, palette, identity, squeeze, colours)
         if len(tiles) != head.tiles:
             raise TerrathemeError(f"{len(tiles)} tiles for a {head.tiles_x} x {head.tiles_y} grid")
@@ -110,9 +113,7 @@ class TiledLayer:
     @classmethod
     def load(cls, path: str | os.PathLike) -> TiledLayer:
         """Open a container file: its header and index are read and checked, tiles later."""
-        p = os.fspath(path)
-        if not os.path.isfile(p):
-            raise TerrathemeError(f"{p}: no such file")
+        p = os.fspath(check_input_file(path, "a packed layer"))
         size = os.path.getsize(p)
         with open(p, "rb") as fh:
             head = fmt.read_tiled_header(fh.read(fmt.HEADER.size), name=p, file_bytes=size)
