@@ -227,3 +227,19 @@ def test_tiled_pack_of_a_palette_png_with_unused_colours(tmp_path, capsys):
     layer = load_layer(out)
     assert layer.colours.tolist() == table[:3].tolist()
     assert np.array_equal(layer.unpack(indices_only=True), values)
+
+
+def test_info_checks_every_tiles_checksum(tmp_path, capsys):
+    # A flipped payload byte in the last tile was reported as a fine layer (issue 36).
+    values = np.tile(np.array([[0, 1, 2, 1]], np.uint8), (70, 33))
+    out = tmp_path / "t.ttpack"
+    pack(values, "hilbert", tile_bits=6).save(out)
+    assert layer_info(out).tiles == 6
+    data = bytearray(out.read_bytes())
+    data[-10] ^= 0xFF
+    out.write_bytes(bytes(data))
+    with pytest.raises(CorruptFileError, match="tile 5: checksum mismatch"):
+        layer_info(out)
+    assert main(["info", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "checksum mismatch" in err

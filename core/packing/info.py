@@ -1,8 +1,8 @@
 """What a packed-layer file holds, from its headers alone (``terratheme info``).
 
-Reads the header, the palette and the checksum (for a tiled container: its
-header and index, and the fixed header of each tile); decodes no payload and
-loads no numba kernel, so it answers in milliseconds whatever the layer's size.
+Reads the header, the palette and checks the checksum (for a tiled container:
+its header and index, and each tile's header and checksum, one tile at a
+time); decodes no payload and loads no numba kernel.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from terratheme.core.curves.square import Curve, curve_order
 from terratheme.core.packing import tiled_format
-from terratheme.core.packing.container import HEADER, check_file, read_header, read_palette
+from terratheme.core.packing.container import check_file, read_palette
 from terratheme.core.packing.layout import table_words_max
 
 
@@ -94,12 +94,12 @@ def _tiled_info(fh, name: str) -> LayerInfo:
                                           file_bytes=size)
     fh.seek(0)
     prefix = fh.read(head.tiles_at)
-    offsets, _ = tiled_format.read_index(prefix, head, name=name)
+    offsets, lengths = tiled_format.read_index(prefix, head, name=name)
     runs = memory = 0
     curves, formats = set(), set()
-    for i, off in enumerate(offsets):
+    for i, (off, length) in enumerate(zip(offsets, lengths, strict=True)):
         fh.seek(int(off))
-        tile = read_header(fh.read(HEADER.size + 4), name=f"{name} tile {i}")
+        tile = check_file(fh.read(int(length)), name=f"{name} tile {i}")
         runs += tile.runs
         memory += 4 * table_words_max(tile.width, tile.height,
                                  curve_order(tile.width, tile.height), tile.runs)
