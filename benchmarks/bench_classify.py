@@ -38,20 +38,17 @@ Methods, all in the same run:
                   coarse pixels (core/classify/samples.py);
   rf-adapt        (a) only: rf-default's forest adapting to each photo
                   (core/classify/adapt.py, the default for fewer than 10 photos);
-  rf-cv2          the previous default: rf-default with OpenCV's random forest
-                  (cv2.ml.RTrees, 24 trees, hard votes) instead of Extra-Trees;
   rf-noridges     rf-default without the fine ridges;
-  rf-smooth       the default before those: OpenCV forest, no Hessian, no ridges,
-                  Gaussian probability smoothing, (b) prior power 0.5 and no growing;
+  rf-smooth       rf-default with Gaussian probability smoothing instead of EDGE;
   rf-noprior      (b) only: rf-default without the prior correction (prior_power=0);
   rf-prior1       (b) only: rf-default with the full prior correction (prior_power=1);
   rf-nogrow       (b) only: rf-default without growing the strokes (grow_colour=0);
   rf-position     (b) only: rf-default plus the coarse pixel's position in the photo
                   (FeatureOptions.position; legitimate for a model of one photo);
-  rf-superpixel   same, probabilities averaged over MSLIC superpixels;
   rf-colour       rf-default on coarse Lab only;
   rf-scale4       DEFAULT features on 4x4 coarse pixels (same context in photo pixels);
-  ilastik         the ilastik recipe: random forest on Lab + scikit-image
+  ilastik         the ilastik recipe (classify_peers.py): OpenCV's random forest
+                  (24 trees, hard votes) on Lab + scikit-image
                   multiscale_basic_features (sigma 1..16) for every pixel, no
                   regularisation. Too slow to predict whole photos in the time
                   budget: it is trained on the same pixels and scored on 50,000
@@ -89,17 +86,16 @@ from classify_corrections import corrections  # noqa: E402
 from classify_eval import confusion, scores, simulate_scribbles  # noqa: E402
 from classify_one_per_tile import one_per_tile  # noqa: E402
 from classify_peers import (  # noqa: E402, F401 (classify_corrections/_scribbles read them here)
-    ILASTIK,
     ILASTIK_TEST_PIXELS,
     KMEANS,
     RNG_SEED,
     ColourKMeans,
     ilastik_features,
+    ilastik_model,
     ilastik_predict,
     kmeans_predict,
     labelled_pixels,
     timed_votes,
-    whole_window,
 )
 from classify_scribbles import scribbles  # noqa: E402
 from classify_train_cost import train_cost  # noqa: E402
@@ -107,7 +103,6 @@ from terratheme.core.classify import (  # noqa: E402
     Classifier,
     FeatureOptions,
     FeatureSet,
-    ForestKind,
     Regularisation,
     RegulariseOptions,
     SupervisedOptions,
@@ -117,7 +112,7 @@ from terratheme.core.io.images import read_image  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 OUT = REPO / "benchmarks" / "results"
-#: training samples per class for (a): cv2's forest trains on one core, keep folds short
+#: training samples per class for (a): the ilastik recipe's forest trains on one core
 ACROSS_CAP = 6000
 #: clusters of the k-means-on-colour baseline trained on other tiles
 KMEANS_CLUSTERS = 10
@@ -126,19 +121,13 @@ ADAPT = "rf-adapt"
 
 METHODS = {
     "rf-default": SupervisedOptions(),
-    "rf-cv2": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24),
     "rf-noridges": SupervisedOptions(features=FeatureOptions(hessian=True, structure=True)),
-    "rf-smooth": SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=24,
-                                   features=FeatureOptions(), regularisation=RegulariseOptions(
-                                       method=Regularisation.SMOOTH)),
-    "rf-superpixel": SupervisedOptions(
-        regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL)),
+    "rf-smooth": SupervisedOptions(regularisation=RegulariseOptions(
+        method=Regularisation.SMOOTH)),
     "rf-colour": SupervisedOptions(features=FeatureOptions(feature_set=FeatureSet.COLOUR)),
     "rf-scale4": SupervisedOptions(features=FeatureOptions(
         scale=4, sigmas=(1.0, 2.0, 4.0, 8.0), hessian=True)),
 }
-#: scribble-part options of the previous default (rf-smooth) beyond METHODS'
-SMOOTH_SCRIBBLES = {"prior_power": 0.5, "grow_colour": 0.0}
 #: methods of the scribble part only (the across-tiles part trains on full masks)
 SCRIBBLE_METHODS = {
     "rf-noprior": SupervisedOptions(prior_power=0.0),
@@ -182,16 +171,20 @@ def across_tiles(log):
     for tile in range(1, 7):
         train = [n for n in names if tile_of[n] != tile]
         test = [n for n in names if tile_of[n] == tile]
-        for m, opts in [*METHODS.items(), ("ilastik", ILASTIK)]:
+        for m in [*METHODS, "ilastik"]:
             pool = [n for n in train if n in samples[m]]
             x, y = _capped(samples[m], pool, ACROSS_CAP, rng)
-            forest = build_forest(x, y, opts)
-            # adapt=None as train_classifier decides it (off for 45 photos); ADAPT is the
-            # same forest adapting to each photo.
-            models = {m: Classifier(forest, tuple(np.unique(y)),
-                                    opts.resolved(len(pool), scribbles=False))}
+            if m == "ilastik":
+                models = {m: ilastik_model(x, y)}
+            else:
+                # adapt=None as train_classifier decides it (off for 45 photos); ADAPT is
+                # the same forest adapting to each photo.
+                opts = METHODS[m]
+                models = {m: Classifier(build_forest(x, y, opts), tuple(np.unique(y)),
+                                        opts.resolved(len(pool), scribbles=False))}
             if m == "rf-default":
-                models[ADAPT] = Classifier(forest, models[m].classes, replace(opts, adapt=True))
+                models[ADAPT] = Classifier(models[m].forest, models[m].classes,
+                                           replace(opts, adapt=True))
             model = models[m]
             for n in test:
                 if m == "ilastik":

@@ -161,5 +161,4 @@ def _ilastik_model(bench, feats, scr):
     sel = scr.ravel() > 0
     x = feats.reshape(-1, feats.shape[2])[sel]
     y = scr.ravel()[sel].astype(np.int32)
-    return bench.Classifier(bench.build_forest(x, y, bench.ILASTIK), tuple(np.unique(y)),
-                            bench.ILASTIK)
+    return bench.ilastik_model(x, y)

@@ -20,14 +20,8 @@ Methods, each the robustness piece of issue 17 on its own, then together:
   plain            the library default without the adaptation (no relative
                    lightness either; training samples capped per class by
                    ``SupervisedOptions.samples_per_class``: 2000 for five photos);
-  +normalise-lab   plain, each photo's Lab mean and spread mapped to a reference
-                   (``Normalise.LAB``: the same as matching them to the training
-                   set's, since every photo, training ones too, is mapped);
-  +normalise-L     the same for lightness only (``Normalise.LIGHTNESS``);
   +relative        plain + lightness relative to its context
                    (``FeatureOptions.relative``);
-  +target-prior    plain + class shares of each photo re-estimated by EM
-                   (Saerens et al. 2002; ``target_prior_power`` 1);
   +adapt           plain + test-time adaptation (core/classify/adapt.py);
   rf-default       the library default now;
   rf-nostructure   rf-default without the structure features (core/classify/texture.py);
@@ -49,7 +43,7 @@ from dataclasses import replace
 import numpy as np
 from classify_eval import confusion, scores
 from classify_peers import labelled_pixels, timed_votes
-from terratheme.core.classify import FeatureOptions, Normalise, SupervisedOptions, train_classifier
+from terratheme.core.classify import FeatureOptions, SupervisedOptions, train_classifier
 from terratheme.core.classify.sample_cache import SampleCache
 
 CLASSES = [1, 2, 3, 4, 5]
@@ -76,10 +70,7 @@ def methods() -> dict[str, SupervisedOptions]:
     default = SupervisedOptions(ignore_classes=IGNORE)
     return {
         "plain": plain,
-        "+normalise-lab": replace(plain, features=replace(fo, normalise=Normalise.LAB)),
-        "+normalise-L": replace(plain, features=replace(fo, normalise=Normalise.LIGHTNESS)),
         "+relative": replace(plain, features=replace(fo, relative=True)),
-        "+target-prior": replace(plain, target_prior_power=1.0),
         "+adapt": replace(plain, adapt=True),
         "rf-default": default,
         "rf-nostructure": replace(default, features=replace(fo, structure=False)),
@@ -210,8 +201,7 @@ def _ilastik(bench, photos, train_set, subset, log):
         train = [n for n in train_set if tile_of(n) != tile]
         x = np.concatenate([samples[n][0] for n in train])
         y = np.concatenate([samples[n][1] for n in train])
-        model = bench.Classifier(bench.build_forest(x, y, bench.ILASTIK), tuple(np.unique(y)),
-                                 bench.ILASTIK)
+        model = bench.ilastik_model(x, y)
         for n in sorted(feats):
             if tile_of(n) != tile:
                 continue

@@ -1,8 +1,8 @@
 """The peers of ``bench_classify.py``: the ilastik recipe and k-means baselines (not a test module).
 
-* ilastik recipe: a random forest on colour + scikit-image multiscale
-  features per pixel (``FeatureSet.SKIMAGE``, scale 1, no regularisation),
-  scored on ``ILASTIK_TEST_PIXELS`` random labelled pixels per photo;
+* ilastik recipe: OpenCV's random forest (:class:`RandomForest`) on Lab +
+  scikit-image ``multiscale_basic_features`` per pixel (:func:`ilastik_features`),
+  no regularisation, scored on ``ILASTIK_TEST_PIXELS`` random labelled pixels per photo;
 * k-means on colour: OpenCV k-means on per-pixel Lab, clusters named by the
   majority class of the training labels.
 """
@@ -17,32 +17,66 @@ from classify_eval import confusion
 from terratheme.core import classify
 from terratheme.core.classify.lab import coarse_lab
 from terratheme.core.classify.photo import prepare_photo
-from terratheme.core.classify.tiled import tile_features
-from terratheme.core.io.tiles import TileWindow
 
 RNG_SEED = 0
 ILASTIK_TEST_PIXELS = 50_000
+#: the ilastik recipe's forest and the largest scale of its features (smallest 1 px)
+ILASTIK_TREES = 24
+ILASTIK_SIGMA_MAX = 16.0
 
+#: the options the ilastik recipe's Classifier carries (only its regularisation counts)
 ILASTIK = classify.SupervisedOptions(
-    forest=classify.ForestKind.RANDOM_FOREST, n_trees=24,
-    features=classify.FeatureOptions(feature_set=classify.FeatureSet.SKIMAGE, scale=1),
-    regularisation=classify.RegulariseOptions(method=classify.Regularisation.NONE),
-)
+    regularisation=classify.RegulariseOptions(method=classify.Regularisation.NONE))
 KMEANS = classify.UnsupervisedOptions(
     features=classify.FeatureOptions(feature_set=classify.FeatureSet.COLOUR, scale=1),
     regularisation=classify.RegulariseOptions(method=classify.Regularisation.NONE),
 )
 
 
-def whole_window(h, w):
-    return TileWindow(0, 0, w, h, 0, 0, w, h)
-
-
 def ilastik_features(photo):
+    """Per-pixel Lab intensity, edges and Hessian texture at sigma 1..16 -> (feats, seconds)."""
+    from skimage.feature import multiscale_basic_features
+
     rgb, _ = prepare_photo(photo)
     t = time.perf_counter()
-    _lab, feats = tile_features(rgb, whole_window(*rgb.shape[:2]), ILASTIK.features)
-    return feats, time.perf_counter() - t
+    lab, _ = coarse_lab(rgb, 1)
+    feats = multiscale_basic_features(lab, channel_axis=-1, sigma_min=1.0,
+                                      sigma_max=ILASTIK_SIGMA_MAX)
+    return np.ascontiguousarray(feats, np.float32), time.perf_counter() - t
+
+
+class RandomForest:
+    """OpenCV's random forest (``cv2.ml.RTrees``, hard votes, balanced class priors).
+
+    Has ``classes`` and ``predict_proba`` as ``ExtraTreesForest``, so a
+    ``Classifier`` predicts with it.
+    """
+
+    def __init__(self, x, y, n_trees=ILASTIK_TREES, max_depth=12, min_samples=4, seed=0):
+        self.classes, counts = np.unique(y, return_counts=True)
+        self.n_trees = n_trees
+        self.rt = cv2.ml.RTrees_create()
+        self.rt.setMaxDepth(max_depth)
+        self.rt.setMinSampleCount(min_samples)
+        self.rt.setCalculateVarImportance(False)
+        self.rt.setTermCriteria((cv2.TERM_CRITERIA_MAX_ITER, n_trees, 0))
+        # Priors in ascending class order: each class's total weight becomes equal.
+        self.rt.setPriors((counts.max() / counts).astype(np.float32).reshape(1, -1))
+        cv2.setRNGSeed(seed)
+        self.rt.train(np.ascontiguousarray(x, np.float32), cv2.ml.ROW_SAMPLE,
+                      np.asarray(y, np.int32))
+
+    def predict_proba(self, x):
+        """Vote shares (n, C), columns in ``classes`` order."""
+        votes = self.rt.getVotes(np.ascontiguousarray(x, np.float32), 0)
+        # Row 0 of getVotes holds the class value of each column.
+        order = [list(votes[0]).index(c) for c in self.classes]
+        return votes[1:, order].astype(np.float32) / self.n_trees
+
+
+def ilastik_model(x, y):
+    """The ilastik recipe's classifier trained on per-pixel samples ``x`` (n, F), ``y`` (n,)."""
+    return classify.Classifier(RandomForest(x, y), tuple(np.unique(y)), ILASTIK)
 
 
 def labelled_pixels(truth, classes, count, rng):

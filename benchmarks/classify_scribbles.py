@@ -10,15 +10,14 @@ the strokes, drawn from the generators of the one-shot rows of part
 ``mean_miou_over_photos`` is the mean over the draws of the mean over the 16
 photos; the per-draw means are kept.
 
-Budget curve (row group ``scribbles_budget``): rf-default, rf-cv2 (its OpenCV
-forest) and the ilastik recipe at ``BUDGETS`` of the pixels (as many draws, the strokes drawn afresh
-for each budget), to show what more paint buys.
+Budget curve (row group ``scribbles_budget``): rf-default and the ilastik recipe
+at ``BUDGETS`` of the pixels (as many draws, the strokes drawn afresh for each
+budget), to show what more paint buys.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 from classify_eval import confusion, draw_rows, draw_seeds, simulate_scribbles
@@ -30,7 +29,7 @@ DRAWS = 3
 #: budgets of the budget curve (BUDGET's point is the main rows)
 BUDGETS = (0.0025, 0.005, 0.008, 0.01)
 #: methods of the budget curve
-CURVE_METHODS = ("rf-default", "rf-cv2", "ilastik")
+CURVE_METHODS = ("rf-default", "ilastik")
 
 
 def scribbles(log):
@@ -40,7 +39,6 @@ def scribbles(log):
     sets = bench.scribble_sets()
     methods = {"rf-default": bench.METHODS["rf-default"], **bench.SCRIBBLE_METHODS,
                **{m: o for m, o in bench.METHODS.items() if m != "rf-default"}}
-    methods["rf-smooth"] = replace(methods["rf-smooth"], **bench.SMOOTH_SCRIBBLES)
     names = [*methods, "ilastik", "kmeans-colour"]
     # One generator per (budget, draw), each consumed photo after photo.
     rngs = {(b, d): np.random.default_rng(s if b == BUDGET else [*np.atleast_1d(s), int(b * 1e4)])
@@ -71,8 +69,7 @@ def scribbles(log):
                 # The ilastik recipe, scored on the same random pixels for every budget.
                 sel = scr.ravel() > 0
                 x, y = feats.reshape(-1, feats.shape[2])[sel], scr.ravel()[sel].astype(np.int32)
-                model = bench.Classifier(bench.build_forest(x, y, bench.ILASTIK),
-                                         tuple(np.unique(y)), bench.ILASTIK)
+                model = bench.ilastik_model(x, y)
                 pick = np.random.default_rng([bench.RNG_SEED + 3, d])
                 cm, mpxs = bench.ilastik_predict(model, feats, mask, classes, pick, secs)
                 curve["ilastik", b][d][name] = cm

@@ -39,14 +39,6 @@ def test_a_random_draw_takes_one_photo_of_each_tile_in_tile_order(opt):
     assert draw == opt.random_draw(NAMES, 5)
 
 
-def test_tuning_draws_are_not_evaluation_draws(opt, monkeypatch):
-    tune = _load("classify_tune_tiles", monkeypatch)
-    evaluation = set(opt.training_draws(NAMES))
-    assert opt.ISSUE_SET in evaluation
-    tuning = {opt.random_draw(NAMES, tune.TUNE_SEED + d) for d in range(3)}
-    assert not tuning & evaluation
-
-
 def _tile_photo(tile: int):
     """A 64 x 64 photo: left half class 1 (red), right half class 2 (blue), tile-tinted."""
     photo = np.zeros((64, 64, 3), np.uint8)

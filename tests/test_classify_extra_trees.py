@@ -9,9 +9,9 @@ import zipfile
 import numpy as np
 import pytest
 from sklearn.ensemble import ExtraTreesClassifier
-from terratheme.core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
+from terratheme.core.classify import Classifier, train_classifier
 from terratheme.core.classify.extra_trees import ExtraTreesForest, fit_extra_trees, from_sklearn
-from terratheme.core.classify.forest import build_forest, forest_scores
+from terratheme.core.classify.forest import forest_scores
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 
@@ -125,14 +125,14 @@ def test_model_file_round_trip_and_damage(tmp_path) -> None:
     assert (labels[:, :28] == 1).all() and (labels[:, 36:] == 2).all()
     model.save(tmp_path / "m.model")
     back = Classifier.load(tmp_path / "m.model")
-    assert back.options.forest is ForestKind.EXTRA_TREES
+    assert back.options == model.options
     res, res_back = model.predict(img), back.predict(img)
     np.testing.assert_array_equal(res_back.labels, res.labels)
     np.testing.assert_array_equal(res_back.confidence, res.confidence)
     with zipfile.ZipFile(tmp_path / "m.model") as zf:
         meta = json.loads(zf.read("meta.json"))
         npz = zf.read("forest.npz")
-    assert meta["version"] == 2 and meta["options"]["forest"] == "extra-trees"
+    assert meta["version"] == 2
 
     def write(name: str, forest_bytes: bytes) -> str:
         with zipfile.ZipFile(tmp_path / name, "w") as zf:
@@ -152,17 +152,3 @@ def test_model_file_round_trip_and_damage(tmp_path) -> None:
     np.savez(buf, **{**model.forest.arrays(), "classes": np.array([1, 5])})
     with pytest.raises(CorruptFileError, match="do not match"):
         Classifier.load(write("classes.model", buf.getvalue()))
-
-
-def test_opencv_forest_is_still_an_option() -> None:
-    img, mask = _stripes()
-    opts = SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=8)
-    model = train_classifier([(img, mask)], opts)
-    assert not isinstance(model.forest, ExtraTreesForest)
-    labels = model.predict(img).labels
-    assert (labels[:, :28] == 1).all() and (labels[:, 36:] == 2).all()
-    x = np.array([[0.0, 1.0], [1.0, 0.0]] * 5, np.float32)
-    y = np.array([1, 2] * 5)
-    both = [build_forest(x, y, SupervisedOptions(forest=k, n_trees=5)) for k in ForestKind]
-    for forest in both:
-        np.testing.assert_allclose(forest_scores(forest, x[:2], (1, 2)).argmax(1), [0, 1])

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from classify_cases import block_pairs as pairs
 from terratheme.core.classify import (
-    ForestKind,
     ModelCache,
     SampleCache,
     SupervisedOptions,
@@ -91,7 +90,6 @@ def test_changing_any_ingredient_changes_the_key(monkeypatch):
         model_key(keys, classes, replace(opts, samples_per_pair=401)),
         model_key(keys, classes, replace(opts, prior_power=0.5)),
         model_key(keys, classes, replace(opts, adapt=not opts.adapt)),
-        model_key(keys, classes, replace(opts, target_prior_power=0.5)),
         model_key(keys, classes, replace(opts, features=replace(
             opts.features, scale=opts.features.scale * 2))),
         model_key(keys, classes, opts, {1: 1.0, 2: 2.0, 3: 1.0}),
@@ -170,14 +168,6 @@ def test_a_damaged_entry_is_fitted_again_and_replaced(tmp_path, trained, damage)
     again = ModelCache(tmp_path)
     train_classifier(data, OPTS, cache=samples, model_cache=again)
     assert (again.hits, again.misses) == (1, 0)
-
-
-def test_opencv_forests_are_not_kept(tmp_path):
-    models = ModelCache(tmp_path)
-    opts = replace(OPTS, forest=ForestKind.RANDOM_FOREST)
-    model = train_classifier(pairs(2), opts, model_cache=models)
-    assert model.forest is not None and (models.hits, models.misses) == (0, 0)
-    assert not list(tmp_path.iterdir())
 
 
 def test_a_model_no_file_can_hold_is_kept_in_memory_only(tmp_path):

@@ -13,7 +13,6 @@ from terratheme.core.classify import (
     Classifier,
     Regularisation,
     RegulariseOptions,
-    SupervisedOptions,
     train_classifier,
 )
 from terratheme.core.classify.regularise import edge_aware_probabilities, edge_reach, regularise
@@ -102,10 +101,6 @@ def test_reach_bounds_the_filter():
     moved = np.flatnonzero(np.abs(out[0, :, 0] - 0.5) > 1e-4)
     assert moved.min() >= 40 - edge_reach(4.0) and moved.max() <= 40 + edge_reach(4.0)
     assert moved.max() > 40 + edge_reach(4.0) // 2
-
-
-def test_edge_is_the_supervised_default():
-    assert SupervisedOptions().regularisation.method is Regularisation.EDGE
 
 
 @pytest.mark.parametrize("bad", [dict(edge_sigma_spatial=0.0), dict(edge_sigma_colour=-1.0)])

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from terratheme.core.classify import (
     Classifier,
-    ForestKind,
     Regularisation,
     SupervisedOptions,
     train_classifier,
@@ -100,24 +99,23 @@ def test_a_model_file_from_before_edge_and_growing_still_loads(tmp_path):
     photo[:, 16:] = (200, 180, 150)
     mask = np.zeros((32, 32), np.uint8)
     mask[8, 2:10], mask[8, 20:30] = 1, 2
-    opts = SupervisedOptions(forest=ForestKind.RANDOM_FOREST)
-    train_classifier([(photo, mask)], opts).save(tmp_path / "new.model")
+    train_classifier([(photo, mask)]).save(tmp_path / "new.model")
     with zipfile.ZipFile(tmp_path / "new.model") as zf:
         meta = json.loads(zf.read("meta.json"))
-        forest = zf.read("forest.yml")
-    # The options as an earlier version wrote them (file version 1, OpenCV forest): no
-    # forest kind, no grow_colour, no edge sigmas.
-    meta["version"] = 1
-    del meta["options"]["forest"]
+        forest = zf.read("forest.npz")
+    # The options as an earlier version 2 wrote them: no grow_colour, no edge sigmas, and
+    # the options of removed methods at their "off" values.
     del meta["options"]["grow_colour"]
     reg = meta["options"]["regularisation"]
     del reg["edge_sigma_spatial"], reg["edge_sigma_colour"]
-    reg["method"] = "smooth"
+    reg.update(method="smooth", region_size=6, ruler=10.0)
+    meta["options"].update(forest="extra-trees", active_vars=0, target_prior_power=0.0)
+    meta["options"]["features"].update(normalise="none", skimage_sigma_max=16.0,
+                                       profile_radii=[])
     with zipfile.ZipFile(tmp_path / "old.model", "w") as zf:
         zf.writestr("meta.json", json.dumps(meta))
-        zf.writestr("forest.yml", forest)
+        zf.writestr("forest.npz", forest)
     old = Classifier.load(tmp_path / "old.model")
-    assert old.options.forest is ForestKind.RANDOM_FOREST
     assert old.options.regularisation.method is Regularisation.SMOOTH
     assert old.options.grow_colour is None
     labels = old.predict(photo).labels

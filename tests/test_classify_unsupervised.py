@@ -121,26 +121,6 @@ def test_tiles_do_not_show(method):
     np.testing.assert_allclose(whole.confidence, tiled.confidence, atol=1e-4)
 
 
-def test_superpixel_regularisation_follows_flat_regions_across_tiles():
-    img = mosaic()
-    colours = img[::32, ::32].reshape(-1, 3)
-    opts = UnsupervisedOptions(regularisation=RegulariseOptions(method=Regularisation.SUPERPIXEL))
-    for tile in (4096, 96):
-        res = classify_unsupervised(img, options=UnsupervisedOptions(
-            regularisation=opts.regularisation, tile=tile))
-        assert res.n_classes == len(np.unique(colours, axis=0))
-        # Each flat rectangle is (almost) one theme away from its border; equal colours agree.
-        got = {}
-        for i in range(img.shape[0] // 32):
-            for j in range(img.shape[1] // 32):
-                block = res.labels[i * 32 + 8 : i * 32 + 24, j * 32 + 8 : j * 32 + 24]
-                major = np.bincount(block.ravel()).argmax()
-                assert (block == major).mean() > 0.95
-                got.setdefault(tuple(img[i * 32, j * 32]), set()).add(int(major))
-        assert all(len(v) == 1 for v in got.values())
-        assert len({next(iter(v)) for v in got.values()}) == len(got)
-
-
 def test_progress_is_reported_per_tile():
     calls = []
     classify_unsupervised(two_colours(h=80, w=130), options=UnsupervisedOptions(tile=64),

@@ -13,7 +13,6 @@ from __future__ import annotations
 import io
 import json
 import zipfile
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -27,7 +26,7 @@ from hostile_fuzz import (
     run_truncations,
 )
 from hypothesis import strategies as st
-from terratheme.core.classify import Classifier, ForestKind, SupervisedOptions, train_classifier
+from terratheme.core.classify import Classifier, SupervisedOptions, train_classifier
 from terratheme.core.classify.extra_trees import MAX_FEATURES, ExtraTreesForest
 from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
 from test_hostile_harness import ZipMember, craft_zip, shared_reader
@@ -145,7 +144,7 @@ def test_a_chain_deeper_than_the_limit_is_refused():
     (("features", "sigmas"), [1e6], r"options.features.sigmas must be a number in 0.001..64"),
     (("features", "scale"), 10**9, r"options.features.scale must be a whole number in 1..64"),
     (("features", "scale"), 2.5, "options.features.scale must be a whole number"),
-    (("features", "skimage_sigma_max"), 0.5, "skimage_sigma_max"),
+    (("features", "normalise"), "lab", "options.features.normalise 'lab' is no longer supported"),
     (("features", "feature_set"), "nope", "feature_set must be one of"),
     (("regularisation", "edge_sigma_spatial"), 1e9, "edge_sigma_spatial"),
     (("n_trees",), 10**6, "options.n_trees"),
@@ -186,24 +185,6 @@ def test_saving_refuses_what_loading_refuses(tmp_path):
     with pytest.raises(TerrathemeError, match="cannot save the classifier: class weight"):
         model.save(tmp_path / "m.ttc")
     assert not (tmp_path / "m.ttc").exists()
-
-
-def test_an_opencv_forest_for_other_features_is_refused(tmp_path):
-    photo, mask = _photo_and_scribbles()
-    model = train_classifier([(photo, mask)],
-                             SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=2))
-    model.save(tmp_path / "rf.ttc")
-    back = Classifier.load(tmp_path / "rf.ttc")
-    np.testing.assert_array_equal(back.predict(photo).labels, model.predict(photo).labels)
-    with zipfile.ZipFile(tmp_path / "rf.ttc") as zf:
-        meta, yml = json.loads(zf.read("meta.json")), zf.read("forest.yml")
-    meta["options"]["features"]["hessian"] = False  # fewer features than the forest reads
-    path = tmp_path / "rf2.ttc"
-    path.write_bytes(craft_zip([ZipMember.of("meta.json", json.dumps(meta).encode()),
-                                ZipMember.of("forest.yml", yml)]))
-    fewer = replace(SupervisedOptions().features, hessian=False).n_features
-    with pytest.raises(CorruptFileError, match=f"not trained for {fewer} features"):
-        Classifier.load(path)
 
 
 # -- fuzzing within the time and memory bound ---------------------------------
@@ -301,42 +282,6 @@ def _run_arrays(bounded, model_parts, tmp_path, edits):
 def test_hostile_forest_arrays(budget, bounded, model_parts, tmp_path):
     budget.explore(lambda edits: _run_arrays(bounded, model_parts, tmp_path, edits),
                    edits=ARRAY_EDITS)
-
-
-@pytest.fixture(scope="module")
-def opencv_model(tmp_path_factory):
-    photo, mask = _photo_and_scribbles()
-    path = tmp_path_factory.mktemp("rf") / "rf.ttc"
-    train_classifier([(photo, mask)],
-                     SupervisedOptions(forest=ForestKind.RANDOM_FOREST, n_trees=2)).save(path)
-    with zipfile.ZipFile(path) as zf:
-        return zf.read("meta.json"), zf.read("forest.yml").decode()
-
-
-def _run_yaml(bounded, opencv_model, tmp_path, edits):
-    meta, yml = opencv_model
-    text = yml
-    for old, new in edits:
-        text = text.replace(old, new, 1)
-    run_bytes(bounded, "model", tmp_path / "yml.ttc", craft_zip(
-        [ZipMember.of("meta.json", meta), ZipMember.of("forest.yml", text.encode())]))
-
-
-YAML_EDITS = st.lists(st.tuples(
-    st.sampled_from(["var:0", f"var_count: {N}", "ntrees: 2", "le:", "depth: 1", "value: 2.",
-                     "class_labels: [ 1, 2 ]", "norm_class_idx: 1", "splits:", "nodes:",
-                     f"var_all: {N + 1}", "- {", "cat_var_count: 1", "rows: 1", "cols: 2"]),
-    st.sampled_from([f"var:{N}", "var:-1", "var:100000", "var_count: 1", "var_count: 100000",
-                     "ntrees: 100000", "ntrees: 0", "le:nan", "depth: 99", "value: 1e300",
-                     "class_labels: [ 1 ]", "norm_class_idx: 99", "", "var_all: 1",
-                     "cat_var_count: 99", "rows: 100000", "cols: 100000"])),
-    min_size=1, max_size=3)
-
-
-@campaign
-def test_hostile_opencv_forests(budget, bounded, opencv_model, tmp_path):
-    budget.explore(lambda edits: _run_yaml(bounded, opencv_model, tmp_path, edits),
-                   edits=YAML_EDITS)
 
 
 @pytest.mark.parametrize(("version", "error", "match"), [

@@ -6,8 +6,7 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
 * :func:`fit_unsupervised` -> :class:`UnsupervisedModel` (``predict``) -- the
   same themes fitted on a sample (or pieces of a big photo), applied per tile;
 * :func:`train_classifier` -> :class:`Classifier` (``predict``, ``save``,
-  ``Classifier.load``) -- Extra-Trees (or OpenCV's random forest) from
-  scribbles or label masks;
+  ``Classifier.load``) -- Extra-Trees from scribbles or label masks;
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
   float32 in [0, 1];
 * :class:`SampleCache` -- training samples kept by content between trainings
@@ -20,19 +19,19 @@ Modules: ``photo`` (input checks), ``lab`` (the photo in Lab, per pixel and
 per block), ``features`` (the feature stack on a downscaled photo),
 ``texture`` (edge density and structure-tensor coherence), ``position``
 (where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with
-overlap), ``regularise`` (smoothing / superpixels / edge-aware averaging),
-``unsupervised`` (K criterion), ``unsupervised_model``, ``supervised``,
-``forest`` and ``extra_trees`` (the tree ensembles), ``samples`` (training
+overlap), ``regularise`` (smoothing / edge-aware averaging),
+``unsupervised`` (K criterion), ``unsupervised_model``, ``mixture`` (the
+themes' Gaussian mixture), ``bands`` (border bands), ``supervised``,
+``forest`` and ``extra_trees`` (the tree ensemble), ``ridges``, ``samples`` (training
 samples from masks and scribbles), ``sample_cache``, ``model_cache`` and
 ``keyed_store`` (their storage), ``cache_bound`` (the folder's size bound,
 least recently used entries removed first), ``prior`` (class-prior
-correction and EM shares), ``adapt`` (test-time adaptation), ``model_file`` (the
+correction), ``adapt`` (test-time adaptation), ``model_file`` (the
 file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
 name).
 """
 
-from terratheme.core.classify.features import FeatureOptions, FeatureSet, Normalise
-from terratheme.core.classify.forest import ForestKind
+from terratheme.core.classify.features import FeatureOptions, FeatureSet
 from terratheme.core.classify.model_cache import ModelCache
 from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
 from terratheme.core.classify.result import Classification
@@ -52,9 +51,7 @@ __all__ = [
     "Classifier",
     "FeatureOptions",
     "FeatureSet",
-    "ForestKind",
     "ModelCache",
-    "Normalise",
     "Regularisation",
     "RegulariseOptions",
     "SampleCache",

@@ -21,10 +21,6 @@ The features of pass 1 are kept for pass 2 while they fit in
 feature pass, two forest passes and one small fit. A class the first pass
 gives fewer than ``ADAPT_MIN_PIXELS`` coarse pixels is not relearned (it
 cannot come back either: its pixels were taken by other classes already).
-
-Measured on the issue-17 protocol (bench_classify.py part ``one_per_tile``:
-train on one photo per other Dubai tile, score every photo of the held-out
-tile), see ``SupervisedOptions.adapt``.
 """
 
 from __future__ import annotations
@@ -33,7 +29,7 @@ from dataclasses import replace
 
 import numpy as np
 from terratheme.core.classify.features import FeatureOptions
-from terratheme.core.classify.forest import ForestKind, ForestOptions, build_forest, forest_scores
+from terratheme.core.classify.forest import ForestOptions, build_forest, forest_scores
 from terratheme.core.classify.regularise import RegulariseOptions, regularise
 from terratheme.core.classify.result import Classification
 from terratheme.core.classify.tiled import (
@@ -125,7 +121,6 @@ def predict_adapted(
     rgb: np.ndarray, valid: np.ndarray | None, probability_fn: ProbabilityFn,
     classes: tuple[int, ...], features: FeatureOptions, regularisation: RegulariseOptions,
     forest_options: ForestOptions, tile: int, progress: ProgressFn | None = None,
-    stats: np.ndarray | None = None,
 ) -> Classification:
     """Classify a photo, relearn its classes from the surest pixels, classify again.
 
@@ -139,11 +134,10 @@ def predict_adapted(
     features, regularisation : options of the model
     forest_options : ForestOptions
         Depth, split size and seed of the adapted forest (its tree count is
-        ``ADAPT_TREES``, its kind Extra-Trees, its classes balanced).
+        ``ADAPT_TREES``, its classes balanced).
     tile : int
     progress : callable, optional
         ``(done, total)`` over both passes' tiles.
-    stats : (2, 3) float32 ndarray, optional (colour normalisation)
 
     Returns
     -------
@@ -160,7 +154,7 @@ def predict_adapted(
     feats_seen, probs_seen = [], []
     for done, win in enumerate(windows, 1):
         # Pass 1: the trained model's regularised probabilities on this tile.
-        lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+        lab, block_std, feats = tile_arrays(rgb, win, features)
         raw = probability_fn(feats).astype(np.float32, copy=False)
         if keep:
             kept[win] = (lab, block_std, feats, raw)
@@ -180,8 +174,7 @@ def predict_adapted(
     if len(np.unique(column)) < 2:
         adapted_fn = None
     else:
-        adapt_opts = replace(forest_options, forest=ForestKind.EXTRA_TREES, n_trees=ADAPT_TREES,
-                             balance=True)
+        adapt_opts = replace(forest_options, n_trees=ADAPT_TREES, balance=True)
         labels = np.asarray(classes, np.int64)[column]
         adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts, n_jobs=1),
                                            classes)
@@ -191,7 +184,7 @@ def predict_adapted(
         if keep:
             lab, block_std, feats, raw = kept.pop(win)
         else:
-            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            lab, block_std, feats = tile_arrays(rgb, win, features)
             raw = probability_fn(feats)
         if adapted_fn is None:
             return lab, block_std, raw
@@ -202,4 +195,4 @@ def predict_adapted(
             progress(len(windows) + done, 2 * len(windows))
 
     return predict_tiled(rgb, valid, probability_fn, classes, features, regularisation, tile,
-                         pass_two, stats, tile_fn=tile_fn)
+                         pass_two, tile_fn=tile_fn)

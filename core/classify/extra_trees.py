@@ -4,12 +4,10 @@ Extra-Trees (Geurts, Ernst & Wehenkel 2006, "Extremely randomized trees",
 Machine Learning 63) split each node on the best of ``sqrt(F)`` features at a
 *random* threshold each, instead of the best threshold, and average the
 trees' class distributions (soft votes). With the few hundred coarse pixels a
-user's scribbles label, the smoother, less overfitted decision boundaries
-pay: ``bench_classify.py`` mean mIoU from scribbles and across Dubai tiles
-above the OpenCV random forest (rows ``rf-default`` against ``rf-cv2``).
+user's scribbles label, the smoother, less overfitted decision boundaries pay.
 
-Training is scikit-learn's :class:`~sklearn.ensemble.ExtraTreesClassifier`
-(OpenCV's ``cv2.ml.RTrees`` has no random thresholds). The fitted trees are
+Training is scikit-learn's :class:`~sklearn.ensemble.ExtraTreesClassifier`.
+The fitted trees are
 then kept as plain arrays (:class:`ExtraTreesForest`): a model file holds
 numbers only (no pickle, so loading one runs no code, and it does not depend
 on the scikit-learn version), and prediction is a small numba kernel over
@@ -22,8 +20,7 @@ lockstep, each walk a fixed number of steps (the tree's depth: a leaf is its
 own child) with no branch on the node kind, so the four chains of dependent
 loads overlap (:meth:`ExtraTreesForest.walk_arrays`). Thresholds are rounded
 *down* to float32 there: for a float32 feature ``x``, ``x <= t`` exactly when
-``x <= floor32(t)``, so the walks are the float64 comparisons' exactly. 2.5-3x
-the speed of one walk per sample and tree on a Dubai photo's features.
+``x <= floor32(t)``, so the walks are the float64 comparisons' exactly.
 """
 
 from __future__ import annotations
@@ -247,8 +244,7 @@ def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_dept
     n_jobs : int, optional
         Threads fitting trees; default one per core (at most one per tree).
         A small fit (the few trees of :mod:`core.classify.adapt`) takes 1: joblib's
-        hand-over costs more there than the second core gains (0.05 s against
-        0.08 s for 10 trees on 5000 samples, 2 busy cores).
+        hand-over costs more there than the second core gains.
 
     Returns
     -------

@@ -40,8 +40,8 @@ def full_lab(rgb: np.ndarray) -> np.ndarray:
     """CIE Lab of every pixel: (H, W, 3) float32, L in 0..100, a and b about -128..127.
 
     OpenCV's 8-bit conversion (L scaled to 0..255, a/b offset by 128), rescaled
-    through a 256-entry table (:data:`_LAB8_TABLE`, one pass: 2.7x the float
-    arithmetic on the whole image, the same floats).
+    through a 256-entry table (:data:`_LAB8_TABLE`, one pass, the same floats as
+    the arithmetic).
     """
     return cv2.LUT(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab), _LAB8_TABLE)
 

@@ -7,10 +7,9 @@ a prior correction; class names, ``{"value": name}``, only when it was
 trained with a legend, :mod:`core.io.legend`).
 The forest (absent when the model has a single class): ``forest.npz``, the
 Extra-Trees node arrays (:class:`core.classify.extra_trees.ExtraTreesForest`,
-read with ``allow_pickle=False``: numbers only), or ``forest.yml``, an OpenCV
-random forest as OpenCV's own YAML. Version 1 files (OpenCV forests, written
-before Extra-Trees) still load. Written atomically; a newer version raises
-UnsupportedVersionError, a damaged file CorruptFileError.
+read with ``allow_pickle=False``: numbers only). Written atomically; a newer
+version, or an OpenCV forest of terratheme 0.x (version 1, or ``forest.yml``),
+raises UnsupportedVersionError, a damaged file CorruptFileError.
 
 A model file may come from anyone, so reading bounds its work
 (:mod:`core.io.archive`: sizes checked before reading, a capped inflate) and
@@ -26,20 +25,16 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import zipfile
 from pathlib import Path
 from typing import NamedTuple
 
-import cv2
 import numpy as np
 from terratheme.core.classify.extra_trees import (
     ARRAY_NAMES,
     MAX_CLASSES,
-    MAX_FEATURES,
     MAX_NODES,
-    MAX_TREES,
     ExtraTreesForest,
 )
 from terratheme.core.classify.model_options import number_rule, options_from_json, options_to_json
@@ -107,14 +102,10 @@ def model_bytes(model: ModelParts) -> bytes:
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr(META, json.dumps(meta, indent=1, allow_nan=False))
-        if isinstance(model.forest, ExtraTreesForest):
+        if model.forest is not None:
             arrays = io.BytesIO()
             np.savez_compressed(arrays, **model.forest.arrays())
             zf.writestr(FOREST_NPZ, arrays.getvalue())
-        elif model.forest is not None:
-            fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
-            model.forest.write(fs)
-            zf.writestr(FOREST_YML, fs.releaseAndGetString())
     return buf.getvalue()
 
 
@@ -177,97 +168,6 @@ def _read_extra_trees(data: bytes, label: str, n_features: int) -> ExtraTreesFor
         raise CorruptFileError(f"{label}: damaged forest ({exc})") from None
 
 
-def _whole_field(node, name: str, lo: int, hi: int) -> int:
-    field = node.getNode(name)
-    if not field.isInt() or not lo <= field.real() <= hi:
-        raise ValueError(f"{name} is not a whole number in {lo}..{hi}")
-    return int(field.real())
-
-
-def _opencv_trees(root, n_features: int, classes: list[int]) -> dict[str, np.ndarray]:
-    """The node arrays of an OpenCV RTrees file node (format 3, ordered features only)."""
-    if _whole_field(root, "var_count", 0, MAX_FEATURES) != n_features:
-        raise ValueError(f"not trained for {n_features} features")
-    _whole_field(root, "is_classifier", 1, 1)
-    var_idx, labels = root.getNode("var_idx"), root.getNode("class_labels")
-    if not var_idx.empty() and [int(var_idx.at(i).real()) for i in range(
-            min(var_idx.size(), MAX_FEATURES + 1))] != list(range(n_features)):
-        raise ValueError("var_idx picks features this version does not read")
-    labels = [int(labels.at(i).real()) for i in range(min(labels.size(), MAX_CLASSES + 1))]
-    if sorted(labels) != sorted(classes):
-        raise ValueError(f"classes {labels[:8]} are not the file's {classes}")
-    column = [sorted(classes).index(c) for c in labels]
-    trees = root.getNode("trees")
-    if not trees.isSeq() or not 1 <= trees.size() <= MAX_TREES:
-        raise ValueError(f"trees must be a list of 1..{MAX_TREES}")
-    feature, threshold, left, right, leaf_class, roots = [], [], [], [], [], []
-    inverted = []
-    for t in range(trees.size()):
-        nodes = trees.at(t).getNode("nodes")
-        if not nodes.isSeq() or not 1 <= nodes.size() <= MAX_NODES - len(feature):
-            raise ValueError(f"tree {t} has no nodes or too many")
-        # Pre-order, linked as OpenCV's readTree does: a split node's children follow it.
-        parent, pending = {}, -1
-        roots.append(len(feature))
-        for i in range(nodes.size()):
-            node, k = nodes.at(i), len(feature)
-            if pending < 0 and k != roots[-1]:
-                raise ValueError(f"tree {t} has nodes after its last leaf")
-            parent[k] = pending
-            if pending >= 0:
-                (left if left[pending] < 0 else right)[pending] = k
-            leaf_class.append(column[_whole_field(node, "norm_class_idx", 0, len(labels) - 1)])
-            left.append(-1)
-            right.append(-1)
-            splits = node.getNode("splits")
-            if splits.empty():
-                feature.append(-1)
-                threshold.append(0.0)
-                while pending >= 0 and right[pending] >= 0:
-                    pending = parent[pending]
-                continue
-            split = splits.at(0)
-            # "ge" marks an inverted split: x <= c goes right (its children are swapped below).
-            if split.getNode("le").empty():
-                inverted.append(k)
-            cut = split.getNode("ge" if inverted and inverted[-1] == k else "le")
-            if not (cut.isReal() or cut.isInt()) or not math.isfinite(cut.real()):
-                raise ValueError(f"tree {t} has a split that is not on an ordered feature")
-            feature.append(_whole_field(split, "var", 0, n_features - 1))
-            threshold.append(float(np.float32(cut.real())))
-            pending = k
-        if pending >= 0:
-            raise ValueError(f"tree {t} ends before every split has two children")
-    left, right = np.array(left), np.array(right)
-    left[inverted], right[inverted] = right[inverted], left[inverted].copy()
-    is_leaf = np.array(feature) < 0
-    value = np.zeros((len(feature), len(classes)))
-    value[np.flatnonzero(is_leaf), np.array(leaf_class)[is_leaf]] = 1.0
-    return {"classes": np.array(sorted(classes)), "roots": np.array(roots),
-            "feature": np.array(feature), "threshold": np.array(threshold), "left": left,
-            "right": right, "value": value}
-
-
-def _read_opencv_forest(text: str, label: str, n_features: int,
-                        classes: list[int]) -> ExtraTreesForest:
-    """An OpenCV random forest (``forest.yml``) as checked node arrays.
-
-    OpenCV's own reader trusts the file (a split on feature ``var_count``
-    reads out of bounds, a split without children crashes prediction), so
-    the trees are read here, node by node, and predicted by the checked
-    kernel of :mod:`core.classify.extra_trees`: a leaf's distribution is its
-    class, one vote per tree, which is what ``RTrees.getVotes`` counts.
-    """
-    try:
-        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-        arrays = _opencv_trees(fs.root(), n_features, classes)
-        return ExtraTreesForest.from_arrays(arrays, n_features=n_features)
-    except (cv2.error, SystemError, ValueError, TerrathemeError) as exc:
-        # OpenCV's bindings report some YAML parse errors as SystemError.
-        raise CorruptFileError(f"{label}: damaged forest "
-                               f"({' '.join(str(exc).split())[:120]})") from None
-
-
 def read_model(path: str | os.PathLike) -> ModelParts:
     """Read a model written by :func:`write_model`.
 
@@ -285,7 +185,7 @@ def read_model(path: str | os.PathLike) -> ModelParts:
         class weights that are not finite and positive, a forest that does
         not fit the options or the classes.
     UnsupportedVersionError
-        Written by a newer version.
+        Written by a newer version, or an OpenCV forest of terratheme 0.x.
     """
     p = Path(path)
     if not p.is_file():
@@ -303,7 +203,7 @@ def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelPart
     CorruptFileError
         Not a classifier file, or damaged (see :func:`read_model`).
     UnsupportedVersionError
-        Written by a newer version.
+        Written by a newer version, or an OpenCV forest of terratheme 0.x.
     """
     with open_archive(source, label, kind="terratheme classifier file",
                       max_members=MAX_MEMBERS) as zf:
@@ -311,20 +211,22 @@ def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelPart
         if META not in names:
             raise CorruptFileError(f"{label}: not a terratheme classifier file (no {META})")
         meta = read_json_member(zf, META, label, max_bytes=MAX_META_BYTES)
+        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            raise CorruptFileError(f"{label}: not a terratheme classifier file")
+        version = meta.get("version")
+        if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+            raise CorruptFileError(f"{label}: bad classifier file version {repr(version)[:20]}")
+        if version > VERSION:
+            raise UnsupportedVersionError(
+                f"{label}: classifier file version {version} is newer than this "
+                f"terratheme reads ({VERSION})")
+        if version < VERSION or FOREST_YML in names:
+            # Terratheme 0.x: an OpenCV random forest as OpenCV's YAML (never parsed).
+            raise UnsupportedVersionError(
+                f"{label}: unsupported model format version {version} (an OpenCV forest of "
+                f"terratheme 0.x): train the model again")
         forest_npz = (read_member(zf, FOREST_NPZ, label, max_bytes=MAX_FOREST_BYTES)
                       if FOREST_NPZ in names else None)
-        forest_yml = (read_member(zf, FOREST_YML, label, max_bytes=MAX_FOREST_BYTES)
-                      if FOREST_YML in names else None)
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise CorruptFileError(f"{label}: not a terratheme classifier file")
-    version = meta.get("version")
-    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-        raise CorruptFileError(f"{label}: bad classifier file version {repr(version)[:20]}")
-    if version > VERSION:
-        raise UnsupportedVersionError(
-            f"{label}: classifier file version {version} is newer than this "
-            f"terratheme reads ({VERSION})"
-        )
     try:
         options = options_from_json(meta.get("options"))
         classes = _classes(meta.get("classes"))
@@ -333,17 +235,11 @@ def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelPart
     except (ValueError, TerrathemeError) as exc:
         raise CorruptFileError(f"{label}: damaged classifier metadata ({exc})") from None
     n_features = options.features.n_features
-    forest: object = None
+    forest: ExtraTreesForest | None = None
     if forest_npz is not None:
         forest = _read_extra_trees(forest_npz, label, n_features)
         if [int(c) for c in forest.classes] != sorted(classes):
             raise CorruptFileError(f"{label}: classes {classes} do not match the stored forest")
-    elif forest_yml is not None:
-        try:
-            text = forest_yml.decode("utf-8")
-        except UnicodeDecodeError:
-            raise CorruptFileError(f"{label}: damaged forest (not UTF-8 text)") from None
-        forest = _read_opencv_forest(text, label, n_features, classes)
     if (forest is None) != (len(classes) == 1):
         raise CorruptFileError(f"{label}: classes {classes} do not match the stored forest")
     return ModelParts(forest, tuple(classes), options,

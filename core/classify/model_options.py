@@ -5,7 +5,8 @@ Every option a model file may hold has a rule (``_OPTION_RULES``,
 scale 1..64, sigmas up to 64, at most ``MAX_TREES`` trees of depth
 ``MAX_DEPTH``, ...); missing options take their defaults, unknown ones are
 refused. The bounds keep a hostile file from costing unbounded work at
-predict time (:mod:`core.classify.model_file`).
+predict time (:mod:`core.classify.model_file`). Options of removed methods that
+files of earlier versions hold (``_RETIRED``) are accepted at their "off" value.
 """
 
 from __future__ import annotations
@@ -13,9 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict
 
-from terratheme.core.classify.extra_trees import MAX_DEPTH, MAX_FEATURES, MAX_TREES
-from terratheme.core.classify.features import FeatureOptions, FeatureSet, Normalise
-from terratheme.core.classify.forest import ForestKind
+from terratheme.core.classify.extra_trees import MAX_DEPTH, MAX_TREES
+from terratheme.core.classify.features import FeatureOptions, FeatureSet
 from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
 from terratheme.core.classify.supervised_options import SupervisedOptions
 
@@ -24,15 +24,13 @@ def options_to_json(options: SupervisedOptions) -> dict:
     """The options as plain JSON: enums by value, features and regularisation nested."""
     d = asdict(options)
     d["features"]["feature_set"] = options.features.feature_set.value
-    d["features"]["normalise"] = options.features.normalise.value
     d["regularisation"]["method"] = options.regularisation.method.value
-    d["forest"] = options.forest.value
     return d
 
 
 def number_rule(lo: float, hi: float, *, whole: bool = False, optional: bool = False):
-    """A check ``(value, name) -> value`` of a finite number in ``lo..hi`` (``ValueError``)."""
-    """A rule: a finite number (a whole one if ``whole``) in ``lo..hi`` (None if ``optional``)."""
+    """A rule ``(value, name) -> value``: a finite number (a whole one if ``whole``) in
+    ``lo..hi`` (None if ``optional``), else ``ValueError``."""
     def check(value, name):
         if value is None and optional:
             return None
@@ -46,7 +44,7 @@ def number_rule(lo: float, hi: float, *, whole: bool = False, optional: bool = F
 
 
 def _numbers(lo: float, hi: float, *, whole: bool = False, most: int = 16):
-    """A rule: a list of at most ``most`` numbers, each as :func:`_number`."""
+    """A rule: a list of at most ``most`` numbers, each as :func:`number_rule`."""
     one = number_rule(lo, hi, whole=whole)
 
     def check(value, name):
@@ -79,38 +77,46 @@ def _choice(enum_type):
 #: every option a model file may hold, with its type and range (missing ones take
 #: their defaults; bounds keep a hostile file from costing unbounded work at predict time)
 _FEATURE_RULES = {
-    "feature_set": _choice(FeatureSet), "normalise": _choice(Normalise),
-    "scale": number_rule(1, 64, whole=True), "sigmas": _numbers(1e-3, 64),
-    "skimage_sigma_max": number_rule(1, 64), "hessian": _flag, "position": _flag,
+    "feature_set": _choice(FeatureSet), "scale": number_rule(1, 64, whole=True),
+    "sigmas": _numbers(1e-3, 64), "hessian": _flag, "position": _flag,
     "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag, "structure": _flag,
-    "profile_radii": _numbers(1, 64, whole=True),
 }
 _REGULARISE_RULES = {
     "method": _choice(Regularisation), "sigma": number_rule(1e-3, 64),
-    "region_size": number_rule(2, 256, whole=True), "ruler": number_rule(1e-3, 1e4),
     "edge_sigma_spatial": number_rule(1e-3, 256), "edge_sigma_colour": number_rule(1e-3, 1e4),
 }
 _OPTION_RULES = {
-    "ignore_classes": _numbers(0, 255, whole=True, most=256), "forest": _choice(ForestKind),
+    "ignore_classes": _numbers(0, 255, whole=True, most=256),
     "n_trees": number_rule(1, MAX_TREES, whole=True),
     "max_depth": number_rule(1, MAX_DEPTH, whole=True),
     "min_samples": number_rule(1, 1 << 30, whole=True),
-    "active_vars": number_rule(0, MAX_FEATURES, whole=True),
     "max_samples_per_class": number_rule(1, 1 << 30, whole=True), "balance": _flag,
     "seed": number_rule(0, 2**32 - 1, whole=True), "tile": number_rule(16, 1 << 16, whole=True),
     "prior_power": number_rule(0, 1, optional=True),
     "grow_colour": number_rule(0, 1e4, optional=True),
     "samples_per_pair": number_rule(1, 1 << 30, whole=True),
-    "adapt": _optional_flag, "target_prior_power": number_rule(0, 1),
+    "adapt": _optional_flag,
+}
+#: options of removed methods in earlier files: the values they may hold (None: any,
+#: a parameter of a removed choice); any other value is refused
+_RETIRED = {
+    "options": {"forest": ("extra-trees",), "active_vars": None, "target_prior_power": (0,)},
+    "options.features": {"normalise": ("none",), "skimage_sigma_max": None,
+                         "profile_radii": ([],)},
+    "options.regularisation": {"region_size": None, "ruler": None},
 }
 
 
 def _apply_rules(d: object, rules: dict, where: str) -> dict:
     if not isinstance(d, dict):
         raise ValueError(f"{where} must be an object")
-    unknown = sorted(set(d) - set(rules) - {"features", "regularisation"})
+    retired = _RETIRED[where]
+    unknown = sorted(set(d) - set(rules) - set(retired) - {"features", "regularisation"})
     if unknown:
         raise ValueError(f"unknown option {where}.{unknown[0][:40]}")
+    for k in set(d) & set(retired):
+        if retired[k] is not None and d[k] not in retired[k]:
+            raise ValueError(f"{where}.{k} {repr(d[k])[:30]} is no longer supported")
     return {k: rule(d[k], f"{where}.{k}") for k, rule in rules.items() if k in d}
 
 
@@ -122,6 +128,4 @@ def options_from_json(d: object) -> SupervisedOptions:
     regularisation = RegulariseOptions(**_apply_rules(d.get("regularisation"),
                                                       _REGULARISE_RULES,
                                                       "options.regularisation"))
-    # Version 1 files predate Extra-Trees: their forests are OpenCV's.
-    rest.setdefault("forest", ForestKind.RANDOM_FOREST)
     return SupervisedOptions(features=features, regularisation=regularisation, **rest)

@@ -1,39 +1,17 @@
 """Class-prior correction of a forest trained from scribbles (transductive step).
 
 A user paints about the same amount of every class, so a forest trained on
-scribbles believes every class is equally common, and (with
-``SupervisedOptions.balance``) is even told so. On the photo itself, roads
-or buildings may cover 5% and bare land 60%: the forest then over-predicts
-the rare classes, which costs mean IoU on the common ones.
-
-Scribbles are painted on the photo that is classified, so the photo's own
-class shares ``pi_k`` can be estimated from the forest's outputs on it:
-"classify and count" (Forman 2008), the share of the photo's coarse pixels
-whose arg-max class is ``k``. The posteriors are then adjusted to these
-priors as in Saerens, Latinne & Decaestecker (2002, eq. 2.4): multiplied by
-the class weights ``(pi_k / t_k) ** power`` (``t_k``: the training priors)
-and renormalised. ``power = 1`` is the paper's full adjustment. The
-default for scribbles is ``0.75``, chosen on tuning photos that are not in
-the benchmark's evaluation set (Dubai parts 001-003, 18 photos, simulated
-scribbles, with the EDGE regularisation): mean mIoU / Dubai-pooled mIoU
-0.590 / 0.677, 0.591 / 0.680, 0.587 / 0.681 for powers 0.5 / 0.75 / 1.
-The full adjustment can erase a thin class whose area is small (a road in
-heavy shadow, tests/test_classify_stability.py), and the forest's vote
-shares are not calibrated posteriors to begin with. The paper's EM estimate of
-``pi`` (eq. 2.9-2.10) scored the same within noise (0.559 at power 0.5,
-0.554 at 0.75) but drifts when a forest trained on a handful of samples is
-unsure (three flat stripes with one stroke each got weights 1 : 0.57 : 0.82),
-so the robust count is used.
-
-Across photos (a model trained on full label masks of other photos, applied
-to a new one) the class shares of the new photo are unknown as well;
-:func:`em_shares` is the paper's EM estimate for that case
-(``SupervisedOptions.target_prior``). Measured on the issue-17 protocol
-(bench_classify.py part ``one_per_tile``) it lowers mean mIoU, so it is off
-by default: the forest's shares are over-confident, and the reweighting
-erases rare classes (roads, vegetation) that mean IoU counts as much as land.
+scribbles (balanced, ``SupervisedOptions.balance``) believes every class is
+equally common; on the photo, roads may cover 5% and bare land 60%, and the
+forest over-predicts the rare classes. Scribbles lie on the photo being
+classified, so its class shares ``pi_k`` are estimated from the forest's
+outputs on it by "classify and count" (Forman 2008), and the posteriors
+adjusted to them as in Saerens, Latinne & Decaestecker (2002, eq. 2.4):
+multiplied by ``(pi_k / t_k) ** power`` (``t_k``: the training priors) and
+renormalised. A power under the paper's 1 keeps a thin class of small area
+(a road in heavy shadow, tests/test_classify_stability.py); the forest's vote
+shares are not calibrated posteriors to begin with.
 """
-
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
@@ -44,8 +22,7 @@ from terratheme.core.classify.samples import looks_like_scribbles
 from terratheme.core.classify.tiled import iter_tile_features, strided_core
 from terratheme.core.errors import TerrathemeError
 
-#: default correction for scribbles (benchmark: benchmarks/results/classify.json,
-#: scribbles "rf-default" vs "rf-noprior")
+#: default correction for scribbles (docs/decisions.md)
 SCRIBBLE_PRIOR_POWER = 0.75
 #: coarse pixels of the photo the priors are estimated on (strided, at most)
 PRIOR_SAMPLES = 200_000
@@ -82,48 +59,6 @@ def predicted_shares(probs: np.ndarray) -> np.ndarray:
     return np.bincount(np.argmax(probs, axis=1), minlength=c) / len(probs)
 
 
-def em_shares(probs: np.ndarray, train_priors: np.ndarray, iterations: int = 100,
-              tol: float = 1e-6) -> np.ndarray:
-    """Class shares of a new photo by EM (Saerens, Latinne & Decaestecker 2002, eq. 2.9-2.10).
-
-    Each step adjusts every sample's posteriors to the current shares
-    ``pi`` (eq. 2.9: ``p_k * pi_k / t_k``, renormalised) and takes their
-    mean as the new shares (eq. 2.10), from ``pi = t``.
-
-    Parameters
-    ----------
-    probs : (n, C) float ndarray
-        Posteriors of n samples under the training priors.
-    train_priors : (C,) float ndarray
-        Priors ``t`` the classifier was trained with (all > 0).
-    iterations : int
-        Most EM steps.
-    tol : float
-        Stop when no share moves by more than this.
-
-    Returns
-    -------
-    shares : (C,) float64 ndarray, sums to 1 (``train_priors`` when n = 0)
-    """
-    t = np.asarray(train_priors, np.float64)
-    t = t / t.sum()
-    p = np.asarray(probs, np.float64)
-    pi = t.copy()
-    if len(p) == 0:
-        return pi
-    for _ in range(iterations):
-        # E step: posteriors adjusted to the current shares (eq. 2.9).
-        q = p * (pi / t)[None, :]
-        q /= np.maximum(q.sum(1, keepdims=True), 1e-300)
-        # M step: the new shares are the adjusted posteriors' mean (eq. 2.10).
-        new = q.mean(0)
-        done = np.abs(new - pi).max() <= tol
-        pi = new
-        if done:
-            break
-    return pi
-
-
 def prior_weights(shares: np.ndarray, train_priors: np.ndarray, power: float) -> np.ndarray:
     """Class weights ``(pi_k / t_k) ** power`` (Saerens et al. 2002, eq. 2.4), max 1.
 
@@ -148,8 +83,7 @@ def prior_weights(shares: np.ndarray, train_priors: np.ndarray, power: float) ->
 
 def photo_probabilities(
     rgb: np.ndarray, valid: np.ndarray | None, probability_fn: Callable[[np.ndarray], np.ndarray],
-    features: FeatureOptions, tile: int, stats: np.ndarray | None = None,
-    max_samples: int = PRIOR_SAMPLES,
+    features: FeatureOptions, tile: int, max_samples: int = PRIOR_SAMPLES,
 ) -> np.ndarray:
     """Posteriors of (at most ``max_samples``) coarse pixels of a photo, tile by tile.
 
@@ -160,7 +94,6 @@ def photo_probabilities(
     probability_fn : callable, (h, w, F) float32 -> (h, w, C) float32
     features : FeatureOptions
     tile : int
-    stats : (2, 3) float32 ndarray, optional (colour normalisation)
 
     Returns
     -------
@@ -171,7 +104,7 @@ def photo_probabilities(
     n_coarse = (-(-h // scale)) * (-(-w // scale))
     stride = max(1, int(np.sqrt(n_coarse / max_samples)))
     out = []
-    for win, _lab, feats in iter_tile_features(rgb, features, tile, features.halo, stats):
+    for win, _lab, feats in iter_tile_features(rgb, features, tile, features.halo):
         # This tile's core, on a global grid of every stride-th coarse row/column.
         core, rows, cols = strided_core(feats, win, scale, stride)
         if core.size == 0:
@@ -190,8 +123,7 @@ def kept_weights(weights: Mapping[int, float], classes: Sequence[int]) -> tuple[
 
     Used to keep the correction estimated from a first round of blind strokes
     when the classifier is retrained on correction strokes (painted where the
-    result is wrong, so their placement says nothing about the class shares;
-    benchmarks/classify_corrections.py: mean mIoU 0.598 kept vs 0.557 re-estimated).
+    result is wrong, so their placement says nothing about the class shares).
 
     Parameters
     ----------

@@ -1,27 +1,19 @@
 """Spatial regularisation of class probabilities on the coarse grid.
 
 A pixel's class should agree with its neighbours unless the photo shows an
-edge. Two ways, both acting on the per-class probability maps before the
-final arg-max (a soft majority vote):
+edge. Each method acts on the per-class probability maps before the final
+arg-max (a soft majority vote):
 
-``SMOOTH``     : Gaussian-weighted average of each class's probability over
-                 ``sigma`` coarse pixels (a soft majority filter).
-``SUPERPIXEL`` : average of the probabilities over each manifold-SLIC superpixel
-                 (``cv2.ximgproc`` MSLIC, Liu et al. 2016) of the coarse Lab image,
-                 so regions follow the photo's edges.
-``EDGE``       : edge-aware, confidence-weighted averaging (:func:`edge_aware_probabilities`):
-                 the domain-transform filter of Gastal & Oliveira (2011, normalised
-                 convolution, ``cv2.ximgproc`` DTFilter) with the coarse Lab image as
-                 guide averages each class's probability among neighbours of similar
-                 colour only, each neighbour weighted by how sure the forest is of it
-                 (a cheap stand-in for a dense CRF). Unsure coarse pixels -- the mixed
-                 ones along region borders, textures the strokes never covered -- take
-                 the class of sure pixels of their own colour region. The supervised
-                 default; bench_classify.py: across tiles mIoU 0.469 -> 0.489 (with the
-                 Hessian features), and part of the scribble gain 0.521 -> 0.553.
-``NONE``       : per-pixel decisions.
+``SMOOTH`` : Gaussian-weighted average of each class's probability over
+             ``sigma`` coarse pixels (a soft majority filter).
+``EDGE``   : edge-aware, confidence-weighted averaging (:func:`edge_aware_probabilities`):
+             the domain-transform filter of Gastal & Oliveira (2011, normalised
+             convolution) guided by the coarse Lab image averages each class's
+             probability among neighbours of similar colour only, each weighted
+             by how sure the forest is of it (a cheap stand-in for a dense CRF),
+             so unsure pixels take the class of sure pixels of their colour region.
+``NONE``   : per-pixel decisions.
 """
-
 from __future__ import annotations
 
 import enum
@@ -38,7 +30,6 @@ class Regularisation(enum.Enum):
 
     NONE = "none"
     SMOOTH = "smooth"
-    SUPERPIXEL = "superpixel"
     EDGE = "edge"
 
 
@@ -59,10 +50,6 @@ class RegulariseOptions:
     method : Regularisation
     sigma : float
         SMOOTH: Gaussian sigma in coarse pixels.
-    region_size : int
-        SUPERPIXEL: SLIC region size in coarse pixels.
-    ruler : float
-        SUPERPIXEL: SLIC compactness (higher = squarer superpixels).
     edge_sigma_spatial : float
         EDGE: spatial reach in coarse pixels (the filter's sigma_s).
     edge_sigma_colour : float
@@ -72,17 +59,12 @@ class RegulariseOptions:
 
     method: Regularisation = Regularisation.SMOOTH
     sigma: float = 1.0
-    region_size: int = 6
-    ruler: float = 10.0
     edge_sigma_spatial: float = 8.0
     edge_sigma_colour: float = 10.0
 
     def __post_init__(self) -> None:
-        if self.sigma <= 0 or self.region_size < 2:
-            raise TerrathemeError(
-                f"regularisation sigma must be > 0 and region size >= 2 "
-                f"(got {self.sigma}, {self.region_size})"
-            )
+        if self.sigma <= 0:
+            raise TerrathemeError(f"regularisation sigma must be > 0, not {self.sigma}")
         if self.edge_sigma_spatial <= 0 or self.edge_sigma_colour <= 0:
             raise TerrathemeError(
                 f"edge regularisation sigmas must be > 0 "
@@ -94,8 +76,6 @@ class RegulariseOptions:
         """Coarse pixels of context the regularisation needs on each side."""
         if self.method is Regularisation.SMOOTH:
             return int(math.ceil(3.0 * self.sigma))
-        if self.method is Regularisation.SUPERPIXEL:
-            return 2 * self.region_size
         if self.method is Regularisation.EDGE:
             return edge_reach(self.edge_sigma_spatial) + 1
         return 0
@@ -131,51 +111,6 @@ def smooth_probabilities(probs: np.ndarray, sigma: float) -> np.ndarray:
     k = 2 * int(math.ceil(3.0 * sigma)) + 1
     out = cv2.GaussianBlur(probs, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
     return out.reshape(probs.shape)
-
-
-def superpixel_labels(lab: np.ndarray, region_size: int, ruler: float) -> np.ndarray:
-    """SLIC superpixels of a coarse Lab image.
-
-    Parameters
-    ----------
-    lab : (h, w, 3) float32 ndarray
-    region_size, ruler : SLIC parameters (cv2.ximgproc.createSuperpixelSLIC)
-
-    Returns
-    -------
-    segments : (h, w) int32 ndarray, values 0..S-1
-    """
-    h, w = lab.shape[:2]
-    if min(h, w) < 2:
-        return np.arange(h * w, dtype=np.int32).reshape(h, w)
-    slic = cv2.ximgproc.createSuperpixelSLIC(
-        np.ascontiguousarray(lab, np.float32), cv2.ximgproc.MSLIC, region_size, ruler
-    )
-    slic.iterate(10)
-    slic.enforceLabelConnectivity(25)
-    return slic.getLabels().astype(np.int32)
-
-
-def average_over_segments(probs: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """Replace each pixel's probabilities by its segment's mean.
-
-    Parameters
-    ----------
-    probs : (h, w, C) float32 ndarray
-    segments : (h, w) int ndarray
-
-    Returns
-    -------
-    averaged : (h, w, C) float32 ndarray
-    """
-    h, w, c = probs.shape
-    seg = segments.ravel()
-    n = int(seg.max()) + 1
-    counts = np.bincount(seg, minlength=n).astype(np.float32)
-    flat = probs.reshape(-1, c)
-    sums = np.stack([np.bincount(seg, weights=flat[:, k], minlength=n) for k in range(c)], 1)
-    means = (sums / np.maximum(counts, 1.0)[:, None]).astype(np.float32)
-    return means[seg].reshape(h, w, c)
 
 
 def edge_aware_probabilities(probs: np.ndarray, lab: np.ndarray, sigma_spatial: float,
@@ -237,7 +172,7 @@ def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions,
     ----------
     probs : (h, w, C) float32 ndarray
     lab : (h, w, 3) float32 ndarray
-        The coarse Lab image (used by SUPERPIXEL and EDGE).
+        The coarse Lab image (used by EDGE).
     options : RegulariseOptions
     texture : (h, w) float32 ndarray, optional
         Block lightness std (used by EDGE, see :func:`edge_aware_probabilities`).
@@ -248,9 +183,6 @@ def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions,
     """
     if options.method is Regularisation.SMOOTH:
         return smooth_probabilities(probs, options.sigma)
-    if options.method is Regularisation.SUPERPIXEL:
-        segments = superpixel_labels(lab, options.region_size, options.ruler)
-        return average_over_segments(probs, segments)
     if options.method is Regularisation.EDGE:
         return edge_aware_probabilities(probs, lab, options.edge_sigma_spatial,
                                         options.edge_sigma_colour, texture)

@@ -12,14 +12,6 @@ bright line or ridge). Two features per sigma.
 
 Sigmas of 2 pixels and more are computed on the photo's 2 x 2 block means
 (as sigma / 2 there, the same output blocks), a quarter of the work.
-
-Measured with sigmas (1, 2, 4), library defaults otherwise, against the
-same forest without them: from scribbles (bench_classify.py protocol, 3
-fresh draws of the strokes at 0.8%) mean mIoU 0.568 -> 0.584 on the 16
-evaluation photos, up in each draw, and 0.610 -> 0.612 on the tuning photos
-(Dubai parts 001-003); in bench_classify.py itself (rf-default against
-rf-noridges, Extra-Trees, mean of its 3 stroke draws) 0.586 -> 0.589 from
-scribbles and 0.508 -> 0.514 across tiles, both at 0.78x the speed.
 """
 
 from __future__ import annotations

@@ -11,9 +11,7 @@ a stroke whose colour matches the stroke's are very likely of the stroke's
 class too: :func:`grow_labels` adds them as samples (one ring of 4-neighbours,
 colour difference under ``threshold``; a pixel next to strokes of two classes
 is left out). It is a cautious, one-step form of seeded region growing
-(Adams & Bischof 1994), used for the training samples only. On the tuning
-photos (bench_classify.py's Dubai parts 001-003, simulated scribbles) it
-raised mean mIoU by about +0.01 (see SupervisedOptions.grow_colour).
+(Adams & Bischof 1994), used for the training samples only.
 
 :func:`check_class_image` is the one check of a class-value image (label
 mask, scribble mask, label image) that training, conversion and the grid vote

@@ -1,45 +1,28 @@
-"""Supervised classes: a tree ensemble (:mod:`core.classify.forest`) on the features.
+"""Supervised classes: Extra-Trees (:mod:`core.classify.forest`) on the features.
 
 Training data are ``(photo, mask)`` pairs. A mask has the photo's size; 0 is
 *unlabelled* and ``k > 0`` is class ``k``. The same rule covers brush
 scribbles (mostly 0) and full label masks of other photos. Each coarse pixel
 (``scale x scale`` block, see :mod:`core.classify.features`) takes the class
 that covers most of its labelled pixels, so a one-pixel stroke still teaches
-the block it crosses. Classes listed in ``ignore_classes`` (e.g. Dubai's 6
-"Unlabeled" and 7) are treated as unlabelled.
+the block it crosses. Classes listed in ``ignore_classes`` are treated as unlabelled.
 
-Samples are capped per class (``SupervisedOptions.samples_per_class``: more
-for more pairs, random, seeded) and,
-with ``balance``, the forest's class priors are set so every class weighs the
-same whatever its area, which is what a mean-IoU user wants from thin roads.
+Samples are capped per class (``SupervisedOptions.samples_per_class``, random,
+seeded) and, with ``balance``, every class weighs the same whatever its area,
+which is what a mean-IoU user wants from thin roads.
 
-Scribbles (one photo, under ``samples.SCRIBBLE_SHARE`` of it labelled) also get a
-class-prior correction by default (:mod:`core.classify.prior`): the photo's
-class shares are estimated from the forest's outputs on it, and the votes
-reweighted, since a user paints about as much of a rare class as of a common one;
-and their strokes are grown by one ring of coarse pixels of the stroke's colour
-(:func:`core.classify.samples.grow_labels`), for a few more training samples.
-
-Defaults chosen on the scribble benchmark's tuning photos (Dubai parts
-001-003, not in the evaluation set; bench_classify.py): Hessian features,
-edge-aware regularisation (``Regularisation.EDGE``), prior power 0.75 and
-growing together took mean mIoU from 0.568 to 0.599 (Dubai-pooled 0.664 to
-0.680) on those photos. Extra-Trees in place of OpenCV's random forest (24
-trees): 0.625 -> 0.632 on those photos (3 stroke draws at 1%, 50 or 100
-trees), and 0.572 -> 0.585 (50 trees) / 0.588 (100) on the 16 evaluation
-photos (3 other draws at 0.8%); 50 trees, since 100 predicted under 5 Mpx/s
-across tiles (the deep trees trained on whole masks).
-
-Across photos (label masks of a few other photos, the issue-17 protocol of
-bench_classify.py part ``one_per_tile``), a model adapts to each photo it
-classifies by default (:mod:`core.classify.adapt`, ``SupervisedOptions.adapt``),
-and training samples and fitted models can be kept by content between runs (the
-caches of :mod:`core.classify.sample_cache` and :mod:`core.classify.model_cache`).
+Scribbles (one photo, under ``samples.SCRIBBLE_SHARE`` of it labelled) also get
+a class-prior correction (:mod:`core.classify.prior`), since a user paints about
+as much of a rare class as of a common one, and their strokes are grown by one
+ring of coarse pixels of the stroke's colour (:func:`core.classify.samples.grow_labels`).
+A model trained on label masks of a few other photos adapts to each photo it
+classifies (:mod:`core.classify.adapt`). Training samples and fitted models can
+be kept by content between runs (:mod:`core.classify.sample_cache`,
+:mod:`core.classify.model_cache`).
 
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
 """
-
 from __future__ import annotations
 
 import os
@@ -47,13 +30,11 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from terratheme.core.classify.adapt import predict_adapted
-from terratheme.core.classify.features import FeatureOptions, Normalise, photo_statistics
-from terratheme.core.classify.forest import Forest, ForestKind, build_forest, forest_scores
+from terratheme.core.classify.forest import Forest, build_forest, forest_scores
 from terratheme.core.classify.model_cache import ModelCache, model_key
 from terratheme.core.classify.model_file import ModelParts, read_model, write_model
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.classify.prior import (
-    em_shares,
     kept_weights,
     photo_probabilities,
     predicted_shares,
@@ -74,10 +55,6 @@ from terratheme.core.classify.tiled import iter_tile_features, predict_tiled
 from terratheme.core.errors import TerrathemeError
 
 
-def _stats(rgb, valid, fo: FeatureOptions):
-    return None if fo.normalise is Normalise.NONE else photo_statistics(rgb, valid)
-
-
 def _pair_samples(photo, mask, index, classes, options, grow=0.0):
     """Labelled coarse feature vectors of one pair -> (features (n, F), labels (n,)).
 
@@ -89,9 +66,8 @@ def _pair_samples(photo, mask, index, classes, options, grow=0.0):
         m = np.where(valid, m, 0).astype(np.uint8)
     fo, scale = options.features, options.features.scale
     target = coarse_mask(m, scale, classes)
-    stats = _stats(rgb, valid, fo)
     feats_out, labels_out = [], []
-    for win, lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo, stats):
+    for win, lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo):
         # Labelled coarse pixels of this tile's core.
         cy0, cx0 = win.y // scale, win.x // scale
         cy1, cx1 = -(-win.y1 // scale), -(-win.x1 // scale)
@@ -194,7 +170,7 @@ def _capped_samples(pairs, options, classes, grow, cache, keys):
 
 
 class Classifier:
-    """A trained tree ensemble (Extra-Trees or OpenCV's forest) and its options.
+    """A trained Extra-Trees forest and its options.
 
     Use :func:`train_classifier` to make one, :meth:`predict` to classify a
     photo, :meth:`save` / :meth:`load` to keep it.
@@ -222,8 +198,8 @@ class Classifier:
         """Photo pixels of context a label needs on each side.
 
         Classifying a photo piece by piece, each piece starting at a multiple
-        of ``options.features.scale`` and read with at least this overlap (and
-        ``features.normalise`` off), gives the same labels as the whole photo
+        of ``options.features.scale`` and read with at least this overlap gives
+        the same labels as the whole photo
         (the EDGE filter's running sums differ by float rounding, ~1e-6, which
         can only flip an exact tie).
         """
@@ -270,30 +246,11 @@ class Classifier:
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
-        stats = _stats(rgb, valid, opts.features)
-        probability_fn = self.probabilities
-        if self.forest is not None and opts.target_prior_power > 0:
-            probability_fn = self._target_prior(rgb, valid, stats)
         if self.forest is not None and opts.adapt:
-            return predict_adapted(rgb, valid, probability_fn, self.classes, opts.features,
-                                   opts.regularisation, opts, opts.tile, progress, stats)
-        return predict_tiled(rgb, valid, probability_fn, self.classes, opts.features,
-                             opts.regularisation, opts.tile, progress, stats)
-
-    def _target_prior(self, rgb, valid, stats):
-        """:meth:`probabilities` reweighted to this photo's EM class shares (target_prior_power)."""
-        opts = self.options
-        probs = photo_probabilities(rgb, valid, self.probabilities, opts.features, opts.tile,
-                                    stats)
-        # Balanced training: every class had prior 1 / C.
-        train = np.full(len(self.classes), 1.0 / len(self.classes))
-        weights = prior_weights(em_shares(probs, train), train, opts.target_prior_power)
-        weights = weights.astype(np.float32)[None, None, :]
-
-        def probabilities(feats: np.ndarray) -> np.ndarray:
-            probs = self.probabilities(feats) * weights
-            return probs / np.maximum(probs.sum(2, keepdims=True), 1e-12)
-        return probabilities
+            return predict_adapted(rgb, valid, self.probabilities, self.classes, opts.features,
+                                   opts.regularisation, opts, opts.tile, progress)
+        return predict_tiled(rgb, valid, self.probabilities, self.classes, opts.features,
+                             opts.regularisation, opts.tile, progress)
 
     def parts(self) -> ModelParts:
         """What a model file of this model holds (:mod:`core.classify.model_file`)."""
@@ -347,7 +304,7 @@ def train_classifier(
         Keeps the pairs' training samples by content (the model is the same).
     model_cache : ModelCache, optional
         Keeps the fitted model by content (:mod:`core.classify.model_cache`): a training
-        seen before gives the same model for the pairs' keys only. Extra-Trees only.
+        seen before gives the same model for the pairs' keys only.
 
     Returns
     -------
@@ -367,7 +324,7 @@ def train_classifier(
     classes, grow = _training_plan(pairs_or_scribbles, opts)
     keys = (None if cache is None and model_cache is None
             else _sample_keys(pairs_or_scribbles, classes, grow, opts))
-    if model_cache is None or opts.forest is not ForestKind.EXTRA_TREES:
+    if model_cache is None:
         return _fit(pairs_or_scribbles, opts, classes, grow, cache, keys, class_weights)
     parts = model_cache.model(
         model_key(keys, classes, opts, class_weights), opts,
@@ -391,8 +348,7 @@ def _fit(pairs, opts, classes, grow, cache, keys, class_weights) -> Classifier:
     if forest is not None and power > 0:
         # Class shares of the scribbled photo from the forest's votes on it, as weights.
         rgb, valid = prepare_photo(pairs[0][0])
-        probs = photo_probabilities(rgb, valid, model.probabilities, opts.features, opts.tile,
-                                    _stats(rgb, valid, opts.features))
+        probs = photo_probabilities(rgb, valid, model.probabilities, opts.features, opts.tile)
         train = np.full(len(classes), 1.0 / len(classes)) if opts.balance else counts / len(y)
         weights = prior_weights(predicted_shares(probs), train, power)
         model.class_weights = tuple(float(v) for v in weights)

@@ -15,12 +15,7 @@ L units, so they scale with the photo's contrast. ``structure`` adds
   does not change with the photo's contrast.
 
 Both reach no further than the DEFAULT set's sigmas (3-sigma kernels plus a
-one-pixel Sobel), so ``FeatureOptions.halo`` covers them. Measured: one photo
-per tile (bench_classify.py part ``one_per_tile``, 3 draws) mean tile mIoU
-0.417 -> 0.425, per photo 0.392 -> 0.397; scribbles at 0.5% on the tuning
-photos (classify_tune.py) 0.585 -> 0.586. Colour std inside blocks and
-around them (a*, b* as the lightness std, 10 features) lowered both (0.407,
-0.583) and was dropped.
+one-pixel Sobel), so ``FeatureOptions.halo`` covers them.
 """
 
 from __future__ import annotations

@@ -63,27 +63,10 @@ def prediction_windows(height: int, width: int, features: FeatureOptions,
     return feature_windows(height, width, tile, features.scale, halo)
 
 
-def tile_features(
-    rgb: np.ndarray, win: TileWindow, options: FeatureOptions, stats: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Coarse Lab and features of a window's outer rectangle.
-
-    ``stats`` are the whole photo's Lab statistics, used when the options
-    normalise colour (see :func:`core.classify.features.photo_statistics`).
-
-    Returns
-    -------
-    lab : (h, w, 3) float32 ndarray
-    features : (h, w, F) float32 ndarray
-    """
-    lab, _block_std, feats = tile_arrays(rgb, win, options, stats)
-    return lab, feats
-
-
 def tile_arrays(
-    rgb: np.ndarray, win: TileWindow, options: FeatureOptions, stats: np.ndarray | None = None
+    rgb: np.ndarray, win: TileWindow, options: FeatureOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`tile_features` plus the block lightness std (texture) of each coarse pixel.
+    """Coarse Lab, block lightness std and features of a window's outer rectangle.
 
     Returns
     -------
@@ -91,18 +74,16 @@ def tile_arrays(
     block_std : (h, w) float32 ndarray
     features : (h, w, F) float32 ndarray
     """
-    lab, block_std, feats = image_features(rgb[win.ry : win.ry1, win.rx : win.rx1], options,
-                                           stats)
+    lab, block_std, feats = image_features(rgb[win.ry : win.ry1, win.rx : win.rx1], options)
     return lab, block_std, with_position(feats, (win.ry, win.rx), rgb.shape[:2], options)
 
 
 def iter_tile_features(
-    rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int,
-    stats: np.ndarray | None = None,
+    rgb: np.ndarray, options: FeatureOptions, tile: int, halo: int
 ) -> Iterator[tuple[TileWindow, np.ndarray, np.ndarray]]:
     """Yield ``(window, lab, features)`` for every tile of a photo."""
     for win in feature_windows(rgb.shape[0], rgb.shape[1], tile, options.scale, halo):
-        lab, feats = tile_features(rgb, win, options, stats)
+        lab, _block_std, feats = tile_arrays(rgb, win, options)
         yield win, lab, feats
 
 
@@ -176,7 +157,6 @@ def predict_tiled(
     regularisation: RegulariseOptions,
     tile: int,
     progress: ProgressFn | None = None,
-    stats: np.ndarray | None = None,
     tile_fn: TileProbabilitiesFn | None = None,
 ) -> Classification:
     """Classify a photo tile by tile.
@@ -195,8 +175,6 @@ def predict_tiled(
         Tile core size in photo pixels.
     progress : callable, optional
         Called with ``(tiles_done, tiles_total)``.
-    stats : (2, 3) float32 ndarray, optional
-        The photo's Lab statistics for colour normalisation.
     tile_fn : callable, optional
         ``window -> (lab, block_std, probabilities)`` for the windows of
         :func:`prediction_windows`, in place of :func:`tile_arrays` and
@@ -213,7 +191,7 @@ def predict_tiled(
     windows = prediction_windows(height, width, features, regularisation, tile)
     if tile_fn is None:
         def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            lab, block_std, feats = tile_arrays(rgb, win, features, stats)
+            lab, block_std, feats = tile_arrays(rgb, win, features)
             return lab, block_std, probability_fn(feats)
     lut = np.asarray(classes, np.uint8)
     labels = np.zeros((height, width), np.uint8)
@@ -244,7 +222,7 @@ def predict_tiled(
 def _arg_max(probs, oy, ox, lut, labels, confidence, y0, x0, h, w):  # pragma: no cover
     """Over an ``h x w`` block: ``labels[y0 + y, x0 + x] = lut[argmax(probs[oy + y, ox + x])]``
     (first of equal maxima, as numpy's ``argmax``) and ``confidence`` = that maximum; rows
-    in parallel (3x numpy's ``argmax`` + ``take_along_axis`` over a small last axis)."""
+    in parallel."""
     c = probs.shape[2]
     for y in numba.prange(h):
         for x in range(w):

@@ -24,23 +24,6 @@ features in fixed Delta-E-like units, see :mod:`core.classify.features`):
    another theme);
 4. K never exceeds ``max_themes`` nor the number of distinct samples.
 
-Measured and dropped (highway and shore scrub in one theme on Dubai 005t2;
-scored as bench_fidelity: its 16 photos, and classification mIoU on the 54
-Dubai photos, "mIoU54"; one run). At this scale the two do not differ in
-texture (local lightness std 11.3 vs 11.2, gradient 2.5 +- 1.6 vs 4.4 +- 3.5,
-coherence 0.7 vs 0.5) but in chroma (a*b* 4.5 apart, under
-``min_hue_separation``). Default: mIoU 0.342 on the 16, mIoU54 0.405, dE8
-1.548, detail 0.894, ratio 0.994 (min 0.974). A split by texture (2-means on
-local std and gradient, gap >= 4 / 6 / 8, share >= 0.02): mIoU 0.334 / 0.333 /
-0.334, mIoU54 0.405 / 0.406 / 0.408 (gap 6: 29 of 54 photos off by > 0.01,
-worst -0.14), dE8 1.517 / 1.525 / 1.543; its groups are tails and border
-bands (gradient), not groups (Ashman's D mostly 2-4.5, as for one skewed
-mode). Texture weight x2 / x0.5: mIoU 0.336 / 0.341, mIoU54 0.393 / 0.411,
-dE8 1.648 / 1.580, min ratio 0.975 / 0.815. Chroma weight x2: 0.336, 0.409,
-dE8 1.623. ``min_hue_separation`` 4.5 / 4 (splits 005t2 right, but the
-highway then gets a villa street's tile): mIoU 0.341 / 0.341, mIoU54 0.405 /
-0.405, dE8 1.561 / 1.536, detail 0.908 / 0.910.
-
 Themes are numbered 1..K by decreasing area. Confidence is the winning
 theme's posterior under a Gaussian mixture with the centres as means and
 the theme areas as weights (:mod:`core.classify.mixture`): the pooled
@@ -218,8 +201,6 @@ def colour_columns(options: FeatureOptions) -> np.ndarray:
     """Indices of the (smoothed) Lab colour features in a feature vector."""
     if options.feature_set is FeatureSet.COLOUR:
         return np.arange(3)
-    if options.feature_set is FeatureSet.SKIMAGE:
-        return np.arange(options.n_image_features)
     start = 3 + (1 if options.scale > 1 else 0)
     per_sigma = 7 if options.hessian else 5
     return np.concatenate([start + per_sigma * i + np.arange(3)
