@@ -33,9 +33,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+from terratheme.core.io.disk_cache import DiskCache
 from terratheme.core.perspective import (
     Camera,
-    FamilyCache,
     FilterOptions,
     Lookup,
     Method,
@@ -194,7 +194,7 @@ def preview_timing(rounds: int) -> dict:
     cam = overview_camera((tex.shape[1], tex.shape[0]))
     best = {"trilinear": np.inf, "parallelogram_built": np.inf, "parallelogram_cached": np.inf}
     with tempfile.TemporaryDirectory() as folder:
-        cache = FamilyCache(folder)
+        cache = DiskCache(folder)
         PreparedTexture(tex, cache=cache)  # fills the cache
         for _ in range(rounds):
             for name, kw in (("trilinear", dict(options=METHODS["trilinear"])),

@@ -192,12 +192,13 @@ def _readers() -> dict:
     from terratheme.core.classify import Classifier
     from terratheme.core.classify.photo import prepare_photo
     from terratheme.core.classify.shipped import load_model, shipped_models
+    from terratheme.core.classify.training_cache import cached_samples
     from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.disk_cache import DiskCache
     from terratheme.core.io.georef import read_georeference
     from terratheme.core.io.images import Bands, image_info, read_image, read_labels, read_region
     from terratheme.core.model.project import load_project
     from terratheme.core.packing import layer_info, load_layer
-    from terratheme.core.perspective import FamilyCache
 
     photo = np.zeros((48, 48, 3), np.uint8)
     photo[:, 24:] = (200, 180, 120)
@@ -223,9 +224,13 @@ def _readers() -> dict:
             for _ in packed.bands():
                 pass
 
-    def family(path):
-        # A damaged cache file is a miss (and removed), never an exception.
-        FamilyCache(path.parent).load(path.name.removesuffix(".ttfamily"))
+    def cache(path):
+        # A hostile cache entry is a miss (computed again), or whole finite samples.
+        key, kind = path.name.split(".")
+        x, y = cached_samples(DiskCache(path.parent), key, 6, (1, 2), lambda: (
+            np.zeros((0, 6), np.float32), np.zeros(0, np.uint8)))
+        if not (np.isfinite(x).all() and x.shape[1] == 6 and y.shape == (len(x),)):
+            raise AssertionError("a cache entry's samples were not checked")
 
     def index(path):
         # models.json: the index, then every model it lists (sizes and digests checked).
@@ -248,7 +253,7 @@ def _readers() -> dict:
         os.abort()
 
     return {"project": load_project, "model": model, "image": image, "labels": read_labels,
-            "georef": read_georeference, "photo": as_photo, "layer": layer, "family": family,
+            "georef": read_georeference, "photo": as_photo, "layer": layer, "cache": cache,
             "index": index, "allocate": allocate, "spin": spin, "crash": crash}
 
 
@@ -260,12 +265,11 @@ def _warm_up(readers: dict) -> None:
     from terratheme.core.classify import SupervisedOptions
     from terratheme.core.classify.extra_trees import ExtraTreesForest
     from terratheme.core.classify.model_file import ModelParts, write_model
+    from terratheme.core.io.disk_cache import DiskCache
     from terratheme.core.io.images import write_image
     from terratheme.core.model.grid import IndexGrid
     from terratheme.core.model.project import ThematicTexture, save_project
     from terratheme.core.packing import pack
-    from terratheme.core.perspective import FamilyCache
-    from terratheme.core.perspective.family import build_family
     from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -300,8 +304,9 @@ def _warm_up(readers: dict) -> None:
         # A container of several tiles looks up through its joined table (kernels of its own).
         pack(np.tile(mask, (5, 5)), tile_bits=6).save(d / "tiles.ttpack")
         readers["layer"](d / "tiles.ttpack")
-        FamilyCache(d).store("f", build_family(img.astype(np.float32), 2, 2))
-        readers["family"](d / "f.ttfamily")
+        DiskCache(d).store("0" * 64, "samples", {"features": np.ones((2, 6), np.float32),
+                                                 "labels": np.array([1, 2], np.uint8)})
+        readers["cache"](d / f"{'0' * 64}.samples")
         (d / "models.json").write_text(json.dumps({"models": {"m": {
             "file": "m.ttc", "classes": {"1": "a", "2": "b"}}}}))
         readers["index"](d / "models.json")

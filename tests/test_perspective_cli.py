@@ -101,7 +101,7 @@ def test_the_family_is_cached_for_the_next_preview(src, tmp_path, capsys):
     assert _run(src, out, "--camera", "4,12,30,60", cache=cache) == 0
     assert "family cached" in capsys.readouterr().out
     first = read_image(out)
-    assert len(list(cache.glob("*.ttfamily"))) == 1
+    assert len(list(cache.glob("*.family"))) == 1
     assert _run(src, out, "--camera", "4,12,30,60", cache=cache) == 0
     assert "family from the cache" in capsys.readouterr().out
     np.testing.assert_array_equal(read_image(out), first)

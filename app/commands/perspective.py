@@ -132,18 +132,15 @@ def _family_cache(args: argparse.Namespace):
     """The family cache, checked before any work: a folder named by ``--cache-dir`` must
     be usable; the default one is only an optimisation (unusable: no cache, and a note)."""
     from terratheme.core.errors import TerrathemeError
-    from terratheme.core.perspective import FamilyCache
+    from terratheme.core.io.disk_cache import DiskCache
 
     if args.no_cache:
         return None
     folder = Path(args.cache_dir) if args.cache_dir else default_cache_dir()
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        why = None if os.access(folder, os.W_OK | os.X_OK) else "not writable"
-    except OSError as exc:
-        why = exc.strerror or str(exc)
+    cache = DiskCache(folder)
+    why = cache.unusable()
     if why is None:
-        return FamilyCache(folder)
+        return cache
     if args.cache_dir:
         raise TerrathemeError(f"--cache-dir {folder}: cannot use the folder ({why})")
     print(f"note: the family cache {folder} cannot be used ({why}); the family is not kept")

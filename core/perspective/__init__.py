@@ -5,22 +5,22 @@ design.md §6), read by summing the pixel's own parallelogram over the
 cells it covers, and its baselines, all with one set of conventions (see
 :mod:`.mapping`)::
 
-    from terratheme.core.perspective import Camera, FamilyCache, FilterOptions, PreparedTexture
-    prepared = PreparedTexture(texture, FilterOptions(), cache=FamilyCache(folder))
+    from terratheme.core.io.disk_cache import DiskCache
+    from terratheme.core.perspective import Camera, FilterOptions, PreparedTexture
+    prepared = PreparedTexture(texture, FilterOptions(), cache=DiskCache(folder))
     frame = prepared.render(Camera(height=40, pitch=10, yaw=30), (640, 360)).image
 
 Modules: ``options`` (FilterOptions, Method, Lookup), ``mapping`` (eqs. 1-2,
 camera, default view), ``footprint`` (eqs. 3-4), ``family`` (the prefiltered
 copies, built level by level), ``coverage`` (exact-coverage and quadrature
-reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``cache``
-(families on disk), ``baselines`` (nearest, bilinear, trilinear, GPU aniso),
-``ewa`` (pbrt-style EWA), ``reference`` (supersampled box filter),
+reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``baselines``
+(nearest, bilinear, trilinear, GPU aniso), ``ewa`` (pbrt-style EWA), ``reference``
+(supersampled box filter),
 ``texture`` (storage type, power-of-two resampling, mip pyramid),
 ``project_view`` (a project's texture at the level a frame needs),
 ``render`` (entry points).
 """
 
-from terratheme.core.perspective.cache import FamilyCache, family_key
 from terratheme.core.perspective.footprint import Footprint, footprint_parameters
 from terratheme.core.perspective.mapping import (
     MAX_FRAME_SIDE,
@@ -30,12 +30,16 @@ from terratheme.core.perspective.mapping import (
     check_size,
 )
 from terratheme.core.perspective.options import FilterOptions, Lookup, Method
-from terratheme.core.perspective.render import PreparedTexture, RenderResult, render_perspective
+from terratheme.core.perspective.render import (
+    PreparedTexture,
+    RenderResult,
+    family_key,
+    render_perspective,
+)
 
 __all__ = [
     "MAX_FRAME_SIDE",
     "Camera",
-    "FamilyCache",
     "FilterOptions",
     "Footprint",
     "Lookup",

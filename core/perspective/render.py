@@ -1,22 +1,28 @@
 """Rendering a textured ground plane: the public entry points.
 
 ``PreparedTexture`` prefilters a texture once (mip pyramid, the seed's
-family of copies, optionally loaded from a :class:`~.cache.FamilyCache`) and
+family of copies, optionally kept in a :class:`~core.io.disk_cache.DiskCache`) and
 renders any number of frames as the camera moves; ``render_perspective`` is
 the one-call form.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.disk_cache import Arrays, DiskCache
 from terratheme.core.perspective.baselines import TRILINEAR, mip_kernel, texel_kernel
-from terratheme.core.perspective.cache import FamilyCache, family_key
 from terratheme.core.perspective.ewa import EWA_LUT, ewa_kernel
-from terratheme.core.perspective.family import ParallelogramFamily, build_family
+from terratheme.core.perspective.family import (
+    ParallelogramFamily,
+    build_family,
+    family_layout,
+)
 from terratheme.core.perspective.lookup import coverage_kernel, seed_kernel
 from terratheme.core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
 from terratheme.core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
@@ -33,6 +39,17 @@ Progress = Callable[[int, int], None]
 
 #: rows rendered between two progress reports
 BAND_ROWS = 64
+#: bump when the family's construction changes (old cache entries then miss)
+FAMILY_VERSION = 3
+
+
+def family_key(texels: np.ndarray, max_lambda_log2: int, skew_oversampling: int) -> str:
+    """Hex SHA-256 of a texture's family: its texels ``(h, w, C)``, shape, type and options."""
+    digest = hashlib.sha256()
+    digest.update(json.dumps([FAMILY_VERSION, list(texels.shape), str(texels.dtype),
+                              int(max_lambda_log2), int(skew_oversampling)]).encode())
+    digest.update(np.ascontiguousarray(texels).data)
+    return digest.hexdigest()
 
 
 @dataclass(frozen=True)
@@ -90,7 +107,7 @@ class PreparedTexture:
         The default filter; the structures it needs are built now.
     progress : callable(done, total) or None
         Called while the family is built (cells written of the total).
-    cache : FamilyCache or None
+    cache : DiskCache or None
         Families are loaded from and stored into it.
 
     Notes
@@ -100,7 +117,7 @@ class PreparedTexture:
     """
 
     def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,
-                 progress: Progress | None = None, cache: FamilyCache | None = None) -> None:
+                 progress: Progress | None = None, cache: DiskCache | None = None) -> None:
         self.options = options if options is not None else FilterOptions()
         self.stored = stored_texture(texture)
         w, h = self.stored.size
@@ -140,15 +157,26 @@ class PreparedTexture:
             fam = None
             if self.cache is not None:
                 cache_key = family_key(self.stored.texels, *key)
-                fam = self.cache.load(cache_key)
+                fam = self.cache.load(cache_key, "family", lambda a: self._cached_family(a, key))
                 self.cache_hit = fam is not None
             if fam is None:
                 fam = build_family(self._grid(), *key, dtype=self.stored.texels.dtype,
                                    progress=progress)
                 if self.cache is not None:
-                    self.cache.store(cache_key, fam)
+                    self.cache.store(cache_key, "family", {"cells": fam.buf})
             self._families[key] = fam
         return self._families[key]
+
+    def _cached_family(self, arrays: Arrays, key: tuple[int, int]) -> ParallelogramFamily | None:
+        """The family of a cache entry's cells, if they are exactly what this texture's family
+        holds: the layout comes from the texture, never from the entry."""
+        start, count, total = family_layout(self.grid_size, *key)
+        cells = arrays.get("cells")
+        if (set(arrays) != {"cells"} or cells.dtype != self.stored.texels.dtype
+                or cells.shape != (total, self.channels)
+                or (cells.dtype.kind == "f" and not np.isfinite(cells).all())):
+            return None
+        return ParallelogramFamily(cells, start, count, self.grid_size, *key)
 
     def memory_bytes(self, options: FilterOptions | None = None) -> int:
         """Bytes of texture data the method of ``options`` reads from (the input included)."""
