@@ -17,14 +17,10 @@ with every contender back to back, so machine load hits them alike:
   into a reused buffer;
 * ``gpu frame``: :meth:`core.gpu.GpuRenderer.draw` + ``glFinish``: the
   frame in the framebuffer, where a display would show it (Mesa llvmpipe,
-  ``LP_NUM_THREADS`` threads, default one per core); runs of uniform cells
-  are image copies, blended cells drawn by the blend shader;
+  ``LP_NUM_THREADS`` threads, default one per core), every pixel drawn by
+  the blend shader;
 * ``gpu to numpy``: :meth:`core.gpu.GpuRenderer.render` into a reused
   array: the frame read back, as ``render --gpu`` needs it;
-* ``gpu frame, uniform cells by copy shader``: runs of uniform cells drawn
-  with ``tt_copy.frag.glsl`` instead of copied (a driver without OpenGL 4.3);
-* ``gpu blend shader alone``: every pixel by ``tt_terrain.frag.glsl``, as an
-  engine using that shader alone would draw it (no uniform-cell special case);
 * ``gpu frame from the packed layer``: the same, the grid read from the
   packed layer (``pack(grid)``) by the shaders (``core.gpu.packed``: each
   tile's vertices decoded and cells split on the GPU); its peer is the one
@@ -71,7 +67,6 @@ from terratheme.core.gpu import (  # noqa: E402
     GpuRenderOptions,
     GroundOptions,
     GroundView,
-    UniformCells,
 )
 from terratheme.core.packing import pack  # noqa: E402
 from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells  # noqa: E402
@@ -187,8 +182,6 @@ def contenders(grid, themes, gpu: GpuRenderer, blend: BlendMode) -> dict:
     """name -> callable(region) for one blend mode."""
     cpu_opts = RenderOptions(blend=blend)
     gpu_opts = GpuRenderOptions(blend=blend)
-    shader = GpuRenderOptions(blend=blend, uniform_cells=UniformCells.SHADER)
-    alone = GpuRenderOptions(blend=blend, uniform_cells=UniformCells.BLEND)
     buf_cpu = np.empty((H, W, 3), np.uint8)
     buf_gpu = np.empty((H, W, 3), np.uint8)
     layer = pack(grid)
@@ -203,9 +196,7 @@ def contenders(grid, themes, gpu: GpuRenderer, blend: BlendMode) -> dict:
                                                       options=cpu_opts, out=buf_cpu),
         "gpu frame": frame,
         "gpu to numpy": lambda r: gpu.render(grid, (N, N), r, options=gpu_opts, out=buf_gpu),
-        "gpu frame, uniform cells by copy shader": lambda r: frame(r, shader),
-        "gpu blend shader alone": lambda r: frame(r, alone),
-        "gpu frame from the packed layer": lambda r: frame(r, alone, layer),
+        "gpu frame from the packed layer": lambda r: frame(r, gpu_opts, layer),
     }
 
 
@@ -245,13 +236,11 @@ def accuracy(grid, themes, gpu: GpuRenderer, regions: list) -> dict:
         worst, differ, total, dense_worst = 0, 0, 0, 0
         for r in regions:
             cpu = render_cells(grid, themes, (N, N), r, options=RenderOptions(blend=blend))
-            for fill in (UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND):
-                got = gpu.render(grid, (N, N), r, options=GpuRenderOptions(
-                    blend=blend, uniform_cells=fill))
-                d = np.abs(cpu.astype(np.int16) - got)
-                worst = max(worst, int(d.max()))
-                differ += int((d > 0).sum())
-                total += d.size
+            got = gpu.render(grid, (N, N), r, options=GpuRenderOptions(blend=blend))
+            d = np.abs(cpu.astype(np.int16) - got)
+            worst = max(worst, int(d.max()))
+            differ += int((d > 0).sum())
+            total += d.size
             packed = gpu.render(pack(grid), (N, N), r, options=GpuRenderOptions(blend=blend))
             dense_worst = max(dense_worst, int(np.abs(packed.astype(np.int16) - got).max()))
         out[blend.value] = {"max_abs_diff": worst, "share_of_values_differing": differ / total,

@@ -7,8 +7,6 @@ which skips where no OpenGL 3.3 context can be made.
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from terratheme.core.gpu import GpuRenderer, UniformCells
 
 
 def random_themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:
@@ -19,12 +17,3 @@ def random_themes(seed: int, sizes: list[tuple[int, int]]) -> list[np.ndarray]:
 
 #: four themes whose sizes divide neither each other nor the textures rendered
 ODD_THEMES = random_themes(1, [(7, 5), (13, 17), (16, 16), (3, 11)])
-
-#: every way the exact path can fill uniform cells
-FILLS = [UniformCells.COPY, UniformCells.SHADER, UniformCells.BLEND]
-
-
-def skip_without_copy(renderer: GpuRenderer, fill: UniformCells) -> None:
-    """Skip the test where ``fill`` is COPY and this OpenGL driver cannot copy images."""
-    if fill is UniformCells.COPY and not renderer.can_copy:
-        pytest.skip("this OpenGL driver has no glCopyImageSubData")

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.gpu import GpuRenderOptions, PackedGrid, UniformCells
+from terratheme.core.gpu import GpuRenderOptions, PackedGrid
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.packing import pack
 from terratheme.core.packing.layout import W_GRID_BITS
@@ -170,8 +170,6 @@ def test_packed_grid_errors(renderer):
     layer = pack(grid)
     with pytest.raises(TerrathemeError, match="cell size"):
         renderer.render(layer)
-    with pytest.raises(TerrathemeError, match="blend shader"):
-        renderer.render(layer, (4, 4), options=GpuRenderOptions(uniform_cells=UniformCells.COPY))
     with pytest.raises(TerrathemeError, match="uses theme 7"):
         renderer.render(pack(np.full((3, 3), 7, np.uint8)), (2, 2))
     with pytest.raises(TerrathemeError, match="at least 2 x 2"):

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import pytest
-from terratheme.core.gpu.options import UniformCells
 from terratheme.core.gpu.plan import RenderMode, RenderPlan, tile_geometry
 from terratheme.core.gpu.style import Style
 
 
 def _plan(filtered: bool, region=(0, 0, 64, 64), out_size=(64, 64), tile=32) -> RenderPlan:
-    mode = RenderMode(Style(False, None, None), filtered, UniformCells.BLEND)
+    mode = RenderMode(Style(False, None, None), filtered)
     return RenderPlan(None, None, (4, 4), (16, 16), (64, 64), region, out_size, mode, tile)
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 import pytest
-from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
+from gpu_cases import ODD_THEMES, random_themes
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.app.cli import main
@@ -27,7 +27,6 @@ from terratheme.core.gpu import (
     GpuRenderOptions,
     GpuUnavailableError,
     Sampling,
-    UniformCells,
     create_context,
     gl_context,
     render_cells_gpu,
@@ -57,12 +56,6 @@ def even(gpu_renderer) -> GpuRenderer:
     return gpu_renderer(EVEN_THEMES)
 
 
-def _options(renderer: GpuRenderer, fill: UniformCells, **kwargs) -> GpuRenderOptions:
-    """Options with ``fill``, skipping where this driver cannot copy images."""
-    skip_without_copy(renderer, fill)
-    return GpuRenderOptions(uniform_cells=fill, **kwargs)
-
-
 def _assert_same(cpu: np.ndarray, gpu: np.ndarray, blend: BlendMode) -> None:
     assert gpu.shape == cpu.shape and gpu.dtype == np.uint8
     diff = np.abs(cpu.astype(np.int16) - gpu)
@@ -72,39 +65,37 @@ def _assert_same(cpu: np.ndarray, gpu: np.ndarray, blend: BlendMode) -> None:
         assert diff.max() <= 1
 
 
-@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
 @pytest.mark.parametrize("cell", [(4, 4), (5, 3), (1, 1), (1, 4), (7, 1), (3, 11), (16, 16)])
-def test_random_grids_equal_cpu(odd, cell, blend, fill):
+def test_random_grids_equal_cpu(odd, cell, blend):
     rng = np.random.default_rng(cell[0] * 31 + cell[1])
     grid = rng.integers(0, 4, (9, 12)).astype(np.uint8)
     grid[:4, :5] = 2  # a uniform block too
     cpu = render_cells(grid, ODD_THEMES, cell, options=RenderOptions(blend=blend))
-    gpu = odd.render(grid, cell, options=_options(odd, fill, blend=blend))
+    gpu = odd.render(grid, cell, options=GpuRenderOptions(blend=blend))
     _assert_same(cpu, gpu, blend)
 
 
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 9), m=st.integers(1, 9),
-       k=st.integers(1, 4), hist=st.booleans(), fill=st.sampled_from(FILLS))
-def test_random_grids_equal_cpu_hypothesis(odd, seed, n, m, k, hist, fill):
+       k=st.integers(1, 4), hist=st.booleans())
+def test_random_grids_equal_cpu_hypothesis(odd, seed, n, m, k, hist):
     rng = np.random.default_rng(seed)
     grid = rng.integers(0, k, (int(rng.integers(2, 8)), int(rng.integers(2, 8))))
     blend = HISTOGRAM if hist else LINEAR
     cpu = render_cells(grid, ODD_THEMES, (n, m), options=RenderOptions(blend=blend))
-    _assert_same(cpu, odd.render(grid, (n, m), options=_options(odd, fill, blend=blend)), blend)
+    _assert_same(cpu, odd.render(grid, (n, m), options=GpuRenderOptions(blend=blend)), blend)
 
 
-@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
-def test_themes_of_one_size_wrap_exactly_far_out(even, blend, fill):
+def test_themes_of_one_size_wrap_exactly_far_out(even, blend):
     # One theme size: the shaders wrap with REPEAT, coordinates kept small per tile.
     rng = np.random.default_rng(11)
     grid = rng.integers(0, 3, (4, 8381)).astype(np.uint8)
     grid[:, 8370:8376] = 1
     region = (8_375_000 - 37, 5, 70, 40)  # near the largest coordinate, 2^23
     cpu = render_cells(grid, EVEN_THEMES, (1000, 16), region, options=RenderOptions(blend=blend))
-    gpu = even.render(grid, (1000, 16), region, options=_options(even, fill, blend=blend))
+    gpu = even.render(grid, (1000, 16), region, options=GpuRenderOptions(blend=blend))
     _assert_same(cpu, gpu, blend)
 
 
@@ -135,14 +126,13 @@ def test_thin_river_saddles_stay_connected(odd):
     _assert_same(cpu, odd.render(grid, (8, 8)), LINEAR)
 
 
-@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
-def test_regions_equal_the_cpu_region(odd, blend, fill):
+def test_regions_equal_the_cpu_region(odd, blend):
     rng = np.random.default_rng(7)
     grid = rng.integers(0, 4, (14, 17)).astype(np.uint8)
     grid[3:11, 2:12] = 3  # long uniform runs: copies of several theme periods
     cell = (6, 5)
-    options = _options(odd, fill, blend=blend)
+    options = GpuRenderOptions(blend=blend)
     full = odd.render(grid, cell, options=options)
     for _ in range(6):
         w, h = int(rng.integers(1, 60)), int(rng.integers(1, 40))
@@ -153,15 +143,14 @@ def test_regions_equal_the_cpu_region(odd, blend, fill):
         assert np.array_equal(gpu, full[y : y + h, x : x + w])
 
 
-@pytest.mark.parametrize("fill", FILLS)
 @pytest.mark.parametrize("blend", [LINEAR, HISTOGRAM])
-def test_tiles_change_nothing(odd, blend, fill):
+def test_tiles_change_nothing(odd, blend):
     rng = np.random.default_rng(3)
     grid = rng.integers(0, 4, (10, 10)).astype(np.uint8)
     grid[2:7, 2:8] = 1
     ref = render_cells(grid, ODD_THEMES, (7, 6), options=RenderOptions(blend=blend))
     tiled = odd.render(grid, (7, 6), (3, 2, 50, 41),
-                       options=_options(odd, fill, blend=blend, tile=9))
+                       options=GpuRenderOptions(blend=blend, tile=9))
     _assert_same(ref[2:43, 3:53], tiled, blend)
 
 
@@ -249,10 +238,6 @@ def test_bad_inputs_are_refused_before_work(odd):
         odd.render(grid, (4, 4), options=GpuRenderOptions(tile=0))
     with pytest.raises(TerrathemeError, match="cell size"):
         odd.render(grid, (0, 4))
-    if odd.can_copy:
-        with pytest.raises(TerrathemeError, match="no colour map"):
-            odd.render(grid, (4, 4), colour_map=ColourMap(np.full((2, 2, 3), 128, np.uint8), 4),
-                       options=GpuRenderOptions(uniform_cells=UniformCells.COPY))
     with pytest.raises(TerrathemeError, match="no themes"):
         GpuRenderer([])
 

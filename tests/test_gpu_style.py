@@ -15,12 +15,12 @@ import cv2
 import moderngl
 import numpy as np
 import pytest
-from gpu_cases import FILLS, ODD_THEMES, random_themes, skip_without_copy
+from gpu_cases import ODD_THEMES, random_themes
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.app.cli import main
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.gpu import GpuRenderer, GpuRenderOptions, Sampling, UniformCells
+from terratheme.core.gpu import GpuRenderer, GpuRenderOptions, Sampling
 from terratheme.core.gpu.programs import set_uniform
 from terratheme.core.gpu.shaders import SHADER_DIR
 from terratheme.core.io.images import read_image, write_image
@@ -44,10 +44,8 @@ def _colour_map(rng, texture_size: tuple[int, int], scale: int) -> ColourMap:
     return ColourMap(rng.integers(0, 256, (mh, mw, 3), dtype=np.uint8), scale)
 
 
-def _gpu(renderer, grid, cell, region=None, *, boundary=None, colour_map=None,
-         fill=UniformCells.AUTO, **kwargs):
-    skip_without_copy(renderer, fill)
-    options = GpuRenderOptions(boundary=boundary, uniform_cells=fill, **kwargs)
+def _gpu(renderer, grid, cell, region=None, *, boundary=None, colour_map=None, **kwargs):
+    options = GpuRenderOptions(boundary=boundary, **kwargs)
     return renderer.render(grid, cell, region, options=options, colour_map=colour_map)
 
 
@@ -62,21 +60,16 @@ def _assert_equal(cpu: np.ndarray, gpu: np.ndarray) -> None:
     assert diff.max() == 0, f"{(diff > 0).sum()} values differ, by up to {diff.max()}"
 
 
-#: (colour map scale, uniform-cell fill): image copies cannot multiply by a colour map
-STYLES = [(None, fill) for fill in FILLS] + [
-    (scale, fill) for scale in (1, 3, 8) for fill in (UniformCells.SHADER, UniformCells.BLEND)]
-
-
-@pytest.mark.parametrize("scale, fill", STYLES)
+@pytest.mark.parametrize("scale", [None, 1, 3, 8])
 @pytest.mark.parametrize("cell", [(4, 4), (5, 3), (1, 1), (1, 4), (7, 1), (3, 11), (16, 16)])
-def test_shaped_borders_and_colour_map_equal_cpu(odd, cell, scale, fill):
+def test_shaped_borders_and_colour_map_equal_cpu(odd, cell, scale):
     rng = np.random.default_rng(cell[0] * 31 + cell[1])
     grid = rng.integers(0, 4, (9, 12)).astype(np.uint8)
     grid[:4, :5] = 2  # a uniform block too
     size = (11 * cell[0], 8 * cell[1])
     cmap = None if scale is None else _colour_map(rng, size, scale)
     cpu = _cpu(grid, cell, boundary=SHAPED, colour_map=cmap)
-    _assert_equal(cpu, _gpu(odd, grid, cell, boundary=SHAPED, colour_map=cmap, fill=fill))
+    _assert_equal(cpu, _gpu(odd, grid, cell, boundary=SHAPED, colour_map=cmap))
 
 
 @pytest.mark.parametrize("scale", [1, 2, 5])
@@ -85,19 +78,16 @@ def test_colour_map_alone_equals_cpu(odd, scale):
     rng = np.random.default_rng(scale)
     grid = rng.integers(0, 4, (7, 10)).astype(np.uint8)
     cmap = _colour_map(rng, (9 * 7, 6 * 5), scale)
-    for fill in (UniformCells.SHADER, UniformCells.BLEND):
-        _assert_equal(_cpu(grid, (7, 5), colour_map=cmap),
-                      _gpu(odd, grid, (7, 5), colour_map=cmap, fill=fill))
+    _assert_equal(_cpu(grid, (7, 5), colour_map=cmap), _gpu(odd, grid, (7, 5), colour_map=cmap))
 
 
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 9), m=st.integers(1, 9),
        k=st.integers(2, 4), width=st.floats(0.0, 12.0), noise=st.integers(0, 255),
        height=st.integers(0, 255), features=st.floats(0.05, 8.0),
-       boundary_seed=st.integers(0, 2**31 - 1), scale=st.sampled_from([None, 1, 2, 3, 7]),
-       fill=st.sampled_from([UniformCells.SHADER, UniformCells.BLEND]))
+       boundary_seed=st.integers(0, 2**31 - 1), scale=st.sampled_from([None, 1, 2, 3, 7]))
 def test_random_styles_equal_cpu_hypothesis(odd, seed, n, m, k, width, noise, height, features,
-                                            boundary_seed, scale, fill):
+                                            boundary_seed, scale):
     rng = np.random.default_rng(seed)
     grid = rng.integers(0, k, (int(rng.integers(2, 8)), int(rng.integers(2, 8))))
     size = ((grid.shape[1] - 1) * n, (grid.shape[0] - 1) * m)
@@ -105,7 +95,7 @@ def test_random_styles_equal_cpu_hypothesis(odd, seed, n, m, k, width, noise, he
                                seed=boundary_seed)
     cmap = None if scale is None else _colour_map(rng, size, scale)
     _assert_equal(_cpu(grid, (n, m), boundary=boundary, colour_map=cmap),
-                  _gpu(odd, grid, (n, m), boundary=boundary, colour_map=cmap, fill=fill))
+                  _gpu(odd, grid, (n, m), boundary=boundary, colour_map=cmap))
 
 
 def test_regions_and_tiles_equal_the_cpu_region(odd):

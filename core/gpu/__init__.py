@@ -5,8 +5,7 @@ where none can be made), ``shaders`` (the GLSL files of ``shaders/``, with
 defines and includes), ``programs`` (compiled variants), ``pipeline`` (the
 programs, textures and buffers a renderer reuses between frames),
 ``textures`` (themes, Gaussianised themes, inverse tables, colour map as
-textures), ``cover`` (rectangles of uniform and blended cells),
-``copy_image`` (uniform cells as image copies), ``options``
+textures), ``options``
 (sampling path, blend, tiles), ``style`` (a project's blend, shaped borders
 and colour map, checked against the shaders' integer ranges), ``plan`` (what a
 render draws and each tile's geometry, no GPU), ``renderer``
@@ -28,7 +27,6 @@ from terratheme.core.gpu.options import (
     GpuRenderOptions,
     GroundOptions,
     Sampling,
-    UniformCells,
 )
 from terratheme.core.gpu.packed import PackedGrid
 from terratheme.core.gpu.renderer import GpuRenderer, render_cells_gpu
@@ -47,7 +45,6 @@ __all__ = [
     "GroundView",
     "PackedGrid",
     "Sampling",
-    "UniformCells",
     "clip_matrix",
     "create_context",
     "gl_context",

@@ -25,20 +25,6 @@ class Sampling(Enum):
     FILTERED = "filtered"
 
 
-class UniformCells(Enum):
-    """How the exact path fills the cells whose four corners carry one theme (step 1)."""
-
-    #: ``COPY`` where the driver has it and no colour map applies, else ``SHADER``
-    AUTO = "auto"
-    #: image copies from pre-tiled theme textures (glCopyImageSubData, OpenGL 4.3),
-    #: as the CPU renderer copies theme rows: a memcpy on Mesa's llvmpipe
-    COPY = "copy"
-    #: rectangles of uniform cells drawn with ``tt_copy.frag.glsl``
-    SHADER = "shader"
-    #: no special case: the blend shader draws every pixel, as an engine using it alone
-    BLEND = "blend"
-
-
 @dataclass(frozen=True)
 class GpuRenderOptions:
     """Options of :meth:`GpuRenderer.render`.
@@ -57,9 +43,6 @@ class GpuRenderOptions:
         difference at scale 1 against 0.03 with it off.)
     tile : int
         Largest framebuffer side in pixels; bigger outputs are rendered tile by tile.
-    uniform_cells : UniformCells
-        How the exact path fills runs of uniform cells (the filtered path
-        blends every pixel).
     boundary : BoundaryOptions or None
         Borders shaped by the themes' content and noise
         (:mod:`core.render.boundary`, linear blend only); None: the paper's ramp.
@@ -73,7 +56,6 @@ class GpuRenderOptions:
     sampling: Sampling = Sampling.AUTO
     max_anisotropy: float = 1.0
     tile: int = 4096
-    uniform_cells: UniformCells = UniformCells.AUTO
     boundary: BoundaryOptions | None = None
     max_supersample: int = 16
 

@@ -83,7 +83,7 @@ class PackedGrid:
         self.texture = ctx.texture((row, rows), 1, words.tobytes(), dtype="u4")
         self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         # One rectangle over the whole target, drawn by every pass.
-        quad = rect_vertices(np.array([[0, 0, 1, 1]]), np.array([-1]), np.zeros((1, 4)))
+        quad = rect_vertices(np.array([[0, 0, 1, 1]]))
         self._quad = ctx.buffer(quad.tobytes())
         self._programs: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._targets: dict[str, tuple[moderngl.Texture, moderngl.Framebuffer]] = {}

@@ -14,7 +14,7 @@ import moderngl
 import numpy as np
 from terratheme.core.gpu.programs import UNITS, Variant, compile_program, set_uniform
 
-#: one vertex of a drawn rectangle: texel-edge position and the copy shader's theme coordinate
+#: one vertex of a drawn rectangle: texel-edge position and a texture coordinate
 VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])
 
 
@@ -22,34 +22,22 @@ VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])
 _CORNERS = np.array([(0, 1), (2, 1), (0, 3), (0, 3), (2, 1), (2, 3)])
 
 
-def rect_vertices(edges: np.ndarray, themes: np.ndarray, sizes: np.ndarray) -> np.ndarray:
-    """The vertices of rectangles: two triangles each, with the copy shader's theme coordinate.
+def rect_vertices(edges: np.ndarray) -> np.ndarray:
+    """The vertices of rectangles: two triangles each.
 
     Parameters
     ----------
     edges : (R, 4) float ndarray
-        ``x0, y0, x1, y1`` in texel edges (whole numbers for rectangles of cells).
-    themes : (R,) int ndarray
-        Theme of each rectangle, negative for blended ones (their ``uv`` is 0).
-    sizes : (K, 4) float ndarray
-        ``w, h, 1/w, 1/h`` of every theme.
+        ``x0, y0, x1, y1`` in texel edges.
 
     Returns
     -------
     vertices : (6R,) :data:`VERTEX` ndarray
-        ``uv`` counts theme periods from the rectangle's corner reduced to its
-        first period, so it stays small (exact) however far the rectangle lies.
+        ``uv`` is 0 (the packed layer's quads use it).
     """
     edges = np.asarray(edges, dtype=np.float64)
     out = np.zeros(6 * len(edges), VERTEX)
-    corner = edges[:, _CORNERS]  # (R, 6, 2)
-    out["edge"] = corner.reshape(-1, 2)
-    uniform = themes >= 0
-    if uniform.any():
-        size = sizes[themes[uniform], :2].astype(np.float64)[:, None, :]
-        origin = edges[uniform, None, :2]
-        uv = (corner[uniform] - origin + np.mod(origin, size)) / size
-        out["uv"].reshape(len(edges), 6, 2)[uniform] = uv
+    out["edge"] = edges[:, _CORNERS].reshape(-1, 2)
     return out
 
 

@@ -10,18 +10,16 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from terratheme.core.gpu.options import UniformCells
 from terratheme.core.gpu.packed import PackedGrid
 from terratheme.core.gpu.programs import Variant
 from terratheme.core.gpu.style import Style
 
 
 class RenderMode(NamedTuple):
-    """The style of a render, its sampling path and how its uniform cells are filled."""
+    """The style of a render and its sampling path."""
 
     style: Style
     filtered: bool
-    uniform_cells: UniformCells
 
     def variant(self, kind: str, lut_size: int) -> Variant:
         """The program of ``kind`` drawing this mode."""

@@ -1,9 +1,8 @@
 """The shader programs of the GPU renderer, compiled once per context and variant.
 
 A :class:`Variant` names the program kind (``blend``: ``tt_terrain.frag.glsl``,
-the blend rule per pixel; ``copy``: ``tt_copy.frag.glsl``, uniform cells;
-``ground`` and ``ground_mesh``: ``tt_ground.frag.glsl``, the textured ground
-plane of a perspective view, flat or displaced by a height map; ``present``:
+the blend rule per pixel; ``ground`` and ``ground_mesh``: ``tt_ground.frag.glsl``,
+the textured ground plane of a perspective view, flat or displaced by a height map; ``present``:
 ``tt_present.frag.glsl``, a reduced frame stretched over its target; ``unpack``,
 ``lookup``, ``split`` and ``split_main``: a packed layer read on the GPU,
 ``core.gpu.packed``) and the
@@ -24,12 +23,11 @@ from terratheme.core.gpu.shaders import shader_source
 
 #: texture unit of every sampler uniform (the renderer binds its textures there)
 UNITS = {"tt_grid": 0, "tt_splits": 1, "tt_themes": 2, "tt_gauss": 3, "tt_inverse_lut": 4,
-         "tt_colour_map": 5, "tt_theme": 6, "tt_height": 7, "tt_frame": 8,
+         "tt_colour_map": 5, "tt_height": 7, "tt_frame": 8,
          "tt_base": 9, "tt_packed": 10, "tt_points": 11}
 #: (vertex shader, fragment shader, extra defines) of each program kind
 SOURCES = {
     "blend": ("tt_rect.vert.glsl", "tt_terrain.frag.glsl", {}),
-    "copy": ("tt_rect.vert.glsl", "tt_copy.frag.glsl", {}),
     "ground": ("tt_ground.vert.glsl", "tt_ground.frag.glsl", {"TT_GROUND_MESH": 0}),
     "ground_mesh": ("tt_ground.vert.glsl", "tt_ground.frag.glsl", {"TT_GROUND_MESH": 1}),
     "present": ("tt_ground.vert.glsl", "tt_present.frag.glsl", {"TT_GROUND_MESH": 0}),

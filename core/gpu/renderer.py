@@ -7,9 +7,8 @@
 * ``Sampling.EXACT`` (scale 1): ``texelFetch`` (or ``REPEAT`` when every
   theme has one size) with exact integer weights rounded as the CPU does, so
   the render equals the CPU render (within one level for the
-  histogram-preserving blend, whose sums run in float32 here). Runs of
-  uniform cells are image copies (or drawn by a copy shader); blended cells
-  are drawn by the blend shader (``core.gpu.cover``, ``UniformCells``).
+  histogram-preserving blend, whose sums run in float32 here). The blend
+  shader draws every pixel, as an engine using it alone would.
 * ``Sampling.FILTERED`` (any scale; ``AUTO`` picks it below scale 1):
   ``textureGrad`` with mipmaps and anisotropic filtering, weights averaged
   over ``S x S`` sub-samples per pixel; the fly-over's path.
@@ -26,13 +25,10 @@ import moderngl
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.gpu.context import gl_context
-from terratheme.core.gpu.copy_image import copy_image_function, copy_into, copy_pieces
-from terratheme.core.gpu.cover import cell_rectangles
-from terratheme.core.gpu.options import GpuRenderOptions, Sampling, UniformCells
+from terratheme.core.gpu.options import GpuRenderOptions, Sampling
 from terratheme.core.gpu.packed import PackedGrid, check_grid_layer
 from terratheme.core.gpu.pipeline import Pipeline, rect_vertices
 from terratheme.core.gpu.plan import RenderMode, RenderPlan, tile_geometry
-from terratheme.core.gpu.programs import UNITS
 from terratheme.core.gpu.style import StyleTextures, gpu_style
 from terratheme.core.gpu.textures import ThemeTextures
 from terratheme.core.model.colour_map import ColourMap
@@ -77,15 +73,9 @@ class GpuRenderer:
         self.ctx = context if context is not None else gl_context()
         self.themes = ThemeTextures(self.ctx, textures)
         self.pipeline = Pipeline(self.ctx, len(textures), self.themes.one_size)
-        self._copy = copy_image_function(self.ctx)
         self._max_viewport = min(self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
         self.style = StyleTextures(self.ctx, self.themes)
         self._packed: PackedGrid | None = None
-
-    @property
-    def can_copy(self) -> bool:
-        """True when uniform cells can be image copies (``UniformCells.COPY``)."""
-        return self._copy is not None and self.themes.tiles_fit()
 
     def render(
         self,
@@ -106,7 +96,7 @@ class GpuRenderer:
         grid : (gh+1, gw+1) integer array-like, IndexGrid or PackedLayer
             Theme index at every grid vertex (row 0 at the top). A packed index
             layer of ``(gw+1) x (gh+1)`` texels stays packed: the shaders read it
-            (``core.gpu.packed``; uniform cells are then drawn by the blend shader).
+            (``core.gpu.packed``).
         cell : (N, M)
             Texel columns and rows per cell (default: the IndexGrid's; required
             with an array or a PackedLayer).
@@ -199,14 +189,7 @@ class GpuRenderer:
         if sampling is Sampling.EXACT and float(scale) != 1.0:
             raise TerrathemeError(f"exact sampling renders at scale 1 only, got scale {scale}")
         filtered = sampling is Sampling.FILTERED
-        fill = options.uniform_cells
-        if packed is not None and fill in (UniformCells.COPY, UniformCells.SHADER):
-            raise TerrathemeError(f"uniform cells of a packed grid are drawn by the blend "
-                                  f"shader (UniformCells.BLEND or AUTO), not {fill.name}")
-        if packed is not None:
-            fill = UniformCells.BLEND
-        fill = self._uniform_cells(fill, filtered, colour_map is not None)
-        mode = RenderMode(style, filtered, fill)
+        mode = RenderMode(style, filtered)
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
         tile = min(options.tile, self._max_viewport)
         return RenderPlan(indices, packed, (gw, gh), (n, m), size, region, out_size, mode, tile)
@@ -227,19 +210,6 @@ class GpuRenderer:
             self._packed = PackedGrid(self.ctx, grid)
         return None, self._packed, cell
 
-    def _uniform_cells(self, asked: UniformCells, filtered: bool, coloured: bool) -> UniformCells:
-        """How uniform cells are filled: ``asked`` with ``AUTO`` resolved, checked."""
-        if filtered:
-            return UniformCells.BLEND
-        copies = self.can_copy and not coloured
-        if asked is UniformCells.AUTO:
-            return UniformCells.COPY if copies else UniformCells.SHADER
-        if asked is UniformCells.COPY and not copies:
-            raise TerrathemeError(
-                "uniform cells as image copies need glCopyImageSubData (OpenGL 4.3), themes "
-                f"whose 2 x 2 tiling fits a {self.themes.max_size} texture and no colour map")
-        return asked
-
     def _start(self, plan: RenderPlan, options: GpuRenderOptions) -> None:
         """Bind the textures and make the framebuffer current."""
         self.style.bind(plan.mode.style, plan.mode.filtered, options.max_anisotropy)
@@ -250,7 +220,6 @@ class GpuRenderer:
     def _draw_tile(self, plan: RenderPlan, options: GpuRenderOptions, tx: int,
                    ty: int) -> tuple[int, int]:
         """Draw output pixels ``[tx, tx + tile) x [ty, ty + tile)``; returns their size."""
-        n, m = plan.cell
         (tw, th), view, (cx0, cy0, cx1, cy1) = tile_geometry(plan, tx, ty)
         x0, y0, w, h = view
         block_shape = (cy1 - cy0 + 1, cx1 - cx0 + 1)
@@ -264,21 +233,9 @@ class GpuRenderer:
             self.pipeline.index_texture("tt_grid", sub)
             self.pipeline.index_texture("tt_splits", splits)
         self.ctx.viewport = (0, 0, tw, th)
-        # Rectangles: runs of uniform cells by theme, then blended runs (or the whole tile).
-        if plan.mode.uniform_cells is UniformCells.BLEND:
-            edges, kinds = np.array([[x0, y0, x0 + w, y0 + h]]), np.array([-1])
-        else:
-            cells, kinds = cell_rectangles(sub, splits)
-            order = np.argsort(np.where(kinds < 0, 1 << 16, kinds), kind="stable")
-            cells, kinds = cells[order], kinds[order]
-            edges = (cells + (cx0, cy0, cx0, cy0)) * np.array([n, m, n, m])
-            if plan.mode.uniform_cells is UniformCells.COPY:
-                # Uniform runs as image copies; the blend shader draws the rest.
-                self._copy_runs(edges[kinds >= 0], kinds[kinds >= 0], view)
-                edges, kinds = edges[kinds < 0], kinds[kinds < 0]
-        if len(kinds):
-            values = self._uniforms(plan, options, view, (cx0, cy0), block_shape)
-            self._draw_rects(plan.mode, edges, kinds, values)
+        # One rectangle over the whole tile, every pixel drawn by the blend shader.
+        values = self._uniforms(plan, options, view, (cx0, cy0), block_shape)
+        self._draw_tile_rect(plan.mode, (x0, y0, x0 + w, y0 + h), values)
         return tw, th
 
     def _uniforms(self, plan: RenderPlan, options: GpuRenderOptions,
@@ -293,32 +250,14 @@ class GpuRenderer:
             **self.style.uniforms(plan.mode.style, plan.size, options.max_supersample),
         }
 
-    def _draw_rects(self, mode: RenderMode, edges: np.ndarray, kinds: np.ndarray,
-                    values: dict[str, object]) -> None:
-        """One draw per theme of uniform rectangles (copy shader), one for the blended ones."""
-        self.pipeline.upload_vertices(rect_vertices(edges, kinds, self.themes.sizes))
+    def _draw_tile_rect(self, mode: RenderMode, edges: tuple[float, float, float, float],
+                        values: dict[str, object]) -> None:
+        """Draw the blend shader over one rectangle of texel ``edges``."""
+        self.pipeline.upload_vertices(rect_vertices(np.array([edges])))
         lut_size = self.themes.inverse_lut()[1] if mode.style.histogram else 4096
-        starts = np.flatnonzero(np.diff(kinds, prepend=-2) != 0)
-        for first, last in zip(starts, [*starts[1:], len(kinds)], strict=True):
-            theme = int(kinds[first])
-            prog = self.pipeline.program(mode.variant("copy" if theme >= 0 else "blend",
-                                                      lut_size))
-            if theme >= 0:
-                self.themes.theme(theme).use(UNITS["tt_theme"])
-            self.pipeline.set_uniforms(prog, values)
-            self.pipeline.draw(prog, 6 * int(first), 6 * int(last - first))
-
-    def _copy_runs(self, edges: np.ndarray, kinds: np.ndarray,
-                   view: tuple[float, float, float, float]) -> None:
-        """Copy runs of uniform cells (texel ``edges`` of themes ``kinds``) into the framebuffer."""
-        x0, y0 = int(view[0]), int(view[1])
-        x1, y1 = x0 + int(view[2]), y0 + int(view[3])
-        clipped = np.column_stack([np.maximum(edges[:, 0], x0), np.maximum(edges[:, 1], y0),
-                                   np.minimum(edges[:, 2], x1), np.minimum(edges[:, 3], y1)])
-        keep = (clipped[:, 2] > clipped[:, 0]) & (clipped[:, 3] > clipped[:, 1])
-        pieces = copy_pieces(clipped[keep], kinds[keep], self.themes.sizes, (x0, y0))
-        sources = {int(k): self.themes.tiled(int(k)).glo for k in np.unique(kinds[keep])}
-        copy_into(self._copy, sources, self.pipeline.colour_target(), pieces)
+        prog = self.pipeline.program(mode.variant("blend", lut_size))
+        self.pipeline.set_uniforms(prog, values)
+        self.pipeline.draw(prog, 0, 6)
 
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays)."""

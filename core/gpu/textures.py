@@ -3,8 +3,7 @@
 * Exact path: one RGBA8 ``sampler2DArray``, theme ``k`` in texels
   ``[0, w_k) x [0, h_k)`` of layer ``k`` (layers padded to the largest
   theme), read with ``texelFetch`` and wrapped with integer arithmetic, so
-  themes of any sizes stay exact; and every theme alone as a 2D texture
-  whose hardware ``REPEAT`` wraps at its own size (the copy shader's).
+  themes of any sizes stay exact.
 * Filtered path: every theme resampled to the layer size, so the hardware's
   ``REPEAT`` wraps at the theme's own period, with mipmaps and anisotropic
   filtering. Themes already at the layer size (the usual case: every theme
@@ -123,29 +122,6 @@ class ThemeTextures:
             return self._array([_rgba(t) for t in self.textures], "f1", filtered, anisotropy)
 
         return self._cached(("colours", filtered, anisotropy if filtered else 0.0), make)
-
-    def theme(self, k: int) -> moderngl.Texture:
-        """Theme ``k`` alone as an RGBA8 2D texture, REPEAT, NEAREST (``tt_theme``)."""
-        def make():
-            t = self.textures[k]
-            tex = self.ctx.texture((t.shape[1], t.shape[0]), 4, _rgba(t).tobytes())
-            tex.repeat_x = tex.repeat_y = True
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            return tex
-
-        return self._cached(("theme", k), make)
-
-    def tiled(self, k: int) -> moderngl.Texture:
-        """Theme ``k`` tiled 2 x 2 as an RGBA8 2D texture: the image copies' source."""
-        def make():
-            t = np.tile(_rgba(self.textures[k]), (2, 2, 1))
-            return self.ctx.texture((t.shape[1], t.shape[0]), 4, t.tobytes())
-
-        return self._cached(("tiled", k), make)
-
-    def tiles_fit(self) -> bool:
-        """True when every theme tiled 2 x 2 fits the driver's largest texture."""
-        return 2 * max(max(t.shape[:2]) for t in self.textures) <= self.max_size
 
     def _gaussian_pack(self):
         return pack_themes(self.textures, 1, gaussian=True)

@@ -1,6 +1,6 @@
 // terratheme blend rule (Vyatkin & Romanyuk; docs/gpu.md), GLSL 3.30 core library.
 //
-// Included by tt_terrain.frag.glsl, tt_copy.frag.glsl and tt_ground.frag.glsl
+// Included by tt_terrain.frag.glsl and tt_ground.frag.glsl
 // (an `#include` line; core/gpu/shaders.py expands it, as do most engines'
 // preprocessors). It includes tt_integer.glsl, tt_border.glsl (TT_SHAPED 1)
 // and tt_colour.glsl (TT_COLOUR_MAP 1). Every name is prefixed tt_.
