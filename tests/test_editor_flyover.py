@@ -15,12 +15,13 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, Qt
-from terratheme.core.gpu import Flight, GpuUnavailableError, GroundView, gl_context
+from terratheme.core.gpu import GpuUnavailableError, GroundView, gl_context
 from terratheme.core.io.images import write_image
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.perspective import FilterOptions, Method, PreparedTexture
+from terratheme.core.perspective.flight import Flight
 from terratheme.core.render.project import render_project
 from terratheme.core.themes.library import Theme, ThemeLibrary
 

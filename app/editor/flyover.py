@@ -10,7 +10,7 @@ Two views draw the same :class:`core.gpu.GroundView`:
 
 :class:`FlightDriver` turns keys, mouse drags and the wheel into
 :class:`core.gpu.Flight` moves for either view (the flight logic itself is
-Qt-free, in ``core.gpu.flight``).
+Qt-free, in ``core.perspective.flight``).
 """
 
 from __future__ import annotations
@@ -26,8 +26,9 @@ from PySide6.QtGui import QPainter, QSurfaceFormat
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
 from PySide6.QtWidgets import QWidget
 from terratheme.app.editor.imaging import qimage_view
-from terratheme.core.gpu import Flight, FlightInput, GroundView
+from terratheme.core.gpu import GroundView
 from terratheme.core.perspective import Camera
+from terratheme.core.perspective.flight import Flight, FlightInput
 
 #: keys held -> (FlightInput field, value)
 KEYS = {

@@ -3,7 +3,7 @@
 The fly-over (``app.editor.flyover``) draws the open project in its own style
 with the GPU renderer's filtered path (mipmaps, anisotropic filtering) on
 Qt's OpenGL context, or headless with EGL where Qt has none; keys, mouse and
-wheel fly it (``core.gpu.flight``), a grey height map displaces it, and it
+wheel fly it (``core.perspective.flight``), a grey height map displaces it, and it
 follows edits live (a stroke re-uploads the cells it touched). One click (or
 C) shows the same camera through one of the CPU preview's filters
 (``core.perspective``), rendered on a worker thread from the project's render
@@ -36,9 +36,9 @@ from terratheme.app.editor.flyover import (
     qt_gl_unavailable,
 )
 from terratheme.app.editor.imaging import qimage_view
-from terratheme.core.gpu import Flight, GroundView
-from terratheme.core.gpu.flight import MAX_PITCH, MIN_PITCH
+from terratheme.core.gpu import GroundView
 from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
+from terratheme.core.perspective.flight import MAX_PITCH, MIN_PITCH, Flight
 
 MAX_TEXTURE = 2048
 FRAME = (640, 360)

@@ -11,8 +11,7 @@ and colour map, checked against the shaders' integer ranges), ``plan`` (what a
 render draws and each tile's geometry, no GPU), ``renderer``
 (:class:`GpuRenderer`, :func:`render_cells_gpu`: a full texture or any
 region, exact at scale 1, filtered with mipmaps and anisotropy below or on
-request), ``flight`` (the fly-over camera and its clip matrix, no GPU),
-``packed`` (:class:`PackedGrid`: a packed index layer's table read by the
+request), ``packed`` (:class:`PackedGrid`: a packed index layer's table read by the
 shaders, never unpacked; ``GpuRenderer.render`` takes a ``PackedLayer`` as
 its grid), ``ground_mesh`` (a height map as a mesh), ``base_map`` (the render itself,
 mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
@@ -20,7 +19,6 @@ mipmapped, for wide footprints), ``ground`` (:class:`GroundView`,
 """
 
 from terratheme.core.gpu.context import GpuUnavailableError, create_context, gl_context
-from terratheme.core.gpu.flight import Flight, FlightControls, FlightInput, clip_matrix
 from terratheme.core.gpu.ground import GroundView, render_perspective_gpu
 from terratheme.core.gpu.options import (
     Anisotropy,
@@ -35,9 +33,6 @@ from terratheme.core.gpu.shaders import SHADER_DIR, shader_source
 __all__ = [
     "SHADER_DIR",
     "Anisotropy",
-    "Flight",
-    "FlightControls",
-    "FlightInput",
     "GpuRenderOptions",
     "GpuRenderer",
     "GpuUnavailableError",
@@ -45,7 +40,6 @@ __all__ = [
     "GroundView",
     "PackedGrid",
     "Sampling",
-    "clip_matrix",
     "create_context",
     "gl_context",
     "render_cells_gpu",

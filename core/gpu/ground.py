@@ -8,7 +8,7 @@ each pixel's footprint (``tt_filtered.glsl``), the project's shaped borders
 and colour map. The flat plane is mapped per pixel by eq. 1 (the CPU
 preview's exact mapping, the texture repeating to the horizon); with a height
 map the texture's extent is a mesh displaced by it, drawn through
-:func:`core.gpu.flight.clip_matrix`.
+:func:`core.perspective.flight.clip_matrix`.
 
 Edits: :meth:`GroundView.mark_dirty` takes the changed vertex box of an edit
 (``core.edit.GridChange``); the next draw uploads those vertices and re-splits
@@ -27,7 +27,6 @@ from terratheme.core.edit.preview import dirty_cells
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.gpu.base_map import BaseMap
 from terratheme.core.gpu.context import gl_context
-from terratheme.core.gpu.flight import clip_matrix
 from terratheme.core.gpu.ground_mesh import HeightField
 from terratheme.core.gpu.options import (
     SOFTWARE_RENDERERS,
@@ -43,6 +42,7 @@ from terratheme.core.gpu.textures import ThemeTextures
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.perspective import Camera, PlaneMapping, camera_mapping, check_size
+from terratheme.core.perspective.flight import clip_matrix
 from terratheme.core.render.inputs import prepare_grid, theme_textures
 from terratheme.core.render.project import project_style
 from terratheme.core.render.renderer import RenderOptions

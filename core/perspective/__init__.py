@@ -18,9 +18,10 @@ reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``baselines``
 (supersampled box filter),
 ``texture`` (storage type, power-of-two resampling, mip pyramid),
 ``project_view`` (a project's texture at the level a frame needs),
-``render`` (entry points).
+``render`` (entry points), ``flight`` (the fly-over camera and its clip matrix).
 """
 
+from terratheme.core.perspective.flight import Flight, FlightControls, FlightInput, clip_matrix
 from terratheme.core.perspective.footprint import Footprint, footprint_parameters
 from terratheme.core.perspective.mapping import (
     MAX_FRAME_SIDE,
@@ -41,6 +42,9 @@ __all__ = [
     "MAX_FRAME_SIDE",
     "Camera",
     "FilterOptions",
+    "Flight",
+    "FlightControls",
+    "FlightInput",
     "Footprint",
     "Lookup",
     "Method",
@@ -49,6 +53,7 @@ __all__ = [
     "RenderResult",
     "camera_mapping",
     "check_size",
+    "clip_matrix",
     "family_key",
     "footprint_parameters",
     "render_perspective",

@@ -1,4 +1,4 @@
-"""The fly-over camera (core.gpu.flight): motion, limits and the clip matrix, without a GPU."""
+"""The fly-over camera (core.perspective.flight): motion, limits and clip matrix, no GPU."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.gpu.flight import (
+from terratheme.core.perspective import Camera, camera_mapping
+from terratheme.core.perspective.flight import (
     MAX_PITCH,
     MIN_CLEARANCE,
     MIN_PITCH,
@@ -19,7 +20,6 @@ from terratheme.core.gpu.flight import (
     camera_axes,
     clip_matrix,
 )
-from terratheme.core.perspective import Camera, camera_mapping
 
 
 def test_forward_follows_the_heading_and_right_is_clockwise():

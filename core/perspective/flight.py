@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.perspective import Camera
+from terratheme.core.perspective.mapping import Camera
 
 #: pitch limits of a flight, degrees below the horizontal (90 straight down)
 MIN_PITCH, MAX_PITCH = -45.0, 90.0
