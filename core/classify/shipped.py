@@ -11,8 +11,11 @@ by :meth:`core.classify.Classifier.save`) and ``models.json``, an index::
 the themes of those classes). :func:`resolve_model` turns what a user typed
 after ``--model`` into a file: an existing path is that file, a shipped
 model's name is its file in ``models/``; :func:`load_model` loads it with its
-class names (``Classifier.class_names``). ``models/train_aerial.py`` makes the
-``aerial`` model and its index entry.
+class names (``Classifier.class_names``). A ``.onnx`` file is a network
+(:class:`core.classify.network.NetworkClassifier`: ``scale`` and ``multiple``
+give its input size, ``scores`` its held-out figures); ``models/train_network.py``
+makes the ``aerial`` network and its index entry (``models/train_aerial.py``
+the forest file a user's own classes start from).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from terratheme.core.classify.network import NetworkClassifier
 from terratheme.core.classify.supervised import Classifier
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.archive import parse_json, read_bounded
@@ -54,6 +58,8 @@ class ShippedModel:
         The file's size in bytes, as the index says.
     sha256 : str or None
         The file's SHA-256 (hexadecimal), as the index says.
+    scale, multiple : float, int
+        A network's input: the photo resized by ``scale``, sides multiples of ``multiple``.
     """
 
     name: str
@@ -62,6 +68,8 @@ class ShippedModel:
     description: str = ""
     size: int | None = None
     sha256: str | None = None
+    scale: float = 1.0
+    multiple: int = 1
 
 
 def _index_entry(name: object, entry: object, folder: Path) -> ShippedModel:
@@ -99,7 +107,15 @@ def _index_entry(name: object, entry: object, folder: Path) -> ShippedModel:
         raise ValueError(f"model {name!r}: bytes must be 1..{MAX_MODEL_BYTES}")
     if digest is not None and not _SHA256.fullmatch(digest):
         raise ValueError(f"model {name!r}: sha256 must be 64 hexadecimal digits")
-    return ShippedModel(name, folder / file, names, entry.get("description", ""), size, digest)
+    scale, multiple = entry.get("scale", 1.0), entry.get("multiple", 1)
+    if not isinstance(scale, (int, float)) or isinstance(scale, bool) or not 0 < scale <= 1:
+        raise ValueError(f"model {name!r}: scale must be a number in (0, 1]")
+    if not isinstance(multiple, int) or isinstance(multiple, bool) or not 1 <= multiple <= 64:
+        raise ValueError(f"model {name!r}: multiple must be a whole number 1..64")
+    if not isinstance(entry.get("scores", {}), dict):
+        raise ValueError(f"model {name!r}: scores must be an object")
+    return ShippedModel(name, folder / file, names, entry.get("description", ""), size, digest,
+                        float(scale), multiple)
 
 
 def shipped_models(folder: str | os.PathLike = SHIPPED_MODELS_DIR) -> dict[str, ShippedModel]:
@@ -177,15 +193,22 @@ def _check_shipped_file(entry: ShippedModel) -> None:
 
 
 def load_model(name_or_path: str | os.PathLike,
-               folder: str | os.PathLike = SHIPPED_MODELS_DIR) -> Classifier:
+               folder: str | os.PathLike = SHIPPED_MODELS_DIR
+               ) -> Classifier | NetworkClassifier:
     """:meth:`Classifier.load` of :func:`resolve_model`, with a shipped model's class names.
+
+    A shipped ``.onnx`` entry is a :class:`NetworkClassifier` (same ``predict``,
+    ``classes``, ``class_names``).
 
     Raises
     ------
     TerrathemeError
-        As :func:`resolve_model` and :meth:`Classifier.load`.
+        As :func:`resolve_model`, :meth:`Classifier.load` and :class:`NetworkClassifier`.
     """
     path, names = resolve_model(name_or_path, folder)
+    if names is not None and path.suffix.lower() == ".onnx":
+        entry = shipped_models(folder)[str(name_or_path)]
+        return NetworkClassifier(path, sorted(names), entry.scale, entry.multiple, names)
     model = Classifier.load(path)
     if names and model.class_names is None:
         model.class_names = {k: names[k] for k in model.classes if k in names}
