@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from terratheme.core.classify import fit_unsupervised
+from terratheme.core.classify import UnsupervisedModel, fit_unsupervised
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
@@ -268,7 +268,7 @@ def convert_file_tiled(
     ----------
     path : path-like
         The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
-    model : core.classify.Classifier, core.classify.UnsupervisedModel or None
+    model : Classifier, NetworkClassifier, UnsupervisedModel (core.classify) or None
         Gives the class values (``model.classes``). None: unsupervised themes
         fitted on windows spread over the photo (:func:`fit_unsupervised_file`),
         the same themes in every tile.
@@ -327,7 +327,7 @@ def convert_file_tiled(
     elif themes != "auto":
         raise TerrathemeError("themes K is for unsupervised classification; a trained model "
                               "gives its own classes")
-    elif getattr(model.options.features, "position", False):
+    elif getattr(getattr(model.options, "features", None), "position", False):
         # Each tile would see its own positions, not the photo's.
         raise TerrathemeError("this classifier uses pixel positions (features.position): it "
                               "only classifies the whole photo it was trained on, not tiles")
@@ -342,7 +342,7 @@ def convert_file_tiled(
     win_result = model.predict(window)
 
     rgb, _ = prepare_photo(window)
-    unsupervised = not hasattr(model, "forest")
+    unsupervised = isinstance(model, UnsupervisedModel)
     if names and unsupervised:
         # Names are assigned to the unsupervised themes by appearance.
         spec, class_names = list(names), None
