@@ -10,9 +10,8 @@ import html
 import platform
 from pathlib import Path
 
-from PySide6.QtCore import QUrl, qVersion
-from PySide6.QtGui import QAction, QDesktopServices, QKeySequence
-from PySide6.QtWidgets import QMessageBox
+from PySide6.QtCore import qVersion
+from PySide6.QtGui import QKeySequence
 from terratheme.app.editor.tools import TOOL_HELP, Tool
 
 REPO = Path(__file__).resolve().parents[2]
@@ -79,36 +78,3 @@ def about_text() -> str:
             "tileable theme textures, edited by hand with a live preview.\n\n"
             f"Python {platform.python_version()}, PySide6 {PySide6.__version__}, "
             f"Qt {qVersion()}")
-
-
-class HelpMixin:
-    """For :class:`~app.editor.window.MainWindow`: the Help menu."""
-
-    def build_help_menu(self, menubar) -> None:
-        help_menu = menubar.addMenu("&Help")
-        keys = QAction("&Keys and mouse…", self)
-        keys.setShortcut(QKeySequence(QKeySequence.StandardKey.HelpContents))
-        keys.triggered.connect(self.show_keys_help)
-        docs = QAction("&Documentation…", self)
-        docs.triggered.connect(self.show_docs)
-        about = QAction("&About terratheme…", self)
-        about.triggered.connect(self.show_about)
-        for act in (keys, docs, about):
-            help_menu.addAction(act)
-        self.help_menu = help_menu
-
-    def show_keys_help(self) -> None:
-        box = QMessageBox(QMessageBox.Icon.NoIcon, "Keys and mouse — terratheme",
-                          keys_help_html(self), parent=self)
-        box.setStyleSheet("QLabel { min-width: 640px; }")
-        box.exec()
-
-    def show_docs(self) -> None:
-        """Open the README in the desktop's viewer, and say where the docs are."""
-        readme = DOCS[0]
-        if readme.exists():
-            QDesktopServices.openUrl(QUrl.fromLocalFile(str(readme)))
-        QMessageBox.information(self, "Documentation — terratheme", docs_text())
-
-    def show_about(self) -> None:
-        QMessageBox.about(self, "About terratheme", about_text())

@@ -1,6 +1,6 @@
 """Where the classifier is unsure, and the class prior kept between scribble rounds.
 
-The editor's "Show uncertainty" view (``app/editor/uncertainty_view.py``,
+The editor's "Show uncertainty" view (``app/editor/window.py``,
 the Qt side) tints the photo pixels whose confidence
 (``core.classify.Classification.confidence``: the winning class's vote share)
 is among the lowest ``UNCERTAIN_SHARE`` of the photo, after a ``FILTER_SIZE`` x
