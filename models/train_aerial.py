@@ -1,4 +1,4 @@
-"""Train the shipped ``aerial`` classifier on every CC0 Dubai photo, and index it.
+"""Train the shipped ``aerial-forest`` classifier on every CC0 Dubai photo, and index it.
 
 Run: ``.venv/bin/python models/train_aerial.py [--data DIR]`` (DIR defaults to
 ``../shared/data/dubai`` beside the repository: Humans in the Loop, "Semantic
@@ -34,7 +34,7 @@ from terratheme.core.classify.shipped import MODELS_INDEX  # noqa: E402
 from terratheme.core.io.atomic import write_bytes_atomic  # noqa: E402
 from terratheme.core.io.images import read_image  # noqa: E402
 
-NAME = "aerial"
+NAME = "aerial-forest"
 FILE = "aerial.model"
 CLASS_NAMES = {1: "building", 2: "land", 3: "road", 4: "vegetation", 5: "water"}
 IGNORE = (6, 7)
