@@ -11,21 +11,8 @@ from terratheme.core.classify.mixture import (
     VARIANCE_FLOOR,
     fit_diagonal_mixture,
     isotropic_variances,
-    log_joint,
     posterior_fn,
 )
-
-
-def test_log_joint_by_hand():
-    x = np.array([[1.0, 2.0]])
-    means = np.array([[0.0, 0.0], [1.0, 4.0]])
-    variances = np.array([[1.0, 4.0], [2.0, 2.0]])
-    weights = np.array([0.25, 0.75])
-    got = log_joint(x, means, weights, variances)
-    # log w - 0.5 * (log v1 + log v2) - 0.5 * ((x1 - m1)^2 / v1 + (x2 - m2)^2 / v2)
-    want0 = np.log(0.25) - 0.5 * np.log(4.0) - 0.5 * (1.0 + 1.0)
-    want1 = np.log(0.75) - 0.5 * np.log(4.0) - 0.5 * (0.0 + 2.0)
-    np.testing.assert_allclose(got, [[want0, want1]], rtol=1e-12)
 
 
 def test_isotropic_posterior_is_the_softmax_of_scaled_squared_distances():
