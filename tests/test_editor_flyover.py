@@ -135,6 +135,29 @@ def test_keys_mouse_and_wheel_fly_the_camera(tab, qtbot):
     assert tab.flight.pitch == pytest.approx(pitch + 10.0)
 
 
+def test_a_short_tap_moves_the_camera(tab, qtbot):
+    _needs_gpu(tab)
+    view, start = tab.view, tab.flight
+    qtbot.keyPress(view, Qt.Key.Key_W)
+    qtbot.keyRelease(view, Qt.Key.Key_W)  # released before the first tick
+    moved = np.hypot(tab.flight.x - start.x, tab.flight.y - start.y)
+    # at least one tick (16 ms) of W: a sixtieth of the camera height or more
+    assert moved >= 0.016 * start.height * 0.99
+    assert not tab.driver.held
+
+
+def test_c_switches_to_the_cpu_frame_and_back(tab, qtbot):
+    _needs_gpu(tab)
+    window = tab.window()
+    window.activateWindow()
+    qtbot.waitUntil(lambda: window.isActiveWindow(), timeout=5000)
+    tab.view.setFocus()
+    qtbot.keyClick(tab.view, Qt.Key.Key_C)
+    assert tab.compare.isChecked() and tab.stack.currentWidget() is tab.image
+    qtbot.keyClick(tab.image, Qt.Key.Key_C)
+    assert not tab.compare.isChecked() and tab.stack.currentWidget() is tab.view
+
+
 def test_a_brush_stroke_reuploads_only_its_cells(tab, qtbot):
     _needs_gpu(tab)
     tab.set_flight(Flight(80.0, 90.0, 40.0, yaw=0.0, pitch=60.0))

@@ -96,19 +96,18 @@ class FlightDriver(QObject):
         The flight the input asks for (the owner stores it and redraws).
     settled()
         The camera stopped (keys released, drag ended): time for a full-size frame.
-    compare()
-        C was pressed: show the CPU filter's frame.
     """
 
     moved = Signal(object)
     settled = Signal()
-    compare = Signal()
 
     def __init__(self, widget: QWidget, flight: Callable[[], Flight],
                  ground: Callable[[float, float], float]) -> None:
         super().__init__(widget)
         self._flight, self._ground = flight, ground
         self.held: dict[Qt.Key, tuple[str, float]] = {}
+        #: keys pressed since the last motion step
+        self._unstepped: set[Qt.Key] = set()
         self.fast = False
         self._drag: QPointF | None = None
         self._last = 0.0
@@ -135,6 +134,7 @@ class FlightDriver(QObject):
         now = time.perf_counter()
         step = min(0.1, now - self._last) if seconds is None else seconds
         self._last = now
+        self._unstepped.clear()
         held = self.held_input()
         if held.idle:
             self.timer.stop()
@@ -167,24 +167,27 @@ class FlightDriver(QObject):
             return True
         if kind == QEvent.Type.FocusOut:
             self.held.clear()
+            self._unstepped.clear()
         return False
 
     def _key(self, event, pressed: bool) -> bool:
         key = Qt.Key(event.key())
         self.fast = bool(event.modifiers() & Qt.KeyboardModifier.ShiftModifier)
-        if pressed and key == Qt.Key.Key_C and not event.isAutoRepeat():
-            self.compare.emit()
-            return True
         if key not in KEYS:
             return False
         if event.isAutoRepeat():
             return True
         if pressed:
             self.held[key] = KEYS[key]
+            self._unstepped.add(key)
             if not self.timer.isActive():
                 self._last = time.perf_counter()
                 self.timer.start()
         else:
+            if key in self._unstepped:
+                # A tap released before the first tick still moves, for the time it was
+                # held (at least one tick).
+                self.tick(max(TICK_MS / 1000, time.perf_counter() - self._last))
             self.held.pop(key, None)
         return True
 

@@ -13,7 +13,7 @@ C) shows the same camera through one of the CPU preview's filters
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QThread, QTimer, Signal
+from PySide6.QtCore import Qt, QThread, QTimer, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -88,6 +88,7 @@ class PerspectiveTab(QWidget):
         self._pending = False
         self._frame: np.ndarray | None = None
         self.image = QLabel("no CPU frame yet")
+        self.image.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.image.setMinimumSize(320, 180)
         self.image.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.gpu_info = QLabel("")
@@ -131,7 +132,6 @@ class PerspectiveTab(QWidget):
         self.driver.moved.connect(self.set_flight)
         self.driver.settled.connect(view.request_frame)
         view.moving = lambda: self.driver.moving
-        self.driver.compare.connect(lambda: self.compare.toggle())
         return view
 
     def _controls(self) -> QVBoxLayout:
@@ -311,10 +311,19 @@ class PerspectiveTab(QWidget):
         self.stack.setCurrentWidget(self.image if on and self.driver is not None
                                     else self.view if self.driver is not None else self.image)
         if on:
+            self.image.setFocus()
             self.request()
         elif self.driver is not None:
             self.view.setFocus()
             self.view.request_frame()
+
+    def keyPressEvent(self, event) -> None:
+        """C switches between the fly-over and the CPU filter's frame, from either view."""
+        if event.key() == Qt.Key.Key_C and not event.isAutoRepeat():
+            self.compare.toggle()
+            event.accept()
+            return
+        super().keyPressEvent(event)
 
     def refresh_texture(self) -> None:
         self._prepared = None
