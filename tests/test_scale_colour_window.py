@@ -98,22 +98,29 @@ def test_block_job_payload_is_set_by_the_tile_not_the_image():
     assert part_big * 100 < grid_big
 
 
-def test_block_job_equals_the_whole_grid_block_gain():
-    from terratheme.core.convert.colour_fit import _block_sums, _quantise
-
+@pytest.mark.parametrize("tile", [16, 32])
+def test_block_job_gives_each_block_the_photo_over_the_render(tile):
+    # Two flat themes of one colour: the render is (100, 80, 40) everywhere, whatever the
+    # grid, so each 16 x 16 block's gain is its photo colour over that, times 128.
     rng = np.random.default_rng(4)
-    grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
-    themes = _themes(rng)
-    options = RenderOptions(boundary=BoundaryOptions(), threads=1)
-    w, h = grid.texture_size
-    photo = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-    whole = render_cells(grid, themes, options=options)
-    job = BlockGainJob(themes, grid.cell, options, 16)
-    for win in tile_windows(w, h, 64):
-        pixels = photo[win.ry:win.ry1, win.rx:win.rx1]
-        want = _quantise(_block_sums(pixels, 16)
-                         / np.maximum(_block_sums(whole[win.y:win.y1, win.x:win.x1], 16), 1.0))
-        assert np.array_equal(job(win, pixels, grid_window(grid, win)), want)
+    grid = IndexGrid(rng.integers(0, 2, (3, 4)).astype(np.uint8), (16, 16))
+    flat = np.full((24, 20, 3), (100, 80, 40), np.uint8)
+    photo = np.empty((32, 48, 3), np.uint8)
+    colours = [[(150, 80, 20), (100, 40, 10), (255, 255, 255)],
+               [(0, 0, 0), (150, 80, 40), (25, 20, 10)]]
+    for i in range(2):
+        for j in range(3):
+            photo[16 * i:16 * i + 16, 16 * j:16 * j + 16] = colours[i][j]
+    photo[16:24, 16:32, 0] = 100   # block (1, 1): red half 100, half 200, mean 150
+    photo[24:32, 16:32, 0] = 200
+    want = np.array([[(192, 128, 64), (128, 64, 32), (255, 255, 255)],
+                     [(0, 0, 0), (192, 128, 128), (32, 32, 32)]], np.uint8)
+    job = BlockGainJob([flat, flat], grid.cell, RenderOptions(boundary=BoundaryOptions(),
+                                                             threads=1), 16)
+    for win in tile_windows(48, 32, tile):
+        got = job(win, photo[win.ry:win.ry1, win.rx:win.rx1], grid_window(grid, win))
+        np.testing.assert_array_equal(got, want[win.y // 16:win.y1 // 16,
+                                               win.x // 16:win.x1 // 16])
 
 
 def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
