@@ -127,3 +127,44 @@ def test_tile_by_tile_map_equals_the_whole_photo_block_gain(tmp_path):
     inside = tiled.colour_map.pixels[:6, :8].astype(int) - want[:6, :8]
     assert np.abs(inside).max() <= 1
     assert tiled.colour_map.pixels.shape == (7, 9, 3)
+
+
+def test_fit_quality_takes_the_highest_quality_that_fits():
+    from terratheme.core.convert.colour_fit import fit_quality
+    from terratheme.core.model.colour_map import ColourMap
+
+    rng = np.random.default_rng(2)
+    gain = rng.integers(60, 200, (40, 48, 3), dtype=np.uint8)
+    sizes = {q: ColourMap.encode(gain, 8, "webp", q).nbytes for q in range(1, 100)}
+    budget = sizes[50]
+    q, cmap = fit_quality(gain, 8, "webp", budget)
+    assert cmap.nbytes <= budget
+    # The next quality does not fit (bytes need not grow strictly with the quality).
+    assert q >= 50 and sizes[q] <= budget < sizes[q + 1]
+    assert fit_quality(gain, 8, "webp", 10) is None
+
+
+def test_budget_map_spends_no_more_than_its_budget_and_beats_a_coarse_map_on_structure():
+    from terratheme.core.fidelity import structure_similarity
+    from terratheme.core.render.colour_map import apply_colour_map
+
+    # A photo of 8-texel streets over a flat render: only a fine map can show them.
+    photo = np.full((128, 128, 3), 200, np.uint8)
+    photo[::32] = photo[1::32] = photo[2::32] = photo[3::32] = 60
+    render = np.full((128, 128, 3), 128, np.uint8)
+    opts = ColourMapOptions(budget=2.0, budget_scales=(32, 4))
+    fitted = choose_colour_map(photo, render, opts, reserved=100)
+    assert fitted.colour_map.nbytes <= opts.map_bytes(128 * 128, 100)
+    assert fitted.colour_map.scale == 4
+    shown = apply_colour_map(render.copy(), fitted.colour_map, (0, 0, 128, 128))
+    assert structure_similarity(shown, photo, 4) > 0.8
+
+
+def test_target_none_is_the_budget_and_bad_budgets_are_refused():
+    assert ColourMapOptions().target is None
+    assert ColourMapOptions(budget=0.08).map_bytes(1000, 2) == 8
+    assert ColourMapOptions(budget=0.08).map_bytes(1000, 50) == 0
+    with pytest.raises(TerrathemeError):
+        ColourMapOptions(budget=0.0)
+    with pytest.raises(TerrathemeError):
+        ColourMapOptions(budget_scales=())

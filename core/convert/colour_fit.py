@@ -18,6 +18,16 @@ restores them at a small cost in bytes:
 4. the scale: the coarsest of ``scales`` whose render keeps the colour error
    (:func:`core.fidelity.metrics.colour_error`, measured at a quarter of the
    resolution with the blur scaled alike) under ``target``, else the finest.
+
+Issue 34 (the default, ``target`` None): the terrain engines' split. The map
+carries everything above a few texels, roads and blocks where the photo has
+them, and the themes only the fine detail (:func:`core.themes.detail.detail_texture`).
+The area has a byte budget (``budget`` bits per photo pixel, grid included);
+for each of ``budget_scales`` the block gain is coded at the highest quality
+that fits (:func:`fit_quality`), and the scale whose render scores best
+(:func:`budget_score`: structure at 1/4 and 1/8 against the colour error) is
+kept: a fine map at a low quality carries more structure per byte than a
+coarse near-lossless one (docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -32,7 +42,7 @@ import cv2
 import numpy as np
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.fidelity.metrics import COLOUR_SIGMA, colour_error
+from terratheme.core.fidelity.metrics import COLOUR_SIGMA, colour_error, structure_similarity
 from terratheme.core.io.cluster import map_ordered
 from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
@@ -51,29 +61,46 @@ class ColourMapOptions:
 
     Attributes
     ----------
-    target : float
-        Colour error (mean CIEDE2000 after a sigma-8 blur) the map aims at.
+    target : float or None
+        A number: the colour error (mean CIEDE2000 after a sigma-8 blur) the
+        map aims at, at the coarsest of ``scales`` (near-lossless ``quality``).
+        None: the byte budget's search (module docstring).
     scales : tuple of int
-        Texels per map pixel tried, coarsest first.
+        Texels per map pixel tried with a ``target``, coarsest first.
     codec : str
         How the map is stored in the packed output (``core.io.codec``: jpegxl, webp, jpeg, png).
     quality : int
-        Codec quality 1..100.
+        Codec quality 1..100 with a ``target``.
     iterations : int
-        Refinements of the block gain against its own upsampling.
+        Refinements of the block gain against its own upsampling (with a ``target``).
+    budget : float
+        Without a target: bits per photo pixel the area (packed grid and map) may take.
+    budget_scales : tuple of int
+        Texels per map pixel tried for the budget.
     """
 
-    target: float = 2.0
+    target: float | None = None
     scales: tuple[int, ...] = (64, 32, 16, 8)
     codec: str = "jpegxl"
     quality: int = 99
     iterations: int = 2
+    budget: float = 0.04
+    budget_scales: tuple[int, ...] = (16, 12, 8, 6, 4)
 
     def __post_init__(self) -> None:
-        if not self.scales or any(int(s) < 1 for s in self.scales):
-            raise TerrathemeError(f"colour map scales must be positive, got {self.scales}")
-        if self.target <= 0:
+        for name in ("scales", "budget_scales"):
+            got = getattr(self, name)
+            if not got or any(int(s) < 1 for s in got):
+                raise TerrathemeError(f"colour map {name} must be positive, got {got}")
+        if self.target is not None and not self.target > 0:
             raise TerrathemeError(f"colour map target must be > 0, got {self.target}")
+        if not self.budget > 0:
+            raise TerrathemeError(f"colour map budget must be > 0 bits per pixel, "
+                                  f"got {self.budget}")
+
+    def map_bytes(self, pixels: int, reserved: int = 0) -> int:
+        """The map's bytes under the budget for ``pixels`` photo pixels, ``reserved`` spent."""
+        return max(0, int(self.budget * pixels / 8) - int(reserved))
 
 
 @dataclass(frozen=True)
@@ -157,8 +184,85 @@ def _quick_error(photo: np.ndarray, render: np.ndarray) -> float:
     return colour_error(small[1], small[0], sigma=COLOUR_SIGMA / f)
 
 
+def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
+                ) -> tuple[int, ColourMap] | None:
+    """The stored gain coded at the highest quality (1..99) whose bytes fit ``budget``.
+
+    Bisection on the quality (bytes grow with it). ``png`` has no quality: its
+    one size fits or not.
+
+    Parameters
+    ----------
+    gain : (mh, mw, 3) uint8 ndarray
+        Stored gains (``128 * gain``).
+    scale : int
+    codec : str
+    budget : int
+        Bytes the map may take.
+
+    Returns
+    -------
+    (quality, ColourMap) or None
+        None when not even quality 1 fits.
+    """
+    lo, hi, best = 1, 99, None
+    while lo <= hi:
+        q = (lo + hi) // 2
+        cmap = ColourMap.encode(gain, int(scale), codec, q)
+        if cmap.nbytes <= budget:
+            best, lo = (q, cmap), q + 1
+        else:
+            hi = q - 1
+        if codec == "png":
+            break
+    return best
+
+
+def budget_score(photo: np.ndarray, shown: np.ndarray) -> tuple[float, float, float, float]:
+    """How well a render with a map shows its photo: ``(score, s4, s8, dE8)``.
+
+    ``score`` = mean of the structure at 1/4 and 1/8
+    (:func:`core.fidelity.metrics.structure_similarity`) minus a tenth of the
+    colour error (dE8 at a quarter of the resolution): one point of dE8 is
+    worth 0.1 of structure. Higher is better.
+    """
+    s4 = structure_similarity(shown, photo, 4)
+    s8 = structure_similarity(shown, photo, 8)
+    err = _quick_error(photo, shown)
+    return (s4 + s8) / 2 - err / 10, s4, s8, err
+
+
+def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions,
+                reserved: int) -> FittedColourMap:
+    """The byte budget's search of :func:`choose_colour_map` (module docstring)."""
+    h, w = photo.shape[:2]
+    budget = options.map_bytes(h * w, reserved)
+    curve: list[tuple[int, int, float]] = []
+    best: tuple[float, ColourMap, float] | None = None
+    coarsest = max(int(s) for s in options.budget_scales)
+    for scale in sorted({int(s) for s in options.budget_scales}, reverse=True):
+        # The block ratio alone: its refinement sharpens the map, which then codes worse.
+        gain = _quantise(fit_gain(photo, render, scale, 0))
+        fitted = fit_quality(gain, scale, options.codec, budget)
+        if fitted is not None:
+            cmap = fitted[1]
+        elif scale != coarsest or best is not None:
+            continue
+        else:
+            # Not even the coarsest map fits: it at the lowest quality, over the budget.
+            cmap = ColourMap.encode(gain, scale, options.codec, 1)
+        shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
+        score, _, _, err = budget_score(photo, shown)
+        curve.append((scale, cmap.nbytes, err))
+        if best is None or score > best[0]:
+            best = (score, cmap, err)
+    _, cmap, err = best  # type: ignore[misc]  (the coarsest scale always gives a map)
+    return FittedColourMap(cmap, cmap.data, options.codec, err, tuple(curve))
+
+
 def choose_colour_map(photo: np.ndarray, render: np.ndarray,
-                      options: ColourMapOptions = ColourMapOptions()) -> FittedColourMap:
+                      options: ColourMapOptions = ColourMapOptions(), *,
+                      reserved: int = 0) -> FittedColourMap:
     """The colour map of a conversion (see the module docstring).
 
     Parameters
@@ -167,6 +271,8 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     render : (H, W, 3) uint8 ndarray
         The full texture rendered without a colour map, ``H >= h, W >= w``.
     options : ColourMapOptions
+    reserved : int
+        Bytes of the area's budget already spent (the packed grid).
 
     Returns
     -------
@@ -176,6 +282,8 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
     if render.shape[0] < h or render.shape[1] < w:
         raise TerrathemeError(f"render {render.shape[1]} x {render.shape[0]} is smaller than "
                               f"the {w} x {h} photo")
+    if options.target is None:
+        return _budget_map(photo, render, options, reserved)
     curve: list[tuple[int, int, float]] = []
     best: tuple[ColourMap, bytes, float] | None = None
     for scale in options.scales:
@@ -352,5 +460,30 @@ def colour_map_from_file(
     # One image of the codec, or tiles when the map is beyond its single-image limit, encoded
     # on the workers on a cluster.
     run = None if isinstance(scheduler, Scheduler) else ClusterTiles(scheduler)
-    cmap = ColourMap.encode(stored, int(scale), options.codec, options.quality, run=run)
+    quality = options.quality
+    if options.target is None:
+        quality = budget_quality(stored, int(scale), options.codec,
+                                 options.map_bytes(info.width * info.height))
+    cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run)
     return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())
+
+
+#: map pixels a side of the piece :func:`budget_quality` codes to choose the quality
+QUALITY_PIECE = 1024
+
+
+def budget_quality(stored: np.ndarray, scale: int, codec: str, budget: int) -> int:
+    """The quality at which a whole map of stored gains fits ``budget`` bytes (at least 1).
+
+    Chosen by :func:`fit_quality` on the map, or on its centre
+    :data:`QUALITY_PIECE`-pixel piece with the budget scaled by area when the
+    map is larger (a region's map), so the work is bounded.
+    """
+    mh, mw = stored.shape[:2]
+    piece, share = stored, 1.0
+    if max(mh, mw) > QUALITY_PIECE:
+        y, x = max(0, (mh - QUALITY_PIECE) // 2), max(0, (mw - QUALITY_PIECE) // 2)
+        piece = np.ascontiguousarray(stored[y:y + QUALITY_PIECE, x:x + QUALITY_PIECE])
+        share = piece.shape[0] * piece.shape[1] / (mh * mw)
+    fitted = fit_quality(piece, scale, codec, int(budget * share))
+    return 1 if fitted is None else fitted[0]

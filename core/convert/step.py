@@ -38,7 +38,9 @@ from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
+from terratheme.core.packing import pack
 from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_library
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -156,6 +158,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     names: Mapping[int, str] | None = None,
                     full_curve: bool = True,
                     keep_specks: bool = True,
+                    detail: float | None = DETAIL_SIGMA,
                     ) -> tuple[ThemeMapping, CellChoice | None]:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -164,6 +167,9 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     so :func:`choose_cell_size` runs on a second thread meanwhile (its kernels
     release the GIL); the result is the same as one after the other.
     ``full_curve`` and ``keep_specks`` as :func:`choose_cell_size`'s.
+    ``detail``: themes cut from the photo keep only their detail finer than
+    this sigma (:func:`core.themes.detail.detail_library`), the colour map
+    carrying the rest; None keeps them whole.
 
     Returns
     -------
@@ -176,14 +182,21 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                                 candidates=candidates, class_target=class_target,
                                 full_curve=full_curve, keep_specks=keep_specks)
 
-    if cell != "auto":
-        return assign_themes(rgb, labels, classes, themes, patch=patch, names=names), None
-    if not cuts_themes(themes):
+    def cut() -> ThemeMapping:
         mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
+        if detail is None or not cuts_themes(themes):
+            return mapping
+        return ThemeMapping(detail_library(mapping.library, detail), mapping.lut,
+                            mapping.classes)
+
+    if cell != "auto":
+        return cut(), None
+    if not cuts_themes(themes):
+        mapping = cut()
         return mapping, choose(mapping.lut)
     with ThreadPoolExecutor(max_workers=1) as pool:
         job = pool.submit(choose, photo_theme_lut(labels, classes))
-        mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
+        mapping = cut()
         return mapping, job.result()
 
 
@@ -269,6 +282,9 @@ def grid_and_colour(
     if colour_map is not None:
         # The colour map is fitted to the render it multiplies.
         plain = render_cells(grid, mapping.library.textures, options=render)
-        fitted = choose_colour_map(rgb, plain, colour_map)
+        # A byte budget covers the packed grid too.
+        reserved = len(pack(grid.indices, curve="auto").to_bytes()) if (
+            colour_map.target is None) else 0
+        fitted = choose_colour_map(rgb, plain, colour_map, reserved=reserved)
     return GridResult(grid, choice, score, fitted)
 
