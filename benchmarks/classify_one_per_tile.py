@@ -37,6 +37,7 @@ Mpx/s: prediction only (the photo's whole classification, adaptation included).
 
 from __future__ import annotations
 
+import tempfile
 import time
 from dataclasses import replace
 
@@ -44,7 +45,7 @@ import numpy as np
 from classify_eval import confusion, scores
 from classify_peers import labelled_pixels, timed_votes
 from terratheme.core.classify import FeatureOptions, SupervisedOptions, train_classifier
-from terratheme.core.classify.sample_cache import SampleCache
+from terratheme.core.io.disk_cache import DiskCache
 
 CLASSES = [1, 2, 3, 4, 5]
 IGNORE = (6, 7)
@@ -153,7 +154,8 @@ def one_per_tile(log):
     photos = {n: bench.load("dubai", n) for n in names}
     subset = {n for n in names if int(n[11:14]) <= 3}
     draws = training_draws(names)
-    cache = SampleCache()
+    folder = tempfile.TemporaryDirectory()      # removed when the run ends
+    cache = DiskCache(folder.name)
     rows, speed = {}, {}
     done: dict[SupervisedOptions, str] = {}
     for m, opts in methods().items():

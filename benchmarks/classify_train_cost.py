@@ -9,11 +9,10 @@ disturbed by the other sessions on the machine), medians and ranges:
   cold           reading the six training pairs (issue 17's set, full masks,
                  ``--ignore 6 7``) and the target from disk, training, classifying;
   warm_samples   the same with the training samples in a
-                 :class:`core.classify.sample_cache.SampleCache` folder filled by an
-                 earlier run (a fresh cache object, so entries come from disk): the
-                 forest is fitted again;
-  warm_model     the same with the fitted model in a
-                 :class:`core.classify.model_cache.ModelCache` in that folder too
+                 :class:`core.io.disk_cache.DiskCache` folder filled by an earlier run
+                 (a fresh cache object, so entries come from disk) but no model there:
+                 the forest is fitted again (its entry removed after each run);
+  warm_model     the same with the fitted model in the folder too
                  (fresh objects: the model comes from disk); ``warm_model_read``
                  is its reading of the seven photos, ``warm_model_train`` its
                  training (the pairs' keys and the model's file);
@@ -34,6 +33,7 @@ from __future__ import annotations
 
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -44,8 +44,7 @@ from pathlib import Path
 import numpy as np
 from classify_one_per_tile import IGNORE, ISSUE_SET
 from terratheme.core.classify import FeatureOptions, SupervisedOptions, train_classifier
-from terratheme.core.classify.model_cache import ModelCache
-from terratheme.core.classify.sample_cache import SampleCache
+from terratheme.core.io.disk_cache import DiskCache
 from terratheme.core.io.images import read_image, write_image
 
 REPEATS = 5
@@ -70,21 +69,20 @@ class _Clock:
         return time.perf_counter() - self.wall, time.process_time() - self.cpu
 
 
-def _run(bench, target_path, options, cache_dir=None, models=False):
+def _run(bench, target_path, options, cache_dir=None):
     """Read, train, classify -> ({"all", "read", "train": (wall s, CPU s), "model_hits"},
     model, target)."""
     clock = _Clock()
     pairs = _pairs(bench)
     target = read_image(target_path)
     read = clock.lap()
-    sample_cache = None if cache_dir is None else SampleCache(cache_dir)
-    model_cache = ModelCache(cache_dir) if models else None
-    model = train_classifier(pairs, options, cache=sample_cache, model_cache=model_cache)
+    cache = None if cache_dir is None else DiskCache(cache_dir)
+    model = train_classifier(pairs, options, cache=cache)
     trained = clock.lap()
     model.predict(target)
     times = {"all": clock.lap(), "read": read,
              "train": tuple(b - a for a, b in zip(read, trained, strict=True)),
-             "model_hits": model_cache.hits if models else 0}
+             "model_hits": cache.hits["model"] if cache is not None else 0}
     return times, model, target
 
 
@@ -121,10 +119,11 @@ def train_cost(log):
         target_path = Path(tmp) / "target.png"
         photo, _mask = bench.load("deepglobe", "6399_sat.jpg", TARGET_SIDE)
         write_image(target_path, photo)
-        cache_dir = Path(tmp) / "cache"
-        # Fills the sample and model caches (and loads every kernel).
-        _times, model, target = _run(bench, target_path, options, cache_dir, models=False)
-        _run(bench, target_path, options, cache_dir, models=True)
+        cache_dir, samples_dir = Path(tmp) / "cache", Path(tmp) / "samples"
+        # Fills the cache with samples and model (and loads every kernel).
+        _times, model, target = _run(bench, target_path, options, cache_dir)
+        shutil.copytree(cache_dir, samples_dir, ignore=shutil.ignore_patterns("*.model"))
+        folders = {"warm_samples": samples_dir, "warm_model": cache_dir}
         rounds: list[dict] = []
         for r in range(REPEATS):
             row = {}
@@ -135,9 +134,9 @@ def train_cost(log):
                     row["predict"] = clock.lap()
                     continue
                 opts = previous if path == "previous" else options
-                times, _m, _t = _run(bench, target_path, opts,
-                                     cache_dir if path.startswith("warm") else None,
-                                     models=path == "warm_model")
+                times, _m, _t = _run(bench, target_path, opts, folders.get(path))
+                for entry in samples_dir.glob("*.model"):
+                    entry.unlink()
                 if path == "warm_model" and times["model_hits"] != 1:
                     raise RuntimeError("the warm path did not take the model from the cache")
                 row[path] = times["all"]

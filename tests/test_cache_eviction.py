@@ -1,182 +1,161 @@
-"""The training caches' disk bound: least recently used entries go first, sizes as text."""
+"""The disk cache's bound (core/io/disk_cache.py): least recently used entries go first."""
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
-from terratheme.core.classify import ModelCache, SampleCache
-from terratheme.core.classify import cache_bound as cb
-from terratheme.core.classify import keyed_store as ks
-from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, evict, parse_size
-from terratheme.core.classify.keyed_store import KeyedStore
 from terratheme.core.errors import TerrathemeError
-
-NAMES = ("v",)
+from terratheme.core.io import disk_cache as dc
+from terratheme.core.io.disk_cache import DEFAULT_CACHE_BYTES, DiskCache
 
 
 def _key(n: int) -> str:
     return f"{n:064x}"
 
 
-def _parse(arrays):
-    return arrays["v"]
+def _value(n: int) -> dict[str, np.ndarray]:
+    return {"v": np.full(1000, n, np.uint8)}
 
 
-def _fetch(store: KeyedStore, n: int, calls: list | None = None) -> np.ndarray:
+def _get(cache: DiskCache, n: int, calls: list | None = None) -> np.ndarray:
+    """The value of key ``n`` (kind ``t``), computed (and noted in ``calls``) on a miss."""
     def compute():
         if calls is not None:
             calls.append(n)
-        return np.full(1000, n, np.uint8)
+        return _value(n)["v"]
 
-    return store.fetch(_key(n), NAMES, _parse, compute, lambda v: {"v": v})
+    return cache.fetch(_key(n), "t", lambda a: a["v"], compute, lambda v: {"v": v})
 
 
-def _fill(folder: Path, numbers) -> int:
+def _fill(folder: Path, numbers, kind: str = "t") -> int:
     """Entries for ``numbers``, oldest first (mtimes 100 s apart); the size of one."""
-    store = KeyedStore(folder, ".npz", 0, "test values")
+    cache = DiskCache(folder)
     for age, n in enumerate(numbers):
-        _fetch(store, n)
+        assert cache.store(_key(n), kind, _value(n))
         t = 1_000_000_000 + 100 * age
-        os.utime(folder / f"{_key(n)}.npz", (t, t))
-    sizes = {(folder / f"{_key(n)}.npz").stat().st_size for n in numbers}
+        os.utime(folder / f"{_key(n)}.{kind}", (t, t))
+    sizes = {(folder / f"{_key(n)}.{kind}").stat().st_size for n in numbers}
     assert len(sizes) == 1
     return sizes.pop()
 
 
 def _kept(folder: Path) -> set[int]:
-    return {int(p.name[:64], 16) for p in folder.iterdir() if cb.is_entry(p.name)}
+    """Keys of the regular entries in ``folder``."""
+    return {int(p.name[:64], 16) for p in folder.iterdir()
+            if re.fullmatch(r"[0-9a-f]{64}\.[a-z]+", p.name) and p.is_file()}
 
 
-@pytest.mark.parametrize(("text", "expected"), [
-    ("2G", 2_147_483_648), ("500M", 524_288_000), ("1.5g", 1_610_612_736), ("4096", 4096),
-    ("64KiB", 65_536), (" 3 T ", 3_298_534_883_328), ("10mb", 10_485_760), (".5K", 512),
-])
-def test_sizes_are_read_in_binary_units(text, expected):
-    assert parse_size(text) == expected
-
-
-@pytest.mark.parametrize(("text", "match"), [
-    ("", "must be a number of bytes"), ("lots", "must be a number of bytes"),
-    ("-1G", "must be a number of bytes"), ("2X", "must be a number of bytes"),
-    ("1e9", "must be a number of bytes"), ("2 G B", "must be a number of bytes"),
-    ("nan", "must be a number of bytes"), ("5GG", "must be a number of bytes"),
-    ("0", "must be at least one byte"), ("0.2", "must be at least one byte"),
-])
-def test_a_bad_size_is_one_clear_error(text, match):
-    with pytest.raises(TerrathemeError, match=f"^--cache-size {match}.*{text!r}"):
-        parse_size(text, "--cache-size")
-
-
-def test_the_default_bound_is_two_gib():
-    assert DEFAULT_CACHE_BYTES == 2 * 1024 ** 3
-    assert KeyedStore(None, ".npz", 1, "x").max_bytes == DEFAULT_CACHE_BYTES
-    assert SampleCache().max_bytes == ModelCache().max_bytes == 2 * 1024 ** 3
-
-
-@pytest.mark.parametrize("cache", [SampleCache, ModelCache])
-def test_a_bound_below_one_byte_is_refused(tmp_path, cache):
+def test_a_bound_below_one_byte_is_refused(tmp_path):
     with pytest.raises(TerrathemeError, match="must be at least one byte, not 0"):
-        cache(tmp_path, max_bytes=0)
+        DiskCache(tmp_path, max_bytes=0)
+
+
+@pytest.mark.parametrize(("over", "kept"), [(0, {1, 2}), (1, {2})])
+def test_the_default_bound_is_applied(tmp_path, over, kept):
+    """A folder whose entries reach the default bound loses its oldest one (a sparse file
+    stands for an old entry of almost 2 GiB)."""
+    size = _fill(tmp_path, [2])
+    old = tmp_path / f"{_key(1)}.t"
+    with open(old, "wb") as f:
+        f.truncate(DEFAULT_CACHE_BYTES - 2 * size + over)
+    os.utime(old, (1, 1))
+    DiskCache(tmp_path).store(_key(3), "t", _value(3))
+    assert _kept(tmp_path) == kept | {3}
 
 
 def test_the_least_recently_used_entries_go_first(tmp_path):
     size = _fill(tmp_path, [1, 2, 3])
-    store = KeyedStore(tmp_path, ".npz", 0, "test values", max_bytes=3 * size)
-    _fetch(store, 4)
+    cache = DiskCache(tmp_path, max_bytes=3 * size)
+    _get(cache, 4)
     assert _kept(tmp_path) == {2, 3, 4}
-    _fetch(store, 5)
+    _get(cache, 5)
     assert _kept(tmp_path) == {3, 4, 5}
     # A bound below all of them leaves the newest that fit.
-    _fetch(KeyedStore(tmp_path, ".npz", 0, "test values", max_bytes=2 * size + 1), 6)
+    _get(DiskCache(tmp_path, max_bytes=2 * size + 1), 6)
     assert _kept(tmp_path) == {5, 6}
 
 
-@pytest.mark.parametrize("where", ["disk", "memory"])
-def test_a_hit_makes_an_entry_the_most_recent(tmp_path, where):
+def test_a_hit_makes_an_entry_the_most_recent(tmp_path):
     size = _fill(tmp_path, [1, 2, 3])
-    store = KeyedStore(tmp_path, ".npz", 8, "test values", max_bytes=3 * size)
-    if where == "memory":
-        store.remember(_key(1), np.full(1000, 1, np.uint8))
+    cache = DiskCache(tmp_path, max_bytes=3 * size)
     calls: list = []
-    np.testing.assert_array_equal(_fetch(store, 1, calls), np.full(1000, 1, np.uint8))
-    assert calls == [] and store.hits == 1
-    _fetch(store, 4, calls)
+    np.testing.assert_array_equal(_get(cache, 1, calls), _value(1)["v"])
+    assert calls == [] and cache.hits["t"] == 1
+    _get(cache, 4, calls)
     assert calls == [4]
     assert _kept(tmp_path) == {1, 3, 4}             # 2 was the oldest after the hit on 1
 
 
 def test_the_bound_holds_after_every_write(tmp_path):
     bound = 5000
-    store = KeyedStore(tmp_path, ".npz", 0, "test values", max_bytes=bound)
+    cache = DiskCache(tmp_path, max_bytes=bound)
     for n in range(12):
-        _fetch(store, n)
+        _get(cache, n)
         assert sum(p.stat().st_size for p in tmp_path.iterdir()) <= bound
         assert n in _kept(tmp_path)
     assert 2 <= len(_kept(tmp_path)) < 12
 
 
-def test_an_entry_over_the_bound_alone_stays_in_memory(tmp_path):
-    _fill(tmp_path, [1])
-    store = KeyedStore(tmp_path, ".npz", 8, "test values", max_bytes=900)
+def test_an_entry_over_the_bound_alone_is_not_written(tmp_path):
+    cache = DiskCache(tmp_path, max_bytes=900)
     calls: list = []
-    _fetch(store, 2, calls)
-    _fetch(store, 2, calls)
-    assert calls == [2] and store.hits == 1
-    assert _kept(tmp_path) == set()                 # and the old one no longer fits either
+    _get(cache, 2, calls)
+    _get(cache, 2, calls)
+    assert calls == [2, 2] and not list(tmp_path.iterdir())
 
 
 def test_only_entries_count_and_go(tmp_path):
     size = _fill(tmp_path, [1, 2])
-    others = ["notes.npz", f"{_key(9)}.png", f"{_key(9)[:63]}.npz", f"{_key(0xABC).upper()}.npz",
-              f".{_key(9)}.npz~tt-host-1-ab.tmp.npz", "photo.png"]
+    others = ["notes.t", f"{_key(9)}.T", f"{_key(9)[:63]}.t", f"{_key(0xABC).upper()}.t",
+              f".{_key(9)}.t.0123456789abcdef.tmp", f"{_key(9)}.t.npz", "photo.png"]
     for name in others:
         (tmp_path / name).write_bytes(bytes(10 * size))
-    (tmp_path / f"{_key(8)}.npz").mkdir()
-    store = KeyedStore(tmp_path, ".npz", 0, "test values", max_bytes=2 * size)
-    _fetch(store, 3)
-    assert _kept(tmp_path) == {2, 3, 8}
+    (tmp_path / f"{_key(8)}.t").mkdir()
+    _get(DiskCache(tmp_path, max_bytes=2 * size), 3)
+    assert _kept(tmp_path) == {2, 3}
     assert all((tmp_path / name).is_file() for name in others)
+    assert (tmp_path / f"{_key(8)}.t").is_dir()
 
 
-def test_the_sample_and_model_entries_share_the_bound(tmp_path):
-    size = _fill(tmp_path, [1, 2])                    # sample-like entries, "<key>.npz"
-    models = KeyedStore(tmp_path, ".model.npz", 0, "test models", max_bytes=2 * size)
-    _fetch(models, 3)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{_key(2)}.npz",
-                                                          f"{_key(3)}.model.npz"]
+def test_a_killed_run_s_temporary_goes_once_stale(tmp_path):
+    fresh, stale = (tmp_path / f".{_key(n)}.t.0123456789abcdef.tmp" for n in (1, 2))
+    fresh.write_bytes(b"x")
+    stale.write_bytes(b"x")
+    os.utime(stale, (1, 1))
+    _get(DiskCache(tmp_path), 3)
+    assert fresh.exists() and not stale.exists()
+
+
+def test_every_kind_shares_the_bound(tmp_path):
+    size = _fill(tmp_path, [1, 2], kind="samples")
+    DiskCache(tmp_path, max_bytes=2 * size).store(_key(3), "model", _value(3))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{_key(2)}.samples",
+                                                          f"{_key(3)}.model"]
 
 
 def test_an_entry_that_vanishes_before_reading_is_a_miss(tmp_path, monkeypatch):
     _fill(tmp_path, [1])
-    real_load = np.load
+    real_open = os.open
 
-    def load_after_another_process_evicted(path, **kwargs):
-        Path(path).unlink()
-        return real_load(path, **kwargs)
+    def open_after_another_process_evicted(path, *args, **kwargs):
+        Path(path).unlink(missing_ok=True)
+        return real_open(path, *args, **kwargs)
 
-    monkeypatch.setattr(ks.np, "load", load_after_another_process_evicted)
+    monkeypatch.setattr(dc.os, "open", open_after_another_process_evicted)
     calls: list = []
-    store = KeyedStore(tmp_path, ".npz", 8, "test values")
-    np.testing.assert_array_equal(_fetch(store, 1, calls), np.full(1000, 1, np.uint8))
-    assert calls == [1] and store.misses == 1
-
-
-def test_an_entry_that_vanishes_from_memory_s_folder_is_still_a_hit(tmp_path):
-    store = KeyedStore(tmp_path, ".npz", 8, "test values")
-    _fetch(store, 1)
-    (tmp_path / f"{_key(1)}.npz").unlink()
-    calls: list = []
-    _fetch(store, 1, calls)
-    assert calls == [] and store.hits == 1 and _kept(tmp_path) == set()
+    cache = DiskCache(tmp_path)
+    np.testing.assert_array_equal(_get(cache, 1, calls), _value(1)["v"])
+    assert calls == [1] and cache.misses["t"] == 1
 
 
 def test_entries_that_vanish_while_evicting_are_skipped(tmp_path, monkeypatch):
     size = _fill(tmp_path, [1, 2, 3, 4])
     real_scandir = os.scandir
-    gone = tmp_path / f"{_key(2)}.npz"
+    gone = tmp_path / f"{_key(2)}.t"
 
     class Listing:
         """The folder's listing, with entry 2 removed by another process once listed."""
@@ -196,13 +175,13 @@ def test_entries_that_vanish_while_evicting_are_skipped(tmp_path, monkeypatch):
                     gone.unlink(missing_ok=True)
                 yield item
 
-    monkeypatch.setattr(cb.os, "scandir", Listing)
-    assert evict(tmp_path, 2 * size) == [f"{_key(1)}.npz"]
+    monkeypatch.setattr(dc.os, "scandir", Listing)
+    assert DiskCache(tmp_path, 2 * size).evict() == [f"{_key(1)}.t"]
     assert _kept(tmp_path) == {3, 4}
     # Removed between listing and removing: counted as gone, the bound still holds.
-    listed = cb.entries(tmp_path)
-    monkeypatch.setattr(cb, "entries", lambda folder: [(0, f"{_key(7)}.npz", size), *listed])
-    assert evict(tmp_path, size) == [f"{_key(3)}.npz"]
+    listed = dc.entries(tmp_path)
+    monkeypatch.setattr(dc, "entries", lambda folder: [(0, f"{_key(7)}.t", size), *listed])
+    assert DiskCache(tmp_path, size).evict() == [f"{_key(3)}.t"]
     assert _kept(tmp_path) == {4}
 
 
@@ -211,26 +190,32 @@ def test_an_entry_that_cannot_be_removed_is_passed_over(tmp_path, monkeypatch):
     real_unlink = Path.unlink
 
     def unlink(path, *args, **kwargs):
-        if path.name == f"{_key(1)}.npz":
+        if path.name == f"{_key(1)}.t":
             raise PermissionError(13, "Permission denied")
         return real_unlink(path, *args, **kwargs)
 
     monkeypatch.setattr(Path, "unlink", unlink)
-    assert evict(tmp_path, size) == [f"{_key(2)}.npz", f"{_key(3)}.npz"]
+    assert DiskCache(tmp_path, size).evict() == [f"{_key(2)}.t", f"{_key(3)}.t"]
     assert _kept(tmp_path) == {1}
 
 
 def test_a_missing_folder_has_no_entries(tmp_path):
-    assert cb.entries(tmp_path / "nowhere") == []
-    assert evict(tmp_path / "nowhere", 1) == []
+    assert dc.entries(tmp_path / "nowhere") == []
+    assert DiskCache(tmp_path / "nowhere", 1).evict() == []
+
+
+def test_a_folder_that_cannot_be_written_costs_the_caching(tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    assert DiskCache(tmp_path / "file" / "sub").store(_key(1), "t", _value(1)) is False
+    assert DiskCache(tmp_path / "ok").store(_key(1), "t", _value(1)) is True
 
 
 def _churn(folder: str, seed: int, bound: int, rounds: int) -> None:
     """Fetch random keys of a small folder shared with another process (a child's job)."""
     rng = np.random.default_rng(seed)
-    store = KeyedStore(folder, ".npz", 0, "test values", max_bytes=bound)
+    cache = DiskCache(folder, max_bytes=bound)
     for n in rng.integers(0, 12, rounds):
-        value = _fetch(store, int(n))
+        value = _get(cache, int(n))
         if not (value == n).all():
             raise SystemExit(3)
 
@@ -247,5 +232,5 @@ def test_processes_sharing_a_folder_evict_each_other_s_entries_without_errors(tm
     for child in children:
         child.join(60)
     assert [child.exitcode for child in children] == [0, 0, 0]
-    assert sum(size for _, _, size in cb.entries(tmp_path)) <= 3 * size
-    assert not [p for p in tmp_path.iterdir() if not cb.is_entry(p.name)]   # no temporaries
+    assert sum(size for _, _, size in dc.entries(tmp_path)) <= 3 * size
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]   # no temporaries

@@ -8,7 +8,8 @@ the job (see :mod:`core.classify`).
 from __future__ import annotations
 
 import argparse
-import os
+import re
+from fractions import Fraction
 from pathlib import Path
 
 from terratheme.app.arg_types import add_legend_option
@@ -39,6 +40,28 @@ def _class_value(value: str) -> int:
         raise argparse.ArgumentTypeError(f"a mask class value is a whole number 0..255, "
                                          f"not {value!r}")
     return k
+
+
+#: ``--cache-size``: a number with an optional binary unit (K, M, G, T; ``B`` or ``iB`` after)
+_SIZE = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([kmgt]?)(?:i?b)?", re.IGNORECASE)
+#: the largest ``--cache-size``: 1024T
+MAX_CACHE_BYTES = 1 << 50
+
+
+def _cache_size(text: str) -> int:
+    """Bytes of ``--cache-size``: ``2G`` is 2 GiB, ``1.5g`` 1.5 GiB, ``4096`` bytes; 1..1024T."""
+    match = _SIZE.fullmatch(text.strip())
+    if match is None:
+        raise argparse.ArgumentTypeError(f"--cache-size must be a number of bytes with an "
+                                         f"optional unit K, M, G or T (e.g. 2G, 500M), not "
+                                         f"{text!r}")
+    unit = 1 << (10 * " kmgt".index(match.group(2).lower() or " "))
+    # digits bounded before the exact arithmetic (a float of 400 nines overflowed)
+    size = 0 if len(match.group(1)) > 40 else int(Fraction(match.group(1)) * unit)
+    if not 1 <= size <= MAX_CACHE_BYTES:
+        raise argparse.ArgumentTypeError(f"--cache-size must be from one byte to 1024T, "
+                                         f"not {text!r}")
+    return size
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -73,7 +96,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="keep the training pairs' samples and the fitted model in DIR, by "
                              "content: training again on the same pairs and options (another "
                              "photo to classify) skips their features and the fit")
-    parser.add_argument("--cache-size", metavar="SIZE", default=None,
+    parser.add_argument("--cache-size", metavar="SIZE", type=_cache_size, default=None,
                         help="bound of the --cache-dir folder, e.g. 500M or 2G (binary units; "
                              "default 2G): the least recently used entries are removed first")
 
@@ -112,27 +135,22 @@ def label_palette():
     return np.array(colours[:256], np.uint8)
 
 
-def _training_caches(folder: Path | None, size: str | None):
-    """(SampleCache, ModelCache) in ``folder`` bounded to ``size`` (text, e.g. "2G"; None:
-    the default), checked before any work; (None, None) without a folder."""
-    from terratheme.core.classify import ModelCache, SampleCache
-    from terratheme.core.classify.cache_bound import DEFAULT_CACHE_BYTES, parse_size
+def _training_cache(folder: Path | None, size: int | None):
+    """The training cache in ``folder`` bounded to ``size`` bytes (None: the default),
+    checked before any work; None without a folder."""
     from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.disk_cache import DEFAULT_CACHE_BYTES, DiskCache
 
     if folder is None:
         if size is not None:
             raise TerrathemeError("--cache-size bounds the --cache-dir folder: give "
                                   "--cache-dir too")
-        return None, None
-    max_bytes = DEFAULT_CACHE_BYTES if size is None else parse_size(size, "--cache-size")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        why = None if os.access(folder, os.W_OK | os.X_OK) else "not writable"
-    except OSError as exc:
-        why = exc.strerror or str(exc)
+        return None
+    cache = DiskCache(folder, DEFAULT_CACHE_BYTES if size is None else size)
+    why = cache.unusable()
     if why is not None:
         raise TerrathemeError(f"--cache-dir {folder}: cannot use the folder ({why})")
-    return SampleCache(folder, max_bytes), ModelCache(folder, max_bytes)
+    return cache
 
 
 def run(args: argparse.Namespace) -> int:
@@ -178,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     check_mask_sizes([tuple(pair) for pair in args.train])
     legend = read_legend(args.legend) if args.legend else {}
-    samples, models = _training_caches(args.cache_dir, args.cache_size)
+    cache = _training_cache(args.cache_dir, args.cache_size)
 
     info = image_info(args.photo)
     check_fits(args.photo, info.width, info.height, CLASSIFY_BYTES_PER_PIXEL)  # before reading
@@ -193,9 +211,8 @@ def run(args: argparse.Namespace) -> int:
         for train_photo, train_mask in args.train:
             pairs.append((read_image(train_photo, bands=Bands.PHOTO), _read_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
-        model = train_classifier(pairs, options.with_positions(args.position), cache=samples,
-                                 model_cache=models)
-        if models is not None and models.hits:
+        model = train_classifier(pairs, options.with_positions(args.position), cache=cache)
+        if cache is not None and cache.hits["model"]:
             print(f"model from the cache {args.cache_dir}")
     else:
         model = None

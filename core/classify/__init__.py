@@ -9,9 +9,6 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   ``Classifier.load``) -- Extra-Trees from scribbles or label masks;
 * :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
   float32 in [0, 1];
-* :class:`SampleCache` -- training samples kept by content between trainings
-  (``train_classifier(..., cache=...)``), :class:`ModelCache` -- fitted models
-  so (``model_cache=...``); both bound their folder (2 GiB by default);
 * :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
   classifier file or a shipped model by name (``aerial``), with class names.
 
@@ -23,19 +20,17 @@ overlap), ``regularise`` (smoothing / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``mixture`` (the
 themes' Gaussian mixture), ``bands`` (border bands), ``supervised``,
 ``forest`` and ``extra_trees`` (the tree ensemble), ``ridges``, ``samples`` (training
-samples from masks and scribbles), ``sample_cache``, ``model_cache`` and
-``keyed_store`` (their storage), ``cache_bound`` (the folder's size bound,
-least recently used entries removed first), ``prior`` (class-prior
+samples from masks and scribbles), ``training_cache`` (samples and fitted
+models kept by content in a :class:`~core.io.disk_cache.DiskCache`:
+``train_classifier(..., cache=...)``), ``prior`` (class-prior
 correction), ``adapt`` (test-time adaptation), ``model_file`` (the
 file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
 name).
 """
 
 from terratheme.core.classify.features import FeatureOptions, FeatureSet
-from terratheme.core.classify.model_cache import ModelCache
 from terratheme.core.classify.regularise import Regularisation, RegulariseOptions
 from terratheme.core.classify.result import Classification
-from terratheme.core.classify.sample_cache import SampleCache
 from terratheme.core.classify.shipped import load_model, resolve_model, shipped_models
 from terratheme.core.classify.supervised import Classifier, train_classifier
 from terratheme.core.classify.supervised_options import SupervisedOptions
@@ -51,10 +46,8 @@ __all__ = [
     "Classifier",
     "FeatureOptions",
     "FeatureSet",
-    "ModelCache",
     "Regularisation",
     "RegulariseOptions",
-    "SampleCache",
     "SupervisedOptions",
     "UnsupervisedModel",
     "UnsupervisedOptions",

@@ -17,8 +17,7 @@ as much of a rare class as of a common one, and their strokes are grown by one
 ring of coarse pixels of the stroke's colour (:func:`core.classify.samples.grow_labels`).
 A model trained on label masks of a few other photos adapts to each photo it
 classifies (:mod:`core.classify.adapt`). Training samples and fitted models can
-be kept by content between runs (:mod:`core.classify.sample_cache`,
-:mod:`core.classify.model_cache`).
+be kept by content between runs (:mod:`core.classify.training_cache`).
 
 Confidence is the winning class's share of the trees' (soft) votes (as ilastik
 and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
@@ -31,7 +30,6 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 from terratheme.core.classify.adapt import predict_adapted
 from terratheme.core.classify.forest import Forest, build_forest, forest_scores
-from terratheme.core.classify.model_cache import ModelCache, model_key
 from terratheme.core.classify.model_file import ModelParts, read_model, write_model
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.classify.prior import (
@@ -42,7 +40,6 @@ from terratheme.core.classify.prior import (
     prior_weights,
 )
 from terratheme.core.classify.result import Classification
-from terratheme.core.classify.sample_cache import SampleCache, sample_key
 from terratheme.core.classify.samples import (
     GROW_COLOUR,
     check_class_image,
@@ -52,7 +49,14 @@ from terratheme.core.classify.samples import (
 )
 from terratheme.core.classify.supervised_options import SupervisedOptions
 from terratheme.core.classify.tiled import iter_tile_features, predict_tiled
+from terratheme.core.classify.training_cache import (
+    cached_model,
+    cached_samples,
+    model_key,
+    sample_key,
+)
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.disk_cache import DiskCache
 
 
 def _pair_samples(photo, mask, index, classes, options, grow=0.0):
@@ -120,7 +124,7 @@ def _sample_keys(pairs, classes, grow, options) -> list[str]:
 
 def collect_samples(
     pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions,
-    cache: SampleCache | None = None,
+    cache: DiskCache | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Training samples from photo/mask pairs, capped per class.
 
@@ -146,8 +150,8 @@ def _capped_samples(pairs, options, classes, grow, cache, keys):
         if cache is None:
             feats, labels = _pair_samples(photo, mask, i, classes, options, grow)
         else:
-            feats, labels = cache.samples(
-                keys[i], options.features.n_features,
+            feats, labels = cached_samples(
+                cache, keys[i], options.features.n_features, classes,
                 lambda photo=photo, mask=mask, i=i: _pair_samples(photo, mask, i, classes,
                                                                   options, grow))
         for k in classes:
@@ -283,8 +287,7 @@ def train_classifier(
     options: SupervisedOptions | None = None,
     *,
     class_weights: Mapping[int, float] | None = None,
-    cache: SampleCache | None = None,
-    model_cache: ModelCache | None = None,
+    cache: DiskCache | None = None,
 ) -> Classifier:
     """Train a classifier from scribbles or full label masks.
 
@@ -300,11 +303,9 @@ def train_classifier(
         from a first round of blind strokes (:func:`core.classify.prior.kept_weights`).
         Used (in ``model.classes`` order) when they cover every trained class
         and the forest has two classes or more; otherwise estimated as usual.
-    cache : SampleCache, optional
-        Keeps the pairs' training samples by content (the model is the same).
-    model_cache : ModelCache, optional
-        Keeps the fitted model by content (:mod:`core.classify.model_cache`): a training
-        seen before gives the same model for the pairs' keys only.
+    cache : DiskCache, optional
+        Keeps the pairs' training samples and the fitted model by content
+        (:mod:`core.classify.training_cache`): a training seen before gives the same model.
 
     Returns
     -------
@@ -322,12 +323,11 @@ def train_classifier(
     # Adapt to each photo when trained on a few other photos (scribbles lie on the photo).
     opts = opts.resolved(len(pairs_or_scribbles), scribbles)
     classes, grow = _training_plan(pairs_or_scribbles, opts)
-    keys = (None if cache is None and model_cache is None
-            else _sample_keys(pairs_or_scribbles, classes, grow, opts))
-    if model_cache is None:
-        return _fit(pairs_or_scribbles, opts, classes, grow, cache, keys, class_weights)
-    parts = model_cache.model(
-        model_key(keys, classes, opts, class_weights), opts,
+    if cache is None:
+        return _fit(pairs_or_scribbles, opts, classes, grow, None, None, class_weights)
+    keys = _sample_keys(pairs_or_scribbles, classes, grow, opts)
+    parts = cached_model(
+        cache, model_key(keys, classes, opts, class_weights), opts,
         lambda: _fit(pairs_or_scribbles, opts, classes, grow, cache, keys,
                      class_weights).parts())
     return Classifier(parts.forest, parts.classes, parts.options, parts.class_weights)
