@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.image_format import error_line
+from terratheme.core.io.image_format import error_line, jpegxl_size
 
 #: codec name -> (file extension, OpenImageIO "Compression" attribute with {q} for the quality)
 CODECS = {
@@ -61,6 +61,12 @@ def decode_image(data: bytes, *, codec: str = "webp",
     any pixel is decoded (a forged header cannot make it allocate more).
     """
     ext, _ = _codec(codec)
+    if codec == "jpegxl" and shape is not None:
+        # OpenImageIO decodes JPEG XL inside open(): check the header's size first.
+        size = jpegxl_size(bytes(data[:1 << 12]))
+        if size is None or (size[1], size[0]) != tuple(shape):
+            found = "no size header" if size is None else f"{size[0]} x {size[1]}"
+            raise CorruptFileError(f"jpegxl image is {found}, expected {shape[1]} x {shape[0]}")
     with tempfile.TemporaryDirectory(prefix="terratheme-codec-") as folder:
         path = os.path.join(folder, "image" + ext)
         Path(path).write_bytes(bytes(data))

@@ -37,7 +37,7 @@ import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.image_format import error_line
+from terratheme.core.io.image_format import error_line, jpegxl_file_size
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.io.png import (
     check_palette,
@@ -107,9 +107,11 @@ class ImageInfo:
 
 def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     p = check_input_file(path, "an image")
-    size = png_header_size(p)
+    size = png_header_size(p) or jpegxl_file_size(p)
     if size is not None and (size[0] == 0 or size[1] == 0):
         raise TerrathemeError(f"{p}: image has no pixels ({size[0]} x {size[1]})")
+    if size is not None:  # 3 bytes a pixel at least; OpenImageIO decodes JPEG XL in open()
+        _check_declared(p, size[0], size[1], 3, size[0] * size[1] * 3)
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
     with libpng_quiet(is_png(p)):
@@ -124,14 +126,11 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     if spec.deep:
         inp.close()
         raise TerrathemeError(f"{p}: deep images are not supported")
-    declared = int(spec.image_bytes())
-    allowed = MAX_COMPRESSION_RATIO * p.stat().st_size + MIN_DECLARED_BYTES
-    if declared > allowed:
+    try:
+        _check_declared(p, spec.width, spec.height, spec.nchannels, int(spec.image_bytes()))
+    except CorruptFileError:
         inp.close()
-        raise CorruptFileError(
-            f"{p}: header declares {spec.width} x {spec.height} x {spec.nchannels} pixels "
-            f"({declared / 2**20:,.0f} MiB) from a {p.stat().st_size:,}-byte file: damaged "
-            "or forged")
+        raise
     if inp.format_name() == "tiff":
         try:
             check_tiff_chunks(p)
@@ -139,6 +138,16 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
             inp.close()
             raise
     return inp
+
+
+def _check_declared(p: Path, width: int, height: int, channels: int, declared: int) -> None:
+    """Refuse a header declaring more pixel bytes than the file can hold."""
+    allowed = MAX_COMPRESSION_RATIO * p.stat().st_size + MIN_DECLARED_BYTES
+    if declared > allowed:
+        raise CorruptFileError(
+            f"{p}: header declares {width} x {height} x {channels} pixels "
+            f"({declared / 2**20:,.0f} MiB) from a {p.stat().st_size:,}-byte file: damaged "
+            "or forged")
 
 
 def _np_dtype(spec: oiio.ImageSpec) -> np.dtype:
