@@ -62,30 +62,13 @@ def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
                   per_class: int = ADAPT_SAMPLES_PER_CLASS,
                   min_pixels: int = ADAPT_MIN_PIXELS, min_share: float = ADAPT_MIN_SHARE,
                   rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The samples a classification is surest of, per predicted class.
+    """The samples of ``probs`` (n, C) a classification is surest of, per predicted class.
 
-    Parameters
-    ----------
-    probs : (n, C) float ndarray
-        Class probabilities of n samples.
-    share : float
-        In (0, 1]: of the samples whose arg-max is class ``c``, the ``share``
-        with the highest probability of ``c`` are kept (ties at the cut kept).
-    per_class : int
-        At most this many kept per class (random, ``rng``).
-    min_pixels : int
-        A class that is the arg-max of fewer samples keeps none ...
-    min_share : float
-        ... nor one that is the arg-max of less than this share of them.
-    rng : numpy Generator, optional
-        Default ``default_rng(0)``.
-
-    Returns
-    -------
-    index : (m,) int64 ndarray
-        Rows of ``probs`` kept, ascending within each class, classes in column order.
-    column : (m,) int64 ndarray
-        Their class column.
+    Of the samples whose arg-max is class ``c``, the ``share`` most probable (ties at
+    the cut kept), at most ``per_class`` (random, ``rng``); none for a class that is
+    the arg-max of fewer than ``min_pixels`` samples or ``min_share`` of them.
+    Returns the kept rows (m,) int64, ascending within each class, and their class
+    column (m,) int64.
     """
     rng = np.random.default_rng(0) if rng is None else rng
     best = np.argmax(probs, axis=1)

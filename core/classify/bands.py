@@ -71,25 +71,13 @@ class BandOptions:
 
 
 def lies_between(centres: np.ndarray, c: int) -> bool:
-    """True if centre ``c`` lies within a quarter of the segment's length of the
-    segment joining two other centres (strictly between its ends).
-
-    Parameters
-    ----------
-    centres : (K, D) ndarray
-    c : int
-    """
+    """True if centre ``c`` lies near a segment of two others (:func:`between_pairs`)."""
     return bool(between_pairs(centres, c))
 
 
 def between_pairs(centres: np.ndarray, c: int) -> list[tuple[int, int]]:
-    """The pairs ``(a, b)``, ``a < b``, whose segment centre ``c`` lies near (:func:`lies_between`).
-
-    Parameters
-    ----------
-    centres : (K, D) ndarray
-    c : int
-    """
+    """The pairs ``(a, b)``, ``a < b``, whose segment centre ``c`` of ``centres`` (K, D) lies
+    within a quarter of its length of, strictly between its ends."""
     k, pairs = len(centres), []
     for a in range(k):
         for b in range(a + 1, k):

@@ -79,16 +79,8 @@ class ExtraTreesForest:
         return int(self.roots.size)
 
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
-        """Mean class distribution of the leaves ``x`` falls in.
-
-        Parameters
-        ----------
-        x : (n, F) float ndarray
-
-        Returns
-        -------
-        probs : (n, C) float32 ndarray, columns in ``classes`` order
-        """
+        """Mean class distribution (n, C) float32 of the leaves samples ``x`` (n, F) fall in,
+        columns in ``classes`` order."""
         x = np.ascontiguousarray(x, np.float32)
         need = int(self.feature.max()) + 1
         if x.ndim != 2 or x.shape[1] < need:
@@ -100,21 +92,10 @@ class ExtraTreesForest:
 
     @cached_property
     def walk_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The node arrays as the prediction kernel walks them (computed once).
-
-        Returns
-        -------
-        roots : (T,) int32 ndarray
-        depths : (T,) int32 ndarray
-            Depth of each tree (steps from the root to its deepest leaf).
-        feature : (N,) int32 ndarray
-            As ``feature``, 0 at a leaf.
-        threshold : (N,) float32 ndarray
-            The largest float32 <= ``threshold`` (+inf at a leaf).
-        child : (2N,) int32 ndarray
-            ``child[2n]`` left and ``child[2n + 1]`` right child of node n; a leaf's
-            are itself.
-        """
+        """The node arrays as the prediction kernel walks them (computed once): ``roots``,
+        each tree's depth, ``feature`` (0 at a leaf), ``threshold`` as the largest float32
+        below it (+inf at a leaf) and ``child`` (2N,) with n's children at 2n and 2n + 1
+        (a leaf's are itself)."""
         leaf = self.left < 0
         nodes = np.arange(self.feature.size, dtype=np.int32)
         thr = self.threshold.astype(np.float32)
@@ -230,25 +211,11 @@ def _check_depth(roots: np.ndarray, left: np.ndarray, right: np.ndarray) -> None
 def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_depth: int = 12,
                     min_samples_split: int = 2, balance: bool = True,
                     seed: int = 0, n_jobs: int | None = None) -> ExtraTreesForest:
-    """Train Extra-Trees on samples ``x`` (n, F) with class values ``y`` (n,).
+    """Extra-Trees (scikit-learn's) on samples ``x`` (n, F) with class values ``y`` (n,).
 
-    Parameters
-    ----------
-    x : (n, F) float ndarray
-    y : (n,) integer ndarray
-    n_trees, max_depth, min_samples_split : int
-        As scikit-learn's ``n_estimators``, ``max_depth``, ``min_samples_split``.
-    balance : bool
-        Weigh classes inversely to their sample counts (``class_weight="balanced"``).
-    seed : int
-    n_jobs : int, optional
-        Threads fitting trees; default one per core (at most one per tree).
-        A small fit (the few trees of :mod:`core.classify.adapt`) takes 1: joblib's
-        hand-over costs more there than the second core gains.
-
-    Returns
-    -------
-    ExtraTreesForest
+    ``balance``: classes weighed inversely to their counts. ``n_jobs``: fitting
+    threads, by default one per core (at most one per tree); the few trees of
+    :mod:`core.classify.adapt` take 1 (joblib's hand-over costs more than it gains).
     """
     import sklearn
     from sklearn.ensemble import ExtraTreesClassifier

@@ -212,14 +212,8 @@ def features_from_lab(
 
 def image_features(rgb: np.ndarray, options: FeatureOptions
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Coarse Lab, block lightness std and features (no position) of photo pixels.
-
-    Returns
-    -------
-    lab : (h, w, 3) float32 ndarray
-    block_std : (h, w) float32 ndarray
-    features : (h, w, options.n_image_features) float32 ndarray
-    """
+    """Coarse Lab (h, w, 3), block lightness std (h, w) and features without the
+    position (h, w, ``n_image_features``), all float32, of photo pixels."""
     full = full_lab(rgb)
     lab, block_std = block_lab(full, options.scale)
     ridges = (block_ridges(full[:, :, 0], options.scale, options.ridge_sigmas)
@@ -239,16 +233,6 @@ def with_position(feats: np.ndarray, origin: tuple[int, int], photo_size: tuple[
 
 
 def compute_features(rgb: np.ndarray, options: FeatureOptions) -> np.ndarray:
-    """Features of one photo tile (whole tile, no overlap handling).
-
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    options : FeatureOptions
-
-    Returns
-    -------
-    features : (ceil(H/scale), ceil(W/scale), F) float32 ndarray
-    """
+    """Features (ceil(H/scale), ceil(W/scale), F) float32 of a whole (H, W, 3) uint8 photo."""
     _lab, _block_std, feats = image_features(rgb, options)
     return with_position(feats, (0, 0), rgb.shape[:2], options)

@@ -24,24 +24,16 @@ Forest = ExtraTreesForest
 
 def build_forest(x: np.ndarray, y: np.ndarray, options: ForestOptions,
                  n_jobs: int | None = None) -> Forest:
-    """Train a forest on samples ``x`` (n, F), class values ``y`` (n,).
-
-    ``n_jobs``: fitting threads (:func:`core.classify.extra_trees.fit_extra_trees`).
-    """
+    """A forest of samples ``x`` (n, F) with classes ``y`` (n,); ``n_jobs`` fitting threads."""
     return fit_extra_trees(x, y, n_trees=options.n_trees, max_depth=options.max_depth,
                            min_samples_split=options.min_samples, balance=options.balance,
                            seed=options.seed, n_jobs=n_jobs)
 
 
 def forest_scores(forest: Forest, x: np.ndarray, classes: Sequence[int]) -> np.ndarray:
-    """Per-class scores of samples ``x`` (n, F): the trees' mean leaf distributions.
+    """Scores (n, C) float32 of samples ``x`` (n, F), columns in ``classes`` order.
 
-    ``forest`` may be any object with ``classes`` (C,) and ``predict_proba(x) -> (n, C)``
-    (the benchmarks' peers use it so).
-
-    Returns
-    -------
-    scores : (n, C) float32 ndarray, columns in ``classes`` order
+    ``forest``: anything with ``classes`` and ``predict_proba`` (the benchmarks' peers too).
     """
     x = np.ascontiguousarray(x, np.float32)
     out = np.zeros((x.shape[0], len(classes)), np.float32)

@@ -19,30 +19,12 @@ _LAB8_TABLE = (np.repeat(np.arange(256, dtype=np.float32)[None, :, None], 3, axi
 
 
 def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-average an RGB photo by ``scale`` and convert it to CIE Lab.
-
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    scale : int
-
-    Returns
-    -------
-    lab : (ceil(H/scale), ceil(W/scale), 3) float32 ndarray
-        L in 0..100, a and b about -128..127 (mean over each block).
-    block_std : same shape without the last axis, float32
-        Standard deviation of L inside each block (0 when ``scale == 1``).
-    """
+    """Block means of a uint8 photo's CIE Lab and the std of L inside each block (float32)."""
     return block_lab(full_lab(rgb), scale)
 
 
 def full_lab(rgb: np.ndarray) -> np.ndarray:
-    """CIE Lab of every pixel: (H, W, 3) float32, L in 0..100, a and b about -128..127.
-
-    OpenCV's 8-bit conversion (L scaled to 0..255, a/b offset by 128), rescaled
-    through a 256-entry table (:data:`_LAB8_TABLE`, one pass, the same floats as
-    the arithmetic).
-    """
+    """CIE Lab of every pixel, float32: OpenCV's 8-bit conversion through ``_LAB8_TABLE``."""
     return cv2.LUT(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab), _LAB8_TABLE)
 
 

@@ -25,11 +25,8 @@ MIXTURE_ITERATIONS = 100
 
 
 def isotropic_variances(within: float, centres: np.ndarray) -> np.ndarray:
-    """The k-means spread: ``max(within / F, VARIANCE_FLOOR)`` for every theme and feature.
-
-    ``within`` is the pooled mean squared distance to the nearest centre; ``centres``
-    (K, F). Returns (K, F) float32.
-    """
+    """The k-means spread (K, F) float32: ``max(within / F, VARIANCE_FLOOR)`` everywhere,
+    ``within`` the pooled mean squared distance to the nearest of ``centres`` (K, F)."""
     k, f = centres.shape
     return np.full((k, f), max(within / f, VARIANCE_FLOOR), np.float32)
 
@@ -112,24 +109,9 @@ def fit_diagonal_mixture(samples: np.ndarray, start: np.ndarray):
 
 def posterior_fn(centres: np.ndarray, sizes: np.ndarray, variances: np.ndarray,
                  weights: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """Gaussian-mixture posterior of each theme for a coarse feature stack.
-
-    Parameters
-    ----------
-    centres : (K, F) ndarray
-        Theme means in weighted feature space.
-    sizes : (K,) ndarray
-        Mixture weights.
-    variances : (K, F) ndarray
-        Per-theme, per-feature variances (all equal for the k-means spread).
-    weights : (F,) ndarray
-        Feature weights applied to the raw features first.
-
-    Returns
-    -------
-    probs : callable
-        ``(h, w, F) float32 -> (h, w, K) float32`` posteriors.
-    """
+    """``(h, w, F) float32 -> (h, w, K) float32``: each theme's posterior under the mixture
+    of means ``centres`` and ``variances`` (K, F) and weights ``sizes`` (K,), the
+    features multiplied by ``weights`` (F,) first."""
     gm = _mixture(centres, sizes, variances)
     k, f = centres.shape
 

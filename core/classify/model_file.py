@@ -67,13 +67,7 @@ class ModelParts(NamedTuple):
 
 
 def write_model(path: str | os.PathLike, model: ModelParts) -> None:
-    """Write a model to ``path`` (atomic).
-
-    Raises
-    ------
-    TerrathemeError
-        Options or class weights :func:`read_model` would refuse (nothing is written).
-    """
+    """Write a model to ``path`` (atomic); refuses what :func:`read_model` would refuse."""
     write_bytes_atomic(path, model_bytes(model))
 
 
@@ -169,24 +163,8 @@ def _read_extra_trees(data: bytes, label: str, n_features: int) -> ExtraTreesFor
 
 
 def read_model(path: str | os.PathLike) -> ModelParts:
-    """Read a model written by :func:`write_model`.
-
-    Work is bounded by the file: members and arrays are checked before they
-    are read (:mod:`core.io.archive`), every option is type- and
-    range-checked, and the forest is checked so prediction cannot fail or
-    read out of bounds.
-
-    Raises
-    ------
-    TerrathemeError
-        Missing file.
-    CorruptFileError
-        Not a classifier file, or damaged: a member, an option out of range,
-        class weights that are not finite and positive, a forest that does
-        not fit the options or the classes.
-    UnsupportedVersionError
-        Written by a newer version, or an OpenCV forest of terratheme 0.x.
-    """
+    """Read a model written by :func:`write_model`, checked as the module docstring says
+    (``CorruptFileError``, ``UnsupportedVersionError``; a missing file ``TerrathemeError``)."""
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such model file")

@@ -12,23 +12,8 @@ import numpy as np
 
 def position_features(shape: tuple[int, int], origin: tuple[int, int],
                       photo_size: tuple[int, int], scale: int) -> np.ndarray:
-    """Position of coarse pixels in the photo, as fractions of its height and width.
-
-    Parameters
-    ----------
-    shape : (h, w)
-        Coarse pixels of the piece.
-    origin : (y0, x0)
-        Photo pixel of the piece's top-left corner (a multiple of ``scale``).
-    photo_size : (H, W)
-        The whole photo's size in pixels.
-    scale : int
-
-    Returns
-    -------
-    position : (h, w, 2) float32 ndarray
-        Row and column of each coarse pixel's centre over H and W.
-    """
+    """Row and column of each coarse pixel's centre over the photo's (H, W): (h, w, 2)
+    float32, for ``shape`` (h, w) coarse pixels from photo pixel ``origin``."""
     h, w = shape
     rows = (origin[0] + (np.arange(h, dtype=np.float32) + 0.5) * scale) / photo_size[0]
     cols = (origin[1] + (np.arange(w, dtype=np.float32) + 0.5) * scale) / photo_size[1]

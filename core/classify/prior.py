@@ -30,29 +30,16 @@ PRIOR_SAMPLES = 200_000
 
 def prior_power_for(pairs: Sequence[tuple[np.ndarray, np.ndarray]], power: float | None,
                     ignore_classes: Sequence[int] = ()) -> float:
-    """The correction to apply: ``power`` if given, else ``SCRIBBLE_PRIOR_POWER`` for scribbles.
-
-    Scribbles are one ``(photo, mask)`` pair with under ``samples.SCRIBBLE_SHARE`` of
-    the mask labelled (non-zero, not ignored); full label masks get 0 (off):
-    they hold their photos' true class shares already.
-    """
+    """``power`` if given, else ``SCRIBBLE_PRIOR_POWER`` for scribbles and 0 for full
+    label masks (they hold their photos' true class shares already)."""
     if power is not None:
         return float(power)
     return SCRIBBLE_PRIOR_POWER if looks_like_scribbles(pairs, ignore_classes) else 0.0
 
 
 def predicted_shares(probs: np.ndarray) -> np.ndarray:
-    """Share of samples whose most probable class is each class ("classify and count").
-
-    Parameters
-    ----------
-    probs : (n, C) float ndarray
-        Classifier posteriors of n samples of the photo.
-
-    Returns
-    -------
-    shares : (C,) float64 ndarray, sums to 1 (uniform when n = 0)
-    """
+    """"Classify and count": the share (C,) of the samples ``probs`` (n, C) whose most
+    probable class is each class (uniform when n = 0)."""
     c = probs.shape[1]
     if len(probs) == 0:
         return np.full(c, 1.0 / c)
@@ -60,21 +47,8 @@ def predicted_shares(probs: np.ndarray) -> np.ndarray:
 
 
 def prior_weights(shares: np.ndarray, train_priors: np.ndarray, power: float) -> np.ndarray:
-    """Class weights ``(pi_k / t_k) ** power`` (Saerens et al. 2002, eq. 2.4), max 1.
-
-    Parameters
-    ----------
-    shares : (C,) float ndarray
-        Estimated class shares ``pi`` of the photo.
-    train_priors : (C,) float ndarray
-        Class priors ``t`` the classifier was trained with.
-    power : float
-        0..1; 0 gives all ones.
-
-    Returns
-    -------
-    weights : (C,) float64 ndarray in (0, 1]
-    """
+    """Class weights ``(pi_k / t_k) ** power`` (Saerens et al. 2002, eq. 2.4) scaled to max 1,
+    from the photo's shares ``pi`` and the training priors ``t`` (both (C,))."""
     # A class the photo seems not to have keeps a small weight (it was scribbled).
     ratio = np.maximum(np.asarray(shares, np.float64), 1e-3) / np.asarray(train_priors, float)
     weights = ratio ** float(power)
@@ -85,20 +59,8 @@ def photo_probabilities(
     rgb: np.ndarray, valid: np.ndarray | None, probability_fn: Callable[[np.ndarray], np.ndarray],
     features: FeatureOptions, tile: int, max_samples: int = PRIOR_SAMPLES,
 ) -> np.ndarray:
-    """Posteriors of (at most ``max_samples``) coarse pixels of a photo, tile by tile.
-
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    valid : (H, W) bool ndarray or None
-    probability_fn : callable, (h, w, F) float32 -> (h, w, C) float32
-    features : FeatureOptions
-    tile : int
-
-    Returns
-    -------
-    probs : (n, C) float32 ndarray
-    """
+    """Posteriors (n, C) float32 of at most ``max_samples`` coarse pixels of a photo with
+    data (``valid``), ``probability_fn`` applied tile by tile."""
     scale = features.scale
     h, w = rgb.shape[:2]
     n_coarse = (-(-h // scale)) * (-(-w // scale))
@@ -119,27 +81,11 @@ def photo_probabilities(
 
 
 def kept_weights(weights: Mapping[int, float], classes: Sequence[int]) -> tuple[float, ...] | None:
-    """Given prior weights in ``classes`` order, or None if they miss a class.
+    """Given prior weights (class value -> weight) in ``classes`` order, None if one is missing.
 
-    Used to keep the correction estimated from a first round of blind strokes
-    when the classifier is retrained on correction strokes (painted where the
-    result is wrong, so their placement says nothing about the class shares).
-
-    Parameters
-    ----------
-    weights : mapping of class value -> weight
-        Every weight finite and > 0; classes not in ``classes`` are ignored.
-    classes : sequence of int
-        The trained classes, in the classifier's order.
-
-    Returns
-    -------
-    tuple of float, one per class, or None when a class has no weight
-
-    Raises
-    ------
-    TerrathemeError
-        A weight that is negative, zero, NaN or infinite.
+    Keeps round 1's correction when a classifier is retrained on correction strokes
+    (painted where the result is wrong, so they say nothing of the class shares).
+    A weight that is not a finite number > 0 is a ``TerrathemeError``.
     """
     for value, w in weights.items():
         try:

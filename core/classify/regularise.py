@@ -96,18 +96,8 @@ def edge_reach(sigma_spatial: float, iterations: int = EDGE_ITERATIONS) -> int:
 
 
 def smooth_probabilities(probs: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian-average each class's probability map.
-
-    Parameters
-    ----------
-    probs : (h, w, C) float32 ndarray
-    sigma : float
-        In coarse pixels.
-
-    Returns
-    -------
-    smoothed : (h, w, C) float32 ndarray (rows still sum to 1)
-    """
+    """Each class's probability map (h, w, C) float32 Gaussian-averaged over ``sigma``
+    coarse pixels (rows still sum to 1)."""
     k = 2 * int(math.ceil(3.0 * sigma)) + 1
     out = cv2.GaussianBlur(probs, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
     return out.reshape(probs.shape)
@@ -166,21 +156,8 @@ def edge_aware_probabilities(probs: np.ndarray, lab: np.ndarray, sigma_spatial: 
 
 def regularise(probs: np.ndarray, lab: np.ndarray, options: RegulariseOptions,
                texture: np.ndarray | None = None) -> np.ndarray:
-    """Apply the chosen regularisation to coarse probability maps.
-
-    Parameters
-    ----------
-    probs : (h, w, C) float32 ndarray
-    lab : (h, w, 3) float32 ndarray
-        The coarse Lab image (used by EDGE).
-    options : RegulariseOptions
-    texture : (h, w) float32 ndarray, optional
-        Block lightness std (used by EDGE, see :func:`edge_aware_probabilities`).
-
-    Returns
-    -------
-    probs : (h, w, C) float32 ndarray
-    """
+    """Coarse probability maps (h, w, C) float32 regularised by ``options.method``; EDGE is
+    guided by the coarse Lab ``lab`` (h, w, 3) and the block lightness std ``texture``."""
     if options.method is Regularisation.SMOOTH:
         return smooth_probabilities(probs, options.sigma)
     if options.method is Regularisation.EDGE:

@@ -65,12 +65,8 @@ def coarse_mask(mask: np.ndarray, scale: int, classes: Iterable[int]) -> np.ndar
 
 def looks_like_scribbles(pairs: Sequence[tuple[np.ndarray, np.ndarray]],
                          ignore_classes: Sequence[int] = ()) -> bool:
-    """True for one ``(photo, mask)`` pair with under ``SCRIBBLE_SHARE`` of the mask labelled.
-
-    Labelled means non-zero and not in ``ignore_classes``; full label masks
-    of other photos (several pairs, or one mostly labelled mask) are not
-    scribbles.
-    """
+    """True for one ``(photo, mask)`` pair with under ``SCRIBBLE_SHARE`` of the mask
+    labelled (non-zero, not in ``ignore_classes``)."""
     if len(pairs) != 1:
         return False
     mask = np.asarray(pairs[0][1])
@@ -79,24 +75,9 @@ def looks_like_scribbles(pairs: Sequence[tuple[np.ndarray, np.ndarray]],
 
 
 def grow_labels(coarse: np.ndarray, lab: np.ndarray, threshold: float) -> np.ndarray:
-    """Label the unlabelled 4-neighbours of labelled coarse pixels that share their colour.
-
-    Parameters
-    ----------
-    coarse : (h, w) uint8 ndarray
-        Class of each coarse pixel, 0 = unlabelled.
-    lab : (h, w, 3) float32 ndarray
-        Coarse Lab image.
-    threshold : float
-        Largest colour difference |dL| + |da| + |db| (Lab units) to a labelled
-        neighbour for an unlabelled pixel to take its class.
-
-    Returns
-    -------
-    grown : (h, w) uint8 ndarray
-        ``coarse`` plus the grown pixels; labelled pixels keep their class,
-        a pixel that would take two different classes stays 0.
-    """
+    """``coarse`` (h, w) uint8 classes (0 unlabelled) plus each unlabelled 4-neighbour of a
+    labelled pixel whose coarse Lab ``lab`` (h, w, 3) differs from it by under
+    ``threshold`` (|dL| + |da| + |db|); a pixel that would take two classes stays 0."""
     h, w = coarse.shape
     taken = np.zeros((h, w), np.uint8)
     conflict = np.zeros((h, w), bool)

@@ -55,23 +55,9 @@ def block_mean(img: np.ndarray, scale: int) -> np.ndarray:
 
 def texture_features(full: np.ndarray, lab: np.ndarray, scale: int,
                      sigmas: Sequence[float]) -> np.ndarray:
-    """The structure features of a photo (module docstring).
-
-    Parameters
-    ----------
-    full : (H, W, 3) float32 ndarray
-        The photo's Lab at full resolution (:func:`core.classify.lab.full_lab`).
-    lab : (h, w, 3) float32 ndarray
-        Its block means (:func:`core.classify.lab.block_lab` of ``full``).
-    scale : int
-    sigmas : sequence of float
-        Context scales in coarse pixels.
-
-    Returns
-    -------
-    features : (h, w, 1 + len(sigmas)) float32 ndarray
-        Edge density, then the coherence at each sigma.
-    """
+    """Edge density, then the coherence at each of ``sigmas`` (coarse pixels): (h, w,
+    1 + len(sigmas)) float32 (module docstring), from the photo's full-resolution Lab
+    ``full`` (H, W, 3) and its block means ``lab`` (h, w, 3)."""
     h, w = lab.shape[:2]
     out = np.empty((h, w, texture_count(sigmas, True)), np.float32)
     gx, gy = _gradient(np.ascontiguousarray(full[:, :, 0]))

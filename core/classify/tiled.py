@@ -32,33 +32,14 @@ RESIZE_CHANNELS = 128
 
 def feature_windows(height: int, width: int, tile: int, scale: int,
                     halo: int) -> list[TileWindow]:
-    """Cut a photo into tiles of whole coarse pixels with ``halo`` coarse pixels of overlap.
-
-    Parameters
-    ----------
-    height, width : int
-        Photo size in pixels.
-    tile : int
-        Core size in photo pixels (rounded down to a multiple of ``scale``).
-    scale : int
-        Photo pixels per coarse pixel.
-    halo : int
-        Overlap in coarse pixels.
-
-    Returns
-    -------
-    windows : list of :class:`core.io.tiles.TileWindow`, row-major
-    """
+    """Row-major tiles: cores of whole coarse pixels, ``halo`` coarse pixels of overlap."""
     return tile_windows(width, height, max(scale, (tile // scale) * scale), halo * scale)
 
 
 def prediction_windows(height: int, width: int, features: FeatureOptions,
                        regularisation: RegulariseOptions, tile: int) -> list[TileWindow]:
-    """The tiles :func:`predict_tiled` cuts a photo into.
-
-    The overlap covers the features' reach plus the regularisation's, plus
-    one coarse pixel for the bilinear upsampling.
-    """
+    """The tiles :func:`predict_tiled` cuts a photo into: the overlap covers the features'
+    and the regularisation's reach, plus one coarse pixel for the upsampling."""
     halo = features.halo + regularisation.halo + 1
     return feature_windows(height, width, tile, features.scale, halo)
 
@@ -66,14 +47,8 @@ def prediction_windows(height: int, width: int, features: FeatureOptions,
 def tile_arrays(
     rgb: np.ndarray, win: TileWindow, options: FeatureOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Coarse Lab, block lightness std and features of a window's outer rectangle.
-
-    Returns
-    -------
-    lab : (h, w, 3) float32 ndarray
-    block_std : (h, w) float32 ndarray
-    features : (h, w, F) float32 ndarray
-    """
+    """Coarse Lab (h, w, 3), block lightness std (h, w) and features (h, w, F), all
+    float32, of a window's outer rectangle."""
     lab, block_std, feats = image_features(rgb[win.ry : win.ry1, win.rx : win.rx1], options)
     return lab, block_std, with_position(feats, (win.ry, win.rx), rgb.shape[:2], options)
 
@@ -92,20 +67,10 @@ def strided_core(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A tile's core coarse pixels on the photo-wide grid of every ``stride``-th row/column.
 
-    The same coarse pixels are picked whatever the tiling, so samples drawn
-    tile by tile equal samples drawn from the whole photo.
-
-    Parameters
-    ----------
-    feats : (h, w, F) ndarray over the window's read rectangle (coarse pixels)
-    win : TileWindow
-    scale, stride : int
-
-    Returns
-    -------
-    core : (r, c, F) ndarray
-    rows, cols : (r,), (c,) int64 ndarrays
-        Photo-wide coarse row and column of each picked coarse pixel.
+    ``feats`` (h, w, F) covers the window's read rectangle. Returns the picked
+    ``core`` (r, c, F) and their photo-wide coarse ``rows`` (r,) and ``cols`` (c,):
+    the same pixels whatever the tiling, so samples drawn tile by tile equal the
+    whole photo's.
     """
     gy0, gx0 = win.y // scale, win.x // scale
     cy, cx = gy0 - win.ry // scale, gx0 - win.rx // scale

@@ -112,17 +112,8 @@ class UnsupervisedOptions:
 
 
 def feature_weights(options: FeatureOptions) -> np.ndarray:
-    """Per-feature weights so each kind of feature counts about once in a distance.
-
-    For the DEFAULT set only the smoothed features count (the unsmoothed
-    coarse Lab and block std are noisy on texture, weight 0), each sigma's copy
-    weighted ``1 / sqrt(len(sigmas))``, so that two flat colours Delta-E ``d``
-    apart are ``d`` apart in feature space.
-
-    Returns
-    -------
-    weights : (F,) float32 ndarray
-    """
+    """Per-feature weights (F,) float32: each sigma's smoothed features weigh
+    ``1 / sqrt(len(sigmas))``, so two flat colours Delta-E ``d`` apart are ``d`` apart."""
     f = options.n_features
     if options.feature_set is not FeatureSet.DEFAULT:
         # Position features (if any) never count: themes are colours, not places.
@@ -209,16 +200,9 @@ def colour_columns(options: FeatureOptions) -> np.ndarray:
 
 def _has_transition_theme(centres: np.ndarray, labels: np.ndarray, max_share: float,
                           *columns: np.ndarray) -> bool:
-    """True if a small theme's colour lies near the segment between two other themes' colours.
-
-    Smoothed features blend across a border between two themes; k-means then
-    offers the blend band (mixed colour, raised edge and texture features) as
-    a theme. Such a theme is recognised by its centre's colour part lying
-    within a quarter of the segment's length of the segment joining two other
-    centres' colours, and by covering less than ``max_share`` of the photo.
-    With several column sets (``columns``) it must lie between two others in
-    each of them.
-    """
+    """True if a theme under ``max_share`` of the photo lies between two others
+    (:func:`lies_between`) in each set of ``columns``: the blend band smoothed
+    features make along a border, not a theme of the scene."""
     shares = np.bincount(labels, minlength=len(centres)) / len(labels)
     return any(shares[c] < max_share and all(lies_between(centres[:, cols], c)
                                              for cols in columns)

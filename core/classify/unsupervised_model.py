@@ -59,26 +59,17 @@ class UnsupervisedModel:
 
     @property
     def context_pixels(self) -> int:
-        """Photo pixels of context a label needs on each side.
-
-        A tile read with at least this overlap, starting at a multiple of
-        ``options.features.scale``, gets the labels of the whole photo there.
-        """
+        """Photo pixels of context a label needs on each side: a tile read with this overlap,
+        starting at a multiple of ``options.features.scale``, gets the whole photo's labels."""
         fo, reg = self.options.features, self.options.regularisation
         return (fo.halo + reg.halo + 1) * fo.scale + self.options.bands.reach
 
     def pixel_colours(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Each theme's Lab mean and variance over photo pixels, for :mod:`core.classify.bands`.
+        """Each theme's Lab mean and variance (K, 3) over photo pixels, for
+        :mod:`core.classify.bands`; None outside the DEFAULT set or without a sigma.
 
-        The mean is the centre's smoothed Lab at the smallest sigma; the
-        variance its spread across the theme's coarse pixels plus, for the
-        lightness, the squared local lightness std of the centre (the spread
-        of photo pixels around a smoothed value).
-
-        Returns
-        -------
-        None (feature sets other than DEFAULT, or no sigma), or
-        means, variances : (K, 3) float64 ndarrays
+        The mean is the centre's smoothed Lab at the smallest sigma; the variance
+        its spread across coarse pixels plus, for L, the squared local lightness std.
         """
         fo = self.options.features
         if fo.feature_set is not FeatureSet.DEFAULT or not fo.sigmas:
@@ -93,22 +84,10 @@ class UnsupervisedModel:
 
     def predict(self, photo: np.ndarray,
                 progress: Callable[[int, int], None] | None = None) -> Classification:
-        """Classify a photo or a tile of one with the fitted themes.
+        """Themes 1..K of a (H, W, 3|4) uint8/uint16 photo or tile (0 where transparent).
 
-        Parameters
-        ----------
-        photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray
-            Transparent pixels (alpha 0) get label 0.
-        progress : callable, optional
-            ``(done, total)`` over the prediction tiles.
-
-        Returns
-        -------
-        Classification
-            labels (H, W) uint8 in 1..K, confidence (H, W) float32 (the
-            mixture posterior, module docstring of ``unsupervised``; a pixel
-            relabelled in a border band, :mod:`core.classify.bands`, keeps
-            its posterior's confidence).
+        Confidence is the mixture posterior (a pixel relabelled in a border band keeps
+        it); ``progress(done, total)`` is called over the tiles.
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
@@ -138,29 +117,12 @@ def fit_unsupervised(
     themes: str | int = "auto",
     options: UnsupervisedOptions | None = None,
 ) -> UnsupervisedModel:
-    """Fit k-means themes to a photo, or to pieces of a photo too large for memory.
+    """Fit themes to a (H, W, 3|4) photo, or to full-resolution pieces of one too large
+    for memory (they share ``options.max_samples`` by area; no context across pieces).
 
-    Parameters
-    ----------
-    sample_photo : (H, W, 3|4) uint8/uint16 ndarray, or a sequence of them
-        The photo, or windows of it read at full resolution (e.g. spread
-        over a big photo). Pieces share the sample budget
-        (``options.max_samples``) in proportion to their area; each piece's
-        features see only that piece (no context across pieces).
-    themes : "auto" or int
-        "auto": K from the data (criterion of
-        :mod:`core.classify.unsupervised`); an int: that many themes (fewer
-        if the sample has fewer distinct pixels).
-    options : UnsupervisedOptions, optional
-
-    Returns
-    -------
-    UnsupervisedModel
-
-    Raises
-    ------
-    TerrathemeError
-        Bad ``themes``, no pieces, or a piece that is not a photo.
+    ``themes``: "auto" (K by the criterion of :mod:`core.classify.unsupervised`) or
+    at most that many. ``TerrathemeError`` for bad ``themes``, no piece, or a piece
+    that is not a photo.
     """
     opts = options or UnsupervisedOptions()
     _check_themes(themes)
@@ -187,24 +149,7 @@ def classify_unsupervised(
     options: UnsupervisedOptions | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Classification:
-    """Split a photo into themes without training data.
-
-    Parameters
-    ----------
-    photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray
-        Transparent pixels (alpha 0) get label 0.
-    themes : "auto" or int
-        "auto": K from the data (module docstring of ``unsupervised``); an
-        int: that many themes (fewer if the photo has fewer distinct pixels).
-    options : UnsupervisedOptions, optional
-    progress : callable, optional
-        ``(done, total)`` over the prediction tiles.
-
-    Returns
-    -------
-    Classification
-        labels (H, W) uint8 in 1..K (1 = largest theme), confidence (H, W) float32.
-    """
+    """Themes of a photo without training data: :func:`fit_unsupervised`, then
+    :meth:`UnsupervisedModel.predict` (1 = largest theme)."""
     _check_themes(themes)
-    # Fit on the whole photo, then predict every pixel tile by tile.
     return fit_unsupervised(photo, themes=themes, options=options).predict(photo, progress)
