@@ -115,7 +115,12 @@ def _rewrite(src, dst, change):
 
 @pytest.mark.parametrize(("change", "match"), [
     (lambda m: m["colour_map"]["members"].pop(), "tile members"),
-    (lambda m: m["colour_map"].update(tile=32), "tile members"),
+    (lambda m: m["colour_map"].update(tile=32), "tiles are 16 pixels a side"),
+    # One small member listed once per map pixel (minutes of decoding before the fix).
+    (lambda m: m["colour_map"].update(tile=1, members=["colour_map/000_000.png"] * 50 * 70),
+     "tiles of 1 pixels"),
+    (lambda m: m["colour_map"]["members"].__setitem__(1, m["colour_map"]["members"][0]),
+     "listed twice"),
     (lambda m: m["colour_map"].update(tile=0), "positive integer"),
     (lambda m: m["colour_map"].update(codec="gif"), "codec"),
     (lambda m: m["colour_map"]["members"].reverse(), "expected"),

@@ -95,6 +95,25 @@ def tile_boxes(shape: tuple[int, int], tile: int) -> list[TileBox]:
             for y in range(0, mh, tile) for x in range(0, mw, tile)]
 
 
+def check_tile_members(shape: tuple[int, int], tile: object, names: object) -> None:
+    """Refuse a tiled map's listing unless it is what :meth:`ColourMap.encode` writes:
+    tiles of :data:`MAP_TILE`, one member of its own per tile, row by row.
+
+    Work is then bounded by the archive: each tile is a distinct member (a
+    listing that named one small member once per pixel took minutes to decode).
+    """
+    rows, cols = ColourMap.tile_counts(shape, tile)
+    if tile != MAP_TILE:
+        raise TerrathemeError(f"colour map tiles of {tile} pixels: tiles are {MAP_TILE} "
+                              "pixels a side")
+    if (not isinstance(names, list) or len(names) != rows * cols
+            or not all(isinstance(n, str) for n in names)):
+        raise TerrathemeError(f"a {shape[1]} x {shape[0]} colour map in tiles of {tile} "
+                              f"needs {rows * cols} tile members")
+    if len(set(names)) != len(names):
+        raise TerrathemeError("a colour map tile member is listed twice")
+
+
 @dataclass(frozen=True, eq=False)
 class ColourMap:
     """A per-channel colour gain over the texture (see the module docstring).

@@ -63,7 +63,7 @@ from terratheme.core.io.archive import (
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import validate_georeference
-from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.colour_map import ColourMap, check_tile_members
 from terratheme.core.model.grid import MAX_THEMES, IndexGrid, validate_indices
 from terratheme.core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
 from terratheme.core.model.manifest import (
@@ -216,11 +216,10 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
     tile, codec, names = entry.get("tile"), entry.get("codec"), entry.get("members")
     if codec not in CODECS:
         raise CorruptFileError(f"{label}: unknown colour map codec {codec!r}")
-    rows, cols = ColourMap.tile_counts(shape, tile)
-    if (not isinstance(names, list) or len(names) != rows * cols
-            or not all(isinstance(n, str) for n in names)):
-        raise CorruptFileError(f"{label}: a {shape[1]} x {shape[0]} colour map in tiles of "
-                               f"{tile} needs {rows * cols} tile members")
+    try:
+        check_tile_members(shape, tile, names)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{label}: {exc}") from None
     # Each tile's bytes: at most its raw size (a compressed tile is smaller).
     limit = min(tile, shape[0]) * min(tile, shape[1]) * 3 + 4096
     tiles = [read_member(zf, name, label, max_bytes=limit) for name in names]
