@@ -283,3 +283,21 @@ def test_an_unusable_default_cache_still_gives_the_frame(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "note: the family cache" in proc.stdout and "the family is not kept" in proc.stdout
     assert "family cached" not in proc.stdout and (tmp_path / "pv.png").is_file()
+
+
+def test_a_fifo_as_a_training_entry_does_not_block_classify(tmp_path):
+    rng = np.random.default_rng(0)
+    truth = np.kron(rng.integers(1, 3, (4, 6)), np.ones((16, 16), np.uint8)).astype(np.uint8)
+    photo = np.where(truth[:, :, None] == 1, 60, 190) + rng.integers(0, 20, truth.shape + (3,))
+    write_image(tmp_path / "photo.png", photo.astype(np.uint8))
+    write_image(tmp_path / "truth.png", truth)
+    cache = tmp_path / "cache"
+    args = ["classify", tmp_path / "photo.png", "-o", tmp_path / "l.png", "--train",
+            tmp_path / "photo.png", tmp_path / "truth.png", "--cache-dir", cache]
+    assert run_cli(*args).returncode == 0
+    for entry in cache.iterdir():
+        entry.unlink()
+        os.mkfifo(entry)
+    proc = run_cli(*args, timeout=120)                # was blocked for good
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.is_file() for p in cache.iterdir()) == [True, True]
