@@ -177,7 +177,7 @@ def test_fidelity_view_marks_the_cells_that_differ(window):
 
 
 def test_classification_from_the_menu_fills_the_grid(window, qtbot):
-    from terratheme.app.editor.classify_job import Mode
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     doc = window.doc
     job = window.start_classification(Mode.UNSUPERVISED_NEW)
@@ -199,7 +199,7 @@ def test_classification_from_the_menu_fills_the_grid(window, qtbot):
 
 
 def test_classification_can_be_cancelled(window, qtbot):
-    from terratheme.app.editor.classify_job import Mode
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     doc = window.doc
     n_themes = len(doc.texture.library)
@@ -213,8 +213,8 @@ def test_classification_can_be_cancelled(window, qtbot):
 
 
 def test_classification_without_photo_or_scribbles_reports(window, small_texture, qtbot):
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.document import EditorDocument
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     job = window.start_classification(Mode.SCRIBBLES)
     qtbot.waitUntil(lambda: window.job is None, timeout=60000)
@@ -262,8 +262,8 @@ def drag(qtbot, canvas, points):
 
 
 def test_scribbles_train_a_classifier_from_the_menu(window, qtbot):
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.tools import Tool
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     doc = window.doc
     canvas = window.index_canvas
@@ -290,9 +290,9 @@ def test_scribbles_train_a_classifier_from_the_menu(window, qtbot):
 
 
 def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, monkeypatch):
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.launch import load_start_document
     from terratheme.app.editor.window import MainWindow
+    from terratheme.core.edit.classification import ClassifyMode as Mode
     from terratheme.core.io.images import write_image
 
     photo = np.zeros((64, 96, 3), dtype=np.uint8)
@@ -308,6 +308,8 @@ def test_new_project_over_a_photo_gets_the_classes_as_themes(qtbot, tmp_path, mo
     qtbot.waitUntil(lambda: win.job is None, timeout=60000)
     lib = win.doc.texture.library
     assert len(lib) == 2 and not doc.fresh_from_photo
+    # The classes replace the start themes, so their names need no marks to differ from them.
+    assert lib.names == [n.rstrip("'") for n in lib.names], lib.names
     ind = win.doc.texture.grid.indices
     assert ind[0, 0] != ind[0, -1]
     # One undo step takes the classes back to the shipped themes and the one-theme grid.
@@ -374,3 +376,23 @@ def test_palette_adds_a_theme_and_assigns_a_texture_file(window, tmp_path, monke
     np.testing.assert_array_equal(doc.preview.image, fresh)
 
 
+
+
+def test_both_views_show_the_whole_map_when_the_window_opens(small_texture, qtbot):
+    from terratheme.app.editor.document import EditorDocument
+    from terratheme.app.editor.window import MainWindow
+
+    win = MainWindow(EditorDocument(small_texture(photo=halves_photo())))
+    qtbot.addWidget(win)
+    win.resize(1100, 700)
+    win.show()
+    qtbot.waitExposed(win)
+    w, h = win.doc.extent
+    for canvas in (win.index_canvas, win.render_canvas):
+        # no fit() called here: the window fits its views once it is laid out
+        qtbot.waitUntil(lambda c=canvas: screen_of(c, QPointF(w, h)).x() <= c.width(),
+                        timeout=5000)
+        top_left, bottom_right = screen_of(canvas, QPointF(0, 0)), screen_of(canvas, QPointF(w, h))
+        assert 0 <= top_left.x() and bottom_right.x() <= canvas.width()
+        assert 0 <= top_left.y() and bottom_right.y() <= canvas.height()
+    win.wait_for_jobs()

@@ -25,7 +25,8 @@ def doc(small_texture):
 
 
 def test_scribble_run_uses_and_reports_the_class_weights(doc):
-    from terratheme.app.editor.classify_job import Mode, run_classification
+    from terratheme.core.edit.classification import ClassifyMode as Mode
+    from terratheme.core.edit.classification import run_classification
 
     photo = np.zeros((64, 96, 3), np.uint8)
     photo[:, :48] = (30, 140, 40)
@@ -48,7 +49,8 @@ def test_scribble_run_uses_and_reports_the_class_weights(doc):
 
 def test_scribble_run_passes_the_position_option(monkeypatch, doc):
     import terratheme.core.convert.step
-    from terratheme.app.editor.classify_job import Mode, run_classification
+    from terratheme.core.edit.classification import ClassifyMode as Mode
+    from terratheme.core.edit.classification import run_classification
 
     seen = []
     train = terratheme.core.convert.step.train_classifier
@@ -93,8 +95,8 @@ def drag(qtbot, canvas, points):
 
 @pytest.mark.qt
 def test_uncertainty_toggle_follows_the_confidence_map(window, qtbot):
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.tools import Tool
+    from terratheme.core.edit.classification import ClassifyMode as Mode
     doc = window.doc
     act = window.uncertainty_action
     assert act.shortcut().toString() == "U"
@@ -133,8 +135,8 @@ def test_uncertainty_toggle_follows_the_confidence_map(window, qtbot):
 
 @pytest.mark.qt
 def test_scribble_reruns_keep_the_first_class_prior(window, qtbot):
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.tools import Tool
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     doc = window.doc
     window.set_tool(Tool.SCRIBBLE)

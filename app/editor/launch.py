@@ -45,8 +45,8 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
     prepare_display(screenshot=screenshot is not None)
     from PySide6.QtCore import QElapsedTimer, QEventLoop, qInstallMessageHandler
     from PySide6.QtWidgets import QApplication
-    from terratheme.app.editor.classify_job import Mode
     from terratheme.app.editor.window import MainWindow
+    from terratheme.core.edit.classification import ClassifyMode as Mode
 
     qInstallMessageHandler(_qt_message)
     app = QApplication.instance() or QApplication(sys.argv[:1])

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QPointF, QRectF, Qt, QUrl
+from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, QUrl
 from PySide6.QtGui import (
     QAction,
     QActionGroup,
@@ -37,7 +37,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 from terratheme.app.editor.canvas import MapCanvas, ViewState
-from terratheme.app.editor.classify_job import ClassifyJob, ClassifyResult, Mode, keep_alive
+from terratheme.app.editor.classify_job import ClassifyJob, keep_alive
 from terratheme.app.editor.document import EditorDocument
 from terratheme.app.editor.help import DOCS, about_text, docs_text, keys_help_html
 from terratheme.app.editor.imaging import ZoomPyramid
@@ -47,6 +47,8 @@ from terratheme.app.editor.tools import Tool, ToolController
 from terratheme.core.edit import (
     UNCERTAIN_SHARE,
     ClassificationUpdate,
+    ClassifyMode,
+    ClassifyResult,
     HistoryChange,
     ScribbleChange,
     uncertainty_rgba,
@@ -90,6 +92,7 @@ class MainWindow(QMainWindow):
         self.index_opacity = 0.75
         self.scribble_pyramid: ZoomPyramid | None = None
         self.show_uncertainty = False
+        self._shown = False
         self.uncertainty_pyramid: ZoomPyramid | None = None
         self.job = None
         self.all_jobs: list = []
@@ -292,6 +295,13 @@ class MainWindow(QMainWindow):
         self.index_canvas.update()
         self.render_canvas.update()
 
+    def showEvent(self, event) -> None:
+        """Fit the views once the window is first laid out (before, the canvases have no size)."""
+        super().showEvent(event)
+        if not self._shown:
+            self._shown = True
+            QTimer.singleShot(0, self.fit)
+
     def fit(self) -> None:
         canvas = self.index_canvas if self.index_canvas.isVisible() else self.render_canvas
         size = canvas.size()
@@ -369,7 +379,7 @@ class MainWindow(QMainWindow):
                                          self._toggle("show_fidelity"), "H", False)
         self.build_uncertainty_action(view)
         cls = mb.addMenu("&Classify")
-        for mode in Mode:
+        for mode in ClassifyMode:
             self._act(cls, mode.value + "…", lambda _=False, m=mode: self.start_classification(m))
         cls.addSeparator()
         # Off by default: such a model fits this photo only (see classify --position).
@@ -530,7 +540,7 @@ class MainWindow(QMainWindow):
         return True
 
     # -- classification --------------------------------------------------------
-    def start_classification(self, mode: Mode) -> ClassifyJob | None:
+    def start_classification(self, mode: ClassifyMode) -> ClassifyJob | None:
         """Classify the project's photo on a worker thread (progress bar, Cancel)."""
         tex = self.doc.texture
         if tex.photo is None:
@@ -541,10 +551,15 @@ class MainWindow(QMainWindow):
             return None
         scribbles = None if tex.scribbles is None else tex.scribbles.copy()
         # Scribble runs reuse the class prior of the first strokes (same classes painted).
-        prior = self.doc.model.prior_for_scribbles() if mode is Mode.SCRIBBLES else None
+        prior = self.doc.model.prior_for_scribbles() if mode is ClassifyMode.SCRIBBLES else None
+        # A project just started over a photo: its themes become the classes, nothing else.
+        fresh = (self.doc.fresh_from_photo and not self.doc.model.history.can_undo
+                 and mode in (ClassifyMode.AERIAL, ClassifyMode.UNSUPERVISED_NEW))
         job = ClassifyJob(mode, tex.photo, scribbles, tex.library, tex.grid.cell,
                           tex.grid.indices.shape, class_weights=prior,
-                          position=mode is Mode.SCRIBBLES and self.position_action.isChecked())
+                          position=mode is ClassifyMode.SCRIBBLES
+                          and self.position_action.isChecked(),
+                          replace_themes=fresh)
         keep_alive(job)
         job.progressed.connect(self._job_progress)
         job.succeeded.connect(lambda result, j=job: self._job_done(j, result))
@@ -577,13 +592,10 @@ class MainWindow(QMainWindow):
             return
         doc = self.doc
         model = doc.model
-        # A project just started over a photo: its themes are the classes, nothing else.
-        fresh = doc.fresh_from_photo and bool(result.new_themes) and not model.history.can_undo
-        # The job numbers new themes after the current library.
-        indices = (result.indices.astype(np.int64) - len(doc.texture.library) if fresh
-                   else result.indices)
+        fresh = job.replace_themes
+        indices = result.indices
         unchanged = not result.new_themes and np.array_equal(indices, doc.texture.grid.indices)
-        scribble_run = job.args[0] is Mode.SCRIBBLES
+        scribble_run = job.args[0] is ClassifyMode.SCRIBBLES
         try:
             model.apply_classification(ClassificationUpdate(
                 indices, new_themes=result.new_themes, replace_themes=fresh,

@@ -21,7 +21,13 @@ Modules, from the bottom up:
 
 from terratheme.core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms
 from terratheme.core.edit.changes import Change
-from terratheme.core.edit.classification import ClassificationUpdate, classification_changes
+from terratheme.core.edit.classification import (
+    ClassificationUpdate,
+    ClassifyMode,
+    ClassifyResult,
+    classification_changes,
+    run_classification,
+)
 from terratheme.core.edit.document import EditDocument
 from terratheme.core.edit.events import (
     ColourMapChange,
@@ -68,6 +74,8 @@ __all__ = [
     "Atom",
     "Change",
     "ClassificationUpdate",
+    "ClassifyMode",
+    "ClassifyResult",
     "ConfidenceChange",
     "Connectivity",
     "DocumentEvents",
@@ -90,6 +98,7 @@ __all__ = [
     "VertexSelection",
     "capsule_footprint",
     "classification_changes",
+    "run_classification",
     "dirty_cells",
     "dirty_region",
     "display_photo",
