@@ -1,9 +1,11 @@
 """Output paths, checked before a command starts its work.
 
 Every command calls :func:`check_outputs` right after reading its arguments,
-so a bad output path costs no work: a path that is a folder, an output that
-is also an input, two outputs on one path, or a folder that cannot be made
-or written. Missing output folders are made (every command alike).
+with every file it may write (sidecars included), so a bad output path costs
+no work: a path that is a folder, an output that is also an input (the same
+path after links, or the same file by another name), two outputs on one path,
+a symlink loop, a symlinked subfolder of an output folder, or a folder that
+cannot be made or written. Missing output folders are made (every command alike).
 """
 
 from __future__ import annotations
@@ -15,21 +17,49 @@ from pathlib import Path
 from terratheme.core.errors import TerrathemeError
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def _resolved(path: Path) -> Path:
     try:
-        return a.exists() and b.exists() and a.samefile(b)
+        return path.resolve()
+    except (RuntimeError, OSError) as exc:
+        why = "a symlink loop" if isinstance(exc, RuntimeError) or getattr(
+            exc, "errno", None) == 40 else (exc.strerror or str(exc))
+        raise TerrathemeError(f"{path}: cannot follow the path ({why})") from None
+
+
+def _file_id(path: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
     except OSError:
-        return False
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _check_subfolders(out: Path, folder: Path) -> None:
+    """Refuse a symlinked folder between ``folder`` (the output folder named) and ``out``."""
+    try:
+        parts = out.parent.relative_to(folder).parts
+    except ValueError:
+        return
+    here = folder
+    for part in parts:
+        here = here / part
+        if here.is_symlink():
+            raise TerrathemeError(f"{here}: is a symbolic link; an output folder's subfolders "
+                                  "must be real folders (remove the link)")
 
 
 def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
-                  inputs: Iterable[str | os.PathLike | None] = ()) -> list[Path]:
+                  inputs: Iterable[str | os.PathLike | None] = (),
+                  folder: str | os.PathLike | None = None) -> list[Path]:
     """Check (and prepare the folders of) the files a command will write.
 
     Parameters
     ----------
-    outputs : paths (None entries are skipped)
+    outputs : paths (None entries are skipped): every file the command may write
     inputs : paths the command reads (None entries are skipped)
+    folder : path, optional
+        The output folder the outputs lie in (an export): none of its
+        subfolders on the way to an output may be a symbolic link.
 
     Returns
     -------
@@ -38,30 +68,35 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
     Raises
     ------
     TerrathemeError
-        An output is a folder, is one of the inputs, appears twice, or its
-        folder cannot be made or is not writable.
+        An output is a folder, is one of the inputs, appears twice, lies
+        under a symlinked subfolder of ``folder``, a path is a symlink loop,
+        or an output's folder cannot be made or is not writable.
     """
     outs = [Path(p) for p in outputs if p is not None]
-    ins = [Path(p) for p in inputs if p is not None]
-    seen: list[Path] = []
+    ins = [(Path(p), _resolved(Path(p)), _file_id(Path(p))) for p in inputs if p is not None]
+    seen: dict[Path, Path] = {}
     for out in outs:
+        real = _resolved(out)
         if out.is_dir():
             raise TerrathemeError(f"{out}: is a folder, not an output file")
-        for src in ins:
-            if out.resolve() == src.resolve() or _same_file(out, src):
-                raise TerrathemeError(f"{out}: is also an input; write the output elsewhere")
-        for other in seen:
-            if out.resolve() == other.resolve():
-                raise TerrathemeError(f"{out}: two outputs would be written to the same file")
-        seen.append(out)
-        folder = out.parent if str(out.parent) else Path(".")
+        ident = _file_id(out)
+        for src, src_real, src_id in ins:
+            if real == src_real or (ident is not None and ident == src_id):
+                raise TerrathemeError(f"{out}: is also an input ({src}); write the output "
+                                      "elsewhere")
+        if real in seen:
+            raise TerrathemeError(f"{out}: two outputs would be written to the same file")
+        seen[real] = out
+        if folder is not None:
+            _check_subfolders(out, Path(folder))
+        parent = out.parent if str(out.parent) else Path(".")
         try:
-            folder.mkdir(parents=True, exist_ok=True)
+            parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise TerrathemeError(f"{out}: cannot make the folder {folder} ({exc.strerror})"
+            raise TerrathemeError(f"{out}: cannot make the folder {parent} ({exc.strerror})"
                                   ) from None
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise TerrathemeError(f"{out}: the folder {folder} is not writable")
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise TerrathemeError(f"{out}: the folder {parent} is not writable")
     return outs
 
 

@@ -9,6 +9,7 @@ not at all); an old output survives an interrupted run unchanged.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -17,10 +18,12 @@ import time
 import numpy as np
 import pytest
 from hostile_fuzz import REPO, check_refused, hidden_files, run_cli
-from terratheme.core.io.temporaries import TEMPORARY_NAME
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture, save_project
 from terratheme.core.themes.library import ThemeLibrary, flat_theme
+
+#: the temporaries core.io.atomic makes: ``.<name>.tt-<12 hex>.tmp<suffix>``
+TEMPORARY_NAME = re.compile(r"^\..+\.tt-[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 
 
 def _project(path, vertices: int, cell: int = 128) -> None:

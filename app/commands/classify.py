@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
         train_classifier,
     )
     from terratheme.core.errors import TerrathemeError
-    from terratheme.core.io.atomic import write_files
+    from terratheme.core.io.atomic import file_set
     from terratheme.core.io.images import Bands, image_info, read_image, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
@@ -238,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
 
     # Labels as a palette PNG (values stay the class numbers) or a grey image; the outputs
-    # as one set (all replaced or none) when they share a folder.
+    # as one set (all replaced or none).
     palette = label_palette() if args.output.lower().endswith(".png") else None
     writers = [(args.output, lambda p: write_image(p, result.labels[:, :, None],
                                                    palette=palette))]
@@ -250,7 +250,9 @@ def run(args: argparse.Namespace) -> int:
         writers.append((args.confidence, lambda p: write_image(p, conf[:, :, None])))
     if args.model_out:
         writers.append((args.model_out, model.save))
-    write_files(writers)
+    with file_set([path for path, _ in writers]) as files:
+        for path, write in writers:
+            write(files.temporary(path))
     counts = np.bincount(result.labels.ravel(), minlength=256)
     names = (model.class_names if model is not None else None) or {}
     shown = ", ".join(f"{k}{' ' + names[k] if k in names else ''}: "

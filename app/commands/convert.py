@@ -188,6 +188,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.convert.photo import (
         ConvertOptions,
         convert_photo,
+        output_files,
         read_photo,
         write_outputs,
     )
@@ -211,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         raise TerrathemeError("--scheduler joins a running cluster, --workers starts one: "
                               "pick one")
     # Output paths checked (and their folders made) before any work.
-    check_outputs([project, preview, packed, args.curve],
+    check_outputs([*output_files(project, preview_path=preview, packed_path=packed), args.curve],
                   inputs=[args.photo, args.scribbles, args.model, args.legend])
     check_image_outputs([preview])
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")

@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     options = ExportOptions(Engine(args.engine), args.size, args.tile,
                             style=WeightStyle(args.style))
     plan = plan_export(project, options)
-    check_outputs(plan.paths(outdir), inputs=[args.project])
+    check_outputs(plan.paths(outdir), inputs=[args.project], folder=outdir)
     with progress_bar(f"export {args.engine}", unit="part") as progress:
         paths = write_export(project, plan, outdir, progress=progress)
     if plan.layout is not None:

@@ -48,7 +48,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_image_outputs, check_outputs
     from terratheme.app.progress import progress_bar
-    from terratheme.core.io.georef import write_georeference
+    from terratheme.core.io.georef import world_file_name, write_georeference
     from terratheme.core.io.images import write_image
     from terratheme.core.render.boundary import BoundaryOptions
     from terratheme.core.render.inputs import validate_region
@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.render.renderer import BlendMode, RenderOptions
 
     packed = _packed_path(args)
-    check_outputs([args.out], inputs=[args.project] + ([packed] if packed else []))
+    check_outputs([args.out, world_file_name(args.out)],  # the world file a render may get
+                  inputs=[args.project] + ([packed] if packed else []))
     check_image_outputs([args.out])
     project = load_checked_project(args.project)
     grid = _packed_grid(packed, project) if packed else project.grid

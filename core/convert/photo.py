@@ -21,6 +21,7 @@ curve (``core.packing``).
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -34,11 +35,16 @@ from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.labels_to_grid import apply_lut
 from terratheme.core.convert.step import classify_photo, grid_and_colour, themes_and_cell
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.atomic import atomic_file_set, write_bytes_atomic
+from terratheme.core.io.atomic import file_set, write_bytes_atomic
 from terratheme.core.io.codec import CODECS
-from terratheme.core.io.georef import read_georeference, world_file_for, write_georeference
+from terratheme.core.io.georef import (
+    read_georeference,
+    world_file_for,
+    world_file_name,
+    write_georeference,
+)
 from terratheme.core.io.images import Bands, read_image, write_image
-from terratheme.core.model.project import ThematicTexture, save_project
+from terratheme.core.model.project import ThematicTexture, save_project, shipped_colour_map
 from terratheme.core.packing import pack
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.project import photo_extent, render_georeference, render_project
@@ -275,6 +281,45 @@ def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -
     return render_project(project, region=region, scale=scale), region
 
 
+def colour_map_file(packed_path: str | os.PathLike, codec: str = "jpegxl") -> Path:
+    """Where a colour map in ``codec`` ships beside a packed layer: ``<stem>_colour.<ext>``."""
+    target = Path(packed_path)
+    return target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[codec]}")
+
+
+def output_files(project_path: str | os.PathLike, *,
+                 preview_path: str | os.PathLike | None = None,
+                 packed_path: str | os.PathLike | None = None) -> list[Path]:
+    """Every file :func:`write_outputs` may write for these paths (colour maps in any
+    codec, world files), so a caller can check them all before any work."""
+    paths = []
+    if packed_path is not None:
+        paths += [Path(packed_path), *(colour_map_file(packed_path, c) for c in CODEC_SUFFIX)]
+    if preview_path is not None:
+        world = world_file_name(preview_path)
+        paths += [Path(preview_path), *([] if world is None else [world])]
+    return [*paths, Path(project_path)]
+
+
+def _old_colour_maps(project_path: Path, packed_path: str | os.PathLike | None,
+                     keep: list[Path]) -> list[Path]:
+    """The colour maps beside ``packed_path`` that the project being replaced shipped
+    (byte for byte its own map) and the new set does not hold: removed with it."""
+    old = []
+    for codec in CODEC_SUFFIX if packed_path is not None else ():
+        path = colour_map_file(packed_path, codec)
+        try:
+            info = path.lstat()
+        except OSError:
+            continue
+        if path in keep or not stat.S_ISREG(info.st_mode):
+            continue
+        data = shipped_colour_map(project_path, info.st_size)
+        if data is not None and len(data) == info.st_size and data == path.read_bytes():
+            old.append(path)
+    return old
+
+
 def write_outputs(
     project: ThematicTexture,
     project_path: str | os.PathLike,
@@ -287,11 +332,9 @@ def write_outputs(
 
     A colour map shipped in a codec is written as those bytes beside the
     packed layer (``<stem>_colour.jxl``): together they are the packed output.
-    When every file lies in one folder they are written as one set
-    (:func:`core.io.atomic.atomic_file_set`): all replaced, or none, the
-    project last; a run killed half way leaves the old set, and the next run
-    in that folder cleans up after it. Otherwise each file is written
-    atomically on its own, the project last.
+    The files are one set (:func:`core.io.atomic.file_set`): all replaced, or
+    none, the project last. A colour map the replaced project shipped and the
+    new one has not (``--colour-map off``) is removed with it.
 
     Returns
     -------
@@ -305,9 +348,7 @@ def write_outputs(
         plan.append(("packed", Path(packed_path)))
         cmap = project.colour_map
         if cmap is not None and cmap.data is not None:
-            target = Path(packed_path)
-            plan.append(("colour_map",
-                         target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[cmap.codec]}")))
+            plan.append(("colour_map", colour_map_file(packed_path, cmap.codec)))
     if preview_path is not None:
         image, region = render_preview(project, preview_max_side)
         geo = render_georeference(project, region, image.shape[1::-1])
@@ -333,20 +374,16 @@ def write_outputs(
             save_project(target, project)
 
     finals = [path for _, path in plan]
-    if len({p.parent.resolve() for p in finals}) == 1:
-        with atomic_file_set(finals) as temps, ThreadPoolExecutor(max_workers=1) as pool:
-            where = {key: tmp for (key, _), tmp in zip(plan, temps, strict=True)}
-            # The preview PNG is encoded on a second thread while the rest is written
-            # (zlib in both releases the GIL); all are written before the set is renamed.
-            beside = pool.submit(write, "preview", where["preview"], where) \
-                if "preview" in where else None
-            for key, tmp in where.items():
-                if key != "preview":
-                    write(key, tmp, where)
-            if beside is not None:
-                beside.result()
-    else:
-        where = dict(plan)
-        for key, path in plan:
-            write(key, path, where)
+    remove = _old_colour_maps(Path(project_path), packed_path, finals)
+    with file_set(finals, remove=remove) as files, ThreadPoolExecutor(max_workers=1) as pool:
+        where = {key: files.temporary(path) for key, path in plan}
+        # The preview PNG is encoded on a second thread while the rest is written
+        # (zlib in both releases the GIL); all are written before the set is renamed.
+        beside = pool.submit(write, "preview", where["preview"], where) \
+            if "preview" in where else None
+        for key, tmp in where.items():
+            if key != "preview":
+                write(key, tmp, where)
+        if beside is not None:
+            beside.result()
     return dict(plan)

@@ -10,6 +10,7 @@ from terratheme.core.exchange import geotiff, terrain3d, unity, unreal
 from terratheme.core.exchange.options import Engine, ExportOptions
 from terratheme.core.exchange.plan import ExportPlan
 from terratheme.core.exchange.style import export_boundary
+from terratheme.core.io.atomic import file_set
 from terratheme.core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
@@ -32,7 +33,11 @@ def plan_export(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
 
 def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.PathLike, *,
                  progress: Progress | None = None) -> list[Path]:
-    """Write the files of ``plan`` into ``folder`` (each atomically, the manifest last).
+    """Write the files of ``plan`` into ``folder`` as one set (:func:`core.io.atomic.file_set`).
+
+    Every file goes to a temporary first; the old manifest is removed, the new
+    files renamed into place and the manifest last, so a reader that trusts
+    the manifest never sees old and new files mixed.
 
     Returns
     -------
@@ -40,5 +45,6 @@ def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.Pa
     """
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
-    _ENGINES[plan.options.engine].write(project, plan, out, progress)
+    with file_set(plan.paths(out)):
+        _ENGINES[plan.options.engine].write(project, plan, out, progress)
     return plan.paths(out)

@@ -69,8 +69,7 @@ from terratheme.core.exchange.plan import (
 from terratheme.core.exchange.style import map_slots
 from terratheme.core.exchange.weights import BAND_PIXELS, strongest_two
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.image_format import error_line
-from terratheme.core.io.images import image_info, read_image, write_image
+from terratheme.core.io.images import image_info, read_image, write_image, write_oiio
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.rules import cell_splits
 
@@ -155,14 +154,7 @@ def write_control_map(path: str | Path, control: np.ndarray) -> None:
     spec.channelnames = ("R",)
     spec.attribute("compression", "zip")
     with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(str(path))
-        if out is None or not out.open(str(tmp), spec):
-            raise TerrathemeError(f"cannot write {path}: {error_line()}")
-        ok = out.write_image(values.view(np.float32)[:, :, None])
-        err = error_line(out)
-        out.close()
-        if not ok:
-            raise TerrathemeError(f"cannot write {path}: {err}")
+        write_oiio(path, tmp, spec, values.view(np.float32)[:, :, None])
 
 
 def terrain3d_layout(grid_shape: tuple[int, int], texture_size: tuple[int, int],

@@ -5,14 +5,18 @@ windows, bounded-memory tile jobs here or on a cluster), ``cluster`` (a
 dask.distributed cluster: start or join one, tasks in order with bounded
 results in flight), ``tiled_writer`` (images written tile by tile),
 ``georef`` (GeoTIFF tags and world files), ``atomic`` (write to a temporary
-file, then rename; sets of files) over ``temporaries`` (their names, the signals
-that remove them) and ``stale`` (what killed processes left), ``codec`` (images
+file, then rename; sets of files, the one naming the others last), ``codec`` (images
 as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
 ``png`` (PNG chunks: palettes), ``memory`` (free memory; whole-photo work
 that cannot fit refused before its pixels are read).
 """
 
-from terratheme.core.io.atomic import atomic_file_set, atomic_path, write_bytes_atomic
+from terratheme.core.io.atomic import (
+    atomic_path,
+    file_set,
+    remove_temporaries,
+    write_bytes_atomic,
+)
 from terratheme.core.io.cluster import connect, local_cluster, map_ordered
 from terratheme.core.io.codec import decode_image, encode_image
 from terratheme.core.io.georef import (
@@ -32,7 +36,6 @@ from terratheme.core.io.images import (
     write_image,
 )
 from terratheme.core.io.memory import available_memory, check_fits
-from terratheme.core.io.stale import clean_stale_temporaries
 from terratheme.core.io.tiled_writer import TiledImageWriter
 from terratheme.core.io.tiles import (
     Scheduler,
@@ -48,14 +51,13 @@ __all__ = [
     "Scheduler",
     "TileWindow",
     "TiledImageWriter",
-    "atomic_file_set",
     "atomic_path",
     "available_memory",
     "check_fits",
-    "clean_stale_temporaries",
     "connect",
     "decode_image",
     "encode_image",
+    "file_set",
     "image_attributes",
     "image_info",
     "local_cluster",
@@ -65,6 +67,7 @@ __all__ = [
     "read_image",
     "read_labels",
     "read_region",
+    "remove_temporaries",
     "run_tiles",
     "scale_georeference",
     "tile_windows",

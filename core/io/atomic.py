@@ -1,113 +1,157 @@
-"""Atomic file output: write to a temporary file beside the target, then rename.
+"""Output files: each written to a temporary beside it, flushed to disk, then renamed onto it.
 
-A failed or interrupted write never leaves a half-written output file, and
-never a stray temporary one:
+A reader never sees half a file, and a failed run changes no file:
 
-* :func:`atomic_path` yields a hidden temporary path beside one target and
-  renames it onto the target on success; on an exception (KeyboardInterrupt
-  included) it is removed (``rename=False``: a scratch file, always removed).
-* :func:`atomic_file_set` does the same for several files that belong
-  together (``convert``'s project, preview and packed layer): all are written
-  to temporaries, then renamed in the given order, the manifest/project
-  last; if a rename fails, the ones done are undone from hard-linked
-  backups, so the old set stays whole. A journal written before the first
-  rename lets the next run undo a set whose process was killed mid-commit.
-* SIGTERM and SIGHUP (installed when the first temporary is made in the main
-  thread, if those signals still have their default action) remove this
-  process's temporaries and then terminate as the signal would have.
-* SIGKILL cannot be caught: the temporaries it leaves are recognised by
-  their names, ``.<name>~tt<host>-<pid>-<token>.<tmp|bak|set>[<suffix>]``,
-  and removed (a journal: undone) by the next run that writes into that
-  folder -- only when ``<host>`` is this machine and process ``<pid>`` no
-  longer exists. Nothing else is ever removed.
+* :func:`atomic_path` gives the writer a new temporary in the target's folder
+  (made by this process with ``O_EXCL``, named ``.<name>.tt-<random>.tmp<suffix>``);
+  on success it is flushed (``fsync``) and renamed onto the target, on any
+  exception removed.
+* :func:`file_set` writes files that belong together, the last one (a project,
+  a manifest) naming the others. Every file goes to its temporary first; then,
+  under a lock on each folder, the old last file is removed, the others are
+  renamed in order and the last one last. A reader trusts a set only when its
+  last file is there: a run that fails or is killed before the renames leaves
+  the old set whole, one killed during them leaves no last file.
+* Only temporaries this process made are ever removed (:func:`remove_temporaries`
+  is for a caller's SIGTERM handler). A SIGKILL can leave one behind; nothing here
+  reads, repairs or removes what it finds in a folder.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import secrets
-import shutil
-from collections.abc import Callable, Iterator, Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.stale import clean_once
-from terratheme.core.io.temporaries import (
-    critical_section,
-    drop,
-    forget,
-    install_signal_handlers,
-    register,
-    temporary_name,
-    undo_set,
-)
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: concurrent commits are not serialised
+    fcntl = None
+
+_LOCK = threading.Lock()
+#: temporaries this process made and has not yet renamed or removed
+_LIVE: set[Path] = set()
+#: open file sets by the final paths they hold
+_OPEN: dict[Path, FileSet] = {}
 
 
-def _create(path: Path) -> None:
-    fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600)
-    os.close(fd)
-    # Give the output the permissions a plain open() would.
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)
-
-
-def _folder_of(path: Path) -> Path:
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise TerrathemeError(f"cannot write {path}: folder {folder} does not exist")
-    return folder
+def _key(path: Path) -> Path:
+    """``path`` with its folder resolved (the file itself may be a link we replace)."""
+    try:
+        return Path(os.path.realpath(path.parent)) / path.name
+    except (OSError, RuntimeError):
+        return Path(os.path.abspath(path))
 
 
 def _new_temporary(final: Path, suffix: str | None) -> Path:
-    folder = _folder_of(final)
-    clean_once(folder)
-    install_signal_handlers()
+    folder = final.parent
+    if not folder.is_dir():
+        raise TerrathemeError(f"cannot write {final}: folder {folder} does not exist")
+    suffix = final.suffix if suffix is None else suffix
+    suffix = suffix if suffix[1:].isalnum() and len(suffix) <= 17 else ""
     while True:
-        tmp = temporary_name(folder, final.name, "tmp",
-                        final.suffix if suffix is None else suffix, secrets.token_hex(6))
-        # Known before it exists: a Ctrl-C or SIGTERM at any point still finds it.
-        register(tmp)
+        tmp = folder / f".{final.name[:100]}.tt-{secrets.token_hex(6)}.tmp{suffix}"
+        with _LOCK:
+            _LIVE.add(tmp)  # known before it exists: a signal handler always finds it
         try:
-            _create(tmp)
-            return tmp
+            # The umask applies, as for a plain open().
+            fd = os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)
         except FileExistsError:
-            forget(tmp)
+            _forget(tmp)
+            continue
         except BaseException:
-            drop(tmp)
+            _forget(tmp)
             raise
+        try:
+            os.close(fd)
+        except BaseException:  # Ctrl-C just after it was made
+            _drop(tmp)
+            raise
+        return tmp
+
+
+def _forget(tmp: Path) -> None:
+    with _LOCK:
+        _LIVE.discard(tmp)
+
+
+def _drop(tmp: Path) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()
+    _forget(tmp)
+
+
+def remove_temporaries() -> None:
+    """Remove every temporary this process made and still holds (for a SIGTERM handler)."""
+    with _LOCK:
+        live = list(_LIVE)
+        _LIVE.clear()
+    for tmp in live:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _fsync(path: Path, final: Path) -> None:
+    """Flush a written temporary to disk; a late write error (full disk) is raised here."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise TerrathemeError(f"cannot write {final}: {exc.strerror or exc}") from None
+
+
+def _fsync_folder(folder: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
                 rename: bool = True) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+    """Yield a new temporary path beside ``path``; flush and rename it onto ``path`` on success.
 
     Parameters
     ----------
     path : path-like
         The final output file.
     suffix : str, optional
-        Suffix of the temporary file (defaults to ``path``'s own suffix, so
-        writers that pick a format by extension, like OpenImageIO, still work).
+        Suffix of the temporary (default ``path``'s own, for writers that pick
+        a format by extension).
     rename : bool
-        False: a scratch file for intermediate data beside ``path``, always
-        removed (named and cleaned as every temporary, SIGTERM and SIGKILL included).
+        False: a scratch file beside ``path``, always removed.
 
-    On any exception the temporary file is removed and ``path`` is untouched;
-    SIGTERM removes it too (module docstring).
+    On any exception the temporary is removed and ``path`` is untouched.
+    Inside a :func:`file_set` that holds ``path``, the set's temporary is
+    yielded and renamed when the set commits.
     """
-    tmp = None
+    final = Path(path)
+    owner = _OPEN.get(_key(final)) if rename else None
+    if owner is not None:
+        yield owner.temporary(final)
+        return
+    tmp = _new_temporary(final, suffix)
     try:
-        tmp = _new_temporary(Path(path), suffix)
         yield tmp
         if rename:
-            os.replace(tmp, path)
+            _fsync(tmp, final)
+            os.replace(tmp, final)
+            _forget(tmp)
+            _fsync_folder(final.parent)
     finally:
-        if tmp is not None:
-            drop(tmp)
+        if tmp in _LIVE:
+            _drop(tmp)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
@@ -116,114 +160,114 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
         tmp.write_bytes(data)
 
 
+class FileSet:
+    """The temporaries of an open :func:`file_set`, made when first asked for."""
+
+    def __init__(self, finals: list[Path]) -> None:
+        self.finals = finals
+        self._temps: dict[Path, Path] = {}
+
+    def temporary(self, final: str | os.PathLike) -> Path:
+        """The temporary that becomes ``final`` (one of the set's paths) on commit."""
+        named = [f for f in self.finals if _key(f) == _key(Path(final))]
+        if not named:
+            raise TerrathemeError(f"{final}: not one of the files of this set")
+        final = named[0]
+        if final not in self._temps:
+            self._temps[final] = _new_temporary(final, None)
+        return self._temps[final]
+
+    def discard(self) -> None:
+        """Remove the temporaries not renamed yet."""
+        for tmp in self._temps.values():
+            if tmp in _LIVE:
+                _drop(tmp)
+
+    def commit(self, remove: Sequence[Path] = ()) -> None:
+        """Rename the written members in order and the last file last (module docstring).
+
+        ``remove``: files of the old set the new one has not, removed with the old last file.
+        """
+        last = self.finals[-1]
+        if last not in self._temps:
+            raise TerrathemeError(f"{last}: not written, so the files of its set are left as "
+                                  "they were")
+        for final, tmp in self._temps.items():
+            _fsync(tmp, final)
+        members = [f for f in self.finals[:-1] if f in self._temps]
+        folders = sorted({os.path.realpath(f.parent) for f in self.finals})
+        with contextlib.ExitStack() as locks:
+            for folder in folders:
+                locks.enter_context(_folder_lock(folder))
+            if members or remove:
+                # From here until the last rename, no set is there for a reader to trust.
+                for old in (last, *remove):
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(old)
+            for final in members:
+                os.replace(self._temps[final], final)
+                _forget(self._temps[final])
+            for folder in folders:
+                _fsync_folder(Path(folder))
+            os.replace(self._temps[last], last)
+            _forget(self._temps[last])
+            _fsync_folder(last.parent)
+
+
 @contextlib.contextmanager
-def atomic_file_set(paths: Sequence[str | os.PathLike]) -> Iterator[list[Path]]:
-    """Write several files of one folder as a set: all replaced, or none.
+def _folder_lock(folder: str) -> Iterator[None]:
+    """An advisory lock on a folder, so concurrent runs commit one set after the other."""
+    fd = None
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
+@contextlib.contextmanager
+def file_set(paths: Sequence[str | os.PathLike], *,
+             remove: Sequence[str | os.PathLike] = ()) -> Iterator[FileSet]:
+    """Write several files as a set: all replaced, or none as a reader sees it.
 
     Parameters
     ----------
     paths : sequence of path-like
-        The final files, in rename order: put the file that names the others
-        (the manifest, the project) last, so it never points at a set that
-        is not there yet.
+        The final files, in rename order, the one naming the others last.
+    remove : sequence of path-like
+        Files of the old set that the new one does not hold (the caller has made
+        sure they are the old set's own): removed on commit with the old last file.
 
     Yields
     ------
-    temporaries : list of Path
-        One temporary path per final path (same suffix), to write each file to.
+    FileSet
+        ``.temporary(path)`` is where to write each file; :func:`atomic_path`
+        on one of ``paths`` yields that temporary too (every writer of the set
+        takes part). A member never written keeps its old file; the last file
+        must be written.
 
-    On success every temporary is renamed onto its path, in order. On an
-    exception while writing, the temporaries are removed and no path has
-    changed. If a rename fails, the renames done are undone (old files back
-    from hard-linked backups, new ones removed). A process killed during the
-    renames leaves a journal that the next run in the folder uses to undo them.
-
-    Raises
-    ------
-    TerrathemeError
-        No paths, a path given twice, paths in different folders, a missing folder.
+    On an exception every temporary is removed and no file has changed.
     """
     finals = [Path(p) for p in paths]
+    keys = [_key(p) for p in finals]
     if not finals:
         raise TerrathemeError("a file set needs at least one file")
-    if len({p.resolve() for p in finals}) != len(finals):
+    if len(set(keys)) != len(keys):
         raise TerrathemeError("a file set names the same file twice")
-    folders = {_folder_of(p).resolve() for p in finals}
-    if len(folders) != 1:
-        raise TerrathemeError("the files of a set must share one folder: "
-                              + ", ".join(str(p) for p in finals))
-    temps: list[Path] = []
+    files = FileSet(finals)
+    with _LOCK:
+        if any(k in _OPEN for k in keys):
+            raise TerrathemeError("a file is already being written by another set")
+        _OPEN.update(dict.fromkeys(keys, files))
     try:
-        for final in finals:
-            temps.append(_new_temporary(final, None))
-        yield list(temps)
-    except BaseException:
-        for tmp in temps:
-            drop(tmp)
-        raise
-    _commit(finals, temps)
-
-
-def write_files(writers: Sequence[tuple[str | os.PathLike, Callable[[Path], None]]]) -> None:
-    """Write files by their writers: as one set when they share a folder, else one by one.
-
-    Parameters
-    ----------
-    writers : sequence of (path, writer)
-        Each final path and the function that writes the file to the path it is
-        given: a temporary of :func:`atomic_file_set` when every path is in one
-        folder (all replaced, or none), else the final path itself (each writer
-        then writes atomically on its own), in order.
-    """
-    finals = [Path(p) for p, _ in writers]
-    if len(finals) > 1 and len({_folder_of(p).resolve() for p in finals}) == 1:
-        with atomic_file_set(finals) as temps:
-            for (_, write), tmp in zip(writers, temps, strict=True):
-                write(tmp)
-        return
-    for final, (_, write) in zip(finals, writers, strict=True):
-        write(final)
-
-
-def _commit(finals: list[Path], temps: list[Path]) -> None:
-    folder = _folder_of(finals[-1])
-    token = secrets.token_hex(6)
-    journal = temporary_name(folder, finals[-1].name, "set", "", token)
-    entries = []
-    for final, tmp in zip(finals, temps, strict=True):
-        backup = temporary_name(folder, final.name, "bak", "", token) if final.exists() else None
-        entries.append({"final": final.name, "temp": tmp.name,
-                        "backup": None if backup is None else backup.name,
-                        "inode": os.stat(tmp).st_ino})
-    done: list[dict] = []
-    with critical_section():
-        try:
-            # Journal first, then backups of the old files, then the renames in order.
-            with open(journal, "x", encoding="utf-8") as fh:
-                json.dump({"entries": entries}, fh)
-            for e in entries:
-                if e["backup"] is not None:
-                    _link_or_copy(folder / e["final"], folder / e["backup"])
-            for e in entries:
-                os.replace(folder / e["temp"], folder / e["final"])
-                forget(folder / e["temp"])
-                done.append(e)
-        except BaseException:
-            undo_set(folder, entries, renamed=done)
-            with contextlib.suppress(FileNotFoundError):
-                journal.unlink()
-            raise
-        journal.unlink()
-        for e in entries:
-            if e["backup"] is not None:
-                with contextlib.suppress(FileNotFoundError):
-                    (folder / e["backup"]).unlink()
-
-
-def _link_or_copy(src: Path, dst: Path) -> None:
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
-
-
+        yield files
+        files.commit([Path(p) for p in remove])
+    finally:
+        with _LOCK:
+            for k in keys:
+                _OPEN.pop(k, None)
+        files.discard()

@@ -2,19 +2,24 @@
 
 Used where a small image travels inside another file or is counted in bytes
 (the colour map of a thematic texture). OpenImageIO's Python API reads and
-writes files, so the bytes pass through a private temporary file.
+writes files, so the bytes pass through an unnamed temporary file
+(``O_TMPFILE``, opened by its ``/proc/self/fd`` path): the kernel frees it when
+the process ends, however it ends, so nothing is ever left in the temp folder.
+Where that is not available, a named temporary removed when done.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
-from pathlib import Path
+from collections.abc import Iterator
 
 import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.image_format import error_line, jpegxl_size
+from terratheme.core.io.images import write_oiio
 
 #: codec name -> (file extension, OpenImageIO "Compression" attribute with {q} for the quality)
 CODECS = {
@@ -23,6 +28,44 @@ CODECS = {
     "jpegxl": (".jxl", "jpegxl:{q}"),
     "png": (".png", "zip:9"),
 }
+
+
+#: OpenImageIO's format name of each codec
+_FORMAT_NAMES = {"webp": "webp", "jpeg": "jpeg", "jpegxl": "jpegxl", "png": "png"}
+
+
+@contextlib.contextmanager
+def _scratch(ext: str) -> Iterator[tuple[int, str]]:
+    """An empty read-write scratch file: its descriptor and a path OpenImageIO can open."""
+    folder = tempfile.gettempdir()
+    fd = None
+    with contextlib.suppress(AttributeError, OSError):
+        fd = os.open(folder, os.O_TMPFILE | os.O_RDWR, 0o600)
+    named = fd is None or not os.path.exists(f"/proc/self/fd/{fd}")
+    if named:
+        if fd is not None:
+            os.close(fd)
+        fd, path = tempfile.mkstemp(suffix=ext, prefix="terratheme-codec-", dir=folder)
+    else:
+        path = f"/proc/self/fd/{fd}"
+    try:
+        yield fd, path
+    finally:
+        os.close(fd)
+        if named:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+
+
+def _read_all(fd: int) -> bytes:
+    size, parts, done = os.fstat(fd).st_size, [], 0
+    while done < size:
+        part = os.pread(fd, size - done, done)
+        if not part:
+            break
+        parts.append(part)
+        done += len(part)
+    return b"".join(parts)
 
 
 def _codec(codec: str) -> tuple[str, str]:
@@ -43,14 +86,11 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
                               f"{arr.shape} {arr.dtype}")
     if not 1 <= int(quality) <= 100:
         raise TerrathemeError(f"quality must be 1..100, got {quality}")
-    with tempfile.TemporaryDirectory(prefix="terratheme-codec-") as folder:
-        path = os.path.join(folder, "image" + ext)
-        out = oiio.ImageOutput.create(path)
+    with _scratch(ext) as (fd, path):
         spec = oiio.ImageSpec(arr.shape[1], arr.shape[0], arr.shape[2], "uint8")
         spec.attribute("Compression", attr.format(q=int(quality)))
-        if out is None or not out.open(path, spec) or not out.write_image(arr) or not out.close():
-            raise TerrathemeError(f"cannot encode a {codec} image: {error_line()}")
-        return Path(path).read_bytes()
+        write_oiio("image" + ext, path, spec, arr)
+        return _read_all(fd)
 
 
 def decode_image(data: bytes, *, codec: str = "webp",
@@ -67,14 +107,16 @@ def decode_image(data: bytes, *, codec: str = "webp",
         if size is None or (size[1], size[0]) != tuple(shape):
             found = "no size header" if size is None else f"{size[0]} x {size[1]}"
             raise CorruptFileError(f"jpegxl image is {found}, expected {shape[1]} x {shape[0]}")
-    with tempfile.TemporaryDirectory(prefix="terratheme-codec-") as folder:
-        path = os.path.join(folder, "image" + ext)
-        Path(path).write_bytes(bytes(data))
+    with _scratch(ext) as (fd, path):
+        with os.fdopen(os.dup(fd), "wb") as fh:
+            fh.write(bytes(data))
         inp = oiio.ImageInput.open(path)
         if inp is None:
             raise CorruptFileError(f"not a {codec} image ({error_line()})")
         try:
             spec = inp.spec()
+            if inp.format_name() != _FORMAT_NAMES[codec]:
+                raise CorruptFileError(f"not a {codec} image (a {inp.format_name()} image)")
             if shape is not None and (spec.height, spec.width) != tuple(shape):
                 raise CorruptFileError(f"{codec} image is {spec.width} x {spec.height}, "
                                        f"expected {shape[1]} x {shape[0]}")

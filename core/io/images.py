@@ -19,8 +19,9 @@ against OpenImageIO's own ceilings (``limits:resolution``, ``limits:channels``,
 refused by name, and libpng's own ``libpng error`` lines are kept off the
 terminal. Every problem is one line naming the file.
 
-Writing goes to a temporary file that is renamed onto the target, so a failed
-write never leaves a half-written image. ``write_image(..., palette=colours)``
+Writing goes to a temporary file that is renamed onto the target once every
+write and the close succeeded, so a failed write (a full disk) never leaves a
+half-written image. ``write_image(..., palette=colours)``
 makes an 8-bit label image a palette PNG (values stay the class numbers;
 OpenImageIO writes no palettes, so its grey PNG's header is relabelled, see
 :mod:`core.io.png`), and :func:`read_labels` reads the class numbers back.
@@ -37,7 +38,7 @@ import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.image_format import error_line, jpegxl_file_size
+from terratheme.core.io.image_format import error_line, first_line, jpegxl_file_size
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.io.png import (
     check_palette,
@@ -378,17 +379,55 @@ def write_image(
     for key, value in (attributes or {}).items():
         spec.attribute(key, value)
     with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(str(path))
-        if out is None:
-            why = error_line() or "unknown format"
-            raise TerrathemeError(f"cannot write {path}: {why}")
-        if not out.open(str(tmp), spec):
-            raise TerrathemeError(f"cannot write {path}: {error_line(out)}")
-        ok = out.write_image(arr)
-        err = error_line(out)
-        out.close()
-        if not ok:
-            raise TerrathemeError(f"cannot write {path}: {err}")
+        write_oiio(path, tmp, spec, arr)
         if palette is not None:
             relabel_grey_png_as_palette(tmp, palette)
 
+
+#: writers that must not meet a full disk: libjpeg ends the process, the WebP writer
+#: never returns (OpenImageIO 3.2); they need this many bytes free per pixel byte
+SPACE_BOUND = {"jpeg": 2, "webp": 2}
+#: OpenImageIO's text for a short write (its file layer reports it, some writers go on)
+_SHORT_WRITE = ("write error", "could only write")
+
+
+def _check_space(path: str | os.PathLike, tmp: Path, fmt: str, nbytes: int) -> None:
+    if fmt not in SPACE_BOUND:
+        return
+    try:
+        st = os.statvfs(tmp)
+    except OSError:
+        return
+    need = SPACE_BOUND[fmt] * nbytes + (1 << 20)
+    if st.f_bavail * st.f_frsize < need:
+        raise TerrathemeError(f"cannot write {path}: {st.f_bavail * st.f_frsize:,} bytes free "
+                              f"on its disk, a {fmt} image of this size may need {need:,}")
+
+
+def _error_text(out: oiio.ImageOutput) -> str:
+    try:
+        return out.geterror()
+    except UnicodeDecodeError:
+        return "an error whose text is not UTF-8"
+
+
+def write_oiio(path: str | os.PathLike, tmp: str | os.PathLike, spec: oiio.ImageSpec,
+               pixels: np.ndarray) -> None:
+    """Write ``(H, W, C)`` ``pixels`` to ``tmp`` in ``path``'s format, every step checked.
+
+    A failed write (a full disk) is a False from ``write_image`` or ``close``,
+    or for some writers only a short-write error on the writer: any raises.
+    """
+    out = oiio.ImageOutput.create(str(path))
+    if out is None:
+        raise TerrathemeError(f"cannot write {path}: {error_line() or 'unknown format'}")
+    _check_space(path, Path(tmp), out.format_name(), pixels.nbytes)
+    if not out.open(str(tmp), spec):
+        raise TerrathemeError(f"cannot write {path}: {error_line(out) or error_line()}")
+    ok = out.write_image(pixels)
+    errors = _error_text(out)
+    ok = out.close() and ok
+    errors += _error_text(out)
+    if not ok or any(s in errors.lower() for s in _SHORT_WRITE):
+        why = first_line(errors) or error_line() or "the file could not be finished"
+        raise TerrathemeError(f"cannot write {path}: {why}")

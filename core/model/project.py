@@ -298,6 +298,24 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
                 zf.writestr(member, data)
 
 
+def shipped_colour_map(path: str | os.PathLike, max_bytes: int) -> bytes | None:
+    """The codec bytes of the colour map a saved project holds whole (what ``convert``
+    ships beside its packed layer), or None: no such map, larger than ``max_bytes``,
+    or not a readable project."""
+    label = str(path)
+    try:
+        with open_archive(Path(path), label, kind="terratheme project",
+                          max_members=_MAX_MEMBERS) as zf:
+            entry = read_json_member(zf, MANIFEST, label,
+                                     max_bytes=MAX_MANIFEST_BYTES).get("colour_map")
+            if not isinstance(entry, dict) or entry.get("codec") not in CODECS \
+                    or not isinstance(entry.get("member"), str):
+                return None
+            return read_member(zf, entry["member"], label, max_bytes=max_bytes)
+    except (TerrathemeError, OSError, AttributeError):
+        return None
+
+
 def load_project(path: str | os.PathLike) -> ThematicTexture:
     """Read a ``.ttproj`` file written by :func:`save_project`.
 
