@@ -69,7 +69,6 @@ def test_scribble_samples_grow_by_one_ring_on_a_flat_photo():
     assert len(x0) == 3
     # 3 stroke pixels + 3 above + 3 below + one at each end.
     assert len(x1) == 3 + 3 + 3 + 2 and (y1 == 1).all()
-    assert SupervisedOptions().grow_colour is None and GROW_COLOUR > 0
 
 
 def test_full_masks_are_not_grown():

@@ -31,7 +31,6 @@ def stripes(h: int, w: int, period: int, low: int, high: int, vertical: bool) ->
 
 def test_count_and_position():
     assert OPTIONS.n_features == FeatureOptions(sigmas=SIGMAS).n_features + 1 + len(SIGMAS)
-    assert SupervisedOptions().features.structure
     plain = FeatureOptions(sigmas=SIGMAS)
     photo = np.random.default_rng(1).integers(0, 256, (48, 40, 3), dtype=np.uint8)
     _lab, _std, without = image_features(photo, plain)
