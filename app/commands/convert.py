@@ -120,10 +120,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                         help="with --tile: run the tile jobs on this running dask.distributed "
                              "scheduler; its workers read PHOTO from its absolute path (a file "
-                             "system they all see) and need terratheme installed")
+                             "system they all see) and need terratheme installed; tls://HOST:PORT "
+                             "with --tls-ca-file and --tls-cert (as dask scheduler's options)")
+    parser.add_argument("--tls-ca-file", metavar="PEM",
+                        help="with --scheduler tls://...: the CA the scheduler's certificate is "
+                             "checked against")
+    parser.add_argument("--tls-cert", metavar="PEM",
+                        help="with --scheduler tls://...: this client's certificate")
+    parser.add_argument("--tls-key", metavar="PEM",
+                        help="with --scheduler tls://...: this client's key (if not in --tls-cert)")
     parser.add_argument("--workers", type=_number(int, 1, 1024, "--workers"), metavar="K",
                         help="with --tile: run the tile jobs on a local cluster of K worker "
-                             "processes (one thread each); same result as without")
+                             "processes (one thread each; TLS with credentials made for the run, "
+                             "no dashboard); same result as without")
     parser.add_argument("--curve", metavar="PNG",
                         help="also write the agreement / bytes vs cell size chart (cell auto)")
     parser.add_argument("--class-target", type=_share, default=0.5, metavar="T",
@@ -188,7 +197,6 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.convert.photo import (
         ConvertOptions,
         convert_photo,
-        output_files,
         read_photo,
         write_outputs,
     )
@@ -211,9 +219,13 @@ def run(args: argparse.Namespace) -> int:
     if args.scheduler and args.workers:
         raise TerrathemeError("--scheduler joins a running cluster, --workers starts one: "
                               "pick one")
+    tls = [args.tls_ca_file, args.tls_cert, args.tls_key]
+    if any(tls) and not args.scheduler:
+        raise TerrathemeError("--tls-ca-file, --tls-cert and --tls-key are for --scheduler "
+                              "tls://HOST:PORT")
     # Output paths checked (and their folders made) before any work.
-    check_outputs([*output_files(project, preview_path=preview, packed_path=packed), args.curve],
-                  inputs=[args.photo, args.scribbles, args.model, args.legend])
+    check_outputs([project, preview, packed, args.curve],
+                  inputs=[args.photo, args.scribbles, args.model, args.legend, *tls])
     check_image_outputs([preview])
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     legend = _read_legend(args, themes)
@@ -355,14 +367,20 @@ def _run_tiled(args, project, preview, packed, themes, legend) -> int:
 @contextlib.contextmanager
 def _scheduler(args):
     """Where the tiles run: this process, a running cluster (--scheduler) or a local one."""
-    from terratheme.core.io.cluster import connect, local_cluster
+    from terratheme.core.io.cluster import TlsFiles, connect, local_cluster
     from terratheme.core.io.tiles import Scheduler
 
     if not (args.scheduler or args.workers):
         yield Scheduler.SERIAL
         return
+    tls = None
+    if args.tls_ca_file or args.tls_cert or args.tls_key:
+        if not (args.tls_ca_file and args.tls_cert):
+            raise TerrathemeError("--scheduler tls://: give --tls-ca-file and --tls-cert "
+                                  "(and --tls-key unless the key is in the certificate)")
+        tls = TlsFiles(args.tls_ca_file, args.tls_cert, args.tls_key)
     # The cluster is reached (or started) before any tile is read.
-    client = connect(args.scheduler) if args.scheduler else local_cluster(args.workers)
+    client = connect(args.scheduler, tls=tls) if args.scheduler else local_cluster(args.workers)
     try:
         yield client
     finally:

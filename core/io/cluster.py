@@ -23,7 +23,10 @@ run the client's terratheme; :func:`check_workers` checks both before any
 work.
 
 :func:`local_cluster` starts worker processes on this machine (one thread
-each); :func:`connect` joins an existing scheduler. Every task runs with
+each), reachable only with credentials made for it (TLS, mutual: a client
+without them cannot attach and run code in the workers) and with no HTTP
+port (dashboard, metrics); :func:`connect` joins an existing scheduler
+(``tls://`` with the user's certificates, :class:`TlsFiles`). Every task runs with
 numba's and OpenCV's thread pools at one thread: a worker thread is a core,
 so give a machine's workers as many threads in all as it has cores
 (``dask worker SCHEDULER --nworkers auto --nthreads 1``).
@@ -37,6 +40,7 @@ import warnings
 import weakref
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from terratheme.core.errors import TerrathemeError
@@ -69,7 +73,11 @@ QUIET_LOCAL = {"distributed.worker.profile.enabled": False,
                "distributed.admin.tick.interval": "1s",
                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
                "distributed.worker.memory.monitor-interval": "1s",
-               "distributed.admin.system-monitor.interval": "2s"}
+               "distributed.admin.system-monitor.interval": "2s",
+               # No HTTP routes: the servers' ports are closed at start (:func:`local_cluster`)
+               # and serve nothing before that.
+               "distributed.scheduler.http.routes": [],
+               "distributed.worker.http.routes": []}
 
 
 def _one_thread(func: Callable[[Any, Any], Any], item: Any, shared: Any) -> Any:
@@ -99,8 +107,42 @@ def group_size(remaining: int, limit: int, most: int | None = None) -> int:
     return max(1, min(most, int(remaining) // (2 * max(1, int(limit)))))
 
 
+@dataclass(frozen=True)
+class TlsFiles:
+    """The certificates of a ``tls://`` scheduler (dask's ``--tls-ca-file --tls-cert --tls-key``).
+
+    Attributes
+    ----------
+    ca_file : str
+        The certificate authority the scheduler's certificate is checked against.
+    cert : str
+        This client's certificate (PEM; it may hold the key too).
+    key : str, optional
+        This client's private key, when not in ``cert``.
+    """
+
+    ca_file: str
+    cert: str
+    key: str | None = None
+
+
+def _close_http(dask_scheduler=None, dask_worker=None) -> None:
+    """Stop a dask server's HTTP listener (dashboard, metrics): a port nobody asked for."""
+    server = dask_scheduler if dask_scheduler is not None else dask_worker
+    if getattr(server, "http_server", None) is not None:
+        server.http_server.stop()
+
+
 def local_cluster(workers: int, threads: int = 1) -> Client:
     """A client of a new local cluster of ``workers`` processes (closing it stops them).
+
+    The scheduler, nannies and workers listen on 127.0.0.1 over TLS with
+    temporary credentials that exist only in this process and the workers
+    (``distributed.security.Security.temporary``): every connection must
+    present them, so no other local user or process can attach a client and
+    run code as ours. Their HTTP ports are closed once started (no
+    dashboard; a worker the nanny restarts after a crash has one again, with
+    no routes: it serves nothing).
 
     Parameters
     ----------
@@ -112,7 +154,8 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
     Returns
     -------
     distributed.Client
-        Use it as a context manager, or call ``close()``.
+        Use it as a context manager, or call ``close()``; ``client.security``
+        holds the credentials.
     """
     if int(workers) < 1 or int(threads) < 1:
         raise TerrathemeError(f"a local cluster needs at least 1 worker of 1 thread, got "
@@ -125,22 +168,105 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
         # cluster holds it, with a four-line warning on stderr; any free port will do.
         warnings.filterwarnings("ignore", message="Port .* is already in use",
                                 module=r"distributed\.")
-        return Client(n_workers=int(workers), threads_per_worker=int(threads), processes=True,
-                      dashboard_address=None, silence_logs=logging.ERROR)
+        # security=True: new temporary credentials, given to the cluster it starts (tls://).
+        client = Client(n_workers=int(workers), threads_per_worker=int(threads),
+                        processes=True, host="127.0.0.1", security=True,
+                        dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        client.run_on_scheduler(_close_http)
+        client.run(_close_http)
+    except BaseException:
+        client.close()
+        raise
+    return client
 
 
-def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
-    """A client of the running dask scheduler at ``address`` (``tcp://host:port``).
+def _security(address: str, tls: TlsFiles | None):
+    """The ``distributed.security.Security`` of a client of ``address``, checked in one line."""
+    from distributed.security import Security
+
+    scheme = address.split("://", 1)[0] if "://" in address else "tcp"
+    if tls is not None and scheme != "tls":
+        raise TerrathemeError(f"TLS certificates are for a tls:// scheduler, not {address}")
+    if tls is None:
+        # dask's own configuration (distributed.comm.tls.*), if any.
+        security = Security()
+    else:
+        security = Security(tls_ca_file=str(tls.ca_file), tls_client_cert=str(tls.cert),
+                            tls_client_key=None if tls.key is None else str(tls.key),
+                            require_encryption=True)
+    if scheme == "tls" and not (security.tls_ca_file and security.tls_client_cert):
+        raise TerrathemeError(f"the scheduler at {address} speaks TLS: give its certificates "
+                              "(--tls-ca-file, --tls-cert, --tls-key)")
+    try:
+        # The certificates are read here (an SSL context is made), so a bad file fails first.
+        security.get_connection_args("client")
+    except (OSError, ValueError) as exc:
+        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise TerrathemeError(f"TLS certificates for {address}: {reason}") from None
+    return security
+
+
+async def _handshake(address: str, security, timeout: float) -> None:
+    """dask's connection handshake with ``address``, all of it within ``timeout`` seconds."""
+    import asyncio
+
+    from distributed.comm import connect as comm_connect
+
+    async def shake() -> None:
+        comm = await comm_connect(address, timeout=timeout,
+                                  **security.get_connection_args("client"))
+        await comm.close()
+
+    await asyncio.wait_for(shake(), timeout)
+
+
+def connect(address: str, timeout: float | None = None,
+            tls: TlsFiles | None = None) -> Client:
+    """A client of the running dask scheduler at ``address`` (``tcp://`` or ``tls://host:port``).
+
+    The connection's handshake is tried first within ``timeout`` (dask's own
+    connect waits for it without a bound: a port that accepts and never
+    answers would hang, and one that answers something else, such as HTTP,
+    is read as a huge frame).
+
+    Parameters
+    ----------
+    address : str
+    timeout : float, optional
+        Seconds to wait for the scheduler, then for its first worker
+        (default :data:`CONNECT_TIMEOUT`).
+    tls : TlsFiles, optional
+        Certificates for a ``tls://`` scheduler (default: dask's configuration).
 
     Raises
     ------
     TerrathemeError
-        The scheduler does not answer within ``timeout`` seconds, or has no worker.
+        The scheduler does not answer within ``timeout`` seconds, answers
+        something other than dask, refuses the certificates, or has no worker.
     """
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
     from distributed import Client
 
+    timeout = CONNECT_TIMEOUT if timeout is None else float(timeout)
+    security = _security(address, tls)
     try:
-        client = Client(address, timeout=timeout)
+        # On a thread of its own: the caller's thread may already run an event loop.
+        with ThreadPoolExecutor(1) as pool:
+            pool.submit(asyncio.run, _handshake(address, security, timeout)).result()
+    except TimeoutError:
+        raise TerrathemeError(f"the dask scheduler at {address} does not answer (waited "
+                              f"{timeout:g} s)") from None
+    except (OSError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise TerrathemeError(f"cannot reach the dask scheduler at {address}: {reason}") from None
+    except Exception:
+        # Whatever else answered (an HTTP server, another protocol): read as a huge frame.
+        raise TerrathemeError(f"{address} answers, but not as a dask scheduler") from None
+    try:
+        client = Client(address, timeout=timeout, security=security, set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         reason = " ".join(str(exc).split())[:120] or type(exc).__name__
         raise TerrathemeError(f"cannot reach the dask scheduler at {address}: {reason}") from None
