@@ -281,10 +281,7 @@ def _array_spec(name: object, spec: object) -> tuple[np.dtype, tuple[int, ...]]:
     """``(dtype, shape)`` of a header's ``name: [dtype, shape]``; ValueError if malformed."""
     if not (isinstance(name, str) and _NAME.fullmatch(name) and isinstance(spec, list)
             and len(spec) == 2 and isinstance(spec[0], str) and spec[0] in DTYPES
-            and isinstance(spec[1], list)
-            and len(spec[1]) <= 4):
+            and isinstance(spec[1], list) and len(spec[1]) <= 4
+            and all(type(n) is int and 0 <= n <= 1 << 40 for n in spec[1])):
         raise ValueError("bad array in the header")
-    shape = spec[1]
-    if not all(type(n) is int and 0 <= n <= 1 << 40 for n in shape):
-        raise ValueError("bad shape in the header")
-    return DTYPES[spec[0]], tuple(shape)
+    return DTYPES[spec[0]], tuple(spec[1])
