@@ -60,16 +60,19 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 
 from bench_classify import DATA, load, scribble_sets  # noqa: E402
 from fidelity_chart import chart  # noqa: E402
-from fidelity_peers import CODECS, score_peers  # noqa: E402
+from fidelity_peers import CODECS, PEER_MAKERS, best_peers, score_image, score_peers  # noqa: E402
+from terratheme.core.convert.cell_choice import choose_cell_size  # noqa: E402
 from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.labels_to_grid import apply_lut  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
-from terratheme.core.convert.step import grid_and_colour  # noqa: E402
+from terratheme.core.convert.step import assign_themes, classify_photo, grid_and_colour  # noqa: E402
 from terratheme.core.fidelity import colour_error, detail_ratio, structure_scores, texture_cost  # noqa: E402
 from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
 from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
+from terratheme.core.themes.detail import detail_library  # noqa: E402
+from terratheme.core.themes.from_photo import ThemeMapping  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
 DOCS = REPO / "docs" / "fidelity"
@@ -107,7 +110,15 @@ TRIALS = {
 }
 #: the trial that part "trials54" runs on all 54 Dubai photos
 BEST_TRIAL = "cells<=16"
-PARTS = ("variants", "defaults54", "trials", "trials54")
+PARTS = ("variants", "defaults54", "trials", "trials54", "structure")
+#: part "structure" (issue 34): photos (folder, name), the budgets (bits per pixel; the
+#: default, half and double) and the 1:1 crops (name, photo, x, y) of docs/fidelity
+STRUCTURE_PHOTOS = (("sample", SAMPLE.name), ("dubai", "image_part_005t1.jpg"),
+                    ("dubai", "image_part_005t4.jpg"), ("dubai", "image_part_005t2.jpg"))
+BUDGETS = (0.02, 0.04, 0.08)
+CROPS = (("crop_town_block", SAMPLE.name, 620, 250), ("crop_road_junction", SAMPLE.name, 640, 480),
+         ("crop_shore", SAMPLE.name, 330, 380))
+CROP_SIDE = 320
 GOALS = {"mean_dE8": 3.0, "detail": (0.8, 1.25), "miou_ratio": 0.9, "dE8_over_peer": 1.0,
          "convert_seconds": 5.0}
 
@@ -329,6 +340,108 @@ def run_defaults(sets, log, options=DEFAULT):
     return {"photos": rows, "summary": summarise(rows)}
 
 
+def structure_variants(photo):
+    """Issue 34's textures of one photo: the old default (whole themes, dE8 target 2) and
+    the budget's at :data:`BUDGETS`, all from one classification, theme cut and cell choice,
+    as ``convert_photo`` makes them; ``{name: (project, seconds)}``."""
+    t = time.perf_counter()
+    result, _ = classify_photo(photo)
+    whole = assign_themes(photo, result.labels, result.classes)
+    detail = ThemeMapping(detail_library(whole.library), whole.lut, whole.classes)
+    theme_labels = apply_lut(result.labels, whole.lut)
+    choice = choose_cell_size(theme_labels, DEFAULT.target_agreement,
+                              candidates=DEFAULT.candidates, class_target=DEFAULT.class_target,
+                              full_curve=False, keep_specks=False)
+    shared = time.perf_counter() - t
+    h, w = photo.shape[:2]
+    out = {}
+    for name, mapping, cmap in (
+            ("old default", whole, ColourMapOptions(target=2.0)),
+            *((f"budget {b}", detail, ColourMapOptions(budget=b)) for b in BUDGETS),
+            ("budget 0.04, whole themes", whole, ColourMapOptions(budget=0.04))):
+        t = time.perf_counter()
+        made = grid_and_colour(photo, theme_labels, mapping, cell="auto", choice=choice,
+                               colour_map=cmap, render=RenderOptions(boundary=DEFAULT.boundary),
+                               keep_specks=False)
+        project = ThematicTexture(made.grid, mapping.library, {"photo_size": [w, h]},
+                                  colour_map=made.colour.colour_map)
+        out[name] = (project, shared + time.perf_counter() - t)
+    return out
+
+
+def peer_picture(photo, point, codec):
+    """The photo through ``codec`` at one of :func:`best_peers`' points, back at full size."""
+    make, decode = PEER_MAKERS[codec]
+    h, w = photo.shape[:2]
+    small = cv2.resize(photo, (point["width"], max(1, round(h * point["width"] / w))),
+                       interpolation=cv2.INTER_AREA)
+    back = np.asarray(decode(make(point["quality"])(small)))[:, :, :3]
+    return cv2.resize(back, (w, h), interpolation=cv2.INTER_CUBIC)
+
+
+def crop_strip(parts, x, y, path):
+    """1:1 crops side by side (photo | texture | AVIF | ...), 8 white pixels apart, PNG."""
+    s = CROP_SIDE
+    gap = np.full((s, 8, 3), 255, np.uint8)
+    row = [p for part in parts for p in (np.ascontiguousarray(part[y:y + s, x:x + s]), gap)]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_image(path, np.concatenate(row[:-1], axis=1))
+
+
+def run_structure(log):
+    """Issue 34: every variant of :func:`structure_variants` and JPEG / AVIF at its bytes."""
+    rows, keep = [], {}
+    for folder, name in STRUCTURE_PHOTOS:
+        photo = (np.ascontiguousarray(read_image(SAMPLE)[:, :, :3]) if folder == "sample"
+                 else load(folder, name, None)[0])
+        h, w = photo.shape[:2]
+        row = {"photo": name, "size": [w, h], "variants": {}}
+        for vname, (project, secs) in structure_variants(photo).items():
+            render = render_project(project, (0, 0, w, h),
+                                    options=RenderOptions(boundary=DEFAULT.boundary))
+            cost = texture_cost(project)
+            peers = best_peers(photo, cost.area_bytes)
+            row["variants"][vname] = {
+                **score_image(render, photo), **cost.as_dict(),
+                "bpp": round(cost.area_bytes * 8 / (w * h), 4), "seconds": round(secs, 2),
+                "map_scale": project.colour_map.scale, "cell": project.grid.cell[0],
+                "peers": peers}
+            v = row["variants"][vname]
+            log(f"  {name} {vname}: dE8 {v['dE8']} s4 {v['s4']} s8 {v['s8']} detail "
+                f"{v['detail']} {v['area_bytes']} B | avif " + " ".join(
+                    f"{k} {peers['avif'][k]}" for k in ("dE8", "s4", "s8", "detail")))
+            if folder == "sample":
+                keep[vname] = (photo, render, peers)
+        rows.append(row)
+    # 1:1 crops of the sample: photo | old default | texture | AVIF at the texture's bytes.
+    photo, render, peers = keep["budget 0.04"]
+    avif = peer_picture(photo, max(peers["avif"]["points"], key=lambda p: p["s4"]), "avif")
+    old = keep["old default"][1]
+    for crop, _, x, y in CROPS:
+        crop_strip([photo, old, render, avif], x, y, DOCS / f"{crop}.png")
+    side_by_side(photo, render, DOCS / "dubai_marina.jpg")
+    return {"photos": rows, "summary": summarise_structure(rows),
+            "crops": "photo | old default | texture (budget 0.04) | AVIF at the texture's bytes"}
+
+
+def summarise_structure(rows):
+    """Means over photos of every variant and of its peers; the goals of issue 34 per photo."""
+    out = {}
+    for v in rows[0]["variants"]:
+        vs = [r["variants"][v] for r in rows]
+        m = {k: _mean([x[k] for x in vs]) for k in ("dE8", "s4", "s8", "detail", "bpp",
+                                                      "area_bytes")}
+        m["peers"] = {c: {k: _mean([x["peers"][c][k] for x in vs if x["peers"][c]])
+                          for k in ("dE8", "s4", "s8", "detail")} for c in PEER_MAKERS}
+        lo, hi = GOALS["detail"]
+        m["photos_meeting_goal"] = sum(
+            all(x[k] >= max(p[k] for p in x["peers"].values() if p) for k in ("s4", "s8"))
+            and x["dE8"] <= min(p["dE8"] for p in x["peers"].values() if p)
+            and lo <= x["detail"] <= hi for x in vs)
+        out[v] = m
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("parts", nargs="*", help=f"{', '.join(PARTS)} (default: all)")
@@ -352,6 +465,14 @@ def main():
     # Numba kernels compile on first use: warm them on a crop, not part of the timings.
     photo, _ = load("dubai", "image_part_004t5.jpg")
     convert_photo(photo[:128, :128], ConvertOptions(cell=8))
+    if parts == ["structure"]:
+        t = time.perf_counter()
+        result["structure"] = run_structure(lambda m: print(m, flush=True))
+        result["structure"]["run"] = {"seconds": round(time.perf_counter() - t, 1)}
+        path.write_text(json.dumps(result, indent=1, default=str))
+        chart(result, path.with_suffix(".png"), GOALS)
+        print(json.dumps(result["structure"]["summary"], indent=1))
+        return
 
     def log(msg):
         print(msg, flush=True)

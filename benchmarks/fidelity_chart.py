@@ -5,6 +5,12 @@ the texture's mIoU over the classification's; every variant of ``convert``
 as points joined into curves (cell sizes, colour-map targets), the option
 trials as triangles, the photo as JPEG / WebP / AVIF on the same axes (their
 ladder of budgets, and plus markers at the defaults' bytes), the goals dotted.
+
+Issue 34 (part ``structure``, :func:`structure_chart`, drawn as ``fidelity.png``
+when present; the chart above then goes to ``fidelity_variants.png``): dE8,
+structure 1/4, structure 1/8 and detail against bits per pixel, the texture
+at the three budgets and the old default, JPEG and AVIF at their best
+operating point at the same bytes.
 """
 
 from __future__ import annotations
@@ -25,6 +31,11 @@ TRIAL_STYLES = (("^", "teal"), ("v", "olive"), ("<", "saddlebrown"), (">", "blac
 
 def chart(result, path, goals):
     """dE8, detail and mIoU ratio against bits per pixel: variants, peers, goals."""
+    if "structure" in result:
+        structure_chart(result["structure"], path, goals)
+        if "variants" not in result:
+            return
+        path = path.with_name(path.stem + "_variants" + path.suffix)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -83,4 +94,47 @@ def chart(result, path, goals):
                  + " photos; plus markers: peers at the defaults' bytes; dotted lines: goals")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def structure_chart(part, path, goals):
+    """Issue 34: every axis against bits per pixel, the texture's budgets and the peers."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    summ = part["summary"]
+    budgets = sorted((v for v in summ if v.startswith("budget ") and "," not in v),
+                     key=lambda v: summ[v]["bpp"])
+    fig, axes = plt.subplots(1, 4, figsize=(22, 6))
+    panels = (("dE8", "dE8 (lower is better)"), ("s4", "structure 1/4: SSIM of luminance"),
+              ("s8", "structure 1/8: SSIM of luminance"), ("detail", "detail (goal 0.8-1.25)"))
+    for ax, (key, label) in zip(axes, panels, strict=True):
+        xs = [summ[v]["bpp"] for v in budgets]
+        ax.plot(xs, [summ[v][key] for v in budgets], "o-", color="crimson", ms=6,
+                label="texture (budgets " + ", ".join(v.split()[1] for v in budgets) + ")")
+        for c, colour in (("jpeg", "tab:blue"), ("avif", "tab:purple")):
+            ax.plot(xs, [summ[v]["peers"][c][key] for v in budgets], "x--", color=colour,
+                    label=f"photo as {c}, best scale x quality at the texture's bytes")
+        for v, marker in (("old default", "*"), ("budget 0.04, whole themes", "s")):
+            if v in summ:
+                ax.plot(summ[v]["bpp"], summ[v][key], marker, color="grey", ms=11, mfc="none",
+                        label=v)
+                ax.plot(summ[v]["bpp"], summ[v]["peers"]["avif"][key], "P", color="tab:purple",
+                        ms=7, mfc="none")
+        if key == "detail":
+            for g in goals["detail"]:
+                ax.axhline(g, color="k", lw=0.7, ls=":")
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("area bytes x 8 / photo pixels (bits per pixel, log)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=7.5)
+    fig.suptitle(f"bench_fidelity structure (issue 34): means over {len(part['photos'])} photos; "
+                 "open plus: AVIF at the old default's and whole-themes' bytes")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -10,6 +10,14 @@ largest width whose encoding fits the budget (widths doubled from
 (:func:`core.fidelity.colour_error`, :func:`core.fidelity.detail_ratio`).
 Encoders are imagecodecs' (libjpeg-turbo with optimised Huffman tables,
 libwebp method 6, libavif speed 6): benchmark-only.
+
+Issue 34 (:func:`best_peers`): JPEG and AVIF each at their best operating
+point for the budget, a scale x quality search: for every quality of
+:data:`QUALITY_LADDER` the largest width that fits, scored with the two
+structure scores too (:func:`core.fidelity.structure_similarity` at 1/4 and
+1/8); the peer's figure on each axis is its best over the qualities (lowest
+dE8, highest structure; detail at the point of highest structure 1/4), so the
+texture is held to the strictest codec.
 """
 
 from __future__ import annotations
@@ -20,7 +28,7 @@ from dataclasses import dataclass
 import cv2
 import imagecodecs
 import numpy as np
-from terratheme.core.fidelity import colour_error, detail_ratio
+from terratheme.core.fidelity import colour_error, detail_ratio, structure_similarity
 
 #: the narrowest photo a peer may be downscaled to, pixels
 MIN_WIDTH = 8
@@ -44,6 +52,16 @@ CODECS = (
     Codec("avif", 60, lambda a: imagecodecs.avif_encode(a, level=60, speed=6),
           imagecodecs.avif_decode),
 )
+
+#: codec name -> (encoder at a quality, decoder): the peers of issue 34
+PEER_MAKERS = {
+    "jpeg": (lambda q: lambda a: imagecodecs.jpeg8_encode(a, level=q, optimize=True),
+             imagecodecs.jpeg8_decode),
+    "avif": (lambda q: lambda a: imagecodecs.avif_encode(a, level=q, speed=6),
+             imagecodecs.avif_decode),
+}
+#: qualities of the scale x quality search
+QUALITY_LADDER = {"jpeg": (20, 40, 60, 80, 92), "avif": (20, 35, 50, 65, 80)}
 
 
 def _downscaled(photo: np.ndarray, width: int) -> np.ndarray:
@@ -115,4 +133,39 @@ def score_peers(photo: np.ndarray, budget: int) -> dict[str, dict | None]:
         out[codec.name] = {"bytes": nbytes, "width": width,
                            "dE8": round(colour_error(decoded, photo), 3),
                            "detail": round(detail_ratio(decoded, photo), 3)}
+    return out
+
+
+def score_image(decoded: np.ndarray, photo: np.ndarray) -> dict[str, float]:
+    """dE8, detail and structure at 1/4 and 1/8 of a decoded image against its photo."""
+    return {"dE8": round(colour_error(decoded, photo), 3),
+            "detail": round(detail_ratio(decoded, photo), 3),
+            "s4": round(structure_similarity(decoded, photo, 4), 4),
+            "s8": round(structure_similarity(decoded, photo, 8), 4)}
+
+
+def best_peers(photo: np.ndarray, budget: int) -> dict[str, dict | None]:
+    """JPEG and AVIF at their best operating point for ``budget`` bytes (module docstring).
+
+    Returns
+    -------
+    {codec: {"dE8", "s4", "s8", "detail", "points": [{"quality", "width", "bytes", ...}]}
+    or None when no quality fits}
+    """
+    out: dict[str, dict | None] = {}
+    for name, (make, decode) in PEER_MAKERS.items():
+        points = []
+        for q in QUALITY_LADDER[name]:
+            fitted = fit_budget(photo, Codec(name, q, make(q), decode), budget)
+            if fitted is not None:
+                decoded, width, nbytes = fitted
+                points.append({"quality": q, "width": width, "bytes": nbytes,
+                               **score_image(decoded, photo)})
+        if not points:
+            out[name] = None
+            continue
+        top = max(points, key=lambda p: p["s4"])
+        out[name] = {"dE8": min(p["dE8"] for p in points), "s4": top["s4"],
+                     "s8": max(p["s8"] for p in points), "detail": top["detail"],
+                     "points": points}
     return out

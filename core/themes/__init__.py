@@ -8,7 +8,8 @@ histogram-preserving blend), ``from_photo`` (themes for a classified photo),
 ``cut_mask`` (what a cut keeps of its window: no other class, border rim or
 lone object),
 ``matching`` (classes to themes by colour and texture), ``looks`` (aerial
-exemplars of the shipped themes' classes, for naming).
+exemplars of the shipped themes' classes, for naming), ``detail`` (a theme's
+fine detail around its mean, the colour map carrying the rest).
 """
 
 from terratheme.core.themes.from_photo import (
