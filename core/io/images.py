@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import enum
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -249,6 +250,55 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
     return _select(pixels, info, bands, first)
 
 
+def read_bands(path: str | os.PathLike, rows: int, *, dtype: np.dtype | str | None = None
+               ) -> Iterator[tuple[int, np.ndarray]]:
+    """``(y, band)`` pairs of a whole image, top to bottom, from one opening of the file.
+
+    Memory is one band: scanlines are read in order (a PNG is decoded once, not
+    once per band as :func:`read_region` calls would), a tiled file the rows of
+    tiles a band covers.
+
+    Parameters
+    ----------
+    path : path-like
+    rows : int
+        Rows per band (the last band may be shorter).
+    dtype : numpy dtype, optional
+        As :func:`read_image`.
+
+    Yields
+    ------
+    y : int
+        The band's first row.
+    band : (h, W, C) ndarray
+        Every channel.
+    """
+    inp = _open_input(path)
+    try:
+        spec, info = inp.spec(), _info(inp)
+        want = np.dtype(dtype) if dtype is not None else info.dtype
+        fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
+        step, th = max(1, int(rows)), max(1, spec.tile_height)
+        for y in range(0, spec.height, step):
+            h = min(step, spec.height - y)
+            # A tiled file: the rows of tiles covering the band.
+            y0, y1 = (y // th * th, min(-(-(y + h) // th) * th, spec.height)) if (
+                spec.tile_width > 0) else (y, y + h)
+            with libpng_quiet(info.format_name == "png"):
+                if spec.tile_width > 0:
+                    block = inp.read_tiles(0, 0, 0, spec.width, y0, y1, 0, 1, 0,
+                                           spec.nchannels, fmt)
+                else:
+                    block = inp.read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels, fmt)
+            if block is None or inp.has_error:
+                raise CorruptFileError(f"{path}: damaged or truncated image "
+                                       f"({error_line(inp) or 'no reason given'})")
+            band = np.asarray(block).reshape(y1 - y0, spec.width, spec.nchannels)
+            yield y, np.ascontiguousarray(band[y - y0:y - y0 + h]).astype(want, copy=False)
+    finally:
+        inp.close()
+
+
 def read_region(
     path: str | os.PathLike, x: int, y: int, w: int, h: int, *,
     dtype: np.dtype | str | None = None, bands: Bands = Bands.ALL,
@@ -398,7 +448,7 @@ def _check_space(path: str | os.PathLike, tmp: Path, fmt: str, nbytes: int) -> N
         st = os.statvfs(tmp)
     except OSError:
         return
-    need = SPACE_BOUND[fmt] * nbytes + (1 << 20)
+    need = SPACE_BOUND[fmt] * nbytes + (1 << 16)
     if st.f_bavail * st.f_frsize < need:
         raise TerrathemeError(f"cannot write {path}: {st.f_bavail * st.f_frsize:,} bytes free "
                               f"on its disk, a {fmt} image of this size may need {need:,}")
