@@ -126,16 +126,8 @@ def collect_samples(
     pairs: Sequence[tuple[np.ndarray, np.ndarray]], options: SupervisedOptions,
     cache: DiskCache | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Training samples from photo/mask pairs, capped per class.
-
-    ``cache`` keeps each pair's samples (before the cap) by content, so a
-    pair seen before costs no feature computation; the result is the same.
-
-    Returns
-    -------
-    features : (n, F) float32 ndarray
-    labels : (n,) int32 ndarray of class values
-    """
+    """Training features (n, F) float32 and class values (n,) int32 of photo/mask pairs,
+    capped per class; ``cache`` keeps each pair's samples by content (same result)."""
     classes, grow = _training_plan(pairs, options)
     keys = None if cache is None else _sample_keys(pairs, classes, grow, options)
     return _capped_samples(pairs, options, classes, grow, cache, keys)
@@ -199,14 +191,8 @@ class Classifier:
 
     @property
     def context_pixels(self) -> int:
-        """Photo pixels of context a label needs on each side.
-
-        Classifying a photo piece by piece, each piece starting at a multiple
-        of ``options.features.scale`` and read with at least this overlap gives
-        the same labels as the whole photo
-        (the EDGE filter's running sums differ by float rounding, ~1e-6, which
-        can only flip an exact tie).
-        """
+        """Photo pixels of context a label needs on each side (pieces read so from multiples
+        of the feature scale get the whole photo's labels, up to EDGE's ~1e-6 rounding)."""
         fo, reg = self.options.features, self.options.regularisation
         return (fo.halo + reg.halo + 1) * fo.scale
 
@@ -235,19 +221,8 @@ class Classifier:
 
     def predict(self, photo: np.ndarray,
                 progress: Callable[[int, int], None] | None = None) -> Classification:
-        """Classify a photo.
-
-        Parameters
-        ----------
-        photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray
-        progress : callable, optional
-            ``(done, total)`` over tiles.
-
-        Returns
-        -------
-        Classification
-            labels (H, W) uint8 with the training masks' class values.
-        """
+        """The training masks' class values of a (H, W, 3|4) uint8/uint16 photo's pixels;
+        ``progress(done, total)`` over the tiles."""
         rgb, valid = prepare_photo(photo)
         opts = self.options
         if self.forest is not None and opts.adapt:
@@ -273,11 +248,7 @@ class Classifier:
                    parts.class_names)
 
     def name_classes(self, names: Mapping[int, str]) -> None:
-        """Name the classes after a legend (:mod:`core.io.legend`).
-
-        A name given here replaces the model's own; values the model does not
-        classify are skipped.
-        """
+        """Name the classes after a legend, over the model's own names (others skipped)."""
         given = {int(c): str(n) for c, n in names.items() if int(c) in self.classes}
         self.class_names = {**(self.class_names or {}), **given} or None
 
@@ -291,32 +262,12 @@ def train_classifier(
 ) -> Classifier:
     """Train a classifier from scribbles or full label masks.
 
-    Parameters
-    ----------
-    pairs_or_scribbles : sequence of (photo, mask)
-        photo (H, W, 3|4) uint8/uint16; mask (H, W) integer, 0 = unlabelled,
-        k > 0 = class k. Scribbles on the photo to classify and full masks of
-        other photos both fit.
-    options : SupervisedOptions, optional
-    class_weights : mapping of class value -> float, optional
-        Prior weights per class value to use instead of estimating them, e.g.
-        from a first round of blind strokes (:func:`core.classify.prior.kept_weights`).
-        Used (in ``model.classes`` order) when they cover every trained class
-        and the forest has two classes or more; otherwise estimated as usual.
-    cache : DiskCache, optional
-        Keeps the pairs' training samples and the fitted model by content
-        (:mod:`core.classify.training_cache`): a training seen before gives the same model.
-
-    Returns
-    -------
-    Classifier
-        With one class only, every pixel gets that class (confidence 1).
-
-    Raises
-    ------
-    TerrathemeError
-        No pairs, a mask of the wrong size or type, no labelled pixel, a
-        class weight that is not a finite number > 0.
+    ``pairs_or_scribbles``: (photo (H, W, 3|4) uint8/uint16, mask (H, W) integer, 0
+    unlabelled) pairs, scribbles on the photo to classify or full masks of others.
+    ``class_weights`` (class value -> weight, e.g. kept from a first round of strokes)
+    replace the estimated prior when they cover every class. ``cache`` keeps samples
+    and the model by content. One class only: every pixel gets it. Bad input is a
+    ``TerrathemeError``.
     """
     opts = options or SupervisedOptions()
     scribbles = looks_like_scribbles(pairs_or_scribbles, opts.ignore_classes)
