@@ -8,7 +8,9 @@ results in flight), ``tiled_writer`` (images written tile by tile),
 file, then rename; sets of files, the one naming the others last), ``codec`` (images
 as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
 ``png`` (PNG chunks: palettes), ``memory`` (free memory; whole-photo work
-that cannot fit refused before its pixels are read).
+that cannot fit refused before its pixels are read), ``disk_cache`` (one
+bounded cache folder whose entries are checked as hostile input), ``inputs``
+(input paths checked before they are opened).
 """
 
 from terratheme.core.io.atomic import (
