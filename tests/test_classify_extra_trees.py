@@ -10,8 +10,12 @@ import numpy as np
 import pytest
 from sklearn.ensemble import ExtraTreesClassifier
 from terratheme.core.classify import Classifier, train_classifier
-from terratheme.core.classify.extra_trees import ExtraTreesForest, fit_extra_trees, from_sklearn
-from terratheme.core.classify.forest import forest_scores
+from terratheme.core.classify.extra_trees import (
+    ExtraTreesForest,
+    fit_extra_trees,
+    forest_scores,
+    from_sklearn,
+)
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 

@@ -19,7 +19,7 @@ per block), ``features`` (the feature stack on a downscaled photo),
 overlap), ``regularise`` (smoothing / edge-aware averaging),
 ``unsupervised`` (K criterion), ``unsupervised_model``, ``mixture`` (the
 themes' Gaussian mixture), ``bands`` (border bands), ``supervised``,
-``forest`` and ``extra_trees`` (the tree ensemble), ``ridges``, ``samples`` (training
+``extra_trees`` (the tree ensemble), ``ridges``, ``samples`` (training
 samples from masks and scribbles), ``training_cache`` (samples and fitted
 models kept by content in a :class:`~core.io.disk_cache.DiskCache`:
 ``train_classifier(..., cache=...)``), ``prior`` (class-prior

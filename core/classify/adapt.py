@@ -28,8 +28,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from terratheme.core.classify.extra_trees import ForestOptions, build_forest, forest_scores
 from terratheme.core.classify.features import FeatureOptions
-from terratheme.core.classify.forest import ForestOptions, build_forest, forest_scores
 from terratheme.core.classify.regularise import RegulariseOptions, regularise
 from terratheme.core.classify.result import Classification
 from terratheme.core.classify.tiled import (

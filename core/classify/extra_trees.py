@@ -26,8 +26,10 @@ loads overlap (:meth:`ExtraTreesForest.walk_arrays`). Thresholds are rounded
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Protocol
 
 import numba
 import numpy as np
@@ -251,6 +253,37 @@ def from_sklearn(model) -> ExtraTreesForest:
               for n, p in parts.items()}
     arrays["classes"] = np.asarray(model.classes_)
     return ExtraTreesForest.from_arrays(arrays, n_features=int(model.n_features_in_))
+
+
+class ForestOptions(Protocol):
+    """The fields of ``SupervisedOptions`` a forest is trained with."""
+
+    n_trees: int
+    max_depth: int
+    min_samples: int
+    balance: bool
+    seed: int
+
+
+def build_forest(x: np.ndarray, y: np.ndarray, options: ForestOptions,
+                 n_jobs: int | None = None) -> ExtraTreesForest:
+    """:func:`fit_extra_trees` of samples ``x`` (n, F), classes ``y`` (n,) with ``options``."""
+    return fit_extra_trees(x, y, n_trees=options.n_trees, max_depth=options.max_depth,
+                           min_samples_split=options.min_samples, balance=options.balance,
+                           seed=options.seed, n_jobs=n_jobs)
+
+
+def forest_scores(forest: ExtraTreesForest, x: np.ndarray, classes: Sequence[int]) -> np.ndarray:
+    """Scores (n, C) float32 of samples ``x`` (n, F), columns in ``classes`` order.
+
+    ``forest``: anything with ``classes`` and ``predict_proba`` (the benchmarks' peers too).
+    """
+    x = np.ascontiguousarray(x, np.float32)
+    out = np.zeros((x.shape[0], len(classes)), np.float32)
+    counts = forest.predict_proba(x)
+    for col, value in enumerate(forest.classes):
+        out[:, list(classes).index(int(value))] = counts[:, col]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

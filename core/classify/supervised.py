@@ -1,4 +1,4 @@
-"""Supervised classes: Extra-Trees (:mod:`core.classify.forest`) on the features.
+"""Supervised classes: Extra-Trees (:mod:`core.classify.extra_trees`) on the features.
 
 Training data are ``(photo, mask)`` pairs. A mask has the photo's size; 0 is
 *unlabelled* and ``k > 0`` is class ``k``. The same rule covers brush
@@ -29,7 +29,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from terratheme.core.classify.adapt import predict_adapted
-from terratheme.core.classify.forest import Forest, build_forest, forest_scores
+from terratheme.core.classify.extra_trees import ExtraTreesForest, build_forest, forest_scores
 from terratheme.core.classify.model_file import ModelParts, read_model, write_model
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.classify.prior import (
@@ -172,7 +172,7 @@ class Classifier:
     photo, :meth:`save` / :meth:`load` to keep it.
     """
 
-    def __init__(self, forest: Forest | None, classes: Sequence[int],
+    def __init__(self, forest: ExtraTreesForest | None, classes: Sequence[int],
                  options: SupervisedOptions,
                  class_weights: Sequence[float] | None = None,
                  class_names: Mapping[int, str] | None = None) -> None:
