@@ -1,13 +1,7 @@
 """Hilbert and Morton space-filling curves over an image (seed sfc_packing.txt, section 1).
 
-Modules: ``square`` (curve kinds, the enclosing square; no numba), ``steps``
-(the curves: scalar numba functions, array functions over them, texel <->
-step in image coordinates), ``plan`` (the block plan of a scan, curve
-squares), ``scan`` (scans along a curve: runs, order, ranks), ``fill``
-(images, windows and squares back from runs).
-
-Names are loaded on first use, so importing :mod:`core.curves.square` (as
-file readers do) does not load numba.
+Names are loaded on first use, so file readers importing :mod:`core.curves.square` do
+not load numba.
 """
 
 from __future__ import annotations

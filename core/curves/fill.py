@@ -1,10 +1,7 @@
-"""Images back from runs: the whole image, any window of it, or one curve square (numba).
+"""Images back from runs: the whole image, a window of it, or one curve square (numba).
 
-The inverse of :mod:`core.curves.scan`: each kernel walks the curve blocks
-that meet the output, in one of the plan's local patterns, advancing through
-the runs; a block that one run covers is filled as a rectangle at once.
-Only the blocks meeting a window are walked, so streamed unpacking (row
-bands) costs what the bands hold, not the image.
+Only the curve blocks meeting the output are walked; a block one run covers is filled
+as a rectangle at once.
 """
 
 from __future__ import annotations
@@ -77,9 +74,6 @@ def fill_window(
 ) -> np.ndarray:
     """The ``w x h`` window at column ``x``, row ``y`` (row 0 = top) of the runs' image.
 
-    Only the curve blocks that meet the window are walked, so memory and work
-    follow the window, not the image (streamed unpacking reads bands this way).
-
     Parameters
     ----------
     steps, values : (R,) ndarrays
@@ -125,12 +119,7 @@ def fill_square(
     steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
     squares: CurveSquares, k: int, *, out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Square ``k``'s window (:meth:`CurveSquares.rect`) of the runs' image.
-
-    Returns
-    -------
-    window : (h, w) ndarray of ``values.dtype``
-    """
+    """Square ``k``'s ``(h, w)`` window (:meth:`CurveSquares.rect`) of the runs' image."""
     plan = block_plan(width, height, curve)
     x, y, w, h = squares.rect(k, width, height)
     out = np.empty((h, w), values.dtype) if out is None else out

@@ -47,12 +47,9 @@ class BlockPlan:
 
 
 def local_patterns(b: int, curve: str | Curve) -> np.ndarray:
-    """Local orders of a ``2^b`` block for the 4 Hilbert states (Morton: one, repeated).
+    """(4, 4^b) uint16, read-only: ``(ly << b) | lx`` (y up) of local step ``i`` per state.
 
-    Returns
-    -------
-    patterns : (4, 4^b) uint16 ndarray, read-only
-        Entry ``i`` of row ``state`` is ``(ly << b) | lx`` of local step ``i``, y up.
+    One row per Hilbert state (Morton: one row, repeated).
     """
     return _patterns(int(b), Curve.parse(curve))
 

@@ -2,10 +2,7 @@
 
 Each kernel walks the blocks of the plan in curve order and, inside a block,
 one of the precomputed local patterns, skipping texels outside the image (seed
-section 2.2, ``Convert``). Blocks that lie wholly inside the image skip the
-bounds test. numba is used because the numpy equivalent (a full argsort of
-the step table, or a gather through a 4-byte-per-texel order array) costs
-several times more for a 9144^2 map (``benchmarks/bench_packing.py``).
+section 2.2, ``Convert``); blocks wholly inside the image skip the bounds test.
 
 Steps are 0-based and returned as ``uint32`` (a 65536^2 square has 2^32 steps);
 ranks (how many image texels precede a texel along the curve) are ``int64``.
@@ -206,18 +203,9 @@ def scan_square(
     keys: np.ndarray, width: int, height: int, curve: str | Curve, squares: CurveSquares,
     k: int,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Runs of square ``k`` of ``squares`` alone, from that square's texels.
+    """:func:`scan_runs` of square ``k`` alone, from its ``(h, w)`` window ``keys``.
 
-    Parameters
-    ----------
-    keys : (h, w) integer ndarray
-        The square's window of the image (:meth:`CurveSquares.rect`), row 0 = top.
-
-    Returns
-    -------
-    steps, values : (R,) ndarrays
-        As :func:`scan_runs` returns them, for the square's stretch of the curve;
-        :func:`join_runs` stitches the squares' runs in curve order.
+    :func:`join_runs` stitches the squares' runs in curve order.
     """
     plan = block_plan(width, height, curve)
     x, y, w, h = squares.rect(k, width, height)
@@ -249,8 +237,7 @@ def _scan_stretch(keys: np.ndarray, origin: tuple[int, int], size: tuple[int, in
         if j == j1:
             break
         # Out of room: double the run arrays and resume at block j, with the first call's
-        # types (the kernel returns Python ints: as they are, each resume compiled two more
-        # signatures, the second with a float64 step).
+        # types (the kernel returns Python ints, which would compile new signatures).
         cur, last = keys.dtype.type(cur), np.uint64(last)
         steps = np.concatenate([steps, np.empty_like(steps)])
         values = np.concatenate([values, np.empty_like(values)])
@@ -267,25 +254,15 @@ def join_runs(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, n
 
 
 def scan_order(width: int, height: int, curve: str | Curve) -> np.ndarray:
-    """Texel order along the curve: flat row-major indices of every texel.
-
-    Returns
-    -------
-    order : (width * height,) int64 ndarray
-        ``image.reshape(-1)[order]`` is the image read along the curve.
-    """
+    """(W*H,) int64 flat indices: ``image.reshape(-1)[order]`` reads the image along the curve."""
     plan = block_plan(width, height, curve)
     return _order_kernel(height, width, plan.b, plan.bx, plan.by, plan.state, plan.patterns)
 
 
 def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:
-    """Curve steps of the texels with 1-based ranks ``ends`` (increasing, <= W*H).
+    """(R,) uint32 0-based curve steps of the texels with 1-based ranks ``ends`` (<= W*H).
 
     Converts cumulative run lengths (the file's lengths) to the in-memory steps.
-
-    Returns
-    -------
-    steps : (R,) uint32 ndarray (0-based)
     """
     plan = block_plan(width, height, curve)
     ends = np.ascontiguousarray(ends, dtype=np.int64)
@@ -296,12 +273,9 @@ def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve
 
 
 def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:
-    """1-based ranks (image texels up to and including each step) of increasing in-image steps.
+    """(R,) int64 1-based ranks (image texels up to each step) of increasing steps.
 
-    Returns
-    -------
-    ranks : (R,) int64 ndarray
-        -1 for a step in a block that misses the image or past the last block.
+    -1 for a step in a block that misses the image or past the last block.
     """
     plan = block_plan(width, height, curve)
     steps = np.ascontiguousarray(steps, dtype=np.uint32)

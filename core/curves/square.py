@@ -59,12 +59,9 @@ def curve_order(width: int, height: int) -> int:
 
 
 def hilbert_transposed(n: int) -> bool:
-    """Whether the image's Hilbert curve is the square curve with x and y swapped.
+    """Whether the image's Hilbert curve swaps x and y: yes for even ``n``.
 
-    The square curve of :func:`hilbert_xy2d` always visits its quadrants
-    bottom-left, top-left, top-right, bottom-right, so its very first move is
-    upward only when ``n`` is odd (the seed's 8 x 8 figure). The image curve
-    keeps the first move upward for every size (design.md §4) by
-    swapping x and y when ``n`` is even.
+    The square curve's first move is upward only for odd ``n``; the image curve keeps
+    it upward for every size (design.md §4).
     """
     return n % 2 == 0

@@ -1,19 +1,10 @@
-"""Hilbert and Morton space-filling curves over an image (seed sfc_packing.txt, section 1).
+"""The curves themselves: texel <-> curve step (seed sfc_packing.txt, section 1).
 
-Orientation (design.md §4 and ``vectors/sfc_8x8.json``): the curve runs
-over the enclosing ``2^n x 2^n`` square whose origin is the **bottom-left**
-texel of the image as displayed, so curve step 0 (the seed's step 1) is
-``(column 0, row H-1)``; the Hilbert curve's first move is upward. Steps that
-fall outside a non-square or non-power-of-two image are skipped but still
-counted: a step number is always the position on the full square's curve.
-
-Public coordinates are ``(cols, rows)`` with row 0 the **top** row of the image
-(numpy's ``image[rows, cols]``). Steps are 0-based ``uint64``; the seed's
-1-based numbers are ``step + 1`` (``one_based=True``). A 65536 x 65536 image
-has 2^32 steps, so 0-based steps fit ``uint32`` and 1-based ones do not.
-
-The curve kinds and the enclosing square are in :mod:`core.curves.square`
-(numba-free); the block plan of whole-image scans in :mod:`core.curves.plan`.
+Orientation (design.md §4, ``vectors/sfc_8x8.json``): step 0 (the seed's step 1) is the
+bottom-left texel ``(column 0, row H-1)`` and the Hilbert curve's first move is upward.
+Steps outside a non-square image are skipped but counted: a step is always the position
+on the enclosing square's curve. Public coordinates are ``(cols, rows)``, row 0 on top;
+steps are 0-based ``uint64`` (the seed's numbers: ``one_based=True``).
 """
 
 from __future__ import annotations
@@ -23,11 +14,8 @@ import numpy as np
 from terratheme.core.curves.square import Curve, curve_order, hilbert_transposed
 from terratheme.core.errors import TerrathemeError
 
-# ---------------------------------------------------------------- square curves
-#
-# One implementation of each curve, as scalar numba functions: the packed
-# layer's lookups call them per texel (core.packing.lookup), and the array
-# functions below loop over them.
+# One implementation of each curve, as scalar numba functions: the packed layer's
+# lookups call them per texel (core.packing.lookup); the array functions loop over them.
 
 # Hilbert state machine (2 bits: swap, flip-both): entry [state*4 + (x_bit*2 + y_bit)]
 # holds (digit << 2) | next_state, the table form of Hacker's Delight's xy2d.
@@ -180,21 +168,10 @@ def _flat_pair(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, tu
 
 
 def hilbert_xy2d(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Hilbert step of ``(x, y)`` on the ``2^n`` square, ``y`` pointing up.
+    """Hilbert step ``d`` (uint64) and final state (uint8, :func:`hilbert_walk`) of ``(x, y)``.
 
-    Parameters
-    ----------
-    x, y : (...) integer ndarrays
-        Coordinates in ``[0, 2^n)``, origin bottom-left.
-    n : int
-        Curve levels.
-
-    Returns
-    -------
-    d : (...) uint64 ndarray
-        0-based step (first move from (0, 0) goes to (0, 1): upward).
-    state : (...) uint8 ndarray
-        Orientation left after the ``n`` levels (:func:`hilbert_walk`).
+    ``x, y`` are integer arrays in ``[0, 2^n)``, origin bottom-left, y up; the first
+    move from (0, 0) is to (0, 1).
     """
     xs, ys, shape = _flat_pair(x, y)
     d = np.empty(xs.size, np.uint64)
@@ -204,12 +181,7 @@ def hilbert_xy2d(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.n
 
 
 def hilbert_d2xy(d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`hilbert_xy2d`: ``(x, y)`` (y up) of 0-based steps ``d``.
-
-    Returns
-    -------
-    x, y : (...) int64 ndarrays
-    """
+    """Inverse of :func:`hilbert_xy2d`: int64 ``(x, y)`` (y up) of 0-based steps ``d``."""
     d = np.asarray(d, dtype=np.uint64)
     flat = np.ascontiguousarray(d).reshape(-1).astype(np.int64)
     xs, ys = np.empty(flat.size, np.int64), np.empty(flat.size, np.int64)
@@ -304,12 +276,7 @@ def texels_of(
 def step_table(
     width: int, height: int, curve: str | Curve, *, one_based: bool = True
 ) -> np.ndarray:
-    """Step of every texel as an image, like the vector file's ``hilbert_steps``.
-
-    Returns
-    -------
-    steps : (height, width) int64 ndarray (1-based by default)
-    """
+    """(height, width) int64 step of every texel (1-based by default), as ``hilbert_steps``."""
     rows, cols = np.mgrid[0:height, 0:width]
     return steps_of(cols, rows, width, height, curve, one_based=True).astype(np.int64) - (
         0 if one_based else 1
