@@ -125,14 +125,43 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
     return w
 
 
-def _valid_coarse(valid: np.ndarray | None, win, scale: int) -> np.ndarray | None:
+def _valid_coarse(valid: np.ndarray | None, scale: int) -> np.ndarray | None:
+    """A window core's validity (photo pixels) on its coarse pixels."""
     if valid is None:
         return None
-    block = valid[win.y : win.y1, win.x : win.x1].astype(np.float32)
+    block = valid.astype(np.float32)
     h, w = -(-block.shape[0] // scale), -(-block.shape[1] // scale)
     ph, pw = h * scale - block.shape[0], w * scale - block.shape[1]
     block = np.pad(block, ((0, ph), (0, pw)), mode="edge")
     return cv2.resize(block, (w, h), interpolation=cv2.INTER_AREA) > 0.0
+
+
+def sampling_stride(height: int, width: int, options: UnsupervisedOptions) -> int:
+    """The smallest stride (coarse pixels) whose photo-wide grid keeps to ``max_samples``."""
+    scale = options.features.scale
+    n_coarse = (-(-height // scale)) * (-(-width // scale))
+    return max(1, math.ceil(math.sqrt(n_coarse / options.max_samples)))
+
+
+def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
+                   stride: int, options: UnsupervisedOptions) -> tuple[np.ndarray, np.ndarray]:
+    """One feature window's weighted samples and their photo-wide row-major coarse index.
+
+    ``feats`` covers the window's read rectangle; ``valid`` (or None) its core's
+    pixels; ``width`` is the photo's. Samples lie on the photo-wide grid of every
+    ``stride``-th coarse row and column, so windows of any tiling (of a photo in
+    memory, or of a file) give the whole photo's samples.
+    """
+    scale = options.features.scale
+    core, rows, cols = strided_core(feats, win, scale, stride)
+    keep = _valid_coarse(valid, scale)
+    if keep is None:
+        keep = np.ones(core.shape[:2], bool)
+    else:
+        ry, rx = (-(win.y // scale)) % stride, (-(win.x // scale)) % stride
+        keep = keep[ry::stride, rx::stride]
+    order = rows[:, None] * (-(-width // scale)) + cols[None, :]
+    return core[keep] * feature_weights(options.features), order[keep]
 
 
 def sample_features(
@@ -144,29 +173,19 @@ def sample_features(
     -------
     samples : (n, F) float32 ndarray
     """
-    fo, scale = options.features, options.features.scale
+    fo = options.features
     h, w = rgb.shape[:2]
-    n_coarse = (-(-h // scale)) * (-(-w // scale))
-    # The smallest stride whose grid keeps to the budget.
-    stride = max(1, math.ceil(math.sqrt(n_coarse / options.max_samples)))
-    weights = feature_weights(fo)
-    wc = -(-w // scale)
+    stride = sampling_stride(h, w, options)
     chunks, order = [], []
     for win, _lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo):
-        # Core of the tile in coarse pixels, on a global grid of every stride-th row/column
-        # (the same samples whatever the tile size).
-        core, rows, cols = strided_core(feats, win, scale, stride)
-        keep = _valid_coarse(valid, win, scale)
-        if keep is None:
-            keep = np.ones(core.shape[:2], bool)
-        else:
-            ry, rx = (-(win.y // scale)) % stride, (-(win.x // scale)) % stride
-            keep = keep[ry::stride, rx::stride]
-        chunks.append(core[keep] * weights)
-        order.append((rows[:, None] * wc + cols[None, :])[keep])
+        part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]
+        got, where = window_samples(feats, win, part, w, stride, options)
+        chunks.append(got)
+        order.append(where)
     samples = np.concatenate(chunks).astype(np.float32)
     if len(samples) == 0:
         # The opaque pixels fall between the sampling grid's rows/columns: take them all.
+        n_coarse = (-(-h // fo.scale)) * (-(-w // fo.scale))
         return sample_features(rgb, valid, replace(options, max_samples=n_coarse))
     # Row-major order of the photo, so k-means sees the same sequence for any tiling.
     return samples[np.argsort(np.concatenate(order), kind="stable")]
