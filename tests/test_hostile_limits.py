@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import terratheme.core.exchange
+import terratheme.core.exchange.maps_to_grid
 import terratheme.core.model.project
 from terratheme.app.cli import main
 from terratheme.core.io.images import write_image
@@ -27,7 +27,7 @@ def test_new_refuses_a_grid_over_the_limit_from_the_header(tmp_path, capfd, monk
                                                            image):
     # found: a 1 MB splatmap of 16385^2 pixels was read (3.6 GB) before the vertex limit
     monkeypatch.setattr(terratheme.core.model.project, "MAX_GRID_VERTICES", 399)
-    monkeypatch.setattr(terratheme.core.exchange, "read_splatmaps", _never_read)
+    monkeypatch.setattr(terratheme.core.exchange.maps_to_grid, "read_bands", _never_read)
     write_image(tmp_path / "m.png", image)
     _refused(capfd, ["new", tmp_path / "m.png", tmp_path / "o.ttproj", "--themes", "water,sand",
                      "--from", kind], "m.png: 20 x 20 pixels: grid of 400 vertices is over")

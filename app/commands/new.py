@@ -52,14 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_outputs
     from terratheme.core.errors import TerrathemeError
-    from terratheme.core.exchange import (
-        control_labels,
-        grid_from_labels,
-        labels_from_weights,
-        read_control_map,
-        read_splatmaps,
-        read_weight_maps,
-    )
+    from terratheme.core.exchange.maps_to_grid import grid_from_maps
     from terratheme.core.io.images import image_info, read_image
     from terratheme.core.model.grid import IndexGrid, validate_cell
     from terratheme.core.model.index_image import project_from_index_image
@@ -96,15 +89,11 @@ def run(args: argparse.Namespace) -> int:
         except TerrathemeError as exc:
             raise TerrathemeError(f"{sources[0]}: {exc}") from None
     else:
-        if args.kind == "splatmap":
-            labels = labels_from_weights(read_splatmaps(sources), len(library))
-        elif args.kind == "weights":
-            labels = labels_from_weights(read_weight_maps(sources), len(library))
-        else:
-            labels = control_labels(read_control_map(sources[0]))
+        # Headers first (types, channels, one size), then band by band: memory is the grid.
+        indices = grid_from_maps(sources, args.kind, len(library), args.step)
         metadata.update({"source_maps": sources, "source_kind": args.kind})
         try:
-            grid = IndexGrid(grid_from_labels(labels, args.step), args.cell)
+            grid = IndexGrid(indices, args.cell)
             project = ThematicTexture(grid, library, metadata)
         except TerrathemeError as exc:
             raise TerrathemeError(f"{', '.join(sources)}: {exc}") from None

@@ -33,6 +33,7 @@ import numpy as np
 from terratheme.core.errors import OptionError, TerrathemeError
 from terratheme.core.exchange.colour import COLOUR_MAP, unity_colour_st
 from terratheme.core.exchange.layout import ExportLayout, tiled_layout
+from terratheme.core.exchange.maps_to_grid import check_maps
 from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.exchange.plan import (
     STORED_ALPHA,
@@ -132,6 +133,7 @@ def read_stored_rgba(path: str | Path) -> np.ndarray:
 
 def read_splatmaps(paths: list[str]) -> np.ndarray:
     """Stack splatmap files (RGBA8, 4 themes each, in order) into ``(4 * files, H, W)`` weights."""
+    check_maps(paths, "splatmap")  # types, channels and sizes from the headers, before reading
     planes = []
     for p in paths:
         image = read_stored_rgba(p)

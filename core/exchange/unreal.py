@@ -27,6 +27,7 @@ from terratheme.core.errors import OptionError, TerrathemeError
 from terratheme.core.exchange import plan as export_plan
 from terratheme.core.exchange.colour import COLOUR_MAP, vertex_colour_uv
 from terratheme.core.exchange.layout import ExportLayout, tiled_layout
+from terratheme.core.exchange.maps_to_grid import check_maps
 from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.io.images import read_image, write_image
 from terratheme.core.model.project import ThematicTexture
@@ -100,6 +101,7 @@ def plan(project: ThematicTexture, options: ExportOptions) -> export_plan.Export
 
 def read_weight_maps(paths: list[str]) -> np.ndarray:
     """Stack one greyscale weight map per theme (8 or 16-bit, in theme order) into ``(K, H, W)``."""
+    check_maps(paths, "weights")  # types, channels and sizes from the headers, before reading
     planes = []
     for p in paths:
         image = read_image(p)
