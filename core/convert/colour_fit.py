@@ -411,6 +411,7 @@ def colour_map_from_file(
     tile: int = 1024,
     scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
+    reserved: int = 0,
 ) -> FittedColourMap:
     """The colour map of a photo larger than memory, tile by tile (the block gain of step 1).
 
@@ -423,6 +424,8 @@ def colour_map_from_file(
     (``scheduler`` a ``distributed.Client``) every worker gets the themes
     once and each tile its window of the grid (:func:`grid_window`), so a
     worker's memory is set by the tile; the map is the serial one, bit for bit.
+    ``reserved``: bytes of the area's budget already spent (the packed grid),
+    as :func:`choose_colour_map`'s.
 
     Returns
     -------
@@ -463,7 +466,7 @@ def colour_map_from_file(
     quality = options.quality
     if options.target is None:
         quality = budget_quality(stored, int(scale), options.codec,
-                                 options.map_bytes(info.width * info.height))
+                                 options.map_bytes(info.width * info.height, reserved))
     cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run)
     return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())
 
