@@ -1,35 +1,17 @@
-"""Batched random access into packed layers and tiled containers (issue 19).
+"""Batched random access into packed layers and tiled containers: the bucket strategy.
 
-One texel's lookup is :func:`core.packing.lookup.lookup_one`'s: its grid word
-(a block that one run covers answers at once), then, in any other block, its
-local step and a binary search over that block's (or quarter's) runs. A
-batch of random texels done one by one spends its time waiting on memory:
-the runs (4 MB for a 9144^2 map) do not stay in a core's cache, and each
-search is a chain of dependent loads. So a batch is worked in three passes
-(a radix partition of the searches by where their runs lie):
+A batch of random texels looked up one by one waits on memory (each search is a chain
+of dependent loads into runs that do not stay in cache). So a batch is worked
+:data:`CHUNK` texels at a time in three passes, a radix partition by where the runs lie:
 
-1. every texel's grid word, in input order (the grid, a word per block, is
-   small); a texel in a uniform block is answered, any other leaves an entry
-   ``texel << 32 | grid index << 2b | place in block`` and the number of its
-   **bucket**, a run of ``2^shift`` consecutive grid words holding about
-   :data:`BUCKET_RUNS` runs (:func:`bucket_shift`);
-2. a counting sort of the entries by bucket (a few thousand buckets, so the
-   counts stay in L1 and the writes go to a few thousand streams);
-3. bucket after bucket, the searches, whose blocks, spans and runs now lie
-   in a few kilobytes that stay in L1 while the bucket's queries are answered.
+1. every texel's grid word (a uniform block answers at once); any other leaves an
+   entry and its **bucket**, ``2^shift`` grid words holding about :data:`BUCKET_RUNS` runs;
+2. a counting sort of the entries by bucket;
+3. bucket by bucket, the searches, whose runs now stay in L1.
 
-Batches are taken :data:`CHUNK` texels at a time (bounded scratch, about 20
-bytes a texel); on several threads (:mod:`core.packing.threads`), each
-thread does the three passes on its own slice of the batch (no barrier
-between passes, so a thread the system holds back delays only its slice).
-A tiled container's tiles lie end to end in one array; each tile's words are
-a row of :func:`tiled_words`' rows and its buckets follow the previous
-tile's, so one pass serves all tiles.
-
-Sweeps (:mod:`core.packing.sweep`: no sort, each search's probes prefetched)
-are faster up to :data:`SWEEP_BYTES` at least; :func:`lookup_batch`, the one entry
-point, picks the strategy per table (:func:`batch_strategy`). Results are
-those of the scalar lookup, bit for bit, whichever strategy runs.
+On threads, each does the three passes on its own slice. :func:`lookup_batch`, the one
+entry point, picks this or the sweeps (:mod:`.sweep`) per table; both give the scalar
+lookup's answers bit for bit.
 """
 
 from __future__ import annotations
@@ -75,14 +57,10 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
                 across: int) -> tuple[np.ndarray, np.ndarray]:
     """What the batch kernels read of a tiled layer whose tile ``t``'s table starts at ``bases[t]``.
 
-    Returns
-    -------
-    tiles : (6,) int64 ndarray
-        Width, height, log2 tile side, tiles across, bucket shift (buckets of
-        ``2^shift`` grid words, :func:`bucket_shift` over all tiles), buckets.
-    rows : (8 * tiles,) int64 ndarray
-        Per tile: its table's offset, height, grid bits, grid offset (absolute),
-        grid width, first bucket, spans and runs offsets (absolute).
+    Returns ``tiles``, (6,) int64: width, height, log2 tile side, tiles across, bucket
+    shift (:func:`bucket_shift` over all tiles), buckets; and ``rows``, (8 * tiles,) int64:
+    per tile its table's offset, height, grid bits, grid offset, grid width, first bucket,
+    spans and runs offsets (the columns ``T_*`` of :mod:`.sweep`).
     """
     heads = np.stack([data[b: b + layout.HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
         np.int64)
@@ -271,16 +249,10 @@ def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles
     return on_threads(tiled_batch, xs, ys, (data, tiles, rows), out, parts)
 
 
-#: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by
-#: bucket (measured no further). With the sweeps' prefetches, 10^6 random texels at load
-#: 2.4-3, DRCOG side by side 3 x 1 (13.7 MB table) and 3 x 3 (41 MB, past the 32 MiB of
-#: L3): sweeps 0.48x and 0.68x the buckets' CPU time on one thread, 0.54x their wall
-#: time on two (13.7 MB); in the bench, 0.52-0.82x on the three maps (4.5 MB at most).
+#: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by bucket.
 SWEEP_BYTES = 1 << 26
 STRATEGIES = ("sweep", "buckets")
 #: Texels per piece of a swept batch on threads (:func:`~core.packing.threads.on_threads`).
-#: DRCOG, 10^6 texels, 2 threads, load 4.5/6/9, over the dense gather: a slice a thread
-#: 1.90/3.35/3.63x, pieces 1.44/2.82/2.90x.
 SWEEP_PIECE = STRETCH
 
 

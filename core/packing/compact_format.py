@@ -1,26 +1,8 @@
-"""The compact run payload: separated, entropy-coded streams (beyond the seed).
+"""The compact run payload (encoding 1, docs/formats.md): two separated, entropy-coded streams.
 
-The seed's interleaved varint pairs (section 2.4) are larger than PNG on real
-maps. Here the palette indices and the run lengths are two separate streams,
-each coded by whichever of these is smallest for the layer at hand (measured
-in ``benchmarks/bench_packing.py``):
-
-* ``MODEL``: the context-modelled range coder of :mod:`core.packing.range_coder`
-  (indices in the context of the two previous indices; lengths in the
-  context of their run's index);
-* ``ZSTD``: the raw stream (index bytes, or the seed's varints for the
-  lengths) through zstd level 19; it wins when a map repeats long stretches
-  of runs (DRCOG's lengths: 494,933 bytes against the model's 527,000), which
-  a dictionary coder finds and an order-0 context model does not. (xz was
-  measured too and never won: 496,153 bytes there, twice the time.)
-
-Layout::
-
-    u8   U - 1: number of palette indices used
-    U    the used indices, increasing (symbols are ranks in this list)
-    u8   codec of the index stream     u8  codec of the length stream
-    u64  bytes of the index stream     u64 bytes of the length stream
-    ...  index stream, then length stream
+Palette indices and run lengths are coded apart, each by whichever is smaller for the
+layer: :data:`Codec.MODEL` (the context models of :mod:`.range_coder`) or
+:data:`Codec.ZSTD`, which wins where a map repeats long stretches of runs.
 """
 
 from __future__ import annotations

@@ -1,42 +1,8 @@
-"""The packed-layer file: header, palette, run payload, checksum (``docs/formats.md``).
+"""The packed-layer file (``TTPK``): header, palette, run payload, checksum.
 
-Layout (little-endian), the seed's Tables 1-2 plus a magic number, a version
-and a checksum::
-
-    offset size  field
-    0      4     magic b"TTPK"
-    4      1     format version (1 or 2, see below)
-    5      1     encoding: 0 = seed (varint pairs), 1 = compact (two entropy-coded
-                 streams), 2 = plane (2-D context mixing; version 2)
-    6      1     curve: 0 = Hilbert, 1 = Morton
-    7      1     flags: bit 0 = 2-D image, bit 1 = identity palette (P = pixel value),
-                 bit 2 = display colours stored (version 2), bit 3 = they have alpha
-    8      1     channels C (1..4)
-    9      1     bytes per sample (1 or 2)
-    10     2     palette entries K (1..256)
-    12     4     width  (1..65536)
-    16     4     height (1..65536)
-    20     8     run count R
-    28     8     payload bytes
-    36     ...   palette, K*C samples (absent for an identity palette)
-    ...    ...   display colours of an identity palette, K*3 or K*4 bytes (flag bit 2)
-    ...    ...   payload (core.packing.seed_format, .compact_format or .plane_format)
-    end-4  4     CRC-32 of every byte before it
-
-Versioning: a file carries the lowest version whose readers understand it
-(encodings 0 and 1 without display colours stay version 1; display colours
-and encoding 2 need version 2), so a version-1 reader still opens every file
-it could have written; a reader refuses a version above :data:`VERSION` with
-:class:`UnsupportedVersionError`.
-
-Ceilings checked before any payload is decoded (so a small hostile file
-costs milliseconds): the sizes above, the file length and checksum, and at
-most ``max(RUN_ALLOWANCE, MAX_RUNS_PER_BYTE * payload bytes)`` runs. The
-writer never produces a file over the ceilings (a pathologically regular
-layer falls back to the seed encoding, two or more bytes per run).
-
-The codecs are imported when a payload is coded, so reading the header
-(:func:`read_header`, ``terratheme info``) loads no numba kernel.
+Byte layout, versioning rules and ceilings: docs/formats.md, P1. Every ceiling is
+checked before any payload is decoded, so a small hostile file costs milliseconds;
+the codecs are imported when a payload is coded, so :func:`read_header` loads no numba.
 """
 
 from __future__ import annotations

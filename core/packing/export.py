@@ -1,16 +1,8 @@
 """A packed layer written out as an image file, band by band (``terratheme unpack``).
 
-* ``.png`` of an 8-bit index layer: a palette PNG whose values are the
-  indices and whose colours are the layer's display colours (or distinct
-  generated ones), streamed (:class:`core.packing.index_png.PalettePngWriter`);
-* ``.tif`` / ``.tiff`` / ``.exr``: the texel values as a tiled file, streamed
-  (:class:`core.io.tiles.TiledImageWriter`; BigTIFF past 2 GiB);
-* anything else (colour layers to PNG, JPEG, ...): the whole image at once
-  through :func:`core.io.images.write_image`, for layers up to
-  :data:`WHOLE_IMAGE_TEXELS`.
-
-Memory stays at one band whatever the layer's size for the streamed kinds:
-a valid 46-byte 65536 x 65536 layer unpacks to a palette PNG with a 16 MiB band.
+An index layer's ``.png`` is a streamed palette PNG, ``.tif``/``.exr`` a streamed tiled
+file (memory: one band whatever the layer's size); anything else is written whole, up
+to :data:`WHOLE_IMAGE_TEXELS`.
 """
 
 from __future__ import annotations
@@ -57,13 +49,7 @@ LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".heic", 
 
 
 def check_layer_image_path(path: str | os.PathLike) -> None:
-    """Refuse an output a layer's values would not survive (a lossy format), before any work.
-
-    Raises
-    ------
-    TerrathemeError
-        ``path`` ends in one of :data:`LOSSY_SUFFIXES`.
-    """
+    """Refuse (TerrathemeError) a lossy output format, :data:`LOSSY_SUFFIXES`, before any work."""
     suffix = Path(path).suffix.lower()
     if suffix in LOSSY_SUFFIXES:
         raise TerrathemeError(f"{path}: {suffix} images are lossy and would change the layer's "
@@ -74,24 +60,11 @@ def write_layer_image(
     layer: BandedLayer, path: str | os.PathLike, *,
     progress: Callable[[int, int], None] | None = None,
 ) -> str:
-    """Write ``layer`` to the image file ``path`` (atomically), choosing by extension.
+    """Write ``layer`` to the image file ``path`` atomically, choosing by extension.
 
-    Parameters
-    ----------
-    layer : PackedLayer or TiledLayer
-    path : path-like
-    progress : callable(rows done, rows), optional
-
-    Returns
-    -------
-    kind : str
-        ``"palette PNG"``, ``"tiled image"`` or ``"image"``: what was written.
-
-    Raises
-    ------
-    TerrathemeError
-        A lossy format (:func:`check_layer_image_path`), a layer too large for a
-        format written whole, or a write failure.
+    Returns what was written: ``"palette PNG"``, ``"tiled image"`` or ``"image"``.
+    Raises TerrathemeError for a lossy format, a layer too large for a format written
+    whole, or a write failure.
     """
     check_layer_image_path(path)
     suffix = Path(path).suffix.lower()

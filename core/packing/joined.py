@@ -1,23 +1,9 @@
-"""One random-access table over all the tiles of a tiled layer (issues 15 and 19).
+"""One random-access table over all the tiles of a tiled layer (docs/formats.md, P3).
 
-A :class:`core.packing.tiled.TiledLayer`'s tiles are packed layers, each
-with its own table (:func:`core.packing.lookup.build_table`). Looked up
-through those tables, every texel first finds its tile (a row of tile words,
-:func:`core.packing.batch.tiled_words`), which cost 10-43% more than one
-layer on the shared maps (1 thread), most where texels are cheap (most in
-uniform blocks). The **joined table** is one table
-in the layout of :mod:`.layout` whose grid is the tiles' grids side by side
-(their blocks are aligned, the tile side being a multiple of the block side),
-whose spans and runs are theirs end to end with their offsets shifted: the
-single-layer kernels then read it with no tile arithmetic at all. The only
-differences are two header-driven corrections (:mod:`.layout`, "joined
-table"): the rows above the last tile row are read ``pad`` higher, since each
-tile's blocks start at its own bottom, and the blocks of Morton tiles among
-Hilbert ones carry :data:`.layout.MORTON_BLOCK`.
-
-A container joins when its tiles share one grid block side (every tile's
-curve at least that deep) and its offsets fit the table's words; otherwise
-its tiles are looked up through their own tables.
+The tiles' grids side by side, their spans and runs end to end with offsets shifted,
+so the single-layer kernels read a tiled layer with no tile arithmetic. A container
+joins when its tiles share one grid block side and its offsets fit the table's words;
+otherwise its tiles are looked up through their own tables.
 """
 
 from __future__ import annotations
@@ -45,23 +31,11 @@ from terratheme.core.packing.layout import (
 
 def join_tables(tables: list[np.ndarray], width: int, height: int, tile_bits: int,
                 across: int) -> np.ndarray | None:
-    """The joined table of a tiled layer's tiles, or None when they cannot be joined.
+    """The joined ``uint32`` table of a tiled layer's tiles, or None when they cannot be joined.
 
-    Parameters
-    ----------
-    tables : list of (M_t,) uint32 ndarrays
-        Each tile's table (:attr:`core.packing.layer.PackedLayer.table`), rows
-        of tiles from the top-left, ``across`` a row.
-    width, height : int
-        The tiled layer's size in texels.
-    tile_bits : int
-        log2 of the tile side.
-
-    Returns
-    -------
-    table : (HEAD_WORDS + 1040 + grid + spans + R,) uint32 ndarray or None
-        None when the tiles' grid block sides differ or the spans (``2^27``
-        words) or runs (``2^31 - 1``) overflow the table's fields.
+    ``tables`` are the tiles' tables, rows of tiles from the top-left, ``across`` a row;
+    ``width, height`` the layer's size, ``tile_bits`` log2 of the tile side. None when the
+    grid block sides differ or the spans (2^27 words) or runs (2^31 - 1) overflow.
     """
     heads = np.stack([t[:HEAD_WORDS] for t in tables]).astype(np.int64)
     gb = int(heads[0, W_GRID_BITS])

@@ -46,24 +46,19 @@ class PackedLayer:
     Attributes
     ----------
     width, height : int
-        Size in texels.
     curve : Curve
-    palette : (K, C) ndarray, uint8 or uint16
+    palette : (K, C) uint8 or uint16 ndarray
         Colour of each palette index (``K <= 256``).
     identity : bool
         Single-channel index layer whose palette index is the pixel value.
     squeeze : bool
-        The packed image was 2-D ``(H, W)``; :meth:`unpack` and :meth:`lookup`
-        then drop the channel axis like numpy indexing of that array would.
+        The packed image was 2-D ``(H, W)``: reads drop the channel axis as numpy would.
     report : PaletteReport or None
         What palette reduction changed, when it was used.
-    colours : (K, 3) or (K, 4) uint8 ndarray or None
-        Display colours of an identity layer's indices (a palette PNG's table,
-        theme colours): what :func:`core.packing.export.write_layer_image`
-        shows; lookups still return the indices.
+    colours : (K, 3|4) uint8 ndarray or None
+        Display colours of an identity layer's indices (lookups still return indices).
     threads : int
-        Threads for batched lookups of at least ``PARALLEL_FROM`` texels
-        (1 = always serial; ``dataclasses.replace(layer, threads=1)``).
+        Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
     S, P : (R,) ndarrays
         The seed's runs: 1-based step of each run's last texel, palette index.
     """
@@ -95,21 +90,15 @@ class PackedLayer:
         Parameters
         ----------
         steps : (R,) integer ndarray
-            Curve step of each run's last texel, strictly increasing; 0-based
-            unless ``one_based`` (the seed's numbering). The last one must be the
-            step of the image's last texel along the curve.
+            Last step of each run, strictly increasing, 0-based unless ``one_based``; the
+            last one the image's last texel's.
         indices : (R,) integer ndarray
             Palette index ``P_i`` of each run, ``< len(palette)``.
-        palette : (K,) or (K, C) ndarray, uint8 or uint16
-        colours : (K', 3) or (K', 4) uint8 ndarray, optional
+        palette : (K,) or (K, C) uint8 or uint16 ndarray
+        colours : (K', 3|4) uint8 ndarray, optional
             Display colours of an identity layer (``K' >= K``; the first ``K`` are kept).
 
-        Raises
-        ------
-        TerrathemeError
-            Runs that are not increasing, do not end at the image's last texel,
-            stop on a step outside the image, use a palette index out of range,
-            or display colours that do not fit the palette.
+        Raises TerrathemeError for runs that break those rules or colours that do not fit.
         """
         curve = Curve.parse(curve)
         n = curve_order(width, height)
@@ -139,10 +128,7 @@ class PackedLayer:
     ) -> PackedLayer:
         """A layer from run lengths in texels (the file's form, seed section 2.4).
 
-        Raises
-        ------
-        TerrathemeError
-            A zero length, or lengths that do not add up to ``width * height``.
+        Raises TerrathemeError for a zero length or lengths not adding up to ``width * height``.
         """
         lengths = np.asarray(lengths, dtype=np.int64)
         if lengths.size == 0 or lengths.min() < 1:
@@ -223,26 +209,14 @@ class PackedLayer:
     # ------------------------------------------------------------ reading texels
 
     def lookup(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
-        """Texel values at columns ``xs`` and rows ``ys`` (row 0 = top), without unpacking.
+        """Texel values at columns ``xs``, rows ``ys`` (row 0 = top, broadcast), without unpacking.
 
-        Parameters
-        ----------
-        xs, ys : (...) integer ndarrays or ints, broadcast together
-
-        Returns
-        -------
-        values : (...) or (..., C) ndarray
-            The same as ``image[ys, xs]`` on the packed image.
-
-        Raises
-        ------
-        TerrathemeError
-            A coordinate outside the image.
+        The same as ``image[ys, xs]`` on the packed image; TerrathemeError outside it.
         """
         if type(xs) is int and type(ys) is int:
             # Scalar fast path (:mod:`.scalar`): a uniform quick cell's byte (most texels),
             # else one compiled call; then the ready-made value (like image[y, x]). Kept
-            # short, the rest in _lookup_many: each line here is a measured cost.
+            # short (docs/decisions.md), the rest in _lookup_many.
             try:
                 rows, bits, w, values, call, data = self._quick
             except ValueError:  # () until the first scalar lookup builds the cells
@@ -289,36 +263,15 @@ class PackedLayer:
         return f"texel ({int(x)}, {int(y)}) is outside the {self.width} x {self.height} layer"
 
     def unpack(self, *, indices_only: bool = False) -> np.ndarray:
-        """The whole image back.
-
-        Parameters
-        ----------
-        indices_only : bool
-            Return the ``(H, W)`` uint8 palette-index image instead of colours.
-
-        Returns
-        -------
-        image : (H, W) or (H, W, C) ndarray
-            Same dtype and channel layout as the packed image.
-        """
+        """The whole image back, as packed; ``indices_only``: the (H, W) uint8 index image."""
         steps, indices = table_runs(self._data)
         idx = fill_runs(steps, indices, self.width, self.height, self.curve)
         return idx if indices_only else self.values_of(idx)
 
     def bands(self, rows: int = 256) -> Iterator[tuple[int, np.ndarray]]:
-        """The palette-index image in horizontal bands, top to bottom, with bounded memory.
+        """``(y, band)`` of the (h, width) uint8 index image, ``rows`` a band, top to bottom.
 
-        Parameters
-        ----------
-        rows : int
-            Rows per band (the last band may be shorter).
-
-        Yields
-        ------
-        y : int
-            Row of the band's first line.
-        band : (h, width) uint8 ndarray
-            Palette indices; the same buffer is reused from band to band.
+        Memory stays at one band: the same buffer is reused from band to band.
         """
         steps, indices = table_runs(self._data)
         rows = max(1, int(rows))
@@ -329,30 +282,16 @@ class PackedLayer:
                                  self.width, h, out=buf[:h], threads=self.threads)
 
     def values_of(self, indices: np.ndarray) -> np.ndarray:
-        """Texel values of palette indices, shaped as :meth:`unpack` returns them.
-
-        Parameters
-        ----------
-        indices : (...) uint8 ndarray
-
-        Returns
-        -------
-        values : (...) or (..., C) ndarray of the palette's dtype
-        """
+        """Texel values of palette indices, as :meth:`unpack` returns them."""
         return palette_values(self.palette, self.identity, self.squeeze, indices)
 
     # ------------------------------------------------------------ files
 
     def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
-        """Write the layer atomically.
+        """Write the layer atomically; returns the bytes written.
 
-        ``format``: ``"compact"`` (the smaller of the plane and run-stream
-        payloads), ``"plane"``, ``"streams"`` or ``"seed"`` (the seed's varints);
-        see :func:`core.packing.container.encode_layer`.
-
-        Returns
-        -------
-        bytes_written : int
+        ``format``: ``"compact"``, ``"plane"``, ``"streams"`` or ``"seed"``
+        (:func:`core.packing.container.encode_layer`).
         """
         data = self.to_bytes(format=format)
         write_bytes_atomic(path, data)
@@ -366,15 +305,10 @@ class PackedLayer:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PackedLayer:
-        """Read a layer saved in either encoding.
+        """Read a layer file in any encoding.
 
-        Raises
-        ------
-        CorruptFileError
-            Truncated or damaged file, wrong magic number, bad checksum,
-            run lengths or palette indices that do not fit the header.
-        UnsupportedVersionError
-            A file from a newer format version.
+        Raises CorruptFileError (damaged, truncated, bad checksum, runs that do not fit the
+        header) or UnsupportedVersionError (a newer format version).
         """
         p = os.fspath(check_input_file(path, "a packed layer"))
         with open(p, "rb") as fh:

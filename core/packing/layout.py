@@ -1,42 +1,8 @@
 """Layout of a layer's random-access table, the flat ``uint32`` array of :mod:`.lookup`.
 
-Kept free of numba so that ``terratheme info`` can size a layer from its file
-header without loading any kernel. The table (also read by GPU shaders, so
-its layout is part of the format documentation, ``docs/formats.md`` (packed index layers))::
-
-    word               content
-    0 .. 11            width W, height H, curve levels n, morton flag, grid block bits b,
-                       grid offset G, span offset N, runs offset U, run count R,
-                       grid width gw, grid height gh, cut C (0; a joined table, below)
-    12 .. 1051         the Hilbert state tables (core.curves.steps.HILBERT_TABLES)
-    G .. G + gw*gh     one word per 2^b x 2^b curve block meeting the layer, rows from
-                       the bottom (y up): a block inside one run is
-                       UNIFORM | ENDS (if that run ends on the block's last step) | P;
-                       any other is (o << 3) | (quartered << 2) | its pattern state,
-                       o the offset of its span from N (o < 2^27)
-    N ..               per block that is not uniform, in grid order: its span, the first
-                       run ending in it, then (quartered blocks, more than 16 runs) the
-                       first runs ending at or after its 2nd, 3rd and 4th quarter's first
-                       step, then the run covering its last step (the layer's last run at
-                       most) | SPAN_LAST if that run also ends in the block
-    U .. U + R - 1     one word per run: (last step & (4^b - 1)) << 8 | palette index
-
-A texel in a uniform block is answered by its grid word. In any other
-block, its local step ``l`` (the Hilbert walk of its place in the block over
-``b`` levels starting in the block's state; Morton: the bits interleaved)
-selects the first run of ``[span[q], span[q + 1])`` (``q`` = its quarter,
-or 0 without quarters) whose low step bits are ``>= l``, else run
-``span[q + 1]``: a binary search over a few dozen runs at most.
-
-A **joined table** (:mod:`.joined`) is one table over all the tiles of a tiled
-layer, in this layout: its grid is the tiles' grids side by side, its spans
-and runs theirs end to end (offsets shifted). Two things differ: the tiles'
-blocks are aligned to each tile's bottom, so the rows above the last tile
-row (``row < C``) are read ``pad = (C - H) & (2^b - 1)`` higher
-(``y = H - 1 - row + pad``); and a block of a Morton tile among Hilbert ones
-has :data:`MORTON_BLOCK` set in its grid word. Its word 3 is :data:`JOINED`
-(a single layer's is 0 or 1, its ``C`` 0), which the batch kernels read to
-take their joined variant; the scalar kernel reads both kinds alike.
+Word by word in docs/formats.md, P3 (GPU shaders read it too), the joined table of
+:mod:`.joined` included. Free of numba, so ``terratheme info`` sizes a layer from its
+header without loading a kernel.
 """
 
 from __future__ import annotations

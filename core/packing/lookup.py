@@ -1,24 +1,9 @@
 """Random access into runs without unpacking (seed section 2.3, ``getColor``).
 
-``(x, y) -> step s`` along the curve, then the first run whose last step is
-``>= s``. Beyond the seed (layout in :mod:`core.packing.layout`), a **grid**
-over the curve's aligned blocks (16 texels a side or more, at most one grid
-word per 4 runs) does most of the work:
-
-* a block that one run covers (most blocks of a land-cover map: 71-88% of
-  random texels on the shared maps) holds that run's palette index, so the
-  texel costs one read;
-* any other block holds its orientation and where its runs start and end,
-  so the texel's step is a walk down the block's few levels only, and the
-  binary search runs over that block's runs only (a few dozen words, one or
-  two cache lines), whose last steps are kept as their low bits within the
-  block, packed with ``P`` in one 32-bit word (4 bytes a run instead of the
-  seed's 5).
-
-Everything lives in one ``uint32`` array, so a scalar call passes three
-arguments to the compiled kernel, and a tiled layer's tiles lie end to end in
-one array (the kernels take each tile's offset). Batches are sorted by where
-their runs lie first (:mod:`core.packing.batch`), on all cores for large ones.
+``(x, y) -> step s`` along the curve, then the first run whose last step is ``>= s``.
+Beyond the seed, a grid over the curve's aligned blocks answers a texel of a block one
+run covers in one read, and keeps any other block's search inside its own few runs;
+all in one ``uint32`` table (:mod:`.layout`, docs/formats.md P3).
 """
 
 from __future__ import annotations
@@ -137,9 +122,7 @@ _SCALAR_CALL: list = []
 def scalar_lookup_function():
     """:func:`lookup_one` compiled for ``(int64, int64, uint32[::1])``, called without dispatch.
 
-    numba's dispatcher works out the argument types on every call (about half
-    of a scalar lookup's cost); the compiled entry point of the one signature
-    a layer uses skips that.
+    numba's dispatcher types the arguments on every call, about half a scalar lookup's cost.
     """
     if not _SCALAR_CALL:
         sig = (numba.types.int64, numba.types.int64, numba.types.Array(numba.types.uint32, 1, "C"))
@@ -150,22 +133,11 @@ def scalar_lookup_function():
 
 def block_runs(steps: np.ndarray, coarse: np.ndarray, bits: int
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The runs covering each curve block's first and last steps, and whether it is uniform.
+    """``(run0, run1, uniform)``, (B,) each: the runs covering each curve block's first and
+    last steps (``R`` past the layer's last texel), and whether one run covers the block.
 
-    Parameters
-    ----------
-    steps : (R,) uint64 ndarray
-        0-based last step of each run, increasing.
-    coarse : (B,) integer ndarray
-        Coarse curve step of each block of side ``2^bits`` (:func:`core.curves.plan.block_grid`).
-
-    Returns
-    -------
-    run0, run1 : (B,) int64 ndarrays
-        The run covering the block's first step, the one covering its last (``R``
-        when the last step lies past the layer's last texel).
-    uniform : (B,) bool ndarray
-        One run covers the block (its image texels all have that run's index).
+    ``steps`` (R,) uint64 are the runs' last steps; ``coarse`` (B,) the blocks' coarse
+    curve steps at side ``2^bits`` (:func:`core.curves.plan.block_grid`).
     """
     first = np.asarray(coarse, np.uint64) << np.uint64(2 * bits)
     run0 = np.searchsorted(steps, first)
@@ -177,21 +149,11 @@ def build_table(
     width: int, height: int, n: int, morton: bool, steps: np.ndarray, indices: np.ndarray,
     bits: int | None = None,
 ) -> np.ndarray:
-    """The random-access structure of a layer, as one uint32 array (:mod:`.layout`).
+    """The random-access table of a layer, one uint32 array (:mod:`.layout`).
 
-    Parameters
-    ----------
-    steps : (R,) integer ndarray
-        0-based curve step of each run's last texel, increasing, the last one
-        the layer's last texel.
-    indices : (R,) uint8 ndarray
-    bits : int, optional
-        Grid block side (log2, at most ``MAX_GRID_BITS``; ``n`` at most), default
-        :func:`.layout.grid_bits`'s; the tiles of a tiled layer share one.
-
-    Returns
-    -------
-    data : (HEAD_WORDS + 1040 + grid + 2 * blocks not uniform + R,) uint32 ndarray
+    ``steps`` (R,): 0-based last step of each run, increasing, the last one the layer's
+    last texel; ``indices`` (R,) uint8; ``bits``: grid block side (log2), default
+    :func:`.layout.grid_bits`'s (the tiles of a tiled layer share one).
     """
     if steps.size >= SPAN_LAST:
         raise TerrathemeError(f"{steps.size} runs: a layer holds at most 2^31 - 1 runs")

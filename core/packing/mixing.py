@@ -1,20 +1,8 @@
-"""Context mixing primitives: adaptive bit counters and a logistic mixer (numba).
+"""Context-mixing primitives: adaptive bit counters and a logistic mixer (numba).
 
-The plane payload (:mod:`.plane_format`) predicts each binary decision with
-several context models and mixes their predictions in the logistic domain,
-as PAQ-family coders do (Mahoney, "Adaptive weighing of context models for
-lossless data compression", 2005; lpaq1), then codes the bit with that
-probability (:func:`core.packing.range_coder.put_bit`). Fixed point throughout,
-so encoder and decoder compute the same numbers bit for bit:
-
-* a **counter** holds ``P(bit = 1)`` in 16 bits and a hit count; it moves
-  towards each coded bit by ``1 / (n + 1.6)`` of the gap, ``n`` capped at a
-  limit (fast learning first, then a fixed adaptation rate);
-* ``stretch(p) = ln(p / (1 - p))`` and ``squash`` its inverse map between
-  12-bit probabilities and logits scaled by 256 (range -2047 .. 2047);
-* the **mixer** outputs ``squash(sum w_i * stretch(p_i))`` with weights in
-  16.16 fixed point, one weight set per small context, trained online by
-  gradient descent on coding cost: ``w_i += x_i * err * rate >> 14``.
+As PAQ-family coders do (Mahoney, "Adaptive weighing of context models for lossless
+data compression", 2005; lpaq1). Fixed point throughout, so encoder and decoder compute
+the same numbers bit for bit; the arithmetic is specified in docs/formats.md (encoding 2).
 """
 
 from __future__ import annotations

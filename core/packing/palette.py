@@ -1,17 +1,9 @@
 """From an image to a palette and runs along a curve (seed sections 2.1-2.2).
 
-Two kinds of input:
-
-* a single-channel **index image** with values ``0 .. 255``: the palette index
-  is the pixel value itself (``P = value``; the palette is the identity
-  ``0 .. max``), as in the seed's Fig. 2 example;
-* any other image (RGB, RGBA, or single-channel values above 255) with at most
-  256 distinct colours: the palette lists the colours in order of first
-  appearance along the curve.
-
-More colours are refused unless palette reduction is asked for; the reduction
-(k-means, OpenCV) reports the colour error it made (seed section 2.5: "the
-image is first converted to 256 colours").
+A single-channel image of values 0..255 is an **index image** (``P`` = value, identity
+palette, the seed's Fig. 2); any other image with at most 256 colours gets a palette in
+order of first appearance along the curve. More colours are refused unless palette
+reduction (k-means) is asked for, which reports its colour error (seed section 2.5).
 """
 
 from __future__ import annotations
@@ -31,13 +23,8 @@ SUPPORTED_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))
 class PaletteReport:
     """How much palette reduction changed an image.
 
-    Attributes
-    ----------
-    colours_before, colours_after : int
-        Distinct colours in the input and in the reduced image.
-    max_error, mean_error : float
-        Euclidean distance between original and reduced colours, in the
-        image's own units (0..255 for 8-bit), the maximum and mean over texels.
+    ``colours_before``, ``colours_after``: distinct colours; ``max_error``, ``mean_error``:
+    Euclidean colour distance over texels, in the image's units (0..255 for 8-bit).
     """
 
     colours_before: int
@@ -223,18 +210,9 @@ def check_colours(colours: np.ndarray | None, k: int, identity: bool) -> np.ndar
 
 def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
                    indices: np.ndarray) -> np.ndarray:
-    """Texel values of palette indices, shaped as the packed image was.
+    """Texel values of (...) uint8 palette ``indices``: (...) or (..., C), as the packed image was.
 
-    Parameters
-    ----------
-    palette : (K, C) ndarray
-    identity, squeeze : bool
-        The layer's flags (index layer; 2-D image).
-    indices : (...) uint8 ndarray
-
-    Returns
-    -------
-    values : (...) or (..., C) ndarray of the palette's dtype
+    ``identity`` and ``squeeze`` are the layer's flags (index layer; 2-D image).
     """
     if identity:
         # Index layer: the palette index is the value; no colour gather needed.
@@ -245,13 +223,7 @@ def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
 
 
 def scalar_values(palette: np.ndarray, squeeze: bool) -> list:
-    """What a scalar lookup returns for each palette index, ready-made (as ``image[y, x]``).
-
-    Parameters
-    ----------
-    palette : (K, C) ndarray
-    squeeze : bool
-        The layer is a 2-D image: each value is the palette's first channel (a numpy
-        scalar), else its ``(C,)`` row.
+    """What a scalar lookup returns for each palette index, ready-made (as ``image[y, x]``):
+    the first channel (a numpy scalar) of a ``squeeze`` layer, else the ``(C,)`` row.
     """
     return list(palette[:, 0]) if squeeze else list(palette)

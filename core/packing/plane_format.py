@@ -1,48 +1,11 @@
-"""The plane payload (encoding 2, file version 2): the layer coded as an image, 2-D context mixing.
+"""The plane payload (encoding 2, docs/formats.md): the layer coded as an image, 2-D context mixing.
 
-The compact run streams (encoding 1) see each run along the curve with 1-D
-context only. Here the texels themselves are coded, so every decision sees
-its two-dimensional neighbourhood (issue 19), and the runs are rebuilt by a
-scan afterwards:
-
-* the layer is cut into the curve's aligned **segments** of ``2^g`` texels a
-  side (``g`` = :data:`SEGMENT_BITS`), coded in curve order; a segment is a
-  contiguous stretch of the curve, so each decoded segment is scanned into
-  its runs at once (:func:`core.curves.scan.scan_square`) and memory holds
-  one segment (1 MiB), not the layer. Contexts stay inside a segment; the
-  models carry over from one segment to the next;
-* a whole segment equal to the previous segment's last texel costs one
-  decision (per-segment choice: skip or code);
-* inside a segment, **8 x 8 blocks** in raster order: one decision says
-  whether the block is uniform in its reference class (the texel left of
-  it, else above it), predicted from how many texels along its top and left
-  borders differ from that class and whether the blocks above and to the left
-  were uniform (per-block choice: skip or code); most blocks are (89% of
-  DRCOG's, 95% of ESA's);
-* the texels of the other blocks, in raster order: ``v != r`` (``r`` = the
-  left texel, else the one above) from four context models over the
-  equality pattern of ten causal neighbours (N, NW, NE, WW, NN, NNE, NWW,
-  NEE, NNW, NNEE) with ``r``, six equalities among them, ``r`` itself, and
-  whether NE and W are known yet, mixed by a logistic mixer (:mod:`.mixing`;
-  the kernel is :mod:`.plane_model`); then whether ``v`` is one of the first
-  three distinct neighbour classes, and failing that ``v`` down a binary tree
-  in the context of ``r`` (and of the first candidate when few classes are used).
-
-Every decision is coded with the range coder of :mod:`.range_coder`. Layout::
-
-    u8   U - 1: number of palette indices used (U <= 254)
-    U    the used indices, increasing (texels are coded as ranks in this list)
-    u8   g, log2 of the segment side: SEGMENT_BITS (10), or the layer's own
-         curve levels when smaller; any other value is refused
-    ...  the range-coded decisions, to the end of the payload
-
-Bounded work (checked while decoding, so a hostile payload ends at once):
-the decoder stops when it reads past its stream, when a segment would add
-more runs than the header declares, and after
-``MAX_TEXELS_PER_BYTE * stream bytes + TEXEL_ALLOWANCE`` texels coded one by
-one (real maps: 20-30 per byte), so a hostile payload costs at most about
-what a real one of its size costs; the encoder never writes a payload over
-the ceiling (the container then keeps the run streams).
+The texels are coded, so every decision sees its two-dimensional neighbourhood, and the
+runs are rebuilt by a scan. Segments (aligned curve squares, :data:`SEGMENT_BITS`) are
+coded in curve order, so memory holds one segment; inside, 8 x 8 blocks flagged uniform
+or coded texel by texel (:mod:`.plane_model`, :mod:`.mixing`). Bounded work: decoding
+stops past the stream, past the declared runs, or past ``MAX_TEXELS_PER_BYTE * stream
+bytes + TEXEL_ALLOWANCE`` texels; the encoder never writes a payload over that.
 """
 
 from __future__ import annotations
@@ -108,17 +71,9 @@ def encode_plane(width: int, height: int, curve: int, lengths: np.ndarray,
 
 def decode_plane(payload: bytes, width: int, height: int, curve: int, runs: int, *,
                  name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`encode_plane`.
+    """Inverse of :func:`encode_plane`: ``(lengths, indices)``, (runs,) int64 and uint8.
 
-    Returns
-    -------
-    lengths : (runs,) int64 ndarray
-    indices : (runs,) uint8 ndarray
-
-    Raises
-    ------
-    CorruptFileError
-        A damaged or hostile payload (see the module docstring's bounds).
+    Raises CorruptFileError for a damaged or hostile payload (the module's bounds).
     """
     if len(payload) < 2 or payload[0] + 1 > MAX_USED or len(payload) < payload[0] + 3:
         raise CorruptFileError(f"{name}: truncated or impossible plane payload header")

@@ -1,9 +1,5 @@
-"""The plane payload's model: one numba kernel that codes and decodes a segment.
-
-The model is described in :mod:`core.packing.plane_format` (and
-``docs/formats.md`` (packed index layers)); this module holds its kernel
-(:func:`code_segment`: block flags, texel flags, candidate hits, class trees,
-all mixed and range coded) and its adaptive state (:class:`PlaneModel`).
+"""The plane payload's model (docs/formats.md, encoding 2): one numba kernel that codes and
+decodes a segment (:func:`code_segment`), and its adaptive state (:class:`PlaneModel`).
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """A software prefetch for the batch kernels: ask for a table word's cache line early.
 
-:func:`prefetch` (usable inside ``numba.njit`` code only) emits LLVM's
-``llvm.prefetch`` for ``array[index]``: a hint, which changes no result.
-The sweep kernels (:mod:`.sweep`) issue it for each search's first probe
-into the runs as soon as its span is known, and for its next probe in each
-sweep, so the line arrives while other texels are being worked on rather
-than in the sweep that needs it.
+A hint (LLVM's ``llvm.prefetch``) that changes no result: the sweeps issue it for each
+search's next probe, so the line arrives while other texels are worked on.
 """
 
 from __future__ import annotations
@@ -17,14 +13,7 @@ from numba.extending import intrinsic
 
 @intrinsic
 def prefetch(typingctx, array, index):  # pragma: no cover - runs while numba compiles
-    """Prefetch (for reading, kept in all cache levels) the line of ``array[index]``.
-
-    Parameters
-    ----------
-    array : 1-D numba array
-    index : integer
-        Within the array (not checked: the kernels pass indices they read next).
-    """
+    """Prefetch the cache line of ``array[index]`` (1-D array, index not checked; njit only)."""
     if not (isinstance(array, types.Array) and array.ndim == 1
             and isinstance(index, types.Integer)):
         return None

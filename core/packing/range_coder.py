@@ -1,18 +1,8 @@
-"""Adaptive binary range coder and the run models of the compact format (numba).
+"""Adaptive binary range coder (LZMA's) and the run models of the compact format (numba).
 
-The coder is the LZMA one (32-bit range, carry propagation through a cached
-byte) with 15-bit probabilities adapted by a shift. Two models sit on it:
-
-* palette indices ``P``: each symbol (a rank in the layer's used-symbol list)
-  is coded bit by bit down a binary tree whose node probabilities are chosen
-  by the two previous symbols (boundaries along a curve alternate ``A B A B``);
-* run lengths ``L``: the bit length ``e = floor(log2 L)`` down a 6-level tree in
-  the context of the run's own symbol, then the top 6 bits below the leading
-  one in a prefix tree per (symbol, e), and the remaining bits per (e, bit).
-
-Encoders return ``(bytes used, overflow)``; decoders return an error code
-(0 = fine, 1 = read past the end, 2 = impossible symbol or length) so damaged
-input never crashes.
+The models are specified in docs/formats.md (encoding 1). Encoders return ``(bytes
+used, overflow)``; decoders an error code (0 fine, 1 read past the end, 2 impossible
+symbol or length), so damaged input never crashes.
 """
 
 from __future__ import annotations

@@ -1,52 +1,10 @@
-"""What a scalar lookup from Python reads: a byte per small cell of the layer (issue 19).
+"""Quick cells: what a scalar lookup from Python reads first (docs/formats.md, P3).
 
-A scalar lookup from Python is bound by the interpreter: numpy's ``img[y, x]``
-costs 0.08-0.4 us on this project's 2-core machine (by its load), a call into
-a compiled kernel 0.1 us when the table is in cache and up to 0.8 us when it
-is not (numba's entry point unboxes the arguments, then the search's
-dependent loads miss), while a method that does a few integer operations and
-indexes a ``bytes`` costs 1-2 times numpy's index (a Python call alone costs
-0.025 us). So a scalar lookup reads the **quick cells** first: a byte per
-aligned ``2^c x 2^c`` curve block, the palette index of a cell that one run
-covers, 255 for any other; rows of cells shared by the image rows they hold,
-so a texel's byte is
-``rows[y][x >> c]`` (no arithmetic on ``y``). ``c`` is the smallest from
-:data:`QUICK_MIN_BITS` whose cells fit :data:`QUICK_CELLS` bytes, so memory
-stays bounded whatever the layer's size. 16 x 16 cells leave 7-19% of the
-shared maps' random texels to the compiled call (the table's 32 x 32 blocks:
-12-29%); finer cells leave fewer, but their bytes (1-5 MB) fall out of cache
-and were no faster in total. The cells are built on the first scalar lookup,
-from the runs (:func:`core.packing.lookup.block_runs`, the test the table's
-grid uses); they cost a byte per cell and a pointer per image row: 61 + 40 KB
-(Chesapeake 3115 x 5010), 147 + 49 KB (ESA 6144^2), 327 + 73 KB (DRCOG 9144^2).
-A tiled container's cells are its tiles' side by side (:func:`tiled_quick_cells`,
-built with its tables), the other cells answered by the compiled call on its
-joined table: DRCOG in 4096^2 tiles 1.39 -> 0.33 us a call against the single
-layer's 0.26 and numpy's 0.24 in the same run (each call had gone through the
-tile arithmetic, ``int()`` and the palette's numpy gather).
-
-The method itself is kept short (its array path in another method) and tests
-bounds with ``(x | y) >= 0 and x < W`` (a row past the end is not in
-``rows``): measured in 31 paired rounds of 20,000 random texels (load 3.2 on
-the 2 cores), us per call, the path before / this one / numpy's ``img[y, x]``:
-Chesapeake 0.140 / 0.127 / 0.081, ESA 0.154 / 0.134 / 0.085, DRCOG 0.199 /
-0.184 / 0.094 (paired ratios 0.91, 0.87, 0.93); 8.6%, 7.1%, 18.4% of the
-texels took the compiled call. Two pure-Python answers for the other cells
-were measured in the same rounds, behind the same fast path, and dropped:
-
-* each such cell's runs as their last local curve steps (a byte each, 16 x 16
-  cells) beside their palette indices in one ``bytes``, a word per cell
-  (offset, run count, Hilbert state) in an ``array`` row shared like
-  ``rows``, the texel's local step from a (state, y & 15, x & 15) table
-  inverted from :func:`core.curves.plan.local_patterns`, then
-  ``bisect.bisect_left``: 1.01 / 0.98 / 1.09 x the path before, 12-18% slower
-  than the compiled call, for 0.7 / 1.7 / 5.0 MB more. Its dozen bytecodes
-  and dependent reads (row list, array, its buffer, the run bytes) cost more
-  than numba's entry point (0.08 us with the table's unboxing) and kernel;
-* those cells kept dense (``4^c`` bytes each, at ``((y & m) << c) | (x & m)``):
-  2-6% faster than the compiled call (0.88 / 0.85 / 0.87 x the path before),
-  but 256 bytes per such cell, 1.9 / 4.0 / 18.7 MB more: up to the dense
-  image's size on a busy map.
+A scalar call is bound by the interpreter, so a few integer operations and a ``bytes``
+index beat a call into a compiled kernel. A byte per aligned ``2^c x 2^c`` curve
+block holds the palette index of a cell one run covers, 255 for any other (left to the
+compiled lookup); the image rows of a cell row share one ``bytes``, so a texel's byte
+is ``rows[y][x >> c]``. Built on the first scalar lookup.
 """
 
 from __future__ import annotations
@@ -73,18 +31,11 @@ def quick_bits(width: int, height: int, levels: int) -> int:
 
 
 def quick_cells(data: np.ndarray) -> tuple[int, list[bytes]]:
-    """A byte per quick cell of a layer's table (:mod:`.layout`; not a joined table).
+    """A byte per quick cell of a layer's table (not a joined table).
 
-    Returns
-    -------
-    bits : int
-        The cells' side (log2).
-    rows : list of H bytes
-        ``rows[y][x >> bits]`` (row 0 = top) is the palette index of the cell of
-        texel ``(x, y)`` when one run covers that cell, else 255 (also for index
-        255, which is then looked up as in any other cell). The image rows of a
-        cell row share one ``bytes`` (the cells are aligned to the curve's origin,
-        the image's bottom-left corner).
+    Returns ``(bits, rows)``: the cells' side (log2), and H ``bytes`` with
+    ``rows[y][x >> bits]`` (row 0 = top) the palette index of texel ``(x, y)``'s cell
+    when one run covers it, else 255 (index 255 itself is looked up as any other).
     """
     width, height = int(data[W_WIDTH]), int(data[W_HEIGHT])
     c = quick_bits(width, height, int(data[W_LEVELS]))
@@ -99,25 +50,11 @@ def quick_cells(data: np.ndarray) -> tuple[int, list[bytes]]:
 
 def tiled_quick_cells(tables: list[np.ndarray], tiles_x: int, width: int,
                       height: int) -> list[bytes] | None:
-    """The quick cells of a tiled layer: its tiles' (:func:`quick_cells`) side by side.
+    """A tiled layer's quick cells: its tiles' (:func:`quick_cells`) side by side.
 
-    Parameters
-    ----------
-    tables : list of (M_t,) uint32 ndarrays
-        Each tile's own table, rows of tiles from the top-left, ``tiles_x`` a row
-        (tile sides are powers of two from 64, so cells of every tile but the
-        last of a row end on the tile's right edge).
-    tiles_x : int
-    width, height : int
-        The tiled layer's size in texels.
-
-    Returns
-    -------
-    rows : list of H bytes, or None
-        ``rows[y][x >> QUICK_MIN_BITS]`` as :func:`quick_cells`' rows, over the
-        whole layer (a tile whose cells are not :data:`QUICK_MIN_BITS` a side, a
-        tiny one at the layer's corner, is all 255). None when the layer has
-        more cells than :data:`QUICK_CELLS`.
+    ``tables`` are the tiles' own tables, rows of tiles from the top-left, ``tiles_x``
+    a row; a tile whose cells are not :data:`QUICK_MIN_BITS` a side is all 255.
+    Returns H ``bytes`` as :func:`quick_cells`' rows, or None past :data:`QUICK_CELLS`.
     """
     bits = QUICK_MIN_BITS
     if (-(-width >> bits)) * (-(-height >> bits)) > QUICK_CELLS:

@@ -17,18 +17,8 @@ MAX_VARINT_BYTES = 5
 
 
 def encode_varints(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Varint bytes of each value, as a padded table.
-
-    Parameters
-    ----------
-    values : (R,) non-negative integer ndarray, each < 2^35
-
-    Returns
-    -------
-    table : (R, 5) uint8 ndarray
-        Byte ``k`` of value ``i`` in ``table[i, k]``.
-    used : (R, 5) bool ndarray
-        Which table bytes belong to the number.
+    """``(table, used)``, (R, 5) uint8 and bool: byte ``k`` of value ``i``'s varint, and which
+    bytes belong to it (values < 2^35).
     """
     v = np.asarray(values, dtype=np.uint64)
     # Number of 7-bit groups: at least one, even for 0.
@@ -50,15 +40,7 @@ def encode_varint(value: int) -> bytes:
 
 
 def encode_seed_runs(lengths: np.ndarray, indices: np.ndarray) -> bytes:
-    """Interleaved ``<varint length, P byte>`` pairs of all runs.
-
-    Parameters
-    ----------
-    lengths : (R,) int64 ndarray
-        Texels per run (>= 1).
-    indices : (R,) uint8 ndarray
-        Palette index per run.
-    """
+    """Interleaved ``<varint length, P byte>`` pairs of runs (lengths >= 1, uint8 indices)."""
     table, used = encode_varints(lengths)
     # One row per run: its varint bytes then its palette index; keep the used cells in order.
     rows = np.concatenate([table, np.asarray(indices, np.uint8)[:, None]], axis=1)
@@ -98,18 +80,9 @@ def _decode_kernel(buf, count, lengths, indices, paired):  # pragma: no cover - 
 
 
 def decode_seed_runs(payload: bytes, count: int, *, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`encode_seed_runs`.
+    """Inverse of :func:`encode_seed_runs`: ``count`` lengths (int64) and indices (uint8).
 
-    Returns
-    -------
-    lengths, indices
-        The ``count`` runs' lengths (int64) and palette indices (uint8), as every
-        layout's decoder returns them (:func:`core.packing.compact_format.decode_runs`).
-
-    Raises
-    ------
-    CorruptFileError
-        The stream ends early, holds an over-long varint, or has bytes left over.
+    Raises CorruptFileError for a stream that ends early, an over-long varint, or bytes left over.
     """
     buf = np.frombuffer(payload, dtype=np.uint8)
     if count > buf.size // 2:
@@ -123,12 +96,7 @@ def decode_seed_runs(payload: bytes, count: int, *, name: str) -> tuple[np.ndarr
 
 
 def decode_varint_stream(raw: bytes, count: int, *, name: str) -> np.ndarray:
-    """``count`` varints back to back (the compact format's raw length stream).
-
-    Returns
-    -------
-    lengths : (count,) int64 ndarray
-    """
+    """``count`` back-to-back varints as (count,) int64 (the compact format's raw length stream)."""
     buf = np.frombuffer(raw, dtype=np.uint8)
     if count > buf.size:
         raise CorruptFileError(f"{name}: {count} run lengths announced, {buf.size} bytes stored")

@@ -1,18 +1,9 @@
-"""``pack_file(path)``: pack an image file of any size with bounded memory (issue 15).
+"""``pack_file(path)``: pack an image file of any size with bounded memory.
 
-The image is read in row bands of :data:`BAND_ROWS` (``core.io.images.read_region``:
-tiled TIFFs read only the tiles a band touches) and each band is cut into
-the curve's aligned squares of the same side. An aligned square is a
-contiguous stretch of the curve, so each square is scanned alone
-(:func:`core.curves.scan.scan_square`) and the squares' runs, put back in
-curve order, are the layer's runs: memory holds one band of pixels and the
-runs, never the whole image. Images over 65536 texels a side (or when
-``tile_bits`` is given) become a :class:`core.packing.tiled.TiledLayer`,
-one tile at a time.
-
-Index images (one uint8 channel) and palette PNGs (their indices) are packed
-in one pass; other images need a first pass to gather their at most 256
-colours.
+The image is read in row bands of :data:`BAND_ROWS`, each cut into the curve's aligned
+squares of that side; a square is a contiguous stretch of the curve, so each is scanned
+alone and the squares' runs in curve order are the layer's. Colour images need a first
+pass to gather their at most 256 colours.
 """
 
 from __future__ import annotations
@@ -45,27 +36,11 @@ def pack_file(
 ) -> PackedLayer | TiledLayer:
     """Pack an image file band by band (the same layer :func:`core.packing.pack` makes).
 
-    Parameters
-    ----------
-    path : path-like
-        Any image OpenImageIO reads; a palette PNG's indices are packed and its
-        colours kept as display colours. Single-channel uint8/uint16 values
-        below 256 are indices, anything else at most 256 colours.
-    curve : "hilbert" | "morton" | "auto" (chosen per tile)
-    tile_bits : int, optional
-        Make a :class:`TiledLayer` of ``2^tile_bits`` tiles (forced, with 2^16,
-        for images over 65536 texels a side).
-    progress : callable(bands done, bands), optional
-
-    Returns
-    -------
-    PackedLayer (one layer) or TiledLayer
-
-    Raises
-    ------
-    TerrathemeError
-        Unreadable file, unsupported pixel type or channels, too large a
-        side, more than 256 colours.
+    ``path``: any image OpenImageIO reads (a palette PNG's indices are packed, its colours
+    kept as display colours). ``curve``, ``tile_bits``: as :func:`core.packing.pack`;
+    ``progress(bands done, bands)``. Returns a PackedLayer or TiledLayer; raises
+    TerrathemeError for an unreadable file, unsupported pixels, too large a side, or more
+    than 256 colours.
     """
     p = os.fspath(path)
     choice = CurveChoice.parse(curve)

@@ -1,16 +1,10 @@
-"""Batched lookups in sweeps: the searches of a stretch advance together (issue 19).
+"""Batched lookups in sweeps: the searches of a stretch advance together.
 
-The other strategy of :mod:`core.packing.batch` (which picks one per layer,
-:func:`core.packing.batch.batch_strategy`). A batch is worked in stretches of
-:data:`STRETCH` texels, each in tight loops without branches on the data:
-every texel's grid word (a uniform block answers at once, ``lookup_one``'s
-first step), then the local steps and run spans of the others, then their
-binary searches in sweeps, one halving step of every open search per sweep,
-so the loads of a sweep are independent and overlap. No sort and no scratch
-beyond the stretch's (about 50 bytes a texel of it): the cheaper strategy
-while a layer's runs stay in cache. Results are those of the scalar lookup,
-bit for bit. Tiles are read from the rows of :func:`core.packing.batch.tiled_words`
-(columns :data:`T_HEIGHT` ... :data:`T_RUNS`).
+The other strategy of :mod:`.batch`. A batch is worked in stretches of :data:`STRETCH`
+texels in branch-free loops: every texel's grid word, then the local steps and run
+spans of the others, then their binary searches, one halving step of every open search
+per sweep, so a sweep's loads are independent and overlap (the next probes prefetched).
+No sort, little scratch: the cheaper strategy while the runs stay in cache.
 """
 
 from __future__ import annotations
@@ -108,10 +102,7 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
             los[i] = runs + np.int64(data[at])
             his[i] = (np.int64(data[at + 1]) & (layout.SPAN_LAST - 1)) - np.int64(data[at])
             # The first probe's line, asked for now: it arrives while the other texels'
-            # steps are worked out. With the next probes' below, 10^6 random texels,
-            # paired rounds at load 5-5.5, CPU time over the kernel without prefetches:
-            # DRCOG 9144^2 0.52x (joined 0.52x, tiled 0.62x), ESA 0.91x, Chesapeake
-            # (runs in cache) 0.98x.
+            # steps are worked out.
             prefetch(data, los[i] + (his[i] >> 1) - 1)
         # The searches, a halving step of each open one per sweep (independent loads).
         openings = 0
@@ -127,7 +118,7 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
                 at = los[i]
                 los[i] = at + half if data[at + half - 1] < local[i] else at
                 his[i] = left - half
-                # The next sweep's probe (DRCOG 0.84x over the first probe's alone, load 6).
+                # The next sweep's probe.
                 prefetch(data, los[i] + (his[i] >> 1) - 1)
                 gs[still] = i
                 still += his[i] > 1

@@ -1,10 +1,4 @@
-"""A batched lookup kernel run on threads: pieces of the batch taken as threads come free.
-
-The kernels of :mod:`core.packing.batch` and :mod:`core.packing.sweep`
-release the GIL (``nogil``), so a pool of Python threads runs them in
-parallel; :func:`on_threads` hands out the pieces and gathers the first
-texel outside the layer.
-"""
+"""A batched lookup kernel run on threads: pieces of the batch taken as threads come free."""
 
 from __future__ import annotations
 
@@ -19,21 +13,11 @@ def on_threads(kernel: Callable[..., int], xs: np.ndarray, ys: np.ndarray, table
                out: np.ndarray, parts: int, piece: int | None = None) -> int:
     """``kernel(xs, ys, *tables, out)`` over pieces of a batch on ``parts`` threads.
 
-    The kernels release the GIL (``nogil``); the calling thread works too, the
-    others are a shared pool of Python threads. Each thread takes the next
-    piece of ``piece`` texels (None: of ``parts`` equal slices, for the bucket
-    strategy, whose larger slices sort into fuller buckets) until none is
-    left, so a thread held back (by other work on the machine) or slow to wake
-    leaves its share to the others. Python threads rather than a numba
-    ``prange``: OpenMP's workers spin while they wait, which on a busy
-    machine took CPU from the slice still working (10^6 texels on 2 threads,
-    load 2.5, CPU time: Chesapeake 9.1 ns with ``prange``, 6.8 ns on the pool,
-    one thread 6.7 ns).
-
-    Returns
-    -------
-    bad : int
-        Position of the first coordinate outside the layer, or -1.
+    The kernels release the GIL; the calling thread works too, the others are a shared
+    pool. Each thread takes the next piece of ``piece`` texels (None: ``parts`` equal
+    slices, for the bucket strategy, whose larger slices fill fuller buckets), so a thread
+    held back leaves its share to the others. Python threads, not numba's ``prange``,
+    whose OpenMP workers spin while waiting. Returns the first bad texel or -1.
     """
     n = xs.size
     if n == 0:
