@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,21 +16,19 @@ from terratheme.core.io.memory import (
     CLASSIFY_BYTES_PER_PIXEL,
     CONVERT_BYTES_PER_PIXEL,
     check_fits,
-    meminfo_available,
 )
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def test_meminfo_counts_available_memory_and_free_swap():
-    text = "MemTotal:  100 kB\nMemFree: 20 kB\nMemAvailable:  50 kB\nSwapFree: 10 kB\n"
-    assert meminfo_available(text) == 60 * 1024
-    assert meminfo_available("MemAvailable: 7 kB") == 7 * 1024
-
-
-@pytest.mark.parametrize("text", ["", "MemTotal: 100 kB", "MemAvailable: lots", "garbage"])
-def test_meminfo_without_available_memory_is_unknown(text):
-    assert meminfo_available(text) is None
+def test_free_memory_counts_available_memory_and_free_swap(monkeypatch):
+    monkeypatch.setattr(memory.psutil, "virtual_memory", lambda: SimpleNamespace(available=50))
+    monkeypatch.setattr(memory.psutil, "swap_memory", lambda: SimpleNamespace(free=10))
+    monkeypatch.setattr(memory, "_cgroup_free", lambda: None)
+    monkeypatch.setattr(memory, "_address_space_free", lambda: None)
+    assert memory.available_memory() == 60
+    monkeypatch.setattr(memory, "_cgroup_free", lambda: 7)
+    assert memory.available_memory() == 7
 
 
 def test_a_photo_is_refused_only_past_the_free_memory():

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import psutil
 from terratheme.core.errors import TerrathemeError
 
 try:
@@ -31,17 +32,9 @@ CONVERT_BYTES_PER_PIXEL = 60
 CLASSIFY_BYTES_PER_PIXEL = 12
 
 
-def meminfo_available(text: str) -> int | None:
-    """Bytes free for a new process from ``/proc/meminfo`` text: MemAvailable + SwapFree."""
-    fields = {}
-    for line in text.splitlines():
-        name, _, rest = line.partition(":")
-        parts = rest.split()
-        if parts and parts[0].isdigit():
-            fields[name.strip()] = int(parts[0]) * 1024  # kB
-    if "MemAvailable" not in fields:
-        return None
-    return fields["MemAvailable"] + fields.get("SwapFree", 0)
+def system_available() -> int:
+    """Bytes free for a new process: available memory plus free swap (psutil)."""
+    return int(psutil.virtual_memory().available + psutil.swap_memory().free)
 
 
 def _read(path: str) -> str | None:
@@ -66,17 +59,14 @@ def _address_space_free() -> int | None:
     soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
     if soft == resource.RLIM_INFINITY:
         return None
-    status = _read("/proc/self/status") or ""
-    size = next((int(line.split()[1]) * 1024 for line in status.splitlines()
-                 if line.startswith("VmSize:")), 0)
-    return max(0, soft - size)
+    return max(0, soft - psutil.Process().memory_info().vms)
 
 
 def available_memory() -> int | None:
     """Bytes this process can still allocate: the least of free memory (with swap), the
     cgroup's limit and the address-space limit; None where none can be read."""
-    found = [v for v in (meminfo_available(_read("/proc/meminfo") or ""), _cgroup_free(),
-                         _address_space_free()) if v is not None]
+    found = [v for v in (system_available(), _cgroup_free(), _address_space_free())
+             if v is not None]
     return min(found) if found else None
 
 
