@@ -60,10 +60,7 @@ def fill_runs(
     steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
     *, threads: int = 2,
 ) -> np.ndarray:
-    """Inverse of :func:`scan_runs`: the ``(height, width)`` image of the runs' values.
-
-    ``steps[-1]`` must be the step of the image's last texel along the curve.
-    """
+    """Inverse of :func:`scan_runs`: the (height, width) image of the runs' values."""
     return fill_window(steps, values, width, height, curve, 0, 0, width, height,
                        threads=threads)
 

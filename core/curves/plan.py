@@ -47,10 +47,7 @@ class BlockPlan:
 
 
 def local_patterns(b: int, curve: str | Curve) -> np.ndarray:
-    """(4, 4^b) uint16, read-only: ``(ly << b) | lx`` (y up) of local step ``i`` per state.
-
-    One row per Hilbert state (Morton: one row, repeated).
-    """
+    """(4, 4^b) uint16: ``(ly << b) | lx`` (y up) of each local step, per Hilbert state."""
     return _patterns(int(b), Curve.parse(curve))
 
 

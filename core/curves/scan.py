@@ -273,10 +273,7 @@ def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve
 
 
 def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:
-    """(R,) int64 1-based ranks (image texels up to each step) of increasing steps.
-
-    -1 for a step in a block that misses the image or past the last block.
-    """
+    """(R,) int64 1-based ranks of increasing steps; -1 where a step's block misses the image."""
     plan = block_plan(width, height, curve)
     steps = np.ascontiguousarray(steps, dtype=np.uint32)
     return _steps_to_ranks_kernel(steps, height, width, *plan_args(plan))

@@ -59,9 +59,5 @@ def curve_order(width: int, height: int) -> int:
 
 
 def hilbert_transposed(n: int) -> bool:
-    """Whether the image's Hilbert curve swaps x and y: yes for even ``n``.
-
-    The square curve's first move is upward only for odd ``n``; the image curve keeps
-    it upward for every size (design.md §4).
-    """
+    """Whether the image curve swaps x and y (even ``n``): first move up (design.md §4)."""
     return n % 2 == 0

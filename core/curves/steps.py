@@ -217,19 +217,9 @@ def steps_of(
     cols: np.ndarray, rows: np.ndarray, width: int, height: int, curve: str | Curve,
     *, one_based: bool = False,
 ) -> np.ndarray:
-    """Curve step of texels ``image[rows, cols]`` (row 0 = top row).
+    """Curve steps of texels ``image[rows, cols]`` (row 0 on top) of a ``width x height`` image.
 
-    Parameters
-    ----------
-    cols, rows : (...) integer ndarrays or scalars
-        Texel coordinates inside the ``width x height`` image.
-    curve : "hilbert" | "morton" | Curve
-    one_based : bool
-        Return the seed's 1-based step numbers (int64) instead of 0-based uint64.
-
-    Returns
-    -------
-    steps : (...) uint64 (0-based) or int64 (1-based) ndarray
+    0-based uint64, or the seed's 1-based numbers as int64 with ``one_based``.
     """
     curve = Curve.parse(curve)
     n = curve_order(width, height)

@@ -222,18 +222,14 @@ def _batch(xs, ys, data, tiled, tiles, rows, out):  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True)
 def layer_batch(xs, ys, data, out):  # pragma: no cover - numba
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer into ``out``.
-
-    Returns the position of the first coordinate outside the layer, or -1.
-    """
+    """Palette indices of texels ``(xs[k], ys[k])`` into ``out``; first bad texel or -1."""
     tiles, rows = _layer_words(data)
     return _batch(xs, ys, data, False, tiles, rows, out)
 
 
 @numba.njit(cache=True, nogil=True)
 def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
-    """:func:`layer_batch` for a tiled layer: its tables end to end in ``data``, ``tiles``
-    and ``rows`` from :func:`tiled_words`."""
+    """As :func:`layer_batch`, tiled (``tiles``, ``rows``: :func:`tiled_words`)."""
     return _batch(xs, ys, data, True, tiles, rows, out)
 
 
@@ -264,25 +260,12 @@ def batch_strategy(data: np.ndarray) -> str:
 def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
                  threads: int = 1, words: tuple[np.ndarray, np.ndarray] | None = None,
                  strategy: str | None = None) -> int:
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) into ``out``.
+    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top, (N,) int64) into ``out``
+    (N,) uint8; returns the first position outside the layer, or -1.
 
-    Parameters
-    ----------
-    xs, ys : (N,) int64 ndarray
-    data : (M,) uint32 ndarray
-        One layer's table, or a tiled layer's tables end to end.
-    out : (N,) uint8 ndarray
-    threads : int
-        Threads to share the batch (1: this one).
-    words : (tiles, rows), optional
-        A tiled layer's :func:`tiled_words`; None for one layer.
-    strategy : {"sweep", "buckets"}, optional
-        Default :func:`batch_strategy`'s; both give the same answers.
-
-    Returns
-    -------
-    bad : int
-        Position of the first coordinate outside the layer, or -1.
+    ``data`` is one layer's (M,) uint32 table, or a tiled layer's tables end to end with
+    ``words`` its :func:`tiled_words`. ``strategy`` (default :func:`batch_strategy`'s) and
+    ``threads`` change the speed, never the answers.
     """
     strategy = strategy or batch_strategy(data)
     if strategy not in STRATEGIES:

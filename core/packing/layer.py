@@ -177,10 +177,8 @@ class PackedLayer:
 
     @property
     def table(self) -> np.ndarray:
-        """The random-access table (read-only view; layout in :mod:`core.packing.layout`).
-
-        One ``uint32`` array: header words, Hilbert tables, block directory,
-        one word per run. GPU shaders can read it as a buffer texture.
+        """The random-access ``uint32`` table, read-only (:mod:`core.packing.layout`; GPU shaders
+        read it).
         """
         view = self._data.view()
         view.setflags(write=False)
@@ -288,10 +286,8 @@ class PackedLayer:
     # ------------------------------------------------------------ files
 
     def save(self, path: str | os.PathLike, *, format: str = "compact") -> int:
-        """Write the layer atomically; returns the bytes written.
-
-        ``format``: ``"compact"``, ``"plane"``, ``"streams"`` or ``"seed"``
-        (:func:`core.packing.container.encode_layer`).
+        """Write the layer atomically in ``format`` (:func:`.container.encode_layer`); returns the
+        bytes written.
         """
         data = self.to_bytes(format=format)
         write_bytes_atomic(path, data)
@@ -305,11 +301,7 @@ class PackedLayer:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PackedLayer:
-        """Read a layer file in any encoding.
-
-        Raises CorruptFileError (damaged, truncated, bad checksum, runs that do not fit the
-        header) or UnsupportedVersionError (a newer format version).
-        """
+        """Read a layer file; CorruptFileError if damaged, UnsupportedVersionError if newer."""
         p = os.fspath(check_input_file(path, "a packed layer"))
         with open(p, "rb") as fh:
             return cls.from_bytes(fh.read(), name=p)

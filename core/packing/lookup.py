@@ -133,11 +133,9 @@ def scalar_lookup_function():
 
 def block_runs(steps: np.ndarray, coarse: np.ndarray, bits: int
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(run0, run1, uniform)``, (B,) each: the runs covering each curve block's first and
-    last steps (``R`` past the layer's last texel), and whether one run covers the block.
-
-    ``steps`` (R,) uint64 are the runs' last steps; ``coarse`` (B,) the blocks' coarse
-    curve steps at side ``2^bits`` (:func:`core.curves.plan.block_grid`).
+    """``(run0, run1, uniform)``, (B,): the runs covering the first and last steps of each
+    block of side ``2^bits`` at coarse steps ``coarse`` (``R`` past the last run), and
+    whether one run covers it.
     """
     first = np.asarray(coarse, np.uint64) << np.uint64(2 * bits)
     run0 = np.searchsorted(steps, first)

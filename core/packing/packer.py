@@ -114,28 +114,19 @@ def pack(
     Parameters
     ----------
     image : (H, W) or (H, W, C) uint8/uint16 ndarray
-        Row 0 is the top row. Single-channel values 0..255 are palette indices
-        (``P`` = value); otherwise at most 256 distinct colours.
+        Row 0 on top. Single-channel values 0..255 are palette indices, else at most
+        256 colours.
     curve : "hilbert" | "morton" | "auto"
     reduce_palette : bool
-        Reduce images with more than 256 colours (k-means) instead of refusing;
-        ``layer.report`` then says how much the colours changed.
-    colours : (K, 3) or (K, 4) uint8 ndarray, optional
-        Display colours of an index image's values (e.g. a palette PNG's table).
+        Reduce more than 256 colours by k-means (``layer.report``) instead of refusing.
+    colours : (K, 3|4) uint8 ndarray, optional
+        Display colours of an index image's values.
     tile_bits : int, optional
-        Pack a :class:`TiledLayer` of ``2^tile_bits``-texel tiles (6..16); images
-        over 65536 texels a side are tiled (65536) whatever is asked.
+        A :class:`TiledLayer` of ``2^tile_bits`` tiles (6..16); forced past 65536 a side.
     progress : callable(done, total), optional
 
-    Returns
-    -------
-    PackedLayer, or TiledLayer when tiled
-
-    Raises
-    ------
-    TerrathemeError
-        Empty image, unsupported pixel type, more than 256 colours without
-        ``reduce_palette``, display colours for a colour image.
+    Returns a PackedLayer or TiledLayer; TerrathemeError for an empty image, unsupported
+    pixels, too many colours, or display colours for a colour image.
     """
     choice = CurveChoice.parse(curve)
     arr, squeeze = check_image(image, max_side=MAX_TILED_SIDE)

@@ -223,7 +223,5 @@ def palette_values(palette: np.ndarray, identity: bool, squeeze: bool,
 
 
 def scalar_values(palette: np.ndarray, squeeze: bool) -> list:
-    """What a scalar lookup returns for each palette index, ready-made (as ``image[y, x]``):
-    the first channel (a numpy scalar) of a ``squeeze`` layer, else the ``(C,)`` row.
-    """
+    """Per palette index, what a scalar lookup returns (``squeeze``: channel 0)."""
     return list(palette[:, 0]) if squeeze else list(palette)

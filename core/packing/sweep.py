@@ -133,11 +133,7 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
 
 @numba.njit(cache=True, nogil=True)
 def sweep_layer(xs, ys, data, out):  # pragma: no cover - numba
-    """Palette index of each texel ``(xs[k], ys[k])`` (row 0 = top) of one layer (or of a
-    joined table, :mod:`.joined`) into ``out``.
-
-    Returns the position of the first coordinate outside the layer, or -1.
-    """
+    """As :func:`.batch.layer_batch`, in sweeps (a joined table too)."""
     tiles, rows = np.zeros(4, np.int64), np.zeros(TILE_COLUMNS, np.int64)
     if data[layout.W_MORTON] == layout.JOINED:
         return _sweep(xs, ys, data, False, True, tiles, rows, out)
