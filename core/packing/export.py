@@ -74,7 +74,7 @@ def write_layer_image(
     if palette_png:
         colours = layer.colours if layer.colours is not None else display_colours(
             len(layer.palette))
-        # zlib's fastest level past WHOLE_IMAGE_TEXELS: 4 Gi texels take 6 s instead of 15.
+        # zlib's fastest level past WHOLE_IMAGE_TEXELS (docs/decisions.md).
         level = 6 if texels <= WHOLE_IMAGE_TEXELS else 1
         with PalettePngWriter(path, layer.width, layer.height, colours, level=level) as out:
             for y, band in layer.bands(rows):

@@ -34,8 +34,7 @@ _SYM = _SEG + 4
 TEXEL_INPUTS = 4
 
 
-# Not inline="always": numba's own inlining at every call site made code_segment's compile
-# 2.4x longer; LLVM still inlines it (same speed, same bytes).
+# Not inline="always": numba's inlining slows code_segment's compile; LLVM inlines it anyway.
 @numba.njit(cache=True, nogil=True)
 def _code(dec, st, ds, buf, p1, bit):  # pragma: no cover - numba
     # Code (or decode) one bit with P(1) = p1 / 4096.

@@ -1,24 +1,13 @@
-"""Low-angle terrain preview with anisotropic filtering (issues 6 and 18).
+"""Low-angle terrain preview with anisotropic filtering (design.md §6).
 
-The seed's family of prefiltered parallelogram copies (Kovalev & Tarasov,
-design.md §6), read by summing the pixel's own parallelogram over the
-cells it covers, and its baselines, all with one set of conventions (see
-:mod:`.mapping`)::
+The seed's family of prefiltered parallelogram copies (Kovalev & Tarasov), read by
+summing the pixel's own parallelogram over the cells it covers, and its baselines, all
+in the conventions of :mod:`.mapping`::
 
     from terratheme.core.io.disk_cache import DiskCache
     from terratheme.core.perspective import Camera, FilterOptions, PreparedTexture
     prepared = PreparedTexture(texture, FilterOptions(), cache=DiskCache(folder))
     frame = prepared.render(Camera(height=40, pitch=10, yaw=30), (640, 360)).image
-
-Modules: ``options`` (FilterOptions, Method, Lookup), ``mapping`` (eqs. 1-2,
-camera, default view), ``footprint`` (eqs. 3-4), ``family`` (the prefiltered
-copies, built level by level), ``coverage`` (exact-coverage and quadrature
-reads), ``lookup`` (the per-pixel kernels, eqs. 5-9 among them), ``baselines``
-(nearest, bilinear, trilinear, GPU aniso), ``ewa`` (pbrt-style EWA), ``reference``
-(supersampled box filter),
-``texture`` (storage type, power-of-two resampling, mip pyramid),
-``project_view`` (a project's texture at the level a frame needs),
-``render`` (entry points), ``flight`` (the fly-over camera and its clip matrix).
 """
 
 from terratheme.core.perspective.flight import Flight, FlightControls, FlightInput, clip_matrix

@@ -1,25 +1,15 @@
 """Exact-coverage reads: the pixel's parallelogram over a copy's cells.
 
-The family's cells tile the plane (see :mod:`.family`), so the box filter over
-the pixel is the sum of the cells it covers, each weighted by the share of
-the pixel inside it (:func:`cover_cells`): the filter's ends are as sharp as
-the cells are short, which is what the seed's eq. 5 loses (its three copies
-blend boxes of length ``2^e`` and ``2^(e+1)``, both blind to a pattern whose
-period divides ``2^e``: a grazing checkerboard came out flat grey).
-Weights per cell column come from the pixel's extent along the tilted axis
-(the sum of two uniform spreads, :func:`trapezoid_cdf`); across, the pixel's
-interval at the column's middle, spread by its drift against the cells' rows
-over the column where the copy's skew is not the pixel's (the seed's skews
-are up to a cell height off at a cell's ends: this takes it out). Rows of
-``b = 0`` copies are lines through texel centres, read as the bilinear
-texture is (the spread against the unit tent, :func:`trapezoid_integral`).
-
-Footprints under a few texels read the texture itself by the midpoint rule
-over the pixel (2 points per texel of its sides, 2 to 4 per side), weights
-summed per texel so each texel is read once (:func:`quadrature_texels`): the
-box over the pixel of the bilinear texture, which is what the supersampled
-reference computes (exactly, at one texel per pixel on the texel grid: the
-kernel 1/8, 3/4, 1/8 along each axis).
+The family's cells tile the plane, so the box filter over the pixel is the sum of the
+cells it covers, each weighted by the share of the pixel inside it
+(:func:`cover_cells`): the filter's ends are as sharp as the cells are short, where the
+seed's eq. 5 blends boxes blind to a pattern whose period divides ``2^e``. Along the
+tilted axis the shares come from two uniform spreads (:func:`trapezoid_cdf`); across,
+from the pixel's interval at the column's middle, spread by its drift against the
+copy's skew. ``b = 0`` rows are lines read as the bilinear texture
+(:func:`trapezoid_integral`). Footprints under a few texels integrate the bilinear
+texture itself by the midpoint rule (:func:`quadrature_texels`), as the supersampled
+reference does.
 """
 
 from __future__ import annotations

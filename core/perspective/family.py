@@ -1,35 +1,21 @@
-"""The seed's family of prefiltered copies (Kovalev & Tarasov, section
-"filtering of the source texture" and its table), built level by level.
+"""The seed's family of prefiltered copies (Kovalev & Tarasov, "filtering of the source
+texture" and its table), built level by level.
 
-For a wrapping ``H' x W'`` texture (sides powers of two, ``W' = 2^p``,
-``H' = 2^q``) and each orientation (tilted toward U: cells long along U; toward
-V: the same for the transposed texture, so one lookup serves both), copy
-``(a, b, tan)`` tiles the plane with cells ``2^a`` texels long along the
-tilted long side and ``2^b`` across, the long side sloping ``tan`` texels
-across per texel along: cell ``(m, k)`` is the mean of the texture over the
-parallelogram centred at ``((k + 1/2) 2^a, (m + 1/2) 2^b)`` (for ``b = 0``: the
-line through that texel row, read bilinearly). Cells are ``lambda = 2^(a-b)``
-times longer than wide; there are ``2^(i-1) + 1`` skews per orientation at
-``lambda = 2^i`` for ``i >= 2`` and one at ``i = 1`` (the seed's spacing, on a
-grid through 0 that holds both ends, -1 and 1: :func:`skew_values`).
-``lambda = 1`` copies are the mip levels. With ``k = log2`` of the largest
-``lambda`` kept, the family costs about ``(k + 1) * 4/3 * W' H'`` cells
-(the seed's ``n * 4/3 * 4^n`` for ``k = n``; 7.8 per texel for ``k = 4``).
+For a wrapping ``2^q x 2^p`` texture and each orientation (toward U; toward V as the
+transposed texture, so one lookup serves both), copy ``(a, b, tan)`` tiles the plane
+with cells ``2^a`` texels along the tilted side and ``2^b`` across, sloping ``tan``:
+cell ``(m, k)`` is the texture's mean over the parallelogram centred at ``((k + 1/2)
+2^a, (m + 1/2) 2^b)`` (``b = 0``: the line through that row, read bilinearly). At
+``lambda = 2^(a-b) = 2^i`` there are ``2^(i-1) + 1`` skews (:func:`skew_values`);
+``lambda = 1`` copies are the mip levels; about ``(k + 1) * 4/3 * W' H'`` cells for
+``k = log2`` of the largest ``lambda``. Where a side is exhausted one skew is kept,
+so memory stays proportional to the texels for any aspect ratio.
 
-Where a side is exhausted (one cell across), every skew is the same copy, so
-one is kept, and copies of any length along exist there: memory stays
-proportional to the texel count for any aspect ratio.
+Build (:func:`build_family`), each step from the previous, threaded over rows:
 
-Build (:func:`build_family`), each step from the previous one, every kernel
-threaded over rows:
-
-1. ``b = 0``: for each skew, the texture is sheared along the skew (each row
-   of the sheared image is one tilted line, read bilinearly) and summed in
-   pairs along the line, level after level: copies ``(i, 0, tan)`` for all
-   ``i`` at once;
-2. ``b > 0``: copy ``(a, b, tan)`` is the mean of 4 cells of ``(a-1, b-1, tan)``:
-   the two halves along the tilted side (shifted ``tan 2^(i-1)`` rows, an
-   integer for the seed's skews), two rows each;
+1. ``b = 0``: per skew, the texture sheared along it and summed in pairs along the
+   line, level after level: copies ``(i, 0, tan)``;
+2. ``b > 0``: copy ``(a, b, tan)`` is the mean of 4 cells of ``(a-1, b-1, tan)``;
 3. where the cross side is exhausted, longer copies are pairs along;
 4. the mip levels are 2 x 2 means.
 """
@@ -49,12 +35,9 @@ Progress = Callable[[int, int], None]
 
 
 def skew_values(i: int, oversampling: int = 1) -> np.ndarray:
-    """The skews ``tan`` kept at ``lambda = 2^i``: ``(count,) float64``.
-
-    ``tan = 2 j / c`` for ``|j| <= c // 2``, ``c = oversampling * 2^(i-1)``: the
-    seed's spacing ``2^(2-i)`` on a grid through 0 (the seed's grid is offset by
-    half a step and misses the axis-aligned footprint, the commonest one):
-    ``i = 1``: ``[0]``; ``i = 2``: ``[-1, 0, 1]``; ``i = 3``: ``[-1, -0.5, 0, 0.5, 1]``.
+    """The skews kept at ``lambda = 2^i``, (count,) float64: ``tan = 2 j / c``, ``|j| <= c //
+    2``, ``c = oversampling * 2^(i-1)``: the seed's spacing on a grid through 0 (the seed's
+    is offset half a step and misses the commonest, axis-aligned footprint).
     """
     if i <= 0:
         return np.zeros(1)
@@ -267,22 +250,19 @@ def halved_cells(jobs, row_starts, top, buf):
 def build_family(grid: np.ndarray, max_lambda_log2: int, skew_oversampling: int = 1,
                  dtype: np.dtype | type = np.float32,
                  progress: Progress | None = None) -> ParallelogramFamily:
-    """Prefilter the family of copies, level by level (see the module docstring).
+    """Prefilter the family of copies, level by level (the module's steps).
 
     Parameters
     ----------
     grid : (H', W', C) ndarray
-        The texture in stored units (any number type, read as it is), sides
-        powers of two.
+        The texture in stored units, sides powers of two.
     max_lambda_log2 : int
         ``k``: largest ``log2(lambda)`` kept where the cross side is not exhausted.
     skew_oversampling : 1 or 2
-        Multiplies the seed's number of skews (step 2 needs integer shifts).
+        Multiplies the seed's number of skews.
     dtype : float32, uint8 or uint16
-        Storage type; cells are filtered in floating point and rounded once per
-        level (from rounded parents: about 0.3 of a unit rms at any level).
+        Storage type; filtered in floating point, rounded once per level.
     progress : callable(done_cells, total_cells) or None
-        Called after each step.
     """
     h, w, nc = grid.shape
     if h & (h - 1) or w & (w - 1):

@@ -1,16 +1,9 @@
-"""Flying a camera over the ground plane, and the matrix that draws the plane from it (no Qt).
+"""Flying a camera over the ground plane, and its OpenGL clip matrix (no Qt).
 
-:class:`Flight` is the state of a fly-over camera in the conventions of
-:class:`core.perspective.Camera` (heights and positions in texels of the
-texture, ``yaw = 0`` looking toward ``-V``, ``pitch`` degrees below the
-horizontal): a view turns it into key, mouse and wheel input and shows
-:meth:`Flight.camera`. Speed follows the height, as in flight simulators, so
-the ground flows past at the same angular rate at any altitude.
-
-:func:`clip_matrix` is the OpenGL form of the same camera: a 4 x 4 matrix
-taking a ground point ``(U, V, height)`` to clip space so that it lands on
-the pixel :func:`core.perspective.camera_mapping` (eq. 1) maps to it; a mesh
-displaced by a height map is drawn with it.
+:class:`Flight` is a fly-over camera in :class:`core.perspective.Camera`'s conventions,
+driven by key, mouse and wheel input; its speed follows the height, so the ground flows
+past at one angular rate at any altitude. :func:`clip_matrix` takes a ground point to
+the pixel eq. 1 maps it to, for a mesh displaced by a height map.
 """
 
 from __future__ import annotations
@@ -171,27 +164,13 @@ def camera_axes(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def clip_matrix(camera: Camera, size: tuple[int, int], texture_size: tuple[int, int],
                 near: float, far: float, *, flip_y: bool = False) -> np.ndarray:
-    """The camera as an OpenGL clip matrix over ground points ``(U, V, height, 1)``.
+    """The camera as a (4, 4) row-major OpenGL clip matrix over ground points ``(U, V, height,
+    1)`` (``clip = M @ point``; upload its transpose as a GLSL ``mat4``).
 
-    Parameters
-    ----------
-    camera : Camera
-        Its default position (None) is the texture's centre, as in eq. 1.
-    size : (w, h)
-        Frame size in pixels.
-    texture_size : (W, H)
-        The texture's size in texels.
-    near, far : float
-        Depth range along the view axis, in texels (0 < near < far).
-    flip_y : bool
-        False: window row 0 (OpenGL's bottom row) is the frame's top row, as a
-        framebuffer read back into an image; True: the frame upright on a
-        display (row 0 at the bottom).
-
-    Returns
-    -------
-    (4, 4) float64 ndarray
-        Row-major (``clip = M @ point``); upload its transpose to a GLSL ``mat4``.
+    ``camera``'s default position is the ``texture_size`` (W, H) texture's centre, as in
+    eq. 1; ``size`` (w, h) pixels; ``near``, ``far`` the depth range in texels. ``flip_y``
+    False puts the frame's top row in window row 0 (read back into an image), True
+    draws it upright on a display.
     """
     if not 0.0 < near < far:
         raise TerrathemeError(f"depth range must satisfy 0 < near < far, got {near}, {far}")

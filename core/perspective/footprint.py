@@ -62,14 +62,8 @@ def footprint_sides(dux, dvx, duy, dvy):
 
 @njit(cache=True, inline="always")
 def footprint(dux, dvx, duy, dvy):
-    """Eqs. 3-4 for one pixel: :func:`footprint_sides` with ``H = A + |bs|``, ``L = |Ls|``.
-
-    Returns
-    -------
-    h, l, tan, toward : float, float, float, int
-        ``toward`` is ``TOWARD_U`` (long side along ``(1, tan)`` in (U, V),
-        short sides parallel to V) or ``TOWARD_V`` (long side along
-        ``(tan, 1)``, short sides parallel to U).
+    """Eqs. 3-4 for one pixel: ``h = A + |bs|``, ``l = |Ls|`` of :func:`footprint_sides`, ``tan``
+    and ``toward`` (``TOWARD_U``: long side along (1, tan); ``TOWARD_V``: along (tan, 1)).
     """
     along, short_along, short_across, tan, toward = footprint_sides(dux, dvx, duy, dvy)
     h = along + abs(short_along)

@@ -81,18 +81,7 @@ class PlaneMapping:
         )
 
     def evaluate(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Eq. 1 at screen points.
-
-        Parameters
-        ----------
-        x, y : float64 ndarrays of one shape
-            Continuous screen coordinates (a pixel centre is ``px + 0.5``).
-
-        Returns
-        -------
-        U, V, z : float64 ndarrays of that shape
-            ``U, V`` are NaN where ``z <= 0``.
-        """
+        """Eq. 1 at screen points ``x, y`` (centre ``px + 0.5``): U, V (NaN where z <= 0), z."""
         z = self.Az * x + self.Bz * y + self.Cz
         ok = z > 0
         zs = np.where(ok, z, 1.0)
@@ -103,13 +92,8 @@ class PlaneMapping:
     def derivatives(
         self, u: np.ndarray, v: np.ndarray, z: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Eq. 2: texel steps for one pixel step along x and along y.
-
-        Returns
-        -------
-        dudx, dvdx, dudy, dvdy : float64 ndarrays
-            ``dU/dx = (Au - Az U)/z`` etc., clipped to ``+-MAX_DERIVATIVE``
-            (0 where ``z <= 0``).
+        """Eq. 2: ``dudx, dvdx, dudy, dvdy``, ``dU/dx = (Au - Az U)/z`` etc., clipped to
+        ``+-MAX_DERIVATIVE``, 0 where ``z <= 0``.
         """
         ok = z > 0
         zs = np.where(ok, z, 1.0)
@@ -123,12 +107,7 @@ class PlaneMapping:
         return out[0], out[1], out[2], out[3]
 
     def pixel_grid(self, size: tuple[int, int]) -> tuple[np.ndarray, ...]:
-        """Eq. 1 and eq. 2 at every pixel centre of a ``size = (w, h)`` frame.
-
-        Returns
-        -------
-        u, v, z, dudx, dvdx, dudy, dvdy : (h, w) float64 ndarrays
-        """
+        """Eqs. 1-2 at the pixel centres of a (w, h) frame: u, v, z, dudx, dvdx, dudy, dvdy."""
         w, h = size
         x = np.arange(w, dtype=np.float64) + 0.5
         y = np.arange(h, dtype=np.float64) + 0.5
@@ -194,21 +173,9 @@ def check_size(size: tuple[int, int]) -> tuple[int, int]:
 def camera_mapping(
     camera: Camera, size: tuple[int, int], texture_size: tuple[int, int] = (1, 1)
 ) -> PlaneMapping:
-    """The nine coefficients of eq. 1 for a camera and a frame.
-
-    Parameters
-    ----------
-    camera : Camera
-    size : (w, h)
-        Frame size in pixels.
-    texture_size : (width, height)
-        Texture size in texels, used only for the default position (centre).
-
-    Returns
-    -------
-    PlaneMapping
-        ``z`` is the ray's downward component times the focal length, so
-        ``z > 0`` exactly below the horizon.
+    """Eq. 1's nine coefficients for a camera and a ``size`` (w, h) frame (``texture_size``
+    only places the default position). ``z`` is the ray's downward component times the
+    focal length, so ``z > 0`` exactly below the horizon.
     """
     w, h = check_size(size)
     th, ps = math.radians(camera.pitch), math.radians(camera.yaw)
@@ -236,18 +203,11 @@ def camera_mapping(
 
 
 def overview_camera(texture_size: tuple[int, int]) -> Camera:
-    """A low-angle view of the whole texture, the default when none is given.
+    """A low-angle view of the whole ``texture_size`` texture, the default view.
 
-    The camera looks along the texture's longer side (north for a square or
-    tall texture, east for a wide one) from a tenth of that length beyond its
-    near edge, so a 60-degree view spans the whole texture at its far edge,
-    at a tenth of its distance to that edge above the plane, aimed at the
-    texture's centre (about 10 degrees down): the near edge at the bottom of
-    the frame, the horizon (over the texture's repeats) near the top.
-
-    Parameters
-    ----------
-    texture_size : (width, height) in texels
+    Looking along the longer side from a tenth of its length beyond the near edge, at a
+    tenth of the distance to the far edge above the plane, aimed at the centre: a 60-degree
+    view spans the texture at its far edge, the horizon near the frame's top.
     """
     w, h = (float(s) for s in texture_size)
     along = max(w, h)

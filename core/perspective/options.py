@@ -44,45 +44,30 @@ class FilterOptions:
     Parameters
     ----------
     method : Method
-        The filter.
     max_anisotropy : float
-        ``PARALLELOGRAM``: the family keeps cells up to this elongation
-        (``lambda = 2^k``, ``k = ceil(log2)``, the seed's table with ``a - b <= k``);
-        ``COVERAGE`` covers a pixel with several cells along, so footprints up to
-        about ``cells_per_footprint`` times longer are read sharp, longer ones
-        with wider cells across. ``SEED`` clamps the footprint to it (widened
-        across). ``ANISO`` takes at most this many probes, ``EWA`` clamps its
-        ellipse's eccentricity to it.
+        ``PARALLELOGRAM``: cells up to this elongation (``lambda = 2^ceil(log2)``);
+        ``COVERAGE`` reads footprints about ``cells_per_footprint`` times longer sharp.
+        ``SEED`` clamps the footprint to it, ``ANISO`` takes at most this many probes,
+        ``EWA`` clamps its ellipse's eccentricity to it.
     aperture : float
-        Scale of the pixel footprint fed to the filters (1.0 = the pixel's
-        own parallelogram of eq. 2; the seed's 2 x 2-pixel filter is 2.0).
-        Applies to ``PARALLELOGRAM``, ``TRILINEAR`` and ``ANISO``.
+        Scale of the pixel footprint (1: the pixel's own parallelogram of eq. 2; the
+        seed's 2 x 2-pixel filter: 2). ``PARALLELOGRAM``, ``TRILINEAR``, ``ANISO``.
     skew_oversampling : int
-        1 or 2: how many times more skews per ``lambda`` level than the seed's
-        ``lambda``. 2 doubles the family's memory.
+        1 or 2 times the seed's skews per ``lambda`` level (2 doubles the memory).
     cells_per_footprint : float
-        ``COVERAGE``: the copy is chosen so a pixel spans this many to twice
-        this many cells along its long side (and one to two across): more
-        cells, sharper ends of the filter, more texels read. Measured on the
-        issue's grazing checkerboard (benchmarks/results/perspective.json):
-        2 gives 38.1 dB for 10.5 reads per pixel, 3 (default) 44.7 dB for
-        11.7, 4 44.7 dB for 12.4.
+        ``COVERAGE``: a pixel spans this many to twice this many cells along its long
+        side: sharper filter ends, more reads.
     lookup : Lookup
-        ``PARALLELOGRAM`` only: ``COVERAGE`` (default) or the seed's ``SEED``.
+        ``PARALLELOGRAM`` only: ``COVERAGE`` or the seed's ``SEED``.
     skew_blend : bool
-        ``PARALLELOGRAM`` only. Interpolate between the two prefiltered skews
-        around the footprint's ``tan`` (linear in ``tan``) instead of reading
-        the nearest one: twice the reads where the copy has several skews.
-        It helps the seed's lookup; ``COVERAGE`` already takes the nearest
-        skew's drift into the cross share, and blending costs it (44.7 -> 43.6
-        dB on the issue's scene).
+        ``PARALLELOGRAM`` only: interpolate the two skews around the footprint's
+        ``tan`` (twice the reads) instead of the nearest; helps ``SEED`` only.
     sky : tuple of float
-        Colour of pixels above the horizon (``z <= 0``), in [0, 1].
+        Colour above the horizon (``z <= 0``), in [0, 1].
     reference_density : float
-        ``REFERENCE`` only: sub-samples per texel of footprint along each
-        screen axis.
+        ``REFERENCE``: sub-samples per texel of footprint along each screen axis,
     reference_min_samples, reference_max_samples : int
-        ``REFERENCE`` only: bounds on sub-samples per pixel along each axis.
+        within these bounds per pixel and axis.
     """
 
     method: Method = Method.PARALLELOGRAM

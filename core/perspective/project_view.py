@@ -1,12 +1,9 @@
 """A texture at the level of detail a frame needs.
 
-A low-angle frame seldom needs the texture's full resolution everywhere:
-where even the finest pixel footprint covers ``2^l`` texels, the texture
-``2^l`` times smaller gives the same frame. :func:`texture_scale` picks that
-scale from the frame (bounded by a largest side), and :func:`project_texture`
-renders a project's thematic texture at it with the overview renderer
-(:func:`core.render.project.render_project`), which never renders the full
-resolution first, so previews work for projects larger than memory.
+Where the finest pixel footprint covers ``2^l`` texels, the texture ``2^l`` times
+smaller gives the same frame: :func:`project_texture` renders a project at that scale
+with the overview renderer, never at full resolution first, so previews work for
+projects larger than memory.
 """
 
 from __future__ import annotations
@@ -26,19 +23,8 @@ FINE_SHARE = 0.01
 
 
 def finest_footprint(mapping: PlaneMapping, size: tuple[int, int]) -> float:
-    """Texels per pixel of the finest footprints of a frame.
-
-    Parameters
-    ----------
-    mapping : PlaneMapping
-        In texels of the full-resolution texture.
-    size : (w, h)
-
-    Returns
-    -------
-    float
-        The ``FINE_SHARE`` quantile over ground pixels of the shorter of the
-        pixel's two sides (eq. 2), ``inf`` when no pixel sees the ground.
+    """Texels per pixel of a frame's finest footprints: the ``FINE_SHARE`` quantile over ground
+    pixels of the shorter pixel side (eq. 2), ``inf`` when no pixel sees the ground.
     """
     u, v, z, dux, dvx, duy, dvy = mapping.pixel_grid(size)
     ground = z > 0
@@ -69,23 +55,9 @@ def texture_scale(mapping: PlaneMapping, size: tuple[int, int], texture_size: tu
 def project_texture(project: ThematicTexture, view: PlaneMapping | Camera, size: tuple[int, int],
                     max_side: int = 4096,
                     progress: Progress | None = None) -> tuple[np.ndarray, PlaneMapping | Camera]:
-    """A project's texture at the scale the frame needs, and the view in its texels.
-
-    Parameters
-    ----------
-    project : ThematicTexture
-    view : PlaneMapping or Camera
-        In texels of the project's full-resolution texture.
-    size : (w, h)
-    max_side : int
-        Largest side of the rendered texture.
-    progress : callable(done, total) or None
-        Passed to the full-resolution renderer (scale 1).
-
-    Returns
-    -------
-    texture : (h', w', 3) uint8 ndarray
-    view : the same view in texels of ``texture``
+    """A project's texture at the scale a ``size`` (w, h) frame needs (at most ``max_side``
+    a side), as (h', w', 3) uint8, and ``view`` (PlaneMapping or Camera, in full-resolution
+    texels) in its texels. ``progress`` goes to the full-resolution renderer.
     """
     w, h = project.grid.texture_size
     full = view if isinstance(view, PlaneMapping) else camera_mapping(view, size, (w, h))

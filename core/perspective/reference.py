@@ -19,24 +19,11 @@ from terratheme.core.perspective.sampling import add_bilinear
 @njit(cache=True, parallel=True)
 def reference_kernel(buf, rows, cols, coef, w, h, y0, dux, dvx, duy, dvy, density, smin, smax,
                      sky, out):
-    """Box-filtered pixels.
+    """Box-filtered pixels of a band of ``h`` rows from row ``y0`` of a ``w``-wide frame, into
+    ``out`` (h*w, C) float32; returns the (h*w,) int32 reads.
 
-    Parameters
-    ----------
-    buf : (rows * cols, C) float32 ndarray
-        The input texture, row-major.
-    coef : (3, 3) float64 ndarray
-        Eq. 1 coefficients in texels of that texture.
-    w, h, y0 : int
-        Band of ``h`` rows of a ``w``-pixel-wide frame starting at row ``y0``.
-    dux, dvx, duy, dvy : (h * w,) float64 ndarrays
-        Eq. 2 at the pixel centres (set the sub-sample counts).
-    sky : (C,) float64 ndarray
-    out : (h * w, C) float32 ndarray, written.
-
-    Returns
-    -------
-    reads : (h * w,) int32 ndarray
+    ``buf`` is the (rows*cols, C) float32 texture, ``coef`` eq. 1 in its texels, ``dux ..
+    dvy`` eq. 2 at the pixel centres (they set the sub-sample counts).
     """
     nc = out.shape[1]
     reads = np.zeros(w * h, np.int32)

@@ -99,21 +99,14 @@ class PreparedTexture:
     Parameters
     ----------
     texture : (h, w) or (h, w, C) ndarray, C in 1..4
-        uint8 / uint16 textures keep their type (the prefiltered data too:
-        filtered in floating point, then rounded); other types become float32
-        in [0, 1]. Any size: the pyramid and the family use it resampled to
-        powers of two side by side (:func:`~.texture.power_of_two_grid`).
+        uint8 / uint16 keep their type (prefiltered data too); others become float32 in
+        [0, 1]. Any size (resampled to powers of two, :func:`~.texture.power_of_two_grid`).
     options : FilterOptions
-        The default filter; the structures it needs are built now.
+        The default filter, whose structures are built now; others on first use.
     progress : callable(done, total) or None
-        Called while the family is built (cells written of the total).
+        Called while the family is built.
     cache : DiskCache or None
         Families are loaded from and stored into it.
-
-    Notes
-    -----
-    Structures for other methods are built on first use by :meth:`render`
-    and kept, so switching methods in a viewer costs one prefiltering each.
     """
 
     def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,
@@ -205,20 +198,10 @@ class PreparedTexture:
     def render(self, view: PlaneMapping | Camera, size: tuple[int, int],
                options: FilterOptions | None = None,
                progress: Progress | None = None) -> RenderResult:
-        """Render a ``size = (w, h)`` frame of the plane.
+        """Render a ``size = (w, h)`` frame of the plane for ``view`` (PlaneMapping or Camera).
 
-        Parameters
-        ----------
-        view : PlaneMapping or Camera
-        size : (w, h)
-        options : FilterOptions or None
-            Overrides the object's options for this frame.
-        progress : callable(done_rows, total_rows) or None
-
-        Returns
-        -------
-        RenderResult
-            ``image`` is ``(h, w, C) float32``; pixels with ``z <= 0`` are sky.
+        ``options`` overrides the object's for this frame; ``progress(done_rows, total_rows)``.
+        Returns a :class:`RenderResult`; pixels with ``z <= 0`` are sky.
         """
         opt = options if options is not None else self.options
         w, h = check_size(size)
@@ -306,20 +289,7 @@ def render_perspective(texture: np.ndarray | PreparedTexture, view: PlaneMapping
                        size: tuple[int, int] = (640, 360),
                        options: FilterOptions | None = None,
                        progress: Progress | None = None) -> np.ndarray:
-    """Render a texture on the ground plane in one call.
-
-    Parameters
-    ----------
-    texture : (h, w[, C]) ndarray or PreparedTexture
-        Pass a :class:`PreparedTexture` to reuse its prefiltering.
-    view : PlaneMapping or Camera
-    size : (w, h) frame size in pixels
-    options : FilterOptions or None (default: the parallelogram filter)
-
-    Returns
-    -------
-    (h, w, C) float32 ndarray
-    """
+    """One frame in one call: :meth:`PreparedTexture.render`'s (h, w, C) float32 image."""
     opt = options if options is not None else FilterOptions()
     prepared = texture if isinstance(texture, PreparedTexture) else PreparedTexture(texture, opt)
     return prepared.render(view, size, opt, progress).image

@@ -1,16 +1,9 @@
 """Texture preparation: storage type, power-of-two resampling, mip pyramid.
 
-The prefiltered structures (the mip pyramid, the family of copies) need a
-wrapping texture whose sides are powers of two. Each side is resampled on its
-own to a power of two near it (:func:`power_of_two_side`: a 4096 x 1 strip
-stays 4096 x 1, the texel count grows by at most 1.87x); the mapping
-is scaled by ``W'/w`` along U and ``H'/h`` along V so that U, V stay in
-texels of the input. The nearest, bilinear and reference filters, and the
-family's lookup of footprints smaller than two texels, read the input itself.
-
-Texels keep the input's storage type (uint8, uint16 or float32) so the
-prefiltered data costs 1, 2 or 4 bytes per channel; integer values are read
-as ``value / top`` with ``top`` the type's largest value.
+The prefiltered structures need a wrapping texture with power-of-two sides: each side
+is resampled on its own to a power of two near it (:func:`power_of_two_side`), the
+mapping scaled so U, V stay in input texels. Texels keep the input's storage type
+(uint8, uint16 or float32, read as ``value / top``).
 """
 
 from __future__ import annotations
@@ -50,17 +43,9 @@ class StoredTexture:
 
 
 def stored_texture(texture: np.ndarray) -> StoredTexture:
-    """The texture as ``(h, w, C)`` in a storage type (see module docstring).
-
-    Parameters
-    ----------
-    texture : (h, w) or (h, w, C) ndarray, C in 1..4
-        Other integer types and booleans are scaled to float32 [0, 1].
-
-    Raises
-    ------
-    TerrathemeError
-        Empty, wrong rank, more than 4 channels or non-finite values.
+    """The texture as ``(h, w, C)`` in a storage type (other integer types and booleans
+    become float32 [0, 1]); TerrathemeError when empty, of the wrong rank, over 4
+    channels or not finite.
     """
     arr = np.asarray(texture)
     if arr.ndim == 2:
@@ -98,22 +83,11 @@ def power_of_two_side(n: int) -> int:
 
 
 def power_of_two_grid(tex: StoredTexture) -> tuple[np.ndarray, float, float]:
-    """Resample a wrapping texture to ``H' x W'``, each a power of two.
+    """Resample a wrapping texture to (H', W', C), powers of two, in its storage type, and
+    ``su = W'/w``, ``sv = H'/h`` to multiply U and V by.
 
-    Parameters
-    ----------
-    tex : StoredTexture
-        ``(h, w, C)`` texels.
-
-    Returns
-    -------
-    grid : (H', W', C) ndarray
-        In the storage type (the texels themselves when the sides already are
-        powers of two). Linear interpolation with wrap-around borders,
-        Gaussian anti-aliasing along a side that shrinks (scikit-image's
-        ``resize``), rounded back to the storage type.
-    su, sv : float
-        ``W' / w`` and ``H' / h``: multiply U and V by these.
+    Linear with wrap-around and Gaussian anti-aliasing where a side shrinks (scikit-image's
+    ``resize``); the texels themselves when the sides already are powers of two.
     """
     h, w, c = tex.texels.shape
     wp, hp = power_of_two_side(w), power_of_two_side(h)
