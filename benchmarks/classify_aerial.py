@@ -1,6 +1,6 @@
 """Part "aerial" of ``bench_classify.py``: the shipped model on photos of other datasets.
 
-The ``aerial`` model (``models/``, trained on all 54 CC0 Dubai photos by
+The ``aerial-forest`` model (``models/``, trained on all 54 CC0 Dubai photos by
 ``models/train_aerial.py``) classifies LoveDA (2 photos), ISPRS Potsdam and
 DeepGlobe 6399 (whole photos) with no labels of theirs at all. Each dataset's
 legend and the model's five classes are mapped to the classes they share
@@ -79,7 +79,7 @@ def aerial(log):
     """The shipped model and its peers on LoveDA, Potsdam and DeepGlobe -> rows."""
     import bench_classify as bench
 
-    path, names = resolve_model("aerial")
+    path, names = resolve_model("aerial-forest")
     model = Classifier.load(path)
     adapting = Classifier(model.forest, model.classes, replace(model.options, adapt=True))
     rows = {m: {} for m in ("aerial", "aerial-adapt", "scribbles", "kmeans-oracle")}

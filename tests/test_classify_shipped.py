@@ -77,10 +77,11 @@ def test_no_index_means_no_shipped_models(tmp_path):
         resolve_model("aerial", tmp_path)
 
 
-def test_the_aerial_model_names_the_legends_classes():
+def test_the_aerial_forest_names_the_legends_classes():
     if not (SHIPPED_MODELS_DIR / MODELS_INDEX).is_file():
         pytest.skip("no shipped models (models/models.json absent)")
-    model = load_model("aerial")
+    # The forest --model aerial was before the network (tests/test_classify_network.py).
+    model = load_model("aerial-forest")
     assert model.classes == (1, 2, 3, 4, 5)
     assert model.class_names == {1: "building", 2: "land", 3: "road", 4: "vegetation",
                                  5: "water"}

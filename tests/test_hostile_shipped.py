@@ -130,8 +130,10 @@ def test_entries_without_size_and_digest_still_load(tmp_path, model_bytes):
 
 def test_the_repository_s_index_matches_its_files():
     models = shipped_models()
-    assert "aerial" in models
+    assert "aerial" in models and "aerial-forest" in models
     path, names = resolve_model("aerial")  # size and SHA-256 checked
+    assert path.name == "aerial.onnx" and names[5] == "water"
+    path, names = resolve_model("aerial-forest")
     assert path.name == "aerial.model" and names[5] == "water"
 
 
