@@ -341,3 +341,34 @@ def test_a_set_killed_midway_is_never_a_mixed_set(tmp_path, where):
         _write_all(files, paths)
     assert _contents(paths) == [b"new " + p.name.encode() for p in paths]
     assert _hidden(tmp_path) == left
+
+
+def test_concurrent_sets_to_one_folder_end_whole(tmp_path):
+    # Each commit holds a lock on the folder: the last set committed is the one there.
+    paths = [tmp_path / "a.bin", tmp_path / "b.bin", tmp_path / "m.json"]
+    code = textwrap.dedent(f"""
+        import os
+        from terratheme.core.io.atomic import file_set
+        paths = {[str(p) for p in paths]!r}
+        for k in range(30):
+            with file_set(paths) as files:
+                for p in paths:
+                    files.temporary(p).write_bytes(b"%d %d" % (os.getpid(), k))
+        """)
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    procs = [subprocess.Popen([sys.executable, "-c", code], cwd=REPO, env=env) for _ in range(6)]
+    seen = 0
+    while any(p.poll() is None for p in procs):
+        # A reader: the members it read belong to the manifest that was there before and after.
+        try:
+            first = os.stat(paths[2])
+            a, b, m = _contents(paths)
+            if os.stat(paths[2]).st_ino != first.st_ino:
+                continue
+        except FileNotFoundError:
+            continue
+        assert a == b == m, (a, b, m)
+        seen += 1
+    assert [p.wait(timeout=120) for p in procs] == [0] * 6 and seen
+    contents = _contents(paths)
+    assert contents[0] == contents[1] == contents[2] and _hidden(tmp_path) == []

@@ -33,7 +33,7 @@ try:
 except ImportError:  # not POSIX: concurrent commits are not serialised
     fcntl = None
 
-_LOCK = threading.Lock()
+_LOCK = threading.RLock()  # re-entrant: a signal handler may run while it is held
 #: temporaries this process made and has not yet renamed or removed
 _LIVE: set[Path] = set()
 #: open file sets by the final paths they hold
