@@ -1,16 +1,8 @@
 """The fly-over's base map: the render itself, mipmapped, for footprints of a texel or more.
 
-Terrain engines blend their splat layers per pixel near the camera and read
-a pre-rendered *base map* beyond (Unity's "base map distance"): a footprint
-that spans texels wants the texture's true average over it, which the blend
-of separately filtered themes and sub-sampled weights only approximates
-(near the horizon, 16 weight samples of a footprint covering hundreds of
-cells are noise). :class:`BaseMap` is the project's render at ``b`` texels per
-base texel (``b = 1`` up to ``GroundOptions.base_map`` texels a side, the next
-powers of two beyond), drawn by the GPU renderer in the project's style
-(exact at ``b = 1``), with mipmaps; ``tt_ground.frag.glsl`` reads it where a
-footprint is wider than ``b`` texels and blends toward the per-pixel render
-below. Edits re-render only the base texels under the dirty region.
+As terrain engines read a pre-rendered base map beyond their splat layers, where a
+footprint spanning many cells wants the texture's true average (docs/gpu.md, "The
+fly-over"). Edits re-render only the base texels under the dirty region.
 """
 
 from __future__ import annotations
@@ -26,21 +18,11 @@ from terratheme.core.model.colour_map import ColourMap
 
 
 class BaseMap:
-    """The render reduced ``b`` times, as a mipmapped, repeating RGBA8 texture.
+    """The render reduced ``b`` times (``b`` a power of two until the map has at most
+    ``largest`` texels a side), as a mipmapped, repeating RGBA8 texture.
 
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    renderer : GpuRenderer
-        On ``ctx``, with the view's themes.
-    indices : (gh+1, gw+1) uint8 ndarray
-        The live grid (read at every update).
-    cell : (N, M)
-    options : GpuRenderOptions
-        The style (blend, saddle, borders).
-    colour_map : ColourMap or None
-    largest : int
-        Most base texels a side (``b`` grows in powers of two until it fits).
+    ``renderer`` draws it on ``ctx`` in the style of ``options`` and ``colour_map``;
+    ``indices`` (gh+1, gw+1) uint8 is the live grid, read at every update.
     """
 
     def __init__(self, ctx: moderngl.Context, renderer: GpuRenderer, indices: np.ndarray,

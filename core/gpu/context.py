@@ -1,11 +1,7 @@
-"""The OpenGL context of the GPU renderer: a standalone EGL context made by moderngl.
+"""The OpenGL context of the GPU renderer: a standalone, headless EGL context (moderngl).
 
-Headless: no window or display server. On a machine without a GPU, Mesa's
-llvmpipe (a multi-threaded software rasteriser; ``LP_NUM_THREADS`` sets its
-thread count) provides OpenGL 4.5; any driver with OpenGL 3.3 core will do.
-Where no context can be made, :func:`create_context` raises
-:class:`GpuUnavailableError` with one line and keeps EGL's own warnings off
-stderr.
+Any driver with OpenGL 3.3 core will do (Mesa's llvmpipe without a GPU); where none can
+be made, :func:`create_context` raises :class:`GpuUnavailableError` with one line.
 """
 
 from __future__ import annotations
@@ -54,13 +50,7 @@ def _quiet_stderr() -> Iterator[list[str]]:
 
 
 def create_context() -> moderngl.Context:
-    """A new standalone OpenGL context (EGL backend, OpenGL 3.3 core or later).
-
-    Raises
-    ------
-    GpuUnavailableError
-        No EGL library or device, or no OpenGL 3.3 context (one line naming why).
-    """
+    """A new standalone EGL OpenGL 3.3+ context; GpuUnavailableError (one line) if none."""
     # Mesa prints its loader warnings unless told otherwise; the caller gets one line.
     os.environ.setdefault("EGL_LOG_LEVEL", "fatal")
     with _quiet_stderr():

@@ -1,19 +1,8 @@
 """The thematic texture on a ground plane seen in perspective, drawn by the GPU (the fly-over).
 
-:class:`GroundView` keeps a whole index grid, its splits and the themes on the
-GPU and draws the plane for a :class:`core.perspective.Camera` (or any eq. 1
-:class:`core.perspective.PlaneMapping`) with the renderer's filtered path:
-mipmapped themes read with anisotropic filtering, weights sub-sampled over
-each pixel's footprint (``tt_filtered.glsl``), the project's shaped borders
-and colour map. The flat plane is mapped per pixel by eq. 1 (the CPU
-preview's exact mapping, the texture repeating to the horizon); with a height
-map the texture's extent is a mesh displaced by it, drawn through
-:func:`core.perspective.flight.clip_matrix`.
-
-Edits: :meth:`GroundView.mark_dirty` takes the changed vertex box of an edit
-(``core.edit.GridChange``); the next draw uploads those vertices and re-splits
-only the cells around them (:func:`core.edit.dirty_cells`), so a brush stroke
-costs what it touches, not the map.
+The renderer's filtered path and the project's style on the plane of eq. 1 (the CPU
+preview's mapping, repeating to the horizon), or on a mesh displaced by a height map.
+Edits re-split only the cells around them (docs/gpu.md, "The fly-over").
 """
 
 from __future__ import annotations
@@ -57,23 +46,18 @@ class GroundView:
     ----------
     grid : (gh+1, gw+1) integer array-like or IndexGrid
         Kept by reference: edits show after :meth:`mark_dirty`.
-    themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
+    themes : sequence of (h, w, 3) uint8 arrays or Themes
     cell : (N, M), optional
         Default: the IndexGrid's.
     style : RenderOptions
-        Blend, saddle rule and shaped borders (a project's :func:`project_style`).
+        Blend, saddle rule and shaped borders (:func:`project_style`).
     colour_map : ColourMap, optional
     options : GroundOptions
     context : moderngl.Context, optional
-        Current on the calling thread (a Qt widget's); default this thread's
-        standalone EGL context.
+        Current on this thread; default the thread's standalone EGL context.
 
-    Raises
-    ------
-    TerrathemeError
-        Bad grid, themes, style or colour map (checked before any GPU work), a
-        grid larger than the driver's textures; ``GpuUnavailableError`` where no
-        OpenGL 3.3 context can be made.
+    Raises TerrathemeError for bad inputs (before any GPU work) or a grid beyond the
+    driver's textures, GpuUnavailableError without OpenGL 3.3.
     """
 
     def __init__(self, grid: object, themes: Sequence[np.ndarray] | Sequence[Theme],
@@ -199,8 +183,7 @@ class GroundView:
     def set_height_map(self, heights: np.ndarray | None, scale: float = 1.0) -> None:
         """Displace the ground by a grey image over the whole texture (None: flat, repeating).
 
-        ``heights`` (h, w) or (h, w, C): integers read as [0, 1], floats as
-        they are; the ground rises ``value * scale`` texels.
+        ``heights`` as :func:`.ground_mesh.grey_heights`; the ground rises ``value * scale`` texels.
         """
         old, self.heights = self.heights, None
         if old is not None:
@@ -228,11 +211,8 @@ class GroundView:
              scale: float = 1.0) -> None:
         """Draw a ``size = (w, h)`` frame into ``framebuffer`` (default: this view's own).
 
-        ``flip_y`` True draws the frame upright on a display (a Qt widget's
-        framebuffer, row 0 at the bottom); False puts the frame's top row in
-        framebuffer row 0, as :meth:`render` reads it back. ``scale`` below 1
-        draws ``scale`` of the pixels along each side and stretches them over
-        the frame (a moving camera at a quarter of the cost).
+        ``flip_y``: row 0 at the bottom, upright on a display; else the frame's top row in
+        framebuffer row 0. ``scale`` < 1 draws that fraction of each side, stretched.
         """
         w, h = check_size(size)
         if scale < 1.0:
@@ -351,29 +331,12 @@ def render_perspective_gpu(project: ThematicTexture, view: Camera | PlaneMapping
                            options: GroundOptions = GroundOptions(),  # noqa: B008 (frozen)
                            heights: np.ndarray | None = None,
                            height_scale: float = 1.0) -> np.ndarray:
-    """One perspective frame of a project on the GPU, headless.
+    """One perspective frame of a project on the GPU, headless: ``terratheme perspective``'s view.
 
-    The same view as ``terratheme perspective PROJECT``
-    (:class:`core.perspective.Camera` or eq. 1 coefficients, positions in
-    texels of the project's texture, which repeats beyond its edges), drawn
-    in the project's own style by the renderer's filtered path.
-
-    Parameters
-    ----------
-    project : ThematicTexture
-    view : Camera or PlaneMapping
-    size : (w, h)
-        Frame size in pixels.
-    options : GroundOptions
-    heights : (h, w) ndarray, optional
-        A height map over the texture (then ``view`` must be a Camera).
-    height_scale : float
-        Texels of height per unit of ``heights``.
-
-    Returns
-    -------
-    frame : (h, w, 3) uint8 ndarray
-        Row 0 at the top; the sky (``options.sky``) above the horizon.
+    ``view``: a Camera or eq. 1 PlaneMapping in texels of the (repeating) texture; ``size``
+    (w, h) pixels; ``heights`` (h, w), optional, a height map (``view`` then a Camera),
+    ``height_scale`` texels per unit. Returns (h, w, 3) uint8, row 0 on top, sky above
+    the horizon.
     """
     ground = GroundView.from_project(project, options)
     try:

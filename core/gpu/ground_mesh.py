@@ -1,10 +1,8 @@
 """A height map over the texture as a GPU mesh: the fly-over's displaced ground.
 
-The map (any size, a grey image) is stretched over the texture's extent
-with its pixel centres aligned (pixel ``(i, j)`` of a ``w x h`` map sits at
-ground point ``((i + 0.5) W / w, (j + 0.5) H / h)``), read by the vertex shader
-with bilinear filtering, clamped at the edges (``tt_ground.vert.glsl``). The
-mesh is a regular grid of at most ``mesh x mesh`` quads over ``[0, W] x [0, H]``.
+The map's pixel centres are aligned over the texture's extent (pixel ``(i, j)`` of a
+``w x h`` map at ``((i + 0.5) W / w, (j + 0.5) H / h)``), read bilinearly and clamped
+by the vertex shader, over at most ``mesh x mesh`` quads.
 """
 
 from __future__ import annotations
@@ -20,13 +18,7 @@ from terratheme.core.perspective import Camera
 
 
 def grey_heights(heights: np.ndarray) -> np.ndarray:
-    """A height map as ``(h, w) float32``: integers read as [0, 1], colour images as grey.
-
-    Raises
-    ------
-    TerrathemeError
-        Empty, the wrong rank, not numbers, or not finite.
-    """
+    """(h, w) float32 heights: integers read as [0, 1], colour as grey; finite numbers only."""
     arr = np.asarray(heights)
     if arr.ndim == 3 and arr.shape[2] in (1, 2, 3, 4):
         # A grey image with alpha, or a colour image: its luminance (alpha dropped).
@@ -47,19 +39,9 @@ def grey_heights(heights: np.ndarray) -> np.ndarray:
 
 
 class HeightField:
-    """A height map's texture and mesh on the GPU.
-
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    heights : (h, w) or (h, w, C) ndarray
-        See :func:`grey_heights`.
-    scale : float
-        Texels of height per unit (>= 0).
-    texture_size : (W, H)
-        The texture the map covers.
-    mesh : int
-        Most quads per side.
+    """A height map's texture and mesh on the GPU: ``heights`` as :func:`grey_heights`,
+    ``scale`` texels of height per unit, over a ``texture_size`` (W, H) texture in at most
+    ``mesh`` quads a side.
     """
 
     def __init__(self, ctx: moderngl.Context, heights: np.ndarray, scale: float,

@@ -33,22 +33,16 @@ class GpuRenderOptions:
     ----------
     blend : BlendMode
     saddle : SaddleRule
-        How saddle cells are split (``core.render.rules``).
     sampling : Sampling
     max_anisotropy : float
-        Anisotropic filtering limit of the filtered path (the driver's cap
-        applies). 1 (trilinear) suits flat renders, whose footprints are
-        isotropic; a fly-over at grazing angles wants 16. (Mesa's llvmpipe
-        blurs isotropic footprints with anisotropy on: 4.1 levels mean
-        difference at scale 1 against 0.03 with it off.)
+        Anisotropic filtering limit of the filtered path: 1 for flat renders (isotropic
+        footprints; llvmpipe blurs them with it on), 16 for grazing fly-overs.
     tile : int
-        Largest framebuffer side in pixels; bigger outputs are rendered tile by tile.
+        Largest framebuffer side; bigger outputs are rendered tile by tile.
     boundary : BoundaryOptions or None
-        Borders shaped by the themes' content and noise
-        (:mod:`core.render.boundary`, linear blend only); None: the paper's ramp.
+        Borders shaped by the themes (linear blend only); None: the paper's ramp.
     max_supersample : int
-        Filtered path: most weight sub-samples per pixel side (two per cell a
-        pixel spans, up to this), 1..64.
+        Filtered path: most weight sub-samples per pixel side (two per cell spanned), 1..64.
     """
 
     blend: BlendMode = BlendMode.LINEAR
@@ -77,8 +71,7 @@ class Anisotropy(Enum):
 
     #: ``SHADER`` on a software rasteriser (llvmpipe, softpipe, SwiftShader), else ``DRIVER``
     AUTO = "auto"
-    #: the sampler's anisotropic filtering (about free on GPUs; Mesa's llvmpipe took
-    #: 126 times as long as SHADER for a 640 x 360 frame at 16x, and blurs more)
+    #: the sampler's anisotropic filtering (about free on GPUs, slow on llvmpipe)
     DRIVER = "driver"
     #: up to ``max_anisotropy`` trilinear reads along each footprint, in the shader
     SHADER = "shader"
@@ -95,19 +88,16 @@ class GroundOptions:
     Attributes
     ----------
     max_anisotropy : float
-        Anisotropic filtering of the themes (the driver's cap applies; 16 on llvmpipe).
+        Anisotropic filtering of the themes (the driver's cap applies).
     max_supersample : int
-        Most weight sub-samples per pixel side (two per cell a footprint side spans).
+        Most weight sub-samples per pixel side.
     sky : (r, g, b) floats in [0, 1]
-        The colour above the horizon (the CPU preview's default).
     mesh : int
-        Quads per side of the height map's mesh (at most; fewer for a small map).
+        Most quads per side of the height map's mesh.
     anisotropy : Anisotropy
         Whether the driver or the shader (``TT_PROBES``) filters anisotropically.
     base_map : int
-        Most texels a side of the base map (``core.gpu.base_map``: the render,
-        mipmapped, read where footprints are a base texel wide or more); 0: none,
-        the per-pixel blend everywhere.
+        Most texels a side of the base map (:mod:`.base_map`); 0: none.
     """
 
     max_anisotropy: float = 16.0

@@ -1,15 +1,8 @@
-"""A packed index layer read by the shaders, never unpacked (issue 19; docs/gpu.md).
+"""A packed index layer read by the shaders, never unpacked (docs/gpu.md, "Packed layers").
 
-The layer's random-access table (``PackedLayer.table``, the ``uint32`` words
-of :func:`core.packing.lookup.build_table`, docs/formats.md, packed layers §P3)
-goes to the GPU as it is, one ``R32UI`` texture 4096 words wide, and
-``tt_packed.glsl`` finds a texel there as the CPU kernels do (block grid
-word, local curve step, span, binary search). For a render, each tile's
-block of vertices is decoded by the GPU into the blend shader's ``tt_grid``
-(``tt_unpack.frag.glsl``) and its cells split into ``tt_splits``
-(``tt_split.frag.glsl``, the saddle ring read from the packed layer), so the
-blend pass is the dense render's own and gives its texels; nothing of the
-grid crosses the bus but the table.
+The layer's random-access table goes to the GPU as it is (an ``R32UI`` texture 4096
+words wide); per tile, the GPU decodes the block into the blend shader's ``tt_grid``
+and splits its cells into ``tt_splits``, so the blend pass is the dense render's own.
 """
 
 from __future__ import annotations
@@ -29,15 +22,9 @@ POINT_ROW = 1024
 
 
 def check_grid_layer(layer: PackedLayer | TiledLayer, themes: int) -> None:
-    """Refuse a layer that cannot be a vertex index grid over ``themes`` themes.
-
-    Reads the runs' palette indices only (``O(R)``), never the texels.
-
-    Raises
-    ------
-    TerrathemeError
-        A tiled layer; not an identity (index) layer of a 2-D grid, fewer than 2 x 2
-        vertices, or an index not below ``themes``.
+    """Refuse (TerrathemeError) a layer that cannot be a vertex index grid over ``themes`` themes:
+    tiled, not a 2-D identity layer, under 2 x 2 vertices, or an index not below ``themes``.
+    Reads the runs' indices only, never the texels.
     """
     if isinstance(layer, TiledLayer):
         raise TerrathemeError("a tiled packed layer: the GPU reads single packed layers "
@@ -57,16 +44,8 @@ def check_grid_layer(layer: PackedLayer | TiledLayer, themes: int) -> None:
 class PackedGrid:
     """One packed layer's table on the GPU, with the programs that read it.
 
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    layer : PackedLayer
-        Any index layer (a vertex grid for :meth:`bind_block`).
-
-    Raises
-    ------
-    TerrathemeError
-        The table is taller than the driver's largest texture.
+    ``layer``: any index PackedLayer (a vertex grid for :meth:`bind_block`). Raises
+    TerrathemeError when the table is taller than the driver's largest texture.
     """
 
     def __init__(self, ctx: moderngl.Context, layer: PackedLayer) -> None:
@@ -125,12 +104,9 @@ class PackedGrid:
         return tex
 
     def bind_block(self, cells: tuple[int, int, int, int], saddle: SaddleRule) -> None:
-        """Decode cells ``(cx0, cy0, cx1, cy1)`` (inclusive) into ``tt_grid`` and ``tt_splits``.
-
-        Binds the blend shader's two textures as the dense render binds them:
-        ``tt_grid`` texel ``(i, j)`` = vertex ``(cx0 + i, cy0 + j)``, ``tt_splits``
-        texel ``(i, j)`` = the split of cell ``(cx0 + i, cy0 + j)``. Leaves the
-        last pass's framebuffer current: the caller makes its own current again.
+        """Decode inclusive cells ``(cx0, cy0, cx1, cy1)`` into ``tt_grid`` (vertex ``(cx0 + i,
+        cy0 + j)`` at texel ``(i, j)``) and ``tt_splits`` (their cells' splits), bound as the dense
+        render binds them. Leaves the last pass's framebuffer current.
         """
         cx0, cy0, cx1, cy1 = cells
         grid = self._pass("unpack", "tt_grid", (cx1 - cx0 + 2, cy1 - cy0 + 2), "u1",
@@ -142,21 +118,8 @@ class PackedGrid:
         splits.use(UNITS["tt_splits"])
 
     def lookup(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        """Palette index of texels ``(xs[k], ys[k])`` (row 0 = top) found by the shader.
-
-        What :meth:`core.packing.PackedLayer.lookup` returns, computed by
-        ``tt_packed_index`` (``tt_unpack.frag.glsl`` with ``TT_POINTS 1``): the
-        check that the GPU reads the table as the CPU does.
-
-        Parameters
-        ----------
-        xs, ys : (n,) integer ndarrays
-            Any coordinates that fit ``int32``.
-
-        Returns
-        -------
-        indices : (n,) int64 ndarray
-            The palette index, -1 outside the layer.
+        """(n,) int64 palette index of texels ``(xs[k], ys[k])`` (row 0 = top, -1 outside), found
+        by the shader: the check that the GPU reads the table as the CPU does.
         """
         xs = np.asarray(xs, np.int64).ravel()
         ys = np.asarray(ys, np.int64).ravel()

@@ -1,10 +1,6 @@
 """The OpenGL objects a renderer keeps between renders: programs, index textures, buffers.
 
-A viewport render of an editor or a benchmark repeats every frame; making
-textures, buffers and vertex arrays afresh and re-sending unchanged
-uniforms would cost as much as drawing. :class:`Pipeline` keeps them,
-grows them when a larger block comes, and reads the framebuffer back as
-RGBA (the driver's fastest read) converted to RGB by OpenCV.
+A viewport redraws every frame; making these afresh would cost as much as drawing.
 """
 
 from __future__ import annotations
@@ -23,18 +19,7 @@ _CORNERS = np.array([(0, 1), (2, 1), (0, 3), (0, 3), (2, 1), (2, 3)])
 
 
 def rect_vertices(edges: np.ndarray) -> np.ndarray:
-    """The vertices of rectangles: two triangles each.
-
-    Parameters
-    ----------
-    edges : (R, 4) float ndarray
-        ``x0, y0, x1, y1`` in texel edges.
-
-    Returns
-    -------
-    vertices : (6R,) :data:`VERTEX` ndarray
-        ``uv`` is 0 (the packed layer's quads use it).
-    """
+    """(6R,) :data:`VERTEX` array: two triangles per rectangle ``x0, y0, x1, y1`` of ``edges``."""
     edges = np.asarray(edges, dtype=np.float64)
     out = np.zeros(6 * len(edges), VERTEX)
     out["edge"] = edges[:, _CORNERS].reshape(-1, 2)
@@ -47,15 +32,8 @@ def capacity(n: int) -> int:
 
 
 class Pipeline:
-    """Programs, reusable textures, the vertex buffer and the framebuffer of one renderer.
-
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    themes : int
-        The theme count the programs are compiled for (``TT_THEMES``).
-    one_size : bool
-        Every theme has one size (``TT_ONE_SIZE``).
+    """Programs, reusable textures, the vertex buffer and the framebuffer of one renderer,
+    compiled for ``themes`` themes (``TT_THEMES``), all of one size when ``one_size``.
     """
 
     def __init__(self, ctx: moderngl.Context, themes: int, one_size: bool) -> None:

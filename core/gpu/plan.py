@@ -49,17 +49,9 @@ class RenderPlan(NamedTuple):
 def tile_geometry(plan: RenderPlan, tx: int, ty: int
                   ) -> tuple[tuple[int, int], tuple[float, float, float, float],
                              tuple[int, int, int, int]]:
-    """The output tile at pixel ``(tx, ty)``: its size, its view and the cells under it.
-
-    Returns
-    -------
-    size : (tw, th)
-        Output pixels of the tile (the last ones cut to the output).
-    view : (x0, y0, w, h)
-        The tile's part of the texture, in texel edges.
-    cells : (cx0, cy0, cx1, cy1)
-        Inclusive cell bounds under the view; the filtered path's sub-samples
-        reach half a texel beyond, so it takes one cell more on each side.
+    """The output tile at pixel ``(tx, ty)``: ``size`` (tw, th), ``view`` (x0, y0, w, h) in
+    texel edges, and the inclusive ``cells`` (cx0, cy0, cx1, cy1) under it (one more each
+    side for the filtered path, whose sub-samples reach half a texel beyond).
     """
     n, m = plan.cell
     rx, ry, rw, rh = plan.region

@@ -1,15 +1,7 @@
-"""The shader programs of the GPU renderer, compiled once per context and variant.
+"""The shader programs of the GPU renderer, compiled once per context and :class:`Variant`.
 
-A :class:`Variant` names the program kind (``blend``: ``tt_terrain.frag.glsl``,
-the blend rule per pixel; ``ground`` and ``ground_mesh``: ``tt_ground.frag.glsl``,
-the textured ground plane of a perspective view, flat or displaced by a height map; ``present``:
-``tt_present.frag.glsl``, a reduced frame stretched over its target; ``unpack``,
-``lookup``, ``split`` and ``split_main``: a packed layer read on the GPU,
-``core.gpu.packed``) and the
-compile-time switches of ``tt_blend.glsl``: the blend (``TT_BLEND``), shaped
-borders (``TT_SHAPED``), the sampling path (``TT_FILTERED``), wrapping
-(``TT_WRAP``), the colour map (``TT_COLOUR_MAP``), the theme count
-(``TT_THEMES``) and whether every theme has one size (``TT_ONE_SIZE``).
+A variant is a program kind (docs/gpu.md, "The shader files") and the compile-time
+switches of ``tt_blend.glsl`` (``TT_BLEND``, ``TT_SHAPED``, ``TT_FILTERED``, ...).
 """
 
 from __future__ import annotations
@@ -63,13 +55,7 @@ class Variant(NamedTuple):
 
 def compile_program(ctx: moderngl.Context, variant: Variant, *, themes: int,
                     one_size: bool = False) -> moderngl.Program:
-    """Compile and link one variant, its samplers bound to :data:`UNITS`.
-
-    Raises
-    ------
-    TerrathemeError
-        The driver cannot compile the shaders (the first line of its log).
-    """
+    """Compile and link one variant, samplers bound to :data:`UNITS` (errors: log's 1st line)."""
     vertex, fragment, _ = SOURCES[variant.kind]
     defines = variant.defines(themes, one_size)
     try:

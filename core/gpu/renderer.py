@@ -1,20 +1,9 @@
 """The GPU renderer: the blend rule as GLSL shaders, rendered headless (docs/gpu.md).
 
-:class:`GpuRenderer` takes the same grid, themes, cell and region as
-:func:`core.render.render_cells` and refuses them with the same messages
-(:mod:`core.render.inputs`). Two sampling paths:
-
-* ``Sampling.EXACT`` (scale 1): ``texelFetch`` (or ``REPEAT`` when every
-  theme has one size) with exact integer weights rounded as the CPU does, so
-  the render equals the CPU render (within one level for the
-  histogram-preserving blend, whose sums run in float32 here). The blend
-  shader draws every pixel, as an engine using it alone would.
-* ``Sampling.FILTERED`` (any scale; ``AUTO`` picks it below scale 1):
-  ``textureGrad`` with mipmaps and anisotropic filtering, weights averaged
-  over ``S x S`` sub-samples per pixel; the fly-over's path.
-
-Large outputs are rendered in tiles of ``GpuRenderOptions.tile`` pixels
-(framebuffer limits), each reading only the block of the grid under it.
+Same inputs and messages as :func:`core.render.render_cells`. ``Sampling.EXACT`` (scale
+1) gives the CPU render's texels (within one level for the histogram-preserving blend);
+``Sampling.FILTERED`` (any scale) uses mipmaps and sub-sampled weights. Large outputs
+are drawn in tiles of ``GpuRenderOptions.tile`` pixels.
 """
 
 from __future__ import annotations
@@ -53,18 +42,9 @@ def _check_out(out: np.ndarray | None, shape: tuple[int, int, int]) -> np.ndarra
 class GpuRenderer:
     """Themes on the GPU, ready to render any grid over them (an editor keeps one).
 
-    Parameters
-    ----------
-    themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
-        ``themes[k]`` for index ``k``; any sizes.
-    context : moderngl.Context, optional
-        Current on the calling thread; default this thread's shared context
-        (:func:`core.gpu.context.gl_context`).
-
-    Raises
-    ------
-    TerrathemeError
-        Bad themes; ``GpuUnavailableError`` where no OpenGL 3.3 context can be made.
+    ``themes[k]``: (h, w, 3) uint8 arrays or Themes of any sizes; ``context``: current on
+    this thread, default the thread's shared one. Raises TerrathemeError for bad themes,
+    GpuUnavailableError without OpenGL 3.3.
     """
 
     def __init__(self, themes: Sequence[np.ndarray] | Sequence[Theme], *,
@@ -91,41 +71,12 @@ class GpuRenderer:
     ) -> np.ndarray:
         """Render a region of the thematic texture through the shaders.
 
-        Parameters
-        ----------
-        grid : (gh+1, gw+1) integer array-like, IndexGrid or PackedLayer
-            Theme index at every grid vertex (row 0 at the top). A packed index
-            layer of ``(gw+1) x (gh+1)`` texels stays packed: the shaders read it
-            (``core.gpu.packed``).
-        cell : (N, M)
-            Texel columns and rows per cell (default: the IndexGrid's; required
-            with an array or a PackedLayer).
-        region : (x, y, w, h), optional
-            Full-resolution texels (default: the whole ``(gw*N, gh*M)`` texture).
-        scale : float in (0, 1]
-            Output pixels per texel (below 1 the filtered path renders an overview).
-        options : GpuRenderOptions
-        colour_map : ColourMap, optional
-            The colour gain over the whole texture (:mod:`core.model.colour_map`),
-            applied in the CPU renderer's exact integers (scale up to
-            :data:`core.gpu.textures.MAX_COLOUR_SCALE`).
-        progress : callable(done, total), optional
-            Called after every tile.
-        out : (h, w, 3) uint8 C-contiguous ndarray, optional
-            Render into this array.
-
-        Returns
-        -------
-        image : (h, w, 3) uint8 ndarray
-            ``(max(1, round(h*scale)), max(1, round(w*scale)), 3)``; at scale 1
-            with exact sampling, the CPU render's texels.
-
-        Raises
-        ------
-        TerrathemeError
-            Bad grid, cell, region, scale, colour map or ``out`` (checked
-            before any work); a texture, cell, noise lattice or colour map
-            scale beyond the shaders' exact integer range.
+        ``grid``: (gh+1, gw+1) theme indices (row 0 on top), an IndexGrid, or a PackedLayer
+        read packed; ``cell`` (N, M) texels per cell; ``region`` (x, y, w, h) texels (default
+        all); ``scale`` in (0, 1] pixels per texel; ``out``: a (h, w, 3) uint8 C-contiguous
+        target. Returns the (h, w, 3) uint8 image, at scale 1 with exact sampling the CPU
+        render's texels. TerrathemeError for bad inputs or sizes beyond the shaders' exact
+        integers, before any work.
         """
         plan = self._plan(grid, cell, region, scale, options, colour_map)
         ow, oh = plan.out_size
@@ -149,17 +100,9 @@ class GpuRenderer:
         options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
         colour_map: ColourMap | None = None,
     ) -> moderngl.Framebuffer:
-        """Draw a region into the renderer's framebuffer without reading it back.
-
-        For a display (a viewport shown by OpenGL) or a timing of the GPU work
-        alone; the output must fit one tile. Parameters as :meth:`render`.
-
-        Returns
-        -------
-        framebuffer : moderngl.Framebuffer
-            RGBA8; pixels ``(0, 0)`` to ``(w, h)`` hold the render, framebuffer
-            row 0 being the region's top row. The draw may still be running
-            (``ctx.finish()`` waits).
+        """Draw a region (one tile at most; parameters as :meth:`render`) into the renderer's
+        RGBA8 framebuffer without reading it back, row 0 the region's top; returns the
+        framebuffer (the draw may still run: ``ctx.finish()`` waits).
         """
         plan = self._plan(grid, cell, region, scale, options, colour_map)
         if max(plan.out_size) > plan.tile:
@@ -280,15 +223,7 @@ def render_cells_gpu(
     colour_map: ColourMap | None = None,
     progress: Progress | None = None,
 ) -> np.ndarray:
-    """Render a thematic texture on the GPU once (:class:`GpuRenderer` for repeated renders).
-
-    Same inputs as :func:`core.render.render_cells` plus ``scale``; see
-    :meth:`GpuRenderer.render`.
-
-    Returns
-    -------
-    image : (h, w, 3) uint8 ndarray
-    """
+    """One GPU render (:meth:`GpuRenderer.render`; :class:`GpuRenderer` for repeated ones)."""
     renderer = GpuRenderer(themes)
     try:
         return renderer.render(grid, cell, region, scale=scale, options=options,

@@ -1,9 +1,7 @@
 """The GLSL sources of the GPU renderer, read from ``core/gpu/shaders/*.glsl``.
 
-Each entry file starts with ``#version 330 core`` and pulls the blend-rule
-library in with an ``#include "tt_blend.glsl"`` line; :func:`shader_source`
-inserts the ``#define`` lines after the version line and expands the
-includes, as an engine's shader preprocessor would (docs/gpu.md).
+Defines go after ``#version`` and ``#include`` lines are expanded, as an engine's
+shader preprocessor would (docs/gpu.md).
 """
 
 from __future__ import annotations
@@ -31,19 +29,7 @@ def _expand(name: str, seen: tuple[str, ...]) -> list[str]:
 
 
 def shader_source(name: str, defines: Mapping[str, int | float | str] | None = None) -> str:
-    """The GLSL source of shader file ``name`` with ``defines`` set and includes expanded.
-
-    Parameters
-    ----------
-    name : str
-        A file of ``SHADER_DIR``, e.g. ``"tt_terrain.frag.glsl"``.
-    defines : mapping, optional
-        ``{"TT_THEMES": 6, "TT_BLEND": 1}`` becomes ``#define`` lines after ``#version``.
-
-    Returns
-    -------
-    source : str
-    """
+    """Shader file ``name`` with ``defines`` as ``#define`` lines and includes expanded."""
     lines = _expand(name, ())
     if not lines or not lines[0].startswith("#version"):
         raise TerrathemeError(f"shader {name}: the first line must be #version")

@@ -1,11 +1,7 @@
 """A project's style on the GPU: blend, shaped borders and colour map, checked and bound.
 
-Every view of a texture (the flat renderer, the ground plane of a fly-over)
-draws the same style: the blend (``TT_BLEND``), the shaped borders'
-integer parameters (``TT_SHAPED``, :class:`core.render.boundary.BoundaryParams`)
-and the colour map (``TT_COLOUR_MAP``). :func:`gpu_style` checks them against
-the shaders' exact integer ranges before any GPU work; :class:`StyleTextures`
-keeps the colour map's texture and gives the uniforms all views share.
+:func:`gpu_style` checks it against the shaders' exact integer ranges before any GPU
+work; :class:`StyleTextures` gives the uniforms every view shares.
 """
 
 from __future__ import annotations
@@ -39,14 +35,10 @@ class Style(NamedTuple):
 
 def gpu_style(options: GpuRenderOptions, cell: tuple[int, int], texture_size: tuple[int, int],
               colour_map: ColourMap | None) -> Style:
-    """The checked style of a texture of ``texture_size`` texels in cells of ``cell``.
+    """The checked style of a ``texture_size`` texture in cells of ``cell``.
 
-    Raises
-    ------
-    TerrathemeError
-        A texture side or cell area beyond 2^23, a noise lattice beyond
-        :data:`MAX_LATTICE`, or a colour map that does not cover the texture or
-        whose scale is beyond :data:`core.gpu.textures.MAX_COLOUR_SCALE`.
+    Raises TerrathemeError for a side or cell area beyond 2^23, a noise lattice beyond
+    :data:`MAX_LATTICE`, or a colour map that misses the texture or passes its scale limit.
     """
     n, m = cell
     if max(texture_size) > MAX_COORDINATE or n * m > MAX_CELL_AREA:
@@ -63,13 +55,7 @@ def gpu_style(options: GpuRenderOptions, cell: tuple[int, int], texture_size: tu
 
 
 class StyleTextures:
-    """The themes and the colour map of one renderer, bound for a view in a style.
-
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    themes : ThemeTextures
-    """
+    """The themes and colour map of one renderer, bound for a view in a style."""
 
     def __init__(self, ctx: moderngl.Context, themes: ThemeTextures) -> None:
         self.ctx = ctx
@@ -77,13 +63,7 @@ class StyleTextures:
         self._colours: tuple[ColourMap, moderngl.Texture] | None = None
 
     def bind(self, style: Style, filtered: bool, anisotropy: float) -> int:
-        """Bind the themes (and Gaussianised themes, tables, colour map) the style reads.
-
-        Returns
-        -------
-        lut_size : int
-            Entries of the inverse tables (``TT_LUT_SIZE``).
-        """
+        """Bind the textures the style reads; returns the inverse tables' size (``TT_LUT_SIZE``)."""
         self.themes.colours(filtered, anisotropy).use(UNITS["tt_themes"])
         lut_size = 4096
         if style.histogram:

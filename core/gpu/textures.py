@@ -1,19 +1,8 @@
 """Theme and grid data as OpenGL textures (the layouts ``shaders/tt_blend.glsl`` documents).
 
-* Exact path: one RGBA8 ``sampler2DArray``, theme ``k`` in texels
-  ``[0, w_k) x [0, h_k)`` of layer ``k`` (layers padded to the largest
-  theme), read with ``texelFetch`` and wrapped with integer arithmetic, so
-  themes of any sizes stay exact.
-* Filtered path: every theme resampled to the layer size, so the hardware's
-  ``REPEAT`` wraps at the theme's own period, with mipmaps and anisotropic
-  filtering. Themes already at the layer size (the usual case: every theme
-  of a library has one size) keep their texels exactly.
-* Histogram-preserving blend: the Gaussianised themes (RGB32F, same two
-  layouts) and the inverse tables (R32F, one row per theme channel), both
-  exactly as :func:`core.render.theme_pack.pack_themes` builds them for the
-  CPU renderer.
-* Colour map: RGBA8, clamped at the edges, mipmapped (level 0 for the exact
-  path's integer bilinear, trilinear for the filtered path).
+The exact path reads themes of any sizes from one padded array with ``texelFetch``;
+the filtered path resamples them to one size (``REPEAT``, mipmaps); the
+histogram-preserving blend's Gaussianised themes and inverse tables are the CPU's own.
 """
 
 from __future__ import annotations
@@ -56,18 +45,8 @@ def _stack(layers: Sequence[np.ndarray], size: tuple[int, int], fill: float) -> 
 
 
 class ThemeTextures:
-    """The themes of one renderer on the GPU, uploaded once, each layout made when first needed.
-
-    Parameters
-    ----------
-    ctx : moderngl.Context
-    textures : sequence of (h, w, 3) uint8 ndarray
-        Validated themes (``core.render.inputs.theme_textures``).
-
-    Raises
-    ------
-    TerrathemeError
-        More themes than texture layers, or a theme larger than the largest texture.
+    """The themes of one renderer on the GPU, uploaded once, each layout made when first
+    needed; TerrathemeError for more themes than layers or a theme beyond the largest texture.
     """
 
     def __init__(self, ctx: moderngl.Context, textures: Sequence[np.ndarray]) -> None:
@@ -166,14 +145,7 @@ MAX_COLOUR_SCALE = 1448
 
 
 def check_colour_map(colour_map: ColourMap | None, texture_size: tuple[int, int]) -> None:
-    """Check a colour map for a ``(W, H)`` texture: a :class:`ColourMap` covering it.
-
-    Raises
-    ------
-    TerrathemeError
-        Not a ColourMap, the wrong shape for the texture, or a scale beyond
-        :data:`MAX_COLOUR_SCALE`.
-    """
+    """Refuse a colour map not covering a ``(W, H)`` texture or beyond :data:`MAX_COLOUR_SCALE`."""
     if colour_map is None:
         return
     if not isinstance(colour_map, ColourMap):
@@ -187,11 +159,7 @@ def check_colour_map(colour_map: ColourMap | None, texture_size: tuple[int, int]
 
 
 def colour_map_texture(ctx: moderngl.Context, colour_map: ColourMap) -> moderngl.Texture:
-    """The colour map as an RGBA8 texture: clamped, mipmapped and trilinear.
-
-    The exact path reads level 0 with ``texelFetch`` (the filter does not
-    apply); the filtered path samples it with ``textureGrad``.
-    """
+    """The colour map as a clamped, mipmapped RGBA8 texture (level 0 for the exact path)."""
     arr = colour_map.pixels
     tex = ctx.texture((arr.shape[1], arr.shape[0]), 4, _rgba(arr).tobytes())
     tex.repeat_x = tex.repeat_y = False
