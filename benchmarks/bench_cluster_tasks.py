@@ -43,8 +43,9 @@ SAMPLE = REPO / "sample_maps" / "dubai_marina.jpg"
 RESULTS = REPO / "benchmarks" / "results"
 
 import terratheme.core.io.cluster as cluster  # noqa: E402
+from terratheme.core.convert.region_sample import fit_unsupervised_region  # noqa: E402
 from terratheme.core.convert.tile_vote import PredictLabels  # noqa: E402
-from terratheme.core.convert.tiled import fit_unsupervised_file, grid_from_file  # noqa: E402
+from terratheme.core.convert.tiled import grid_from_file  # noqa: E402
 
 
 def _cpu() -> float:
@@ -154,7 +155,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench_tasks_") as tmp:
         photo = Path(tmp) / "mosaic.tif"
         write_mosaic(photo, args.side, [SAMPLE] + crop_sources(SHARED), 0, bigtiff=True)
-        model = fit_unsupervised_file(photo)
+        model = fit_unsupervised_region(photo)
         classify = PredictLabels(model)
         with cluster.local_cluster(2) as client:
             counts = _counting(client)

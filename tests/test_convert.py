@@ -228,12 +228,12 @@ def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
     assert tiled.photo is None and whole.photo is not None
     assert (tmp_path / "tiled.ttpack").is_file() and (tmp_path / "tiled_preview.png").is_file()
     # Without a model the tiled path is unsupervised (tests/test_convert_tiled_unsupervised.py);
-    # with cell auto it estimates on the centre window.
+    # with cell auto it chooses on the region's sample (here the whole photo).
     assert _run([photo, tmp_path / "t2.ttproj", "--tile", "64", "--cell", "8"]) == 0
     assert load_project(tmp_path / "t2.ttproj").grid.indices.shape == whole.grid.indices.shape
     assert _run([photo, tmp_path / "t3.ttproj", *common[:2], "--tile", "64"]) == 0
     auto = load_project(tmp_path / "t3.ttproj")
-    assert auto.metadata["cell_choice"]["measured_on"] == [0, 0, 200, 150]
+    assert auto.metadata["cell_choice"]["measured_on"] == [[0, 0, 200, 150]]
     assert auto.grid.cell[0] == auto.metadata["cell_choice"]["cell"][0] >= 8
 
 

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import terratheme.core.convert.tiled as ct
+import terratheme.core.convert.region_sample as rs
 from terratheme.app.cli import main
-from terratheme.core.convert.tiled import convert_file_tiled, sample_pieces
+from terratheme.core.classify import UnsupervisedOptions, fit_unsupervised
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.convert.region_sample import (
+    fit_unsupervised_region,
+    region_sample,
+    sample_windows,
+)
+from terratheme.core.convert.tiled import convert_file_tiled
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import write_image
 from terratheme.core.model.project import load_project
@@ -45,22 +52,67 @@ def test_tiled_unsupervised_equals_whole_image(tmp_path):
     assert len({g[0, 0], s[0, 0], bl[0, 0]}) == 3
 
 
-def test_big_photo_is_fitted_on_spread_windows(tmp_path, monkeypatch):
+def test_sample_windows_spread_over_the_photo_or_are_the_photo():
+    assert sample_windows((256, 192), piece=96, grid=3) == [[(0, 0, 256, 192)]]
+    rows = sample_windows((1000, 700), piece=96, grid=3, align=8)
+    ny, nx = len(rows), len(rows[0])
+    assert ny * nx <= 9 and nx >= ny and all(len(r) == nx for r in rows)
+    for j, row in enumerate(rows):
+        for i, (x, y, w, h) in enumerate(row):
+            assert (w, h) == (96, 96) and x % 8 == 0 and y % 8 == 0
+            # Inside the photo, starting in its own cell of the ny x nx division.
+            assert x + w <= 1000 and y + h <= 700
+            assert i * 1000 // nx - 8 < x < (i + 1) * 1000 // nx
+            assert j * 700 // ny - 8 < y < (j + 1) * 700 // ny
+    # A strip narrower than a window: one column of windows down it.
+    strip = sample_windows((50, 5000), piece=96, grid=3)
+    assert all(len(r) == 1 and r[0][2:] == (50, 96) for r in strip) and len(strip) == 9
+
+
+def test_the_region_model_is_the_whole_photos(tmp_path):
     img = quadrants()
     photo = tmp_path / "big.tif"
     write_image(photo, img, tile=32)
-    # Whole photo under the budget; 4 x 4 windows of 96 / 4 = 24 px over it.
-    assert [p.shape for p in sample_pieces(photo)] == [(192, 256, 3)]
-    pieces = sample_pieces(photo, budget=96)
-    assert len(pieces) == 16 and all(p.shape == (24, 24, 3) for p in pieces)
-    # Window (gx=0, gy=0) is centred at (32, 24): x0 = 32 - 12, y0 = 24 - 12.
-    assert (pieces[0] == img[12:36, 20:44]).all()
-    assert (pieces[15] == img[156:180, 212:236]).all()
-    # With a small budget the windows still hold all three themes.
-    monkeypatch.setattr(ct, "THEME_WINDOW", 96)
-    proj = convert_file_tiled(photo, None, 8, tile=64)
-    assert len(proj.library) == 3
-    assert proj.metadata["created_by"] == "terratheme convert (tiled)"
+    # Small feature windows and sample budget: many tiles, a stride of several pixels.
+    opts = UnsupervisedOptions(tile=64, max_samples=700)
+    region = fit_unsupervised_region(photo, options=opts)
+    whole = fit_unsupervised(img, options=opts)
+    assert np.array_equal(region.centres, whole.centres) and len(whole.classes) == 3
+    assert np.array_equal(fit_unsupervised_region(photo, names=["a", "b"], options=opts).classes,
+                          fit_unsupervised(img, themes=2, options=opts).classes)
+
+
+def periodic(repeat=4, side=64, seed=2):
+    """A mosaic of one photo repeated: blue water in the middle of each copy, sand around."""
+    rng = np.random.default_rng(seed)
+    base = np.empty((side, side, 3), np.float64)
+    base[:] = SAND
+    base[side // 4 : 3 * side // 4, side // 4 : 3 * side // 4] = BLUE
+    img = np.tile(base, (repeat, repeat, 1))
+    return np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
+
+
+def test_a_periodic_mosaic_gets_the_whole_photos_themes(tmp_path, monkeypatch):
+    # Issue 34: windows at the centres of a 4 x 4 division of a 4 x 4 mosaic all saw the
+    # same place of the repeated photo (water only), so the region got other themes.
+    img = periodic()
+    photo = tmp_path / "mosaic.tif"
+    write_image(photo, img, tile=32)
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+    sample = region_sample(photo, lambda p: np.ones(p.shape[:2], np.uint8), 0)
+    assert len(sample.windows) == 9 and sample.rgb.shape == (144, 144, 3)
+    x, y, w, h = sample.windows[4]
+    assert (sample.rgb[48:96, 48:96] == img[y:y + h, x:x + w]).all()
+    whole = convert_photo(img, ConvertOptions(cell=8)).project
+    tiled = convert_file_tiled(photo, None, 8, tile=64)
+    assert sorted(tiled.library.names) == sorted(whole.library.names)
+    assert len(whole.library) == 2
+    # The same theme at (almost) every vertex.
+    named_whole = np.array(whole.library.names)[whole.grid.indices]
+    named_tiled = np.array(tiled.library.names)[tiled.grid.indices]
+    assert (named_whole == named_tiled).mean() > 0.98
+    assert tiled.metadata["created_by"] == "terratheme convert (tiled)"
 
 
 def test_fixed_theme_count_and_names(tmp_path):

@@ -17,8 +17,9 @@ import pytest
 from distributed import Future
 from terratheme.core.convert.colour_fit import ColourMapOptions
 from terratheme.core.convert.photo import CODEC_SUFFIX
+from terratheme.core.convert.region_sample import fit_unsupervised_region
 from terratheme.core.convert.tile_vote import PredictLabels
-from terratheme.core.convert.tiled import convert_file_tiled, fit_unsupervised_file, grid_from_file
+from terratheme.core.convert.tiled import convert_file_tiled, grid_from_file
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.cluster import check_workers, connect, local_cluster, map_ordered, warm_up
 from terratheme.core.io.images import read_image, write_image
@@ -295,7 +296,7 @@ def test_connect_errors_are_one_line():
 def test_killing_a_worker_mid_run_gives_the_same_result(tmp_path):
     path = tmp_path / "photo.tif"
     write_image(path, read_image(SAMPLE)[..., :3], tile=64)
-    model = fit_unsupervised_file(path)
+    model = fit_unsupervised_region(path)
     classify = PredictLabels(model)
     overlap = model.context_pixels
     serial = grid_from_file(path, 16, classify, tile=160, overlap=overlap)

@@ -113,10 +113,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                               "them")
     parser.add_argument("--tile", type=int, metavar="N",
                         help="photos larger than memory: classify and vote tile by tile "
-                             "(N pixels a side; with --model or unsupervised, themes fitted on "
-                             "windows spread over the photo; --cell auto is estimated on the "
-                             "central 2048 x 2048 window; --workers or --scheduler run the tiles "
-                             "on a dask cluster, same result)")
+                             "(N pixels a side; unsupervised themes fitted on the whole photo in "
+                             "a first pass; themes, --cell auto and the colour map's "
+                             "scale chosen once on 25 windows spread over it; --workers or "
+                             "--scheduler run the tiles on a dask cluster, same result)")
     parser.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                         help="with --tile: run the tile jobs on this running dask.distributed "
                              "scheduler; its workers read PHOTO from its absolute path (a file "
@@ -346,7 +346,7 @@ def _run_tiled(args, project, preview, packed, themes, legend) -> int:
     names = None if isinstance(themes, str | int) else themes
     k = themes if isinstance(themes, int) else "auto"
     colour, boundary = _style(args)
-    with _scheduler(args) as scheduler, _tile_progress(args.photo) as progress:
+    with _scheduler(args) as scheduler, _tile_progress(args.photo, not args.model) as progress:
         proj = convert_file_tiled(args.photo, model, args.cell, names=names, themes=k,
                                   tile=args.tile, target_agreement=args.target_agreement,
                                   progress=progress, class_target=args.class_target,
@@ -388,8 +388,10 @@ def _scheduler(args):
 
 
 @contextlib.contextmanager
-def _tile_progress(photo: str):
-    """A progress bar of tiles done and megapixels per second, one stage after the other."""
+def _tile_progress(photo: str, sampled: bool):
+    """A progress bar of tiles done and megapixels per second, one stage after the other.
+
+    ``sampled``: unsupervised, a first pass draws the samples of the themes."""
     import time
 
     from terratheme.core.io.images import image_info
@@ -397,7 +399,7 @@ def _tile_progress(photo: str):
 
     info = image_info(photo)
     pixels = info.width * info.height
-    stages = iter(["classify", "colour map"])
+    stages = iter(["sample"] * sampled + ["classify", "colour map"])
     start = [time.perf_counter()]
     with tqdm(total=1, desc="convert (tiled)", unit="tile", leave=False) as bar:
 

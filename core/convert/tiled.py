@@ -28,12 +28,16 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from terratheme.core.classify import UnsupervisedModel, fit_unsupervised
+from terratheme.core.classify import UnsupervisedModel
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
-from terratheme.core.convert.colour_scale import CentreScale
 from terratheme.core.convert.labels_to_grid import grid_shape_for
+from terratheme.core.convert.region_sample import (
+    fit_unsupervised_region,
+    region_sample,
+    sample_colour_scale,
+)
 from terratheme.core.convert.specks import SpeckStream
 from terratheme.core.convert.step import themes_and_cell
 from terratheme.core.convert.tile_vote import (
@@ -46,10 +50,11 @@ from terratheme.core.convert.tile_vote import (
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.cluster import check_workers, warm_up
 from terratheme.core.io.georef import read_georeference
-from terratheme.core.io.images import Bands, image_info, read_region
+from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, run_tiles
 from terratheme.core.model.grid import IndexGrid, validate_cell
 from terratheme.core.model.project import ThematicTexture
+from terratheme.core.packing import pack
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import RenderOptions, render_cells
 
@@ -146,10 +151,6 @@ def grid_from_file(
     return so_far
 
 
-#: side of the centre window themes are cut from on the tiled path
-THEME_WINDOW = 2048
-
-
 @dataclass(frozen=True)
 class WarmKernels:
     """A warm-up task: the tile jobs' compiled code run once on tiny inputs, on a worker.
@@ -184,66 +185,6 @@ class WarmKernels:
         render_cells(np.zeros((3, 3), np.uint8), [pixels[:8, :8]], (8, 8), options=self.render)
 
 
-#: pieces per side of the grid of windows an unsupervised model is fitted on
-SAMPLE_GRID = 4
-
-
-def sample_pieces(path: str | os.PathLike, budget: int | None = None,
-                  grid: int = SAMPLE_GRID) -> list[np.ndarray]:
-    """Full-resolution windows spread over a photo, to fit unsupervised themes on.
-
-    The whole photo when it has at most ``budget``^2 pixels; otherwise a
-    ``grid x grid`` array of windows of side ``budget // grid``, each centred
-    in its cell of the photo, read one by one (``budget``^2 pixels in all), so
-    themes found anywhere in the photo are sampled, at the resolution the
-    tiles are classified at (a downscaled overview would change the texture
-    features).
-
-    Parameters
-    ----------
-    path : path-like
-    budget : int, optional
-        Side of the pixel budget (default ``THEME_WINDOW``).
-    grid : int
-
-    Returns
-    -------
-    pieces : list of (h, w, C) ndarrays
-    """
-    budget = THEME_WINDOW if budget is None else int(budget)
-    info = image_info(path)
-    w, h = info.width, info.height
-    if w * h <= budget * budget:
-        return [read_region(path, 0, 0, w, h, bands=Bands.PHOTO)]
-    side_w, side_h = min(w, budget // grid), min(h, budget // grid)
-    pieces = []
-    for gy in range(grid):
-        for gx in range(grid):
-            # Centre of cell (gx, gy) of a grid x grid division of the photo.
-            x0 = min(w - side_w, max(0, (2 * gx + 1) * w // (2 * grid) - side_w // 2))
-            y0 = min(h - side_h, max(0, (2 * gy + 1) * h // (2 * grid) - side_h // 2))
-            pieces.append(read_region(path, x0, y0, side_w, side_h, bands=Bands.PHOTO))
-    return pieces
-
-
-def fit_unsupervised_file(path: str | os.PathLike, themes: str | int = "auto",
-                          names: Sequence[str] | None = None):
-    """Unsupervised themes fitted on :func:`sample_pieces` of a photo file.
-
-    With a list of theme ``names`` and ``themes="auto"``, K never exceeds the
-    number of names (as :func:`core.convert.photo.convert_photo` does).
-
-    Returns
-    -------
-    core.classify.UnsupervisedModel
-    """
-    pieces = sample_pieces(path)
-    model = fit_unsupervised(pieces, themes=themes)
-    if names and themes == "auto" and len(model.classes) > len(names):
-        model = fit_unsupervised(pieces, themes=len(names))
-    return model
-
-
 def convert_file_tiled(
     path: str | os.PathLike,
     model,
@@ -270,22 +211,24 @@ def convert_file_tiled(
         The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
     model : Classifier, NetworkClassifier, UnsupervisedModel (core.classify) or None
         Gives the class values (``model.classes``). None: unsupervised themes
-        fitted on windows spread over the photo (:func:`fit_unsupervised_file`),
-        the same themes in every tile.
+        fitted on the whole photo's samples, drawn tile by tile
+        (:func:`core.convert.region_sample.fit_unsupervised_region`): the
+        whole photo's themes, the same in every tile.
     cell : int or "auto"
-        Square cell size; "auto" chooses it on the centre window's labels
-        (:func:`core.convert.cell_choice.choose_cell_size`, ``target_agreement``):
-        an estimate from ``THEME_WINDOW``^2 pixels, recorded as such in the
-        metadata (``cell_choice["measured_on"]``).
+        Square cell size; "auto" chooses it on the labels of the region's
+        sample (:func:`core.convert.region_sample.region_sample`, windows
+        spread over the whole photo; :func:`core.convert.cell_choice.choose_cell_size`,
+        ``target_agreement``), recorded in the metadata (``cell_choice["measured_on"]``).
     names : list or {class: name}, optional
-        Shipped themes by name; default: themes cut from the centre
-        ``THEME_WINDOW``-pixel window of the photo (classes absent there get
-        a grey flat theme). Unsupervised: a list, assigned to the themes by colour.
+        Shipped themes by name; default: themes cut from the region's sample
+        (classes absent there get a grey flat theme). Unsupervised: a list,
+        assigned to the themes by colour.
     themes : "auto" or int
         Unsupervised (``model`` None) only: K from the data or that many themes.
     tile, overlap, scheduler : see :func:`grid_from_file`
     progress : callable(done, total), optional
-        Tiles of the grid, then (from ``(0, total)`` again) of the colour map.
+        Tiles of each pass, each from ``(0, total)``: the unsupervised samples
+        (without a model), the grid, the colour map.
     class_target : float
         Per-class IoU target of the cell choice (as ``convert_photo``'s).
     candidates : sequence of int
@@ -294,7 +237,7 @@ def convert_file_tiled(
         :class:`core.convert.photo.ConvertOptions`), so a tiled conversion
         picks its cell from the same sizes as the whole-image one.
     colour_map : ColourMapOptions or None
-        Its scale chosen on the centre window, then fitted tile by tile
+        Its scale chosen on the region's sample, then fitted tile by tile
         (:func:`core.convert.colour_fit.colour_map_from_file`); None: none.
     boundary : BoundaryOptions or None
         The project's render style (shaped borders), as ``convert_photo``'s.
@@ -315,11 +258,12 @@ def convert_file_tiled(
         check_workers(scheduler, os.path.abspath(path))
         warm_up(scheduler, [__name__, colour_map_from_file.__module__])
     if model is None:
-        # Unsupervised: fit k-means on full-resolution windows spread over the photo.
+        # Unsupervised: the whole photo's k-means samples, drawn tile by tile (a first pass).
         if isinstance(names, dict):
             raise TerrathemeError("unsupervised themes are assigned by colour: give theme names "
                                   "as a list, or class=name pairs with a trained model")
-        model = fit_unsupervised_file(path, themes, names)
+        model = fit_unsupervised_region(path, themes, names, scheduler=scheduler,
+                                        progress=progress)
         if names and len(names) < len(model.classes):
             raise TerrathemeError(f"{len(model.classes)} themes were asked for but only "
                                   f"{len(names)} names given")
@@ -335,13 +279,9 @@ def convert_file_tiled(
     if not isinstance(scheduler, Scheduler):
         # The workers load the tile jobs' kernels while the themes are cut here.
         warm_up(scheduler, [], [WarmKernels(PredictLabels(model), replace(style, threads=1))])
-    # Themes from the centre window of the photo, classified by the model.
-    side_w, side_h = min(THEME_WINDOW, info.width), min(THEME_WINDOW, info.height)
-    x0, y0 = (info.width - side_w) // 2, (info.height - side_h) // 2
-    window = read_region(path, x0, y0, side_w, side_h, bands=Bands.PHOTO)
-    win_result = model.predict(window)
-
-    rgb, _ = prepare_photo(window)
+    # The region's sample: windows spread over the whole photo, classified as the tiles are.
+    sample = region_sample(path, PredictLabels(model), overlap)
+    rgb = sample.rgb
     unsupervised = isinstance(model, UnsupervisedModel)
     if names and unsupervised:
         # Names are assigned to the unsupervised themes by appearance.
@@ -360,29 +300,29 @@ def convert_file_tiled(
     else:
         # Themes cut from the photo, named by a shipped model's classes where it has them.
         spec, class_names = "auto", getattr(model, "class_names", None)
-    # With cell "auto": the cell size from the agreement curve of the centre window (an
-    # estimate), chosen while the themes are cut.
-    mapping, choice = themes_and_cell(rgb, win_result.labels, model.classes, spec, cell=cell,
+    # The themes, and with cell "auto" the cell size, chosen once on the sample.
+    mapping, choice = themes_and_cell(rgb, sample.labels, model.classes, spec, cell=cell,
                                       target_agreement=target_agreement,
                                       class_target=class_target, candidates=candidates,
                                       names=class_names, full_curve=False,
                                       keep_specks=keep_specks)
     if choice is not None:
         cell = choice.cell[0]
-    centre = (x0, y0, side_w, side_h)
-    scale_of = CentreScale(mapping.library.textures, rgb, centre, style, colour_map,
-                           background=not isinstance(scheduler, Scheduler))
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
-                          rows_final=None if colour_map is None else scale_of.rows_final,
                           keep_specks=keep_specks)
     fitted = None
     if colour_map is not None:
-        # The map's scale from the centre window, then the map itself tile by tile.
-        scale = scale_of.result(grid)
+        # The map's scale chosen on the sample, then the map itself tile by tile; a byte
+        # budget covers the packed grid too, as on the whole photo.
+        reserved = len(pack(grid.indices, curve="auto").to_bytes()) if (
+            colour_map.target is None) else 0
+        share = min(1.0, rgb.shape[0] * rgb.shape[1] / (info.width * info.height))
+        scale = sample_colour_scale(sample, grid, mapping.library.textures, style, colour_map,
+                                    reserved=int(round(reserved * share)))
         fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
                                       options=colour_map, tile=tile, scheduler=scheduler,
-                                      progress=progress)
+                                      progress=progress, reserved=reserved)
     meta = {
         "source_photo": str(path), "created_by": "terratheme convert (tiled)",
         "photo_size": [info.width, info.height],
@@ -390,12 +330,12 @@ def convert_file_tiled(
     }
     if choice is not None:
         meta["cell_choice"] = {**choice.as_dict(),
-                               "measured_on": [x0, y0, side_w, side_h]}
+                               "measured_on": [list(w) for w in sample.windows]}
     if boundary is not None:
         meta["render"] = {"boundary": asdict(boundary)}
     if fitted is not None:
         meta["colour_map"] = {"codec": fitted.codec, "bytes": fitted.colour_map.nbytes,
-                              "scale_measured_on": [x0, y0, side_w, side_h]}
+                              "scale_measured_on": [list(w) for w in sample.windows]}
     geo = read_georeference(path)
     if geo:
         meta["georeference"] = geo
