@@ -286,7 +286,7 @@ def test_a_truncated_splatmap_prints_one_line_only(files, capfd):
     data = (files / "s.png").read_bytes()
     (files / "s.png").write_bytes(data[:len(data) // 2])
     _refused(capfd, ["new", files / "s.png", files / "o.ttproj", "--themes", "water,sand",
-                     "--from", "splatmap"], "s.png: damaged or truncated image")
+                     "--from", "splatmap"], "s.png: truncated PNG")
 
 
 @pytest.mark.parametrize("text", ['{"1": "a", "1": "b"}', '{"classes": {"2": "x", "2": "y"}}'])

@@ -69,14 +69,31 @@ def test_damaged_pngs_print_nothing_but_our_one_line(tmp_path, capfd, cut):
     assert "libpng" not in capfd.readouterr().err
 
 
-def test_other_stderr_output_during_a_png_read_is_kept(tmp_path, capfd):
+@pytest.mark.parametrize("where", ["IHDR", "PLTE", "IDAT", "IEND"])
+def test_a_damaged_chunk_is_refused_without_touching_stderr(tmp_path, capfd, monkeypatch,
+                                                             where):
+    # Issue 37: the reader sent the process's fd 2 to a file while libpng ran; a library
+    # must not. The chunks are checked first instead, so libpng never sees the damage.
     import os
 
-    from terratheme.core.io.png import libpng_quiet
+    redirected, dup2 = [], os.dup2
 
-    with libpng_quiet():
-        os.write(2, b"libpng error: dropped\nprogress 50%\n")
-    assert capfd.readouterr().err == "progress 50%\n"
+    def recording_dup2(fd, fd2, *args):
+        redirected.append(fd2)
+        return dup2(fd, fd2, *args)
+
+    monkeypatch.setattr(os, "dup2", recording_dup2)
+    write_image(tmp_path / "a.png", np.arange(64, dtype=np.uint8).reshape(8, 8, 1) % 3,
+                palette=np.array([[0, 0, 0], [9, 9, 9], [200, 0, 0]], np.uint8))
+    data = bytearray((tmp_path / "a.png").read_bytes())
+    at = data.find(where.encode()) - 4
+    data[at + 11 + struct.unpack_from(">I", data, at)[0]] ^= 0x10  # the chunk's CRC
+    (tmp_path / "bad.png").write_bytes(bytes(data))
+    with pytest.raises(CorruptFileError, match=f"bad.png: damaged PNG .CRC error in a b'{where}'"):
+        read_image(tmp_path / "bad.png")
+    assert redirected == []
+    monkeypatch.undo()
+    assert capfd.readouterr().err == ""
 
 
 @pytest.mark.parametrize(("suffix", "dtype"), [(".png", np.uint8), (".png", np.uint16),

@@ -8,16 +8,11 @@ import zlib
 import numpy as np
 import pytest
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.images import read_image, write_image
+from terratheme.core.io.images import read_image, read_labels, write_image
+from terratheme.core.io.png import palette_indices, png_palette
 from terratheme.core.packing import pack
 from terratheme.core.packing.export import write_layer_image
-from terratheme.core.packing.index_png import (
-    PalettePngWriter,
-    colours_to_indices,
-    display_colours,
-    png_palette,
-    read_index_image,
-)
+from terratheme.core.packing.index_png import PalettePngWriter, display_colours, read_index_image
 
 COLOURS = np.array([[0, 0, 0], [255, 0, 0], [0, 128, 255], [10, 200, 30]], np.uint8)
 
@@ -83,16 +78,36 @@ def test_grey_png_has_no_palette(tmp_path):
     assert colours is None and image.shape == (3, 3, 1)
 
 
-def test_colours_to_indices_refuses_ambiguous_or_unknown_colours():
+def test_palette_indices_refuse_ambiguous_or_unknown_colours():
     pixels = COLOURS[np.array([[1, 2]])]
     table = np.concatenate([COLOURS, COLOURS[1:2]])  # index 4 repeats index 1's colour
-    with pytest.raises(CorruptFileError, match="several indices"):
-        colours_to_indices(pixels, table, name="x.png")
+    with pytest.raises(CorruptFileError, match="cannot be told apart"):
+        palette_indices(pixels, table, "x.png")
     # A repeated colour that no pixel uses is harmless.
-    assert colours_to_indices(COLOURS[np.array([[2, 3]])], table, name="x.png").tolist() == [
-        [2, 3]]
-    with pytest.raises(CorruptFileError, match="not in the PNG's palette"):
-        colours_to_indices(np.full((1, 1, 3), 77, np.uint8), COLOURS, name="x.png")
+    assert palette_indices(COLOURS[np.array([[2, 3]])], table, "x.png").tolist() == [[2, 3]]
+    with pytest.raises(CorruptFileError, match="not in the file's palette"):
+        palette_indices(np.full((1, 1, 3), 77, np.uint8), COLOURS, "x.png")
+
+
+def _palette_png(plte: bytes | None) -> bytes:
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(
+            ">I", zlib.crc32(kind + data))
+    ihdr = struct.pack(">IIBBBBB", 2, 1, 8, 3, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+            + (chunk(b"PLTE", plte) if plte is not None else b"")
+            + chunk(b"IDAT", zlib.compress(b"\x00\x00\x01")) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("plte", [None, b"", bytes(7)])
+def test_one_palette_reader_for_labels_and_packing(tmp_path, plte):
+    # Issue 37: pack's reader took a bad PLTE for "no palette" and packed the expanded
+    # colours; the labels reader refused it. Both refuse it now.
+    path = tmp_path / "bad.png"
+    path.write_bytes(_palette_png(plte))
+    for read in (png_palette, read_index_image, read_labels):
+        with pytest.raises(TerrathemeError, match="bad.png"):
+            read(path)
 
 
 def test_display_colours_are_distinct():

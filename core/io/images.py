@@ -16,8 +16,9 @@ the bytes present (at most :data:`MAX_COMPRESSION_RATIO` bytes of pixels per
 byte of file, above what deflate, JPEG or LZW reach on a flat image) and
 against OpenImageIO's own ceilings (``limits:resolution``, ``limits:channels``,
 ``limits:imagesize_MB``); a PNG's header is read first so a 0 x 0 PNG is
-refused by name, and libpng's own ``libpng error`` lines are kept off the
-terminal. Every problem is one line naming the file.
+refused by name, and its chunks' lengths and CRCs are checked before libpng
+reads it (libpng prints its own errors on stderr). Every problem is one line
+naming the file.
 
 Writing goes to a temporary file that is renamed onto the target once every
 write and the close succeeded, so a failed write (a full disk) never leaves a
@@ -43,11 +44,11 @@ from terratheme.core.io.image_format import error_line, first_line, jpegxl_file_
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.io.png import (
     check_palette,
+    check_png_chunks,
     is_png,
-    libpng_quiet,
     palette_indices,
-    palette_of_png,
     png_header_size,
+    png_palette,
     relabel_grey_png_as_palette,
 )
 from terratheme.core.io.tiff_check import check_tiff_chunks
@@ -116,8 +117,9 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
         _check_declared(p, size[0], size[1], 3, size[0] * size[1] * 3)
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    with libpng_quiet(is_png(p)):
-        inp = oiio.ImageInput.open(str(p), config)
+    if is_png(p):
+        check_png_chunks(p)  # before libpng, which prints its own errors on stderr
+    inp = oiio.ImageInput.open(str(p), config)
     if inp is None:
         why = error_line() or "unknown format"
         raise CorruptFileError(f"{p}: cannot read as an image ({why})")
@@ -233,8 +235,7 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
         first, last = min(keep), max(keep) + 1
         want = np.dtype(dtype) if dtype is not None else info.dtype
         try:
-            with libpng_quiet(info.format_name == "png"):
-                pixels = inp.read_image(0, 0, first, last, OIIO_PIXEL_TYPES.get(want, oiio.FLOAT))
+            pixels = inp.read_image(0, 0, first, last, OIIO_PIXEL_TYPES.get(want, oiio.FLOAT))
         except MemoryError:
             raise TerrathemeError(f"{path}: not enough memory to read {info.width} x "
                                   f"{info.height} x {info.channels} pixels") from None
@@ -284,12 +285,11 @@ def read_bands(path: str | os.PathLike, rows: int, *, dtype: np.dtype | str | No
             # A tiled file: the rows of tiles covering the band.
             y0, y1 = (y // th * th, min(-(-(y + h) // th) * th, spec.height)) if (
                 spec.tile_width > 0) else (y, y + h)
-            with libpng_quiet(info.format_name == "png"):
-                if spec.tile_width > 0:
-                    block = inp.read_tiles(0, 0, 0, spec.width, y0, y1, 0, 1, 0,
-                                           spec.nchannels, fmt)
-                else:
-                    block = inp.read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels, fmt)
+            if spec.tile_width > 0:
+                block = inp.read_tiles(0, 0, 0, spec.width, y0, y1, 0, 1, 0,
+                                       spec.nchannels, fmt)
+            else:
+                block = inp.read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels, fmt)
             if block is None or inp.has_error:
                 raise CorruptFileError(f"{path}: damaged or truncated image "
                                        f"({error_line(inp) or 'no reason given'})")
@@ -325,24 +325,23 @@ def read_region(
         first, last = min(keep), max(keep) + 1
         want = np.dtype(dtype) if dtype is not None else info.dtype
         fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
-        with libpng_quiet(info.format_name == "png"):
-            if spec.tile_width > 0:
-                tw, th = spec.tile_width, spec.tile_height
-                x0, y0 = (x // tw) * tw, (y // th) * th
-                x1 = min(-(-(x + w) // tw) * tw, spec.width)
-                y1 = min(-(-(y + h) // th) * th, spec.height)
-                block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
-                if block is None:
-                    raise CorruptFileError(
-                        f"{path}: damaged tiles ({error_line(inp)})")
-                block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
-                out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
-            else:
-                rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
-                if rows is None:
-                    raise CorruptFileError(
-                        f"{path}: damaged scanlines ({error_line(inp)})")
-                out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
+        if spec.tile_width > 0:
+            tw, th = spec.tile_width, spec.tile_height
+            x0, y0 = (x // tw) * tw, (y // th) * th
+            x1 = min(-(-(x + w) // tw) * tw, spec.width)
+            y1 = min(-(-(y + h) // th) * th, spec.height)
+            block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
+            if block is None:
+                raise CorruptFileError(
+                    f"{path}: damaged tiles ({error_line(inp)})")
+            block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
+            out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
+        else:
+            rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
+            if rows is None:
+                raise CorruptFileError(
+                    f"{path}: damaged scanlines ({error_line(inp)})")
+            out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
     finally:
         inp.close()
     out = np.ascontiguousarray(out).astype(want, copy=False)
@@ -367,7 +366,7 @@ def read_labels(path: str | os.PathLike) -> np.ndarray:
         repeat (so indices cannot be told apart).
     """
     image = read_image(path)
-    palette = palette_of_png(Path(path))
+    palette = png_palette(path)
     if palette is not None:
         return palette_indices(image, palette, path)
     if image.shape[2] > 1 and not all(np.array_equal(image[:, :, 0], image[:, :, c])

@@ -7,31 +7,29 @@ module only
 
 * reads the header's size (:func:`png_header_size`) so a 0 x 0 PNG is
   refused before libpng sees it;
-* reads a palette PNG's ``PLTE``/``tRNS`` (:func:`palette_of_png`) and maps
-  the colours OpenImageIO expanded it to back to indices
-  (:func:`palette_indices`): OpenImageIO gives no access to them;
+* checks every chunk's length and CRC before libpng reads the file
+  (:func:`check_png_chunks`): libpng prints ``libpng error: ...`` on the
+  process's stderr before OpenImageIO reports the failure, so a damaged file
+  is refused here first (a file forged with valid CRCs may still get its
+  line from libpng: a library does not redirect the process's stderr);
+* reads a palette PNG's table with Pillow (:func:`png_palette`) and maps the
+  colours OpenImageIO expanded it to back to indices (:func:`palette_indices`):
+  OpenImageIO gives no access to them;
 * turns an 8-bit grey PNG that OpenImageIO wrote into a palette PNG
   (:func:`relabel_grey_png_as_palette`): the scanline bytes of 8-bit grey
   and 8-bit palette images are identical, so only ``IHDR``'s colour type
-  changes and a ``PLTE`` chunk is added (OpenImageIO writes no palettes);
-* keeps libpng's own ``libpng error: ...`` lines off the terminal
-  (:func:`libpng_quiet`): libpng prints them on file descriptor 2 before
-  OpenImageIO turns the failure into an error message of its own.
+  changes and a ``PLTE`` chunk is added (OpenImageIO writes no palettes).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
 import struct
-import sys
-import tempfile
-import threading
 import zlib
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+from PIL import PngImagePlugin, UnidentifiedImageError
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -39,28 +37,12 @@ _COLOUR_TYPE_GREY = 0
 _COLOUR_TYPE_PALETTE = 3
 #: chunks whose layout differs between grey and palette images (dropped on relabelling)
 _GREY_ONLY_CHUNKS = {b"bKGD", b"sBIT", b"tRNS", b"hIST"}
-#: most chunks read while looking for the palette (a genuine file has a handful before IDAT)
-_MAX_HEADER_CHUNKS = 4096
+#: bytes read at a time while the chunks are checked
+_READ = 1 << 20
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-
-def _chunks_before_data(fh) -> Iterator[tuple[bytes, bytes]]:
-    """(type, data) of the chunks before the first IDAT; stops at a damaged one."""
-    for _ in range(_MAX_HEADER_CHUNKS):
-        head = fh.read(8)
-        if len(head) < 8:
-            return
-        length, kind = struct.unpack(">I4s", head)
-        if kind == b"IDAT" or length > 1 << 20:
-            return
-        data = fh.read(length)
-        crc = fh.read(4)
-        if len(data) < length or len(crc) < 4:
-            return
-        yield kind, data
 
 
 def _head(path: Path, n: int) -> bytes:
@@ -84,28 +66,78 @@ def png_header_size(path: Path) -> tuple[int, int] | None:
     return struct.unpack(">II", head[16:24])
 
 
-def palette_of_png(path: Path) -> np.ndarray | None:
-    """A palette PNG's colours as ``(K, 4)`` uint8 RGBA (alpha from tRNS, else 255).
+def check_png_chunks(path: str | os.PathLike) -> None:
+    """Refuse a PNG whose chunks are damaged, before libpng reads it.
 
-    Returns None when the file is not a palette PNG.
+    Every chunk must lie inside the file with a matching CRC, ``IHDR`` first,
+    ``IEND`` last. One pass over the file, a buffer of :data:`_READ` bytes.
+
+    Raises
+    ------
+    CorruptFileError
+        Truncated, a chunk past the end, a CRC mismatch, no IHDR or IEND.
+    """
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        if fh.read(8) != SIGNATURE:
+            raise CorruptFileError(f"{path}: not a PNG (no PNG signature)")
+        pos, first = 8, True
+        while True:
+            head = fh.read(8)
+            if len(head) < 8:
+                raise CorruptFileError(f"{path}: truncated PNG (no IEND chunk)")
+            length, kind = struct.unpack(">I4s", head)
+            if pos + 12 + length > size:
+                raise CorruptFileError(f"{path}: truncated PNG ({kind!r} chunk past the end)")
+            if first and (kind != b"IHDR" or length != 13):
+                raise CorruptFileError(f"{path}: damaged PNG (no IHDR chunk first)")
+            crc, left = zlib.crc32(kind), length
+            while left:
+                part = fh.read(min(left, _READ))
+                crc, left = zlib.crc32(part, crc), left - len(part)
+            if struct.unpack(">I", fh.read(4))[0] != crc:
+                raise CorruptFileError(f"{path}: damaged PNG (CRC error in a {kind!r} chunk)")
+            pos, first = pos + 12 + length, False
+            if kind == b"IEND":
+                return
+
+
+def png_palette(path: str | os.PathLike) -> np.ndarray | None:
+    """A palette PNG's table: ``(K, 3)`` uint8 RGB, or ``(K, 4)`` RGBA when it has tRNS.
+
+    Pillow reads the chunks before the pixels only. Returns None for any file
+    that is not a palette PNG.
+
+    Raises
+    ------
+    CorruptFileError
+        A palette PNG without a valid PLTE (1..256 whole RGB entries).
     """
     try:
-        with open(path, "rb") as fh:
-            if fh.read(8) != SIGNATURE:
+        # The plugin's class, not Image.open: its pixel-count guard refuses large
+        # images before the palette is read, and no pixel is decoded here.
+        with PngImagePlugin.PngImageFile(os.fspath(path)) as im:
+            if im.mode != "P":
                 return None
-            chunks = dict(_chunks_before_data(fh))
-    except OSError:
+            raw = bytes(im.palette.palette) if im.palette is not None else b""
+            trns = im.info.get("transparency")
+    except (UnidentifiedImageError, SyntaxError, OSError, ValueError):
+        with open(path, "rb") as fh:
+            head = fh.read(26)
+        if (len(head) == 26 and head[:8] == SIGNATURE and head[12:16] == b"IHDR"
+                and head[25] == _COLOUR_TYPE_PALETTE):
+            raise CorruptFileError(f"{path}: palette PNG without a valid palette") from None
         return None
-    ihdr = chunks.get(b"IHDR", b"")
-    if len(ihdr) != 13 or ihdr[9] != _COLOUR_TYPE_PALETTE:
-        return None
-    plte = chunks.get(b"PLTE", b"")
-    if not plte or len(plte) % 3 or len(plte) > 3 * 256:
+    if not raw or len(raw) % 3 or len(raw) > 3 * 256:
         raise CorruptFileError(f"{path}: palette PNG without a valid palette")
-    colours = np.frombuffer(plte, np.uint8).reshape(-1, 3)
+    colours = np.frombuffer(raw, np.uint8).reshape(-1, 3)
+    if not isinstance(trns, bytes | int):
+        return colours.copy()
     alpha = np.full(len(colours), 255, np.uint8)
-    trns = np.frombuffer(chunks.get(b"tRNS", b"")[: len(colours)], np.uint8)
-    alpha[: len(trns)] = trns
+    if isinstance(trns, int):  # Pillow's form for one transparent entry
+        alpha[trns] = 0
+    else:
+        alpha[: min(len(trns), len(colours))] = np.frombuffer(trns, np.uint8)[: len(colours)]
     return np.column_stack([colours, alpha])
 
 
@@ -116,8 +148,8 @@ def palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
     ----------
     image : (H, W, 3 or 4) uint8 ndarray
         The pixels as read (RGB, or RGBA when the file has tRNS).
-    palette : (K, 4) uint8 ndarray
-        :func:`palette_of_png`.
+    palette : (K, 3 or 4) uint8 ndarray
+        :func:`png_palette` (alpha 255 where it has no column).
     path : path-like
         For messages.
 
@@ -127,27 +159,28 @@ def palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
 
     Raises
     ------
-    TerrathemeError
-        Entries of the palette that pixels use share a colour (ambiguous).
+    CorruptFileError
+        A pixel colour missing from the palette, or shared by entries that
+        pixels use (their indices cannot be told apart).
     """
     channels = image.shape[2]
-    entries = palette[:, :channels].astype(np.uint32)
-    weights = np.array([1 << 24, 1 << 16, 1 << 8, 1][-channels:], np.uint32)
-    keys = entries @ weights
+    if channels not in (3, 4):
+        raise CorruptFileError(f"{path}: palette PNG decoded with {channels} channels")
+    entries = np.full((len(palette), 4), 255, np.uint32)
+    entries[:, : palette.shape[1]] = palette
+    weights = np.array([1 << 24, 1 << 16, 1 << 8, 1], np.uint32)[:channels]
+    keys = entries[:, :channels] @ weights
     pixels = image.astype(np.uint32).reshape(-1, channels) @ weights
     order = np.argsort(keys, kind="stable")
-    where = np.searchsorted(keys[order], pixels)
-    where = np.minimum(where, len(keys) - 1)
-    found = keys[order][where] == pixels
-    if not found.all():
+    where = np.minimum(np.searchsorted(keys[order], pixels), len(keys) - 1)
+    if not (keys[order][where] == pixels).all():
         raise CorruptFileError(f"{path}: a pixel colour is not in the file's palette")
-    index = order[where]
     used_keys, counts = np.unique(keys, return_counts=True)
-    shared = set(used_keys[counts > 1].tolist())
-    if shared and np.isin(pixels, list(shared)).any():
-        raise TerrathemeError(f"{path}: palette entries share a colour, so their class "
-                              "numbers cannot be told apart; save the labels as grey")
-    return index.astype(np.uint8).reshape(image.shape[:2])
+    shared = used_keys[counts > 1]
+    if shared.size and np.isin(pixels, shared).any():
+        raise CorruptFileError(f"{path}: palette entries share a colour, so their indices "
+                               "cannot be told apart; give every index its own colour")
+    return order[where].astype(np.uint8).reshape(image.shape[:2])
 
 
 def check_palette(path, arr: np.ndarray, palette: np.ndarray) -> np.ndarray:
@@ -185,51 +218,3 @@ def relabel_grey_png_as_palette(path: Path, palette: np.ndarray) -> None:
             out.append(data[pos:end])
         pos = end
     Path(path).write_bytes(b"".join(out))
-
-
-_quiet_lock = threading.Lock()
-_quiet_state = {"depth": 0, "saved": -1, "capture": None}
-
-
-def _restore_stderr() -> None:
-    capture = _quiet_state["capture"]
-    os.dup2(_quiet_state["saved"], 2)
-    os.close(_quiet_state["saved"])
-    capture.seek(0)
-    text = capture.read()
-    capture.close()
-    # Replay what others wrote meanwhile; drop libpng's own lines.
-    kept = b"".join(line for line in text.splitlines(keepends=True)
-                    if not line.startswith((b"libpng error", b"libpng warning")))
-    if kept:
-        os.write(2, kept)
-
-
-@contextlib.contextmanager
-def libpng_quiet(active: bool = True) -> Iterator[None]:
-    """Send file descriptor 2 to a temporary file meanwhile; replay all but libpng's lines.
-
-    Nested and concurrent uses share one redirection (the last to leave
-    restores it). ``active=False`` does nothing (not a PNG).
-    """
-    if not active:
-        yield
-        return
-    with _quiet_lock:
-        if _quiet_state["depth"] == 0:
-            with contextlib.suppress(ValueError, OSError):
-                sys.stderr.flush()
-            capture = tempfile.TemporaryFile()
-            _quiet_state["saved"] = os.dup(2)
-            _quiet_state["capture"] = capture
-            os.dup2(capture.fileno(), 2)
-        _quiet_state["depth"] += 1
-    try:
-        yield
-    finally:
-        with _quiet_lock:
-            _quiet_state["depth"] -= 1
-            if _quiet_state["depth"] == 0:
-                with contextlib.suppress(ValueError, OSError):
-                    sys.stderr.flush()
-                _restore_stderr()

@@ -6,7 +6,8 @@ and shows them in colour in any viewer or GIS. OpenImageIO writes no palette
 PNG and expands one to RGB on reading, so this module writes the format's
 chunks itself (signature, IHDR, PLTE, tRNS, IDAT through ``zlib``, IEND;
 PNG specification, ISO/IEC 15948) and reads indices back by mapping the
-decoded colours through the file's PLTE chunk.
+decoded colours through the file's PLTE chunk (:mod:`core.io.png`, the one
+palette reader).
 
 Writing streams: rows go through one ``zlib`` compressor into IDAT chunks as
 they come, so a 65536 x 65536 layer needs one band in memory, not 4 GiB.
@@ -21,9 +22,10 @@ import zlib
 from pathlib import Path
 
 import numpy as np
-from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.images import read_image
+from terratheme.core.io.png import palette_indices, png_palette
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Bytes of compressed data gathered before an IDAT chunk is written.
@@ -144,98 +146,6 @@ class PalettePngWriter:
         self._ctx.__exit__(exc_type, exc, tb)
 
 
-def png_palette(path: str | os.PathLike) -> np.ndarray | None:
-    """The colour table of a palette PNG, or None for any other file.
-
-    Reads the chunks before the image data only (IHDR, PLTE, tRNS).
-
-    Returns
-    -------
-    colours : (K, 3) or (K, 4) uint8 ndarray, or None
-    """
-    with open(path, "rb") as fh:
-        if fh.read(8) != SIGNATURE:
-            return None
-        palette = alpha = None
-        colour_type = None
-        while True:
-            head = fh.read(8)
-            if len(head) < 8:
-                break
-            size, kind = struct.unpack(">I4s", head)
-            if kind == b"IDAT" or kind == b"IEND" or size > 1 << 20:
-                break
-            data = fh.read(size)
-            fh.read(4)
-            if kind == b"IHDR" and len(data) >= 10:
-                colour_type = data[9]
-            elif kind == b"PLTE":
-                palette = np.frombuffer(data[: len(data) // 3 * 3], np.uint8).reshape(-1, 3)
-            elif kind == b"tRNS":
-                alpha = np.frombuffer(data, np.uint8)
-    if colour_type != 3 or palette is None or not 1 <= len(palette) <= 256:
-        return None
-    if alpha is None:
-        return palette.copy()
-    full = np.full(len(palette), 255, np.uint8)
-    full[: min(len(alpha), len(palette))] = alpha[: len(palette)]
-    return np.concatenate([palette, full[:, None]], axis=1)
-
-
-def colours_to_indices(pixels: np.ndarray, colours: np.ndarray, *, name: str) -> np.ndarray:
-    """Indices of decoded palette-PNG pixels, through the file's colour table.
-
-    Parameters
-    ----------
-    pixels : (H, W, C) uint8 ndarray
-        The image as OpenImageIO decodes it (RGB, or RGBA with a tRNS chunk).
-    colours : (K, 3) or (K, 4) uint8 ndarray
-        From :func:`png_palette`.
-
-    Returns
-    -------
-    indices : (H, W) uint8 ndarray
-
-    Raises
-    ------
-    CorruptFileError
-        A pixel colour missing from the table, or one that several used
-        indices share (then the index cannot be told from the colour).
-    """
-    c = min(pixels.shape[2], colours.shape[1])
-    if c < 3:
-        raise CorruptFileError(f"{name}: palette PNG decoded with {pixels.shape[2]} channels")
-    table = colours[:, :c].astype(np.int64)
-    indices = _match(pixels[:, :, :c], table, name)
-    if indices is None and c == 4:
-        # A reader that associates alpha returns premultiplied colours: match those too.
-        table[:, :3] = np.round(table[:, :3] * table[:, 3:] / 255.0)
-        indices = _match(pixels[:, :, :c], table, name)
-    if indices is None:
-        raise CorruptFileError(f"{name}: a pixel colour is not in the PNG's palette")
-    return indices
-
-
-def _match(pixels: np.ndarray, table: np.ndarray, name: str) -> np.ndarray | None:
-    """Indices of ``pixels`` whose colours are rows of ``table``; None if one is missing."""
-    weights = np.array([1 << 24, 1 << 16, 1 << 8, 1], np.int64)[: table.shape[1]]
-    keys = pixels.astype(np.int64) @ weights
-    table = table @ weights
-    order = np.argsort(table, kind="stable")
-    sorted_table = table[order]
-    used = np.unique(keys)
-    pos = np.searchsorted(sorted_table, used)
-    found = (pos < table.size) & (sorted_table[np.minimum(pos, table.size - 1)] == used)
-    if not found.all():
-        return None
-    repeated = np.searchsorted(sorted_table, used, side="right") - pos > 1
-    if repeated.any():
-        raise CorruptFileError(
-            f"{name}: palette PNG uses a colour listed under several indices, so its "
-            "indices cannot be recovered; give every index its own colour")
-    return order[np.searchsorted(sorted_table, keys)].astype(np.uint8)
-
-
 def read_index_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
     """An image file to pack: a palette PNG as its indices and colours, any other as it is.
 
@@ -245,9 +155,7 @@ def read_index_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | 
     colours : (K, 3) or (K, 4) uint8 ndarray, or None for a file without a palette
     """
     image = read_image(path)
-    if not os.fspath(path).lower().endswith(".png"):
-        return image, None
     colours = png_palette(path)
     if colours is None:
         return image, None
-    return colours_to_indices(image, colours, name=os.fspath(path)), colours
+    return palette_indices(image, colours, os.fspath(path)), colours

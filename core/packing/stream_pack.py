@@ -15,7 +15,7 @@ from terratheme.core.curves.plan import curve_squares
 from terratheme.core.curves.scan import join_runs, scan_square
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import image_info, read_region
-from terratheme.core.packing.index_png import colours_to_indices, png_palette
+from terratheme.core.io.png import palette_indices, png_palette
 from terratheme.core.packing.layer import PackedLayer
 from terratheme.core.packing.packer import CurveChoice, ProgressFn, TilePalette, tile_from_runs
 from terratheme.core.packing.palette import MAX_COLOURS, SUPPORTED_DTYPES, colour_keys
@@ -52,7 +52,7 @@ def pack_file(
     if w > MAX_TILED_SIDE or h > MAX_TILED_SIDE:
         raise TerrathemeError(f"{p}: {w} x {h} texels exceeds the tiled layer's "
                               f"{MAX_TILED_SIDE} a side")
-    colours = png_palette(p) if p.lower().endswith(".png") else None
+    colours = png_palette(p)
     identity = colours is not None or (c == 1 and _largest(p, info) < MAX_COLOURS)
     palette = TilePalette(identity, c, np.uint8 if colours is not None else info.dtype)
     tiled = tile_bits is not None or needs_tiles(w, h)
@@ -65,7 +65,7 @@ def pack_file(
     def keys_of(pixels: np.ndarray) -> np.ndarray:
         # Palette PNG: its indices; index image: the values; else packed colours.
         if colours is not None:
-            return colours_to_indices(pixels, colours, name=p)
+            return palette_indices(pixels, colours, p)
         return pixels[:, :, 0] if identity else colour_keys(pixels)
 
     tiles = []
