@@ -71,7 +71,7 @@ from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
 from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
-from terratheme.core.themes.detail import detail_library  # noqa: E402
+from terratheme.core.themes.detail import detail_gains, detail_library  # noqa: E402
 from terratheme.core.themes.from_photo import ThemeMapping  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
@@ -347,8 +347,9 @@ def structure_variants(photo):
     t = time.perf_counter()
     result, _ = classify_photo(photo)
     whole = assign_themes(photo, result.labels, result.classes)
-    detail = ThemeMapping(detail_library(whole.library), whole.lut, whole.classes)
     theme_labels = apply_lut(result.labels, whole.lut)
+    detail = ThemeMapping(detail_library(whole.library, gains=detail_gains(
+        photo, theme_labels, whole.library)), whole.lut, whole.classes)
     choice = choose_cell_size(theme_labels, DEFAULT.target_agreement,
                               candidates=DEFAULT.candidates, class_target=DEFAULT.class_target,
                               full_curve=False, keep_specks=False)
@@ -396,7 +397,15 @@ def run_structure(log):
                  else load(folder, name, None)[0])
         h, w = photo.shape[:2]
         row = {"photo": name, "size": [w, h], "variants": {}}
-        for vname, (project, secs) in structure_variants(photo).items():
+        made = structure_variants(photo)
+        if folder == "sample":
+            # The composition is convert_photo's: the same grid and colour map.
+            direct = convert_photo(photo).project
+            ours = made[f"budget {DEFAULT.colour_map.budget}"][0]
+            if not (np.array_equal(direct.grid.indices, ours.grid.indices) and np.array_equal(
+                    direct.colour_map.pixels, ours.colour_map.pixels)):
+                raise SystemExit("structure variants differ from convert_photo: fix the bench")
+        for vname, (project, secs) in made.items():
             render = render_project(project, (0, 0, w, h),
                                     options=RenderOptions(boundary=DEFAULT.boundary))
             cost = texture_cost(project)

@@ -168,3 +168,12 @@ def test_target_none_is_the_budget_and_bad_budgets_are_refused():
         ColourMapOptions(budget=0.0)
     with pytest.raises(TerrathemeError):
         ColourMapOptions(budget_scales=())
+
+
+def test_detail_themes_only_with_a_budget_map():
+    from terratheme.core.convert.step import detail_sigma
+    from terratheme.core.themes.detail import DETAIL_SIGMA
+
+    assert detail_sigma(ColourMapOptions()) == DETAIL_SIGMA
+    assert detail_sigma(ColourMapOptions(target=2.0)) is None
+    assert detail_sigma(None) is None

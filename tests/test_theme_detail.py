@@ -1,32 +1,39 @@
-"""core.themes.detail: a theme's fine detail around its mean colour."""
+"""core.themes.detail: a theme's fine contrast around mid-grey, scaled to the photo's."""
 
 from __future__ import annotations
 
 import numpy as np
-from terratheme.core.themes.detail import detail_library, detail_texture
+import pytest
+from terratheme.core.themes.detail import (
+    NEUTRAL,
+    detail_energy,
+    detail_gains,
+    detail_library,
+    detail_texture,
+)
 from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
-def test_detail_of_a_flat_texture_is_the_texture():
+def test_detail_of_a_flat_texture_is_mid_grey():
     flat = np.full((16, 16, 3), (10, 120, 250), np.uint8)
-    assert np.array_equal(detail_texture(flat), flat)
+    assert np.all(detail_texture(flat) == NEUTRAL)
 
 
-def test_detail_drops_a_slow_ramp_and_keeps_a_checkerboard_and_the_mean():
+def test_detail_drops_a_slow_ramp_and_keeps_a_checkerboard_as_a_ratio():
     yy, xx = np.indices((64, 64))
     # One period of a cosine across the tile: coarse, tileable; a 1-texel checkerboard: fine.
     ramp = 128 + 60 * np.cos(2 * np.pi * xx / 64)
-    board = 20 * ((xx + yy) % 2 * 2 - 1)
-    tex = np.repeat((ramp + board)[:, :, None], 3, axis=2).round().astype(np.uint8)
+    board = 1 + 0.1 * ((xx + yy) % 2 * 2 - 1)
+    tex = np.repeat((ramp * board)[:, :, None], 3, axis=2).round().astype(np.uint8)
     out = detail_texture(tex, sigma=3.0).astype(float)
-    # The ramp's 120 grey levels swing is gone but for 4% (a sigma-3 blur keeps
+    # The ramp's 120 grey levels swing is gone but for a few (a sigma-3 blur keeps
     # exp(-2 pi^2 3^2 / 64^2) = 96% of a 64-texel cosine) ...
-    col_means = out.mean(axis=0)[:, 0]
-    assert np.ptp(col_means) < 8.0
-    # ... the checkerboard stays (a sigma-3 blur removes it, so the high-pass keeps it whole) ...
-    assert abs(np.abs(out[:, :, 0] - out[:, :, 0].mean()).mean() - 20) < 1.5
-    # ... and the mean colour too.
-    assert abs(out.mean() - tex.mean()) < 0.5
+    assert np.ptp(out.mean(axis=0)[:, 0]) < 8.0
+    # ... the checkerboard's +-10% stays, around 128 (a sigma-3 blur removes it) ...
+    assert abs(np.abs(out[:, :, 0] - NEUTRAL).mean() - 12.8) < 1.5
+    # ... and a gain of 2 doubles it.
+    twice = detail_texture(tex, sigma=3.0, gain=2.0).astype(float)
+    assert abs(np.abs(twice[:, :, 0] - NEUTRAL).mean() - 25.6) < 3.0
 
 
 def test_detail_texture_stays_tileable():
@@ -37,10 +44,26 @@ def test_detail_texture_stays_tileable():
                           np.roll(detail_texture(tex), 5, axis=1))
 
 
+def test_detail_gain_brings_the_theme_to_the_photo_contrast():
+    yy, xx = np.indices((32, 32))
+    board = ((xx + yy) % 2 * 2 - 1).astype(float)
+    theme = np.repeat((100 * (1 + 0.05 * board))[:, :, None], 3, axis=2).round()
+    photo = np.repeat((200 * (1 + 0.10 * board))[:, :, None], 3, axis=2).round()
+    lib = ThemeLibrary([Theme("a", (1, 2, 3), theme.astype(np.uint8)),
+                        Theme("b", (1, 2, 3), theme.astype(np.uint8))])
+    labels = np.zeros((32, 32), np.uint8)  # every pixel takes theme 0
+    gains = detail_gains(photo.astype(np.uint8), labels, lib)
+    assert gains[0] == pytest.approx(2.0, rel=0.1)
+    assert gains[1] == 1.0  # no pixel takes it
+    made = detail_texture(theme.astype(np.uint8), gain=gains[0])
+    assert detail_energy(made, wrap=True) == pytest.approx(
+        detail_energy(photo.astype(np.uint8)), rel=0.2)
+
+
 def test_detail_library_keeps_names_and_colours():
     tex = np.zeros((8, 8, 3), np.uint8)
     tex[::2] = 200
     lib = ThemeLibrary([Theme("sand", (200, 180, 150), tex)])
-    out = detail_library(lib)
+    out = detail_library(lib, gains=[0.5])
     assert out.names == ["sand"] and out[0].colour == (200, 180, 150)
-    assert np.array_equal(out[0].texture, detail_texture(tex))
+    assert np.array_equal(out[0].texture, detail_texture(tex, gain=0.5))

@@ -33,7 +33,12 @@ from terratheme.core.classify.samples import check_class_image
 from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.labels_to_grid import apply_lut
-from terratheme.core.convert.step import classify_photo, grid_and_colour, themes_and_cell
+from terratheme.core.convert.step import (
+    classify_photo,
+    detail_sigma,
+    grid_and_colour,
+    themes_and_cell,
+)
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import file_set, write_bytes_atomic
 from terratheme.core.io.codec import CODECS
@@ -208,7 +213,8 @@ def convert_photo(
         rgb, labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=options.candidates, patch=options.patch, names=names,
-        full_curve=options.full_curve, keep_specks=options.keep_specks)
+        full_curve=options.full_curve, keep_specks=options.keep_specks,
+        detail=detail_sigma(options.colour_map))
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).

@@ -40,7 +40,7 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.packing import pack
 from terratheme.core.render.renderer import RenderOptions, render_cells
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_library
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_gains, detail_library
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -150,6 +150,16 @@ def cuts_themes(themes: ThemesSpec) -> bool:
     return isinstance(themes, str | int) and not isinstance(themes, ThemeLibrary)
 
 
+def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
+    """The ``detail`` of :func:`themes_and_cell` for a conversion's colour map.
+
+    Detail themes (:mod:`core.themes.detail`) need the map of a byte budget
+    that carries everything coarser; without a map, or with one of a colour
+    error target (a coarse map), the themes stay whole.
+    """
+    return DETAIL_SIGMA if colour_map is not None and colour_map.target is None else None
+
+
 def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     themes: ThemesSpec = "auto", *, cell: str | int = "auto",
                     target_agreement: float = 0.9, class_target: float = 0.0,
@@ -168,8 +178,9 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     release the GIL); the result is the same as one after the other.
     ``full_curve`` and ``keep_specks`` as :func:`choose_cell_size`'s.
     ``detail``: themes cut from the photo keep only their detail finer than
-    this sigma (:func:`core.themes.detail.detail_library`), the colour map
-    carrying the rest; None keeps them whole.
+    this sigma, around mid-grey and with the photo's contrast in their class
+    (:func:`core.themes.detail.detail_library`), the colour map carrying the
+    rest; None (a conversion without a colour map) keeps them whole.
 
     Returns
     -------
@@ -186,7 +197,8 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
         if detail is None or not cuts_themes(themes):
             return mapping
-        return ThemeMapping(detail_library(mapping.library, detail), mapping.lut,
+        gains = detail_gains(rgb, apply_lut(labels, mapping.lut), mapping.library, detail)
+        return ThemeMapping(detail_library(mapping.library, detail, gains), mapping.lut,
                             mapping.classes)
 
     if cell != "auto":

@@ -1,15 +1,21 @@
-"""Detail themes: a theme's fine texture around its mean colour, for the terrain engines' split.
+"""Detail themes: a theme's fine texture as a ratio around mid-grey, for the terrain engines' split.
 
 With a fine colour map (:mod:`core.convert.colour_fit`) the map carries
 everything above a few texels, roads and blocks where the photo has them,
 and a theme only the detail finer than that (issue 34): a town theme's own
 road pieces at 4-16 texels, quilted at random angles, would lay a
-kaleidoscope over the map's streets. :func:`detail_texture` keeps the
-high-pass of a tileable texture (minus a wrap-around Gaussian blur) plus its
-mean colour, so the theme stays tileable and keeps its colour.
+kaleidoscope over the map's streets. A detail theme is the texture over its
+own wrap-around Gaussian blur, times :data:`NEUTRAL` (128): mid-grey with the
+fine contrast, as engines' detail textures are, so the map's stored gain is
+the photo's colour itself (a coloured theme's dark class needed gains past
+the map's x1.99 and clipped: dE8 2.0 against 1.15 on a lake photo). The
+fine contrast is scaled to the photo's own in the theme's class
+(:func:`detail_gains`), so the render is as sharp as the photo.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
@@ -17,10 +23,23 @@ from terratheme.core.themes.library import ThemeLibrary
 
 #: Gaussian sigma (texels) above which a detail theme is flat
 DETAIL_SIGMA = 3.0
+#: the value of a detail theme's mean (the colour map's neutral gain)
+NEUTRAL = 128
+#: range of the contrast gain of :func:`detail_gains`
+GAIN_RANGE = (0.25, 4.0)
 
 
-def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
-    """A tileable texture's detail finer than ``sigma`` around its mean colour.
+def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
+    """``image / blur(image) - 1`` (float32), the blur wrapping around or reflecting."""
+    t = np.asarray(image, np.float32)
+    axes = (sigma, sigma, 0) if t.ndim == 3 else sigma
+    low = gaussian_filter(t, axes, mode="wrap" if wrap else "reflect")
+    return t / np.maximum(low, 1.0) - 1.0
+
+
+def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
+                   gain: float = 1.0) -> np.ndarray:
+    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain (t / blur(t) - 1))``.
 
     Parameters
     ----------
@@ -28,18 +47,63 @@ def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarr
         Tileable (the blur wraps around its edges, so the result is too).
     sigma : float
         Gaussian sigma in texels.
+    gain : float
+        Contrast multiplier.
 
     Returns
     -------
     (h, w, 3) uint8 ndarray
-        ``texture - blur(texture) + mean``, clipped to 0..255.
+        Clipped to 0..255.
     """
-    t = np.asarray(texture, np.float32)
-    low = gaussian_filter(t, (sigma, sigma, 0), mode="wrap")
-    out = t - low + t.mean(axis=(0, 1))
+    out = NEUTRAL * (1.0 + gain * _relative(texture, sigma, wrap=True))
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def detail_library(library: ThemeLibrary, sigma: float = DETAIL_SIGMA) -> ThemeLibrary:
+def detail_energy(image: np.ndarray, sigma: float = DETAIL_SIGMA, *, wrap: bool = False,
+                  valid: np.ndarray | None = None) -> float:
+    """Mean square of the relative fine contrast ``Y / blur(Y) - 1`` of an image's luminance.
+
+    ``Y`` is the mean of the channels; ``wrap``: a tileable texture.
+    ``valid``: (H, W) bool, the pixels to average over (default all).
+    """
+    y = np.asarray(image, np.float32).mean(axis=2)
+    rel = _relative(y, sigma, wrap) ** 2
+    return float(rel.mean() if valid is None else rel[valid].mean())
+
+
+def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
+                 sigma: float = DETAIL_SIGMA) -> list[float]:
+    """Per theme, the contrast gain that gives its detail the photo's in its class.
+
+    ``sqrt(photo energy over the theme's pixels / theme energy)``
+    (:func:`detail_energy`), clipped to :data:`GAIN_RANGE`; 1 for a theme no
+    pixel takes or a flat theme.
+
+    Parameters
+    ----------
+    photo : (H, W, 3) uint8 ndarray
+    theme_labels : (H, W) uint8 ndarray
+        Theme index per pixel.
+    library : ThemeLibrary
+    """
+    y = np.asarray(photo, np.float32).mean(axis=2)
+    rel = _relative(y, sigma, wrap=False) ** 2
+    labels = np.asarray(theme_labels).ravel()
+    sums = np.bincount(labels, rel.ravel(), minlength=len(library))
+    counts = np.bincount(labels, minlength=len(library))
+    gains = []
+    for k, theme in enumerate(library):
+        own = detail_energy(theme.texture, sigma, wrap=True)
+        if counts[k] == 0 or own <= 1e-12:
+            gains.append(1.0)
+            continue
+        gains.append(float(np.clip(np.sqrt(sums[k] / counts[k] / own), *GAIN_RANGE)))
+    return gains
+
+
+def detail_library(library: ThemeLibrary, sigma: float = DETAIL_SIGMA,
+                   gains: Sequence[float] | None = None) -> ThemeLibrary:
     """Every theme of ``library`` as its :func:`detail_texture` (names and colours kept)."""
-    return ThemeLibrary(t.with_(texture=detail_texture(t.texture, sigma)) for t in library)
+    gains = [1.0] * len(library) if gains is None else list(gains)
+    return ThemeLibrary(t.with_(texture=detail_texture(t.texture, sigma, g))
+                        for t, g in zip(library, gains, strict=True))
