@@ -1,22 +1,8 @@
 """Editing a thematic texture by hand: the document model behind the editor (no Qt).
 
-Modules, from the bottom up:
-
-* ``tools`` -- brush, rectangle, flood fill, eyedropper as vertex selections;
-* ``atoms`` -- undo atoms of a painted layer (bounding slice, bit-packed mask,
-  old values, new value) and their merging into one step per stroke;
-* ``uncertainty`` -- where the classifier is unsure, the class prior kept
-  between scribble rounds;
-* ``layers`` -- the document's layers (grid, scribbles, photo, confidence)
-  and what each must look like;
-* ``events`` -- the plain-Python change events and their emitters;
-* ``changes`` -- the undoable changes (paint, swap a layer, theme edits, prior);
-* ``history`` -- the one undo history: steps, groups, the saved mark;
-* ``strokes`` -- a brush stroke in progress (one undo step when it ends);
-* ``classification`` -- a classification result as the changes it makes;
-* ``document`` -- :class:`EditDocument`: everything the editor edits;
-* ``preview`` -- a render kept current by re-rendering dirty cells;
-* ``fidelity`` -- per-cell colour difference between render and photo.
+:class:`EditDocument` holds everything the editor edits (grid, themes, scribbles,
+photo, confidence, kept prior), with one undo history and plain-Python change events;
+tools are pure functions returning vertex selections.
 """
 
 from terratheme.core.edit.atoms import Atom, EditAtom, MultiAtom, merge_atoms, replace_atoms

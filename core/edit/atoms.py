@@ -1,12 +1,9 @@
 """Undo atoms of a painted 2-D uint8 layer (the index grid, the scribble layer).
 
-The atom follows napari's labels layer, which records a paint as (indices,
-old values, new value): here a bounding slice, a bit-packed mask of the
-elements that actually changed, their old values and the one new value. The
-layer is edited in place; an atom's memory grows with the edit, never with the
-layer. The atoms of one brush stroke (many mouse moves) merge into one
-(:func:`merge_atoms`), so one stroke is one undo step; :func:`replace_atoms`
-records a whole-layer replacement (a classification result) the same way.
+As napari's labels layer records a paint (indices, old values, new value): a bounding
+slice, a bit-packed mask of the changed elements, their old values and the new value,
+so an atom's memory follows the edit, not the layer. A stroke's atoms merge into one
+undo step (:func:`merge_atoms`).
 """
 
 from __future__ import annotations
@@ -170,16 +167,8 @@ def atom_parts(atom: Atom) -> tuple[EditAtom, ...]:
 
 
 def replace_atoms(layer: np.ndarray, new: np.ndarray) -> Atom | None:
-    """The atom that turns ``layer`` into ``new`` (same shape), not applied yet.
-
-    One :class:`EditAtom` per value of ``new`` that overwrites something, all
-    recorded against the current layer (their masks are disjoint); None when
-    the two are equal.
-
-    Parameters
-    ----------
-    layer : (H, W) uint8 ndarray
-    new : (H, W) integer ndarray, values 0..255
+    """The atom that turns ``layer`` (H, W) uint8 into ``new`` (values 0..255), not applied
+    yet: one :class:`EditAtom` per value that overwrites something; None when equal.
     """
     full = (slice(0, new.shape[0]), slice(0, new.shape[1]))
     parts = []

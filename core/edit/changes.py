@@ -1,11 +1,8 @@
 """The undoable changes of an edit document: each applies, reverts and says what changed.
 
-Every change holds just what it needs to go both ways (a paint holds an
-:mod:`~core.edit.atoms` atom; a swap holds references to the two arrays; a
-theme change the two themes), writes :class:`~core.edit.layers.DocumentData`
-and returns the events it causes. An undo step is a tuple of changes applied
-in order and reverted in reverse order (:mod:`core.edit.history`); the
-document fires the events once the whole step is done.
+A change holds just what it needs to go both ways, writes
+:class:`~core.edit.layers.DocumentData` and returns its events; an undo step is a tuple
+of changes, reverted in reverse order.
 """
 
 from __future__ import annotations
@@ -134,12 +131,9 @@ class SetColourMap:
 
 
 def neutral_under(data: DocumentData, rows: slice, cols: slice) -> SetColourMap | None:
-    """The colour map made neutral (gain 1) wherever it touches cells of vertices ``rows, cols``.
-
-    The map was fitted to the photo under the themes the grid had; where the
-    grid is repainted its gain would tint the new theme with the old one's
-    correction (water painted on sand lit up like sand), so an edit shows the
-    new theme's own colours there. None when the texture has no colour map.
+    """The colour map made neutral (gain 1) where it touches cells of vertices ``rows, cols``,
+    so a repainted theme shows its own colours, not the old theme's correction; None
+    without a colour map.
     """
     cmap = data.texture.colour_map
     if cmap is None:
@@ -258,10 +252,7 @@ class SetPrior:
 
 
 def drop_prior_without_classes(data: DocumentData, classes: frozenset[int]) -> list[Change]:
-    """The change that forgets the kept prior when no class is left in the scribbles.
-
-    Erasing every stroke means starting afresh: the next scribble
-    classification estimates the prior again. Empty when there is nothing to drop.
+    """The change forgetting the kept prior once no class is left in the scribbles (empty if none).
     """
     if data.kept_prior is None or classes:
         return []

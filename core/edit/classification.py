@@ -1,17 +1,9 @@
 """A classification of a document's photo, and its result as the changes it makes (no Qt).
 
-:func:`run_classification` runs what the editor's Classify menu asks for
-(:class:`ClassifyMode`) through the one conversion step (:mod:`core.convert.step`).
-
-A classifier's run gives a new grid, themes cut from the photo, a confidence
-map and, for scribble runs, the class prior to keep
-(:mod:`core.edit.uncertainty`). :class:`ClassificationUpdate` holds it;
-:func:`classification_changes` checks all of it against the document and
-lists the undoable changes (:mod:`core.edit.changes`) that put it in place,
-in the order they apply:
-the themes first (the new grid refers to them), then the grid, then the
-rest. :meth:`core.edit.document.EditDocument.apply_classification` commits
-them as one undo step.
+:func:`run_classification` runs the editor's Classify request through the one
+conversion step (:mod:`core.convert.step`); :func:`classification_changes` checks the
+result against the document and lists its undoable changes in the order they apply
+(themes, then grid, then the rest), committed as one undo step.
 """
 
 from __future__ import annotations
@@ -67,14 +59,8 @@ class ClassificationUpdate:
 def classification_changes(data: DocumentData, update: ClassificationUpdate) -> list[Change]:
     """The changes that put a classification result in place (empty: nothing changes).
 
-    ``data`` is the document's, unchanged here. Everything is checked before
-    the list is made.
-
-    Raises
-    ------
-    TerrathemeError
-        No themes to replace the library with; a grid or confidence map that
-        does not fit.
+    Everything is checked first: TerrathemeError for no themes to replace the library
+    with, or a grid or confidence map that does not fit. ``data`` is not changed.
     """
     u = update
     old_library = data.texture.library

@@ -1,14 +1,9 @@
 """The edit document: everything the editor edits, with one undo history and events.
 
-No Qt here; the editor (``app/editor``) is a view of it. As in napari's layer
-model, the data is edited in place and every change fires a plain-Python
-event (:mod:`core.edit.events`) once the document is consistent. Every change
-is an undo atom (:mod:`core.edit.changes`) on one history
-(:mod:`core.edit.history`), whatever it touched: the vertex index grid, the
-theme library, the scribble layer, the photo, the classifier's confidence map
-and the class prior kept between scribble rounds. A whole brush stroke is one
-undo step; so is a classification result that replaces grid, themes and
-confidence (:meth:`EditDocument.apply_classification`).
+No Qt; the editor (``app/editor``) is a view of it. As in napari's layer model, data is
+edited in place and every change fires a plain-Python event once the document is
+consistent. Every change, whatever it touches, is an undo atom on one history; a brush
+stroke or a classification result is one step.
 """
 
 from __future__ import annotations
@@ -130,11 +125,7 @@ class EditDocument:
         return self.data.scribble_classes()
 
     def prior_for_scribbles(self) -> dict[int, float] | None:
-        """Class weights a scribble classification of the current strokes should reuse.
-
-        The kept prior applies while the same set of classes is painted
-        (:class:`~core.edit.uncertainty.KeptPrior`); otherwise None (estimate afresh).
-        """
+        """The kept prior's class weights while the same classes are painted, else None."""
         kept = self.kept_prior
         return dict(kept.weights) if kept and kept.applies_to(self.scribble_classes()) else None
 
@@ -187,11 +178,8 @@ class EditDocument:
     # -- painting ------------------------------------------------------------------
     def begin_stroke(self, value: int, point: tuple[float, float], radius: float,
                      layer: Layer = Layer.GRID) -> None:
-        """Start a brush stroke with a dab at ``point`` (:class:`~core.edit.strokes.Stroke`).
-
-        ``layer`` GRID: ``value`` is a theme index, ``point`` and ``radius``
-        in vertex units. SCRIBBLES: ``value`` is a class value (theme + 1,
-        0 erases), ``point`` and ``radius`` in photo pixels.
+        """Start a brush stroke with a dab at ``point``: GRID, a theme index ``value`` in vertex
+        units; SCRIBBLES, a class ``value`` (theme + 1, 0 erases) in photo pixels.
         """
         self.end_stroke()
         stroke = Stroke(self.data, layer, layers.check_value(layer, value, len(self.library)))
@@ -293,11 +281,7 @@ class EditDocument:
 
     # -- photo, confidence, classification results ----------------------------------------
     def set_photo(self, photo: np.ndarray | None, label: str = "set photo") -> Step | None:
-        """Show ``photo`` under the index map (None removes it), as one undo step.
-
-        The confidence map (it was for the old photo) goes in the same step;
-        so do the scribbles and the kept prior when they do not fit the new photo.
-        """
+        """Show ``photo`` (None: remove it); stale confidence, scribbles, prior go in the step."""
         new = None if photo is None else layers.validate_photo(photo)
         return None if new is self.photo else self._commit(label, photo_replacement(self.data, new))
 
@@ -311,10 +295,7 @@ class EditDocument:
 
     def apply_classification(self, update: ClassificationUpdate, label: str = "classification"
                              ) -> Step | None:
-        """A classification result as one undo step: themes, grid, confidence, prior.
-
-        Returns None when nothing changed (the same grid and themes, no map).
-        """
+        """A classification result as one undo step; None if nothing changes."""
         changes = classification_changes(self.data, update)
         return self._commit(label, changes) if changes else None
 

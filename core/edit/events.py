@@ -1,10 +1,8 @@
 """Change events of the edit document: frozen dataclasses handed to plain callables.
 
-As in napari's layer model (``layer.events.data.connect(callback)``), a
-document has one emitter per kind of change (:class:`DocumentEvents`) and
-fires a small event after every change, undo and redo, once the document is
-consistent again (a step that replaces the themes and the grid fires after
-both). A view (the Qt editor) connects to them and never polls.
+One emitter per kind of change (:class:`DocumentEvents`, as napari's
+``layer.events.data.connect``), fired after every change, undo and redo once the
+document is consistent; a view connects and never polls.
 """
 
 from __future__ import annotations

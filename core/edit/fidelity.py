@@ -1,11 +1,8 @@
 """Per-cell fidelity: how far the render's colour is from the photo's, cell by cell.
 
-The editor's fidelity view shows this as a heat map so a user sees where to
-repaint. Both images are reduced to one mean colour per cell (area
-averaging, ``cv2.INTER_AREA``); the difference is CIEDE2000 in CIELAB
-(``skimage.color.deltaE_ciede2000``), so texture detail inside a theme does not
-count, only a wrong theme does. A ``delta E`` near 2 is barely visible; above
-10 the cell shows a clearly different colour.
+Both images are reduced to a mean colour per cell (``cv2.INTER_AREA``) and compared by
+CIEDE2000, so detail inside a theme does not count, only a wrong theme does (about 2
+is barely visible, above 10 clearly another colour).
 """
 
 from __future__ import annotations
@@ -17,10 +14,8 @@ from terratheme.core.errors import TerrathemeError
 
 
 def cell_means(image: np.ndarray, cells_shape: tuple[int, int]) -> np.ndarray:
-    """Mean colour of every cell: ``(gh, gw, 3) float32`` in [0, 1] from an (H, W, 3) uint8 image.
-
-    The image is stretched over the cell grid, so a photo whose size differs
-    from the render's still lines up cell for cell.
+    """(gh, gw, 3) float32 mean colour in [0, 1] per cell, the (H, W, 3) uint8 image stretched over
+    them.
     """
     gh, gw = cells_shape
     img = np.ascontiguousarray(image[..., :3])
@@ -30,18 +25,8 @@ def cell_means(image: np.ndarray, cells_shape: tuple[int, int]) -> np.ndarray:
 
 def fidelity_map(render: np.ndarray, photo: np.ndarray, cells_shape: tuple[int, int]
                  ) -> np.ndarray:
-    """Per-cell CIEDE2000 colour difference between ``render`` and ``photo``.
-
-    Parameters
-    ----------
-    render : (H, W, 3) uint8 ndarray
-    photo : (H', W', 3) uint8 ndarray
-        Covers the same area as the render (any resolution).
-    cells_shape : (gh, gw)
-
-    Returns
-    -------
-    delta_e : (gh, gw) float32 ndarray, >= 0
+    """(gh, gw) float32 CIEDE2000 difference per cell of ``cells_shape`` between ``render``
+    (H, W, 3) uint8 and ``photo`` (any resolution over the same area).
     """
     for name, arr in (("render", render), ("photo", photo)):
         if arr.ndim != 3 or arr.shape[2] < 3 or arr.dtype != np.uint8:

@@ -1,12 +1,8 @@
 """The undo history of an edit document: steps of changes, groups, the saved mark.
 
-One history holds every kind of change (grid, scribbles, themes, photo,
-confidence, prior), so Undo always takes back the last thing the user did,
-whatever layer it touched. A step is a labelled tuple of changes that were
-applied together; :meth:`History.group` merges everything recorded inside it
-into one step (napari's ``block_history``): a brush stroke, or a
-classification that replaces themes, grid and confidence at once. The
-history only keeps the books; the document applies and reverts the changes.
+One history for every kind of change, so Undo takes back the user's last action
+whatever it touched; :meth:`History.group` merges what is recorded inside it into one
+step (napari's ``block_history``). It keeps the books; the document applies changes.
 """
 
 from __future__ import annotations

@@ -1,17 +1,8 @@
 """The layers of an edit document, what each must look like, and where the photo lies.
 
-An :class:`~core.edit.document.EditDocument` edits a
-:class:`~core.model.project.ThematicTexture` (the vertex index grid, the
-theme library, the photo and the scribble layer) plus two layers that live
-only in the editor: the classifier's confidence map and the class prior kept
-between scribble rounds. :class:`DocumentData` holds them all; the undoable
-changes (:mod:`core.edit.changes`) are the only code that writes it.
-
-A photo or scribble layer set while editing is checked by the project's own
-rule (:func:`core.model.layers.check_layer`: a project never holds a layer
-the editor cannot show): :func:`validate_photo`, :func:`validate_scribbles`
-and :func:`validate_confidence` refuse one with one line naming the layer
-and the problem.
+:class:`DocumentData` holds the texture's layers plus the editor-only confidence map
+and kept prior; only :mod:`core.edit.changes` writes it. Layers set while editing are
+checked by the project's own rule (:func:`core.model.layers.check_layer`).
 """
 
 from __future__ import annotations
@@ -42,15 +33,8 @@ class Layer(Enum):
 
 
 def validate_photo(photo: object) -> np.ndarray:
-    """Check a photo layer (the project's rule, :func:`core.model.layers.check_layer`).
-
-    Grey ``(H, W)``, ``(H, W, 1)`` and RGBA ``(H, W, 4)`` uint8 photos are
-    first shown as RGB (:func:`display_photo`).
-
-    Raises
-    ------
-    TerrathemeError
-        Not an array, not 8-bit, not an image shape, or no pixels.
+    """Check a photo layer by the project's rule; grey and RGBA uint8 photos are shown as RGB
+    (:func:`display_photo`). TerrathemeError: not an 8-bit image array, or no pixels.
     """
     if (isinstance(photo, np.ndarray) and photo.dtype == np.uint8 and photo.size
             and (photo.ndim == 2 or (photo.ndim == 3 and photo.shape[2] in (1, 4)))):
@@ -59,25 +43,15 @@ def validate_photo(photo: object) -> np.ndarray:
 
 
 def validate_scribbles(scribbles: object, photo: np.ndarray | None) -> np.ndarray:
-    """Check a scribble layer: ``(H, W)`` uint8, the photo's ``H`` and ``W`` (the project's rule).
-
-    Raises
-    ------
-    TerrathemeError
-        No photo to lie over, not an array, not 2-D uint8, or not the photo's size.
-    """
+    """Check a scribble layer: (H, W) uint8, the photo's size; TerrathemeError otherwise."""
     if photo is None:
         raise TerrathemeError("scribble layer without a photo: scribbles mark photo pixels")
     return check_layer(LAYER_BY_NAME["scribbles"], scribbles, {"photo": photo.shape[:2]})
 
 
 def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndarray:
-    """Check a confidence map and return it as a read-only ``(H, W) float32`` array.
-
-    Raises
-    ------
-    TerrathemeError
-        No photo, not the photo's size, or values that are not finite in [0, 1].
+    """A confidence map as a read-only (H, W) float32 array; TerrathemeError without a photo,
+    at another size, or with values not finite in [0, 1].
     """
     conf = np.array(confidence, dtype=np.float32)
     if photo is None or conf.shape != photo.shape[:2]:

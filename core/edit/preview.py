@@ -1,12 +1,8 @@
 """The editor's live preview: a full render kept up to date by re-rendering dirty cells.
 
-After an edit only the cells whose render can change (:func:`dirty_region`:
-the cells around the changed vertices plus the saddle rule's one-cell ring) are
-re-rendered with ``render_cells(region=...)`` and pasted into the existing
-image. Because ``render_cells`` returns exactly the crop of the full render
-(and computes splits only for the region's cells), the preview always equals a
-fresh full render of the edited grid (in the project's own style, with its
-colour map), at a cost that follows the edit, not the map.
+After an edit only the cells whose render can change are re-rendered
+(``render_cells(region=...)``, exactly the full render's crop) and pasted in, so the
+preview equals a fresh full render at a cost that follows the edit.
 """
 
 from __future__ import annotations
@@ -28,11 +24,8 @@ MAX_PREVIEW_TEXELS = 1 << 28
 
 def dirty_cells(change: GridChange, cells_shape: tuple[int, int], margin: int = 1
                 ) -> tuple[slice, slice]:
-    """Cells whose render a vertex change can alter: touched cells plus ``margin`` cells.
-
-    Vertex row ``j`` bounds cell rows ``j-1`` and ``j``; the extra margin
-    covers a renderer whose saddle rule (docs/design.md §1, case 3) looks at
-    the neighbouring cells.
+    """Cells a vertex change can alter: the touched cells plus ``margin`` cells (the saddle
+    rule looks at neighbours, design.md §1).
     """
     gh, gw = cells_shape
     rows = slice(max(change.rows.start - 1 - margin, 0), min(change.rows.stop + margin, gh))
@@ -50,21 +43,9 @@ def dirty_region(change: GridChange, cells_shape: tuple[int, int], cell: tuple[i
 
 
 class RenderPreview:
-    """A ``(H, W, 3) uint8`` render of a texture, refreshed region by region.
-
-    Parameters
-    ----------
-    texture : ThematicTexture
-        Rendered from its live grid and library (edits show after :meth:`refresh`).
-    margin : int
-        Extra cells around the touched ones (1 covers the saddle rule's ring).
-    progress : callable(done, total), optional
-        For the first full render.
-
-    Raises
-    ------
-    TerrathemeError
-        The texture has more than ``MAX_PREVIEW_TEXELS`` texels.
+    """A (H, W, 3) uint8 render of a texture's live grid and library, refreshed region by
+    region (:meth:`refresh`); ``margin`` extra cells around touched ones, ``progress`` for
+    the first render. TerrathemeError past ``MAX_PREVIEW_TEXELS``.
     """
     def __init__(self, texture: ThematicTexture, *, margin: int = 1,
                  progress: Progress | None = None) -> None:
@@ -87,12 +68,7 @@ class RenderPreview:
                             colour_map=self.texture.colour_map)
 
     def refresh(self, change: GridChange) -> tuple[int, int, int, int] | None:
-        """Re-render the cells ``change`` can affect and paste them in place.
-
-        Returns
-        -------
-        region : (x, y, w, h) texels that were replaced, or None if empty.
-        """
+        """Re-render the cells ``change`` can affect; returns the (x, y, w, h) replaced, or None."""
         grid = self.texture.grid
         x, y, w, h = dirty_region(change, grid.cells_shape, grid.cell, self.margin)
         if w <= 0 or h <= 0:

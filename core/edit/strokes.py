@@ -1,10 +1,8 @@
 """A brush stroke in progress: painted as the mouse moves, one undo step at the end.
 
-Every mouse move paints the capsule from the last point (``capsule_footprint``)
-at once, so the view follows the mouse; :meth:`Stroke.finish` merges the
-move's atoms into one paint (:func:`~core.edit.atoms.merge_atoms`), the one
-undo step of the stroke. A first scribble stroke brings the scribble layer
-into being, and that belongs to the same step.
+Each move paints the capsule from the last point at once, so the view follows the
+mouse; :meth:`Stroke.finish` merges the atoms into the stroke's one undo step (with the
+scribble layer's creation, for a first scribble).
 """
 
 from __future__ import annotations

@@ -1,15 +1,8 @@
-"""Editing tools as pure functions on a vertex index array.
+"""Editing tools as pure functions on a vertex index array, each returning a
+:class:`VertexSelection` (the scribble layer uses them in photo pixels).
 
-Each tool returns a :class:`VertexSelection`: the bounding slice of the vertices it
-covers and a boolean mask inside that slice. The edit document
-(:mod:`core.edit.document`) turns a selection plus a value into an undo atom
-(:mod:`core.edit.atoms`). The scribble layer uses the same tools in photo
-pixel units.
-
-Coordinates are in *vertex units*: ``(x, y)`` = (column, row) as floats, so
-vertex ``indices[j, i]`` sits at ``(i, j)``. The editor converts a cursor texel
-``(X, Y)`` to ``(X / N, Y / M)`` (docs/design.md §1: texel ``X`` sits at grid
-position ``X / N``).
+Coordinates are vertex units: ``(x, y)`` = (column, row) floats, vertex
+``indices[j, i]`` at ``(i, j)``; a cursor texel ``(X, Y)`` is ``(X / N, Y / M)``.
 """
 
 from __future__ import annotations
@@ -72,25 +65,9 @@ def capsule_footprint(
     p1: tuple[float, float],
     radius: float,
 ) -> VertexSelection:
-    """Vertices within ``radius`` of the segment ``p0``-``p1`` (one brush stroke segment).
-
-    A brush dab is a disc of ``radius`` vertex units; moving it along a segment
-    sweeps a capsule, so a fast mouse move leaves no gaps (the segment is
-    covered exactly, not by sampled dabs). The vertex nearest each end is
-    always covered, so a click with a tiny radius still paints one vertex.
-
-    Parameters
-    ----------
-    shape : (rows, cols)
-        Shape of the vertex index array.
-    p0, p1 : (x, y) floats in vertex units
-        Segment ends (equal for a single dab).
-    radius : float >= 0
-
-    Returns
-    -------
-    VertexSelection
-        Empty if the capsule misses the grid.
+    """Vertices within ``radius`` of the segment ``p0``-``p1`` (x, y vertex units) of an array
+    of ``shape``: a dab swept along the segment, so a fast mouse move leaves no gaps. The
+    vertex nearest each end is always covered; empty when the capsule misses the grid.
     """
     _check_point(shape, p0, "brush")
     _check_point(shape, p1, "brush")
@@ -159,16 +136,8 @@ def flood_footprint(
     point: tuple[float, float],
     connectivity: Connectivity = Connectivity.FOUR,
 ) -> VertexSelection:
-    """The connected region of equal indices around the vertex nearest ``point``.
-
-    Uses :func:`skimage.segmentation.flood`; the fill stops at any other index.
-
-    Parameters
-    ----------
-    indices : (gh+1, gw+1) uint8 ndarray
-    point : (x, y) in vertex units
-    connectivity : Connectivity
-        FOUR (default) or EIGHT neighbours.
+    """The region of equal indices connected (``connectivity``: FOUR or EIGHT) to the vertex
+    nearest ``point`` (:func:`skimage.segmentation.flood`).
     """
     seed = nearest_vertex(indices.shape, point)
     if seed is None:

@@ -1,18 +1,10 @@
 """Where the classifier is unsure, and the class prior kept between scribble rounds.
 
-The editor's "Show uncertainty" view (``app/editor/window.py``,
-the Qt side) tints the photo pixels whose confidence
-(``core.classify.Classification.confidence``: the winning class's vote share)
-is among the lowest ``UNCERTAIN_SHARE`` of the photo, after a ``FILTER_SIZE`` x
-``FILTER_SIZE`` majority filter so they read as regions a user can correct
-with a second round of strokes.
-
-The *kept prior*: a scribble classification estimates class-prior weights
-from the blind first strokes (:mod:`core.classify.prior`). Correction strokes
-are painted where the result is wrong, so re-estimating from them hurts
-(benchmarks/classify_corrections.py: mean mIoU 0.557 re-estimated vs 0.598
-kept); the weights of the first run are reused as long as the set of
-scribbled class values is the same (:class:`KeptPrior`).
+The uncertainty view tints the photo pixels whose confidence is among the lowest
+``UNCERTAIN_SHARE``, majority-filtered into regions a user can correct. The kept prior:
+correction strokes are painted where the result is wrong, so the first run's class
+weights are reused while the scribbled classes stay the same (docs/decisions.md,
+``kept_weights``).
 """
 
 from __future__ import annotations
@@ -33,23 +25,8 @@ TINT = (255, 0, 200, 130)
 
 def uncertain_mask(confidence: np.ndarray, share: float = UNCERTAIN_SHARE,
                    size: int = FILTER_SIZE) -> np.ndarray:
-    """Pixels whose confidence is in the lowest ``share`` of the photo, as regions.
-
-    The threshold is the ``share`` quantile of the confidence; pixels at it
-    count as uncertain unless it is the top confidence (a photo the
-    classifier is equally sure of everywhere has no uncertain pixel). Then a
-    ``size`` x ``size`` majority filter (median of the binary mask) removes
-    specks and fills pinholes.
-
-    Parameters
-    ----------
-    confidence : (H, W) float ndarray in [0, 1]
-    share : float in (0, 1)
-    size : odd int >= 1
-
-    Returns
-    -------
-    mask : (H, W) bool ndarray
+    """(H, W) bool: pixels whose confidence is in the lowest ``share`` (the quantile, ties
+    included unless it is the top confidence), then a ``size`` x ``size`` majority filter.
     """
     conf = np.asarray(confidence, np.float32)
     if conf.size == 0:
@@ -64,16 +41,7 @@ def uncertain_mask(confidence: np.ndarray, share: float = UNCERTAIN_SHARE,
 
 
 def uncertainty_rgba(mask: np.ndarray, tint: tuple[int, int, int, int] = TINT) -> np.ndarray:
-    """The overlay image: ``tint`` on uncertain pixels, transparent elsewhere.
-
-    Parameters
-    ----------
-    mask : (H, W) bool ndarray
-
-    Returns
-    -------
-    rgba : (H, W, 4) uint8 ndarray
-    """
+    """The (H, W, 4) uint8 overlay: ``tint`` on ``mask`` pixels, transparent elsewhere."""
     out = np.zeros(mask.shape + (4,), np.uint8)
     out[mask] = tint
     return out
@@ -107,11 +75,8 @@ class KeptPrior:
 
 def next_kept_prior(kept: KeptPrior | None, classes: frozenset[int],
                     weights: Mapping[int, float] | None) -> KeptPrior | None:
-    """The kept prior after a scribble classification of ``classes`` gave ``weights``.
-
-    A kept prior that still applies stays; otherwise the run's weights (an
-    estimate afresh) become the kept prior, or nothing when it had none
-    (one class, or no correction).
+    """The kept prior after a scribble run of ``classes`` gave ``weights``: the old one while it
+    applies, else the run's weights (or None).
     """
     if kept is not None and kept.applies_to(classes):
         return kept
