@@ -10,6 +10,7 @@ cannot be made or written. Missing output folders are made (every command alike)
 
 from __future__ import annotations
 
+import errno
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -21,8 +22,8 @@ def _resolved(path: Path) -> Path:
     try:
         return path.resolve()
     except (RuntimeError, OSError) as exc:
-        why = "a symlink loop" if isinstance(exc, RuntimeError) or getattr(
-            exc, "errno", None) == 40 else (exc.strerror or str(exc))
+        loop = isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP
+        why = "a symlink loop" if loop else (exc.strerror or str(exc))
         raise TerrathemeError(f"{path}: cannot follow the path ({why})") from None
 
 
