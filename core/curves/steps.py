@@ -75,12 +75,6 @@ def hilbert_walk(x, y, n, tables, start=0):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def hilbert_step(x, y, n, tables):  # pragma: no cover - numba
-    """0-based Hilbert step of ``(x, y)`` (y up) on the ``2^n`` square (:func:`hilbert_walk`)."""
-    return hilbert_walk(x, y, n, tables)[0]
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
 def hilbert_point(d, n):  # pragma: no cover - numba
     """``(x, y)`` (y up) of 0-based Hilbert step ``d`` on the ``2^n`` square."""
     t = np.int64(d)
