@@ -134,3 +134,13 @@ def test_every_part_is_a_package_with_a_public_api():
 ])
 def test_the_cycle_finder_finds_cycles(edges, want):
     assert (_cycle(edges) is not None) == want
+
+
+def test_core_sets_no_signal_handlers():
+    """Signal handling is process-wide policy: the CLI's (app/cli.py), never the library's."""
+    users = sorted(name for name, path in MODULES.items()
+                   if any(isinstance(node, ast.Import) and any(a.name == "signal"
+                                                               for a in node.names)
+                          or isinstance(node, ast.ImportFrom) and node.module == "signal"
+                          for node in ast.walk(ast.parse(path.read_text()))))
+    assert users == []
