@@ -1,15 +1,27 @@
 """Compile the numba kernels once (``python -m terratheme.app.warmup``, run by ``setup.sh``).
 
-Every kernel is ``cache=True``: the machine code lands beside the sources, so
-after this a first conversion, render, lookup or preview starts as fast as a
-second one. Each part runs on a tiny input; nothing is written but the cache.
+Every kernel is ``cache=True``: the machine code lands beside the sources
+(or in ``NUMBA_CACHE_DIR``, or numba's per-user cache when site-packages is
+not writable). The default parts are what ``convert``, ``render``, ``export``
+and the editor run, so none of them compiles at its first use; they run in
+two processes on two cores. ``packing`` (every lookup and container format)
+and ``perspective`` (every filter) are compiled at their first use unless
+named. ``--if-changed`` does nothing when a stamp says the same kernel
+sources were compiled by the same numba; when they changed, the old caches
+go first (numba notices edits to a kernel's own file only, not to the
+kernels it inlines from other files).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import os
+import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -86,23 +98,35 @@ def _perspective() -> None:
     from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
     from terratheme.core.perspective.family import build_family
     from terratheme.core.perspective.footprint import footprint_parameters
+    from terratheme.core.perspective.options import Lookup
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
     camera, size = Camera(height=8, pitch=20), (16, 12)
-    # Every method on 8-bit and on float textures (heights, HDR); the seed's lookup
-    # (Lookup.SEED, a benchmark peer) compiles on first use.
+    # Every method, and the seed's lookup, on 8-bit and on float textures (heights, HDR).
     for tex in (texture, texture.astype(np.float32) / 255):
         for method in Method:
             for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
                 opts = FilterOptions(method=method, skew_blend=skew_blend)
                 PreparedTexture(tex, opts).render(camera, size)
+        PreparedTexture(tex, FilterOptions(lookup=Lookup.SEED)).render(camera, size)
     for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
         PreparedTexture(other, FilterOptions()).render(camera, size)
     # The family of a float grid stored in 8 and 16 bits; the footprints alone.
     for dtype in (np.uint8, np.uint16):
         build_family(texture[:16, :16].astype(np.float32), 2, 1, dtype=dtype)
     footprint_parameters(*np.ones((4, 3)))
+
+
+def _editor() -> None:
+    from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
+
+    # The Perspective tab's CPU frame (its view without OpenGL): the project's 8-bit render
+    # prepared as the tab prepares it, drawn with the tab's first filter.
+    texture = np.random.default_rng(1).integers(0, 256, (40, 48, 3), dtype=np.uint8)
+    prepared = PreparedTexture(texture, FilterOptions(method=Method.BILINEAR))
+    prepared.render(Camera(height=8, pitch=20), (16, 12),
+                    FilterOptions(method=Method.PARALLELOGRAM))
 
 
 def _boundary() -> None:
@@ -124,31 +148,127 @@ def _boundary() -> None:
 
 
 def _convert() -> None:
-    from terratheme.core.convert.photo import convert_photo
+    from terratheme.core.classify import load_model
+    from terratheme.core.convert.photo import convert_photo, write_outputs
+    from terratheme.core.errors import TerrathemeError
 
-    # The default conversion end to end on a small photo of three regions, so the kernels
-    # on its way (the themes' class sums over uint8 colours and float32 statistics, the
-    # classification's arg-max) are compiled with the types a real photo gives them.
+    # The default conversion and the shipped model's, end to end on a small photo of three
+    # regions, written as the command writes them (preview, packed layer, colour map), so the
+    # kernels on its way are compiled with the types a real photo gives them.
     rng = np.random.default_rng(2)
     photo = rng.integers(0, 40, (160, 192, 3), dtype=np.uint8)
     photo[:, 64:] += np.array([150, 120, 40], np.uint8)
     photo[80:, 128:] = rng.integers(20, 60, (80, 64, 3), dtype=np.uint8) + np.array(
         [0, 60, 160], np.uint8)
-    convert_photo(photo)
+    result = convert_photo(photo)
+    with tempfile.TemporaryDirectory() as tmp:
+        write_outputs(result.project, Path(tmp, "w.ttproj"),
+                      preview_path=Path(tmp, "w_preview.png"), packed_path=Path(tmp, "w.ttpack"))
+    try:
+        model = load_model("aerial")
+    except TerrathemeError:  # a checkout without models/ still warms the rest
+        return
+    convert_photo(photo, model=model)
 
 
 PARTS = {"render": _render, "boundary": _boundary, "packing": _curves_and_packing,
-         "classify": _classify, "perspective": _perspective, "convert": _convert}
+         "classify": _classify, "perspective": _perspective, "convert": _convert,
+         "editor": _editor}
+#: what convert, render, export and the editor run, in two groups of about equal compile
+#: time (the shaped borders and the colour map go with convert, which renders them too)
+DEFAULT_GROUPS = (("convert", "boundary"), ("render", "classify", "editor"))
+STAMP = "terratheme-kernels.stamp"
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run every part (or those named); prints one line per part."""
-    names = argv if argv else list(PARTS)
+def kernel_sources_hash(root: Path | None = None) -> str:
+    """A hash of the numba-bearing sources under ``root`` (core) and of numba's and Python's
+    versions."""
+    import numba
+    import terratheme.core
+
+    h = hashlib.sha256(f"{numba.__version__} {sys.version}".encode())
+    root = root or Path(terratheme.core.__file__).resolve().parent
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_bytes()
+        if b"numba" in text:
+            h.update(str(path.relative_to(root)).encode() + b"\0" + text)
+    return h.hexdigest()
+
+
+def _stamp_path() -> Path | None:
+    """Where the stamp lives: beside the caches (in-tree or ``NUMBA_CACHE_DIR``)."""
+    import terratheme.core
+
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / STAMP
+    folder = Path(terratheme.core.__file__).resolve().parent / "__pycache__"
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError:
+        return None
+    return folder / STAMP if os.access(folder, os.W_OK) else None
+
+
+def _drop_in_tree_caches() -> None:
+    import terratheme.core
+
+    for path in Path(terratheme.core.__file__).resolve().parent.rglob("__pycache__/*.nb[ic]"):
+        path.unlink(missing_ok=True)
+
+
+def run_parts(names: list[str]) -> int:
+    """Run the named parts here, one line each."""
     for name in names:
         t0 = time.perf_counter()
         PARTS[name]()
-        print(f"warmup: {name} kernels ready ({time.perf_counter() - t0:.1f} s)")
+        print(f"warmup: {name} kernels ready ({time.perf_counter() - t0:.1f} s)", flush=True)
     return 0
+
+
+def run_groups(groups: list[list[str]]) -> int:
+    """The groups side by side (the first here, the others in child processes) on 2+ cores."""
+    groups = [g for g in groups if g]
+    if len(groups) < 2 or (os.cpu_count() or 1) < 2:
+        return run_parts([n for g in groups for n in g])
+    children = [subprocess.Popen([sys.executable, "-m", "terratheme.app.warmup", *group])
+                for group in groups[1:]]
+    try:
+        run_parts(groups[0])
+    finally:
+        codes = [child.wait() for child in children]
+    return max(codes)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the named parts (default: :data:`DEFAULT_GROUPS`); ``--if-changed`` as above."""
+    args = list(argv or [])
+    if_changed = "--if-changed" in args
+    names = [a for a in args if a != "--if-changed"]
+    unknown = [n for n in names if n not in PARTS]
+    if unknown:
+        print(f"warmup: unknown part {unknown[0]!r} (parts: {', '.join(PARTS)})",
+              file=sys.stderr)
+        return 2
+    if not if_changed:
+        return run_parts(names) if names else run_groups([list(g) for g in DEFAULT_GROUPS])
+    stamp, digest = _stamp_path(), kernel_sources_hash()
+    done: set[str] = set()
+    if stamp is not None:
+        lines = stamp.read_text().split() if stamp.is_file() else []
+        if lines[:1] == [digest]:
+            done = set(lines[1:])
+        elif stamp.parent.name == "__pycache__":
+            _drop_in_tree_caches()
+    todo = [n for n in names or [n for g in DEFAULT_GROUPS for n in g] if n not in done]
+    if not todo:
+        print("warmup: kernels up to date (nothing to compile)")
+        return 0
+    groups = [[n for n in g if n in todo] for g in DEFAULT_GROUPS]
+    groups[0] += [n for n in todo if all(n not in g for g in DEFAULT_GROUPS)]
+    rc = run_groups(groups)
+    if rc == 0 and stamp is not None:
+        stamp.write_text(" ".join([digest, *sorted(done | set(todo))]) + "\n")
+    return rc
 
 
 if __name__ == "__main__":

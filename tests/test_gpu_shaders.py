@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-import tomllib
-from pathlib import Path
-
 import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.gpu import SHADER_DIR, shader_source
 
-REPO = Path(__file__).resolve().parents[1]
 ENTRY_POINTS = ["tt_terrain.frag.glsl", "tt_rect.vert.glsl"]
 
 
@@ -38,9 +34,4 @@ def test_missing_include_is_an_error(tmp_path, monkeypatch):
     (tmp_path / "b.glsl").write_text('#include "a.glsl"\n')
     with pytest.raises(TerrathemeError, match="included twice"):
         shader_source("a.glsl")
-
-
-def test_shaders_ship_as_package_data():
-    config = tomllib.loads((REPO / "pyproject.toml").read_text())
-    assert "gpu/shaders/*.glsl" in config["tool"]["setuptools"]["package-data"]["terratheme.core"]
 

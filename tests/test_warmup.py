@@ -74,3 +74,30 @@ def test_a_region_narrower_than_the_grid_renders_with_the_whole_grid_s_signature
     np.testing.assert_array_equal(render_labels(grid, (4, 4), (5, 0, 2, 8)), labels[:, 5:7])
     for kernel in (rk.linear_rows, rk.histogram_rows, rk.label_rows, shaped_rows):
         assert {sig[3][0].layout for sig in kernel.signatures} == {"C"}, kernel
+
+
+def test_kernel_hash_follows_numba_sources_only(tmp_path):
+    (tmp_path / "k.py").write_text("import numba\n")
+    (tmp_path / "plain.py").write_text("x = 1\n")
+    first = warmup.kernel_sources_hash(tmp_path)
+    (tmp_path / "plain.py").write_text("x = 2\n")
+    assert warmup.kernel_sources_hash(tmp_path) == first
+    (tmp_path / "k.py").write_text("import numba  # edited\n")
+    assert warmup.kernel_sources_hash(tmp_path) != first
+
+
+def test_if_changed_compiles_only_what_the_stamp_lacks(tmp_path, monkeypatch, capsys):
+    ran = []
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(warmup, "PARTS", {n: (lambda n=n: ran.append(n)) for n in "abc"})
+    monkeypatch.setattr(warmup, "DEFAULT_GROUPS", (("a", "b"),))
+    digest = ["one"]
+    monkeypatch.setattr(warmup, "kernel_sources_hash", lambda root=None: digest[0])
+    assert warmup.main(["--if-changed"]) == 0 and ran == ["a", "b"]
+    assert warmup.main(["--if-changed"]) == 0 and ran == ["a", "b"]
+    assert "up to date" in capsys.readouterr().out
+    assert warmup.main(["--if-changed", "c"]) == 0 and ran == ["a", "b", "c"]
+    assert warmup.main(["--if-changed", "a", "c"]) == 0 and ran == ["a", "b", "c"]
+    digest[0] = "two"  # a kernel source changed: everything again
+    assert warmup.main(["--if-changed"]) == 0 and ran == ["a", "b", "c", "a", "b"]
+    assert warmup.main(["nope"]) == 2
