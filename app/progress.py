@@ -1,21 +1,75 @@
-"""A progress bar on the terminal as the ``progress(done, total)`` callback core takes.
+"""Progress on a terminal as the ``progress(done, total)`` callback core takes.
 
 Every long core call takes ``progress(done, total)``; the commands show it as
-a tqdm bar that goes away when the work ends (``leave=False``).
+a tqdm bar that goes away when the work ends (``leave=False``). Where the
+bar's stream is not a terminal (a log, a pipe) no bar is drawn: each stage
+writes one line as it ends (``render: 2.4 s``), so a log holds no carriage
+returns.
 """
 
 from __future__ import annotations
 
+import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from tqdm import tqdm
 
 
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False
+
+
+class StageBar(tqdm):
+    """A tqdm bar on a terminal; elsewhere one line per stage (each description) as it ends.
+
+    A stage that ends by an exception writes no line (the command's error line
+    says what happened).
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        self._stream = kwargs.get("file") or sys.stderr
+        self._log = not _is_terminal(self._stream)
+        if self._log:
+            kwargs["disable"] = True
+        kwargs.setdefault("leave", False)
+        super().__init__(*args, **kwargs)
+        self._stage: str = kwargs.get("desc") or ""
+        self._t0 = time.perf_counter()
+        self._ended = False
+
+    def _end_stage(self) -> None:
+        if self._log and self._stage:
+            print(f"{self._stage}: {time.perf_counter() - self._t0:.1f} s", file=self._stream,
+                  flush=True)
+
+    def set_description(self, desc: str | None = None, refresh: bool = True) -> None:
+        if self._log and desc != self._stage:
+            self._end_stage()
+            self._stage, self._t0 = desc or "", time.perf_counter()
+        super().set_description(desc, refresh)
+
+    def __exit__(self, exc_type, exc_value, traceback):
+        if exc_type is not None:
+            self._ended = True
+        return super().__exit__(exc_type, exc_value, traceback)
+
+    def close(self) -> None:
+        if not self._ended:
+            self._ended = True
+            self._end_stage()
+        super().close()
+
+
 @contextmanager
 def progress_bar(desc: str, total: int | None = 1, **options
                  ) -> Iterator[Callable[[int, int], None]]:
-    """A tqdm bar shown while the ``with`` block runs, as a ``progress(done, total)`` callback.
+    """A :class:`StageBar` shown while the ``with`` block runs, as a ``progress(done, total)``
+    callback.
 
     Parameters
     ----------
@@ -26,7 +80,7 @@ def progress_bar(desc: str, total: int | None = 1, **options
     **options
         Further tqdm options (``unit``, ``disable``).
     """
-    with tqdm(total=total, desc=desc, leave=False, **options) as bar:
+    with StageBar(total=total, desc=desc, **options) as bar:
 
         def progress(done: int, total: int) -> None:
             bar.total = total
