@@ -23,19 +23,10 @@ MIN_CLEARANCE = 0.5
 
 @dataclass(frozen=True)
 class FlightControls:
-    """How fast a flight answers its input.
-
-    Attributes
-    ----------
-    speed : float
-        Horizontal speed in camera heights per second (doubled by ``fast``).
-    climb : float
-        Vertical speed as a factor of the height per second (exponential:
-        the same time per doubling at any height).
-    turn : float
-        Degrees per second of yaw and pitch from the arrow keys.
-    look : float
-        Degrees per pixel of mouse drag.
+    """How fast a flight answers its input: ``speed`` in camera heights per second (four
+    times with ``fast``), ``climb`` as a factor of the height per second (the same time per
+    doubling at any height), ``turn`` degrees per second from the arrow keys, ``look``
+    degrees per pixel of mouse drag.
     """
 
     speed: float = 1.0
@@ -46,16 +37,9 @@ class FlightControls:
 
 @dataclass(frozen=True)
 class FlightInput:
-    """What is held down during a time step: each axis in -1..1.
-
-    Attributes
-    ----------
-    forward, right, up : float
-        Move along the heading, across it, and vertically.
-    yaw, pitch : float
-        Turn right and pitch down (arrow keys).
-    fast : bool
-        Move four times faster.
+    """What is held down during a time step, each axis in -1..1: ``forward``, ``right``, ``up``
+    (along the heading, across, vertically), ``yaw``, ``pitch`` (turn right, pitch down);
+    ``fast`` moves four times faster.
     """
 
     forward: float = 0.0
@@ -73,17 +57,9 @@ class FlightInput:
 
 @dataclass(frozen=True)
 class Flight:
-    """A fly-over camera: position, height above the plane, heading, pitch, field of view.
-
-    Parameters
-    ----------
-    x, y : float
-        Position over the plane in texels.
-    height : float
-        Height above the ground plane in texels (> 0).
-    yaw, pitch, fov : float
-        Degrees, as :class:`core.perspective.Camera`; pitch is kept in
-        ``[MIN_PITCH, MAX_PITCH]``.
+    """A fly-over camera: ``x, y`` over the plane and ``height`` above it (> 0) in texels,
+    ``yaw``, ``pitch`` (kept in ``[MIN_PITCH, MAX_PITCH]``) and ``fov`` in degrees, as
+    :class:`core.perspective.Camera`.
     """
 
     x: float

@@ -1,20 +1,11 @@
 """Lookup in the prefiltered family, per pixel (Kovalev & Tarasov, eqs. 2-9).
 
-:func:`coverage_kernel` (the default): eqs. 3-4 choose the tilted axis and
-the skew; the copy is chosen so the pixel spans ``cells_along`` to twice that
-many cells along its long side and one to two across, and the pixel's own
-parallelogram is summed over them with exact shares
-(:func:`core.perspective.coverage.cover_cells`); footprints under a few
-texels are integrated over the texture itself
-(:func:`core.perspective.coverage.quadrature_texels`).
-
-:func:`seed_kernel`: the seed as published: the three copies around
-``(log2 H, log2 L)`` read with the skew-corrected bilinear interpolation of
-eqs. 6-9 and blended by the mantissas of ``H`` and ``L`` (eq. 5).
-
-Both take per-pixel arrays (length ``P``) in texels of the power-of-two grid
-the family was built on, write ``out : (P, C) float32`` in stored units and
-return the texels read per pixel.
+:func:`coverage_kernel` (the default): eqs. 3-4 choose the tilted axis and skew, the
+copy is the one where the pixel spans ``cells_along`` to twice that many cells along and
+one to two across, and the pixel's parallelogram is summed over them
+(:func:`.coverage.cover_cells`; small footprints: :func:`.coverage.quadrature_texels`).
+:func:`seed_kernel`: the seed as published, eqs. 5-9. Both take (P,) per-pixel arrays in
+texels of the family's grid, write ``out`` (P, C) float32 and return the reads per pixel.
 """
 
 from __future__ import annotations
