@@ -194,6 +194,7 @@ def _readers() -> dict:
     from terratheme.core.classify.shipped import load_model, shipped_models
     from terratheme.core.classify.training_cache import cached_samples
     from terratheme.core.errors import TerrathemeError
+    from terratheme.core.exchange.maps_to_grid import grid_from_maps
     from terratheme.core.io.disk_cache import DiskCache
     from terratheme.core.io.georef import read_georeference
     from terratheme.core.io.images import Bands, image_info, read_image, read_labels, read_region
@@ -223,6 +224,10 @@ def _readers() -> dict:
         if packed.width * packed.height <= MAX_UNPACKED_TEXELS:
             for _ in packed.bands():
                 pass
+
+    def engine_map(kind: str, n_themes: int, copies: int = 1):
+        # new --from KIND: headers, then every band; a second copy compares their headers.
+        return lambda path: grid_from_maps([str(path)] * copies, kind, n_themes, 1)
 
     def cache(path):
         # A hostile cache entry is a miss (computed again), or whole finite samples.
@@ -254,7 +259,9 @@ def _readers() -> dict:
 
     return {"project": load_project, "model": model, "image": image, "labels": read_labels,
             "georef": read_georeference, "photo": as_photo, "layer": layer, "cache": cache,
-            "index": index, "allocate": allocate, "spin": spin, "crash": crash}
+            "index": index, "allocate": allocate, "spin": spin, "crash": crash,
+            "splatmap": engine_map("splatmap", 4), "weights": engine_map("weights", 2, 2),
+            "control": engine_map("terrain3d", 32)}
 
 
 def _warm_up(readers: dict) -> None:
@@ -265,6 +272,7 @@ def _warm_up(readers: dict) -> None:
     from terratheme.core.classify import SupervisedOptions
     from terratheme.core.classify.extra_trees import ExtraTreesForest
     from terratheme.core.classify.model_file import ModelParts, write_model
+    from terratheme.core.exchange.terrain3d import write_control_map
     from terratheme.core.io.disk_cache import DiskCache
     from terratheme.core.io.images import write_image
     from terratheme.core.model.grid import IndexGrid
@@ -296,6 +304,11 @@ def _warm_up(readers: dict) -> None:
             readers["georef"](d / f"i{suffix}")
         write_image(d / "l.png", mask, palette=np.zeros((3, 3), np.uint8) + [[0], [1], [2]])
         readers["labels"](d / "l.png")
+        write_image(d / "s.png", np.zeros((5, 5, 4), np.uint8))
+        readers["splatmap"](d / "s.png")
+        readers["weights"](d / "l.png")
+        write_control_map(d / "c.exr", np.zeros((5, 5), np.uint32))
+        readers["control"](d / "c.exr")
         # Every payload kind and the tiled container load their own kernels.
         for i, (fmt, tile_bits) in enumerate([("seed", None), ("streams", None),
                                               ("plane", None), ("compact", 6)]):
