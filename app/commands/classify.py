@@ -157,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     import numpy as np
     from terratheme.app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from terratheme.app.progress import StageBar
     from terratheme.core.classify import (
         SupervisedOptions,
         classify_unsupervised,
@@ -168,7 +169,6 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.io.images import Bands, image_info, read_image, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
-    from tqdm import tqdm
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -223,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, desc="classify", unit="tile", leave=False))
+            bars.append(StageBar(total=total, desc="classify", unit="tile"))
         bars[0].n = done
         bars[0].refresh()
 
