@@ -110,10 +110,6 @@ class Pipeline:
         fbo.use()
         return fbo
 
-    def colour_target(self) -> int:
-        """The GL name of the framebuffer's colour renderbuffer (the image copies' target)."""
-        return self._fbo.color_attachments[0].glo
-
     def read(self, image: np.ndarray, tx: int, ty: int, tw: int, th: int) -> None:
         """Copy the framebuffer's first ``tw x th`` pixels into ``image[ty:, tx:]`` (RGB)."""
         if self._scratch.shape[0] < th or self._scratch.shape[1] != tw:
