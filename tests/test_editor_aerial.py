@@ -6,12 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-pytest.importorskip("PySide6")
-
-from terratheme.app.editor.classify_job import Mode, run_classification
 from terratheme.core.classify import shipped_models
 from terratheme.core.convert.labels_to_grid import labels_to_grid
+from terratheme.core.edit.classification import ClassifyMode as Mode
+from terratheme.core.edit.classification import run_classification
 from terratheme.core.io.images import read_image
 from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
@@ -26,7 +24,7 @@ def test_aerial_mode_appends_themes_named_after_the_models_classes():
     library = ThemeLibrary([flat_theme("land", (200, 190, 170))])  # a name already taken
     cell = (16, 16)
     shape = labels_to_grid(np.zeros(photo.shape[:2], np.uint8), cell).indices.shape
-    result = run_classification(Mode.AERIAL, photo, None, library, cell, shape, None)
+    result, _ = run_classification(Mode.AERIAL, photo, None, library, cell, shape, None)
     legend = set(shipped_models()["aerial"].class_names.values())
     names = [t.name for t in result.new_themes]
     assert names and all(n.rstrip("'") in legend for n in names)
@@ -54,5 +52,5 @@ def test_the_editors_grid_has_no_lone_specks_as_convert_does():
     library = ThemeLibrary([flat_theme("land", (200, 190, 170))])
     cell = (16, 16)
     shape = labels_to_grid(np.zeros(photo.shape[:2], np.uint8), cell).indices.shape
-    result = run_classification(Mode.AERIAL, photo, None, library, cell, shape, None)
+    result, _ = run_classification(Mode.AERIAL, photo, None, library, cell, shape, None)
     assert _lone_vertices(result.indices) == 0

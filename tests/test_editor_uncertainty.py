@@ -34,15 +34,15 @@ def test_scribble_run_uses_and_reports_the_class_weights(doc):
     sc = np.zeros((64, 96), np.uint8)
     sc[30:33, 10:30], sc[30:33, 60:80] = 1, 2
     lib, cell = doc.texture.library, (8, 8)
-    kept = run_classification(Mode.SCRIBBLES, photo, sc, lib, cell, (9, 13), None,
+    kept, _ = run_classification(Mode.SCRIBBLES, photo, sc, lib, cell, (9, 13), None,
                               class_weights={1: 0.25, 2: 1.0})
     assert kept.class_weights == {1: 0.25, 2: 1.0} and kept.scribble_classes == {1, 2}
     assert kept.confidence.shape == (64, 96) and kept.confidence.dtype == np.float32
     assert (kept.indices[:, :5] == 0).all() and (kept.indices[:, 8:] == 1).all()
-    fresh = run_classification(Mode.SCRIBBLES, photo, sc, lib, cell, (9, 13), None)
+    fresh, _ = run_classification(Mode.SCRIBBLES, photo, sc, lib, cell, (9, 13), None)
     assert set(fresh.class_weights) == {1, 2} and fresh.class_weights != kept.class_weights
-    unsup = run_classification(Mode.UNSUPERVISED_MAP, photo, None, lib, cell, (9, 13), None)
-    assert unsup.class_weights is None and unsup.scribble_classes == frozenset()
+    unsup, _ = run_classification(Mode.UNSUPERVISED_MAP, photo, None, lib, cell, (9, 13), None)
+    assert unsup.class_weights is None and unsup.scribble_classes is None
     assert unsup.confidence.shape == (64, 96)
 
 
@@ -66,7 +66,7 @@ def test_scribble_run_passes_the_position_option(monkeypatch, doc):
     sc[30:33, 10:30], sc[30:33, 60:80] = 1, 2
     lib = doc.texture.library
     for position in (False, True):
-        out = run_classification(Mode.SCRIBBLES, photo, sc, lib, (8, 8), (9, 13), None,
+        out, _ = run_classification(Mode.SCRIBBLES, photo, sc, lib, (8, 8), (9, 13), None,
                                  position=position)
         assert (out.indices[:, :5] == 0).all() and (out.indices[:, 8:] == 1).all()
     assert seen == [False, True]

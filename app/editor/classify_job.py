@@ -34,7 +34,7 @@ class Cancelled(Exception):
 class ClassifyJob(QThread):
     """Runs :func:`run_classification` on its own thread.
 
-    Signals: ``progressed(done, total)``, ``succeeded(ClassifyResult)``,
+    Signals: ``progressed(done, total)``, ``succeeded((ClassificationUpdate, n_classes))``,
     ``failed(str)``; after :meth:`cancel` none but ``finished`` is emitted.
     """
 

@@ -48,7 +48,6 @@ from terratheme.core.edit import (
     UNCERTAIN_SHARE,
     ClassificationUpdate,
     ClassifyMode,
-    ClassifyResult,
     HistoryChange,
     ScribbleChange,
     uncertainty_rgba,
@@ -586,31 +585,26 @@ class MainWindow(QMainWindow):
         self.progress.setRange(0, max(total, 1))
         self.progress.setValue(done)
 
-    def _job_done(self, job: ClassifyJob, result: ClassifyResult) -> None:
+    def _job_done(self, job: ClassifyJob, result: tuple[ClassificationUpdate, int]) -> None:
         """Apply a classification result as one undo step of the core document."""
         if job is not self.job or job.cancelled:
             return
         doc = self.doc
         model = doc.model
-        fresh = job.replace_themes
-        indices = result.indices
-        unchanged = not result.new_themes and np.array_equal(indices, doc.texture.grid.indices)
-        scribble_run = job.args[0] is ClassifyMode.SCRIBBLES
+        update, n_classes = result
+        unchanged = not update.new_themes and np.array_equal(update.indices,
+                                                             doc.texture.grid.indices)
         try:
-            model.apply_classification(ClassificationUpdate(
-                indices, new_themes=result.new_themes, replace_themes=fresh,
-                confidence=result.confidence,
-                scribble_classes=result.scribble_classes if scribble_run else None,
-                class_weights=result.class_weights))
+            model.apply_classification(update)
         except TerrathemeError as exc:
             self.show_error(f"Classification result not applied:\n{exc}")
             return
-        doc.fresh_from_photo = doc.fresh_from_photo and not fresh
+        doc.fresh_from_photo = doc.fresh_from_photo and not update.replace_themes
         if unchanged:
             # A rerun: say so (only the confidence map and prior were replaced).
             self.statusBar().showMessage("classified: the grid is unchanged", 6000)
         else:
-            self.statusBar().showMessage(f"classified into {result.n_classes} classes", 6000)
+            self.statusBar().showMessage(f"classified into {n_classes} classes", 6000)
 
     def _job_finished(self, job: ClassifyJob) -> None:
         if job is not self.job:

@@ -10,7 +10,6 @@ from terratheme.core.edit.changes import Change
 from terratheme.core.edit.classification import (
     ClassificationUpdate,
     ClassifyMode,
-    ClassifyResult,
     classification_changes,
     run_classification,
 )
@@ -61,7 +60,6 @@ __all__ = [
     "Change",
     "ClassificationUpdate",
     "ClassifyMode",
-    "ClassifyResult",
     "ConfidenceChange",
     "Connectivity",
     "DocumentEvents",

@@ -9,7 +9,7 @@ result against the document and lists its undoable changes in the order they app
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
@@ -108,31 +108,6 @@ class ClassifyMode(Enum):
     AERIAL = "Shipped aerial model (building, land, road, vegetation, water)"
 
 
-@dataclass
-class ClassifyResult:
-    """What the job hands back: the new grid indices and themes to append first.
-
-    Attributes
-    ----------
-    indices : (gh, gw) vertex index grid
-    new_themes : themes to append before applying ``indices``
-    n_classes : classes the classifier knows
-    confidence : (H, W) float32 ndarray, the photo's size, or None
-        The winning class's vote share / posterior per photo pixel.
-    class_weights : {class value: weight} or None
-        Scribble runs: the model's class-prior weights (None without a correction).
-    scribble_classes : frozenset of int
-        Scribble runs: the class values painted in the scribbles trained on.
-    """
-
-    indices: np.ndarray
-    new_themes: list[Theme]
-    n_classes: int
-    confidence: np.ndarray | None = None
-    class_weights: dict[int, float] | None = None
-    scribble_classes: frozenset[int] = field(default_factory=frozenset)
-
-
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
                  taken: list[str], names: Mapping[int, str] | None = None
                  ) -> tuple[list[Theme], np.ndarray]:
@@ -159,8 +134,12 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
 def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndarray | None,
                        library: ThemeLibrary, cell: tuple[int, int], grid_shape: tuple[int, int],
                        progress, class_weights: Mapping[int, float] | None = None,
-                       position: bool = False, replace_themes: bool = False) -> ClassifyResult:
-    """Classify ``photo`` and convert the labels to a ``grid_shape`` vertex grid.
+                       position: bool = False, replace_themes: bool = False
+                       ) -> tuple[ClassificationUpdate, int]:
+    """Classify ``photo``, convert the labels to a ``grid_shape`` vertex grid.
+
+    Returns the update to apply (:meth:`EditDocument.apply_classification`)
+    and the number of classes found.
 
     ``class_weights`` (scribbles only): prior weights kept from an earlier run,
     passed to ``train_classifier``. ``position`` (scribbles only): the forest
@@ -190,14 +169,14 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         new_themes: list[Theme] = []
     elif mode is ClassifyMode.AERIAL:
         # The shipped classifier: new themes cut from the photo, named by its classes.
-        weights, painted = None, frozenset()
+        weights, painted = None, None
         model = load_model("aerial")
         result, _ = classify_photo(photo, model=model, progress=progress)
         new_themes, lut = class_themes(photo, result.labels, result.classes, taken,
                                        names=model.class_names)
         lut = lut + offset
     else:
-        weights, painted = None, frozenset()
+        weights, painted = None, None
         result, _ = classify_photo(photo, progress=progress)
         labels, classes = result.labels, result.classes
         if mode is ClassifyMode.UNSUPERVISED_MAP:
@@ -213,5 +192,6 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         raise TerrathemeError(
             f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
             f"with cell {cell}; the project grid is {grid_shape}")
-    return ClassifyResult(grid.indices, new_themes, len(result.classes),
-                          np.asarray(result.confidence, np.float32), weights, painted)
+    update = ClassificationUpdate(grid.indices, new_themes, replace_themes,
+                                  np.asarray(result.confidence, np.float32), painted, weights)
+    return update, len(result.classes)
