@@ -1,27 +1,15 @@
-"""ZIP archives of JSON and numpy ``.npy`` members, read with work bounded by the file.
+"""ZIP archives of JSON and ``.npy`` members (projects, classifiers), read with work
+bounded by the file: each member is checked before it is read.
 
-The project file (:mod:`core.model.project`) and the classifier file
-(:mod:`core.classify.model_file`) are ZIP archives. A hostile archive can
-declare members far larger than its bytes could hold, inflate a small file
-to gigabytes, hide an ``.npy`` header claiming 2^62 bytes, nest JSON deeper
-than the interpreter's stack, or use encryption and compression methods
-terratheme never writes. Every member is therefore checked *before* it is
-read:
+* stored and deflated members only (no encryption, bzip2, lzma);
+* the declared size is under the caller's ceiling and one the compressed bytes can
+  hold (deflate expands at most :data:`MAX_DEFLATE_RATIO` times, RFC 1951);
+  decompression stops there and the CRC-32 is checked;
+* an ``.npy`` header names an allowed plain dtype whose shape x item size equals the
+  bytes after it, before the array is allocated;
+* JSON: no ``NaN``/``Infinity``, no key twice, nesting at most :data:`MAX_JSON_DEPTH`.
 
-* only stored and deflated members are read (no encryption, no bzip2/lzma);
-* the declared size is below the caller's ceiling and consistent with the
-  compressed bytes present (stored: equal; deflate: at most
-  :data:`MAX_DEFLATE_RATIO` times, deflate's own limit, RFC 1951 / zlib
-  technical details), and decompression stops at the declared size;
-* an ``.npy`` member's header (``numpy.lib.format``) must name an allowed
-  plain dtype, and shape x item size must equal the bytes that follow the
-  header, before the array is allocated; the bytes then go straight into it;
-* JSON rejects ``NaN``/``Infinity`` and nesting deeper than :data:`MAX_JSON_DEPTH`.
-
-So reading costs at most about ``MAX_DEFLATE_RATIO`` bytes of memory per
-byte of file (a 256 KiB file cannot cost more than 256 MiB) and never more
-than the ceilings. Every failure is a :class:`~core.errors.CorruptFileError`
-naming the file and the member; the CRC-32 of every member is checked.
+Every failure is one :class:`~core.errors.CorruptFileError` naming file and member.
 """
 
 from __future__ import annotations
@@ -60,25 +48,10 @@ def open_archive(source: str | os.PathLike | bytes, label: str, *, kind: str,
                  max_members: int) -> zipfile.ZipFile:
     """Open a ZIP archive (a file, or bytes of one) after checking its directory.
 
-    Parameters
-    ----------
-    source : path-like or bytes
-    label : str
-        How messages name the archive (its path, or ``"path: member"``).
-    kind : str
-        What the archive should be, for messages ("terratheme project").
-    max_members : int
-        Most entries a genuine archive has.
-
-    Returns
-    -------
-    zipfile.ZipFile
-        Close it (``with``) when done.
-
-    Raises
-    ------
-    CorruptFileError
-        Not a ZIP, a damaged directory, too many entries, duplicate names.
+    ``label`` names the archive in messages, ``kind`` says what it should be ("terratheme
+    project"), ``max_members`` is the most entries a genuine one has. The caller closes
+    the ZipFile. Raises CorruptFileError for a damaged directory, too many entries or a
+    name twice.
     """
     if not isinstance(source, bytes):
         check_input_file(source, f"a {kind}")
@@ -166,14 +139,7 @@ def _opened(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str, member: str
 
 
 def read_member(zf: zipfile.ZipFile, member: str, label: str, *, max_bytes: int) -> bytes:
-    """The bytes of one member, at most ``max_bytes`` of them, CRC checked.
-
-    Raises
-    ------
-    CorruptFileError
-        Missing, encrypted, unknown compression, over the ceiling, a declared
-        size the compressed bytes cannot hold, truncated, CRC mismatch.
-    """
+    """The bytes of one member, at most ``max_bytes``, checked as the module says."""
     info = _checked_info(zf, member, label, max_bytes)
     out = bytearray(info.file_size)
     with _opened(zf, info, label, member) as fh:
@@ -203,27 +169,10 @@ def read_npy_member(zf: zipfile.ZipFile, member: str, label: str, *, max_bytes: 
                     ndims: Collection[int]) -> np.ndarray:
     """One ``.npy`` member as an array, checked before anything is allocated.
 
-    Parameters
-    ----------
-    zf, member, label
-        As :func:`read_member`.
-    max_bytes : int
-        Ceiling on the array's bytes.
-    dtypes : collection of dtypes
-        Allowed element types (either byte order; the result is native).
-    ndims : collection of int
-        Allowed numbers of dimensions.
-
-    Returns
-    -------
-    array : ndarray of one of ``dtypes``, native byte order, C-contiguous
-
-    Raises
-    ------
-    CorruptFileError
-        Everything :func:`read_member` raises, plus: not an ``.npy``, an
-        unknown ``.npy`` version, a dtype or dimension count not allowed,
-        a shape whose bytes differ from the bytes after the header.
+    ``max_bytes`` bounds the array's bytes; ``dtypes`` (either byte order) and ``ndims``
+    are the allowed element types and dimension counts. Returns a native-order,
+    C-contiguous array; raises CorruptFileError as :func:`read_member`, or for a bad
+    ``.npy`` header, dtype, dimension count or byte count.
     """
     info = _checked_info(zf, member, label, max_bytes + MAX_NPY_HEADER + 128)
     allowed = {np.dtype(d).newbyteorder("=") for d in dtypes}
@@ -286,14 +235,9 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
 
 
 def read_bounded(path: str | os.PathLike, limit: int, label: str) -> bytes:
-    """The bytes of a small file (a legend, an index, a metadata file), at most ``limit``.
+    """The bytes of a small file (legend, index, metadata), reading ``limit + 1`` at most.
 
-    Reads ``limit + 1`` bytes at the most, so a huge file costs no more than a small one.
-
-    Raises
-    ------
-    CorruptFileError
-        ``"{label}: larger than {limit} bytes"``, or a file that cannot be read.
+    Raises CorruptFileError if it is larger than ``limit`` or cannot be read.
     """
     try:
         with open(path, "rb") as fh:
@@ -306,21 +250,9 @@ def read_bounded(path: str | os.PathLike, limit: int, label: str) -> bytes:
 
 
 def parse_json(data: bytes, label: str) -> object:
-    """JSON bytes parsed as every reader wants them: UTF-8, finite numbers only, each
-    key once per object (not silently the last), nesting at most :data:`MAX_JSON_DEPTH`.
-
-    Parameters
-    ----------
-    data : bytes
-        The JSON text (the caller bounds its size).
-    label : str
-        How the message names the file (``"path"`` or ``"path: member"``).
-
-    Raises
-    ------
-    CorruptFileError
-        Not UTF-8 JSON, ``NaN`` or ``Infinity``, a key twice in an object, too deep; one
-        line naming ``label``.
+    """UTF-8 JSON ``data`` (size bounded by the caller) parsed with finite numbers only,
+    each key once per object and nesting at most :data:`MAX_JSON_DEPTH`; anything else
+    is a CorruptFileError naming ``label`` (``"path"`` or ``"path: member"``).
     """
     try:
         value = json.loads(data.decode("utf-8"), parse_constant=_no_constant,
@@ -336,13 +268,6 @@ def parse_json(data: bytes, label: str) -> object:
 
 def read_json_member(zf: zipfile.ZipFile, member: str, label: str, *,
                      max_bytes: int) -> object:
-    """One JSON member, parsed by :func:`parse_json`.
-
-    Raises
-    ------
-    CorruptFileError
-        Everything :func:`read_member` raises, plus: not UTF-8 JSON, ``NaN``
-        or ``Infinity``, too deep.
-    """
+    """One member (:func:`read_member`) parsed by :func:`parse_json`."""
     data = read_member(zf, member, label, max_bytes=max_bytes)
     return parse_json(data, _where(label, member))

@@ -1,24 +1,10 @@
 """One bounded disk cache: arrays by key, every entry checked as hostile input.
 
-A folder holds one file per entry, ``<key>.<kind>``: the key is a hex SHA-256
-of everything the entry depends on (made by the caller), the kind names what
-it holds (``samples``, ``model``, ``family``). A file holds numbers and text
-only, never a pickle: ``MAGIC``, the JSON header's length and the header (the
-key, the kind, each array's name, type and shape), the arrays' bytes, then the
-SHA-256 of all that.
-
-An entry is read only if it is a regular file of this user (opened without
-following a symlink and without blocking: a FIFO or a link is a miss), its
-size is exactly what its header says (checked before anything is allocated),
-its key and kind are those asked for and its digest matches. A regular entry
-that fails, or whose arrays the caller refuses, is removed: a miss, computed
-again. The caller checks the arrays against what the key stands for.
-
-Writes go to a hidden temporary in the folder, renamed into place. After each
-write the least recently used entries (modification time; a hit refreshes it)
-are removed until the folder's entries fit ``max_bytes``; nothing but entries
-(and this module's temporaries left by killed runs) is counted or removed.
-Processes may share a folder: an entry another one removes meanwhile is a miss.
+One file ``<key>.<kind>`` per entry (layout and rules: docs/formats.md, "Disk caches"):
+no pickles; an entry is read only if it is a regular file of this user whose size,
+key, kind and SHA-256 match, else it is a miss (a damaged one is removed). Writes are
+renamed into place, then least recently used entries go until the folder fits
+``max_bytes``. Processes may share a folder.
 """
 
 from __future__ import annotations

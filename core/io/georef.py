@@ -1,28 +1,11 @@
 """GeoTIFF georeference: read it from a photo, write it back onto outputs.
 
-The OpenImageIO 3.2 wheel used here reads and writes pixels of GeoTIFF files
-but exposes none of their georeference tags (measured on
-``data/geotiff/DRCOG_2020_*.tif``: its spec lists only ``tiff:Compression``,
-``tiff:PhotometricInterpretation``, ...; attributes named ``geotiff:*`` given
-to an ImageOutput are silently dropped). So:
-
-* reading: attributes OpenImageIO does expose under ``GeoTIFF:``/``geotiff:``
-  names are kept, and the GeoTIFF tags themselves are read with ``tifffile``
-  (a scikit-image dependency; metadata only, pixels still come through
-  OpenImageIO);
-* writing: the image is written by OpenImageIO (``core.io.images`` or a tiled
-  writer) and the tags are then added by appending a new first IFD that
-  holds every original entry plus the GeoTIFF ones (the TIFF 6.0 way to
-  extend a directory without moving pixel data). Classic TIFF and BigTIFF.
-* non-TIFF outputs (PNG previews) get an ESRI world file (``.pgw``) beside
-  them, computed from the pixel scale and tie point.
-
-The georeference is a plain JSON-ready ``dict`` (tag name -> list / str), so
-it travels in a project's ``metadata["georeference"]``. It comes from files
-(a photo's tags, a project's manifest), so :func:`validate_georeference`
-checks every known tag's type, length and finiteness (at most
-:data:`MAX_TAG_VALUES` numbers, :data:`MAX_TAG_TEXT` characters) when it is
-read and before it is used or written.
+OpenImageIO's wheel exposes no GeoTIFF tags and drops them on write (design.md §9), so
+they are read with ``tifffile`` and added to a written TIFF as a new first directory
+(old entries plus GeoTIFF ones; pixel data never moves). Other outputs get an ESRI
+world file. The georeference is a JSON-ready dict (tag name -> list / str) that travels
+in a project's ``metadata["georeference"]``; :func:`validate_georeference` checks it
+wherever it is read or used.
 """
 
 from __future__ import annotations
@@ -67,25 +50,10 @@ _PIXEL_IS_POINT_KEY = 1025
 
 
 def validate_georeference(georef: object) -> dict:
-    """Check a georeference dict: every GeoTIFF tag it names has values of the right kind.
+    """Return ``georef`` after checking each GeoTIFF tag it names (others pass unchecked).
 
-    Parameters
-    ----------
-    georef : dict
-        Tag name -> value, as :func:`read_georeference` returns it. Numeric
-        tags: lists of finite numbers of the tag's length (ModelPixelScale 2-3,
-        ModelTiepoint a multiple of 6, ModelTransformation 16, GeoKeyDirectory
-        whole numbers 0..65535, a multiple of 4); text tags: Latin-1 strings.
-        Other keys (``"oiio"``, ``"crs"``, ...) pass unchecked.
-
-    Returns
-    -------
-    georef : dict, the same object
-
-    Raises
-    ------
-    TerrathemeError
-        Not a dict, or a tag with a value of the wrong type, length or range.
+    Numeric tags must be lists of finite numbers of the tag's length (:data:`_TAG_LENGTHS`;
+    GeoKeyDirectory whole numbers 0..65535), text tags Latin-1 strings; else TerrathemeError.
     """
     if not isinstance(georef, dict):
         raise TerrathemeError(f"georeference must be an object, not {type(georef).__name__}")
@@ -184,20 +152,9 @@ def _read_geo_tags(path: Path) -> dict:
 
 def scale_georeference(georef: dict, sx: float, sy: float, *,
                        offset: tuple[float, float] = (0.0, 0.0)) -> dict:
-    """The georeference of a window of an image, resampled so one new pixel covers ``sx x sy``.
-
-    Parameters
-    ----------
-    georef : dict
-        As :func:`read_georeference` returns it.
-    sx, sy : float
-        Old pixels per new pixel along x and y.
-    offset : (x, y)
-        Old pixel where the new raster's corner lies (a region's origin).
-
-    The tie point is kept on the raster's corner (pixel-is-area), so apart
-    from the offset only the pixel scale (or the affine transformation's
-    linear part) changes.
+    """The georeference of a window of an image whose corner is old pixel ``offset`` (x, y),
+    resampled so one new pixel covers ``sx x sy`` old ones. The tie point stays on the
+    raster's corner (pixel-is-area).
     """
     out = dict(validate_georeference(georef))
     ox, oy = float(offset[0]), float(offset[1])
@@ -290,10 +247,8 @@ def world_file_lines(georef: dict) -> list[float] | None:
 def add_tiff_tags(path: str | os.PathLike, georef: dict) -> None:
     """Add the GeoTIFF tags of ``georef`` to the first directory of a TIFF file, in place.
 
-    A new directory (old entries + GeoTIFF entries, sorted by tag) is appended
-    at the end of the file, then the header is pointed at it (the last write,
-    8 bytes at most: an interrupted call leaves the old directory in force).
-    Pixel data never moves and is never read, so any file size works.
+    The new directory goes after the file's end; pointing the header at it is the last
+    write (8 bytes at most), so an interrupted call leaves the old directory in force.
     """
     p = Path(path)
     with open(p, "r+b") as fh:

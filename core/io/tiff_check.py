@@ -1,11 +1,8 @@
 """A TIFF's strip or tile table checked against its declared size, before OpenImageIO reads it.
 
-libtiff reads a TIFF whose header declares more rows than its strip table
-covers (a damaged ``ImageLength``, a truncated ``StripOffsets``) without an
-error: the missing strips come back as zeros or as whatever bytes follow in
-the file. :func:`check_tiff_chunks` reads the first image's tags with
-tifffile (its warnings silenced: they would be extra lines on stderr) and
-refuses such a file with one line.
+libtiff reads a TIFF whose header declares more rows than its strip table covers
+without an error (the missing strips come back as zeros or stray bytes), so such a
+file is refused here, its tags read with tifffile (warnings silenced).
 """
 
 from __future__ import annotations
@@ -32,14 +29,8 @@ def _expected_chunks(page) -> int:
 def check_tiff_chunks(path: Path) -> None:
     """Refuse a TIFF whose first image lists fewer strips or tiles than its size needs.
 
-    A file tifffile cannot parse is left to OpenImageIO (which says why). The
-    answer is kept per file state (size, modification time), so the many region
-    reads of a tiled conversion parse the tags once.
-
-    Raises
-    ------
-    CorruptFileError
-        ``path: TIFF header declares W x H pixels in N strips but lists M: damaged or forged``.
+    Raises CorruptFileError. A file tifffile cannot parse is left to OpenImageIO. The
+    answer is cached by (size, mtime): a tiled conversion's many reads parse it once.
     """
     stat = path.stat()
     problem = _chunk_problem(str(path), stat.st_size, stat.st_mtime_ns)

@@ -16,25 +16,21 @@ from terratheme.core.io.images import OIIO_PIXEL_TYPES
 class TiledImageWriter:
     """Write a large image tile by tile through OpenImageIO (bounded memory).
 
-    Use as a context manager; the file appears (atomically renamed) on a
-    clean exit only. Regions passed to :meth:`write` must start on tile
-    boundaries; their width and height are multiples of the tile size except
-    at the right and bottom edges. Full-width bands of rows may have any
-    height (written in order from the top: they are gathered into strips of
-    one tile row, so memory holds one strip).
+    Use as a context manager; the file appears (renamed) on a clean exit only. Regions
+    given to :meth:`write` start on tile boundaries and span whole tiles except at the
+    right and bottom edges; full-width bands of any height, written from the top, are
+    gathered into one-tile-row strips.
 
     Parameters
     ----------
     path : path-like
         ``.tif`` / ``.tiff`` / ``.exr``.
-    width, height, channels : int
-    dtype : numpy dtype
     tile : int
-        Square tile size of the file (a multiple of 16 for TIFF).
+        Square tile size (a multiple of 16 for TIFF).
     compression : str, optional
         e.g. ``"zip"`` (default), ``"lzw"``, ``"none"``.
     bigtiff : bool
-        Write BigTIFF (needed past 4 GiB).
+        Needed past 4 GiB.
     attributes : dict, optional
         Extra ImageSpec attributes.
     """

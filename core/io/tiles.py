@@ -1,25 +1,12 @@
 """Images larger than memory: tile windows with overlap, bounded-memory tile jobs, Dask.
 
-A tile job reads one window of a file (its core plus ``overlap`` pixels on
-every side, clipped to the image) through :func:`core.io.images.read_region`,
-computes on it, and keeps the core of the result. Peak memory is set by the
-tile size and the number of tiles in flight, never by the image size
-(``benchmarks/bench_convert.py`` measures it on a 16384 x 16384 TIFF).
-
-The same jobs run serially (default, bounded by one tile), on Dask's
-threads in this process (:class:`Scheduler.DASK`: ``dask.delayed`` tasks
-computed in batches of ``batch`` tiles, so memory stays bounded there too),
-or on a dask.distributed cluster (pass its ``distributed.Client`` as the
-scheduler; :mod:`core.io.cluster`): there each worker process reads its
-tiles from the file's path, the job is sent to every worker once, so it must
-pickle (a module-level function or a dataclass holding what it needs, no
-closure over big arrays), and the result is the serial run's, bit for bit.
-:func:`dask_image` exposes a file as a lazy ``dask.array`` of
-``read_region`` blocks for users who want to write their own array pipeline.
-
-Large outputs are written tile by tile with
-:class:`core.io.tiled_writer.TiledImageWriter` (OpenImageIO tiled TIFF/EXR,
-BigTIFF when asked).
+A tile job reads one window (core plus ``overlap`` context, clipped) with
+:func:`core.io.images.read_region` and keeps the core of its result, so peak memory
+is set by the tile size and the tiles in flight, never by the image. Jobs run
+serially, on Dask threads in batches (:class:`Scheduler`), or on a dask.distributed
+cluster (pass its ``Client``; :mod:`core.io.cluster`), where the job must pickle and
+the result is the serial run's, bit for bit. Large outputs go through
+:class:`core.io.tiled_writer.TiledImageWriter`.
 """
 
 from __future__ import annotations
@@ -88,20 +75,9 @@ class TileWindow:
 def tile_windows(
     width: int, height: int, tile: int | tuple[int, int] = 1024, overlap: int = 0
 ) -> list[TileWindow]:
-    """Cover a ``width x height`` image with tiles of ``tile`` pixels and ``overlap`` context.
-
-    Parameters
-    ----------
-    width, height : int
-        Image size in pixels.
-    tile : int or (tw, th)
-        Core size of a tile; the last column/row of tiles is smaller.
-    overlap : int
-        Extra pixels read on each side (clipped at the image border).
-
-    Returns
-    -------
-    windows : list of TileWindow, row by row, left to right
+    """Cover a ``width x height`` image with tiles of ``tile`` (int or (tw, th)) pixels,
+    each read with ``overlap`` pixels of context a side (clipped); the last column and
+    row of tiles are smaller. Returns the windows row by row, left to right.
     """
     tw, th = (tile, tile) if isinstance(tile, int | np.integer) else tile
     tw, th, overlap = int(tw), int(th), int(overlap)
@@ -194,38 +170,23 @@ def run_tiles(
 
     Parameters
     ----------
-    path : path-like
-        Any image OpenImageIO reads; tiled TIFF/EXR read only the tiles a window touches.
     job : callable(TileWindow, (rh, rw, C) ndarray) -> result
-        Pure function of one tile. On a cluster it must pickle (module
-        docstring); it is sent to every worker once.
+        Pure function of one tile; on a cluster it must pickle (sent to each worker once).
     sink : callable(TileWindow, result)
-        Called in this process, in tile order, with each result (stitch it
-        into an array, write it with :class:`TiledImageWriter`, ...).
-    tile, overlap : see :func:`tile_windows`
+        Called here, in tile order (stitch into an array, write to a TiledImageWriter...).
     scheduler : Scheduler or distributed.Client
-        ``SERIAL``, ``DASK`` (threads here), or a client of the cluster to run
-        on; its workers must run this terratheme and read ``path`` (both
-        checked before any tile runs).
+        A cluster's workers must run this terratheme and read ``path`` (checked first).
     batch : int, optional
-        Tiles in flight: computed together on Dask's threads (default 4), or
-        submitted and not yet sunk on a cluster (default 2 per worker thread);
-        bounds the memory of results in flight.
+        Results in flight: Dask threads default 4, a cluster 2 per worker thread.
     windows : list of TileWindow, optional
-        Run these windows instead of the regular tiling.
+        Instead of the regular tiling (:func:`tile_windows` of ``tile``, ``overlap``).
     progress : callable(done, total), optional
-        Called with ``(0, total)`` first, then after each tile is sunk.
-    bands : Bands
-        Which channels each tile holds (``Bands.PHOTO`` for photos).
+        Called with ``(0, total)``, then after each tile is sunk.
     parts : callable(TileWindow) -> object, optional
-        The part of this process's data a tile needs (its window of a grid),
-        made here as the tile is submitted and sent with it, not to every
-        worker, so a job's payload is set by the tile, not the image; the job
-        is then called ``job(window, pixels, part)``.
+        The tile's share of this process's data (its window of a grid), sent with the
+        tile rather than to every worker; the job is then ``job(window, pixels, part)``.
 
-    Returns
-    -------
-    n_tiles : int
+    Returns the number of tiles.
     """
     info = image_info(path)
     wins = windows if windows is not None else tile_windows(info.width, info.height, tile, overlap)
@@ -280,18 +241,10 @@ def map_tiles(
 ) -> np.ndarray | TiledImageWriter:
     """Apply a per-pixel-window function tile by tile and stitch the tile cores.
 
-    Parameters
-    ----------
-    func : callable((rh, rw, C) ndarray) -> (rh, rw) or (rh, rw, C') ndarray
-        Sees each tile with its overlap; only the core of its result is kept,
-        so a filter with a support up to ``overlap`` pixels gives the same
-        result as on the whole image.
-    out : (H, W[, C']) ndarray, np.memmap or TiledImageWriter, optional
-        Where the cores go; default a new in-memory array.
-
-    Returns
-    -------
-    out : the filled array or writer
+    ``func`` maps a ``(rh, rw, C)`` tile with its overlap to ``(rh, rw[, C'])``; only the
+    core is kept, so a filter of support up to ``overlap`` matches the whole-image result.
+    Returns ``out`` (an (H, W[, C']) array, memmap or TiledImageWriter; default a new
+    array), filled.
     """
     info = image_info(path)
     state: dict = {"out": out}
