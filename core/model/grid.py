@@ -1,12 +1,7 @@
 """The index grid: theme numbers at grid vertices (Vyatkin & Romanyuk, design.md §1).
 
-A grid of ``(gh+1, gw+1)`` vertex indices with a cell of ``N x M`` texels
-(N columns, M rows) renders to a ``gw*N x gh*M`` texture. Compression grows
-with ``N*M``.
-
-Limits: a cell is at most :data:`MAX_CELL` texels along each side (16 repeats
-of a 256-texel theme; ``convert --cell auto`` tries up to 256), so a region
-render's working buffers stay a few tens of MiB per cell.
+A grid of ``(gh+1, gw+1)`` vertex indices with a cell of ``N x M`` texels (N columns,
+M rows) renders to a ``gw*N x gh*M`` texture; compression grows with ``N*M``.
 """
 
 from __future__ import annotations
@@ -17,29 +12,16 @@ import numpy as np
 from terratheme.core.errors import TerrathemeError
 
 MAX_THEMES = 256
-#: largest cell side in texels (validate_cell refuses more)
+#: largest cell side in texels: 16 repeats of a 256-texel theme, so a region render's
+#: buffers stay a few tens of MiB per cell
 MAX_CELL = 4096
 
 
 def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndarray:
-    """Check a vertex index array and return it as a C-contiguous uint8 array.
+    """``indices`` ((gh+1, gw+1) whole numbers) as a C-contiguous uint8 array.
 
-    Parameters
-    ----------
-    indices : (gh+1, gw+1) integer array-like
-        Theme number at every grid vertex.
-    n_themes : int, optional
-        Number of themes in the library; every index must be below it.
-
-    Returns
-    -------
-    indices : (gh+1, gw+1) uint8 ndarray
-
-    Raises
-    ------
-    TerrathemeError
-        Not 2-D, fewer than 2 x 2 vertices (no cell), not integers, negative,
-        above 255, or naming a theme the library lacks.
+    Raises TerrathemeError if not 2-D, under 2 x 2 vertices, not whole numbers, or out of
+    0..255 (or of ``0..n_themes-1`` when given).
     """
     arr = np.asarray(indices)
     if arr.ndim != 2:
@@ -68,22 +50,8 @@ def validate_indices(indices: object, *, n_themes: int | None = None) -> np.ndar
 
 
 def validate_cell(cell: object) -> tuple[int, int]:
-    """Check a cell size ``(N, M)``: N texel columns, M texel rows, each 1..MAX_CELL.
-
-    Parameters
-    ----------
-    cell : pair of integers
-        Whole numbers (numpy integers too); not booleans, strings or fractions.
-
-    Returns
-    -------
-    cell : (int, int)
-
-    Raises
-    ------
-    TerrathemeError
-        Not a pair of whole numbers, below 1, or above :data:`MAX_CELL`.
-    """
+    """A cell size ``(N, M)`` (texel columns, rows) as two ints; TerrathemeError unless both
+    are whole numbers (not bools) in 1..:data:`MAX_CELL`."""
     if isinstance(cell, str | bytes) or not hasattr(cell, "__len__") or len(cell) != 2:
         raise TerrathemeError(f"cell size must be two whole numbers (N, M), got {cell!r}")
     n, m = cell  # type: ignore[misc]

@@ -1,13 +1,8 @@
 """Index images: vertex grids stored as pictures, and projects made from them.
 
-An index image holds one pixel per grid **vertex** (so a ``(gh+1, gw+1)``
-image gives ``gh x gw`` cells). Two kinds are read:
-
-* **single channel** (grey, or palette saved as grey): the pixel value is the
-  theme index into the chosen theme list;
-* **colour** (3 or 4 channels): every pixel colour must be the display colour
-  of one of the chosen themes (each channel within ``COLOUR_TOLERANCE``, to
-  survive a lossy save); any other colour is an error naming it and where.
+One pixel per grid vertex: a grey value is the theme index; a colour (3 or 4 channels)
+must be a theme's display colour within ``COLOUR_TOLERANCE`` per channel (a lossy
+save survives), any other colour is an error naming it and where.
 """
 
 from __future__ import annotations
@@ -22,18 +17,9 @@ COLOUR_TOLERANCE = 12
 
 
 def indices_from_image(image: np.ndarray, library: ThemeLibrary) -> np.ndarray:
-    """Turn an index image into vertex indices for ``library``.
+    """(H, W) uint8 vertex indices of an (H, W[, C]) index image for ``library``'s themes.
 
-    Parameters
-    ----------
-    image : (H, W) or (H, W, C) uint8 ndarray
-        C = 1 (indices) or 3/4 (display colours; alpha ignored).
-    library : ThemeLibrary
-        The project's themes in index order.
-
-    Returns
-    -------
-    indices : (H, W) uint8 ndarray
+    C = 1 or 2 holds indices, 3 or 4 display colours (alpha ignored).
     """
     img = np.asarray(image)
     if img.ndim == 2:

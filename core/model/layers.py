@@ -1,13 +1,8 @@
 """The optional per-pixel layers of a project (photo, scribbles, ...), as one table.
 
-Each layer is a :class:`LayerSpec`: the attribute of
-:class:`core.model.project.ThematicTexture` and the manifest's ``"layers"``
-entry (``name``), the ``.npy`` member it is stored in, its dimensions and
-dtype, and the size rule relative to the grid or another layer.
-:func:`check_layer` applies one entry; the project's constructor, saver and
-loader loop over :data:`LAYERS`. Adding a layer is one entry here plus a
-field of the same name (default None) on ``ThematicTexture``, e.g. a
-low-resolution colour map: ``LayerSpec("colour_map", 3, np.dtype(np.uint8))``.
+The project's constructor, saver and loader loop over :data:`LAYERS`; adding a layer
+is one :class:`LayerSpec` here plus a field of that name (default None) on
+:class:`core.model.project.ThematicTexture`.
 """
 
 from __future__ import annotations
@@ -62,23 +57,10 @@ LAYER_BY_NAME = {spec.name: spec for spec in LAYERS}
 
 
 def check_layer(spec: LayerSpec, array: object, sizes: dict[str, tuple[int, int]]) -> np.ndarray:
-    """Check one layer array against its :class:`LayerSpec`.
+    """``array`` checked against ``spec`` (dimensions, channels, dtype, size), C-contiguous.
 
-    Parameters
-    ----------
-    spec : LayerSpec
-    array : ndarray
-    sizes : dict
-        ``(H, W)`` of the grid (key ``"grid"``) and of the layers checked so far.
-
-    Returns
-    -------
-    array : C-contiguous ndarray of ``spec.dtype``
-
-    Raises
-    ------
-    TerrathemeError
-        Wrong type, dimensions, channels, dtype, size, or over the pixel limit.
+    ``sizes`` holds the ``(H, W)`` of the grid (``"grid"``) and of the layers checked so
+    far; raises TerrathemeError.
     """
     if not isinstance(array, np.ndarray):
         raise TerrathemeError(f"{spec.name} layer must be a numpy array, "
