@@ -1,11 +1,7 @@
 """Exception types raised by the core library.
 
-Every error a user can cause (bad file, wrong size, unknown theme, truncated
-stream, empty image) is raised as a :class:`TerrathemeError` (a ``ValueError``)
-with a message that names the problem, so the CLI and the app can show one
-clear line instead of a traceback. An option's bad value is an
-:class:`OptionError`: it names the option by its field, which the CLI spells
-as its flag.
+Every error a user can cause is a :class:`TerrathemeError` (a ``ValueError``) whose
+message names the problem, so the CLI shows one line instead of a traceback.
 """
 
 import string
@@ -29,16 +25,9 @@ class UnsupportedVersionError(TerrathemeError):
 
 
 class OptionError(TerrathemeError):
-    """A bad option value; the message names options by their fields.
-
-    Parameters
-    ----------
-    template : str
-        The message, with each option it names as ``{field}`` (the options
-        struct's field: ``{tile}``, ``{reduce_palette}``) and no other braces.
-
-    ``str()`` spells each option as its field's name (the library's keyword);
-    :meth:`spelled` as the caller's names for them (the CLI: its flags).
+    """A bad option value. ``template`` names each option as ``{field}`` (its options
+    dataclass field, no other braces); ``str()`` spells it as the field, :meth:`spelled`
+    as the caller's name for it (the CLI: its flag).
     """
 
     def __init__(self, template: str) -> None:

@@ -1,6 +1,6 @@
 """Orthophoto classification into themes (design.md §3).
 
-Public API (stable; used by ``terratheme classify`` and ``convert``):
+Public API (used by ``terratheme classify`` and ``convert``):
 
 * :func:`classify_unsupervised` -- k-means themes, K chosen from the data;
 * :func:`fit_unsupervised` -> :class:`UnsupervisedModel` (``predict``) -- the
@@ -11,21 +11,6 @@ Public API (stable; used by ``terratheme classify`` and ``convert``):
   float32 in [0, 1];
 * :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
   classifier file or a shipped model by name (``aerial``), with class names.
-
-Modules: ``photo`` (input checks), ``lab`` (the photo in Lab, per pixel and
-per block), ``features`` (the feature stack on a downscaled photo),
-``texture`` (edge density and structure-tensor coherence), ``position``
-(where coarse pixels lie in the photo), ``tiled`` (tile-by-tile prediction with
-overlap), ``regularise`` (smoothing / edge-aware averaging),
-``unsupervised`` (K criterion), ``unsupervised_model``, ``mixture`` (the
-themes' Gaussian mixture), ``bands`` (border bands), ``supervised``,
-``extra_trees`` (the tree ensemble), ``ridges``, ``samples`` (training
-samples from masks and scribbles), ``training_cache`` (samples and fitted
-models kept by content in a :class:`~core.io.disk_cache.DiskCache`:
-``train_classifier(..., cache=...)``), ``prior`` (class-prior
-correction), ``adapt`` (test-time adaptation), ``model_file`` (the
-file), ``model_options`` (its options as checked JSON), ``shipped`` (models by
-name).
 """
 
 from terratheme.core.classify.features import FeatureOptions, FeatureSet
