@@ -54,6 +54,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: least address space (``ulimit -v``, MiB) each command starts and runs a small input in,
+#: measured on a 2-core machine (docs/decisions.md); below it native libraries end the
+#: process (SIGSEGV, std::bad_alloc) or fail to load, so the CLI says so first
+MIN_ADDRESS_SPACE_MIB = {"info": 256, "unpack": 768, "themes": 1024, "convert": 1408}
+#: for the commands not listed
+DEFAULT_ADDRESS_SPACE_MIB = 1280
+
+
+def address_space_shortfall(command: str) -> str:
+    """Why ``command`` cannot run under this process's address-space limit, or ""."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - no address-space limits (Windows)
+        return ""
+    soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    need = MIN_ADDRESS_SPACE_MIB.get(command, DEFAULT_ADDRESS_SPACE_MIB) << 20
+    if soft == resource.RLIM_INFINITY or soft >= need:
+        return ""
+    return (f"the address-space limit (ulimit -v) is {soft >> 20} MiB, below the "
+            f"{need >> 20} MiB this command needs; raise it (ulimit -v {need >> 10})")
+
+
 def _one_line(text: str) -> str:
     """A message as one line (readers' messages may quote multi-line library errors)."""
     return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
@@ -80,7 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     A problem with the input or the environment is one line on stderr and
     status 2 (no traceback): the library's own errors, operating-system
-    errors (missing folder, disk full, permissions), running out of memory.
+    errors (missing folder, disk full, permissions), running out of memory,
+    an address-space limit below what the command needs, a library that
+    cannot be loaded.
     Ctrl-C prints one line and returns 130 (128 + SIGINT, as shells expect).
     """
     parser = build_parser()
@@ -89,10 +113,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     name = f"terratheme {args.command}"
+    shortfall = address_space_shortfall(args.command)
+    if shortfall:
+        print(f"{name}: error: {shortfall}", file=sys.stderr)
+        return 2
     try:
         return int(args._run(args) or 0)
     except TerrathemeError as exc:
         print(f"{name}: error: {_one_line(_error_text(exc))}", file=sys.stderr)
+    except ImportError as exc:
+        # A library that cannot be mapped (out of memory) or is missing from the install.
+        print(f"{name}: error: cannot load {exc.name or 'a library'} "
+              f"({_one_line(str(exc))[:160]})", file=sys.stderr)
     except MemoryError:
         # Commands with a bounded-memory path say so when it was not taken.
         hint = " (--tile N works in bounded memory)" if getattr(args, "tile", 0) is None else ""

@@ -3,8 +3,10 @@
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from terratheme.app.cli import build_parser, main
+from terratheme.core.io.images import write_image
 
 EXPECTED = {"new", "render", "classify", "convert", "pack", "unpack", "info", "perspective", "app",
             "export", "themes"}
@@ -93,3 +95,43 @@ def test_argparse_errors_are_one_line(argv, message, capsys):
         main(argv)
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1 and err.startswith(message), err
+
+
+def _limited(mib: int):
+    import resource
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (mib << 20, resource.getrlimit(
+            resource.RLIMIT_AS)[1]))
+    return apply
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no address-space limit on Windows")
+def test_below_the_address_space_a_command_needs_is_one_line(tmp_path):
+    # Issue 33: under ulimit -v 300 MiB .. 1 GiB valid inputs ended in SIGSEGV, bad_alloc
+    # aborts, ImportError tracebacks or a spurious exit 130.
+    from terratheme.app.cli import MIN_ADDRESS_SPACE_MIB
+
+    index = tmp_path / "map.png"
+    write_image(index, np.zeros((4, 4, 1), np.uint8))
+    argv = ["new", str(index), str(tmp_path / "p.ttproj"), "--themes", "water"]
+    limit = MIN_ADDRESS_SPACE_MIB.get("new", 0) // 2 or 300
+    proc = subprocess.run([sys.executable, "-m", "terratheme.app.cli", *argv],
+                          capture_output=True, text=True, timeout=120,
+                          preexec_fn=_limited(limit))
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.count("\n") == 1 and "ulimit -v" in proc.stderr, proc.stderr
+    assert not (tmp_path / "p.ttproj").exists()
+
+
+def test_a_library_that_cannot_load_is_one_line(monkeypatch, capsys):
+    import terratheme.app.commands.themes
+
+    def fail(args):
+        raise ImportError("libfoo.so: failed to map segment from shared object", name="foo")
+
+    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
+    assert main(["themes"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("terratheme themes: error: cannot load foo (libfoo.so: failed to map "
+                   "segment from shared object)\n")
