@@ -1,26 +1,11 @@
 """Test-time adaptation: relearn the classes on the photo being classified.
 
-A forest trained on label masks of other photos meets a new photo whose
-classes look somewhat different (another area, date or sensor): its votes
-are right on most pixels of a class and unsure on the rest. Self-training
-(pseudo-labelling: Yarowsky 1995; Lee 2013) turns the sure part into
-training data of the photo itself:
-
-1. classify the photo's coarse pixels with the trained forest and the usual
-   regularisation (:func:`core.classify.regularise.regularise`);
-2. per predicted class, keep the ``ADAPT_SHARE`` most confident of its coarse
-   pixels (:func:`pseudo_labels`, on the strided grid of
-   :func:`core.classify.tiled.strided_core`, at most ``ADAPT_SAMPLES`` of them,
-   ``ADAPT_SAMPLES_PER_CLASS`` per class);
-3. train a small Extra-Trees forest (``ADAPT_TREES`` trees, balanced classes)
-   on them, on this photo's features only;
-4. classify the photo again with that forest.
-
-The features of pass 1 are kept for pass 2 while they fit in
-``ADAPT_KEEP_BYTES`` (a 1.5 Mpx photo needs ~4 MB), so adapting costs one
-feature pass, two forest passes and one small fit. A class the first pass
-gives fewer than ``ADAPT_MIN_PIXELS`` coarse pixels is not relearned (it
-cannot come back either: its pixels were taken by other classes already).
+A forest trained on other photos is right on most pixels of a class and unsure on the
+rest. Self-training (Yarowsky 1995; Lee 2013): classify the photo (regularised), keep
+each class's ``ADAPT_SHARE`` surest coarse pixels (:func:`pseudo_labels`, strided),
+fit a small balanced forest of ``ADAPT_TREES`` on them, and classify again with the
+mean of both forests' probabilities. Pass-1 features are kept for pass 2 up to
+``ADAPT_KEEP_BYTES``; a class pass 1 barely predicts is not relearned.
 """
 
 from __future__ import annotations
@@ -107,25 +92,9 @@ def predict_adapted(
 ) -> Classification:
     """Classify a photo, relearn its classes from the surest pixels, classify again.
 
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    valid : (H, W) bool ndarray or None
-    probability_fn : callable
-        The trained model's ``(h, w, F) -> (h, w, C)`` probabilities.
-    classes : tuple of int
-    features, regularisation : options of the model
-    forest_options : ForestOptions
-        Depth, split size and seed of the adapted forest (its tree count is
-        ``ADAPT_TREES``, its classes balanced).
-    tile : int
-    progress : callable, optional
-        ``(done, total)`` over both passes' tiles.
-
-    Returns
-    -------
-    Classification
-        Pass 1's result when pass 1 finds fewer than two classes.
+    Arguments as :func:`core.classify.tiled.predict_tiled`; ``forest_options`` gives the
+    adapted forest's depth, split size and seed; ``progress`` spans both passes. Pass 1's
+    result when it finds fewer than two classes.
     """
     h, w = rgb.shape[:2]
     scale = features.scale

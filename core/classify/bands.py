@@ -1,27 +1,11 @@
 """Border bands: a theme whose colour is a blend of two others, seen only along their border.
 
-Features smoothed over a coarse pixel's neighbourhood make a step edge look
-like texture: along a high-contrast border (bright sand beside dark grass)
-the blurred colour lies between the two sides and the lightness spread and
-gradient are high, so a band of a few coarse pixels takes a textured theme
-whose colour lies between the two (town) although no photo pixel there
-looks like it (issue 13).
-
-:func:`relabel_bands` undoes this at photo pixels. A pixel of theme ``T`` is
-in a *band* of two other themes ``A`` and ``B`` when both lie within
-``reach`` photo pixels of it along each axis (a square window) and ``T``'s
-colour lies between theme colours ``A`` and ``B`` (:func:`lies_between`).
-Its own Lab then decides: it takes the nearer of ``A`` and ``B`` (squared
-Mahalanobis distance under their per-pixel colour spread) if that distance
-is at most ``max_distance2``, and keeps ``T`` otherwise. Only a
-high-contrast border makes such a band: ``A`` and ``B`` must differ by at
-least ``min_contrast2`` (squared Mahalanobis distance of their means under
-the sum of their variances); in a photo whose themes differ by a few
-standard deviations of lightness each, every middle theme lies between
-two others and the pixel colours cannot tell them apart. A road of town
-inside town has town all round and is untouched; a thin road or channel of
-its own colour between two themes is far from both in colour and keeps its
-theme; only the blend pixels, which look like one side or the other, change.
+Smoothed features make a high-contrast step edge (sand | grass) look like a textured
+theme whose colour lies between the two sides (design.md §3). :func:`relabel_bands`
+gives a pixel of theme ``T`` with themes ``A`` and ``B`` within ``reach`` pixels, ``T``
+between them in colour and ``A``, ``B`` at least ``min_contrast2`` apart, the
+Mahalanobis-nearer of ``A`` and ``B`` by its own Lab if within ``max_distance2``. A road
+inside town or a channel of its own colour keeps its theme.
 """
 
 from __future__ import annotations
@@ -44,17 +28,14 @@ class BandOptions:
     Attributes
     ----------
     reach : int
-        Photo pixels, along each axis, within which both bordering themes
-        must lie (0 turns the pass off); about the width of a blend band at 4x4
-        coarse pixels.
+        Photo pixels along each axis within which both bordering themes lie (0: off);
+        about a blend band's width at 4x4 coarse pixels.
     max_distance2 : float
-        Largest squared Mahalanobis distance (Lab, 3 degrees of freedom) to a
-        bordering theme's colour for a pixel to take it. Default 11.34, the 99%
-        quantile of chi-squared with 3 degrees of freedom.
+        Largest squared Mahalanobis distance (Lab) to the theme a pixel takes: the 99%
+        point of chi-squared(3).
     min_contrast2 : float
-        Smallest squared Mahalanobis distance between the two bordering
-        themes' means (under the sum of their variances). Default 16: four
-        standard deviations apart (only a high-contrast border makes a band).
+        Smallest squared Mahalanobis distance between the bordering themes' means
+        (under the sum of their variances): four standard deviations.
     """
 
     reach: int = 12
@@ -118,28 +99,10 @@ def relabel_bands(labels: np.ndarray, rgb: np.ndarray, means: np.ndarray,
                   variances: np.ndarray, options: BandOptions) -> np.ndarray:
     """Give the pixels of a blend theme along a border the colour-nearer side's theme.
 
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Themes ``1..K``, 0 where there is no data (never changed).
-    rgb : (H, W, 3) uint8 ndarray
-        The photo.
-    means, variances : (K, 3) ndarrays
-        Per-pixel Lab mean and variance of each theme (L 0..100, a, b about
-        -128..127); variances positive.
-    options : BandOptions
-
-    Returns
-    -------
-    labels : (H, W) uint8 ndarray
-        A new array (the input is not modified); the same values when
-        ``options.reach`` is 0 or there are more than :data:`MAX_BAND_THEMES`
-        themes.
-
-    Raises
-    ------
-    TerrathemeError
-        Shapes that do not match, or variances that are not positive.
+    ``labels`` (H, W) uint8 holds themes 1..K (0: no data, never changed), ``rgb`` (H, W, 3)
+    uint8 the photo, ``means``/``variances`` (K, 3) each theme's per-pixel Lab mean and
+    (positive) variance. Returns a new (H, W) uint8 array, unchanged when ``reach`` is 0
+    or there are over :data:`MAX_BAND_THEMES` themes.
     """
     means, variances = np.asarray(means, np.float64), np.asarray(variances, np.float64)
     k = len(means)
@@ -155,7 +118,7 @@ def relabel_bands(labels: np.ndarray, rgb: np.ndarray, means: np.ndarray,
     if not table.any():
         return out
     # Which themes lie within reach of each pixel, as a bit set (a square window: a
-    # dilation with a rectangle is separable, 14x faster than a distance transform).
+    # dilation with a rectangle is separable, unlike a distance transform).
     window = np.ones((2 * options.reach + 1, 2 * options.reach + 1), np.uint8)
     near = np.zeros(labels.shape, np.uint16)
     for c in range(k):

@@ -1,26 +1,15 @@
 """Extremely randomised trees as flat node arrays: trained by scikit-learn, read by numba.
 
-Extra-Trees (Geurts, Ernst & Wehenkel 2006, "Extremely randomized trees",
-Machine Learning 63) split each node on the best of ``sqrt(F)`` features at a
-*random* threshold each, instead of the best threshold, and average the
-trees' class distributions (soft votes). With the few hundred coarse pixels a
-user's scribbles label, the smoother, less overfitted decision boundaries pay.
+Extra-Trees (Geurts, Ernst & Wehenkel 2006, Machine Learning 63) split each node at a
+random threshold on the best of ``sqrt(F)`` features and average the trees' class
+distributions: smoother boundaries from the few hundred samples scribbles give.
 
-Training is scikit-learn's :class:`~sklearn.ensemble.ExtraTreesClassifier`.
-The fitted trees are
-then kept as plain arrays (:class:`ExtraTreesForest`): a model file holds
-numbers only (no pickle, so loading one runs no code, and it does not depend
-on the scikit-learn version), and prediction is a small numba kernel over
-the arrays, parallel over samples, that gives scikit-learn's
-``predict_proba`` to float32 rounding (tests/test_classify_extra_trees.py).
-
-The kernel walks a tree for a block of ``PREDICT_BLOCK`` samples before the
-next tree (the tree's nodes stay in cache), four samples at a time in
-lockstep, each walk a fixed number of steps (the tree's depth: a leaf is its
-own child) with no branch on the node kind, so the four chains of dependent
-loads overlap (:meth:`ExtraTreesForest.walk_arrays`). Thresholds are rounded
-*down* to float32 there: for a float32 feature ``x``, ``x <= t`` exactly when
-``x <= floor32(t)``, so the walks are the float64 comparisons' exactly.
+The fitted trees are kept as plain arrays (:class:`ExtraTreesForest`): a model file
+holds numbers only (no pickle, no scikit-learn version), and a numba kernel gives
+``predict_proba`` to float32 rounding. It walks one tree for a block of
+``PREDICT_BLOCK`` samples, four in lockstep, each walk a fixed number of steps (a
+leaf is its own child); thresholds are rounded down to float32, so for a float32
+``x``, ``x <= t`` exactly when ``x <= floor32(t)``.
 """
 
 from __future__ import annotations
@@ -118,31 +107,13 @@ class ExtraTreesForest:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray],
                     n_features: int | None = None) -> ExtraTreesForest:
-        """Check and wrap arrays read from a file.
+        """Check and wrap :data:`ARRAY_NAMES` read from a file (TerrathemeError if they
+        do not form a forest within the ``MAX_*`` ceilings).
 
-        Every value the prediction kernel uses as an index is range-checked
-        *before* the arrays are narrowed to int32 (a feature index of 2^31
-        would otherwise wrap and read outside the samples), so a forest that
-        passes cannot make the kernel read out of bounds or loop.
-
-        Parameters
-        ----------
-        arrays : dict of name -> ndarray
-            :data:`ARRAY_NAMES`; index arrays of an integer dtype, ``threshold``
-            and ``value`` floating.
-        n_features : int, optional
-            Length of the feature vectors the forest will see; every split
-            feature must be below it (default: below :data:`MAX_FEATURES`).
-
-        Raises
-        ------
-        TerrathemeError
-            A missing array, a wrong dtype or shape, more than
-            :data:`MAX_NODES` nodes, :data:`MAX_TREES` trees or
-            :data:`MAX_CLASSES` classes, classes not distinct ascending 0..255,
-            a root, child or feature out of range, a child not after its parent,
-            a tree deeper than :data:`MAX_DEPTH`, a threshold or distribution
-            value that is not finite, a leaf whose distribution does not sum to 1.
+        Every index the kernel uses is range-checked before narrowing to int32 (a feature
+        of 2^31 would wrap), children come after parents and depth is bounded, so a forest
+        that passes cannot make the kernel read out of bounds or loop. Split features must
+        be below ``n_features`` (default :data:`MAX_FEATURES`).
         """
         missing = [n for n in ARRAY_NAMES if n not in arrays]
         if missing:

@@ -1,24 +1,10 @@
-"""The trained-classifier file: a zip holding ``meta.json`` and the forest.
+"""The trained-classifier file: a ZIP of ``meta.json`` and ``forest.npz`` (docs/formats.md).
 
-``meta.json`` : ``{"format": "terratheme-classifier", "version": 2,
-"classes": [...], "options": {...}, "class_weights": [...], "class_names": {...}}``
-(options as plain JSON, enums by value; class weights only when the model has
-a prior correction; class names, ``{"value": name}``, only when it was
-trained with a legend, :mod:`core.io.legend`).
-The forest (absent when the model has a single class): ``forest.npz``, the
-Extra-Trees node arrays (:class:`core.classify.extra_trees.ExtraTreesForest`,
-read with ``allow_pickle=False``: numbers only). Written atomically; a newer
-version, or an OpenCV forest of terratheme 0.x (version 1, or ``forest.yml``),
-raises UnsupportedVersionError, a damaged file CorruptFileError.
-
-A model file may come from anyone, so reading bounds its work
-(:mod:`core.io.archive`: sizes checked before reading, a capped inflate) and
-checks every number: each option against a type and range (:mod:`core.classify.model_options`:
-feature scale 1..64, sigmas up to 64, at most ``MAX_TREES`` trees of depth
-``MAX_DEPTH``, ...), class values 0..255, class weights finite and positive,
-and the forest's arrays (:meth:`ExtraTreesForest.from_arrays`) against the
-options' feature count, so prediction never fails or reads out of bounds.
-:func:`write_model` refuses what :func:`read_model` would refuse.
+A model file may come from anyone: reading bounds its work (:mod:`core.io.archive`)
+and checks every number (options by :mod:`core.classify.model_options`, classes,
+weights, the forest's arrays against the options' feature count), so prediction never
+fails or reads out of bounds. A newer version or a terratheme 0.x OpenCV forest raises
+UnsupportedVersionError. :func:`write_model` refuses what :func:`read_model` would.
 """
 
 from __future__ import annotations
@@ -72,13 +58,7 @@ def write_model(path: str | os.PathLike, model: ModelParts) -> None:
 
 
 def model_bytes(model: ModelParts) -> bytes:
-    """The bytes of the model file of ``model`` (what :func:`write_model` writes).
-
-    Raises
-    ------
-    TerrathemeError
-        Options or class weights :func:`read_model` would refuse.
-    """
+    """The bytes :func:`write_model` writes; TerrathemeError for what a reader refuses."""
     options = options_to_json(model.options)
     try:
         options_from_json(json.loads(json.dumps(options)))
@@ -172,17 +152,7 @@ def read_model(path: str | os.PathLike) -> ModelParts:
 
 
 def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelParts:
-    """Read a model file's bytes (or the file at a path), checked as :func:`read_model` does.
-
-    ``label`` names the source in messages.
-
-    Raises
-    ------
-    CorruptFileError
-        Not a classifier file, or damaged (see :func:`read_model`).
-    UnsupportedVersionError
-        Written by a newer version, or an OpenCV forest of terratheme 0.x.
-    """
+    """:func:`read_model` of a file's bytes (or path), named ``label`` in messages."""
     with open_archive(source, label, kind="terratheme classifier file",
                       max_members=MAX_MEMBERS) as zf:
         names = zf.namelist()

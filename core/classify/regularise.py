@@ -1,18 +1,10 @@
 """Spatial regularisation of class probabilities on the coarse grid.
 
-A pixel's class should agree with its neighbours unless the photo shows an
-edge. Each method acts on the per-class probability maps before the final
-arg-max (a soft majority vote):
-
-``SMOOTH`` : Gaussian-weighted average of each class's probability over
-             ``sigma`` coarse pixels (a soft majority filter).
-``EDGE``   : edge-aware, confidence-weighted averaging (:func:`edge_aware_probabilities`):
-             the domain-transform filter of Gastal & Oliveira (2011, normalised
-             convolution) guided by the coarse Lab image averages each class's
-             probability among neighbours of similar colour only, each weighted
-             by how sure the forest is of it (a cheap stand-in for a dense CRF),
-             so unsure pixels take the class of sure pixels of their colour region.
-``NONE``   : per-pixel decisions.
+A pixel's class should agree with its neighbours unless the photo shows an edge, so
+the per-class probability maps are averaged before the arg-max: ``SMOOTH`` with a
+Gaussian, ``EDGE`` among neighbours of similar colour weighted by the forest's
+confidence (:func:`edge_aware_probabilities`, a cheap stand-in for a dense CRF), or
+not at all (``NONE``).
 """
 from __future__ import annotations
 
@@ -112,22 +104,10 @@ def edge_aware_probabilities(probs: np.ndarray, lab: np.ndarray, sigma_spatial: 
     NC mode) and ``w`` = the margin between a pixel's two most probable
     classes + ``EDGE_WEIGHT_FLOOR``; rows are renormalised to sum to 1.
 
-    Parameters
-    ----------
-    probs : (h, w, C) float32 ndarray
-        Rows sum to 1.
-    lab : (h, w, 3) float32 ndarray
-        The coarse Lab image (guide).
-    sigma_spatial, sigma_colour : float
-        Coarse pixels and Lab units (see :class:`RegulariseOptions`).
-    texture : (h, w) float32 ndarray, optional
-        Block lightness std of each coarse pixel, a fourth guide channel
-        (times ``EDGE_TEXTURE_WEIGHT``): regions of equal mean colour but
-        different texture are kept apart too.
-
-    Returns
-    -------
-    refined : (h, w, C) float32 ndarray, rows sum to 1
+    ``probs`` (h, w, C) float32 rows sum to 1; ``lab`` (h, w, 3) float32 is the guide;
+    ``texture`` (h, w) float32 block lightness std (optional), a fourth guide channel
+    times ``EDGE_TEXTURE_WEIGHT``, keeps regions of equal colour but different texture
+    apart. Returns (h, w, C) float32, rows summing to 1.
     """
     h, w, c = probs.shape
     if c == 1 or h * w == 1:

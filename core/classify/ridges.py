@@ -1,17 +1,10 @@
 """Fine ridge features: lines narrower than a block, found before the block average.
 
-The DEFAULT feature set works on ``scale x scale`` block means
-(:func:`core.classify.lab.coarse_lab`). A sand track or a channel a few
-pixels wide changes a block's mean lightness by little and is then told
-apart from a grey patch of land only by context. Here the photo's
-lightness is filtered at full resolution first: the two eigenvalues of its
-Hessian at scale ``sigma`` (scale-normalised by ``sigma^2``, Lindeberg 1998),
-then, per block, the largest value of the larger eigenvalue (a dark line or
-valley crosses the block) and the smallest value of the smaller one (a
-bright line or ridge). Two features per sigma.
-
-Sigmas of 2 pixels and more are computed on the photo's 2 x 2 block means
-(as sigma / 2 there, the same output blocks), a quarter of the work.
+A track or channel a few pixels wide barely moves a block's mean lightness, so the
+lightness is filtered at full resolution: the Hessian eigenvalues at scale ``sigma``
+(scale-normalised by ``sigma^2``, Lindeberg 1998), then per block the largest larger
+eigenvalue (a dark line) and the smallest smaller one (a bright line): two features
+per sigma. Sigmas of 2 px and more run on 2 x 2 block means (a quarter of the work).
 """
 
 from __future__ import annotations
@@ -29,19 +22,9 @@ def ridge_halo(sigmas: Sequence[float]) -> int:
 
 
 def hessian_eigenvalues(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues ``lambda_1 >= lambda_2`` of the Hessian of a smoothed image.
-
-    Parameters
-    ----------
-    image : (H, W) float32 ndarray
-        Already smoothed (the derivatives are 3 x 3 Sobel, 1/4 normalised,
-        reflected at the border).
-
-    Returns
-    -------
-    larger, smaller : (H, W) float32 ndarrays
-        ``(xx + yy) / 2 +/- sqrt(((xx - yy) / 2)^2 + xy^2)``, not scale-normalised.
-    """
+    """Hessian eigenvalues ``(xx + yy) / 2 +/- sqrt(((xx - yy) / 2)^2 + xy^2)`` (larger,
+    smaller; (H, W) float32, not scale-normalised) of a smoothed (H, W) float32 image,
+    derivatives by 3 x 3 Sobel, 1/4 normalised, reflected at the border."""
     img = np.ascontiguousarray(image, dtype=np.float32)
     lxx, lyy, lxy = (cv2.Sobel(img, cv2.CV_32F, dx, dy, ksize=3, scale=0.25,
                                borderType=cv2.BORDER_REFLECT_101)
@@ -56,23 +39,10 @@ def hessian_eigenvalues(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def block_ridges(lightness: np.ndarray, scale: int, sigmas: Sequence[float]) -> np.ndarray:
     """Per-block extremes of the lightness Hessian's eigenvalues at each sigma.
 
-    Parameters
-    ----------
-    lightness : (H, W) float32 ndarray
-        The photo's CIE L* (0..100) at full resolution
-        (:func:`core.classify.lab.full_lab` ``[..., 0]``).
-    scale : int
-        Block size in pixels (the blocks of :func:`~core.classify.lab.coarse_lab`:
-        block (i, j) covers rows ``i*scale .. i*scale+scale-1``, edge-replicated
-        past the photo).
-    sigmas : sequence of float
-        Gaussian scales in photo pixels.
-
-    Returns
-    -------
-    ridges : (ceil(H/scale), ceil(W/scale), 2 * len(sigmas)) float32 ndarray
-        For each sigma: the block's largest ``sigma^2 * lambda_1`` (dark lines)
-        and smallest ``sigma^2 * lambda_2`` (bright lines), lambda_1 >= lambda_2.
+    ``lightness`` (H, W) float32 is the photo's L* at full resolution; blocks are
+    ``scale`` pixels a side (edge-replicated past the photo); ``sigmas`` in photo pixels.
+    Returns (ceil(H/scale), ceil(W/scale), 2 * len(sigmas)) float32: per sigma the
+    block's largest ``sigma^2 * lambda_1`` and smallest ``sigma^2 * lambda_2``.
     """
     h, w = lightness.shape
     hc, wc = -(-h // scale), -(-w // scale)

@@ -1,21 +1,10 @@
 """Training samples from label masks: coarse labels, scribbles, growing them by colour.
 
-:func:`coarse_mask` gives each coarse pixel the class covering most of its
-labelled photo pixels.
-
-A user's strokes are short and thin: at the default 8x8 coarse pixels a
-30-pixel stroke touches about four coarse pixels, so a photo's scribbles give
-the forest only a few hundred samples, all on the strokes' centre lines.
-Strokes are painted inside class regions, so the coarse pixels right next to
-a stroke whose colour matches the stroke's are very likely of the stroke's
-class too: :func:`grow_labels` adds them as samples (one ring of 4-neighbours,
-colour difference under ``threshold``; a pixel next to strokes of two classes
-is left out). It is a cautious, one-step form of seeded region growing
-(Adams & Bischof 1994), used for the training samples only.
-
-:func:`check_class_image` is the one check of a class-value image (label
-mask, scribble mask, label image) that training, conversion and the grid vote
-share.
+Strokes are short and thin (a 30-pixel stroke touches about four 8x8 coarse pixels),
+so scribbles give only a few hundred samples on the strokes' centre lines. Strokes lie
+inside class regions, so :func:`grow_labels` adds the neighbours of a stroke's colour:
+a cautious one-step seeded region growing (Adams & Bischof 1994), for training samples
+only. :func:`check_class_image` is the one check of a class-value image.
 """
 
 from __future__ import annotations
@@ -33,20 +22,8 @@ GROW_COLOUR = 5.0
 
 
 def coarse_mask(mask: np.ndarray, scale: int, classes: Iterable[int]) -> np.ndarray:
-    """Class of each coarse pixel: the class covering most of its labelled pixels.
-
-    Parameters
-    ----------
-    mask : (H, W) uint8 ndarray
-        0 = unlabelled.
-    scale : int
-    classes : iterable of int
-        Classes to keep (others count as unlabelled).
-
-    Returns
-    -------
-    coarse : (ceil(H/scale), ceil(W/scale)) uint8 ndarray, 0 = no label
-    """
+    """Class of each coarse pixel, (ceil(H/scale), ceil(W/scale)) uint8: of ``classes``,
+    the one covering most of its labelled pixels in ``mask`` (H, W) uint8 (0 unlabelled)."""
     h, w = mask.shape
     hc, wc = -(-h // scale), -(-w // scale)
     best_frac = np.zeros((hc, wc), np.float32)
@@ -101,18 +78,8 @@ def check_class_image(
 ) -> np.ndarray:
     """A label mask, scribble mask or label image as (H, W) uint8 class values 0..255.
 
-    Parameters
-    ----------
-    image : (H, W) or (H, W, 1) integer or bool array-like
-    what : str
-        What it is, for the errors ("label mask 2", "label image", ...).
-    shape : (H, W), optional
-        The photo's size, which the image must have.
-
-    Returns
-    -------
-    (H, W) uint8 ndarray
-        A view of ``image`` when it is uint8 already.
+    ``image`` is (H, W) or (H, W, 1) integers or bools of the photo's ``shape`` when given;
+    ``what`` names it in errors ("label mask 2"). A view when it is uint8 already.
     """
     arr = np.asarray(image)
     # A one-channel third axis (a grey image read as (H, W, 1)) is dropped.

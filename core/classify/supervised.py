@@ -1,26 +1,13 @@
 """Supervised classes: Extra-Trees (:mod:`core.classify.extra_trees`) on the features.
 
-Training data are ``(photo, mask)`` pairs. A mask has the photo's size; 0 is
-*unlabelled* and ``k > 0`` is class ``k``. The same rule covers brush
-scribbles (mostly 0) and full label masks of other photos. Each coarse pixel
-(``scale x scale`` block, see :mod:`core.classify.features`) takes the class
-that covers most of its labelled pixels, so a one-pixel stroke still teaches
-the block it crosses. Classes listed in ``ignore_classes`` are treated as unlabelled.
-
-Samples are capped per class (``SupervisedOptions.samples_per_class``, random,
-seeded) and, with ``balance``, every class weighs the same whatever its area,
-which is what a mean-IoU user wants from thin roads.
-
-Scribbles (one photo, under ``samples.SCRIBBLE_SHARE`` of it labelled) also get
-a class-prior correction (:mod:`core.classify.prior`), since a user paints about
-as much of a rare class as of a common one, and their strokes are grown by one
-ring of coarse pixels of the stroke's colour (:func:`core.classify.samples.grow_labels`).
-A model trained on label masks of a few other photos adapts to each photo it
-classifies (:mod:`core.classify.adapt`). Training samples and fitted models can
-be kept by content between runs (:mod:`core.classify.training_cache`).
-
-Confidence is the winning class's share of the trees' (soft) votes (as ilastik
-and Orfeo ToolBox report it), after the prior weights and spatial regularisation.
+Training data are ``(photo, mask)`` pairs, 0 unlabelled and ``k > 0`` class ``k``:
+brush scribbles and full label masks alike. A coarse pixel takes the class covering
+most of its labelled pixels (a one-pixel stroke still teaches its block). Samples are
+capped per class and, with ``balance``, every class weighs the same (thin roads
+count). Scribbles also get a class-prior correction (:mod:`core.classify.prior`) and
+strokes grown by colour (:func:`core.classify.samples.grow_labels`); a model of a few
+other photos adapts to each photo (:mod:`core.classify.adapt`). Confidence is the
+winning class's share of the trees' soft votes after prior weights and regularisation.
 """
 from __future__ import annotations
 
@@ -197,16 +184,8 @@ class Classifier:
         return (fo.halo + reg.halo + 1) * fo.scale
 
     def probabilities(self, feats: np.ndarray) -> np.ndarray:
-        """Class probabilities (vote shares) of a coarse feature stack.
-
-        Parameters
-        ----------
-        feats : (h, w, F) float32 ndarray
-
-        Returns
-        -------
-        probs : (h, w, C) float32 ndarray, channel order ``self.classes``
-        """
+        """Vote shares (h, w, C) float32, channels in ``self.classes`` order, of a coarse
+        feature stack (h, w, F) float32."""
         h, w, f = feats.shape
         if self.forest is None:
             return np.ones((h, w, 1), np.float32)

@@ -24,25 +24,17 @@ class SupervisedOptions:
 
     Attributes
     ----------
-    features : FeatureOptions
-        Default: the DEFAULT set with Hessian eigenvalues, fine ridges at 1, 2, 4 px
-        (:mod:`core.classify.ridges`) and the structure features (:mod:`core.classify.texture`).
-    regularisation : RegulariseOptions
-        Default: edge-aware, confidence-weighted averaging (``Regularisation.EDGE``).
+    features, regularisation
+        Defaults: Hessian, ridges at 1, 2, 4 px and structure features; ``EDGE``.
     ignore_classes : tuple of int
         Mask values treated as unlabelled (besides 0).
-    n_trees : int
-        Trees in the Extra-Trees forest (:mod:`core.classify.extra_trees`).
-    max_depth : int
-        Depth limit of each tree.
-    min_samples : int
-        Smallest node that is still split.
+    n_trees, max_depth, min_samples : int
+        The Extra-Trees forest's trees, depth limit and smallest node still split.
     max_samples_per_class : int
         Most training samples of one class (over all pairs).
     samples_per_pair : int
-        Training samples per class grow with the pairs: ``samples_per_pair *
-        len(pairs)``, clipped to ``MIN_SAMPLES_PER_CLASS..max_samples_per_class``
-        (:meth:`samples_per_class`): a few photos train best on few samples, many on many.
+        Per-class samples grow with the pairs (:meth:`samples_per_class`): a few photos
+        train best on few samples, many on many.
     balance : bool
         Equal class priors whatever the sample counts.
     seed : int
@@ -50,21 +42,15 @@ class SupervisedOptions:
     tile : int
         Tile core size in photo pixels.
     prior_power : float or None
-        Class-prior correction (:mod:`core.classify.prior`): the votes are
-        weighted by ``(estimated share / training share) ** prior_power``.
-        0 = off; None = ``prior.SCRIBBLE_PRIOR_POWER`` when training from
-        scribbles (one photo, under ``samples.SCRIBBLE_SHARE`` of its pixels
-        labelled), else off.
+        Votes weighted by ``(estimated share / training share) ** prior_power``
+        (:mod:`core.classify.prior`); 0 off, None ``SCRIBBLE_PRIOR_POWER`` for scribbles.
     grow_colour : float or None
-        Scribble samples grown by one ring of coarse pixels of the stroke's
-        colour (:func:`core.classify.samples.grow_labels`, Lab difference under
-        this). 0 = off; None = ``samples.GROW_COLOUR`` for scribbles, else off.
+        Lab difference under which scribbles grow by one ring of coarse pixels
+        (:func:`core.classify.samples.grow_labels`); 0 off, None ``GROW_COLOUR`` for
+        scribbles.
     adapt : bool or None
-        Test-time adaptation (:mod:`core.classify.adapt`): each photo is
-        classified, its surest pixels relearned by a small forest, and
-        classified again with both. None = on for a model trained on label
-        masks of fewer than ``ADAPT_MAX_PAIRS`` photos, off for more and for
-        scribbles (they lie on the photo already); resolved by :func:`train_classifier`.
+        Test-time adaptation (:mod:`core.classify.adapt`); None: on for masks of fewer
+        than ``ADAPT_MAX_PAIRS`` photos, off for scribbles (resolved by :meth:`resolved`).
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(

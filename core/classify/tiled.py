@@ -82,20 +82,9 @@ def strided_core(
 
 
 def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarray, int, int]:
-    """Upsample a tile's coarse probabilities to photo pixels, and where its core starts.
-
-    Parameters
-    ----------
-    probs : (h, w, C) float32 ndarray over the window's outer rectangle
-
-    Returns
-    -------
-    probs : (h * scale, w * scale, C) float32 C-contiguous ndarray
-        Over the window's read rectangle; the core is the ``(y1 - y0, x1 - x0)``
-        block at the offsets.
-    oy, ox : int
-        Row and column of the core's first pixel in ``probs``.
-    """
+    """A window's coarse probabilities (h, w, C) float32 bilinearly upsampled to
+    (h * scale, w * scale, C), C-contiguous, and the row, column ``oy, ox`` where the
+    core starts in it."""
     offsets = win.y - win.ry, win.x - win.rx
     if scale == 1:
         return np.ascontiguousarray(probs), *offsets
@@ -131,23 +120,13 @@ def predict_tiled(
     rgb : (H, W, 3) uint8 ndarray
     valid : (H, W) bool ndarray or None
         Pixels with data; others get label 0 and confidence 0.
-    probability_fn : callable
-        ``(h, w, F) float32 -> (h, w, C) float32`` class probabilities.
     classes : tuple of int
-        Class value of each probability channel.
-    features, regularisation : options
+        Class value of each channel of ``probability_fn``'s output.
     tile : int
         Tile core size in photo pixels.
-    progress : callable, optional
-        Called with ``(tiles_done, tiles_total)``.
     tile_fn : callable, optional
-        ``window -> (lab, block_std, probabilities)`` for the windows of
-        :func:`prediction_windows`, in place of :func:`tile_arrays` and
-        ``probability_fn`` (probabilities made from an earlier pass's).
-
-    Returns
-    -------
-    Classification
+        ``window -> (lab, block_std, probabilities)`` in place of :func:`tile_arrays`
+        and ``probability_fn`` (probabilities made from an earlier pass's).
     """
     if len(classes) == 0:
         raise TerrathemeError("a classifier needs at least one class")
@@ -168,9 +147,8 @@ def predict_tiled(
         # Spatial regularisation on the coarse grid.
         probs = regularise(probs, lab, regularisation, texture=block_std)
         # Back to photo pixels: arg-max class and its probability.
-        # The whole arrays and offsets, not views: every photo size (one tile or several)
-        # calls the kernel with the same C-contiguous types, the one signature the warmup
-        # compiles (a view's 'A' layout was compiled again at the first run after setup).
+        # The whole arrays and offsets, not views: every photo size calls the kernel with
+        # the same C-contiguous types, the one signature the warm-up compiles.
         up, oy, ox = _upsampled(probs, win, scale)
         _arg_max(up, oy, ox, lut, labels, confidence, win.y, win.x, win.y1 - win.y,
                  win.x1 - win.x)

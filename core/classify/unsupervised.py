@@ -1,37 +1,20 @@
-"""Unsupervised themes: k-means on colour + texture, K chosen from the data.
+"""Unsupervised themes: k-means on colour + texture, K chosen from the data (design.md §3).
 
-Criterion for the number of themes K ("model no more than the scene needs",
-design.md §3). With ``W_K`` the mean squared distance of the sampled
-feature vectors to their nearest of K k-means centres (OpenCV k-means++,
-features in fixed Delta-E-like units, see :mod:`core.classify.features`):
+With ``W_K`` the mean squared distance of the weighted samples (Delta-E-like units,
+:mod:`core.classify.features`) to the nearest of K OpenCV k-means++ centres:
 
-1. noise floor: if the photo's RMS spread ``sqrt(W_1)`` is below
-   ``min_separation / 2``, the photo is flat: K = 1;
-2. otherwise K grows from 1 while the next split explains at least
-   ``min_gain`` of the photo's variance, ``(W_{K-1} - W_K) / W_1 >= min_gain``,
-   **and** its two closest centres stay at least ``min_separation`` apart
-   (themes a viewer could not tell apart are not made), **and** no theme
-   covering under ``transition_share`` of the photo has its centre near the
-   segment between two other centres (that is the blend that smoothed
-   features make along a border, not a theme of the scene);
-3. a theme whose coarse pixels fall into two groups of clearly different
-   chroma (their a*b* means at least ``min_hue_separation`` apart, the smaller
-   covering at least ``min_hue_share`` of the photo) is split in two when the
-   split passes the separation and transition tests of 2 (the variance gain
-   of 2 is blind there: textured themes spread mostly in lightness, so a
-   small region of another hue -- a light-green channel beside grey town --
-   explains a fraction of a percent of the variance, yet a viewer sees it as
-   another theme);
+1. a photo with ``sqrt(W_1) < min_separation / 2`` is flat: K = 1;
+2. else K grows while ``(W_{K-1} - W_K) / W_1 >= min_gain``, the two closest centres
+   stay ``min_separation`` apart, and no theme under ``transition_share`` of the photo
+   lies between two others (a border blend of smoothed features, not a theme);
+3. a theme whose samples form two chroma groups at least ``min_hue_separation`` apart
+   (the smaller over ``min_hue_share``) is split if the split passes 2's tests: the
+   variance gain misses a small region of another hue in a textured theme;
 4. K never exceeds ``max_themes`` nor the number of distinct samples.
 
-Themes are numbered 1..K by decreasing area. Confidence is the winning
-theme's posterior under a Gaussian mixture with the centres as means and
-the theme areas as weights (:mod:`core.classify.mixture`): the pooled
-within-theme variance for k-means themes, per-theme diagonal variances once
-a theme has been split by hue.
-
-This module holds the options, the sampling and the choice of K; fitting a
-reusable model and classifying with it is :mod:`core.classify.unsupervised_model`.
+Themes are numbered 1..K by decreasing area; confidence is the winning theme's
+posterior in a Gaussian mixture (:mod:`core.classify.mixture`). Fitting a reusable
+model and classifying with it: :mod:`core.classify.unsupervised_model`.
 """
 
 from __future__ import annotations
@@ -56,28 +39,19 @@ class UnsupervisedOptions:
     Attributes
     ----------
     features : FeatureOptions
-        Default: 4x4 coarse pixels and one smoothing scale (sigma 1 coarse
-        pixel). Larger scales blur class borders into bands that k-means
-        would take for themes.
-    regularisation : RegulariseOptions
+        4x4 coarse pixels, one smoothing sigma of 1: larger scales blur class borders
+        into bands that k-means would take for themes.
     bands : BandOptions
-        Border bands of a blend theme relabelled by pixel colour
-        (:mod:`core.classify.bands`); DEFAULT feature set only.
+        Border bands relabelled by pixel colour (DEFAULT feature set only).
     max_themes : int
         Upper bound on K for ``themes="auto"``.
     min_gain : float
         Smallest share of the photo's variance a new theme must explain.
     min_separation : float
-        Smallest distance between two theme centres, in Delta-E-like units
-        (weighted feature space).
-    transition_share : float
-        A theme smaller than this share of the photo whose centre lies
-        between two others is a border blend, not a theme (criterion 2).
-    min_hue_separation : float
-        Smallest distance between the a*b* means of a theme's two chroma groups
-        for a split by hue (criterion 3); ``inf`` turns the split off.
-    min_hue_share : float
-        Smallest share of the photo the smaller chroma group covers (criterion 3).
+        Smallest distance between two centres (weighted features, Delta-E-like).
+    transition_share, min_hue_separation, min_hue_share : float
+        Criteria 2 and 3 of the module docstring; ``min_hue_separation=inf`` turns
+        the split by hue off.
     max_samples : int
         Coarse pixels sampled for k-means.
     attempts : int
@@ -147,10 +121,9 @@ def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
                    stride: int, options: UnsupervisedOptions) -> tuple[np.ndarray, np.ndarray]:
     """One feature window's weighted samples and their photo-wide row-major coarse index.
 
-    ``feats`` covers the window's read rectangle; ``valid`` (or None) its core's
-    pixels; ``width`` is the photo's. Samples lie on the photo-wide grid of every
-    ``stride``-th coarse row and column, so windows of any tiling (of a photo in
-    memory, or of a file) give the whole photo's samples.
+    ``feats`` covers the read rectangle, ``valid`` (or None) the core's pixels. Samples
+    lie on the photo-wide grid of every ``stride``-th coarse row and column, so any
+    tiling gives the whole photo's samples.
     """
     scale = options.features.scale
     core, rows, cols = strided_core(feats, win, scale, stride)
@@ -238,18 +211,10 @@ def _rejects(fit, options: UnsupervisedOptions) -> bool:
 def _hue_split(samples: np.ndarray, labels: np.ndarray, options: UnsupervisedOptions):
     """The themes with one split by chroma (criterion 3), or None if no split qualifies.
 
-    Each theme's samples are split in two by 2-means on their smoothed a*b*;
-    each qualifying split, from the largest chroma distance down, starts a
-    diagonal Gaussian mixture of K + 1 themes (:func:`core.classify.mixture.fit_diagonal_mixture`:
-    the textured theme keeps its wide lightness spread, the new one its narrow
-    chroma), kept if the new theme still covers ``min_hue_share``, still
-    differs from the theme it came from by ``min_hue_separation`` in chroma,
-    the themes stay ``min_separation`` apart, the new theme's chroma does not
-    lie between two other themes' (a hue between two hues is more likely their
-    blend, e.g. along a shadow's edge) and no small theme is a blend of two
-    others in both smoothed Lab and a*b* (a blend of two themes lies between
-    them in chroma as well, whereas a theme of another hue may well lie between
-    two in lightness only); the first that is kept wins.
+    Each theme's samples are split by 2-means on smoothed a*b*; from the largest chroma
+    gap down, a split seeds a diagonal Gaussian mixture of K + 1 themes, kept if the
+    new theme still passes the share, chroma and separation tests, its chroma is not
+    between two others' and no small theme is a blend in both Lab and a*b*.
 
     Returns
     -------
@@ -309,9 +274,7 @@ def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str
     centres : (K, F) float32 ndarray, ordered by decreasing cluster size
     sizes : (K,) float64 ndarray, share of samples per theme
     variances : (K, F) float32 ndarray
-        Per-theme, per-feature variances: the pooled k-means spread
-        (:func:`core.classify.mixture.isotropic_variances`), or the diagonal
-        mixture's after a split by hue (criterion 3).
+        The pooled k-means spread, or the diagonal mixture's after a split by hue.
     """
     wanted = options.max_themes if themes == "auto" else int(themes)
     n_distinct = _distinct_rows(samples, wanted) if len(samples) <= 50000 else len(samples)

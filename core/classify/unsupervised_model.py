@@ -1,12 +1,8 @@
 """Unsupervised themes as a reusable model: fit on a sample, predict any tile.
 
-:func:`fit_unsupervised` samples features of a photo -- or of several pieces
-of one photo too large for memory -- and fits k-means with K chosen by the
-criterion of :mod:`core.classify.unsupervised`. The resulting
-:class:`UnsupervisedModel` classifies any photo or tile with the same centres,
-so a colour gets the same theme number in every tile (the tiled converter,
-:mod:`core.convert.tiled`, relies on it). :func:`classify_unsupervised` is
-fit-then-predict on one photo.
+:func:`fit_unsupervised` fits the themes to a photo or to pieces of one too large for
+memory; :class:`UnsupervisedModel` then gives a colour the same theme in every tile
+(:mod:`core.convert.tiled` relies on it).
 """
 
 from __future__ import annotations
