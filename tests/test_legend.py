@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import zipfile
 
 import numpy as np
@@ -67,6 +68,12 @@ def test_bad_legends_are_refused(text: bytes, match: str) -> None:
 def test_read_legend_bounds_the_file(tmp_path) -> None:
     with pytest.raises(TerrathemeError, match="no such legend file"):
         read_legend(tmp_path / "missing.json")
+    with pytest.raises(TerrathemeError, match="is a folder, not a legend file"):
+        read_legend(tmp_path)
+    if hasattr(os, "mkfifo"):  # a named pipe would block the read
+        os.mkfifo(tmp_path / "pipe.csv")
+        with pytest.raises(TerrathemeError, match="pipe.csv: is a named pipe"):
+            read_legend(tmp_path / "pipe.csv")
     big = tmp_path / "big.csv"
     big.write_bytes(b"1," + b"x" * MAX_LEGEND_BYTES)
     with pytest.raises(TerrathemeError, match="legend file: larger than 1048576 bytes"):

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.archive import parse_json, read_bounded
+from terratheme.core.io.inputs import check_input_file
 
 #: largest legend file read
 MAX_LEGEND_BYTES = 1 << 20
@@ -152,6 +153,7 @@ def read_legend(path: str | os.PathLike) -> dict[int, str]:
         see :func:`parse_legend`.
     """
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise TerrathemeError(f"{p}: no such legend file")
+    check_input_file(p, "a legend file")  # a FIFO would block the read
     return parse_legend(read_bounded(p, MAX_LEGEND_BYTES, f"{p}: legend file"), str(p))
