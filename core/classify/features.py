@@ -1,33 +1,18 @@
 """Per-pixel colour and texture features on a downscaled copy of the photo.
 
-The product's output is a coarse grid of themes, so features are computed on
-the photo area-averaged by ``scale`` (each *coarse pixel* is a ``scale x
-scale`` block of photo pixels); the detail lost inside a block is kept as one
-feature, the block's standard deviation of lightness.
+The output is a coarse grid of themes, so features are computed on ``scale x scale``
+block means (*coarse pixels*), in fixed perceptual units (CIE Lab, L 0..100), not
+standardised per photo: the unsupervised criterion needs Delta-E distances so that a
+flat photo stays flat (design.md §3). Columns, in order:
 
-Units are perceptual and fixed (CIE Lab, L in 0..100, a/b about -128..127),
-not standardised per photo: the unsupervised criterion relies on distances
-being in Delta-E units, so that a flat photo stays flat (design.md §3).
-
-Feature sets
-------------
-``COLOUR``  : Lab of the coarse pixel (3 features).
-``DEFAULT`` : Lab, block lightness std, and for each sigma in ``sigmas``
-              (coarse pixels) the Gaussian-smoothed Lab (context), the local
-              lightness std of the photo pixels ``sqrt(G*L^2 - (G*L)^2)``
-              (L^2 from the block variance plus the squared block mean) and the gradient magnitude
-              of the smoothed lightness, and (``hessian``) the two Hessian
-              eigenvalues of the smoothed lightness times sigma^2
-              (3 + 1 + 7 * len(sigmas) features), all with OpenCV filters.
-
-Optional, in this order after those: fine ridges (``ridge_sigmas``,
-:mod:`core.classify.ridges`); the lightness relative to its context
-(``relative``: the coarse pixel's lightness and its smoothed lightness at every
-sigma but the largest, over the smoothed lightness at the largest sigma +
-``RELATIVE_FLOOR``, whatever the photo's exposure); the structure features
-(``structure``, :mod:`core.classify.texture`); the coarse pixel's position in
-the photo (``position``, 2 features, only for a model of the one photo it
-classifies: scribbles).
+``COLOUR``  : Lab (3).
+``DEFAULT`` : Lab, block L std (if ``scale > 1``), then per sigma (coarse pixels) the
+              smoothed Lab, the local L std ``sqrt(G*L^2 - (G*L)^2)``, the gradient
+              magnitude of the smoothed L and (``hessian``) its two Hessian eigenvalues
+              times sigma^2; then, if set: fine ridges (``ridge_sigmas``,
+              :mod:`core.classify.ridges`), lightness over the widest context's
+              (``relative``), structure (:mod:`core.classify.texture`), and the
+              position (2, :mod:`core.classify.position`).
 """
 
 from __future__ import annotations
@@ -133,28 +118,10 @@ def features_from_lab(
     lab: np.ndarray, block_std: np.ndarray, options: FeatureOptions,
     ridges: np.ndarray | None = None, texture: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Feature stack of a coarse Lab image.
-
-    Parameters
-    ----------
-    lab : (h, w, 3) float32 ndarray
-    block_std : (h, w) float32 ndarray
-    options : FeatureOptions
-    ridges : (h, w, 2 * len(options.ridge_sigmas)) float32 ndarray, optional
-        :func:`core.classify.ridges.block_ridges` of the same photo pixels;
-        required when ``options.ridge_sigmas`` is set (DEFAULT set).
-    texture : (h, w, T) float32 ndarray, optional
-        :func:`core.classify.texture.texture_features` of the same photo pixels;
-        required when ``options.structure`` is set.
-
-    Raises
-    ------
-    TerrathemeError
-        Ridge sigmas without the ridges, texture options without the texture.
-
-    Returns
-    -------
-    features : (h, w, F) float32 ndarray, F = ``options.n_image_features``
+    """Feature stack (h, w, ``n_image_features``) float32 of a coarse Lab image (h, w, 3)
+    and its block L std (h, w), all float32. ``ridges`` (:func:`block_ridges`) and
+    ``texture`` (:func:`texture_features`) of the same pixels are required when the
+    options ask for them.
     """
     if options.feature_set is FeatureSet.COLOUR:
         return np.ascontiguousarray(lab, dtype=np.float32)

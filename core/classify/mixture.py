@@ -1,12 +1,9 @@
 """Themes as a Gaussian mixture: per-theme, per-feature variances (design.md §3).
 
-k-means gives every theme the same round spread (the pooled within-theme
-variance, :func:`isotropic_variances`), which is what the criterion for K
-(:mod:`core.classify.unsupervised`) assumes. A theme of another hue inside a
-textured one needs its own spread per feature (the textured theme spreads
-widely in lightness, the other in chroma), so :func:`fit_diagonal_mixture`
-refits the themes as scikit-learn's diagonal-covariance ``GaussianMixture``
-started from given labels. :func:`posterior_fn` classifies under either spread.
+k-means gives every theme the same round spread (:func:`isotropic_variances`). A theme
+of another hue inside a textured one needs its own spread per feature, so
+:func:`fit_diagonal_mixture` refits the themes as a diagonal ``GaussianMixture`` from
+given labels. :func:`posterior_fn` classifies under either spread.
 """
 
 from __future__ import annotations
@@ -45,30 +42,13 @@ def _mixture(means: np.ndarray, weights: np.ndarray, variances: np.ndarray):
 
 
 def fit_diagonal_mixture(samples: np.ndarray, start: np.ndarray):
-    """Diagonal-covariance Gaussian mixture (EM) started from labels.
+    """Diagonal Gaussian mixture (EM) of weighted ``samples`` (n, F) float32 started from
+    themes ``start`` (n,) int, 0..K-1, each present. Deterministic.
 
-    scikit-learn's ``GaussianMixture`` one EM step at a time (``warm_start``), the
-    variances floored at :data:`VARIANCE_FLOOR` after each step (its ``reg_covar``
-    adds a constant instead, which moved the themes of real photos), until the mean
-    log-likelihood gains less than its ``tol``. Fitted on the features that vary and
-    on every m-th sample, at most :data:`MIXTURE_SAMPLES` (all if that would miss a
-    theme). Deterministic.
-
-    Parameters
-    ----------
-    samples : (n, F) float32 ndarray
-        Weighted features.
-    start : (n,) int ndarray
-        Starting theme of each sample, ``0..K-1``, every theme present.
-
-    Returns
-    -------
-    labels : (n,) int ndarray
-        Most probable theme of each sample under the fitted mixture.
-    means : (K, F) float32 ndarray
-    weights : (K,) float64 ndarray
-    variances : (K, F) float32 ndarray
-        At least :data:`VARIANCE_FLOOR`.
+    One ``GaussianMixture`` EM step at a time, variances floored at
+    :data:`VARIANCE_FLOOR` after each (``reg_covar`` would add a constant to all), on the
+    varying features and at most :data:`MIXTURE_SAMPLES` samples. Returns labels (n,)
+    int, means (K, F) float32, weights (K,) float64, variances (K, F) float32.
     """
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.mixture import GaussianMixture

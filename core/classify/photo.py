@@ -1,16 +1,9 @@
 """Bring a user's photo to the form the classifier works on.
 
-Photos arrive as ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA arrays, 8- or 16-bit
-(or 2-D grey). The classifier works on 8-bit RGB plus a mask of the pixels
-that carry data: fully transparent pixels (alpha 0) are *no data*, they are
-neither sampled for training nor given a class.
-
-A 2nd or 4th channel here *is* alpha. Whether a file's extra band is alpha
-is the file's say, not its channel count (an RGB + near-infrared TIFF has a
-4th band that is not alpha, and taking it for alpha would turn its dark
-pixels into no data): read photo files with
-``core.io.images.read_image(path, bands=Bands.PHOTO)``, which keeps an extra
-band only when the file marks it as alpha (TIFF ExtraSamples, PNG colour type).
+The classifier works on 8-bit RGB plus a mask of the pixels with data (alpha 0 is no
+data: never sampled nor classified). A 2nd or 4th channel here *is* alpha; whether a
+file's extra band is alpha is the file's say (an RGB + near-infrared TIFF), so read
+photos with ``read_image(path, bands=Bands.PHOTO)``.
 """
 
 from __future__ import annotations
@@ -22,25 +15,9 @@ from terratheme.core.errors import TerrathemeError
 def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Check a photo and convert it to 8-bit RGB plus a validity mask.
 
-    Parameters
-    ----------
-    photo : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) ndarray
-        uint8, uint16 (scaled so 65535 -> 255) or float in [0, 1]; a 2nd or
-        4th channel is alpha (module docstring: read files with ``Bands.PHOTO``).
-
-    Returns
-    -------
-    rgb : (H, W, 3) uint8 ndarray
-    valid : (H, W) bool ndarray or None
-        False where the alpha channel is 0 (transparent); None when every
-        pixel is valid (no alpha, or alpha all non-zero). Transparent pixels
-        of ``rgb`` hold the colour of the nearest opaque pixel.
-
-    Raises
-    ------
-    TerrathemeError
-        Wrong number of dimensions or channels, no pixels, unsupported dtype,
-        or every pixel transparent.
+    ``photo`` is (H, W[, 1|2|3|4]) uint8, uint16 or float in [0, 1]. Returns ``rgb``
+    (H, W, 3) uint8, transparent pixels given the nearest opaque colour, and ``valid``
+    (H, W) bool, False where alpha is 0, or None when every pixel has data.
     """
     arr = np.asarray(photo)
     if arr.ndim == 2:

@@ -1,8 +1,7 @@
 """Where coarse pixels lie in their photo: the optional position features.
 
-A class prior that depends on the place in the photo (a shore along one
-edge) is learnt from these two features when ``FeatureOptions.position`` is
-set (:func:`core.classify.features.with_position` appends them).
+With ``FeatureOptions.position`` a class prior that depends on the place (a shore
+along one edge) is learnt from them (:func:`core.classify.features.with_position`).
 """
 
 from __future__ import annotations

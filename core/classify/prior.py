@@ -1,16 +1,10 @@
 """Class-prior correction of a forest trained from scribbles (transductive step).
 
-A user paints about the same amount of every class, so a forest trained on
-scribbles (balanced, ``SupervisedOptions.balance``) believes every class is
-equally common; on the photo, roads may cover 5% and bare land 60%, and the
-forest over-predicts the rare classes. Scribbles lie on the photo being
-classified, so its class shares ``pi_k`` are estimated from the forest's
-outputs on it by "classify and count" (Forman 2008), and the posteriors
-adjusted to them as in Saerens, Latinne & Decaestecker (2002, eq. 2.4):
-multiplied by ``(pi_k / t_k) ** power`` (``t_k``: the training priors) and
-renormalised. A power under the paper's 1 keeps a thin class of small area
-(a road in heavy shadow, tests/test_classify_stability.py); the forest's vote
-shares are not calibrated posteriors to begin with.
+A user paints about as much of every class, so a forest of scribbles over-predicts
+rare classes. The photo's class shares ``pi_k`` are estimated by "classify and count"
+(Forman 2008) and the posteriors multiplied by ``(pi_k / t_k) ** power`` (``t_k`` the
+training priors; Saerens, Latinne & Decaestecker 2002, eq. 2.4), then renormalised.
+A power under 1 keeps a thin class of small area: vote shares are not calibrated.
 """
 from __future__ import annotations
 

@@ -14,13 +14,9 @@ class Classification:
     Attributes
     ----------
     labels : (H, W) uint8 ndarray
-        Class values: the training masks' values for a supervised
-        classifier, ``1..K`` for an unsupervised one; 0 only where the photo
-        is transparent (no data).
+        The training masks' class values, or themes ``1..K``; 0 only where transparent.
     confidence : (H, W) float32 ndarray
-        In [0, 1]: the winning class's share of the forest's votes
-        (supervised) or its posterior under the fitted mixture
-        (unsupervised); 0 where the photo is transparent.
+        In [0, 1]: the winner's vote share or mixture posterior; 0 where transparent.
     classes : tuple of int
         The class values the classifier can give, ascending.
     """

@@ -1,21 +1,14 @@
 """Structure features (``FeatureOptions.structure``): texture that carries across photos.
 
-The DEFAULT set (:mod:`core.classify.features`) describes texture by the
-lightness alone: its block std, local std and gradient at each sigma, all in
-L units, so they scale with the photo's contrast. ``structure`` adds
-``1 + len(sigmas)`` features (docs/design.md §3):
+The DEFAULT set's texture features are in L units and scale with contrast.
+``structure`` adds ``1 + len(sigmas)``, within ``FeatureOptions.halo``:
 
-* the block mean of the lightness gradient magnitude at full resolution
-  (edge density: Sobel 3 x 3, 1/8 normalised): detail inside a block that its
-  lightness std misses (many small edges against one large step);
-* per sigma, the coherence ``((mu_1 - mu_2) / (mu_1 + mu_2 + eps))^2`` of the
-  structure tensor ``G_sigma * (grad L grad L^T)`` of the coarse lightness
-  (Bigun & Granlund 1987; Weickert 1999): 1 along parallel lines (rows of
-  houses, road edges, fields), 0 for isotropic texture or flat areas; it
-  does not change with the photo's contrast.
-
-Both reach no further than the DEFAULT set's sigmas (3-sigma kernels plus a
-one-pixel Sobel), so ``FeatureOptions.halo`` covers them.
+* edge density: the block mean of the full-resolution lightness gradient magnitude
+  (many small edges against one large step);
+* per sigma, the coherence ``((mu_1 - mu_2) / (mu_1 + mu_2 + eps))^2`` of the structure
+  tensor ``G_sigma * (grad L grad L^T)`` of the coarse lightness (Bigun & Granlund
+  1987; Weickert 1999): 1 along parallel lines, 0 for isotropic or flat areas,
+  whatever the contrast.
 """
 
 from __future__ import annotations

@@ -1,16 +1,9 @@
 """Training kept by content in a :class:`~core.io.disk_cache.DiskCache`: a pair's samples, the fit.
 
-Computing the training photos' features is most of a training's cost, and
-fitting the forest most of what is left; neither changes while its inputs do
-not. A pair's samples (before the per-class cap, so the result is the same)
-are kept under :func:`sample_key`, the fitted Extra-Trees model under
-:func:`model_key`: SHA-256 of everything each depends on, so the same key
-gives the very samples and model (predictions bit-identical).
-
-An entry is checked before use against what its key stands for: samples of
-the right width, finite, labels of the trained classes; a model file
-(:mod:`core.classify.model_file`, every array checked) of the training's
-options. Anything else is a miss, computed again.
+Features and the fit are most of a training's cost. A pair's samples (before the
+per-class cap) are kept under :func:`sample_key`, the fitted model under
+:func:`model_key` (SHA-256 of everything each depends on: bit-identical results). An
+entry is checked against what its key stands for before use; else it is a miss.
 """
 
 from __future__ import annotations
