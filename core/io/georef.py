@@ -182,17 +182,15 @@ def scale_georeference(georef: dict, sx: float, sy: float, *,
 
 
 def world_file_for(path: str | os.PathLike, georef: dict) -> Path | None:
-    """The ESRI world file a georeferenced ``path`` gets, or None (TIFF, or no georeference).
-
-    ``.pgw`` for PNG, ``.jgw`` for JPEG, ``.wld`` otherwise, beside the image.
-    """
+    """The world file (:func:`world_file_name`) of a georeferenced non-TIFF ``path``, or None."""
     if not georef or world_file_lines(georef) is None:
         return None
     return world_file_name(path)
 
 
 def world_file_name(path: str | os.PathLike) -> Path | None:
-    """Where :func:`world_file_for` puts ``path``'s world file when it has one (None: TIFF)."""
+    """``path``'s ESRI world file beside it (``.pgw`` PNG, ``.jgw`` JPEG, else ``.wld``;
+    None for a TIFF), whether or not it has a georeference."""
     p = Path(path)
     if p.suffix.lower() in _TIFF_SUFFIXES:
         return None

@@ -27,11 +27,8 @@ def _expected_chunks(page) -> int:
 
 
 def check_tiff_chunks(path: Path) -> None:
-    """Refuse a TIFF whose first image lists fewer strips or tiles than its size needs.
-
-    Raises CorruptFileError. A file tifffile cannot parse is left to OpenImageIO. The
-    answer is cached by (size, mtime): a tiled conversion's many reads parse it once.
-    """
+    """CorruptFileError if a TIFF's first image lists fewer strips or tiles than its size
+    needs (one tifffile cannot parse is left to OpenImageIO); cached by size and mtime."""
     stat = path.stat()
     problem = _chunk_problem(str(path), stat.st_size, stat.st_mtime_ns)
     if problem:

@@ -104,11 +104,8 @@ def iter_tiles(
     *,
     dtype: np.dtype | str | None = None,
 ) -> Iterator[tuple[TileWindow, np.ndarray]]:
-    """Read a file tile by tile: yields ``(window, pixels)`` with ``pixels`` the read window.
-
-    ``pixels`` is ``(rh, rw, C)``; ``pixels[window.core_in_read]`` is the core.
-    Only one tile is in memory at a time.
-    """
+    """Yield ``(window, pixels)`` tile by tile, ``pixels`` the (rh, rw, C) read window
+    (``pixels[window.core_in_read]`` the core); one tile in memory at a time."""
     info = image_info(path)
     for win in tile_windows(info.width, info.height, tile, overlap):
         yield win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype)
