@@ -86,8 +86,6 @@ def test_bad_integer_tuples_are_one_line_and_exit_2(argv, message, capsys):
     (["render", "p.ttproj", "out.png", "--bogus"], "terratheme: error: unrecognized arguments"),
     (["export", "p.ttproj", "out", "--engine", "doom"],
      "terratheme export: error: argument --engine: invalid choice: 'doom'"),
-    (["new", "map.png", "p.ttproj"],
-     "terratheme new: error: the following arguments are required: --themes"),
     (["nosuchcommand"], "terratheme: error: argument COMMAND: invalid choice"),
 ])
 def test_argparse_errors_are_one_line(argv, message, capsys):

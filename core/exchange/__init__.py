@@ -15,9 +15,11 @@ files of an export, theme textures, manifests), ``unity``, ``unreal``,
 ``terrain3d`` (Godot), ``geotiff`` (GIS) with ``cog`` (the Cloud Optimized
 GeoTIFF layout), ``texture_tiff`` (a render larger than memory as such a
 GeoTIFF, band by band: ``terratheme render --tiled``), ``export`` (plan,
-then write), ``maps_to_grid`` (the way back: engine maps to a vertex grid).
+then write), ``maps_to_grid`` (the way back: engine maps to a vertex grid),
+``carried`` (the way back from an export: the project it carries, exactly).
 """
 
+from terratheme.core.exchange.carried import project_from_export
 from terratheme.core.exchange.colour import gain_at_pixels, linear_gain
 from terratheme.core.exchange.export import plan_export, write_export
 from terratheme.core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
@@ -56,6 +58,7 @@ __all__ = [
     "map_labels",
     "map_weights",
     "plan_export",
+    "project_from_export",
     "read_control_map",
     "read_splatmaps",
     "read_weight_maps",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from terratheme.core.exchange import geotiff, terrain3d, unity, unreal
 from terratheme.core.exchange.options import Engine, ExportOptions
-from terratheme.core.exchange.plan import ExportPlan
+from terratheme.core.exchange.plan import ExportPlan, write_carried_project
 from terratheme.core.exchange.style import export_boundary
 from terratheme.core.io.atomic import file_set
 from terratheme.core.model.project import ThematicTexture
@@ -35,9 +35,11 @@ def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.Pa
                  progress: Progress | None = None) -> list[Path]:
     """Write the files of ``plan`` into ``folder`` as one set (:func:`core.io.atomic.file_set`).
 
-    Every file goes to a temporary first; the old manifest is removed, the new
-    files renamed into place and the manifest last, so a reader that trusts
-    the manifest never sees old and new files mixed.
+    The project itself goes along (:data:`core.exchange.plan.CARRIED`, for
+    ``new --from export``). Every file goes to a temporary first; the old
+    manifest is removed, the new files renamed into place and the manifest
+    last, so a reader that trusts the manifest never sees old and new files
+    mixed.
 
     Returns
     -------
@@ -46,5 +48,6 @@ def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.Pa
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     with file_set(plan.paths(out)):
+        write_carried_project(project, out)
         _ENGINES[plan.options.engine].write(project, plan, out, progress)
     return plan.paths(out)

@@ -32,7 +32,12 @@ from terratheme.core.errors import OptionError
 from terratheme.core.exchange.cog import box_half, nearest_half, write_cog
 from terratheme.core.exchange.layout import world_frame
 from terratheme.core.exchange.options import ExportOptions
-from terratheme.core.exchange.plan import ExportPlan, common_manifest, write_manifest
+from terratheme.core.exchange.plan import (
+    CARRIED,
+    ExportPlan,
+    common_manifest,
+    write_manifest,
+)
 from terratheme.core.exchange.style import export_boundary, export_render_options, map_labels
 from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.io.georef import GEO_TAGS
@@ -57,7 +62,8 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     notes = () if project.metadata.get("georeference") else (
         "the project has no georeference (not made from a GeoTIFF): the TIFFs carry none",)
-    return ExportPlan(options, None, world, (LANDCLASS, STYLE, TEXTURE, MANIFEST), notes)
+    return ExportPlan(options, None, world, (LANDCLASS, STYLE, TEXTURE, CARRIED, MANIFEST),
+                      notes)
 
 
 def geotiff_tags(georeference: dict) -> list[tuple]:

@@ -12,7 +12,7 @@ import json
 import os
 import re
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +23,7 @@ from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.exchange.style import export_boundary, map_weights
 from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.io.images import write_image
-from terratheme.core.model.project import ThematicTexture
+from terratheme.core.model.project import ThematicTexture, save_project
 
 
 @dataclass(frozen=True)
@@ -54,14 +54,26 @@ class ExportPlan:
         return [Path(folder) / f for f in self.files]
 
 
+#: the project as exported, without its photo and scribbles: what ``new --from export`` reads
+#: back (the maps are resampled: a 2048 x 2048 splatmap over 72 x 68 vertices holds no
+#: vertex grid of whole pixels), with the themes cut from the photo and the colour map's bytes
+CARRIED = "terratheme_project.ttproj"
+
+
 def map_plan(project: ThematicTexture, options: ExportOptions, layout: ExportLayout,
              files: list[str], manifest: str, notes: list[str]) -> ExportPlan:
     """The plan of a map export: ``files``, the colour map when the project has one
-    (:data:`core.exchange.colour.COLOUR_MAP`), then the ``manifest``, in the
-    project's world frame (its georeference, else texels)."""
+    (:data:`core.exchange.colour.COLOUR_MAP`), the carried project (:data:`CARRIED`), then
+    the ``manifest``, in the project's world frame (its georeference, else texels)."""
     colour = [COLOUR_MAP] if project.colour_map is not None else []
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
-    return ExportPlan(options, layout, world, (*files, *colour, manifest), tuple(notes))
+    return ExportPlan(options, layout, world, (*files, *colour, CARRIED, manifest),
+                      tuple(notes))
+
+
+def write_carried_project(project: ThematicTexture, folder: Path) -> None:
+    """The project without its photo and scribbles, as :data:`CARRIED` in ``folder``."""
+    save_project(folder / CARRIED, replace(project, photo=None, scribbles=None))
 
 
 def safe_name(name: str) -> str:
@@ -128,7 +140,8 @@ def common_manifest(project: ThematicTexture, plan: ExportPlan,
 
     ``borders`` is ``"shaped"`` (with the ``boundary`` options the weights
     follow, :mod:`core.exchange.shaped`) or ``"linear"``; ``colour_map`` is
-    :func:`core.exchange.colour.colour_manifest` with ``colour_file``, or None.
+    :func:`core.exchange.colour.colour_manifest` with ``colour_file``, or None;
+    ``project`` the carried project (:data:`CARRIED`).
     """
     world = plan.world
     boundary = export_boundary(project, plan.options)
@@ -146,6 +159,7 @@ def common_manifest(project: ThematicTexture, plan: ExportPlan,
         "borders": "linear" if boundary is None else "shaped",
         "boundary": None if boundary is None else asdict(boundary),
         "colour_map": colour_manifest(project, colour_file),
+        "project": CARRIED,
     }
 
 

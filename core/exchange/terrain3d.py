@@ -58,6 +58,7 @@ from terratheme.core.exchange.colour import gain_at_pixels, linear_gain
 from terratheme.core.exchange.layout import ExportLayout, world_frame
 from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.exchange.plan import (
+    CARRIED,
     STORED_ALPHA,
     ExportPlan,
     common_manifest,
@@ -198,7 +199,7 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
                      f"at the control map's vertices (one per {spacing:g} texels); "
                      f"a {wtex + 1} x {htex + 1} map keeps it (a vertex per texel)")
     colour = () if project.colour_map is None else (COLOUR_MAP,)
-    files = (CONTROL_MAP, *colour, *theme_files(project), MANIFEST)
+    files = (CONTROL_MAP, *colour, *theme_files(project), CARRIED, MANIFEST)
     return ExportPlan(options, layout, world, files, tuple(notes))
 
 

@@ -1,0 +1,77 @@
+"""The way back from an export: the project it carries (``new --from export``).
+
+Every export writes the project beside its maps (:data:`core.exchange.plan.CARRIED`,
+without the photo and scribbles) and names it in its manifest (``project``).
+The engine maps are resampled (a 2048 x 2048 Unity splatmap over 72 x 68
+vertices has no vertex on a whole pixel, and the GeoTIFF's class map is per
+texel), so the grid, the themes cut from the photo and the colour map's own
+bytes come back from that file, exactly; the manifest's grid and cell must
+agree with it.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.archive import parse_json, read_bounded
+from terratheme.core.model.project import ThematicTexture, load_project
+
+#: a manifest is a few kB (a tiled Unreal export lists every tile): far below this
+MAX_MANIFEST_BYTES = 16 << 20
+MANIFEST_GLOB = "terratheme_*.json"
+
+
+def export_manifest(path: str | os.PathLike) -> Path:
+    """The manifest of an export given as its folder or its manifest file.
+
+    Raises
+    ------
+    TerrathemeError
+        No such file or folder, or a folder holding no (or several) manifests.
+    """
+    p = Path(path)
+    if p.is_dir():
+        found = sorted(p.glob(MANIFEST_GLOB))
+        if len(found) != 1:
+            what = "no" if not found else f"{len(found)}"
+            raise TerrathemeError(f"{p}: {what} export manifests ({MANIFEST_GLOB}) in the "
+                                  "folder; name the manifest")
+        return found[0]
+    if not p.is_file():
+        raise TerrathemeError(f"{p}: no such export folder or manifest")
+    return p
+
+
+def project_from_export(path: str | os.PathLike) -> ThematicTexture:
+    """The project an export carries (its folder or manifest at ``path``).
+
+    Raises
+    ------
+    TerrathemeError
+        Not a terratheme manifest, one without a carried project (written
+        before exports carried it), a ``project`` entry that is not a file
+        name beside the manifest, or a carried project whose grid or cell
+        differs from the manifest's.
+    """
+    manifest = export_manifest(path)
+    data = parse_json(read_bounded(manifest, MAX_MANIFEST_BYTES, str(manifest)), str(manifest))
+    if not isinstance(data, dict) or not str(data.get("format", "")).startswith("terratheme-"):
+        raise TerrathemeError(f"{manifest}: not a terratheme export manifest")
+    name = data.get("project")
+    if name is None:
+        raise TerrathemeError(f"{manifest}: the export carries no project (written before "
+                              "exports carried it): export again, or read its maps with "
+                              "--from splatmap, weights or terrain3d")
+    if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
+        raise TerrathemeError(f"{manifest}: 'project' must be a file name beside the "
+                              f"manifest, not {name!r}")
+    project = load_project(manifest.parent / name)
+    shape, cell = list(project.grid.indices.shape), list(project.grid.cell)
+    if data.get("grid_shape") != shape or data.get("cell") != cell:
+        raise TerrathemeError(
+            f"{manifest}: the carried project's grid ({shape[1]} x {shape[0]} vertices, cell "
+            f"{cell[0]}x{cell[1]}) is not the manifest's ({data.get('grid_shape')}, cell "
+            f"{data.get('cell')}): the folder mixes two exports")
+    return project
