@@ -1,9 +1,7 @@
 """The photo in CIE Lab, per pixel and per block: what every feature family starts from.
 
-OpenCV's 8-bit RGB -> Lab conversion, rescaled to L in 0..100 and a, b about
--128..127 through one 256-entry table; block means of Lab and the block
-standard deviation of L on the classifier's coarse grid (``scale`` pixels a
-side, edge-replicated to whole blocks).
+OpenCV's 8-bit conversion rescaled to L 0..100, a and b about -128..127; block means
+and the block std of L on the coarse grid (edge-replicated to whole blocks).
 """
 
 from __future__ import annotations

@@ -1,12 +1,7 @@
 """The classifier options a model file may hold, as JSON, with the type and range of each.
 
-Every option a model file may hold has a rule (``_OPTION_RULES``,
-``_FEATURE_RULES``, ``_REGULARISE_RULES``): its type and range (feature
-scale 1..64, sigmas up to 64, at most ``MAX_TREES`` trees of depth
-``MAX_DEPTH``, ...); missing options take their defaults, unknown ones are
-refused. The bounds keep a hostile file from costing unbounded work at
-predict time (:mod:`core.classify.model_file`). Options of removed methods that
-files of earlier versions hold (``_RETIRED``) are accepted at their "off" value.
+Unknown options are refused; those of removed methods (``_RETIRED``) are accepted at
+their "off" value.
 """
 
 from __future__ import annotations
