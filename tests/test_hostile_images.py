@@ -340,3 +340,20 @@ def test_pack_and_unpack_keep_every_texel_of_an_rgba_index_image(tmp_path, capsy
     assert main(["pack", str(tmp_path / "idx.png"), str(tmp_path / "idx.ttpack")]) == 0
     assert main(["unpack", str(tmp_path / "idx.ttpack"), str(tmp_path / "back.png")]) == 0
     np.testing.assert_array_equal(read_image(tmp_path / "back.png"), image)
+
+
+def test_a_png_is_checked_once_per_version(tmp_path, monkeypatch):
+    # A tiled conversion opens the photo once per tile: its chunks are read once.
+    from terratheme.core.io import png
+
+    write_image(tmp_path / "a.png", np.zeros((8, 8, 3), np.uint8))
+    png.check_png_chunks(tmp_path / "a.png")
+    calls = []
+    monkeypatch.setattr(png, "open", lambda *a: calls.append(a) or open(*a), raising=False)
+    png.check_png_chunks(tmp_path / "a.png")
+    assert calls == []
+    data = (tmp_path / "a.png").read_bytes()
+    (tmp_path / "a.png").write_bytes(data[:-6])  # another version: checked again
+    with pytest.raises(CorruptFileError, match="truncated PNG"):
+        png.check_png_chunks(tmp_path / "a.png")
+    assert calls

@@ -23,6 +23,7 @@ module only
 
 from __future__ import annotations
 
+import functools
 import os
 import struct
 import zlib
@@ -70,14 +71,21 @@ def check_png_chunks(path: str | os.PathLike) -> None:
     """Refuse a PNG whose chunks are damaged, before libpng reads it.
 
     Every chunk must lie inside the file with a matching CRC, ``IHDR`` first,
-    ``IEND`` last. One pass over the file, a buffer of :data:`_READ` bytes.
+    ``IEND`` last. One pass over the file, a buffer of :data:`_READ` bytes,
+    once per version of a file (a tiled conversion opens it once per tile).
 
     Raises
     ------
     CorruptFileError
         Truncated, a chunk past the end, a CRC mismatch, no IHDR or IEND.
     """
-    size = os.path.getsize(path)
+    st = os.stat(path)
+    _check_chunks(os.fspath(path), st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _check_chunks(path: str, _inode: int, size: int, _mtime_ns: int) -> None:
+    """:func:`check_png_chunks` of one version of a file (a failure is not cached)."""
     with open(path, "rb") as fh:
         if fh.read(8) != SIGNATURE:
             raise CorruptFileError(f"{path}: not a PNG (no PNG signature)")
