@@ -134,3 +134,19 @@ def test_a_real_georeference_in_us_survey_feet_survives(tmp_path, shared_data):
     manifest = json.loads((tmp_path / "terratheme_geotiff.json").read_text())
     assert manifest["crs_units"] == "US survey foot"
     assert manifest["texel_size"] == pytest.approx([1200 / 3937] * 2)
+
+
+def test_a_texture_beyond_one_geotiff_level_is_refused_before_any_work(tmp_path, capsys):
+    # 12 x 12 vertices at cell 4096: a 45056^2 texture, 5.7 GiB of RGB (the issue's
+    # 10000^2 land-cover map at cell 32 failed after the work, reading a level back).
+    from terratheme.app.cli import main
+    from terratheme.core.model.project import save_project
+
+    lib = shipped_theme_library().select(["water", "sand"])
+    grid = IndexGrid((np.arange(144).reshape(12, 12) % 2).astype(np.uint8), (4096, 4096))
+    save_project(tmp_path / "big.ttproj", ThematicTexture(grid, lib))
+    out = tmp_path / "gis"
+    assert main(["export", str(tmp_path / "big.ttproj"), str(out), "--engine", "geotiff"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--size" in err and "45056 x 45056" in err
+    assert not out.exists() or not any(out.iterdir())

@@ -47,6 +47,10 @@ _LONG, _LONG8 = 4, 16
 _PHOTOMETRIC, _COLOR_MAP = 262, 320
 
 
+#: raw bytes of the largest level :func:`write_cog` can hold (classic TIFF, 32 MiB of headroom)
+MAX_LEVEL_BYTES = (1 << 32) - (1 << 25)
+
+
 def box_half(band: np.ndarray) -> np.ndarray:
     """Half-size band: 2 x 2 means (odd sizes: the last row/column repeated first), for pictures."""
     h, w = band.shape[:2]

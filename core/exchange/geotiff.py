@@ -29,7 +29,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from terratheme.core.errors import OptionError
-from terratheme.core.exchange.cog import box_half, nearest_half, write_cog
+from terratheme.core.exchange.cog import MAX_LEVEL_BYTES, box_half, nearest_half, write_cog
 from terratheme.core.exchange.layout import world_frame
 from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.exchange.plan import (
@@ -59,6 +59,15 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     if options.size is not None or options.tile is not None:
         raise OptionError("the GeoTIFF export is at one pixel per texel, tiled inside the "
                           "file with overviews: {size} and {tile} are for engine exports")
+    w, h = photo_extent(project)
+    if 3 * w * h > MAX_LEVEL_BYTES:
+        # Refused before any work: the baked texture is one pixel per texel.
+        raise OptionError(
+            f"the GIS export is one pixel per texel: a {w} x {h} texture is "
+            f"{3 * w * h / 2**30:.1f} GiB of pixels, beyond the {MAX_LEVEL_BYTES / 2**30:.1f} "
+            "GiB a GeoTIFF level holds here, and it takes no {size}: export the engine maps "
+            "(--engine unity|unreal|godot {size} WxH), or bake parts with render --tiled "
+            "--region")
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     notes = () if project.metadata.get("georeference") else (
         "the project has no georeference (not made from a GeoTIFF): the TIFFs carry none",)

@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 from terratheme.core.errors import OptionError
-from terratheme.core.exchange.cog import box_half, write_cog
+from terratheme.core.exchange.cog import MAX_LEVEL_BYTES, box_half, write_cog
 from terratheme.core.exchange.geotiff import geotiff_tags
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.inputs import validate_region
@@ -34,8 +34,6 @@ from terratheme.core.render.renderer import RenderOptions
 
 #: tile side of the file, and rows per rendered band
 TILE = 512
-#: raw bytes of the largest level ``write_cog`` can hold (classic TIFF, 32 MiB of headroom)
-MAX_LEVEL_BYTES = (1 << 32) - (1 << 25)
 
 Progress = Callable[[int, int], None]
 
