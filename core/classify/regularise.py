@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from terratheme.core.classify.texture import context_blur
 from terratheme.core.errors import TerrathemeError
 
 
@@ -90,9 +91,7 @@ def edge_reach(sigma_spatial: float, iterations: int = EDGE_ITERATIONS) -> int:
 def smooth_probabilities(probs: np.ndarray, sigma: float) -> np.ndarray:
     """Each class's probability map (h, w, C) float32 Gaussian-averaged over ``sigma``
     coarse pixels (rows still sum to 1)."""
-    k = 2 * int(math.ceil(3.0 * sigma)) + 1
-    out = cv2.GaussianBlur(probs, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
-    return out.reshape(probs.shape)
+    return context_blur(probs, sigma).reshape(probs.shape)
 
 
 def edge_aware_probabilities(probs: np.ndarray, lab: np.ndarray, sigma_spatial: float,

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 import cv2
 import numpy as np
+from terratheme.core.classify.texture import context_blur
 
 
 def ridge_halo(sigmas: Sequence[float]) -> int:
@@ -60,9 +61,8 @@ def block_ridges(lightness: np.ndarray, scale: int, sigmas: Sequence[float]) -> 
                                   interpolation=cv2.INTER_AREA)
             lum, step, sigma = half, scale // 2, sigma / 2.0
         block = np.ones((step, step), np.uint8)
-        # Smooth with an explicit 3-sigma kernel (the tile overlap covers it exactly).
-        k = 2 * int(math.ceil(3.0 * sigma)) + 1
-        g = cv2.GaussianBlur(lum, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+        # An explicit 3-sigma kernel: the tile overlap covers it exactly.
+        g = context_blur(lum, sigma)
         larger, smaller = hessian_eigenvalues(g)
         # Block extremes: max/min filter over each block anchored at its top-left pixel,
         # read at the block corners; past the photo the border is replicated.

@@ -29,8 +29,8 @@ def texture_count(sigmas: Sequence[float], structure: bool) -> int:
 
 
 def context_blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian blur with an explicit 3-sigma kernel (so a tile overlap of
-    ``ceil(3 sigma)`` pixels is exact), reflected at the border; any channel count up to 4."""
+    """Gaussian blur with an explicit 3-sigma kernel (so a tile overlap of ``ceil(3 sigma)``
+    pixels is exact), reflected at the border; up to 128 channels (OpenCV's binding)."""
     k = 2 * int(math.ceil(3.0 * sigma)) + 1
     return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
 

@@ -28,6 +28,7 @@ from terratheme.core.classify.bands import BandOptions, lies_between
 from terratheme.core.classify.features import FeatureOptions, FeatureSet
 from terratheme.core.classify.mixture import fit_diagonal_mixture, isotropic_variances
 from terratheme.core.classify.regularise import RegulariseOptions
+from terratheme.core.classify.texture import block_mean
 from terratheme.core.classify.tiled import iter_tile_features, strided_core
 from terratheme.core.errors import TerrathemeError
 
@@ -101,13 +102,7 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
 
 def _valid_coarse(valid: np.ndarray | None, scale: int) -> np.ndarray | None:
     """A window core's validity (photo pixels) on its coarse pixels."""
-    if valid is None:
-        return None
-    block = valid.astype(np.float32)
-    h, w = -(-block.shape[0] // scale), -(-block.shape[1] // scale)
-    ph, pw = h * scale - block.shape[0], w * scale - block.shape[1]
-    block = np.pad(block, ((0, ph), (0, pw)), mode="edge")
-    return cv2.resize(block, (w, h), interpolation=cv2.INTER_AREA) > 0.0
+    return None if valid is None else block_mean(valid.astype(np.float32), scale) > 0.0
 
 
 def sampling_stride(height: int, width: int, options: UnsupervisedOptions) -> int:
