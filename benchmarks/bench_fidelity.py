@@ -61,11 +61,16 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_classify import DATA, load, scribble_sets  # noqa: E402
 from fidelity_chart import chart  # noqa: E402
 from fidelity_peers import CODECS, PEER_MAKERS, best_peers, score_image, score_peers  # noqa: E402
-from terratheme.core.convert.cell_choice import choose_cell_size  # noqa: E402
+from terratheme.core.convert.cell_choice import cell_within_budget, choose_cell_size  # noqa: E402
 from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.labels_to_grid import apply_lut  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
-from terratheme.core.convert.step import assign_themes, classify_photo, grid_and_colour  # noqa: E402
+from terratheme.core.convert.step import (  # noqa: E402
+    assign_themes,
+    classify_photo,
+    grid_and_colour,
+    grid_budget,
+)
 from terratheme.core.fidelity import colour_error, detail_ratio, structure_scores, texture_cost  # noqa: E402
 from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
@@ -361,7 +366,10 @@ def structure_variants(photo):
             *((f"budget {b}", detail, ColourMapOptions(budget=b)) for b in BUDGETS),
             ("budget 0.04, whole themes", whole, ColourMapOptions(budget=0.04))):
         t = time.perf_counter()
-        made = grid_and_colour(photo, theme_labels, mapping, cell="auto", choice=choice,
+        cap = grid_budget(cmap)
+        cell = choice if cap is None else cell_within_budget(
+            theme_labels, choice, DEFAULT.candidates, cap, keep_specks=False)
+        made = grid_and_colour(photo, theme_labels, mapping, cell="auto", choice=cell,
                                colour_map=cmap, render=RenderOptions(boundary=DEFAULT.boundary),
                                keep_specks=False)
         project = ThematicTexture(made.grid, mapping.library, {"photo_size": [w, h]},

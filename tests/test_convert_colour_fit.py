@@ -177,3 +177,37 @@ def test_detail_themes_only_with_a_budget_map():
     assert detail_sigma(ColourMapOptions()) == DETAIL_SIGMA
     assert detail_sigma(ColourMapOptions(target=2.0)) is None
     assert detail_sigma(None) is None
+
+
+def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit():
+    from terratheme.core.convert.cell_choice import (
+        CellChoice,
+        agreement,
+        cell_within_budget,
+        packed_bits_per_pixel,
+    )
+    from terratheme.core.convert.labels_to_grid import vote_grid
+    from terratheme.core.model.grid import IndexGrid
+
+    rng = np.random.default_rng(5)
+    # Random 16-pixel blocks of 3 themes: a cell-4 grid costs more than a cell-16 one.
+    labels = np.kron(rng.integers(0, 3, (8, 8)), np.ones((16, 16), int)).astype(np.uint8)
+    choice = CellChoice((4, 4), 1.0, 0.9, (), True)
+    bits = {c: packed_bits_per_pixel(IndexGrid(vote_grid(labels, (c, c)), (c, c)), labels.size)
+            for c in (4, 8, 16)}
+    assert bits[4] > bits[8] > bits[16]
+    assert cell_within_budget(labels, choice, (4, 8, 16), bits[4]) is choice
+    got = cell_within_budget(labels, choice, (4, 8, 16), (bits[8] + bits[16]) / 2)
+    g16 = IndexGrid(vote_grid(labels, (16, 16)), (16, 16))
+    assert got.cell == (16, 16) and got.agreement == pytest.approx(agreement(labels, g16))
+    assert got.curve == choice.curve
+    # Nothing fits: the largest candidate.
+    assert cell_within_budget(labels, choice, (4, 8, 16), 0.0).cell == (16, 16)
+
+
+def test_grid_budget_is_a_share_of_the_map_budget():
+    from terratheme.core.convert.step import GRID_SHARE, grid_budget
+
+    assert grid_budget(ColourMapOptions(budget=0.08)) == pytest.approx(0.08 * GRID_SHARE)
+    assert grid_budget(ColourMapOptions(target=2.0)) is None
+    assert grid_budget(None) is None

@@ -13,13 +13,14 @@ each candidate is measured on the grid the conversion would use).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from terratheme.core.classify.samples import check_class_image
 from terratheme.core.convert.labels_to_grid import vote_grid
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
+from terratheme.core.packing import pack
 from terratheme.core.render.renderer import render_labels
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
@@ -225,3 +226,47 @@ def choose_cell_size(
 
 def _meets(point: CellPoint, target_agreement: float, class_target: float) -> bool:
     return point.agreement >= target_agreement and point.worst_class_iou >= class_target
+
+
+def packed_bits_per_pixel(grid: IndexGrid, pixels: int) -> float:
+    """Bits per photo pixel of a grid packed as ``convert`` ships it (``pack(curve="auto")``)."""
+    return len(pack(grid.indices, curve="auto").to_bytes()) * 8 / max(int(pixels), 1)
+
+
+def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Sequence[int],
+                       max_bits_per_pixel: float, *, keep_specks: bool = True) -> CellChoice:
+    """``choice``, or the next larger candidate cells until the packed grid fits its budget.
+
+    Under a byte budget (issue 34) the colour map carries the structure and
+    a grid only places the themes' detail: a fine cell's grid took a third of
+    the bytes of a villa photo at 0.02 bits per pixel, which the map shows
+    better (docs/decisions.md). The largest candidate is kept even when it
+    does not fit.
+
+    Parameters
+    ----------
+    labels : (H, W) uint8 ndarray
+        The theme labels the choice was made on.
+    choice : CellChoice
+    candidates : sequence of int
+    max_bits_per_pixel : float
+        Bits per photo pixel the packed grid may take.
+    keep_specks : bool
+        As the grid is voted (:func:`core.convert.labels_to_grid.vote_grid`).
+
+    Returns
+    -------
+    CellChoice
+        With ``cell`` and ``agreement`` of the cell taken (its curve unchanged).
+    """
+    labels = check_class_image(labels, "label image")
+    cell = choice.cell[0]
+    larger = sorted(int(c) for c in candidates if int(c) > cell)
+    grid = None
+    for nxt in [cell, *larger]:
+        grid = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
+        if packed_bits_per_pixel(grid, labels.size) <= max_bits_per_pixel:
+            break
+    if grid.cell == choice.cell:
+        return choice
+    return replace(choice, cell=grid.cell, agreement=agreement(labels, grid, max_pixels=1 << 22))

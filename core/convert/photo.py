@@ -37,6 +37,7 @@ from terratheme.core.convert.step import (
     classify_photo,
     detail_sigma,
     grid_and_colour,
+    grid_budget,
     themes_and_cell,
 )
 from terratheme.core.errors import TerrathemeError
@@ -214,7 +215,7 @@ def convert_photo(
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=options.candidates, patch=options.patch, names=names,
         full_curve=options.full_curve, keep_specks=options.keep_specks,
-        detail=detail_sigma(options.colour_map))
+        detail=detail_sigma(options.colour_map), grid_bpp=grid_budget(options.colour_map))
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).

@@ -32,6 +32,7 @@ from terratheme.core.convert.cell_choice import (
     DEFAULT_CELL_CANDIDATES,
     CellChoice,
     agreement,
+    cell_within_budget,
     choose_cell_size,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
@@ -150,6 +151,21 @@ def cuts_themes(themes: ThemesSpec) -> bool:
     return isinstance(themes, str | int) and not isinstance(themes, ThemeLibrary)
 
 
+#: share of a byte budget the packed grid may take (:func:`grid_budget`)
+GRID_SHARE = 0.125
+
+
+def grid_budget(colour_map: ColourMapOptions | None) -> float | None:
+    """The ``grid_bpp`` of :func:`themes_and_cell` for a conversion's colour map.
+
+    :data:`GRID_SHARE` of a byte budget's bits per pixel; None (no cap)
+    without a map or with a dE8-target map.
+    """
+    if colour_map is None or colour_map.target is not None:
+        return None
+    return GRID_SHARE * colour_map.budget
+
+
 def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
     """The ``detail`` of :func:`themes_and_cell` for a conversion's colour map.
 
@@ -169,6 +185,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     full_curve: bool = True,
                     keep_specks: bool = True,
                     detail: float | None = DETAIL_SIGMA,
+                    grid_bpp: float | None = None,
                     ) -> tuple[ThemeMapping, CellChoice | None]:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -181,6 +198,9 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     this sigma, around mid-grey and with the photo's contrast in their class
     (:func:`core.themes.detail.detail_library`), the colour map carrying the
     rest; None (a conversion without a colour map) keeps them whole.
+    ``grid_bpp``: with ``cell`` "auto", the bits per photo pixel the packed
+    grid may take (:func:`core.convert.cell_choice.cell_within_budget`);
+    :func:`grid_budget` gives it for a conversion's colour map.
 
     Returns
     -------
@@ -189,9 +209,14 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         None unless ``cell`` is "auto".
     """
     def choose(lut: np.ndarray) -> CellChoice:
-        return choose_cell_size(apply_lut(labels, lut), target_agreement,
-                                candidates=candidates, class_target=class_target,
-                                full_curve=full_curve, keep_specks=keep_specks)
+        theme_labels = apply_lut(labels, lut)
+        choice = choose_cell_size(theme_labels, target_agreement,
+                                  candidates=candidates, class_target=class_target,
+                                  full_curve=full_curve, keep_specks=keep_specks)
+        if grid_bpp is None:
+            return choice
+        return cell_within_budget(theme_labels, choice, candidates, grid_bpp,
+                                  keep_specks=keep_specks)
 
     def cut() -> ThemeMapping:
         mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
