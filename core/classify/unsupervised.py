@@ -44,21 +44,10 @@ class UnsupervisedOptions:
         into bands that k-means would take for themes.
     bands : BandOptions
         Border bands relabelled by pixel colour (DEFAULT feature set only).
-    max_themes : int
-        Upper bound on K for ``themes="auto"``.
-    min_gain : float
-        Smallest share of the photo's variance a new theme must explain.
-    min_separation : float
-        Smallest distance between two centres (weighted features, Delta-E-like).
-    transition_share, min_hue_separation, min_hue_share : float
-        Criteria 2 and 3 of the module docstring; ``min_hue_separation=inf`` turns
-        the split by hue off.
-    max_samples : int
-        Coarse pixels sampled for k-means.
-    attempts : int
-        k-means restarts (best compactness kept).
-    seed : int
-        OpenCV RNG seed (results are deterministic).
+    max_themes, min_gain, min_separation, transition_share, min_hue_separation, min_hue_share
+        The criteria of the module docstring (``min_hue_separation=inf``: no split by hue).
+    max_samples, attempts, seed : int
+        Coarse pixels sampled, k-means restarts (best kept), OpenCV RNG seed.
     tile : int
         Tile core size in photo pixels.
     """
@@ -258,18 +247,9 @@ def _distinct_rows(samples: np.ndarray, enough: int) -> int:
 def choose_themes(samples: np.ndarray, options: UnsupervisedOptions, themes: str | int = "auto"):
     """Fit k-means with K from the criterion in the module docstring (or fixed K).
 
-    Parameters
-    ----------
-    samples : (n, F) float32 ndarray
-        Weighted features.
-    themes : "auto" or int
-
-    Returns
-    -------
-    centres : (K, F) float32 ndarray, ordered by decreasing cluster size
-    sizes : (K,) float64 ndarray, share of samples per theme
-    variances : (K, F) float32 ndarray
-        The pooled k-means spread, or the diagonal mixture's after a split by hue.
+    Returns, from weighted ``samples`` (n, F) float32, by decreasing size: ``centres``
+    (K, F) float32, ``sizes`` (K,) float64 sample shares and ``variances`` (K, F)
+    float32 (the pooled k-means spread, or the mixture's after a split by hue).
     """
     wanted = options.max_themes if themes == "auto" else int(themes)
     n_distinct = _distinct_rows(samples, wanted) if len(samples) <= 50000 else len(samples)
