@@ -150,3 +150,18 @@ def test_a_texture_beyond_one_geotiff_level_is_refused_before_any_work(tmp_path,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--size" in err and "45056 x 45056" in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_the_colour_map_tiff_is_placed_at_its_scale(tmp_path):
+    from terratheme.core.model.colour_map import ColourMap
+
+    pixels = np.random.default_rng(3).integers(60, 200, (3, 4, 3)).astype(np.uint8)
+    project = ThematicTexture(IndexGrid(np.zeros((6, 9), np.uint8), (16, 16)),
+                              shipped_theme_library().select(NAMES[:1]),
+                              {"georeference": GEOREF}, colour_map=ColourMap(pixels, 32))
+    write_export(project, plan_export(project, ExportOptions(Engine.GEOTIFF)), tmp_path)
+    np.testing.assert_array_equal(read_image(tmp_path / "colour_map.tif"), pixels)
+    geo = read_georeference(tmp_path / "colour_map.tif")
+    # 32 texels of 0.5 units a pixel, from the texture's own corner.
+    assert geo["ModelPixelScale"][:2] == [16.0, 16.0]
+    assert geo["ModelTiepoint"] == GEOREF["ModelTiepoint"]

@@ -91,3 +91,15 @@ def test_new_without_themes_needs_them_except_for_an_export(tmp_path, capsys):
     assert main(["new", "map.png", str(tmp_path / "p.ttproj")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("terratheme new: error: --themes is needed") and err.count("\n") == 1
+
+
+def test_the_gis_export_writes_the_colour_map_as_a_geotiff(converted, tmp_path):
+    from terratheme.core.io.images import read_image
+
+    out = tmp_path / "gis"
+    assert main(["export", str(converted), str(out), "--engine", "geotiff"]) == 0
+    cmap = load_project(converted).colour_map
+    np.testing.assert_array_equal(read_image(out / "colour_map.tif"), cmap.pixels)
+    manifest = json.loads((out / "terratheme_geotiff.json").read_text())
+    assert manifest["colour_map"]["file"] == "colour_map.tif"
+    assert manifest["colour_map"]["scale"] == cmap.scale

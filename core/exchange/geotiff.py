@@ -13,6 +13,9 @@ pixel per texel, so they carry the project's georeference unchanged
   it with the raster).
 * ``texture.tif``: the render (``core.render.project.render_project``) in the
   export's style, colour map included, RGB: what ``terratheme render`` gives.
+* ``colour_map.tif`` (when the project has one): the colour map's own pixels
+  (gain x 128, RGB), georeferenced at ``scale`` texels a pixel, for GIS tools
+  that cannot read the project's JPEG XL.
 
 Both are tiled (512) and deflate-compressed with overviews, in the Cloud
 Optimized GeoTIFF layout (:mod:`core.exchange.cog`); the class map's
@@ -47,6 +50,8 @@ from terratheme.core.render.renderer import render_labels
 
 LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture.tif", \
     "terratheme_geotiff.json"
+#: the colour map's own pixels (gain x 128), georeferenced: one pixel per ``scale`` texels
+COLOUR_TIFF = "colour_map.tif"
 TILE = 512
 _TIFF_TYPES = {12: "d", 3: "H", 2: "s"}
 #: GDAL tags describing the source photo's values (its no-data value would hide theme 0)
@@ -71,8 +76,9 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     notes = () if project.metadata.get("georeference") else (
         "the project has no georeference (not made from a GeoTIFF): the TIFFs carry none",)
-    return ExportPlan(options, None, world, (LANDCLASS, STYLE, TEXTURE, CARRIED, MANIFEST),
-                      notes)
+    colour = () if project.colour_map is None else (COLOUR_TIFF,)
+    return ExportPlan(options, None, world,
+                      (LANDCLASS, STYLE, TEXTURE, *colour, CARRIED, MANIFEST), notes)
 
 
 def geotiff_tags(georeference: dict) -> list[tuple]:
@@ -146,7 +152,15 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     write_bytes_atomic(folder / STYLE, qgis_style(project).encode())
     write_cog(folder / TEXTURE, texture, (w, h), channels=3, tile=TILE, downsample=box_half,
               extratags=tags)
-    manifest = common_manifest(project, plan)
+    cmap = project.colour_map
+    if cmap is not None:
+        # Map pixel i covers texels i s .. (i + 1) s (core.render.colour_map).
+        mh, mw = cmap.pixels.shape[:2]
+        ctags = geotiff_tags(render_georeference(project, (0, 0, mw * cmap.scale,
+                                                           mh * cmap.scale), (mw, mh)))
+        write_cog(folder / COLOUR_TIFF, lambda y0, y1: cmap.pixels[y0:y1], (mw, mh),
+                  channels=3, tile=TILE, downsample=box_half, extratags=ctags)
+    manifest = common_manifest(project, plan, None if cmap is None else COLOUR_TIFF)
     if manifest["colour_map"] is not None:
         manifest["colour_map"]["baked_into"] = TEXTURE
     manifest.update({
