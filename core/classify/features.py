@@ -43,29 +43,18 @@ RELATIVE_FLOOR = 5.0
 
 @dataclass(frozen=True)
 class FeatureOptions:
-    """How features are computed.
+    """How features are computed (the columns: module docstring).
 
     Attributes
     ----------
-    feature_set : FeatureSet
     scale : int
         Photo pixels per coarse pixel along each axis (1 = every pixel).
     sigmas : tuple of float
-        Gaussian scales in coarse pixels for the DEFAULT set.
-    hessian : bool
-        DEFAULT set: add the two Hessian eigenvalues of the smoothed lightness
-        at each sigma (ridges, blobs).
-    position : bool
-        Append the coarse pixel's position in the photo (row and column as
-        fractions of the photo's height and width).
+        Gaussian scales in coarse pixels (DEFAULT set).
     ridge_sigmas : tuple of float
-        DEFAULT set: fine ridge features at these scales in photo pixels
-        (:mod:`core.classify.ridges`, two per sigma).
-    relative : bool
-        DEFAULT set: the lightness relative to the context, ``len(sigmas)`` features.
-    structure : bool
-        DEFAULT set: edge density and structure-tensor coherence
-        (:mod:`core.classify.texture`, ``1 + len(sigmas)`` features).
+        Fine ridge scales in photo pixels (two features each).
+    hessian, relative, structure, position : bool
+        The optional feature groups of the module docstring.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT

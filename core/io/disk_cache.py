@@ -49,21 +49,9 @@ Arrays = dict[str, np.ndarray]
 
 
 class DiskCache:
-    """Entries of arrays by key in ``folder``, bounded to ``max_bytes`` (see the module).
-
-    Parameters
-    ----------
-    folder : path-like
-        Made on the first write.
-    max_bytes : int
-        Bound of the folder's entries, least recently used removed first; an entry
-        larger than this alone is not written.
-
-    Attributes
-    ----------
-    hits, misses : Counter
-        Lookups by kind answered from the folder / not, since creation.
-    """
+    """Entries of arrays by key in ``folder`` (made on the first write), least recently
+    used removed first to keep them within ``max_bytes``; ``hits`` and ``misses`` count
+    lookups by kind."""
 
     def __init__(self, folder: str | os.PathLike, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
         if max_bytes < 1:

@@ -90,16 +90,9 @@ def validate_georeference(georef: object) -> dict:
 
 
 def read_georeference(path: str | os.PathLike) -> dict:
-    """The georeference of an image file, or ``{}`` when it has none.
-
-    Returns
-    -------
-    georef : dict
-        ``{"ModelPixelScale": [sx, sy, sz], "ModelTiepoint": [i, j, k, x, y, z],
-        "GeoKeyDirectory": [...], "GeoAsciiParams": "...", ...}`` for the tags
-        present, plus ``"oiio": {name: value}`` for georeference attributes
-        OpenImageIO exposes itself.
-    """
+    """The georeference of an image file (``{}`` when it has none): the :data:`GEO_TAGS`
+    present by name (``{"ModelPixelScale": [sx, sy, sz], ...}``), plus ``"oiio": {name:
+    value}`` for georeference attributes OpenImageIO exposes itself."""
     p = Path(path)
     if not p.is_file():
         raise TerrathemeError(f"{p}: no such file")

@@ -32,8 +32,8 @@ ProgressFn = Callable[[int, int], None]
 class TileWindow:
     """One tile: its core (the pixels it owns) and the larger window read around it.
 
-    All values are pixels of the full image: ``x, y, w, h`` the core,
-    ``rx, ry, rw, rh`` the read window (core + overlap, clipped to the image).
+    All values are pixels of the full image: ``x, y, w, h`` the core, ``rx, ry, rw, rh``
+    the read window (core + overlap, clipped); ``x1, y1, rx1, ry1`` their exclusive ends.
     """
 
     x: int
@@ -47,22 +47,18 @@ class TileWindow:
 
     @property
     def x1(self) -> int:
-        """End column of the core (exclusive)."""
         return self.x + self.w
 
     @property
     def y1(self) -> int:
-        """End row of the core (exclusive)."""
         return self.y + self.h
 
     @property
     def rx1(self) -> int:
-        """End column of the read window (exclusive)."""
         return self.rx + self.rw
 
     @property
     def ry1(self) -> int:
-        """End row of the read window (exclusive)."""
         return self.ry + self.rh
 
     @property
