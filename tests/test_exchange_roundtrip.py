@@ -103,3 +103,24 @@ def test_the_gis_export_writes_the_colour_map_as_a_geotiff(converted, tmp_path):
     manifest = json.loads((out / "terratheme_geotiff.json").read_text())
     assert manifest["colour_map"]["file"] == "colour_map.tif"
     assert manifest["colour_map"]["scale"] == cmap.scale
+
+
+def test_godot_says_what_a_control_map_per_vertex_carries(converted, tmp_path, capsys):
+    from terratheme.core.exchange import decode_control, read_control_map
+
+    gh, gw = load_project(converted).grid.indices.shape
+    out = tmp_path / "g"
+    assert main(["export", str(converted), str(out), "--engine", "godot"]) == 0
+    said = capsys.readouterr().out
+    assert "shaped borders" not in said.splitlines()[0] and "vertex themes only" in said
+    assert json.loads((out / "terratheme_godot.json").read_text())["borders"] == "vertex"
+    assert not decode_control(read_control_map(out / "terrain3d_control.exr")).blend.any()
+    # A vertex per texel carries the shaped borders' blend.
+    w, h = load_project(converted).grid.texture_size
+    fine = tmp_path / "f"
+    assert main(["export", str(converted), str(fine), "--engine", "godot", "--size",
+                 f"{w + 1}x{h + 1}"]) == 0
+    assert "shaped borders" in capsys.readouterr().out
+    assert json.loads((fine / "terratheme_godot.json").read_text())["borders"] == "shaped"
+    assert decode_control(read_control_map(fine / "terrain3d_control.exr")).blend.any()
+    assert (gw, gh) != (w + 1, h + 1)

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         what = "land-class map and baked texture"
     shaped = export_boundary(project, options) is not None
-    borders = "shaped borders" if shaped else "linear weights"
+    borders = plan.borders or ("shaped borders" if shaped else "linear weights")
     colour = ", colour map" if project.colour_map is not None else ""
     print(f"{outdir}: {args.engine} export, {what}, {borders}{colour}, {len(paths)} files "
           f"(manifest {paths[-1].name})")

@@ -41,6 +41,9 @@ class ExportPlan:
         manifest last (written last: its presence means the export is whole).
     notes : tuple of str
         What the caller should tell the user (a size chosen, a limitation).
+    borders : str or None
+        What the maps carry of the borders when it is not the style's (a
+        Terrain3D map of one vertex per grid vertex: each vertex's theme alone).
     """
 
     options: ExportOptions
@@ -48,6 +51,7 @@ class ExportPlan:
     world: WorldFrame
     files: tuple[str, ...]
     notes: tuple[str, ...] = field(default=())
+    borders: str | None = None
 
     def paths(self, folder: str | os.PathLike) -> list[Path]:
         """The files under ``folder``."""

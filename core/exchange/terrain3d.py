@@ -81,6 +81,8 @@ COLOUR_MAP = "terrain3d_colour.png"
 #: the colour map's alpha: Terrain3D's neutral roughness modifier (0.5)
 NEUTRAL_ROUGHNESS = 128
 MANIFEST = "terratheme_godot.json"
+#: what a control map of one vertex per grid vertex carries of the borders
+VERTEX_BORDERS = "vertex themes only (Terrain3D blends between vertices)"
 _REGION_SIZES = tuple(1 << k for k in range(6, 12))
 Progress = Callable[[int, int], None]
 
@@ -198,9 +200,18 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
         notes.append(f"the colour map (a pixel per {project.colour_map.scale} texels) is sampled "
                      f"at the control map's vertices (one per {spacing:g} texels); "
                      f"a {wtex + 1} x {htex + 1} map keeps it (a vertex per texel)")
+    borders = None
+    gh, gw = project.grid.indices.shape
+    if layout.size == (gw, gh):
+        # A vertex per grid vertex: each holds its theme alone, blend 0.
+        borders = VERTEX_BORDERS
+        notes.append(f"one control-map vertex per grid vertex: each holds its own theme (blend "
+                     f"0) and Terrain3D blends between vertices, with neither the diagonal "
+                     f"split nor shaped borders; --size {wtex + 1}x{htex + 1} (a vertex per "
+                     "texel) carries the borders' two strongest themes and their blend")
     colour = () if project.colour_map is None else (COLOUR_MAP,)
     files = (CONTROL_MAP, *colour, *theme_files(project), CARRIED, MANIFEST)
-    return ExportPlan(options, layout, world, files, tuple(notes))
+    return ExportPlan(options, layout, world, files, tuple(notes), borders)
 
 
 def control_map(project: ThematicTexture, size: tuple[int, int], options: ExportOptions
@@ -252,6 +263,8 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
     corner = [-(-(w // 2) // region) * region, -(-(h // 2) // region) * region]
     sx = plan.world.texel_size[0]
     manifest = common_manifest(project, plan, None if project.colour_map is None else COLOUR_MAP)
+    if plan.borders is not None:
+        manifest.update({"borders": "vertex", "boundary": None})
     tint = [1.0] * 3 if project.colour_map is None else [linear_gain()] * 3
     manifest.update({
         "control_map": CONTROL_MAP,
