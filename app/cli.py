@@ -113,6 +113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     name = f"terratheme {args.command}"
+    # Mesa's EGL loader prints warnings of its own; a command's problem is one line.
+    os.environ.setdefault("EGL_LOG_LEVEL", "fatal")
     shortfall = address_space_shortfall(args.command)
     if shortfall:
         print(f"{name}: error: {shortfall}", file=sys.stderr)

@@ -2,16 +2,12 @@
 
 Any driver with OpenGL 3.3 core will do (Mesa's llvmpipe without a GPU); where none can
 be made, :func:`create_context` raises :class:`GpuUnavailableError` with one line.
+Mesa's own loader warnings are the caller's to silence (the CLI sets ``EGL_LOG_LEVEL``).
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import sys
-import tempfile
 import threading
-from collections.abc import Iterator
 
 import moderngl
 from terratheme.core.errors import TerrathemeError
@@ -27,41 +23,16 @@ class GpuUnavailableError(TerrathemeError):
     """No OpenGL 3.3 context can be made on this machine."""
 
 
-@contextlib.contextmanager
-def _quiet_stderr() -> Iterator[list[str]]:
-    """Collect what native code writes to file descriptor 2 instead of showing it."""
-    captured: list[str] = []
-    try:
-        fd = sys.stderr.fileno()
-    except (AttributeError, OSError, ValueError):
-        yield captured
-        return
-    sys.stderr.flush()
-    saved = os.dup(fd)
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), fd)
-        try:
-            yield captured
-        finally:
-            os.dup2(saved, fd)
-            os.close(saved)
-            sink.seek(0)
-            captured.extend(sink.read().decode(errors="replace").splitlines())
-
-
 def create_context() -> moderngl.Context:
     """A new standalone EGL OpenGL 3.3+ context; GpuUnavailableError (one line) if none."""
-    # Mesa prints its loader warnings unless told otherwise; the caller gets one line.
-    os.environ.setdefault("EGL_LOG_LEVEL", "fatal")
-    with _quiet_stderr():
-        try:
-            ctx = moderngl.create_standalone_context(backend="egl", require=REQUIRED_GL)
-        except Exception as exc:  # glcontext raises plain Exception
-            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise GpuUnavailableError(
-                f"GPU rendering unavailable: no OpenGL 3.3 context could be made with EGL "
-                f"({reason}); install Mesa's EGL (llvmpipe) or a GPU driver"
-            ) from None
+    try:
+        ctx = moderngl.create_standalone_context(backend="egl", require=REQUIRED_GL)
+    except Exception as exc:  # glcontext raises plain Exception
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise GpuUnavailableError(
+            f"GPU rendering unavailable: no OpenGL 3.3 context could be made with EGL "
+            f"({reason}); install Mesa's EGL (llvmpipe) or a GPU driver"
+        ) from None
     return ctx
 
 
