@@ -12,9 +12,9 @@ from terratheme.core.exchange import (
     Engine,
     ExportOptions,
     plan_export,
-    read_weight_maps,
     write_export,
 )
+from terratheme.core.exchange.maps_to_grid import grid_from_maps
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.renderer import render_cells
@@ -47,7 +47,9 @@ def test_weight_maps_sum_to_255_and_rebuild_the_render(tmp_path):
     weights = np.stack([_grey(f) for f in files])
     assert weights.dtype == np.uint8 and weights.shape == (4, 127, 127)
     assert (weights.sum(axis=0, dtype=int) == 255).all()
-    np.testing.assert_array_equal(read_weight_maps([str(f) for f in files]), weights)
+    # Read back: the strongest theme per pixel, ties to the lower one.
+    np.testing.assert_array_equal(grid_from_maps([str(f) for f in files], "weights", 4, 1),
+                                  np.argmax(weights, axis=0))
     ref = render_cells(grid, project.library.textures, (9, 9)).astype(float)
     ys, xs = np.mgrid[:126, :126]
     rebuilt = sum(weights[k, :126, :126, None].astype(float) * t[ys % t.shape[0], xs % t.shape[1]]
@@ -96,6 +98,6 @@ def test_weight_maps_that_differ_are_refused(tmp_path):
     cv2.imwrite(str(tmp_path / "a.png"), np.zeros((5, 6), np.uint8))
     cv2.imwrite(str(tmp_path / "b.png"), np.zeros((6, 6), np.uint8))
     with pytest.raises(TerrathemeError, match="differs from the first weight map"):
-        read_weight_maps([str(tmp_path / "a.png"), str(tmp_path / "b.png")])
+        grid_from_maps([str(tmp_path / "a.png"), str(tmp_path / "b.png")], "weights", 2, 1)
     with pytest.raises(TerrathemeError, match="no weight map given"):
-        read_weight_maps([])
+        grid_from_maps([], "weights", 2, 1)

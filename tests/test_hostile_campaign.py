@@ -23,7 +23,8 @@ import tifffile
 from hostile_fuzz import campaign, hidden_files, patch_tiff_size
 from terratheme.app.cli import main
 from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from terratheme.core.exchange import read_control_map, read_splatmaps
+from terratheme.core.exchange import read_control_map
+from terratheme.core.exchange.maps_to_grid import grid_from_maps
 from terratheme.core.exchange.terrain3d import write_control_map
 from terratheme.core.io.archive import parse_json
 from terratheme.core.io.images import read_image, read_region, write_image
@@ -372,7 +373,7 @@ def _mutants(data: bytes, rng: random.Random, count: int, header: int):
 def test_mutated_engine_maps_read_or_are_one_line(budget, tmp_path, capfd, kind):
     rng = random.Random(f"h9-{kind}")
     if kind == "splatmap":
-        path, read = tmp_path / "s.png", lambda p: read_splatmaps([str(p)])
+        path, read = tmp_path / "s.png", lambda p: grid_from_maps([str(p)], "splatmap", 4, 1)
         write_image(path, np.random.default_rng(1).integers(0, 255, (16, 16, 4), np.uint8))
     else:
         path, read = tmp_path / "c.exr", read_control_map

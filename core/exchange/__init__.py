@@ -35,8 +35,6 @@ from terratheme.core.exchange.terrain3d import (
     read_control_map,
 )
 from terratheme.core.exchange.texture_tiff import write_texture_tiff
-from terratheme.core.exchange.unity import read_splatmaps
-from terratheme.core.exchange.unreal import read_weight_maps
 from terratheme.core.exchange.weights import sample_corners, strongest_two, theme_weights
 
 __all__ = [
@@ -60,8 +58,6 @@ __all__ = [
     "plan_export",
     "project_from_export",
     "read_control_map",
-    "read_splatmaps",
-    "read_weight_maps",
     "sample_corners",
     "shaped_slots",
     "strongest_two",

@@ -30,10 +30,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from terratheme.core.errors import OptionError, TerrathemeError
+from terratheme.core.errors import OptionError
 from terratheme.core.exchange.colour import COLOUR_MAP, unity_colour_st
 from terratheme.core.exchange.layout import ExportLayout, tiled_layout
-from terratheme.core.exchange.maps_to_grid import check_maps
 from terratheme.core.exchange.options import ExportOptions
 from terratheme.core.exchange.plan import (
     STORED_ALPHA,
@@ -48,7 +47,7 @@ from terratheme.core.exchange.plan import (
     write_shared_files,
 )
 from terratheme.core.io.atomic import write_bytes_atomic
-from terratheme.core.io.images import image_info, read_image, write_image
+from terratheme.core.io.images import write_image
 from terratheme.core.model.project import ThematicTexture
 
 #: alphamap (control texture) resolutions Unity's terrain accepts
@@ -116,36 +115,6 @@ def splatmaps(weights: np.ndarray) -> list[np.ndarray]:
         image[:, :, : part.shape[0]] = np.moveaxis(part, 0, 2)
         out.append(image)
     return out
-
-
-def read_stored_rgba(path: str | Path) -> np.ndarray:
-    """An 8-bit image's stored channel values, alpha not applied to colour.
-
-    :func:`core.io.images.read_image` reads alpha as unassociated (weights under
-    a small A are kept) and turns a damaged file into one line naming it.
-    """
-    info = image_info(path)
-    if info.dtype != np.uint8 or info.channels not in (3, 4):
-        raise TerrathemeError(f"{path}: a splatmap is an 8-bit RGBA image, got "
-                              f"{info.channels} channels of {info.dtype}")
-    return read_image(path)
-
-
-def read_splatmaps(paths: list[str]) -> np.ndarray:
-    """Stack splatmap files (RGBA8, 4 themes each, in order) into ``(4 * files, H, W)`` weights."""
-    check_maps(paths, "splatmap")  # types, channels and sizes from the headers, before reading
-    planes = []
-    for p in paths:
-        image = read_stored_rgba(p)
-        if planes and image.shape[:2] != planes[0].shape[1:]:
-            raise TerrathemeError(f"{p}: {image.shape[1]} x {image.shape[0]} differs from the "
-                                  f"first splatmap's {planes[0].shape[2]} x {planes[0].shape[1]}")
-        rgba = np.zeros(image.shape[:2] + (4,), np.uint8)
-        rgba[:, :, : image.shape[2]] = image
-        planes.append(np.moveaxis(rgba, 2, 0))
-    if not planes:
-        raise TerrathemeError("no splatmap given")
-    return np.concatenate(planes)
 
 
 def write(project: ThematicTexture, plan: ExportPlan, folder: Path,

@@ -27,9 +27,8 @@ from terratheme.core.errors import OptionError, TerrathemeError
 from terratheme.core.exchange import plan as export_plan
 from terratheme.core.exchange.colour import COLOUR_MAP, vertex_colour_uv
 from terratheme.core.exchange.layout import ExportLayout, tiled_layout
-from terratheme.core.exchange.maps_to_grid import check_maps
 from terratheme.core.exchange.options import ExportOptions
-from terratheme.core.io.images import read_image, write_image
+from terratheme.core.io.images import write_image
 from terratheme.core.model.project import ThematicTexture
 
 #: Epic's recommended landscape sizes (vertices per side) and their component size in quads
@@ -97,28 +96,6 @@ def plan(project: ThematicTexture, options: ExportOptions) -> export_plan.Export
         files += [weight_file(project, k, suffix) for k in range(len(project.library))]
     files += export_plan.theme_files(project)
     return export_plan.map_plan(project, options, layout, files, MANIFEST, notes)
-
-
-def read_weight_maps(paths: list[str]) -> np.ndarray:
-    """Stack one greyscale weight map per theme (8 or 16-bit, in theme order) into ``(K, H, W)``."""
-    check_maps(paths, "weights")  # types, channels and sizes from the headers, before reading
-    planes = []
-    for p in paths:
-        image = read_image(p)
-        if image.dtype not in (np.uint8, np.uint16):
-            raise TerrathemeError(f"{p}: a weight map is an 8 or 16-bit grey image, got "
-                                  f"{image.dtype}")
-        if image.shape[2] >= 3 and not (np.array_equal(image[:, :, 0], image[:, :, 1])
-                                        and np.array_equal(image[:, :, 0], image[:, :, 2])):
-            raise TerrathemeError(f"{p}: a weight map is a grey image, this one has "
-                                  f"{image.shape[2]} channels of different values")
-        if planes and (image.shape[:2] != planes[0].shape or image.dtype != planes[0].dtype):
-            raise TerrathemeError(f"{p}: {image.shape[1]} x {image.shape[0]} {image.dtype} differs "
-                                  f"from the first weight map's")
-        planes.append(image[:, :, 0])
-    if not planes:
-        raise TerrathemeError("no weight map given")
-    return np.stack(planes)
 
 
 def write(project: ThematicTexture, plan: export_plan.ExportPlan, folder: Path,
