@@ -92,3 +92,27 @@ def test_model_options_keep_the_flag_and_old_files_read_without_it():
     d["features"]["structure"] = "yes"
     with pytest.raises((ValueError, TerrathemeError)):
         options_from_json(d)
+
+
+def test_context_blur_takes_more_channels_than_one_opencv_call():
+    # 130 class probabilities (classify --themes 130): each channel blurred as alone.
+    import cv2
+    from terratheme.core.classify.texture import context_blur
+
+    rng = np.random.default_rng(3)
+    probs = rng.random((12, 17, 130)).astype(np.float32)
+    out = context_blur(probs, 1.5)
+    assert out.shape == probs.shape and out.dtype == np.float32
+    for c in (0, 127, 128, 129):
+        alone = cv2.GaussianBlur(np.ascontiguousarray(probs[:, :, c]), (11, 11), 1.5,
+                                 borderType=cv2.BORDER_REFLECT_101)
+        np.testing.assert_allclose(out[:, :, c], alone, rtol=1e-6, atol=1e-7)
+
+
+def test_unsupervised_with_130_themes_is_not_an_opencv_error():
+    from terratheme.core.classify import classify_unsupervised
+
+    rng = np.random.default_rng(4)
+    photo = rng.integers(0, 256, (160, 160, 3), dtype=np.uint8)
+    result = classify_unsupervised(photo, themes=130)
+    assert result.labels.shape == (160, 160)

@@ -19,6 +19,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+#: most channels one OpenCV filter or resize call takes
+CV_MAX_CHANNELS = 128
 #: structure-tensor coherence: added to the trace (L units^2) so flat areas stay finite
 COHERENCE_FLOOR = 1e-2
 
@@ -30,9 +32,15 @@ def texture_count(sigmas: Sequence[float], structure: bool) -> int:
 
 def context_blur(img: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian blur with an explicit 3-sigma kernel (so a tile overlap of ``ceil(3 sigma)``
-    pixels is exact), reflected at the border; up to 128 channels (OpenCV's binding)."""
+    pixels is exact), reflected at the border; any number of channels."""
     k = 2 * int(math.ceil(3.0 * sigma)) + 1
-    return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+    channels = img.shape[2] if img.ndim == 3 else 1
+    if channels <= CV_MAX_CHANNELS:
+        return cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+    # OpenCV filters at most 128 channels at once: blur them in parts.
+    return np.dstack([cv2.GaussianBlur(np.ascontiguousarray(img[:, :, i : i + CV_MAX_CHANNELS]),
+                                       (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+                      for i in range(0, channels, CV_MAX_CHANNELS)])
 
 
 def block_mean(img: np.ndarray, scale: int) -> np.ndarray:

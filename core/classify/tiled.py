@@ -18,6 +18,7 @@ import numpy as np
 from terratheme.core.classify.features import FeatureOptions, image_features, with_position
 from terratheme.core.classify.regularise import RegulariseOptions, regularise
 from terratheme.core.classify.result import Classification
+from terratheme.core.classify.texture import CV_MAX_CHANNELS
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import TileWindow, tile_windows
 
@@ -26,8 +27,6 @@ ProgressFn = Callable[[int, int], None]
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
 #: a window's coarse Lab (h, w, 3), block lightness std (h, w) and class probabilities (h, w, C)
 TileProbabilitiesFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
-#: most channels one cv2.resize takes (OpenCV's limit)
-RESIZE_CHANNELS = 128
 
 
 def feature_windows(height: int, width: int, tile: int, scale: int,
@@ -90,14 +89,14 @@ def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarr
         return np.ascontiguousarray(probs), *offsets
     h, w, c = probs.shape
     size = (w * scale, h * scale)
-    if c <= RESIZE_CHANNELS:
+    if c <= CV_MAX_CHANNELS:
         up = cv2.resize(probs, size, interpolation=cv2.INTER_LINEAR)
         return up.reshape(h * scale, w * scale, c), *offsets
-    # cv2.resize takes at most RESIZE_CHANNELS channels at once: more classes go in parts.
+    # cv2.resize takes at most CV_MAX_CHANNELS channels at once: more classes go in parts.
     up = np.empty((h * scale, w * scale, c), np.float32)
-    for k in range(0, c, RESIZE_CHANNELS):
-        part = np.ascontiguousarray(probs[:, :, k : k + RESIZE_CHANNELS])
-        up[:, :, k : k + RESIZE_CHANNELS] = cv2.resize(
+    for k in range(0, c, CV_MAX_CHANNELS):
+        part = np.ascontiguousarray(probs[:, :, k : k + CV_MAX_CHANNELS])
+        up[:, :, k : k + CV_MAX_CHANNELS] = cv2.resize(
             part, size, interpolation=cv2.INTER_LINEAR).reshape(h * scale, w * scale, -1)
     return up, *offsets
 
