@@ -57,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
 #: least address space (``ulimit -v``, MiB) each command starts and runs a small input in,
 #: measured on a 2-core machine (docs/decisions.md); below it native libraries end the
 #: process (SIGSEGV, std::bad_alloc) or fail to load, so the CLI says so first
-MIN_ADDRESS_SPACE_MIB = {"info": 256, "unpack": 768, "themes": 1024, "convert": 1408}
+MIN_ADDRESS_SPACE_MIB = {"info": 256, "unpack": 768, "themes": 1024, "convert": 1408,
+                         "app": 1664}
 #: for the commands not listed
 DEFAULT_ADDRESS_SPACE_MIB = 1280
 
