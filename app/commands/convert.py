@@ -194,6 +194,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from terratheme.app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from terratheme.app.progress import StageBar
     from terratheme.core.convert.photo import (
         ConvertOptions,
         convert_photo,
@@ -203,7 +204,6 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.fidelity import texture_cost
     from terratheme.core.io.images import image_info
     from terratheme.core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
-    from tqdm import tqdm
 
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
@@ -249,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
         cell=args.cell, themes=themes, target_agreement=args.target_agreement,
         class_target=args.class_target, colour_map=colour, boundary=boundary,
         full_curve=bool(args.curve), keep_specks=args.specks == "keep")
-    with tqdm(total=100, desc="convert", unit="%", leave=False) as bar:
+    with StageBar(total=100, desc="convert", unit="%") as bar:
 
         def progress(done: int, total: int) -> None:
             bar.n = min(100, done * 100 // max(total, 1))
@@ -394,14 +394,14 @@ def _tile_progress(photo: str, sampled: bool):
     ``sampled``: unsupervised, a first pass draws the samples of the themes."""
     import time
 
+    from terratheme.app.progress import StageBar
     from terratheme.core.io.images import image_info
-    from tqdm import tqdm
 
     info = image_info(photo)
     pixels = info.width * info.height
     stages = iter(["sample"] * sampled + ["classify", "colour map"])
     start = [time.perf_counter()]
-    with tqdm(total=1, desc="convert (tiled)", unit="tile", leave=False) as bar:
+    with StageBar(total=1, desc="convert (tiled)", unit="tile") as bar:
 
         def progress(done: int, total: int) -> None:
             bar.total, bar.n = total, done
