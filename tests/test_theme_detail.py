@@ -67,3 +67,23 @@ def test_detail_library_keeps_names_and_colours():
     out = detail_library(lib, gains=[0.5])
     assert out.names == ["sand"] and out[0].colour == (200, 180, 150)
     assert np.array_equal(out[0].texture, detail_texture(tex, gain=0.5))
+
+
+def test_even_detail_fills_a_flat_strip_of_a_tileable_texture():
+    from terratheme.core.themes.detail import EVEN_RANGE, _relative, even_detail
+
+    rng = np.random.default_rng(1)
+    tex = rng.integers(80, 180, (64, 64, 3)).astype(np.uint8)
+    tex[:, 24:40] = 128 + (tex[:, 24:40].astype(int) - 128) // 10  # a strip of a tenth the contrast
+
+    def strip_share(rel):
+        rms = np.sqrt((rel.mean(axis=2) ** 2).mean(axis=0))
+        return rms[28:36].mean() / rms[:16].mean()
+
+    plain = strip_share(_relative(tex, 3.0, wrap=True))
+    evened = strip_share(even_detail(tex))
+    # The strip's share of detail grows by most of the largest factor allowed ...
+    assert plain < 0.15 and evened > 0.6 * EVEN_RANGE[1] * plain
+    # ... and the rest keeps its pattern: evening only scales it.
+    out = detail_texture(tex).astype(float) - NEUTRAL
+    assert np.corrcoef(out[:, :16].ravel(), (tex[:, :16].astype(float) - 128).ravel())[0, 1] > 0.5

@@ -27,6 +27,10 @@ DETAIL_SIGMA = 3.0
 NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_gains`
 GAIN_RANGE = (0.25, 4.0)
+#: Gaussian sigma (texels) of the local contrast strength :func:`even_detail` evens out
+EVEN_SIGMA = 4.0
+#: range of :func:`even_detail`'s factor
+EVEN_RANGE = (0.25, 4.0)
 
 
 def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
@@ -37,9 +41,32 @@ def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
     return t / np.maximum(low, 1.0) - 1.0
 
 
+def even_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
+    """A tileable texture's relative fine contrast, its local strength made even.
+
+    ``t / blur(t) - 1`` divided by its local RMS (a wrap-around Gaussian of
+    :data:`EVEN_SIGMA` texels) over the whole texture's, the factor within
+    :data:`EVEN_RANGE`: a flat strip left by making a theme tileable does not
+    repeat as a band every period, and a theme's few strong edges (road
+    pieces in a town theme) do not stand out of its texture.
+
+    Returns
+    -------
+    (h, w, 3) float32 ndarray
+    """
+    rel = _relative(texture, sigma, wrap=True)
+    power = rel.mean(axis=2) ** 2
+    local = gaussian_filter(power, EVEN_SIGMA, mode="wrap")
+    total = float(power.mean())
+    if total <= 1e-12:
+        return rel
+    factor = np.clip(np.sqrt(total / np.maximum(local, 1e-12)), *EVEN_RANGE)
+    return rel * factor[:, :, None].astype(np.float32)
+
+
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
                    gain: float = 1.0) -> np.ndarray:
-    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain (t / blur(t) - 1))``.
+    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain even_detail(t))``.
 
     Parameters
     ----------
@@ -55,7 +82,7 @@ def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
     (h, w, 3) uint8 ndarray
         Clipped to 0..255.
     """
-    out = NEUTRAL * (1.0 + gain * _relative(texture, sigma, wrap=True))
+    out = NEUTRAL * (1.0 + gain * even_detail(texture, sigma))
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
@@ -76,8 +103,8 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     """Per theme, the contrast gain that gives its detail the photo's in its class.
 
     ``sqrt(photo energy over the theme's pixels / theme energy)``
-    (:func:`detail_energy`), clipped to :data:`GAIN_RANGE`; 1 for a theme no
-    pixel takes or a flat theme.
+    (:func:`detail_energy`; the theme's of :func:`even_detail`), clipped to
+    :data:`GAIN_RANGE`; 1 for a theme no pixel takes or a flat theme.
 
     Parameters
     ----------
@@ -93,7 +120,7 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     counts = np.bincount(labels, minlength=len(library))
     gains = []
     for k, theme in enumerate(library):
-        own = detail_energy(theme.texture, sigma, wrap=True)
+        own = float((even_detail(theme.texture, sigma).mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
