@@ -129,6 +129,8 @@ def structure_chart(part, path, goals):
                 ax.axhline(g, color="k", lw=0.7, ls=":")
         ax.set_xscale("log")
         ax.xaxis.set_minor_formatter(NullFormatter())
+        ticks = [float(v.split()[1]) for v in budgets]
+        ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
         ax.set_xlabel("area bytes x 8 / photo pixels (bits per pixel, log)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3, which="both")
