@@ -123,6 +123,7 @@ def _rewrite(src, dst, change):
      "listed twice"),
     (lambda m: m["colour_map"].update(tile=0), "positive integer"),
     (lambda m: m["colour_map"].update(codec="gif"), "codec"),
+    (lambda m: m["colour_map"].update(codec=[]), "codec"),  # was a TypeError (unhashable)
     (lambda m: m["colour_map"]["members"].reverse(), "expected"),
 ])
 def test_damaged_tiled_maps_are_refused_in_one_line(small_limit, tmp_path, change, match):

@@ -200,7 +200,7 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
         pixels = read_npy_member(zf, entry["member"], label, dtypes=[np.uint8], ndims=[3],
                                  max_bytes=shape[0] * shape[1] * 3)
         return ColourMap(pixels, scale)
-    if codec not in CODECS:
+    if not isinstance(codec, str) or codec not in CODECS:
         raise CorruptFileError(f"{path}: unknown colour map codec {codec!r}")
     # The codec's bytes: at most the raw map's size (a compressed map is smaller).
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
@@ -214,7 +214,7 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
                            label: str) -> ColourMap:
     """A colour map shipped in tiles, every field checked before a tile is read."""
     tile, codec, names = entry.get("tile"), entry.get("codec"), entry.get("members")
-    if codec not in CODECS:
+    if not isinstance(codec, str) or codec not in CODECS:
         raise CorruptFileError(f"{label}: unknown colour map codec {codec!r}")
     try:
         check_tile_members(shape, tile, names)
