@@ -162,7 +162,8 @@ def test_terrain3d_colour_map_is_the_gain_at_every_vertex(tmp_path):
     tint = manifest["textures"][0]["albedo_color"]
     assert tint == pytest.approx([1 / srgb_128] * 3)
     assert manifest["colour_map"]["file"] == "terrain3d_colour.png"
-    assert manifest["borders"] == "shaped"
+    # One vertex per grid vertex: each its own theme, blend 0 (not the shaped borders).
+    assert manifest["borders"] == "vertex"
     # The control map's vertices still carry their themes alone (a vertex is on a texel).
     control = read_control_map(tmp_path / "terrain3d_control.exr")
     np.testing.assert_array_equal(control >> 27 & 0x1F, grid)
