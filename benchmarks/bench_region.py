@@ -13,9 +13,9 @@ Photos (tiled TIFFs in a temporary folder):
   ``benchmarks/mosaic.py``).
 
 Each photo is converted with ``convert``'s defaults three times, each in a
-fresh child process (peak RSS from ``ru_maxrss``): the whole photo
-(``core.convert.photo.convert_photo``), the whole photo shifted by 16 pixels
-(its first 16 rows and columns cropped: the whole path's own
+fresh child process (peak RSS from ``ru_maxrss``; forked from a small server
+process): the whole photo (``core.convert.photo.convert_photo``), the whole
+photo shifted by 16 pixels (its first 16 rows and columns cropped: the whole path's own
 self-consistency) and tile by tile (``core.convert.tiled.convert_file_tiled``,
 ``--tile``). Reported for the tiled and the shifted run against the whole photo:
 
@@ -127,7 +127,7 @@ def measure(name: str, photo_path: Path, folder: Path, tile: int) -> dict:
     from terratheme.core.model.project import load_project
 
     runs = {}
-    ctx = get_context("spawn")
+    ctx = get_context("forkserver")
     for kind in ("whole", "shifted", "tiled"):
         out = folder / f"{name}_{kind}.ttproj"
         with ProcessPoolExecutor(1, mp_context=ctx) as pool:
@@ -202,6 +202,10 @@ def main() -> None:
 
     results: dict = {"tile": args.tile, "shift": SHIFT, "step": STEP,
                      "load_average": list(os.getloadavg())}
+    # Children fork from a server started now, while this process is small: ru_maxrss
+    # survives fork and exec, so children of a large parent would report its size.
+    with ProcessPoolExecutor(1, mp_context=get_context("forkserver")) as pool:
+        pool.submit(os.getpid).result()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         photos = {"sample_4x4": lambda p: _sample_mosaic(p, 2 if args.quick else 4)}

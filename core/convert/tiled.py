@@ -279,8 +279,10 @@ def convert_file_tiled(
     if not isinstance(scheduler, Scheduler):
         # The workers load the tile jobs' kernels while the themes are cut here.
         warm_up(scheduler, [], [WarmKernels(PredictLabels(model), replace(style, threads=1))])
-    # The region's sample: windows spread over the whole photo, classified as the tiles are.
-    sample = region_sample(path, PredictLabels(model), overlap)
+    # The region's sample: windows spread over the whole photo, classified as the tiles are
+    # (an unsupervised model says how much context gives the whole photo's labels).
+    context = getattr(model, "context_pixels", overlap)
+    sample = region_sample(path, PredictLabels(model), min(overlap, context))
     rgb = sample.rgb
     unsupervised = isinstance(model, UnsupervisedModel)
     if names and unsupervised:
