@@ -159,29 +159,3 @@ def test_block_sums_are_the_exact_sums_of_each_block(shape, s):
             block = image[j * s:(j + 1) * s, i * s:(i + 1) * s, :3].astype(np.int64)
             assert np.array_equal(got[j, i], block.sum(axis=(0, 1)))
 
-
-def test_the_centre_scale_starts_once_its_rows_are_final_and_is_the_whole_grids():
-    from terratheme.core.convert.colour_fit import ColourMapOptions
-    from terratheme.core.convert.colour_scale import CentreScale, window_scale
-
-    rng = np.random.default_rng(7)
-    grid = IndexGrid(rng.integers(0, 3, (33, 41)).astype(np.uint8), (16, 16))
-    themes = _themes(rng)
-    window = (160, 128, 320, 224)
-    photo = rng.integers(40, 200, (224, 320, 3), dtype=np.uint8)
-    style = RenderOptions(boundary=BoundaryOptions())
-    opts = ColourMapOptions(scales=(64, 32, 16), target=0.5)
-    want = window_scale(grid, themes, photo, window, style, opts)
-    # Rows arrive in bands, as grid_from_file stitches them; the rows below the window's
-    # ring are garbage until their band is final.
-    partial = IndexGrid(np.full_like(grid.indices, 2), grid.cell)
-    job = CentreScale(themes, photo, window, style, opts, background=True)
-    # The window's render reads vertex rows 7..(128 + 224 - 1) // 16 + 3 = 24.
-    for rows in range(0, 34, 4):
-        partial.indices[:rows] = grid.indices[:rows]
-        job.rows_final(partial, rows)
-        assert job.started == (rows >= 24)
-    assert job.result(grid) == want
-    serial = CentreScale(themes, photo, window, style, opts, background=False)
-    serial.rows_final(grid, 33)
-    assert not serial.started and serial.result(grid) == want
