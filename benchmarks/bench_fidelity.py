@@ -366,7 +366,7 @@ def structure_variants(photo):
             *((f"budget {b}", detail, ColourMapOptions(budget=b)) for b in BUDGETS),
             ("budget 0.04, whole themes", whole, ColourMapOptions(budget=0.04))):
         t = time.perf_counter()
-        cap = grid_budget(cmap)
+        cap = grid_budget(cmap, h * w)
         cell = choice if cap is None else cell_within_budget(
             theme_labels, choice, DEFAULT.candidates, cap, keep_specks=False)
         made = grid_and_colour(photo, theme_labels, mapping, cell="auto", choice=cell,

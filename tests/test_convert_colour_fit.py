@@ -162,8 +162,8 @@ def test_budget_map_spends_no_more_than_its_budget_and_beats_a_coarse_map_on_str
 
 def test_target_none_is_the_budget_and_bad_budgets_are_refused():
     assert ColourMapOptions().target is None
-    assert ColourMapOptions(budget=0.08).map_bytes(1000, 2) == 8
-    assert ColourMapOptions(budget=0.08).map_bytes(1000, 50) == 0
+    assert ColourMapOptions(budget=0.08).map_bytes(1_000_000, 2) == 9998
+    assert ColourMapOptions(budget=0.08).map_bytes(1_000_000, 20_000) == 0
     with pytest.raises(TerrathemeError):
         ColourMapOptions(budget=0.0)
     with pytest.raises(TerrathemeError):
@@ -211,3 +211,15 @@ def test_grid_budget_is_a_share_of_the_map_budget():
     assert grid_budget(ColourMapOptions(budget=0.08)) == pytest.approx(0.08 * GRID_SHARE)
     assert grid_budget(ColourMapOptions(target=2.0)) is None
     assert grid_budget(None) is None
+
+
+def test_a_tiny_photo_gets_the_least_area_bytes():
+    from terratheme.core.convert.colour_fit import MIN_AREA_BYTES
+    from terratheme.core.convert.step import GRID_SHARE, grid_budget
+
+    opts = ColourMapOptions(budget=0.04)
+    assert opts.area_bytes(128 * 96) == MIN_AREA_BYTES
+    assert opts.area_bytes(1000 * 1000) == 5000
+    assert grid_budget(opts, 128 * 96) == pytest.approx(
+        GRID_SHARE * MIN_AREA_BYTES * 8 / (128 * 96))
+    assert grid_budget(opts, 1000 * 1000) == pytest.approx(GRID_SHARE * 0.04)

@@ -55,6 +55,10 @@ if TYPE_CHECKING:
     from distributed import Client
 
 
+#: the least bytes a byte budget gives an area
+MIN_AREA_BYTES = 512
+
+
 @dataclass(frozen=True)
 class ColourMapOptions:
     """How the colour map of a conversion is made.
@@ -98,9 +102,14 @@ class ColourMapOptions:
             raise TerrathemeError(f"colour map budget must be > 0 bits per pixel, "
                                   f"got {self.budget}")
 
+    def area_bytes(self, pixels: int) -> int:
+        """The area's bytes under the budget for ``pixels`` photo pixels (at least
+        :data:`MIN_AREA_BYTES`: a tiny photo's map needs its codec's headers)."""
+        return max(MIN_AREA_BYTES, int(self.budget * pixels / 8))
+
     def map_bytes(self, pixels: int, reserved: int = 0) -> int:
         """The map's bytes under the budget for ``pixels`` photo pixels, ``reserved`` spent."""
-        return max(0, int(self.budget * pixels / 8) - int(reserved))
+        return max(0, self.area_bytes(pixels) - int(reserved))
 
 
 @dataclass(frozen=True)

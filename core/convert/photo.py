@@ -215,7 +215,8 @@ def convert_photo(
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=options.candidates, patch=options.patch, names=names,
         full_curve=options.full_curve, keep_specks=options.keep_specks,
-        detail=detail_sigma(options.colour_map), grid_bpp=grid_budget(options.colour_map))
+        detail=detail_sigma(options.colour_map),
+        grid_bpp=grid_budget(options.colour_map, h * w))
     if progress is not None:
         progress(50, 100)
     # Class values -> theme indices, the grid (35%), then the colour map (15%).

@@ -155,15 +155,20 @@ def cuts_themes(themes: ThemesSpec) -> bool:
 GRID_SHARE = 0.125
 
 
-def grid_budget(colour_map: ColourMapOptions | None) -> float | None:
+def grid_budget(colour_map: ColourMapOptions | None, pixels: int | None = None
+                ) -> float | None:
     """The ``grid_bpp`` of :func:`themes_and_cell` for a conversion's colour map.
 
-    :data:`GRID_SHARE` of a byte budget's bits per pixel; None (no cap)
-    without a map or with a dE8-target map.
+    :data:`GRID_SHARE` of a byte budget's bits per pixel (of its
+    :meth:`ColourMapOptions.area_bytes` for ``pixels`` photo pixels when
+    given: a tiny photo's floor); None (no cap) without a map or with a
+    dE8-target map.
     """
     if colour_map is None or colour_map.target is not None:
         return None
-    return GRID_SHARE * colour_map.budget
+    if pixels is None:
+        return GRID_SHARE * colour_map.budget
+    return GRID_SHARE * colour_map.area_bytes(pixels) * 8 / max(int(pixels), 1)
 
 
 def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
