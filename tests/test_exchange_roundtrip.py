@@ -124,3 +124,20 @@ def test_godot_says_what_a_control_map_per_vertex_carries(converted, tmp_path, c
     assert json.loads((fine / "terratheme_godot.json").read_text())["borders"] == "shaped"
     assert decode_control(read_control_map(fine / "terrain3d_control.exr")).blend.any()
     assert (gw, gh) != (w + 1, h + 1)
+
+
+
+def test_maps_read_from_an_export_point_at_the_exact_way_back(tmp_path, capsys):
+    from pathlib import Path
+
+    samples = Path(__file__).resolve().parents[1] / "sample_maps"
+    themes = "water,sand,grass,forest,town,road"
+    assert main(["new", str(samples / "coastline.png"), str(tmp_path / "c.ttproj"), "--themes",
+                 themes, "--cell", "4"]) == 0
+    out = tmp_path / "u"
+    assert main(["export", str(tmp_path / "c.ttproj"), str(out), "--engine", "unity"]) == 0
+    capsys.readouterr()
+    maps = sorted(str(p) for p in out.glob("splatmap_*.png"))
+    assert main(["new", *maps, str(tmp_path / "m.ttproj"), "--from", "splatmap",
+                 "--themes", themes]) == 0
+    assert f"'terratheme new {out} PROJECT' brings back" in capsys.readouterr().out

@@ -84,6 +84,7 @@ def _from_export(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_outputs
     from terratheme.core.errors import TerrathemeError
+    from terratheme.core.exchange.carried import MANIFEST_GLOB
     from terratheme.core.exchange.maps_to_grid import grid_from_maps
     from terratheme.core.io.images import image_info, read_image
     from terratheme.core.model.grid import IndexGrid, validate_cell
@@ -141,4 +142,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.project}: {project.grid.indices.shape[1]} x {project.grid.indices.shape[0]} "
           f"vertices, cell {args.cell[0]}x{args.cell[1]}, renders to {w} x {h}, "
           f"themes {', '.join(library.names)}")
+    if args.kind != "index":
+        # Maps of an export: the exact grid, themes and colour map are one command away.
+        beside = sorted(Path(sources[0]).parent.glob(MANIFEST_GLOB))
+        if len(beside) == 1:
+            print(f"  note: these maps belong to the export {beside[0].parent}: 'terratheme new "
+                  f"{beside[0].parent} PROJECT' brings back its project exactly (grid, themes, "
+                  "colour map)")
     return 0
