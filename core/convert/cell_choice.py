@@ -140,7 +140,7 @@ class CellChoice:
 
 
 def choose_cell_size(
-    labels: np.ndarray,
+    labels: np.ndarray | Sequence[np.ndarray],
     target_agreement: float = 0.9,
     *,
     candidates: Sequence[int] = DEFAULT_CELL_CANDIDATES,
@@ -165,8 +165,9 @@ def choose_cell_size(
 
     Parameters
     ----------
-    labels : (H, W) uint8 ndarray
-        Per-pixel theme indices.
+    labels : (H, W) uint8 ndarray, or a list of them
+        Per-pixel theme indices; a list: windows of one photo (a region's
+        sample), each voted on its own and their pixel counts summed.
     target_agreement : float in (0, 1]
     candidates : sequence of int
         Square cell sizes to try.
@@ -189,10 +190,12 @@ def choose_cell_size(
         With the curve (cell, agreement, grid bytes) of the candidates measured,
         smallest cell first.
     """
-    labels = check_class_image(labels, "label image")
+    pieces = [labels] if isinstance(labels, np.ndarray) else list(labels)
+    pieces = [check_class_image(p, "label image") for p in pieces]
     if not 0.0 < float(target_agreement) <= 1.0:
         raise TerrathemeError(f"target agreement must be in (0, 1], got {target_agreement}")
-    h, w = labels.shape
+    h, w = max(p.shape[0] for p in pieces), max(p.shape[1] for p in pieces)
+    total = sum(p.size for p in pieces)
     sizes = sorted({int(c) for c in candidates if 1 <= int(c) <= max(w, h)})
     if not sizes:
         raise TerrathemeError(
@@ -203,10 +206,14 @@ def choose_cell_size(
     curve = []
     for done, c in enumerate(sizes if full_curve else sizes[::-1], start=1):
         # Vote the grid, render its label view, count the pixels that keep their label.
-        grid = IndexGrid(vote_grid(labels, (c, c), keep_specks=keep_specks), (c, c))
-        cm = label_confusion(labels, grid, max_pixels=sample_pixels)
+        cm, vertices = np.zeros((1, 1), np.int64), 0
+        for piece in pieces:
+            grid = IndexGrid(vote_grid(piece, (c, c), keep_specks=keep_specks), (c, c))
+            share = None if sample_pixels is None else max(1, sample_pixels * piece.size // total)
+            cm = _summed(cm, label_confusion(piece, grid, max_pixels=share))
+            vertices += int(grid.indices.size)
         ious = class_iou(cm, CLASS_MIN_SHARE)
-        curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), int(grid.indices.size),
+        curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), vertices,
                                min(ious.values(), default=1.0)))
         if progress is not None:
             progress(done, len(sizes))
@@ -222,6 +229,15 @@ def choose_cell_size(
         (best.cell, best.cell), best.agreement, float(target_agreement), tuple(curve),
         target_met=bool(meeting), class_target=float(class_target),
     )
+
+
+def _summed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Two confusion matrices of different sizes added (the larger's shape)."""
+    k = max(a.shape[0], b.shape[0])
+    out = np.zeros((k, k), np.int64)
+    out[:a.shape[0], :a.shape[0]] += a
+    out[:b.shape[0], :b.shape[0]] += b
+    return out
 
 
 def _meets(point: CellPoint, target_agreement: float, class_target: float) -> bool:
