@@ -166,3 +166,18 @@ def test_trained_model_refuses_theme_count_and_position_features(tmp_path):
     out = tmp_path / "o.ttproj"
     assert _run([photo, out, "--tile", "32", "--model", tmp_path / "m.model",
                  "--themes", "3"]) == 2
+
+
+def test_the_cell_is_chosen_on_each_sample_window_apart():
+    from terratheme.core.convert.cell_choice import choose_cell_size
+
+    # Two flat windows of different themes: side by side their seam is a border that only
+    # small cells keep; each on its own, any cell keeps every label.
+    left, right = np.full((48, 48), 1, np.uint8), np.full((48, 48), 2, np.uint8)
+    side_by_side = choose_cell_size(np.hstack([left, right]), 0.99, candidates=(4, 48))
+    apart = choose_cell_size([left, right], 0.99, candidates=(4, 48))
+    assert side_by_side.cell == (4, 4) and apart.cell == (48, 48)
+    assert apart.curve[-1].agreement == 1.0 and apart.curve[-1].grid_bytes == 2 * 2 * 2
+    # One window given as a list is the window itself.
+    one = choose_cell_size([np.hstack([left, right])], 0.99, candidates=(4, 48))
+    assert one == side_by_side

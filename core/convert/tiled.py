@@ -30,16 +30,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 from terratheme.core.classify import UnsupervisedModel
 from terratheme.core.classify.photo import prepare_photo
-from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES
+from terratheme.core.convert.cell_choice import (
+    CONVERT_CELL_CANDIDATES,
+    cell_within_budget,
+    choose_cell_size,
+)
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
-from terratheme.core.convert.labels_to_grid import grid_shape_for
+from terratheme.core.convert.labels_to_grid import apply_lut, grid_shape_for
 from terratheme.core.convert.region_sample import (
     fit_unsupervised_region,
     region_sample,
     sample_colour_scale,
 )
 from terratheme.core.convert.specks import SpeckStream
-from terratheme.core.convert.step import themes_and_cell
+from terratheme.core.convert.step import detail_sigma, grid_budget, themes_and_cell
 from terratheme.core.convert.tile_vote import (
     ClassifyFn,
     PredictLabels,
@@ -302,13 +306,25 @@ def convert_file_tiled(
     else:
         # Themes cut from the photo, named by a shipped model's classes where it has them.
         spec, class_names = "auto", getattr(model, "class_names", None)
-    # The themes, and with cell "auto" the cell size, chosen once on the sample.
-    mapping, choice = themes_and_cell(rgb, sample.labels, model.classes, spec, cell=cell,
-                                      target_agreement=target_agreement,
-                                      class_target=class_target, candidates=candidates,
-                                      names=class_names, full_curve=False,
-                                      keep_specks=keep_specks)
-    if choice is not None:
+    # The themes, and with cell "auto" the cell size, chosen once on the sample: the themes
+    # on its windows side by side (a fixed cell: no choice there), the cell on each window
+    # apart (the seams between them are no borders of the photo: they would favour small cells).
+    mapping, _ = themes_and_cell(rgb, sample.labels, model.classes, spec,
+                                 cell=1 if cell == "auto" else cell, names=class_names,
+                                 detail=detail_sigma(colour_map))
+    choice = None
+    if cell == "auto":
+        theme_labels = apply_lut(sample.labels, mapping.lut)
+        choice = choose_cell_size([theme_labels[y:y + h, x:x + w] for (x, y), (*_, w, h)
+                                   in zip(sample.places, sample.windows, strict=True)],
+                                  target_agreement, candidates=candidates,
+                                  class_target=class_target, full_curve=False,
+                                  keep_specks=keep_specks)
+        # Under a byte budget the packed grid takes at most its share, as on the whole photo.
+        bits = grid_budget(colour_map, info.width * info.height)
+        if bits is not None:
+            choice = cell_within_budget(theme_labels, choice, candidates, bits,
+                                        keep_specks=keep_specks)
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
