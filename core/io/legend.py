@@ -91,8 +91,8 @@ def _csv_entries(text: str) -> list[tuple[object, object]]:
         value, sep, name = line.partition(",")
         if not sep:
             value, _, name = line.partition(" ")
-        if n == 0 and not re.fullmatch(r"[0-9]+", value.strip(), re.ASCII):
-            continue  # a header line
+        if n == 0 and not any(ch.isdigit() for ch in value):
+            continue  # a header line (words; '١' or '1_0' is a value, refused as such)
         pairs.append((value, name))
     return pairs
 
