@@ -172,10 +172,15 @@ def chart(results: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, len(metrics), figsize=(4 * len(metrics), 3.6), dpi=100)
     kinds = [("whole", "whole photo"), ("shifted", f"whole, shifted {SHIFT} px"),
              ("tiled", "tiled")]
+    # An earlier run kept under "before" (the region path before a change): its tiled bars.
+    before = results.get("before", {})
+    if all(n in before for n in names):
+        kinds.append(("before", "tiled, before the change"))
     width = 0.8 / len(kinds)
     for ax, (key, label) in zip(axes, metrics, strict=True):
         for k, (kind, kind_label) in enumerate(kinds):
-            values = [results[n][kind].get(key, np.nan) for n in names]
+            values = [(before[n]["tiled"] if kind == "before" else results[n][kind]).get(
+                key, np.nan) for n in names]
             ax.bar(np.arange(len(names)) + k * width, values, width, label=kind_label)
         ax.set_xticks(np.arange(len(names)) + width, names, fontsize=8)
         ax.set_title(label, fontsize=9)
@@ -183,7 +188,7 @@ def chart(results: dict, path: Path) -> None:
             ax.set_ylim(0.5, 1.0)
         elif key.startswith("structure"):
             ax.set_ylim(0.0, 1.0)
-    axes[0].legend(fontsize=7, loc="lower left")
+    axes[-1].legend(fontsize=7, loc="lower right")
     fig.suptitle(f"region path (tile {results.get('tile')}) against the whole photo", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
