@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -147,13 +148,17 @@ def run_cli(*args: str | os.PathLike, timeout: float = 180.0) -> subprocess.Comp
 
 
 def check_refused(proc: subprocess.CompletedProcess, *needles: str) -> str:
-    """A CLI run refused its input as the brief says: status 2, one stderr line, no traceback;
+    """A CLI run refused its input as the brief says: status 2, one error line, no traceback;
     the line (what a terminal shows: after a progress bar's last carriage return) holds every
-    one of ``needles``. Returns the line."""
+    one of ``needles``. Before it, stderr may hold only the log lines of stages that ended
+    (``stage: 1.2 s``, what a progress bar writes where stderr is not a terminal).
+    Returns the line."""
     err = proc.stderr
     assert proc.returncode == 2, (proc.returncode, err[-2000:])
-    assert err.count("\n") == 1 and err.endswith("\n") and "Traceback" not in err, err[-2000:]
-    line = err.rsplit("\r", 1)[-1].strip()
+    assert err.endswith("\n") and "Traceback" not in err, err[-2000:]
+    *stages, line = err.rstrip("\n").split("\n")
+    assert all(re.fullmatch(r"[^:]+: \d+\.\d s", s) for s in stages), err[-2000:]
+    line = line.rsplit("\r", 1)[-1].strip()
     for needle in needles:
         assert needle in line, line
     return line
