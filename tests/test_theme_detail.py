@@ -87,3 +87,56 @@ def test_even_detail_fills_a_flat_strip_of_a_tileable_texture():
     # ... and the rest keeps its pattern: evening only scales it.
     out = detail_texture(tex).astype(float) - NEUTRAL
     assert np.corrcoef(out[:, :16].ravel(), (tex[:, :16].astype(float) - 128).ravel())[0, 1] > 0.5
+
+
+def _road_pieces(seed: int = 0) -> np.ndarray:
+    """A 64 x 64 grey theme of 12 dark line pieces at random angles (a town theme's fragments)."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    img = np.full((64, 64), 150, np.uint8)
+    for _ in range(12):
+        x0, y0 = (int(v) for v in rng.integers(6, 58, 2))
+        angle, length = rng.uniform(0, np.pi), int(rng.integers(15, 30))
+        x1 = int(np.clip(x0 + length * np.cos(angle), 4, 60))
+        y1 = int(np.clip(y0 + length * np.sin(angle), 4, 60))
+        cv2.line(img, (x0, y0), (x1, y1), 60, 2)
+    return np.repeat(img[:, :, None], 3, axis=2)
+
+
+def test_edge_coherence_of_stripes_flat_and_grain():
+    from terratheme.core.themes.detail import FRAGMENT_COHERENCE, edge_coherence
+
+    xx = np.indices((64, 64))[1]
+    stripes = np.repeat((128 + 40 * np.sin(2 * np.pi * xx / 8))[:, :, None], 3, axis=2)
+    # Gradients all along x: the tensor's second eigenvalue is 0, the coherence 1.
+    assert edge_coherence(stripes.round().astype(np.uint8)) == pytest.approx(1.0, abs=1e-4)
+    assert edge_coherence(np.full((16, 16, 3), 90, np.uint8)) == 0.0
+    grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    assert edge_coherence(grain) < FRAGMENT_COHERENCE < edge_coherence(_road_pieces())
+
+
+def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
+    from terratheme.core.themes.detail import (
+        CALM_SIGMA,
+        FRAGMENT_COHERENCE,
+        edge_coherence,
+        even_detail,
+        theme_detail,
+    )
+
+    pieces = _road_pieces()
+    rel, sigma = theme_detail(pieces)
+    assert sigma == CALM_SIGMA
+    # Random phases keep the power spectrum (Parseval): the energy of even_detail at CALM_SIGMA.
+    assert float((rel ** 2).mean()) == pytest.approx(
+        float((even_detail(pieces, CALM_SIGMA) ** 2).mean()), rel=1e-4)
+    # The pieces' edges are gone (the old detail texture kept them: coherence 0.64) ...
+    assert edge_coherence(detail_texture(pieces)) < FRAGMENT_COHERENCE
+    # ... the result still tiles (random phases commute with a shift) ...
+    assert np.allclose(theme_detail(np.roll(pieces, 7, axis=0))[0], np.roll(rel, 7, axis=0),
+                       atol=1e-5)
+    # ... and an isotropic grain theme is left as it was.
+    grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    same, s = theme_detail(grain)
+    assert s == 3.0 and np.array_equal(same, even_detail(grain))

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
+from skimage.feature import structure_tensor
 from terratheme.core.themes.library import ThemeLibrary
 
 #: Gaussian sigma (texels) above which a detail theme is flat
@@ -31,6 +32,12 @@ GAIN_RANGE = (0.25, 4.0)
 EVEN_SIGMA = 4.0
 #: range of :func:`even_detail`'s factor
 EVEN_RANGE = (0.25, 4.0)
+#: :func:`edge_coherence` above which a theme's detail is made of fragments (:func:`theme_detail`)
+FRAGMENT_COHERENCE = 0.55
+#: Gaussian sigma (texels) of a fragment theme's detail (:func:`theme_detail`)
+CALM_SIGMA = 2.5
+#: the seed of :func:`theme_detail`'s random phases (the same themes every run)
+PHASE_SEED = 0
 
 
 def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
@@ -64,9 +71,51 @@ def even_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
     return rel * factor[:, :, None].astype(np.float32)
 
 
+def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
+    """How much of a tileable texture's fine contrast lies along oriented edges, 0..1.
+
+    The structure tensor (smoothed over 2 texels, wrapping around) of the
+    luminance's ``t / blur(t) - 1``: the sum of ``lambda1 - lambda2`` over the
+    sum of ``lambda1 + lambda2``. Stripes give 1, isotropic grain little; a
+    town theme quilted from road and building pieces about 0.55.
+    """
+    rel = _relative(np.asarray(texture, np.float32).mean(axis=2), sigma, wrap=True)
+    arr, arc, acc = structure_tensor(rel, sigma=2.0, mode="wrap")
+    trace = float((arr + acc).sum())
+    if trace <= 1e-12:
+        return 0.0
+    return float(np.sqrt((arr - acc) ** 2 + 4.0 * arc ** 2).sum() / trace)
+
+
+def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.ndarray, float]:
+    """A theme's relative fine contrast (:func:`even_detail`) and the sigma it was taken at.
+
+    A theme made of oriented fragments (:func:`edge_coherence` above
+    :data:`FRAGMENT_COHERENCE`: a town theme's road and building pieces) keeps
+    only its contrast finer than :data:`CALM_SIGMA`, its phases randomised
+    (the same random phases for the three channels, seeded): the same power
+    spectrum without its edges, so the colour map's own streets read through
+    instead of a kaleidoscope of pieces at random angles (issue 34).
+
+    Returns
+    -------
+    ((h, w, 3) float32 ndarray, float)
+    """
+    if edge_coherence(texture, sigma) <= FRAGMENT_COHERENCE:
+        return even_detail(texture, sigma), sigma
+    sigma = min(sigma, CALM_SIGMA)
+    rel = even_detail(texture, sigma)
+    noise = np.random.default_rng(PHASE_SEED).standard_normal(rel.shape[:2])
+    phases = np.exp(1j * np.angle(np.fft.fft2(noise)))
+    phases[0, 0] = 1.0  # the mean stays
+    phases = phases[:, :, None]
+    out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases, axes=(0, 1)).real
+    return out.astype(np.float32), sigma
+
+
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
                    gain: float = 1.0) -> np.ndarray:
-    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain even_detail(t))``.
+    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain theme_detail(t))``.
 
     Parameters
     ----------
@@ -82,7 +131,7 @@ def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
     (h, w, 3) uint8 ndarray
         Clipped to 0..255.
     """
-    out = NEUTRAL * (1.0 + gain * even_detail(texture, sigma))
+    out = NEUTRAL * (1.0 + gain * theme_detail(texture, sigma)[0])
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
@@ -102,8 +151,9 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
                  sigma: float = DETAIL_SIGMA) -> list[float]:
     """Per theme, the contrast gain that gives its detail the photo's in its class.
 
-    ``sqrt(photo energy over the theme's pixels / theme energy)``
-    (:func:`detail_energy`; the theme's of :func:`even_detail`), clipped to
+    ``sqrt(photo energy over the theme's pixels / theme energy)``, both at the
+    sigma :func:`theme_detail` takes the theme's at (:func:`detail_energy`;
+    the theme's of :func:`theme_detail`), clipped to
     :data:`GAIN_RANGE`; 1 for a theme no pixel takes or a flat theme.
 
     Parameters
@@ -114,17 +164,20 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     library : ThemeLibrary
     """
     y = np.asarray(photo, np.float32).mean(axis=2)
-    rel = _relative(y, sigma, wrap=False) ** 2
     labels = np.asarray(theme_labels).ravel()
-    sums = np.bincount(labels, rel.ravel(), minlength=len(library))
     counts = np.bincount(labels, minlength=len(library))
+    sums: dict[float, np.ndarray] = {}
     gains = []
     for k, theme in enumerate(library):
-        own = float((even_detail(theme.texture, sigma).mean(axis=2) ** 2).mean())
+        rel, s = theme_detail(theme.texture, sigma)
+        own = float((rel.mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
-        gains.append(float(np.clip(np.sqrt(sums[k] / counts[k] / own), *GAIN_RANGE)))
+        if s not in sums:
+            sums[s] = np.bincount(labels, (_relative(y, s, wrap=False) ** 2).ravel(),
+                                  minlength=len(library))
+        gains.append(float(np.clip(np.sqrt(sums[s][k] / counts[k] / own), *GAIN_RANGE)))
     return gains
 
 
