@@ -217,7 +217,7 @@ def export(net: LightUNet, path: Path) -> None:
     net.train()
 
 
-def write_index(out: Path, scores: dict | None, holdout: int, iterations: int) -> None:
+def write_index(out: Path, scores: dict | None, holdout: int, done: int, total: int) -> None:
     """The model's entry in ``models.json`` (other entries kept)."""
     index_path = out / "models.json"
     index = json.loads(index_path.read_text()) if index_path.is_file() else {"models": {}}
@@ -229,8 +229,8 @@ def write_index(out: Path, scores: dict | None, holdout: int, iterations: int) -
         "classes": {str(k): v for k, v in CLASS_NAMES.items()},
         "description": ("aerial / satellite orthophotos: building, land, road, vegetation, "
                         f"water (light U-Net, run at {SCALE}x the photo's size; trained on "
-                        f"Dubai tiles {sorted(set(range(1, 7)) - {holdout})}, {iterations} "
-                        f"iterations; {held})"),
+                        f"Dubai tiles {sorted(set(range(1, 7)) - {holdout})}, checkpoint {done} of "
+                        f"{total} iterations; {held})"),
         "trained_on": ("Humans in the Loop, 'Semantic segmentation of aerial imagery' "
                        "(Dubai, MBRSC), CC0 1.0"),
         "scale": SCALE,
@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         if it % args.every == 0 or it == args.iterations:
             scores = score(net, held) if held else None
             export(net, args.out / FILE)
-            write_index(args.out, scores, args.holdout, it)
+            write_index(args.out, scores, args.holdout, it, args.iterations)
             if args.checkpoints:
                 args.checkpoints.mkdir(parents=True, exist_ok=True)
                 torch.save({"it": it, "net": net.state_dict(), "opt": opt.state_dict()},
