@@ -57,8 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
 #: least address space (``ulimit -v``, MiB) each command starts and runs a small input in,
 #: measured on a 2-core machine (docs/decisions.md); below it native libraries end the
 #: process (SIGSEGV, std::bad_alloc) or fail to load, so the CLI says so first
-MIN_ADDRESS_SPACE_MIB = {"info": 256, "unpack": 768, "themes": 1024, "convert": 1408,
-                         "app": 1664}
+MIN_ADDRESS_SPACE_MIB = {"unpack": 768, "themes": 1024, "convert": 1408, "app": 1664}
 #: for the commands not listed
 DEFAULT_ADDRESS_SPACE_MIB = 1280
 
@@ -75,6 +74,24 @@ def address_space_shortfall(command: str) -> str:
         return ""
     return (f"the address-space limit (ulimit -v) is {soft >> 20} MiB, below the "
             f"{need >> 20} MiB this command needs; raise it (ulimit -v {need >> 10})")
+
+
+def cv2_error() -> type[BaseException]:
+    """OpenCV's exception class if OpenCV is loaded already, else one nothing raises."""
+    cv2 = sys.modules.get("cv2")
+    return getattr(cv2, "error", None) or _NeverRaised
+
+
+class _NeverRaised(Exception):
+    pass
+
+
+def out_of_memory(exc: BaseException) -> bool:
+    """An exception that means memory ran out: a thread that cannot start (its stack cannot
+    be mapped) or a native library's std::bad_alloc (OpenCV's cv2.error)."""
+    text = str(exc)
+    return ("can't start new thread" in text or "bad_alloc" in text
+            or "Insufficient memory" in text or "Failed to allocate" in text)
 
 
 def _one_line(text: str) -> str:
@@ -128,7 +145,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # A library that cannot be mapped (out of memory) or is missing from the install.
         print(f"{name}: error: cannot load {exc.name or 'a library'} "
               f"({_one_line(str(exc))[:160]})", file=sys.stderr)
-    except MemoryError:
+    except (MemoryError, RuntimeError, cv2_error()) as exc:
+        if not isinstance(exc, MemoryError) and not out_of_memory(exc):
+            raise
         # Commands with a bounded-memory path say so when it was not taken.
         hint = " (--tile N works in bounded memory)" if getattr(args, "tile", 0) is None else ""
         print(f"{name}: error: not enough memory for this input{hint}", file=sys.stderr)

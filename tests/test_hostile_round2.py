@@ -588,6 +588,9 @@ def test_convert_colour_map_off_drops_the_old_colour_map(made, tmp_path):
     ["perspective", "{photo}", "{t}/o.png", "--no-cache"],
     ["classify", "{photo}", "-o", "{t}/o.png"], ["export", "{p}", "{t}/e", "--engine", "unity"],
     ["pack", "{labels}", "{t}/o.ttpack"],
+    # info of a project was let run from 256 MiB: SIGSEGV at 500-600, scipy's OpenBLAS
+    # spinning for good (SIGTERM ignored) at 650-700, exit 1 at 960
+    ["info", "{p}"],
 ], ids=lambda c: c[0])
 def test_below_the_memory_a_command_needs_is_one_line(made, tmp_path, command, mib):
     args = " ".join(f"'{a}'" for a in (a.format(photo=made / "photo.png", t=tmp_path,
@@ -600,6 +603,51 @@ def test_below_the_memory_a_command_needs_is_one_line(made, tmp_path, command, m
         env=dict(os.environ, PYTHONPATH=str(REPO)))
     refused(proc, "ulimit -v")
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("mib", [1500, 1600])
+def test_convert_just_above_its_floor_is_one_line(made, tmp_path, mib):
+    """Threads that cannot start and OpenCV's std::bad_alloc were tracebacks with exit 1."""
+    proc = subprocess.run(
+        ["bash", "-c", f"ulimit -v {mib << 10}; exec '{sys.executable}' -m terratheme.app.cli "
+                       f"convert '{made / 'photo.png'}' '{tmp_path / 'o.ttproj'}'"],
+        capture_output=True, text=True, timeout=300, cwd=REPO,
+        env=dict(os.environ, PYTHONPATH=str(REPO)))
+    if proc.returncode != 0:
+        refused(proc)
+        assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("exc", [
+    RuntimeError("can't start new thread"),
+    pytest.param("cv2", id="cv2_bad_alloc"),
+])
+def test_memory_failures_of_native_code_are_one_line(monkeypatch, capsys, exc):
+    import cv2
+    import terratheme.app.commands.themes
+    from terratheme.app.cli import main
+    if exc == "cv2":
+        exc = cv2.error("OpenCV(5.1.0) std::bad_alloc")
+
+    def fail(args):
+        raise exc
+
+    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
+    assert main(["themes"]) == 2
+    err = capsys.readouterr().err
+    assert err == "terratheme themes: error: not enough memory for this input\n"
+
+
+def test_other_runtime_errors_are_not_taken_for_memory(monkeypatch):
+    import terratheme.app.commands.themes
+    from terratheme.app.cli import main
+
+    def fail(args):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
+    with pytest.raises(RuntimeError, match="a bug"):
+        main(["themes"])
 
 
 @pytest.mark.parametrize("args", [
