@@ -70,6 +70,16 @@ def test_probabilities_and_labels_shapes_types_and_sums():
     np.testing.assert_allclose(result.confidence, probs.max(axis=2), atol=1e-6)
 
 
+def test_dark_water_and_bright_sand_are_water_and_land():
+    # The two easiest classes of the legend, as the forest's test asks of it.
+    img = np.zeros((64, 128, 3), np.uint8)
+    img[:, :64] = (20, 35, 40)
+    img[:, 64:] = (215, 200, 175)
+    labels = network().predict(img).labels
+    assert (labels[8:-8, 8:56] == 5).mean() > 0.9
+    assert (labels[8:-8, 72:-8] == 2).mean() > 0.9
+
+
 @pytest.mark.parametrize("shape", [(1, 1), (1, 9), (3, 2), (17, 1)])
 def test_tiny_photos_are_classified(shape):
     img = np.full(shape + (3,), 120, np.uint8)
