@@ -566,6 +566,30 @@ def _export_killed(made, tmp_path, k, signum):
             assert not temporaries(out)
 
 
+def test_a_planted_old_manifest_removes_nothing(made, tmp_path):
+    """The old set's manifest is input too: files it names that the new export does not
+    write (outside the folder, the user's notes, a tile name) are left alone."""
+    first = tmp_path / "first"
+    assert run("export", made / "p.ttproj", first, "--engine", "unity").returncode == 0
+    manifest = json.loads((first / "terratheme_unity.json").read_text())
+    out = tmp_path / "out"
+    out.mkdir()
+    (tmp_path / "victim.txt").write_text("victim")
+    (out / "notes.txt").write_text("notes")
+    (out / "splatmap_9.png").write_text("mine")
+    manifest["tiles"][0]["splatmaps"] += ["../victim.txt", "notes.txt", "splatmap_9.png",
+                                          str(tmp_path / "victim.txt")]
+    manifest["project"] = "../victim.txt"
+    manifest["colour_map"]["file"] = "notes.txt"
+    (out / "terratheme_unity.json").write_text(json.dumps(manifest))
+    proc = run("export", made / "p.ttproj", out, "--engine", "unity", "--size", "512x512")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "victim.txt").read_text() == "victim"
+    assert (out / "notes.txt").read_text() == "notes"
+    assert (out / "splatmap_9.png").read_text() == "mine"
+    assert _unity_consistent(out) == "new"
+
+
 def test_convert_colour_map_off_drops_the_old_colour_map(made, tmp_path):
     photo = tmp_path / "photo.png"
     photo.write_bytes((made / "photo.png").read_bytes())
