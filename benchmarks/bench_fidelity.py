@@ -71,7 +71,7 @@ from terratheme.core.convert.step import (  # noqa: E402
     grid_and_colour,
     grid_budget,
 )
-from terratheme.core.fidelity import colour_error, detail_ratio, structure_scores, texture_cost  # noqa: E402
+from terratheme.core.fidelity import class_iou_scores, colour_error, detail_ratio, texture_cost  # noqa: E402
 from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
@@ -167,7 +167,7 @@ def score_texture(photo, mask, classes, thin, project, boundary):
     h, w = photo.shape[:2]
     render = render_project(project, (0, 0, w, h), options=RenderOptions(boundary=boundary))
     view = render_labels(project.grid, region=(0, 0, w, h))
-    s = structure_scores(view, mask, classes)
+    s = class_iou_scores(view, mask, classes)
     cost = texture_cost(project)
     return {"cell": project.grid.cell[0], "themes": len(project.library),
             "dE8": round(colour_error(render, photo), 3),
@@ -187,7 +187,7 @@ def measure_photo(folder, name, classes, crop, variants, check, base=DEFAULT):
     secs, cpu = time.perf_counter() - clock.start, time.process_time() - cpu
     shared = clock.first(50)
     choice = clock.first(85) - shared if base.cell == "auto" else 0.0
-    s_cls = structure_scores(res.labels, mask, classes)
+    s_cls = class_iou_scores(res.labels, mask, classes)
     row = {"folder": folder, "photo": name, "size": [w, h], "mpx": round(mpx, 3),
            "classes": classes, "crop": crop, "load_average": os.getloadavg()[0],
            "miou_cls": round(s_cls["miou"], 4),

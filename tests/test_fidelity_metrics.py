@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity import (
+    class_iou_scores,
     colour_error,
     detail_energy,
     detail_ratio,
     majority_classes,
-    structure_scores,
     structure_similarity,
 )
 
@@ -91,7 +91,7 @@ def test_structure_of_a_relabelled_truth_is_perfect():
     truth[:, :10] = 1
     truth[15:, :] = 3
     labels = np.choose(truth, [9, 4, 7, 5]).astype(np.uint8)  # 1->4, 2->7, 3->5
-    got = structure_scores(labels, truth, [1, 2, 3])
+    got = class_iou_scores(labels, truth, [1, 2, 3])
     assert got["miou"] == 1.0
     assert got["mapping"] == {4: 1, 7: 2, 5: 3}
 
@@ -100,7 +100,7 @@ def test_structure_of_one_label_over_two_halves():
     truth = np.ones((10, 20), np.uint8)
     truth[:, 10:] = 2
     labels = np.zeros_like(truth)
-    got = structure_scores(labels, truth, [1, 2])
+    got = class_iou_scores(labels, truth, [1, 2])
     # Ties go to the first class: everything called class 1, half of it right.
     assert got["iou"] == {1: 0.5, 2: 0.0}
     assert got["miou"] == 0.25
@@ -111,7 +111,7 @@ def test_structure_ignores_unscored_classes():
     truth[:, 5:] = 6  # "unlabelled"
     labels = np.zeros_like(truth)
     labels[:, 5:] = 1
-    assert structure_scores(labels, truth, [1])["iou"] == {1: 1.0}
+    assert class_iou_scores(labels, truth, [1])["iou"] == {1: 1.0}
     assert majority_classes(labels, truth, [1]) == {0: 1}
 
 
@@ -125,7 +125,7 @@ def test_errors():
     with pytest.raises(TerrathemeError, match="selects no pixel"):
         colour_error(_flat(0.1), _flat(0.1), valid=np.zeros((40, 50), bool))
     with pytest.raises(TerrathemeError, match="differ"):
-        structure_scores(np.zeros((2, 2)), np.zeros((2, 3)), [1])
+        class_iou_scores(np.zeros((2, 2)), np.zeros((2, 3)), [1])
 
 
 def test_fidelity_summary_line():

@@ -1,8 +1,8 @@
 """How much a thematic texture looks like its photo (issue 13's measures).
 
 Modules: ``metrics`` (``dE8`` colour layout, band-pass detail ratio,
-structure IoU of the label view against ground truth), ``cost`` (bytes per
-area and of the shared themes).
+structure similarity at 1/4 and 1/8, class IoU of the label view against
+ground truth), ``cost`` (bytes per area and of the shared themes).
 """
 
 from terratheme.core.fidelity.cost import TextureCost, texture_cost
@@ -10,12 +10,12 @@ from terratheme.core.fidelity.metrics import (
     COLOUR_SIGMA,
     DETAIL_SIGMAS,
     Fidelity,
+    class_iou_scores,
     colour_error,
     detail_energy,
     detail_ratio,
     fidelity,
     majority_classes,
-    structure_scores,
     structure_similarity,
 )
 
@@ -29,7 +29,7 @@ __all__ = [
     "detail_ratio",
     "fidelity",
     "majority_classes",
-    "structure_scores",
+    "class_iou_scores",
     "structure_similarity",
     "texture_cost",
 ]

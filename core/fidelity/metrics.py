@@ -1,6 +1,6 @@
 """How much a thematic texture looks like its photo: colour layout, fine detail, structure.
 
-The three measures of issue 13, each on whole images of the same size:
+Each on whole images of the same size:
 
 * :func:`colour_error` (``dE8``): mean CIEDE2000 between photo and render
   after a Gaussian blur of sigma 8 px, the colour layout an observer sees
@@ -9,7 +9,7 @@ The three measures of issue 13, each on whole images of the same size:
   (Gaussian sigma 0.7 minus sigma 3.0, mean square) over the photo's: 1 means
   as much fine texture as the photo, below 1 washed out or smeared, above 1
   noisier than the photo;
-* :func:`structure_scores`: per-class IoU of the texture's label view against
+* :func:`class_iou_scores`: per-class IoU of the texture's label view against
   a ground-truth mask, each theme mapped to the class it covers most;
 * :func:`structure_similarity` (issue 34, ``structure 1/4``, ``1/8``): SSIM of
   the luminance after a 4x (8x) area downscaling, whether each road, block and
@@ -216,7 +216,7 @@ def majority_classes(labels: np.ndarray, truth: np.ndarray,
     return {int(t): int(classes[int(np.argmax(row))]) for t, row in enumerate(counts) if row.any()}
 
 
-def structure_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
+def class_iou_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
     """Per-class IoU of a label view against ground truth, each label mapped to its majority class.
 
     Parameters
