@@ -284,7 +284,7 @@ def test_connect_errors_are_one_line():
     from distributed import LocalCluster
 
     with pytest.raises(TerrathemeError, match="cannot reach the dask scheduler at tcp://"):
-        connect("tcp://127.0.0.1:1", timeout=0.5)
+        connect("tcp://127.0.0.1:1", timeout=2)
     with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as empty:
         with pytest.raises(TerrathemeError, match="has no worker"):
             connect(empty.scheduler_address, timeout=0.5)

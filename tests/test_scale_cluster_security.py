@@ -36,8 +36,11 @@ def cluster():
 
 
 def test_a_client_without_the_credentials_cannot_attach(cluster):
+    import asyncio
+
     from distributed import Client
     from distributed.security import Security
+    from terratheme.core.io.cluster import _handshake
 
     address = cluster.scheduler.address
     assert address.startswith("tls://127.0.0.1:")
@@ -45,13 +48,13 @@ def test_a_client_without_the_credentials_cannot_attach(cluster):
     with Client(address, timeout=10, security=cluster.security, set_as_default=False) as ok:
         assert set(ok.run(os.getuid).values()) == {os.getuid()}
     plain = "tcp://" + address.split("://", 1)[1]
-    with pytest.raises((OSError, TypeError)):
-        Client(plain, timeout=3, set_as_default=False)
-    # tls:// without credentials, and with credentials made for another cluster.
-    with pytest.raises((OSError, TypeError)):
-        Client(address, timeout=3, set_as_default=False)
-    with pytest.raises(OSError):
-        Client(address, timeout=3, security=Security.temporary(), set_as_default=False)
+    # dask's handshake (a client's first step), bounded: a plain tcp:// client, a tls://
+    # one without credentials and one with another cluster's credentials are refused.
+    for where, security in [(plain, Security()), (address, Security()),
+                            (address, Security.temporary())]:
+        with pytest.raises((OSError, TypeError)):
+            asyncio.run(_handshake(where, security, 10.0))
+    asyncio.run(_handshake(address, cluster.security, 10.0))
 
 
 def test_the_local_cluster_opens_no_http_port(cluster):
@@ -99,7 +102,7 @@ def connect_error(address: str, timeout: float) -> str:
     def run() -> None:
         try:
             connect(address, timeout=timeout).close()
-        except BaseException as exc:  # noqa: BLE001 - handed to the test
+        except BaseException as exc:  # handed to the test
             found.append(exc)
 
     thread = threading.Thread(target=run, daemon=True)

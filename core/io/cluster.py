@@ -214,7 +214,9 @@ async def _handshake(address: str, security, timeout: float) -> None:
     from distributed.comm import connect as comm_connect
 
     async def shake() -> None:
-        comm = await comm_connect(address, timeout=timeout,
+        # dask's own retries end first (a refused port: its OSError), the handshake's
+        # wait at ``timeout``.
+        comm = await comm_connect(address, timeout=0.8 * timeout,
                                   **security.get_connection_args("client"))
         await comm.close()
 
