@@ -32,6 +32,7 @@ from terratheme.core.errors import CorruptFileError
 from terratheme.core.io.codec import encode_image
 from terratheme.core.io.images import read_image, write_image
 from terratheme.core.io.legend import parse_legend
+from test_jpegxl_header import bare_codestream
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "sample_maps" / "dubai_marina.jpg"
@@ -396,22 +397,6 @@ def _rewrite_project(src: Path, dst: Path, change, extra: dict | None = None,
     return dst
 
 
-def _jxl_size_header(width: int, height: int) -> bytes:
-    """A JPEG XL codestream's signature and SizeHeader for width x height, then filler."""
-    fields = [(0, 1)]
-    for side in (height, None, width):
-        if side is None:
-            fields.append((0, 3))  # no ratio: the width follows
-            continue
-        sel = next(i for i, b in enumerate((9, 13, 18, 30)) if side - 1 < 1 << b)
-        fields += [(sel, 2), (side - 1, (9, 13, 18, 30)[sel])]
-    bits = pos = 0
-    for value, n in fields:
-        bits |= value << pos
-        pos += n
-    return b"\xff\x0a" + bits.to_bytes(12, "little") + bytes(64)
-
-
 @pytest.mark.parametrize("case", ["tile_1_one_member_per_pixel", "jxl_16384_declared"])
 @pytest.mark.parametrize("command", ["info", "render"])
 def test_a_colour_map_that_would_cost_minutes_is_refused_at_once(made, tmp_path, case,
@@ -429,7 +414,7 @@ def test_a_colour_map_that_would_cost_minutes_is_refused_at_once(made, tmp_path,
         bad = _rewrite_project(src, tmp_path / "bad.ttproj", change)
     else:
         bad = _rewrite_project(src, tmp_path / "bad.ttproj", lambda m: None,
-                               {cmap["member"]: _jxl_size_header(16384, 16384)},
+                               {cmap["member"]: bare_codestream(16384, 16384)},
                                drop=(cmap["member"],))
     out = [tmp_path / "o.png"] if command == "render" else []
     t0 = resource.getrusage(resource.RUSAGE_CHILDREN)
