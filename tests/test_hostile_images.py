@@ -28,6 +28,7 @@ from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.georef import add_tiff_tags, read_georeference, validate_georeference
 from terratheme.core.io.images import (
+    MAX_COMPRESSION_RATIO,
     Bands,
     image_info,
     read_image,
@@ -357,3 +358,11 @@ def test_a_png_is_checked_once_per_version(tmp_path, monkeypatch):
     with pytest.raises(CorruptFileError, match="truncated PNG"):
         png.check_png_chunks(tmp_path / "a.png")
     assert calls
+
+
+def test_a_flat_one_channel_png_as_large_as_deflate_allows_is_read(tmp_path):
+    # 6000^2 grey zeros: ~35 KB of PNG for 36 MB of pixels (1 byte a pixel, not 3).
+    path = tmp_path / "flat.png"
+    write_image(path, np.zeros((6000, 6000), np.uint8))
+    assert path.stat().st_size * MAX_COMPRESSION_RATIO + (4 << 20) < 3 * 6000 * 6000
+    assert read_image(path).shape[:2] == (6000, 6000)

@@ -113,8 +113,8 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     size = png_header_size(p) or jpegxl_file_size(p)
     if size is not None and (size[0] == 0 or size[1] == 0):
         raise TerrathemeError(f"{p}: image has no pixels ({size[0]} x {size[1]})")
-    if size is not None:  # 3 bytes a pixel at least; OpenImageIO decodes JPEG XL in open()
-        _check_declared(p, size[0], size[1], 3, size[0] * size[1] * 3)
+    if size is not None:  # a byte a pixel at least; OpenImageIO decodes JPEG XL in open()
+        _check_declared(p, size[0], size[1], 1, size[0] * size[1])
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
     if is_png(p):
