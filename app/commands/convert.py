@@ -140,9 +140,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "this IoU with its label view, so thin classes such as roads do "
                              "not vanish (default 0.5; 0 = off)")
     parser.add_argument("--colour-map", type=_colour_map, default="auto", metavar="auto|off|T",
-                        help="a low-resolution colour map over the themes, at the coarsest "
-                             "resolution whose colour error (dE8) stays under T (auto: 2.0); "
-                             "off: the paper's pure rule")
+                        help="auto (default): a colour map coded for a byte budget of 0.04 "
+                             "bits per photo pixel (grid + map), the themes carrying only fine "
+                             "detail; T: the coarsest map whose colour error (dE8) stays under "
+                             "T, whole themes; off: the paper's pure rule")
     parser.add_argument("--boundary", choices=["shaped", "linear"], default="shaped",
                         help="shaped (default): borders of a few texels shaped by the themes and "
                              "noise; linear: the paper's ramp across the cell")
@@ -198,6 +199,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.convert.photo import (
         ConvertOptions,
         convert_photo,
+        output_files,
         read_photo,
         write_outputs,
     )
@@ -224,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
         raise TerrathemeError("--tls-ca-file, --tls-cert and --tls-key are for --scheduler "
                               "tls://HOST:PORT")
     # Output paths checked (and their folders made) before any work.
-    check_outputs([project, preview, packed, args.curve],
+    check_outputs([*output_files(project, preview_path=preview, packed_path=packed), args.curve],
                   inputs=[args.photo, args.scribbles, args.model, args.legend, *tls])
     check_image_outputs([preview])
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
