@@ -361,9 +361,12 @@ def test_concurrent_sets_to_one_folder_end_whole(tmp_path):
     while any(p.poll() is None for p in procs):
         # A reader: the members it read belong to the manifest that was there before and after.
         try:
+            # The manifest's inode and change time: an inode freed by one commit can be
+            # reused by the next, so the inode alone does not tell two manifests apart.
             first = os.stat(paths[2])
             a, b, m = _contents(paths)
-            if os.stat(paths[2]).st_ino != first.st_ino:
+            last = os.stat(paths[2])
+            if (last.st_ino, last.st_ctime_ns) != (first.st_ino, first.st_ctime_ns):
                 continue
         except FileNotFoundError:
             continue

@@ -173,8 +173,11 @@ small = PackedLayer.from_runs(64, 64, "hilbert", [4095], [1], np.arange(2, dtype
                               identity=True, squeeze=True)
 small.save(sys.argv[3] + "/small.ttp")
 assert main(["unpack", sys.argv[3] + "/small.ttp", sys.argv[3] + "/small" + sys.argv[4]]) == 0
+from terratheme.app.cli import MIN_ADDRESS_SPACE_MIB
 vm = next(int(l.split()[1]) * 1024 for l in open("/proc/self/status") if l.startswith("VmSize"))
-resource.setrlimit(resource.RLIMIT_AS, (vm + (256 << 20),) * 2)
+# 256 MiB above the warm process, and not below the floor the CLI checks for unpack
+cap = max(vm + (256 << 20), MIN_ADDRESS_SPACE_MIB["unpack"] << 20)
+resource.setrlimit(resource.RLIMIT_AS, (cap,) * 2)
 sys.exit(main(["unpack", sys.argv[1], sys.argv[2]]))
 """
 

@@ -171,7 +171,7 @@ def local_cluster(workers: int, threads: int = 1) -> Client:
         # security=True: new temporary credentials, given to the cluster it starts (tls://).
         client = Client(n_workers=int(workers), threads_per_worker=int(threads),
                         processes=True, host="127.0.0.1", security=True,
-                        dashboard_address=None, silence_logs=logging.ERROR)
+                        dashboard_address=None, silence_logs=logging.CRITICAL)
     try:
         client.run_on_scheduler(_close_http)
         client.run(_close_http)
