@@ -61,6 +61,18 @@ def warm_mark() -> str | None:
     return os.environ.get("TERRATHEME_TEST_WARMED")
 
 
+def slow_mark() -> None:
+    """A warm-up call that takes a while, then leaves its mark."""
+    import time
+
+    time.sleep(1.0)
+    os.environ["TERRATHEME_TEST_SLOW_WARMED"] = "1"
+
+
+def slow_mark_seen(item: int, shared: int) -> str | None:
+    return os.environ.get("TERRATHEME_TEST_SLOW_WARMED")
+
+
 def square(item: int, shared: int) -> int:
     return item * item + shared
 
@@ -223,6 +235,27 @@ def test_warm_up_runs_its_calls_on_every_worker(cluster):
             break
         time.sleep(0.1)
     assert list(cluster.run(warm_mark).values()) == ["1", "1"]
+
+
+def test_tasks_start_after_the_warm_up(cluster, monkeypatch):
+    from terratheme.core.io import cluster as cluster_module
+
+    # A task's function unpickled on a worker while the warm-up imported the same package
+    # on another thread could see it half initialised (ImportError, seen in CI): the
+    # first task is submitted only once every warm-up task has finished.
+    warm_up(cluster, [], [slow_mark])
+    warming = list(cluster_module._WARMING[cluster])
+    submit, done_at_submit = cluster.submit, []
+
+    def watched(*args, **kw):
+        done_at_submit.append(all(f.done() for f in warming))
+        return submit(*args, **kw)
+
+    monkeypatch.setattr(cluster, "submit", watched)
+    seen = []
+    map_ordered(cluster, slow_mark_seen, list(range(8)), 0, lambda i, r: seen.append(r))
+    assert done_at_submit and all(done_at_submit)
+    assert seen == ["1"] * len(seen) and len(seen) == 8
 
 
 def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):

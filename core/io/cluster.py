@@ -347,6 +347,10 @@ def _import_all(modules: tuple[str, ...], calls: tuple[Callable[[], Any], ...]) 
         call()
 
 
+#: client -> its warm-up tasks not yet waited for (the next submission waits for them)
+_WARMING: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def warm_up(client: Client, modules: Sequence[str],
             calls: Sequence[Callable[[], Any]] = ()) -> None:
     """Start importing ``modules`` and running ``calls`` on every worker; return at once.
@@ -355,15 +359,25 @@ def warm_up(client: Client, modules: Sequence[str],
     first tile, and numba loads each cached kernel on its first call; started
     early, both overlap the client's own serial work. ``calls``: picklable
     zero-argument callables (module-level dataclasses), run in order.
+    :func:`map_ordered` waits for them before its first task: a task's
+    function imported on another worker thread while the warm-up imports the
+    same package can see it partially initialised.
     """
-    from distributed import fire_and_forget
-
     # One task pinned to each worker (a task, not client.run: it must not block the
-    # worker's event loop); nobody waits for them.
-    for address in client.nthreads():
-        fire_and_forget(client.submit(_import_all, tuple(modules), tuple(calls),
-                                      workers=[address], allow_other_workers=False,
-                                      pure=False))
+    # worker's event loop); the next map_ordered waits for them.
+    _WARMING.setdefault(client, []).extend(
+        client.submit(_import_all, tuple(modules), tuple(calls), workers=[address],
+                      allow_other_workers=False, pure=False)
+        for address in client.nthreads())
+
+
+def _wait_for_warm_up(client: Client) -> None:
+    """Wait for this client's warm-up tasks; a failed one is left to the real tasks to report."""
+    from distributed import wait
+
+    futures = _WARMING.pop(client, [])
+    if futures:
+        wait(futures)
 
 
 def worker_threads(client: Client) -> int:
@@ -437,6 +451,7 @@ def map_ordered(
     if total == 0:
         return 0
     limit = max(1, int(in_flight) if in_flight else IN_FLIGHT_PER_THREAD * worker_threads(client))
+    _wait_for_warm_up(client)
     # Everything the tasks share goes to every worker once.
     (shared_ref,) = client.scatter([shared], broadcast=True, hash=False)
     pending = as_completed()
