@@ -1,22 +1,8 @@
 """Exports that terrain engines and GIS read, and the way back (docs/engines.md).
 
-Weights follow the project's look: by default its render style
-(``core.render.project.project_style``), so with shaped boundaries every map
-pixel gets the shaped blend's own weights (``shaped``), else, and with
-``WeightStyle.LINEAR``, the exact barycentric weight of each theme at its
-grid position by the renderer's rule (``weights``); 8-bit weights sum to
-exactly 255 per pixel. The project's colour map goes with every export
-(``colour``). Modules: ``options`` (Engine, WeightStyle, ExportOptions),
-``layout`` (map sizes, shared-border tiles, world units), ``weights``
-(barycentric weights at map pixels, quantisation), ``shaped`` (the shaped
-blend's weights), ``style`` (which of the two an export follows),
-``colour`` (the colour map's file, UV transforms and gain), ``plan`` (the
-files of an export, theme textures, manifests), ``unity``, ``unreal``,
-``terrain3d`` (Godot), ``geotiff`` (GIS) with ``cog`` (the Cloud Optimized
-GeoTIFF layout), ``texture_tiff`` (a render larger than memory as such a
-GeoTIFF, band by band: ``terratheme render --tiled``), ``export`` (plan,
-then write), ``maps_to_grid`` (the way back: engine maps to a vertex grid),
-``carried`` (the way back from an export: the project it carries, exactly).
+Weights follow the project's render style (shaped borders when it has them, else the
+renderer's barycentric weights), 8-bit weights summing to exactly 255 per pixel; the
+colour map goes with every export. ``maps_to_grid`` and ``carried`` are the way back.
 """
 
 from terratheme.core.exchange.carried import project_from_export

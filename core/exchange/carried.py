@@ -1,12 +1,8 @@
 """The way back from an export: the project it carries (``new --from export``).
 
-Every export writes the project beside its maps (:data:`core.exchange.plan.CARRIED`,
-without the photo and scribbles) and names it in its manifest (``project``).
-The engine maps are resampled (a 2048 x 2048 Unity splatmap over 72 x 68
-vertices has no vertex on a whole pixel, and the GeoTIFF's class map is per
-texel), so the grid, the themes cut from the photo and the colour map's own
-bytes come back from that file, exactly; the manifest's grid and cell must
-agree with it.
+Every export writes the project beside its maps (:data:`core.exchange.plan.CARRIED`)
+and names it in its manifest. The engine maps are resampled, so the grid, themes and
+colour map come back exactly from that file; the manifest's grid and cell must agree.
 """
 
 from __future__ import annotations
@@ -24,13 +20,8 @@ MANIFEST_GLOB = "terratheme_*.json"
 
 
 def export_manifest(path: str | os.PathLike) -> Path:
-    """The manifest of an export given as its folder or its manifest file.
-
-    Raises
-    ------
-    TerrathemeError
-        No such file or folder, or a folder holding no (or several) manifests.
-    """
+    """The manifest of an export given as its folder or its manifest file (TerrathemeError
+    for none or several)."""
     p = Path(path)
     if p.is_dir():
         found = sorted(p.glob(MANIFEST_GLOB))
@@ -45,16 +36,8 @@ def export_manifest(path: str | os.PathLike) -> Path:
 
 
 def project_from_export(path: str | os.PathLike) -> ThematicTexture:
-    """The project an export carries (its folder or manifest at ``path``).
-
-    Raises
-    ------
-    TerrathemeError
-        Not a terratheme manifest, one without a carried project (written
-        before exports carried it), a ``project`` entry that is not a file
-        name beside the manifest, or a carried project whose grid or cell
-        differs from the manifest's.
-    """
+    """The project an export carries (its folder or manifest at ``path``); TerrathemeError
+    when there is none or its grid or cell is not the manifest's."""
     manifest = export_manifest(path)
     data = parse_json(read_bounded(manifest, MAX_MANIFEST_BYTES, str(manifest)), str(manifest))
     if not isinstance(data, dict) or not str(data.get("format", "")).startswith("terratheme-"):

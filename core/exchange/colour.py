@@ -1,25 +1,11 @@
 """The project's colour map in an export: the file, where engines sample it, and its gain.
 
-terratheme multiplies every rendered texel by the colour map's per-channel
-gain ``value / 128`` (:mod:`core.model.colour_map`, applied in
-:mod:`core.render.colour_map`: the map bilinear at ``(X + 0.5) / s - 0.5``
-map pixels for texel ``X``, clamped at the edges). Every export carries it
-in that encoding, neutral 128:
-
-* Unity and Unreal: ``colour_map.png``, the project's map pixel for pixel
-  (RGB8), and the affine transform from the terrain's UV (Unity, per tile:
-  :func:`unity_colour_st`) or the landscape's vertex coordinates (Unreal:
-  :func:`vertex_colour_uv`) to the map's texture UV, so a bilinear texture
-  sample there is the renderer's gain at every texel;
-* Terrain3D: its own colour map, one pixel per control-map vertex
-  (:func:`gain_at_pixels`, the renderer's gain at each vertex's texel);
-* GIS: baked into ``texture.tif`` by :func:`core.render.project.render_project`.
-
-Engines light in linear space: their albedo textures and colour maps are
-sRGB-decoded, so a shader multiplies by the decoded map times
-:func:`linear_gain` (``1 / srgb_to_linear(128 / 255) = 4.633``): exactly 1 at
-neutral 128, and under a 2.2 gamma the same brightening as terratheme's gain
-on sRGB values (``docs/engines.md``).
+The renderer multiplies every texel by the map's per-channel gain ``value / 128``,
+the map bilinear at ``(X + 0.5) / s - 0.5`` map pixels for texel ``X``. Unity and
+Unreal get ``colour_map.png`` and the affine UV transform to sample it
+(:func:`unity_colour_st`, :func:`vertex_colour_uv`); Terrain3D one pixel per vertex
+(:func:`gain_at_pixels`); GIS has it baked in. Engines decode sRGB, so shaders scale
+the decoded map by :func:`linear_gain` (1 at neutral 128, ``docs/engines.md``).
 """
 
 from __future__ import annotations
@@ -65,12 +51,9 @@ def write_colour_map(path: Path, colour_map: ColourMap) -> None:
 
 def _texel_axis(layout_pixels: int, texels: int, start: int, tile_pixels: int,
                 scale: int, map_pixels: int) -> tuple[float, float]:
-    """``(a, b)`` with map texture coordinate ``a * t + b`` at ``t`` in 0..1 across a tile.
-
-    Tile pixel ``t * (tile_pixels - 1)`` is map pixel ``start + ...``, at texel
-    position ``X = (start + t * (tile_pixels - 1)) * texels / (layout_pixels - 1)``;
-    the renderer's gain there is the map at texture coordinate ``(X + 0.5) / (s * mw)``.
-    """
+    """``(a, b)`` with map texture coordinate ``a * t + b`` at ``t`` in 0..1 across a tile:
+    ``(X + 0.5) / (s * mw)`` at ``X = (start + t * (tile_pixels - 1)) * texels /
+    (layout_pixels - 1)``."""
     per_pixel = texels / (layout_pixels - 1)
     span = scale * map_pixels
     return (tile_pixels - 1) * per_pixel / span, (start * per_pixel + 0.5) / span
@@ -80,9 +63,7 @@ def unity_colour_st(project: ThematicTexture, layout: ExportLayout, piece: TileP
                     ) -> list[float]:
     """Unity's ``_ST`` (``[scale u, scale v, offset u, offset v]``) of a tile's colour-map lookup.
 
-    Texture UV = terrain UV * scale + offset, with Unity's conventions: the
-    terrain's ``v`` runs north from the tile's south edge and a texture's
-    ``v`` up from its bottom (the image's last row).
+    Texture UV = terrain UV * scale + offset; both ``v`` run up from the south / bottom.
     """
     cmap = project.colour_map
     mh, mw = cmap.pixels.shape[:2]
@@ -94,11 +75,8 @@ def unity_colour_st(project: ThematicTexture, layout: ExportLayout, piece: TileP
 
 
 def vertex_colour_uv(project: ThematicTexture, layout: ExportLayout) -> dict:
-    """Texture UV = vertex coordinate * ``uv_per_vertex`` + ``uv_offset`` (rows from the top).
-
-    The vertex coordinates count map pixels from the map's first (north-west)
-    one: Unreal's ``LandscapeLayerCoords`` at Mapping Scale 1.
-    """
+    """Texture UV = vertex coordinate * ``uv_per_vertex`` + ``uv_offset`` (rows from the top),
+    vertices counted from the north-west (Unreal's ``LandscapeLayerCoords``, scale 1)."""
     cmap = project.colour_map
     mh, mw = cmap.pixels.shape[:2]
     wtex, htex = project.grid.texture_size
@@ -112,19 +90,8 @@ def gain_at_pixels(colour_map: ColourMap, texture_size: tuple[int, int], size: t
                    window: tuple[int, int, int, int] | None = None) -> np.ndarray:
     """The renderer's gain at the texel nearest every pixel of a ``size = (W, H)`` map.
 
-    Parameters
-    ----------
-    colour_map : ColourMap
-    texture_size : (Wtex, Htex)
-    size : (W, H)
-        A map spanning the grid corner to corner (``core.exchange.layout``).
-    window : (x, y, w, h), optional
-
-    Returns
-    -------
-    gain : (h, w, 3) uint8 ndarray
-        ``round(128 * gain)``: what the renderer makes of a texel of value 128
-        there (:mod:`core.render.colour_map`'s integers), neutral 128.
+    Returns (h, w, 3) uint8 ``round(128 * gain)`` over ``window`` (default: all):
+    what the renderer makes of a texel of value 128 there.
     """
     x, y, w, h = check_window(window, size)
     wtex, htex = texture_size

@@ -1,19 +1,10 @@
 """Where an export's pixels lie: on the grid, in tiles, and in the world.
 
-Convention (the engines' own, see ``docs/engines.md``): a map of ``W x H``
-pixels spans the whole grid **corner to corner**, pixel ``i`` of ``W`` at
-texel position ``i * Wtex / (W - 1)`` (``Wtex = gw * N``), so its first and
-last pixels sit on the grid's outer vertices. Unity's terrain shader samples
-its control texture so that "the edges of the terrain tile lie on pixel
-centers" (``TerrainSplatmapCommon``: ``uv * (size - 1) + 0.5``); Unreal
-landscape weight maps and Terrain3D control maps hold one pixel per landscape
-vertex. A map of ``Wtex + 1`` pixels therefore holds exactly the renderer's
-texels (texel ``X`` at grid position ``X / N``, ``core.render.rules``) plus
-the far edge.
-
-Tiles of ``T`` pixels share their border row and column (tile ``t`` starts at
-pixel ``t * (T - 1)``), as neighbouring Unity terrains and Unreal landscape
-tiles do; a tiled map is ``k * (T - 1) + 1`` pixels wide.
+A map of ``W x H`` pixels spans the grid corner to corner (the engines' convention,
+``docs/engines.md``): pixel ``i`` sits at texel position ``i * Wtex / (W - 1)``, so a
+map of ``Wtex + 1`` pixels holds exactly the renderer's texels plus the far edge.
+Tiles of ``T`` pixels share their border row and column (tile ``t`` starts at pixel
+``t * (T - 1)``), as Unity terrains and Unreal landscape tiles do.
 """
 
 from __future__ import annotations
@@ -53,15 +44,8 @@ class TilePiece:
 
 @dataclass(frozen=True)
 class ExportLayout:
-    """A whole export map of ``size = (W, H)`` pixels, cut into tiles of ``tile`` pixels or not.
-
-    Attributes
-    ----------
-    size : (int, int)
-        ``(W, H)`` of the whole map, both >= 2.
-    tile : int or None
-        Tile side in pixels; then ``W - 1`` and ``H - 1`` are multiples of ``tile - 1``.
-    """
+    """A whole export map of ``size = (W, H)`` pixels, cut into tiles of ``tile`` pixels or not
+    (then ``W - 1`` and ``H - 1`` are multiples of ``tile - 1``)."""
 
     size: tuple[int, int]
     tile: int | None = None
@@ -118,17 +102,8 @@ def tiled_layout(texture_size: tuple[int, int], tile: int,
 
 
 def nearest_texels(n_pixels: int, n_texels: int, start: int, count: int) -> np.ndarray:
-    """The texel nearest each of pixels ``start .. start+count-1`` of an ``n_pixels`` map axis.
-
-    Pixel ``i`` lies at texel position ``i * n_texels / (n_pixels - 1)``; the
-    nearest texel is that rounded half up, so at ``n_pixels = n_texels + 1``
-    pixel ``i`` is texel ``i`` (the last pixel is texel ``n_texels``, the far
-    edge of the grid).
-
-    Returns
-    -------
-    texels : (count,) int64 ndarray, in ``0 .. n_texels``
-    """
+    """Texels (count,) int64 in ``0..n_texels`` nearest pixels ``start..start+count-1``:
+    pixel ``i`` lies at ``i * n_texels / (n_pixels - 1)``, rounded half up."""
     den = n_pixels - 1
     i = start + np.arange(count, dtype=np.int64)
     return (2 * i * n_texels + den) // (2 * den)
@@ -141,17 +116,14 @@ class WorldFrame:
     Attributes
     ----------
     texel_size : (float, float)
-        World units per texel along x (east) and y (south, image rows).
+        World units per texel along x (east) and y (south).
     origin : (float, float)
-        CRS coordinates of texel (0, 0)'s sample point: the centre of the
-        photo's top-left pixel, where the export maps start.
+        CRS coordinates of the centre of the photo's top-left pixel.
     units : str
-        Unit of ``texel_size``: ``"metre"`` (CRS feet and degrees are
-        converted, degrees at the centre latitude), ``"CRS unit"`` for a unit
-        not known here, or ``"texel"`` without a georeference (one texel =
-        one world unit).
+        Unit of ``texel_size``: ``"metre"`` (feet and degrees converted), ``"CRS unit"``
+        (unknown unit) or ``"texel"`` (no georeference).
     crs_units : str
-        Unit of ``origin``: the CRS's own (``"degree"`` for a geographic one).
+        Unit of ``origin`` (``"degree"`` for a geographic CRS).
     rotation_deg : float
         Rotation of a ModelTransformation georeference (engines get it unrotated).
     """
@@ -164,15 +136,8 @@ class WorldFrame:
 
 
 def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> WorldFrame:
-    """The :class:`WorldFrame` of a project's ``metadata["georeference"]`` (``{}`` or None: texels).
-
-    Parameters
-    ----------
-    georeference : dict or None
-        As :func:`core.io.georef.read_georeference` returns it.
-    texture_size : (int, int)
-        ``(Wtex, Htex)``, for the centre latitude of a geographic CRS.
-    """
+    """The :class:`WorldFrame` of a project's ``metadata["georeference"]`` (``{}`` or None:
+    texels); ``texture_size`` gives a geographic CRS's centre latitude."""
     world = world_file_lines(georeference) if georeference else None
     if world is None:
         return WorldFrame()

@@ -37,18 +37,12 @@ class ExportOptions:
 
     Attributes
     ----------
-    engine : Engine
     size : (int, int) or None
-        ``(W, H)`` pixels of the whole weight or control map (all tiles
-        together); ``None`` = the engine's default for the project.
+        ``(W, H)`` pixels of the whole map (all tiles); None: the engine's default.
     tile : int or None
-        Cut the map into ``tile x tile`` pieces sharing their border pixels
-        (Unity terrain tiles, Unreal landscape tiles); ``None`` = one piece.
-    saddle : SaddleRule
-        The renderer's saddle rule (``core.render.rules``).
+        Cut the map into ``tile x tile`` pieces sharing their border pixels; None: one.
     style : WeightStyle
-        The project's style (shaped borders, :mod:`core.exchange.shaped`) or the paper's
-        linear weights; the GIS texture and class map follow it too.
+        The project's style or the paper's linear weights (the GIS export's too).
     """
 
     engine: Engine = Engine.UNITY

@@ -1,9 +1,7 @@
 """What an export will write, known before any work starts, and the parts every engine shares.
 
-An :class:`ExportPlan` lists every file (relative to the output folder), so
-the caller can check the outputs before the long work; the theme textures
-and the JSON manifest (with the weights' style and the colour map) are
-written the same way for every engine.
+An :class:`ExportPlan` lists every file, so the caller checks the outputs before the
+long work; theme textures and the JSON manifest are written alike for every engine.
 """
 
 from __future__ import annotations
@@ -32,18 +30,15 @@ class ExportPlan:
 
     Attributes
     ----------
-    options : ExportOptions
     layout : ExportLayout or None
         The weight/control map and its tiles (None for the GIS export).
-    world : WorldFrame
     files : tuple of str
-        Every file the export writes, relative to the output folder, the
-        manifest last (written last: its presence means the export is whole).
+        Every file, relative to the output folder; the manifest last (written last:
+        its presence means the export is whole).
     notes : tuple of str
         What the caller should tell the user (a size chosen, a limitation).
     borders : str or None
-        What the maps carry of the borders when it is not the style's (a
-        Terrain3D map of one vertex per grid vertex: each vertex's theme alone).
+        What the maps carry of the borders when it is not the style's.
     """
 
     options: ExportOptions
@@ -58,17 +53,15 @@ class ExportPlan:
         return [Path(folder) / f for f in self.files]
 
 
-#: the project as exported, without its photo and scribbles: what ``new --from export`` reads
-#: back (the maps are resampled: a 2048 x 2048 splatmap over 72 x 68 vertices holds no
-#: vertex grid of whole pixels), with the themes cut from the photo and the colour map's bytes
+#: the project as exported, without photo and scribbles: what ``new --from export`` reads
+#: back (resampled maps need not hold the vertex grid in whole pixels)
 CARRIED = "terratheme_project.ttproj"
 
 
 def map_plan(project: ThematicTexture, options: ExportOptions, layout: ExportLayout,
              files: list[str], manifest: str, notes: list[str]) -> ExportPlan:
-    """The plan of a map export: ``files``, the colour map when the project has one
-    (:data:`core.exchange.colour.COLOUR_MAP`), the carried project (:data:`CARRIED`), then
-    the ``manifest``, in the project's world frame (its georeference, else texels)."""
+    """The plan of a map export: ``files``, the colour map if any, :data:`CARRIED`, then the
+    ``manifest``, in the project's world frame."""
     colour = [COLOUR_MAP] if project.colour_map is not None else []
     world = world_frame(project.metadata.get("georeference"), project.grid.texture_size)
     return ExportPlan(options, layout, world, (*files, *colour, CARRIED, manifest),
@@ -99,8 +92,7 @@ def write_theme_textures(project: ThematicTexture, folder: Path,
 
 
 def write_shared_files(project: ThematicTexture, folder: Path) -> None:
-    """Write the theme textures and, when the project has one, the colour map
-    (:data:`core.exchange.colour.COLOUR_MAP`)."""
+    """Write the theme textures and, when the project has one, the colour map."""
     write_theme_textures(project, folder)
     if project.colour_map is not None:
         write_colour_map(folder / COLOUR_MAP, project.colour_map)
@@ -109,12 +101,8 @@ def write_shared_files(project: ThematicTexture, folder: Path) -> None:
 def piece_weights(project: ThematicTexture, plan: ExportPlan,
                   progress: Callable[[int, int], None] | None = None
                   ) -> Iterator[tuple[TilePiece, np.ndarray]]:
-    """Every tile of ``plan``'s map with its ``(K, h, w)`` theme weights.
-
-    Each tile's weights are taken at its own pixels of the whole map
-    (:func:`core.exchange.style.map_weights`), so shared borders agree.
-    ``progress(done, total)`` is called once the caller is done with a tile.
-    """
+    """Every tile of ``plan``'s map with its ``(K, h, w)`` theme weights, taken at its own
+    pixels of the whole map so shared borders agree; ``progress(done, total)`` after each."""
     layout = plan.layout
     pieces = layout.pieces()
     for i, piece in enumerate(pieces):
@@ -140,13 +128,7 @@ STORED_ALPHA = {"oiio:UnassociatedAlpha": 1}
 
 def common_manifest(project: ThematicTexture, plan: ExportPlan,
                     colour_file: str | None = None) -> dict:
-    """The manifest fields every engine shares: grid, cell, world units, style, colour map.
-
-    ``borders`` is ``"shaped"`` (with the ``boundary`` options the weights
-    follow, :mod:`core.exchange.shaped`) or ``"linear"``; ``colour_map`` is
-    :func:`core.exchange.colour.colour_manifest` with ``colour_file``, or None;
-    ``project`` the carried project (:data:`CARRIED`).
-    """
+    """The manifest fields every engine shares: grid, cell, world units, style, colour map."""
     world = plan.world
     boundary = export_boundary(project, plan.options)
     return {

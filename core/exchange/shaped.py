@@ -1,23 +1,10 @@
 """Theme weights of shaped boundaries (:mod:`core.render.boundary`) at export-map pixels.
 
-With shaped boundaries the renderer's texel is ``sum(v_t * T_t) / sum(v_t)``
-(the boundary module's steps 1-3: barycentric weights, a score per theme
-from noise and the themes' luminance, a border of the given width around
-the best score). The weights of that blend are ``v_t / sum(v_t)``: an engine
-that splats them over the same themes shows the same borders. This module
-computes the ``v_t`` in the boundary kernel's own integers, with its own
-pieces (:func:`core.render.kernels.cell_corners` and
-:func:`~core.render.kernels.merged_weights` for the corners and step 1,
-:func:`core.render.boundary.shaped_weight_rows`, which the overview
-renderer uses too), so the colours
-they give are the renderer's exactly (``tests/test_exchange_shaped.py``).
-
-Where pixels lie: the rule is defined on whole texels, so pixel ``i`` of a
-``W``-pixel map takes the texel nearest its position ``i * Wtex / (W - 1)``
-(:func:`core.exchange.layout.nearest_texels`): at ``W = Wtex + 1`` pixel ``i``
-is texel ``i``. The far edge (texel ``Wtex`` or row ``Htex``, the grid's last
-vertices) lies in the last cell at local coordinate 1; the texel on a vertex
-carries that vertex's theme alone, as in the renderer.
+With shaped boundaries the renderer's texel is ``sum(v_t * T_t) / sum(v_t)``, so
+weights ``v_t / sum(v_t)`` splatted over the same themes show the same borders. The
+``v_t`` come from the boundary kernel itself, in its integers. The rule is defined on
+whole texels: pixel ``i`` of a ``W``-pixel map takes the texel nearest
+``i * Wtex / (W - 1)``.
 """
 
 from __future__ import annotations
@@ -44,23 +31,10 @@ def shaped_slots(
     saddle: SaddleRule = SaddleRule.MINORITY,
     splits: np.ndarray | None = None,
 ) -> CornerSlots:
-    """The shaped blend's weights at the pixels of a ``size = (W, H)`` map (or a window of it).
+    """The shaped blend's ``v_t`` at the pixels of a ``size = (W, H)`` map (or a window).
 
-    Parameters
-    ----------
-    grid, size, window, saddle, splits
-        As :func:`core.exchange.weights.sample_corners`.
-    themes : sequence of (h, w, 3) uint8 ndarrays
-        The textures the render blends (their luminance shapes the borders).
-    cell : (N, M)
-    boundary : BoundaryOptions
-        The project's border style (``core.render.project.project_style``).
-
-    Returns
-    -------
-    CornerSlots
-        ``(4, h, w)`` corner themes and their ``v_t``, and the per-pixel
-        ``(h, w)`` int64 denominator ``sum(v_t)``.
+    Arguments as :func:`core.exchange.weights.sample_corners`, plus the ``themes``
+    (their luminance shapes the borders); the denominator is ``sum(v_t)`` per pixel.
     """
     textures = theme_textures(themes)
     # Writeable C arrays: one kernel signature (numba types read-only arrays apart).

@@ -1,12 +1,8 @@
 """Which blend an export's weights follow: the project's own style or the paper's rule.
 
-``ExportOptions.style`` :attr:`~core.exchange.options.WeightStyle.PROJECT`
-(the default) takes the project's render style
-(:func:`core.render.project.project_style`, ``metadata["render"]``): shaped
-borders (:mod:`core.exchange.shaped`) when it has them, so an engine's splat
-of the weights shows what ``terratheme render`` shows; else, and always with
-:attr:`~core.exchange.options.WeightStyle.LINEAR`, the paper's barycentric
-weights (:mod:`core.exchange.weights`).
+``WeightStyle.PROJECT`` (default) follows the project's shaped borders when it has
+them, so an engine shows what ``terratheme render`` shows; otherwise, and with
+``WeightStyle.LINEAR``, the paper's barycentric weights.
 """
 
 from __future__ import annotations
@@ -48,14 +44,8 @@ def export_render_options(project: ThematicTexture, options: ExportOptions) -> R
 def map_slots(project: ThematicTexture, size: tuple[int, int],
               window: tuple[int, int, int, int] | None, options: ExportOptions, *,
               splits: np.ndarray | None = None) -> CornerSlots:
-    """Every pixel's themes and exact weights in a window of a ``size = (W, H)`` map.
-
-    Returns
-    -------
-    CornerSlots
-        The barycentric weights (:func:`core.exchange.weights.sample_corners`)
-        or the shaped blend's (:func:`core.exchange.shaped.shaped_slots`).
-    """
+    """Every pixel's themes and exact weights (barycentric or shaped) in a window of a
+    ``size = (W, H)`` map."""
     grid = project.grid.indices
     if splits is None:
         splits = cell_splits(grid, options.saddle)
@@ -69,14 +59,8 @@ def map_slots(project: ThematicTexture, size: tuple[int, int],
 def map_weights(project: ThematicTexture, size: tuple[int, int],
                 window: tuple[int, int, int, int] | None, options: ExportOptions, *,
                 total: int = 255) -> np.ndarray:
-    """Per-theme weights of a window of a ``size = (W, H)`` map, summing to ``total`` per pixel.
-
-    Returns
-    -------
-    weights : (K, h, w) uint8 ndarray (uint16 when ``total > 255``)
-        Largest-remainder rounding of :func:`map_slots`
-        (:func:`core.exchange.weights.quantise_weights`).
-    """
+    """Weights (K, h, w) of a window of a ``size = (W, H)`` map, summing to ``total`` per pixel
+    (uint8, or uint16 above 255)."""
     splits = cell_splits(project.grid.indices, options.saddle)
     return quantised_bands(lambda band: map_slots(project, size, band, options, splits=splits),
                            len(project.library), size, window, total=total)

@@ -1,21 +1,10 @@
 """A render larger than memory: a tiled GeoTIFF with overviews, written band by band.
 
-``terratheme render PROJECT OUT.tif`` of a whole region cannot hold the image
-(a 400 x 400 km region at 1 m is 480 GB of RGB). :func:`write_texture_tiff`
-renders ``TILE``-row bands of the region (``core.render.project.render_project``,
-the project's style and colour map: the same texels as a whole render) and
-hands them to :func:`core.exchange.cog.write_cog`, which writes them as
-deflate-compressed tiles, makes each overview from the level before it read
-back band by band (2 x 2 means: the exact box filter of the rendered
-texels), and lays the file out as a Cloud Optimized GeoTIFF. The
-georeference is the render's (``core.render.project.render_georeference``).
-
-Memory is set by one band (``TILE`` rows of the region's width: 48 MiB at
-32768 texels wide), never by the height; the disk needs about twice the
-output while the levels are laid out. ``write_cog`` writes each level as a
-classic TIFF first, so a level of more than :data:`MAX_LEVEL_BYTES` of raw
-pixels (about 37,700 x 37,700 RGB) is refused before any work until it writes
-those as BigTIFF.
+A whole region may not fit in memory (400 x 400 km at 1 m is 480 GB of RGB), so
+:func:`write_texture_tiff` renders ``TILE``-row bands (the same texels as a whole
+render) and hands them to :func:`core.exchange.cog.write_cog` (a Cloud Optimized
+GeoTIFF, overviews by 2 x 2 means). Memory is one band; the disk needs about twice
+the output. Levels over :data:`MAX_LEVEL_BYTES` (classic TIFF) are refused up front.
 """
 
 from __future__ import annotations
@@ -48,24 +37,9 @@ def write_texture_tiff(
 ) -> tuple[tuple[int, int], int]:
     """Render ``region`` of a project into a tiled GeoTIFF with overviews, band by band.
 
-    Parameters
-    ----------
-    project : ThematicTexture
-    path : path-like
-        ``.tif`` output, written atomically (BigTIFF when its tiles pass 4 GiB).
-    region : (x, y, w, h), optional
-        Full-resolution texels; default the photo's extent
-        (:func:`core.render.project.photo_extent`).
-    options : RenderOptions, optional
-        Default: the project's own style.
-    progress : callable(done, total), optional
-        Over the bands of the full-resolution level.
-
-    Returns
-    -------
-    size : (w, h) of the full-resolution image
-    overviews : int
-        Reduced levels after it (each half the one before, down to one tile).
+    ``region`` (x, y, w, h) in texels defaults to the photo's extent, ``options`` to the
+    project's style; ``progress(done, total)`` counts full-resolution bands. Returns the
+    image's ``(w, h)`` and the number of overviews (each half the one before).
     """
     if region is None:
         region = (0, 0, *photo_extent(project))

@@ -1,23 +1,12 @@
 """Theme weights at an export map's pixels, by the renderer's rule (design.md §1).
 
 Pixel ``(i, j)`` of a ``W x H`` map sits at grid position
-``(i * gw / (W - 1), j * gh / (H - 1))`` (``core.exchange.layout``). Its cell
-is split by :func:`~core.render.rules.cell_splits` (saddle rule included) and
-its four corners get the barycentric weights of
-:func:`~core.render.rules.corner_weights`, computed exactly: the local
-coordinates are the integer fractions ``(i * gw mod (W - 1)) / (W - 1)``
-(reduced), so the weights are integers over a common denominator ``D``. At
-``W = gw * N + 1`` the pixels are the renderer's texels and the weights are
-the renderer's own. (Were ``D`` above ``2**28``, the local coordinates are
-rounded to ``1/16384`` of a cell first.)
-
-Corners carrying the same theme add up. :func:`quantise_weights` turns the
-exact weights (these, or the shaped blend's of :mod:`core.exchange.shaped`,
-whose denominator differs per pixel) into 8-bit (or 16-bit) weights that
-sum to exactly 255 (65535) per pixel by largest-remainder rounding: every
-theme gets the floor of its share, and the units still missing go to the
-largest remainders, ties to the lower theme index (deterministic, and no
-theme moves by a whole unit).
+``(i * gw / (W - 1), j * gh / (H - 1))``; its corners get the barycentric weights
+of :func:`~core.render.rules.corner_weights` exactly, as integers over a common
+denominator (local coordinates rounded to 1/16384 of a cell when it passes 2^28).
+At ``W = gw * N + 1`` they are the renderer's own. :func:`quantise_weights` rounds
+them to 8 or 16 bits summing to exactly 255 (65535) by largest remainder, ties to
+the lower theme.
 """
 
 from __future__ import annotations
@@ -44,14 +33,12 @@ class CornerSlots:
     Attributes
     ----------
     ids : (4, h, w) uint8 ndarray
-        Theme of corner slot ``ind[0][0], ind[0][1], ind[1][0], ind[1][1]``.
+        Theme of corner slots ``(0, 0), (0, 1), (1, 0), (1, 1)``.
     weights : (4, h, w) int64 ndarray
-        Weight times ``denominator``; a slot whose theme an earlier slot of
-        the same pixel carries holds 0 (its weight moved there), so the
-        non-zero slots of a pixel have distinct themes. Sums to ``denominator``.
+        Weight times ``denominator``, summing to it; a slot whose theme an earlier
+        slot carries holds 0, so a pixel's non-zero slots have distinct themes.
     denominator : int, or (h, w) int64 ndarray
-        One for the whole map (the barycentric weights), or one per pixel
-        (the shaped blend's ``sum(v_t)``, :mod:`core.exchange.shaped`).
+        One for the map, or one per pixel (the shaped blend's, :mod:`.shaped`).
     """
 
     ids: np.ndarray
@@ -84,25 +71,8 @@ def check_window(window: tuple[int, int, int, int] | None, size: tuple[int, int]
 def map_cells(indices: np.ndarray, size: tuple[int, int],
               window: tuple[int, int, int, int] | None, saddle: SaddleRule,
               splits: np.ndarray | None) -> tuple[tuple[int, int, int, int], np.ndarray]:
-    """The checked window of a ``size = (W, H)`` export map and the grid's cell splits.
-
-    Parameters
-    ----------
-    indices : (gh+1, gw+1) uint8 ndarray
-        Checked vertex theme indices.
-    size : (W, H)
-        Both at least 2.
-    window : (x, y, w, h) or None
-        None: the whole map.
-    saddle : SaddleRule
-    splits : (gh, gw) uint8 ndarray or None
-        ``cell_splits(indices, saddle)`` when the caller has it already.
-
-    Returns
-    -------
-    window : (x, y, w, h)
-    splits : (gh, gw) uint8 ndarray
-    """
+    """The checked ``(x, y, w, h)`` window (None: whole) of a ``size = (W, H)`` export map
+    and the grid's cell splits (``splits`` when the caller has them)."""
     if size[0] < 2 or size[1] < 2:
         raise TerrathemeError(f"an export map needs at least 2 x 2 pixels, got {size}")
     window = check_window(window, size)
@@ -119,22 +89,9 @@ def sample_corners(
 ) -> CornerSlots:
     """Corner themes and exact weights at the pixels of a ``size = (W, H)`` map.
 
-    Parameters
-    ----------
-    grid : (gh+1, gw+1) uint8 ndarray
-        Vertex theme indices.
-    size : (W, H)
-        The whole map, spanning the grid corner to corner (both >= 2).
-    window : (x, y, w, h), optional
-        Only these pixels of the map (a tile or a band).
-    saddle : SaddleRule
-    splits : (gh, gw) uint8 ndarray, optional
-        ``cell_splits(grid, saddle)`` when the caller has it already.
-
-    Returns
-    -------
-    CornerSlots
-        Arrays of shape ``(4, h, w)``.
+    ``grid`` (gh+1, gw+1) uint8 spans the whole map corner to corner; ``window``
+    ``(x, y, w, h)`` picks a tile or band of it; ``splits`` are
+    ``cell_splits(grid, saddle)`` when the caller has them.
     """
     indices = validate_indices(grid)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
@@ -163,16 +120,8 @@ def sample_corners(
 
 
 def slot_ranks(keys: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """Rank of every slot per pixel: larger ``keys`` first, ties to the lower theme, then slot.
-
-    Parameters
-    ----------
-    keys, ids : (S, h, w) ndarrays
-
-    Returns
-    -------
-    rank : (S, h, w) int8 ndarray, 0 for the first slot
-    """
+    """Rank (S, h, w) int8 of every slot per pixel of ``keys``, ``ids`` (S, h, w): larger
+    keys first, ties to the lower theme, then slot."""
     n = keys.shape[0]
     rank = np.zeros(keys.shape, dtype=np.int8)
     for c in range(n):
@@ -188,19 +137,10 @@ def slot_ranks(keys: np.ndarray, ids: np.ndarray) -> np.ndarray:
 
 
 def quantise_weights(slots: CornerSlots, n_themes: int, *, total: int = 255) -> np.ndarray:
-    """Per-theme weights summing to exactly ``total`` per pixel (largest remainder).
+    """Weights (K, h, w) summing to exactly ``total`` per pixel (largest remainder).
 
-    Parameters
-    ----------
-    slots : CornerSlots
-    n_themes : int
-        ``K``: the output has one plane per theme of the library.
-    total : int
-        255 for 8-bit maps, 65535 for 16-bit ones.
-
-    Returns
-    -------
-    weights : (K, h, w) uint8 ndarray (uint16 when ``total > 255``)
+    One plane per theme of the library (``K = n_themes``); uint8 for ``total`` 255,
+    uint16 above.
     """
     if int(slots.ids.max(initial=0)) >= n_themes:
         raise TerrathemeError(f"grid uses theme {int(slots.ids.max())} of only {n_themes}")
@@ -229,33 +169,9 @@ def theme_weights(
     total: int = 255,
     saddle: SaddleRule = SaddleRule.MINORITY,
 ) -> np.ndarray:
-    """8-bit theme weights of a ``size = (W, H)`` map (or a window of it), summing to 255.
-
-    Parameters
-    ----------
-    grid : (gh+1, gw+1) uint8 ndarray
-    size : (W, H)
-    window : (x, y, w, h), optional
-    n_themes : int
-    total : int
-        255 (uint8 output) or up to 65535 (uint16 output).
-    saddle : SaddleRule
-
-    Returns
-    -------
-    weights : (K, h, w) uint8 (or uint16) ndarray
-        ``weights[k]`` is theme ``k``'s weight times ``total`` at every pixel.
-
-    Examples
-    --------
-    A one-cell grid of themes 0 and 1 split along its anti-diagonal, sampled
-    at its four corners and centre (a 3 x 3 map):
-
-    >>> theme_weights(np.array([[0, 1], [1, 1]], np.uint8), (3, 3), n_themes=2)[0]
-    array([[255, 128,   0],
-           [128,   0,   0],
-           [  0,   0,   0]], dtype=uint8)
-    """
+    """Weights (K, h, w) of ``grid``'s themes at a ``size = (W, H)`` map's pixels (or a
+    ``window`` of them): ``weights[k]`` is theme k's share times ``total`` (uint8 for
+    255, uint16 above)."""
     indices = validate_indices(grid, n_themes=n_themes)
     splits = cell_splits(indices, saddle)
     return quantised_bands(lambda win: sample_corners(indices, size, win, splits=splits),
@@ -265,20 +181,8 @@ def theme_weights(
 def quantised_bands(slots_of: Callable[[tuple[int, int, int, int]], CornerSlots],
                     n_themes: int, size: tuple[int, int],
                     window: tuple[int, int, int, int] | None, *, total: int = 255) -> np.ndarray:
-    """:func:`quantise_weights` of ``slots_of(band)`` over row bands of a window of a map.
-
-    Parameters
-    ----------
-    slots_of : callable((x, y, w, h)) -> CornerSlots
-        The exact weights of a window of the ``size = (W, H)`` map.
-    n_themes, total : int
-    size : (W, H)
-    window : (x, y, w, h), optional
-
-    Returns
-    -------
-    weights : (K, h, w) uint8 (or uint16) ndarray
-    """
+    """:func:`quantise_weights` of ``slots_of((x, y, w, h))`` over row bands of
+    ``window`` of a ``size = (W, H)`` map (bounded temporaries)."""
     x, y, w, h = check_window(window, size)
     out = np.zeros((n_themes, h, w), dtype=np.uint8 if total <= 255 else np.uint16)
     rows = max(1, BAND_PIXELS // w)
@@ -291,16 +195,10 @@ def quantised_bands(slots_of: Callable[[tuple[int, int, int, int]], CornerSlots]
 
 
 def strongest_two(slots: CornerSlots) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The two strongest themes of every pixel and the second one's share of the pair.
+    """The two strongest themes (h, w) uint8 of every pixel and ``share``
+    ``= round(255 * w2 / (w1 + w2))`` (half up), the second's weight in the pair.
 
-    Ties go to the lower theme. A pixel with one theme has it twice, share 0.
-
-    Returns
-    -------
-    first, second : (h, w) uint8 ndarrays
-    share : (h, w) uint8 ndarray
-        ``round(255 * w2 / (w1 + w2))`` (half up): the weight of ``second``
-        once the pair is renormalised (a third theme's weight is dropped).
+    Ties go to the lower theme; a pixel with one theme has it twice, share 0.
     """
     rank = slot_ranks(slots.weights, slots.ids)
     pick = [np.argmax(rank == r, axis=0)[None] for r in (0, 1)]
