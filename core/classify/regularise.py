@@ -89,8 +89,7 @@ def edge_reach(sigma_spatial: float, iterations: int = EDGE_ITERATIONS) -> int:
 
 
 def smooth_probabilities(probs: np.ndarray, sigma: float) -> np.ndarray:
-    """Each class's probability map (h, w, C) float32 Gaussian-averaged over ``sigma``
-    coarse pixels (rows still sum to 1)."""
+    """Each class's probability map (h, w, C) Gaussian-averaged over ``sigma`` coarse px."""
     return context_blur(probs, sigma).reshape(probs.shape)
 
 

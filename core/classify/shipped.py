@@ -1,21 +1,13 @@
 """Classifiers shipped with terratheme (``--model aerial``), found by name.
 
-The repository's ``models/`` folder holds trained classifier files (written
-by :meth:`core.classify.Classifier.save`) and ``models.json``, an index::
+``models/`` holds classifier files and ``models.json``, an index::
 
     {"models": {"aerial": {"file": "aerial.ttcls",
                            "classes": {"1": "building", "2": "land", ...},
                            "description": "...", "trained_on": "...", "sha256": "..."}}}
 
-``classes`` names each class value of the model (the names ``convert`` gives
-the themes of those classes). :func:`resolve_model` turns what a user typed
-after ``--model`` into a file: an existing path is that file, a shipped
-model's name is its file in ``models/``; :func:`load_model` loads it with its
-class names (``Classifier.class_names``). A ``.onnx`` file is a network
-(:class:`core.classify.network.NetworkClassifier`: ``scale`` and ``multiple``
-give its input size, ``scores`` its held-out figures); ``models/train_network.py``
-makes the ``aerial`` network and its index entry (``models/train_aerial.py``
-the forest file a user's own classes start from).
+``classes`` names each class value (``convert`` names the themes so). A ``.onnx``
+file is a network; ``scale`` and ``multiple`` give its input size.
 """
 
 from __future__ import annotations
@@ -44,23 +36,9 @@ _SHA256 = re.compile(r"[0-9a-fA-F]{64}")
 
 @dataclass(frozen=True)
 class ShippedModel:
-    """One entry of ``models.json``.
-
-    Attributes
-    ----------
-    name : str
-    path : Path
-        The classifier file.
-    class_names : dict of int -> str
-        Name of each class value (theme names for ``convert``).
-    description : str
-    size : int or None
-        The file's size in bytes, as the index says.
-    sha256 : str or None
-        The file's SHA-256 (hexadecimal), as the index says.
-    scale, multiple : float, int
-        A network's input: the photo resized by ``scale``, sides multiples of ``multiple``.
-    """
+    """One entry of ``models.json``; ``size`` (bytes) and ``sha256`` as the index says,
+    ``scale`` and ``multiple`` a network's input (the photo resized by ``scale``, sides
+    multiples of ``multiple``)."""
 
     name: str
     path: Path
@@ -121,18 +99,7 @@ def _index_entry(name: object, entry: object, folder: Path) -> ShippedModel:
 def shipped_models(folder: str | os.PathLike = SHIPPED_MODELS_DIR) -> dict[str, ShippedModel]:
     """The models listed in ``folder/models.json`` (empty when there is no index).
 
-    Every field is checked: names of letters, digits, ``' _.-'``; ``file`` a
-    plain file name in ``folder`` (no path: an index cannot point outside
-    it); class values 0..255 with printable names; ``bytes`` and ``sha256``,
-    when present, of the right type (they are checked against the file by
-    :func:`resolve_model`).
-
-    Raises
-    ------
-    CorruptFileError
-        An index that is not the JSON described in the module docstring
-        (over :data:`MAX_INDEX_BYTES`, not UTF-8, nested deeper than JSON
-        files may be, a field of the wrong type); one line naming the index.
+    Raises CorruptFileError (one line naming the index) when any field is wrong.
     """
     index = Path(folder) / MODELS_INDEX
     if not index.is_file():
@@ -153,12 +120,8 @@ def resolve_model(name_or_path: str | os.PathLike,
                   ) -> tuple[Path, dict[int, str] | None]:
     """The classifier file ``--model`` means, and its class names if it is a shipped one.
 
-    An existing file wins over a shipped model of the same name.
-
-    Raises
-    ------
-    TerrathemeError
-        Neither a file nor a shipped model's name (the line lists the shipped names).
+    An existing file wins over a shipped model of the same name; neither raises
+    TerrathemeError listing the shipped names.
     """
     path = Path(name_or_path)
     if path.is_file():
@@ -197,13 +160,7 @@ def load_model(name_or_path: str | os.PathLike,
                ) -> Classifier | NetworkClassifier:
     """:meth:`Classifier.load` of :func:`resolve_model`, with a shipped model's class names.
 
-    A shipped ``.onnx`` entry is a :class:`NetworkClassifier` (same ``predict``,
-    ``classes``, ``class_names``).
-
-    Raises
-    ------
-    TerrathemeError
-        As :func:`resolve_model`, :meth:`Classifier.load` and :class:`NetworkClassifier`.
+    A shipped ``.onnx`` entry is a :class:`NetworkClassifier` (same interface).
     """
     path, names = resolve_model(name_or_path, folder)
     if names is not None and path.suffix.lower() == ".onnx":
