@@ -1,16 +1,7 @@
 """Files in and out: images, tiles of images larger than memory, georeference, atomic writes.
 
-Modules: ``images`` (every image file through OpenImageIO), ``tiles`` (tile
-windows, bounded-memory tile jobs here or on a cluster), ``cluster`` (a
-dask.distributed cluster: start or join one, tasks in order with bounded
-results in flight), ``tiled_writer`` (images written tile by tile),
-``georef`` (GeoTIFF tags and world files), ``atomic`` (write to a temporary
-file, then rename; sets of files, the one naming the others last), ``codec`` (images
-as bytes), ``archive`` (bounded reading of ZIP members, ``.npy`` and JSON),
-``png`` (PNG chunks: palettes), ``memory`` (free memory; whole-photo work
-that cannot fit refused before its pixels are read), ``disk_cache`` (one
-bounded cache folder whose entries are checked as hostile input), ``inputs``
-(input paths checked before they are opened).
+One module a job: ``images``, ``tiles``, ``cluster``, ``tiled_writer``, ``georef``,
+``atomic``, ``codec``, ``archive``, ``png``, ``memory``, ``disk_cache``, ``inputs``.
 """
 
 from terratheme.core.io.atomic import (

@@ -1,20 +1,11 @@
 """Output files: each written to a temporary beside it, flushed to disk, then renamed onto it.
 
-A reader never sees half a file, and a failed run changes no file:
-
-* :func:`atomic_path` gives the writer a new temporary in the target's folder
-  (made by this process with ``O_EXCL``, named ``.<name>.tt-<random>.tmp<suffix>``);
-  on success it is flushed (``fsync``) and renamed onto the target, on any
-  exception removed.
-* :func:`file_set` writes files that belong together, the last one (a project,
-  a manifest) naming the others. Every file goes to its temporary first; then,
-  under a lock on each folder, the old last file is removed, the others are
-  renamed in order and the last one last. A reader trusts a set only when its
-  last file is there: a run that fails or is killed before the renames leaves
-  the old set whole, one killed during them leaves no last file.
-* Only temporaries this process made are ever removed (:func:`remove_temporaries`
-  is for a caller's SIGTERM handler). A SIGKILL can leave one behind; nothing here
-  reads, repairs or removes what it finds in a folder.
+A reader never sees half a file, and a failed run changes no file. :func:`file_set`
+writes files that belong together, the last one (a project, a manifest) naming the
+others: under a lock on each folder the old last file is removed, the others are
+renamed and the last one last, so a reader trusts a set only when its last file is
+there. Only temporaries this process made are ever removed; nothing here reads,
+repairs or removes what it finds in a folder.
 """
 
 from __future__ import annotations
@@ -122,19 +113,10 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
                 rename: bool = True) -> Iterator[Path]:
     """Yield a new temporary path beside ``path``; flush and rename it onto ``path`` on success.
 
-    Parameters
-    ----------
-    path : path-like
-        The final output file.
-    suffix : str, optional
-        Suffix of the temporary (default ``path``'s own, for writers that pick
-        a format by extension).
-    rename : bool
-        False: a scratch file beside ``path``, always removed.
-
-    On any exception the temporary is removed and ``path`` is untouched.
-    Inside a :func:`file_set` that holds ``path``, the set's temporary is
-    yielded and renamed when the set commits.
+    ``suffix`` is the temporary's (default ``path``'s own, for writers that pick a
+    format by extension); ``rename=False`` makes a scratch file, always removed. On
+    any exception the temporary is removed. Inside a :func:`file_set` holding
+    ``path``, the set's temporary is yielded and renamed when the set commits.
     """
     final = Path(path)
     owner = _OPEN.get(_key(final)) if rename else None
@@ -234,23 +216,11 @@ def file_set(paths: Sequence[str | os.PathLike], *,
              remove: Sequence[str | os.PathLike] = ()) -> Iterator[FileSet]:
     """Write several files as a set: all replaced, or none as a reader sees it.
 
-    Parameters
-    ----------
-    paths : sequence of path-like
-        The final files, in rename order, the one naming the others last.
-    remove : sequence of path-like
-        Files of the old set that the new one does not hold (the caller has made
-        sure they are the old set's own): removed on commit with the old last file.
-
-    Yields
-    ------
-    FileSet
-        ``.temporary(path)`` is where to write each file; :func:`atomic_path`
-        on one of ``paths`` yields that temporary too (every writer of the set
-        takes part). A member never written keeps its old file; the last file
-        must be written.
-
-    On an exception every temporary is removed and no file has changed.
+    ``paths`` are in rename order, the one naming the others last (it must be
+    written; a member never written keeps its old file). ``remove``: files of the
+    old set the new one lacks, removed on commit with the old last file. Write each
+    file to ``.temporary(path)`` of the yielded :class:`FileSet`, or through
+    :func:`atomic_path` on its path. On an exception no file has changed.
     """
     finals = [Path(p) for p in paths]
     keys = [_key(p) for p in finals]

@@ -1,13 +1,7 @@
 """OpenImageIO's side of reading and writing: its error text, which extensions it writes,
 and the size of a JPEG XL image read from its header before OpenImageIO sees it.
 
-:func:`error_line` reads the pending error of the library, an ``ImageInput``
-or an ``ImageOutput`` as one line; a damaged header can put bytes that are
-not UTF-8 into that text (an EXR attribute name), which the binding would
-raise as ``UnicodeDecodeError``. :func:`check_writable_format` refuses an
-output whose extension no writer takes, so a command can say so before it
-starts its work rather than after. OpenImageIO decodes a JPEG XL image
-inside ``ImageInput.open`` (a 46 KB flat 16384^2 image: 5 s and 1 GiB), so
+OpenImageIO decodes a JPEG XL image inside ``ImageInput.open``, so
 :func:`jpegxl_size` reads its size from the codestream's ``SizeHeader``
 (ISO/IEC 18181-1, section D.2) for the caller to check first.
 """
@@ -42,13 +36,7 @@ def error_line(source: object = oiio) -> str:
 
 
 def check_writable_format(path: str | os.PathLike) -> None:
-    """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension.
-
-    Raises
-    ------
-    TerrathemeError
-        ``path: no image format is written as '.xyz'`` (or: has no extension).
-    """
+    """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension."""
     out = oiio.ImageOutput.create(str(path))
     if out is not None:
         return

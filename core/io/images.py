@@ -1,31 +1,12 @@
 """Image files in and out, all through OpenImageIO.
 
-``read_image`` / ``write_image`` follow tifffile's style: a positional path and
-keyword-only options. Arrays are always ``(H, W, C)`` when they go to
-OpenImageIO: its Python ``write_image`` misreads 2-D arrays (design.md §9).
-
-Pixel values are never changed behind the caller's back: files are opened
-with OpenImageIO's ``oiio:UnassociatedAlpha`` hint and written with it, so an
-RGBA image is neither premultiplied on reading nor divided by alpha on
-writing (design.md §9). Which band is alpha is the file's say
-(``ImageInfo.alpha_channel``): ``Bands.PHOTO`` keeps the colour bands plus a
-marked alpha band, so an RGB + near-infrared TIFF reads as RGB.
-
-Hostile files: before any pixel is read, the declared size is checked against
-the bytes present (at most :data:`MAX_COMPRESSION_RATIO` bytes of pixels per
-byte of file, above what deflate, JPEG or LZW reach on a flat image) and
-against OpenImageIO's own ceilings (``limits:resolution``, ``limits:channels``,
-``limits:imagesize_MB``); a PNG's header is read first so a 0 x 0 PNG is
-refused by name, and its chunks' lengths and CRCs are checked before libpng
-reads it (libpng prints its own errors on stderr). Every problem is one line
-naming the file.
-
-Writing goes to a temporary file that is renamed onto the target once every
-write and the close succeeded, so a failed write (a full disk) never leaves a
-half-written image. ``write_image(..., palette=colours)``
-makes an 8-bit label image a palette PNG (values stay the class numbers;
-OpenImageIO writes no palettes, so its grey PNG's header is relabelled, see
-:mod:`core.io.png`), and :func:`read_labels` reads the class numbers back.
+Arrays are always ``(H, W, C)`` when they go to OpenImageIO (its Python
+``write_image`` misreads 2-D arrays) and alpha is never premultiplied or divided
+(``oiio:UnassociatedAlpha``, design.md §9). Hostile files are refused before any
+pixel is read: declared size against the bytes present
+(:data:`MAX_COMPRESSION_RATIO`) and OpenImageIO's limits, PNG chunks checked
+before libpng sees them. Writes go through :func:`atomic_path`, so a failed write
+leaves no half-written image; ``palette=`` makes an 8-bit label image a palette PNG.
 """
 
 from __future__ import annotations
@@ -209,24 +190,16 @@ def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
 
     Parameters
     ----------
-    path : path-like
-        Any file OpenImageIO reads (PNG, JPEG, TIFF/BigTIFF, EXR, ...).
     dtype : numpy dtype, optional
-        Convert to this pixel type (OpenImageIO rescales, e.g. uint16 -> uint8
-        maps 65535 to 255). Default: the file's own type.
+        Convert to this pixel type (OpenImageIO rescales: uint16 -> uint8 maps
+        65535 to 255). Default: the file's own type.
     bands : Bands
-        ALL (default): every channel; PHOTO: colour plus marked alpha.
+        ALL: every channel; PHOTO: colour plus marked alpha.
 
     Returns
     -------
     image : (H, W, C) ndarray
         Always three-dimensional; alpha as stored (never premultiplied).
-
-    Raises
-    ------
-    TerrathemeError
-        Missing file, unreadable, truncated or forged file, image with no
-        pixels, not enough memory for it.
     """
     inp = _open_input(path)
     try:
@@ -255,24 +228,9 @@ def read_bands(path: str | os.PathLike, rows: int, *, dtype: np.dtype | str | No
                ) -> Iterator[tuple[int, np.ndarray]]:
     """``(y, band)`` pairs of a whole image, top to bottom, from one opening of the file.
 
-    Memory is one band: scanlines are read in order (a PNG is decoded once, not
-    once per band as :func:`read_region` calls would), a tiled file the rows of
-    tiles a band covers.
-
-    Parameters
-    ----------
-    path : path-like
-    rows : int
-        Rows per band (the last band may be shorter).
-    dtype : numpy dtype, optional
-        As :func:`read_image`.
-
-    Yields
-    ------
-    y : int
-        The band's first row.
-    band : (h, W, C) ndarray
-        Every channel.
+    Memory is one band of ``rows`` rows (the last may be shorter), shape
+    ``(h, W, C)``; a PNG is decoded once, not once per band as :func:`read_region`
+    calls would.
     """
     inp = _open_input(path)
     try:
@@ -349,21 +307,10 @@ def read_region(
 
 
 def read_labels(path: str | os.PathLike) -> np.ndarray:
-    """Class numbers stored in an image file: label masks, scribbles, classify's output.
+    """Class numbers stored in an image file, as an ``(H, W)`` integer array.
 
-    A palette PNG gives its palette indices (what :func:`write_image` with
-    ``palette=`` wrote); other files must hold one channel, or channels that
-    are all equal (a grey image saved as RGB).
-
-    Returns
-    -------
-    labels : (H, W) integer ndarray (the file's pixel type)
-
-    Raises
-    ------
-    TerrathemeError
-        A colour image, non-integer pixels, or a palette whose colours
-        repeat (so indices cannot be told apart).
+    A palette PNG gives its palette indices; other files must hold one channel,
+    or channels that are all equal (a grey image saved as RGB).
     """
     image = read_image(path)
     palette = png_palette(path)
@@ -391,20 +338,16 @@ def write_image(
 
     Parameters
     ----------
-    path : path-like
-        Output file; the extension picks the format (.png, .jpg, .tif, .exr, ...).
     image : (H, W) or (H, W, C) ndarray
-        Pixel data of any dtype OpenImageIO stores; 2 or 4 channels carry
-        unassociated alpha last (written as given, not divided by alpha).
+        Any dtype OpenImageIO stores; 2 or 4 channels carry unassociated alpha last.
     tile : int, optional
-        Write a tiled file (TIFF, EXR) with square tiles of this size.
+        Square tile size of a tiled file (TIFF, EXR).
     compression : str, optional
         OpenImageIO compression name, e.g. ``"zip"``, ``"lzw"``, ``"zip:9"``.
     attributes : dict, optional
-        Extra metadata attributes for the ImageSpec (e.g. GeoTIFF tags).
+        Extra ImageSpec attributes (e.g. GeoTIFF tags).
     palette : (K, 3) uint8 ndarray, optional
-        PNG only, single-channel uint8 images: write a palette PNG showing
-        value k in colour ``palette[k]`` (every value must be below K).
+        Single-channel uint8 PNG only: write a palette PNG, value k in ``palette[k]``.
     """
     arr = np.asarray(image)
     if arr.ndim == 2:

@@ -1,9 +1,6 @@
-"""Input paths checked before they are opened.
+"""Input paths checked with ``stat`` (which never blocks) before they are opened.
 
-Opening a named pipe (FIFO) blocks until some process writes to it, and a
-device may never end; a folder is no file. :func:`check_input_file` looks at
-the path with ``stat`` (which never blocks) and refuses anything but a
-regular file (symlinks followed), with one line naming the path.
+Opening a FIFO blocks until some process writes to it, and a device may never end.
 """
 
 from __future__ import annotations
@@ -20,18 +17,9 @@ _KINDS = {stat.S_ISFIFO: "a named pipe (FIFO)", stat.S_ISCHR: "a character devic
 
 
 def check_input_file(path: str | os.PathLike, what: str = "a file") -> Path:
-    """``path`` as a Path, if it names a regular file; nothing is opened.
+    """``path`` as a Path, if it names a regular file (symlinks followed); nothing is opened.
 
-    Parameters
-    ----------
-    path : path-like
-    what : str
-        What the file should be, for the message ("an image", "a project").
-
-    Raises
-    ------
-    TerrathemeError
-        No such file, a symlink loop, a folder, a FIFO, device or socket.
+    ``what`` says what the file should be, for the message ("an image").
     """
     p = Path(path)
     try:

@@ -1,22 +1,10 @@
-"""A label mask's legend: the name of each class value, read from a JSON or CSV file.
+"""A label mask's legend ``{class value: name}``, read from a JSON or CSV file.
 
-Land-cover masks come with their legend beside them in one of a few shapes;
-each is read to ``{class value: name}``:
-
-* ``{"classes": {"1": "Building", "2": "Land"}}`` or the bare mapping
-  ``{"1": "Building", ...}``;
-* ``{"classes": [{"id": 1, "name": "Building"}, ...]}`` or the bare list
-  (``"value"`` or ``"class"`` also name the number, ``"label"`` the name;
-  other keys such as ``"rgb"`` are ignored);
-* CSV or plain text, one class a line: ``1,Building`` (a header line and
-  lines starting with ``#`` are skipped).
-
-Names become theme names (``classify --legend`` stores them in the model,
-``convert`` names its themes by them), so each is trimmed, at most
-:data:`MAX_NAME` characters and printable (two classes may share
-one: their themes are numbered, ``Vegetation``, ``Vegetation 2``). A legend may come from anyone:
-the file is read only up to :data:`MAX_LEGEND_BYTES`, and anything else is
-refused with one line naming the file and the problem.
+Shapes: ``{"classes": {"1": "Building"}}`` or the bare mapping; ``{"classes":
+[{"id": 1, "name": "Building"}]}`` or the bare list (``value``/``class`` name the
+number, ``label`` the name); CSV or text lines ``1,Building`` (header and ``#``
+lines skipped). Names become theme names, so each is trimmed, printable and at
+most :data:`MAX_NAME` characters; the file is read up to :data:`MAX_LEGEND_BYTES`.
 """
 
 from __future__ import annotations
@@ -98,19 +86,10 @@ def _csv_entries(text: str) -> list[tuple[object, object]]:
 
 
 def parse_legend(data: bytes, label: str) -> dict[int, str]:
-    """The legend in ``data`` (JSON or CSV bytes); ``label`` names the file in errors.
+    """The legend in ``data`` (JSON or CSV bytes) as class value -> name.
 
-    Returns
-    -------
-    {int: str}
-        Class value -> name (two classes may share a name; themes made from
-        them are numbered, :func:`core.themes.library.distinct_names`).
-
-    Raises
-    ------
-    CorruptFileError
-        Not a legend in an accepted shape, a value outside 0..255 or given
-        twice, a missing or unprintable name, no class at all.
+    ``label`` names the file in errors. Two classes may share a name (their
+    themes are numbered, :func:`core.themes.library.distinct_names`).
     """
     data = data.removeprefix(b"\xef\xbb\xbf")  # the byte-order mark some editors write
     text = data.lstrip()
@@ -133,25 +112,7 @@ def parse_legend(data: bytes, label: str) -> dict[int, str]:
 
 
 def read_legend(path: str | os.PathLike) -> dict[int, str]:
-    """Read a legend file (see the module docstring for the shapes accepted).
-
-    Parameters
-    ----------
-    path : str or PathLike
-
-    Returns
-    -------
-    {int: str}
-        Class value -> name.
-
-    Raises
-    ------
-    TerrathemeError
-        No such file.
-    CorruptFileError
-        Larger than :data:`MAX_LEGEND_BYTES` (:func:`core.io.archive.read_bounded`), or
-        see :func:`parse_legend`.
-    """
+    """Read a legend file (shapes: see the module docstring) as class value -> name."""
     p = Path(path)
     if not p.exists():
         raise TerrathemeError(f"{p}: no such legend file")

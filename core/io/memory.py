@@ -1,17 +1,8 @@
 """Whether a photo's whole-photo work fits in memory, checked before any pixel is read.
 
-A command that holds a whole photo and its per-pixel stages at once would
-otherwise run for seconds or minutes before running out of memory (a 874 KB
-PNG of 30000 x 30000 pixels, legal at 1030:1: convert 77 s, classify 25 s to
-the error under an 8 GB cap). :func:`check_fits` refuses it at once, counting
-fewer bytes per pixel than measured (peak resident size, start-up taken
-off), so it refuses only what cannot fit:
-
-* ``convert`` without ``--tile``: about 88-90 bytes per pixel (0.47 GB for the
-  1.2 Mpx sample, 1.44 GB for a 12 Mpx photo, 3.55 GB for the sample tiled to
-  6000 x 6000);
-* ``classify``: about 26 bytes per pixel unsupervised, 16 with ``--model
-  aerial`` (the 6000 x 6000 photo: 1.18 / 0.86 GB, the sample 0.26 GB).
+A whole-photo command on a huge but legal photo would otherwise run for minutes
+before running out of memory; :func:`check_fits` refuses it at once, counting
+fewer bytes per pixel than measured so it refuses only what cannot fit.
 """
 
 from __future__ import annotations
@@ -26,9 +17,9 @@ try:
 except ImportError:  # pragma: no cover - Windows
     resource = None
 
-#: bytes per photo pixel counted for convert's whole-photo path (measured about 90)
+#: bytes per photo pixel counted for convert's whole-photo path
 CONVERT_BYTES_PER_PIXEL = 60
-#: bytes per photo pixel counted for classify (measured 16-26)
+#: bytes per photo pixel counted for classify
 CLASSIFY_BYTES_PER_PIXEL = 12
 
 
@@ -74,23 +65,9 @@ def check_fits(name: str, width: int, height: int, bytes_per_pixel: int, *,
                remedy: str = "", available: int | None = None) -> None:
     """Refuse a ``width`` x ``height`` photo whose work cannot fit in free memory.
 
-    Parameters
-    ----------
-    name : str
-        The photo's path, for the message.
-    width, height : int
-        Photo pixels.
-    bytes_per_pixel : int
-        What the work holds per photo pixel (``CONVERT_BYTES_PER_PIXEL``, ...).
-    remedy : str
-        Appended to the message after a colon (e.g. the bounded-memory option).
-    available : int, optional
-        Bytes free (default :func:`available_memory`; no check where it is unknown).
-
-    Raises
-    ------
-    TerrathemeError
-        ``bytes_per_pixel`` per pixel is more than is free.
+    ``bytes_per_pixel`` is what the work holds per photo pixel
+    (``CONVERT_BYTES_PER_PIXEL``, ...); ``remedy`` is appended to the message;
+    ``available`` defaults to :func:`available_memory` (no check where unknown).
     """
     free = available_memory() if available is None else available
     need = width * height * bytes_per_pixel

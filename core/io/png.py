@@ -1,24 +1,10 @@
 """PNG at the level of its chunks: what OpenImageIO does not do for us.
 
-A PNG is an 8-byte signature and a list of chunks (4-byte big-endian length,
-4-byte type, data, CRC-32 of type + data), ``IHDR`` first (PNG spec, W3C
-2003, sections 5 and 11). OpenImageIO reads and writes the pixels; this
-module only
-
-* reads the header's size (:func:`png_header_size`) so a 0 x 0 PNG is
-  refused before libpng sees it;
-* checks every chunk's length and CRC before libpng reads the file
-  (:func:`check_png_chunks`): libpng prints ``libpng error: ...`` on the
-  process's stderr before OpenImageIO reports the failure, so a damaged file
-  is refused here first (a file forged with valid CRCs may still get its
-  line from libpng: a library does not redirect the process's stderr);
-* reads a palette PNG's table with Pillow (:func:`png_palette`) and maps the
-  colours OpenImageIO expanded it to back to indices (:func:`palette_indices`):
-  OpenImageIO gives no access to them;
-* turns an 8-bit grey PNG that OpenImageIO wrote into a palette PNG
-  (:func:`relabel_grey_png_as_palette`): the scanline bytes of 8-bit grey
-  and 8-bit palette images are identical, so only ``IHDR``'s colour type
-  changes and a ``PLTE`` chunk is added (OpenImageIO writes no palettes).
+Reads the header's size and checks every chunk's length and CRC before libpng
+sees the file (libpng prints its own errors on stderr); reads a palette PNG's
+table with Pillow and maps OpenImageIO's expanded colours back to indices; turns
+an 8-bit grey PNG into a palette PNG (same scanline bytes: only ``IHDR``'s colour
+type changes and a ``PLTE`` chunk is added). PNG spec (W3C 2003) sections 5, 11.
 """
 
 from __future__ import annotations
@@ -68,17 +54,7 @@ def png_header_size(path: Path) -> tuple[int, int] | None:
 
 
 def check_png_chunks(path: str | os.PathLike) -> None:
-    """Refuse a PNG whose chunks are damaged, before libpng reads it.
-
-    Every chunk must lie inside the file with a matching CRC, ``IHDR`` first,
-    ``IEND`` last. One pass over the file, a buffer of :data:`_READ` bytes,
-    once per version of a file (a tiled conversion opens it once per tile).
-
-    Raises
-    ------
-    CorruptFileError
-        Truncated, a chunk past the end, a CRC mismatch, no IHDR or IEND.
-    """
+    """Refuse a PNG with damaged chunks (CRC, past the end, no IHDR/IEND) before libpng reads it."""
     st = os.stat(path)
     _check_chunks(os.fspath(path), st.st_ino, st.st_size, st.st_mtime_ns)
 
@@ -113,13 +89,8 @@ def _check_chunks(path: str, _inode: int, size: int, _mtime_ns: int) -> None:
 def png_palette(path: str | os.PathLike) -> np.ndarray | None:
     """A palette PNG's table: ``(K, 3)`` uint8 RGB, or ``(K, 4)`` RGBA when it has tRNS.
 
-    Pillow reads the chunks before the pixels only. Returns None for any file
-    that is not a palette PNG.
-
-    Raises
-    ------
-    CorruptFileError
-        A palette PNG without a valid PLTE (1..256 whole RGB entries).
+    None for any file that is not a palette PNG; CorruptFileError for one without
+    a valid PLTE (1..256 whole RGB entries).
     """
     try:
         # The plugin's class, not Image.open: its pixel-count guard refuses large
@@ -150,26 +121,10 @@ def png_palette(path: str | os.PathLike) -> np.ndarray | None:
 
 
 def palette_indices(image: np.ndarray, palette: np.ndarray, path) -> np.ndarray:
-    """The palette indices of a palette PNG that OpenImageIO expanded to colours.
+    """The ``(H, W)`` uint8 palette indices of a palette PNG OpenImageIO expanded to colours.
 
-    Parameters
-    ----------
-    image : (H, W, 3 or 4) uint8 ndarray
-        The pixels as read (RGB, or RGBA when the file has tRNS).
-    palette : (K, 3 or 4) uint8 ndarray
-        :func:`png_palette` (alpha 255 where it has no column).
-    path : path-like
-        For messages.
-
-    Returns
-    -------
-    indices : (H, W) uint8 ndarray
-
-    Raises
-    ------
-    CorruptFileError
-        A pixel colour missing from the palette, or shared by entries that
-        pixels use (their indices cannot be told apart).
+    ``image`` is ``(H, W, 3 or 4)`` uint8 as read, ``palette`` is :func:`png_palette`'s.
+    A colour missing from the palette, or shared by entries pixels use, is refused.
     """
     channels = image.shape[2]
     if channels not in (3, 4):

@@ -16,23 +16,11 @@ from terratheme.core.io.images import OIIO_PIXEL_TYPES
 class TiledImageWriter:
     """Write a large image tile by tile through OpenImageIO (bounded memory).
 
-    Use as a context manager; the file appears (renamed) on a clean exit only. Regions
-    given to :meth:`write` start on tile boundaries and span whole tiles except at the
-    right and bottom edges; full-width bands of any height, written from the top, are
-    gathered into one-tile-row strips.
-
-    Parameters
-    ----------
-    path : path-like
-        ``.tif`` / ``.tiff`` / ``.exr``.
-    tile : int
-        Square tile size (a multiple of 16 for TIFF).
-    compression : str, optional
-        e.g. ``"zip"`` (default), ``"lzw"``, ``"none"``.
-    bigtiff : bool
-        Needed past 4 GiB.
-    attributes : dict, optional
-        Extra ImageSpec attributes.
+    A context manager; the file appears (renamed) on a clean exit only. Regions given
+    to :meth:`write` start on tile boundaries and span whole tiles except at the right
+    and bottom edges; full-width bands written from the top are gathered into strips.
+    ``path`` is ``.tif``/``.tiff``/``.exr``; ``tile`` a multiple of 16 for TIFF;
+    ``bigtiff`` is needed past 4 GiB.
     """
 
     def __init__(
