@@ -72,7 +72,7 @@ class PackedGrid:
         """The program of ``kind`` (``unpack``, ``lookup``, ``split``, ``split_main``)."""
         if kind not in self._programs:
             prog = compile_program(self.ctx, Variant(kind), themes=1)
-            vao = self.ctx.vertex_array(prog, [(self._quad, "2f 2f", "tt_edge", "tt_uv")],
+            vao = self.ctx.vertex_array(prog, [(self._quad, "2f", "tt_edge")],
                                         skip_errors=True)
             self._programs[kind] = (prog, vao)
         return self._programs[kind][0]

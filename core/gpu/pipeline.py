@@ -10,8 +10,8 @@ import moderngl
 import numpy as np
 from terratheme.core.gpu.programs import UNITS, Variant, compile_program, set_uniform
 
-#: one vertex of a drawn rectangle: texel-edge position and a texture coordinate
-VERTEX = np.dtype([("edge", "<f4", 2), ("uv", "<f4", 2)])
+#: one vertex of a drawn rectangle: its texel-edge position
+VERTEX = np.dtype([("edge", "<f4", 2)])
 
 
 #: the two triangles of a rectangle, as (x, y) picks of (x0, y0, x1, y1)
@@ -97,7 +97,7 @@ class Pipeline:
         vao = self._vaos.get(prog.glo)
         if vao is None:
             vao = self._vaos[prog.glo] = self.ctx.vertex_array(
-                prog, [(self._buffer, "2f 2f", "tt_edge", "tt_uv")], skip_errors=True)
+                prog, [(self._buffer, "2f", "tt_edge")], skip_errors=True)
         vao.render(moderngl.TRIANGLES, vertices=count, first=first)
 
     def framebuffer(self, w: int, h: int) -> moderngl.Framebuffer:
