@@ -1,10 +1,7 @@
 """The thematic texture as data: the index grid, the project (grid + themes + layers) and its file.
 
-Modules: ``grid`` (IndexGrid: theme numbers at grid vertices), ``project``
-(ThematicTexture and the ``.ttproj`` file), ``manifest`` (the file's
-manifest: names, versions, checks), ``layers`` (the optional per-pixel
-layers and their checks), ``colour_map`` (the colour gain over a texture),
-``index_image`` (grids stored as pictures, and projects made from them).
+Modules: ``grid``, ``project`` (and its ``.ttproj`` file), ``manifest``, ``layers``
+(optional per-pixel layers), ``colour_map``, ``index_image`` (grids as pictures).
 """
 
 from terratheme.core.model.colour_map import ColourMap

@@ -1,34 +1,18 @@
 """The colour map: a low-resolution colour gain laid over a thematic texture.
 
-A class alone carries one texture and one colour; the photo's slow colour
-changes inside a class (wet and dry sand, sunlit and shaded grass) are lost
-(issue 13). Terrain engines keep such changes in a *macro variation* or
-*colour* map: a coarse RGB image multiplied over the tiled detail textures.
-terratheme's colour map is that image:
+A class alone carries one texture and one colour; the colour map (a terrain
+engine's *macro variation* map) keeps the photo's slow colour changes inside a class:
 
-* ``pixels`` ``(mh, mw, 3) uint8``: a per-channel gain, ``value / 128``
+* ``pixels`` ``(mh, mw, 3) uint8``: a per-channel gain ``value / 128``
   (:data:`NEUTRAL` = no change, 255 = x1.99);
-* ``scale``: texels per map pixel along both axes; map pixel ``(i, j)``
-  covers texels ``[i*scale, (i+1)*scale) x [j*scale, (j+1)*scale)`` of the
-  full texture and sits at its centre, so the map of a ``W x H`` texture is
-  ``ceil(H/scale) x ceil(W/scale)``;
-* at texel ``X`` the gain is the bilinear interpolation of the map at
-  ``(X + 0.5) / scale - 0.5`` (clamped at the edges), in exact integer
-  arithmetic (:mod:`core.render.colour_map`), so every renderer and every
-  region agrees.
+* ``scale``: texels per map pixel; map pixel ``(i, j)`` covers texels
+  ``[i*scale, (i+1)*scale) x [j*scale, (j+1)*scale)`` and sits at its centre;
+* the gain at texel ``X`` is the bilinear interpolation of the map at
+  ``(X + 0.5) / scale - 0.5`` (clamped), in exact integer arithmetic
+  (:mod:`core.render.colour_map`), so every renderer and region agrees.
 
-A map ships in one image of its codec (:meth:`ColourMap.encode`) when it
-fits the codec's single-image limit (:data:`ONE_IMAGE_LIMITS`: JPEG XL's
-level 5, which every decoder reads, is 2^18 pixels a side and 2^28 in all),
-else as a row-major grid of :data:`MAP_TILE`-pixel tiles, each its own image:
-a 400 x 400 km region at 1/16 of 1 m is a 25000^2 map, beyond level 5, and
-encoding it whole would take libjxl about 20 bytes a pixel (12 GB); tile by
-tile it takes one tile's (about 30 s of one core for a 4096^2 tile, 49 of
-them for that region): :meth:`ColourMap.encode` hands the tiles to a
-``run`` callable that may encode them in parallel (on a dask cluster's
-workers, :func:`core.convert.colour_fit.colour_map_from_file`), each with
-:class:`TileEncoder`. What renders is the decoded tiles, so seams between
-them are in the pixels every renderer sees alike.
+A map beyond its codec's single-image limit (:data:`ONE_IMAGE_LIMITS`) ships as
+row-major tiles of :data:`MAP_TILE` pixels, each its own image (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -63,13 +47,8 @@ TileBox = tuple[slice, slice]
 class TileEncoder:
     """One tile of a map beyond the single-image limit: its bytes and what they decode to.
 
-    A picklable job (a worker process runs it as the client would).
-
-    Attributes
-    ----------
-    codec : str
-        :mod:`core.io.codec` name.
-    quality : int
+    A picklable job (a worker process runs it as the client would); ``codec`` is a
+    :mod:`core.io.codec` name.
     """
 
     codec: str
@@ -97,11 +76,8 @@ def tile_boxes(shape: tuple[int, int], tile: int) -> list[TileBox]:
 
 def check_tile_members(shape: tuple[int, int], tile: object, names: object) -> None:
     """Refuse a tiled map's listing unless it is what :meth:`ColourMap.encode` writes:
-    tiles of :data:`MAP_TILE`, one member of its own per tile, row by row.
-
-    Work is then bounded by the archive: each tile is a distinct member (a
-    listing that named one small member once per pixel took minutes to decode).
-    """
+    tiles of :data:`MAP_TILE`, one member of its own per tile, row by row (so work is
+    bounded by the archive)."""
     rows, cols = ColourMap.tile_counts(shape, tile)
     if tile != MAP_TILE:
         raise TerrathemeError(f"colour map tiles of {tile} pixels: tiles are {MAP_TILE} "
@@ -125,13 +101,10 @@ class ColourMap:
     scale : int
         Texels per map pixel, 1..4096.
     codec, data : str and bytes, or None
-        The map as it ships (:mod:`core.io.codec`): ``pixels`` are these bytes
-        decoded (:meth:`from_bytes`), so every copy renders alike.
+        The map as it ships (:mod:`core.io.codec`); ``pixels`` are these bytes decoded.
     tiles : tuple of bytes, or None
-        Instead of ``data``, a map beyond its codec's single-image limit: the
-        ``tile x tile`` pieces in ``codec``, row by row (:meth:`from_tiles`).
-    tile : int or None
-        Map pixels a side of ``tiles`` (the last row and column are smaller).
+        Instead of ``data``, a map beyond the single-image limit: ``tile x tile``
+        pieces in ``codec``, row by row (the last row and column smaller).
     """
 
     pixels: np.ndarray
@@ -191,22 +164,11 @@ class ColourMap:
     @classmethod
     def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int, *,
                run: TileRunner | None = None) -> ColourMap:
-        """The map of stored gains ``pixels`` as it ships in ``codec`` (decoded back).
+        """The map of stored gains ``pixels`` ``(mh, mw, 3) uint8`` as it ships in ``codec``.
 
         One image when it fits the codec's single-image limit, else tiles of
-        :data:`MAP_TILE` (module docstring), each encoded on its own by a
-        :class:`TileEncoder`: one after the other here, or by ``run``.
-
-        Parameters
-        ----------
-        pixels : (mh, mw, 3) uint8 ndarray
-        scale : int
-        codec : str
-            :mod:`core.io.codec` name.
-        quality : int
-            1..100.
-        run : TileRunner, optional
-            Encodes the tiles (e.g. in parallel); every runner gives the same map.
+        :data:`MAP_TILE`, each encoded by a :class:`TileEncoder`: one after the other
+        here, or by ``run`` (e.g. in parallel; every runner gives the same map).
         """
         arr = np.ascontiguousarray(pixels)
         if cls.fits_one_image(arr.shape[:2], codec):

@@ -71,13 +71,9 @@ def validate_cell(cell: object) -> tuple[int, int]:
 class IndexGrid:
     """Theme indices at grid vertices plus the cell size in texels.
 
-    Attributes
-    ----------
-    indices : (gh+1, gw+1) uint8 ndarray
-        ``indices[j, i]`` is the theme at vertex column ``i``, row ``j``
-        (row 0 at the top). Mutable in place: the editor paints into it.
-    cell : (int, int)
-        ``(N, M)``: texel columns and rows covered by one cell.
+    ``indices`` ``(gh+1, gw+1) uint8``: ``indices[j, i]`` is the theme at vertex
+    column ``i``, row ``j`` (row 0 at the top), mutable in place (the editor paints
+    into it). ``cell`` ``(N, M)``: texel columns and rows of one cell.
     """
 
     indices: np.ndarray

@@ -20,18 +20,10 @@ MAX_LAYER_PIXELS = 1 << 27
 class LayerSpec:
     """An optional per-pixel layer of a project: its attribute, member and checks.
 
-    Attributes
-    ----------
-    name : str
-        Attribute of :class:`ThematicTexture`, entry of the manifest's
-        ``"layers"`` list; stored as ``<name>.npy``.
-    channels : int or None
-        None: a ``(H, W)`` array; k: ``(H, W, k)``.
-    dtype : numpy dtype
-    same_size_as : str or None
-        ``"grid"``: ``(H, W)`` must be the grid's vertex shape; another
-        layer's name: ``(H, W)`` must equal that layer's when both are
-        present; None: any size up to :data:`MAX_LAYER_PIXELS`.
+    ``name`` is the :class:`ThematicTexture` attribute, manifest ``"layers"`` entry
+    and ``<name>.npy`` member; ``channels`` None means ``(H, W)``, k ``(H, W, k)``.
+    ``same_size_as``: ``"grid"`` (the grid's vertex shape), another layer's name
+    (its ``(H, W)`` when both are present), or None (up to :data:`MAX_LAYER_PIXELS`).
     """
 
     name: str

@@ -1,44 +1,11 @@
 """The project file: a thematic texture (grid + theme library + metadata) in one file.
 
-Format (``.ttproj``, version 1) — a ZIP archive, every member checked by its
-CRC-32 on reading:
-
-``manifest.json``
-    ``{"format": "terratheme-project", "version": 1, "cell": [N, M],
-    "grid_shape": [rows, cols], "themes": [{"name", "colour", "source",
-    "texture": "themes/000.npy"}, ...], "metadata": {...},
-    "layers": ["photo", "scribbles"]}``
-``grid.npy``
-    ``(gh+1, gw+1) uint8`` vertex indices (numpy ``.npy``, no pickles).
-``themes/KKK.npy``
-    ``(h, w, 3) uint8`` texture of theme ``KKK``.
-``<layer>.npy`` (optional, one per entry of :data:`core.model.layers.LAYERS`)
-    ``photo.npy``: the source photo ``(H, W, 3) uint8``; ``scribbles.npy``:
-    the scribble mask ``(H, W) uint8``, the photo's size when both are stored.
-``colour_map.jxl`` (or another codec of core.io.codec), or ``colour_map.npy`` (optional)
-    the colour gain over the texture (:mod:`core.model.colour_map`) as it
-    ships; the manifest's ``"colour_map": {"scale", "codec", "member"}``
-    says which (codec null: a raw ``(mh, mw, 3) uint8`` ``.npy``). A map
-    beyond its codec's single-image limit ships as ``colour_map/RRR_CCC.jxl``
-    tiles instead: ``{"scale", "codec", "tile", "members": [row by row]}``
-    (version 2; a project without one stays version 1).
-
-``metadata`` is a JSON object: ``source_photo`` (path), ``georeference`` (the
-photo's GeoTIFF/CRS attributes, checked by
-:func:`core.io.georef.validate_georeference`), ``created_by``. Saving writes a
-temporary file and renames it.
-
-Loading a hostile file costs bounded work (:mod:`core.io.archive`): every
-member is checked against the limits below and against the bytes present
-before it is read, and every manifest field is type- and range-checked.
-Damage raises ``CorruptFileError``, a newer version (or a layer this version
-does not know) ``UnsupportedVersionError``, each with one line naming the file.
-
-Limits: :data:`MAX_GRID_VERTICES` grid vertices (128 Mi: a 11585 x 11585
-grid), theme textures up to :data:`MAX_THEME_SIDE` texels a side, layers up
-to :data:`MAX_LAYER_PIXELS` pixels (``convert`` stores photos up to 40 Mpx),
-a manifest of :data:`MAX_MANIFEST_BYTES`. :func:`save_project` refuses what
-:func:`load_project` would refuse, so every saved project loads.
+A ``.ttproj`` is a ZIP of ``manifest.json``, ``grid.npy``, ``themes/KKK.npy``, the
+optional layers and colour map (layout: docs/formats.md, "Projects"). Loading a
+hostile file costs work bounded by its size (:mod:`core.io.archive`): every member
+and manifest field is checked before it is read, damage is one ``CorruptFileError``
+line, a newer version ``UnsupportedVersionError``. :func:`save_project` refuses
+what :func:`load_project` would refuse, so every saved project loads.
 """
 
 from __future__ import annotations
@@ -91,23 +58,11 @@ _MAX_MEMBERS = MAX_THEMES + 64
 class ThematicTexture:
     """A thematic texture: the index grid, its theme library and metadata.
 
-    Attributes
-    ----------
-    grid : IndexGrid
-    library : ThemeLibrary
-        ``library[k]`` is the theme for index ``k``; every grid index must have one.
-    metadata : dict
-        JSON-serialisable: ``source_photo``, ``georeference``, ...
-    photo : (H, W, 3) uint8 ndarray or None
-        The source photo, kept for the editor's overlay and fidelity view.
-    scribbles : (H, W) uint8 ndarray or None
-        User scribbles for supervised classification (0 = unlabelled); the
-        photo's size when both are present.
-
-    colour_map : ColourMap or None
-        Low-resolution colour gain over the whole texture (every renderer applies it).
-
-    The optional layers are described by :data:`LAYERS` and checked on construction.
+    ``library[k]`` is the theme for grid index ``k`` (every index must have one);
+    ``metadata`` is JSON (``source_photo``, ``georeference``, ...). The optional
+    per-pixel layers (``photo`` ``(H, W, 3) uint8``, ``scribbles`` ``(H, W) uint8``,
+    0 = unlabelled) are described by :data:`LAYERS` and checked on construction;
+    ``colour_map`` is the gain every renderer applies.
     """
 
     grid: IndexGrid
@@ -232,11 +187,7 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
     """Write ``project`` to ``path`` (a ``.ttproj`` file) atomically.
 
-    Raises
-    ------
-    TerrathemeError
-        Metadata that is not finite JSON or nests too deeply, or anything
-        over the limits :func:`load_project` enforces (nothing is written).
+    Anything :func:`load_project` would refuse raises, and nothing is written.
     """
     _check_savable(project)
     themes = []
@@ -319,19 +270,9 @@ def shipped_colour_map(path: str | os.PathLike, max_bytes: int) -> bytes | None:
 def load_project(path: str | os.PathLike) -> ThematicTexture:
     """Read a ``.ttproj`` file written by :func:`save_project`.
 
-    Work and memory are bounded by the file's size and the module's limits;
-    every field is checked before the arrays it describes are read.
-
-    Raises
-    ------
-    TerrathemeError
-        Missing file.
-    CorruptFileError
-        Not a ZIP, a damaged, encrypted, oversized or missing member, a
-        manifest field of the wrong type or range, a stored array of the
-        wrong dtype or shape, a grid index without a theme.
-    UnsupportedVersionError
-        Written by a newer terratheme (a newer format, or an unknown layer).
+    Work and memory are bounded by the file's size and the module's limits; every
+    field is checked before the arrays it describes are read. Damage raises
+    CorruptFileError, a newer format or unknown layer UnsupportedVersionError.
     """
     path = Path(path)
     if not path.exists():
