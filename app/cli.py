@@ -118,12 +118,8 @@ def _os_error(exc: OSError) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit status.
 
-    A problem with the input or the environment is one line on stderr and
-    status 2 (no traceback): the library's own errors, operating-system
-    errors (missing folder, disk full, permissions), running out of memory,
-    an address-space limit below what the command needs, a library that
-    cannot be loaded.
-    Ctrl-C prints one line and returns 130 (128 + SIGINT, as shells expect).
+    A problem with the input or the environment (library, OS, memory, address-space or
+    loading errors) is one line on stderr and status 2; Ctrl-C one line and 130.
     """
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -175,13 +171,9 @@ def _on_terminate(signum: int, frame: object) -> None:
 def console_main() -> None:
     """The ``terratheme`` console script: :func:`main`, then exit with its status.
 
-    SIGTERM and SIGHUP (when not ignored) remove the temporary files this
-    process made (:func:`core.io.atomic.remove_temporaries`) before it ends.
-
-    After Ctrl-C the process ends at once: the temporaries are gone already
-    (their context managers ran while the interrupt unwound), and a worker
-    thread of a pool interrupted while it started must not hold the
-    interpreter's exit (seen once in 25 interrupted ``render --tiled`` runs).
+    SIGTERM and SIGHUP (when not ignored) remove this process's temporary files first.
+    After Ctrl-C the process ends at once (the temporaries are gone already), so a pool
+    thread interrupted while starting cannot hold the interpreter's exit.
     """
     for signum in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(signum) is signal.SIG_DFL:
