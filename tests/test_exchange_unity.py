@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from terratheme.core import exchange
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.exchange import Engine, ExportOptions, plan_export, theme_weights, write_export
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.renderer import render_cells
@@ -127,3 +131,68 @@ def test_sizes_unity_refuses(grid):
     wide = _project(np.zeros((2, 313), np.uint8), (16, 16))
     plan = plan_export(wide, ExportOptions(Engine.UNITY))
     assert plan.layout.size == (4096, 4096) and "tiles of 4096" in plan.notes[0]
+
+
+SCRIPTS = Path(exchange.__file__).resolve().parent / "scripts"
+
+
+def _cs_classes(source: str) -> dict[str, dict[str, str]]:
+    """The serialisable classes of a C# file: class name -> {field: C# type}."""
+    return {name: dict((f, t) for t, f in re.findall(r"public ([\w\[\]]+) (\w+);", body))
+            for name, body in re.findall(r"public class (\w+)\s*\{(.*?)\}", source, re.S)}
+
+
+def _json_type_ok(cs_type: str, value) -> bool:
+    if cs_type.endswith("[]"):
+        return isinstance(value, list)
+    return {"int": lambda v: isinstance(v, int), "float": lambda v: isinstance(v, int | float),
+            "string": lambda v: isinstance(v, str)}.get(cs_type, lambda v: isinstance(v, dict))(
+                value)
+
+
+def test_the_importer_and_shaders_ship_and_name_what_the_export_writes(tmp_path, grid):
+    project = _project(grid, (9, 9))
+    project.colour_map = ColourMap(np.full((8, 8, 3), 128, np.uint8), 8)
+    write_export(project, plan_export(project, ExportOptions(Engine.UNITY)), tmp_path)
+    shipped = {"Editor/TerrathemeImporter.cs": "TerrathemeImporter.cs",
+               "Shaders/TerrathemeTerrain.shader": "TerrathemeTerrain.shader",
+               "Shaders/TerrathemeTerrainAddPass.shader": "TerrathemeTerrainAddPass.shader",
+               "Shaders/TerrathemeColourMap.cginc": "TerrathemeColourMap.cginc"}
+    for name, source in shipped.items():
+        assert (tmp_path / name).read_bytes() == (SCRIPTS / source).read_bytes(), name
+    script = (tmp_path / "Editor/TerrathemeImporter.cs").read_text()
+    main = (tmp_path / "Shaders/TerrathemeTerrain.shader").read_text()
+    add = (tmp_path / "Shaders/TerrathemeTerrainAddPass.shader").read_text()
+    cginc = (tmp_path / "Shaders/TerrathemeColourMap.cginc").read_text()
+    # The script finds the main shader by its name; the main shader names its add pass.
+    main_name = re.search(r'^Shader "([^"]+)"', main, re.M)[1]
+    add_name = re.search(r'^Shader "([^"]+)"', add, re.M)[1]
+    assert f'Shader.Find("{main_name}")' in script
+    assert re.search(r'Dependency "AddPassShader"\s*=\s*"([^"]+)"', main)[1] == add_name
+    # Both passes multiply by the colour map's gain, from the include shipped beside them.
+    for shader in (main, add):
+        assert '#include "TerrathemeColourMap.cginc"' in shader
+        assert "o.Albedo = mixedDiffuse.rgb * TerrathemeColourGain(IN.tc.xy);" in shader
+    # What the script sets is what the shader reads (SetTextureScale/Offset write _ST).
+    props = set(re.findall(r"^\s*(_\w+) \(", main, re.M))
+    for prop in set(re.findall(r'Set(?:Texture|Float)\("(\w+)"', script)):
+        assert prop in props, prop
+    for uniform in ("sampler2D _ColourMap;", "float4 _ColourMap_ST;", "float _ColourGain;"):
+        assert uniform in cginc
+    # Every field the script reads from the manifest is there, with a JSON type that fits.
+    manifest = json.loads((tmp_path / "terratheme_unity.json").read_text())
+    assert '.EndsWith("terratheme_unity.json")' in script
+    classes = _cs_classes(script)
+    objects = {"Manifest": [manifest], "Layer": manifest["layers"], "Tile": manifest["tiles"],
+               "ColourMap": [manifest["colour_map"]]}
+    assert set(classes) == set(objects)
+    for name, fields in classes.items():
+        for obj in objects[name]:
+            for field, cs_type in fields.items():
+                assert field in obj and _json_type_ok(cs_type, obj[field]), (name, field)
+    # The files the manifest names are in the export.
+    for name in [manifest["colour_map"]["file"], *(layer["texture"]
+                                                   for layer in manifest["layers"]),
+                 *(f for t in manifest["tiles"] for f in t["splatmaps"])]:
+        assert (tmp_path / name).is_file(), name
+    assert len(manifest["tiles"][0]["colour_map_st"]) == 4

@@ -28,6 +28,8 @@ SOURCES = ("pyproject.toml", "README.md", "core", "app", "themes", "models", "sa
 PHOTO = REPO / "sample_maps" / "dubai_marina.jpg"
 DATA = ("terratheme/core/gpu/shaders/tt_terrain.frag.glsl",
         "terratheme/core/exchange/scripts/TerrathemeImporter.cs",
+        "terratheme/core/exchange/scripts/TerrathemeTerrain.shader",
+        "terratheme/core/exchange/scripts/TerrathemeColourMap.cginc",
         "terratheme/themes/themes.json", "terratheme/themes/looks.json",
         "terratheme/themes/sand.png", "terratheme/models/models.json",
         "terratheme/models/aerial.model", "terratheme/sample_maps/airfield.ttproj")

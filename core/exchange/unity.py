@@ -14,14 +14,14 @@ The weights follow the project's style (:mod:`core.exchange.style`: its
 shaped borders by default). Unity's terrain layers have no per-terrain tint,
 so the project's colour map ships as ``colour_map.png`` with each tile's
 ``colour_map_st`` (texture UV = terrain UV * scale + offset,
-:func:`core.exchange.colour.unity_colour_st`) for a terrain material that
-multiplies it in.
-
-``Editor/TerrathemeImporter.cs`` (shipped in ``core/exchange/scripts``)
-builds the TerrainLayers, TerrainData and terrain objects from
-``terratheme_unity.json`` inside the Unity editor, and gives every terrain
-its colour map when the export folder holds a ``TerrathemeTerrain.mat``
-material with a ``_ColourMap`` texture (``docs/engines.md``).
+:func:`core.exchange.colour.unity_colour_st`), and the export ships the
+editor script and shaders of :data:`UNITY_SCRIPTS` (from
+``core/exchange/scripts``): ``Editor/TerrathemeImporter.cs`` builds the
+TerrainLayers, TerrainData and terrain objects from ``terratheme_unity.json``
+inside the Unity editor and gives every terrain a material that multiplies
+the blended layers by the colour map's gain, as terratheme's renderer does:
+the shipped ``Terratheme/Terrain`` shader (built-in render pipeline), or the
+user's ``TerrathemeTerrain.mat`` (URP, HDRP; ``docs/engines.md``).
 """
 
 from __future__ import annotations
@@ -54,7 +54,14 @@ from terratheme.core.model.project import ThematicTexture
 UNITY_RESOLUTIONS = tuple(1 << k for k in range(4, 13))
 MANIFEST = "terratheme_unity.json"
 SCRIPT = "Editor/TerrathemeImporter.cs"
-SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / "TerrathemeImporter.cs"
+#: the export's editor script and terrain shaders: name in the export, file in ``scripts``
+UNITY_SCRIPTS = {
+    SCRIPT: "TerrathemeImporter.cs",
+    "Shaders/TerrathemeTerrain.shader": "TerrathemeTerrain.shader",
+    "Shaders/TerrathemeTerrainAddPass.shader": "TerrathemeTerrainAddPass.shader",
+    "Shaders/TerrathemeColourMap.cginc": "TerrathemeColourMap.cginc",
+}
+_SCRIPTS = Path(__file__).resolve().parent / "scripts"
 Progress = Callable[[int, int], None]
 
 
@@ -101,8 +108,8 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
     n_splat = -(-len(project.library) // 4)
     files = [f"splatmap_{s}{piece.suffix if layout.tile else ''}.png"
              for piece in layout.pieces() for s in range(n_splat)]
-    return map_plan(project, options, layout, files + theme_files(project) + [SCRIPT], MANIFEST,
-                    notes)
+    files += theme_files(project) + list(UNITY_SCRIPTS)
+    return map_plan(project, options, layout, files, MANIFEST, notes)
 
 
 def splatmaps(weights: np.ndarray) -> list[np.ndarray]:
@@ -139,8 +146,9 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
             tile["colour_map_st"] = unity_colour_st(project, layout, piece)
         tiles.append(tile)
     write_shared_files(project, folder)
-    (folder / SCRIPT).parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(folder / SCRIPT, SCRIPT_SOURCE.read_bytes())
+    for name, source in UNITY_SCRIPTS.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        write_bytes_atomic(folder / name, (_SCRIPTS / source).read_bytes())
     sx, sy = plan.world.texel_size
     layers = []
     for theme, texture in zip(project.library, theme_files(project), strict=True):

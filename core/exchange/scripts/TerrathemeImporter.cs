@@ -12,15 +12,19 @@
 //
 // The colour map (colour_map.png: a gain value / 128 per channel over the blended layers) has no
 // place in Unity's terrain layers. The script imports it (sRGB, clamped, bilinear, uncompressed)
-// and, when the export folder holds a material TerrathemeTerrain.mat whose shader has a
-// _ColourMap texture, gives every terrain a copy of it with _ColourMap set and its tiling/offset
-// (_ColourMap_ST) set to the tile's colour_map_st, plus _ColourGain (4.633 in a Linear colour
-// space project, 255/128 in Gamma) when the shader has it: the shader multiplies its blended
-// albedo by tex2D(_ColourMap, TRANSFORM_TEX(terrainUV, _ColourMap)).rgb * _ColourGain.
+// and gives every terrain its own material with _ColourMap set, its tiling/offset (_ColourMap_ST)
+// set to the tile's colour_map_st and _ColourGain (4.633 in a Linear colour space project,
+// 255/128 in Gamma), from the folder's TerrathemeTerrain.mat when there is one (a material of
+// your own whose shader has a _ColourMap texture), else, in the built-in render pipeline, from the
+// shipped shader Terratheme/Terrain (Shaders/TerrathemeTerrain.shader): Unity's diffuse terrain
+// shader times tex2D(_ColourMap, terrainUV * _ColourMap_ST.xy + _ColourMap_ST.zw).rgb * _ColourGain.
+// URP and HDRP need TerrathemeTerrain.mat (docs/engines.md). Written without a Unity compiler at
+// hand: if Unity reports an error here, please report it with the Unity version.
 #if UNITY_EDITOR
 using System.IO;
 using UnityEditor;
 using UnityEngine;
+using UnityEngine.Rendering;
 
 public static class TerrathemeImporter
 {
@@ -55,6 +59,8 @@ public static class TerrathemeImporter
     {
         public string format;
         public int alphamap_resolution;
+        public int tiles_x;
+        public int tiles_y;
         public float[] tile_world_size;
         public Layer[] layers;
         public Tile[] tiles;
@@ -96,6 +102,8 @@ public static class TerrathemeImporter
         Texture2D colour;
         Material template = ColourMaterial(folder, manifest, out colour);
         int resolution = manifest.alphamap_resolution;
+        float farthest = 4f * (manifest.tile_world_size[0] * manifest.tiles_x
+                               + manifest.tile_world_size[1] * manifest.tiles_y);
         GameObject root = new GameObject("Terratheme terrain");
         foreach (Tile tile in manifest.tiles)
         {
@@ -123,6 +131,8 @@ public static class TerrathemeImporter
                         ? manifest.colour_map.linear_gain : 255f / 128f);
                 AssetDatabase.CreateAsset(material, folder + "/" + name + ".mat");
                 terrain.GetComponent<Terrain>().materialTemplate = material;
+                // Beyond this distance Unity draws a baked base map, without the colour map.
+                terrain.GetComponent<Terrain>().basemapDistance = farthest;
             }
         }
         AssetDatabase.SaveAssets();
@@ -130,8 +140,10 @@ public static class TerrathemeImporter
         Selection.activeGameObject = root;
     }
 
-    // Imports colour_map.png for sampling as a colour texture; returns TerrathemeTerrain.mat when
-    // the folder has one with a _ColourMap texture, else null (and says what to do).
+    // Imports colour_map.png for sampling as a colour texture; returns the material every terrain
+    // gets a copy of: the folder's TerrathemeTerrain.mat when it has a _ColourMap texture, else, in
+    // the built-in render pipeline, a material of the shipped Terratheme/Terrain shader; else null
+    // (and says what to do).
     static Material ColourMaterial(string folder, Manifest manifest, out Texture2D colour)
     {
         colour = null;
@@ -144,18 +156,25 @@ public static class TerrathemeImporter
             importer.sRGBTexture = true;
             importer.wrapMode = TextureWrapMode.Clamp;
             importer.filterMode = FilterMode.Bilinear;
+            importer.mipmapEnabled = false;
+            importer.npotScale = TextureImporterNPOTScale.None;
             importer.textureCompression = TextureImporterCompression.Uncompressed;
             importer.SaveAndReimport();
         }
         colour = AssetDatabase.LoadAssetAtPath<Texture2D>(path);
         Material template = AssetDatabase.LoadAssetAtPath<Material>(folder + "/TerrathemeTerrain.mat");
-        if (template == null || !template.HasProperty("_ColourMap"))
-        {
-            Debug.Log(path + ": imported. To show the colour map, save a terrain material whose shader has a "
-                + "_ColourMap texture as TerrathemeTerrain.mat in this folder and build again (docs/engines.md)");
-            return null;
-        }
-        return template;
+        if (template != null && template.HasProperty("_ColourMap"))
+            return template;
+        if (template != null)
+            Debug.LogWarning(folder + "/TerrathemeTerrain.mat: its shader has no _ColourMap texture");
+        Shader shipped = Shader.Find("Terratheme/Terrain");
+        if (GraphicsSettings.currentRenderPipeline == null && shipped != null)
+            return new Material(shipped);
+        Debug.Log(path + ": imported. To show the colour map "
+            + (shipped == null ? "copy the export's Shaders folder too, or " : "in URP or HDRP, ")
+            + "save a terrain material whose shader has a _ColourMap texture as TerrathemeTerrain.mat "
+            + "in this folder and build again (docs/engines.md)");
+        return null;
     }
 
     // Texture2D.LoadImage puts the PNG's top row (north) at the top; GetPixels32 returns rows
