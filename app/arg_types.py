@@ -1,8 +1,6 @@
 """Argument types the subcommands share: integers joined by a separator (``WxH``, ``x,y,w,h``).
 
-Each is an argparse ``type=``: it returns the parsed tuple, or raises
-``argparse.ArgumentTypeError`` with one line naming the expected form, which
-argparse prints after the option's name (exit 2).
+Each raises ``argparse.ArgumentTypeError`` with one line naming the expected form (exit 2).
 """
 
 from __future__ import annotations
@@ -15,22 +13,8 @@ def int_tuple(what: str, form: str, count: int, separator: str = "x", *,
               one_for_all: bool = False) -> Callable[[str], tuple[int, ...]]:
     """An argparse type: ``count`` integers joined by ``separator`` (case-insensitive).
 
-    Parameters
-    ----------
-    what, form : str
-        The message on bad text: ``"{what} must be {form}, got '{text}'"``.
-    count : int
-        How many integers.
-    separator : str
-    one_for_all : bool
-        One integer alone stands for all ``count`` of them (``16`` is ``16x16``).
-
-    Examples
-    --------
-    >>> int_tuple("size", "WxH", 2)("640X360")
-    (640, 360)
-    >>> int_tuple("cell", "N or NxM", 2, one_for_all=True)("16")
-    (16, 16)
+    Bad text: ``"{what} must be {form}, got '{text}'"``. ``one_for_all``: one integer
+    alone stands for all of them (``16`` is ``16x16``).
     """
 
     def parse(text: str) -> tuple[int, ...]:
@@ -50,13 +34,7 @@ def int_tuple(what: str, form: str, count: int, separator: str = "x", *,
 
 
 def unit_fraction(what: str) -> Callable[[str], float]:
-    """An argparse type: a number in (0, 1] (``what`` names it in the message).
-
-    Examples
-    --------
-    >>> unit_fraction("scale")("0.25")
-    0.25
-    """
+    """An argparse type: a number in (0, 1] (``what`` names it in the message)."""
 
     def parse(text: str) -> float:
         try:
@@ -75,6 +53,5 @@ LEGEND_FORMS = ('(JSON {"1": "Building", ...}, a list of {"id", "name"} or CSV l
 
 
 def add_legend_option(parser: argparse.ArgumentParser, names: str) -> None:
-    """``--legend FILE``: the class names of a mask (:mod:`core.io.legend`); ``names`` says
-    what they name, for the help text."""
+    """``--legend FILE``: a mask's class names; ``names`` says what they name (help text)."""
     parser.add_argument("--legend", metavar="FILE", help=f"{names} {LEGEND_FORMS}")

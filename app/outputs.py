@@ -1,11 +1,7 @@
 """Output paths, checked before a command starts its work.
 
-Every command calls :func:`check_outputs` right after reading its arguments,
-with every file it may write (sidecars included), so a bad output path costs
-no work: a path that is a folder, an output that is also an input (the same
-path after links, or the same file by another name), two outputs on one path,
-a symlink loop, a symlinked subfolder of an output folder, or a folder that
-cannot be made or written. Missing output folders are made (every command alike).
+Every command calls :func:`check_outputs` with every file it may write (sidecars
+included) right after reading its arguments, so a bad output path costs no work.
 """
 
 from __future__ import annotations
@@ -52,26 +48,12 @@ def _check_subfolders(out: Path, folder: Path) -> None:
 def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
                   inputs: Iterable[str | os.PathLike | None] = (),
                   folder: str | os.PathLike | None = None) -> list[Path]:
-    """Check (and prepare the folders of) the files a command will write.
+    """Check the files a command will write and make their folders; returns the non-None
+    ``outputs``.
 
-    Parameters
-    ----------
-    outputs : paths (None entries are skipped): every file the command may write
-    inputs : paths the command reads (None entries are skipped)
-    folder : path, optional
-        The output folder the outputs lie in (an export): none of its
-        subfolders on the way to an output may be a symbolic link.
-
-    Returns
-    -------
-    outputs : list of Path, the non-None outputs
-
-    Raises
-    ------
-    TerrathemeError
-        An output is a folder, is one of the inputs, appears twice, lies
-        under a symlinked subfolder of ``folder``, a path is a symlink loop,
-        or an output's folder cannot be made or is not writable.
+    TerrathemeError when an output is a folder, an input (after links, or by inode), named
+    twice, under a symlinked subfolder of ``folder`` (an export's), a symlink loop, or in a
+    folder that cannot be made or written. None entries are skipped.
     """
     outs = [Path(p) for p in outputs if p is not None]
     ins = [(Path(p), _resolved(Path(p)), _file_id(Path(p))) for p in inputs if p is not None]
@@ -113,9 +95,8 @@ def check_image_outputs(paths: Iterable[str | os.PathLike | None]) -> None:
 
 def check_mask_sizes(pairs: Iterable[tuple[str | os.PathLike, str | os.PathLike]],
                      what: str = "label mask") -> None:
-    """Refuse a ``(photo, mask)`` pair whose sizes differ, from the two files' headers
-    (before any pixel is read or any work starts); the message names both files and
-    calls the mask ``what``."""
+    """Refuse a ``(photo, mask)`` pair whose sizes differ, from the files' headers (before
+    any work); the message calls the mask ``what``."""
     from terratheme.core.io.images import image_info
 
     for photo, mask in pairs:

@@ -1,10 +1,7 @@
 """Progress on a terminal as the ``progress(done, total)`` callback core takes.
 
-Every long core call takes ``progress(done, total)``; the commands show it as
-a tqdm bar that goes away when the work ends (``leave=False``). Where the
-bar's stream is not a terminal (a log, a pipe) no bar is drawn: each stage
-writes one line as it ends (``render: 2.4 s``), so a log holds no carriage
-returns.
+A tqdm bar that goes away when the work ends; on a log or pipe, one line per stage as
+it ends (``render: 2.4 s``), so a log holds no carriage returns.
 """
 
 from __future__ import annotations
@@ -25,11 +22,8 @@ def _is_terminal(stream) -> bool:
 
 
 class StageBar(tqdm):
-    """A tqdm bar on a terminal; elsewhere one line per stage (each description) as it ends.
-
-    A stage that ends by an exception writes no line (the command's error line
-    says what happened).
-    """
+    """A tqdm bar on a terminal; elsewhere one line per stage (each description) as it ends
+    (none for a stage ended by an exception: the error line says what happened)."""
 
     def __init__(self, *args, **kwargs) -> None:
         self._stream = kwargs.get("file") or sys.stderr
@@ -68,18 +62,8 @@ class StageBar(tqdm):
 @contextmanager
 def progress_bar(desc: str, total: int | None = 1, **options
                  ) -> Iterator[Callable[[int, int], None]]:
-    """A :class:`StageBar` shown while the ``with`` block runs, as a ``progress(done, total)``
-    callback.
-
-    Parameters
-    ----------
-    desc : str
-        The bar's label.
-    total : int or None
-        The first total shown (each call sets it again).
-    **options
-        Further tqdm options (``unit``, ``disable``).
-    """
+    """A :class:`StageBar` labelled ``desc`` while the ``with`` block runs, as a
+    ``progress(done, total)`` callback; ``options`` go to tqdm."""
     with StageBar(total=total, desc=desc, **options) as bar:
 
         def progress(done: int, total: int) -> None:

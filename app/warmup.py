@@ -1,15 +1,10 @@
 """Compile the numba kernels once (``python -m terratheme.app.warmup``, run by ``setup.sh``).
 
-Every kernel is ``cache=True``: the machine code lands beside the sources
-(or in ``NUMBA_CACHE_DIR``, or numba's per-user cache when site-packages is
-not writable). The default parts are what ``convert``, ``render``, ``export``
-and the editor run, so none of them compiles at its first use; they run in
-two processes on two cores. ``packing`` (every lookup and container format)
-and ``perspective`` (every filter) are compiled at their first use unless
-named. ``--if-changed`` does nothing when a stamp says the same kernel
-sources were compiled by the same numba; when they changed, the old caches
-go first (numba notices edits to a kernel's own file only, not to the
-kernels it inlines from other files).
+Every kernel is ``cache=True``. The default parts are what ``convert``, ``render``,
+``export`` and the editor run, compiled in two processes; ``packing`` and
+``perspective`` compile at first use unless named. ``--if-changed`` does nothing when
+a stamp says the same sources were compiled by the same numba; otherwise the old
+caches go first (numba sees edits to a kernel's own file only, not to what it inlines).
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Classification on a worker thread, with progress and Cancel.
 
-The job runs :func:`core.edit.classification.run_classification` (the
-classifier, then its labels as a vertex grid) off the GUI thread; the window
-applies the result as one undoable step. Cancel is cooperative: the progress
-callback raises inside the classifier at its next tile, and a result that
-arrives after Cancel is dropped.
+:func:`core.edit.classification.run_classification` runs off the GUI thread; the window
+applies the result as one undoable step. Cancel is cooperative: the progress callback
+raises at the classifier's next tile, and a result after Cancel is dropped.
 """
 
 from __future__ import annotations
@@ -17,11 +15,8 @@ _LIVE: set[QThread] = set()
 
 
 def keep_alive(thread: QThread) -> QThread:
-    """Hold a reference to a parentless worker thread until it finishes.
-
-    Workers have no Qt parent, so closing a window never destroys a thread
-    that is still running (Qt aborts the process when that happens).
-    """
+    """Hold a parentless worker thread until it finishes (Qt aborts on a running thread
+    destroyed with its window)."""
     _LIVE.add(thread)
     thread.finished.connect(lambda: _LIVE.discard(thread))
     return thread

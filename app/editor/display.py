@@ -1,11 +1,8 @@
 """Whether Qt can open a window here, checked before Qt is started.
 
-Qt ends the process with an abort (exit 134 and a page of plugin hints) when
-its platform plugin cannot start: no ``DISPLAY``, an X server that does not
-answer or has no such screen, or a system library the xcb plugin needs
-missing. The editor checks those first, so a user gets one line naming the
-problem (exit 2). A screenshot needs no display: without one it is drawn
-offscreen.
+Qt aborts (exit 134, a page of plugin hints) when its platform plugin cannot start, so
+the editor checks the display, the X server and the xcb plugin's libraries first and
+prints one line (exit 2). A screenshot without a display is drawn offscreen.
 """
 
 from __future__ import annotations
@@ -37,22 +34,11 @@ CONNECT_TIMEOUT_S = 3.0
 
 
 def display_problem(env: Mapping[str, str] | None = None) -> str | None:
-    """Why Qt could not open a window with this environment, or None when it can.
+    """Why Qt could not open a window with ``env`` (default ``os.environ``), or None.
 
-    Only Linux's X11 path (Qt's default there) is checked: an explicit headless
-    platform (``QT_QPA_PLATFORM=offscreen`` ...), a Wayland session and other
-    systems are left to Qt.
-
-    Parameters
-    ----------
-    env : mapping of str to str, optional
-        The environment Qt will see (default: ``os.environ``).
-
-    Returns
-    -------
-    problem : str or None
-        One line naming what is missing: the display variable, a library of the
-        xcb plugin (with its Debian package), the server or its screen.
+    One line naming the missing display variable, xcb library (with its Debian package),
+    server or screen. Only Linux's X11 path is checked; headless platforms, Wayland and
+    other systems are left to Qt.
     """
     env = os.environ if env is None else env
     platform = env.get("QT_QPA_PLATFORM", "").split(":")[0].strip().lower()
@@ -146,13 +132,8 @@ def _server_problem(ctypes, display: str) -> str | None:
 
 
 def prepare_display(*, screenshot: bool) -> None:
-    """Make sure Qt can start: for a screenshot, offscreen when there is no usable display.
-
-    Raises
-    ------
-    TerrathemeError
-        No usable display for the editor's window (:func:`display_problem`).
-    """
+    """Make sure Qt can start: for a screenshot, offscreen when there is no usable display;
+    else TerrathemeError naming the problem."""
     problem = display_problem()
     if problem is None:
         return

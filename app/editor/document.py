@@ -1,19 +1,10 @@
 """The open project as the window sees it: the core document, Qt signals and images.
 
-``EditorDocument`` wraps one :class:`core.edit.EditDocument` (``.model``),
-which holds everything that is edited (grid, themes, scribbles, photo,
-confidence, kept prior) and the one undo history. This class only forwards:
-it turns the model's plain-Python events into Qt signals and keeps the
-images the canvases draw (index colours, the live :class:`RenderPreview`,
-photo and fidelity pyramids) current, refreshing only what an event names.
-
-Undo: the core history is the single source of truth and Qt only displays
-it. Edit > Undo / Redo call ``model.undo()`` / ``model.redo()`` and take
-their text and enabled state from the model's history events; there is no
-QUndoStack. A QUndoStack mirror would need a command for every kind of core
-change and a "first redo does nothing" rule for edits applied while the
-mouse moves, and two histories can disagree (Ctrl+Z during a stroke); one
-history also keeps every undo rule testable without Qt.
+``EditorDocument`` wraps one :class:`core.edit.EditDocument` (``.model``), which holds
+everything edited and the one undo history. It only forwards: the model's events become
+Qt signals, and the images the canvases draw are refreshed where an event says. Undo /
+Redo call the model's (no QUndoStack: two histories could disagree, and one keeps every
+undo rule testable without Qt).
 """
 
 from __future__ import annotations

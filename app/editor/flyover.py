@@ -1,16 +1,9 @@
 """The fly-over view of the Perspective tab: the GPU renderer on the ground plane, flown live.
 
-Two views draw the same :class:`core.gpu.GroundView`:
-
-* :class:`FlyoverGL`, a ``QOpenGLWidget`` whose Qt OpenGL 3.3 context moderngl
-  adopts (``moderngl.create_context()``): frames go straight to the screen;
-* :class:`FlyoverImage`, where Qt has no OpenGL context (a remote or
-  offscreen session): frames drawn headless on the EGL context
-  (:func:`core.gpu.gl_context`) and shown as images.
-
-:class:`FlightDriver` turns keys, mouse drags and the wheel into
-:class:`core.gpu.Flight` moves for either view (the flight logic itself is
-Qt-free, in ``core.perspective.flight``).
+:class:`FlyoverGL` draws a :class:`core.gpu.GroundView` on Qt's own OpenGL context,
+straight to the screen; :class:`FlyoverImage`, where Qt has no OpenGL (a remote or
+offscreen session), draws it headless and shows images. :class:`FlightDriver` turns
+keys, drags and the wheel into flight moves for either.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """numpy images shown in Qt without copies, with a mip pyramid for zoomed-out views.
 
-A :class:`ZoomPyramid` wraps an ``(H, W, 3) uint8`` array as a QImage sharing its
-memory (edits to the array show at the next paint) plus 2x-downsampled levels
-used when the view is zoomed out, so painting a 16384 x 16384 render costs
-what the screen shows, not what the map holds. ``update_region`` refreshes the
-levels over a texel rectangle after an edit.
+A :class:`ZoomPyramid` shares an ``(H, W, 3) uint8`` array's memory as a QImage (edits
+show at the next paint) and keeps 2x-downsampled levels for zoomed-out views, so a paint
+costs what the screen shows, not what the map holds.
 """
 
 from __future__ import annotations
@@ -18,10 +16,8 @@ _MIN_LEVEL_SIZE = 512
 
 
 def qimage_view(arr: np.ndarray) -> QImage:
-    """A QImage sharing the memory of ``arr`` ((H, W, 3) or (H, W, 4) C-contiguous uint8).
-
-    The caller keeps ``arr`` alive as long as the image is used.
-    """
+    """A QImage sharing the memory of ``arr`` ((H, W, 3|4) C-contiguous uint8), which the
+    caller keeps alive while the image is used."""
     if arr.dtype != np.uint8 or arr.ndim != 3 or not arr.flags.c_contiguous:
         raise ValueError(
             f"need a C-contiguous (H, W, 3|4) uint8 array, got {arr.shape} {arr.dtype}")
@@ -33,12 +29,8 @@ def qimage_view(arr: np.ndarray) -> QImage:
 class ZoomPyramid:
     """An image and its 2x box-filtered levels, drawn into a texel rectangle.
 
-    Parameters
-    ----------
-    base : (H, W, 3) uint8 ndarray
-        Level 0, shared (not copied).
-    extent : (width, height) of the texel rectangle the image covers.
-    origin : (x, y) texel position of the image's top-left corner.
+    ``base`` (H, W, 3) uint8 is level 0, shared; ``extent`` (width, height) and ``origin``
+    (x, y, top-left) place it in texels.
     """
 
     def __init__(self, base: np.ndarray, extent: tuple[float, float] | None = None,
@@ -78,11 +70,8 @@ class ZoomPyramid:
 
     def draw(self, painter: QPainter, visible: QRectF, scale: float, opacity: float = 1.0,
              smooth: bool = True) -> None:
-        """Draw the part of the image inside ``visible`` (texel coordinates).
-
-        ``painter`` maps texels to screen pixels already; ``scale`` is screen
-        pixels per texel, which picks the pyramid level.
-        """
+        """Draw the part of the image inside ``visible`` (texels); ``painter`` maps texels to
+        the screen already, ``scale`` (screen pixels per texel) picks the level."""
         ox, oy = self.origin
         ew, eh = self.extent
         target = QRectF(ox, oy, ew, eh).intersected(visible)

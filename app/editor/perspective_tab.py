@@ -1,13 +1,9 @@
 """The Perspective tab: a real-time fly-over of the textured ground, and the CPU filters beside it.
 
-The fly-over (``app.editor.flyover``) draws the open project in its own style
-with the GPU renderer's filtered path (mipmaps, anisotropic filtering) on
-Qt's OpenGL context, or headless with EGL where Qt has none; keys, mouse and
-wheel fly it (``core.perspective.flight``), a grey height map displaces it, and it
-follows edits live (a stroke re-uploads the cells it touched). One click (or
-C) shows the same camera through one of the CPU preview's filters
-(``core.perspective``), rendered on a worker thread from the project's render
-(reduced to at most ``MAX_TEXTURE`` texels a side).
+The fly-over (:mod:`.flyover`) draws the open project with the GPU's filtered path,
+displaced by a grey height map if given, and follows edits live. One click (or C) shows
+the same camera through a CPU preview filter, rendered on a worker thread from the
+project's render (at most ``MAX_TEXTURE`` texels a side).
 """
 
 from __future__ import annotations

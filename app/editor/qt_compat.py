@@ -1,18 +1,10 @@
 """Work around a PySide6 reference-count bug that crashes long Qt sessions.
 
-PySide6-Essentials 6.12.0 on CPython 3.11 drops one reference to ``None``
-every time Python calls a C++ method that returns ``void`` (``update()``,
-``setWindowTitle()``, ``QPainter.drawImage()``, ``processEvents()`` ...,
-measured here: 300 calls -> ``sys.getrefcount(None)`` falls by 300). After a
-few thousand such calls — seconds of painting — ``None``'s count reaches zero
-and the interpreter aborts with "Fatal Python error: none_dealloc".
-
-CPython 3.12+ makes ``None`` immortal, so the bug is harmless there. On older
-interpreters :func:`guard_none_refcount` measures the leak once and, only if
-it is present, gives ``None`` a huge reference count (what 3.12 does), so the
-leak can never bring it to zero. ``None`` is a static object that is never
-freed, so the extra count has no other effect. The real fix is a PySide6
-without the bug (see the editor's report).
+PySide6-Essentials 6.12.0 on CPython 3.11 drops one reference to ``None`` on every
+call of a C++ method returning ``void``; after seconds of painting the interpreter
+aborts ("Fatal Python error: none_dealloc"). CPython 3.12+ makes ``None`` immortal.
+Before it, :func:`guard_none_refcount` tests for the leak once and, if present, gives
+``None`` a huge reference count (what 3.12 does; ``None`` is never freed anyway).
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """The editor's main window: canvases, palette, tools, menus and status bar.
 
-The menus (File, Edit, View, Classify, Help) and View > Show uncertainty (a
-translucent tint where the last classification was least sure; which pixels
-are uncertain is decided in :mod:`core.edit.uncertainty`) are part of it.
+View > Show uncertainty tints where the last classification was least sure
+(:mod:`core.edit.uncertainty` decides which pixels).
 """
 
 from __future__ import annotations
