@@ -1,11 +1,7 @@
 """The renderer: an index grid and its themes to the full-resolution texture (design.md §1).
 
-Modules: ``rules`` (splits, the saddle rule, barycentric weights),
-``renderer`` (full resolution or any region: ``render_cells``,
-``render_labels``), ``kernels`` (the numba row loops), ``theme_pack`` (themes
-laid out for the kernels), ``overview`` (reduced resolution without rendering
-full resolution first), ``project`` (a project at any scale), ``inputs`` (the
-checks every renderer shares).
+Modules: ``rules`` (splits, weights), ``renderer``, ``kernels`` (numba row loops),
+``theme_pack``, ``overview`` (reduced resolution), ``project``, ``inputs`` (shared checks).
 """
 
 from terratheme.core.render.overview import render_overview

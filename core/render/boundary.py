@@ -1,35 +1,25 @@
 """Boundaries shaped by the themes' content and deterministic noise (beyond the paper's ramp).
 
-The paper gives every region "a pointer to a theme and a procedure for
-generating its boundaries" (thematic_textures.txt); its procedure, the
-barycentric blend, smears every border over a whole cell along the
-triangle edges, and a single odd vertex reads as a diamond (issue 13). Here
-a border is a narrow, irregular edge instead, decided per texel of a mixed
-cell, all in integers (units of 1/1024 of a weight) so every renderer and
-every region agrees exactly:
+The paper's barycentric blend smears every border over a whole cell and a single
+odd vertex reads as a diamond. Here a border is a narrow, irregular edge, decided
+per texel of a mixed cell in integers (units of 1/1024 of a weight) so every
+renderer and region agrees exactly:
 
 1. the barycentric weight of each distinct theme of the cell's triangle
    (:mod:`core.render.rules`), ``w_t = floor(1024 * W_t / D)``;
 2. a score per theme: ``s_t = w_t + A * n_t(X, Y) + H * (luma_t(X, Y) - 128) * 4``,
-   with ``n_t`` value noise in ``[-512, 508]`` on a lattice of ``L`` texels
-   (bilinear between hashed lattice values, one field per theme index and
-   ``seed``, a function of global texel coordinates only: no seams, region
-   renders are crops), and ``luma_t`` the theme's own luminance at the texel
-   (``(77 R + 150 G + 29 B) >> 8``: bright sand grains, dark gaps between
-   shrubs break the edge the way engines' height blending does);
-   ``A = noise / 256``, ``H = height / 256``;
-3. the transition: ``v_t = max(0, s_t - max_u s_u + W)`` over the themes of
-   non-zero weight, with ``W`` the border width in weight units
-   (``1024 * width_texels / ((N + M) / 2)``, at most 0.4 of a weight), and the
-   texel ``sum(v_t * T_t) / sum(v_t)`` rounded half up.
+   with ``n_t`` value noise in ``[-512, 508]`` on a lattice of ``L`` texels (one
+   field per theme index and ``seed``, of global texel coordinates only: no seams),
+   ``luma_t = (77 R + 150 G + 29 B) >> 8`` the theme's own luminance at the texel
+   (as engines' height blending), ``A = noise / 256``, ``H = height / 256``;
+3. the transition ``v_t = max(0, s_t - max_u s_u + W)`` over the themes of non-zero
+   weight, ``W`` the border width in weight units (``1024 * width / ((N + M) / 2)``,
+   at most 0.4 of a weight), and the texel ``sum(v_t * T_t) / sum(v_t)`` rounded half up.
 
-A theme of zero weight cannot compete as long as noise and height move a
-score by at most ``(1/2 - W) / 2`` each way (the other themes' best is at
-least 1/2 minus that where a weight vanishes): :meth:`BoundaryOptions.parameters`
-scales ``A`` and ``H`` down to that budget on small cells. So the render is
-continuous across every cell edge and diagonal (no seams), the texel on a
-vertex keeps that vertex's theme exactly, and uniform cells are copied as
-in the paper's rule.
+A theme of zero weight cannot compete while noise and height move a score by at
+most ``(1/2 - W) / 2`` each way (:meth:`BoundaryOptions.parameters` scales ``A`` and
+``H`` to that budget), so the render is continuous across every cell edge and
+diagonal, a vertex's texel keeps its theme and uniform cells are copied.
 """
 
 from __future__ import annotations
@@ -59,18 +49,10 @@ MAX_WIDTH = 409
 class BoundaryOptions:
     """How borders between themes are drawn (see the module docstring).
 
-    Attributes
-    ----------
-    width : float
-        Width of a border in texels (the paper's ramp is a whole cell).
-    noise : int
-        Amplitude of the noise that moves a border, in 1/256 of a weight (0..255).
-    height : int
-        Weight of the themes' own luminance, in 1/256 (0..255).
-    features : float
-        Noise features per cell side (the lattice is ``(N + M) / 2 / features`` texels, >= 2).
-    seed : int
-        Seed of the noise fields (0 .. 2^31 - 1).
+    ``width``: border width in texels (the paper's ramp is a whole cell); ``noise``,
+    ``height``: amplitudes of the noise and of the themes' own luminance, in 1/256
+    of a weight (0..255); ``features``: noise features per cell side (the lattice is
+    ``(N + M) / 2 / features`` texels, >= 2); ``seed``: 0 .. 2^31 - 1.
     """
 
     width: float = 3.0
@@ -244,15 +226,10 @@ def shaped_weight_rows(ids, weights, denom, xs, ys, block, edge, themes, params
                        ):  # pragma: no cover - numba
     """Fill the slots of pixels at texel columns ``xs`` and rows ``ys`` with the ``v_t``.
 
-    ``ids`` (4, h, w) uint8 and ``weights`` (4, h, w) int64 get every pixel's
-    corner themes and their ``v_t`` (0 for a corner merged into an earlier one
-    of its theme or out of the border), ``denom`` (h, w) int64 their sum.
-    ``block`` a :class:`core.render.kernels.RegionBlock` of the whole grid,
-    ``edge`` the same offset by one cell row (for the far edge row ``Htex``),
-    ``themes`` :class:`core.render.kernels.ThemeRows`, ``params``
-    :class:`BoundaryParams`. The weights at texel ``(x, y)`` are
-    ``v_t / denom``: those of :func:`shaped_rows` there (the exports and the
-    overview renderer read them).
+    ``ids`` (4, h, w) uint8 and ``weights`` (4, h, w) int64 get every pixel's corner
+    themes and their ``v_t`` (0 for a corner merged into an earlier one of its theme
+    or out of the border), ``denom`` (h, w) int64 their sum; ``edge`` is ``block``
+    offset by one cell row (for the far edge row).
     """
     grid, splits, ocx, ocy, rx, ry, n, m = block
     flat = themes[0]
@@ -294,23 +271,10 @@ def shaped_weights(indices: np.ndarray, splits: np.ndarray, textures: list[np.nd
                    params: BoundaryParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The shaped blend's weights at texels ``xs`` (columns) x ``ys`` (rows) of the whole grid.
 
-    Parameters
-    ----------
-    indices : (gh+1, gw+1) uint8 ndarray
-    splits : (gh, gw) uint8 ndarray
-        ``cell_splits(indices, saddle)``.
-    textures : list of (h, w, 3) uint8 ndarrays
-    cell : (N, M)
-    xs, ys : int64 ndarrays
-        Texel columns in ``0..gw*N`` and rows in ``0..gh*M`` (the far edge included).
-    params : BoundaryParams
-
-    Returns
-    -------
-    ids, weights : (4, len(ys), len(xs)) uint8 and int64 ndarrays
-        Each texel's corner themes and their ``v_t``.
-    denom : (len(ys), len(xs)) int64 ndarray
-        ``sum(v_t)``; the weight of slot ``a`` is ``weights[a] / denom``.
+    ``xs``, ``ys`` int64 in ``0..gw*N`` and ``0..gh*M`` (far edge included); ``splits``
+    is ``cell_splits(indices, saddle)``. Returns ``ids, weights`` ``(4, len(ys),
+    len(xs))`` uint8 / int64 (corner themes and their ``v_t``) and ``denom`` int64
+    ``sum(v_t)``: slot ``a`` weighs ``weights[a] / denom``.
     """
     n, m = (int(v) for v in cell)
     gh = indices.shape[0] - 1

@@ -18,15 +18,8 @@ from terratheme.core.model.colour_map import NEUTRAL, ColourMap
 
 
 def axis_weights(start: int, length: int, scale: int, size: int) -> tuple[np.ndarray, ...]:
-    """Map indices and integer weights of texels ``start .. start+length-1`` along one axis.
-
-    Returns
-    -------
-    i0, i1 : (length,) int64 ndarrays
-        The two map pixels each texel interpolates (equal at the edges).
-    w0, w1 : (length,) int64 ndarrays
-        Their weights, summing to ``2 * scale``.
-    """
+    """Map indices ``i0, i1`` and integer weights ``w0, w1`` (summing to ``2 * scale``),
+    all ``(length,)`` int64, of texels ``start .. start+length-1`` along one axis."""
     t = 2 * (start + np.arange(length, dtype=np.int64)) + 1 - scale
     two = 2 * scale
     i0 = np.floor_divide(t, two)
@@ -77,20 +70,7 @@ class RegionGain:
 
 def apply_colour_map(image: np.ndarray, colour_map: ColourMap,
                      region: tuple[int, int, int, int]) -> np.ndarray:
-    """Multiply a rendered region by the colour map, in place.
-
-    Parameters
-    ----------
-    image : (h, w, 3) uint8 C-contiguous ndarray
-        The render of ``region``.
-    colour_map : ColourMap
-    region : (x, y, w, h)
-        Global texels of ``image``.
-
-    Returns
-    -------
-    image : the same array
-    """
+    """Multiply ``image`` (h, w, 3) uint8, the render of global ``region``, by the map in place."""
     RegionGain(colour_map, region).apply(image, 0, image.shape[0])
     return image
 

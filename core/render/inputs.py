@@ -14,16 +14,8 @@ from terratheme.core.themes.library import Theme, validate_texture
 
 
 def theme_textures(themes: object) -> list[np.ndarray]:
-    """Validate a theme sequence (arrays or :class:`Theme`) into uint8 ``(h, w, 3)`` arrays.
-
-    Parameters
-    ----------
-    themes : sequence of (h, w, 3|4) uint8 ndarray or Theme
-
-    Returns
-    -------
-    textures : list of (h, w, 3) uint8 ndarray
-    """
+    """Validate a theme sequence (``(h, w, 3|4)`` uint8 arrays or :class:`Theme`) into
+    ``(h, w, 3)`` uint8 arrays."""
     if themes is None or isinstance(themes, np.ndarray) and themes.ndim not in (1, 4):
         raise TerrathemeError(
             "themes must be a sequence of (h, w, 3) textures, one per index "

@@ -1,22 +1,12 @@
 """The hot per-texel loops of the renderer (numba, GIL released).
 
-The kernels fill output rows ``[r0, r1)`` of a region (``out`` is the
-``(h, w*3)`` uint8 view of the image) so the caller can run row bands on
-several threads (``nogil``); they share one data layout:
-
-* themes are packed in one flat buffer, theme ``k`` at ``off[k]`` with row
-  stride ``stride[k]`` (elements), ``h[k]`` rows and ``w[k]`` columns,
-  **pre-tiled horizontally** to ``w[k] + N`` columns so the texels of one
-  cell row are one contiguous slice: uniform cells are copied, never
-  gathered (the speed trick the issue names);
-* ``grid`` holds the vertex indices and ``splits`` the per-cell split
-  (``core.render.rules``) of the cells from ``(ocy, ocx)`` on (the region's
-  block of the grid); weights are the exact integers of
-  ``corner_weights`` (local coordinates times ``D = N*M``).
-
-The linear kernel rounds the exact blend half up with a multiply-shift
-reciprocal (``(2v + D) * mag >> sh == (2v + D) // (2D)``, exact; see
-``division_magic``) so no integer division runs per texel.
+The kernels fill output rows ``[r0, r1)`` of a region (``out`` the ``(h, w*3)``
+uint8 view) so row bands can run on several threads. Themes are packed in one flat
+buffer, theme ``k`` at ``off[k]`` with row stride ``stride[k]``, **pre-tiled
+horizontally** to ``w[k] + N`` columns so a cell row is one contiguous slice
+(uniform cells are copied, never gathered). Weights are the exact integers of
+``corner_weights``; the linear kernel rounds half up with a multiply-shift
+reciprocal (``(2v + D) * mag >> sh == (2v + D) // (2D)``, :func:`division_magic`).
 """
 
 from __future__ import annotations
@@ -162,14 +152,10 @@ _TABLE_CACHE_BYTES = 8 << 20
 
 
 def weight_tables(n: int, m: int, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-byte corner weights of cell rows: ``tab (2, R, 4, 3*N) int32`` and ``trow (M,) int32``.
+    """Per-byte corner weights of cell rows: ``tab (2, R, 4, 3*N) int32``, ``trow (M,) int32``.
 
-    ``tab[s, trow[ys], c, 3*xs + ch]`` is corner ``c``'s weight (times ``D``;
-    corners in the order ``ind[0][0], [0][1], [1][0], [1][1]``) at texel
-    ``(xs, ys)`` of a cell split along the main (``s = 0``) or anti (``s = 1``)
-    diagonal, repeated for the three channels so the blend loop runs over
-    bytes. ``rows`` limits the table to those ``ys`` (huge cells); the full
-    table of small cells is cached.
+    ``tab[s, trow[ys], c, 3*xs + ch]``: corner ``c``'s weight (times ``D``) at texel
+    ``(xs, ys)`` split main (``s = 0``) or anti (1); ``rows`` limits it to those ``ys``.
     """
     if rows is None:
         if 96 * n * m <= _TABLE_CACHE_BYTES:

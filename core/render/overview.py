@@ -1,24 +1,15 @@
-"""Reduced-resolution render for overviews (what a user sees zoomed out).
+"""Reduced-resolution render for overviews, never rendering full resolution first.
 
-Never renders full resolution first. Each output pixel covers an
-``fx x fy`` footprint of full-resolution texels; its colour is
+Each output pixel covers an ``fx x fy`` footprint of texels; its colour is
 
     sum_k  mean_footprint(weight_k) * mean_footprint(T_k)
 
-(the box-filtered render, assuming the smooth theme weights and the fine
-theme texture are uncorrelated inside one footprint):
-
-* ``mean(weight_k)``: the barycentric weights of ``core.render.rules``
-  (same texel convention, splits and saddle rule as the full render),
-  supersampled ``ceil(2 * fx / N)`` times per axis, enough to follow the
-  piecewise-linear weights when a footprint spans several cells;
-* ``mean(T_k)``: the theme box-filtered with wrapping over the footprint
-  (``scipy.ndimage.uniform_filter``, ``mode="wrap"``), sampled at the
-  footprint centre.
-
-Cost: ``O(output pixels x supersamples x themes present)`` — a 1/8 overview
-of an 8192^2 texture touches 1/64 of the texels. The blend is always linear
-(the histogram-preserving variant only matters at texel scale).
+(the box-filtered render, taking the smooth weights and the fine theme texture as
+uncorrelated inside a footprint). ``mean(weight_k)``: the weights of
+``core.render.rules`` supersampled ``ceil(2 * fx / N)`` times per axis;
+``mean(T_k)``: the theme box-filtered with wrapping (``uniform_filter``) at the
+footprint centre. Cost ``O(output pixels x supersamples x themes present)``; the
+blend is always linear (the histogram-preserving one matters at texel scale only).
 """
 
 from __future__ import annotations
@@ -55,25 +46,12 @@ def render_overview(
     colour_map: ColourMap | None = None,
     boundary: BoundaryOptions | None = None,
 ) -> np.ndarray:
-    """Render ``region`` (full-resolution texels) at ``scale`` output pixels per texel.
+    """Render ``region`` (full-resolution texels) at ``scale`` in (0, 1] output pixels per texel.
 
-    Parameters
-    ----------
-    indices : (gh+1, gw+1) integer array-like
-    textures : sequence of (h, w, 3) uint8 arrays
-    cell : (N, M)
-    region : (x, y, w, h), optional
-    scale : float in (0, 1]
-    colour_map : ColourMap, optional
-        Applied as its gain at every output pixel's centre.
-    boundary : BoundaryOptions, optional
-        Shaped borders (:mod:`core.render.boundary`): the weights are those of
-        the shaped blend at the supersampled texels, sampled finely enough to
-        follow its noise lattice.
-
-    Returns
-    -------
-    image : (max(1, round(h*scale)), max(1, round(w*scale)), 3) uint8 ndarray
+    ``colour_map`` is applied as its gain at every output pixel's centre;
+    ``boundary`` uses the shaped blend's weights, sampled finely enough to follow
+    its noise lattice. Returns ``(max(1, round(h*scale)), max(1, round(w*scale)), 3)``
+    uint8.
     """
     texs = theme_textures(textures)
     grid, (n, m) = prepare_grid(indices, cell, len(texs))

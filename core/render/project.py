@@ -50,21 +50,8 @@ def render_project(
 ) -> np.ndarray:
     """Render a project's texture, or a reduced-resolution overview when ``scale < 1``.
 
-    Parameters
-    ----------
-    project : ThematicTexture
-    region : (x, y, w, h), optional
-        In full-resolution texels.
-    scale : float in (0, 1]
-        Output texels per full-resolution texel; below 1 the overview
-        renderer is used (it never renders full resolution first).
-    options : RenderOptions, optional
-        Default: the project's own style (:func:`project_style`).
-    progress : callable(done, total), optional
-
-    Returns
-    -------
-    image : (round(h*scale), round(w*scale), 3) uint8 ndarray
+    ``region`` is in full-resolution texels; ``options`` default to the project's
+    own style (:func:`project_style`).
     """
     if not (0.0 < float(scale) <= 1.0):
         raise TerrathemeError(f"scale must be in (0, 1], got {scale}")
@@ -82,14 +69,8 @@ def render_project(
 def photo_extent(project: ThematicTexture) -> tuple[int, int]:
     """``(w, h)``: the size of the photo the project was made from, else the texture's.
 
-    A converted project's grid covers whole cells, so its texture can be a
-    little larger than the photo; renders of the project default to the
-    photo's extent (the last cells cut to it) so they lie on its pixel grid.
-
-    Raises
-    ------
-    TerrathemeError
-        ``metadata["photo_size"]`` present but not two positive whole numbers.
+    A converted grid covers whole cells, so its texture can be a little larger than
+    the photo; renders default to the photo's extent so they lie on its pixel grid.
     """
     tw, th = project.grid.texture_size
     size = project.metadata.get("photo_size")
@@ -105,11 +86,10 @@ def photo_extent(project: ThematicTexture) -> tuple[int, int]:
 
 def render_georeference(project: ThematicTexture, region: tuple[int, int, int, int],
                         out_size: tuple[int, int]) -> dict:
-    """The georeference of a render of ``region`` at ``out_size = (w, h)`` pixels.
+    """The georeference of a render of ``region`` at ``out_size = (w, h)`` (``{}`` if none).
 
-    The project's georeference (kept from a GeoTIFF photo) describes texel
-    ``(0, 0)``; the render starts at the region's origin and one output pixel
-    covers ``region w / out w`` texels. ``{}`` when the project has none.
+    The project's georeference describes texel ``(0, 0)``; the render starts at
+    the region's origin, one pixel covering ``region w / out w`` texels.
     """
     geo = project.metadata.get("georeference")
     if not geo:
@@ -121,14 +101,8 @@ def render_georeference(project: ThematicTexture, region: tuple[int, int, int, i
 def load_checked_project(path: str | os.PathLike) -> ThematicTexture:
     """:func:`core.model.project.load_project`, then its render style and photo size checked.
 
-    ``metadata["render"]`` is parsed here (:func:`project_style`), not by core.model,
-    which core.render builds on; a command or the editor that opens a project
-    calls this, so a bad style is one line naming the file before any work.
-
-    Raises
-    ------
-    CorruptFileError
-        A damaged project or a bad render style (the message names ``path``).
+    ``metadata["render"]`` is parsed here, not by core.model (which core.render
+    builds on), so a bad style is one line naming the file before any work.
     """
     project = load_project(path)
     try:

@@ -1,14 +1,9 @@
 """The thematic-texture renderer (Vyatkin & Romanyuk, design.md §1).
 
-``render_cells`` turns a vertex index grid and a theme list into the full
-texture, or any ``region`` of it (exactly the crop of the full render);
-``render_labels`` gives the theme with the largest weight per texel (the
-converter's agreement measure); ``render_project`` renders a
-:class:`~core.model.project.ThematicTexture`, at reduced resolution for overviews
-(``core.render.overview``, which never renders full resolution first).
-
-Conventions (texel positions, exact integer weights and rounding, saddle
-rule) are documented in :mod:`core.render.rules`.
+``render_cells`` turns a vertex index grid and a theme list into the full texture,
+or any ``region`` of it (exactly the crop of the full render); ``render_labels``
+gives the theme with the largest weight per texel. Conventions (texel positions,
+integer weights, saddle rule): :mod:`core.render.rules`.
 """
 
 from __future__ import annotations
@@ -47,16 +42,10 @@ class BlendMode(Enum):
 class RenderOptions:
     """Options of :func:`render_cells`.
 
-    Attributes
-    ----------
-    blend : BlendMode
-    saddle : SaddleRule
-        How saddle cells (``A B / B A``) are split (``core.render.rules``).
-    threads : int
-        Row bands rendered in parallel; 0 = one per CPU.
-    boundary : BoundaryOptions or None
-        Borders shaped by the themes' content and noise (:mod:`core.render.boundary`,
-        linear blend only); None: the paper's barycentric ramp.
+    ``saddle``: how saddle cells (``A B / B A``) are split (``core.render.rules``);
+    ``threads``: row bands rendered in parallel, 0 = one per CPU; ``boundary``:
+    borders shaped by the themes' content and noise (:mod:`core.render.boundary`,
+    linear blend only), None for the paper's barycentric ramp.
     """
 
     blend: BlendMode = BlendMode.LINEAR
@@ -119,42 +108,30 @@ def render_cells(
     grid : (gh+1, gw+1) integer array-like or IndexGrid
         Theme index at every grid vertex (row 0 at the top).
     themes : sequence of (h, w, 3) uint8 arrays (or Theme objects)
-        ``themes[k]`` for index ``k``; any size; sampled at global output
-        coordinates, wrapping.
+        ``themes[k]`` for index ``k``, any size, sampled at global coordinates, wrapping.
     cell : (N, M)
         Texel columns and rows per cell (default: the IndexGrid's).
     region : (x, y, w, h), optional
-        Render only this window of the full ``(gw*N, gh*M)`` texture; the
-        result equals the same crop of the full render exactly.
-    options : RenderOptions
+        Window of the full ``(gw*N, gh*M)`` texture; equals that crop of the full render.
     splits : (gh, gw) uint8 ndarray, optional
-        Per-cell split (0 uniform, 1 main diagonal, 2 anti-diagonal) chosen by
-        the caller (e.g. from a photo); default ``cell_splits(grid, options.saddle)``.
-    progress : callable(done, total), optional
+        Per-cell split (0 uniform, 1 main diagonal, 2 anti-diagonal) chosen by the
+        caller; default ``cell_splits(grid, options.saddle)``.
     out : (h, w, 3) uint8 C-contiguous ndarray, optional
-        Render into this array (a viewport reusing its buffer skips the page
-        faults of a fresh allocation, which cost as much as a whole render).
+        Render into this array (a viewport reusing its buffer skips the page faults
+        of a fresh allocation, which cost as much as a whole render).
     colour_map : ColourMap, optional
-        Colour gain over the full texture, applied to every texel rendered
-        (:mod:`core.render.colour_map`).
+        Colour gain over the full texture (:mod:`core.render.colour_map`).
     origin : (row, col), optional
-        ``grid`` is the block of a larger grid whose vertex ``(row, col)`` it
-        starts at; ``region`` is in the larger texture's texels and within the
-        block. The render equals the larger grid's when the block holds one
-        vertex more than the region's cells on every side where the larger
-        grid goes on (the saddle rule's ring), so a tile job renders from its
-        window of a huge grid alone. No ``splits`` or ``colour_map`` with it.
+        ``grid`` is the block of a larger grid starting at vertex ``(row, col)``;
+        ``region`` is in the larger texture's texels. Equals the larger grid's
+        render when the block holds one vertex more than the region's cells on
+        every side where the larger grid goes on (the saddle rule's ring). No
+        ``splits`` or ``colour_map`` with it.
 
     Returns
     -------
     image : (h, w, 3) uint8 ndarray
         ``(gh*M, gw*N, 3)`` for the full texture (``out`` when given).
-
-    Raises
-    ------
-    TerrathemeError
-        Bad grid (not 2-D, empty, negative, index without a theme), bad
-        themes (none, empty, not 3/4 channels), bad cell or region.
     """
     textures = theme_textures(themes)
     indices, (n, m) = prepare_grid(grid, cell, len(textures))
@@ -236,14 +213,10 @@ def render_labels(
     splits: np.ndarray | None = None,
     threads: int = 0,
 ) -> np.ndarray:
-    """The theme with the largest total weight at every texel (the one-hot view of a render).
+    """The ``(h, w)`` uint8 theme with the largest total weight at every texel.
 
     Corners carrying the same theme add their weights; ties go to the lower
     theme index. Same texel convention and splits as :func:`render_cells`.
-
-    Returns
-    -------
-    labels : (h, w) uint8 ndarray
     """
     indices, (n, m) = prepare_grid(grid, cell, n_themes)
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1

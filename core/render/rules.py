@@ -1,27 +1,19 @@
 """How each cell is split and weighted (Vyatkin & Romanyuk, design.md §1).
 
-Conventions (the renderer, the label view and the tests all follow them):
-
-* **Texel positions.** Global texel column ``X`` sits at grid position
-  ``X / N`` and row ``Y`` at ``Y / M`` (the paper's ``x = xs/N``). Texel
-  ``(xs, ys)`` of a cell therefore has local coordinates ``x = xs/N``,
-  ``y = ys/M`` in ``[0, 1)``; the texel on a grid vertex reproduces that
-  vertex's theme exactly, and along a cell edge the weights are the linear
-  interpolation of the edge's two vertices whatever the split, so the render
-  has no seam or jump across cell edges.
-* **Exact integer weights.** With ``D = N*M``, ``X' = xs*M`` and
-  ``Y' = ys*N`` are integers and every barycentric weight times ``D`` is an
-  integer; the renderer rounds the exact rational blend half up:
-  ``out = floor((2 * sum(w_k * T_k) + D) / (2 * D))``.
-* **Splits** (``cell_splits``): ``UNIFORM`` (all four equal), ``MAIN``
-  (diagonal ``ind[0][0]``-``ind[1][1]``), ``ANTI`` (``ind[0][1]``-``ind[1][0]``).
-  The split follows the equal-ended diagonal. **Saddle** (``A B / B A``, both
-  diagonals equal-ended): the theme with *fewer* vertices in the ring of 12
-  vertices around the cell gets its diagonal, i.e. stays connected through
-  the cell (thin features such as roads and rivers stay unbroken; the
-  surrounding theme stays connected around them anyway); on a tie the lower
-  theme index connects. **No equal-ended diagonal** (three or four different
-  themes): the split is ``MAIN``, the paper's first branch.
+* **Texel positions.** Texel column ``X`` sits at grid position ``X / N``, row ``Y``
+  at ``Y / M`` (the paper's ``x = xs/N``): a cell's texel ``(xs, ys)`` has local
+  coordinates ``x = xs/N``, ``y = ys/M`` in ``[0, 1)``. A vertex's texel reproduces
+  its theme exactly and along a cell edge the weights interpolate the edge's two
+  vertices whatever the split, so there is no seam across cell edges.
+* **Exact integer weights.** With ``D = N*M``, ``X' = xs*M`` and ``Y' = ys*N`` are
+  integers and every barycentric weight times ``D`` is one; the blend is rounded
+  half up: ``out = floor((2 * sum(w_k * T_k) + D) / (2 * D))``.
+* **Splits** (``cell_splits``): ``UNIFORM``, ``MAIN`` (diagonal ``ind[0][0]``-
+  ``ind[1][1]``), ``ANTI`` (``ind[0][1]``-``ind[1][0]``), following the equal-ended
+  diagonal. **Saddle** (``A B / B A``): the theme with *fewer* vertices in the ring
+  of 12 around the cell gets its diagonal (thin roads and rivers stay unbroken); a
+  tie goes to the lower index. Three or four different themes: ``MAIN``, the
+  paper's first branch.
 """
 
 from __future__ import annotations
@@ -46,16 +38,8 @@ class SaddleRule(Enum):
 def _ring_count(grid: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Count, for every cell, the ring vertices (4x4 block minus the 2x2 cell) equal to ``values``.
 
-    Parameters
-    ----------
-    grid : (gh+1, gw+1) uint8 ndarray
-    values : (gh, gw) uint8 ndarray
-        The theme to count per cell.
-
-    Returns
-    -------
-    count : (gh, gw) int32 ndarray
-        Vertices outside the grid are not counted.
+    ``values`` (gh, gw) uint8 holds the theme to count per cell; returns (gh, gw)
+    int32. Vertices outside the grid are not counted.
     """
     gh, gw = grid.shape[0] - 1, grid.shape[1] - 1
     # Pad with a value that matches nothing (256 does not fit uint8: use int16).
@@ -71,19 +55,7 @@ def _ring_count(grid: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 def cell_splits(grid: np.ndarray, rule: SaddleRule = SaddleRule.MINORITY) -> np.ndarray:
-    """The split of every cell: ``UNIFORM`` (0), ``MAIN`` (1) or ``ANTI`` (2).
-
-    Parameters
-    ----------
-    grid : (gh+1, gw+1) uint8 ndarray
-        Validated vertex indices.
-    rule : SaddleRule
-        How saddle cells are decided (module docstring).
-
-    Returns
-    -------
-    splits : (gh, gw) uint8 ndarray
-    """
+    """The ``(gh, gw)`` uint8 split of every cell: ``UNIFORM`` (0), ``MAIN`` (1) or ``ANTI`` (2)."""
     a, b = grid[:-1, :-1], grid[:-1, 1:]
     c, d = grid[1:, :-1], grid[1:, 1:]
     main_eq = a == d
@@ -108,21 +80,10 @@ def corner_weights(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Integer barycentric weights (times ``D``) of the four cell corners (design.md §1 step 2).
 
-    Parameters
-    ----------
-    split : int ndarray
-        ``UNIFORM``/``MAIN``/``ANTI`` per texel (broadcastable).
-    xi, yi : int ndarray
-        ``xs*M`` and ``ys*N``: local coordinates times ``D`` (broadcastable).
-    d : int
-        ``N*M``.
-
-    Returns
-    -------
-    w00, w01, w10, w11 : int32 ndarrays
-        Weights of ``ind[0][0]``, ``ind[0][1]``, ``ind[1][0]``, ``ind[1][1]``;
-        they sum to ``d`` at every texel. Uniform cells put everything on
-        ``ind[0][0]``.
+    ``split`` is ``UNIFORM``/``MAIN``/``ANTI`` per texel, ``xi, yi`` are ``xs*M`` and
+    ``ys*N`` (local coordinates times ``d = N*M``), all broadcastable. Returns int32
+    ``w00, w01, w10, w11``, the weights of ``ind[0][0]``, ``ind[0][1]``, ``ind[1][0]``,
+    ``ind[1][1]``, summing to ``d``; uniform cells put everything on ``ind[0][0]``.
     """
     xi = np.asarray(xi, dtype=np.int32)
     yi = np.asarray(yi, dtype=np.int32)
@@ -173,12 +134,8 @@ def region_splits(
 ) -> np.ndarray:
     """Splits of cells ``cy0..cy1 x cx0..cx1`` only (the ring rule needs one more vertex around).
 
-    ``splits``: the caller's per-cell choice over the whole grid
-    (:func:`checked_splits`), or None for ``rule``'s.
-
-    Returns
-    -------
-    (cy1 - cy0 + 1, cx1 - cx0 + 1) uint8 C-contiguous ndarray
+    ``splits``: the caller's per-cell choice over the whole grid (:func:`checked_splits`),
+    or None for ``rule``'s. Returns a ``(cy1-cy0+1, cx1-cx0+1)`` uint8 C-contiguous array.
     """
     cy0, cy1, cx0, cx1 = cells
     if splits is not None:

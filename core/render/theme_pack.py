@@ -35,17 +35,10 @@ _identity: dict[tuple[int, ...], tuple[list, bytes]] = {}
 class PackedThemes:
     """Flat theme buffer for the kernels.
 
-    Attributes
-    ----------
-    flat : (total,) uint8 ndarray
-        Theme ``k`` at ``off[k]``, ``th[k]`` rows of ``stride[k]`` elements.
-    off, stride, th, tw : (K,) int64 ndarrays
-    gflat : (total,) float32 ndarray or None
-        Gaussianised values in the same layout (histogram blend only).
-    inv_lut : (3K, LUT_SIZE) float32 ndarray or None
-        Inverse transform of theme ``k`` channel ``c`` (row ``3k+c``): the
-        value whose Gaussianised value is ``g``, tabulated for ``g`` evenly
-        over ``[-LUT_RANGE, LUT_RANGE]`` (Heitz & Neyret's inverse LUT).
+    ``flat`` (total,) uint8: theme ``k`` at ``off[k]``, ``th[k]`` rows of
+    ``stride[k]`` elements. ``gflat``: Gaussianised values in the same layout and
+    ``inv_lut`` (3K, LUT_SIZE) float32: row ``3k+c`` the inverse transform of theme
+    ``k`` channel ``c`` over ``[-LUT_RANGE, LUT_RANGE]`` (histogram blend only).
     """
 
     flat: np.ndarray
