@@ -1,9 +1,5 @@
-"""How much a thematic texture looks like its photo (issue 13's measures).
-
-Modules: ``metrics`` (``dE8`` colour layout, band-pass detail ratio,
-structure similarity at 1/4 and 1/8, class IoU of the label view against
-ground truth), ``cost`` (bytes per area and of the shared themes).
-"""
+"""How much a thematic texture looks like its photo: ``metrics`` (dE8, detail ratio,
+structure similarity, class IoU) and ``cost`` (bytes per area and of the themes)."""
 
 from terratheme.core.fidelity.cost import TextureCost, texture_cost
 from terratheme.core.fidelity.metrics import (

@@ -1,12 +1,9 @@
 """What a thematic texture costs in bytes: per area (grid + colour map) and shared (themes).
 
-The papers' premise is a texture that looks right at a small fraction of
-the photo's bytes (thematic_textures.txt: "analogy: JPEG"). The themes are a
-library shared by every area of a terrain, so a texture's own cost is
-``area_bytes``: its index grid packed along a space-filling curve
-(:func:`core.packing.pack`, compact layout) plus its colour map's bytes as
-it ships (JPEG XL at quality 99 for a map made without them, as convert does). ``theme_bytes`` is
-the library's, every theme as lossless PNG.
+The themes are a library shared by every area of a terrain, so a texture's own
+cost is ``area_bytes``: its index grid packed along a space-filling curve
+(:func:`core.packing.pack`, compact layout) plus its colour map as it ships.
+``theme_bytes`` is the library's, every theme as lossless PNG.
 """
 
 from __future__ import annotations
@@ -24,17 +21,9 @@ COLOUR_MAP_QUALITY = 99
 
 @dataclass(frozen=True)
 class TextureCost:
-    """Bytes of a thematic texture.
-
-    Attributes
-    ----------
-    grid_bytes : int
-        The index grid as a compact packed layer.
-    colour_map_bytes : int
-        The colour map in :data:`COLOUR_MAP_CODEC` (0 without one).
-    theme_bytes : int
-        The theme library as PNG files.
-    """
+    """Bytes of a thematic texture: ``grid_bytes`` (compact packed layer),
+    ``colour_map_bytes`` (in :data:`COLOUR_MAP_CODEC`, 0 without one) and
+    ``theme_bytes`` (the library as PNG files)."""
 
     grid_bytes: int
     colour_map_bytes: int

@@ -2,20 +2,15 @@
 
 Each on whole images of the same size:
 
-* :func:`colour_error` (``dE8``): mean CIEDE2000 between photo and render
-  after a Gaussian blur of sigma 8 px, the colour layout an observer sees
-  from a distance (texture inside a region does not count);
-* :func:`detail_ratio`: band-pass energy of the render's luminance
-  (Gaussian sigma 0.7 minus sigma 3.0, mean square) over the photo's: 1 means
-  as much fine texture as the photo, below 1 washed out or smeared, above 1
-  noisier than the photo;
-* :func:`class_iou_scores`: per-class IoU of the texture's label view against
-  a ground-truth mask, each theme mapped to the class it covers most;
-* :func:`structure_similarity` (issue 34, ``structure 1/4``, ``1/8``): SSIM of
-  the luminance after a 4x (8x) area downscaling, whether each road, block and
-  shore is where the photo has it.
-
-Colour conversion, CIEDE2000 and SSIM are scikit-image's, blurs and resizing OpenCV's.
+* :func:`colour_error` (``dE8``): mean CIEDE2000 after a Gaussian blur of sigma 8 px,
+  the colour layout an observer sees from a distance;
+* :func:`detail_ratio`: band-pass energy of the render's luminance (Gaussian sigma
+  0.7 minus sigma 3.0, mean square) over the photo's: 1 as much fine texture,
+  below 1 washed out, above 1 noisier;
+* :func:`class_iou_scores`: per-class IoU of the label view against ground truth,
+  each theme mapped to the class it covers most;
+* :func:`structure_similarity` (``structure 1/4``, ``1/8``): SSIM of the luminance
+  after a 4x (8x) area downscaling: each road, block and shore where the photo has it.
 """
 
 from __future__ import annotations
@@ -66,21 +61,11 @@ def _mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None
 
 def colour_error(render: np.ndarray, photo: np.ndarray, *, sigma: float = COLOUR_SIGMA,
                  valid: np.ndarray | None = None) -> float:
-    """Mean CIEDE2000 between the blurred render and the blurred photo (``dE8``).
+    """Mean CIEDE2000 (``dE8``) between render and photo, both blurred by ``sigma`` px first.
 
-    Parameters
-    ----------
-    render, photo : (H, W, 3) uint8/uint16/float ndarray
-        sRGB; float images in [0, 1].
-    sigma : float
-        Gaussian blur applied to both first, pixels (8 for ``dE8``).
-    valid : (H, W) bool ndarray, optional
-        Pixels to average over (default all).
-
-    Returns
-    -------
-    float
-        Mean delta E 2000 (about 1: barely visible; above 10: clearly another colour).
+    ``render, photo`` (H, W, 3) sRGB, uint8/uint16 or float in [0, 1]; ``valid``
+    (H, W) bool picks the pixels averaged. About 1: barely visible; above 10:
+    clearly another colour.
     """
     r, p = _pair(render, photo)
     v = _mask(valid, r.shape)
@@ -93,19 +78,7 @@ def colour_error(render: np.ndarray, photo: np.ndarray, *, sigma: float = COLOUR
 
 def detail_energy(image: np.ndarray, *, sigmas: tuple[float, float] = DETAIL_SIGMAS,
                   valid: np.ndarray | None = None) -> float:
-    """Mean square of the luminance band-pass ``G(sigma0) - G(sigma1)``.
-
-    Parameters
-    ----------
-    image : (H, W, 3) uint8/uint16/float ndarray
-    sigmas : (fine, coarse) Gaussian sigmas in pixels
-    valid : (H, W) bool ndarray, optional
-
-    Returns
-    -------
-    float
-        In (luminance in [0, 1])^2.
-    """
+    """Mean square of the luminance band-pass ``G(sigma0) - G(sigma1)``, luminance in [0, 1]."""
     y = rgb2gray(_rgb(image, "image")).astype(np.float32)
     fine = cv2.GaussianBlur(y, (0, 0), sigmas[0], borderType=cv2.BORDER_REFLECT)
     coarse = cv2.GaussianBlur(y, (0, 0), sigmas[1], borderType=cv2.BORDER_REFLECT)
@@ -116,13 +89,7 @@ def detail_energy(image: np.ndarray, *, sigmas: tuple[float, float] = DETAIL_SIG
 
 def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
                  valid: np.ndarray | None = None) -> float:
-    """The render's band-pass energy over the photo's (1 = as much fine texture).
-
-    Raises
-    ------
-    TerrathemeError
-        Different sizes, or a photo without any detail (a flat image).
-    """
+    """The render's band-pass energy over the photo's (1 = as much fine texture)."""
     r, p = _pair(render, photo)
     ref = detail_energy(p, valid=valid)
     if ref <= 1e-12:
@@ -131,22 +98,10 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
 
 
 def structure_similarity(render: np.ndarray, photo: np.ndarray, factor: int = 4) -> float:
-    """SSIM of the luminance of render and photo after a ``factor`` x area downscaling.
+    """Mean SSIM of render and photo luminance after a ``factor`` x area downscaling.
 
-    ``structure 1/4`` and ``structure 1/8`` of issue 34: whether the render puts
-    each road, block and shore where the photo has it, whatever the fine detail.
-
-    Parameters
-    ----------
-    render, photo : (H, W, 3) uint8/uint16/float ndarray
-    factor : int
-        Downscaling factor (``cv2.INTER_AREA``, sizes rounded down, at least 7
-        pixels a side: SSIM's window).
-
-    Returns
-    -------
-    float
-        Mean SSIM (scikit-image's defaults, data range 1): 1 = the same picture.
+    ``cv2.INTER_AREA``, sizes rounded down, at least 7 pixels a side (SSIM's window);
+    scikit-image's defaults, data range 1: 1 = the same picture.
     """
     r, p = _pair(render, photo)
     h, w = r.shape[:2]
@@ -158,15 +113,8 @@ def structure_similarity(render: np.ndarray, photo: np.ndarray, factor: int = 4)
 
 @dataclass(frozen=True)
 class Fidelity:
-    """The look of a render against its photo: colour layout and fine detail.
-
-    Attributes
-    ----------
-    colour_error : float
-        ``dE8`` (:func:`colour_error`).
-    detail : float
-        :func:`detail_ratio` (NaN for a flat photo).
-    """
+    """The look of a render against its photo: ``colour_error`` (``dE8``) and ``detail``
+    (:func:`detail_ratio`, NaN for a flat photo)."""
 
     colour_error: float
     detail: float
@@ -188,20 +136,10 @@ def fidelity(render: np.ndarray, photo: np.ndarray) -> Fidelity:
 
 def majority_classes(labels: np.ndarray, truth: np.ndarray,
                      classes: Sequence[int]) -> dict[int, int]:
-    """For every label value, the ground-truth class (among ``classes``) it covers most.
+    """``{label: class}``: for every label, the ground-truth class among ``classes`` it covers most.
 
-    Parameters
-    ----------
-    labels : (H, W) integer ndarray
-        A label view (theme per pixel).
-    truth : (H, W) integer ndarray
-        Ground-truth classes; values outside ``classes`` are ignored.
-    classes : sequence of int
-
-    Returns
-    -------
-    {label: class}
-        Labels that cover no scored pixel are left out.
+    Truth values outside ``classes`` are ignored; labels covering no scored pixel
+    are left out.
     """
     lab = np.asarray(labels).ravel().astype(np.int64)
     tru = np.asarray(truth).ravel().astype(np.int64)
@@ -219,19 +157,9 @@ def majority_classes(labels: np.ndarray, truth: np.ndarray,
 def class_iou_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
     """Per-class IoU of a label view against ground truth, each label mapped to its majority class.
 
-    Parameters
-    ----------
-    labels : (H, W) integer ndarray
-    truth : (H, W) integer ndarray
-    classes : sequence of int
-        Scored ground-truth classes (others, e.g. "unlabelled", are ignored).
-
-    Returns
-    -------
-    dict
-        ``{"miou": float, "iou": {class: float or None}, "mapping": {label: class}}``;
-        a class absent from both the truth and the mapped labels has IoU None and
-        does not count in the mean.
+    Returns ``{"miou": float, "iou": {class: float or None}, "mapping": {label:
+    class}}``; truth values outside ``classes`` are ignored, and a class absent from
+    both truth and mapped labels has IoU None and does not count in the mean.
     """
     labels, truth = np.asarray(labels), np.asarray(truth)
     if labels.shape != truth.shape or labels.ndim != 2:
