@@ -69,20 +69,10 @@ def fill_window(
     steps: np.ndarray, values: np.ndarray, width: int, height: int, curve: str | Curve,
     x: int, y: int, w: int, h: int, *, out: np.ndarray | None = None, threads: int = 1,
 ) -> np.ndarray:
-    """The ``w x h`` window at column ``x``, row ``y`` (row 0 = top) of the runs' image.
+    """The ``(h, w)`` window at column ``x``, row ``y`` (row 0 = top) of the runs' image.
 
-    Parameters
-    ----------
-    steps, values : (R,) ndarrays
-        Runs as :func:`scan_runs` returns them; ``steps[-1]`` is the image's last step.
-    out : (h, w) ndarray of ``values.dtype``, optional
-        Where to write (a band buffer reused between calls).
-    threads : int
-        The blocks are split into this many stretches filled at once.
-
-    Returns
-    -------
-    window : (h, w) ndarray of ``values.dtype``
+    ``steps, values`` as :func:`scan_runs` returns them; ``out`` a reused band
+    buffer of ``values.dtype``; ``threads`` stretches of blocks filled at once.
     """
     if not (0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= width and y + h <= height):
         raise TerrathemeError(

@@ -23,18 +23,10 @@ BLOCK_BITS = 6
 class BlockPlan:
     """The blocks of ``2^b x 2^b`` texels that cover an image, in curve order.
 
-    Attributes
-    ----------
-    n, b : int
-        Curve levels of the square and of a block (``b <= n``).
-    bx, by : (nb,) int32 ndarrays
-        Block column and block row, ``by`` counted **up** from the bottom.
-    state : (nb,) uint8 ndarray
-        Local pattern of each block (index into ``patterns``).
-    first_step : (nb,) uint64 ndarray
-        0-based step of each block's first local step (``c * 4^b``).
-    patterns : (4, 4^b) uint16 ndarray
-        Local visiting order: entry ``i`` is ``(ly << b) | lx`` of local step ``i``, y up.
+    ``n, b``: curve levels of the square and of a block; ``bx, by`` (nb,) int32 block
+    column and row, ``by`` counted **up**; ``state`` (nb,) uint8 each block's local
+    pattern; ``first_step`` (nb,) uint64 its first step (``c * 4^b``); ``patterns``
+    (4, 4^b) uint16: entry ``i`` is ``(ly << b) | lx`` of local step ``i``, y up.
     """
 
     n: int
@@ -82,13 +74,8 @@ def block_grid(width: int, height: int, curve: str | Curve, b: int
                ) -> tuple[np.ndarray, np.ndarray]:
     """Coarse curve step and local pattern of every ``2^b`` block meeting the image.
 
-    Returns
-    -------
-    coarse : (ceil(H / 2^b), ceil(W / 2^b)) uint64 ndarray
-        Block ``[by, bx]`` (y up: row 0 holds the image's bottom texels) covers
-        the steps ``coarse << 2b`` to ``((coarse + 1) << 2b) - 1``.
-    state : same shape, uint8 ndarray
-        Its local pattern (row of :func:`local_patterns`).
+    ``coarse`` (ceil(H / 2^b), ceil(W / 2^b)) uint64: block ``[by, bx]`` (y up) covers
+    steps ``coarse << 2b`` to ``((coarse + 1) << 2b) - 1``; ``state`` uint8 its pattern.
     """
     curve = Curve.parse(curve)
     n = curve_order(width, height)
@@ -130,19 +117,9 @@ def _block_plan(width: int, height: int, curve: Curve) -> BlockPlan:
 class CurveSquares:
     """The aligned ``2^g x 2^g`` squares of an image's curve, in curve order.
 
-    Each square is a contiguous stretch of curve steps (Hilbert and Morton
-    alike), hence of plan blocks, so it can be scanned or filled alone.
-
-    Attributes
-    ----------
-    g : int
-        log2 of the side (at least the plan's block side, at most ``n``).
-    sx, sy : (m,) int64 ndarrays
-        Square coordinates, y up (square ``(0, 0)`` holds the bottom-left texel).
-    j0, j1 : (m,) int64 ndarrays
-        The plan blocks ``j0 .. j1 - 1`` of each square.
-    first_step : (m,) uint64 ndarray
-        Curve step of each square's first step.
+    Each is a contiguous stretch of curve steps (Hilbert and Morton alike), hence of
+    plan blocks ``j0 .. j1 - 1``, so it can be scanned or filled alone. ``sx, sy``
+    (m,) int64 square coordinates, y up; ``first_step`` (m,) uint64.
     """
 
     g: int

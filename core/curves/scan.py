@@ -155,20 +155,9 @@ def scan_runs(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Runs of equal values along the curve (seed section 2.2, ``Convert``).
 
-    Parameters
-    ----------
-    keys : (H, W) integer ndarray
-        One value per texel (a palette index or a packed colour); row 0 = top.
-    threads : int
-        The blocks are split into this many contiguous stretches scanned at once
-        (the kernel releases the GIL); the stretches' runs are then stitched.
-
-    Returns
-    -------
-    steps : (R,) uint32 ndarray
-        0-based curve step of each run's last texel, strictly increasing.
-    values : (R,) ndarray of ``keys.dtype``
-        The value of each run; consecutive values differ.
+    ``keys`` (H, W) integer, row 0 = top; ``threads`` stretches of blocks scanned at
+    once, then stitched. Returns ``steps`` (R,) uint32, the strictly increasing
+    0-based step of each run's last texel, and ``values`` (R,) of ``keys.dtype``.
     """
     keys = np.ascontiguousarray(keys)
     plan = block_plan(keys.shape[1], keys.shape[0], curve)
@@ -280,18 +269,8 @@ def steps_to_ranks(steps: np.ndarray, width: int, height: int, curve: str | Curv
 
 
 def check_run_ends(steps: np.ndarray, width: int, height: int, curve: str | Curve) -> None:
-    """Check the 0-based last steps of an image's runs along a curve.
-
-    Parameters
-    ----------
-    steps : (R,) int64 ndarray
-
-    Raises
-    ------
-    TerrathemeError
-        Steps that are not strictly increasing from 0 or more, a last step that is
-        not the image's last texel's, or a step on no image texel.
-    """
+    """Check ``steps`` (R,) int64, the 0-based last steps of an image's runs along a curve:
+    strictly increasing from 0 or more, each on an image texel, the last the image's last."""
     curve = Curve.parse(curve)
     if steps[0] < 0 or np.any(np.diff(steps) <= 0):
         raise TerrathemeError("run steps must be strictly increasing and non-negative")

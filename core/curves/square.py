@@ -41,13 +41,7 @@ class Curve(enum.IntEnum):
 
 
 def curve_order(width: int, height: int) -> int:
-    """Levels ``n`` of the enclosing ``2^n x 2^n`` square (0 for a 1 x 1 image).
-
-    Raises
-    ------
-    TerrathemeError
-        A side is not in ``1 .. 65536``.
-    """
+    """Levels ``n`` of the enclosing ``2^n x 2^n`` square (0 for 1 x 1; sides 1 .. 65536)."""
     width, height = int(width), int(height)
     if width < 1 or height < 1:
         raise TerrathemeError(f"image of {width} x {height} texels has no texels to scan")

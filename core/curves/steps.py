@@ -233,15 +233,9 @@ def steps_of(
 def texels_of(
     steps: np.ndarray, width: int, height: int, curve: str | Curve, *, one_based: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Texel ``(cols, rows)`` of curve steps, and whether each lies inside the image.
-
-    Returns
-    -------
-    cols, rows : (...) int64 ndarrays
-        Row 0 = top row; meaningless where ``inside`` is False.
-    inside : (...) bool ndarray
-        False for steps of the enclosing square that the image does not cover.
-    """
+    """Texel ``(cols, rows)`` int64 of curve steps (row 0 on top), and ``inside`` (bool):
+    False for steps of the enclosing square the image does not cover (cols, rows then
+    meaningless)."""
     curve = Curve.parse(curve)
     n = curve_order(width, height)
     d = np.asarray(steps, dtype=np.int64)
