@@ -1,16 +1,8 @@
 """Orthophoto classification into themes (design.md §3).
 
-Public API (used by ``terratheme classify`` and ``convert``):
-
-* :func:`classify_unsupervised` -- k-means themes, K chosen from the data;
-* :func:`fit_unsupervised` -> :class:`UnsupervisedModel` (``predict``) -- the
-  same themes fitted on a sample (or pieces of a big photo), applied per tile;
-* :func:`train_classifier` -> :class:`Classifier` (``predict``, ``save``,
-  ``Classifier.load``) -- Extra-Trees from scribbles or label masks;
-* :class:`Classification` -- ``labels`` (H, W) uint8 + ``confidence`` (H, W)
-  float32 in [0, 1];
-* :func:`load_model` / :func:`resolve_model` / :func:`shipped_models` -- a
-  classifier file or a shipped model by name (``aerial``), with class names.
+Unsupervised k-means themes (:func:`classify_unsupervised`, or :func:`fit_unsupervised`
+to apply them per tile), Extra-Trees from scribbles or masks (:func:`train_classifier`),
+or a saved or shipped model (:func:`load_model`); each gives a :class:`Classification`.
 """
 
 from terratheme.core.classify.features import FeatureOptions, FeatureSet

@@ -1,11 +1,8 @@
 """Border bands: a theme whose colour is a blend of two others, seen only along their border.
 
-Smoothed features make a high-contrast step edge (sand | grass) look like a textured
-theme whose colour lies between the two sides (design.md §3). :func:`relabel_bands`
-gives a pixel of theme ``T`` with themes ``A`` and ``B`` within ``reach`` pixels, ``T``
-between them in colour and ``A``, ``B`` at least ``min_contrast2`` apart, the
-Mahalanobis-nearer of ``A`` and ``B`` by its own Lab if within ``max_distance2``. A road
-inside town or a channel of its own colour keeps its theme.
+Smoothed features make a high-contrast step edge (sand | grass) look like a theme whose
+colour lies between the two sides (design.md §3). :func:`relabel_bands` gives such a
+pixel, with both sides within reach, the Mahalanobis-nearer side's theme by its own Lab.
 """
 
 from __future__ import annotations

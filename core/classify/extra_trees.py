@@ -1,15 +1,10 @@
 """Extremely randomised trees as flat node arrays: trained by scikit-learn, read by numba.
 
-Extra-Trees (Geurts, Ernst & Wehenkel 2006, Machine Learning 63) split each node at a
-random threshold on the best of ``sqrt(F)`` features and average the trees' class
-distributions: smoother boundaries from the few hundred samples scribbles give.
-
-The fitted trees are kept as plain arrays (:class:`ExtraTreesForest`): a model file
-holds numbers only (no pickle, no scikit-learn version), and a numba kernel gives
-``predict_proba`` to float32 rounding. It walks one tree for a block of
-``PREDICT_BLOCK`` samples, four in lockstep, each walk a fixed number of steps (a
-leaf is its own child); thresholds are rounded down to float32, so for a float32
-``x``, ``x <= t`` exactly when ``x <= floor32(t)``.
+Extra-Trees (Geurts, Ernst & Wehenkel 2006) split at random thresholds: smoother
+boundaries from the few hundred samples scribbles give. Kept as plain arrays, a model
+file holds numbers only (no pickle); the numba kernel walks ``PREDICT_BLOCK`` samples
+through a tree, four in lockstep, with thresholds rounded down to float32 (for a
+float32 ``x``, ``x <= t`` exactly when ``x <= floor32(t)``).
 """
 
 from __future__ import annotations
@@ -108,12 +103,10 @@ class ExtraTreesForest:
     def from_arrays(cls, arrays: dict[str, np.ndarray],
                     n_features: int | None = None) -> ExtraTreesForest:
         """Check and wrap :data:`ARRAY_NAMES` read from a file (TerrathemeError if they
-        do not form a forest within the ``MAX_*`` ceilings).
+        do not form a forest within the ``MAX_*`` ceilings and ``n_features``).
 
-        Every index the kernel uses is range-checked before narrowing to int32 (a feature
-        of 2^31 would wrap), children come after parents and depth is bounded, so a forest
-        that passes cannot make the kernel read out of bounds or loop. Split features must
-        be below ``n_features`` (default :data:`MAX_FEATURES`).
+        Indices are range-checked before narrowing, children follow parents and depth is
+        bounded, so a forest that passes cannot make the kernel read out of bounds or loop.
         """
         missing = [n for n in ARRAY_NAMES if n not in arrays]
         if missing:
@@ -186,9 +179,8 @@ def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_dept
                     seed: int = 0, n_jobs: int | None = None) -> ExtraTreesForest:
     """Extra-Trees (scikit-learn's) on samples ``x`` (n, F) with class values ``y`` (n,).
 
-    ``balance``: classes weighed inversely to their counts. ``n_jobs``: fitting
-    threads, by default one per core (at most one per tree); the few trees of
-    :mod:`core.classify.adapt` take 1 (joblib's hand-over costs more than it gains).
+    ``balance``: classes weighed inversely to their counts. ``n_jobs``: fitting threads,
+    default one per core and tree (a small fit is faster with 1).
     """
     import sklearn
     from sklearn.ensemble import ExtraTreesClassifier

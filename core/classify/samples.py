@@ -1,10 +1,8 @@
 """Training samples from label masks: coarse labels, scribbles, growing them by colour.
 
-Strokes are short and thin (a 30-pixel stroke touches about four 8x8 coarse pixels),
-so scribbles give only a few hundred samples on the strokes' centre lines. Strokes lie
-inside class regions, so :func:`grow_labels` adds the neighbours of a stroke's colour:
-a cautious one-step seeded region growing (Adams & Bischof 1994), for training samples
-only. :func:`check_class_image` is the one check of a class-value image.
+Scribbles give only a few hundred samples on the strokes' centre lines, and strokes
+lie inside class regions, so :func:`grow_labels` adds neighbours of a stroke's colour:
+a one-step seeded region growing (Adams & Bischof 1994), for training samples only.
 """
 
 from __future__ import annotations

@@ -24,33 +24,24 @@ class SupervisedOptions:
 
     Attributes
     ----------
-    features, regularisation
-        Defaults: Hessian, ridges at 1, 2, 4 px and structure features; ``EDGE``.
     ignore_classes : tuple of int
         Mask values treated as unlabelled (besides 0).
     n_trees, max_depth, min_samples : int
-        The Extra-Trees forest's trees, depth limit and smallest node still split.
-    max_samples_per_class : int
-        Most training samples of one class (over all pairs).
+        The forest's trees, depth limit and smallest node still split.
     samples_per_pair : int
         Per-class samples grow with the pairs (:meth:`samples_per_class`): a few photos
         train best on few samples, many on many.
     balance : bool
         Equal class priors whatever the sample counts.
-    seed : int
-        Sampling and forest RNG seed.
-    tile : int
-        Tile core size in photo pixels.
     prior_power : float or None
-        Votes weighted by ``(estimated share / training share) ** prior_power``
-        (:mod:`core.classify.prior`); 0 off, None ``SCRIBBLE_PRIOR_POWER`` for scribbles.
+        Votes weighted by ``(estimated share / training share) ** prior_power``; 0 off,
+        None ``SCRIBBLE_PRIOR_POWER`` for scribbles.
     grow_colour : float or None
-        Lab difference under which scribbles grow by one ring of coarse pixels
-        (:func:`core.classify.samples.grow_labels`); 0 off, None ``GROW_COLOUR`` for
-        scribbles.
+        Lab difference under which scribbles grow by one ring of coarse pixels; 0 off,
+        None ``GROW_COLOUR`` for scribbles.
     adapt : bool or None
-        Test-time adaptation (:mod:`core.classify.adapt`); None: on for masks of fewer
-        than ``ADAPT_MAX_PAIRS`` photos, off for scribbles (resolved by :meth:`resolved`).
+        Test-time adaptation; None: on for masks of fewer than ``ADAPT_MAX_PAIRS``
+        photos, off for scribbles (:meth:`resolved`).
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(

@@ -38,9 +38,7 @@ class UnsupervisedModel:
     sizes : (K,) float64 ndarray
         Share of the sample in each theme (the mixture weights).
     variances : (K, F) float32 ndarray
-        Per-theme, per-feature variances of the mixture
-        (:func:`core.classify.unsupervised.choose_themes`).
-    options : UnsupervisedOptions
+        Per-theme, per-feature variances of the mixture.
     """
 
     centres: np.ndarray
