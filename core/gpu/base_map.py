@@ -1,8 +1,7 @@
 """The fly-over's base map: the render itself, mipmapped, for footprints of a texel or more.
 
-As terrain engines read a pre-rendered base map beyond their splat layers, where a
-footprint spanning many cells wants the texture's true average (docs/gpu.md, "The
-fly-over"). Edits re-render only the base texels under the dirty region.
+A footprint spanning many cells wants the texture's true average, as engines' base maps
+give beyond their splat layers (docs/gpu.md). Edits re-render only the dirty texels.
 """
 
 from __future__ import annotations

@@ -42,20 +42,8 @@ from terratheme.core.themes.library import Theme
 class GroundView:
     """A grid, its themes and its style on the GPU, drawn on the ground plane.
 
-    Parameters
-    ----------
-    grid : (gh+1, gw+1) integer array-like or IndexGrid
-        Kept by reference: edits show after :meth:`mark_dirty`.
-    themes : sequence of (h, w, 3) uint8 arrays or Themes
-    cell : (N, M), optional
-        Default: the IndexGrid's.
-    style : RenderOptions
-        Blend, saddle rule and shaped borders (:func:`project_style`).
-    colour_map : ColourMap, optional
-    options : GroundOptions
-    context : moderngl.Context, optional
-        Current on this thread; default the thread's standalone EGL context.
-
+    ``grid`` (gh+1, gw+1) is kept by reference: edits show after :meth:`mark_dirty`.
+    ``context`` must be current on this thread (default: the thread's EGL context).
     Raises TerrathemeError for bad inputs (before any GPU work) or a grid beyond the
     driver's textures, GpuUnavailableError without OpenGL 3.3.
     """

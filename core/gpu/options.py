@@ -31,9 +31,6 @@ class GpuRenderOptions:
 
     Attributes
     ----------
-    blend : BlendMode
-    saddle : SaddleRule
-    sampling : Sampling
     max_anisotropy : float
         Anisotropic filtering limit of the filtered path: 1 for flat renders (isotropic
         footprints; llvmpipe blurs them with it on), 16 for grazing fly-overs.
@@ -91,7 +88,6 @@ class GroundOptions:
         Anisotropic filtering of the themes (the driver's cap applies).
     max_supersample : int
         Most weight sub-samples per pixel side.
-    sky : (r, g, b) floats in [0, 1]
     mesh : int
         Most quads per side of the height map's mesh.
     anisotropy : Anisotropy
