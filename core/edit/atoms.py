@@ -18,18 +18,9 @@ from terratheme.core.edit.tools import VertexSelection
 class EditAtom:
     """One undoable change: elements in a bounding slice set to one new value.
 
-    Attributes
-    ----------
-    rows, cols : slice
-        Bounding slice into the layer (the index grid or the scribble layer).
-    packed_mask : (ceil(h*w/8),) uint8 ndarray
-        ``np.packbits`` of the ``(h, w)`` bool mask of changed elements.
-    shape : (h, w)
-        Shape of the bounding slice.
-    old : (k,) uint8 ndarray
-        Values before the edit at the k masked elements (row-major order).
-    new : int
-        The value written (0..255).
+    ``rows, cols`` bound the change in the layer; ``packed_mask`` is ``np.packbits``
+    of the ``shape`` (h, w) bool mask of changed elements; ``old`` (k,) uint8 their
+    values before (row-major); ``new`` the value written.
     """
 
     rows: slice
@@ -127,11 +118,9 @@ class MultiAtom:
 def merge_atoms(parts: list[EditAtom]) -> EditAtom | MultiAtom | None:
     """Merge the atoms of one stroke into one undo step.
 
-    Atoms of one value with disjoint masks (a stroke records each vertex once,
-    when it first changes) become a single :class:`EditAtom` over the union
-    box when that box is small relative to the edit (at most 64 box vertices
-    per changed element); otherwise (a long thin diagonal stroke) they are kept
-    as a :class:`MultiAtom` so memory stays proportional to the edit.
+    Atoms of one value with disjoint masks become one :class:`EditAtom` over the
+    union box when it holds at most 64 box vertices per changed element; otherwise
+    (a long thin diagonal stroke) a :class:`MultiAtom`, so memory follows the edit.
     """
     if not parts:
         return None

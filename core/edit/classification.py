@@ -32,20 +32,11 @@ from terratheme.core.themes.library import Theme, ThemeLibrary
 class ClassificationUpdate:
     """A classification result to put in a document.
 
-    Attributes
-    ----------
-    indices : (gh+1, gw+1) integer ndarray
-        The new grid, indexing the library after the change: the current
-        themes then ``new_themes``, or (``replace_themes``) ``new_themes`` alone.
-    new_themes : sequence of Theme
-        Themes cut from the photo for the classes.
-    replace_themes : bool
-        The library becomes ``new_themes`` (a project just started over a photo).
-    confidence : (H, W) float ndarray in [0, 1] or None
-        Replaces the old map (None clears it: it was another result's).
-    scribble_classes, class_weights :
-        Scribble runs: the classes trained on and the model's class-prior
-        weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
+    ``indices`` (gh+1, gw+1): the new grid, indexing the current themes then
+    ``new_themes`` (the themes cut from the photo), or ``new_themes`` alone with
+    ``replace_themes``. ``confidence`` (H, W) float in [0, 1] replaces the old map
+    (None clears it). ``scribble_classes``, ``class_weights``: scribble runs' classes
+    and prior weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
     """
 
     indices: np.ndarray
@@ -138,15 +129,10 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
                        ) -> tuple[ClassificationUpdate, int]:
     """Classify ``photo``, convert the labels to a ``grid_shape`` vertex grid.
 
-    Returns the update to apply (:meth:`EditDocument.apply_classification`)
-    and the number of classes found.
-
-    ``class_weights`` (scribbles only): prior weights kept from an earlier run,
-    passed to ``train_classifier``. ``position`` (scribbles only): the forest
-    also uses where the strokes lie (``FeatureOptions.position``).
-    ``replace_themes``: the new themes will replace ``library`` (a project just
-    started over a photo), so their names need not differ from its names and the
-    grid indexes them alone; otherwise they are appended after it.
+    Returns the update to apply (:meth:`EditDocument.apply_classification`) and the
+    number of classes. ``class_weights``, ``position``: scribbles only (kept prior
+    weights; strokes' position as a feature). ``replace_themes``: the new themes
+    replace ``library`` (a new project), so their names need not differ from it.
     """
     from terratheme.core.classify import SupervisedOptions, load_model
     from terratheme.core.convert.labels_to_grid import labels_to_grid

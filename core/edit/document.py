@@ -45,20 +45,10 @@ from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
 class EditDocument:
-    """A thematic texture open for editing.
+    """A thematic texture open for editing (``texture`` is edited in place).
 
-    Parameters
-    ----------
-    texture : ThematicTexture
-        Edited in place (its grid, library, photo and scribbles; its layers
-        were checked when it was made, :mod:`core.model.layers`).
-
-    Attributes
-    ----------
-    events : DocumentEvents
-        ``doc.events.grid.connect(callback)`` and so on.
-    history : History
-        The one undo history (read it; change it through :meth:`undo` / :meth:`redo`).
+    ``events``: ``doc.events.grid.connect(callback)`` and so on; ``history``: the one
+    undo history (change it through :meth:`undo` / :meth:`redo`).
     """
 
     def __init__(self, texture: ThematicTexture) -> None:

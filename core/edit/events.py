@@ -37,14 +37,9 @@ class ScribbleChange:
 class ThemeChange:
     """The theme library changed.
 
-    Attributes
-    ----------
-    index : int or None
-        The theme added, removed or replaced; None when the whole library was.
-    colours : bool
-        Display colours of themes the grid may use changed (recolour the index map).
-    textures : bool
-        Textures of themes the grid may use changed (re-render everything).
+    ``index``: the theme added, removed or replaced (None: the whole library);
+    ``colours`` / ``textures``: display colours / textures of themes the grid may
+    use changed (recolour the index map / re-render everything).
     """
 
     index: int | None
@@ -76,16 +71,8 @@ class PriorChange:
 
 @dataclass(frozen=True)
 class HistoryChange:
-    """The undo history moved: what Undo and Redo would do now, and whether it is saved.
-
-    Attributes
-    ----------
-    undo_label, redo_label : str or None
-        Label of the step :meth:`~core.edit.history.History.undo` /
-        ``redo`` would take (None: nothing to undo / redo).
-    clean : bool
-        The document equals its last saved (or opened) state.
-    """
+    """The undo history moved: the labels of the steps Undo and Redo would take now
+    (None: nothing), and ``clean``: the document equals its last saved state."""
 
     undo_label: str | None
     redo_label: str | None

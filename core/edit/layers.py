@@ -111,17 +111,9 @@ def check_theme_name(library: ThemeLibrary, name: str, skip: int | None = None) 
 class DocumentData:
     """Everything an edit document holds; written only by :mod:`core.edit.changes`.
 
-    Attributes
-    ----------
-    texture : ThematicTexture
-        Grid, library, photo and scribbles (saved in the project file).
-    confidence : (H, W) float32 read-only ndarray or None
-        The last classification's confidence map (not saved).
-    kept_prior : KeptPrior or None
-        Class weights of the first scribble classification (not saved).
-    scribble_counts : (256,) int64 ndarray
-        Pixels of the scribble layer holding each value, kept current by every
-        change, so the painted classes are known without scanning the layer.
+    ``texture`` (saved), and not saved: ``confidence`` (H, W) float32 read-only, the
+    last classification's; ``kept_prior``; ``scribble_counts`` (256,) int64, pixels
+    of each scribble value, kept current by every change so no scan is needed.
     """
 
     texture: ThematicTexture

@@ -17,15 +17,8 @@ from terratheme.core.errors import TerrathemeError
 
 @dataclass(frozen=True, eq=False)
 class VertexSelection:
-    """The vertices a tool covers.
-
-    Attributes
-    ----------
-    rows, cols : slice
-        Bounding slice into the ``(gh+1, gw+1)`` index array (step 1, in range).
-    mask : (rows.stop - rows.start, cols.stop - cols.start) bool ndarray
-        True for covered vertices.
-    """
+    """The vertices a tool covers: ``rows, cols`` bound them in the ``(gh+1, gw+1)``
+    index array (step 1, in range) and ``mask`` (bool, that slice's shape) marks them."""
 
     rows: slice
     cols: slice

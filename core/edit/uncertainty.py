@@ -56,14 +56,8 @@ def scribble_classes(scribbles: np.ndarray | None) -> frozenset[int]:
 
 @dataclass(frozen=True)
 class KeptPrior:
-    """Class weights of the first scribble classification of a set of class values.
-
-    Attributes
-    ----------
-    weights : mapping of class value -> weight
-    classes : frozenset of int
-        The scribbled class values of that classification.
-    """
+    """Class weights (class value -> weight) of the first scribble classification of the
+    scribbled class values ``classes``."""
 
     weights: Mapping[int, float]
     classes: frozenset[int]
