@@ -13,8 +13,10 @@ Unreal's tiled-import naming (``name_x0_y0.png``) and share their border
 vertices, as neighbouring landscape tiles do. The weights follow the
 project's style (:mod:`core.exchange.style`); the colour map ships as
 ``colour_map.png`` with the transform from landscape vertex coordinates to
-its UV (:func:`core.exchange.colour.vertex_colour_uv`), for the landscape
-material to multiply in (``docs/engines.md``).
+its UV (:func:`core.exchange.colour.vertex_colour_uv`), and
+:data:`MATERIAL_SCRIPT` (``core/exchange/scripts``) builds, run in the
+Unreal editor, the landscape material that blends the layers and multiplies
+the colour map in as terratheme's renderer does (``docs/engines.md``).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from terratheme.core.exchange import plan as export_plan
 from terratheme.core.exchange.colour import COLOUR_MAP, vertex_colour_uv
 from terratheme.core.exchange.layout import ExportLayout, tiled_layout
 from terratheme.core.exchange.options import ExportOptions
+from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.io.images import write_image
 from terratheme.core.model.project import ThematicTexture
 
@@ -36,6 +39,9 @@ UNREAL_SIZES = {127: 126, 253: 126, 505: 126, 1009: 126, 2017: 126, 4033: 126, 8
 #: heightmap value of height 0 (Unreal's 16-bit heights are centred on 32768)
 FLAT_HEIGHT = 32768
 MANIFEST = "terratheme_unreal.json"
+#: the editor script that builds the landscape material (Unreal's Python), as the export names it
+MATERIAL_SCRIPT = "terratheme_unreal_material.py"
+_SCRIPT_SOURCE = Path(__file__).resolve().parent / "scripts" / MATERIAL_SCRIPT
 Progress = Callable[[int, int], None]
 
 
@@ -94,7 +100,7 @@ def plan(project: ThematicTexture, options: ExportOptions) -> export_plan.Export
         suffix = piece.suffix if layout.tile else ""
         files.append(f"heightmap{suffix}.png")
         files += [weight_file(project, k, suffix) for k in range(len(project.library))]
-    files += export_plan.theme_files(project)
+    files += [*export_plan.theme_files(project), MATERIAL_SCRIPT]
     return export_plan.map_plan(project, options, layout, files, MANIFEST, notes)
 
 
@@ -110,6 +116,7 @@ def write(project: ThematicTexture, plan: export_plan.ExportPlan, folder: Path,
         for t in range(k):
             write_image(folder / weight_file(project, t, suffix), weights[t][:, :, None])
     export_plan.write_shared_files(project, folder)
+    write_bytes_atomic(folder / MATERIAL_SCRIPT, _SCRIPT_SOURCE.read_bytes())
     # Unreal's landscape scale is centimetres per quad (100 = 1 m between vertices).
     spacing = export_plan.pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size
