@@ -56,7 +56,7 @@ def _cache_size(text: str) -> int:
                                          f"optional unit K, M, G or T (e.g. 2G, 500M), not "
                                          f"{text!r}")
     unit = 1 << (10 * " kmgt".index(match.group(2).lower() or " "))
-    # digits bounded before the exact arithmetic (a float of 400 nines overflowed)
+    # digits bounded before the exact arithmetic (a huge number is refused, not computed)
     size = 0 if len(match.group(1)) > 40 else int(Fraction(match.group(1)) * unit)
     if not 1 <= size <= MAX_CACHE_BYTES:
         raise argparse.ArgumentTypeError(f"--cache-size must be from one byte to 1024T, "
