@@ -72,26 +72,12 @@ def cover_cells(buf, off, rows, cols, s, t, tent_rows, swap, x0, y0, a, bs, ls, 
                 w, out):
     """``out += w * `` the mean of one copy over the pixel; returns the cells read.
 
-    Parameters
-    ----------
-    buf : (T, C) ndarray
-    off, rows, cols : int
-        The copy: ``rows x cols`` cells from ``buf[off]``, row-major (column-major
-        when ``swap``: a mip level read in the transposed frame).
-    s, t : float
-        Cell length along and across, in texels.
-    tent_rows : bool
-        Rows are lines through texel centres (``b = 0``), read as the bilinear
-        texture; otherwise they are cells of height ``t``.
-    x0, y0 : float
-        The pixel's centre (along, across), in texels, wrapped.
-    a, bs, ls : float
-        The pixel ``{(s a + t bs, t ls)}`` around the centre, the cross axis
-        sheared by ``slope`` (:func:`core.perspective.footprint.footprint_sides`).
-    tau : float
-        The copy's skew (its cells' cross axis is sheared by ``tau``).
-    w : float
-        Weight of this read.
+    The copy is ``rows x cols`` cells of ``s`` x ``t`` texels (along, across) from
+    ``buf[off]`` (T, C), row-major (column-major when ``swap``: a mip level read
+    transposed); ``tent_rows``: rows are lines through texel centres (``b = 0``),
+    read as the bilinear texture. The pixel, centred at ``(x0, y0)`` (wrapped), is
+    ``{(s a + t bs, t ls)}`` with the cross axis sheared by ``slope``
+    (:func:`core.perspective.footprint.footprint_sides`); ``tau`` is the copy's skew.
     """
     b = abs(bs)
     big, small = max(a, b), min(a, b)
@@ -168,19 +154,11 @@ def cover_cells(buf, off, rows, cols, s, t, tent_rows, swap, x0, y0, a, bs, ls, 
 def quadrature_texels(tex, rows, cols, u, v, dux, dvx, duy, dvy, scratch, out):
     """``out +=`` the box over the pixel of the bilinear (wrapping) texture.
 
-    Midpoint-rule points over the pixel (two per texel of the side's length,
-    2 to ``QUAD_POINTS`` per side), each spread bilinearly into ``scratch``
-    (per-texel weights of the window round the pixel); each texel with a
-    weight is read once. Returns the texels read.
-
-    Parameters
-    ----------
-    tex : (rows * cols, C) ndarray
-    u, v : float
-        The pixel's centre in texels (wrapped).
-    dux, dvx, duy, dvy : float
-        Eq. 2 in texels of ``tex``; the pixel must fit a ``QUAD_WINDOW - 2`` texel window.
-    scratch : (QUAD_WINDOW, QUAD_WINDOW) float64 ndarray, zeroed on return.
+    Midpoint-rule points (two per texel of a side, 2 to ``QUAD_POINTS`` per side)
+    spread bilinearly into ``scratch`` (QUAD_WINDOW, QUAD_WINDOW) float64, zeroed on
+    return; each texel with a weight is read once. ``tex`` (rows * cols, C); ``u, v``
+    the centre in texels; ``dux .. dvy`` eq. 2 in texels of ``tex``, the pixel within
+    a ``QUAD_WINDOW - 2`` texel window. Returns the texels read.
     """
     nx = min(QUAD_POINTS, max(2, int(math.ceil(2.0 * math.hypot(dux, dvx)))))
     ny = min(QUAD_POINTS, max(2, int(math.ceil(2.0 * math.hypot(duy, dvy)))))

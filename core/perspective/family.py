@@ -50,19 +50,11 @@ def skew_values(i: int, oversampling: int = 1) -> np.ndarray:
 class ParallelogramFamily:
     """All prefiltered copies, packed for the lookup kernel.
 
-    Attributes
-    ----------
-    buf : (T, C) ndarray
-        Every cell, copy after copy (row-major), in the texture's storage type.
-    start : (2, L+1, L+1) int64 ndarray
-        ``start[o, a, b]``: where the first skew of copy ``(a, b)`` tilted toward
-        U (``o = 0``) or V (``o = 1``, stored in the transposed frame) begins,
-        -1 if absent. Skew ``s`` begins ``s * rows * cols`` later.
-        ``start[1, l, l]`` is the mip level ``start[0, l, l]`` (read transposed).
-    count : (2, L+1, L+1) int64 ndarray
-        Skews kept for ``(o, a, b)`` (1 where the cross side is exhausted).
-    grid_size : (W', H')
-    max_lambda_log2, skew_oversampling : int
+    ``buf`` (T, C): every cell, copy after copy (row-major), in the storage type.
+    ``start`` (2, L+1, L+1) int64: ``start[o, a, b]`` is where the first skew of copy
+    ``(a, b)`` tilted toward U (``o = 0``) or V (``o = 1``, transposed frame) begins,
+    -1 if absent; skew ``s`` begins ``s * rows * cols`` later; ``start[1, l, l]`` is
+    the mip level ``start[0, l, l]``. ``count``: skews kept for ``(o, a, b)``.
     """
 
     buf: np.ndarray
@@ -150,20 +142,12 @@ def _put(buf, idx, c, x, top):
 
 @njit(cache=True, parallel=True)
 def sheared_cells(grid, taus, dest, top, buf):
-    """Step 1: the ``b = 0`` copies of every skew, written into ``buf``.
+    """Step 1: the ``b = 0`` copies of every skew, written into ``buf`` (T, C).
 
-    Parameters
-    ----------
-    grid : (R, N, C) ndarray
-        The texture in the orientation's frame (rows across, columns along).
-    taus : (S,) float64 ndarray
-        Skews: rows across per column along.
-    dest : (S, I + 1) int64 ndarray
-        ``dest[s, i]``: where copy ``(i, 0)`` of skew ``s`` (``R x N >> i`` cells)
-        starts in ``buf``, -1 if that level does not keep the skew.
-    top : float
-        Largest value of an integer storage type (0 for float storage).
-    buf : (T, C) ndarray, written.
+    ``grid`` (R, N, C) is the texture in the orientation's frame (rows across,
+    columns along); ``taus`` (S,) the skews (rows across per column along);
+    ``dest[s, i]`` where copy ``(i, 0)`` of skew ``s`` starts in ``buf`` (-1: not
+    kept); ``top`` the storage type's largest value (0 for float).
     """
     rows, n, nc = grid.shape
     levels = dest.shape[1] - 1
@@ -213,19 +197,13 @@ JOB_FIELDS = 7
 
 @njit(cache=True, parallel=True)
 def halved_cells(jobs, row_starts, top, buf):
-    """Steps 2-4: every child copy of ``jobs`` from its parent in ``buf``.
+    """Steps 2-4: every child copy of ``jobs`` (J, JOB_FIELDS) from its parent in ``buf``.
 
-    Child cell ``(m, k)`` is the mean of the parent's rows ``2m, 2m+1`` (mod
-    the parent's rows) shifted by ``-delta`` in column ``2k`` and by ``+delta``
-    in column ``2k+1`` (mod its columns): the diagonal step for ``delta =
-    tan 2^(i-1)``, a mip level for ``delta = 0``, pairs along where the parent
-    has one row.
-
-    Parameters
-    ----------
-    jobs : (J, JOB_FIELDS) int64 ndarray
-    row_starts : (J + 1,) int64 ndarray
-        Cumulative child rows (the parallel loop runs over all of them).
+    Child cell ``(m, k)`` is the mean of the parent's rows ``2m, 2m+1`` (mod its
+    rows) shifted by ``-delta`` in column ``2k`` and by ``+delta`` in column ``2k+1``
+    (mod its columns): the diagonal step for ``delta = tan 2^(i-1)``, a mip level for
+    ``delta = 0``, pairs along where the parent has one row. ``row_starts``
+    (J + 1,): cumulative child rows, the parallel loop's range.
     """
     nc = buf.shape[1]
     for t in prange(row_starts[-1]):
@@ -252,17 +230,10 @@ def build_family(grid: np.ndarray, max_lambda_log2: int, skew_oversampling: int 
                  progress: Progress | None = None) -> ParallelogramFamily:
     """Prefilter the family of copies, level by level (the module's steps).
 
-    Parameters
-    ----------
-    grid : (H', W', C) ndarray
-        The texture in stored units, sides powers of two.
-    max_lambda_log2 : int
-        ``k``: largest ``log2(lambda)`` kept where the cross side is not exhausted.
-    skew_oversampling : 1 or 2
-        Multiplies the seed's number of skews.
-    dtype : float32, uint8 or uint16
-        Storage type; filtered in floating point, rounded once per level.
-    progress : callable(done_cells, total_cells) or None
+    ``grid`` (H', W', C) in stored units, sides powers of two; ``max_lambda_log2``:
+    ``k``, the largest ``log2(lambda)`` kept where the cross side is not exhausted;
+    ``skew_oversampling`` 1 or 2 times the seed's skews; ``dtype`` float32, uint8 or
+    uint16 (filtered in floating point, rounded once per level).
     """
     h, w, nc = grid.shape
     if h & (h - 1) or w & (w - 1):

@@ -1,6 +1,6 @@
 """Plane mapping of eq. 1 and the camera that produces it.
 
-Conventions (issue 6):
+Conventions:
 
 * screen pixel ``(px, py)`` covers ``[px, px+1) x [py, py+1)``, row 0 at the
   top; a pixel is sampled at its centre ``(px + 0.5, py + 0.5)``;
@@ -118,20 +118,12 @@ class PlaneMapping:
 
 @dataclass(frozen=True)
 class Camera:
-    """A pinhole camera above the texture plane.
+    """A pinhole camera ``height`` texels (> 0) above the texture plane.
 
-    Parameters
-    ----------
-    height : float
-        Height above the plane, in texels (> 0).
-    pitch : float
-        Degrees below the horizontal, in [-90, 90] (90 = straight down).
-    yaw : float
-        Heading in degrees, clockwise from ``-V`` (north).
-    fov : float
-        Horizontal field of view in degrees, in (0, 170].
-    x, y : float or None
-        Position above the plane in texels (None = the texture's centre).
+    ``pitch``: degrees below the horizontal in [-90, 90] (90 = straight down);
+    ``yaw``: heading in degrees clockwise from ``-V`` (north); ``fov``: horizontal
+    field of view in degrees in (0, 170]; ``x, y``: position in texels (None = the
+    texture's centre).
     """
 
     height: float

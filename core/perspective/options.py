@@ -41,33 +41,17 @@ class Lookup(StrEnum):
 class FilterOptions:
     """How a frame is filtered.
 
-    Parameters
-    ----------
-    method : Method
-    max_anisotropy : float
-        ``PARALLELOGRAM``: cells up to this elongation (``lambda = 2^ceil(log2)``);
-        ``COVERAGE`` reads footprints about ``cells_per_footprint`` times longer sharp.
-        ``SEED`` clamps the footprint to it, ``ANISO`` takes at most this many probes,
-        ``EWA`` clamps its ellipse's eccentricity to it.
-    aperture : float
-        Scale of the pixel footprint (1: the pixel's own parallelogram of eq. 2; the
-        seed's 2 x 2-pixel filter: 2). ``PARALLELOGRAM``, ``TRILINEAR``, ``ANISO``.
-    skew_oversampling : int
-        1 or 2 times the seed's skews per ``lambda`` level (2 doubles the memory).
-    cells_per_footprint : float
-        ``COVERAGE``: a pixel spans this many to twice this many cells along its long
-        side: sharper filter ends, more reads.
-    lookup : Lookup
-        ``PARALLELOGRAM`` only: ``COVERAGE`` or the seed's ``SEED``.
-    skew_blend : bool
-        ``PARALLELOGRAM`` only: interpolate the two skews around the footprint's
-        ``tan`` (twice the reads) instead of the nearest; helps ``SEED`` only.
-    sky : tuple of float
-        Colour above the horizon (``z <= 0``), in [0, 1].
-    reference_density : float
-        ``REFERENCE``: sub-samples per texel of footprint along each screen axis,
-    reference_min_samples, reference_max_samples : int
-        within these bounds per pixel and axis.
+    ``max_anisotropy``: ``PARALLELOGRAM`` cells up to this elongation (``lambda =
+    2^ceil(log2)``; ``COVERAGE`` reads footprints about ``cells_per_footprint`` times
+    longer sharp); ``SEED`` clamps the footprint to it, ``ANISO`` takes at most this
+    many probes, ``EWA`` clamps its ellipse's eccentricity. ``aperture``: scale of the
+    pixel footprint (1: eq. 2's parallelogram; the seed's 2 x 2-pixel filter: 2).
+    ``skew_oversampling``: 1 or 2 times the seed's skews (2 doubles the memory).
+    ``cells_per_footprint``: ``COVERAGE`` spans this to twice this many cells along
+    (sharper ends, more reads). ``lookup``, ``skew_blend``: ``PARALLELOGRAM`` only
+    (blend interpolates the two skews around ``tan``: twice the reads, helps ``SEED``
+    only). ``sky``: colour above the horizon in [0, 1]. ``reference_*``: ``REFERENCE``
+    sub-samples per texel of footprint along each screen axis, within the bounds.
     """
 
     method: Method = Method.PARALLELOGRAM

@@ -54,17 +54,8 @@ def family_key(texels: np.ndarray, max_lambda_log2: int, skew_oversampling: int)
 
 @dataclass(frozen=True)
 class RenderResult:
-    """A rendered frame.
-
-    Attributes
-    ----------
-    image : (h, w, C) float32 ndarray
-        C as in the texture, values in [0, 1] for integer textures.
-    texel_reads : (h, w) int32 ndarray
-        Texels read for each pixel (0 for sky).
-    mapping : PlaneMapping
-        The eq. 1 coefficients used (in texels of the input).
-    """
+    """A rendered frame: ``image`` (h, w, C) float32 (in [0, 1] for integer textures),
+    ``texel_reads`` (h, w) int32 per pixel (0 for sky) and the eq. 1 ``mapping`` used."""
 
     image: np.ndarray
     texel_reads: np.ndarray
@@ -96,17 +87,11 @@ def sky_vector(sky: tuple[float, ...], channels: int) -> np.ndarray:
 class PreparedTexture:
     """A texture prefiltered for perspective rendering.
 
-    Parameters
-    ----------
-    texture : (h, w) or (h, w, C) ndarray, C in 1..4
-        uint8 / uint16 keep their type (prefiltered data too); others become float32 in
-        [0, 1]. Any size (resampled to powers of two, :func:`~.texture.power_of_two_grid`).
-    options : FilterOptions
-        The default filter, whose structures are built now; others on first use.
-    progress : callable(done, total) or None
-        Called while the family is built.
-    cache : DiskCache or None
-        Families are loaded from and stored into it.
+    ``texture`` (h, w) or (h, w, C), C in 1..4: uint8 / uint16 keep their type (the
+    prefiltered data too), others become float32 in [0, 1]; any size (resampled to
+    powers of two, :func:`~.texture.power_of_two_grid`). The structures of
+    ``options``' filter are built now, others on first use; families are loaded
+    from and stored into ``cache``.
     """
 
     def __init__(self, texture: np.ndarray, options: FilterOptions | None = None,

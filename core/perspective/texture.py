@@ -20,14 +20,8 @@ STORED_TYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
 
 @dataclass(frozen=True)
 class StoredTexture:
-    """A texture in its storage type.
-
-    Attributes
-    ----------
-    texels : (h, w, C) uint8, uint16 or float32 ndarray, C in 1..4
-    top : float
-        Stored units per 1.0: 255, 65535 or 1.
-    """
+    """A texture in its storage type: ``texels`` (h, w, C) uint8, uint16 or float32, and
+    ``top``, stored units per 1.0 (255, 65535 or 1)."""
 
     texels: np.ndarray
     top: float
@@ -129,14 +123,9 @@ def box_halve(img: np.ndarray) -> np.ndarray:
 class MipPyramid:
     """Box-filtered mip levels of an ``H' x W'`` texture, packed for the kernels.
 
-    Attributes
-    ----------
-    buf : (T, C) ndarray
-        All levels, row-major, level after level, in the storage type.
-    offsets : (L,) int64 ndarray
-        Start of level ``l`` in ``buf``.
-    heights, widths : (L,) int64 ndarrays
-        ``level_shape`` of every level; the last one is 1 x 1.
+    ``buf`` (T, C): all levels row-major, one after the other, in the storage type;
+    ``offsets``, ``heights``, ``widths`` (L,) int64: each level's start and shape
+    (the last is 1 x 1).
     """
 
     buf: np.ndarray
@@ -159,13 +148,8 @@ class MipPyramid:
 
 
 def build_pyramid(grid: np.ndarray, dtype: np.dtype | type = np.float32) -> MipPyramid:
-    """Mip levels down to 1 x 1 by 2 x 2 (or 2 x 1) box averaging.
-
-    Parameters
-    ----------
-    grid : (H', W', C) float ndarray, sides powers of two
-    dtype : storage type of the levels (values rounded for integer types)
-    """
+    """Mip levels down to 1 x 1 by 2 x 2 (or 2 x 1) box averaging of ``grid`` (H', W', C),
+    sides powers of two, stored as ``dtype`` (rounded for integer types)."""
     h, w = grid.shape[:2]
     if h & (h - 1) or w & (w - 1):
         raise TerrathemeError(f"mip pyramid needs power-of-two sides, got {grid.shape[:2]}")
