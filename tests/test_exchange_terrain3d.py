@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import OpenImageIO as oiio
 import pytest
@@ -29,6 +30,7 @@ from terratheme.core.exchange import (
     write_export,
 )
 from terratheme.core.io.images import write_image
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.themes.library import ThemeLibrary, flat_theme, shipped_theme_library
@@ -135,3 +137,31 @@ def test_what_terrain3d_cannot_take_is_refused(tmp_path):
     write_image(tmp_path / "half.exr", np.zeros((4, 4, 1), np.float16))
     with pytest.raises(TerrathemeError, match="float16"):
         read_control_map(tmp_path / "half.exr")
+
+
+def test_the_colour_map_is_the_renderers_gain_at_every_vertex_worked_by_hand(tmp_path):
+    # 2 x 3 vertices of cell 4: 8 x 4 texels; a colour map of 2 x 1 pixels at scale 4.
+    project = _project(np.zeros((2, 3), np.uint8), (4, 4))
+    a, b = (100, 40, 0), (200, 80, 255)
+    project.colour_map = ColourMap(np.array([[a, b]], np.uint8), 4)
+    plan = plan_export(project, ExportOptions(Engine.GODOT))
+    assert "terrain3d_colour.png" in plan.files
+    write_export(project, plan, tmp_path)
+    # Stored RGBA as written (OpenCV: OpenImageIO would premultiply by the alpha).
+    colour = cv2.imread(str(tmp_path / "terrain3d_colour.png"), cv2.IMREAD_UNCHANGED)
+    assert colour.dtype == np.uint8
+    colour = colour[:, :, [2, 1, 0, 3]]
+    # The control map's size (Terrain3D's importer slices both maps into regions together).
+    assert colour.shape == (2, 3, 4)
+    # Vertices at texels x = 0, 4, 8; the renderer samples map x = (x + 0.5) / 4 - 0.5, clamped:
+    # 0 -> a; 4 -> 0.625: 3/8 a + 5/8 b = (162.5, 65, 159.375), rounded half up; 8 -> b.
+    # One map row: every vertex row the same.
+    want = np.array([[a, (163, 65, 159), b]] * 2, np.uint8)
+    np.testing.assert_array_equal(colour[:, :, :3], want)
+    assert (colour[:, :, 3] == 128).all()  # Terrain3D's neutral roughness (alpha 0.5)
+    manifest = json.loads((tmp_path / "terratheme_godot.json").read_text())
+    assert manifest["colour_map"]["file"] == "terrain3d_colour.png"
+    # Every texture's albedo_color brings a decoded 128 to 1: the colour map's neutral.
+    srgb_128 = ((128 / 255 + 0.055) / 1.055) ** 2.4  # IEC 61966-2-1
+    for texture in manifest["textures"]:
+        assert texture["albedo_color"] == pytest.approx([1 / srgb_128] * 3)
