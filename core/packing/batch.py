@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 from terratheme.core.packing import layout
-from terratheme.core.packing.lookup import local_step, run_span, search_runs
+from terratheme.core.packing.lookup import grid_word, local_step, run_span, search_runs
 from terratheme.core.packing.sweep import (
     STRETCH,
     T_BASE,
@@ -102,9 +102,7 @@ def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, co
     width, height, tb, across, shift = tiles[0], tiles[1], tiles[2], tiles[3], tiles[4]
     tmask = (np.int64(1) << tb) - 1
     height0, gb0, grid0, gw0 = rows[T_HEIGHT], rows[T_GRID_BITS], rows[T_GRID], rows[T_GRID_WIDTH]
-    # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
-    cut0 = np.int64(data[layout.W_CUT])
-    pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
+    cut0 = np.int64(data[layout.W_CUT]) if joined else np.int64(0)
     m = a
     for k in range(a, b):
         x = np.int64(xs[k])
@@ -113,24 +111,17 @@ def _grid_pass(xs, ys, a, b, data, tiled, joined, tiles, rows, out, ent, bkt, co
             return m - a, k
         if tiled:
             r = ((row >> tb) * across + (x >> tb)) * TILE_COLUMNS
-            x &= tmask
-            yup = rows[r + T_HEIGHT] - 1 - (row & tmask)
             gb = rows[r + T_GRID_BITS]
-            gi = (yup >> gb) * rows[r + T_GRID_WIDTH] + (x >> gb)
-            g = np.int64(data[rows[r + T_GRID] + gi])
+            g, gi, lx, ly = grid_word(x & tmask, row & tmask, data, rows[r + T_GRID],
+                                      rows[r + T_GRID_WIDTH], rows[r + T_HEIGHT], 0, gb)
             bucket = rows[r + T_BUCKET] + (gi >> shift)
         else:
-            yup = height0 - 1 - row
-            if joined:
-                yup += pad0 * (row < cut0)
             gb = gb0
-            gi = (yup >> gb) * gw0 + (x >> gb)
-            g = np.int64(data[grid0 + gi])
+            g, gi, lx, ly = grid_word(x, row, data, grid0, gw0, height0, cut0, gb)
             bucket = gi >> shift
         # Branch-free: every texel takes the next slot, which only searches keep.
         out[k] = g & 255
-        mask = (np.int64(1) << gb) - 1
-        ent[m] = (np.int64(k) << 32) | (gi << (2 * gb)) | ((yup & mask) << gb) | (x & mask)
+        ent[m] = (np.int64(k) << 32) | (gi << (2 * gb)) | (ly << gb) | lx
         bkt[m] = bucket
         search = (g & layout.UNIFORM) == 0
         counts[bucket] += search

@@ -45,17 +45,27 @@ def _inside(x, row, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _grid_word(x, row, data, base):  # pragma: no cover - numba
-    # Grid word of texel (x, row), row 0 = top, and its place in the block (y up);
-    # rows above a joined table's cut are read `pad` higher (:mod:`.layout`).
-    height = np.int64(data[base + W_HEIGHT])
-    cut = np.int64(data[base + W_CUT])
-    gb = np.int64(data[base + W_GRID_BITS])
-    yup = height - 1 - row + ((cut - height) & ((np.int64(1) << gb) - 1)) * (row < cut)
-    g = np.int64(data[base + np.int64(data[base + W_GRID]) + (yup >> gb)
-                      * np.int64(data[base + W_GRID_WIDTH]) + (x >> gb)])
+def grid_word(x, row, data, grid, grid_width, height, cut, gb):  # pragma: no cover - numba
+    """Grid word of texel ``(x, row)`` (row 0 = top), its index ``gi`` in the grid at
+    ``data[grid:]`` and its place ``(lx, ly)`` in the block (y up): ``(g, gi, lx, ly)``.
+
+    Rows above a joined table's ``cut`` (0: none) are read ``pad`` higher (:mod:`.layout`).
+    The one grid-word step of every CPU lookup, scalar or batched.
+    """
     mask = (np.int64(1) << gb) - 1
-    return g, x & mask, yup & mask, gb
+    yup = height - 1 - row + ((cut - height) & mask) * (row < cut)
+    gi = (yup >> gb) * grid_width + (x >> gb)
+    return np.int64(data[grid + gi]), gi, x & mask, yup & mask
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _grid_word(x, row, data, base):  # pragma: no cover - numba
+    # grid_word of texel (x, row) of the table at data[base:], and the grid bits.
+    gb = np.int64(data[base + W_GRID_BITS])
+    g, _gi, lx, ly = grid_word(x, row, data, base + np.int64(data[base + W_GRID]),
+                               np.int64(data[base + W_GRID_WIDTH]),
+                               np.int64(data[base + W_HEIGHT]), np.int64(data[base + W_CUT]), gb)
+    return g, lx, ly, gb
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

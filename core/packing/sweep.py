@@ -13,6 +13,7 @@ import numba
 import numpy as np
 from terratheme.core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
 from terratheme.core.packing import layout
+from terratheme.core.packing.lookup import grid_word
 from terratheme.core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
@@ -35,9 +36,7 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
     tmask = (np.int64(1) << tb) - 1
     height0 = np.int64(data[layout.W_HEIGHT])
     gb0 = np.int64(data[layout.W_GRID_BITS])
-    # A joined table's rows above its cut are read `pad` higher (:mod:`.layout`).
-    cut0 = np.int64(data[layout.W_CUT])
-    pad0 = (cut0 - height0) & ((np.int64(1) << gb0) - 1)
+    cut0 = np.int64(data[layout.W_CUT]) if joined else np.int64(0)
     grid0 = np.int64(data[layout.W_GRID])
     spans0 = np.int64(data[layout.W_SPANS])
     runs0 = np.int64(data[layout.W_RUNS])
@@ -62,22 +61,15 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
             t = 0
             if tiled:
                 t = ((row >> tb) * across + (x >> tb)) * TILE_COLUMNS
-                x &= tmask
-                yup = rows[t + T_HEIGHT] - 1 - (row & tmask)
-                gb = rows[t + T_GRID_BITS]
-                g = np.int64(data[rows[t + T_GRID] + (yup >> gb) * rows[t + T_GRID_WIDTH]
-                                  + (x >> gb)])
+                g, _, lx, ly = grid_word(x & tmask, row & tmask, data, rows[t + T_GRID],
+                                         rows[t + T_GRID_WIDTH], rows[t + T_HEIGHT], 0,
+                                         rows[t + T_GRID_BITS])
             else:
-                yup = height0 - 1 - row
-                if joined:
-                    yup += pad0 * (row < cut0)
-                gb = gb0
-                g = np.int64(data[grid0 + (yup >> gb) * gw0 + (x >> gb)])
+                g, _, lx, ly = grid_word(x, row, data, grid0, gw0, height0, cut0, gb0)
             # Branch-free: every texel takes the next slot, which only searches keep.
             out[k] = g & 255
-            mask = (np.int64(1) << gb) - 1
             gs[m] = g
-            local[m] = ((yup & mask) << 32) | (x & mask)
+            local[m] = (ly << 32) | lx
             which[m] = k
             tile[m] = t
             m += (g & layout.UNIFORM) == 0
