@@ -137,7 +137,6 @@ def child(args: argparse.Namespace) -> None:
     from terratheme.core.convert.labels_to_grid import vote_grid
     from terratheme.core.convert.tiled import grid_from_file
     from terratheme.core.io.images import read_image
-    from terratheme.core.io.tiles import Scheduler
 
     if args.classifier == "forest":
         model = Classifier.load(args.model)
@@ -155,9 +154,7 @@ def child(args: argparse.Namespace) -> None:
         img = read_image(args.image)
         grid = vote_grid(classify(img), (16, 16))
     else:
-        sched = Scheduler.DASK if args.mode == "dask" else Scheduler.SERIAL
-        grid = grid_from_file(args.image, 16, classify, tile=args.tile, overlap=overlap,
-                              scheduler=sched).indices
+        grid = grid_from_file(args.image, 16, classify, tile=args.tile, overlap=overlap).indices
     seconds = time.perf_counter() - t0
     _, traced_peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
@@ -215,10 +212,9 @@ def part_b(quick: bool) -> dict:
             if side <= 8192:
                 records.append(_measure("whole", images[side], 0, "colour", cen_arg))
             records.append(_measure("tiled", images[side], 1024, "colour", cen_arg))
-        # Tile sizes on the largest image, plus the same jobs on Dask.
+        # Tile sizes on the largest image.
         for tile in [256, 4096]:
             records.append(_measure("tiled", big, tile, "colour", cen_arg))
-        records.append(_measure("dask", big, 1024, "colour", cen_arg))
         # Peer pair 2: the trained random forest, whole vs tiled.
         if model_args:
             for side in sides:
@@ -281,10 +277,6 @@ def chart(result: dict, path: Path) -> None:
     if pts:
         xs, ys = zip(*pts, strict=True)
         axt.plot(xs, ys, "o-", label=f"tiled, {big}^2 image")
-    dk = [r for r in recs if r["mode"] == "dask"]
-    if dk:
-        axt.plot([1024], [dk[0]["peak_rss_above_start_mib"]], "r^",
-                 label="Dask, batch of 4 tiles")
     axt.set_xscale("log", base=2)
     axt.set(yscale="log", xlabel="tile side (pixels)", ylabel="peak RSS above start (MiB)",
             title=f"peak memory vs tile size ({big}x{big} image)")
@@ -299,7 +291,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small images only")
     parser.add_argument("--only-a", action="store_true",
                         help="rerun part A only, keeping part B of the existing convert.json")
-    parser.add_argument("--child", choices=["whole", "tiled", "dask"])
+    parser.add_argument("--child", choices=["whole", "tiled"])
     parser.add_argument("--image")
     parser.add_argument("--tile", type=int, default=1024)
     parser.add_argument("--classifier", default="colour")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.features import FeatureOptions, image_features
 from terratheme.core.classify.tiled import feature_windows
 
 
@@ -25,7 +25,7 @@ def assert_tiles_match_whole(photo: np.ndarray, options: FeatureOptions, tile: i
     """Features of every tile (with ``options.halo`` of overlap) equal the whole photo's
     in its core, to 1e-3 (``options.scale`` 8; ``channels`` picks the features compared)."""
     h, w = photo.shape[:2]
-    whole = compute_features(photo, options)
+    whole = image_features(photo, options)[2]
     for win in feature_windows(h, w, tile, 8, options.halo):
         _lab, _std, part = image_features(photo[win.ry:win.ry1, win.rx:win.rx1], options)
         oy, ox = (win.y - win.ry) // 8, (win.x - win.rx) // 8

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 from classify_cases import assert_tiles_match_whole
-from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.features import FeatureOptions, image_features
 from terratheme.core.classify.lab import full_lab
 from terratheme.core.classify.ridges import block_ridges, hessian_eigenvalues, ridge_halo
 from terratheme.core.errors import TerrathemeError
@@ -73,7 +73,7 @@ def test_features_carry_the_ridges_last():
     rng = np.random.default_rng(5)
     photo = rng.integers(0, 256, (40, 48, 3), dtype=np.uint8)
     fo = FeatureOptions(hessian=True, ridge_sigmas=(1.0, 2.0))
-    feats = compute_features(photo, fo)
+    feats = image_features(photo, fo)[2]
     assert feats.shape == (5, 6, fo.n_features)
     np.testing.assert_allclose(feats[:, :, -4:], ridges_of(photo, (1.0, 2.0)), atol=1e-4)
     _lab, _std, plain = image_features(photo, FeatureOptions(hessian=True))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from classify_cases import assert_tiles_match_whole
 from terratheme.core.classify import SupervisedOptions
-from terratheme.core.classify.features import FeatureOptions, compute_features, image_features
+from terratheme.core.classify.features import FeatureOptions, image_features
 from terratheme.core.classify.lab import full_lab
 from terratheme.core.classify.model_options import options_from_json, options_to_json
 from terratheme.core.errors import TerrathemeError
@@ -19,7 +19,7 @@ OPTIONS = FeatureOptions(sigmas=SIGMAS, structure=True)
 
 def structure_of(photo: np.ndarray) -> np.ndarray:
     """The 1 + len(SIGMAS) structure features (they come last)."""
-    return compute_features(photo, OPTIONS)[:, :, -(1 + len(SIGMAS)):]
+    return image_features(photo, OPTIONS)[2][:, :, -(1 + len(SIGMAS)):]
 
 
 def stripes(h: int, w: int, period: int, low: int, high: int, vertical: bool) -> np.ndarray:
@@ -34,7 +34,7 @@ def test_count_and_position():
     plain = FeatureOptions(sigmas=SIGMAS)
     photo = np.random.default_rng(1).integers(0, 256, (48, 40, 3), dtype=np.uint8)
     _lab, _std, without = image_features(photo, plain)
-    np.testing.assert_array_equal(compute_features(photo, OPTIONS)[:, :, :without.shape[2]],
+    np.testing.assert_array_equal(image_features(photo, OPTIONS)[2][:, :, :without.shape[2]],
                                   without)
 
 

@@ -262,13 +262,12 @@ def test_per_tile_parts_reach_their_tiles_on_every_scheduler(tmp_path, cluster):
     path = tmp_path / "p.png"
     _photo(path, 100, 140)
     got = {}
-    for name, where in [("serial", Scheduler.SERIAL), ("dask", Scheduler.DASK),
-                        ("cluster", cluster)]:
+    for name, where in [("serial", Scheduler.SERIAL), ("cluster", cluster)]:
         out = []
         run_tiles(path, sum_with_part, lambda w, r, out=out: out.append((w.x, w.y, r)), tile=48,
                   scheduler=where, parts=lambda w: w.x + 7 * w.y)
         got[name] = out
-    assert got["serial"] == got["dask"] == got["cluster"]
+    assert got["serial"] == got["cluster"]
     assert [r % 1000 for _, _, r in got["serial"]] == [x + 7 * y for x, y, _ in got["serial"]]
 
 
@@ -385,14 +384,6 @@ def test_cli_refuses_cluster_options_without_tiles(tmp_path, capsys):
         main(["convert", str(path), out, "--tile", "32", "--workers", "0"])
     assert exc.value.code == 2 and "--workers must be in [1, 1024]" in capsys.readouterr().err
     assert not (tmp_path / "o.ttproj").exists()
-
-
-def test_serial_and_threaded_schedulers_unchanged(tmp_path):
-    path = tmp_path / "photo.tif"
-    _photo(path)
-    a = grid_from_file(path, 8, brightest, tile=40, overlap=3)
-    b = grid_from_file(path, 8, brightest, tile=40, overlap=3, scheduler=Scheduler.DASK)
-    assert np.array_equal(a.indices, b.indices)
 
 
 def test_a_passed_check_is_not_run_again_for_the_same_workers_and_path(tmp_path, cluster,

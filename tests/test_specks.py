@@ -13,7 +13,6 @@ from terratheme.core.convert.specks import SpeckStream, clean_rows, remove_speck
 from terratheme.core.convert.tiled import grid_from_file
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import write_image
-from terratheme.core.io.tiles import Scheduler
 
 
 def _grid(text: str) -> np.ndarray:
@@ -200,18 +199,17 @@ def test_tiled_grid_without_specks_equals_the_whole_vote(tmp_path, cell, tile):
     size = cell if isinstance(cell, tuple) else (cell, cell)
     want = vote_grid(_classes(img), size, keep_specks=False)
     assert (want != vote_grid(_classes(img), size)).any()
-    for sched in (Scheduler.SERIAL, Scheduler.DASK):
-        seen = []
+    seen = []
 
-        def rows_final(grid, rows, seen=seen):
-            # Reported rows are final: they already hold the cleaned values.
-            np.testing.assert_array_equal(grid.indices[:rows], want[:rows])
-            seen.append(rows)
+    def rows_final(grid, rows):
+        # Reported rows are final: they already hold the cleaned values.
+        np.testing.assert_array_equal(grid.indices[:rows], want[:rows])
+        seen.append(rows)
 
-        got = grid_from_file(path, cell, _classes, tile=tile, overlap=0, scheduler=sched,
-                             keep_specks=False, rows_final=rows_final)
-        np.testing.assert_array_equal(got.indices, want)
-        assert seen[-1] == want.shape[0] and seen == sorted(seen)
+    got = grid_from_file(path, cell, _classes, tile=tile, overlap=0, keep_specks=False,
+                         rows_final=rows_final)
+    np.testing.assert_array_equal(got.indices, want)
+    assert seen[-1] == want.shape[0] and seen == sorted(seen)
 
 
 def test_convert_chooses_the_cell_on_the_grid_it_keeps():

@@ -1,4 +1,4 @@
-"""Tiled reading and writing (bounded memory), Dask tile jobs, GeoTIFF georeference round trip."""
+"""Tiled reading and writing (bounded memory), tile jobs, GeoTIFF georeference round trip."""
 
 from __future__ import annotations
 
@@ -11,13 +11,11 @@ from terratheme.core.io.georef import (
     scale_georeference,
     world_file_lines,
     write_georeference,
+    write_georeferenced,
 )
 from terratheme.core.io.images import image_info, read_image, read_region, write_image
 from terratheme.core.io.tiles import (
-    Scheduler,
     TiledImageWriter,
-    dask_image,
-    iter_tiles,
     map_tiles,
     run_tiles,
     tile_windows,
@@ -62,10 +60,16 @@ def test_tiled_writer_and_windows_read_back_exactly(tmp_path, name, dtype, kw):
         assert np.array_equal(read_region(path, x, y, w, h), img[y : y + h, x : x + w])
     # Tiles with overlap: the core of each read window is the image's core.
     cores = np.zeros_like(img)
-    for win, pix in iter_tiles(path, 48, overlap=5):
+
+    def job(win, pix):
         assert pix.shape == (win.rh, win.rw, 3)
         assert np.array_equal(pix, img[win.ry : win.ry + win.rh, win.rx : win.rx + win.rw])
-        cores[win.y : win.y + win.h, win.x : win.x + win.w] = pix[win.core_in_read]
+        return pix[win.core_in_read]
+
+    def sink(win, core):
+        cores[win.y : win.y + win.h, win.x : win.x + win.w] = core
+
+    assert run_tiles(path, job, sink, tile=48, overlap=5) == 4 * 5
     assert np.array_equal(cores, img)
     if kw.get("bigtiff"):
         assert path.read_bytes()[2] == 43  # BigTIFF magic
@@ -81,8 +85,7 @@ def test_tile_windows_cover_once():
     assert len(wins) == 3 * 3
 
 
-@pytest.mark.parametrize("scheduler", [Scheduler.SERIAL, Scheduler.DASK])
-def test_map_tiles_with_overlap_equals_whole_image_filter(tmp_path, scheduler):
+def test_map_tiles_with_overlap_equals_whole_image_filter(tmp_path):
     img = _ramp(97, 131, 1, np.uint8)
     path = tmp_path / "photo.tif"
     write_image(path, img, tile=32)
@@ -92,8 +95,7 @@ def test_map_tiles_with_overlap_equals_whole_image_filter(tmp_path, scheduler):
         return ndimage.uniform_filter(pix[..., 0].astype(np.float32), size=5, mode="nearest")
 
     seen = []
-    tiled = map_tiles(path, box, tile=40, overlap=2, scheduler=scheduler,
-                      progress=lambda d, t: seen.append((d, t)))
+    tiled = map_tiles(path, box, tile=40, overlap=2, progress=lambda d, t: seen.append((d, t)))
     assert np.allclose(tiled, whole, atol=1e-4)
     assert seen[-1] == (12, 12)
     # Too little overlap shows at the tile borders.
@@ -111,29 +113,17 @@ def test_map_tiles_into_tiled_writer(tmp_path):
     assert np.array_equal(read_image(dst), 255 - img)
 
 
-def test_run_tiles_dask_matches_serial(tmp_path):
+def test_run_tiles_sinks_each_tile_in_order(tmp_path):
     img = _ramp(64, 80, 3, np.uint8)
     path = tmp_path / "in.png"
     write_image(path, img)
-    sums = {}
-    for sched in Scheduler:
-        got = {}
-        n = run_tiles(path, lambda win, pix: int(pix.astype(np.int64).sum()),
-                      lambda win, s, got=got: got.__setitem__((win.x, win.y), s),
-                      tile=(30, 20), scheduler=sched, batch=3)
-        assert n == 3 * 4
-        sums[sched] = got
-    assert sums[Scheduler.SERIAL] == sums[Scheduler.DASK]
-    assert sum(sums[Scheduler.DASK].values()) == int(img.astype(np.int64).sum())
-
-
-def test_dask_image_equals_whole_read(tmp_path):
-    img = _ramp(50, 70, 3, np.uint16)
-    path = tmp_path / "in.tif"
-    write_image(path, img, tile=16)
-    arr = dask_image(path, chunk=24)
-    assert arr.shape == (50, 70, 3) and arr.dtype == np.uint16
-    assert np.array_equal(arr.compute(), img)
+    got = []
+    n = run_tiles(path, lambda win, pix: int(pix.astype(np.int64).sum()),
+                  lambda win, s: got.append((win.y, win.x, s)), tile=(30, 20))
+    assert n == 3 * 4
+    want = [(y, x, int(img[y : y + 20, x : x + 30].astype(np.int64).sum()))
+            for y in range(0, 64, 20) for x in range(0, 80, 30)]
+    assert got == want
 
 
 def test_writer_errors(tmp_path):
@@ -150,15 +140,17 @@ def test_writer_errors(tmp_path):
         tile_windows(0, 4, 2)
 
 
-def test_georeference_round_trip_tiff_and_bigtiff(tmp_path):
-    img = _ramp(40, 60, 3, np.uint8)
-    for name, kw in [("a.tif", {}), ("b.tif", {"tile": 16, "attributes": {"tiff:bigtiff": 1}})]:
-        path = tmp_path / name
-        write_image(path, img, **kw)
-        assert read_georeference(path) == {}
+@pytest.mark.parametrize(("channels", "dtype"), [(1, np.uint8), (3, np.uint8), (4, np.uint16)])
+def test_georeference_round_trip_tiff(tmp_path, channels, dtype):
+    img = _ramp(40, 60, channels, dtype)
+    path = tmp_path / "a.tif"
+    assert write_georeferenced(path, img, {}) == [] and read_georeference(path) == {}
+    assert write_georeferenced(path, img, GEOREF) == [path]
+    assert read_georeference(path) == GEOREF
+    assert np.array_equal(read_image(path), img)
+    # The tags go in with the pixels: nothing adds them to a TIFF already written.
+    with pytest.raises(TerrathemeError, match="written with its pixels"):
         write_georeference(path, GEOREF)
-        assert read_georeference(path) == GEOREF
-        assert np.array_equal(read_image(path), img)  # pixels untouched
 
 
 def test_georeference_world_file_for_png(tmp_path):
@@ -180,7 +172,6 @@ def test_real_geotiff_georeference_kept(shared_data, tmp_path):
     assert "GeoKeyDirectory" in geo and "GeoAsciiParams" in geo
     window = read_region(src, 4096, 4096, 300, 200)
     out = tmp_path / "crop.tif"
-    write_image(out, window)
-    write_georeference(out, geo)
+    assert write_georeferenced(out, window, geo) == [out]
     assert read_georeference(out) == geo
     assert np.array_equal(read_image(out), window)

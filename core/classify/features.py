@@ -186,9 +186,3 @@ def with_position(feats: np.ndarray, origin: tuple[int, int], photo_size: tuple[
         return feats
     pos = position_features(feats.shape[:2], origin, photo_size, options.scale)
     return np.concatenate([feats, pos], axis=2)
-
-
-def compute_features(rgb: np.ndarray, options: FeatureOptions) -> np.ndarray:
-    """Features (ceil(H/scale), ceil(W/scale), F) float32 of a whole (H, W, 3) uint8 photo."""
-    _lab, _block_std, feats = image_features(rgb, options)
-    return with_position(feats, (0, 0), rgb.shape[:2], options)

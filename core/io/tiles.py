@@ -1,11 +1,11 @@
-"""Images larger than memory: tile windows with overlap, bounded-memory tile jobs, Dask.
+"""Images larger than memory: tile windows with overlap, bounded-memory tile jobs.
 
 A tile job reads one window (core plus ``overlap`` context, clipped) with
 :func:`core.io.images.read_region` and keeps the core of its result, so peak memory
 is set by the tile size and the tiles in flight, never by the image. Jobs run
-serially, on Dask threads in batches (:class:`Scheduler`), or on a dask.distributed
-cluster (pass its ``Client``; :mod:`core.io.cluster`), where the job must pickle and
-the result is the serial run's, bit for bit. Large outputs go through
+serially (:attr:`Scheduler.SERIAL`) or on a dask.distributed cluster (pass its
+``Client``; :mod:`core.io.cluster`), where the job must pickle and the result is the
+serial run's, bit for bit. Large outputs go through
 :class:`core.io.tiled_writer.TiledImageWriter`.
 """
 
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import enum
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -93,27 +93,11 @@ def tile_windows(
     return out
 
 
-def iter_tiles(
-    path: str | os.PathLike,
-    tile: int | tuple[int, int] = 1024,
-    overlap: int = 0,
-    *,
-    dtype: np.dtype | str | None = None,
-) -> Iterator[tuple[TileWindow, np.ndarray]]:
-    """Yield ``(window, pixels)`` tile by tile, ``pixels`` the (rh, rw, C) read window
-    (``pixels[window.core_in_read]`` the core); one tile in memory at a time."""
-    info = image_info(path)
-    for win in tile_windows(info.width, info.height, tile, overlap):
-        yield win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype)
-
-
 class Scheduler(enum.Enum):
     """Where tile jobs run in this process (a ``distributed.Client`` runs them on its cluster)."""
 
     #: one tile after the other in this process
     SERIAL = "serial"
-    #: dask.delayed tasks on Dask's threaded scheduler, in this process
-    DASK = "dask"
 
 
 TileJob = Callable[..., object]
@@ -170,7 +154,7 @@ def run_tiles(
     scheduler : Scheduler or distributed.Client
         A cluster's workers must run this terratheme and read ``path`` (checked first).
     batch : int, optional
-        Results in flight: Dask threads default 4, a cluster 2 per worker thread.
+        Results in flight on a cluster (default 2 per worker thread).
     windows : list of TileWindow, optional
         Instead of the regular tiling (:func:`tile_windows` of ``tile``, ``overlap``).
     progress : callable(done, total), optional
@@ -193,32 +177,17 @@ def run_tiles(
             if progress is not None:
                 progress(done, total)
         return total
-    if not isinstance(scheduler, Scheduler):
-        from terratheme.core.io.cluster import check_workers, map_ordered
+    from terratheme.core.io.cluster import check_workers, map_ordered
 
-        # Workers open the file by its absolute path and must run this code: checked first.
-        path = os.path.abspath(path)
-        check_workers(scheduler, path)
-        if parts is None:
-            return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
-                               in_flight=batch, progress=progress, describe=_describe)
-        return map_ordered(scheduler, _run_shared_part, wins, (path, job, dtype, bands), sink,
-                           in_flight=batch, progress=progress, describe=_describe,
-                           payload=parts)
-    import dask
-
-    # Batches of delayed tasks keep at most ``batch`` results in memory.
-    step = max(1, int(batch or 4))
-    for start in range(0, total, step):
-        part = wins[start : start + step]
-        results = dask.compute(*[dask.delayed(_run_one)(path, w, job, dtype, bands,
-                                                        *_part_of(parts, w))
-                                 for w in part], scheduler="threads")
-        for win, res in zip(part, results, strict=True):
-            sink(win, res)
-        if progress is not None:
-            progress(min(total, start + step), total)
-    return total
+    # Workers open the file by its absolute path and must run this code: checked first.
+    path = os.path.abspath(path)
+    check_workers(scheduler, path)
+    if parts is None:
+        return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
+                           in_flight=batch, progress=progress, describe=_describe)
+    return map_ordered(scheduler, _run_shared_part, wins, (path, job, dtype, bands), sink,
+                       in_flight=batch, progress=progress, describe=_describe,
+                       payload=parts)
 
 
 def map_tiles(
@@ -269,28 +238,3 @@ class CoreOf:
                 f"tile function returned shape {res.shape} for a {pixels.shape[:2]} tile"
             )
         return np.ascontiguousarray(res[win.core_in_read])
-
-
-def dask_image(
-    path: str | os.PathLike, chunk: int = 1024, *, dtype: np.dtype | str | None = None
-):
-    """The image as a lazy ``dask.array`` of ``(H, W, C)``, one ``read_region`` per chunk.
-
-    Use ``.map_overlap`` / ``.map_blocks`` and compute as usual; nothing is
-    read until then.
-    """
-    import dask
-    import dask.array as da
-
-    info = image_info(path)
-    want = np.dtype(dtype) if dtype is not None else info.dtype
-    rows = []
-    for y in range(0, info.height, chunk):
-        h = min(chunk, info.height - y)
-        row = []
-        for x in range(0, info.width, chunk):
-            w = min(chunk, info.width - x)
-            block = dask.delayed(read_region)(str(path), x, y, w, h, dtype=want)
-            row.append(da.from_delayed(block, shape=(h, w, info.channels), dtype=want))
-        rows.append(da.concatenate(row, axis=1))
-    return da.concatenate(rows, axis=0)
