@@ -13,7 +13,7 @@ its output on the whole photo there (tested with a per-pixel classifier).
 Lone vertices are removed as the rows are stitched
 (:class:`core.convert.specks.SpeckStream`), the same as on the whole grid.
 
-Jobs run serially, on Dask's threads or on a dask.distributed cluster
+Jobs run serially or on a dask.distributed cluster
 (:func:`core.io.tiles.run_tiles`); the jobs are module-level dataclasses
 (:mod:`core.convert.tile_vote`) holding what they need, so they
 pickle for worker processes, and a cluster's result is the serial one, bit
