@@ -2,6 +2,12 @@
 // "Hidden/TerrainEngine/Splatmap/Diffuse-AddPass" times the colour map's gain, added onto the
 // first pass. Written without a Unity compiler at hand (docs/engines.md).
 Shader "Hidden/Terratheme/TerrainAddPass" {
+    Properties {
+        // Unity's terrain fills these from the terrain's material (TerrathemeTerrain.shader).
+        [HideInInspector] _ColourMap ("Colour map (colour_map.png, sRGB)", 2D) = "grey" {}
+        [HideInInspector] _ColourGain ("Colour gain", Float) = 4.633
+    }
+
     CGINCLUDE
         #pragma surface surf Lambert decal:add vertex:SplatmapVert finalcolor:SplatmapFinalColor finalprepass:SplatmapFinalPrepass finalgbuffer:SplatmapFinalGBuffer fullforwardshadows nometa
         #pragma instancing_options assumeuniformscaling nomatrices nolightprobe nolightmap forwardadd
