@@ -174,9 +174,12 @@ def test_the_importer_and_shaders_ship_and_name_what_the_export_writes(tmp_path,
         assert '#include "TerrathemeColourMap.cginc"' in shader
         assert "o.Albedo = mixedDiffuse.rgb * TerrathemeColourGain(IN.tc.xy);" in shader
     # What the script sets is what the shader reads (SetTextureScale/Offset write _ST).
-    props = set(re.findall(r"^\s*(_\w+) \(", main, re.M))
-    for prop in set(re.findall(r'Set(?:Texture|Float)\("(\w+)"', script)):
-        assert prop in props, prop
+    assert set(re.findall(r'Set(?:Texture|Float)\("(\w+)"', script)) == {"_ColourMap",
+                                                                          "_ColourGain"}
+    for shader in (main, add):
+        props = set(re.findall(r"^\s*(?:\[HideInInspector\] )?(_\w+) \(", shader, re.M))
+        for prop in set(re.findall(r'Set(?:Texture|Float)\("(\w+)"', script)):
+            assert prop in props, prop
     for uniform in ("sampler2D _ColourMap;", "float4 _ColourMap_ST;", "float _ColourGain;"):
         assert uniform in cginc
     # Every field the script reads from the manifest is there, with a JSON type that fits.
