@@ -22,7 +22,8 @@ from terratheme.core.classify.tiled import (
     ProgressFn,
     predict_tiled,
     prediction_windows,
-    strided_core,
+    sampling_stride,
+    strided_pixels,
     tile_arrays,
 )
 from terratheme.core.io.tiles import TileWindow
@@ -100,7 +101,7 @@ def predict_adapted(
     scale = features.scale
     windows = prediction_windows(h, w, features, regularisation, tile)
     n_coarse = (-(-h // scale)) * (-(-w // scale))
-    stride = max(1, int(np.sqrt(n_coarse / ADAPT_SAMPLES)))
+    stride = sampling_stride(h, w, scale, ADAPT_SAMPLES)
     keep = n_coarse * (features.n_features + len(classes) + 4) * 4 * 1.5 <= ADAPT_KEEP_BYTES
     kept: dict = {}
     feats_seen, probs_seen = [], []
@@ -112,12 +113,10 @@ def predict_adapted(
             kept[win] = (lab, block_std, feats, raw)
         probs = regularise(raw, lab, regularisation, texture=block_std)
         # Its core coarse pixels on the photo-wide strided grid (only those with data).
-        core_feats, rows, cols = strided_core(feats, win, scale, stride)
-        core_probs, _, _ = strided_core(probs, win, scale, stride)
-        ok = np.ones(core_feats.shape[:2], bool) if valid is None else valid[
-            np.ix_(np.minimum(rows * scale, h - 1), np.minimum(cols * scale, w - 1))]
-        feats_seen.append(core_feats[ok])
-        probs_seen.append(core_probs[ok])
+        part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]
+        iy, ix, _, _ = strided_pixels(win, scale, stride, part)
+        feats_seen.append(feats[iy, ix])
+        probs_seen.append(probs[iy, ix])
         if progress is not None:
             progress(done, 2 * len(windows))
     x, p = np.concatenate(feats_seen), np.concatenate(probs_seen)

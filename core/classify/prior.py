@@ -13,7 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 from terratheme.core.classify.features import FeatureOptions
 from terratheme.core.classify.samples import looks_like_scribbles
-from terratheme.core.classify.tiled import iter_tile_features, strided_core
+from terratheme.core.classify.tiled import iter_tile_features, sampling_stride, strided_pixels
 from terratheme.core.errors import TerrathemeError
 
 #: default correction for scribbles (docs/decisions.md)
@@ -54,22 +54,16 @@ def photo_probabilities(
     features: FeatureOptions, tile: int, max_samples: int = PRIOR_SAMPLES,
 ) -> np.ndarray:
     """Posteriors (n, C) float32 of at most ``max_samples`` coarse pixels of a photo with
-    data (``valid``), ``probability_fn`` applied tile by tile."""
+    data (``valid``; :func:`core.classify.tiled.strided_pixels`), ``probability_fn``
+    applied tile by tile."""
     scale = features.scale
     h, w = rgb.shape[:2]
-    n_coarse = (-(-h // scale)) * (-(-w // scale))
-    stride = max(1, int(np.sqrt(n_coarse / max_samples)))
+    stride = sampling_stride(h, w, scale, max_samples)
     out = []
     for win, _lab, feats in iter_tile_features(rgb, features, tile, features.halo):
-        # This tile's core, on a global grid of every stride-th coarse row/column.
-        core, rows, cols = strided_core(feats, win, scale, stride)
-        if core.size == 0:
-            continue
-        probs = probability_fn(np.ascontiguousarray(core))
-        if valid is not None:
-            # Keep coarse pixels whose top-left photo pixel has data.
-            probs = probs[valid[np.ix_(np.minimum(rows * scale, h - 1),
-                                       np.minimum(cols * scale, w - 1))]]
+        part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]
+        iy, ix, _, _ = strided_pixels(win, scale, stride, part)
+        probs = probability_fn(np.ascontiguousarray(feats[iy, ix][None]))
         out.append(probs.reshape(-1, probs.shape[-1]))
     return np.concatenate(out).astype(np.float32)
 

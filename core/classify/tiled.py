@@ -10,6 +10,7 @@ at photo position ``(i + 0.5) * scale - 0.5``), and the arg-max gives the label.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 
 import cv2
@@ -18,7 +19,7 @@ import numpy as np
 from terratheme.core.classify.features import FeatureOptions, image_features, with_position
 from terratheme.core.classify.regularise import RegulariseOptions, regularise
 from terratheme.core.classify.result import Classification
-from terratheme.core.classify.texture import CV_MAX_CHANNELS
+from terratheme.core.classify.texture import CV_MAX_CHANNELS, block_mean
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import TileWindow, tile_windows
 
@@ -61,23 +62,34 @@ def iter_tile_features(
         yield win, lab, feats
 
 
-def strided_core(
-    feats: np.ndarray, win: TileWindow, scale: int, stride: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A tile's core coarse pixels on the photo-wide grid of every ``stride``-th row/column.
+def sampling_stride(height: int, width: int, scale: int, max_samples: int) -> int:
+    """The smallest stride (coarse pixels) whose photo-wide grid keeps to ``max_samples``."""
+    n_coarse = (-(-height // scale)) * (-(-width // scale))
+    return max(1, math.ceil(math.sqrt(n_coarse / max_samples)))
 
-    ``feats`` (h, w, F) covers the window's read rectangle. Returns the picked
-    ``core`` (r, c, F) and their photo-wide coarse ``rows`` (r,) and ``cols`` (c,):
-    the same pixels whatever the tiling, so samples drawn tile by tile equal the
-    whole photo's.
+
+def strided_pixels(
+    win: TileWindow, scale: int, stride: int, valid: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A tile's samples: its core coarse pixels on the photo-wide grid of every ``stride``-th
+    coarse row and column, those with data.
+
+    ``valid``: the core's photo pixels (win.h, win.w) bool, or None (all have data); a
+    coarse pixel has data when any of its pixels has. Returns ``(iy, ix)``, (n,) int64
+    indices into coarse arrays over the window's read rectangle, and ``(rows, cols)``, the
+    same pixels photo-wide, row-major: the same samples whatever the tiling.
     """
     gy0, gx0 = win.y // scale, win.x // scale
-    cy, cx = gy0 - win.ry // scale, gx0 - win.rx // scale
     ch, cw = -(-(win.y1 - win.y) // scale), -(-(win.x1 - win.x) // scale)
-    ry, rx = (-gy0) % stride, (-gx0) % stride
-    core = feats[cy + ry : cy + ch : stride, cx + rx : cx + cw : stride]
-    return (core, np.arange(gy0 + ry, gy0 + ch, stride, dtype=np.int64),
-            np.arange(gx0 + rx, gx0 + cw, stride, dtype=np.int64))
+    iy, ix = np.meshgrid(np.arange((-gy0) % stride, ch, stride, dtype=np.int64),
+                         np.arange((-gx0) % stride, cw, stride, dtype=np.int64), indexing="ij")
+    if valid is None:
+        iy, ix = iy.ravel(), ix.ravel()
+    else:
+        keep = (block_mean(valid.astype(np.float32), scale) > 0.0)[iy, ix]
+        iy, ix = iy[keep], ix[keep]
+    cy, cx = gy0 - win.ry // scale, gx0 - win.rx // scale
+    return cy + iy, cx + ix, gy0 + iy, gx0 + ix
 
 
 def _upsampled(probs: np.ndarray, win: TileWindow, scale: int) -> tuple[np.ndarray, int, int]:

@@ -19,7 +19,6 @@ model and classifying with it: :mod:`core.classify.unsupervised_model`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -28,8 +27,7 @@ from terratheme.core.classify.bands import BandOptions, lies_between
 from terratheme.core.classify.features import FeatureOptions, FeatureSet
 from terratheme.core.classify.mixture import fit_diagonal_mixture, isotropic_variances
 from terratheme.core.classify.regularise import RegulariseOptions
-from terratheme.core.classify.texture import block_mean
-from terratheme.core.classify.tiled import iter_tile_features, strided_core
+from terratheme.core.classify.tiled import iter_tile_features, sampling_stride, strided_pixels
 from terratheme.core.errors import TerrathemeError
 
 
@@ -89,36 +87,17 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
     return w
 
 
-def _valid_coarse(valid: np.ndarray | None, scale: int) -> np.ndarray | None:
-    """A window core's validity (photo pixels) on its coarse pixels."""
-    return None if valid is None else block_mean(valid.astype(np.float32), scale) > 0.0
-
-
-def sampling_stride(height: int, width: int, options: UnsupervisedOptions) -> int:
-    """The smallest stride (coarse pixels) whose photo-wide grid keeps to ``max_samples``."""
-    scale = options.features.scale
-    n_coarse = (-(-height // scale)) * (-(-width // scale))
-    return max(1, math.ceil(math.sqrt(n_coarse / options.max_samples)))
-
-
 def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
                    stride: int, options: UnsupervisedOptions) -> tuple[np.ndarray, np.ndarray]:
     """One feature window's weighted samples and their photo-wide row-major coarse index.
 
-    ``feats`` covers the read rectangle, ``valid`` (or None) the core's pixels. Samples
-    lie on the photo-wide grid of every ``stride``-th coarse row and column, so any
-    tiling gives the whole photo's samples.
+    ``feats`` covers the read rectangle, ``valid`` (or None) the core's pixels; the
+    samples are :func:`core.classify.tiled.strided_pixels`', so any tiling gives the
+    whole photo's samples.
     """
     scale = options.features.scale
-    core, rows, cols = strided_core(feats, win, scale, stride)
-    keep = _valid_coarse(valid, scale)
-    if keep is None:
-        keep = np.ones(core.shape[:2], bool)
-    else:
-        ry, rx = (-(win.y // scale)) % stride, (-(win.x // scale)) % stride
-        keep = keep[ry::stride, rx::stride]
-    order = rows[:, None] * (-(-width // scale)) + cols[None, :]
-    return core[keep] * feature_weights(options.features), order[keep]
+    iy, ix, rows, cols = strided_pixels(win, scale, stride, valid)
+    return feats[iy, ix] * feature_weights(options.features), rows * (-(-width // scale)) + cols
 
 
 def sample_features(
@@ -132,7 +111,7 @@ def sample_features(
     """
     fo = options.features
     h, w = rgb.shape[:2]
-    stride = sampling_stride(h, w, options)
+    stride = sampling_stride(h, w, fo.scale, options.max_samples)
     chunks, order = [], []
     for win, _lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo):
         part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]

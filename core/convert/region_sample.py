@@ -25,11 +25,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from terratheme.core.classify.features import FeatureOptions, image_features, with_position
 from terratheme.core.classify.photo import prepare_photo
-from terratheme.core.classify.tiled import feature_windows
+from terratheme.core.classify.tiled import feature_windows, sampling_stride
 from terratheme.core.classify.unsupervised import (
     UnsupervisedOptions,
     choose_themes,
-    sampling_stride,
     window_samples,
 )
 from terratheme.core.classify.unsupervised_model import UnsupervisedModel
@@ -101,7 +100,7 @@ def fit_unsupervised_region(
     opts = options or UnsupervisedOptions()
     info = image_info(path)
     fo = opts.features
-    stride = sampling_stride(info.height, info.width, opts)
+    stride = sampling_stride(info.height, info.width, fo.scale, opts.max_samples)
     windows = feature_windows(info.height, info.width, opts.tile, fo.scale, fo.halo)
     chunks: list[np.ndarray] = []
     order: list[np.ndarray] = []
