@@ -11,9 +11,10 @@ mean of both forests' probabilities. Pass-1 features are kept for pass 2 up to
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
-from terratheme.core.classify.extra_trees import ForestOptions, build_forest, forest_scores
+from terratheme.core.classify.extra_trees import ForestOptions, build_forest, forest_probabilities
 from terratheme.core.classify.features import FeatureOptions
 from terratheme.core.classify.regularise import RegulariseOptions, regularise
 from terratheme.core.classify.result import Classification
@@ -76,16 +77,6 @@ def pseudo_labels(probs: np.ndarray, share: float = ADAPT_SHARE,
     return np.concatenate(index).astype(np.int64), np.concatenate(column)
 
 
-def forest_probability_fn(forest, classes: tuple[int, ...]) -> ProbabilityFn:
-    """``(h, w, F) -> (h, w, C)`` vote shares of a forest, columns in ``classes`` order."""
-    def probabilities(feats: np.ndarray) -> np.ndarray:
-        h, w, f = feats.shape
-        probs = forest_scores(forest, feats.reshape(-1, f), classes)
-        probs /= np.maximum(probs.sum(1, keepdims=True), 1e-12)
-        return probs.reshape(h, w, len(classes))
-    return probabilities
-
-
 def predict_adapted(
     rgb: np.ndarray, valid: np.ndarray | None, probability_fn: ProbabilityFn,
     classes: tuple[int, ...], features: FeatureOptions, regularisation: RegulariseOptions,
@@ -127,8 +118,8 @@ def predict_adapted(
     else:
         adapt_opts = replace(forest_options, n_trees=ADAPT_TREES, balance=True)
         labels = np.asarray(classes, np.int64)[column]
-        adapted_fn = forest_probability_fn(build_forest(x[index], labels, adapt_opts, n_jobs=1),
-                                           classes)
+        adapted_fn = partial(forest_probabilities,
+                             build_forest(x[index], labels, adapt_opts, n_jobs=1), classes=classes)
 
     def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # Pass 2: the mean of the trained and the photo's own forests' probabilities.

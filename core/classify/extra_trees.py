@@ -249,6 +249,19 @@ def forest_scores(forest: ExtraTreesForest, x: np.ndarray, classes: Sequence[int
     return out
 
 
+def forest_probabilities(forest: ExtraTreesForest, feats: np.ndarray, classes: Sequence[int],
+                         weights: Sequence[float] | None = None) -> np.ndarray:
+    """Vote shares (h, w, C) float32 of a coarse feature stack (h, w, F), columns in
+    ``classes`` order; ``weights`` (C,) (a prior correction) scale them before they are
+    renormalised."""
+    h, w, f = feats.shape
+    probs = forest_scores(forest, feats.reshape(-1, f), classes)
+    if weights is not None:
+        probs *= np.asarray(weights, np.float32)[None, :]
+    probs /= np.maximum(probs.sum(1, keepdims=True), 1e-12)
+    return probs.reshape(h, w, len(classes))
+
+
 @numba.njit(cache=True, nogil=True)
 def _tree_depths(roots, left, right):  # pragma: no cover
     """Depth of each tree: children come after their parent (checked in from_arrays)."""

@@ -16,7 +16,11 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from terratheme.core.classify.adapt import predict_adapted
-from terratheme.core.classify.extra_trees import ExtraTreesForest, build_forest, forest_scores
+from terratheme.core.classify.extra_trees import (
+    ExtraTreesForest,
+    build_forest,
+    forest_probabilities,
+)
 from terratheme.core.classify.model_file import ModelParts, read_model, write_model
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.classify.prior import (
@@ -186,17 +190,10 @@ class Classifier:
     def probabilities(self, feats: np.ndarray) -> np.ndarray:
         """Vote shares (h, w, C) float32, channels in ``self.classes`` order, of a coarse
         feature stack (h, w, F) float32."""
-        h, w, f = feats.shape
         if self.forest is None:
-            return np.ones((h, w, 1), np.float32)
-        probs = forest_scores(self.forest, feats.reshape(-1, f), self.classes)
-        if self.class_weights is not None:
-            # Prior correction (core.classify.prior): reweight, then renormalise.
-            probs *= np.asarray(self.class_weights, np.float32)[None, :]
-            probs /= np.maximum(probs.sum(1, keepdims=True), 1e-12)
-        else:
-            probs /= np.maximum(probs.sum(1, keepdims=True), 1.0)
-        return probs.reshape(h, w, len(self.classes))
+            return np.ones((*feats.shape[:2], 1), np.float32)
+        # class_weights: the prior correction (core.classify.prior).
+        return forest_probabilities(self.forest, feats, self.classes, self.class_weights)
 
     def predict(self, photo: np.ndarray,
                 progress: Callable[[int, int], None] | None = None) -> Classification:
