@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import tifffile
 from terratheme.app.cli import main
 from terratheme.app.commands.convert import parse_themes
 from terratheme.core.convert.photo import ConvertOptions, convert_photo
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.georef import read_georeference, write_georeference
+from terratheme.core.io.georef import read_georeference, tiff_extratags, write_georeferenced
 from terratheme.core.io.images import read_image, write_image
 from terratheme.core.model.project import load_project
 from terratheme.core.packing import PackedLayer
@@ -142,8 +143,7 @@ def test_georeference_travels_to_project_and_preview(tmp_path):
            "ModelTiepoint": [0.0, 0.0, 0.0, 500.0, 900.0, 0.0],
            "GeoKeyDirectory": [1, 1, 0, 1, 3072, 0, 1, 32640]}
     photo = tmp_path / "geo.tif"
-    write_image(photo, _halves())
-    write_georeference(photo, geo)
+    write_georeferenced(photo, _halves(), geo)
     proj = tmp_path / "g.ttproj"
     assert _run([photo, proj, "--cell", "8", "--preview", tmp_path / "g.tif"]) == 0
     assert load_project(proj).metadata["georeference"] == geo
@@ -210,9 +210,8 @@ def test_saved_model_whole_and_tiled_paths_agree(tmp_path):
 
     img = _halves(h=150, w=200)
     photo = tmp_path / "big.tif"
-    write_image(photo, img, tile=32)
-    write_georeference(photo, {"ModelPixelScale": [1.0, 1.0, 0.0],
-                               "ModelTiepoint": [0.0, 0.0, 0.0, 10.0, 20.0, 0.0]})
+    geo = {"ModelPixelScale": [1.0, 1.0, 0.0], "ModelTiepoint": [0.0, 0.0, 0.0, 10.0, 20.0, 0.0]}
+    tifffile.imwrite(photo, img, tile=(32, 32), extratags=tiff_extratags(geo))
     mask = np.zeros((150, 200), np.uint8)
     mask[20:24, 10:80] = 1
     mask[100:104, 120:190] = 2

@@ -165,3 +165,42 @@ def test_the_colour_map_tiff_is_placed_at_its_scale(tmp_path):
     # 32 texels of 0.5 units a pixel, from the texture's own corner.
     assert geo["ModelPixelScale"][:2] == [16.0, 16.0]
     assert geo["ModelTiepoint"] == GEOREF["ModelTiepoint"]
+
+
+@pytest.mark.parametrize("big", [False, True])
+def test_write_cog_levels_layout_and_tags(tmp_path, monkeypatch, big):
+    from terratheme.core.exchange import cog
+    from terratheme.core.io.georef import tiff_extratags
+
+    if big:
+        monkeypatch.setattr(cog, "MAX_LEVEL_BYTES", 0)  # any tile data makes a BigTIFF
+    image = np.random.default_rng(5).integers(0, 4, (70, 100), dtype=np.uint8)
+    table = np.zeros((3, 256), np.uint16)
+    table[:, :4] = [[0, 65535, 0, 900], [0, 0, 65535, 900], [65535, 0, 0, 900]]
+    levels = cog.write_cog(tmp_path / "c.tif", lambda y0, y1: image[y0:y1], (100, 70),
+                           channels=1, tile=32, photometric="minisblack", colormap=table,
+                           downsample=cog.nearest_half, extratags=tiff_extratags(GEOREF))
+    assert levels == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["c.tif"]
+    with tifffile.TiffFile(tmp_path / "c.tif") as tif:
+        assert tif.is_bigtiff == big
+        pages = list(tif.pages)
+        for page, want in zip(pages, [image, image[::2, ::2], image[::4, ::4]], strict=True):
+            assert page.photometric == tifffile.PHOTOMETRIC.PALETTE and page.tilewidth == 32
+            np.testing.assert_array_equal(page.asarray(), want)
+            np.testing.assert_array_equal(page.colormap, table)
+        ifds = [p.offset for p in pages]
+        first = [min(p.dataoffsets) for p in pages]
+        last = [max(p.dataoffsets) for p in pages]
+    assert ifds[0] == (16 if big else 8) and ifds == sorted(ifds) and max(ifds) < min(first)
+    assert last[2] < first[1] and last[1] < first[0]
+    assert read_georeference(tmp_path / "c.tif") == GEOREF
+
+
+def test_a_latin1_citation_survives_the_export(tmp_path):
+    # GeoAsciiParams is Latin-1 (validate_georeference); tifffile takes str as ASCII only.
+    georef = {**GEOREF, "GeoAsciiParams": "Réseau géodésique français|"}
+    project = ThematicTexture(IndexGrid(np.zeros((3, 4), np.uint8), (16, 16)),
+                              shipped_theme_library().select(NAMES[:1]), {"georeference": georef})
+    write_export(project, plan_export(project, ExportOptions(Engine.GEOTIFF)), tmp_path)
+    for name in ("landclass.tif", "texture.tif"):
+        assert read_georeference(tmp_path / name)["GeoAsciiParams"] == georef["GeoAsciiParams"]

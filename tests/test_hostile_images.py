@@ -26,7 +26,11 @@ from hostile_fuzz import (
 from hypothesis import strategies as st
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.georef import add_tiff_tags, read_georeference, validate_georeference
+from terratheme.core.io.georef import (
+    read_georeference,
+    validate_georeference,
+    write_georeferenced,
+)
 from terratheme.core.io.images import (
     MAX_COMPRESSION_RATIO,
     Bands,
@@ -249,8 +253,7 @@ def test_geotiff_tags_of_the_wrong_shape_are_refused(tmp_path, tag, value, match
 
 
 def test_a_georeference_round_trip(tmp_path):
-    write_image(tmp_path / "g.tif", np.zeros((4, 4, 3), np.uint8))
-    add_tiff_tags(tmp_path / "g.tif", GEO)
+    write_georeferenced(tmp_path / "g.tif", np.zeros((4, 4, 3), np.uint8), GEO)
     geo = read_georeference(tmp_path / "g.tif")
     assert {k: geo[k] for k in GEO} == {**GEO, "ModelTiepoint": [0.0, 0.0, 0.0, 500.0, 900.0,
                                                                    0.0]}
@@ -274,8 +277,7 @@ def samples(tmp_path_factory) -> dict[str, bytes]:
     img = rng.integers(0, 255, (8, 8, 3), dtype=np.uint8)
     write_image(d / "a.png", img)
     write_image(d / "a.jpg", img)
-    write_image(d / "a.tif", img)
-    add_tiff_tags(d / "a.tif", GEO)
+    write_georeferenced(d / "a.tif", img, GEO)
     rgba = np.dstack([img, rng.integers(0, 255, (8, 8), dtype=np.uint8)])
     write_image(d / "rgba.png", rgba)
     write_image(d / "l.png", (img[..., 0] % 3).astype(np.uint8),

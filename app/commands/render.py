@@ -48,8 +48,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_image_outputs, check_outputs
     from terratheme.app.progress import progress_bar
-    from terratheme.core.io.georef import world_file_name, write_georeference
-    from terratheme.core.io.images import write_image
+    from terratheme.core.io.georef import world_file_name, write_georeferenced
     from terratheme.core.render.boundary import BoundaryOptions
     from terratheme.core.render.inputs import validate_region
     from terratheme.core.render.project import (
@@ -86,9 +85,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             image = render_project(project, region, args.scale, options=options,
                                    progress=progress)
-    write_image(args.out, image)
     h, w = image.shape[:2]
-    made = write_georeference(args.out, render_georeference(project, region, (w, h)))
+    made = write_georeferenced(args.out, image, render_georeference(project, region, (w, h)))
     geo = " with its georeference" if made else ""
     how = ", GPU from the packed layer" if packed else ", GPU" if gpu else ""
     print(f"{args.out}: {w} x {h} texels ({style} blend{how}){geo}")

@@ -48,8 +48,9 @@ from terratheme.core.io.georef import (
     world_file_for,
     world_file_name,
     write_georeference,
+    write_georeferenced,
 )
-from terratheme.core.io.images import Bands, read_image, write_image
+from terratheme.core.io.images import Bands, read_image
 from terratheme.core.model.project import ThematicTexture, save_project, shipped_colour_map
 from terratheme.core.packing import pack
 from terratheme.core.render.boundary import BoundaryOptions
@@ -373,9 +374,9 @@ def write_outputs(
             write_bytes_atomic(target, project.colour_map.data)
         elif key == "preview":
             # zlib level 1: half the time of the default 6, 0.2% larger on photo renders.
-            write_image(target, image, attributes={"png:compressionLevel": 1})
-            if geo and "preview_world_file" not in paths:
-                write_georeference(target, geo)  # a GeoTIFF preview carries the tags
+            # A GeoTIFF preview carries the tags; another's world file is a member of its own.
+            write_georeferenced(target, image, {} if "preview_world_file" in paths else geo,
+                                attributes={"png:compressionLevel": 1})
         elif key == "preview_world_file":
             write_georeference(paths["preview"], geo, world_file=target)
         else:

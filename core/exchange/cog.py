@@ -9,13 +9,13 @@ down to one tile) are tiled IFDs of one TIFF file; **all IFDs come first**
 fetches the first bytes knows every tile's place and an overview reads from
 one contiguous run.
 
-No dependency writes this layout without GDAL: OpenImageIO writes neither
-palettes nor overview IFDs before their data, and tifffile writes each
-IFD just before its own data. So every level is written by tifffile (its
-deflate compression and horizontal predictor, tiles streamed from an
-iterator) to a temporary single-image TIFF, and :func:`write_cog` then lays
-the levels out: it re-encodes the directories with the new tile offsets and
-copies the compressed tiles verbatim (never decoding them). Level ``k + 1``
+tifffile writes each IFD just before its own data, and no other installed
+writer makes this order without GDAL, so :func:`write_cog` writes it in three
+tifffile steps: every level to a temporary one-image TIFF (deflate,
+horizontal predictor, tiles streamed from an iterator); the output's IFDs,
+one a level, with the levels' tile byte counts and no data; then the
+compressed tiles copied verbatim after them, smallest level first, and each
+IFD's ``TileOffsets`` set in place (``TiffTag.overwrite``). Level ``k + 1``
 is made from level ``k`` read back band by band, so memory is bounded by a
 band of ``2 * tile`` rows whatever the image size.
 """
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import struct
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -40,14 +39,8 @@ BandSource = Callable[[int, int], np.ndarray]
 #: a band of a level (even row count except the last) -> the band of the next level
 Downsample = Callable[[np.ndarray], np.ndarray]
 
-_TYPE_SIZE = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8,
-              13: 4, 16: 8, 17: 8, 18: 8}
-_TILE_OFFSETS, _TILE_BYTE_COUNTS = 324, 325
-_LONG, _LONG8 = 4, 16
-_PHOTOMETRIC, _COLOR_MAP = 262, 320
-
-
-#: raw bytes of the largest level :func:`write_cog` can hold (classic TIFF, 32 MiB of headroom)
+#: raw bytes of the largest level :func:`write_cog` can hold (classic TIFF, 32 MiB of headroom);
+#: the output is a BigTIFF when its compressed tiles pass it
 MAX_LEVEL_BYTES = (1 << 32) - (1 << 25)
 
 
@@ -131,6 +124,9 @@ def write_cog(
     final = Path(path)
     dtype = np.dtype(dtype)
     levels = overview_sizes(w, h, tile)
+    shapes = [(lh, lw) + ((channels,) if channels > 1 else ()) for lw, lh in levels]
+    common = {"dtype": dtype, "tile": (tile, tile), "compression": "zlib",
+              "predictor": colormap is None, "software": "terratheme", "metadata": None}
     with contextlib.ExitStack() as stack:
         # The levels go to temporaries beside the output, cleaned as its own (SIGTERM too).
         parts = [stack.enter_context(atomic_path(final, suffix=".tif", rename=False))
@@ -139,15 +135,23 @@ def write_cog(
         for k, (lw, lh) in enumerate(levels):
             # Each level from the bands of the level before it (the first from the caller).
             with tifffile.TiffWriter(parts[k], byteorder="<") as tw:
-                shape = (lh, lw) if channels == 1 else (lh, lw, channels)
-                tw.write(_tiles(source, (lw, lh), tile, channels, dtype), shape=shape,
-                         dtype=dtype, tile=(tile, tile), compression="zlib",
-                         predictor=colormap is None, photometric=photometric,
-                         subfiletype=1 if k else 0, software="terratheme",
-                         extratags=() if k else extratags, metadata=None)
+                tw.write(_tiles(source, (lw, lh), tile, channels, dtype), shape=shapes[k],
+                         photometric=photometric, **common)
             source = _halving(parts[k], (lw, lh), downsample)
+        pages = [stack.enter_context(tifffile.TiffFile(p)).pages.first for p in parts]
+        big = sum(sum(p.databytecounts) for p in pages) > MAX_LEVEL_BYTES
         with atomic_path(final) as out:
-            _lay_out(parts, out, _palette_entries(colormap))
+            # The IFDs: tifffile counts each tile's bytes from (b"", count) and writes none.
+            with tifffile.TiffWriter(out, bigtiff=big, byteorder="<") as tw:
+                for k, page in enumerate(pages):
+                    tw.write(((b"", n) for n in page.databytecounts), shape=shapes[k],
+                             photometric=photometric if colormap is None else "palette",
+                             colormap=colormap, subfiletype=1 if k else 0,
+                             extratags=() if k else extratags, **common)
+            offsets = _append_tiles(pages, out)
+            with tifffile.TiffFile(out, mode="r+b") as tif:
+                for page, new in zip(tif.pages, offsets, strict=True):
+                    page.tags["TileOffsets"].overwrite(new)
     return len(levels) - 1
 
 
@@ -163,100 +167,16 @@ def _halving(level_path: Path, size: tuple[int, int], downsample: Downsample) ->
     return band
 
 
-def _palette_entries(colormap: np.ndarray | None) -> dict[int, tuple[int, int, bytes]]:
-    """TIFF entries that make a grey level a palette one: PhotometricInterpretation 3, ColorMap."""
-    if colormap is None:
-        return {}
-    table = np.ascontiguousarray(colormap, dtype="<u2")
-    return {_PHOTOMETRIC: (3, 1, struct.pack("<H", 3)),
-            _COLOR_MAP: (3, table.size, table.tobytes())}
-
-
-def _page_entries(path: Path) -> tuple[dict[int, tuple[int, int, bytes]], list[int], list[int]]:
-    """``{code: (type, count, raw value)}``, tile offsets and byte counts of a one-image TIFF."""
-    with tifffile.TiffFile(path) as tif, open(path, "rb") as fh:
-        page = tif.pages.first
-        entries = {}
-        for tag in page.tags.values():
-            if tag.code in (_TILE_OFFSETS, _TILE_BYTE_COUNTS):
-                continue
-            fh.seek(tag.valueoffset)
-            raw = fh.read(_TYPE_SIZE[int(tag.dtype)] * tag.count)
-            entries[tag.code] = (int(tag.dtype), tag.count, raw)
-        return entries, list(page.dataoffsets), list(page.databytecounts)
-
-
-def _lay_out(parts: list[Path], out: Path, extra: dict[int, tuple[int, int, bytes]]) -> None:
-    """Write the levels of ``parts`` into ``out``: header, all IFDs, then tiles, smallest first.
-
-    ``extra`` entries are added to (or replace those of) every level.
-    """
-    pages = [_page_entries(p) for p in parts]
-    data_bytes = sum(sum(counts) for _, _, counts in pages)
-    big = data_bytes + (1 << 24) > (1 << 32) - 1
-    head, count_fmt, ptr_fmt, entry, inline = (16, "Q", "Q", 20, 8) if big else (8, "H", "I", 12, 4)
-    offset_type = _LONG8 if big else _LONG
-    # Each level's entries, with placeholder tile offsets of the right length.
-    tables = []
-    for entries, offsets, counts in pages:
-        table = {**entries, **extra}
-        placeholder = bytes(_TYPE_SIZE[offset_type] * len(offsets))
-        table[_TILE_OFFSETS] = (offset_type, len(offsets), placeholder)
-        table[_TILE_BYTE_COUNTS] = (_LONG, len(counts), struct.pack(f"<{len(counts)}I", *counts))
-        tables.append(table)
-
-    def ifd_size(table: dict) -> int:
-        spill = sum(len(raw) + len(raw) % 2 for _, _, raw in table.values() if len(raw) > inline)
-        return struct.calcsize(count_fmt) + entry * len(table) + struct.calcsize(ptr_fmt) + spill
-
-    ifd_at = [head]
-    for table in tables[:-1]:
-        ifd_at.append(ifd_at[-1] + ifd_size(table))
-    pos = ifd_at[-1] + ifd_size(tables[-1])
-    # Tile data positions: the smallest overview first, the full resolution last.
-    new_offsets: list[list[int]] = [[] for _ in pages]
-    for k in reversed(range(len(pages))):
-        for n in pages[k][2]:
-            new_offsets[k].append(pos)
-            pos += n
-    with open(out, "wb") as fh:
-        magic = struct.pack("<HHHQ", 43, 8, 0, head) if big else struct.pack("<HI", 42, head)
-        fh.write(b"II" + magic)
-        for k, table in enumerate(tables):
-            fmt = "<Q" if big else "<I"
-            table[_TILE_OFFSETS] = (offset_type, len(new_offsets[k]),
-                                    b"".join(struct.pack(fmt, o) for o in new_offsets[k]))
-            nxt = ifd_at[k + 1] if k + 1 < len(tables) else 0
-            fh.write(_encode_ifd(table, ifd_at[k], nxt, count_fmt, ptr_fmt, inline))
+def _append_tiles(pages: list[tifffile.TiffPage], out: Path) -> list[list[int]]:
+    """Append the levels' compressed tiles to ``out``, smallest level first; their new offsets."""
+    offsets: list[list[int]] = [[] for _ in pages]
+    with open(out, "r+b") as fh:
+        pos = fh.seek(0, os.SEEK_END)
         for k in reversed(range(len(pages))):
-            _copy_tiles(parts[k], pages[k][1], pages[k][2], fh)
-
-
-def _encode_ifd(table: dict, at: int, next_ifd: int, count_fmt: str, ptr_fmt: str,
-                inline: int) -> bytes:
-    """One directory at file offset ``at``: entry table sorted by tag, then its long values."""
-    n = len(table)
-    spill_at = at + struct.calcsize(count_fmt) + n * (4 + struct.calcsize(ptr_fmt) + inline) \
-        + struct.calcsize(ptr_fmt)
-    head, spill = bytearray(struct.pack("<" + count_fmt, n)), bytearray()
-    for code in sorted(table):
-        ttype, count, raw = table[code]
-        if len(raw) <= inline:
-            value = raw.ljust(inline, b"\0")
-        else:
-            value = struct.pack("<" + ptr_fmt, spill_at + len(spill))
-            spill += raw + b"\0" * (len(raw) % 2)
-        head += struct.pack("<HH" + ptr_fmt, code, ttype, count) + value
-    head += struct.pack("<" + ptr_fmt, next_ifd)
-    return bytes(head + spill)
-
-
-def _copy_tiles(src: Path, offsets: list[int], counts: list[int], fh) -> None:
-    """Append the compressed tiles of ``src`` to ``fh`` in tile order, verbatim."""
-    with open(src, "rb") as inp:
-        for off, n in zip(offsets, counts, strict=True):
-            inp.seek(off)
-            chunk = inp.read(n)
-            if len(chunk) != n:
-                raise TerrathemeError(f"{src}: tile at {off} is truncated")
-            fh.write(chunk)
+            page = pages[k]
+            # One tile a read (buffersize 0): memory stays one tile whatever the level's size.
+            for chunk, _ in page.parent.filehandle.read_segments(
+                    page.dataoffsets, page.databytecounts, sort=False, buffersize=0):
+                offsets[k].append(pos)
+                pos += fh.write(chunk)
+    return offsets

@@ -43,7 +43,7 @@ from terratheme.core.exchange.plan import (
 )
 from terratheme.core.exchange.style import export_boundary, export_render_options, map_labels
 from terratheme.core.io.atomic import write_bytes_atomic
-from terratheme.core.io.georef import GEO_TAGS
+from terratheme.core.io.georef import tiff_extratags
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.project import photo_extent, render_georeference, render_project
 from terratheme.core.render.renderer import render_labels
@@ -53,7 +53,6 @@ LANDCLASS, STYLE, TEXTURE, MANIFEST = "landclass.tif", "landclass.qml", "texture
 #: the colour map's own pixels (gain x 128), georeferenced: one pixel per ``scale`` texels
 COLOUR_TIFF = "colour_map.tif"
 TILE = 512
-_TIFF_TYPES = {12: "d", 3: "H", 2: "s"}
 #: GDAL tags describing the source photo's values (its no-data value would hide theme 0)
 _SOURCE_VALUE_TAGS = ("GDAL_NODATA", "GDAL_METADATA")
 Progress = Callable[[int, int], None]
@@ -83,17 +82,8 @@ def plan(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
 
 def geotiff_tags(georeference: dict) -> list[tuple]:
     """tifffile ``extratags`` for the GeoTIFF tags of a georeference dict (placement only)."""
-    tags = []
-    for code, (name, ttype, _) in sorted(GEO_TAGS.items()):
-        if name not in georeference or name in _SOURCE_VALUE_TAGS:
-            continue
-        value = georeference[name]
-        kind = _TIFF_TYPES[ttype]
-        if kind == "s":
-            tags.append((code, "s", 0, str(value), True))
-        else:
-            tags.append((code, kind, len(value), tuple(value), True))
-    return tags
+    return tiff_extratags({name: value for name, value in georeference.items()
+                           if name not in _SOURCE_VALUE_TAGS})
 
 
 def palette(project: ThematicTexture) -> np.ndarray:

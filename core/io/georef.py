@@ -1,11 +1,11 @@
-"""GeoTIFF georeference: read it from a photo, write it back onto outputs.
+"""GeoTIFF georeference: read it from a photo, write it with an output.
 
 OpenImageIO's wheel exposes no GeoTIFF tags and drops them on write (design.md §9), so
-they are read with ``tifffile`` and added to a written TIFF as a new first directory
-(old entries plus GeoTIFF ones; pixel data never moves). Other outputs get an ESRI
-world file. The georeference is a JSON-ready dict (tag name -> list / str) that travels
-in a project's ``metadata["georeference"]``; :func:`validate_georeference` checks it
-wherever it is read or used.
+they are read with ``tifffile`` and a georeferenced TIFF is written by tifffile with its
+tags (``extratags``). Other outputs get an ESRI world file. The georeference is a
+JSON-ready dict (tag name -> list / str) that travels in a project's
+``metadata["georeference"]``; :func:`validate_georeference` checks it wherever it is read
+or used.
 """
 
 from __future__ import annotations
@@ -15,24 +15,24 @@ import os
 import struct
 from pathlib import Path
 
+import numpy as np
+import tifffile
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.atomic import write_bytes_atomic
-from terratheme.core.io.images import image_attributes, image_info
+from terratheme.core.io.atomic import atomic_path, write_bytes_atomic
+from terratheme.core.io.images import image_attributes, image_info, write_image
 
-#: GeoTIFF / GDAL tags kept: code -> (name, TIFF type, struct code)
+#: GeoTIFF / GDAL tags kept: code -> (name, tifffile type: d double, H short, s text)
 GEO_TAGS = {
-    33550: ("ModelPixelScale", 12, "d"),
-    33922: ("ModelTiepoint", 12, "d"),
-    34264: ("ModelTransformation", 12, "d"),
-    34735: ("GeoKeyDirectory", 3, "H"),
-    34736: ("GeoDoubleParams", 12, "d"),
-    34737: ("GeoAsciiParams", 2, "s"),
-    42112: ("GDAL_METADATA", 2, "s"),
-    42113: ("GDAL_NODATA", 2, "s"),
+    33550: ("ModelPixelScale", "d"),
+    33922: ("ModelTiepoint", "d"),
+    34264: ("ModelTransformation", "d"),
+    34735: ("GeoKeyDirectory", "H"),
+    34736: ("GeoDoubleParams", "d"),
+    34737: ("GeoAsciiParams", "s"),
+    42112: ("GDAL_METADATA", "s"),
+    42113: ("GDAL_NODATA", "s"),
 }
 _NAME_TO_CODE = {v[0]: k for k, v in GEO_TAGS.items()}
-#: most entries in a TIFF directory (tifffile refuses more as suspicious)
-MAX_IFD_ENTRIES = 4096
 #: most numbers in one GeoTIFF tag (GeoKeyDirectory: 4 per key, at most 65535 keys)
 MAX_TAG_VALUES = 4 * 65536
 #: longest text tag (GeoAsciiParams, GDAL_METADATA, GDAL_NODATA)
@@ -61,7 +61,7 @@ def validate_georeference(georef: object) -> dict:
         code = _NAME_TO_CODE.get(name)
         if code is None:
             continue
-        if GEO_TAGS[code][2] == "s":
+        if GEO_TAGS[code][1] == "s":
             if not isinstance(value, str) or len(value) > MAX_TAG_TEXT:
                 raise TerrathemeError(f"georeference {name} must be text of at most "
                                       f"{MAX_TAG_TEXT:,} characters")
@@ -118,13 +118,11 @@ def _jsonable(value: object) -> object:
 
 
 def _read_geo_tags(path: Path) -> dict:
-    import tifffile
-
     try:
         with tifffile.TiffFile(path) as tif:
             tags = tif.pages.first.tags
             out = {}
-            for code, (name, _, _) in GEO_TAGS.items():
+            for code, (name, _) in GEO_TAGS.items():
                 tag = tags.get(code)
                 if tag is None:
                     continue
@@ -191,22 +189,63 @@ def world_file_name(path: str | os.PathLike) -> Path | None:
         p.suffix.lower(), ".wld"))
 
 
+def write_georeferenced(path: str | os.PathLike, image: np.ndarray, georef: dict, *,
+                        attributes: dict[str, object] | None = None) -> list[Path]:
+    """Write ``image`` atomically with ``georef``; returns the files that carry it.
+
+    A TIFF is written by tifffile with the GeoTIFF tags (deflate, predictor); another
+    format by :func:`core.io.images.write_image` (``attributes`` passed on), with an ESRI
+    world file beside it (:func:`write_georeference`). An empty georeference adds nothing.
+    """
+    p = Path(path)
+    if not georef or p.suffix.lower() not in _TIFF_SUFFIXES:
+        write_image(p, image, attributes=attributes)
+        return write_georeference(p, georef)
+    tags = tiff_extratags(validate_georeference(georef))
+    arr = np.asarray(image)
+    if arr.ndim not in (2, 3) or 0 in arr.shape:
+        raise TerrathemeError(f"cannot write {p}: image shape {arr.shape} has no pixels")
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[:, :, 0]
+    channels = 1 if arr.ndim == 2 else arr.shape[2]
+    with atomic_path(p) as tmp:
+        tifffile.imwrite(tmp, arr, photometric="rgb" if channels in (3, 4) else "minisblack",
+                         planarconfig="contig" if channels > 1 else None,
+                         extrasamples=("unassalpha",) if channels in (2, 4) else None,
+                         compression="zlib", predictor=True, extratags=tags, metadata=None,
+                         software="terratheme")
+    return [p]
+
+
+def tiff_extratags(georef: dict) -> list[tuple]:
+    """tifffile ``extratags`` for the :data:`GEO_TAGS` of a checked georeference."""
+    tags = []
+    for code, (name, kind) in sorted(GEO_TAGS.items()):
+        if name not in georef:
+            continue
+        value = georef[name]
+        if kind == "s":
+            tags.append((code, "s", 0, str(value).encode("latin-1"), True))
+        else:
+            tags.append((code, kind, len(value), tuple(value), True))
+    return tags
+
+
 def write_georeference(path: str | os.PathLike, georef: dict, *,
                        world_file: str | os.PathLike | None = None) -> list[Path]:
-    """Attach ``georef`` to an image file already written; returns the files changed or made.
+    """Write the ESRI world file of image ``path`` (already written); returns the files made.
 
-    TIFF files get the GeoTIFF tags in their first directory; other formats
-    get an ESRI world file (:func:`world_file_for`, or at ``world_file`` when
-    given: a file set writes it to a temporary first). An empty georeference
-    does nothing.
+    The file goes beside it (:func:`world_file_for`), or at ``world_file`` when given
+    (a file set writes it to a temporary first). An empty georeference, or one without a
+    placement, writes nothing. A TIFF carries its tags instead (:func:`write_georeferenced`).
     """
     p = Path(path)
     if not georef:
         return []
     validate_georeference(georef)
     if p.suffix.lower() in _TIFF_SUFFIXES:
-        add_tiff_tags(p, georef)
-        return [p]
+        raise TerrathemeError(f"{p}: a TIFF's GeoTIFF tags are written with its pixels "
+                              "(write_georeferenced)")
     world = world_file_lines(georef)
     if world is None:
         return []
@@ -233,81 +272,3 @@ def world_file_lines(georef: dict) -> list[float] | None:
         x0, y0 = x - i * sx, y + j * sy
         return [sx, 0.0, 0.0, -sy, x0 + sx * half, y0 - sy * half]
     return None
-
-
-def add_tiff_tags(path: str | os.PathLike, georef: dict) -> None:
-    """Add the GeoTIFF tags of ``georef`` to the first directory of a TIFF file, in place.
-
-    The new directory goes after the file's end; pointing the header at it is the last
-    write (8 bytes at most), so an interrupted call leaves the old directory in force.
-    """
-    p = Path(path)
-    with open(p, "r+b") as fh:
-        head = fh.read(16)
-        if head[:2] not in (b"II", b"MM"):
-            raise TerrathemeError(f"{p}: not a TIFF file")
-        bo = "<" if head[:2] == b"II" else ">"
-        magic = struct.unpack_from(bo + "H", head, 2)[0]
-        if magic == 42:
-            big, ptr_fmt, cnt_fmt, entry_size, hdr_ptr = False, "I", "H", 12, 4
-        elif magic == 43:
-            big, ptr_fmt, cnt_fmt, entry_size, hdr_ptr = True, "Q", "Q", 20, 8
-        else:
-            raise CorruptFileError(f"{p}: bad TIFF magic number {magic}")
-        inline = 8 if big else 4
-        ifd = struct.unpack_from(bo + ptr_fmt, head, hdr_ptr)[0]
-        # Read the first directory's raw entries (kept verbatim: their offsets stay valid).
-        fh.seek(ifd)
-        count_bytes = fh.read(struct.calcsize(cnt_fmt))
-        if len(count_bytes) != struct.calcsize(cnt_fmt):
-            raise CorruptFileError(f"{p}: truncated TIFF directory")
-        count = struct.unpack(bo + cnt_fmt, count_bytes)[0]
-        if count > MAX_IFD_ENTRIES:
-            raise CorruptFileError(f"{p}: TIFF directory of {count:,} entries")
-        raw = fh.read(count * entry_size + struct.calcsize(ptr_fmt))
-        if len(raw) != count * entry_size + struct.calcsize(ptr_fmt):
-            raise CorruptFileError(f"{p}: truncated TIFF directory")
-        entries = {
-            struct.unpack_from(bo + "H", raw, e * entry_size)[0]:
-                raw[e * entry_size : (e + 1) * entry_size]
-            for e in range(count)
-        }
-        next_ifd = struct.unpack_from(bo + ptr_fmt, raw, count * entry_size)[0]
-        end = fh.seek(0, os.SEEK_END)
-        tail = bytearray(b"\0" if end % 2 else b"")
-        base = end
-        # Encode every GeoTIFF tag; values too long for the entry go after the file's end.
-        for name, value in georef.items():
-            code = _NAME_TO_CODE.get(name)
-            if code is None:
-                continue
-            _, ttype, fmt = GEO_TAGS[code]
-            if fmt == "s":
-                payload = str(value).encode("latin-1") + b"\0"
-                n = len(payload)
-            else:
-                vals = list(value)
-                payload = struct.pack(f"{bo}{len(vals)}{fmt}", *vals)
-                n = len(vals)
-            if len(payload) <= inline:
-                field = payload.ljust(inline, b"\0")
-            else:
-                if len(tail) % 2:
-                    tail += b"\0"
-                field = struct.pack(bo + ptr_fmt, base + len(tail))
-                tail += payload
-            entries[code] = struct.pack(bo + "HH" + ptr_fmt, code, ttype, n) + field
-        # Append the new directory (word-aligned), then point the header at it.
-        if len(tail) % 2:
-            tail += b"\0"
-        new_ifd = base + len(tail)
-        tail += struct.pack(bo + cnt_fmt, len(entries))
-        for code in sorted(entries):
-            tail += entries[code]
-        tail += struct.pack(bo + ptr_fmt, next_ifd)
-        if not big and base + len(tail) >= 1 << 32:
-            raise TerrathemeError(f"{p}: too large for classic TIFF after adding GeoTIFF tags")
-        fh.write(bytes(tail))
-        fh.flush()
-        fh.seek(hdr_ptr)
-        fh.write(struct.pack(bo + ptr_fmt, new_ifd))
