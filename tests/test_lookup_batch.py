@@ -19,9 +19,8 @@ from terratheme.core.packing.batch import (
     batch_strategy,
     bucket_shift,
     layer_batch,
-    layer_batch_parallel,
     lookup_batch,
-    tiled_batch_parallel,
+    tiled_batch,
 )
 from terratheme.core.packing.layout import JOINED, W_GRID_BITS, W_MORTON
 from terratheme.core.packing.prefetch import prefetch
@@ -52,7 +51,7 @@ def test_batch_equals_dense_on_any_parts(w, h, curve, cell, parts, seed):
     assert layer_batch(xs, ys, layer.table, out) == -1
     assert np.array_equal(out, img[ys, xs])
     out[:] = 0
-    assert layer_batch_parallel(xs, ys, layer.table, out, parts) == -1
+    assert on_threads(layer_batch, xs, ys, (layer.table,), out, parts) == -1
     assert np.array_equal(out, img[ys, xs])
     # Every texel once, in scan order and in reverse.
     rows, cols = np.mgrid[0:h, 0:w]
@@ -69,7 +68,7 @@ def test_first_bad_texel_is_reported(parts):
     xs[4000], xs[4500] = 90, -1
     out = np.zeros(xs.size, np.uint8)
     bad = (layer_batch(xs, ys, layer.table, out) if parts == 1
-           else layer_batch_parallel(xs, ys, layer.table, out, parts))
+           else on_threads(layer_batch, xs, ys, (layer.table,), out, parts))
     assert bad == 4000
 
 
@@ -101,9 +100,9 @@ def test_tiled_batch_equals_dense(w, h, tile_bits, parts, join, seed):
     out = np.zeros(xs.size, np.uint8)
     if words is None:
         assert table[W_MORTON] == JOINED
-        assert layer_batch_parallel(xs, ys, table, out, parts) == -1
+        assert on_threads(layer_batch, xs, ys, (table,), out, parts) == -1
     else:
-        assert tiled_batch_parallel(xs, ys, table, *words, out, parts) == -1
+        assert on_threads(tiled_batch, xs, ys, (table, *words), out, parts) == -1
     assert np.array_equal(out, img[ys, xs])
     assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), img[ys, xs])
     k = int(rng.integers(0, xs.size))

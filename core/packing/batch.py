@@ -224,23 +224,15 @@ def tiled_batch(xs, ys, data, tiles, rows, out):  # pragma: no cover - numba
     return _batch(xs, ys, data, True, tiles, rows, out)
 
 
-def layer_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarray,
-                         parts: int) -> int:
-    """:func:`layer_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    return on_threads(layer_batch, xs, ys, (data,), out, parts)
-
-
-def tiled_batch_parallel(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, tiles: np.ndarray,
-                         rows: np.ndarray, out: np.ndarray, parts: int) -> int:
-    """:func:`tiled_batch` on threads, the batch in ``parts``; returns a bad texel or -1."""
-    return on_threads(tiled_batch, xs, ys, (data, tiles, rows), out, parts)
-
-
 #: Tables up to this many bytes are looked up in sweeps (:mod:`.sweep`), larger ones by bucket.
 SWEEP_BYTES = 1 << 26
-STRATEGIES = ("sweep", "buckets")
-#: Texels per piece of a swept batch on threads (:func:`~core.packing.threads.on_threads`).
+#: Texels per piece of a swept batch on threads (:func:`~core.packing.threads.on_threads`);
+#: the buckets take equal slices (larger slices fill fuller buckets).
 SWEEP_PIECE = STRETCH
+#: Each strategy's kernels, one layer's and a tiled layer's, and its pieces on threads.
+KERNELS = {"sweep": (sweep_layer, sweep_tiled, SWEEP_PIECE),
+           "buckets": (layer_batch, tiled_batch, None)}
+STRATEGIES = tuple(KERNELS)
 
 
 def batch_strategy(data: np.ndarray) -> str:
@@ -261,15 +253,8 @@ def lookup_batch(xs: np.ndarray, ys: np.ndarray, data: np.ndarray, out: np.ndarr
     strategy = strategy or batch_strategy(data)
     if strategy not in STRATEGIES:
         raise ValueError(f"batch strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
-    tiles, rows = (None, None) if words is None else words
-    if strategy == "sweep":
-        kernel, tables = ((sweep_layer, (data,)) if tiles is None
-                          else (sweep_tiled, (data, tiles, rows)))
-        if threads > 1:  # in pieces, taken by whichever thread is free
-            return on_threads(kernel, xs, ys, tables, out, threads, SWEEP_PIECE)
-        return int(kernel(xs, ys, *tables, out))
+    layer_kernel, tiled_kernel, piece = KERNELS[strategy]
+    kernel, tables = (layer_kernel, (data,)) if words is None else (tiled_kernel, (data, *words))
     if threads > 1:
-        return (layer_batch_parallel(xs, ys, data, out, threads) if tiles is None
-                else tiled_batch_parallel(xs, ys, data, tiles, rows, out, threads))
-    return int(layer_batch(xs, ys, data, out) if tiles is None
-               else tiled_batch(xs, ys, data, tiles, rows, out))
+        return on_threads(kernel, xs, ys, tables, out, threads, piece)
+    return int(kernel(xs, ys, *tables, out))
