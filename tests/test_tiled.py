@@ -14,12 +14,8 @@ from terratheme.core.io.georef import (
     write_georeferenced,
 )
 from terratheme.core.io.images import image_info, read_image, read_region, write_image
-from terratheme.core.io.tiles import (
-    TiledImageWriter,
-    map_tiles,
-    run_tiles,
-    tile_windows,
-)
+from terratheme.core.io.tiled_writer import TiledImageWriter
+from terratheme.core.io.tiles import run_tiles, tile_windows
 
 GEOREF = {
     "ModelPixelScale": [0.5, 0.5, 0.0],
@@ -85,31 +81,42 @@ def test_tile_windows_cover_once():
     assert len(wins) == 3 * 3
 
 
-def test_map_tiles_with_overlap_equals_whole_image_filter(tmp_path):
+def _box_filtered(path, shape, overlap, progress=None):
+    """A 5 x 5 box filter run tile by tile, each tile's core kept."""
+    out = np.zeros(shape, np.float32)
+
+    def job(win, pix):
+        box = ndimage.uniform_filter(pix[..., 0].astype(np.float32), size=5, mode="nearest")
+        return box[win.core_in_read]
+
+    def sink(win, core):
+        out[win.y : win.y1, win.x : win.x1] = core
+
+    run_tiles(path, job, sink, tile=40, overlap=overlap, progress=progress)
+    return out
+
+
+def test_tiles_with_overlap_equal_the_whole_image_filter(tmp_path):
     img = _ramp(97, 131, 1, np.uint8)
     path = tmp_path / "photo.tif"
     write_image(path, img, tile=32)
     whole = ndimage.uniform_filter(img[..., 0].astype(np.float32), size=5, mode="nearest")
-
-    def box(pix):
-        return ndimage.uniform_filter(pix[..., 0].astype(np.float32), size=5, mode="nearest")
-
     seen = []
-    tiled = map_tiles(path, box, tile=40, overlap=2, progress=lambda d, t: seen.append((d, t)))
+    tiled = _box_filtered(path, whole.shape, 2, lambda d, t: seen.append((d, t)))
     assert np.allclose(tiled, whole, atol=1e-4)
-    assert seen[-1] == (12, 12)
+    assert seen[0] == (0, 12) and seen[-1] == (12, 12)
     # Too little overlap shows at the tile borders.
-    bad = map_tiles(path, box, tile=40, overlap=0)
-    assert not np.allclose(bad, whole, atol=1e-4)
+    assert not np.allclose(_box_filtered(path, whole.shape, 0), whole, atol=1e-4)
 
 
-def test_map_tiles_into_tiled_writer(tmp_path):
+def test_tiles_into_a_tiled_writer(tmp_path):
     img = _ramp(70, 90, 3, np.uint8)
     src = tmp_path / "in.tif"
     write_image(src, img)
     dst = tmp_path / "out.tif"
     with TiledImageWriter(dst, 90, 70, 3, np.uint8, tile=16) as out:
-        map_tiles(src, lambda p: 255 - p, tile=32, out=out)
+        run_tiles(src, lambda win, pix: 255 - pix, lambda win, res: out.write(win.x, win.y, res),
+                  tile=32)
     assert np.array_equal(read_image(dst), 255 - img)
 
 

@@ -33,7 +33,6 @@ from terratheme.core.io.tiled_writer import TiledImageWriter
 from terratheme.core.io.tiles import (
     Scheduler,
     TileWindow,
-    map_tiles,
     run_tiles,
     tile_windows,
 )
@@ -55,7 +54,6 @@ __all__ = [
     "image_info",
     "local_cluster",
     "map_ordered",
-    "map_tiles",
     "read_georeference",
     "read_image",
     "read_labels",

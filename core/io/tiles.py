@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import Bands, image_info, read_region
-from terratheme.core.io.tiled_writer import TiledImageWriter
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -188,53 +187,3 @@ def run_tiles(
     return map_ordered(scheduler, _run_shared_part, wins, (path, job, dtype, bands), sink,
                        in_flight=batch, progress=progress, describe=_describe,
                        payload=parts)
-
-
-def map_tiles(
-    path: str | os.PathLike,
-    func: Callable[[np.ndarray], np.ndarray],
-    *,
-    tile: int | tuple[int, int] = 1024,
-    overlap: int = 0,
-    dtype: np.dtype | str | None = None,
-    out: np.ndarray | TiledImageWriter | None = None,
-    scheduler: Scheduler | Client = Scheduler.SERIAL,
-    progress: ProgressFn | None = None,
-) -> np.ndarray | TiledImageWriter:
-    """Apply a per-pixel-window function tile by tile and stitch the tile cores.
-
-    ``func`` maps a ``(rh, rw, C)`` tile with its overlap to ``(rh, rw[, C'])``; only the
-    core is kept, so a filter of support up to ``overlap`` matches the whole-image result.
-    Returns ``out`` (an (H, W[, C']) array, memmap or TiledImageWriter; default a new
-    array), filled.
-    """
-    info = image_info(path)
-    state: dict = {"out": out}
-
-    def sink(win: TileWindow, core: np.ndarray) -> None:
-        if state["out"] is None:
-            state["out"] = np.empty((info.height, info.width, *core.shape[2:]), core.dtype)
-        target = state["out"]
-        if isinstance(target, TiledImageWriter):
-            target.write(win.x, win.y, core)
-        else:
-            target[win.y : win.y + win.h, win.x : win.x + win.w] = core
-
-    run_tiles(path, CoreOf(func), sink, tile=tile, overlap=overlap, dtype=dtype,
-              scheduler=scheduler, progress=progress)
-    return state["out"]
-
-
-@dataclass(frozen=True)
-class CoreOf:
-    """The tile job of :func:`map_tiles`: ``func`` on the read window, cut to the tile's core."""
-
-    func: Callable[[np.ndarray], np.ndarray]
-
-    def __call__(self, win: TileWindow, pixels: np.ndarray) -> np.ndarray:
-        res = np.asarray(self.func(pixels))
-        if res.shape[:2] != pixels.shape[:2]:
-            raise TerrathemeError(
-                f"tile function returned shape {res.shape} for a {pixels.shape[:2]} tile"
-            )
-        return np.ascontiguousarray(res[win.core_in_read])
