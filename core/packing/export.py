@@ -15,7 +15,7 @@ from typing import Protocol
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import write_image
-from terratheme.core.io.tiles import TiledImageWriter
+from terratheme.core.io.tiled_writer import TiledImageWriter
 from terratheme.core.packing.index_png import PalettePngWriter, display_colours
 
 #: Largest layer written whole (formats with no streamed writer): 256 Mi texels.
