@@ -178,12 +178,13 @@ def _answer(b0, b1, starts, srt, data, rows, out):  # pragma: no cover - numba
             t += 1
         r = t * TILE_COLUMNS
         base, gb, grid = rows[r + T_BASE], rows[r + T_GRID_BITS], rows[r + T_GRID]
+        curve = np.int64(data[base + layout.W_MORTON])
         mask = (np.int64(1) << gb) - 1
         for j in range(starts[bucket], starts[bucket + 1]):
             e = srt[j]
             place = e & 0xFFFFFFFF
             g = np.int64(data[grid + (place >> (2 * gb))])
-            local = local_step(g, place & mask, (place >> gb) & mask, gb, data, base)
+            local = local_step(g, place & mask, (place >> gb) & mask, gb, curve)
             lo, hi = run_span(g, local, gb, data, base)
             out[e >> 32] = search_runs(data, base, local, lo, hi) & 255
 

@@ -69,23 +69,20 @@ def _grid_word(x, row, data, base):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def local_step(g, lx, ly, gb, data, base):  # pragma: no cover - numba
-    # Step within its block of a texel at (lx, ly) (y up), the block's grid word g.
-    curve = data[base + W_MORTON]
+def local_step(g, lx, ly, gb, curve):  # pragma: no cover - numba
+    # Step within its block of a texel at (lx, ly) (y up), the block's grid word g, the
+    # table's curve word (W_MORTON; the Hilbert tables are every table's own).
     if curve == 1 or (curve == JOINED and g & MORTON_BLOCK):
         return np.int64(morton_step(lx, ly))
-    tables = data[base + TABLE_AT: base + TABLE_AT + HILBERT_TABLES.size]
-    return np.int64(hilbert_walk(lx, ly, gb, tables, np.int64(g & 3))[0])
+    return np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def run_span(g, local, gb, data, base):  # pragma: no cover - numba
     # The runs [lo, hi) to search for local step `local` of the block with grid word g:
-    # the block's, or its quarter's when the block has a quarter directory.
-    at = base + np.int64(data[base + W_SPANS]) + ((g >> 3) & SPAN_OFFSET_MASK)
-    if g & 4:
-        q = local >> (2 * gb - 2)
-        return np.int64(data[at + q]), np.int64(data[at + q + 1]) & (SPAN_LAST - 1)
+    # the block's, or its quarter's when the block has a quarter directory (branch-free).
+    at = (base + np.int64(data[base + W_SPANS]) + ((g >> 3) & SPAN_OFFSET_MASK)
+          + ((local >> max(2 * gb - 2, 0)) & -((g >> 2) & 1)))
     return np.int64(data[at]), np.int64(data[at + 1]) & (SPAN_LAST - 1)
 
 
@@ -114,7 +111,7 @@ def _find(x, row, data, base):  # pragma: no cover - numba
     g, lx, ly, gb = _grid_word(x, row, data, base)
     if g & UNIFORM:
         return g
-    local = local_step(g, lx, ly, gb, data, base)
+    local = local_step(g, lx, ly, gb, data[base + W_MORTON])
     lo, hi = run_span(g, local, gb, data, base)
     return search_runs(data, base, local, lo, hi)
 

@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from terratheme.core.curves.steps import HILBERT_TABLES, hilbert_walk, morton_step
 from terratheme.core.packing import layout
-from terratheme.core.packing.lookup import grid_word
+from terratheme.core.packing.lookup import grid_word, local_step, run_span
 from terratheme.core.packing.prefetch import prefetch
 
 #: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
@@ -38,10 +37,9 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
     gb0 = np.int64(data[layout.W_GRID_BITS])
     cut0 = np.int64(data[layout.W_CUT]) if joined else np.int64(0)
     grid0 = np.int64(data[layout.W_GRID])
-    spans0 = np.int64(data[layout.W_SPANS])
     runs0 = np.int64(data[layout.W_RUNS])
+    curve0 = np.int64(data[layout.W_MORTON])
     gw0 = np.int64(data[layout.W_GRID_WIDTH])
-    morton0 = np.int64(data[layout.W_MORTON] == 1)
     n = min(STRETCH, xs.size)
     gs = np.empty(n, np.int64)
     local = np.empty(n, np.int64)
@@ -76,23 +74,15 @@ def _sweep(xs, ys, data, tiled, joined, tiles, rows, out):  # pragma: no cover -
         # Local steps, and the runs to search (the block's, or its quarter's).
         for i in range(m):
             g = gs[i]
-            if tiled:
-                gb, spans = rows[tile[i] + T_GRID_BITS], rows[tile[i] + T_SPANS]
-                morton = np.int64(data[rows[tile[i] + T_BASE] + layout.W_MORTON])
-            else:
-                gb, spans, morton = gb0, spans0, morton0
-            lx = local[i] & 0xFFFFFFFF
-            ly = local[i] >> 32
-            if morton or (joined and g & layout.MORTON_BLOCK):
-                step = np.int64(morton_step(lx, ly))
-            else:
-                step = np.int64(hilbert_walk(lx, ly, gb, HILBERT_TABLES, np.int64(g & 3))[0])
-            offset = ((g >> 3) & layout.SPAN_OFFSET_MASK) if joined else g >> 3
-            at = spans + offset + ((step >> max(2 * gb - 2, 0)) & -((g >> 2) & 1))
-            runs = rows[tile[i] + T_RUNS] if tiled else runs0
+            base, gb, runs, curve = ((rows[tile[i] + T_BASE], rows[tile[i] + T_GRID_BITS],
+                                      rows[tile[i] + T_RUNS],
+                                      np.int64(data[rows[tile[i] + T_BASE] + layout.W_MORTON]))
+                                     if tiled else (0, gb0, runs0, curve0))
+            step = local_step(g, local[i] & 0xFFFFFFFF, local[i] >> 32, gb, curve)
+            lo, hi = run_span(g, step, gb, data, base)
             local[i] = np.int64(np.uint32(step) << np.uint32(8))
-            los[i] = runs + np.int64(data[at])
-            his[i] = (np.int64(data[at + 1]) & (layout.SPAN_LAST - 1)) - np.int64(data[at])
+            los[i] = runs + lo
+            his[i] = hi - lo
             # The first probe's line, asked for now: it arrives while the other texels'
             # steps are worked out.
             prefetch(data, los[i] + (his[i] >> 1) - 1)
