@@ -40,8 +40,6 @@ from terratheme.core.packing.threads import on_threads
 CHUNK = 1 << 20
 #: Runs in a bucket's blocks, about (their words and spans: a few kB, in L1).
 BUCKET_RUNS = 1024
-#: Words of ``tiles``: width, height, log2 tile side, tiles across, bucket shift, buckets.
-TILE_WORDS = 6
 
 
 @numba.njit(cache=True, nogil=True)

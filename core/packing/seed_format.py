@@ -33,12 +33,6 @@ def encode_varints(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return table, k < nbytes[:, None]
 
 
-def encode_varint(value: int) -> bytes:
-    """Varint bytes of one non-negative integer (see the module docstring)."""
-    table, used = encode_varints(np.array([value], dtype=np.uint64))
-    return table[used].tobytes()
-
-
 def encode_seed_runs(lengths: np.ndarray, indices: np.ndarray) -> bytes:
     """Interleaved ``<varint length, P byte>`` pairs of runs (lengths >= 1, uint8 indices)."""
     table, used = encode_varints(lengths)
