@@ -29,7 +29,6 @@ from terratheme.core.packing.sweep import (
     T_GRID_WIDTH,
     T_HEIGHT,
     T_RUNS,
-    T_SPANS,
     TILE_COLUMNS,
     sweep_layer,
     sweep_tiled,
@@ -56,9 +55,9 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
     """What the batch kernels read of a tiled layer whose tile ``t``'s table starts at ``bases[t]``.
 
     Returns ``tiles``, (6,) int64: width, height, log2 tile side, tiles across, bucket
-    shift (:func:`bucket_shift` over all tiles), buckets; and ``rows``, (8 * tiles,) int64:
-    per tile its table's offset, height, grid bits, grid offset, grid width, first bucket,
-    spans and runs offsets (the columns ``T_*`` of :mod:`.sweep`).
+    shift (:func:`bucket_shift` over all tiles), buckets; and ``rows``, (7 * tiles,) int64:
+    per tile its table's offset, height, grid bits, grid offset, grid width, first bucket
+    and runs offset (the columns ``T_*`` of :mod:`.sweep`).
     """
     heads = np.stack([data[b: b + layout.HEAD_WORDS] for b in np.asarray(bases, np.int64)]).astype(
         np.int64)
@@ -72,7 +71,6 @@ def tiled_words(data: np.ndarray, bases: np.ndarray, width: int, height: int, ti
     rows[:, T_GRID] = rows[:, T_BASE] + heads[:, layout.W_GRID]
     rows[:, T_GRID_WIDTH] = heads[:, layout.W_GRID_WIDTH]
     rows[:, T_BUCKET] = np.cumsum(buckets) - buckets
-    rows[:, T_SPANS] = rows[:, T_BASE] + heads[:, layout.W_SPANS]
     rows[:, T_RUNS] = rows[:, T_BASE] + heads[:, layout.W_RUNS]
     tiles = np.array([width, height, tile_bits, across, shift, buckets.sum()], np.int64)
     return tiles, rows.ravel()

@@ -15,9 +15,9 @@ from terratheme.core.packing import layout
 from terratheme.core.packing.lookup import grid_word, local_step, run_span
 from terratheme.core.packing.prefetch import prefetch
 
-#: Columns of the tile rows (8 words a tile) that :func:`core.packing.batch.tiled_words` fills.
-T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_SPANS, T_RUNS = range(8)
-TILE_COLUMNS = 8
+#: Columns of the tile rows (7 words a tile) that :func:`core.packing.batch.tiled_words` fills.
+T_BASE, T_HEIGHT, T_GRID_BITS, T_GRID, T_GRID_WIDTH, T_BUCKET, T_RUNS = range(7)
+TILE_COLUMNS = 7
 #: Texels per stretch of the sweep kernels (and per parallel part).
 STRETCH = 16384
 
