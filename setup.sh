@@ -2,13 +2,11 @@
 # Set up terratheme in ./.venv on a fresh machine (Python >= 3.11 required).
 #   bash setup.sh          # the tool and the editor
 #   bash setup.sh --test   # plus the test tools (pytest, pytest-qt, hypothesis, ruff)
-#   bash setup.sh --bench  # plus the benchmark peers (imagecodecs)
 set -euo pipefail
 cd "$(dirname "$0")"
 
 extra="app"
 [ "${1:-}" = "--test" ] && extra="test"
-[ "${1:-}" = "--bench" ] && extra="test,bench"
 
 # System libraries: Qt's xcb platform (a real X display) and fonts, and Mesa's EGL/GL with the
 # llvmpipe software driver for the GPU path on machines without a GPU. Present on most

@@ -277,12 +277,12 @@ def test_cli_colour_map_and_boundary_options(tmp_path):
     assert _run([photo, tmp_path / "a.ttproj", "--cell", "16"]) == 0
     a = load_project(tmp_path / "a.ttproj")
     assert a.colour_map is not None and project_style(a).boundary is not None
-    assert (tmp_path / "a_colour.jxl").stat().st_size > 0
+    assert (tmp_path / "a_colour.avif").stat().st_size > 0
     assert _run([photo, tmp_path / "b.ttproj", "--cell", "16", "--colour-map", "off",
                  "--boundary", "linear"]) == 0
     b = load_project(tmp_path / "b.ttproj")
     assert b.colour_map is None and project_style(b).boundary is None
-    assert not (tmp_path / "b_colour.jxl").exists()
+    assert not (tmp_path / "b_colour.avif").exists()
 
 
 @pytest.mark.parametrize("args, match", [
@@ -310,7 +310,7 @@ def test_outputs_are_written_as_a_set(tmp_path, monkeypatch):
     photo = tmp_path / "h.png"
     write_image(photo, _halves())
     assert _run([photo, tmp_path / "s.ttproj", "--cell", "16"]) == 0
-    names = {"s.ttproj", "s_preview.png", "s.ttpack", "s_colour.jxl"}
+    names = {"s.ttproj", "s_preview.png", "s.ttpack", "s_colour.avif"}
     before = {n: (tmp_path / n).read_bytes() for n in names}
     # The project (written last) fails: every file of the set keeps its old bytes.
     def fail(path, project):

@@ -205,20 +205,21 @@ def _rezip(src, **members: bytes | None) -> bytes:
 
 @pytest.fixture(scope="module")
 def coloured(tmp_path_factory):
-    """A converted 32 x 32 photo: a project with a JPEG XL colour map and a shaped style."""
+    """A converted 32 x 32 photo: a project with an AVIF colour map and a shaped style."""
     folder = tmp_path_factory.mktemp("coloured")
     write_image(folder / "photo.png", _photo())
     assert main(["convert", str(folder / "photo.png"), str(folder / "c.ttproj"), "--cell", "8",
                  "--colour-map", "0.5"]) == 0
     with zipfile.ZipFile(folder / "c.ttproj") as zf:
-        assert "colour_map.jxl" in zf.namelist()
+        assert "colour_map.avif" in zf.namelist()
     return folder / "c.ttproj"
 
 
-@pytest.mark.parametrize("jxl", [b"", b"\xff\x0a" + bytes(40), b"not an image at all"])
-def test_a_damaged_colour_map_names_the_project_and_member(coloured, tmp_path, jxl):
-    (tmp_path / "bad.ttproj").write_bytes(_rezip(coloured, colour_map_jxl=jxl))
-    with pytest.raises(CorruptFileError, match=r"bad.ttproj: colour_map.jxl: ") as exc:
+@pytest.mark.parametrize("avif", [b"", b"\x00\x00\x00\x10ftypavif" + bytes(40),
+                                  b"not an image at all"])
+def test_a_damaged_colour_map_names_the_project_and_member(coloured, tmp_path, avif):
+    (tmp_path / "bad.ttproj").write_bytes(_rezip(coloured, colour_map_avif=avif))
+    with pytest.raises(CorruptFileError, match=r"bad.ttproj: colour_map.avif: ") as exc:
         load_project(tmp_path / "bad.ttproj")
     assert "\n" not in str(exc.value)
 

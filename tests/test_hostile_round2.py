@@ -86,7 +86,7 @@ def temporaries(folder: Path) -> list[str]:
 @pytest.fixture(scope="module")
 def made(tmp_path_factory) -> Path:
     """A folder with photo.png (96 x 96 of the sample), its converted project p.ttproj
-    (p.ttpack, p_colour.jxl, p_preview.png) and a 3-class label image labels.png."""
+    (p.ttpack, p_colour.avif, p_preview.png) and a 3-class label image labels.png."""
     if not SAMPLE.exists():
         pytest.skip("sample_maps/dubai_marina.jpg is missing")
     folder = tmp_path_factory.mktemp("made")
@@ -579,12 +579,12 @@ def test_convert_colour_map_off_drops_the_old_colour_map(made, tmp_path):
     photo = tmp_path / "photo.png"
     photo.write_bytes((made / "photo.png").read_bytes())
     assert run("convert", photo, tmp_path / "p.ttproj").returncode == 0
-    assert (tmp_path / "p_colour.jxl").exists()
-    (tmp_path / "q_colour.jxl").write_bytes(b"the user's own")
+    assert (tmp_path / "p_colour.avif").exists()
+    (tmp_path / "q_colour.avif").write_bytes(b"the user's own")
     proc = run("convert", photo, tmp_path / "p.ttproj", "--colour-map", "off")
     assert proc.returncode == 0, proc.stderr
-    assert not (tmp_path / "p_colour.jxl").exists()
-    assert (tmp_path / "q_colour.jxl").read_bytes() == b"the user's own"
+    assert not (tmp_path / "p_colour.avif").exists()
+    assert (tmp_path / "q_colour.avif").read_bytes() == b"the user's own"
     with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
         assert "colour_map" not in json.loads(zf.read("manifest.json"))
 

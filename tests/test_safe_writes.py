@@ -217,10 +217,10 @@ def test_colour_map_off_removes_the_old_set_s_colour_map(tmp_path):
     write_image(photo, _photo())
     proj = tmp_path / "p.ttproj"
     assert main(["convert", str(photo), str(proj), "--cell", "16"]) == 0
-    assert (tmp_path / "p_colour.jxl").exists()
+    assert (tmp_path / "p_colour.avif").exists()
     assert main(["convert", str(photo), str(proj), "--cell", "16", "--colour-map", "off"]) == 0
     assert load_project(proj).colour_map is None
-    assert not (tmp_path / "p_colour.jxl").exists()
+    assert not (tmp_path / "p_colour.avif").exists()
 
 
 def test_a_colour_map_file_that_is_not_the_old_set_s_stays(tmp_path):
@@ -228,7 +228,7 @@ def test_a_colour_map_file_that_is_not_the_old_set_s_stays(tmp_path):
     write_image(photo, _photo())
     proj = tmp_path / "p.ttproj"
     assert main(["convert", str(photo), str(proj), "--cell", "16"]) == 0
-    mine = tmp_path / "p_colour.jxl"
+    mine = tmp_path / "p_colour.avif"
     mine.write_bytes(b"the user's own file")
     assert main(["convert", str(photo), str(proj), "--cell", "16", "--colour-map", "off"]) == 0
     assert mine.read_bytes() == b"the user's own file"

@@ -119,7 +119,7 @@ def test_installed_commands_run_from_another_folder(env, converted):
     out = _run(env, "themes")
     assert f"9 themes in {site / 'terratheme' / 'themes'}" in out
     assert "'name': 'building'" in _run(env, "info", str(converted))  # the shipped model's
-    for suffix in ("_preview.png", "_colour.jxl"):
+    for suffix in ("_preview.png", "_colour.avif"):
         assert (converted.parent / f"photo{suffix}").is_file()
     _run(env, "render", str(converted), "out/cpu.png")
     _run(env, "export", str(converted), "out/unity", "--engine", "unity")

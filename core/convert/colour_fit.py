@@ -72,7 +72,8 @@ class ColourMapOptions:
     scales : tuple of int
         Texels per map pixel tried with a ``target``, coarsest first.
     codec : str
-        How the map is stored in the packed output (``core.io.codec``: jpegxl, webp, jpeg, png).
+        How the map is stored in the packed output (``core.io.codec``: avif, jpegxl, webp,
+        jpeg, png).
     quality : int
         Codec quality 1..100 with a ``target``.
     iterations : int
@@ -85,7 +86,7 @@ class ColourMapOptions:
 
     target: float | None = None
     scales: tuple[int, ...] = (64, 32, 16, 8)
-    codec: str = "jpegxl"
+    codec: str = "avif"
     quality: int = 99
     iterations: int = 2
     budget: float = 0.04

@@ -290,7 +290,7 @@ def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -
     return render_project(project, region=region, scale=scale), region
 
 
-def colour_map_file(packed_path: str | os.PathLike, codec: str = "jpegxl") -> Path:
+def colour_map_file(packed_path: str | os.PathLike, codec: str = "avif") -> Path:
     """Where a colour map in ``codec`` ships beside a packed layer: ``<stem>_colour.<ext>``."""
     target = Path(packed_path)
     return target.with_name(f"{target.stem}_colour{CODEC_SUFFIX[codec]}")
@@ -340,7 +340,7 @@ def write_outputs(
     """Save a project, its preview render and its packed index layer (+ colour map), as a set.
 
     A colour map shipped in a codec is written as those bytes beside the
-    packed layer (``<stem>_colour.jxl``): together they are the packed output.
+    packed layer (``<stem>_colour.avif``): together they are the packed output.
     The files are one set (:func:`core.io.atomic.file_set`): all replaced, or
     none, the project last. A colour map the replaced project shipped and the
     new one has not (``--colour-map off``) is removed with it.

@@ -1,7 +1,9 @@
-"""Images as bytes: encode and decode through OpenImageIO's codecs (WebP, JPEG, JPEG XL, PNG).
+"""Images as bytes: WebP, JPEG, JPEG XL and PNG through OpenImageIO, AVIF through imagecodecs.
 
 Used where a small image travels inside another file or is counted in bytes
-(the colour map of a thematic texture). OpenImageIO's Python API reads and
+(the colour map of a thematic texture). AVIF is libavif's (OpenImageIO's wheel
+has no AVIF writer), coded 4:4:4 with the BT.709 matrix it also decodes with
+(imagecodecs' default matrix shifts colours by about 1 dE). OpenImageIO's Python API reads and
 writes files, so the bytes pass through an unnamed temporary file
 (``O_TMPFILE``, opened by its ``/proc/self/fd`` path): the kernel frees it when
 the process ends, however it ends, so nothing is ever left in the temp folder.
@@ -15,10 +17,11 @@ import os
 import tempfile
 from collections.abc import Iterator
 
+import imagecodecs
 import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.image_format import error_line, jpegxl_size
+from terratheme.core.io.image_format import avif_size, error_line, jpegxl_size
 from terratheme.core.io.images import write_oiio
 
 #: codec name -> (file extension, OpenImageIO "Compression" attribute with {q} for the quality)
@@ -27,7 +30,10 @@ CODECS = {
     "jpeg": (".jpg", "jpeg:{q}"),
     "jpegxl": (".jxl", "jpegxl:{q}"),
     "png": (".png", "zip:9"),
+    "avif": (".avif", ""),
 }
+#: libavif's encoder speed (0 slowest .. 10 fastest)
+AVIF_SPEED = 6
 
 
 #: OpenImageIO's format name of each codec
@@ -86,6 +92,11 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
                               f"{arr.shape} {arr.dtype}")
     if not 1 <= int(quality) <= 100:
         raise TerrathemeError(f"quality must be 1..100, got {quality}")
+    if codec == "avif":
+        return bytes(imagecodecs.avif_encode(
+            arr[:, :, 0] if arr.shape[2] == 1 else arr, level=int(quality), speed=AVIF_SPEED,
+            pixelformat=imagecodecs.AVIF.PIXEL_FORMAT.YUV444,
+            matrix=imagecodecs.AVIF.MATRIX_COEFFICIENTS.BT709))
     with _scratch(ext) as (fd, path):
         spec = oiio.ImageSpec(arr.shape[1], arr.shape[0], arr.shape[2], "uint8")
         spec.attribute("Compression", attr.format(q=int(quality)))
@@ -101,12 +112,18 @@ def decode_image(data: bytes, *, codec: str = "webp",
     any pixel is decoded (a forged header cannot make it allocate more).
     """
     ext, _ = _codec(codec)
-    if codec == "jpegxl" and shape is not None:
-        # OpenImageIO decodes JPEG XL inside open(): check the header's size first.
-        size = jpegxl_size(bytes(data[:1 << 12]))
+    if codec in ("jpegxl", "avif") and shape is not None:
+        # Both decode at once: check the header's size first.
+        size = (jpegxl_size if codec == "jpegxl" else avif_size)(bytes(data[:1 << 14]))
         if size is None or (size[1], size[0]) != tuple(shape):
             found = "no size header" if size is None else f"{size[0]} x {size[1]}"
-            raise CorruptFileError(f"jpegxl image is {found}, expected {shape[1]} x {shape[0]}")
+            raise CorruptFileError(f"{codec} image is {found}, expected {shape[1]} x {shape[0]}")
+    if codec == "avif":
+        try:
+            pixels = imagecodecs.avif_decode(bytes(data))
+        except imagecodecs.AvifError as exc:
+            raise CorruptFileError(f"damaged avif image ({str(exc).splitlines()[0]})") from None
+        return np.ascontiguousarray(pixels if pixels.ndim == 3 else pixels[:, :, None])
     with _scratch(ext) as (fd, path):
         with os.fdopen(os.dup(fd), "wb") as fh:
             fh.write(bytes(data))

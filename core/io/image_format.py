@@ -1,9 +1,10 @@
 """OpenImageIO's side of reading and writing: its error text, which extensions it writes,
-and the size of a JPEG XL image read from its header before OpenImageIO sees it.
+and the size of a JPEG XL or AVIF image read from its header before any decoder sees it.
 
 OpenImageIO decodes a JPEG XL image inside ``ImageInput.open``, so
 :func:`jpegxl_size` reads its size from the codestream's ``SizeHeader``
-(ISO/IEC 18181-1, section D.2) for the caller to check first.
+(ISO/IEC 18181-1, section D.2) for the caller to check first; :func:`avif_size`
+reads an AVIF's from its ``ispe`` properties (ISO/IEC 23008-12, 6.5.3).
 """
 
 from __future__ import annotations
@@ -111,6 +112,35 @@ def jpegxl_size(data: bytes) -> tuple[int, int] | None:
         num, den = _JXL_RATIOS[ratio]
         return height * num // den, height
     return side(div8), height
+
+
+#: ISO BMFF boxes :func:`avif_size` descends into (``meta`` is a full box: 4 more bytes)
+_AVIF_CONTAINERS = {b"meta": 4, b"iprp": 0, b"ipco": 0}
+
+
+def avif_size(data: bytes) -> tuple[int, int] | None:
+    """``(width, height)``, the largest of an AVIF's ``ispe`` properties; None if none.
+
+    ``data`` is the file's first bytes (its ``ftyp`` and ``meta`` boxes).
+    """
+    sizes: list[tuple[int, int]] = []
+
+    def walk(start: int, end: int, depth: int) -> None:
+        pos = start
+        while pos + 8 <= end and depth < 4:
+            size, kind = struct.unpack_from(">I4s", data, pos)
+            if size < 8:
+                return
+            if kind in _AVIF_CONTAINERS:
+                walk(pos + 8 + _AVIF_CONTAINERS[kind], min(end, pos + size), depth + 1)
+            elif kind == b"ispe" and pos + 20 <= end:
+                sizes.append(struct.unpack_from(">II", data, pos + 12))
+            pos += size
+
+    if data[4:8] != b"ftyp":
+        return None
+    walk(0, len(data), 0)
+    return max(sizes, key=lambda wh: wh[0] * wh[1]) if sizes else None
 
 
 def jpegxl_file_size(path: str | os.PathLike) -> tuple[int, int] | None:

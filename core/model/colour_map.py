@@ -29,12 +29,14 @@ NEUTRAL = 128
 #: largest texels per map pixel
 MAX_SCALE = 4096
 #: codec -> (largest side, most pixels) of a map shipped as one image: JPEG XL level 5
-#: (ISO/IEC 18181-1 profile limits), WebP's 14-bit sizes, baseline JPEG's 16-bit ones
+#: (ISO/IEC 18181-1 profile limits), WebP's 14-bit sizes, baseline JPEG's 16-bit ones,
+#: libavif's default size limit
 ONE_IMAGE_LIMITS = {
     "jpegxl": (1 << 18, 1 << 28),
     "webp": (16383, 16383 * 16383),
     "jpeg": (65535, 65535 * 65535),
     "png": ((1 << 31) - 1, 1 << 62),
+    "avif": (16384, 16384 * 16384),
 }
 #: map pixels a side of the tiles of a map beyond its codec's single-image limit
 MAP_TILE = 4096
