@@ -1,35 +1,11 @@
 """Tile jobs on a dask.distributed cluster: connect or start one, run tasks in order, bounded.
 
-A conversion tile by tile is a map of one pure function over tile windows;
-:func:`map_ordered` runs it on a ``distributed.Client``:
-
-* what every task shares (the classifier, the grid, the themes) is
-  scattered to the workers once (``broadcast``), never embedded in each task;
-* at most ``in_flight`` tasks are submitted or held at a time, so the
-  results waiting on the client are bounded whatever the number of tiles;
-* results reach ``sink`` in item order (stitching stays deterministic);
-* a task runs several consecutive items (guided self-scheduling: up to
-  :data:`MAX_GROUP` while many remain, one each at the end so no worker
-  waits on a long last task): the client's cost per task (submission,
-  scheduling, the result's transfer; about 11 ms of its CPU on this machine,
-  the scheduler of a local cluster included) is then shared by the items;
-* a worker that dies loses nothing: the scheduler runs its tasks again on
-  another worker (``distributed.scheduler.allowed-failures`` times, then the
-  tile is reported as killing workers, in one line).
-
-Workers read the photo themselves, from its path: they must see the same
-file at the same absolute path (one machine, or a shared file system), and
-run the client's terratheme; :func:`check_workers` checks both before any
-work.
-
-:func:`local_cluster` starts worker processes on this machine (one thread
-each), reachable only with credentials made for it (TLS, mutual: a client
-without them cannot attach and run code in the workers) and with no HTTP
-port (dashboard, metrics); :func:`connect` joins an existing scheduler
-(``tls://`` with the user's certificates, :class:`TlsFiles`). Every task runs with
-numba's and OpenCV's thread pools at one thread: a worker thread is a core,
-so give a machine's workers as many threads in all as it has cores
-(``dask worker SCHEDULER --nworkers auto --nthreads 1``).
+:func:`map_ordered` maps one pure function over tile windows: shared data is scattered
+once, at most ``in_flight`` tasks are outstanding, results reach the sink in item order,
+and a task lost with a dead worker is run again. Workers read the photo from its path and
+must run the client's terratheme (:func:`check_workers`). :func:`local_cluster` starts
+TLS-only workers with no HTTP port; :func:`connect` joins a running scheduler. Tasks run
+numba and OpenCV on one thread: a worker thread is a core.
 """
 
 from __future__ import annotations
@@ -56,19 +32,9 @@ IN_FLIGHT_PER_THREAD = 2
 MAX_GROUP = 8
 #: most tasks :func:`map_ordered` resubmits after the cluster cancelled them (lost workers)
 MAX_RESUBMITS = 64
-#: dask settings of a local cluster: no statistical profiler in the workers (it feeds only
-#: the dashboard, which is off) and the event-loop watchdog ticking every second, not 20 ms:
-#: an idle 2-worker cluster then costs 0.06 cores instead of 0.17 (client 0.067 and workers
-#: 0.105 by default), 5% of a 2-core machine. And glibc's own memory reuse: dask starts
-#: workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which turns off glibc's adaptive mmap
-#: threshold, so every array over 128 KiB of every tile is a fresh mmap, page-faulted anew:
-#: a colour-map tile (1024^2) then costs 0.203 CPU s instead of 0.170 (+19%); a tile job's
-#: memory is bounded by its tile, so the trimming buys nothing here. For ``dask worker``
-#: processes of a running cluster, set ``distributed.nanny.pre-spawn-environ`` alike. And the
-#: nannies' memory checks every second (not 100 ms: a tile job's memory is bounded by its tile)
-#: and the system monitor (it feeds the dashboard) every 2 s, not 0.5 s: an idle 2-worker
-#: cluster then costs 0.012-0.014 cores in the client's process and 0.009-0.011 in the workers,
-#: against 0.029-0.037 and 0.023-0.027 (``python benchmarks/bench_cluster_tasks.py --idle``).
+#: dask settings of a local cluster: no profiler or dashboard feeds, slower ticks and
+#: monitors, and glibc's own memory reuse (dask's ``MALLOC_TRIM_THRESHOLD_`` makes every
+#: array a fresh mmap); a tile job's memory is bounded by its tile (docs/decisions.md).
 QUIET_LOCAL = {"distributed.worker.profile.enabled": False,
                "distributed.admin.tick.interval": "1s",
                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
@@ -97,12 +63,7 @@ def _run_group(func: Callable[[Any, Any], Any], group: list, shared: Any) -> lis
 
 
 def group_size(remaining: int, limit: int, most: int | None = None) -> int:
-    """Items in the next task: ``remaining / (2 * limit)`` (guided self-scheduling), 1..``most``.
-
-    While many items remain a task takes several (the client's cost per task
-    is shared); as the end nears tasks shrink to one item, so the workers
-    finish together.
-    """
+    """Items in the next task: ``remaining / (2 * limit)`` (guided self-scheduling), 1..``most``."""
     most = MAX_GROUP if most is None else int(most)
     return max(1, min(most, int(remaining) // (2 * max(1, int(limit)))))
 
@@ -136,26 +97,9 @@ def _close_http(dask_scheduler=None, dask_worker=None) -> None:
 def local_cluster(workers: int, threads: int = 1) -> Client:
     """A client of a new local cluster of ``workers`` processes (closing it stops them).
 
-    The scheduler, nannies and workers listen on 127.0.0.1 over TLS with
-    temporary credentials that exist only in this process and the workers
-    (``distributed.security.Security.temporary``): every connection must
-    present them, so no other local user or process can attach a client and
-    run code as ours. Their HTTP ports are closed once started (no
-    dashboard; a worker the nanny restarts after a crash has one again, with
-    no routes: it serves nothing).
-
-    Parameters
-    ----------
-    workers : int
-        Worker processes (at least 1).
-    threads : int
-        Threads per worker (tasks at a time; each task runs on one thread).
-
-    Returns
-    -------
-    distributed.Client
-        Use it as a context manager, or call ``close()``; ``client.security``
-        holds the credentials.
+    Everything listens on 127.0.0.1 over TLS with temporary credentials held only by this
+    process and the workers, so no other local user can attach and run code as ours; HTTP
+    ports are closed once started (a restarted worker's has no routes).
     """
     if int(workers) < 1 or int(threads) < 1:
         raise TerrathemeError(f"a local cluster needs at least 1 worker of 1 thread, got "
@@ -227,25 +171,9 @@ def connect(address: str, timeout: float | None = None,
             tls: TlsFiles | None = None) -> Client:
     """A client of the running dask scheduler at ``address`` (``tcp://`` or ``tls://host:port``).
 
-    The connection's handshake is tried first within ``timeout`` (dask's own
-    connect waits for it without a bound: a port that accepts and never
-    answers would hang, and one that answers something else, such as HTTP,
-    is read as a huge frame).
-
-    Parameters
-    ----------
-    address : str
-    timeout : float, optional
-        Seconds to wait for the scheduler, then for its first worker
-        (default :data:`CONNECT_TIMEOUT`).
-    tls : TlsFiles, optional
-        Certificates for a ``tls://`` scheduler (default: dask's configuration).
-
-    Raises
-    ------
-    TerrathemeError
-        The scheduler does not answer within ``timeout`` seconds, answers
-        something other than dask, refuses the certificates, or has no worker.
+    The handshake is tried first within ``timeout`` seconds (default :data:`CONNECT_TIMEOUT`;
+    dask's own connect hangs on a port that never answers). TerrathemeError when the
+    scheduler does not answer, is not dask, refuses the certificates, or has no worker.
     """
     import asyncio
     from concurrent.futures import ThreadPoolExecutor
@@ -302,12 +230,7 @@ _PASSED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def check_workers(client: Client, path: str) -> None:
     """Refuse, in one line, a cluster whose workers run another terratheme or cannot read ``path``.
 
-    Every worker must run the client's code (the same ``core`` sources: the
-    result must be the serial run's) and open ``path`` (workers read the
-    photo themselves, from its absolute path). A check passed by the same
-    worker processes (addresses) for the same path is not run again: each
-    takes 0.13-0.16 s of the cluster here, and a conversion runs three (one
-    per stage); a worker that joins or restarts has a new address.
+    A check passed by the same worker addresses for the same path is not run again.
     """
     workers = frozenset(client.nthreads())
     passed = _PASSED.setdefault(client, set())
@@ -353,16 +276,9 @@ _WARMING: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def warm_up(client: Client, modules: Sequence[str],
             calls: Sequence[Callable[[], Any]] = ()) -> None:
-    """Start importing ``modules`` and running ``calls`` on every worker; return at once.
-
-    A fresh worker spends seconds importing terratheme's stack before its
-    first tile, and numba loads each cached kernel on its first call; started
-    early, both overlap the client's own serial work. ``calls``: picklable
-    zero-argument callables (module-level dataclasses), run in order.
-    :func:`map_ordered` waits for them before its first task: a task's
-    function imported on another worker thread while the warm-up imports the
-    same package can see it partially initialised.
-    """
+    """Start importing ``modules`` and running ``calls`` (picklable, no arguments) on every
+    worker, overlapping the client's serial work; :func:`map_ordered` waits for them (a
+    module imported twice at once can be seen half initialised)."""
     # One task pinned to each worker (a task, not client.run: it must not block the
     # worker's event loop); the next map_ordered waits for them.
     _WARMING.setdefault(client, []).extend(
@@ -417,33 +333,21 @@ def map_ordered(
 
     Parameters
     ----------
-    client : distributed.Client
     func : callable(item, shared) -> result
-        A module-level function (workers import it by name); it runs with
-        numba and OpenCV on one thread.
-    items : sequence
-        Small, picklable task descriptions (tile windows).
+        A module-level function (workers import it by name).
     shared : object
         Everything the tasks share; sent to every worker once.
-    sink : callable(item, result)
-        Called in this process, in item order.
     in_flight : int, optional
-        Most tasks submitted and not yet sunk (default: ``IN_FLIGHT_PER_THREAD``
-        per worker thread).
-    progress : callable(done, total), optional
+        Most tasks submitted and not yet sunk (default ``IN_FLIGHT_PER_THREAD`` per thread).
     describe : callable(item) -> str
         Names an item in error messages.
     payload : callable(item) -> object, optional
-        Per-item data made here when the item is submitted (at most
-        ``in_flight`` at a time) and sent with it: the task is then
-        ``func((item, payload(item)), shared)``; ``sink`` still gets the item.
+        Per-item data made at submission and sent with it: the task gets
+        ``(item, payload(item))``; ``sink`` still gets the item.
     group : int, optional
-        Items per task (default: :func:`group_size`, up to :data:`MAX_GROUP`;
-        1 for items that each take seconds). ``in_flight`` counts tasks.
+        Items per task (default: :func:`group_size`).
 
-    Returns
-    -------
-    n_items : int
+    Returns the number of items.
     """
     from distributed import as_completed
 
@@ -462,9 +366,7 @@ def map_ordered(
 
     def submit(first: int, batch: list) -> None:
         with warnings.catch_warnings():
-            # A payload (a colour-map tile's pixels, 48 MiB) travels with its task on
-            # purpose: made as it is submitted, a few in flight. dask warns of a large
-            # graph and advises scattering it first, which moves the same bytes.
+            # A payload travels with its task on purpose (scattering moves the same bytes).
             warnings.filterwarnings("ignore", message="Sending large graph",
                                     module=r"distributed\.")
             fut = client.submit(_run_group, func, batch, shared_ref, pure=False)

@@ -1,13 +1,9 @@
 """Images as bytes: WebP, JPEG, JPEG XL and PNG through OpenImageIO, AVIF through imagecodecs.
 
-Used where a small image travels inside another file or is counted in bytes
-(the colour map of a thematic texture). AVIF is libavif's (OpenImageIO's wheel
-has no AVIF writer), coded 4:4:4 with the BT.709 matrix it also decodes with
-(imagecodecs' default matrix shifts colours by about 1 dE). OpenImageIO's Python API reads and
-writes files, so the bytes pass through an unnamed temporary file
-(``O_TMPFILE``, opened by its ``/proc/self/fd`` path): the kernel frees it when
-the process ends, however it ends, so nothing is ever left in the temp folder.
-Where that is not available, a named temporary removed when done.
+For small images inside another file (the colour map). AVIF is coded 4:4:4 with the BT.709
+matrix (OpenImageIO's wheel writes no AVIF; docs/decisions.md). OpenImageIO reads and
+writes files, so bytes pass through an unnamed ``O_TMPFILE`` the kernel frees however the
+process ends (else a named temporary removed when done).
 """
 
 from __future__ import annotations

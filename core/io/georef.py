@@ -1,11 +1,8 @@
 """GeoTIFF georeference: read it from a photo, write it with an output.
 
-OpenImageIO's wheel exposes no GeoTIFF tags and drops them on write (design.md §9), so
-they are read with ``tifffile`` and a georeferenced TIFF is written by tifffile with its
-tags (``extratags``). Other outputs get an ESRI world file. The georeference is a
-JSON-ready dict (tag name -> list / str) that travels in a project's
-``metadata["georeference"]``; :func:`validate_georeference` checks it wherever it is read
-or used.
+OpenImageIO's wheel drops GeoTIFF tags (design.md §9), so tifffile reads them and writes
+them (``extratags``); other outputs get an ESRI world file. The georeference is a JSON-ready
+dict (tag name -> list / str), checked by :func:`validate_georeference` wherever used.
 """
 
 from __future__ import annotations

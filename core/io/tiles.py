@@ -1,12 +1,8 @@
 """Images larger than memory: tile windows with overlap, bounded-memory tile jobs.
 
-A tile job reads one window (core plus ``overlap`` context, clipped) with
-:func:`core.io.images.read_region` and keeps the core of its result, so peak memory
-is set by the tile size and the tiles in flight, never by the image. Jobs run
-serially (:attr:`Scheduler.SERIAL`) or on a dask.distributed cluster (pass its
-``Client``; :mod:`core.io.cluster`), where the job must pickle and the result is the
-serial run's, bit for bit. Large outputs go through
-:class:`core.io.tiled_writer.TiledImageWriter`.
+A job reads one window (core plus ``overlap``, clipped) and keeps its core's result, so
+memory follows the tile size, not the image. Jobs run serially or on a dask cluster
+(:mod:`core.io.cluster`), with the serial run's result bit for bit.
 """
 
 from __future__ import annotations
