@@ -1,13 +1,9 @@
 """Supervised classes: Extra-Trees (:mod:`core.classify.extra_trees`) on the features.
 
-Training data are ``(photo, mask)`` pairs, 0 unlabelled and ``k > 0`` class ``k``:
-brush scribbles and full label masks alike. A coarse pixel takes the class covering
-most of its labelled pixels (a one-pixel stroke still teaches its block). Samples are
-capped per class and, with ``balance``, every class weighs the same (thin roads
-count). Scribbles also get a class-prior correction (:mod:`core.classify.prior`) and
-strokes grown by colour (:func:`core.classify.samples.grow_labels`); a model of a few
-other photos adapts to each photo (:mod:`core.classify.adapt`). Confidence is the
-winning class's share of the trees' soft votes after prior weights and regularisation.
+Training data are ``(photo, mask)`` pairs (0 unlabelled): scribbles or full label masks.
+Samples are capped per class; scribbles also get a prior correction (:mod:`.prior`) and
+strokes grown by colour; a model of other photos adapts to each photo (:mod:`.adapt`).
+Confidence is the winning class's share of the trees' soft votes.
 """
 from __future__ import annotations
 
@@ -157,11 +153,7 @@ def _capped_samples(pairs, options, classes, grow, cache, keys):
 
 
 class Classifier:
-    """A trained Extra-Trees forest and its options.
-
-    Use :func:`train_classifier` to make one, :meth:`predict` to classify a
-    photo, :meth:`save` / :meth:`load` to keep it.
-    """
+    """A trained Extra-Trees forest and its options (made by :func:`train_classifier`)."""
 
     def __init__(self, forest: ExtraTreesForest | None, classes: Sequence[int],
                  options: SupervisedOptions,
@@ -236,14 +228,10 @@ def train_classifier(
     class_weights: Mapping[int, float] | None = None,
     cache: DiskCache | None = None,
 ) -> Classifier:
-    """Train a classifier from scribbles or full label masks.
+    """Train a classifier from (photo (H, W, 3|4), mask (H, W) integer, 0 unlabelled) pairs.
 
-    ``pairs_or_scribbles``: (photo (H, W, 3|4) uint8/uint16, mask (H, W) integer, 0
-    unlabelled) pairs, scribbles on the photo to classify or full masks of others.
-    ``class_weights`` (class value -> weight, e.g. kept from a first round of strokes)
-    replace the estimated prior when they cover every class. ``cache`` keeps samples
-    and the model by content. One class only: every pixel gets it. Bad input is a
-    ``TerrathemeError``.
+    ``class_weights`` (class value -> weight) replace the estimated prior when they cover
+    every class; ``cache`` keeps samples and the model by content.
     """
     opts = options or SupervisedOptions()
     scribbles = looks_like_scribbles(pairs_or_scribbles, opts.ignore_classes)

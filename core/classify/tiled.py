@@ -1,11 +1,9 @@
 """Tile-by-tile prediction with overlap: memory bounded by the tile, no seams.
 
-The photo is cut into ``tile x tile`` cores (whole coarse pixels). Each core
-is read with a halo of context on every side, as wide as the features and the
-regularisation reach, so a coarse pixel's features and smoothed probabilities
-are the same as if the whole photo had been processed at once. Coarse class
-probabilities are upsampled bilinearly to photo pixels (coarse pixel centres
-at photo position ``(i + 0.5) * scale - 0.5``), and the arg-max gives the label.
+Each ``tile x tile`` core is read with a halo as wide as the features and the
+regularisation reach, so results equal the whole photo's. Coarse probabilities are
+upsampled bilinearly (coarse centre ``i`` at photo ``(i + 0.5) * scale - 0.5``); the
+arg-max gives the label.
 """
 
 from __future__ import annotations
@@ -71,13 +69,11 @@ def sampling_stride(height: int, width: int, scale: int, max_samples: int) -> in
 def strided_pixels(
     win: TileWindow, scale: int, stride: int, valid: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A tile's samples: its core coarse pixels on the photo-wide grid of every ``stride``-th
-    coarse row and column, those with data.
+    """A tile's core coarse pixels on the photo-wide grid of every ``stride``-th row and
+    column, those with data (any pixel of ``valid`` (win.h, win.w), or all if None).
 
-    ``valid``: the core's photo pixels (win.h, win.w) bool, or None (all have data); a
-    coarse pixel has data when any of its pixels has. Returns ``(iy, ix)``, (n,) int64
-    indices into coarse arrays over the window's read rectangle, and ``(rows, cols)``, the
-    same pixels photo-wide, row-major: the same samples whatever the tiling.
+    Returns ``(iy, ix)`` (n,) int64 into the read window's coarse arrays and ``(rows, cols)``
+    photo-wide: the same samples whatever the tiling.
     """
     gy0, gx0 = win.y // scale, win.x // scale
     ch, cw = -(-(win.y1 - win.y) // scale), -(-(win.x1 - win.x) // scale)

@@ -89,12 +89,8 @@ def feature_weights(options: FeatureOptions) -> np.ndarray:
 
 def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
                    stride: int, options: UnsupervisedOptions) -> tuple[np.ndarray, np.ndarray]:
-    """One feature window's weighted samples and their photo-wide row-major coarse index.
-
-    ``feats`` covers the read rectangle, ``valid`` (or None) the core's pixels; the
-    samples are :func:`core.classify.tiled.strided_pixels`', so any tiling gives the
-    whole photo's samples.
-    """
+    """One window's weighted samples (:func:`.tiled.strided_pixels`) and their photo-wide
+    row-major coarse index: any tiling gives the whole photo's samples."""
     scale = options.features.scale
     iy, ix, rows, cols = strided_pixels(win, scale, stride, valid)
     return feats[iy, ix] * feature_weights(options.features), rows * (-(-width // scale)) + cols
