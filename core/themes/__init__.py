@@ -1,15 +1,9 @@
 """Themes: small tileable textures, how they are made tileable and scored, and cut from photos.
 
-Modules: ``library`` (Theme, ThemeLibrary, the shipped themes), ``tileable``
-(periodic-plus-smooth wrap, flattening, crossfade and cut seams; the seam
-score), ``quality`` (banding, repetition and landmark scores), ``seam_cut``
-(minimum-error boundary cuts), ``histogram`` (Gaussianisation for the
-histogram-preserving blend), ``from_photo`` (themes for a classified photo),
-``cut_mask`` (what a cut keeps of its window: no other class, border rim or
-lone object),
-``matching`` (classes to themes by colour and texture), ``looks`` (aerial
-exemplars of the shipped themes' classes, for naming), ``detail`` (a theme's
-fine detail around its mean, the colour map carrying the rest).
+``library`` (themes, shipped set), ``tileable`` and ``seam_cut`` (wrapping, seam score),
+``quality`` (repetition scores), ``histogram`` (Gaussianisation), ``from_photo``,
+``patch_search``, ``cut_mask`` and ``quilt`` (themes cut from a photo), ``matching`` and
+``looks`` (classes to themes), ``detail`` (detail themes under a colour map).
 """
 
 from terratheme.core.themes.from_photo import (

@@ -1,13 +1,8 @@
 """What a theme cut keeps of its photo window, and how the rest is filled.
 
-A window chosen for a class (:mod:`core.themes.patch_search`) holds pixels
-that must not repeat once per tile: other classes', the class's own rim
-along its border (blends of the two sides), lone high-contrast objects (a
-building in water, a dark rim wider than the rim) and faint lone marks (a
-thin track on sand, :func:`band_marks`: low contrast, but far above the
-texture's own band energy). :func:`cut_window` fills them with whole shifted
-pieces of the class's own pixels, from around the window first
-(:func:`fill_from_class`), before the patch is made tileable.
+Other classes' pixels, the class's border rim, lone objects and faint lone marks would
+repeat once per tile; :func:`cut_window` fills them with shifted pieces of the class's
+own pixels before the patch is made tileable.
 """
 
 from __future__ import annotations
@@ -39,12 +34,7 @@ def _fft_size(shape: tuple[int, ...]) -> tuple[int, int]:
 
 
 def _coverage(hole: np.ndarray, source: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """(size) float32: at every shift ``d``, the hole pixels ``p`` with ``source[p - d]``.
-
-    The linear cross-correlation of the hole mask with a source mask given as
-    its ``rfft2`` at ``size`` (:func:`_fft_size`, zero-padded), so a copy never
-    wraps across the patch's edge; shifts are indexed modulo ``size`` (:func:`_shifted`).
-    """
+    """(size) float32: per shift ``d`` (mod ``size``), the hole pixels with ``source[p - d]``."""
     return irfft2(rfft2(hole.astype(np.float32), size) * np.conj(source), size)
 
 
@@ -66,7 +56,11 @@ def _typical(patch: np.ndarray, pixels: np.ndarray, reference: np.ndarray) -> np
 
 def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None = None, *,
                     first: np.ndarray | None = None) -> np.ndarray:
-    """Fill the holes of ``patch`` with whole shifted copies of its kept pixels.
+    """Fill the holes of ``patch`` greedily with shifted copies of its kept pixels.
+
+    Each copy is the shift covering the most of the open hole (never wrapping across the
+    edge), taken from ``first``'s typical pixels, then all ``first``, then the same of
+    ``keep``: a hole gets a few coherent pieces, not onion shells of its rim.
 
     Parameters
     ----------
@@ -77,18 +71,6 @@ def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None
         The pixels to fill (default: all but ``keep``).
     first : (s, t) bool ndarray, optional
         Kept pixels to copy from before the others (those around a window).
-
-    Returns
-    -------
-    (s, t, 3) uint8 ndarray
-        Every hole pixel a pixel of the class. The holes are covered greedily
-        by shifted copies of the patch (never wrapping across its edge), each
-        the one that covers the most of what is left with source pixels:
-        those of ``first`` of the brightness typical of the other kept
-        pixels (:func:`_typical`), any of
-        ``first``, then the same of ``keep``. A hole takes a few coherent
-        pieces of the texture, not the onion shells of its rim that copying
-        each pixel from its nearest kept one lays (stripes once per tile).
     """
     out = patch.copy()
     hole = ~keep if hole is None else hole & ~keep
@@ -138,34 +120,13 @@ MARK_SHARE = 0.25
 
 def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
                span: float | None = None) -> np.ndarray:
-    """Lone marks of a window: spots of band-pass energy far above the window's own.
+    """(s, t) bool: lone marks of a window, spots of band-pass energy far above its own.
 
-    The luma's band-pass (Gaussian sigmas :data:`MARK_SIGMAS`) is squared and
-    averaged over :data:`MARK_REACH` texels; a mark is where that local energy
-    passes ``MARK_RATIO`` times its median over the window (and
-    ``MARK_FLOOR`` levels), grown by hysteresis while it passes
-    ``MARK_EXTENT`` times, spanning at most ``span``, its band under
-    ``MARK_CEILING`` (a stronger feature is :func:`lone_objects`' landmark
-    test's); its pixels are those where the band reaches ``MARK_CORE`` of
-    the mark's peak. A
-    faint thin stroke on sand passes (its contrast is low, but the sand's own
-    grain is lower); regular ripples, grass grain or a town's streets, whose
-    energy is much the same everywhere, do not; nor does the edge of a region
-    running across the window. Marks carrying over ``MARK_SHARE`` of the
-    window's band energy are its texture and none is returned.
-
-    Parameters
-    ----------
-    window : (s, t, 3) uint8 ndarray
-    inside : (s, t) bool ndarray, optional
-        The pixels the median is taken over (default: all).
-    span : float, optional
-        The longest side (texels) of a mark's bounding box (default:
-        ``MARK_SPAN`` of the shorter side).
-
-    Returns
-    -------
-    (s, t) bool ndarray
+    A faint thin stroke on sand passes (the sand's grain is fainter still); ripples, grass
+    or streets, whose energy is much the same everywhere, do not, nor does a region's edge.
+    Thresholds: the ``MARK_*`` constants. ``inside``: the pixels the median energy is
+    taken over (default all); ``span``: longest mark side in texels (default
+    ``MARK_SPAN`` of the shorter side).
     """
     lum = window.astype(np.float32) @ _LUMA
     # Band-pass of the luma: strokes and blobs, not the window's shading.
@@ -201,28 +162,10 @@ def band_marks(window: np.ndarray, inside: np.ndarray | None = None,
 
 def lone_objects(window: np.ndarray, inside: np.ndarray | None = None,
                  span: float | None = None) -> np.ndarray:
-    """Pixels of objects that stand out of a patch's texture (a lone building in water).
+    """(s, s) bool: objects standing out of a patch's texture (a lone building in water).
 
-    Dark or bright features narrower than
-    :data:`core.themes.quality.LANDMARK_SIZE` whose contrast passes
-    ``OBJECT_SPREADS`` times the patch's own luma spread
-    (:func:`core.themes.quality.landmark_mask`), and faint lone marks of
-    band-pass energy far above the patch's own (:func:`band_marks`), grown
-    by two pixels. Tiled, such an object repeats on a grid the eye picks out
-    at once; in a busy texture (town) the thresholds rise with the spread,
-    so its streets stay.
-
-    Parameters
-    ----------
-    window : (s, s, 3) uint8 ndarray
-    inside : (s, s) bool ndarray, optional
-        The class's pixels, whose band energy is the patch's own (default: all).
-    span : float, optional
-        The longest lone mark, as :func:`band_marks`.
-
-    Returns
-    -------
-    (s, s) bool ndarray
+    Features narrower than ``LANDMARK_SIZE`` above ``OBJECT_SPREADS`` luma spreads
+    (:func:`landmark_mask`) and faint marks (:func:`band_marks`), grown by 2 px.
     """
     lum = window.astype(np.float32) @ _LUMA
     spread = float(np.std(lum - cv2.GaussianBlur(lum, (0, 0), LANDMARK_SIZE / 4)))
@@ -234,23 +177,7 @@ def lone_objects(window: np.ndarray, inside: np.ndarray | None = None,
 
 
 def class_interior(mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
-    """The class's pixels of an ``s x s`` window at least ``INTERIOR`` pixels from its border.
-
-    Pixels along a class border are blends of the two sides (the dark rim of a
-    shore on sand); cut into a theme they repeat as a line once per tile, and
-    the render draws the border itself. The border is the class region's own,
-    not the window's: the mask is read ``INTERIOR`` pixels beyond the window.
-
-    Parameters
-    ----------
-    mask : (H, W) bool ndarray
-        The class region in the photo.
-    x, y, s : the window
-
-    Returns
-    -------
-    (s, s) bool ndarray
-    """
+    """(s, s) bool: the class's pixels of a window ``INTERIOR`` px inside the region's border."""
     return _interior_box(mask, x, y, x + s, y + s)
 
 
@@ -267,23 +194,10 @@ def _interior_box(mask: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.nd
 
 
 def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
-    """The ``s x s`` window at ``(x, y)`` with all but the class's plain texture filled in.
+    """(s, s, 3) uint8: the window at ``(x, y)`` with all but the class's plain texture filled.
 
-    Other classes' pixels, the class's border rim (:func:`class_interior`) and
-    lone objects (:func:`lone_objects`) are filled from the class's own pixels
-    (:func:`fill_from_class`): those within half a side around it first,
-    so the tile holds no second copy of a part of itself, then the window's.
-
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    mask : (H, W) bool ndarray
-        The class region (some pixel of the window in it).
-    x, y, s : the window
-
-    Returns
-    -------
-    (s, s, 3) uint8 ndarray
+    Other classes, the border rim and lone objects are filled from the class's pixels
+    within half a side around the window first (no second copy of the tile in itself).
     """
     h, w = mask.shape
     window = rgb[y : y + s, x : x + s]
@@ -314,11 +228,7 @@ def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int) -> np.
 
 
 def _masked_lowpass(image: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Normalised-convolution Gaussian low-pass (sigma ``TYPICAL_SIGMA``) of the ``pixels`` only.
-
-    Returns the (s, t, 3) float32 low-pass and the (s, t, 1) float32 share in
-    [0, 1] of it that ``pixels`` reach (1 where their weight passes 5 %).
-    """
+    """(s, t, 3) Gaussian low-pass of ``pixels`` only and the (s, t, 1) share they reach."""
     weight = cv2.GaussianBlur(pixels.astype(np.float32), (0, 0), TYPICAL_SIGMA)
     values = np.where(pixels[..., None], image, 0).astype(np.float32)
     low = cv2.GaussianBlur(values, (0, 0), TYPICAL_SIGMA) / np.maximum(weight, 1e-6)[..., None]
@@ -327,23 +237,9 @@ def _masked_lowpass(image: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, 
 
 def match_surroundings(filled: np.ndarray, patch: np.ndarray, keep: np.ndarray,
                        hole: np.ndarray) -> np.ndarray:
-    """The filled pixels with the low-frequency colour of the kept pixels around them.
+    """(s, t, 3) uint8: the filled pixels given the low-pass colour of the kept pixels around.
 
-    A copied piece keeps its grain but takes, in place of its own Gaussian
-    low-pass (sigma ``TYPICAL_SIGMA``), the normalised-convolution low-pass
-    of the patch's kept pixels there: a piece of a shaded part copied into a
-    sunlit one shows no dark blob.
-
-    Parameters
-    ----------
-    filled : (s, t, 3) uint8 ndarray
-        ``patch`` with its ``hole`` filled (:func:`fill_from_class`).
-    patch : (s, t, 3) uint8 ndarray
-    keep, hole : (s, t) bool ndarrays
-
-    Returns
-    -------
-    (s, t, 3) uint8 ndarray
+    A piece copied from shade into sun keeps its grain but not its dark blob.
     """
     around, reach = _masked_lowpass(patch, keep)
     # Far inside a large hole no kept pixel reaches: the kept pixels' mean colour there.

@@ -1,16 +1,8 @@
-"""Detail themes: a theme's fine texture as a ratio around mid-grey, for the terrain engines' split.
+"""Detail themes: a theme's fine texture as a ratio around mid-grey (issue 34).
 
-With a fine colour map (:mod:`core.convert.colour_fit`) the map carries
-everything above a few texels, roads and blocks where the photo has them,
-and a theme only the detail finer than that (issue 34): a town theme's own
-road pieces at 4-16 texels, quilted at random angles, would lay a
-kaleidoscope over the map's streets. A detail theme is the texture over its
-own wrap-around Gaussian blur, times :data:`NEUTRAL` (128): mid-grey with the
-fine contrast, as engines' detail textures are, so the map's stored gain is
-the photo's colour itself (a coloured theme's dark class needed gains past
-the map's x1.99 and clipped: dE8 2.0 against 1.15 on a lake photo). The
-fine contrast is scaled to the photo's own in the theme's class
-(:func:`detail_gains`), so the render is as sharp as the photo.
+With a fine colour map (:mod:`core.convert.colour_fit`) the map carries everything above
+a few texels and a theme only the finer detail, ``NEUTRAL * t / blur(t)``, its contrast
+scaled to the photo's in its class (:func:`detail_gains`), as engines' detail textures are.
 """
 
 from __future__ import annotations
@@ -49,17 +41,10 @@ def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
 
 
 def even_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
-    """A tileable texture's relative fine contrast, its local strength made even.
+    """(h, w, 3) float32: ``t / blur(t) - 1`` with its local RMS made even.
 
-    ``t / blur(t) - 1`` divided by its local RMS (a wrap-around Gaussian of
-    :data:`EVEN_SIGMA` texels) over the whole texture's, the factor within
-    :data:`EVEN_RANGE`: a flat strip left by making a theme tileable does not
-    repeat as a band every period, and a theme's few strong edges (road
-    pieces in a town theme) do not stand out of its texture.
-
-    Returns
-    -------
-    (h, w, 3) float32 ndarray
+    Divided by its local RMS (sigma ``EVEN_SIGMA``, wrapping) over the whole texture's,
+    clipped to ``EVEN_RANGE``: no flat strip or lone strong edge repeats every period.
     """
     rel = _relative(texture, sigma, wrap=True)
     power = rel.mean(axis=2) ** 2
@@ -72,12 +57,10 @@ def even_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
 
 
 def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
-    """How much of a tileable texture's fine contrast lies along oriented edges, 0..1.
+    """Share of a tileable texture's fine contrast along oriented edges, 0..1.
 
-    The structure tensor (smoothed over 2 texels, wrapping around) of the
-    luminance's ``t / blur(t) - 1``: the sum of ``lambda1 - lambda2`` over the
-    sum of ``lambda1 + lambda2``. Stripes give 1, isotropic grain little; a
-    town theme quilted from road and building pieces about 0.55.
+    From the structure tensor of the luma's ``t / blur(t) - 1``:
+    ``sum(lambda1 - lambda2) / sum(lambda1 + lambda2)``; stripes give 1, grain little.
     """
     rel = _relative(np.asarray(texture, np.float32).mean(axis=2), sigma, wrap=True)
     arr, arc, acc = structure_tensor(rel, sigma=2.0, mode="wrap")
@@ -88,18 +71,11 @@ def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
 
 
 def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.ndarray, float]:
-    """A theme's relative fine contrast (:func:`even_detail`) and the sigma it was taken at.
+    """((h, w, 3) float32, sigma): a theme's :func:`even_detail` and the sigma it was taken at.
 
-    A theme made of oriented fragments (:func:`edge_coherence` above
-    :data:`FRAGMENT_COHERENCE`: a town theme's road and building pieces) keeps
-    only its contrast finer than :data:`CALM_SIGMA`, its phases randomised
-    (the same random phases for the three channels, seeded): the same power
-    spectrum without its edges, so the colour map's own streets read through
-    instead of a kaleidoscope of pieces at random angles (issue 34).
-
-    Returns
-    -------
-    ((h, w, 3) float32 ndarray, float)
+    A theme of oriented fragments (coherence above ``FRAGMENT_COHERENCE``: a town's road
+    pieces) keeps only detail finer than ``CALM_SIGMA``, its phases randomised (seeded):
+    the map's own streets then read through, not a kaleidoscope of pieces.
     """
     if edge_coherence(texture, sigma) <= FRAGMENT_COHERENCE:
         return even_detail(texture, sigma), sigma
@@ -115,33 +91,14 @@ def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.n
 
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
                    gain: float = 1.0) -> np.ndarray:
-    """A tileable texture's fine contrast around mid-grey: ``128 (1 + gain theme_detail(t))``.
-
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray
-        Tileable (the blur wraps around its edges, so the result is too).
-    sigma : float
-        Gaussian sigma in texels.
-    gain : float
-        Contrast multiplier.
-
-    Returns
-    -------
-    (h, w, 3) uint8 ndarray
-        Clipped to 0..255.
-    """
+    """(h, w, 3) uint8: ``128 (1 + gain theme_detail(t))`` of a tileable texture, clipped."""
     out = NEUTRAL * (1.0 + gain * theme_detail(texture, sigma)[0])
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def detail_energy(image: np.ndarray, sigma: float = DETAIL_SIGMA, *, wrap: bool = False,
                   valid: np.ndarray | None = None) -> float:
-    """Mean square of the relative fine contrast ``Y / blur(Y) - 1`` of an image's luminance.
-
-    ``Y`` is the mean of the channels; ``wrap``: a tileable texture.
-    ``valid``: (H, W) bool, the pixels to average over (default all).
-    """
+    """Mean square of ``Y / blur(Y) - 1``, ``Y`` the channel mean, over ``valid`` (or all)."""
     y = np.asarray(image, np.float32).mean(axis=2)
     rel = _relative(y, sigma, wrap) ** 2
     return float(rel.mean() if valid is None else rel[valid].mean())
@@ -151,17 +108,9 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
                  sigma: float = DETAIL_SIGMA) -> list[float]:
     """Per theme, the contrast gain that gives its detail the photo's in its class.
 
-    ``sqrt(photo energy over the theme's pixels / theme energy)``, both at the
-    sigma :func:`theme_detail` takes the theme's at (:func:`detail_energy`;
-    the theme's of :func:`theme_detail`), clipped to
-    :data:`GAIN_RANGE`; 1 for a theme no pixel takes or a flat theme.
-
-    Parameters
-    ----------
-    photo : (H, W, 3) uint8 ndarray
-    theme_labels : (H, W) uint8 ndarray
-        Theme index per pixel.
-    library : ThemeLibrary
+    ``sqrt(photo energy over the theme's pixels / theme energy)`` at the sigma
+    :func:`theme_detail` used, clipped to ``GAIN_RANGE``; 1 for an unused or flat theme.
+    ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel.
     """
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()

@@ -1,29 +1,10 @@
 """Themes for a classified photo: cut from the photo itself, or shipped themes by name.
 
-*Cut from the photo* (design.md §2-3, "themes cut from the photo itself and
-made tileable"): for every class, the window whose texture statistics are
-closest to the class's (band-pass energy, Lab spread and mean;
-:mod:`core.themes.patch_search`) is cut out, the few pixels of other classes
-in it, its border rim, lone objects and faint lone marks are filled with
-pieces of the class's own pixels around the window (:mod:`core.themes.cut_mask`),
-and it is made tileable with :func:`core.themes.tileable.make_tileable`. A
-tile that would visibly repeat (:func:`core.themes.quality.repeat_score` or
-:func:`core.themes.quality.landmark_score` over their limits) is replaced by
-the next best window; when none passes, by a quilt of small blocks of the
-class if that passes or repeats less. A class with no window of ``min_size`` inside it (a
-few scattered pixels, or a photo smaller than ``min_size``) gets a flat theme
-of its mean colour, and says so in ``Theme.source``.
-
-*Shipped themes by name*: classes map to themes of
-:func:`core.themes.library.shipped_theme_library`, either explicitly (``{class:
-name}``) or by appearance: the assignment of classes to distinct named themes
-of least total colour-and-texture cost (:mod:`core.themes.matching`, the rule
-the editor uses too). Themes cut from the photo are named after their closest
-shipped theme.
-
-Both return a :class:`ThemeMapping`: the library plus the 256-entry table
-class value -> theme index used by :func:`core.convert.labels_to_grid.labels_to_grid`.
-Label 0 (no data: transparent pixels) gets a theme of its own, ``no data``.
+Cut (design.md §2-3): per class, the window whose texture is closest to the class's,
+cleaned (:mod:`.cut_mask`) and made tileable; if it repeats, the next window, then a
+quilt; a class with no window of ``min_size`` gets a flat theme. By name: classes map
+to shipped themes, given or matched by appearance (:mod:`.matching`). Both return a
+:class:`ThemeMapping`; label 0 (no data) gets a theme of its own.
 """
 
 from __future__ import annotations
@@ -74,13 +55,8 @@ NO_DATA_COLOUR = (0, 0, 0)
 class ThemeMapping:
     """A theme library for a classification and the class -> theme index table.
 
-    Attributes
-    ----------
-    library : ThemeLibrary
-    lut : (256,) uint8 ndarray
-        ``lut[class_value]`` is the theme index of that class.
-    classes : tuple of int
-        The class values mapped, in theme order.
+    ``lut``: (256,) uint8, ``lut[class_value]`` the theme index; ``classes``: the class
+    values mapped, in theme order.
     """
     library: ThemeLibrary
     lut: np.ndarray
@@ -167,21 +143,7 @@ def _present_classes(labels: np.ndarray, classes: Sequence[int] | None) -> list[
 
 
 def photo_theme_lut(labels: np.ndarray, classes: Sequence[int] | None = None) -> np.ndarray:
-    """The class -> theme index table :func:`themes_from_photo` gives, without cutting a theme.
-
-    It depends on the classes only (theme ``k`` is the ``k``-th class, then
-    ``no data``), so a caller can use the theme labels while the themes are cut.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-    classes : sequence of int, optional
-        As :func:`themes_from_photo`.
-
-    Returns
-    -------
-    lut : (256,) uint8 ndarray
-    """
+    """(256,) uint8: :func:`themes_from_photo`'s class -> theme table, without cutting."""
     labels = np.asarray(labels)
     return _lut_for(_present_classes(labels, classes), bool((labels == 0).any()))
 
@@ -202,17 +164,9 @@ def themes_from_photo(
     labels : (H, W) uint8 ndarray
         Class values; 0 = no data.
     classes : sequence of int, optional
-        Class values to make themes for (default: those present, ascending).
-        A class absent from the labels gets a mid-grey flat theme.
+        Classes to make themes for (default: those present); an absent one gets mid-grey.
     names : {class: name}, optional
-        Theme names (a legend's, :mod:`core.io.legend`); a class without one
-        is named after its closest shipped theme
-        (:func:`core.themes.matching.shipped_names`), made distinct from the given names.
-    options : PatchOptions
-
-    Returns
-    -------
-    ThemeMapping
+        Theme names (a legend's); others are named after their closest shipped theme.
     """
     rgb, labels = _check(photo, labels)
     wanted = _present_classes(labels, classes)
@@ -268,22 +222,9 @@ def themes_by_name(
 ) -> ThemeMapping:
     """Map classes to named themes of a library (default: the shipped themes).
 
-    Parameters
-    ----------
-    photo, labels
-        As for :func:`themes_from_photo`.
-    names : sequence of str or {class: name}
-        A mapping is taken as given. A sequence is assigned by colour: each
-        class present goes to a distinct named theme, the assignment that
-        minimises the summed colour-and-texture cost of
-        :func:`core.themes.matching.match_classes`; there must be at least as
-        many names as classes.
-    library : ThemeLibrary, optional
-
-    Returns
-    -------
-    ThemeMapping
-        The library holds the used themes in class order.
+    ``names``: a mapping is taken as given; a sequence (at least one name per class) is
+    assigned to distinct themes by least colour-and-texture cost (:func:`match_classes`).
+    The returned library holds the used themes in class order.
     """
 
     rgb, labels = _check(photo, labels)

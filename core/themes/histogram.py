@@ -1,11 +1,8 @@
 """Gaussianisation of a theme, the first step of the histogram-preserving blend.
 
-Heitz & Neyret, "High-Performance By-Example Noise using a Histogram-Preserving
-Blending Operator", HPG 2018: every channel of a texture is mapped through its
-own CDF and the inverse standard-normal CDF, so blending Gaussianised themes
-with variance-preserving weights keeps each theme's histogram. Used by the
-renderer (:mod:`core.render.theme_pack`) and by the crossfade of
-:mod:`core.themes.tileable`.
+Heitz & Neyret, "High-Performance By-Example Noise using a Histogram-Preserving Blending
+Operator", HPG 2018: each channel goes through its own CDF and the inverse normal CDF,
+so variance-preserving blends keep each theme's histogram.
 """
 
 from __future__ import annotations
@@ -15,11 +12,7 @@ from scipy.special import ndtri
 
 
 def gaussianise(texture: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-channel Gaussianisation of a texture (Heitz & Neyret 2018, Gaussianisation step).
-
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray
+    """Per-channel Gaussianisation of an (h, w, 3) uint8 texture (Heitz & Neyret 2018).
 
     Returns
     -------

@@ -31,15 +31,8 @@ MAX_THEME_NAME = 64
 def validate_texture(texture: object, *, name: str = "theme") -> np.ndarray:
     """Check a theme texture and return it as a C-contiguous (h, w, 3) uint8 array.
 
-    Parameters
-    ----------
-    texture : (h, w, 3) or (h, w, 4) array-like, uint8 (or uint16 / float in [0, 1])
-        Alpha, if present, is dropped.
-
-    Raises
-    ------
-    TerrathemeError
-        Empty, not an image, or not 3/4 channels.
+    ``texture``: (h, w, 3|4) uint8, uint16 or float in [0, 1]; alpha is dropped.
+    Raises :class:`TerrathemeError` when empty, not an image, or not 3/4 channels.
     """
     arr = np.asarray(texture)
     if arr.ndim != 3 or arr.shape[2] not in (3, 4):
@@ -73,18 +66,7 @@ def _validate_colour(colour: object, name: str) -> tuple[int, int, int]:
 
 
 def distinct_names(names: Iterable[str]) -> list[str]:
-    """Theme names made distinct (case-insensitive): a repeat takes a number ("sand 2").
-
-    Parameters
-    ----------
-    names : iterable of str
-
-    Returns
-    -------
-    list of str
-        The first of each name as it is, each later repeat as ``"<name> <n>"``
-        with the smallest ``n >= 2`` not taken yet.
-    """
+    """Theme names made distinct (case-insensitive): a repeat takes a free number ("sand 2")."""
     out: list[str] = []
     taken: set[str] = set()
     for name in names:
@@ -98,17 +80,9 @@ def distinct_names(names: Iterable[str]) -> list[str]:
 
 @dataclass(frozen=True, eq=False)
 class Theme:
-    """One theme: a name, a display colour and a tileable texture.
+    """One theme: a name, an sRGB display colour and a tileable (h, w, 3) uint8 texture.
 
-    Attributes
-    ----------
-    name : str
-    colour : (int, int, int)
-        sRGB display colour for index-map views.
-    texture : (h, w, 3) uint8 ndarray
-        Tileable: its left edge continues its right edge, its top its bottom.
-    source : str
-        Where the texture came from (shipped file, photo patch, ...).
+    ``source`` says where the texture came from (shipped file, photo patch, ...).
     """
     name: str
     colour: tuple[int, int, int]
@@ -228,17 +202,9 @@ def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeL
          "themes": [{"name": "forest", "colour": [34, 90, 40], "file": "forest.png",
                      "description": "..."}, ...]}
 
-    Raises
-    ------
-    TerrathemeError
-        No ``themes.json`` in ``folder``.
-    CorruptFileError
-        ``themes.json`` over :data:`MAX_THEMES_METADATA_BYTES`, not JSON, or a field of
-        the wrong type or range (a name that is not one printable line, a colour that is
-        not three whole numbers 0..255, a ``file`` that is not a bare file name in the
-        folder), an unreadable texture; one line naming the file (and the entry).
-    UnsupportedVersionError
-        A ``version`` above :data:`THEMES_VERSION`.
+    Raises :class:`TerrathemeError` without ``themes.json``; :class:`CorruptFileError` (one
+    line naming the file and entry) for an oversized, non-JSON or ill-typed list or an
+    unreadable texture; :class:`UnsupportedVersionError` above ``THEMES_VERSION``.
     """
     folder = Path(folder)
     meta_path = folder / THEMES_METADATA

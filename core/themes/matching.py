@@ -1,18 +1,11 @@
 """Matching classes of a photo to themes: one colour-and-texture rule for every caller.
 
-A class and a theme are compared by their mean colour (CIE Lab, OpenCV's
-conversion) and their fine texture (band-pass energy of the lightness, as
-:mod:`core.themes.patch_search` measures it):
+A class and a theme compare by mean CIE Lab and the lightness's band-pass energy ``E``::
 
     cost = |Lab_class - Lab_theme| + TEXTURE_WEIGHT * |ln(E_class / E_theme)|
 
-:func:`match_classes` assigns classes to the themes of a library with that
-cost, either to distinct themes (least total cost, Hungarian assignment,
-``scipy.optimize.linear_sum_assignment``) or each to its nearest theme; the
-CLI's ``--themes name,name`` and the editor's "map classes to the current
-themes" both use it. :func:`shipped_names` names themes cut from a photo
-after the closest shipped theme (water, sand, grass, town, ...), so a user
-never sees ``class 1``.
+Used by the CLI's ``--themes name,name``, the editor, and to name cut themes after
+the closest shipped one (never ``class 1``).
 """
 
 from __future__ import annotations
@@ -32,14 +25,7 @@ TEXTURE_WEIGHT = 6.0
 
 @dataclass(frozen=True)
 class Appearance:
-    """Mean colour and fine-texture energy of a class or a theme.
-
-    Attributes
-    ----------
-    lab : (3,) float ndarray
-    energy : float
-        Mean band-pass energy of the lightness (``L / 100``).
-    """
+    """Mean Lab colour, (3,) float, and band-pass energy of the lightness (``L / 100``)."""
 
     lab: np.ndarray
     energy: float
@@ -47,14 +33,9 @@ class Appearance:
 
 def class_appearances(stats: TextureStats, labels: np.ndarray,
                       classes: Sequence[int]) -> list[Appearance]:
-    """Appearance of each class of a photo (a class absent from ``labels`` gets mid-grey).
+    """Appearance of each class from the photo's :class:`TextureStats` and (H, W) labels.
 
-    Parameters
-    ----------
-    stats : TextureStats
-        Of the photo (:func:`core.themes.patch_search.texture_stats`).
-    labels : (H, W) integer ndarray
-    classes : sequence of int
+    A class absent from ``labels`` gets mid-grey.
     """
     means, counts = class_means(np.asarray(labels, np.uint8),
                                 np.concatenate([stats.lab, stats.band[:, :, None]], axis=2))
@@ -99,10 +80,7 @@ def match_classes(classes: Sequence[Appearance], themes: Sequence[Appearance], *
                   distinct: bool) -> list[int]:
     """The theme index of each class: distinct themes by least total cost, or each its nearest.
 
-    Raises
-    ------
-    TerrathemeError
-        ``distinct`` with fewer themes than classes.
+    Raises :class:`TerrathemeError` when ``distinct`` with fewer themes than classes.
     """
     if not themes:
         raise TerrathemeError("no themes to match the classes to")
@@ -126,10 +104,8 @@ def shipped_names(appearances: Sequence[Appearance], library: ThemeLibrary,
                   looks: Sequence[tuple[str, Appearance]] = ()) -> list[str]:
     """A name for each class after its closest theme of ``library`` ("water", "water 2", ...).
 
-    ``looks``: more ``(theme name, appearance)`` exemplars of the themes'
-    classes (:func:`core.themes.looks.read_looks`); a class takes the name of
-    its nearest exemplar, the theme textures' and these together (looks of
-    names not in ``library`` are skipped).
+    ``looks``: more ``(theme name, appearance)`` exemplars (:func:`read_looks`) beside the
+    textures; those of names not in ``library`` are skipped.
     """
     names = list(library.names)
     owners = list(range(len(names)))

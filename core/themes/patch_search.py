@@ -1,26 +1,15 @@
 """Where to cut a class's theme from its photo: the window whose texture matches the class.
 
-A theme stands for every pixel of its class, so the patch cut for it must
-carry the class's texture, not its calmest corner (issue 13: patches chosen
-closest to the class's mean colour were the flattest windows, and a render
-made of them carried a third of the photo's fine detail). Every window that
-lies mostly inside the class is scored by how far its statistics are from
-the class's, over three measures of what a viewer sees at texel scale:
+A theme stands for every pixel of its class, so its patch must carry the class's
+texture, not its calmest corner (design.md §3). Windows mostly inside the class are
+scored against the class on:
 
-* the band-pass energy of the luminance, ``(G_0.7 - G_3.0)^2`` (the ``detail``
-  measure of :mod:`core.fidelity.metrics`): compared as ``ln(E_window / E_class)^2``;
-* the spread of each Lab channel about its local mean (the photo minus its
-  Gaussian blur of ``highpass_sigma``: what a colour map over the texture does
-  not carry), relative to the class's spread;
-* the window's mean Lab colour against the class's, in units of that spread
-  (a small weight: the colour map or the theme's display colour carries it).
+* luma band-pass energy ``(G_0.7 - G_3.0)^2``, as ``ln(E_window / E_class)^2``;
+* each Lab channel's spread about its local mean, relative to the class's;
+* the mean Lab colour in units of that spread (small weight);
 
-Larger windows repeat less when tiled, so every halving of the side costs
-``size_weight``. All window statistics come from box filters of per-pixel
-maps that do not depend on the class (``cv2.boxFilter``), computed once per
-photo and size; only the class cover is filtered per class. On large photos
-the maps are area-averaged by a factor first (window means stay exact for
-windows on that lattice), so the search costs about the same on any photo.
+plus ``size_weight`` per halving of the side. Window statistics are box filters of
+class-independent per-pixel maps, area-averaged on large photos to bound the search.
 """
 
 from __future__ import annotations
@@ -47,14 +36,10 @@ class PatchOptions:
 
     Attributes
     ----------
-    size : int
-        Largest patch side tried (pixels).
-    min_size : int
-        Smallest patch side tried; below it the class gets a flat theme.
+    size, min_size : int
+        Largest and smallest patch side tried (pixels); below ``min_size``, a flat theme.
     inside : float
-        Share of the patch's pixels that must carry the class; the others
-        are filled from the class's own pixels before the patch is made
-        tileable (:func:`core.themes.from_photo.themes_from_photo`).
+        Share of the patch's pixels that must carry the class (the rest is filled).
     size_weight : float
         Score added per halving of the side below ``size``.
     colour_weight : float
@@ -62,9 +47,7 @@ class PatchOptions:
     highpass_sigma : float
         The local mean the Lab spread is measured about (pixels).
     quilt : bool
-        A class none of whose windows tiles without repeating gets a theme
-        quilted from small blocks of it (:mod:`core.themes.quilt`) where that
-        repeats less.
+        Quilt a theme from small blocks (:mod:`.quilt`) when no window tiles unseen.
     """
 
     size: int = 256
@@ -97,14 +80,8 @@ class PatchOptions:
 class TextureStats:
     """Per-pixel maps of a photo that window and class statistics are taken from.
 
-    Attributes
-    ----------
-    lab : (H, W, 3) float32 ndarray
-        CIE Lab (OpenCV's conversion of sRGB).
-    detail : (H, W, 3) float32 ndarray
-        The Lab spread about the local mean (``lab`` minus its Gaussian blur).
-    band : (H, W) float32 ndarray
-        Band-pass energy of the luminance in [0, 1].
+    ``lab``: (H, W, 3) float32 CIE Lab (OpenCV); ``detail``: (H, W, 3) float32 ``lab``
+    minus its Gaussian blur; ``band``: (H, W) float32 luma band-pass energy in [0, 1].
     """
 
     lab: np.ndarray
@@ -132,18 +109,9 @@ class ClassTarget:
 
 
 def class_means(labels: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-label means of per-pixel values, in one pass (``np.bincount``).
+    """Per-label means of (H, W) or (H, W, k) values over (H, W) uint8 labels, in one pass.
 
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-    values : (H, W) or (H, W, k) float ndarray
-
-    Returns
-    -------
-    means : (256, k) float64 ndarray
-        Row ``c``: the mean of the values over the pixels labelled ``c`` (0 where none).
-    counts : (256,) int64 ndarray
+    Returns (256, k) float64 means (0 where no pixel) and (256,) int64 counts.
     """
     flat = np.ascontiguousarray(labels, np.uint8).ravel()
     cols = np.ascontiguousarray(values).reshape(flat.size, -1)
@@ -155,8 +123,7 @@ def class_means(labels: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.
 
 @numba.njit(cache=True, nogil=True)
 def _label_sums(flat, cols, counts, sums):  # pragma: no cover
-    """``counts[c]`` pixels labelled ``c`` and ``sums[c]`` their values, in pixel order
-    (float64, as ``np.bincount`` adds them: the same sums, in one pass, no column copies)."""
+    """Per label ``c``, its pixel count and float64 value sums, in pixel order (as bincount)."""
     for i in range(flat.size):
         c = flat[i]
         counts[c] += 1
@@ -166,24 +133,11 @@ def _label_sums(flat, cols, counts, sums):  # pragma: no cover
 
 def class_targets(stats: TextureStats, labels: np.ndarray,
                   classes: Sequence[int]) -> dict[int, ClassTarget]:
-    """The texture of the inside of every class region of a label image.
+    """{class: ClassTarget}: the texture of the inside of every class region of (H, W) labels.
 
-    Energy and spread are measured on the class's pixels at least
-    ``INTERIOR`` pixels from its border (its own pixels when none are that
-    far): the edge along a class border is drawn by the render's border, not
-    by the theme, and a theme that carried it too would double it (a calm
-    lake whose shore is busy). The colour is the whole class's mean.
-
-    Parameters
-    ----------
-    stats : TextureStats
-    labels : (H, W) uint8 ndarray
-    classes : sequence of int
-        Classes present in ``labels``.
-
-    Returns
-    -------
-    {class: ClassTarget}
+    Energy and spread come from pixels ``INTERIOR`` px inside the border (all pixels when
+    none): the render draws the border, a theme carrying it would double it. The colour is
+    the whole class's mean.
     """
     present = np.bincount(labels.ravel(), minlength=256)
     if any(present[int(c)] == 0 for c in classes):
@@ -225,8 +179,7 @@ def _coarsen(arr: np.ndarray, f: int) -> np.ndarray:
 class WindowStats:
     """Box-filtered window statistics of a photo at every lattice position, per side (cached).
 
-    The lattice step ``factor`` is 1 on small photos and grows so that at most
-    :data:`SEARCH_POSITIONS` positions are searched.
+    The lattice step ``factor`` grows so that at most ``SEARCH_POSITIONS`` are searched.
     """
 
     def __init__(self, stats: TextureStats) -> None:
@@ -248,8 +201,7 @@ class WindowStats:
     def at(self, size: int) -> np.ndarray:
         """(h, w, 10) float32: mean band, Lab mean (3), detail mean (3), detail^2 mean (3).
 
-        Entry ``[j, i]`` describes the window with top-left corner
-        ``(i * factor, j * factor)`` and side ``size`` (rounded to the lattice).
+        ``[j, i]``: the window at ``(i * factor, j * factor)`` of side ``size`` (on the lattice).
         """
         if size not in self._by_size:
             k = max(1, size // self.factor)
@@ -282,26 +234,11 @@ def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
 def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
                *, exclude: list[tuple[int, int, int]] = (),
                target: ClassTarget | None = None) -> tuple[int, int, int] | None:
-    """The window whose statistics are closest to those of a class region.
+    """``(x, y, size)`` of the window closest to a class region, or None when none fits.
 
-    Parameters
-    ----------
-    windows : WindowStats
-        Of the photo (:func:`texture_stats`).
-    mask : (H, W) bool ndarray
-        The class region.
-    options : PatchOptions
-    exclude : list of (x, y, size)
-        Windows already rejected: windows overlapping them by more than half are skipped.
-    target : ClassTarget, optional
-        The class's :func:`class_target` when the caller has it already.
-
-    Returns
-    -------
-    (x, y, size) or None
-        Top-left corner and side of the best window with at least
-        ``options.inside`` of its pixels in the class; ``None`` when not even a
-        ``min_size`` window fits.
+    The window has at least ``options.inside`` of its pixels in ``mask`` (H, W bool);
+    windows overlapping an ``exclude`` one by more than half are skipped; ``target``: the
+    class's :func:`class_target` when the caller has it.
     """
     h, w = mask.shape
     f = windows.factor
@@ -332,27 +269,10 @@ def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = P
 def best_windows(windows: WindowStats, mask: np.ndarray, size: int, count: int,
                  options: PatchOptions = PatchOptions(), *, spacing: int = 1,
                  target: ClassTarget | None = None) -> np.ndarray:
-    """The ``count`` windows of one side whose statistics are closest to the class's.
+    """(n, 2) int64 ``(x, y)`` corners of the ``n <= count`` windows closest to the class.
 
-    Parameters
-    ----------
-    windows : WindowStats
-    mask : (H, W) bool ndarray
-        The class region (not empty).
-    size : int
-        Window side.
-    count : int
-    options : PatchOptions
-        Its ``inside`` share and score weights (:func:`patch_scores`).
-    spacing : int
-        Windows are taken on a lattice of this step (pixels), so no two are near-copies.
-    target : ClassTarget, optional
-        As :func:`find_patch`.
-
-    Returns
-    -------
-    (n, 2) int64 ndarray
-        ``(x, y)`` top-left corners, best first, ``n <= count``.
+    Best first; windows of side ``size`` on a lattice of step ``spacing`` (no near-copies),
+    at least ``options.inside`` in ``mask``; ``target`` as :func:`find_patch`.
     """
     h, w = mask.shape
     f = windows.factor

@@ -1,23 +1,9 @@
 """How obviously a tileable texture repeats: banding, ghosting and landmarks.
 
-Three measures on the luminance of a texture tiled periodically (the first
-two use the FFT, which treats the texture as one period of an infinite tiling):
-
-* :func:`lowfreq_score` -- the share of the texture's contrast carried by
-  waves of at most ``cycles`` periods per tile. When a tile is repeated,
-  such waves (a dark band, a bright corner) become a regular grid that the
-  eye picks out at once, while finer texture does not line up visibly.
-* :func:`repeat_score` -- the highest normalised circular autocorrelation of
-  the texture's fine detail at any non-trivial shift. A texture made
-  tileable by mixing it with a shifted copy of itself (a cross-fade ghost,
-  or a copied strip) correlates with itself at that shift; a texture whose
-  detail never repeats within the tile scores near ``3 / sqrt(h * w)``.
-* :func:`landmark_score` -- the area of the largest dark or bright feature
-  that stands out from the texture's grain (a channel, a path, a lone
-  building), as a share of the tile: tiled, such a landmark repeats once per tile and
-  the eye finds the grid through it. :func:`landmark_mask` gives the pixels.
-
-None needs the source patch, so they also rate shipped texture files.
+Three measures on the luma of the texture as one period of a tiling, rating shipped
+files as well as cut patches: slow waves (:func:`lowfreq_score`), self-copies
+(:func:`repeat_score`) and lone features (:func:`landmark_score`), each of which the
+eye finds as a grid once the tile repeats.
 """
 
 from __future__ import annotations
@@ -45,20 +31,10 @@ def _cycles(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def lowfreq_score(texture: np.ndarray, cycles: float = 2.0) -> float:
-    """RMS of the luminance waves of at most ``cycles`` per tile over the RMS of all of it.
+    """RMS of the luma waves of at most ``cycles`` per tile over the RMS of all of it.
 
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray (at least 4 x 4)
-    cycles : float
-        Radial frequency bound, in periods per tile (per axis, scaled so a
-        non-square tile counts periods along each side).
-
-    Returns
-    -------
-    score : float
-        In [0, 1]: 0 for a texture with no variation slower than ``cycles``
-        per tile (or a flat one); 1 for a single smooth gradient.
+    In [0, 1]: 0 with no variation slower than ``cycles`` (or flat), 1 for one smooth
+    gradient. ``cycles`` is a radial bound in periods per tile, along each side.
     """
     lum = _luma(texture, "texture")
     spec = np.abs(np.fft.fft2(lum - lum.mean())) ** 2
@@ -69,23 +45,11 @@ def lowfreq_score(texture: np.ndarray, cycles: float = 2.0) -> float:
 
 
 def repeat_score(texture: np.ndarray, detail: float = 3.0, exclude: int = 4) -> float:
-    """Largest normalised circular autocorrelation of the texture's fine detail.
+    """Largest normalised circular autocorrelation of the texture's fine detail, in [-1, 1].
 
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray (at least 4 x 4)
-    detail : float
-        The detail is the luminance minus its periodic Gaussian blur of this
-        sigma (texels), computed in the Fourier domain.
-    exclude : int
-        Shifts within this many texels of zero (circularly, on both axes)
-        are ignored: there every texture correlates with itself.
-
-    Returns
-    -------
-    score : float
-        In [-1, 1]; about 1 when a part of the tile is a copy of another
-        part, near 0 when the detail never repeats. 0 for a flat texture.
+    Detail: luma minus its periodic Gaussian blur of sigma ``detail``; shifts within
+    ``exclude`` texels of zero are ignored. About 1 when part of the tile copies another
+    (a cross-fade ghost), near ``3 / sqrt(h w)`` when nothing repeats, 0 when flat.
     """
     lum = _luma(texture, "texture")
     h, w = lum.shape
@@ -115,27 +79,11 @@ LANDMARK_SIGMA = 2.0
 def landmark_mask(image: np.ndarray, *, periodic: bool = True,
                   size: int = LANDMARK_SIZE,
                   contrast: float = LANDMARK_CONTRAST) -> tuple[np.ndarray, np.ndarray]:
-    """Dark and bright features narrower than ``size`` that stand out by ``contrast``.
+    """(h, w) bool dark and bright features narrower than ``size`` standing out by ``contrast``.
 
-    Morphological black-hat (dark features) and top-hat (bright features)
-    with an elliptic structuring element of diameter ``size`` on the luminance
-    blurred by ``LANDMARK_SIGMA`` texels; a pixel is part of a feature where
-    the response exceeds ``contrast``.
-
-    Parameters
-    ----------
-    image : (h, w, 3) uint8 ndarray (at least 4 x 4)
-    periodic : bool
-        Treat the image as one period of a tiling (wrap at the edges), as for
-        a tileable texture; else replicate its border (a photo window).
-    size : int
-        Structuring element diameter in texels (odd, at least 3).
-    contrast : float
-        Luma difference, 0..255.
-
-    Returns
-    -------
-    dark, bright : (h, w) bool ndarrays
+    Black-hat and top-hat with an elliptic element of diameter ``size`` (odd, >= 3) on the
+    luma blurred by ``LANDMARK_SIGMA``, over ``contrast`` (0..255). ``periodic``: wrap the
+    edges (a tile), else replicate them (a photo window).
     """
     lum = _luma(image, "image").astype(np.float32)
     if size < 3 or size % 2 == 0:
@@ -153,20 +101,10 @@ def landmark_mask(image: np.ndarray, *, periodic: bool = True,
 
 def landmark_score(texture: np.ndarray, *, size: int = LANDMARK_SIZE,
                    contrast: float = LANDMARK_CONTRAST) -> float:
-    """Area of the largest landmark of a tileable texture, as a share of the tile.
+    """Area of the largest landmark of a tileable texture (:func:`landmark_mask`) over the tile's.
 
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray (at least 4 x 4)
-    size, contrast : see :func:`landmark_mask`
-
-    Returns
-    -------
-    score : float
-        0 when no feature stands out; the share of the tile covered by the
-        largest connected dark or bright feature (8-connected, across the
-        wrap edges). A feature network that runs on into the neighbouring
-        tiles, like streets, can score above 1.
+    8-connected across the wrap edges; a network running on into the next tiles (streets)
+    can score above 1.
     """
     best = 0
     for mask in landmark_mask(texture, size=size, contrast=contrast):

@@ -1,19 +1,10 @@
 """A tileable theme quilted from many small blocks of a class (image quilting on a torus).
 
-When no single window of a class makes a theme that tiles without visible
-repetition (a town patch holds one road junction, and tiled, the junction
-recurs on a grid the eye picks out at once), the theme is synthesised
-instead: Efros & Freeman, "Image Quilting for Texture Synthesis and
-Transfer", SIGGRAPH 2001, section 2. Blocks of ``block`` texels cut from
-inside the class are laid on a grid with ``overlap`` texels of overlap; each
-next block is drawn at random among the candidates whose overlap error with
-what is already laid is within ``tolerance`` of the best (their §2.1 "within
-0.1 times the error of the best"), and meets it along minimum-error boundary
-cuts (:func:`core.themes.seam_cut.min_error_cut`). The grid is laid on a
-torus: the last block of each row and column overlaps the first, so the
-result wraps seamlessly and needs no further tileable step. The layout of
-the class (where its streets run) is lost on purpose; its grain, colours
-and small objects stay.
+For a class whose every window repeats visibly when tiled (a town patch's one junction).
+Efros & Freeman, "Image Quilting for Texture Synthesis and Transfer", SIGGRAPH 2001,
+§2: each next block is drawn among candidates within ``tolerance`` of the best overlap
+error and meets the laid ones along minimum-error cuts. The grid wraps, so the result
+tiles; the class's layout is lost on purpose, its grain and colours stay.
 """
 
 from __future__ import annotations
@@ -34,20 +25,16 @@ class QuiltOptions:
     ----------
     size : int
         Side of the result, rounded to a whole number of block steps.
-    block : int
-        Side of a block (texels).
-    overlap : int
-        Overlap of neighbouring blocks (texels), under half a block.
-    candidates : int
-        Blocks to choose from (the caller takes this many windows of the class).
-    min_candidates : int
-        Fewer admissible blocks than this: the class is too small to quilt.
+    block, overlap : int
+        Block side and overlap of neighbours (texels; overlap under half a block).
+    candidates, min_candidates : int
+        Blocks to choose from; with fewer than ``min_candidates`` the class is too small.
     tolerance : float
-        A candidate qualifies when its overlap error is within this share of the best's.
+        A candidate qualifies within this share of the best overlap error.
     feather : float
         Gaussian sigma (texels) that softens each cut.
     seed : int
-        The draws among equally good blocks are reproducible.
+        Seed of the draws among equally good blocks.
     """
 
     size: int = 256
@@ -74,22 +61,9 @@ class QuiltOptions:
 
 def candidate_blocks(photo: np.ndarray, corners: np.ndarray,
                      options: QuiltOptions = QuiltOptions()) -> np.ndarray | None:
-    """The blocks to quilt from, at the given top-left corners.
+    """(n, block, block, 3) float32 blocks at ``(x, y)`` ``corners`` (n, 2), at their common mean.
 
-    Parameters
-    ----------
-    photo : (H, W, 3) uint8 ndarray
-    corners : (n, 2) integer ndarray
-        ``(x, y)`` of each block, inside the photo (e.g. the windows of the
-        class whose texture statistics are closest to the class's,
-        :func:`core.themes.patch_search.best_windows`).
-
-    Returns
-    -------
-    (n, block, block, 3) float32 ndarray, or None
-        Each block shifted to the mean colour of them all. ``None`` when
-        there are fewer than ``options.min_candidates`` corners or fewer than
-        the quilt lays.
+    None with fewer than ``options.min_candidates`` corners or fewer than the quilt lays.
     """
     b = options.block
     corners = np.asarray(corners, np.int64).reshape(-1, 2)
@@ -107,8 +81,7 @@ def candidate_blocks(photo: np.ndarray, corners: np.ndarray,
 def _old_side(err: np.ndarray, have: np.ndarray, overlap: int) -> np.ndarray:
     """(b, b) bool: texels of the block's overlap strips that keep what is laid already.
 
-    Each side whose whole strip is laid is split along the minimum-error cut
-    through the strip; the part towards the laid neighbour keeps it.
+    Each fully laid strip splits along its minimum-error cut.
     """
     b = err.shape[0]
     o = overlap
@@ -133,20 +106,10 @@ def _old_side(err: np.ndarray, have: np.ndarray, overlap: int) -> np.ndarray:
 
 def quilt_tileable(photo: np.ndarray, corners: np.ndarray,
                    options: QuiltOptions = QuiltOptions()) -> np.ndarray | None:
-    """A seamlessly tileable texture quilted from blocks of one class of a photo.
+    """(s, s, 3) uint8 tileable texture quilted from blocks of one class, or None (too few).
 
-    Parameters
-    ----------
-    photo : (H, W, 3) uint8 ndarray
-    corners : (n, 2) integer ndarray
-        ``(x, y)`` top-left corners of the candidate blocks (:func:`candidate_blocks`).
-    options : QuiltOptions
-
-    Returns
-    -------
-    (s, s, 3) uint8 ndarray, or None
-        ``s`` is ``options.size`` rounded to whole block steps
-        (``block - overlap``); ``None`` when there are too few blocks.
+    ``corners``: (n, 2) ``(x, y)`` of candidate blocks in the (H, W, 3) uint8 photo;
+    ``s`` is ``options.size`` rounded to whole steps ``block - overlap``.
     """
     blocks = candidate_blocks(photo, corners, options)
     if blocks is None:

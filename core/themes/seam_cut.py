@@ -1,19 +1,10 @@
 """Minimum-error boundary cuts across a texture's wrap edge (image quilting).
 
-Efros & Freeman, "Image Quilting for Texture Synthesis and Transfer",
-SIGGRAPH 2001, section 2.1: where two overlapping blocks meet, each output
-texel is taken from one block or the other, split along the path of least
-overlap error found by dynamic programming (their cumulative minimum error
-``E[i, j] = e[i, j] + min(E[i-1, j-1], E[i-1, j], E[i-1, j+1])``). Unlike a
-cross-fade, no texel is an average of two unrelated texels, so the
-transition region shows no doubled ("ghost") features.
-
-:func:`cut_wrap` uses it to make a patch wrap along one axis: ``A`` is the
-patch, ``B`` its copy shifted by half a period (``B`` is continuous across
-the wrap edge, where it shows ``A``'s interior). The output takes ``B`` in a
-narrow band around the wrap edge and ``A`` elsewhere, switching along two
-minimum-error cuts (one each side of the edge), then softens each cut over a
-few texels (``feather``).
+Efros & Freeman, SIGGRAPH 2001, §2.1: where two blocks overlap, each texel comes from
+one of them, split along the least-error path by dynamic programming,
+``E[i, j] = e[i, j] + min(E[i-1, j-1], E[i-1, j], E[i-1, j+1])``: no averaged ghost.
+:func:`cut_wrap` makes a patch ``A`` wrap by taking its half-period shift ``B`` in a
+band around the wrap edge, between two such cuts.
 """
 
 from __future__ import annotations
@@ -43,22 +34,10 @@ def _dp_path(err: np.ndarray, start: int | None) -> tuple[np.ndarray, float]:
 
 
 def min_error_cut(err: np.ndarray, *, cyclic: bool = False) -> np.ndarray:
-    """Column of the least-error top-to-bottom cut through an error surface.
+    """(h,) int64 column of the least-error 8-connected top-to-bottom cut through (h, k) ``err``.
 
-    Parameters
-    ----------
-    err : (h, k) float ndarray
-        Overlap error per texel (non-negative), ``k >= 1``.
-    cyclic : bool
-        Make the path's last row within one column of its first (the path
-        then closes up when the texture wraps vertically): the path is
-        re-solved starting from the end of the unconstrained one and must
-        end next to that start.
-
-    Returns
-    -------
-    path : (h,) int64 ndarray
-        ``path[i]`` in ``[0, k)``; consecutive entries differ by at most 1.
+    ``cyclic``: re-solved from the free path's end so the last row ends within one column
+    of it (the cut closes up when the texture wraps vertically).
     """
     err = np.asarray(err, dtype=np.float64)
     h, k = err.shape
@@ -80,25 +59,11 @@ def min_error_cut(err: np.ndarray, *, cyclic: bool = False) -> np.ndarray:
 
 
 def cut_wrap(img: np.ndarray, axis: int, overlap: float, feather: int) -> np.ndarray:
-    """Make ``img`` wrap along ``axis`` with two minimum-error cuts (no cross-fade).
+    """(h, w, c) float32 ``img`` made periodic along ``axis`` with two minimum-error cuts.
 
-    Parameters
-    ----------
-    img : (h, w, c) float32 ndarray
-    axis : int
-        1: make the last column continue into the first; 0: rows.
-    overlap : float
-        Half-width of the band around the wrap edge where the cuts may run,
-        as a fraction of the size along ``axis`` (clamped to [1 texel, n/4]).
-    feather : int
-        Texels over which each cut is softened (a box-filtered mask); 0 is a
-        hard cut.
-
-    Returns
-    -------
-    out : (h, w, c) float32 ndarray
-        Periodic along ``axis``; if ``img`` was periodic along the other
-        axis, so is ``out`` (the cuts close up cyclically).
+    ``axis`` 1: the last column continues into the first; 0: rows. ``overlap``: half-width
+    of the band the cuts may run in, as a share of the side (1 texel .. n/4); ``feather``:
+    texels each cut is softened over (0 hard). Periodic along the other axis stays so.
     """
     # Work on columns: for rows, transpose so the wrap edge is between columns n-1 and 0.
     a = np.ascontiguousarray(img if axis == 1 else np.swapaxes(img, 0, 1))

@@ -1,50 +1,11 @@
 """Making any patch tileable, and measuring how visible a texture's wrap-around seam is.
 
-``make_tileable`` runs two steps on the patch:
-
-1. *Wrapping* (``TileableOptions.method``), one of
-
-   * ``PERIODIC`` (default): the periodic component of the
-     periodic-plus-smooth decomposition (L. Moisan, "Periodic plus smooth
-     image decomposition", J. Math. Imaging Vision 39, 2011, eqs. (8)-(11)):
-     the smooth image whose Laplacian is the wrap-edge jump is removed (one
-     FFT solve per channel). Every texel keeps its detail and nothing is
-     copied or averaged (no ghosts, no repeated strip). The wrap edge comes
-     out a little *smoother* than the interior (``seam_score`` about 0.8:
-     ``s`` also absorbs the natural texel-to-texel step there), which is
-     invisible, unlike a step. Because of that, a patch that already tiles
-     (``seam_score <= TileableOptions.tiles_already``) is not wrapped again:
-     a periodic patch comes through this step unchanged.
-   * ``CUT``: image quilting across the wrap edge (Efros & Freeman,
-     SIGGRAPH 2001; :mod:`core.themes.seam_cut`): a half-shifted copy fills a narrow
-     band around the edge, joined along minimum-error cuts with a few texels
-     of feathering. No ghosts, but the band repeats part of the interior.
-   * ``CROSSFADE``: the classic half-shift cross-fade, made *histogram
-     preserving* (Heitz & Neyret, HPG 2018): both copies are Gaussianised
-     per channel, blended with variance-preserving weights ``(w G_A + (1-w)
-     G_B) / sqrt(w^2 + (1-w)^2)`` and mapped back through the patch's own
-     histogram. Its wide blend doubles features (ghosts).
-
-2. *Low-frequency flattening* (``TileableOptions.flatten``): the tile's
-   large-scale brightness and colour trend -- its per-channel *periodic*
-   Gaussian blur of sigma ``flatten * min(h, w)`` (at least
-   ``FLATTEN_MIN_SIGMA`` texels) -- is subtracted (or divided out) and the
-   mean restored. A shading gradient or a dark band is harmless in one patch
-   but, once the patch is tiled, repeats as a regular grid that the eye picks
-   out at once. Done after wrapping, the blur is exactly periodic, so the
-   flattening cannot reopen the seam (measured: it leaves half the banding
-   that flattening before wrapping, with mirrored borders, leaves).
-
-Defaults were chosen with ``benchmarks/bench_tileable.py`` on Dubai photo
-patches (32 to 256 texels), rated by :func:`seam_score` and
-:mod:`core.themes.quality` (``repeat_score`` for ghosts and copied strips,
-``lowfreq_score`` for banding).
-
-Seam measure (``seam_score``): the mean absolute colour step across the
-wrap edge (last column to first, last row to first) divided by the mean step
-across the interior column (row) boundaries next to the edge; the larger of
-the two axes. 1 means the wrap edge looks like any other line of the texture;
-a photo crop that does not tile scores 2-10.
+:func:`make_tileable` (1) wraps the edges (``SeamMethod``: Moisan's periodic component,
+default; Efros & Freeman minimum-error cuts; or Heitz & Neyret's histogram-preserving
+half-shift cross-fade ``(w G_A + (1-w) G_B) / sqrt(w^2 + (1-w)^2)``), then (2) removes the
+tile's large-scale trend with a periodic blur, which would repeat as a grid once tiled.
+:func:`seam_score`: about 1 when the wrap edge looks like any other line; a photo crop
+that does not tile scores 2-10.
 """
 
 from __future__ import annotations
@@ -88,26 +49,20 @@ class TileableOptions:
     Attributes
     ----------
     method : SeamMethod
-        How the wrap edge is made seamless.
     flatten : float
-        Sigma of the trend blur as a fraction of the patch's shorter side
-        (at least ``FLATTEN_MIN_SIGMA`` texels); 0 keeps the patch's
-        large-scale variation.
+        Trend blur sigma as a share of the shorter side (at least ``FLATTEN_MIN_SIGMA``
+        texels); 0 keeps the large-scale variation.
     flatten_mode : FlattenMode
-        Subtract the trend (default) or divide it out.
     band : float
-        CROSSFADE: width of the cross-fade ramp at each border, as a
-        fraction of the patch size (0 < band <= 0.5).
+        CROSSFADE: ramp width at each border, share of the side (0 < band <= 0.5).
     histogram : bool
-        CROSSFADE: histogram-preserving blend (default) instead of a plain average.
+        CROSSFADE: histogram-preserving blend instead of a plain average.
     overlap : float
-        CUT: how far from the wrap edge the cuts may run, as a fraction of
-        the patch size (0 < overlap <= 0.25).
+        CUT: how far from the wrap edge the cuts may run, share of the side (<= 0.25).
     feather : int
-        CUT: texels over which each cut is softened (>= 0).
+        CUT: texels over which each cut is softened.
     tiles_already : float
-        A patch whose own :func:`seam_score` is at most this already tiles
-        and skips the wrap step (only flattening is applied); 0 always wraps.
+        A patch whose :func:`seam_score` is at most this is not wrapped; 0 always wraps.
     """
 
     method: SeamMethod = SeamMethod.PERIODIC
@@ -141,20 +96,10 @@ def _check_options(options: TileableOptions) -> None:
 
 
 def flatten_trend(img: np.ndarray, sigma: float, mode: FlattenMode) -> np.ndarray:
-    """Remove a periodic image's large-scale per-channel trend, keeping its mean.
+    """(h, w, c) float32 periodic ``img`` without its large-scale per-channel trend.
 
-    Parameters
-    ----------
-    img : (h, w, c) float ndarray
-        Treated as one period of a tiling (the blur wraps around).
-    sigma : float
-        Gaussian sigma of the trend, in texels.
-    mode : FlattenMode
-
-    Returns
-    -------
-    flat : (h, w, c) float32 ndarray
-        ``img - trend + mean`` (SUBTRACT) or ``img * mean / trend`` (DIVIDE).
+    ``img - trend + mean`` (SUBTRACT) or ``img * mean / trend`` (DIVIDE); the trend is a
+    wrapping Gaussian of ``sigma`` texels.
     """
     img = np.asarray(img, dtype=np.float32)
     # The trend: a heavy per-channel Gaussian blur, wrapping like the tiled texture
@@ -167,18 +112,10 @@ def flatten_trend(img: np.ndarray, sigma: float, mode: FlattenMode) -> np.ndarra
 
 
 def periodic_component(img: np.ndarray) -> np.ndarray:
-    """Periodic component of Moisan's periodic-plus-smooth decomposition.
+    """(h, w, c) float32 periodic component of Moisan's periodic-plus-smooth decomposition.
 
-    Parameters
-    ----------
-    img : (h, w, c) float ndarray
-
-    Returns
-    -------
-    p : (h, w, c) float32 ndarray
-        ``img - s``, where the smooth component ``s`` solves
-        ``Laplacian(s) = v`` with periodic boundaries and zero mean, ``v`` being
-        the boundary image of the wrap-edge jumps (Moisan 2011, eqs. (8)-(11)).
+    ``img - s``, where ``Laplacian(s) = v`` with periodic boundaries and zero mean, ``v``
+    the wrap-edge jumps (Moisan 2011, eqs. (8)-(11)).
     """
     u = np.asarray(img, dtype=np.float64)
     h, w = u.shape[:2]
@@ -245,19 +182,7 @@ def _crossfade_wrap(cur: np.ndarray, options: TileableOptions) -> np.ndarray:
 
 
 def make_tileable(patch: np.ndarray, options: TileableOptions = TileableOptions()) -> np.ndarray:
-    """Make a patch tile seamlessly in both directions.
-
-    Parameters
-    ----------
-    patch : (h, w, 3) uint8 ndarray
-        Any texture patch, at least 4 x 4.
-    options : TileableOptions
-
-    Returns
-    -------
-    tile : (h, w, 3) uint8 ndarray
-        Left edge continues the right edge, top continues bottom.
-    """
+    """(h, w, 3) uint8 tile of an (h, w, 3) patch (at least 4 x 4), seamless both ways."""
     img = validate_texture(patch, name="patch")
     h, w = img.shape[:2]
     if h < 4 or w < 4:
@@ -287,19 +212,9 @@ def make_tileable(patch: np.ndarray, options: TileableOptions = TileableOptions(
 def seam_score(texture: np.ndarray) -> float:
     """How visible the wrap-around seam is against the texture's own interior.
 
-    Parameters
-    ----------
-    texture : (h, w, 3) uint8 ndarray (at least 3 x 3)
-
-    Returns
-    -------
-    score : float
-        For columns: ``mean|T[:, 0] - T[:, -1]|`` (the step across the wrap
-        edge) divided by the mean step across the interior boundaries next
-        to it (columns 0|1, 1|2 and w-3|w-2, w-2|w-1), so a texture whose
-        colour changes fast near its edges is not mistaken for a seam; the
-        same for rows; the larger of the two. About 1 for a seamless
-        texture; ``SEAM_THRESHOLD`` is the pass mark.
+    Per axis, ``mean|T[:, 0] - T[:, -1]|`` over the mean step across the interior
+    boundaries next to the edge (0|1, 1|2, w-3|w-2, w-2|w-1), so fast change near the edges
+    is no seam; the larger axis. About 1 when seamless; ``SEAM_THRESHOLD`` is the pass mark.
     """
     img = validate_texture(texture, name="texture").astype(np.float32)
     h, w = img.shape[:2]
