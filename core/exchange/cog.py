@@ -1,23 +1,10 @@
 """Tiled GeoTIFFs with overviews in the Cloud Optimized GeoTIFF layout, with bounded memory.
 
-The layout (GDAL's COG definition, checked by its
-``validate_cloud_optimized_geotiff.py``): the full-resolution image and its
-overviews (each half the size of the one before, ``NewSubfileType = 1``,
-down to one tile) are tiled IFDs of one TIFF file; **all IFDs come first**
-(the full-resolution one at byte 8, or 16 for BigTIFF), then the tile data,
-**smallest overview first** and the full resolution last, so a reader that
-fetches the first bytes knows every tile's place and an overview reads from
-one contiguous run.
-
-tifffile writes each IFD just before its own data, and no other installed
-writer makes this order without GDAL, so :func:`write_cog` writes it in three
-tifffile steps: every level to a temporary one-image TIFF (deflate,
-horizontal predictor, tiles streamed from an iterator); the output's IFDs,
-one a level, with the levels' tile byte counts and no data; then the
-compressed tiles copied verbatim after them, smallest level first, and each
-IFD's ``TileOffsets`` set in place (``TiffTag.overwrite``). Level ``k + 1``
-is made from level ``k`` read back band by band, so memory is bounded by a
-band of ``2 * tile`` rows whatever the image size.
+GDAL's COG layout: the full image and its halving overviews are tiled IFDs, all IFDs
+first, then the tiles, smallest overview first. tifffile writes each IFD before its own
+data, so :func:`write_cog` writes every level to a temporary TIFF (each from the last,
+band by band: memory is a band of ``2 * tile`` rows), then the output's IFDs without
+data, then the compressed tiles copied after them with ``TileOffsets`` set in place.
 """
 
 from __future__ import annotations
@@ -96,21 +83,13 @@ def write_cog(
 
     Parameters
     ----------
-    path : path-like
-        ``.tif`` output, written atomically.
     band_of : callable(y0, y1) -> (y1 - y0, W[, C]) ndarray
         Rows of the full-resolution image, asked for in ``tile``-row bands, top first.
     size : (W, H)
-    channels : int
-    dtype : numpy dtype
     tile : int
         Tile side, a multiple of 16.
-    photometric : str
-        ``"rgb"`` or ``"minisblack"``.
     colormap : (3, 2**bits) uint16 ndarray, optional
-        Make a palette image with this colour table (on every level; the
-        levels are kept grey while they are made, so their values read back
-        unchanged).
+        Make a palette image with this colour table on every level.
     downsample : callable
         :func:`box_half` for pictures, :func:`nearest_half` for class maps.
     extratags : sequence of tifffile extratags

@@ -19,32 +19,15 @@ _ENGINES = {Engine.UNITY: unity, Engine.UNREAL: unreal, Engine.GODOT: terrain3d,
 
 
 def plan_export(project: ThematicTexture, options: ExportOptions) -> ExportPlan:
-    """Decide sizes and tiles and list every file of an export, without writing anything.
-
-    Raises
-    ------
-    TerrathemeError
-        A size or tile the engine does not take, too many themes for it, a
-        map too large, a project render style that cannot be read: before any work.
-    """
+    """Decide sizes and tiles and list every file of an export; refuses before any work."""
     export_boundary(project, options)
     return _ENGINES[options.engine].plan(project, options)
 
 
 def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.PathLike, *,
                  progress: Progress | None = None) -> list[Path]:
-    """Write the files of ``plan`` into ``folder`` as one set (:func:`core.io.atomic.file_set`).
-
-    The project itself goes along (:data:`core.exchange.plan.CARRIED`, for
-    ``new --from export``). Every file goes to a temporary first; the old
-    manifest is removed, the new files renamed into place and the manifest
-    last, so a reader that trusts the manifest never sees old and new files
-    mixed.
-
-    Returns
-    -------
-    paths : list of Path, the files written
-    """
+    """Write ``plan``'s files and the project (for ``new --from``) into ``folder`` as one set
+    (:func:`core.io.atomic.file_set`); returns the paths written."""
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     with file_set(plan.paths(out)):

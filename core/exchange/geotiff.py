@@ -1,27 +1,9 @@
 """GIS: the land-class map with a colour table and the baked texture, as georeferenced COG TIFFs.
 
-Both cover the photo's extent (``core.render.project.photo_extent``) at one
-pixel per texel, so they carry the project's georeference unchanged
-(``metadata["georeference"]``, the GeoTIFF tags of the source photo;
-``core.render.project.render_georeference``):
-
-* ``landclass.tif``: the theme with the largest weight at every texel, by
-  the export's style (shaped borders: :func:`core.exchange.style.map_labels`;
-  the paper's rule: ``core.render.renderer.render_labels``), 8-bit palette
-  image whose colour table holds the themes' display colours;
-  ``landclass.qml`` beside it is a QGIS style naming every class (QGIS loads
-  it with the raster).
-* ``texture.tif``: the render (``core.render.project.render_project``) in the
-  export's style, colour map included, RGB: what ``terratheme render`` gives.
-* ``colour_map.tif`` (when the project has one): the colour map's own pixels
-  (gain x 128, RGB), georeferenced at ``scale`` texels a pixel, for GIS tools
-  that cannot read the project's JPEG XL.
-
-Both are tiled (512) and deflate-compressed with overviews, in the Cloud
-Optimized GeoTIFF layout (:mod:`core.exchange.cog`); the class map's
-overviews take every other pixel (classes are not averaged), the texture's
-average 2 x 2 texels. Rendering goes band by band, so memory is bounded by
-a band of 512 rows.
+At one pixel per texel over the photo's extent, so both carry the project's georeference
+unchanged: ``landclass.tif`` (strongest theme by the export's style, palette of display
+colours, with a QGIS ``landclass.qml``), ``texture.tif`` (the render), and
+``colour_map.tif`` when the project has one. Tiled COGs (:mod:`.cog`), rendered band by band.
 """
 
 from __future__ import annotations

@@ -1,15 +1,8 @@
 """The way back: weight maps, splatmaps or control maps from an engine to a vertex grid.
 
-A map spans the grid corner to corner (``core.exchange.layout``), so with
-``step`` map pixels per cell the grid vertices are the pixels at multiples of
-``step``; each vertex takes the theme with the largest weight there, ties to
-the lower theme. A map exported at one pixel per texel (``W = gw * N + 1``)
-read back with ``step = N`` gives the exported grid exactly: the texel on a
-vertex carries that vertex's theme alone.
-
-:func:`grid_from_maps` checks every map's header first (pixel type,
-channels, one size for all), then reads the maps band by band and keeps the
-vertex rows only, so memory is one band of each map plus the grid.
+A map spans the grid corner to corner (:mod:`.layout`), so with ``step`` map pixels per
+cell the vertices are the pixels at multiples of ``step``; each takes its strongest
+theme (ties: the lower). Maps are read band by band: memory is one band of each map.
 """
 
 from __future__ import annotations
@@ -64,14 +57,8 @@ def _check_map(path: str, info: ImageInfo, kind: str, first: ImageInfo) -> None:
 
 
 def check_maps(paths: Sequence[str], kind: str) -> tuple[int, int]:
-    """``(W, H)`` of engine maps of ``kind`` (:data:`MAP_KINDS`), from their headers alone.
-
-    Raises
-    ------
-    TerrathemeError
-        No map, a map of the wrong pixel type or channels (a 2-channel weight
-        map: which channel is the weight?), maps of different sizes.
-    """
+    """``(W, H)`` of engine maps of ``kind`` (:data:`MAP_KINDS`), checked on their headers
+    alone (pixel type, channels, one size for all)."""
     if kind not in MAP_KINDS:
         raise TerrathemeError(f"unknown map kind {kind!r}: one of {', '.join(MAP_KINDS)}")
     if not paths:
@@ -101,23 +88,10 @@ def _band_labels(kind: str, bands: list[np.ndarray], paths: Sequence[str],
 
 
 def grid_from_maps(paths: Sequence[str], kind: str, n_themes: int, step: int) -> np.ndarray:
-    """Vertex themes from engine maps of ``kind``, read band by band.
+    """Vertex themes ``((H - 1) / step + 1, (W - 1) / step + 1)`` uint8 from engine maps.
 
-    Parameters
-    ----------
-    paths : sequence of str
-        Splatmaps (4 themes each, in order), one weight map per theme, or one
-        Terrain3D control map.
-    kind : str
-        One of :data:`MAP_KINDS`.
-    n_themes : int
-        Themes named (weights of further splatmap channels must be 0).
-    step : int
-        Map pixels per cell, as :func:`grid_from_labels`.
-
-    Returns
-    -------
-    grid : ((H - 1) / step + 1, (W - 1) / step + 1) uint8 ndarray
+    ``paths``: splatmaps (4 themes each), one weight map per theme, or one Terrain3D
+    control map; weights beyond ``n_themes`` must be 0.
     """
     w, h = check_maps(paths, kind)
     _check_step(w, h, step)
@@ -144,18 +118,7 @@ def _check_step(w: int, h: int, step: int) -> None:
 
 
 def grid_from_labels(labels: np.ndarray, step: int) -> np.ndarray:
-    """Vertex themes: the labels at every ``step``-th pixel, both ends included.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-    step : int
-        Map pixels per cell; ``W - 1`` and ``H - 1`` must be multiples of it.
-
-    Returns
-    -------
-    grid : ((H - 1) / step + 1, (W - 1) / step + 1) uint8 ndarray
-    """
+    """Vertex themes: the (H, W) labels at every ``step``-th pixel, both ends included."""
     h, w = labels.shape
     _check_step(w, h, step)
     return np.ascontiguousarray(labels[::step, ::step])

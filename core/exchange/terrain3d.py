@@ -16,32 +16,14 @@ converted. Bits, from the top::
      1     navigation           (x & 1) << 1
      0     autoshader           x & 1
 
-Terrain3D's shader (``src/shaders/main.glsl``) gives the base texture weight
-``1 - blend/255`` and the overlay ``blend/255`` at a vertex and interpolates
-bilinearly between vertices. So each terratheme vertex (or each pixel of a
-``--size`` map, at the positions of :mod:`core.exchange.layout`) gets its two
-strongest themes and their renormalised share; up to 32 themes, autoshader
-off. Terrain3D recommends EXR for its control maps ("Use exr to export and
-reimport"); Godot's EXR loader reads a single ``R`` channel of 32-bit floats
-as ``FORMAT_RF`` (bits intact), which is what is written. With ``--size``
-the two strongest themes come from the project's style (shaped borders,
-:mod:`core.exchange.style`).
+Terrain3D's shader weighs base ``1 - blend/255`` and overlay ``blend/255`` and interpolates
+bilinearly between vertices, so each vertex (or ``--size`` pixel) gets its two strongest
+themes and their renormalised share; up to 32 themes, autoshader off, written as a
+one-channel ``R`` float EXR (Godot reads it as ``FORMAT_RF``, bits intact).
 
-The colour map, as Terrain3D reads it (same commit): an ``FORMAT_RGBA8``
-image per region (``src/terrain_3d_region.h``, ``TYPE_COLOR``) of the
-control map's size (``src/terrain_3d_data.cpp``, ``import_images``: "Included
-Images in p_images have different dimensions. Aborting import"), RGB
-sRGB-encoded (``src/shaders/main.glsl``: ``_color_maps : source_color``,
-default ``COLOR_MAP_DEF = vec4(1.0, 1.0, 1.0, 0.5)``) and multiplied onto
-the albedo (``src/shaders/pbr_views.glsl``: ``ALBEDO =
-mat.albedo_height.rgb * color_map.rgb``), alpha a roughness modifier
-(``wetness = fma(color_map.a, -2., 1.)``, 0.5 neutral). A colour map holds at
-most 1.0, below the gains above neutral, so ``terrain3d_colour.png`` keeps
-terratheme's encoding (the gain at every vertex's texel times 128,
-:func:`core.exchange.colour.gain_at_pixels`; alpha 128, neutral roughness)
-and every texture's ``albedo_color``, which the shader multiplies in too
-(``alb.rgb *= _texture_color_array[id].rgb``), is
-:func:`core.exchange.colour.linear_gain` (4.633: decoded 128 times it is 1).
+The colour map (RGBA8, the control map's size) is multiplied onto the albedo and stops at
+1.0, so it keeps terratheme's gain x 128 and each texture's ``albedo_color`` is
+:func:`core.exchange.colour.linear_gain`; sources and details in docs/engines.md.
 """
 
 from __future__ import annotations
@@ -102,17 +84,8 @@ class ControlFields:
 
 
 def encode_control(base: np.ndarray, overlay: np.ndarray, blend: np.ndarray) -> np.ndarray:
-    """Terrain3D control values (``enc_base | enc_overlay | enc_blend``, autoshader off).
-
-    Parameters
-    ----------
-    base, overlay : (H, W) integer ndarrays, ids 0..31
-    blend : (H, W) integer ndarray, 0..255 (overlay weight times 255)
-
-    Returns
-    -------
-    control : (H, W) uint32 ndarray
-    """
+    """(H, W) uint32 control values ``enc_base | enc_overlay | enc_blend`` of ids 0..31 and
+    blend 0..255 (overlay weight x 255), autoshader off."""
     base, overlay, blend = (np.asarray(v, dtype=np.uint32) for v in (base, overlay, blend))
     return ((base & 0x1F) << 27) | ((overlay & 0x1F) << 22) | ((blend & 0xFF) << 14)
 
@@ -146,11 +119,8 @@ def read_control_map(path: str | Path) -> np.ndarray:
 
 
 def write_control_map(path: str | Path, control: np.ndarray) -> None:
-    """Write uint32 control values as a one-channel ``R`` 32-bit float EXR, bits untouched.
-
-    ``core.io.images.write_image`` names a single channel ``Y``, which Godot
-    loads as RGB; Terrain3D's own exports and Godot's ``FORMAT_RF`` use ``R``.
-    """
+    """Write uint32 control values as a one-channel ``R`` 32-bit float EXR, bits untouched
+    (``write_image`` would name it ``Y``, which Godot loads as RGB)."""
     values = np.ascontiguousarray(control, dtype=np.uint32)
     h, w = values.shape
     spec = oiio.ImageSpec(w, h, 1, oiio.FLOAT)

@@ -1,27 +1,9 @@
 """Unity terrain: RGBA8 splatmaps, theme textures, a terrain-layer description and an editor script.
 
-Unity's terrain keeps one weight per terrain layer per alphamap texel, four
-layers per RGBA control texture ("splatmap"), the weights of all layers
-summing to 1; the alphamap is square with a power-of-two resolution from 16
-to 4096 (``TerrainData.alphamapResolution``; other sizes are refused here
-with the list of accepted ones, as Unity would round them). Its shader puts
-the first and last alphamap texels on the terrain's edges, the convention of
-:mod:`core.exchange.layout`. Splatmap ``s`` holds themes ``4s..4s+3`` in R,
-G, B, A; image row 0 is the terrain's north (far +z) edge. Neighbouring
-terrain tiles share their border texels, as Unity's connected terrains do.
-
-The weights follow the project's style (:mod:`core.exchange.style`: its
-shaped borders by default). Unity's terrain layers have no per-terrain tint,
-so the project's colour map ships as ``colour_map.png`` with each tile's
-``colour_map_st`` (texture UV = terrain UV * scale + offset,
-:func:`core.exchange.colour.unity_colour_st`), and the export ships the
-editor script and shaders of :data:`UNITY_SCRIPTS` (from
-``core/exchange/scripts``): ``Editor/TerrathemeImporter.cs`` builds the
-TerrainLayers, TerrainData and terrain objects from ``terratheme_unity.json``
-inside the Unity editor and gives every terrain a material that multiplies
-the blended layers by the colour map's gain, as terratheme's renderer does:
-the shipped ``Terratheme/Terrain`` shader (built-in render pipeline), or the
-user's ``TerrathemeTerrain.mat`` (URP, HDRP; ``docs/engines.md``).
+Splatmap ``s`` holds themes ``4s..4s+3`` in RGBA, square, a power of two 16..4096
+(``TerrainData.alphamapResolution``), row 0 the north edge, tiles sharing border texels.
+The colour map ships as ``colour_map.png`` with each tile's ``colour_map_st``; the editor
+script and shaders of :data:`UNITY_SCRIPTS` build the terrain in Unity (docs/engines.md).
 """
 
 from __future__ import annotations

@@ -1,22 +1,9 @@
 """Unreal Engine landscape: one 8-bit weight map per theme, a flat heightmap, theme textures.
 
-An Unreal landscape of ``(A + 1) x (B + 1)`` vertices is made of square
-components of ``q`` quads; Epic's recommended landscape sizes (Landscape
-Technical Guide) are 127, 253, 505, 1009, 2017 and 4033 vertices (2 x 2
-sections of 63 quads, components of 126 quads) and 8129 (sections of 127,
-components of 254). Landscape weight maps hold one value per vertex, the
-first and last on the landscape's edges (``core.exchange.layout``); for
-weight-blended layers the values of every vertex sum to 255. The "Import
-from File" panel takes a 16-bit heightmap with the weight maps, so a flat one
-(value 32768: height 0) of the same size comes with them. Tiles follow
-Unreal's tiled-import naming (``name_x0_y0.png``) and share their border
-vertices, as neighbouring landscape tiles do. The weights follow the
-project's style (:mod:`core.exchange.style`); the colour map ships as
-``colour_map.png`` with the transform from landscape vertex coordinates to
-its UV (:func:`core.exchange.colour.vertex_colour_uv`), and
-:data:`MATERIAL_SCRIPT` (``core/exchange/scripts``) builds, run in the
-Unreal editor, the landscape material that blends the layers and multiplies
-the colour map in as terratheme's renderer does (``docs/engines.md``).
+Sizes are Epic's recommended landscape sizes (127 .. 8129 vertices); each vertex's weights
+sum to 255; a flat 16-bit heightmap (32768) comes along for "Import from File"; tiles use
+Unreal's ``name_x0_y0.png`` naming and share border vertices. The colour map ships with its
+vertex-to-UV transform and :data:`MATERIAL_SCRIPT` builds the material (docs/engines.md).
 """
 
 from __future__ import annotations
