@@ -112,10 +112,8 @@ def decode_runs(
     lengths : (count,) int64 ndarray
     indices : (count,) uint8 ndarray
 
-    Raises
-    ------
-    CorruptFileError
-        Truncated or inconsistent streams, unknown codec, impossible values.
+    Raises CorruptFileError (truncated or inconsistent streams, unknown codec, impossible
+    values).
     """
     if len(payload) < 1:
         raise CorruptFileError(f"{name}: empty run payload")

@@ -194,12 +194,8 @@ def encode_layer(layer: LayerFields, encoding: str) -> bytes:
 def read_header(data: bytes, *, name: str) -> LayerHeader:
     """Parse and check the fixed header (magic, version, field ranges, run ceiling).
 
-    Raises
-    ------
-    CorruptFileError
-        Not a layer file, truncated header, a field out of range.
-    UnsupportedVersionError
-        A version newer than :data:`VERSION`.
+    Raises CorruptFileError (not a layer file, truncated header, a field out of range);
+    UnsupportedVersionError (a version newer than :data:`VERSION`).
     """
     if len(data) < 4:
         raise CorruptFileError(f"{name}: empty or truncated file ({len(data)} bytes)")

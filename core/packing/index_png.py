@@ -1,16 +1,9 @@
 """Index layers as palette PNGs: written row band by row band, and read back as indices.
 
-An index layer unpacked to a plain grey PNG looks black (its values are
-0..K). A palette PNG (colour type 3) stores the same values, the indices,
-and shows them in colour in any viewer or GIS. OpenImageIO writes no palette
-PNG and expands one to RGB on reading, so this module writes the format's
-chunks itself (signature, IHDR, PLTE, tRNS, IDAT through ``zlib``, IEND;
-PNG specification, ISO/IEC 15948) and reads indices back by mapping the
-decoded colours through the file's PLTE chunk (:mod:`core.io.png`, the one
-palette reader).
-
-Writing streams: rows go through one ``zlib`` compressor into IDAT chunks as
-they come, so a 65536 x 65536 layer needs one band in memory, not 4 GiB.
+A palette PNG stores the indices and shows them in colour (a grey one looks black).
+OpenImageIO writes none, so the chunks are written here (ISO/IEC 15948), streamed through
+one ``zlib`` compressor: memory is one band. Indices are read back through the file's
+PLTE (:mod:`core.io.png`).
 """
 
 from __future__ import annotations
@@ -39,15 +32,8 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
 
 
 def display_colours(k: int) -> np.ndarray:
-    """``k`` distinct colours for an index layer that stores none.
-
-    Hues step by the golden angle (so neighbouring indices differ strongly),
-    with two alternating lightness levels; index 0 is a dark grey.
-
-    Returns
-    -------
-    colours : (k, 3) uint8 ndarray
-    """
+    """``(k, 3)`` uint8 distinct colours for an index layer that stores none: hues a golden
+    angle apart, two alternating lightness levels, index 0 dark grey."""
     out = np.empty((k, 3), np.uint8)
     for i in range(k):
         if i == 0:
@@ -60,19 +46,8 @@ def display_colours(k: int) -> np.ndarray:
 
 
 class PalettePngWriter:
-    """Write an 8-bit palette PNG band by band (use as a context manager).
-
-    The file appears (atomically renamed) on a clean exit only.
-
-    Parameters
-    ----------
-    path : path-like
-    width, height : int
-    colours : (K, 3) or (K, 4) uint8 ndarray, K <= 256
-        Colour of each index; a 4th column is written as the tRNS chunk.
-    level : int
-        zlib compression level.
-    """
+    """Write an 8-bit palette PNG band by band (a context manager; the file appears on a
+    clean exit only). ``colours``: (K <= 256, 3|4) uint8, a 4th column written as tRNS."""
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, colours: np.ndarray,
                  *, level: int = 6) -> None:
@@ -147,13 +122,8 @@ class PalettePngWriter:
 
 
 def read_index_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
-    """An image file to pack: a palette PNG as its indices and colours, any other as it is.
-
-    Returns
-    -------
-    image : (H, W) uint8 (palette PNG) or (H, W, C) ndarray (:func:`core.io.images.read_image`)
-    colours : (K, 3) or (K, 4) uint8 ndarray, or None for a file without a palette
-    """
+    """An image file to pack: a palette PNG as (H, W) uint8 indices and (K, 3|4) colours,
+    any other as :func:`core.io.images.read_image` gives it, and None."""
     image = read_image(path)
     colours = png_palette(path)
     if colours is None:

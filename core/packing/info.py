@@ -1,8 +1,7 @@
 """What a packed-layer file holds, from its headers alone (``terratheme info``).
 
-Reads the header, the palette and checks the checksum (for a tiled container:
-its header and index, and each tile's header and checksum, one tile at a
-time); decodes no payload and loads no numba kernel.
+Checks headers and checksums (a tiled container's tiles one at a time); decodes no
+payload and loads no numba kernel.
 """
 
 from __future__ import annotations
@@ -22,28 +21,16 @@ class LayerInfo:
 
     Attributes
     ----------
-    width, height : int
-    curve : str
-        ``"hilbert"`` or ``"morton"``.
-    channels : int
     identity_palette : bool
         Single-channel layer whose palette index is the texel value.
     palette : list of lists of int
         ``K`` colours of ``channels`` samples.
-    run_count : int
-    file_bytes : int
     memory_bytes_max : int
-        Bytes the in-memory random-access table takes once loaded, at most
-        (exactly: ``PackedLayer.memory_bytes``; it depends on the runs).
+        Upper bound of the loaded random-access table (exactly: ``PackedLayer.memory_bytes``).
     format : str
-        Payload encoding: ``"seed"`` or ``"compact"`` (for a tiled container,
-        the encodings of its tiles joined by ``+``).
-    version : int
-        File format version.
-    tiles : int
-        Tiles of a tiled container (1 for one layer).
-    tile_side : int or None
-        Their side in texels.
+        Payload encoding (a tiled container's tiles' joined by ``+``).
+    tiles, tile_side : int, int or None
+        Tiles of a tiled container (1 for one layer) and their side.
     """
 
     width: int
@@ -64,10 +51,8 @@ class LayerInfo:
 def layer_info(path: str | os.PathLike) -> LayerInfo:
     """Describe a packed-layer file without decoding its runs.
 
-    Raises
-    ------
-    TerrathemeError
-        Missing file; :class:`CorruptFileError` for a damaged or foreign file.
+    Raises TerrathemeError (missing file; :class:`CorruptFileError` for a damaged or foreign
+    file).
     """
     p, tiled = tiled_format.layer_file_kind(path)
     with open(p, "rb") as fh:

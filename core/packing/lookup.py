@@ -46,12 +46,9 @@ def _inside(x, row, data, base):  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def grid_word(x, row, data, grid, grid_width, height, cut, gb):  # pragma: no cover - numba
-    """Grid word of texel ``(x, row)`` (row 0 = top), its index ``gi`` in the grid at
-    ``data[grid:]`` and its place ``(lx, ly)`` in the block (y up): ``(g, gi, lx, ly)``.
-
-    Rows above a joined table's ``cut`` (0: none) are read ``pad`` higher (:mod:`.layout`).
-    The one grid-word step of every CPU lookup, scalar or batched.
-    """
+    """``(g, gi, lx, ly)``: grid word of texel ``(x, row)`` (row 0 = top), its index in the
+    grid at ``data[grid:]``, its place in the block (y up); rows above a joined table's
+    ``cut`` (0: none) are read ``pad`` higher (:mod:`.layout`)."""
     mask = (np.int64(1) << gb) - 1
     yup = height - 1 - row + ((cut - height) & mask) * (row < cut)
     gi = (yup >> gb) * grid_width + (x >> gb)

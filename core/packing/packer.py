@@ -72,10 +72,7 @@ class TilePalette:
     def indices(self, keys: np.ndarray) -> np.ndarray:
         """Palette index of each key (keys in run order), growing the palette as needed.
 
-        Raises
-        ------
-        TerrathemeError
-            More than 256 colours in all.
+        Raises TerrathemeError (more than 256 colours in all).
         """
         if self.identity:
             self.top = max(self.top, int(keys.max()))

@@ -57,11 +57,8 @@ class Runs:
 def check_image(image: np.ndarray, *, max_side: int = MAX_SIDE) -> tuple[np.ndarray, bool]:
     """Validate an input image; return it as ``(H, W, C)`` and whether it was 2-D.
 
-    Raises
-    ------
-    TerrathemeError
-        Empty image, more than 4 channels, a pixel type other than uint8/uint16,
-        or a side over ``max_side`` (one layer's 65536 by default).
+    Raises TerrathemeError (empty image, more than 4 channels, a pixel type other than
+    uint8/uint16, or a side over ``max_side`` (one layer's 65536 by default)).
     """
     arr = np.asarray(image)
     squeeze = arr.ndim == 2
@@ -106,10 +103,7 @@ def keys_to_colours(keys: np.ndarray, channels: int, dtype: np.dtype) -> np.ndar
 def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
     """Palette and runs of a checked ``(H, W, C)`` image with at most 256 colours.
 
-    Raises
-    ------
-    TerrathemeError
-        More than 256 distinct colours.
+    Raises TerrathemeError (more than 256 distinct colours).
     """
     if arr.shape[2] == 1 and int(arr.max()) < MAX_COLOURS:
         # Index image: P is the pixel value (seed Fig. 2).
@@ -173,10 +167,8 @@ def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, Palet
 def as_palette(palette: np.ndarray) -> np.ndarray:
     """A palette as a ``(K, C)`` uint8 or uint16 array (plain integers: the smallest that fits).
 
-    Raises
-    ------
-    TerrathemeError
-        Colours that are not integers of 0 to 65535, or not 1 to 256 of them.
+    Raises TerrathemeError (colours that are not integers of 0 to 65535, or not 1 to 256 of
+    them).
     """
     palette = np.asarray(palette)
     if palette.ndim == 1:

@@ -1,17 +1,8 @@
-"""Packed layers beyond 65536 x 65536: a grid of packed tiles behind one API (issue 15).
+"""Packed layers beyond 65536 x 65536: a grid of packed tiles behind the PackedLayer API.
 
-A :class:`TiledLayer` answers the same calls as a
-:class:`core.packing.layer.PackedLayer` (``lookup``, ``bands``, ``unpack``,
-``save``/``load``); its tiles are packed layers of palette indices into the
-one palette of the whole layer (file layout: :mod:`.tiled_format`).
-
-Opening a container reads its header and index only; tiles are decoded when
-first needed. Random access decodes every tile once into **one** ``uint32``
-array: the joined table (:mod:`.joined`), which the single layer's kernels
-read as they read one layer's, so a batch costs what it costs on one layer;
-or, for containers that do not join, the tiles' tables end to end (each tile
-a view into it), in which the compiled batch kernels of :mod:`.batch` pick a
-tile's table by a shift and an offset.
+Tiles are packed layers of indices into the whole layer's palette (file layout:
+:mod:`.tiled_format`), decoded when first needed. Random access reads one ``uint32`` table:
+the joined table (:mod:`.joined`), or the tiles' tables end to end (:mod:`.batch`).
 """
 
 from __future__ import annotations
@@ -52,9 +43,7 @@ DEFAULT_TILE_BITS = 16
 class TiledLayer:
     """A layer as a grid of packed tiles of ``2^tile_bits`` texels a side.
 
-    Build one with :func:`core.packing.pack` (``tile_bits=`` or an image over
-    65536 a side), :func:`core.packing.pack_file`, :meth:`from_tiles` or
-    :meth:`load`.
+    Built by :func:`core.packing.pack` (``tile_bits=`` or a side over 65536) or :meth:`load`.
 
     Attributes
     ----------
@@ -70,9 +59,8 @@ class TiledLayer:
     threads : int
         Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
     join : bool
-        Look texels up through one table over all tiles (:mod:`.joined`) when
-        the tiles allow it; False: always through each tile's own table (the
-        path of containers that do not join). Both give the same answers.
+        Look texels up through one joined table (:mod:`.joined`) when the tiles allow it;
+        False: through each tile's own table. Both give the same answers.
     """
 
     width: int
@@ -251,10 +239,7 @@ class TiledLayer:
     def lookup(self, xs: np.ndarray | int, ys: np.ndarray | int) -> np.ndarray:
         """Texel values at columns ``xs``, rows ``ys`` (as :meth:`PackedLayer.lookup`).
 
-        Raises
-        ------
-        TerrathemeError
-            A coordinate outside the layer.
+        Raises TerrathemeError (a coordinate outside the layer).
         """
         quick = self._cache.get("quick")
         if quick and type(xs) is int and type(ys) is int:
@@ -369,12 +354,6 @@ def needs_tiles(width: int, height: int) -> bool:
 
 
 def load_layer(path: str | os.PathLike) -> PackedLayer | TiledLayer:
-    """Open a packed-layer file of either kind (one layer, or a tiled container).
-
-    Raises
-    ------
-    TerrathemeError
-        Missing file; :class:`CorruptFileError` for a damaged or foreign file.
-    """
+    """Open a packed-layer file of either kind; raises CorruptFileError for a damaged file."""
     p, tiled = fmt.layer_file_kind(path)
     return TiledLayer.load(p) if tiled else PackedLayer.load(p)

@@ -1,10 +1,8 @@
-"""The tiled container file: packed layers beyond 65536 x 65536, with an index (issue 15).
+"""The tiled container file: packed layers beyond 65536 x 65536, with an index.
 
-A layer of any size up to 2^31 - 1 texels a side is cut into square tiles of
-``2^t`` texels (the last column and row of tiles smaller); each tile is a
-complete packed-layer file (``core.packing.container``, its own curve,
-encoding and checksum) of **palette indices**, an identity layer into the
-container's one palette. Layout (little-endian)::
+Square tiles of ``2^t`` texels (the last column and row smaller), each a complete
+packed-layer file (:mod:`.container`) of indices into the container's one palette.
+Layout (little-endian)::
 
     offset size  field
     0      4     magic b"TTPT"
@@ -28,10 +26,8 @@ container's one palette. Layout (little-endian)::
     ...    4     CRC-32 of every byte above
     ...    ...   the tiles, end to end in index order
 
-Checked before any tile is read: the fields, ``N <= MAX_TILES``, the index
-against the file's length, offsets that run end to end and add up to the
-stored total. Each tile is then checked as it is decoded (on first use), so
-opening a container costs its header and index only.
+Opening checks the fields and the index against the file's length; each tile is checked
+when first decoded.
 """
 
 from __future__ import annotations
@@ -116,12 +112,7 @@ def encode_head(head: TiledHeader, palette: np.ndarray, colours: np.ndarray | No
 def read_tiled_header(data: bytes, *, name: str, file_bytes: int) -> TiledHeader:
     """Parse and check the fixed header of a container of ``file_bytes`` bytes.
 
-    Raises
-    ------
-    CorruptFileError
-        Not a container, truncated, a field out of range, a file shorter than it says.
-    UnsupportedVersionError
-        A version newer than :data:`VERSION`.
+    Raises CorruptFileError (or UnsupportedVersionError for a newer version).
     """
     if len(data) < HEADER.size:
         raise CorruptFileError(f"{name}: truncated tiled-layer header ({len(data)} bytes)")
@@ -182,14 +173,7 @@ def read_index(data: bytes, head: TiledHeader, *, name: str) -> tuple[np.ndarray
 
 
 def layer_file_kind(path: str | os.PathLike) -> tuple[str, bool]:
-    """A packed-layer file's path as a string, and whether it is a tiled container.
-
-    Raises
-    ------
-    TerrathemeError
-        Missing file.
-    """
+    """A packed-layer file's path as a string, and whether it is a tiled container."""
     p = os.fspath(check_input_file(path, "a packed layer"))
-    # The magic number tells a tiled container from a single layer's file.
     with open(p, "rb") as fh:
         return p, fh.read(4) == MAGIC
