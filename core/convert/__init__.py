@@ -1,11 +1,8 @@
 """Orthophoto to thematic texture: classify, themes, labels to a vertex grid, the cell size.
 
-Modules: ``labels_to_grid`` (the vertex vote), ``specks`` (lone vertices
-removed), ``cell_choice`` (the cell size chosen from a target), ``photo``
-(the whole-image pipeline and its outputs), ``tiled`` (photos larger than
-memory, tile by tile, here or on a dask.distributed cluster), ``tile_vote``
-(its picklable tile jobs), ``colour_fit`` (the colour map, whole or tile by
-tile).
+``step`` (the one conversion step), ``photo`` (whole image and outputs), ``tiled``,
+``tile_vote`` and ``region_sample`` (photos larger than memory), ``labels_to_grid``,
+``specks``, ``cell_choice``, ``colour_fit`` (the colour map).
 """
 
 from terratheme.core.convert.cell_choice import CellChoice, choose_cell_size

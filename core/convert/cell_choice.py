@@ -1,13 +1,8 @@
-"""The cell size of a conversion, chosen from an agreement target.
+"""The cell size of a conversion, chosen from an agreement target (design.md §2-3).
 
-The agreement of a grid is the fraction of photo pixels whose label equals
-the grid's *label view* (the theme with the largest blend weight at that
-texel, :func:`core.render.renderer.render_labels`). :func:`choose_cell_size`
-returns the largest cell whose agreement meets the target (design.md §2-3:
-"cell size chosen from an error target") and whose every class keeps its
-IoU target; the grids are voted by :func:`core.convert.labels_to_grid.vote_grid`
-(and, unless the specks are kept, cleaned by :func:`core.convert.specks.remove_specks`:
-each candidate is measured on the grid the conversion would use).
+Agreement: the share of photo pixels whose label equals the grid's label view (the
+theme of largest blend weight, :func:`render_labels`), measured on the grid the
+conversion would use (:func:`vote_grid`, specks removed unless kept).
 """
 
 from __future__ import annotations
@@ -25,8 +20,7 @@ from terratheme.core.render.renderer import render_labels
 
 #: cell sizes tried by :func:`choose_cell_size` (square cells), filtered to the photo's size
 DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
-#: cell sizes ``convert --cell auto`` tries: larger automatic cells broke the structure and
-#: the colour layout of some photos (benchmarks/bench_fidelity.py, trial cells<=16)
+#: cell sizes ``convert --cell auto`` tries (larger cells broke some photos' structure)
 CONVERT_CELL_CANDIDATES = tuple(c for c in DEFAULT_CELL_CANDIDATES if c <= 16)
 #: rows per sample strip when the agreement is measured on a sample
 _STRIP = 8
@@ -40,23 +34,11 @@ ProgressFn = Callable[[int, int], None]
 
 def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
                     max_pixels: int | None = None) -> np.ndarray:
-    """Counts of (label, label view) pairs over the photo: ``(K, K)`` int64, rows = labels.
+    """``(K, K)`` int64 counts of (label, label view) pairs, rows = labels, ``K = max + 1``.
 
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Per-pixel theme indices.
-    grid : IndexGrid
-        Must cover the photo: ``grid.texture_size >= (W, H)``.
-    max_pixels : int, optional
-        Above this many pixels, count on evenly spaced full-width strips of
-        ``_STRIP`` rows holding about ``max_pixels`` pixels (the renderer's
-        regions are exact crops of the full render, so this is an unbiased
-        row sample). Default: every pixel.
-
-    Returns
-    -------
-    (K, K) int64 ndarray, ``K = max(label, index) + 1``
+    ``labels``: (H, W) uint8 theme indices; ``grid`` covers them. ``max_pixels``: count on
+    evenly spaced full-width strips of ``_STRIP`` rows holding about that many pixels (an
+    unbiased row sample: region renders are exact crops); default every pixel.
     """
     labels = check_class_image(labels, "label image")
     h, w = labels.shape
@@ -81,10 +63,7 @@ def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
 
 
 def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = None) -> float:
-    """Fraction of pixels whose label equals the grid's label view (cropped to the photo).
-
-    See :func:`label_confusion` for the arguments.
-    """
+    """Share of pixels whose label equals the grid's label view (as :func:`label_confusion`)."""
     cm = label_confusion(labels, grid, max_pixels=max_pixels)
     return float(np.trace(cm) / max(cm.sum(), 1))
 
@@ -152,43 +131,21 @@ def choose_cell_size(
 ) -> CellChoice:
     """The largest square cell whose label view keeps ``target_agreement`` of the labels.
 
-    Every candidate cell that fits the photo (``cell <= max(W, H)``) is tried:
-    vote the grid (:func:`vote_grid`), render its label view and count the
-    pixels that keep their label. The answer is the largest candidate whose
-    agreement is at least the target and whose every class covering at least
-    ``CLASS_MIN_SHARE`` of the photo keeps an IoU with its label view of at
-    least ``class_target`` (so a thin class such as roads does not vanish
-    while the whole photo's agreement stays high). A higher target never
-    gives a larger cell. When none meets them (possible only if cell 1 is
-    not a candidate), the candidate with the best agreement is returned with
-    ``target_met=False``.
+    Each candidate that fits is voted and its label view counted; the answer is the
+    largest meeting the target with every class over ``CLASS_MIN_SHARE`` keeping IoU
+    ``class_target`` (a thin road class does not vanish). Otherwise the best-agreeing cell,
+    ``target_met=False``. The curve is smallest cell first.
 
     Parameters
     ----------
     labels : (H, W) uint8 ndarray, or a list of them
-        Per-pixel theme indices; a list: windows of one photo (a region's
-        sample), each voted on its own and their pixel counts summed.
-    target_agreement : float in (0, 1]
-    candidates : sequence of int
-        Square cell sizes to try.
+        Theme indices; a list: windows of one photo, voted apart, counts summed.
     sample_pixels : int or None
-        Measure agreement on about this many pixels (row strips, see
-        :func:`agreement`); None: on every pixel.
-    progress : callable(done, total), optional
+        Measure on about this many pixels (row strips); None: every pixel.
     full_curve : bool
-        True: measure every candidate (the curve for a chart). False: from the
-        largest candidate down, stopping at the first that meets the targets
-        (the same cell, found with the fewest and cheapest grids: a small
-        cell's grid has the most vertices).
+        False: from the largest candidate down, stop at the first that meets the targets.
     keep_specks : bool
-        False: each candidate's grid is cleaned of lone vertices
-        (:func:`core.convert.specks.remove_specks`) before it is measured.
-
-    Returns
-    -------
-    CellChoice
-        With the curve (cell, agreement, grid bytes) of the candidates measured,
-        smallest cell first.
+        False: each grid is cleaned of lone vertices (:func:`remove_specks`) first.
     """
     pieces = [labels] if isinstance(labels, np.ndarray) else list(labels)
     pieces = [check_class_image(p, "label image") for p in pieces]
@@ -251,29 +208,11 @@ def packed_bits_per_pixel(grid: IndexGrid, pixels: int) -> float:
 
 def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Sequence[int],
                        max_bits_per_pixel: float, *, keep_specks: bool = True) -> CellChoice:
-    """``choice``, or the next larger candidate cells until the packed grid fits its budget.
+    """``choice``, or the next larger candidate cell until the packed grid fits its budget.
 
-    Under a byte budget (issue 34) the colour map carries the structure and
-    a grid only places the themes' detail: a fine cell's grid took a third of
-    the bytes of a villa photo at 0.02 bits per pixel, which the map shows
-    better (docs/decisions.md). The largest candidate is kept even when it
-    does not fit.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        The theme labels the choice was made on.
-    choice : CellChoice
-    candidates : sequence of int
-    max_bits_per_pixel : float
-        Bits per photo pixel the packed grid may take.
-    keep_specks : bool
-        As the grid is voted (:func:`core.convert.labels_to_grid.vote_grid`).
-
-    Returns
-    -------
-    CellChoice
-        With ``cell`` and ``agreement`` of the cell taken (its curve unchanged).
+    Under a byte budget the map carries the structure and the grid only places detail;
+    the largest candidate is kept even if it does not fit (``max_bits_per_pixel`` per
+    photo pixel; its curve unchanged).
     """
     labels = check_class_image(labels, "label image")
     cell = choice.cell[0]

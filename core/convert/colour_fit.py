@@ -1,33 +1,13 @@
 """The colour map of a converted photo: the gain that brings the render's colours to the photo's.
 
-Issue 13: a class carries one texture, so the photo's slow colour changes
-inside a class are lost and the render's colour layout is far from the
-photo's (dE8 5.5 on held-out photos). The colour map (:mod:`core.model.colour_map`)
-restores them at a small cost in bytes:
-
-1. block means of photo and render over each map pixel's ``scale x scale``
-   texels give the first gain, ``photo / render`` per channel;
-2. the gain is refined (``iterations`` times) against the render multiplied
-   by its own bilinear upsampling, since that is what a renderer shows;
-3. it is quantised to the stored ``128 * gain`` and passed through the
-   codec it ships in (JPEG XL at quality 99 by default: on the bundled and
-   shared photos a near-lossless map at a coarse scale costs fewer bytes for
-   the same colour error than a lossy one at a fine scale; WebP at quality 80
-   and 1/8 gave dE8 1.89 at 5 kB per area, JPEG XL 99 gives 1.66 at 2.9 kB),
-   so the project renders exactly what the packed output holds;
-4. the scale: the coarsest of ``scales`` whose render keeps the colour error
-   (:func:`core.fidelity.metrics.colour_error`, measured at a quarter of the
-   resolution with the blur scaled alike) under ``target``, else the finest.
-
-Issue 34 (the default, ``target`` None): the terrain engines' split. The map
-carries everything above a few texels, roads and blocks where the photo has
-them, and the themes only the fine detail (:func:`core.themes.detail.detail_texture`).
-The area has a byte budget (``budget`` bits per photo pixel, grid included);
-for each of ``budget_scales`` the block gain is coded at the highest quality
-that fits (:func:`fit_quality`), and the scale whose render scores best
-(:func:`budget_score`: structure at 1/4 and 1/8 against the colour error) is
-kept: a fine map at a low quality carries more structure per byte than a
-coarse near-lossless one (docs/decisions.md).
+A class carries one texture, so the photo's slow colour changes are lost; the map
+(:mod:`core.model.colour_map`) restores them (issues 13, 34). Default (``target`` None):
+the area has a byte budget; for each of ``budget_scales`` the block gain ``photo /
+render`` is coded at the highest quality that fits (:func:`fit_quality`) and the scale
+whose render scores best (:func:`budget_score`) is kept. With a ``target``: the gain is
+refined against its own bilinear upsampling and the coarsest of ``scales`` whose render
+keeps dE8 under ``target`` is kept. Either way the map passes through its codec, so the
+project renders what the packed output holds.
 """
 
 from __future__ import annotations
@@ -66,18 +46,14 @@ class ColourMapOptions:
     Attributes
     ----------
     target : float or None
-        A number: the colour error (mean CIEDE2000 after a sigma-8 blur) the
-        map aims at, at the coarsest of ``scales`` (near-lossless ``quality``).
-        None: the byte budget's search (module docstring).
+        dE8 (mean CIEDE2000 after a sigma-8 blur) to reach at the coarsest of ``scales``;
+        None: the byte budget's search.
     scales : tuple of int
         Texels per map pixel tried with a ``target``, coarsest first.
     codec : str
-        How the map is stored in the packed output (``core.io.codec``: avif, jpegxl, webp,
-        jpeg, png).
-    quality : int
-        Codec quality 1..100 with a ``target``.
-    iterations : int
-        Refinements of the block gain against its own upsampling (with a ``target``).
+        Storage codec (``core.io.codec``: avif, jpegxl, webp, jpeg, png).
+    quality, iterations : int
+        With a ``target``: codec quality 1..100, refinements of the block gain.
     budget : float
         Without a target: bits per photo pixel the area (packed grid and map) may take.
     budget_scales : tuple of int
@@ -104,8 +80,7 @@ class ColourMapOptions:
                                   f"got {self.budget}")
 
     def area_bytes(self, pixels: int) -> int:
-        """The area's bytes under the budget for ``pixels`` photo pixels (at least
-        :data:`MIN_AREA_BYTES`: a tiny photo's map needs its codec's headers)."""
+        """The area's budget bytes for ``pixels`` (at least ``MIN_AREA_BYTES``: codec headers)."""
         return max(MIN_AREA_BYTES, int(self.budget * pixels / 8))
 
     def map_bytes(self, pixels: int, reserved: int = 0) -> int:
@@ -117,19 +92,9 @@ class ColourMapOptions:
 class FittedColourMap:
     """A colour map as stored and what it achieves.
 
-    Attributes
-    ----------
-    colour_map : ColourMap
-        Decoded from ``data``.
-    data : bytes or None
-        The map in ``codec`` (what the packed output holds); None for a map
-        beyond the codec's single-image limit, shipped in tiles
-        (``colour_map.tiles``, :meth:`core.model.colour_map.ColourMap.encode`).
-    codec : str
-    colour_error : float
-        Estimated dE8 of the render with this map.
-    curve : tuple of (scale, bytes, colour_error)
-        Every scale tried.
+    ``data``: the map in ``codec`` as packed, None for a map shipped in tiles
+    (``colour_map.tiles``); ``colour_error``: estimated dE8 of the render with it;
+    ``curve``: ``(scale, bytes, colour_error)`` of every scale tried.
     """
 
     colour_map: ColourMap
@@ -150,15 +115,8 @@ def fit_gain(photo: np.ndarray, render: np.ndarray, scale: int, iterations: int 
              ) -> np.ndarray:
     """The ``(mh, mw, 3)`` float32 gain at ``scale`` that maps ``render`` onto ``photo``.
 
-    Parameters
-    ----------
-    photo : (h, w, 3) uint8 ndarray
-        The photo over the texture's top-left ``w x h`` texels.
-    render : (H, W, 3) uint8 ndarray
-        The full texture without a colour map (``H >= h``, ``W >= w``); texels
-        beyond the photo take the photo's edge.
-    scale : int
-    iterations : int
+    ``photo``: (h, w, 3) uint8 over the top-left of ``render`` (H, W, 3) uint8, the full
+    texture without a map; texels beyond the photo take its edge.
     """
     th, tw = render.shape[:2]
     mh, mw = ColourMap.shape_for((tw, th), scale)
@@ -196,24 +154,9 @@ def _quick_error(photo: np.ndarray, render: np.ndarray) -> float:
 
 def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
                 ) -> tuple[int, ColourMap] | None:
-    """The stored gain coded at the highest quality (1..99) whose bytes fit ``budget``.
+    """``(quality, map)``: the (mh, mw, 3) uint8 stored gain at the best quality fitting ``budget``.
 
-    Bisection on the quality (bytes grow with it). ``png`` has no quality: its
-    one size fits or not.
-
-    Parameters
-    ----------
-    gain : (mh, mw, 3) uint8 ndarray
-        Stored gains (``128 * gain``).
-    scale : int
-    codec : str
-    budget : int
-        Bytes the map may take.
-
-    Returns
-    -------
-    (quality, ColourMap) or None
-        None when not even quality 1 fits.
+    Bisection on quality 1..99; ``png`` has one size. None when not even quality 1 fits.
     """
     lo, hi, best = 1, 99, None
     while lo <= hi:
@@ -229,13 +172,7 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
 
 
 def budget_score(photo: np.ndarray, shown: np.ndarray) -> tuple[float, float, float, float]:
-    """How well a render with a map shows its photo: ``(score, s4, s8, dE8)``.
-
-    ``score`` = mean of the structure at 1/4 and 1/8
-    (:func:`core.fidelity.metrics.structure_similarity`) minus a tenth of the
-    colour error (dE8 at a quarter of the resolution): one point of dE8 is
-    worth 0.1 of structure. Higher is better.
-    """
+    """``(score, s4, s8, dE8)``: ``score = (s4 + s8) / 2 - dE8 / 10``, higher better."""
     s4 = structure_similarity(shown, photo, 4)
     s8 = structure_similarity(shown, photo, 8)
     err = _quick_error(photo, shown)
@@ -273,20 +210,10 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
 def choose_colour_map(photo: np.ndarray, render: np.ndarray,
                       options: ColourMapOptions = ColourMapOptions(), *,
                       reserved: int = 0) -> FittedColourMap:
-    """The colour map of a conversion (see the module docstring).
+    """The colour map of a conversion (module docstring).
 
-    Parameters
-    ----------
-    photo : (h, w, 3) uint8 ndarray
-    render : (H, W, 3) uint8 ndarray
-        The full texture rendered without a colour map, ``H >= h, W >= w``.
-    options : ColourMapOptions
-    reserved : int
-        Bytes of the area's budget already spent (the packed grid).
-
-    Returns
-    -------
-    FittedColourMap
+    ``photo``: (h, w, 3) uint8; ``render``: (H, W, 3) uint8, the full texture without a
+    map (H >= h, W >= w); ``reserved``: budget bytes already spent (the packed grid).
     """
     h, w = photo.shape[:2]
     if render.shape[0] < h or render.shape[1] < w:
@@ -311,13 +238,7 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
 
 
 def _block_sums(image: np.ndarray, s: int) -> np.ndarray:
-    """Per-``s x s``-block channel sums of an image whose origin is on a block (float64).
-
-    Exact: integer sums of uint8 (at most ``MAX_SCALE^2 * 255 < 2^32``), rows of
-    a block first (contiguous), then its columns: 13x faster than summing a
-    float64 copy over both axes at once (2.3 against 30.7 ms for a 1024^2 tile at
-    scale 16), the same values.
-    """
+    """Exact per-``s x s``-block channel sums (float64) of an image whose origin is on a block."""
     h, w = image.shape[:2]
     bh, bw = -(-h // s), -(-w // s)
     img = image[:, :, :3]
@@ -330,17 +251,10 @@ def _block_sums(image: np.ndarray, s: int) -> np.ndarray:
 
 
 def grid_window(grid: IndexGrid, win: TileWindow) -> tuple[tuple[int, int], np.ndarray]:
-    """The vertices a render of tile ``win``'s core needs: ``(origin, block)``.
+    """``(origin, block)``: the grid vertices a render of tile ``win``'s core needs.
 
-    The cells under the core plus one vertex on every side where the grid
-    goes on (the saddle rule's ring), so
-    ``render_cells(block, ..., region=core, origin=origin)`` equals the
-    whole grid's render of the core (:func:`core.render.renderer.render_cells`).
-
-    Returns
-    -------
-    origin : (row, col) of ``block[0, 0]`` in the grid
-    block : (r, c) uint8 ndarray, at most ``(h/M + 4) x (w/N + 4)``
+    The cells under the core plus a ring of one vertex (the saddle rule's), so
+    ``render_cells(block, ..., region=core, origin=origin)`` equals the whole grid's.
     """
     n, m = grid.cell
     rows, cols = grid.indices.shape
@@ -353,17 +267,8 @@ def grid_window(grid: IndexGrid, win: TileWindow) -> tuple[tuple[int, int], np.n
 class BlockGainJob:
     """The tile job of :func:`colour_map_from_file`: the stored gain of its map pixels.
 
-    Called ``job(win, pixels, (origin, block))`` with the tile's
-    :func:`grid_window`: the job holds no grid, so what a worker receives
-    is set by the tile and the themes, not the image.
-
-    Attributes
-    ----------
-    textures : list of (h, w, 3) uint8 ndarray
-    cell : (N, M)
-    render : RenderOptions
-    scale : int
-        Texels per map pixel; tiles start on whole map pixels.
+    Called ``job(win, pixels, (origin, block))`` with the tile's :func:`grid_window`: it
+    holds no grid, so what a worker receives is set by the tile and the themes.
     """
 
     textures: list[np.ndarray]
@@ -394,12 +299,7 @@ def _box_name(box: TileBox) -> str:
 
 @dataclass(frozen=True)
 class ClusterTiles:
-    """A :data:`core.model.colour_map.TileRunner` on a dask cluster: map tiles on its workers.
-
-    The encoder goes to every worker once, each tile's pixels with its task
-    (:func:`core.io.cluster.map_ordered`, a few in flight), so the client
-    encodes none of the tiles (a 4096^2 JPEG XL tile is about 30 CPU s).
-    """
+    """A :data:`core.model.colour_map.TileRunner` encoding map tiles on a dask cluster's workers."""
 
     client: Client
 
@@ -423,27 +323,12 @@ def colour_map_from_file(
     progress: Callable[[int, int], None] | None = None,
     reserved: int = 0,
 ) -> FittedColourMap:
-    """The colour map of a photo larger than memory, tile by tile (the block gain of step 1).
+    """The colour map of a photo larger than memory, tile by tile (the block gain only).
 
-    Tiles are whole map pixels; each reads its photo pixels, renders the same
-    texels and returns the stored gain of its map pixels (photo sum over
-    render sum, :class:`BlockGainJob`), so memory is set by the tile and the
-    map (3 bytes a map pixel), not the photo. Map pixels beyond the photo
-    (the last cells) take the nearest pixel's gain. The refinement of step 2
-    needs every neighbour's gain and is not done here. On a cluster
-    (``scheduler`` a ``distributed.Client``) every worker gets the themes
-    once and each tile its window of the grid (:func:`grid_window`), so a
-    worker's memory is set by the tile; the map is the serial one, bit for bit.
-    ``reserved``: bytes of the area's budget already spent (the packed grid),
-    as :func:`choose_colour_map`'s.
-
-    Returns
-    -------
-    FittedColourMap
-        ``colour_error`` is NaN (not measured on the whole photo); ``curve`` empty.
-        A map beyond the codec's single-image limit is encoded tile by tile
-        (:meth:`core.model.colour_map.ColourMap.encode`), on the cluster's
-        workers when there is one (:class:`ClusterTiles`): the same bytes.
+    Each tile of whole map pixels returns their stored gain (:class:`BlockGainJob`), so
+    memory is set by the tile and the map; pixels past the photo take the nearest one's
+    gain. On a cluster (``scheduler`` a ``distributed.Client``) the map is the serial
+    one, bit for bit. ``colour_error`` is NaN and ``curve`` empty.
     """
     tw, th = grid.texture_size
     mh, mw = ColourMap.shape_for((tw, th), scale)
@@ -488,9 +373,7 @@ QUALITY_PIECE = 1024
 def budget_quality(stored: np.ndarray, scale: int, codec: str, budget: int) -> int:
     """The quality at which a whole map of stored gains fits ``budget`` bytes (at least 1).
 
-    Chosen by :func:`fit_quality` on the map, or on its centre
-    :data:`QUALITY_PIECE`-pixel piece with the budget scaled by area when the
-    map is larger (a region's map), so the work is bounded.
+    On a larger map, chosen on its centre ``QUALITY_PIECE`` piece with the budget scaled.
     """
     mh, mw = stored.shape[:2]
     piece, share = stored, 1.0

@@ -1,22 +1,10 @@
 """Per-pixel labels to a vertex index grid (the majority vote of each vertex's window).
 
-Conventions follow :mod:`core.render.rules`: global texel column ``X`` sits at
-grid position ``X / N``, so vertex ``i`` sits on texel column ``i*N`` and a
-photo of ``W x H`` pixels needs ``gw = ceil(W / N)`` cells across (the
-render is ``gw*N`` texels wide, at least the photo's width, and is cropped to
-the photo for comparison).
-
-Each vertex takes the most frequent label in the ``N x M`` window of the
-texels nearest to it: columns ``i*N - N//2 .. i*N - N//2 + N - 1`` (on an
-even ``N`` the texel half way between two vertices goes to the later one),
-rows likewise. Pixels outside the photo do not vote while any pixel inside the
-window does (a window entirely outside the photo takes the nearest border
-pixels). Ties go to the label of the pixel under the vertex (the texel the
-render reproduces exactly), then to the lowest label: deterministic.
-
-With ``keep_specks=False`` the voted grid is then cleaned of lone vertices
-(:func:`core.convert.specks.remove_specks`). The cell size itself is chosen in
-:mod:`core.convert.cell_choice`.
+Vertex ``i`` sits on texel column ``i*N`` (:mod:`core.render.rules`) and takes the most
+frequent label of the ``N x M`` texels nearest to it (columns ``i*N - N//2`` on; on
+an even ``N`` the half-way texel goes to the later vertex). Pixels outside the photo
+vote only where no inside pixel does; ties go to the pixel under the vertex (the texel
+the render reproduces exactly), then the lowest label.
 """
 
 from __future__ import annotations
@@ -48,25 +36,10 @@ def vote_grid(
     progress: ProgressFn | None = None,
     keep_specks: bool = True,
 ) -> np.ndarray:
-    """Vertex indices by a majority vote over each vertex's ``N x M`` window.
+    """(ceil(H/M)+1, ceil(W/N)+1) uint8 vertex indices voted from (H, W) uint8 labels.
 
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Per-pixel theme indices (or class values).
-    cell : (N, M)
-        Texel columns and rows per cell.
-    progress : callable(done, total), optional
-        Called after each band of vertex rows.
-    keep_specks : bool
-        False: then every lone vertex takes its neighbours' most frequent
-        label (:func:`core.convert.specks.remove_specks`).
-
-    Returns
-    -------
-    indices : (ceil(H/M)+1, ceil(W/N)+1) uint8 ndarray
-        The most frequent label of each vertex's window (ties: the pixel
-        under the vertex, then the lowest label).
+    ``cell``: (N, M) texel columns and rows per cell; ``progress`` after each band of
+    vertex rows; ``keep_specks`` False: lone vertices take their neighbours' label.
     """
     labels = check_class_image(labels, "label image")
     n, m = validate_cell(cell)
@@ -87,12 +60,9 @@ def vote_grid(
 def vertex_window(
     rows: tuple[int, int], cols: tuple[int, int], cell: tuple[int, int], size: tuple[int, int]
 ) -> tuple[int, int, int, int]:
-    """The pixels that vertices ``rows[0]..rows[1]-1`` x ``cols[0]..cols[1]-1`` vote over.
+    """``(x, y, w, h)``: the pixels a block of vertices votes over, clipped to the photo.
 
-    Returns
-    -------
-    (x, y, w, h) : the window, clipped to the ``size = (W, H)`` photo
-        (never empty: a range of vertices past the photo takes its border pixels).
+    Never empty: vertices past the photo take its border pixels.
     """
     n, m = cell
     width, height = size
@@ -112,23 +82,11 @@ def vote_vertices(
     cols: tuple[int, int],
     k: int = 256,
 ) -> np.ndarray:
-    """Vote a block of vertices from a window of the labels (the tile job of the tiled path).
+    """(rows, cols) uint8: vote a block of vertices from a window of the labels (a tile job).
 
-    Parameters
-    ----------
-    labels : (h, w) uint8 ndarray
-        A window of the photo's labels whose top-left pixel is ``origin = (x, y)``;
-        it must hold :func:`vertex_window` of the vertex block.
-    size : (W, H)
-        The whole photo's size.
-    cell : (N, M)
-    rows, cols : (first, end) vertex ranges
-    k : int
-        Labels are below ``k``.
-
-    Returns
-    -------
-    indices : (rows[1]-rows[0], cols[1]-cols[0]) uint8 ndarray
+    ``labels``: (h, w) uint8 window at ``origin = (x, y)`` holding :func:`vertex_window` of
+    the block; ``size``: the whole photo's (W, H); ``rows``, ``cols``: (first, end) vertex
+    ranges; labels are below ``k``.
     """
     n, m = cell
     w, h = size
@@ -184,36 +142,14 @@ def labels_to_grid(
     lut: Sequence[int] | np.ndarray | None = None,
     keep_specks: bool = True,
 ) -> IndexGrid:
-    """An :class:`IndexGrid` from per-pixel labels.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray
-        Class values.
-    cell : (N, M) or int
-        Cell size; an int means a square cell.
-    lut : (256,) int array-like, optional
-        Class value -> theme index, applied before the vote (so two classes
-        that share a theme vote together). Default: the labels are theme indices.
-    keep_specks : bool
-        As :func:`vote_grid`'s.
-
-    Returns
-    -------
-    grid : IndexGrid
-    """
+    """An :class:`IndexGrid` voted from (H, W) uint8 class values, through (256,) ``lut`` first."""
     cell = (cell, cell) if isinstance(cell, int | np.integer) else cell
     themes = apply_lut(labels, lut)
     return IndexGrid(vote_grid(themes, cell, keep_specks=keep_specks), validate_cell(cell))
 
 
 def apply_lut(labels: np.ndarray, lut: Sequence[int] | np.ndarray | None) -> np.ndarray:
-    """Map class values to theme indices with a 256-entry table (None: unchanged).
-
-    Returns
-    -------
-    themes : (H, W) uint8 ndarray
-    """
+    """(H, W) uint8 theme indices: class values through a 256-entry table (None: unchanged)."""
     labels = check_class_image(labels, "label image")
     if lut is None:
         return labels

@@ -1,21 +1,8 @@
 """Orthophoto -> thematic texture: the whole pipeline behind ``terratheme convert``.
 
-Steps (each reports through ``progress(done, total)``, total = 100):
-
-1. read the photo through OpenImageIO and its GeoTIFF georeference (``core.io.georef``);
-2. classify it (``core.classify``): unsupervised with K chosen from the data,
-   a fixed K, or supervised from a scribble mask (0 = unlabelled);
-3. themes for the classes (``core.themes.from_photo``): cut from the photo and
-   made tileable, or shipped themes by name;
-4. labels -> theme indices -> the vertex grid (``core.convert.labels_to_grid``),
-   the cell size chosen from the agreement target when ``cell="auto"``;
-5. the project (``core.model.project.ThematicTexture``) with the photo, the
-   scribbles, the georeference and the cell-size curve in its metadata.
-
-:func:`write_outputs` then saves the project, a preview render cropped to the
-photo (same pixel grid, so the same georeference: a GeoTIFF preview gets the
-tags, a PNG a world file) and the vertex grid packed along a space-filling
-curve (``core.packing``).
+Read the photo and its georeference, classify it, choose themes and the cell, vote the
+grid and fit the colour map (:mod:`.step`), then :func:`write_outputs` saves the
+project, a georeferenced preview and the packed layer as one set.
 """
 
 from __future__ import annotations
@@ -78,37 +65,24 @@ class ConvertOptions:
     cell : "auto" or int
         Square cell size in texels, or chosen from the targets.
     themes : "auto", int, sequence of names or {class: name}
-        "auto"/int: number of unsupervised classes (themes cut from the
-        photo). Names: shipped themes; a list is assigned to the classes by
-        appearance (unsupervised K = auto, at most the number of names); a
-        mapping names the class values (for scribbles).
+        "auto"/int: unsupervised classes, themes cut from the photo. A list of shipped
+        theme names is assigned by appearance (K at most the names); a mapping names the
+        class values (for scribbles).
     target_agreement : float
         Share of pixels whose label the grid must keep (``cell="auto"``).
     class_target : float
-        IoU with its label view every class (of at least 0.5% of the photo)
-        must keep (``cell="auto"``): thin classes such as roads do not vanish.
+        IoU every class of at least 0.5% of the photo must keep (``cell="auto"``).
     candidates : sequence of int
-        Cell sizes tried by ``cell="auto"``: up to 16 texels (on the fidelity
-        benchmark's 54 Dubai photos, larger automatic cells of 96-256 broke
-        the mIoU ratio and the colour layout on 4 and 7 photos; capped at 16:
-        dE8 1.95, ratio >= 0.9 on every photo, fewer bytes per area).
-    patch : PatchOptions
-        Theme patch search.
+        Cell sizes ``cell="auto"`` tries.
     colour_map : ColourMapOptions or None
         The colour map fitted to the photo; None: the paper's pure rule.
     boundary : BoundaryOptions or None
-        Borders shaped by the themes' content and noise, stored as the
-        project's render style; None: the paper's barycentric ramp.
+        Content-shaped borders (the project's render style); None: the barycentric ramp.
     full_curve : bool
-        ``cell="auto"``: measure every candidate cell, for a chart of the
-        agreement curve (``convert --curve``); False: from the largest down to
-        the first that meets the targets, the same cell in less time
-        (:func:`core.convert.cell_choice.choose_cell_size`).
+        Measure every candidate cell (``convert --curve``); False: stop at the first,
+        from the largest down, that meets the targets (the same cell, faster).
     keep_specks : bool
-        False: a vertex none of whose 8 neighbours shares its theme (a
-        speck, rendered as a diamond) takes its neighbours' theme
-        (:func:`core.convert.specks.remove_specks`), in the grid and in the
-        cell choice; True: the vote as it is.
+        False: a vertex none of whose 8 neighbours shares its theme takes theirs.
     """
 
     cell: str | int = "auto"
@@ -127,20 +101,9 @@ class ConvertOptions:
 class ConvertResult:
     """What :func:`convert_photo` made.
 
-    Attributes
-    ----------
-    project : ThematicTexture
-    labels : (H, W) uint8 ndarray
-        The classifier's class values.
-    confidence : (H, W) float32 ndarray
-    mapping : ThemeMapping
-        Themes and the class -> theme index table.
-    choice : CellChoice or None
-        The agreement curve when the cell size was chosen automatically.
-    agreement : float
-        Share of photo pixels whose theme the grid's label view keeps.
-    colour : FittedColourMap or None
-        The colour map and its stored bytes.
+    ``labels``: (H, W) uint8 class values; ``confidence``: (H, W) float32; ``choice``: the
+    agreement curve when the cell was chosen; ``agreement``: share of photo pixels whose
+    theme the grid's label view keeps; ``colour``: the colour map and its bytes.
     """
 
     project: ThematicTexture
@@ -179,23 +142,14 @@ def convert_photo(
     ----------
     photo : (H, W, 3|4) uint8/uint16 ndarray
         RGB(A); transparent pixels are no data (theme ``no data``).
-    options : ConvertOptions
     scribbles : (H, W) integer ndarray, optional
         0 = unlabelled, k > 0 = class k: supervised classification.
     model : core.classify.Classifier, optional
-        A trained classifier to use instead (``terratheme classify --model-out``,
-        or a shipped one, :func:`core.classify.load_model`); with ``themes``
-        "auto" the themes take its class names when it has them.
+        A trained or shipped classifier to use instead; its class names name the themes.
     class_names : {class: name}, optional
-        With ``themes`` "auto": the themes' names, e.g. the scribble mask's
-        legend (:func:`core.io.legend.read_legend`); before the model's own.
+        With ``themes`` "auto": the themes' names (a legend's), before the model's own.
     metadata : dict, optional
         Extra project metadata (source path, georeference, ...).
-    progress : callable(done, total), optional
-
-    Returns
-    -------
-    ConvertResult
     """
     rgb, _ = prepare_photo(photo)
     h, w = rgb.shape[:2]
@@ -274,16 +228,7 @@ def read_photo(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
 def render_preview(project: ThematicTexture, max_side: int = PREVIEW_MAX_SIDE) -> tuple[
     np.ndarray, tuple[int, int, int, int]
 ]:
-    """The project rendered over the photo's extent (:func:`core.render.project.photo_extent`).
-
-    Reduced when its long side exceeds ``max_side`` (overview renderer).
-
-    Returns
-    -------
-    image : (h, w, 3) uint8 ndarray
-    region : (x, y, w, h)
-        The texels it covers.
-    """
+    """``(image, region)``: the project rendered over the photo's extent, at most ``max_side``."""
     w, h = photo_extent(project)
     scale = min(1.0, max_side / max(w, h))
     region = (0, 0, w, h)
@@ -299,8 +244,7 @@ def colour_map_file(packed_path: str | os.PathLike, codec: str = "avif") -> Path
 def output_files(project_path: str | os.PathLike, *,
                  preview_path: str | os.PathLike | None = None,
                  packed_path: str | os.PathLike | None = None) -> list[Path]:
-    """Every file :func:`write_outputs` may write for these paths (colour maps in any
-    codec, world files), so a caller can check them all before any work."""
+    """Every file :func:`write_outputs` may write for these paths (to check before any work)."""
     paths = []
     if packed_path is not None:
         paths += [Path(packed_path), *(colour_map_file(packed_path, c) for c in CODEC_SUFFIX)]
@@ -312,8 +256,7 @@ def output_files(project_path: str | os.PathLike, *,
 
 def _old_colour_maps(project_path: Path, packed_path: str | os.PathLike | None,
                      keep: list[Path]) -> list[Path]:
-    """The colour maps beside ``packed_path`` that the project being replaced shipped
-    (byte for byte its own map) and the new set does not hold: removed with it."""
+    """Colour maps beside ``packed_path`` the replaced project shipped and the new set drops."""
     old = []
     for codec in CODEC_SUFFIX if packed_path is not None else ():
         path = colour_map_file(packed_path, codec)
@@ -337,17 +280,10 @@ def write_outputs(
     packed_path: str | os.PathLike | None = None,
     preview_max_side: int = PREVIEW_MAX_SIDE,
 ) -> dict[str, Path]:
-    """Save a project, its preview render and its packed index layer (+ colour map), as a set.
+    """Save a project, its preview render and its packed layer (+ colour map) as one set.
 
-    A colour map shipped in a codec is written as those bytes beside the
-    packed layer (``<stem>_colour.avif``): together they are the packed output.
-    The files are one set (:func:`core.io.atomic.file_set`): all replaced, or
-    none, the project last. A colour map the replaced project shipped and the
-    new one has not (``--colour-map off``) is removed with it.
-
-    Returns
-    -------
-    written : {"project": path, "preview": path, "packed": path, "world": path...}
+    All replaced or none, the project last (:func:`file_set`); a colour map the replaced
+    project shipped and the new one lacks is removed with it. Returns ``{role: path}``.
     """
     # What goes where, in write order (the project names the others: last).
     plan: list[tuple[str, Path]] = []
@@ -373,7 +309,7 @@ def write_outputs(
         elif key == "colour_map":
             write_bytes_atomic(target, project.colour_map.data)
         elif key == "preview":
-            # zlib level 1: half the time of the default 6, 0.2% larger on photo renders.
+            # zlib level 1: fast, barely larger (docs/decisions.md).
             # A GeoTIFF preview carries the tags; another's world file is a member of its own.
             write_georeferenced(target, image, {} if "preview_world_file" in paths else geo,
                                 attributes={"png:compressionLevel": 1})

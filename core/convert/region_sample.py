@@ -1,18 +1,9 @@
-"""What a region's conversion chooses once, for the whole photo, read from its file.
+"""What a region's conversion chooses once, for the whole photo, read from its file (issue 34).
 
-:func:`core.convert.tiled.convert_file_tiled` converts a photo larger than
-memory tile by tile with one choice for the whole region (issue 34), so it
-gives the whole photo's texture, the same on every scheduler:
-
-* :func:`fit_unsupervised_region`: the unsupervised model from the whole
-  photo's k-means samples, drawn tile by tile in a first pass over the file
-  (:func:`core.classify.unsupervised.window_samples`: the same samples, so
-  the same themes as the whole-photo path); memory: one tile and the samples;
-* :func:`region_sample`: full-resolution windows spread over the whole photo
-  (a jittered ``grid x grid`` array, so a periodic mosaic is not sampled at one
-  phase), each classified with the tiles' context and placed side by side as
-  one sample image; the themes, the cell and the colour map's scale are
-  chosen on it (:func:`sample_colour_scale`).
+:func:`fit_unsupervised_region`: the whole photo's unsupervised model from its k-means
+samples, drawn tile by tile (the same samples, so the same themes). :func:`region_sample`:
+jittered full-resolution windows over the photo, side by side as one image, on which
+the themes, the cell and the colour map's scale are chosen.
 """
 
 from __future__ import annotations
@@ -55,12 +46,7 @@ SAMPLE_ALIGN = 48
 class FeatureSampleJob:
     """The tile job of :func:`fit_unsupervised_region`: one feature window's k-means samples.
 
-    Attributes
-    ----------
-    options : UnsupervisedOptions
-    size : (W, H) photo size
-    stride : int
-        Coarse pixels between samples, photo-wide (:func:`sampling_stride`).
+    ``size``: the (W, H) photo; ``stride``: coarse pixels between samples (:func:`sampling_stride`).
     """
 
     options: UnsupervisedOptions
@@ -88,14 +74,8 @@ def fit_unsupervised_region(
 ) -> UnsupervisedModel:
     """The whole photo's unsupervised model, its samples drawn tile by tile from the file.
 
-    The feature windows and samples are those of
-    :func:`core.classify.fit_unsupervised` on the whole photo, so the model
-    (K, centres) is the same. With theme ``names`` and ``themes="auto"``, K
-    never exceeds the number of names (as ``convert_photo`` does).
-
-    Returns
-    -------
-    core.classify.UnsupervisedModel
+    The same K and centres as :func:`fit_unsupervised` on the whole photo; with ``names``
+    and ``themes="auto"``, K never exceeds the names (as ``convert_photo``).
     """
     opts = options or UnsupervisedOptions()
     info = image_info(path)
@@ -126,17 +106,9 @@ def fit_unsupervised_region(
 class RegionSample:
     """Windows of a photo, side by side as one image, and their classes.
 
-    Attributes
-    ----------
-    windows : list of (x, y, w, h)
-        Where each piece lies in the photo.
-    places : list of (x, y)
-        Where each piece lies in ``rgb``.
-    rgb : (h, w, 3) uint8 ndarray
-        The pieces side by side (the whole photo when it fits the budget).
-    labels : (h, w) uint8 ndarray
-        Their class values, classified with ``overlap`` pixels of context
-        around each piece, as the tiles are.
+    ``windows``: each piece's (x, y, w, h) in the photo; ``places``: its (x, y) in ``rgb``;
+    ``rgb``: (h, w, 3) uint8 pieces (the whole photo when it fits); ``labels``: (h, w) uint8
+    classes, classified with context around each piece as the tiles are.
     """
 
     windows: list[tuple[int, int, int, int]]
@@ -148,23 +120,10 @@ class RegionSample:
 def sample_windows(size: tuple[int, int], piece: int | None = None, grid: int | None = None,
                    align: int = SAMPLE_ALIGN, seed: int = 0
                    ) -> list[list[tuple[int, int, int, int]]]:
-    """About ``grid x grid`` windows of ``piece`` pixels spread over a photo, or the photo.
+    """Rows of about ``grid x grid`` (x, y, w, h) windows of ``piece`` pixels, or the whole photo.
 
-    The photo is divided into ``ny x nx`` cells (about ``grid^2``, shaped as
-    the photo) and each window lies at a seeded random place inside its cell
-    (a regular placement would sample a periodic mosaic at one phase only),
-    its corner on a multiple of ``align``. The whole photo when it has no
-    more pixels than the windows together.
-
-    Parameters
-    ----------
-    size : (W, H)
-    piece, grid : int, optional
-        Default :data:`SAMPLE_PIECE` and :data:`SAMPLE_GRID`.
-
-    Returns
-    -------
-    rows : list of rows of (x, y, w, h) windows, all of one size
+    Each lies at a seeded random place in its cell of the photo (a periodic mosaic is not
+    sampled at one phase), its corner on a multiple of ``align``.
     """
     w, h = size
     piece = SAMPLE_PIECE if piece is None else int(piece)
@@ -196,14 +155,8 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
                   ) -> RegionSample:
     """Read and classify the :func:`sample_windows` of a photo (one window at a time).
 
-    Parameters
-    ----------
-    path : path-like
-    classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
-    overlap : int
-        Context pixels read around each window for the classifier, then cropped.
-    rows : rows of (x, y, w, h) windows of one size, optional
-        Default :func:`sample_windows` of the photo.
+    ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
+    window, then cropped.
     """
     info = image_info(path)
     rows = rows or sample_windows((info.width, info.height))
@@ -231,10 +184,8 @@ def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np
                         ) -> int:
     """The colour map's scale chosen on the sample (:func:`choose_colour_map`).
 
-    Each window is rendered from the region's ``grid`` (only its vertices
-    around the window, :func:`grid_window`) and placed as in the sample;
-    ``reserved``: the sample's share of the area's bytes already spent (the
-    packed grid).
+    Each window rendered from the region's ``grid`` (:func:`grid_window`); ``reserved``:
+    the sample's share of the bytes spent already.
     """
     shown = np.zeros_like(sample.rgb)
     for (x, y, w, h), (px, py) in zip(sample.windows, sample.places, strict=True):

@@ -1,18 +1,9 @@
 """Lone single-vertex specks of a vertex grid, replaced by their neighbours' theme (issue 13).
 
-A vertex none of whose 8 neighbours (inside the grid) shares its index is a
-*speck*: the renderer blends towards it along the edges of the triangles
-around it, so it reads as a diamond of its theme in another (the sample's
-dark diamonds in the sand). :func:`remove_specks` gives every speck the most
-frequent index among its neighbours, ties to the lowest index. Every vertex is
-judged on the original grid (never on one already cleaned), so the result
-does not depend on the order vertices or rows are visited. A vertex with one
-neighbour of its own theme, a diagonal one included, is not a speck: one-vertex
-wide lines (roads, a canal) are kept.
-
-:class:`SpeckStream` cleans a grid that is filled band by band (the tiled
-conversion): cleaned row ``r`` needs the original rows ``r-1 .. r+1``, so a
-row is cleaned once the row below it is final, and the last at the end.
+A vertex none of whose 8 neighbours shares its index renders as a diamond of its theme
+in another. Every vertex is judged on the original grid (order-independent); a vertex
+with one neighbour of its own, diagonals included, stays, so one-vertex lines (roads)
+are kept. :class:`SpeckStream` does the same on a grid filled band by band.
 """
 
 from __future__ import annotations
@@ -27,19 +18,9 @@ _OFFSETS = tuple((dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) 
 
 
 def remove_specks(indices: np.ndarray) -> np.ndarray:
-    """The grid with every lone vertex given its neighbours' most frequent index.
+    """(rows, cols) uint8: a new grid, each lone vertex given its neighbours' most frequent index.
 
-    Parameters
-    ----------
-    indices : (rows, cols) uint8 ndarray
-        Theme index per vertex.
-
-    Returns
-    -------
-    cleaned : (rows, cols) uint8 ndarray
-        A new array: a vertex none of whose 8 neighbours inside the grid has
-        its index takes the index most of them have (ties: the lowest); every
-        other vertex, and a grid of one vertex, is unchanged.
+    Ties go to the lowest index; every other vertex, and a one-vertex grid, is unchanged.
     """
     grid = _check_grid(indices)
     rows, cols = grid.shape
@@ -53,19 +34,10 @@ def remove_specks(indices: np.ndarray) -> np.ndarray:
 
 
 def clean_rows(window: np.ndarray, first: int, end: int) -> np.ndarray:
-    """Rows ``first .. end-1`` of ``window`` cleaned, its other rows as their neighbours only.
+    """(end-first, cols) uint8: rows ``first .. end-1`` of ``window`` cleaned.
 
-    Parameters
-    ----------
-    window : (h, cols) uint8 ndarray
-        Consecutive grid rows: the rows to clean and, where the grid has them,
-        the row above and the row below (a window's edge is taken for the grid's).
-    first, end : int
-        The rows of ``window`` to clean, ``0 <= first < end <= h``.
-
-    Returns
-    -------
-    cleaned : (end-first, cols) uint8 ndarray
+    ``window``: (h, cols) uint8 consecutive rows, with the rows above and below where the
+    grid has them (a window's edge is taken for the grid's).
     """
     h, cols = window.shape
     # -1 around the window: no neighbour there.
@@ -93,17 +65,10 @@ def clean_rows(window: np.ndarray, first: int, end: int) -> np.ndarray:
 
 
 class SpeckStream:
-    """Clean a grid in place as its rows become final, top to bottom.
+    """Clean an (rows, cols) uint8 grid in place as its rows become final, top to bottom.
 
-    The grid's rows must be written in order and never again once reported
-    final (the tiled conversion's sink). Row ``r`` is cleaned once row
-    ``r+1`` is final (its original row ``r-1`` is kept aside); :meth:`finish`
-    cleans the rest. The result equals :func:`remove_specks` of the whole grid.
-
-    Parameters
-    ----------
-    indices : (rows, cols) uint8 ndarray
-        The grid being filled: cleaned in place.
+    Rows are written in order and never again once final (the tiled sink). Row ``r`` is
+    cleaned once row ``r+1`` is final; the result equals :func:`remove_specks`.
     """
 
     def __init__(self, indices: np.ndarray) -> None:
@@ -117,13 +82,7 @@ class SpeckStream:
         return self._done
 
     def advance(self, final: int) -> int:
-        """Clean the rows the first ``final`` final rows allow; returns :attr:`cleaned`.
-
-        Parameters
-        ----------
-        final : int
-            How many first rows of the grid hold their final (original) values.
-        """
+        """Clean what the first ``final`` final (original) rows allow; returns :attr:`cleaned`."""
         rows = self._grid.shape[0]
         end = rows if final >= rows else final - 1
         start = self._done

@@ -1,18 +1,7 @@
 """The one conversion step every face of terratheme uses: classes -> themes -> grid -> colour map.
 
-``terratheme convert`` (:func:`core.convert.photo.convert_photo`), the tiled
-conversion (:mod:`core.convert.tiled`) and the editor's Classify menu all go
-through these functions, so the same photo gives the same themes everywhere:
-
-* :func:`classify_photo` -- unsupervised (K from the data, or fixed), from
-  scribbles, or with a trained model;
-* :func:`assign_themes` -- one theme per class: cut from the photo and named
-  after the closest shipped theme, shipped themes by name, or the themes of
-  an existing library (the editor's "map classes to the current themes"),
-  all matched by one colour-and-texture rule (:mod:`core.themes.matching`);
-* :func:`grid_and_colour` -- the theme labels voted to a vertex grid (cell
-  chosen from the agreement and per-class targets when asked), and the
-  colour map fitted to the photo (:mod:`core.convert.colour_fit`).
+``convert`` (:mod:`.photo`), the tiled conversion (:mod:`.tiled`) and the editor all go
+through these functions, so a photo gives the same themes everywhere.
 """
 
 from __future__ import annotations
@@ -68,29 +57,11 @@ def classify_photo(
     class_weights: Mapping[int, float] | None = None,
     progress: ProgressFn | None = None,
 ) -> tuple[Classification, object | None]:
-    """Classify a photo the way every conversion does.
+    """``(classification, trained)``: classify a photo the way every conversion does.
 
-    Parameters
-    ----------
-    rgb : (H, W, 3|4) uint8/uint16 ndarray
-    themes : ThemesSpec
-        Unsupervised: ``"auto"`` (K from the data), ``K``, or a list of names
-        (K from the data but never more than the names).
-    scribbles : (H, W) uint8 ndarray, optional
-        0 = unlabelled, k > 0 = class k: an Extra-Trees classifier trained on them.
-    model : core.classify.Classifier, optional
-        A trained classifier to use instead.
-    supervised : SupervisedOptions, optional
-        Options of the scribble classifier.
-    class_weights : {class: weight}, optional
-        Class-prior weights kept from an earlier scribble run.
-    progress : callable(done, total), optional
-
-    Returns
-    -------
-    classification : Classification
-    trained : Classifier or None
-        The scribble classifier (its prior weights), None otherwise.
+    ``model`` first, else an Extra-Trees classifier on ``scribbles`` ((H, W) uint8,
+    0 unlabelled; returned as ``trained`` for its prior weights), else unsupervised:
+    ``themes`` "auto", K, or names (K from the data, never more than the names).
     """
     if model is not None:
         return model.predict(rgb, progress=progress), None
@@ -111,27 +82,11 @@ def assign_themes(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                   themes: ThemesSpec = "auto", *,
                   patch: PatchOptions = PatchOptions(),
                   names: Mapping[int, str] | None = None) -> ThemeMapping:
-    """One theme per class (see the module docstring).
+    """One theme per class: cut from the photo, shipped by name, or an existing library's.
 
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    labels : (H, W) uint8 ndarray
-        Class values; 0 = no data.
-    classes : sequence of int
-        The classes the classifier can give (themes for absent ones too).
-    themes : ThemesSpec
-        A ThemeLibrary: each class takes its nearest theme of it (themes may
-        be shared) and the mapping's library is that library.
-    patch : PatchOptions
-    names : {class: name}, optional
-        With ``themes`` "auto"/K: the names of the themes cut from the photo
-        (a shipped classifier's class names, ``Classifier.class_names``);
-        default: the closest shipped theme's name.
-
-    Returns
-    -------
-    ThemeMapping
+    ``classes``: those the classifier can give (absent ones get themes too). A
+    ``ThemeLibrary`` ``themes``: each class takes its nearest theme (themes may be shared).
+    ``names``: with "auto"/K, names of the cut themes (a shipped model's class names).
     """
     if isinstance(themes, ThemeLibrary):
         present = [int(c) for c in classes]
@@ -157,12 +112,10 @@ GRID_SHARE = 0.125
 
 def grid_budget(colour_map: ColourMapOptions | None, pixels: int | None = None
                 ) -> float | None:
-    """The ``grid_bpp`` of :func:`themes_and_cell` for a conversion's colour map.
+    """The ``grid_bpp`` of :func:`themes_and_cell`: ``GRID_SHARE`` of a byte budget.
 
-    :data:`GRID_SHARE` of a byte budget's bits per pixel (of its
-    :meth:`ColourMapOptions.area_bytes` for ``pixels`` photo pixels when
-    given: a tiny photo's floor); None (no cap) without a map or with a
-    dE8-target map.
+    Of :meth:`ColourMapOptions.area_bytes` for ``pixels`` when given; None without a
+    budget.
     """
     if colour_map is None or colour_map.target is not None:
         return None
@@ -172,12 +125,7 @@ def grid_budget(colour_map: ColourMapOptions | None, pixels: int | None = None
 
 
 def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
-    """The ``detail`` of :func:`themes_and_cell` for a conversion's colour map.
-
-    Detail themes (:mod:`core.themes.detail`) need the map of a byte budget
-    that carries everything coarser; without a map, or with one of a colour
-    error target (a coarse map), the themes stay whole.
-    """
+    """The ``detail`` of :func:`themes_and_cell`: detail themes need a budget map."""
     return DETAIL_SIGMA if colour_map is not None and colour_map.target is None else None
 
 
@@ -194,24 +142,11 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     ) -> tuple[ThemeMapping, CellChoice | None]:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
-    When the themes are cut from the photo the class -> theme table is known
-    before any theme is cut (:func:`core.themes.from_photo.photo_theme_lut`),
-    so :func:`choose_cell_size` runs on a second thread meanwhile (its kernels
-    release the GIL); the result is the same as one after the other.
-    ``full_curve`` and ``keep_specks`` as :func:`choose_cell_size`'s.
-    ``detail``: themes cut from the photo keep only their detail finer than
-    this sigma, around mid-grey and with the photo's contrast in their class
-    (:func:`core.themes.detail.detail_library`), the colour map carrying the
-    rest; None (a conversion without a colour map) keeps them whole.
-    ``grid_bpp``: with ``cell`` "auto", the bits per photo pixel the packed
-    grid may take (:func:`core.convert.cell_choice.cell_within_budget`);
-    :func:`grid_budget` gives it for a conversion's colour map.
-
-    Returns
-    -------
-    mapping : ThemeMapping
-    choice : CellChoice or None
-        None unless ``cell`` is "auto".
+    Themes cut from the photo have their class -> theme table before any is cut, so the
+    cell is chosen on a second thread meanwhile (same result). ``detail``: cut themes keep
+    only detail finer than this sigma (:func:`detail_library`); None keeps them whole.
+    ``grid_bpp``: the packed grid's bits per photo pixel (:func:`cell_within_budget`).
+    The choice is None unless ``cell`` is "auto".
     """
     def choose(lut: np.ndarray) -> CellChoice:
         theme_labels = apply_lut(labels, lut)
@@ -246,15 +181,8 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
 class GridResult:
     """The vertex grid of a conversion and how well it keeps the labels.
 
-    Attributes
-    ----------
-    grid : IndexGrid
-    choice : CellChoice or None
-        The agreement curve when the cell size was chosen.
-    agreement : float
-        Share of photo pixels whose theme the grid's label view keeps.
-    colour : FittedColourMap or None
-        The colour map, when one was asked for.
+    ``choice``: the agreement curve when the cell was chosen; ``agreement``: share of
+    pixels whose theme the label view keeps; ``colour``: the colour map, if asked for.
     """
 
     grid: IndexGrid
@@ -279,33 +207,12 @@ def grid_and_colour(
     full_curve: bool = True,
     keep_specks: bool = True,
 ) -> GridResult:
-    """Vote the theme labels to a grid and fit the colour map.
+    """Vote the (H, W) uint8 theme labels to a grid and fit the colour map to its render.
 
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    theme_labels : (H, W) uint8 ndarray
-        Theme index per pixel (``apply_lut(labels, mapping.lut)``).
-    mapping : ThemeMapping
-    cell : "auto" or int
-    target_agreement, class_target : float
-        Targets of the automatic cell choice
-        (:func:`core.convert.cell_choice.choose_cell_size`).
-    candidates : sequence of int
-    colour_map : ColourMapOptions or None
-        None: the paper's pure rule, no colour map.
-    render : RenderOptions
-        How the project will be rendered (the colour map is fitted to that render).
-    progress : callable(done, total), optional
-    choice : CellChoice, optional
-        With ``cell`` "auto": the choice :func:`choose_cell_size` made already
-        on these labels with these targets (it is not made again).
-    full_curve : bool
-        Measure every candidate cell (:func:`choose_cell_size`).
-    keep_specks : bool
-        False: lone vertices take their neighbours' theme
-        (:func:`core.convert.specks.remove_specks`), in the grid and in the
-        cell choice's grids alike (a ``choice`` given must be made so too).
+    ``colour_map`` None: the paper's pure rule. ``render``: how the project will be
+    rendered (the map is fitted to it). ``choice``: with ``cell`` "auto", a
+    :func:`choose_cell_size` result already made on these labels (made with the same
+    ``keep_specks``). ``keep_specks`` False: lone vertices take their neighbours' theme.
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")

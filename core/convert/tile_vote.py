@@ -1,9 +1,6 @@
 """The tile jobs of the grid path: the vertices each tile owns, and how it votes them.
 
-The jobs are module-level frozen dataclasses holding what they need (the
-classifier, the class-to-theme table, the photo and cell sizes), so they
-pickle for dask.distributed worker processes; each tile window carries its
-own vertex block (:class:`VertexTile`).
+Module-level frozen dataclasses, so they pickle for dask.distributed workers.
 """
 
 from __future__ import annotations
@@ -34,20 +31,10 @@ class VertexTile(TileWindow):
 def vertex_tiles(
     size: tuple[int, int], cell: tuple[int, int], tile: int, overlap: int
 ) -> list[VertexTile]:
-    """Tile windows, each with the vertex block it owns.
+    """Tile windows row by row, each with the vertex block it owns.
 
-    Parameters
-    ----------
-    size : (W, H) photo size
-    cell : (N, M)
-    tile : int
-        About this many pixels per tile side (rounded to whole cells).
-    overlap : int
-        Context pixels read around each tile's vote window.
-
-    Returns
-    -------
-    tiles : list of VertexTile, row by row
+    ``size``: (W, H) photo; ``cell``: (N, M); ``tile``: about this many pixels a side
+    (whole cells); ``overlap``: context pixels read around each vote window.
     """
     w, h = size
     n, m = cell
@@ -63,11 +50,9 @@ def vertex_tiles(
 
 
 def _blocks(count: int, size: int) -> list[tuple[int, int]]:
-    """``(first, end)`` blocks of ``size`` over ``count`` vertices, the last one up to 1.5x long.
+    """``(first, end)`` blocks of ``size`` over ``count`` vertices; a short last one joins.
 
-    A last block under half a block joins the one before it: a photo of 2^k
-    cells has 2^k + 1 vertices, and a tile of one vertex row costs a whole
-    read window of context.
+    A photo of 2^k cells has 2^k + 1 vertices; a one-row tile would cost a read window.
     """
     starts = list(range(0, count, size))
     if len(starts) > 1 and count - starts[-1] < size / 2:
@@ -89,13 +74,8 @@ class PredictLabels:
 class VoteJob:
     """The tile job of :func:`grid_from_file`: classify with context, map, crop, vote.
 
-    Attributes
-    ----------
-    classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
-    table : (256,) uint8 ndarray or None
-        Class value -> theme index.
-    size : (W, H) photo size
-    cell : (N, M)
+    ``classify``: (h, w, C) -> (h, w) labels; ``table``: (256,) uint8 class -> theme or
+    None; ``size``: (W, H) photo; ``cell``: (N, M).
     """
 
     classify: ClassifyFn

@@ -1,23 +1,10 @@
 """The vertex grid of a photo larger than memory: classify and vote tile by tile.
 
-Each tile job owns a block of grid vertices: it reads the pixels those
-vertices vote over (:func:`core.convert.labels_to_grid.vertex_window`) plus
-``overlap`` pixels of context for the classifier's features, through
-:func:`core.io.images.read_region`; classifies them; maps classes to theme
-indices; crops the context away and votes (:func:`vote_vertices`). The grid
-is the only whole-image array (one byte per vertex), so peak memory is set by
-the tile size, not the photo size (``benchmarks/bench_convert.py``). The
-result equals :func:`core.convert.labels_to_grid.vote_grid` on the whole label image
-whenever the classifier's output on a tile with ``overlap`` context equals
-its output on the whole photo there (tested with a per-pixel classifier).
-Lone vertices are removed as the rows are stitched
-(:class:`core.convert.specks.SpeckStream`), the same as on the whole grid.
-
-Jobs run serially or on a dask.distributed cluster
-(:func:`core.io.tiles.run_tiles`); the jobs are module-level dataclasses
-(:mod:`core.convert.tile_vote`) holding what they need, so they
-pickle for worker processes, and a cluster's result is the serial one, bit
-for bit (``tests/test_scale_cluster.py``).
+Each tile job owns a block of vertices, reads the pixels they vote over plus
+``overlap`` of context, classifies, maps classes to themes, crops and votes; the grid
+(a byte a vertex) is the only whole-image array. The grid equals :func:`vote_grid` of
+the whole labels where the classifier's output with that context is the whole photo's,
+and a cluster's result is the serial one, bit for bit.
 """
 
 from __future__ import annotations
@@ -65,10 +52,7 @@ from terratheme.core.render.renderer import RenderOptions, render_cells
 if TYPE_CHECKING:
     from distributed import Client
 
-#: context pixels around each tile. The random forest of ``core.classify`` sees
-#: features up to 4 x 16 photo pixels away plus its smoothing: on a 2048^2 mosaic of
-#: Dubai photos (cell 16, tile 1024) the tiled grid differed from the whole-image grid
-#: in 21 of 16641 vertices with 32 pixels of context, 2 with 64 and none with 128.
+#: context pixels around each tile (the forest's features reach 4 x 16 px plus smoothing)
 DEFAULT_OVERLAP = 128
 
 
@@ -89,34 +73,18 @@ def grid_from_file(
 
     Parameters
     ----------
-    path : path-like
-        The photo; tiled TIFF/EXR read only the tiles a window touches.
-    cell : (N, M) or int
     classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
-        Per-tile class values (e.g. ``PredictLabels(model)``); on a cluster it
-        must pickle (a module-level function or a dataclass, not a lambda).
+        Per-tile class values (e.g. ``PredictLabels(model)``); on a cluster it must pickle.
     lut : (256,) int array-like, optional
         Class value -> theme index (default: identity).
-    tile : int
-        Tile side in pixels (rounded to whole cells).
-    overlap : int
-        Context pixels around each tile (the classifier's feature support).
+    tile, overlap : int
+        Tile side (rounded to whole cells) and context pixels around it.
     scheduler : Scheduler or distributed.Client
-        Where the tiles run (:func:`core.io.tiles.run_tiles`); every
-        scheduler gives the same grid.
-    progress : callable(done, total), optional
+        Where the tiles run; every scheduler gives the same grid.
     rows_final : callable(IndexGrid, int), optional
-        Called in this process after each tile, with the grid so far and
-        how many of its first vertex rows are final (tiles are stitched in
-        order): work on the top of the grid can start before the rest is done.
+        Called after each tile with the grid and how many first rows are final.
     keep_specks : bool
-        False: lone vertices take their neighbours' theme
-        (:func:`core.convert.specks.remove_specks`); a row is then final one
-        row later (its cleaning needs the row below), the last at the end.
-
-    Returns
-    -------
-    IndexGrid
+        False: lone vertices take their neighbours' theme (a row is final one row later).
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else tuple(cell)
     n, m = validate_cell(cell)
@@ -159,18 +127,8 @@ def grid_from_file(
 class WarmKernels:
     """A warm-up task: the tile jobs' compiled code run once on tiny inputs, on a worker.
 
-    numba loads each cached kernel on its first call: a fresh worker's first
-    tile of each stage cost 0.3-0.5 CPU seconds more than the next ones
-    (``benchmarks/bench_scale.py``, 2048^2: 1.78 and 1.72 CPU s for 4 tiles
-    on 2 workers against 1.11 and 0.55 serially). Sent by
-    :func:`core.io.cluster.warm_up` while the client cuts themes and
-    chooses the cell, the tiles do not pay it.
-
-    Attributes
-    ----------
-    classify : ClassifyFn
-    render : RenderOptions
-        The colour-map stage's render style.
+    Sent while the client cuts themes, so no tile pays numba's first-call load.
+    ``render``: the colour-map stage's render style.
     """
 
     classify: ClassifyFn
@@ -209,51 +167,26 @@ def convert_file_tiled(
 ):
     """A project for a photo larger than memory, with a trained classifier or unsupervised.
 
+    Themes, the cell and the map's scale are chosen once on the region's sample
+    (:mod:`.region_sample`), then the grid and the colour map are made tile by tile. The
+    project has no photo layer; metadata records what the choices were measured on.
+
     Parameters
     ----------
-    path : path-like
-        The photo (a tiled TIFF/BigTIFF/GeoTIFF reads best).
-    model : Classifier, NetworkClassifier, UnsupervisedModel (core.classify) or None
-        Gives the class values (``model.classes``). None: unsupervised themes
-        fitted on the whole photo's samples, drawn tile by tile
-        (:func:`core.convert.region_sample.fit_unsupervised_region`): the
-        whole photo's themes, the same in every tile.
+    model : Classifier, NetworkClassifier, UnsupervisedModel or None
+        None: unsupervised themes fitted on the whole photo's samples.
     cell : int or "auto"
-        Square cell size; "auto" chooses it on the labels of the region's
-        sample (:func:`core.convert.region_sample.region_sample`, windows
-        spread over the whole photo; :func:`core.convert.cell_choice.choose_cell_size`,
-        ``target_agreement``), recorded in the metadata (``cell_choice["measured_on"]``).
+        "auto": chosen on the sample's windows apart (``target_agreement``,
+        ``class_target``, ``candidates``), capped by a byte budget's grid share.
     names : list or {class: name}, optional
-        Shipped themes by name; default: themes cut from the region's sample
-        (classes absent there get a grey flat theme). Unsupervised: a list,
-        assigned to the themes by colour.
+        Shipped themes by name (unsupervised: a list, assigned by appearance); default:
+        themes cut from the sample.
     themes : "auto" or int
-        Unsupervised (``model`` None) only: K from the data or that many themes.
-    tile, overlap, scheduler : see :func:`grid_from_file`
+        Unsupervised only: K from the data or that many themes.
+    tile, overlap, scheduler
+        As :func:`grid_from_file`.
     progress : callable(done, total), optional
-        Tiles of each pass, each from ``(0, total)``: the unsupervised samples
-        (without a model), the grid, the colour map.
-    class_target : float
-        Per-class IoU target of the cell choice (as ``convert_photo``'s).
-    candidates : sequence of int
-        Cell sizes ``cell="auto"`` tries: by default ``convert``'s
-        (:data:`core.convert.cell_choice.CONVERT_CELL_CANDIDATES`, as
-        :class:`core.convert.photo.ConvertOptions`), so a tiled conversion
-        picks its cell from the same sizes as the whole-image one.
-    colour_map : ColourMapOptions or None
-        Its scale chosen on the region's sample, then fitted tile by tile
-        (:func:`core.convert.colour_fit.colour_map_from_file`); None: none.
-    boundary : BoundaryOptions or None
-        The project's render style (shaped borders), as ``convert_photo``'s.
-    keep_specks : bool
-        As :class:`core.convert.photo.ConvertOptions`' (default False: lone
-        vertices removed, in the cell choice and the grid).
-
-    Returns
-    -------
-    project : ThematicTexture
-        Metadata: ``source_photo``, ``georeference``, ``photo_size``, ``classes``;
-        no photo layer (it does not fit in memory).
+        Tiles of each pass (samples, grid, colour map), each from 0.
     """
     info = image_info(path)
     if not isinstance(scheduler, Scheduler):
