@@ -99,12 +99,7 @@ def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
 def sample_features(
     rgb: np.ndarray, valid: np.ndarray | None, options: UnsupervisedOptions
 ) -> np.ndarray:
-    """Weighted feature vectors of (at most ``max_samples``) coarse pixels.
-
-    Returns
-    -------
-    samples : (n, F) float32 ndarray
-    """
+    """Weighted feature vectors (n, F) float32 of at most ``max_samples`` coarse pixels."""
     fo = options.features
     h, w = rgb.shape[:2]
     stride = sampling_stride(h, w, fo.scale, options.max_samples)

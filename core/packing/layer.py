@@ -45,8 +45,6 @@ class PackedLayer:
 
     Attributes
     ----------
-    width, height : int
-    curve : Curve
     palette : (K, C) uint8 or uint16 ndarray
         Colour of each palette index (``K <= 256``).
     identity : bool

@@ -53,13 +53,8 @@ class CurveChoice(enum.Enum):
 class TilePalette:
     """Palette indices of run keys across tiles; colours in order of first appearance.
 
-    Parameters
-    ----------
-    identity : bool
-        Keys are the indices themselves (an index image, values < 256).
-    channels : int
-    dtype : numpy dtype
-        Of the image's samples (keys hold the channels packed, ``colour_keys``).
+    ``identity``: keys are the indices themselves (an index image); else keys hold the
+    ``channels`` samples of ``dtype`` packed (:func:`.palette.colour_keys`).
     """
 
     def __init__(self, identity: bool, channels: int, dtype: np.dtype) -> None:
@@ -120,7 +115,6 @@ def pack(
         Display colours of an index image's values.
     tile_bits : int, optional
         A :class:`TiledLayer` of ``2^tile_bits`` tiles (6..16); forced past 65536 a side.
-    progress : callable(done, total), optional
 
     Returns a PackedLayer or TiledLayer; TerrathemeError for an empty image, unsupported
     pixels, too many colours, or display colours for a colour image.

@@ -126,15 +126,8 @@ def image_runs(arr: np.ndarray, curve: Curve) -> Runs:
 
 
 def reduce_palette(arr: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, PaletteReport]:
-    """Reduce a ``(H, W, C)`` image to at most 256 colours (k-means, OpenCV).
-
-    Images that already have at most 256 colours come back unchanged.
-
-    Returns
-    -------
-    reduced : (H, W, C) ndarray, same dtype
-    report : PaletteReport
-    """
+    """A ``(H, W, C)`` image reduced to at most 256 colours (k-means, OpenCV; unchanged if it
+    has no more), same dtype, and its :class:`PaletteReport`."""
     import cv2
 
     keys = colour_keys(arr).reshape(-1)

@@ -47,17 +47,10 @@ class TiledLayer:
 
     Attributes
     ----------
-    width, height : int
-    tile_bits : int
-        log2 of the tile side.
     palette : (K, C) ndarray, uint8 or uint16
         The whole layer's palette; tiles hold indices into it.
-    identity, squeeze : bool
+    identity, squeeze, colours, threads
         As for :class:`PackedLayer`.
-    colours : (K, 3|4) uint8 ndarray or None
-        Display colours of an identity layer.
-    threads : int
-        Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
     join : bool
         Look texels up through one joined table (:mod:`.joined`) when the tiles allow it;
         False: through each tile's own table. Both give the same answers.
@@ -84,12 +77,8 @@ class TiledLayer:
     def from_tile_bytes(cls, width: int, height: int, tile_bits: int, tiles: list[bytes],
                         palette: np.ndarray, *, identity: bool, squeeze: bool,
                         colours: np.ndarray | None = None) -> TiledLayer:
-        """A tiled layer from its tiles' files (rows from the top-left).
-
-        Each tile must be a packed layer of palette indices (identity),
-        ``2^tile_bits`` texels a side except in the last column and row; tiles
-        are checked when first decoded.
-        """
+        """A tiled layer from its tiles' files (rows from the top-left): packed index layers
+        ``2^tile_bits`` a side except in the last column and row, checked when first decoded."""
         # A palette PNG's table lists more colours than the image uses: keep the palette's K.
         colours = check_colours(colours, len(palette), identity)
         head = _header(width, height, tile_bits, palette, identity, squeeze, colours)

@@ -151,13 +151,8 @@ def read_tiled_header(data: bytes, *, name: str, file_bytes: int) -> TiledHeader
 
 
 def read_index(data: bytes, head: TiledHeader, *, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Check the index and its checksum (``data`` holds the file up to the first tile).
-
-    Returns
-    -------
-    offsets, lengths : (N,) int64 ndarrays
-        Byte offset (in the file) and length of each tile.
-    """
+    """Check the index and its checksum (``data``: the file up to the first tile); returns
+    each tile's byte offset in the file and length, (N,) int64 each."""
     if len(data) < head.tiles_at:
         raise CorruptFileError(f"{name}: truncated tile index")
     (stored,) = struct.unpack_from("<I", data, head.tiles_at - 4)
