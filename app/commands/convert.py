@@ -1,9 +1,8 @@
-"""``terratheme convert``: orthophoto -> thematic texture project, preview and packed index layer.
+"""``terratheme convert``: orthophoto -> thematic texture project, preview and packed layer.
 
-Runs the whole pipeline of :mod:`core.convert.photo` with a progress bar and
-writes, by default beside PROJECT: ``<stem>_preview.png`` (the render over
-the photo's extent; a world file beside it when the photo is a GeoTIFF) and
-``<stem>.ttpack`` (the vertex grid packed along a space-filling curve).
+Runs :mod:`core.convert.photo` (or the tiled path with ``--tile``) with a progress bar
+and writes, by default beside PROJECT, ``<stem>_preview.png`` (with a world file for a
+GeoTIFF photo), ``<stem>.ttpack`` and its colour map ``<stem>_colour.<codec>``.
 """
 
 from __future__ import annotations
@@ -393,7 +392,8 @@ def _scheduler(args):
 def _tile_progress(photo: str, sampled: bool):
     """A progress bar of tiles done and megapixels per second, one stage after the other.
 
-    ``sampled``: unsupervised, a first pass draws the samples of the themes."""
+    ``sampled``: unsupervised, a first pass draws the samples of the themes.
+    """
     import time
 
     from terratheme.app.progress import StageBar
