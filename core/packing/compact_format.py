@@ -105,15 +105,10 @@ def _inflate(data: bytes, name: str, what: str, limit: int) -> bytes:
 def decode_runs(
     payload: bytes, count: int, palette_size: int, *, name: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`encode_runs`.
+    """Inverse of :func:`encode_runs`: ``count`` lengths (int64) and indices (uint8).
 
-    Returns
-    -------
-    lengths : (count,) int64 ndarray
-    indices : (count,) uint8 ndarray
-
-    Raises CorruptFileError (truncated or inconsistent streams, unknown codec, impossible
-    values).
+    Raises CorruptFileError for truncated or inconsistent streams, an unknown codec or
+    impossible values.
     """
     if len(payload) < 1:
         raise CorruptFileError(f"{name}: empty run payload")
