@@ -60,6 +60,20 @@ def test_detail_gain_brings_the_theme_to_the_photo_contrast():
         detail_energy(photo.astype(np.uint8)), rel=0.2)
 
 
+def test_a_fragment_theme_gets_half_the_photo_contrast():
+    from terratheme.core.themes.detail import FRAGMENT_COHERENCE, FRAGMENT_GAIN, edge_coherence
+
+    xx = np.indices((32, 32))[1]
+    # Vertical stripes: one orientation only, a fragment theme; the photo's are twice as strong.
+    stripes = (xx // 4 % 2 * 2 - 1).astype(float)
+    theme = np.repeat((100 * (1 + 0.05 * stripes))[:, :, None], 3, axis=2).round()
+    photo = np.repeat((200 * (1 + 0.10 * stripes))[:, :, None], 3, axis=2).round()
+    assert edge_coherence(theme.astype(np.uint8)) > FRAGMENT_COHERENCE
+    lib = ThemeLibrary([Theme("town", (1, 2, 3), theme.astype(np.uint8))])
+    gains = detail_gains(photo.astype(np.uint8), np.zeros((32, 32), np.uint8), lib)
+    assert gains[0] == pytest.approx(2.0 * FRAGMENT_GAIN, rel=0.1)
+
+
 def test_detail_library_keeps_names_and_colours():
     tex = np.zeros((8, 8, 3), np.uint8)
     tex[::2] = 200

@@ -28,6 +28,8 @@ EVEN_RANGE = (0.25, 4.0)
 FRAGMENT_COHERENCE = 0.55
 #: Gaussian sigma (texels) of a fragment theme's detail (:func:`theme_detail`)
 CALM_SIGMA = 2.5
+#: a fragment theme's contrast over the photo's in its class (:func:`detail_gains`)
+FRAGMENT_GAIN = 0.5
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 
@@ -109,7 +111,8 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     """Per theme, the contrast gain that gives its detail the photo's in its class.
 
     ``sqrt(photo energy over the theme's pixels / theme energy)`` at the sigma
-    :func:`theme_detail` used, clipped to ``GAIN_RANGE``; 1 for an unused or flat theme.
+    :func:`theme_detail` used (times ``FRAGMENT_GAIN`` for a fragment theme), clipped
+    to ``GAIN_RANGE``; 1 for an unused or flat theme.
     ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel.
     """
     y = np.asarray(photo, np.float32).mean(axis=2)
@@ -126,7 +129,12 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
         if s not in sums:
             sums[s] = np.bincount(labels, (_relative(y, s, wrap=False) ** 2).ravel(),
                                   minlength=len(library))
-        gains.append(float(np.clip(np.sqrt(sums[s][k] / counts[k] / own), *GAIN_RANGE)))
+        gain = np.sqrt(sums[s][k] / counts[k] / own)
+        if edge_coherence(theme.texture, sigma) > FRAGMENT_COHERENCE:
+            # Scrambled fragments match the photo's edges in energy only: at full contrast
+            # they read as dark speckle over the map's streets.
+            gain *= FRAGMENT_GAIN
+        gains.append(float(np.clip(gain, *GAIN_RANGE)))
     return gains
 
 
