@@ -7,9 +7,9 @@ import json
 
 import numpy as np
 import pytest
+import sfc_steps
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from terratheme.core.curves import steps as sfc
 from terratheme.core.curves.scan import ranks_to_steps
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.packing import PackedLayer, pack
@@ -232,7 +232,7 @@ def test_lookup_agrees_with_numpy_searchsorted(width, height, curve, runs, seed)
     # Over 2^16 points: the multi-threaded kernel; the serial one below.
     xs = rng.integers(0, width, 70_000)
     ys = rng.integers(0, height, 70_000)
-    s = sfc.steps_of(xs, ys, width, height, curve).astype(np.int64)
+    s = sfc_steps.steps_of(xs, ys, width, height, curve).astype(np.int64)
     expected = indices[np.searchsorted(steps, s, side="left")]
     assert np.array_equal(layer.lookup(xs, ys), expected)
     assert np.array_equal(dataclasses.replace(layer, threads=1).lookup(xs, ys), expected)

@@ -15,9 +15,6 @@ __all__ = [
     "fill_runs",
     "scan_order",
     "scan_runs",
-    "step_table",
-    "steps_of",
-    "texels_of",
 ]
 
 
@@ -31,8 +28,4 @@ def __getattr__(name: str) -> object:
         from terratheme.core.curves.fill import fill_runs
 
         return fill_runs
-    if name in ("step_table", "steps_of", "texels_of"):
-        from terratheme.core.curves import steps
-
-        return getattr(steps, name)
     raise AttributeError(f"module 'terratheme.core.curves' has no attribute {name!r}")

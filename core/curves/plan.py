@@ -38,13 +38,9 @@ class BlockPlan:
     patterns: np.ndarray
 
 
-def local_patterns(b: int, curve: str | Curve) -> np.ndarray:
-    """(4, 4^b) uint16: ``(ly << b) | lx`` (y up) of each local step, per Hilbert state."""
-    return _patterns(int(b), Curve.parse(curve))
-
-
 @lru_cache(maxsize=8)
 def _patterns(b: int, curve: Curve) -> np.ndarray:
+    """(4, 4^b) uint16: ``(ly << b) | lx`` (y up) of each local step, per Hilbert state."""
     i = np.arange(4**b, dtype=np.uint64)
     if curve is Curve.MORTON:
         x, y = morton_d2xy(i, b)

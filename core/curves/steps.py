@@ -1,18 +1,11 @@
-"""The curves themselves: texel <-> curve step (seed sfc_packing.txt, section 1).
-
-Orientation (design.md §4, ``vectors/sfc_8x8.json``): step 0 (the seed's step 1) is the
-bottom-left texel ``(column 0, row H-1)`` and the Hilbert curve's first move is upward.
-Steps outside a non-square image are skipped but counted: a step is always the position
-on the enclosing square's curve. Public coordinates are ``(cols, rows)``, row 0 on top;
-steps are 0-based ``uint64`` (the seed's numbers: ``one_based=True``).
+"""The curves themselves: point <-> curve step on the ``2^n`` square, y up (seed
+sfc_packing.txt, section 1; orientation in design.md §4, ``vectors/sfc_8x8.json``).
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
-from terratheme.core.curves.square import Curve, curve_order, hilbert_transposed
-from terratheme.core.errors import TerrathemeError
 
 # One implementation of each curve, as scalar numba functions: the packed layer's
 # lookups call them per texel (core.packing.lookup); the array functions loop over them.
@@ -54,7 +47,7 @@ def hilbert_walk(x, y, n, tables, start=0):  # pragma: no cover - numba
     bit 0 = swap x/y, bit 1 = flip both (the transforms of Hacker's Delight /
     Wikipedia's ``rot``, which commute, so two bits describe their composition).
     ``start`` is the state the walk begins in: the local step of a texel in a
-    block whose pattern is that state (:func:`core.curves.plan.local_patterns`).
+    block whose pattern is that state (:func:`core.curves.plan._patterns`).
     """
     d = np.uint64(0)
     state = start
@@ -198,64 +191,3 @@ def morton_d2xy(d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     xs, ys = np.empty(flat.size, np.int64), np.empty(flat.size, np.int64)
     _morton_points(flat, xs, ys)
     return xs.reshape(d.shape), ys.reshape(d.shape)
-
-
-# ---------------------------------------------------------------- image coordinates
-
-
-def _upward(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    return (y, x) if hilbert_transposed(n) else (x, y)
-
-
-def steps_of(
-    cols: np.ndarray, rows: np.ndarray, width: int, height: int, curve: str | Curve,
-    *, one_based: bool = False,
-) -> np.ndarray:
-    """Curve steps of texels ``image[rows, cols]`` (row 0 on top) of a ``width x height`` image.
-
-    0-based uint64, or the seed's 1-based numbers as int64 with ``one_based``.
-    """
-    curve = Curve.parse(curve)
-    n = curve_order(width, height)
-    cols = np.asarray(cols, dtype=np.int64)
-    rows = np.asarray(rows, dtype=np.int64)
-    if cols.size and (cols.min() < 0 or cols.max() >= width
-                      or rows.min() < 0 or rows.max() >= height):
-        raise TerrathemeError(f"texel coordinates outside the {width} x {height} image")
-    yup = (height - 1) - rows
-    if curve is Curve.HILBERT:
-        d, _ = hilbert_xy2d(*_upward(cols, yup, n), n)
-    else:
-        d = morton_xy2d(cols, yup, n)
-    return d.astype(np.int64) + 1 if one_based else d
-
-
-def texels_of(
-    steps: np.ndarray, width: int, height: int, curve: str | Curve, *, one_based: bool = False
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Texel ``(cols, rows)`` int64 of curve steps (row 0 on top), and ``inside`` (bool):
-    False for steps of the enclosing square the image does not cover (cols, rows then
-    meaningless)."""
-    curve = Curve.parse(curve)
-    n = curve_order(width, height)
-    d = np.asarray(steps, dtype=np.int64)
-    if one_based:
-        d = d - 1
-    if d.size and (d.min() < 0 or d.max() >= 4**n):
-        raise TerrathemeError(f"curve step outside 0 .. {4**n - 1} for a {2**n}^2 square")
-    if curve is Curve.HILBERT:
-        x, yup = _upward(*hilbert_d2xy(d, n), n)
-    else:
-        x, yup = morton_d2xy(d, n)
-    inside = (x < width) & (yup < height)
-    return x, (height - 1) - yup, inside
-
-
-def step_table(
-    width: int, height: int, curve: str | Curve, *, one_based: bool = True
-) -> np.ndarray:
-    """(height, width) int64 step of every texel (1-based by default), as ``hilbert_steps``."""
-    rows, cols = np.mgrid[0:height, 0:width]
-    return steps_of(cols, rows, width, height, curve, one_based=True).astype(np.int64) - (
-        0 if one_based else 1
-    )
