@@ -93,18 +93,14 @@ def _perspective() -> None:
     from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
     from terratheme.core.perspective.family import build_family
     from terratheme.core.perspective.footprint import footprint_parameters
-    from terratheme.core.perspective.options import Lookup
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
     camera, size = Camera(height=8, pitch=20), (16, 12)
-    # Every method, and the seed's lookup, on 8-bit and on float textures (heights, HDR).
+    # Every method on 8-bit and on float textures (heights, HDR).
     for tex in (texture, texture.astype(np.float32) / 255):
         for method in Method:
-            for skew_blend in ((False, True) if method is Method.PARALLELOGRAM else (False,)):
-                opts = FilterOptions(method=method, skew_blend=skew_blend)
-                PreparedTexture(tex, opts).render(camera, size)
-        PreparedTexture(tex, FilterOptions(lookup=Lookup.SEED)).render(camera, size)
+            PreparedTexture(tex, FilterOptions(method=method)).render(camera, size)
     for other in (texture[:, :, :1], np.concatenate([texture, texture[:, :, :1]], axis=2)):
         PreparedTexture(other, FilterOptions()).render(camera, size)
     # The family of a float grid stored in 8 and 16 bits; the footprints alone.

@@ -19,7 +19,7 @@ from terratheme.core.perspective.mapping import (
     camera_mapping,
     check_size,
 )
-from terratheme.core.perspective.options import FilterOptions, Lookup, Method
+from terratheme.core.perspective.options import FilterOptions, Method
 from terratheme.core.perspective.render import (
     PreparedTexture,
     RenderResult,
@@ -35,7 +35,6 @@ __all__ = [
     "FlightControls",
     "FlightInput",
     "Footprint",
-    "Lookup",
     "Method",
     "PlaneMapping",
     "PreparedTexture",

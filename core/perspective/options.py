@@ -30,28 +30,19 @@ class Method(StrEnum):
 PYRAMID_METHODS = frozenset({Method.TRILINEAR, Method.ANISO, Method.EWA})
 
 
-class Lookup(StrEnum):
-    """How ``PARALLELOGRAM`` reads the family of prefiltered copies."""
-
-    COVERAGE = "coverage"  # the pixel's parallelogram summed over the cells it covers
-    SEED = "seed"  # eqs. 5-9 as published: three copies blended by the mantissas
-
-
 @dataclass(frozen=True)
 class FilterOptions:
     """How a frame is filtered.
 
     ``max_anisotropy``: ``PARALLELOGRAM`` cells up to this elongation (``lambda =
-    2^ceil(log2)``; ``COVERAGE`` reads footprints about ``cells_per_footprint`` times
-    longer sharp); ``SEED`` clamps the footprint to it, ``ANISO`` takes at most this
-    many probes, ``EWA`` clamps its ellipse's eccentricity. ``aperture``: scale of the
-    pixel footprint (1: eq. 2's parallelogram; the seed's 2 x 2-pixel filter: 2).
-    ``skew_oversampling``: 1 or 2 times the seed's skews (2 doubles the memory).
-    ``cells_per_footprint``: ``COVERAGE`` spans this to twice this many cells along
-    (sharper ends, more reads). ``lookup``, ``skew_blend``: ``PARALLELOGRAM`` only
-    (blend interpolates the two skews around ``tan``: twice the reads, helps ``SEED``
-    only). ``sky``: colour above the horizon in [0, 1]. ``reference_*``: ``REFERENCE``
-    sub-samples per texel of footprint along each screen axis, within the bounds.
+    2^ceil(log2)``; footprints about ``cells_per_footprint`` times longer are read sharp),
+    ``ANISO`` takes at most this many probes, ``EWA`` clamps its ellipse's eccentricity.
+    ``aperture``: scale of the pixel footprint (1: eq. 2's parallelogram; the seed's
+    2 x 2-pixel filter: 2). ``skew_oversampling``: 1 or 2 times the seed's skews (2 doubles
+    the memory). ``cells_per_footprint``: ``PARALLELOGRAM`` spans this to twice this many
+    cells along (sharper ends, more reads). ``sky``: colour above the horizon in [0, 1].
+    ``reference_*``: ``REFERENCE`` sub-samples per texel of footprint along each screen
+    axis, within the bounds.
     """
 
     method: Method = Method.PARALLELOGRAM
@@ -59,23 +50,18 @@ class FilterOptions:
     aperture: float = 1.0
     skew_oversampling: int = 1
     cells_per_footprint: float = 3.0
-    lookup: Lookup = Lookup.COVERAGE
-    skew_blend: bool = False
     sky: tuple[float, ...] = (0.62, 0.74, 0.88)
     reference_density: float = 2.0
     reference_min_samples: int = 4
     reference_max_samples: int = 256
 
     def __post_init__(self) -> None:
-        for name, enum, what in (("method", Method, "filter method"),
-                                 ("lookup", Lookup, "lookup")):
-            try:
-                object.__setattr__(self, name, enum(getattr(self, name)))
-            except ValueError:
-                names = ", ".join(m.value for m in enum)
-                raise TerrathemeError(
-                    f"unknown {what} {getattr(self, name)!r} (choose from {names})"
-                ) from None
+        try:
+            object.__setattr__(self, "method", Method(self.method))
+        except ValueError:
+            names = ", ".join(m.value for m in Method)
+            raise TerrathemeError(
+                f"unknown filter method {self.method!r} (choose from {names})") from None
         if not (math.isfinite(self.max_anisotropy) and 1.0 <= self.max_anisotropy <= 4096):
             raise TerrathemeError(
                 f"max_anisotropy must be in [1, 4096], got {self.max_anisotropy}"
@@ -88,8 +74,6 @@ class FilterOptions:
         if not (math.isfinite(self.cells_per_footprint) and 1.0 <= self.cells_per_footprint <= 16):
             raise TerrathemeError(
                 f"cells_per_footprint must be in [1, 16], got {self.cells_per_footprint}")
-        if not isinstance(self.skew_blend, bool):
-            raise TerrathemeError(f"skew_blend must be True or False, got {self.skew_blend!r}")
         if len(self.sky) == 0 or not all(math.isfinite(c) for c in self.sky):
             raise TerrathemeError(f"sky colour must be finite numbers, got {self.sky}")
         if not (self.reference_density > 0 and math.isfinite(self.reference_density)):

@@ -23,9 +23,9 @@ from terratheme.core.perspective.family import (
     build_family,
     family_layout,
 )
-from terratheme.core.perspective.lookup import coverage_kernel, seed_kernel
+from terratheme.core.perspective.lookup import coverage_kernel
 from terratheme.core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
-from terratheme.core.perspective.options import PYRAMID_METHODS, FilterOptions, Lookup, Method
+from terratheme.core.perspective.options import PYRAMID_METHODS, FilterOptions, Method
 from terratheme.core.perspective.reference import reference_kernel
 from terratheme.core.perspective.texture import (
     MipPyramid,
@@ -237,14 +237,10 @@ class PreparedTexture:
             if m == Method.PARALLELOGRAM:
                 fam = self.family(opt)
                 k, so = fam.max_lambda_log2, fam.skew_oversampling
-                if opt.lookup == Lookup.COVERAGE:
-                    reads = coverage_kernel(
-                        fam.buf, fam.start, fam.count, gw, gh, k, so,
-                        float(opt.cells_per_footprint), tex, tw, th, self.su, self.sv,
-                        u, v, dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
-                else:
-                    reads = seed_kernel(fam.buf, fam.start, fam.count, gw, gh, k, so, u, v,
-                                        dux, dvx, duy, dvy, bool(opt.skew_blend), valid, out)
+                reads = coverage_kernel(
+                    fam.buf, fam.start, fam.count, gw, gh, k, so,
+                    float(opt.cells_per_footprint), tex, tw, th, self.su, self.sv,
+                    u, v, dux, dvx, duy, dvy, valid, out)
             else:
                 pyr = self.pyramid
                 args = (pyr.buf, pyr.offsets, pyr.heights, pyr.widths, u, v, dux, dvx, duy, dvy)

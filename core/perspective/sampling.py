@@ -54,20 +54,6 @@ def add_bilinear(buf, off, rows, cols, x, y, w, out):
 
 
 @njit(cache=True, inline="always")
-def add_column_lerp(buf, off, rows, cols, i, y, w, out):
-    """``out += w * `` linear interpolation down column ``i`` at height ``y``."""
-    ys = wrap_coord(y - 0.5, rows)
-    j0 = int(ys)
-    fy = ys - j0
-    j1 = j0 + 1
-    if j1 == rows:
-        j1 = 0
-    add_texel(buf, off, cols, i, j0, w * (1.0 - fy), out)
-    add_texel(buf, off, cols, i, j1, w * fy, out)
-    return 2
-
-
-@njit(cache=True, inline="always")
 def add_mip_bilinear(buf, offsets, heights, widths, level, x, y, w, out):
     """``out += w * `` bilinear read of mip ``level`` at ``(x, y)`` in level-0 texels."""
     rows, cols = heights[level], widths[level]
