@@ -14,6 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import moderngl
 import numpy as np
 import pytest
@@ -175,6 +176,27 @@ def test_filtered_path_at_scale_one_is_within_one_level(even):
         gpu = even.render(grid, (16, 8), options=GpuRenderOptions(
             blend=blend, sampling=Sampling.FILTERED))
         assert np.abs(cpu.astype(np.int16) - gpu).max() <= 1
+
+
+@pytest.mark.parametrize("scale", [0.5, 1 / 3, 0.4, 0.15])
+def test_flat_filtered_render_is_the_area_mean_of_themes_of_any_size(odd, scale):
+    # Themes of odd sizes (7 x 5 ... 3 x 11) have no aligned mip levels: each output pixel
+    # must still be its footprint's exact area mean (cv2's INTER_AREA on the full render).
+    region = (5, 3, 60, 45)
+    for k in range(len(ODD_THEMES)):
+        grid = np.full((5, 6), k, np.uint8)
+        full = render_cells(grid, ODD_THEMES, (13, 12), region)
+        gpu = odd.render(grid, (13, 12), region, scale=scale)
+        want = cv2.resize(full, gpu.shape[1::-1], interpolation=cv2.INTER_AREA)
+        assert np.abs(want.astype(np.int16) - gpu).max() <= 1, f"theme {k}"
+
+
+def test_filtered_path_at_scale_one_gives_the_texels_of_themes_of_any_size(odd):
+    rng = np.random.default_rng(8)
+    grid = rng.integers(0, 4, (7, 9)).astype(np.uint8)
+    cpu = render_cells(grid, ODD_THEMES, (16, 8))
+    gpu = odd.render(grid, (16, 8), options=GpuRenderOptions(sampling=Sampling.FILTERED))
+    assert np.abs(cpu.astype(np.int16) - gpu).max() <= 1
 
 
 def test_filtered_overview_is_close_to_the_cpu_overview(even):

@@ -267,11 +267,11 @@ def test_cli_gpu_renders_a_converted_project_in_its_own_style(odd, tmp_path, cap
         gpu, cpu = read_image(tmp_path / "gpu.png"), read_image(tmp_path / "cpu.png")
         _assert_equal(cpu, gpu)
     # Below scale 1 the shaders draw the shaped borders too: close to the full render
-    # area-averaged (6.1 levels here with themes that carry only fine detail, which the
-    # mipmaps average; the CPU overview 1.1).
+    # area-averaged, as the CPU overview is (1.15 levels here). Fine detail themes of odd
+    # sizes (33 x 33) read from misaligned mipmaps were 6.1 levels off.
     assert main(["render", str(path), str(tmp_path / "small.png"), "--gpu", "--scale",
                  "0.5"]) == 0
     small = read_image(tmp_path / "small.png")
     full = render_project(project)
     truth = cv2.resize(full, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
-    assert np.abs(small.astype(np.int16) - truth).mean() < 7
+    assert np.abs(small.astype(np.int16) - truth).mean() < 2

@@ -21,7 +21,7 @@ class Sampling(Enum):
     AUTO = "auto"
     #: texelFetch with integer wrap: the CPU render's texels (scale 1 only)
     EXACT = "exact"
-    #: mipmaps and anisotropic filtering at any scale (the fly-over's path)
+    #: any scale: each theme's mean over the pixel (the fly-over: mipmaps, anisotropic)
     FILTERED = "filtered"
 
 

@@ -16,7 +16,8 @@ from terratheme.core.gpu.style import Style
 
 
 class RenderMode(NamedTuple):
-    """The style of a render and its sampling path."""
+    """The style of a render and its sampling path (a flat render's filtered path reads
+    box means, ``TT_BOX``: its footprints are axis-aligned)."""
 
     style: Style
     filtered: bool
@@ -26,7 +27,8 @@ class RenderMode(NamedTuple):
         blend = kind == "blend"
         return Variant(kind, histogram=self.style.histogram and blend,
                        shaped=self.style.border is not None and blend, filtered=self.filtered,
-                       colour_map=self.style.colour_map is not None, lut_size=lut_size)
+                       colour_map=self.style.colour_map is not None, lut_size=lut_size,
+                       box=self.filtered and blend)
 
 
 class RenderPlan(NamedTuple):

@@ -16,7 +16,7 @@ from terratheme.core.gpu.shaders import shader_source
 #: texture unit of every sampler uniform (the renderer binds its textures there)
 UNITS = {"tt_grid": 0, "tt_splits": 1, "tt_themes": 2, "tt_gauss": 3, "tt_inverse_lut": 4,
          "tt_colour_map": 5, "tt_height": 7, "tt_frame": 8,
-         "tt_base": 9, "tt_packed": 10, "tt_points": 11}
+         "tt_base": 9, "tt_packed": 10, "tt_points": 11, "tt_box": 12}
 #: (vertex shader, fragment shader, extra defines) of each program kind
 SOURCES = {
     "blend": ("tt_rect.vert.glsl", "tt_terrain.frag.glsl", {}),
@@ -42,6 +42,7 @@ class Variant(NamedTuple):
     lut_size: int = 4096
     probes: int = 0
     base: bool = False
+    box: bool = False
 
     def defines(self, themes: int, one_size: bool) -> dict[str, int]:
         """The ``#define`` values of this variant for ``themes`` themes."""
@@ -49,7 +50,7 @@ class Variant(NamedTuple):
                 "TT_SHAPED": int(self.shaped), "TT_FILTERED": int(self.filtered),
                 "TT_WRAP": int(self.wrap), "TT_COLOUR_MAP": int(self.colour_map),
                 "TT_ONE_SIZE": int(one_size), "TT_LUT_SIZE": self.lut_size,
-                "TT_PROBES": self.probes, "TT_BASE": int(self.base),
+                "TT_PROBES": self.probes, "TT_BASE": int(self.base), "TT_BOX": int(self.box),
                 **SOURCES[self.kind][2]}
 
 

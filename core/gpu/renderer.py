@@ -2,8 +2,9 @@
 
 Same inputs and messages as :func:`core.render.render_cells`. ``Sampling.EXACT`` (scale
 1) gives the CPU render's texels (within one level for the histogram-preserving blend);
-``Sampling.FILTERED`` (any scale) uses mipmaps and sub-sampled weights. Large outputs
-are drawn in tiles of ``GpuRenderOptions.tile`` pixels.
+``Sampling.FILTERED`` (any scale) uses each theme's box mean over the pixel (summed-area
+tables) and sub-sampled weights. Large outputs are drawn in tiles of
+``GpuRenderOptions.tile`` pixels.
 """
 
 from __future__ import annotations
@@ -155,7 +156,8 @@ class GpuRenderer:
 
     def _start(self, plan: RenderPlan, options: GpuRenderOptions) -> None:
         """Bind the textures and make the framebuffer current."""
-        self.style.bind(plan.mode.style, plan.mode.filtered, options.max_anisotropy)
+        self.style.bind(plan.mode.style, plan.mode.filtered, options.max_anisotropy,
+                        box=plan.mode.filtered)
         ow, oh = plan.out_size
         self.pipeline.framebuffer(min(plan.tile, ow), min(plan.tile, oh))
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)

@@ -62,9 +62,12 @@ class StyleTextures:
         self.themes = themes
         self._colours: tuple[ColourMap, moderngl.Texture] | None = None
 
-    def bind(self, style: Style, filtered: bool, anisotropy: float) -> int:
-        """Bind the textures the style reads; returns the inverse tables' size (``TT_LUT_SIZE``)."""
+    def bind(self, style: Style, filtered: bool, anisotropy: float, box: bool = False) -> int:
+        """Bind the textures the style reads (``box``: the summed-area tables too); returns
+        the inverse tables' size (``TT_LUT_SIZE``)."""
         self.themes.colours(filtered, anisotropy).use(UNITS["tt_themes"])
+        if box:
+            self.themes.box_sums().use(UNITS["tt_box"])
         lut_size = 4096
         if style.histogram:
             self.themes.gaussianised(filtered, anisotropy).use(UNITS["tt_gauss"])

@@ -1,8 +1,10 @@
 """Theme and grid data as OpenGL textures (the layouts ``shaders/tt_blend.glsl`` documents).
 
 The exact path reads themes of any sizes from one padded array with ``texelFetch``;
-the filtered path resamples them to one size (``REPEAT``, mipmaps); the
-histogram-preserving blend's Gaussianised themes and inverse tables are the CPU's own.
+the filtered path resamples them to one size (``REPEAT``, mipmaps); flat renders below
+scale 1 read each theme's summed-area table at its own size (box means over any
+axis-aligned footprint); the histogram-preserving blend's Gaussianised themes and
+inverse tables are the CPU's own.
 """
 
 from __future__ import annotations
@@ -42,6 +44,19 @@ def _stack(layers: Sequence[np.ndarray], size: tuple[int, int], fill: float) -> 
     for k, layer in enumerate(layers):
         out[k, : layer.shape[0], : layer.shape[1]] = layer
     return out
+
+
+def summed_area(texture: np.ndarray) -> np.ndarray:
+    """(2h+1, 2w+1, 3) uint32: sums of a ``(h, w, 3)`` uint8 theme tiled 2 x 2, above and
+    left of every texel corner (row and column 0 zero).
+
+    Any box of at most one period starting in the first period lies inside, so its sum
+    is four reads; stored modulo 2^32, which keeps box sums below 2^31 exact.
+    """
+    tiled = np.tile(np.asarray(texture, np.uint64), (2, 2, 1))
+    out = np.zeros((tiled.shape[0] + 1, tiled.shape[1] + 1, 3), np.uint64)
+    out[1:, 1:] = tiled.cumsum(axis=0).cumsum(axis=1)
+    return (out & 0xFFFFFFFF).astype(np.uint32)
 
 
 class ThemeTextures:
@@ -101,6 +116,28 @@ class ThemeTextures:
             return self._array([_rgba(t) for t in self.textures], "f1", filtered, anisotropy)
 
         return self._cached(("colours", filtered, anisotropy if filtered else 0.0), make)
+
+    def box_sums(self) -> moderngl.TextureArray:
+        """The RGB32UI summed-area tables of the themes (``tt_box``), made once.
+
+        Layer k: :func:`summed_area` of theme k at its own size, padded; read with
+        ``texelFetch`` (``tt_box_mean`` in ``shaders/tt_filtered.glsl``).
+        """
+        def make():
+            tables = [summed_area(t) for t in self.textures]
+            h = max(t.shape[0] for t in tables)
+            w = max(t.shape[1] for t in tables)
+            if max(w, h) > self.max_size:
+                raise TerrathemeError(f"a theme's {w} x {h} summed-area table exceeds this "
+                                      f"driver's {self.max_size} texture size: render at "
+                                      "scale 1 or on the CPU")
+            data = _stack(tables, (w, h), 0)
+            tex = self.ctx.texture_array((w, h, len(tables)), 3,
+                                         np.ascontiguousarray(data).tobytes(), dtype="u4")
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            return tex
+
+        return self._cached(("box",), make)
 
     def _gaussian_pack(self):
         return pack_themes(self.textures, 1, gaussian=True)

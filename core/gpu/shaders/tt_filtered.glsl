@@ -7,7 +7,9 @@
 // scale, so they are sub-sampled over the footprint (two sub-samples per cell
 // it spans along each side, at most tt_max_supersample); the themes carry the
 // fine detail, so each distinct theme under the footprint is read once, over
-// the whole footprint, with mipmaps and anisotropic filtering. The colour is
+// the whole footprint: with mipmaps and anisotropic filtering, or (TT_BOX 1,
+// flat renders) as its exact mean over the footprint's box from its
+// summed-area table, which mipmaps of themes of any size cannot give. The colour is
 // sum(mean weight of theme t * filtered theme t): the linear blend, the shaped
 // borders' weights (TT_SHAPED 1: the theme's luminance from its filtered
 // read, the noise at the sub-sample's texel) or the histogram-preserving blend
@@ -80,9 +82,75 @@ vec3 tt_sample_layer(sampler2DArray tex, uint k, vec2 p, vec2 dx, vec2 dy) {
     return textureGrad(tex, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
 #endif
 }
-// Theme k at texel position p, filtered over the footprint (dx, dy) in texels.
+#if TT_BOX == 1
+// Sum of layer k's texels over [a.x, b.x) x [a.y, b.y) (integer corners of tt_box),
+// signed: a side with b < a counts negative (the table's uint wraps, the int keeps it).
+vec3 tt_box_sum(int k, ivec2 a, ivec2 b) {
+    return vec3(ivec3(texelFetch(tt_box, ivec3(b, k), 0).rgb
+                      - texelFetch(tt_box, ivec3(a.x, b.y, k), 0).rgb
+                      - texelFetch(tt_box, ivec3(b.x, a.y, k), 0).rgb
+                      + texelFetch(tt_box, ivec3(a, k), 0).rgb));
+}
+
+// Integral of layer k's texels over [lo, hi) (texels; lo in the first period, hi - lo at
+// most one period): the summed-area table at the box's fractional corners (bilinear in
+// the table is exact for square texels). Each of the 16 integer box sums is exact;
+// only their weighted sum is float.
+vec3 tt_box_integral(int k, vec2 lo, vec2 hi, ivec2 last) {
+    ivec2 i0 = min(ivec2(floor(lo)), last), i1 = min(ivec2(floor(hi)), last);
+    vec2 f0 = clamp(lo - vec2(i0), 0.0, 1.0), f1 = clamp(hi - vec2(i1), 0.0, 1.0);
+    vec2 u0[2] = vec2[2](1.0 - f0, f0), u1[2] = vec2[2](1.0 - f1, f1);
+    vec3 sum = vec3(0.0);
+    for (int c = 0; c < 2; ++c) {
+        for (int d = 0; d < 2; ++d) {
+            for (int a = 0; a < 2; ++a) {
+                for (int b = 0; b < 2; ++b) {
+                    float w = u0[a].x * u1[b].x * u0[c].y * u1[d].y;
+                    if (w == 0.0) continue;
+                    ivec2 from = min(ivec2(i0.x + a, i0.y + c), last);
+                    ivec2 to = min(ivec2(i1.x + b, i1.y + d), last);
+                    sum += w * tt_box_sum(k, from, to);
+                }
+            }
+        }
+    }
+    return sum;
+}
+
+// Theme k's mean over the box of `size` texels (at least 1) centred on texel position p:
+// its whole periods from the period's sums, the rest from tt_box_integral.
+vec3 tt_box_mean(uint k, vec2 p, vec2 size) {
+    vec4 s = tt_theme_size[k];
+    vec2 span = max(size, vec2(1.0));
+    vec2 periods = floor(span * s.zw);
+    vec2 rest = span - periods * s.xy;
+    vec2 lo = p + 0.5 - 0.5 * span;
+    lo -= floor(lo * s.zw) * s.xy;
+    lo += s.xy * (vec2(lessThan(lo, vec2(0.0))) - vec2(greaterThanEqual(lo, s.xy)));
+    ivec2 last = 2 * ivec2(s.xy);
+    int layer = int(k);
+    vec3 sum = tt_box_integral(layer, lo, lo + rest, last);
+    if (periods.x > 0.0) {
+        sum += periods.x * tt_box_integral(layer, vec2(0.0, lo.y), vec2(s.x, lo.y + rest.y), last);
+    }
+    if (periods.y > 0.0) {
+        sum += periods.y * tt_box_integral(layer, vec2(lo.x, 0.0), vec2(lo.x + rest.x, s.y), last);
+    }
+    if (periods.x > 0.0 && periods.y > 0.0) {
+        sum += periods.x * periods.y * tt_box_sum(layer, ivec2(0), ivec2(s.xy));
+    }
+    return sum / (255.0 * span.x * span.y);
+}
+#endif
+
+// Theme k at texel position p, filtered over the footprint (dx, dy) in texels: with
+// TT_BOX 1 its exact mean over the footprint's bounding box, else mipmapped.
 vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
+#if TT_BOX == 1
+    return tt_box_mean(k, p, abs(dx) + abs(dy));
+#else
     return tt_sample_layer(tt_themes, k, p, dx, dy);
+#endif
 }
 #if TT_BLEND == 1
 vec3 tt_sample_gauss(uint k, vec2 p, vec2 dx, vec2 dy) {
