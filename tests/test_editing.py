@@ -18,7 +18,6 @@ from terratheme.core.edit import (
     dirty_region,
 )
 from terratheme.core.edit.tools import (
-    Connectivity,
     capsule_footprint,
     flood_footprint,
     rect_footprint,
@@ -60,9 +59,16 @@ def brute_capsule(shape, p0, p1, r):
     return out
 
 
+def full_mask(sel, shape: tuple[int, int]) -> np.ndarray:
+    """A VertexSelection as a whole-grid ``shape`` bool mask."""
+    out = np.zeros(shape, dtype=bool)
+    out[sel.rows, sel.cols] = sel.mask
+    return out
+
+
 def test_single_dab_is_a_disc():
     fp = capsule_footprint((9, 9), (4, 4), (4, 4), 2.0)
-    got = fp.full_mask((9, 9))
+    got = full_mask(fp, (9, 9))
     # Vertices with dx^2 + dy^2 <= 4 around (4, 4): 13 of them, listed by hand.
     expected = np.zeros((9, 9), dtype=bool)
     for dx, dy in [(0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1),
@@ -79,7 +85,7 @@ def test_single_dab_is_a_disc():
 )
 def test_capsule_matches_brute_force(p0, p1, r):
     shape = (13, 18)
-    got = capsule_footprint(shape, p0, p1, r).full_mask(shape)
+    got = full_mask(capsule_footprint(shape, p0, p1, r), shape)
     np.testing.assert_array_equal(got, brute_capsule(shape, p0, p1, r))
 
 
@@ -168,10 +174,8 @@ def test_flood_fill_stops_at_other_indices():
     expected = g.copy()
     expected[:2, :2] = 3  # only the top-left pocket of zeros, walled in by 1s
     np.testing.assert_array_equal(tex.grid.indices, expected)
-    # Eight-connectivity leaks through the corner between the 1s and 2s.
-    fp = flood_footprint(g, (3, 0), Connectivity.EIGHT).full_mask(g.shape)
-    assert fp[0, 3] and fp[3, 0] and fp[4, 4]
-    fp4 = flood_footprint(g, (3, 0), Connectivity.FOUR).full_mask(g.shape)
+    # Four-connectivity does not leak through the corner between the 1s and 2s.
+    fp4 = full_mask(flood_footprint(g, (3, 0)), g.shape)
     assert fp4[0, 3] and not fp4[3, 0] and not fp4[4, 4]
 
 

@@ -165,12 +165,9 @@ class UndoMachine(RuleBasedStateMachine):
     def rectangle(self, p0, p1, value) -> None:
         self._edit(lambda: self.doc.fill_rect(p0, p1, value % len(self.doc.library)))
 
-    @rule(p=POINT, value=st.integers(0, 300), eight=st.booleans())
-    def flood(self, p, value, eight) -> None:
-        from terratheme.core.edit import Connectivity
-
-        conn = Connectivity.EIGHT if eight else Connectivity.FOUR
-        self._edit(lambda: self.doc.flood_fill(p, value % len(self.doc.library), conn))
+    @rule(p=POINT, value=st.integers(0, 300))
+    def flood(self, p, value) -> None:
+        self._edit(lambda: self.doc.flood_fill(p, value % len(self.doc.library)))
 
     @rule(seed=st.integers(0, 2**16))
     def whole_grid(self, seed) -> None:

@@ -38,7 +38,6 @@ from terratheme.core.edit.layers import (
 )
 from terratheme.core.edit.preview import RenderPreview, dirty_cells, dirty_region
 from terratheme.core.edit.tools import (
-    Connectivity,
     VertexSelection,
     capsule_footprint,
     eyedropper,
@@ -61,7 +60,6 @@ __all__ = [
     "ClassificationUpdate",
     "ClassifyMode",
     "ConfidenceChange",
-    "Connectivity",
     "DocumentEvents",
     "EditAtom",
     "EditDocument",

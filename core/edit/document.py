@@ -32,7 +32,6 @@ from terratheme.core.edit.history import History, Step
 from terratheme.core.edit.layers import DocumentData, Layer
 from terratheme.core.edit.strokes import Stroke
 from terratheme.core.edit.tools import (
-    Connectivity,
     VertexSelection,
     eyedropper,
     flood_footprint,
@@ -214,11 +213,9 @@ class EditDocument:
         """Set every vertex in the rectangle with corners ``p0``, ``p1`` to ``value``."""
         return self._paint("rectangle fill", rect_footprint(self.indices.shape, p0, p1), value)
 
-    def flood_fill(self, point: tuple[float, float], value: int,
-                   connectivity: Connectivity = Connectivity.FOUR) -> Step | None:
-        """Fill the connected region of equal indices at ``point`` with ``value``."""
-        return self._paint("flood fill", flood_footprint(self.indices, point, connectivity),
-                           value)
+    def flood_fill(self, point: tuple[float, float], value: int) -> Step | None:
+        """Fill the 4-connected region of equal indices at ``point`` with ``value``."""
+        return self._paint("flood fill", flood_footprint(self.indices, point), value)
 
     def pick(self, point: tuple[float, float]) -> int | None:
         """Eyedropper: the theme index at the vertex nearest ``point`` (vertex units)."""

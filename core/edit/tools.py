@@ -8,7 +8,6 @@ Coordinates are vertex units: ``(x, y)`` = (column, row) floats, vertex
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 from skimage.segmentation import flood
@@ -27,19 +26,6 @@ class VertexSelection:
     @property
     def empty(self) -> bool:
         return self.mask.size == 0 or not bool(self.mask.any())
-
-    def full_mask(self, shape: tuple[int, int]) -> np.ndarray:
-        """The selection as a whole-grid ``shape`` bool mask (for tests and small grids)."""
-        out = np.zeros(shape, dtype=bool)
-        out[self.rows, self.cols] = self.mask
-        return out
-
-
-class Connectivity(IntEnum):
-    """Neighbourhood of the flood fill: 4 (edges) or 8 (edges and corners)."""
-
-    FOUR = 1
-    EIGHT = 2
 
 
 def _empty() -> VertexSelection:
@@ -124,18 +110,13 @@ def nearest_vertex(shape: tuple[int, int], point: tuple[float, float]) -> tuple[
     return None
 
 
-def flood_footprint(
-    indices: np.ndarray,
-    point: tuple[float, float],
-    connectivity: Connectivity = Connectivity.FOUR,
-) -> VertexSelection:
-    """The region of equal indices connected (``connectivity``: FOUR or EIGHT) to the vertex
-    nearest ``point`` (:func:`skimage.segmentation.flood`).
-    """
+def flood_footprint(indices: np.ndarray, point: tuple[float, float]) -> VertexSelection:
+    """The region of equal indices 4-connected to the vertex nearest ``point``
+    (:func:`skimage.segmentation.flood`)."""
     seed = nearest_vertex(indices.shape, point)
     if seed is None:
         return _empty()
-    region = flood(indices, seed, connectivity=int(connectivity))
+    region = flood(indices, seed, connectivity=1)
     # Crop the whole-grid mask to its bounding box.
     rows = np.flatnonzero(region.any(axis=1))
     cols = np.flatnonzero(region.any(axis=0))
