@@ -76,11 +76,6 @@ class History:
             changes, self._group = self._group, None
             self.record(self._group_label, changes)
 
-    @property
-    def grouping(self) -> bool:
-        """Whether a :meth:`group` is open."""
-        return self._group is not None
-
     # -- moving ----------------------------------------------------------------
     def pop_undo(self) -> Step | None:
         """The step to revert now (moved to the redo stack), or None."""
@@ -108,11 +103,6 @@ class History:
     def undo_steps(self) -> tuple[Step, ...]:
         """Steps that can be undone, oldest first."""
         return tuple(self._undo)
-
-    @property
-    def redo_steps(self) -> tuple[Step, ...]:
-        """Steps that can be redone, the next one last."""
-        return tuple(self._redo)
 
     @property
     def can_undo(self) -> bool:
