@@ -211,10 +211,6 @@ class UndoMachine(RuleBasedStateMachine):
         tex = texture_of(np.random.default_rng(seed))
         self._edit(lambda: self.doc.add_theme(Theme(name, (1, 2, 3), tex)))
 
-    @rule()
-    def remove_last_theme(self) -> None:
-        self._edit(self.doc.remove_last_theme)
-
     @rule(seed=st.integers(0, 2**16), clear=st.booleans())
     def confidence(self, seed, clear) -> None:
         d = self.doc

@@ -199,23 +199,6 @@ class AppendTheme:
 
 
 @dataclass(frozen=True, eq=False)
-class RemoveLastTheme:
-    """The last theme removed from the library (no vertex or scribble uses it)."""
-
-    theme: Theme
-
-    nbytes = 0
-
-    def apply(self, data: DocumentData) -> list[Event]:
-        data.texture.library.remove_last()
-        return [ThemeChange(len(data.texture.library), False, False)]
-
-    def revert(self, data: DocumentData) -> list[Event]:
-        k = data.texture.library.append(self.theme)
-        return [ThemeChange(k, False, False)]
-
-
-@dataclass(frozen=True, eq=False)
 class SetLibrary:
     """The whole theme library replaced (a classification's own themes)."""
 

@@ -18,7 +18,6 @@ from terratheme.core.edit.changes import (
     AppendTheme,
     Change,
     Paint,
-    RemoveLastTheme,
     SetTheme,
     SwapLayer,
     drop_prior_without_classes,
@@ -254,17 +253,6 @@ class EditDocument:
             raise TerrathemeError("a theme library holds at most 256 themes")
         self._commit(f"add theme {theme.name}", [AppendTheme(theme)])
         return len(self.library) - 1
-
-    def remove_last_theme(self) -> Step:
-        """Remove the last theme as one undo step; refused while it is painted."""
-        last = len(self.library) - 1
-        name = self.library[last].name
-        if last == 0:
-            raise TerrathemeError(f"theme {name!r} is the only theme: a project needs one")
-        if int(self.indices.max()) >= last or (last < 255 and self.data.scribble_counts[last + 1]):
-            raise TerrathemeError(f"theme {name!r} is still painted on the grid or in the "
-                                  "scribbles")
-        return self._commit(f"remove theme {name}", [RemoveLastTheme(self.library[last])])
 
     # -- photo, confidence, classification results ----------------------------------------
     def set_photo(self, photo: np.ndarray | None, label: str = "set photo") -> Step | None:
