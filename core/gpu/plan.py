@@ -16,11 +16,13 @@ from terratheme.core.gpu.style import Style
 
 
 class RenderMode(NamedTuple):
-    """The style of a render and its sampling path (a flat render's filtered path reads
-    box means, ``TT_BOX``: its footprints are axis-aligned)."""
+    """The style of a render and its sampling path. A flat render's filtered path reads
+    box means (``TT_BOX``: its footprints are axis-aligned), counting whole theme periods
+    when ``periods`` (a footprint wider than a theme)."""
 
     style: Style
     filtered: bool
+    periods: bool = False
 
     def variant(self, kind: str, lut_size: int) -> Variant:
         """The program of ``kind`` drawing this mode."""
@@ -28,7 +30,7 @@ class RenderMode(NamedTuple):
         return Variant(kind, histogram=self.style.histogram and blend,
                        shaped=self.style.border is not None and blend, filtered=self.filtered,
                        colour_map=self.style.colour_map is not None, lut_size=lut_size,
-                       box=self.filtered and blend)
+                       box=(1 + self.periods) * (self.filtered and blend))
 
 
 class RenderPlan(NamedTuple):

@@ -42,7 +42,7 @@ class Variant(NamedTuple):
     lut_size: int = 4096
     probes: int = 0
     base: bool = False
-    box: bool = False
+    box: int = 0
 
     def defines(self, themes: int, one_size: bool) -> dict[str, int]:
         """The ``#define`` values of this variant for ``themes`` themes."""
@@ -50,7 +50,7 @@ class Variant(NamedTuple):
                 "TT_SHAPED": int(self.shaped), "TT_FILTERED": int(self.filtered),
                 "TT_WRAP": int(self.wrap), "TT_COLOUR_MAP": int(self.colour_map),
                 "TT_ONE_SIZE": int(one_size), "TT_LUT_SIZE": self.lut_size,
-                "TT_PROBES": self.probes, "TT_BASE": int(self.base), "TT_BOX": int(self.box),
+                "TT_PROBES": self.probes, "TT_BASE": int(self.base), "TT_BOX": self.box,
                 **SOURCES[self.kind][2]}
 
 

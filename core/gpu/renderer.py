@@ -133,8 +133,10 @@ class GpuRenderer:
         if sampling is Sampling.EXACT and float(scale) != 1.0:
             raise TerrathemeError(f"exact sampling renders at scale 1 only, got scale {scale}")
         filtered = sampling is Sampling.FILTERED
-        mode = RenderMode(style, filtered)
         out_size = (max(1, round(region[2] * scale)), max(1, round(region[3] * scale)))
+        footprint = (region[2] / out_size[0], region[3] / out_size[1])
+        periods = bool((np.array(footprint) > self.themes.sizes[:, :2].min(axis=0)).any())
+        mode = RenderMode(style, filtered, filtered and periods)
         tile = min(options.tile, self._max_viewport)
         return RenderPlan(indices, packed, (gw, gh), (n, m), size, region, out_size, mode, tile)
 

@@ -65,7 +65,8 @@ class StyleTextures:
     def bind(self, style: Style, filtered: bool, anisotropy: float, box: bool = False) -> int:
         """Bind the textures the style reads (``box``: the summed-area tables too); returns
         the inverse tables' size (``TT_LUT_SIZE``)."""
-        self.themes.colours(filtered, anisotropy).use(UNITS["tt_themes"])
+        # With box means the colours are read from the tables only: no mipmapped copy.
+        self.themes.colours(filtered and not box, anisotropy).use(UNITS["tt_themes"])
         if box:
             self.themes.box_sums().use(UNITS["tt_box"])
         lut_size = 4096

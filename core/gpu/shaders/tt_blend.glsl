@@ -20,9 +20,10 @@
 //   TT_LUT_SIZE   entries of the inverse LUT rows (TT_BLEND 1; default 4096)
 //   TT_ONE_SIZE   1 when every theme has the layer size of tt_themes: the
 //                 exact path wraps with the sampler's REPEAT; default 0
-//   TT_BOX        1 (filtered path, axis-aligned footprints: flat renders): each
+//   TT_BOX        filtered path, axis-aligned footprints (flat renders): each
 //                 theme's mean over the footprint from its summed-area table
-//                 (tt_box) instead of mipmaps; default 0
+//                 (tt_box) instead of mipmaps; 1 footprints at most a theme
+//                 wide, 2 any; default 0
 //   TT_COLOUR_MAP 1 multiplies the render by a colour map (tt_colour.glsl);
 //                 default 0. Compile-time switches, not uniform bools: a
 //                 software rasteriser runs both sides of a branch on a uniform
@@ -46,7 +47,7 @@
 //                  the largest), NEAREST, REPEAT (used with TT_ONE_SIZE 1).
 //                  Filtered path: every layer holds its theme resampled to the
 //                  layer size, REPEAT, mipmapped, anisotropic.
-//   tt_box         usampler2DArray RGB32UI (TT_BOX 1): layer k = the sums of theme
+//   tt_box         usampler2DArray RGB32UI (TT_BOX > 0): layer k = the sums of theme
 //                  k tiled 2 x 2 above and left of each texel corner, (2h_k+1) x
 //                  (2w_k+1) in the corner of its layer, modulo 2^32
 //   tt_theme_size  vec4[TT_THEMES]: (w_k, h_k, 1/w_k, 1/h_k), the theme's own size
@@ -115,7 +116,7 @@ uniform float tt_lut_range;
 #if TT_FILTERED == 1
 uniform int tt_max_supersample;
 #endif
-#if TT_BOX == 1
+#if TT_BOX > 0
 uniform usampler2DArray tt_box;
 #endif
 

@@ -7,7 +7,7 @@
 // scale, so they are sub-sampled over the footprint (two sub-samples per cell
 // it spans along each side, at most tt_max_supersample); the themes carry the
 // fine detail, so each distinct theme under the footprint is read once, over
-// the whole footprint: with mipmaps and anisotropic filtering, or (TT_BOX 1,
+// the whole footprint: with mipmaps and anisotropic filtering, or (TT_BOX,
 // flat renders) as its exact mean over the footprint's box from its
 // summed-area table, which mipmaps of themes of any size cannot give. The colour is
 // sum(mean weight of theme t * filtered theme t): the linear blend, the shaped
@@ -82,47 +82,68 @@ vec3 tt_sample_layer(sampler2DArray tex, uint k, vec2 p, vec2 dx, vec2 dy) {
     return textureGrad(tex, vec3((p + 0.5) * s.zw, float(k)), dx * s.zw, dy * s.zw).rgb;
 #endif
 }
-#if TT_BOX == 1
-// Sum of layer k's texels over [a.x, b.x) x [a.y, b.y) (integer corners of tt_box),
-// signed: a side with b < a counts negative (the table's uint wraps, the int keeps it).
-vec3 tt_box_sum(int k, ivec2 a, ivec2 b) {
-    return vec3(ivec3(texelFetch(tt_box, ivec3(b, k), 0).rgb
-                      - texelFetch(tt_box, ivec3(a.x, b.y, k), 0).rgb
-                      - texelFetch(tt_box, ivec3(b.x, a.y, k), 0).rgb
-                      + texelFetch(tt_box, ivec3(a, k), 0).rgb));
-}
-
+#if TT_BOX > 0
 // Integral of layer k's texels over [lo, hi) (texels; lo in the first period, hi - lo at
 // most one period): the summed-area table at the box's fractional corners (bilinear in
-// the table is exact for square texels). Each of the 16 integer box sums is exact;
-// only their weighted sum is float.
+// the table is exact for square texels), as the 16 integer boxes between the corners'
+// neighbouring texel edges, each exact (signed: the table's uint wraps, int keeps it),
+// weighted in float. Sixteen reads, no arrays (llvmpipe spills those to memory).
 vec3 tt_box_integral(int k, vec2 lo, vec2 hi, ivec2 last) {
     ivec2 i0 = min(ivec2(floor(lo)), last), i1 = min(ivec2(floor(hi)), last);
     vec2 f0 = clamp(lo - vec2(i0), 0.0, 1.0), f1 = clamp(hi - vec2(i1), 0.0, 1.0);
-    vec2 u0[2] = vec2[2](1.0 - f0, f0), u1[2] = vec2[2](1.0 - f1, f1);
-    vec3 sum = vec3(0.0);
-    for (int c = 0; c < 2; ++c) {
-        for (int d = 0; d < 2; ++d) {
-            for (int a = 0; a < 2; ++a) {
-                for (int b = 0; b < 2; ++b) {
-                    float w = u0[a].x * u1[b].x * u0[c].y * u1[d].y;
-                    if (w == 0.0) continue;
-                    ivec2 from = min(ivec2(i0.x + a, i0.y + c), last);
-                    ivec2 to = min(ivec2(i1.x + b, i1.y + d), last);
-                    sum += w * tt_box_sum(k, from, to);
-                }
-            }
-        }
-    }
-    return sum;
+    ivec4 x = min(ivec4(i0.x, i0.x + 1, i1.x, i1.x + 1), last.x);
+    ivec4 y = min(ivec4(i0.y, i0.y + 1, i1.y, i1.y + 1), last.y);
+    // Along x: the four row differences (to a, to b) of each of the four rows y.
+    vec4 wx = vec4((1.0 - f0.x) * (1.0 - f1.x), (1.0 - f0.x) * f1.x,
+                   f0.x * (1.0 - f1.x), f0.x * f1.x);
+    vec4 wy = vec4((1.0 - f0.y) * (1.0 - f1.y), (1.0 - f0.y) * f1.y,
+                   f0.y * (1.0 - f1.y), f0.y * f1.y);
+    uvec3 a0 = texelFetch(tt_box, ivec3(x.x, y.x, k), 0).rgb;
+    uvec3 b0 = texelFetch(tt_box, ivec3(x.y, y.x, k), 0).rgb;
+    uvec3 c0 = texelFetch(tt_box, ivec3(x.z, y.x, k), 0).rgb;
+    uvec3 d0 = texelFetch(tt_box, ivec3(x.w, y.x, k), 0).rgb;
+    uvec3 a1 = texelFetch(tt_box, ivec3(x.x, y.y, k), 0).rgb;
+    uvec3 b1 = texelFetch(tt_box, ivec3(x.y, y.y, k), 0).rgb;
+    uvec3 c1 = texelFetch(tt_box, ivec3(x.z, y.y, k), 0).rgb;
+    uvec3 d1 = texelFetch(tt_box, ivec3(x.w, y.y, k), 0).rgb;
+    uvec3 a2 = texelFetch(tt_box, ivec3(x.x, y.z, k), 0).rgb;
+    uvec3 b2 = texelFetch(tt_box, ivec3(x.y, y.z, k), 0).rgb;
+    uvec3 c2 = texelFetch(tt_box, ivec3(x.z, y.z, k), 0).rgb;
+    uvec3 d2 = texelFetch(tt_box, ivec3(x.w, y.z, k), 0).rgb;
+    uvec3 a3 = texelFetch(tt_box, ivec3(x.x, y.w, k), 0).rgb;
+    uvec3 b3 = texelFetch(tt_box, ivec3(x.y, y.w, k), 0).rgb;
+    uvec3 c3 = texelFetch(tt_box, ivec3(x.z, y.w, k), 0).rgb;
+    uvec3 d3 = texelFetch(tt_box, ivec3(x.w, y.w, k), 0).rgb;
+    // Row differences: columns (from, to) = (x.x, x.z), (x.x, x.w), (x.y, x.z), (x.y, x.w).
+    uvec3 p00 = c0 - a0, p01 = d0 - a0, p10 = c0 - b0, p11 = d0 - b0;
+    uvec3 q00 = c1 - a1, q01 = d1 - a1, q10 = c1 - b1, q11 = d1 - b1;
+    uvec3 s00 = c2 - a2, s01 = d2 - a2, s10 = c2 - b2, s11 = d2 - b2;
+    uvec3 t00 = c3 - a3, t01 = d3 - a3, t10 = c3 - b3, t11 = d3 - b3;
+    // Boxes between rows (from, to) = (y.x, y.z), (y.x, y.w), (y.y, y.z), (y.y, y.w).
+    vec3 e0 = wx.x * vec3(ivec3(s00 - p00)) + wx.y * vec3(ivec3(s01 - p01))
+            + wx.z * vec3(ivec3(s10 - p10)) + wx.w * vec3(ivec3(s11 - p11));
+    vec3 e1 = wx.x * vec3(ivec3(t00 - p00)) + wx.y * vec3(ivec3(t01 - p01))
+            + wx.z * vec3(ivec3(t10 - p10)) + wx.w * vec3(ivec3(t11 - p11));
+    vec3 e2 = wx.x * vec3(ivec3(s00 - q00)) + wx.y * vec3(ivec3(s01 - q01))
+            + wx.z * vec3(ivec3(s10 - q10)) + wx.w * vec3(ivec3(s11 - q11));
+    vec3 e3 = wx.x * vec3(ivec3(t00 - q00)) + wx.y * vec3(ivec3(t01 - q01))
+            + wx.z * vec3(ivec3(t10 - q10)) + wx.w * vec3(ivec3(t11 - q11));
+    return wy.x * e0 + wy.y * e1 + wy.z * e2 + wy.w * e3;
 }
 
-// Theme k's mean over the box of `size` texels (at least 1) centred on texel position p:
-// its whole periods from the period's sums, the rest from tt_box_integral.
+// Theme k's mean over the box of `size` texels (at least 1) centred on texel position p.
+// TT_BOX 2 (a footprint wider than a theme): its whole periods from the period's sum, the
+// rest from tt_box_integral; TT_BOX 1: one integral, the box at most one period (as the
+// renderer chooses: the branches cost on a software rasteriser even when not taken).
 vec3 tt_box_mean(uint k, vec2 p, vec2 size) {
     vec4 s = tt_theme_size[k];
     vec2 span = max(size, vec2(1.0));
+#if TT_BOX == 2
     vec2 periods = floor(span * s.zw);
+#else
+    span = min(span, s.xy);
+    vec2 periods = vec2(0.0);
+#endif
     vec2 rest = span - periods * s.xy;
     vec2 lo = p + 0.5 - 0.5 * span;
     lo -= floor(lo * s.zw) * s.xy;
@@ -130,23 +151,19 @@ vec3 tt_box_mean(uint k, vec2 p, vec2 size) {
     ivec2 last = 2 * ivec2(s.xy);
     int layer = int(k);
     vec3 sum = tt_box_integral(layer, lo, lo + rest, last);
-    if (periods.x > 0.0) {
-        sum += periods.x * tt_box_integral(layer, vec2(0.0, lo.y), vec2(s.x, lo.y + rest.y), last);
-    }
-    if (periods.y > 0.0) {
-        sum += periods.y * tt_box_integral(layer, vec2(lo.x, 0.0), vec2(lo.x + rest.x, s.y), last);
-    }
-    if (periods.x > 0.0 && periods.y > 0.0) {
-        sum += periods.x * periods.y * tt_box_sum(layer, ivec2(0), ivec2(s.xy));
-    }
+#if TT_BOX == 2
+    sum += periods.x * tt_box_integral(layer, vec2(0.0, lo.y), vec2(s.x, lo.y + rest.y), last);
+    sum += periods.y * tt_box_integral(layer, vec2(lo.x, 0.0), vec2(lo.x + rest.x, s.y), last);
+    sum += periods.x * periods.y * tt_box_integral(layer, vec2(0.0), s.xy, last);
+#endif
     return sum / (255.0 * span.x * span.y);
 }
 #endif
 
 // Theme k at texel position p, filtered over the footprint (dx, dy) in texels: with
-// TT_BOX 1 its exact mean over the footprint's bounding box, else mipmapped.
+// TT_BOX its exact mean over the footprint's bounding box, else mipmapped.
 vec3 tt_sample(uint k, vec2 p, vec2 dx, vec2 dy) {
-#if TT_BOX == 1
+#if TT_BOX > 0
     return tt_box_mean(k, p, abs(dx) + abs(dy));
 #else
     return tt_sample_layer(tt_themes, k, p, dx, dy);
