@@ -37,7 +37,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gpu", action="store_true",
                         help="render through the OpenGL shaders (headless EGL; Mesa's llvmpipe "
                              "without a GPU), in the same style: at scale 1 the same texels as "
-                             "the CPU render, below 1 mipmapped")
+                             "the CPU render, below 1 each pixel's area mean")
     parser.add_argument("--packed", nargs="?", const="", default=None, metavar="LAYER",
                         help="with --gpu: read the index grid from a packed layer (.ttpack) "
                              "in the shaders, never unpacked (default LAYER: PROJECT's stem + "
