@@ -15,7 +15,6 @@ import cv2
 import numpy as np
 import pytest
 from terratheme.core.exchange import Engine, ExportOptions, WeightStyle, plan_export, write_export
-from terratheme.core.exchange.terrain3d import read_control_map
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture
@@ -165,7 +164,9 @@ def test_terrain3d_colour_map_is_the_gain_at_every_vertex(tmp_path):
     # One vertex per grid vertex: each its own theme, blend 0 (not the shaped borders).
     assert manifest["borders"] == "vertex"
     # The control map's vertices still carry their themes alone (a vertex is on a texel).
-    control = read_control_map(tmp_path / "terrain3d_control.exr")
+    from terratheme.core.io.images import read_image
+
+    control = read_image(tmp_path / "terrain3d_control.exr")[:, :, 0].copy().view(np.uint32)
     np.testing.assert_array_equal(control >> 27 & 0x1F, grid)
     assert not (control >> 14 & 0xFF).any()
 

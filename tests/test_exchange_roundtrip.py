@@ -106,7 +106,11 @@ def test_the_gis_export_writes_the_colour_map_as_a_geotiff(converted, tmp_path):
 
 
 def test_godot_says_what_a_control_map_per_vertex_carries(converted, tmp_path, capsys):
-    from terratheme.core.exchange import decode_control, read_control_map
+    from terratheme.core.exchange import decode_control
+    from terratheme.core.io.images import read_image
+
+    def read_control_map(path):
+        return read_image(path)[:, :, 0].copy().view(np.uint32)
 
     gh, gw = load_project(converted).grid.indices.shape
     out = tmp_path / "g"

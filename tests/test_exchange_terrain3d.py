@@ -21,14 +21,12 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.exchange import (
     Engine,
     ExportOptions,
-    control_labels,
     decode_control,
     encode_control,
-    grid_from_labels,
     plan_export,
-    read_control_map,
     write_export,
 )
+from terratheme.core.exchange.maps_to_grid import grid_from_maps
 from terratheme.core.io.images import write_image
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
@@ -90,8 +88,8 @@ def test_control_map_holds_one_vertex_per_pixel(tmp_path):
     assert manifest["region_size"] == 64 and manifest["colour_map"] is None
     # Centred on the origin, on a region boundary, in vertices (the importer's units).
     assert manifest["import_position"] == [-64, -64]
-    np.testing.assert_array_equal(grid_from_labels(control_labels(
-        read_control_map(tmp_path / "terrain3d_control.exr")), 1), grid)
+    np.testing.assert_array_equal(grid_from_maps([str(tmp_path / "terrain3d_control.exr")],
+                                                 "terrain3d", len(project.library), 1), grid)
 
 
 def test_finer_control_maps_blend_the_two_strongest_themes(tmp_path):
@@ -133,10 +131,10 @@ def test_what_terrain3d_cannot_take_is_refused(tmp_path):
                     ExportOptions(Engine.GODOT))
     write_image(tmp_path / "control.png", np.zeros((4, 4, 1), np.uint8))
     with pytest.raises(TerrathemeError, match="32-bit floats"):
-        read_control_map(tmp_path / "control.png")
+        grid_from_maps([str(tmp_path / "control.png")], "terrain3d", 1, 1)
     write_image(tmp_path / "half.exr", np.zeros((4, 4, 1), np.float16))
     with pytest.raises(TerrathemeError, match="float16"):
-        read_control_map(tmp_path / "half.exr")
+        grid_from_maps([str(tmp_path / "half.exr")], "terrain3d", 1, 1)
 
 
 def test_the_colour_map_is_the_renderers_gain_at_every_vertex_worked_by_hand(tmp_path):

@@ -23,7 +23,6 @@ import tifffile
 from hostile_fuzz import campaign, hidden_files, patch_tiff_size
 from terratheme.app.cli import main
 from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from terratheme.core.exchange import read_control_map
 from terratheme.core.exchange.maps_to_grid import grid_from_maps
 from terratheme.core.exchange.terrain3d import write_control_map
 from terratheme.core.io.archive import parse_json
@@ -377,7 +376,7 @@ def test_mutated_engine_maps_read_or_are_one_line(budget, tmp_path, capfd, kind)
         path, read = tmp_path / "s.png", lambda p: grid_from_maps([str(p)], "splatmap", 4, 1)
         write_image(path, np.random.default_rng(1).integers(0, 255, (16, 16, 4), np.uint8))
     else:
-        path, read = tmp_path / "c.exr", read_control_map
+        path, read = tmp_path / "c.exr", lambda p: grid_from_maps([str(p)], "terrain3d", 32, 1)
         write_control_map(path, np.arange(81, dtype=np.uint32).reshape(9, 9) << 10)
     data = path.read_bytes()
     for mutant in _mutants(data, rng, budget.examples * 2, header=320):

@@ -9,7 +9,7 @@ from terratheme.core.exchange.carried import project_from_export
 from terratheme.core.exchange.colour import gain_at_pixels, linear_gain
 from terratheme.core.exchange.export import plan_export, write_export
 from terratheme.core.exchange.layout import ExportLayout, TilePiece, WorldFrame, world_frame
-from terratheme.core.exchange.maps_to_grid import grid_from_labels, labels_from_weights
+from terratheme.core.exchange.maps_to_grid import labels_from_weights
 from terratheme.core.exchange.options import Engine, ExportOptions, WeightStyle
 from terratheme.core.exchange.plan import ExportPlan
 from terratheme.core.exchange.shaped import shaped_slots
@@ -18,7 +18,6 @@ from terratheme.core.exchange.terrain3d import (
     control_labels,
     decode_control,
     encode_control,
-    read_control_map,
 )
 from terratheme.core.exchange.texture_tiff import write_texture_tiff
 from terratheme.core.exchange.weights import sample_corners, strongest_two, theme_weights
@@ -36,14 +35,12 @@ __all__ = [
     "encode_control",
     "export_boundary",
     "gain_at_pixels",
-    "grid_from_labels",
     "labels_from_weights",
     "linear_gain",
     "map_labels",
     "map_weights",
     "plan_export",
     "project_from_export",
-    "read_control_map",
     "sample_corners",
     "shaped_slots",
     "strongest_two",

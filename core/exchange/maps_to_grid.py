@@ -94,7 +94,7 @@ def grid_from_maps(paths: Sequence[str], kind: str, n_themes: int, step: int) ->
     control map; weights beyond ``n_themes`` must be 0.
     """
     w, h = check_maps(paths, kind)
-    _check_step(w, h, step)
+    _check_step(paths[0], w, h, step)
     out = np.empty(((h - 1) // step + 1, (w - 1) // step + 1), np.uint8)
     rows = max(step, BAND_ROWS // step * step)
     for parts in zip(*(read_bands(p, rows) for p in paths), strict=True):
@@ -106,19 +106,12 @@ def grid_from_maps(paths: Sequence[str], kind: str, n_themes: int, step: int) ->
     return out
 
 
-def _check_step(w: int, h: int, step: int) -> None:
+def _check_step(path: str, w: int, h: int, step: int) -> None:
     if step < 1:
         raise TerrathemeError(f"step must be at least 1 map pixel per cell, got {step}")
     if (w - 1) % step or (h - 1) % step:
         raise TerrathemeError(
-            f"a {w} x {h} map does not hold whole cells of {step} pixels: width - 1 and "
-            f"height - 1 must be multiples of the step (maps span the grid corner to corner)")
+            f"{path}: a {w} x {h} map does not hold whole cells of {step} pixels: width - 1 "
+            f"and height - 1 must be multiples of the step (maps span the grid corner to corner)")
     if w < step + 1 or h < step + 1:
-        raise TerrathemeError(f"a {w} x {h} map holds no cell of {step} pixels")
-
-
-def grid_from_labels(labels: np.ndarray, step: int) -> np.ndarray:
-    """Vertex themes: the (H, W) labels at every ``step``-th pixel, both ends included."""
-    h, w = labels.shape
-    _check_step(w, h, step)
-    return np.ascontiguousarray(labels[::step, ::step])
+        raise TerrathemeError(f"{path}: a {w} x {h} map holds no cell of {step} pixels")

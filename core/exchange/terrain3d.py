@@ -52,7 +52,7 @@ from terratheme.core.exchange.plan import (
 from terratheme.core.exchange.style import map_slots
 from terratheme.core.exchange.weights import BAND_PIXELS, strongest_two
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.images import image_info, read_image, write_image, write_oiio
+from terratheme.core.io.images import write_image, write_oiio
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.rules import cell_splits
 
@@ -105,17 +105,6 @@ def control_labels(control: np.ndarray) -> np.ndarray:
     """The stronger of base and overlay at every pixel (overlay when ``blend > 127``)."""
     f = decode_control(control)
     return np.where(f.blend > 127, f.overlay, f.base).astype(np.uint8)
-
-
-def read_control_map(path: str | Path) -> np.ndarray:
-    """A Terrain3D control map (32-bit float EXR, or any 32-bit float image) as uint32 values."""
-    info = image_info(path)
-    if info.dtype != np.float32:
-        raise TerrathemeError(
-            f"{path}: a Terrain3D control map holds 32-bit floats (FORMAT_RF) whose bits are the "
-            f"control values; this file holds {info.dtype} (export it from Terrain3D as EXR)")
-    image = read_image(path)
-    return np.ascontiguousarray(image[:, :, 0]).view(np.uint32)
 
 
 def write_control_map(path: str | Path, control: np.ndarray) -> None:
