@@ -156,7 +156,8 @@ def test_filtered_path_draws_the_style_within_two_levels(odd):
         cmap = _colour_map(rng, (20 * 16, 16 * 16), 8)
         overview = render_overview(grid, themes, (16, 16), scale=0.25, colour_map=cmap)
         gpu = renderer.render(grid, (16, 16), scale=0.25, colour_map=cmap)
-        assert np.abs(overview.astype(np.int16) - gpu).mean() < 2.0
+        # The map filtered over the pixel vs the CPU's at its centre: a fraction of a level.
+        assert np.abs(overview.astype(np.int16) - gpu).mean() < 0.6
     finally:
         renderer.release()
 
