@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 from classify_eval import confusion
 from terratheme.core import classify
-from terratheme.core.classify.lab import coarse_lab
+from terratheme.core.classify.lab import block_lab, full_lab
 from terratheme.core.classify.photo import prepare_photo
 
 RNG_SEED = 0
@@ -39,7 +39,7 @@ def ilastik_features(photo):
 
     rgb, _ = prepare_photo(photo)
     t = time.perf_counter()
-    lab, _ = coarse_lab(rgb, 1)
+    lab, _ = block_lab(full_lab(rgb), 1)
     feats = multiscale_basic_features(lab, channel_axis=-1, sigma_min=1.0,
                                       sigma_max=ILASTIK_SIGMA_MAX)
     return np.ascontiguousarray(feats, np.float32), time.perf_counter() - t
@@ -130,7 +130,7 @@ class ColourKMeans:
         """Per-pixel nearest centre -> (confusion, seconds)."""
         t = time.perf_counter()
         rgb, _ = prepare_photo(photo)
-        lab, _ = coarse_lab(rgb, 1)
+        lab, _ = block_lab(full_lab(rgb), 1)
         flat = lab.reshape(-1, 3)
         c = self.centres
         d2 = (flat * flat).sum(1)[:, None] - 2.0 * flat @ c.T + (c * c).sum(1)[None]

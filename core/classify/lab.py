@@ -16,18 +16,13 @@ _LAB8_TABLE = (np.repeat(np.arange(256, dtype=np.float32)[None, :, None], 3, axi
                - np.array([0.0, 128.0, 128.0], np.float32))
 
 
-def coarse_lab(rgb: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
-    """Block means of a uint8 photo's CIE Lab and the std of L inside each block (float32)."""
-    return block_lab(full_lab(rgb), scale)
-
-
 def full_lab(rgb: np.ndarray) -> np.ndarray:
     """CIE Lab of every pixel, float32: OpenCV's 8-bit conversion through ``_LAB8_TABLE``."""
     return cv2.LUT(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2Lab), _LAB8_TABLE)
 
 
 def block_lab(lab8: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`coarse_lab` of a :func:`full_lab` image: block means and block L std."""
+    """Block means of a :func:`full_lab` image and the std of L inside each block (float32)."""
     h, w = lab8.shape[:2]
     if scale == 1:
         return lab8, np.zeros((h, w), np.float32)

@@ -69,10 +69,6 @@ class ParallelogramFamily:
         """Memory of the prefiltered cells (the tables are negligible)."""
         return int(self.buf.nbytes)
 
-    @property
-    def texel_count(self) -> int:
-        return int(self.buf.shape[0])
-
     def shape(self, toward: int, a: int, b: int) -> tuple[int, int]:
         """``(rows, cols)`` of copy ``(a, b)`` in its own frame."""
         along, across = _sides(self.grid_size, toward)

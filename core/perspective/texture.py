@@ -14,9 +14,6 @@ import numpy as np
 from skimage.transform import resize
 from terratheme.core.errors import TerrathemeError
 
-#: storage types kept as they are (others become float32 in [0, 1])
-STORED_TYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
-
 
 @dataclass(frozen=True)
 class StoredTexture:
