@@ -69,8 +69,8 @@ def trapezoid_integral(x, a, b):
 
 @njit(cache=True)
 def cover_cells(buf, off, rows, cols, s, t, tent_rows, swap, x0, y0, a, bs, ls, slope, tau,
-                w, out):
-    """``out += w * `` the mean of one copy over the pixel; returns the cells read.
+                out):
+    """``out +=`` the mean of one copy over the pixel; returns the cells read.
 
     The copy is ``rows x cols`` cells of ``s`` x ``t`` texels (along, across) from
     ``buf[off]`` (T, C), row-major (column-major when ``swap``: a mip level read
@@ -143,7 +143,7 @@ def cover_cells(buf, off, rows, cols, s, t, tent_rows, swap, x0, y0, a, bs, ls, 
                 continue
             mm = m % rows
             idx = off + (jj * rows + mm if swap else mm * cols + jj)
-            wt = w * wa * wb
+            wt = wa * wb
             for c in range(nc):
                 out[c] += wt * buf[idx, c]
             reads += 1

@@ -108,12 +108,12 @@ def coverage_kernel(buf, start, count, grid_w, grid_h, k, so, cells_along, tex, 
                 else:
                     s, t, swap = grid_h / rows, grid_w / cols, True
                 reads[p] = cover_cells(buf, start[0, b, b], rows, cols, s, t, b == 0, swap,
-                                       x0, y0, a_len, bs, ls, tan, 0.0, 1.0, out[p])
+                                       x0, y0, a_len, bs, ls, tan, 0.0, out[p])
                 continue
             rows, cols = max(1, across >> b), max(1, along >> a)
             s, t = along / cols, across / rows
             n_skews = count[toward, a, b]
             sk, tau = skew_choice(tan, i, so, n_skews)
             reads[p] = cover_cells(buf, start[toward, a, b] + sk * rows * cols, rows, cols, s, t,
-                                   b == 0, False, x0, y0, a_len, bs, ls, tan, tau, 1.0, out[p])
+                                   b == 0, False, x0, y0, a_len, bs, ls, tan, tau, out[p])
     return reads
