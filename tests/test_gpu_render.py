@@ -199,6 +199,16 @@ def test_filtered_path_at_scale_one_gives_the_texels_of_themes_of_any_size(odd):
     assert np.abs(cpu.astype(np.int16) - gpu).max() <= 1
 
 
+def test_themes_too_large_for_box_sums_are_refused_in_one_line(gl_ctx):
+    # 2901 x 2901 texels: a box of a whole theme (plus its edges) can sum past 2^31.
+    renderer = GpuRenderer([np.zeros((2901, 2901, 3), np.uint8)])
+    try:
+        with pytest.raises(TerrathemeError, match="summed-area table .* beyond"):
+            renderer.render(np.zeros((2, 2), np.uint8), (8, 8), scale=0.5)
+    finally:
+        renderer.release()
+
+
 def test_filtered_overview_is_close_to_the_cpu_overview(even):
     # Both take each theme's box mean over the pixel (the GPU's fractional box and
     # sub-sampled weights in 1/4096): a level apart at a few pixels at most.

@@ -124,15 +124,14 @@ class ThemeTextures:
         ``texelFetch`` (``tt_box_mean`` in ``shaders/tt_filtered.glsl``).
         """
         def make():
-            tables = [summed_area(t) for t in self.textures]
-            h = max(t.shape[0] for t in tables)
-            w = max(t.shape[1] for t in tables)
-            if max(w, h) > self.max_size:
-                raise TerrathemeError(f"a theme's {w} x {h} summed-area table exceeds this "
-                                      f"driver's {self.max_size} texture size: render at "
-                                      "scale 1 or on the CPU")
-            data = _stack(tables, (w, h), 0)
-            tex = self.ctx.texture_array((w, h, len(tables)), 3,
+            w, h = 2 * self.layer_size[0] + 1, 2 * self.layer_size[1] + 1
+            area = max((t.shape[0] + 1) * (t.shape[1] + 1) for t in self.textures)
+            if max(w, h) > self.max_size or 255 * area >= 2**31:
+                raise TerrathemeError(f"a {w} x {h} summed-area table of the themes is beyond "
+                                      f"this driver's {self.max_size} texels or 2^31 per box: "
+                                      "render at scale 1 or on the CPU")
+            data = _stack([summed_area(t) for t in self.textures], (w, h), 0)
+            tex = self.ctx.texture_array((w, h, len(self.textures)), 3,
                                          np.ascontiguousarray(data).tobytes(), dtype="u4")
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             return tex

@@ -93,7 +93,7 @@ vec3 tt_box_integral(int k, vec2 lo, vec2 hi, ivec2 last) {
     vec2 f0 = clamp(lo - vec2(i0), 0.0, 1.0), f1 = clamp(hi - vec2(i1), 0.0, 1.0);
     ivec4 x = min(ivec4(i0.x, i0.x + 1, i1.x, i1.x + 1), last.x);
     ivec4 y = min(ivec4(i0.y, i0.y + 1, i1.y, i1.y + 1), last.y);
-    // Along x: the four row differences (to a, to b) of each of the four rows y.
+    // Weights of the (from, to) edge pairs along each axis, in the order used below.
     vec4 wx = vec4((1.0 - f0.x) * (1.0 - f1.x), (1.0 - f0.x) * f1.x,
                    f0.x * (1.0 - f1.x), f0.x * f1.x);
     vec4 wy = vec4((1.0 - f0.y) * (1.0 - f1.y), (1.0 - f0.y) * f1.y,
