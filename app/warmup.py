@@ -92,7 +92,6 @@ def _classify() -> None:
 def _perspective() -> None:
     from terratheme.core.perspective import Camera, FilterOptions, Method, PreparedTexture
     from terratheme.core.perspective.family import build_family
-    from terratheme.core.perspective.footprint import footprint_parameters
 
     rng = np.random.default_rng(1)
     texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
@@ -106,7 +105,6 @@ def _perspective() -> None:
     # The family of a float grid stored in 8 and 16 bits; the footprints alone.
     for dtype in (np.uint8, np.uint16):
         build_family(texture[:16, :16].astype(np.float32), 2, 1, dtype=dtype)
-    footprint_parameters(*np.ones((4, 3)))
 
 
 def _editor() -> None:

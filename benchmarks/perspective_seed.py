@@ -9,10 +9,20 @@ import math
 import numpy as np
 from numba import njit, prange
 from terratheme.core.perspective import Camera, FilterOptions, PlaneMapping, PreparedTexture
-from terratheme.core.perspective.footprint import TOWARD_U, footprint
+from terratheme.core.perspective.footprint import TOWARD_U, footprint_sides
 from terratheme.core.perspective.lookup import log2_int, skew_choice
 from terratheme.core.perspective.render import RenderResult, sky_vector
 from terratheme.core.perspective.sampling import add_bilinear, add_texel, wrap_coord
+
+
+@njit(cache=True, inline="always")
+def footprint(dux, dvx, duy, dvy):
+    """Eqs. 3-4 for one pixel: ``h = A + |bs|``, ``l = |Ls|`` of ``footprint_sides``, ``tan``
+    and ``toward`` (``TOWARD_U``: long side along (1, tan); ``TOWARD_V``: along (tan, 1))."""
+    along, short_along, short_across, tan, toward = footprint_sides(dux, dvx, duy, dvy)
+    h = along + abs(short_along)
+    # H >= L by definition (guards rounding)
+    return h, min(abs(short_across), h), tan, toward
 
 
 @njit(cache=True, inline="always")

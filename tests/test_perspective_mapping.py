@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.perspective import Camera, FilterOptions, PlaneMapping, camera_mapping
-from terratheme.core.perspective.footprint import TOWARD_U, TOWARD_V, footprint_parameters
+from terratheme.core.perspective.footprint import TOWARD_U, TOWARD_V, footprint_sides
 
 
 def test_straight_down_camera_is_one_texel_per_pixel():
@@ -103,16 +103,16 @@ def test_pixel_grid_samples_pixel_centres_and_flags_the_sky():
         ((0.25, 0.0, 0.0, 0.25), (0.25, 0.25, 0.0, TOWARD_V)),
     ],
 )
-def test_footprint_parameters_on_known_footprints(d, want):
-    fp = footprint_parameters(*(np.array([x]) for x in d))
-    got = (fp.h[0], fp.l[0], fp.tan[0], int(fp.toward[0]))
-    assert got[:3] == pytest.approx(want[:3])
-    assert got[3] == want[3]
+def test_footprint_sides_on_known_footprints(d, want):
+    # eq. 4: H = A + |bs| along the tilted side, L = |Ls| across it
+    along, short_along, short_across, tan, toward = footprint_sides(*d)
+    assert (along + abs(short_along), abs(short_across), tan) == pytest.approx(want[:3])
+    assert toward == want[3]
 
 
 def test_footprint_of_zero_derivatives_is_finite():
-    fp = footprint_parameters(*(np.zeros(3) for _ in range(4)))
-    assert np.all(fp.h == 0) and np.all(fp.tan == 0)
+    along, short_along, short_across, tan, _ = footprint_sides(0.0, 0.0, 0.0, 0.0)
+    assert along + abs(short_along) == 0 and short_across == 0 and tan == 0
 
 
 @pytest.mark.parametrize(
@@ -148,7 +148,6 @@ def test_bad_mappings_are_clear_errors():
         (dict(skew_oversampling=4), "skew_oversampling"),
         (dict(cells_per_footprint=0.5), "cells_per_footprint"),
         (dict(cells_per_footprint=float("nan")), "cells_per_footprint"),
-        (dict(lookup="fast"), "unknown lookup"),
         (dict(sky=()), "sky"),
         (dict(reference_min_samples=8, reference_max_samples=4), "reference_min_samples"),
     ],

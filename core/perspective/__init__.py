@@ -11,7 +11,6 @@ in the conventions of :mod:`.mapping`::
 """
 
 from terratheme.core.perspective.flight import Flight, FlightControls, FlightInput, clip_matrix
-from terratheme.core.perspective.footprint import Footprint, footprint_parameters
 from terratheme.core.perspective.mapping import (
     MAX_FRAME_SIDE,
     Camera,
@@ -34,7 +33,6 @@ __all__ = [
     "Flight",
     "FlightControls",
     "FlightInput",
-    "Footprint",
     "Method",
     "PlaneMapping",
     "PreparedTexture",
@@ -43,6 +41,5 @@ __all__ = [
     "check_size",
     "clip_matrix",
     "family_key",
-    "footprint_parameters",
     "render_perspective",
 ]

@@ -14,9 +14,6 @@ half-base.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import numpy as np
 from numba import njit
 
 #: orientation codes
@@ -58,50 +55,3 @@ def footprint_sides(dux, dvx, duy, dvy):
             long_v, long_u, short_v, short_u, TOWARD_V)
     tan = across / along if along != 0.0 else 0.0
     return abs(along), short_along, short_across - short_along * tan, tan, toward
-
-
-@njit(cache=True, inline="always")
-def footprint(dux, dvx, duy, dvy):
-    """Eqs. 3-4 for one pixel: ``h = A + |bs|``, ``l = |Ls|`` of :func:`footprint_sides`, ``tan``
-    and ``toward`` (``TOWARD_U``: long side along (1, tan); ``TOWARD_V``: along (tan, 1)).
-    """
-    along, short_along, short_across, tan, toward = footprint_sides(dux, dvx, duy, dvy)
-    h = along + abs(short_along)
-    l = abs(short_across)
-    # H >= L by definition (guards rounding)
-    if l > h:
-        l = h
-    return h, l, tan, toward
-
-
-@njit(cache=True)
-def _footprint_arrays(dux, dvx, duy, dvy):
-    n = dux.shape[0]
-    h = np.empty(n)
-    l = np.empty(n)
-    t = np.empty(n)
-    o = np.empty(n, np.int8)
-    for p in range(n):
-        h[p], l[p], t[p], o[p] = footprint(dux[p], dvx[p], duy[p], dvy[p])
-    return h, l, t, o
-
-
-@dataclass(frozen=True)
-class Footprint:
-    """Eq. 4 parameters per pixel, all ``(...)``-shaped like the input.
-
-    ``h, l, tan`` are float64; ``toward`` is int8 (0 = toward U, 1 = toward V).
-    """
-
-    h: np.ndarray
-    l: np.ndarray
-    tan: np.ndarray
-    toward: np.ndarray
-
-
-def footprint_parameters(dudx, dvdx, dudy, dvdy) -> Footprint:
-    """Eqs. 3-4 on arrays of derivatives (any matching shape, float64)."""
-    arrs = [np.ascontiguousarray(np.asarray(a, dtype=np.float64)) for a in (dudx, dvdx, dudy, dvdy)]
-    shape = arrs[0].shape
-    h, l, t, o = _footprint_arrays(*(a.ravel() for a in arrs))
-    return Footprint(h.reshape(shape), l.reshape(shape), t.reshape(shape), o.reshape(shape))
