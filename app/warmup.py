@@ -35,7 +35,6 @@ def _render() -> None:
 
 
 def _curves_and_packing() -> None:
-    from terratheme.core.curves import scan_order
     from terratheme.core.packing import PackedLayer, TiledLayer, pack
     from terratheme.core.packing.batch import STRATEGIES, lookup_batch, tiled_words
 
@@ -74,7 +73,6 @@ def _curves_and_packing() -> None:
         lookup_batch(xs, ys, table, np.empty(xs.size, np.uint8), 1, words, strategy="buckets")
     # A colour image (runs of packed colours).
     pack(np.array([[0, 40, 80], [200, 10, 10]], np.uint8)[image % 2])
-    scan_order(5, 3, "hilbert")
 
 
 def _classify() -> None:
@@ -122,13 +120,12 @@ def _boundary() -> None:
     from terratheme.core.exchange import shaped_slots
     from terratheme.core.model.colour_map import ColourMap
     from terratheme.core.render import RenderOptions, render_cells, render_overview
-    from terratheme.core.render.boundary import BoundaryOptions, noise_field
+    from terratheme.core.render.boundary import BoundaryOptions
     from terratheme.core.render.colour_map import apply_colour_map
 
     grid = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 1]], np.uint8)
     themes = [np.full((8, 8, 3), 40 * (k + 1), np.uint8) for k in range(2)]
     img = render_cells(grid, themes, (4, 4), options=RenderOptions(boundary=BoundaryOptions()))
-    noise_field(0, 0, 4, 4, 1, 8)
     render_overview(grid, themes, (4, 4), scale=0.5, boundary=BoundaryOptions())
     apply_colour_map(img, ColourMap(np.full((1, 1, 3), 128, np.uint8), 8), (0, 0, 8, 8))
     # The exports' weights of the same borders.

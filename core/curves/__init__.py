@@ -13,14 +13,13 @@ __all__ = [
     "Curve",
     "curve_order",
     "fill_runs",
-    "scan_order",
     "scan_runs",
 ]
 
 
 def __getattr__(name: str) -> object:
     """The numba-backed functions, imported when first asked for (PEP 562)."""
-    if name in ("scan_order", "scan_runs"):
+    if name == "scan_runs":
         from terratheme.core.curves import scan
 
         return getattr(scan, name)

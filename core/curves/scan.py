@@ -54,28 +54,6 @@ def _runs_kernel(keys, ox, oy, width, height, b, bx, by, state, first_step, patt
 
 
 @numba.njit(cache=True, nogil=True)
-def _order_kernel(h, w, b, bx, by, state, patterns):  # pragma: no cover - numba
-    side = 1 << b
-    mask = side - 1
-    out = np.empty(h * w, np.int64)
-    k = 0
-    for j in range(bx.size):
-        x0 = np.int64(bx[j]) * side
-        y0 = np.int64(by[j]) * side
-        pat = patterns[state[j]]
-        full = x0 + side <= w and y0 + side <= h
-        for i in range(side * side):
-            p = np.int64(pat[i])
-            x = x0 + (p & mask)
-            y = y0 + (p >> b)
-            if not full and (x >= w or y >= h):
-                continue
-            out[k] = (h - 1 - y) * w + x
-            k += 1
-    return out
-
-
-@numba.njit(cache=True, nogil=True)
 def _inside_count(h, w, x0, y0, side):  # pragma: no cover - numba
     return (min(w, x0 + side) - x0) * (min(h, y0 + side) - y0)
 
@@ -240,12 +218,6 @@ def join_runs(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, n
     values = np.concatenate([p[1] for p in parts])
     keep = np.append(values[1:] != values[:-1], True)
     return (steps, values) if keep.all() else (steps[keep], values[keep])
-
-
-def scan_order(width: int, height: int, curve: str | Curve) -> np.ndarray:
-    """(W*H,) int64 flat indices: ``image.reshape(-1)[order]`` reads the image along the curve."""
-    plan = block_plan(width, height, curve)
-    return _order_kernel(height, width, plan.b, plan.bx, plan.by, plan.state, plan.patterns)
 
 
 def ranks_to_steps(ends: np.ndarray, width: int, height: int, curve: str | Curve) -> np.ndarray:

@@ -131,21 +131,6 @@ def noise_value(x, y, theme, lattice, seed):  # pragma: no cover - numba
     return (v * 4) // (lattice * lattice) - 512
 
 
-def noise_field(x0: int, y0: int, w: int, h: int, theme: int, lattice: int,
-                seed: int = 0) -> np.ndarray:
-    """(h, w) int64 noise of one theme over a window of global texels (for tests and charts)."""
-    return _noise_field(x0, y0, w, h, theme, lattice, seed)
-
-
-@nb.njit(cache=True)
-def _noise_field(x0, y0, w, h, theme, lattice, seed):  # pragma: no cover - numba
-    out = np.empty((h, w), np.int64)
-    for r in range(h):
-        for c in range(w):
-            out[r, c] = noise_value(x0 + c, y0 + r, theme, lattice, seed)
-    return out
-
-
 @nb.njit(cache=True, nogil=True, inline="always")
 def border_weights(ks, ws, bs, o, flat, x, gy, d, params, sc):  # pragma: no cover - numba
     """Steps 2-3 at texel ``(x, gy)``: ``sc[a] = v_t`` of every corner slot; returns their sum.
