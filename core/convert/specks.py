@@ -76,11 +76,6 @@ class SpeckStream:
         self._done = 0
         self._above: np.ndarray | None = None  # the original of row done-1
 
-    @property
-    def cleaned(self) -> int:
-        """How many first rows are cleaned (final)."""
-        return self._done
-
     def advance(self, final: int) -> int:
         """Clean what the first ``final`` final (original) rows allow; returns :attr:`cleaned`."""
         rows = self._grid.shape[0]

@@ -72,12 +72,6 @@ class Flight:
     def __post_init__(self) -> None:
         self.camera()  # the same checks as the perspective preview's camera
 
-    @classmethod
-    def over(cls, texture_size: tuple[int, int], pitch: float = 20.0) -> Flight:
-        """A start over a texture: its centre, a twelfth of its shorter side up, looking north."""
-        w, h = texture_size
-        return cls(w / 2.0, h / 2.0, max(2.0, min(w, h) / 12.0), 0.0, pitch)
-
     def camera(self) -> Camera:
         """The perspective preview's camera for this flight."""
         return Camera(height=self.height, pitch=self.pitch, yaw=self.yaw, fov=self.fov,
