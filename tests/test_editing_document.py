@@ -74,16 +74,6 @@ ODD_SCRIBBLES = [
 def test_odd_scribbles_are_refused_with_one_line(scribbles, message):
     with pytest.raises(TerrathemeError, match=message):
         make_doc(scribbles=scribbles)
-    doc = make_doc()
-    with pytest.raises(TerrathemeError, match=message):
-        doc.replace_scribbles(scribbles)
-    assert doc.scribbles is None
-
-
-def test_scribbles_need_a_photo():
-    doc = make_doc(photo=None)
-    with pytest.raises(TerrathemeError, match="without a photo"):
-        doc.replace_scribbles(np.zeros(PHOTO, np.uint8))
 
 
 def test_grey_and_rgba_photos_are_shown_as_rgb():
@@ -133,8 +123,6 @@ def test_scribble_errors_name_the_problem():
         doc.begin_stroke(4, (0, 0), 1, Layer.SCRIBBLES)
     with pytest.raises(TerrathemeError, match="not painted with a brush"):
         doc.begin_stroke(1, (0, 0), 1, Layer.PHOTO)
-    with pytest.raises(TerrathemeError, match="the photo is 30 x 20"):
-        doc.replace_scribbles(np.zeros((2, 2), np.uint8))
     assert not doc.history.can_undo
 
 

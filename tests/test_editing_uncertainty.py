@@ -128,7 +128,8 @@ def test_document_kept_prior(doc):
                                                   class_weights={1: 1.0, 2: 0.5, 3: 0.25}))
     assert doc.kept_prior.classes == {1, 2, 3}
     # Erasing every stroke drops it, in the erasing step; undo brings both back.
-    doc.replace_scribbles(np.zeros((64, 96), np.uint8))
+    doc.begin_stroke(0, (48, 32), 200.0, Layer.SCRIBBLES)
+    doc.end_stroke()
     assert doc.kept_prior is None and doc.scribble_classes() == frozenset()
     doc.undo()
     assert doc.kept_prior.classes == {1, 2, 3} and doc.scribble_classes() == {1, 2, 3}

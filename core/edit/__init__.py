@@ -34,7 +34,6 @@ from terratheme.core.edit.layers import (
     photo_extent,
     validate_confidence,
     validate_photo,
-    validate_scribbles,
 )
 from terratheme.core.edit.preview import RenderPreview, dirty_cells, dirty_region
 from terratheme.core.edit.tools import (
@@ -98,5 +97,4 @@ __all__ = [
     "uncertainty_rgba",
     "validate_confidence",
     "validate_photo",
-    "validate_scribbles",
 ]

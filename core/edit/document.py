@@ -20,7 +20,6 @@ from terratheme.core.edit.changes import (
     Paint,
     SetTheme,
     SwapLayer,
-    drop_prior_without_classes,
     grid_replacement,
     neutral_under,
     photo_replacement,
@@ -223,18 +222,6 @@ class EditDocument:
     def replace_grid(self, indices: np.ndarray, label: str = "replace grid") -> Step | None:
         """Replace the whole grid as one undo step (None when it is the same grid)."""
         return self._commit(label, grid_replacement(self.data, indices, len(self.library)))
-
-    def replace_scribbles(self, scribbles: np.ndarray | None, label: str = "replace scribbles"
-                          ) -> Step | None:
-        """Put a whole scribble layer (a copy of ``scribbles``; None removes it) in place."""
-        new = None if scribbles is None else layers.validate_scribbles(scribbles, self.photo).copy()
-        old = self.scribbles
-        if (old is None and new is None) or (old is not None and new is not None
-                                             and np.array_equal(old, new)):
-            return None
-        classes = frozenset() if new is None else frozenset(np.unique(new).tolist()) - {0}
-        return self._commit(label, [SwapLayer(Layer.SCRIBBLES, old, new),
-                                    *drop_prior_without_classes(self.data, classes)])
 
     # -- themes ----------------------------------------------------------------------
     def replace_theme(self, k: int, theme: Theme, label: str | None = None) -> Step | None:

@@ -42,13 +42,6 @@ def validate_photo(photo: object) -> np.ndarray:
     return check_layer(LAYER_BY_NAME["photo"], photo, {})
 
 
-def validate_scribbles(scribbles: object, photo: np.ndarray | None) -> np.ndarray:
-    """Check a scribble layer: (H, W) uint8, the photo's size; TerrathemeError otherwise."""
-    if photo is None:
-        raise TerrathemeError("scribble layer without a photo: scribbles mark photo pixels")
-    return check_layer(LAYER_BY_NAME["scribbles"], scribbles, {"photo": photo.shape[:2]})
-
-
 def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndarray:
     """A confidence map as a read-only (H, W) float32 array; TerrathemeError without a photo,
     at another size, or with values not finite in [0, 1].
