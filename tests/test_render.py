@@ -220,17 +220,6 @@ def test_no_equal_diagonal_uses_main() -> None:
     assert cell_splits(np.array([[0, 1], [1, 2]], dtype=np.uint8))[0, 0] == ANTI
 
 
-def test_explicit_splits_override() -> None:
-    g = np.array([[0, 1], [1, 0]])
-    flat = [np.full((1, 1, 3), v, dtype=np.uint8) for v in (0, 200)]
-    a = render_cells(g, flat, (4, 4), splits=np.array([[2]]))
-    assert a[2, 2, 0] == 200  # anti-diagonal (theme 1) dominates the centre
-    with pytest.raises(TerrathemeError, match="splits"):
-        render_cells(g, flat, (4, 4), splits=np.array([[3]]))
-    with pytest.raises(TerrathemeError, match="splits"):
-        render_cells(g, flat, (4, 4), splits=np.zeros((2, 2), dtype=int))
-
-
 @pytest.mark.parametrize("blend", list(BlendMode))
 def test_region_equals_crop(blend: BlendMode) -> None:
     rng = np.random.default_rng(4)

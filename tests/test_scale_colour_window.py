@@ -15,6 +15,7 @@ import pytest
 from terratheme.core.convert.colour_fit import BlockGainJob, grid_window
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import tile_windows
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import BlendMode, RenderOptions, render_cells
@@ -70,7 +71,8 @@ def test_origin_errors():
     with pytest.raises(TerrathemeError, match="origin"):
         render_cells(grid, themes, (4, 4), origin=(-1, 0))
     with pytest.raises(TerrathemeError, match="origin"):
-        render_cells(grid, themes, (4, 4), origin=(1, 0), splits=np.zeros((4, 4), np.uint8))
+        render_cells(grid, themes, (4, 4), origin=(1, 0),
+                     colour_map=ColourMap(np.full((1, 1, 3), 128, np.uint8), 4))
     with pytest.raises(TerrathemeError):
         # A region outside the block.
         render_cells(grid, themes, (4, 4), region=(0, 0, 4, 4), origin=(2, 2))

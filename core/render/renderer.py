@@ -95,7 +95,6 @@ def render_cells(
     region: tuple[int, int, int, int] | None = None,
     *,
     options: RenderOptions = RenderOptions(),
-    splits: np.ndarray | None = None,
     progress: Progress | None = None,
     out: np.ndarray | None = None,
     colour_map: ColourMap | None = None,
@@ -113,9 +112,6 @@ def render_cells(
         Texel columns and rows per cell (default: the IndexGrid's).
     region : (x, y, w, h), optional
         Window of the full ``(gw*N, gh*M)`` texture; equals that crop of the full render.
-    splits : (gh, gw) uint8 ndarray, optional
-        Per-cell split (0 uniform, 1 main diagonal, 2 anti-diagonal) chosen by the
-        caller; default ``cell_splits(grid, options.saddle)``.
     out : (h, w, 3) uint8 C-contiguous ndarray, optional
         Render into this array (a viewport reusing its buffer skips the page faults
         of a fresh allocation, which cost as much as a whole render).
@@ -126,7 +122,7 @@ def render_cells(
         ``region`` is in the larger texture's texels. Equals the larger grid's
         render when the block holds one vertex more than the region's cells on
         every side where the larger grid goes on (the saddle rule's ring). No
-        ``splits`` or ``colour_map`` with it.
+        ``colour_map`` with it.
 
     Returns
     -------
@@ -137,9 +133,9 @@ def render_cells(
     indices, (n, m) = prepare_grid(grid, cell, len(textures))
     gh, gw = indices.shape[0] - 1, indices.shape[1] - 1
     oy, ox = (int(v) for v in origin)
-    if oy < 0 or ox < 0 or ((oy or ox) and (splits is not None or colour_map is not None)):
-        raise TerrathemeError(f"origin must be two vertex numbers >= 0, without splits or a "
-                              f"colour map, got {origin}")
+    if oy < 0 or ox < 0 or ((oy or ox) and colour_map is not None):
+        raise TerrathemeError(f"origin must be two vertex numbers >= 0, without a colour map, "
+                              f"got {origin}")
     if region is not None and (oy or ox):
         # The block's own texels from here on; the kernels get the global position.
         region = (region[0] - ox * n, region[1] - oy * m, *region[2:])
@@ -148,7 +144,7 @@ def render_cells(
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
     # A copy when the region is narrower than the grid: the kernels' one signature ('C').
     sub = np.ascontiguousarray(indices[cy0 : cy1 + 2, cx0 : cx1 + 2])
-    splits = region_splits(indices, splits, options.saddle, (cy0, cy1, cx0, cx1))
+    splits = region_splits(indices, None, options.saddle, (cy0, cy1, cx0, cx1))
     cx0, cy0, rx, ry = cx0 + ox, cy0 + oy, rx + ox * n, ry + oy * m
     hist = options.blend is BlendMode.HISTOGRAM
     packed = pack_themes(textures, n, gaussian=hist)
@@ -210,7 +206,6 @@ def render_labels(
     *,
     n_themes: int | None = None,
     saddle: SaddleRule = SaddleRule.MINORITY,
-    splits: np.ndarray | None = None,
     threads: int = 0,
 ) -> np.ndarray:
     """The ``(h, w)`` uint8 theme with the largest total weight at every texel.
@@ -223,7 +218,7 @@ def render_labels(
     rx, ry, rw, rh = validate_region(region, (gw * n, gh * m))
     cx0, cx1, cy0, cy1 = rx // n, (rx + rw - 1) // n, ry // m, (ry + rh - 1) // m
     sub = np.ascontiguousarray(indices[cy0 : cy1 + 2, cx0 : cx1 + 2])
-    splits = region_splits(indices, splits, saddle, (cy0, cy1, cx0, cx1))
+    splits = region_splits(indices, None, saddle, (cy0, cy1, cx0, cx1))
     out = np.empty((rh, rw), dtype=np.uint8)
     block = rk.RegionBlock(sub, splits, cx0, cy0, rx, ry, n, m)
     small_table = 96 * n * m <= 8 << 20
