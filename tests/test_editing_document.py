@@ -11,7 +11,6 @@ from terratheme.core.edit import (
     GridChange,
     HistoryChange,
     Layer,
-    PhotoChange,
     ScribbleChange,
     ThemeChange,
     photo_extent,
@@ -37,7 +36,7 @@ def make_doc(photo=True, scribbles=None, **kw) -> EditDocument:
 
 def record(doc: EditDocument) -> list:
     seen: list = []
-    for name in ("grid", "scribbles", "themes", "photo", "confidence", "prior", "history"):
+    for name in ("grid", "scribbles", "themes", "confidence", "prior", "history"):
         getattr(doc.events, name).connect(seen.append)
     return seen
 
@@ -54,13 +53,8 @@ ODD_PHOTOS = [
 
 @pytest.mark.parametrize(("photo", "message"), ODD_PHOTOS)
 def test_an_odd_photo_is_refused_with_one_line(photo, message):
-    # By the project itself (core.model.layers), and when the editor sets one.
     with pytest.raises(TerrathemeError, match=message):
         make_doc(photo=photo)
-    doc = make_doc()
-    with pytest.raises(TerrathemeError, match=message):
-        doc.set_photo(photo)
-    assert doc.photo.shape == (*PHOTO, 3)
 
 
 ODD_SCRIBBLES = [
@@ -74,17 +68,6 @@ ODD_SCRIBBLES = [
 def test_odd_scribbles_are_refused_with_one_line(scribbles, message):
     with pytest.raises(TerrathemeError, match=message):
         make_doc(scribbles=scribbles)
-
-
-def test_grey_and_rgba_photos_are_shown_as_rgb():
-    grey = np.arange(600, dtype=np.uint16).reshape(PHOTO).astype(np.uint8)
-    doc = make_doc(photo=None)
-    doc.set_photo(grey)
-    rgb = doc.photo_rgb()
-    assert rgb.shape == (*PHOTO, 3) and (rgb[..., 1] == grey).all()
-    rgba = np.dstack([np.full(PHOTO, c, np.uint8) for c in (1, 2, 3, 4)])
-    doc.set_photo(rgba)
-    assert (doc.photo_rgb() == (1, 2, 3)).all()
 
 
 def test_photo_extent_is_one_to_one_unless_more_than_a_cell_smaller():
@@ -205,22 +188,6 @@ def test_classification_results_are_checked_first():
     assert len(doc.library) == 3 and not doc.history.can_undo
     # The same grid and no map: nothing to record.
     assert doc.apply_classification(ClassificationUpdate(np.zeros((7, 9), np.uint8))) is None
-
-
-def test_a_new_photo_takes_the_scribbles_that_no_longer_fit():
-    sc = np.zeros(PHOTO, np.uint8)
-    sc[2, 2] = 1
-    doc = make_doc(scribbles=sc)
-    seen = record(doc)
-    same_size = np.full((*PHOTO, 3), 9, np.uint8)
-    doc.set_photo(same_size)
-    assert doc.scribbles is not None and seen[0] == PhotoChange()
-    doc.set_photo(np.zeros((5, 5, 3), np.uint8))
-    assert doc.scribbles is None and doc.photo.shape == (5, 5, 3)
-    doc.undo()
-    assert doc.photo is same_size and doc.scribbles[2, 2] == 1
-    with pytest.raises(TerrathemeError, match="must be uint8, got int64"):
-        doc.set_photo(np.zeros((5, 5, 3), np.int64))
 
 
 # -- history ------------------------------------------------------------------------------

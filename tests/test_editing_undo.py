@@ -2,7 +2,7 @@
 
 Random sequences of every kind of edit (brush strokes, rectangles, flood
 fills, whole grids, scribbles, theme renames/recolours/new textures, added
-and removed themes, photos, confidence maps, classification results),
+themes, confidence maps, classification results),
 interleaved with undo and redo. The reference model is the list of document
 snapshots along the current branch and a position in it:
 
@@ -219,14 +219,6 @@ class UndoMachine(RuleBasedStateMachine):
             return
         conf = np.random.default_rng(seed).random(d.photo.shape[:2])
         self._edit(lambda: d.set_confidence(conf))
-
-    @rule(seed=st.integers(0, 2**16), shape_kept=st.booleans(), remove=st.booleans())
-    def photo(self, seed, shape_kept, remove) -> None:
-        d = self.doc
-        rng = np.random.default_rng(seed)
-        h, w = d.photo.shape[:2] if (d.photo is not None and shape_kept) else rng.integers(1, 9, 2)
-        new = None if remove else rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-        self._edit(lambda: d.set_photo(new))
 
     @rule(seed=st.integers(0, 2**16), n_new=st.integers(0, 2), replace=st.booleans(),
           with_conf=st.booleans(), scribble_run=st.sampled_from([True, True, False]))

@@ -146,17 +146,6 @@ def test_the_screenshot_command_refuses_an_odd_layer_in_one_line(tmp_path, textu
     assert not out.exists()
 
 
-def test_photo_changes_reach_the_window(window):
-    doc = window.doc
-    photo = np.full((64, 96, 3), 200, np.uint8)
-    doc.model.set_photo(photo)
-    assert doc.photo_pyramid.base is photo or np.array_equal(doc.photo_pyramid.base, photo)
-    doc.model.set_photo(None)
-    assert doc.photo_pyramid is None and not window.photo_slider.isEnabled()
-    doc.model.undo()
-    assert window.photo_slider.isEnabled()
-
-
 def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
     import terratheme.core
     from PySide6.QtGui import QDesktopServices
@@ -182,10 +171,12 @@ def test_help_menu_lists_keys_docs_and_version(window, monkeypatch):
     assert f"terratheme {terratheme.core.__version__}" in about and "PySide6" in about
 
 
-def test_the_fidelity_view_names_the_whole_texture_figures(window):
+def test_the_fidelity_view_names_the_whole_texture_figures(open_window, small_texture):
+    from terratheme.app.editor.document import EditorDocument
+
     photo = np.full((64, 96, 3), 120, np.uint8)
     photo[:, ::2] = 160
-    window.doc.model.set_photo(photo)
+    window = open_window(EditorDocument(small_texture(themes=2, seed=2, photo=photo)))
     window.fidelity_action.trigger()
     title = window.index_canvas.title
     assert "whole texture: dE8" in title and "bytes per area" in title

@@ -47,8 +47,6 @@ class EditorDocument(QObject):
         A theme was added, removed, renamed, recoloured or retextured.
     scribblesChanged(ScribbleChange)
         The scribble layer changed (a block of it, or the whole layer).
-    photoChanged()
-        The photo was set, replaced or removed.
     confidenceChanged()
         A classification's confidence map was set or cleared.
     historyChanged(HistoryChange)
@@ -58,7 +56,6 @@ class EditorDocument(QObject):
     regionChanged = Signal(QRectF)
     libraryChanged = Signal()
     scribblesChanged = Signal(object)
-    photoChanged = Signal()
     confidenceChanged = Signal()
     historyChanged = Signal(object)
 
@@ -87,7 +84,6 @@ class EditorDocument(QObject):
         events.grid.connect(self._on_grid)
         events.colour_map.connect(self._on_colour_map)
         events.themes.connect(self._on_themes)
-        events.photo.connect(self._on_photo)
         events.scribbles.connect(self.scribblesChanged.emit)
         events.confidence.connect(lambda _e: self.confidenceChanged.emit())
         events.history.connect(self.historyChanged.emit)
@@ -160,13 +156,6 @@ class EditorDocument(QObject):
         photo = self.model.photo_rgb()
         self.photo_pyramid = (None if photo is None else
                               ZoomPyramid(photo, extent=self.photo_extent()))
-
-    def _on_photo(self, _change) -> None:
-        self._make_photo_pyramid()
-        self._fidelity = None
-        self._summary = None
-        self.photoChanged.emit()
-        self.regionChanged.emit(EVERYWHERE)
 
     # -- views of the layers -------------------------------------------------------
     def scribble_rgba(self, rows: slice = slice(None), cols: slice = slice(None)

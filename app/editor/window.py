@@ -116,7 +116,7 @@ class MainWindow(QMainWindow):
         old = self.doc
         if old is not None:
             for sig in (old.regionChanged, old.scribblesChanged, old.historyChanged,
-                        old.confidenceChanged, old.photoChanged):
+                        old.confidenceChanged):
                 sig.disconnect()
         self.doc = doc
         tools = ToolController(doc)
@@ -132,7 +132,6 @@ class MainWindow(QMainWindow):
         doc.regionChanged.connect(self._region_changed)
         doc.scribblesChanged.connect(self._scribbles_changed)
         doc.confidenceChanged.connect(self._confidence_changed)
-        doc.photoChanged.connect(self._photo_changed)
         doc.historyChanged.connect(self._history_changed)
         self.palette_widget.set_document(doc)
         self.index_canvas.layers = [self._paint_index]
@@ -158,11 +157,6 @@ class MainWindow(QMainWindow):
         name = self.doc.path.name if self.doc and self.doc.path else "untitled"
         dirty = "" if self.doc is None or self.doc.clean else " *"
         self.setWindowTitle(f"{name}{dirty} — terratheme")
-
-    def _photo_changed(self) -> None:
-        self.photo_slider.setEnabled(self.doc.texture.photo is not None)
-        self._scribbles_changed(None)
-        self._repaint()
 
     # -- toolbar -------------------------------------------------------------
     def _build_toolbar(self) -> None:

@@ -21,7 +21,6 @@ from terratheme.core.edit.events import (
     Emitter,
     GridChange,
     HistoryChange,
-    PhotoChange,
     PriorChange,
     ScribbleChange,
     ThemeChange,
@@ -33,7 +32,6 @@ from terratheme.core.edit.layers import (
     display_photo,
     photo_extent,
     validate_confidence,
-    validate_photo,
 )
 from terratheme.core.edit.preview import RenderPreview, dirty_cells, dirty_region
 from terratheme.core.edit.tools import (
@@ -70,7 +68,6 @@ __all__ = [
     "KeptPrior",
     "Layer",
     "MultiAtom",
-    "PhotoChange",
     "PriorChange",
     "RenderPreview",
     "ScribbleChange",
@@ -96,5 +93,4 @@ __all__ = [
     "uncertain_mask",
     "uncertainty_rgba",
     "validate_confidence",
-    "validate_photo",
 ]

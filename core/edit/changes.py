@@ -17,7 +17,6 @@ from terratheme.core.edit.events import (
     ConfidenceChange,
     Event,
     GridChange,
-    PhotoChange,
     PriorChange,
     ScribbleChange,
     ThemeChange,
@@ -79,8 +78,6 @@ class Paint:
 
 
 def _whole_event(layer: Layer, array: np.ndarray | None) -> Event:
-    if layer is Layer.PHOTO:
-        return PhotoChange()
     if layer is Layer.CONFIDENCE:
         return ConfidenceChange()
     h, w = (0, 0) if array is None else array.shape[:2]
@@ -89,7 +86,7 @@ def _whole_event(layer: Layer, array: np.ndarray | None) -> Event:
 
 @dataclass(frozen=True, eq=False)
 class SwapLayer:
-    """A whole layer (photo, scribbles or confidence) put in place of another, or of none."""
+    """A whole layer (scribbles or confidence) put in place of another, or of none."""
 
     layer: Layer
     old: np.ndarray | None
@@ -263,19 +260,3 @@ def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
     swap = neutral_under(data, atom.rows, atom.cols) if neutral else None
     return [Paint(Layer.GRID, atom), *([swap] if swap is not None else [])]
 
-
-def photo_replacement(data: DocumentData, photo: np.ndarray | None) -> list[Change]:
-    """The changes that show ``photo`` (checked) instead of the current one.
-
-    The confidence map goes with the old photo; so do the scribbles and the
-    kept prior when the scribbles do not fit the new photo.
-    """
-    changes: list[Change] = [SwapLayer(Layer.PHOTO, data.texture.photo, photo)]
-    if data.confidence is not None:
-        changes.append(SwapLayer(Layer.CONFIDENCE, data.confidence, None))
-    sc = data.texture.scribbles
-    if sc is not None and (photo is None or sc.shape != photo.shape[:2]):
-        changes.append(SwapLayer(Layer.SCRIBBLES, sc, None))
-        if data.kept_prior is not None:
-            changes.append(SetPrior(data.kept_prior, None))
-    return changes

@@ -22,7 +22,6 @@ from terratheme.core.edit.changes import (
     SwapLayer,
     grid_replacement,
     neutral_under,
-    photo_replacement,
 )
 from terratheme.core.edit.classification import ClassificationUpdate, classification_changes
 from terratheme.core.edit.events import DocumentEvents, Event, HistoryChange
@@ -242,11 +241,6 @@ class EditDocument:
         return len(self.library) - 1
 
     # -- photo, confidence, classification results ----------------------------------------
-    def set_photo(self, photo: np.ndarray | None, label: str = "set photo") -> Step | None:
-        """Show ``photo`` (None: remove it); stale confidence, scribbles, prior go in the step."""
-        new = None if photo is None else layers.validate_photo(photo)
-        return None if new is self.photo else self._commit(label, photo_replacement(self.data, new))
-
     def set_confidence(self, confidence: np.ndarray | None, label: str = "confidence map"
                        ) -> Step | None:
         """Keep a classification's (H, W) confidence map (the photo's size); None clears it."""

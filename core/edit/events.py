@@ -55,11 +55,6 @@ class ColourMapChange:
 
 
 @dataclass(frozen=True)
-class PhotoChange:
-    """The photo layer was set, replaced or removed."""
-
-
-@dataclass(frozen=True)
 class ConfidenceChange:
     """The classifier's confidence map was set, replaced or cleared."""
 
@@ -79,8 +74,8 @@ class HistoryChange:
     clean: bool
 
 
-Event = (GridChange | ScribbleChange | ThemeChange | ColourMapChange | PhotoChange
-         | ConfidenceChange | PriorChange | HistoryChange)
+Event = (GridChange | ScribbleChange | ThemeChange | ColourMapChange | ConfidenceChange
+         | PriorChange | HistoryChange)
 E = TypeVar("E")
 
 
@@ -113,7 +108,6 @@ class DocumentEvents:
     scribbles: Emitter[ScribbleChange]
     themes: Emitter[ThemeChange]
     colour_map: Emitter[ColourMapChange]
-    photo: Emitter[PhotoChange]
     confidence: Emitter[ConfidenceChange]
     prior: Emitter[PriorChange]
     history: Emitter[HistoryChange]
@@ -126,7 +120,7 @@ class DocumentEvents:
         """Hand ``event`` to the emitter of its kind."""
         emitter = {
             GridChange: self.grid, ScribbleChange: self.scribbles, ThemeChange: self.themes,
-            ColourMapChange: self.colour_map, PhotoChange: self.photo,
+            ColourMapChange: self.colour_map,
             ConfidenceChange: self.confidence, PriorChange: self.prior,
             HistoryChange: self.history,
         }[type(event)]

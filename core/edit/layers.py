@@ -14,7 +14,6 @@ import numpy as np
 from terratheme.core.edit.uncertainty import KeptPrior
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
-from terratheme.core.model.layers import LAYER_BY_NAME, check_layer
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.themes.library import ThemeLibrary
 
@@ -30,16 +29,6 @@ class Layer(Enum):
     PHOTO = "photo"
     #: (H, W) float32 in [0, 1]: the last classification's confidence per photo pixel
     CONFIDENCE = "confidence"
-
-
-def validate_photo(photo: object) -> np.ndarray:
-    """Check a photo layer by the project's rule; grey and RGBA uint8 photos are shown as RGB
-    (:func:`display_photo`). TerrathemeError: not an 8-bit image array, or no pixels.
-    """
-    if (isinstance(photo, np.ndarray) and photo.dtype == np.uint8 and photo.size
-            and (photo.ndim == 2 or (photo.ndim == 3 and photo.shape[2] in (1, 4)))):
-        photo = display_photo(photo)
-    return check_layer(LAYER_BY_NAME["photo"], photo, {})
 
 
 def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndarray:
