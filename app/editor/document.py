@@ -153,7 +153,7 @@ class EditorDocument(QObject):
         self.regionChanged.emit(EVERYWHERE)
 
     def _make_photo_pyramid(self) -> None:
-        photo = self.model.photo_rgb()
+        photo = self.model.photo
         self.photo_pyramid = (None if photo is None else
                               ZoomPyramid(photo, extent=self.photo_extent()))
 
@@ -172,7 +172,7 @@ class EditorDocument(QObject):
         return np.ascontiguousarray(colours[sc[rows, cols]])
 
     def _padded_photo(self) -> np.ndarray | None:
-        photo = self.model.photo_rgb()
+        photo = self.model.photo
         if photo is None:
             return None
         w, h = self.extent

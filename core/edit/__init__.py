@@ -29,7 +29,6 @@ from terratheme.core.edit.fidelity import fidelity_map, heat_colours
 from terratheme.core.edit.history import History, Step
 from terratheme.core.edit.layers import (
     Layer,
-    display_photo,
     photo_extent,
     validate_confidence,
 )
@@ -79,7 +78,6 @@ __all__ = [
     "run_classification",
     "dirty_cells",
     "dirty_region",
-    "display_photo",
     "eyedropper",
     "fidelity_map",
     "flood_footprint",

@@ -52,7 +52,7 @@ class EditDocument:
         self.events = DocumentEvents.new()
         self.history = History()
         self._stroke: Stroke | None = None
-        #: what photo_rgb and uncertain derived, by name: (source array, derived array)
+        #: what uncertain derived, by name: (source array, derived array)
         self._derived: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     # -- what the document holds ------------------------------------------------
@@ -85,10 +85,6 @@ class EditDocument:
     @property
     def kept_prior(self) -> KeptPrior | None:
         return self.data.kept_prior
-
-    def photo_rgb(self) -> np.ndarray | None:
-        """The photo as (H, W, 3) C-contiguous uint8 for display (a view when it is RGB)."""
-        return self._derive("photo_rgb", self.photo, layers.display_photo)
 
     def photo_extent(self) -> tuple[float, float] | None:
         """``(width, height)`` in texels the photo covers (None without a photo)."""

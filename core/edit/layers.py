@@ -45,15 +45,6 @@ def validate_confidence(confidence: object, photo: np.ndarray | None) -> np.ndar
     return conf
 
 
-def display_photo(photo: np.ndarray) -> np.ndarray:
-    """The photo as ``(H, W, 3)`` C-contiguous uint8 for display (grey repeated, alpha cut)."""
-    if photo.ndim == 2:
-        photo = photo[..., None]
-    if photo.shape[2] == 1:
-        photo = np.repeat(photo, 3, axis=2)
-    return np.ascontiguousarray(photo[..., :3])
-
-
 def photo_extent(photo_shape: tuple[int, ...], grid: IndexGrid) -> tuple[float, float]:
     """``(width, height)`` in texels that a photo of ``photo_shape`` covers.
 
