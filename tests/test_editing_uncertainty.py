@@ -80,17 +80,18 @@ def doc(small_texture) -> EditDocument:
     return EditDocument(small_texture(photo=np.zeros((64, 96, 3), np.uint8)))
 
 
-def test_document_keeps_the_confidence_until_the_photo_changes(doc):
+def test_document_keeps_the_confidence_through_grid_edits(doc):
     seen = []
     doc.events.confidence.connect(lambda e: seen.append((e, doc.confidence is not None)))
     assert doc.confidence is None and doc.uncertain() is None
     with pytest.raises(TerrathemeError, match=r"\(10, 10\) confidence map does not fit"):
-        doc.set_confidence(np.ones((10, 10)))
+        doc.apply_classification(ClassificationUpdate(doc.indices, confidence=np.ones((10, 10))))
     with pytest.raises(TerrathemeError, match=r"finite and in \[0, 1\]"):
-        doc.set_confidence(np.full((64, 96), np.nan))
+        doc.apply_classification(ClassificationUpdate(doc.indices,
+                                                      confidence=np.full((64, 96), np.nan)))
     conf = np.full((64, 96), 0.9)
     conf[20:40, 30:60] = 0.2
-    doc.set_confidence(conf)
+    doc.apply_classification(ClassificationUpdate(doc.indices, confidence=conf))
     assert doc.confidence.dtype == np.float32 and seen == [(ConfidenceChange(), True)]
     np.testing.assert_array_equal(doc.uncertain(), uncertain_mask(conf))
     # Grid edits keep it (the user corrects where it was unsure).

@@ -211,15 +211,6 @@ class UndoMachine(RuleBasedStateMachine):
         tex = texture_of(np.random.default_rng(seed))
         self._edit(lambda: self.doc.add_theme(Theme(name, (1, 2, 3), tex)))
 
-    @rule(seed=st.integers(0, 2**16), clear=st.booleans())
-    def confidence(self, seed, clear) -> None:
-        d = self.doc
-        if clear or d.photo is None:
-            self._edit(lambda: d.set_confidence(None))
-            return
-        conf = np.random.default_rng(seed).random(d.photo.shape[:2])
-        self._edit(lambda: d.set_confidence(conf))
-
     @rule(seed=st.integers(0, 2**16), n_new=st.integers(0, 2), replace=st.booleans(),
           with_conf=st.booleans(), scribble_run=st.sampled_from([True, True, False]))
     def classification(self, seed, n_new, replace, with_conf, scribble_run) -> None:

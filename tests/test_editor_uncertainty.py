@@ -14,7 +14,7 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt
-from terratheme.core.edit import uncertain_mask, uncertainty_rgba
+from terratheme.core.edit import ClassificationUpdate, uncertain_mask, uncertainty_rgba
 
 
 @pytest.fixture
@@ -128,7 +128,7 @@ def test_uncertainty_toggle_follows_the_confidence_map(window, qtbot):
     window.set_show_uncertainty(True)
     assert act.isChecked()
     # The document drops its map: the overlay goes and the toggle turns off.
-    doc.model.set_confidence(None)
+    doc.model.apply_classification(ClassificationUpdate(doc.model.indices))
     assert not act.isChecked() and not window.show_uncertainty
     assert window.uncertainty_pyramid is None
 

@@ -19,7 +19,6 @@ from terratheme.core.edit.changes import (
     Change,
     Paint,
     SetTheme,
-    SwapLayer,
     grid_replacement,
     neutral_under,
 )
@@ -237,14 +236,6 @@ class EditDocument:
         return len(self.library) - 1
 
     # -- photo, confidence, classification results ----------------------------------------
-    def set_confidence(self, confidence: np.ndarray | None, label: str = "confidence map"
-                       ) -> Step | None:
-        """Keep a classification's (H, W) confidence map (the photo's size); None clears it."""
-        new = None if confidence is None else layers.validate_confidence(confidence, self.photo)
-        if new is None and self.confidence is None:
-            return None
-        return self._commit(label, [SwapLayer(Layer.CONFIDENCE, self.confidence, new)])
-
     def apply_classification(self, update: ClassificationUpdate, label: str = "classification"
                              ) -> Step | None:
         """A classification result as one undo step; None if nothing changes."""
