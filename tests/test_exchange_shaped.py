@@ -7,6 +7,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from exchange_cases import theme_weights
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.exchange import (
     Engine,
@@ -16,7 +17,6 @@ from terratheme.core.exchange import (
     map_weights,
     plan_export,
     shaped_slots,
-    theme_weights,
     write_export,
 )
 from terratheme.core.exchange.layout import nearest_texels

@@ -9,9 +9,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from exchange_cases import theme_weights
 from terratheme.core import exchange
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.exchange import Engine, ExportOptions, plan_export, theme_weights, write_export
+from terratheme.core.exchange import Engine, ExportOptions, plan_export, write_export
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from exchange_cases import theme_weights
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.exchange import ExportLayout, sample_corners, strongest_two, theme_weights
+from terratheme.core.exchange import ExportLayout, sample_corners, strongest_two
 from terratheme.core.exchange.layout import tiled_length
 from terratheme.core.render.renderer import render_cells, render_labels
 from terratheme.core.render.rules import SaddleRule

@@ -20,7 +20,7 @@ from terratheme.core.exchange.terrain3d import (
     encode_control,
 )
 from terratheme.core.exchange.texture_tiff import write_texture_tiff
-from terratheme.core.exchange.weights import sample_corners, strongest_two, theme_weights
+from terratheme.core.exchange.weights import sample_corners, strongest_two
 
 __all__ = [
     "Engine",
@@ -44,7 +44,6 @@ __all__ = [
     "sample_corners",
     "shaped_slots",
     "strongest_two",
-    "theme_weights",
     "world_frame",
     "write_export",
     "write_texture_tiff",

@@ -160,24 +160,6 @@ def quantise_weights(slots: CornerSlots, n_themes: int, *, total: int = 255) -> 
     return out.reshape(n_themes, h, w)
 
 
-def theme_weights(
-    grid: np.ndarray,
-    size: tuple[int, int],
-    window: tuple[int, int, int, int] | None = None,
-    *,
-    n_themes: int,
-    total: int = 255,
-    saddle: SaddleRule = SaddleRule.MINORITY,
-) -> np.ndarray:
-    """Weights (K, h, w) of ``grid``'s themes at a ``size = (W, H)`` map's pixels (or a
-    ``window`` of them): ``weights[k]`` is theme k's share times ``total`` (uint8 for
-    255, uint16 above)."""
-    indices = validate_indices(grid, n_themes=n_themes)
-    splits = cell_splits(indices, saddle)
-    return quantised_bands(lambda win: sample_corners(indices, size, win, splits=splits),
-                           n_themes, size, window, total=total)
-
-
 def quantised_bands(slots_of: Callable[[tuple[int, int, int, int]], CornerSlots],
                     n_themes: int, size: tuple[int, int],
                     window: tuple[int, int, int, int] | None, *, total: int = 255) -> np.ndarray:
