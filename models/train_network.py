@@ -265,6 +265,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", type=Path, default=None,
                         help="start from this checkpoint's weights (new schedule)")
+    parser.add_argument("--until", type=int, default=None,
+                        help="stop after this iteration of the schedule (default: its end)")
     parser.add_argument("--checkpoints", type=Path, default=None,
                         help="folder for .pt checkpoints (default: none kept)")
     args = parser.parse_args(argv)
@@ -289,7 +291,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(train)} training photos, {len(held)} held out; class weights "
           f"{weights.numpy().round(2).tolist()}", flush=True)
     start, running, scores = time.time(), 0.0, None
-    for it in range(1, args.iterations + 1):
+    last = min(args.iterations, args.until or args.iterations)
+    for it in range(1, last + 1):
         x, y = batch(train, sizes / sizes.sum(), rng)
         loss = F.cross_entropy(net.logits(x), y, weight=weights, ignore_index=IGNORE)
         opt.zero_grad()
@@ -299,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
         running = 0.98 * running + 0.02 * loss.item() if it > 1 else loss.item()
         if it % 25 == 0:
             print(f"it {it} loss {running:.4f} {time.time() - start:.0f}s", flush=True)
-        if it % args.every == 0 or it == args.iterations:
+        if it % args.every == 0 or it == last:
             scores = score(net, held) if held else None
             export(net, args.out / FILE)
             write_index(args.out, scores, args.holdout, it, args.iterations)
