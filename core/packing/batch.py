@@ -1,17 +1,15 @@
 """Batched random access into packed layers and tiled containers: the bucket strategy.
 
-A batch of random texels looked up one by one waits on memory (each search is a chain
-of dependent loads into runs that do not stay in cache). So a batch is worked
-:data:`CHUNK` texels at a time in three passes, a radix partition by where the runs lie:
+A batch is worked :data:`CHUNK` texels at a time in three passes, a radix partition by
+where the runs lie, so each search's runs stay in cache:
 
 1. every texel's grid word (a uniform block answers at once); any other leaves an
    entry and its **bucket**, ``2^shift`` grid words holding about :data:`BUCKET_RUNS` runs;
 2. a counting sort of the entries by bucket;
-3. bucket by bucket, the searches, whose runs now stay in L1.
+3. bucket by bucket, the searches.
 
-On threads, each does the three passes on its own slice. :func:`lookup_batch`, the one
-entry point, picks this or the sweeps (:mod:`.sweep`) per table; both give the scalar
-lookup's answers bit for bit.
+:func:`lookup_batch` picks this or the sweeps (:mod:`.sweep`) per table
+(docs/formats.md, P3; docs/decisions.md); both match the scalar lookup bit for bit.
 """
 
 from __future__ import annotations

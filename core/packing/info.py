@@ -17,20 +17,8 @@ from terratheme.core.packing.layout import table_words_max
 
 @dataclass(frozen=True)
 class LayerInfo:
-    """A packed layer's description.
-
-    Attributes
-    ----------
-    identity_palette : bool
-        Single-channel layer whose palette index is the texel value.
-    palette : list of lists of int
-        ``K`` colours of ``channels`` samples.
-    memory_bytes_max : int
-        Upper bound of the loaded random-access table (exactly: ``PackedLayer.memory_bytes``).
-    format : str
-        Payload encoding (a tiled container's tiles' joined by ``+``).
-    tiles, tile_side : int, int or None
-        Tiles of a tiled container (1 for one layer) and their side.
+    """A packed layer's description (``memory_bytes_max`` bounds the loaded table;
+    ``format`` is the payload encoding, a tiled container's tiles' joined by ``+``).
     """
 
     width: int

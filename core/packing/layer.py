@@ -48,13 +48,11 @@ class PackedLayer:
     palette : (K, C) uint8 or uint16 ndarray
         Colour of each palette index (``K <= 256``).
     identity : bool
-        Single-channel index layer whose palette index is the pixel value.
+        Single-channel layer whose palette index is the pixel value.
     squeeze : bool
-        The packed image was 2-D ``(H, W)``: reads drop the channel axis as numpy would.
-    report : PaletteReport or None
-        What palette reduction changed, when it was used.
+        The packed image was 2-D: reads drop the channel axis.
     colours : (K, 3|4) uint8 ndarray or None
-        Display colours of an identity layer's indices (lookups still return indices).
+        Display colours of an identity layer's indices.
     threads : int
         Threads for batched lookups of at least ``PARALLEL_FROM`` texels.
     S, P : (R,) ndarrays
@@ -85,17 +83,9 @@ class PackedLayer:
     ) -> PackedLayer:
         """A layer from its runs ``D_i = <S_i, P_i>`` (seed Table 3).
 
-        Parameters
-        ----------
-        steps : (R,) integer ndarray
-            Last step of each run, strictly increasing, 0-based unless ``one_based``; the
-            last one the image's last texel's.
-        indices : (R,) integer ndarray
-            Palette index ``P_i`` of each run, ``< len(palette)``.
-        palette : (K,) or (K, C) uint8 or uint16 ndarray
-        colours : (K', 3|4) uint8 ndarray, optional
-            Display colours of an identity layer (``K' >= K``; the first ``K`` are kept).
-
+        ``steps`` (R,) are each run's last step, strictly increasing, 0-based unless
+        ``one_based``, ending at the last texel; ``indices`` (R,) index ``palette`` (K,) or
+        (K, C). ``colours`` (K' >= K, 3|4) uint8 are an identity layer's display colours.
         Raises TerrathemeError for runs that break those rules or colours that do not fit.
         """
         curve = Curve.parse(curve)

@@ -106,18 +106,13 @@ def pack(
     Parameters
     ----------
     image : (H, W) or (H, W, C) uint8/uint16 ndarray
-        Row 0 on top. Single-channel values 0..255 are palette indices, else at most
-        256 colours.
-    curve : "hilbert" | "morton" | "auto"
+        Row 0 on top. Single-channel values are palette indices, else at most 256 colours.
     reduce_palette : bool
         Reduce more than 256 colours by k-means (``layer.report``) instead of refusing.
-    colours : (K, 3|4) uint8 ndarray, optional
-        Display colours of an index image's values.
     tile_bits : int, optional
         A :class:`TiledLayer` of ``2^tile_bits`` tiles (6..16); forced past 65536 a side.
 
-    Returns a PackedLayer or TiledLayer; TerrathemeError for an empty image, unsupported
-    pixels, too many colours, or display colours for a colour image.
+    Raises TerrathemeError for an empty image, unsupported pixels or too many colours.
     """
     choice = CurveChoice.parse(curve)
     arr, squeeze = check_image(image, max_side=MAX_TILED_SIDE)

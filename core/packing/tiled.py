@@ -43,17 +43,9 @@ DEFAULT_TILE_BITS = 16
 class TiledLayer:
     """A layer as a grid of packed tiles of ``2^tile_bits`` texels a side.
 
-    Built by :func:`core.packing.pack` (``tile_bits=`` or a side over 65536) or :meth:`load`.
-
-    Attributes
-    ----------
-    palette : (K, C) ndarray, uint8 or uint16
-        The whole layer's palette; tiles hold indices into it.
-    identity, squeeze, colours, threads
-        As for :class:`PackedLayer`.
-    join : bool
-        Look texels up through one joined table (:mod:`.joined`) when the tiles allow it;
-        False: through each tile's own table. Both give the same answers.
+    ``palette`` (K, C) is the whole layer's (tiles hold indices into it); ``identity``,
+    ``squeeze``, ``colours`` and ``threads`` as for :class:`PackedLayer`. ``join``: look
+    texels up through one joined table (:mod:`.joined`) when the tiles allow it (same answers).
     """
 
     width: int

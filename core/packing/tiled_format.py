@@ -1,33 +1,7 @@
-"""The tiled container file: packed layers beyond 65536 x 65536, with an index.
+"""The tiled container file (``TTPT``): packed layers beyond 65536 x 65536, with an index.
 
-Square tiles of ``2^t`` texels (the last column and row smaller), each a complete
-packed-layer file (:mod:`.container`) of indices into the container's one palette.
-Layout (little-endian)::
-
-    offset size  field
-    0      4     magic b"TTPT"
-    4      1     format version (1)
-    5      1     flags: bit 0 = 2-D image, bit 1 = identity palette,
-                 bit 2 = display colours stored, bit 3 = they have alpha
-    6      1     channels C (1..4)
-    7      1     bytes per sample (1 or 2)
-    8      2     palette entries K (1..256)
-    10     1     t, log2 of the tile side (6..16)
-    11     1     reserved, 0
-    12     4     width  (1 .. 2^31 - 1)
-    16     4     height (1 .. 2^31 - 1)
-    20     4     tiles across = ceil(width / 2^t)
-    24     4     tiles down = ceil(height / 2^t)
-    28     8     bytes of all tiles
-    36     ...   palette, K*C samples (absent for an identity palette)
-    ...    ...   display colours, K*3 or K*4 bytes (flag bit 2)
-    ...    16*N  index, tiles in rows from the top-left: byte offset (from the first
-                 tile's first byte) and length of each tile, u64 each
-    ...    4     CRC-32 of every byte above
-    ...    ...   the tiles, end to end in index order
-
-Opening checks the fields and the index against the file's length; each tile is checked
-when first decoded.
+Square tiles of ``2^t`` texels, each a complete packed-layer file (:mod:`.container`) of
+indices into the container's one palette. Byte layout and checks: docs/formats.md, P2.
 """
 
 from __future__ import annotations
