@@ -1,25 +1,9 @@
 """Boundaries shaped by the themes' content and deterministic noise (beyond the paper's ramp).
 
-The paper's barycentric blend smears every border over a whole cell and a single
-odd vertex reads as a diamond. Here a border is a narrow, irregular edge, decided
-per texel of a mixed cell in integers (units of 1/1024 of a weight) so every
-renderer and region agrees exactly:
-
-1. the barycentric weight of each distinct theme of the cell's triangle
-   (:mod:`core.render.rules`), ``w_t = floor(1024 * W_t / D)``;
-2. a score per theme: ``s_t = w_t + A * n_t(X, Y) + H * (luma_t(X, Y) - 128) * 4``,
-   with ``n_t`` value noise in ``[-512, 508]`` on a lattice of ``L`` texels (one
-   field per theme index and ``seed``, of global texel coordinates only: no seams),
-   ``luma_t = (77 R + 150 G + 29 B) >> 8`` the theme's own luminance at the texel
-   (as engines' height blending), ``A = noise / 256``, ``H = height / 256``;
-3. the transition ``v_t = max(0, s_t - max_u s_u + W)`` over the themes of non-zero
-   weight, ``W`` the border width in weight units (``1024 * width / ((N + M) / 2)``,
-   at most 0.4 of a weight), and the texel ``sum(v_t * T_t) / sum(v_t)`` rounded half up.
-
-A theme of zero weight cannot compete while noise and height move a score by at
-most ``(1/2 - W) / 2`` each way (:meth:`BoundaryOptions.parameters` scales ``A`` and
-``H`` to that budget), so the render is continuous across every cell edge and
-diagonal, a vertex's texel keeps its theme and uniform cells are copied.
+A border is a narrow, irregular edge instead of the paper's whole-cell ramp, decided per
+texel of a mixed cell in integers (1/1024 of a weight) so every renderer and region agrees
+exactly: barycentric weight, plus value noise and the theme's own luminance, then a
+transition of width ``W``. Equations and the continuity argument: docs/design.md §1.4.
 """
 
 from __future__ import annotations

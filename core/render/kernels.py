@@ -270,13 +270,9 @@ def _inverse(inv_lut, row, g, g_range):
 def histogram_rows(out, r0, r1, block, themes, gauss):
     """Fill ``out[r0:r1]`` with the histogram-preserving blend (Heitz & Neyret, HPG 2018).
 
-    Per texel and channel: ``g = sum(w_t * G_t) / sqrt(sum(w_t^2))`` over the
-    distinct themes ``t`` (their variance-preserving blend of the
-    Gaussianised values ``G_t``), then ``out = sum(w_t * Q_t(g))`` with
-    ``Q_t`` theme ``t``'s inverse transform (their inverse LUT, back to each
-    theme's own histogram). A texel with one theme at full weight is that
-    theme's texel exactly. ``block`` a :class:`RegionBlock`, ``themes``
-    :class:`ThemeRows`, ``gauss`` :class:`GaussianThemes`.
+    Per texel and channel ``g = sum(w_t * G_t) / sqrt(sum(w_t^2))``, then
+    ``out = sum(w_t * Q_t(g))`` (docs/design.md §1); a texel of one theme at full
+    weight is that theme's texel exactly.
     """
     grid, splits, ocx, ocy, rx, ry, n, m = block
     flat, off, stride, th, tw = themes

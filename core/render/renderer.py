@@ -113,21 +113,13 @@ def render_cells(
     region : (x, y, w, h), optional
         Window of the full ``(gw*N, gh*M)`` texture; equals that crop of the full render.
     out : (h, w, 3) uint8 C-contiguous ndarray, optional
-        Render into this array (a viewport reusing its buffer skips the page faults
-        of a fresh allocation, which cost as much as a whole render).
-    colour_map : ColourMap, optional
-        Colour gain over the full texture (:mod:`core.render.colour_map`).
+        Render into this array (a reused buffer skips a fresh allocation's page faults).
     origin : (row, col), optional
-        ``grid`` is the block of a larger grid starting at vertex ``(row, col)``;
-        ``region`` is in the larger texture's texels. Equals the larger grid's
-        render when the block holds one vertex more than the region's cells on
-        every side where the larger grid goes on (the saddle rule's ring). No
-        ``colour_map`` with it.
+        ``grid`` is the block of a larger grid starting at vertex ``(row, col)`` and
+        ``region`` is in its texels; equals the larger render when the block has one
+        vertex of margin (the saddle ring). Not with ``colour_map``.
 
-    Returns
-    -------
-    image : (h, w, 3) uint8 ndarray
-        ``(gh*M, gw*N, 3)`` for the full texture (``out`` when given).
+    Returns the (h, w, 3) uint8 image, ``out`` when given.
     """
     textures = theme_textures(themes)
     indices, (n, m) = prepare_grid(grid, cell, len(textures))

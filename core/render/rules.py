@@ -1,19 +1,10 @@
 """How each cell is split and weighted (Vyatkin & Romanyuk, design.md §1).
 
-* **Texel positions.** Texel column ``X`` sits at grid position ``X / N``, row ``Y``
-  at ``Y / M`` (the paper's ``x = xs/N``): a cell's texel ``(xs, ys)`` has local
-  coordinates ``x = xs/N``, ``y = ys/M`` in ``[0, 1)``. A vertex's texel reproduces
-  its theme exactly and along a cell edge the weights interpolate the edge's two
-  vertices whatever the split, so there is no seam across cell edges.
-* **Exact integer weights.** With ``D = N*M``, ``X' = xs*M`` and ``Y' = ys*N`` are
-  integers and every barycentric weight times ``D`` is one; the blend is rounded
-  half up: ``out = floor((2 * sum(w_k * T_k) + D) / (2 * D))``.
-* **Splits** (``cell_splits``): ``UNIFORM``, ``MAIN`` (diagonal ``ind[0][0]``-
-  ``ind[1][1]``), ``ANTI`` (``ind[0][1]``-``ind[1][0]``), following the equal-ended
-  diagonal. **Saddle** (``A B / B A``): the theme with *fewer* vertices in the ring
-  of 12 around the cell gets its diagonal (thin roads and rivers stay unbroken); a
-  tie goes to the lower index. Three or four different themes: ``MAIN``, the
-  paper's first branch.
+Texel ``(xs, ys)`` of a cell has local coordinates ``x = xs/N``, ``y = ys/M``; with
+``D = N*M`` every barycentric weight times ``D`` is an integer and the blend is rounded
+half up, ``out = floor((2 * sum(w_k * T_k) + D) / (2 * D))``. Splits (``cell_splits``):
+``UNIFORM``, ``MAIN``, ``ANTI`` along the equal-ended diagonal; saddles (``A B / B A``)
+give the diagonal to the theme with fewer vertices in the ring of 12 (docs/design.md §1).
 """
 
 from __future__ import annotations

@@ -1,12 +1,9 @@
 """Theme data laid out for the render kernels, cached by texture content.
 
-``pack_themes`` pre-tiles every theme horizontally (``w + N`` columns, so a
-cell row is one contiguous slice) and concatenates them into one flat
-buffer; with ``gaussian=True`` it adds the Gaussianised copies and the
-inverse tables of the histogram-preserving blend (Heitz & Neyret, HPG 2018,
-``G = Phi^-1(CDF(T))`` per channel, and a tabulated inverse). Packs are
-cached on the textures' bytes, so the editor's many small viewport renders
-do not repeat the work.
+``pack_themes`` pre-tiles every theme to ``w + N`` columns (a cell row is one
+contiguous slice) in one flat buffer; ``gaussian=True`` adds the histogram-preserving
+blend's Gaussianised copies and inverse tables. Cached on the textures' bytes, so the
+editor's many small viewport renders do not repeat the work.
 """
 
 from __future__ import annotations
