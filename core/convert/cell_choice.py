@@ -131,21 +131,12 @@ def choose_cell_size(
 ) -> CellChoice:
     """The largest square cell whose label view keeps ``target_agreement`` of the labels.
 
-    Each candidate that fits is voted and its label view counted; the answer is the
-    largest meeting the target with every class over ``CLASS_MIN_SHARE`` keeping IoU
-    ``class_target`` (a thin road class does not vanish). Otherwise the best-agreeing cell,
-    ``target_met=False``. The curve is smallest cell first.
-
-    Parameters
-    ----------
-    labels : (H, W) uint8 ndarray, or a list of them
-        Theme indices; a list: windows of one photo, voted apart, counts summed.
-    sample_pixels : int or None
-        Measure on about this many pixels (row strips); None: every pixel.
-    full_curve : bool
-        False: from the largest candidate down, stop at the first that meets the targets.
-    keep_specks : bool
-        False: each grid is cleaned of lone vertices (:func:`remove_specks`) first.
+    The largest candidate meeting the target with every class over ``CLASS_MIN_SHARE``
+    keeping IoU ``class_target`` (a thin road class does not vanish) wins; otherwise the
+    best-agreeing cell, ``target_met=False``. ``labels``: (H, W) uint8 theme indices, or a
+    list of one photo's windows (voted apart, counts summed). ``sample_pixels``: measure on
+    about that many pixels (row strips; None: all). ``full_curve`` False: stop at the first
+    from the largest down. ``keep_specks`` False: grids lose lone vertices first.
     """
     pieces = [labels] if isinstance(labels, np.ndarray) else list(labels)
     pieces = [check_class_image(p, "label image") for p in pieces]

@@ -43,21 +43,10 @@ MIN_AREA_BYTES = 512
 class ColourMapOptions:
     """How the colour map of a conversion is made.
 
-    Attributes
-    ----------
-    target : float or None
-        dE8 (mean CIEDE2000 after a sigma-8 blur) to reach at the coarsest of ``scales``;
-        None: the byte budget's search.
-    scales : tuple of int
-        Texels per map pixel tried with a ``target``, coarsest first.
-    codec : str
-        Storage codec (``core.io.codec``: avif, jpegxl, webp, jpeg, png).
-    quality, iterations : int
-        With a ``target``: codec quality 1..100, refinements of the block gain.
-    budget : float
-        Without a target: bits per photo pixel the area (packed grid and map) may take.
-    budget_scales : tuple of int
-        Texels per map pixel tried for the budget.
+    ``target``: dE8 (mean CIEDE2000 after a sigma-8 blur) to reach at the coarsest of
+    ``scales`` (texels per map pixel, coarsest first), refining the block gain ``iterations``
+    times at codec ``quality``; None: the area (packed grid and map) gets ``budget`` bits per
+    photo pixel and the best of ``budget_scales``. ``codec``: see ``core.io.codec``.
     """
 
     target: float | None = None

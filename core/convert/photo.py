@@ -63,21 +63,14 @@ class ConvertOptions:
     Attributes
     ----------
     cell : "auto" or int
-        Square cell size in texels, or chosen from the targets.
+        Square cell size in texels, or chosen from ``candidates`` so that the grid keeps
+        ``target_agreement`` of the labels and ``class_target`` IoU of every class of at
+        least 0.5% of the photo.
     themes : "auto", int, sequence of names or {class: name}
-        "auto"/int: unsupervised classes, themes cut from the photo. A list of shipped
-        theme names is assigned by appearance (K at most the names); a mapping names the
-        class values (for scribbles).
-    target_agreement : float
-        Share of pixels whose label the grid must keep (``cell="auto"``).
-    class_target : float
-        IoU every class of at least 0.5% of the photo must keep (``cell="auto"``).
-    candidates : sequence of int
-        Cell sizes ``cell="auto"`` tries.
-    colour_map : ColourMapOptions or None
-        The colour map fitted to the photo; None: the paper's pure rule.
-    boundary : BoundaryOptions or None
-        Content-shaped borders (the project's render style); None: the barycentric ramp.
+        "auto"/int: unsupervised classes, themes cut from the photo. Shipped theme names are
+        assigned by appearance; a mapping names the class values (for scribbles).
+    colour_map, boundary : ColourMapOptions, BoundaryOptions or None
+        None: the paper's pure rule, the barycentric ramp.
     full_curve : bool
         Measure every candidate cell (``convert --curve``); False: stop at the first,
         from the largest down, that meets the targets (the same cell, faster).
@@ -145,11 +138,9 @@ def convert_photo(
     scribbles : (H, W) integer ndarray, optional
         0 = unlabelled, k > 0 = class k: supervised classification.
     model : core.classify.Classifier, optional
-        A trained or shipped classifier to use instead; its class names name the themes.
+        A trained or shipped classifier instead; its class names name the themes.
     class_names : {class: name}, optional
         With ``themes`` "auto": the themes' names (a legend's), before the model's own.
-    metadata : dict, optional
-        Extra project metadata (source path, georeference, ...).
     """
     rgb, _ = prepare_photo(photo)
     h, w = rgb.shape[:2]

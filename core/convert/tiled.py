@@ -71,20 +71,11 @@ def grid_from_file(
 ) -> IndexGrid:
     """The vertex grid of an image file, classified and voted tile by tile.
 
-    Parameters
-    ----------
-    classify : callable((h, w, C) ndarray) -> (h, w) integer ndarray
-        Per-tile class values (e.g. ``PredictLabels(model)``); on a cluster it must pickle.
-    lut : (256,) int array-like, optional
-        Class value -> theme index (default: identity).
-    tile, overlap : int
-        Tile side (rounded to whole cells) and context pixels around it.
-    scheduler : Scheduler or distributed.Client
-        Where the tiles run; every scheduler gives the same grid.
-    rows_final : callable(IndexGrid, int), optional
-        Called after each tile with the grid and how many first rows are final.
-    keep_specks : bool
-        False: lone vertices take their neighbours' theme (a row is final one row later).
+    ``classify`` maps an (h, w, C) tile to (h, w) class values (it must pickle on a cluster);
+    ``lut`` (256,) maps class values to theme indices (default identity). ``tile`` is rounded
+    to whole cells and read with ``overlap`` context pixels; every ``scheduler`` gives the same
+    grid. ``rows_final(grid, n)`` is told after each tile how many first rows are final;
+    ``keep_specks`` False makes lone vertices take their neighbours' theme.
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else tuple(cell)
     n, m = validate_cell(cell)
@@ -168,25 +159,11 @@ def convert_file_tiled(
     """A project for a photo larger than memory, with a trained classifier or unsupervised.
 
     Themes, the cell and the map's scale are chosen once on the region's sample
-    (:mod:`.region_sample`), then the grid and the colour map are made tile by tile. The
-    project has no photo layer; metadata records what the choices were measured on.
-
-    Parameters
-    ----------
-    model : Classifier, NetworkClassifier, UnsupervisedModel or None
-        None: unsupervised themes fitted on the whole photo's samples.
-    cell : int or "auto"
-        "auto": chosen on the sample's windows apart (``target_agreement``,
-        ``class_target``, ``candidates``), capped by a byte budget's grid share.
-    names : list or {class: name}, optional
-        Shipped themes by name (unsupervised: a list, assigned by appearance); default:
-        themes cut from the sample.
-    themes : "auto" or int
-        Unsupervised only: K from the data or that many themes.
-    tile, overlap, scheduler
-        As :func:`grid_from_file`.
-    progress : callable(done, total), optional
-        Tiles of each pass (samples, grid, colour map), each from 0.
+    (:mod:`.region_sample`), then the grid and the colour map are made tile by tile; the
+    project has no photo layer. ``model`` None: unsupervised themes on the whole photo's
+    samples (``themes``: K or "auto"). ``cell``, ``names`` and the targets as
+    :class:`ConvertOptions` (the cell also capped by a byte budget's grid share); ``tile``,
+    ``overlap``, ``scheduler`` as :func:`grid_from_file`; ``progress(done, total)`` per pass.
     """
     info = image_info(path)
     if not isinstance(scheduler, Scheduler):
