@@ -81,19 +81,11 @@ def write_cog(
 ) -> int:
     """Write an image made band by band as a COG-layout tiled TIFF; returns the overview count.
 
-    Parameters
-    ----------
-    band_of : callable(y0, y1) -> (y1 - y0, W[, C]) ndarray
-        Rows of the full-resolution image, asked for in ``tile``-row bands, top first.
-    size : (W, H)
-    tile : int
-        Tile side, a multiple of 16.
-    colormap : (3, 2**bits) uint16 ndarray, optional
-        Make a palette image with this colour table on every level.
-    downsample : callable
-        :func:`box_half` for pictures, :func:`nearest_half` for class maps.
-    extratags : sequence of tifffile extratags
-        Written on the full-resolution IFD only (the GeoTIFF tags).
+    ``band_of(y0, y1)`` gives rows ``(y1 - y0, W[, C])`` of the full image in ``tile``-row
+    bands (``tile`` a multiple of 16), top first. ``colormap`` (3, 2**bits) uint16 makes a
+    palette image on every level; ``downsample`` is :func:`box_half` for pictures,
+    :func:`nearest_half` for class maps; ``extratags`` (the GeoTIFF tags) go on the
+    full-resolution IFD only.
     """
     if tile < 16 or tile % 16:
         raise TerrathemeError(f"TIFF tile size must be a multiple of 16, got {tile}")

@@ -113,19 +113,10 @@ def nearest_texels(n_pixels: int, n_texels: int, start: int, count: int) -> np.n
 class WorldFrame:
     """World units of a project: the size of one texel and where texel (0, 0) lies.
 
-    Attributes
-    ----------
-    texel_size : (float, float)
-        World units per texel along x (east) and y (south).
-    origin : (float, float)
-        CRS coordinates of the centre of the photo's top-left pixel.
-    units : str
-        Unit of ``texel_size``: ``"metre"`` (feet and degrees converted), ``"CRS unit"``
-        (unknown unit) or ``"texel"`` (no georeference).
-    crs_units : str
-        Unit of ``origin`` (``"degree"`` for a geographic CRS).
-    rotation_deg : float
-        Rotation of a ModelTransformation georeference (engines get it unrotated).
+    ``texel_size`` (x east, y south) is in ``units``: ``"metre"`` (feet and degrees
+    converted), ``"CRS unit"`` or ``"texel"`` (no georeference); ``origin`` is the CRS
+    position of the top-left pixel's centre, in ``crs_units``; ``rotation_deg`` is a
+    ModelTransformation's rotation (engines get the map unrotated).
     """
 
     texel_size: tuple[float, float] = (1.0, 1.0)

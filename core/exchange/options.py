@@ -33,16 +33,9 @@ class WeightStyle(Enum):
 
 @dataclass(frozen=True)
 class ExportOptions:
-    """Options of an export.
-
-    Attributes
-    ----------
-    size : (int, int) or None
-        ``(W, H)`` pixels of the whole map (all tiles); None: the engine's default.
-    tile : int or None
-        Cut the map into ``tile x tile`` pieces sharing their border pixels; None: one.
-    style : WeightStyle
-        The project's style or the paper's linear weights (the GIS export's too).
+    """Options of an export: ``size`` (W, H) of the whole map (None: the engine's default),
+    ``tile`` pieces sharing their border pixels (None: one), ``style`` the project's or the
+    paper's linear weights.
     """
 
     engine: Engine = Engine.UNITY

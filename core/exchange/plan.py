@@ -28,17 +28,10 @@ from terratheme.core.model.project import ThematicTexture, save_project
 class ExportPlan:
     """Everything an export decides before writing.
 
-    Attributes
-    ----------
-    layout : ExportLayout or None
-        The weight/control map and its tiles (None for the GIS export).
-    files : tuple of str
-        Every file, relative to the output folder; the manifest last (written last:
-        its presence means the export is whole).
-    notes : tuple of str
-        What the caller should tell the user (a size chosen, a limitation).
-    borders : str or None
-        What the maps carry of the borders when it is not the style's.
+    ``layout``: the weight/control map and its tiles (None for GIS); ``files``: every file
+    relative to the output folder, the manifest last (its presence means the export is
+    whole); ``notes``: what to tell the user; ``borders``: what the maps carry of the borders
+    when it is not the style's.
     """
 
     options: ExportOptions

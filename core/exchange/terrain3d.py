@@ -1,10 +1,8 @@
 """Godot Terrain3D: its control map (texture ids and blend per vertex) and a texture list.
 
-The format, as Terrain3D defines it (TokisanGames/Terrain3D,
-``doc/docs/controlmap_format.md`` and ``src/terrain_3d_util.h``, read at
-commit fc7a744): one 32-bit unsigned integer per terrain vertex, stored in
-a ``FORMAT_RF`` (32-bit float) image whose bits are the integer, never
-converted. Bits, from the top::
+One 32-bit unsigned integer per terrain vertex (TokisanGames/Terrain3D,
+``doc/docs/controlmap_format.md``, commit fc7a744), stored as the bits of a
+``FORMAT_RF`` float in a one-channel ``R`` EXR. Bits, from the top::
 
     31-27  base texture id      (x & 0x1F) << 27
     26-22  overlay texture id   (x & 0x1F) << 22
@@ -16,14 +14,8 @@ converted. Bits, from the top::
      1     navigation           (x & 1) << 1
      0     autoshader           x & 1
 
-Terrain3D's shader weighs base ``1 - blend/255`` and overlay ``blend/255`` and interpolates
-bilinearly between vertices, so each vertex (or ``--size`` pixel) gets its two strongest
-themes and their renormalised share; up to 32 themes, autoshader off, written as a
-one-channel ``R`` float EXR (Godot reads it as ``FORMAT_RF``, bits intact).
-
-The colour map (RGBA8, the control map's size) is multiplied onto the albedo and stops at
-1.0, so it keeps terratheme's gain x 128 and each texture's ``albedo_color`` is
-:func:`core.exchange.colour.linear_gain`; sources and details in docs/engines.md.
+Each vertex (or ``--size`` pixel) gets its two strongest themes and their renormalised
+share, autoshader off. The colour map and ``albedo_color``: docs/engines.md.
 """
 
 from __future__ import annotations
@@ -232,7 +224,7 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         "region_size": region,
         "import_position": [-corner[0], -corner[1]],
         # Terrain3D repeats a texture every 1 / uv_scale world units.
-        # albedo_color brings the colour map's neutral 128 to 1 (the module docstring).
+        # albedo_color brings the colour map's neutral 128 to 1 (docs/engines.md).
         "textures": [{"id": j, "name": t.name, "albedo": f, "albedo_color": tint,
                       "uv_scale": 1.0 / (t.texture.shape[1] * sx)}
                      for j, (t, f) in enumerate(zip(project.library, theme_files(project),

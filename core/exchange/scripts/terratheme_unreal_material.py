@@ -1,21 +1,13 @@
 """Build a terratheme export's landscape material in the Unreal editor (Unreal 5, Python plugin).
 
-This file ships in every Unreal export as ``terratheme_unreal_material.py``
-and runs inside the editor (Tools > Execute Python Script, or the console's
-``py "PATH"``), never in terratheme. From ``terratheme_unreal.json`` beside it
-it imports the theme textures and ``colour_map.png`` into
-``/Game/Terratheme/<folder>`` and makes ``M_Terratheme`` there: a Landscape
-Layer Blend of one weight-blended layer per theme (named as the manifest's
-``layers``, which the weight maps fill), each a Texture Sample of its theme
-at LandscapeLayerCoords (Mapping Scale = the layer's ``mapping_scale``);
-with a colour map the blend is multiplied, as terratheme's renderer does, by
-the map's gain: a Texture Sample of ``colour_map.png`` (sRGB, clamped,
-bilinear, uncompressed, no mipmaps) at LandscapeLayerCoords (Mapping Scale 1:
-vertices from the north-west corner) x ``uv_per_vertex`` + ``uv_offset``,
-times ``linear_gain``. The result goes to Base Color (``docs/engines.md``).
-
-Written against Unreal's documented Python API (``unreal`` module); it has not
-been run in an Unreal editor where terratheme is built and tested.
+Ships in every Unreal export and runs inside the editor (Tools > Execute Python Script,
+or ``py "PATH"``), never in terratheme. From ``terratheme_unreal.json`` beside it, it
+imports the theme textures and ``colour_map.png`` into ``/Game/Terratheme/<folder>`` and
+makes ``M_Terratheme``: a Landscape Layer Blend of one weight-blended layer per theme
+(the manifest's ``layers``), each its theme at LandscapeLayerCoords x ``mapping_scale``,
+multiplied by the colour map's gain as the renderer does; the result goes to Base Color
+(docs/engines.md). Written against Unreal's documented Python API; not run in an Unreal
+editor where terratheme is built and tested.
 """
 
 import json
