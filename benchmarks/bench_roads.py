@@ -83,7 +83,14 @@ VARIANTS = {
         DEFAULT, candidates=tuple(c for c in DEFAULT.candidates if c <= 8),
         colour_map=ColourMapOptions(budget=0.08)),
     "budget-0.16": replace(DEFAULT, colour_map=ColourMapOptions(budget=0.16)),
+    "cells<=6": replace(DEFAULT, candidates=tuple(c for c in DEFAULT.candidates if c <= 6)),
     "cells<=4": replace(DEFAULT, candidates=tuple(c for c in DEFAULT.candidates if c <= 4)),
+    "cells<=4+budget-0.06": replace(
+        DEFAULT, candidates=tuple(c for c in DEFAULT.candidates if c <= 4),
+        colour_map=ColourMapOptions(budget=0.06)),
+    "cells<=4+budget-0.08": replace(
+        DEFAULT, candidates=tuple(c for c in DEFAULT.candidates if c <= 4),
+        colour_map=ColourMapOptions(budget=0.08)),
     "cell-8": replace(DEFAULT, cell=8),
     "cell-6": replace(DEFAULT, cell=6),
     "cell-4": replace(DEFAULT, cell=4),
@@ -205,6 +212,8 @@ def summarise(rows: list[dict]) -> dict:
                                **{k: _mean([c[k] for c in cls]) for k in
                                   ("road_iou", "components", "components_100px",
                                    "skeleton_cover")}},
+           "photos_network_road_iou<0.05": [r["photo"] for r in held
+                                             if (r["classification"]["road_iou"] or 0) < 0.05],
            "mask_components_100px": _mean([r["mask_components_100px"] for r in held]),
            "mpx_per_s_predict": round(sum(r["mpx"] for r in held)
                                       / sum(r["predict_s"] for r in held), 3),
@@ -248,7 +257,6 @@ def chart(out: dict, path: Path) -> None:
         ax.set_xlabel(xlabel)
         ax.set_ylabel("texture road IoU / classification's (pooled)")
         ax.grid(True, alpha=0.3)
-    a.set_xscale("log")
     a.set_title("held-out Dubai tile 1: road ratio against bytes")
     c.set_title("... and against colour error")
     a.legend(fontsize=7)
