@@ -72,14 +72,8 @@ def group_size(remaining: int, limit: int, most: int | None = None) -> int:
 class TlsFiles:
     """The certificates of a ``tls://`` scheduler (dask's ``--tls-ca-file --tls-cert --tls-key``).
 
-    Attributes
-    ----------
-    ca_file : str
-        The certificate authority the scheduler's certificate is checked against.
-    cert : str
-        This client's certificate (PEM; it may hold the key too).
-    key : str, optional
-        This client's private key, when not in ``cert``.
+    ``ca_file`` checks the scheduler's certificate; ``cert`` is this client's (PEM, it may
+    hold the key); ``key`` the private key when not in ``cert``.
     """
 
     ca_file: str
@@ -331,22 +325,11 @@ def map_ordered(
 ) -> int:
     """Run ``func(item, shared)`` for every item on the cluster; ``sink(item, result)`` in order.
 
-    Parameters
-    ----------
-    func : callable(item, shared) -> result
-        A module-level function (workers import it by name).
-    shared : object
-        Everything the tasks share; sent to every worker once.
-    in_flight : int, optional
-        Most tasks submitted and not yet sunk (default ``IN_FLIGHT_PER_THREAD`` per thread).
-    describe : callable(item) -> str
-        Names an item in error messages.
-    payload : callable(item) -> object, optional
-        Per-item data made at submission and sent with it: the task gets
-        ``(item, payload(item))``; ``sink`` still gets the item.
-    group : int, optional
-        Items per task (default: :func:`group_size`).
-
+    ``func`` is module-level (workers import it by name); ``shared`` goes to every worker
+    once. ``in_flight``: most tasks submitted and not yet sunk (default
+    ``IN_FLIGHT_PER_THREAD`` per thread); ``describe(item)`` names an item in errors;
+    ``payload(item)`` is made at submission and sent with the task, which then gets
+    ``(item, payload(item))``; ``group``: items per task (default :func:`group_size`).
     Returns the number of items.
     """
     from distributed import as_completed

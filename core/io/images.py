@@ -186,20 +186,10 @@ def _select(pixels: np.ndarray, info: ImageInfo, bands: Bands, first: int) -> np
 
 def read_image(path: str | os.PathLike, *, dtype: np.dtype | str | None = None,
                bands: Bands = Bands.ALL) -> np.ndarray:
-    """Read a whole image file.
+    """Read a whole image file as (H, W, C), alpha as stored (never premultiplied).
 
-    Parameters
-    ----------
-    dtype : numpy dtype, optional
-        Convert to this pixel type (OpenImageIO rescales: uint16 -> uint8 maps
-        65535 to 255). Default: the file's own type.
-    bands : Bands
-        ALL: every channel; PHOTO: colour plus marked alpha.
-
-    Returns
-    -------
-    image : (H, W, C) ndarray
-        Always three-dimensional; alpha as stored (never premultiplied).
+    ``dtype`` converts (OpenImageIO rescales: uint16 65535 -> uint8 255; default the file's
+    own); ``bands`` ALL: every channel, PHOTO: colour plus marked alpha.
     """
     inp = _open_input(path)
     try:
@@ -261,14 +251,10 @@ def read_region(
     path: str | os.PathLike, x: int, y: int, w: int, h: int, *,
     dtype: np.dtype | str | None = None, bands: Bands = Bands.ALL,
 ) -> np.ndarray:
-    """Read the ``w`` x ``h`` window at column ``x``, row ``y`` without reading the whole file.
+    """Read the (h, w, C) window at column ``x``, row ``y`` without reading the whole file.
 
-    Tiled files are read tile by tile and scanline files line by line, so
-    memory is bounded by the window, not the image. ``bands`` as :func:`read_image`.
-
-    Returns
-    -------
-    window : (h, w, C) ndarray
+    Tiled files are read tile by tile and scanline files line by line, so memory is
+    bounded by the window. ``bands`` as :func:`read_image`.
     """
     inp = _open_input(path)
     try:
@@ -336,18 +322,10 @@ def write_image(
 ) -> None:
     """Write an image atomically (temporary file, then rename).
 
-    Parameters
-    ----------
-    image : (H, W) or (H, W, C) ndarray
-        Any dtype OpenImageIO stores; 2 or 4 channels carry unassociated alpha last.
-    tile : int, optional
-        Square tile size of a tiled file (TIFF, EXR).
-    compression : str, optional
-        OpenImageIO compression name, e.g. ``"zip"``, ``"lzw"``, ``"zip:9"``.
-    attributes : dict, optional
-        Extra ImageSpec attributes (e.g. GeoTIFF tags).
-    palette : (K, 3) uint8 ndarray, optional
-        Single-channel uint8 PNG only: write a palette PNG, value k in ``palette[k]``.
+    ``image``: (H, W) or (H, W, C), any dtype OpenImageIO stores; 2 or 4 channels carry
+    unassociated alpha last. ``tile``: square tiles (TIFF, EXR); ``compression``: an
+    OpenImageIO name such as ``"zip:9"``; ``attributes``: extra ImageSpec attributes (GeoTIFF
+    tags); ``palette`` (K, 3) uint8: a single-channel uint8 PNG becomes a palette PNG.
     """
     arr = np.asarray(image)
     if arr.ndim == 2:

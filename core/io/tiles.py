@@ -140,24 +140,12 @@ def run_tiles(
 ) -> int:
     """Run ``job(window, pixels)`` on every tile of a file and hand each result to ``sink``.
 
-    Parameters
-    ----------
-    job : callable(TileWindow, (rh, rw, C) ndarray) -> result
-        Pure function of one tile; on a cluster it must pickle (sent to each worker once).
-    sink : callable(TileWindow, result)
-        Called here, in tile order (stitch into an array, write to a TiledImageWriter...).
-    scheduler : Scheduler or distributed.Client
-        A cluster's workers must run this terratheme and read ``path`` (checked first).
-    batch : int, optional
-        Results in flight on a cluster (default 2 per worker thread).
-    windows : list of TileWindow, optional
-        Instead of the regular tiling (:func:`tile_windows` of ``tile``, ``overlap``).
-    progress : callable(done, total), optional
-        Called with ``(0, total)``, then after each tile is sunk.
-    parts : callable(TileWindow) -> object, optional
-        The tile's share of this process's data (its window of a grid), sent with the
-        tile rather than to every worker; the job is then ``job(window, pixels, part)``.
-
+    ``job`` is a pure function of one (rh, rw, C) tile (it must pickle on a cluster, whose
+    workers must run this terratheme and read ``path``, checked first); ``sink(window,
+    result)`` is called here in tile order. ``batch``: results in flight on a cluster
+    (default 2 per worker thread); ``windows`` replaces the regular tiling;
+    ``progress(done, total)`` starts at 0. ``parts(window)`` gives the tile's share of this
+    process's data, sent with the tile and passed as ``job(window, pixels, part)``.
     Returns the number of tiles.
     """
     info = image_info(path)
