@@ -43,18 +43,10 @@ RELATIVE_FLOOR = 5.0
 
 @dataclass(frozen=True)
 class FeatureOptions:
-    """How features are computed (the columns: module docstring).
-
-    Attributes
-    ----------
-    scale : int
-        Photo pixels per coarse pixel along each axis (1 = every pixel).
-    sigmas : tuple of float
-        Gaussian scales in coarse pixels (DEFAULT set).
-    ridge_sigmas : tuple of float
-        Fine ridge scales in photo pixels (two features each).
-    hessian, relative, structure, position : bool
-        The optional feature groups of the module docstring.
+    """How features are computed (the columns: module docstring): ``scale`` photo pixels per
+    coarse pixel, ``sigmas`` Gaussian scales in coarse pixels, ``ridge_sigmas`` fine ridge
+    scales in photo pixels (two features each), and the optional groups ``hessian``,
+    ``relative``, ``structure``, ``position``.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT

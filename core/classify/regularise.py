@@ -36,18 +36,9 @@ EDGE_TEXTURE_WEIGHT = 1.0
 
 @dataclass(frozen=True)
 class RegulariseOptions:
-    """Options of :func:`regularise`.
-
-    Attributes
-    ----------
-    method : Regularisation
-    sigma : float
-        SMOOTH: Gaussian sigma in coarse pixels.
-    edge_sigma_spatial : float
-        EDGE: spatial reach in coarse pixels (the filter's sigma_s).
-    edge_sigma_colour : float
-        EDGE: colour difference (Lab units, summed over L, a, b) across which
-        averaging fades (the filter's sigma_r).
+    """Options of :func:`regularise`: SMOOTH's Gaussian ``sigma`` (coarse pixels); EDGE's
+    ``edge_sigma_spatial`` (coarse pixels, the filter's sigma_s) and ``edge_sigma_colour``
+    (Lab difference summed over L, a, b across which averaging fades, its sigma_r).
     """
 
     method: Regularisation = Regularisation.SMOOTH

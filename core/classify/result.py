@@ -11,14 +11,9 @@ import numpy as np
 class Classification:
     """Per-pixel classes and how sure the classifier is of them.
 
-    Attributes
-    ----------
-    labels : (H, W) uint8 ndarray
-        The training masks' class values, or themes ``1..K``; 0 only where transparent.
-    confidence : (H, W) float32 ndarray
-        In [0, 1]: the winner's vote share or mixture posterior; 0 where transparent.
-    classes : tuple of int
-        The class values the classifier can give, ascending.
+    ``labels`` (H, W) uint8: the masks' class values or themes 1..K, 0 only where
+    transparent; ``confidence`` (H, W) float32 in [0, 1]: the winner's vote share or mixture
+    posterior, 0 where transparent; ``classes``: the values the classifier can give, ascending.
     """
 
     labels: np.ndarray

@@ -1,13 +1,6 @@
-"""Classifiers shipped with terratheme (``--model aerial``), found by name.
-
-``models/`` holds classifier files and ``models.json``, an index::
-
-    {"models": {"aerial": {"file": "aerial.ttcls",
-                           "classes": {"1": "building", "2": "land", ...},
-                           "description": "...", "trained_on": "...", "sha256": "..."}}}
-
-``classes`` names each class value (``convert`` names the themes so). A ``.onnx``
-file is a network; ``scale`` and ``multiple`` give its input size.
+"""Classifiers shipped with terratheme (``--model aerial``), found by name in
+``models/models.json`` (layout: docs/formats.md, shipped classifiers). ``classes`` names
+each class value, which ``convert`` gives the themes; a ``.onnx`` file is a network.
 """
 
 from __future__ import annotations

@@ -26,11 +26,8 @@ class SupervisedOptions:
     ----------
     ignore_classes : tuple of int
         Mask values treated as unlabelled (besides 0).
-    n_trees, max_depth, min_samples : int
-        The forest's trees, depth limit and smallest node still split.
     samples_per_pair : int
-        Per-class samples grow with the pairs (:meth:`samples_per_class`): a few photos
-        train best on few samples, many on many.
+        Per-class samples grow with the pairs (:meth:`samples_per_class`).
     balance : bool
         Equal class priors whatever the sample counts.
     prior_power : float or None
@@ -40,8 +37,8 @@ class SupervisedOptions:
         Lab difference under which scribbles grow by one ring of coarse pixels; 0 off,
         None ``GROW_COLOUR`` for scribbles.
     adapt : bool or None
-        Test-time adaptation; None: on for masks of fewer than ``ADAPT_MAX_PAIRS``
-        photos, off for scribbles (:meth:`resolved`).
+        Test-time adaptation; None: on below ``ADAPT_MAX_PAIRS`` mask photos, off for
+        scribbles (:meth:`resolved`).
     """
 
     features: FeatureOptions = field(default_factory=lambda: FeatureOptions(

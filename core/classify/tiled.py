@@ -120,20 +120,12 @@ def predict_tiled(
     progress: ProgressFn | None = None,
     tile_fn: TileProbabilitiesFn | None = None,
 ) -> Classification:
-    """Classify a photo tile by tile.
+    """Classify a (H, W, 3) uint8 photo tile by tile (``tile``: core size in photo pixels).
 
-    Parameters
-    ----------
-    rgb : (H, W, 3) uint8 ndarray
-    valid : (H, W) bool ndarray or None
-        Pixels with data; others get label 0 and confidence 0.
-    classes : tuple of int
-        Class value of each channel of ``probability_fn``'s output.
-    tile : int
-        Tile core size in photo pixels.
-    tile_fn : callable, optional
-        ``window -> (lab, block_std, probabilities)`` in place of :func:`tile_arrays`
-        and ``probability_fn`` (probabilities made from an earlier pass's).
+    ``valid`` (H, W) bool: pixels with data, others get label 0 and confidence 0;
+    ``classes``: class value of each channel of ``probability_fn``'s output;
+    ``tile_fn(window) -> (lab, block_std, probabilities)`` replaces :func:`tile_arrays`
+    and ``probability_fn`` (probabilities made from an earlier pass's).
     """
     if len(classes) == 0:
         raise TerrathemeError("a classifier needs at least one class")

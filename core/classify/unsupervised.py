@@ -35,19 +35,12 @@ from terratheme.core.errors import TerrathemeError
 class UnsupervisedOptions:
     """Options of :func:`classify_unsupervised`.
 
-    Attributes
-    ----------
-    features : FeatureOptions
-        4x4 coarse pixels, one smoothing sigma of 1: larger scales blur class borders
-        into bands that k-means would take for themes.
-    bands : BandOptions
-        Border bands relabelled by pixel colour (DEFAULT feature set only).
-    max_themes, min_gain, min_separation, transition_share, min_hue_separation, min_hue_share
-        The criteria of the module docstring (``min_hue_separation=inf``: no split by hue).
-    max_samples, attempts, seed : int
-        Coarse pixels sampled, k-means restarts (best kept), OpenCV RNG seed.
-    tile : int
-        Tile core size in photo pixels.
+    ``features``: 4x4 coarse pixels, one smoothing sigma of 1 (larger scales blur class
+    borders into bands that k-means would take for themes); ``bands``: border bands
+    relabelled by pixel colour (DEFAULT feature set only); ``max_themes`` ... ``min_hue_share``:
+    the criteria of the module docstring (``min_hue_separation=inf``: no split by hue);
+    ``max_samples``, ``attempts``, ``seed``: coarse pixels sampled, k-means restarts, RNG seed;
+    ``tile``: tile core size in photo pixels.
     """
 
     features: FeatureOptions = field(
