@@ -56,21 +56,12 @@ def _typical(patch: np.ndarray, pixels: np.ndarray, reference: np.ndarray) -> np
 
 def fill_from_class(patch: np.ndarray, keep: np.ndarray, hole: np.ndarray | None = None, *,
                     first: np.ndarray | None = None) -> np.ndarray:
-    """Fill the holes of ``patch`` greedily with shifted copies of its kept pixels.
+    """Fill the holes of a (s, t, 3) uint8 ``patch`` with shifted copies of its kept pixels.
 
-    Each copy is the shift covering the most of the open hole (never wrapping across the
-    edge), taken from ``first``'s typical pixels, then all ``first``, then the same of
-    ``keep``: a hole gets a few coherent pieces, not onion shells of its rim.
-
-    Parameters
-    ----------
-    patch : (s, t, 3) uint8 ndarray
-    keep : (s, t) bool ndarray
-        The class's own pixels (at least one).
-    hole : (s, t) bool ndarray, optional
-        The pixels to fill (default: all but ``keep``).
-    first : (s, t) bool ndarray, optional
-        Kept pixels to copy from before the others (those around a window).
+    Each copy is the shift covering the most of the open hole (never wrapping), taken from
+    ``first``'s typical pixels, then all ``first``, then the same of ``keep`` (the class's
+    own pixels, at least one): a hole gets a few coherent pieces, not onion shells of its
+    rim. ``hole`` defaults to all but ``keep``; masks are (s, t) bool.
     """
     out = patch.copy()
     hole = ~keep if hole is None else hole & ~keep

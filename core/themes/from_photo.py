@@ -158,15 +158,9 @@ def themes_from_photo(
 ) -> ThemeMapping:
     """One tileable theme per class, cut from the photo where its texture matches the class.
 
-    Parameters
-    ----------
-    photo : (H, W, 3) uint8 ndarray
-    labels : (H, W) uint8 ndarray
-        Class values; 0 = no data.
-    classes : sequence of int, optional
-        Classes to make themes for (default: those present); an absent one gets mid-grey.
-    names : {class: name}, optional
-        Theme names (a legend's); others are named after their closest shipped theme.
+    ``photo`` (H, W, 3) uint8; ``labels`` (H, W) uint8 class values, 0 = no data.
+    ``classes`` (default: those present) may name absent ones, which get mid-grey; ``names``
+    (a legend's) name themes, others take their closest shipped theme's name.
     """
     rgb, labels = _check(photo, labels)
     wanted = _present_classes(labels, classes)

@@ -195,12 +195,7 @@ class ThemeLibrary(Sequence[Theme]):
 
 
 def read_theme_library(folder: str | os.PathLike = SHIPPED_THEMES_DIR) -> ThemeLibrary:
-    """Load a theme folder: ``themes.json`` plus one texture image per theme.
-
-    ``themes.json``::
-        {"version": 1,
-         "themes": [{"name": "forest", "colour": [34, 90, 40], "file": "forest.png",
-                     "description": "..."}, ...]}
+    """Load a theme folder: ``themes.json`` (docs/formats.md, theme folders) and one texture each.
 
     Raises :class:`TerrathemeError` without ``themes.json``; :class:`CorruptFileError` (one
     line naming the file and entry) for an oversized, non-JSON or ill-typed list or an

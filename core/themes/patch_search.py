@@ -34,20 +34,11 @@ SEARCH_POSITIONS = 1 << 18
 class PatchOptions:
     """How theme patches are searched.
 
-    Attributes
-    ----------
-    size, min_size : int
-        Largest and smallest patch side tried (pixels); below ``min_size``, a flat theme.
-    inside : float
-        Share of the patch's pixels that must carry the class (the rest is filled).
-    size_weight : float
-        Score added per halving of the side below ``size``.
-    colour_weight : float
-        Weight of the mean-colour term.
-    highpass_sigma : float
-        The local mean the Lab spread is measured about (pixels).
-    quilt : bool
-        Quilt a theme from small blocks (:mod:`.quilt`) when no window tiles unseen.
+    ``size``, ``min_size``: largest and smallest patch side (pixels), below ``min_size`` a flat
+    theme; ``inside``: share of the patch that must carry the class (the rest is filled);
+    ``size_weight``: score per halving of the side; ``colour_weight``: the mean-colour term's
+    weight; ``highpass_sigma``: the local mean the Lab spread is measured about (pixels);
+    ``quilt``: quilt from small blocks (:mod:`.quilt`) when no window tiles unseen.
     """
 
     size: int = 256

@@ -21,20 +21,11 @@ from terratheme.core.themes.seam_cut import min_error_cut
 class QuiltOptions:
     """How a theme is quilted.
 
-    Attributes
-    ----------
-    size : int
-        Side of the result, rounded to a whole number of block steps.
-    block, overlap : int
-        Block side and overlap of neighbours (texels; overlap under half a block).
-    candidates, min_candidates : int
-        Blocks to choose from; with fewer than ``min_candidates`` the class is too small.
-    tolerance : float
-        A candidate qualifies within this share of the best overlap error.
-    feather : float
-        Gaussian sigma (texels) that softens each cut.
-    seed : int
-        Seed of the draws among equally good blocks.
+    ``size``: side of the result (whole block steps); ``block``, ``overlap``: texels, overlap
+    under half a block; ``candidates`` blocks to choose from, too small a class below
+    ``min_candidates``; ``tolerance``: share of the best overlap error a candidate may
+    exceed it by; ``feather``: Gaussian sigma (texels) softening each cut; ``seed``: draws
+    among equally good blocks.
     """
 
     size: int = 256
