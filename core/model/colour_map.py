@@ -1,18 +1,9 @@
 """The colour map: a low-resolution colour gain laid over a thematic texture.
 
-A class alone carries one texture and one colour; the colour map (a terrain
-engine's *macro variation* map) keeps the photo's slow colour changes inside a class:
-
-* ``pixels`` ``(mh, mw, 3) uint8``: a per-channel gain ``value / 128``
-  (:data:`NEUTRAL` = no change, 255 = x1.99);
-* ``scale``: texels per map pixel; map pixel ``(i, j)`` covers texels
-  ``[i*scale, (i+1)*scale) x [j*scale, (j+1)*scale)`` and sits at its centre;
-* the gain at texel ``X`` is the bilinear interpolation of the map at
-  ``(X + 0.5) / scale - 0.5`` (clamped), in exact integer arithmetic
-  (:mod:`core.render.colour_map`), so every renderer and region agrees.
-
-A map beyond its codec's single-image limit (:data:`ONE_IMAGE_LIMITS`) ships as
-row-major tiles of :data:`MAP_TILE` pixels, each its own image (docs/formats.md).
+A class alone carries one texture and one colour; the colour map (a terrain engine's
+*macro variation* map) keeps the photo's slow colour changes inside a class. Gain
+``value / 128`` per channel, bilinear at ``(X + 0.5) / scale - 0.5`` in exact integers
+(:mod:`core.render.colour_map`); layout, codecs and tiles: docs/formats.md, the colour map.
 """
 
 from __future__ import annotations
@@ -94,19 +85,11 @@ def check_tile_members(shape: tuple[int, int], tile: object, names: object) -> N
 
 @dataclass(frozen=True, eq=False)
 class ColourMap:
-    """A per-channel colour gain over the texture (see the module docstring).
+    """A per-channel colour gain over the texture (docs/formats.md, the colour map).
 
-    Attributes
-    ----------
-    pixels : (mh, mw, 3) uint8 ndarray
-        Gain times 128 (read-only copy).
-    scale : int
-        Texels per map pixel, 1..4096.
-    codec, data : str and bytes, or None
-        The map as it ships (:mod:`core.io.codec`); ``pixels`` are these bytes decoded.
-    tiles : tuple of bytes, or None
-        Instead of ``data``, a map beyond the single-image limit: ``tile x tile``
-        pieces in ``codec``, row by row (the last row and column smaller).
+    ``pixels`` (mh, mw, 3) uint8: gain x 128 (read-only copy); ``scale``: texels per map
+    pixel, 1..4096; ``codec`` and ``data``: the map as it ships (:mod:`core.io.codec`), which
+    ``pixels`` decode; ``tiles``: instead of ``data``, ``tile x tile`` pieces row by row.
     """
 
     pixels: np.ndarray
