@@ -1,16 +1,8 @@
 """How much a thematic texture looks like its photo: colour layout, fine detail, structure.
 
-Each on whole images of the same size:
-
-* :func:`colour_error` (``dE8``): mean CIEDE2000 after a Gaussian blur of sigma 8 px,
-  the colour layout an observer sees from a distance;
-* :func:`detail_ratio`: band-pass energy of the render's luminance (Gaussian sigma
-  0.7 minus sigma 3.0, mean square) over the photo's: 1 as much fine texture,
-  below 1 washed out, above 1 noisier;
-* :func:`class_iou_scores`: per-class IoU of the label view against ground truth,
-  each theme mapped to the class it covers most;
-* :func:`structure_similarity` (``structure 1/4``, ``1/8``): SSIM of the luminance
-  after a 4x (8x) area downscaling: each road, block and shore where the photo has it.
+On whole images of the same size: :func:`colour_error` (``dE8``), :func:`detail_ratio`,
+:func:`class_iou_scores` and :func:`structure_similarity` (``structure 1/4``, ``1/8``);
+definitions in docs/design.md §5.
 """
 
 from __future__ import annotations
