@@ -1,15 +1,10 @@
-"""Footprint parallelogram of the seed (Kovalev & Tarasov, eqs. 3-4).
+"""Footprint parallelogram of the seed (Kovalev & Tarasov, eqs. 3-4; docs/design.md §6).
 
-The pixel's footprint, spanned by the texel steps ``dX = (dU/dx, dV/dx)`` and
-``dY = (dU/dy, dV/dy)`` of eq. 2, is replaced by a parallelogram with one
-pair of sides parallel to a texture axis: full height ``H`` along the
-tilted long side, full base ``L`` across it (``H >= L``), and the tangent of
-the long side's slope, ``|tan| <= 1``, toward U or toward V.
-
-With the pixel's own footprint (``aperture = 1``), ``H`` is the footprint's
-extent along the axis it is tilted toward and ``L`` its extent across after
-the shear; with the seed's 2 x 2-pixel filter they are the half-height and
-half-base.
+The pixel's footprint, spanned by eq. 2's texel steps ``dX`` and ``dY``, becomes a
+parallelogram with one pair of sides parallel to a texture axis: full height ``H`` along
+the tilted long side, full base ``L`` across it (``H >= L``), slope ``|tan| <= 1`` toward
+U or V. With ``aperture = 1`` they are the pixel's own extents; with the seed's 2 x 2-pixel
+filter, the half-height and half-base.
 """
 
 from __future__ import annotations
