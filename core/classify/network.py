@@ -214,19 +214,8 @@ class NetworkClassifier:
 
     def probabilities(self, photo: np.ndarray,
                       progress: Callable[[int, int], None] | None = None) -> np.ndarray:
-        """Per-class probabilities of every photo pixel.
-
-        Parameters
-        ----------
-        photo : (H, W, 3) or (H, W, 4) uint8/uint16 ndarray (as :func:`prepare_photo`)
-        progress : callable, optional
-            ``(done, total)`` over tiles.
-
-        Returns
-        -------
-        probs : (H, W, C) float32 ndarray
-            Channel order ``self.classes``; each pixel's sum is 1.
-        """
+        """(H, W, C) float32 probabilities of an (H, W, 3|4) photo, channels in
+        ``self.classes`` order; ``progress(done, total)`` over tiles."""
         rgb, _ = prepare_photo(photo)
         out = np.empty(rgb.shape[:2] + (len(self.classes),), np.float32)
         for ys, xs, probs in self._each_tile(rgb, progress):
