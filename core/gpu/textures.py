@@ -47,12 +47,8 @@ def _stack(layers: Sequence[np.ndarray], size: tuple[int, int], fill: float) -> 
 
 
 def summed_area(texture: np.ndarray) -> np.ndarray:
-    """(2h+1, 2w+1, 3) uint32: sums of a ``(h, w, 3)`` uint8 theme tiled 2 x 2, above and
-    left of every texel corner (row and column 0 zero).
-
-    Any box of at most one period starting in the first period lies inside, so its sum
-    is four reads; stored modulo 2^32, which keeps box sums below 2^31 exact.
-    """
+    """(2h+1, 2w+1, 3) uint32 sums above-left of each corner of an (h, w, 3) theme tiled
+    2 x 2: a box of at most one period is four reads (modulo 2^32: sums < 2^31 exact)."""
     tiled = np.tile(np.asarray(texture, np.uint64), (2, 2, 1))
     out = np.zeros((tiled.shape[0] + 1, tiled.shape[1] + 1, 3), np.uint64)
     out[1:, 1:] = tiled.cumsum(axis=0).cumsum(axis=1)
