@@ -322,3 +322,23 @@ def test_outputs_are_written_as_a_set(tmp_path, monkeypatch):
     assert {n: (tmp_path / n).read_bytes() for n in names} == before
     leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
     assert leftovers == []
+
+
+def test_a_road_theme_keeps_cells_of_at_most_8():
+    from terratheme.core.convert.cell_choice import ROAD_MAX_CELL, road_candidates
+
+    assert road_candidates((16, 12, 8, 6, 4), ["sand", "Road"]) == (8, 6, 4)
+    assert road_candidates((16, 12, 8), ["sand", "roads"]) == (16, 12, 8)
+    assert road_candidates((16, 12), ["road"]) == (16, 12)  # none that small: unchanged
+    # Two halves from scribbles: the coarsest cell keeps them; named road, at most 8.
+    photo = np.zeros((128, 128, 3), np.uint8)
+    photo[:, 64:] = (200, 180, 150)
+    mask = np.zeros((128, 128), np.uint8)
+    mask[10:20, 5:40] = 1
+    mask[10:20, 80:120] = 2
+    opts = ConvertOptions(candidates=(32, 16, 8))
+    cells = {}
+    for first in ("water", "road"):
+        made = convert_photo(photo, opts, scribbles=mask, class_names={1: first, 2: "sand"})
+        cells[first] = made.project.grid.cell[0]
+    assert cells["water"] > ROAD_MAX_CELL and cells["road"] <= ROAD_MAX_CELL

@@ -89,3 +89,21 @@ def test_auto_cell_of_a_one_tile_photo_is_the_whole_image_conversions(tmp_path):
     wide = convert_file_tiled(path, None, "auto", tile=1024, colour_map=None,
                               candidates=DEFAULT_CELL_CANDIDATES)
     assert wide.grid.cell[0] > max(CONVERT_CELL_CANDIDATES)
+
+
+def test_a_road_theme_keeps_cells_of_at_most_8_on_the_tiled_path(tmp_path):
+    from terratheme.core.convert.cell_choice import ROAD_MAX_CELL
+
+    # The three flat regions above take the largest cell, unless a theme is named road.
+    rng = np.random.default_rng(1)
+    img = np.empty((192, 256, 3), np.float64)
+    img[:, :128] = (40, 120, 40)
+    img[:96, 128:] = (225, 200, 140)
+    img[96:, 128:] = (40, 90, 200)
+    img = np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
+    path = tmp_path / "photo.tif"
+    write_image(path, img, tile=64)
+    plain = convert_file_tiled(path, None, "auto", tile=1024, names=["grass", "sand", "water"])
+    road = convert_file_tiled(path, None, "auto", tile=1024, names=["grass", "road", "water"])
+    assert "road" in road.library.names
+    assert plain.grid.cell[0] > ROAD_MAX_CELL >= road.grid.cell[0]

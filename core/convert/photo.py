@@ -17,7 +17,11 @@ from pathlib import Path
 import numpy as np
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.classify.samples import check_class_image
-from terratheme.core.convert.cell_choice import CONVERT_CELL_CANDIDATES, CellChoice
+from terratheme.core.convert.cell_choice import (
+    CONVERT_CELL_CANDIDATES,
+    CellChoice,
+    road_candidates,
+)
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.labels_to_grid import apply_lut
 from terratheme.core.convert.step import (
@@ -156,10 +160,14 @@ def convert_photo(
     names = None
     if options.themes == "auto":
         names = {**(getattr(model, "class_names", None) or {}), **(class_names or {})} or None
+    # A road theme keeps finer cells.
+    listed = (list(options.themes.values()) if isinstance(options.themes, Mapping) else
+              list(options.themes) if isinstance(options.themes, (list, tuple)) else [])
+    candidates = road_candidates(options.candidates, [*(names or {}).values(), *listed])
     mapping, choice = themes_and_cell(
         rgb, labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
-        candidates=options.candidates, patch=options.patch, names=names,
+        candidates=candidates, patch=options.patch, names=names,
         full_curve=options.full_curve, keep_specks=options.keep_specks,
         detail=detail_sigma(options.colour_map),
         grid_bpp=grid_budget(options.colour_map, h * w))
@@ -169,7 +177,7 @@ def convert_photo(
     theme_labels = apply_lut(labels, mapping.lut)
     made = grid_and_colour(rgb, theme_labels, mapping, cell=options.cell,
                            target_agreement=options.target_agreement,
-                           class_target=options.class_target, candidates=options.candidates,
+                           class_target=options.class_target, candidates=candidates,
                            colour_map=options.colour_map,
                            render=RenderOptions(boundary=options.boundary),
                            progress=_stage(progress, 50, 35), choice=choice,

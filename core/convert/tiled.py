@@ -21,6 +21,7 @@ from terratheme.core.convert.cell_choice import (
     CONVERT_CELL_CANDIDATES,
     cell_within_budget,
     choose_cell_size,
+    road_candidates,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
 from terratheme.core.convert.labels_to_grid import apply_lut, grid_shape_for
@@ -224,6 +225,8 @@ def convert_file_tiled(
                                  detail=detail_sigma(colour_map))
     choice = None
     if cell == "auto":
+        # A road theme keeps finer cells, as on the whole photo.
+        candidates = road_candidates(candidates, mapping.library.names)
         theme_labels = apply_lut(sample.labels, mapping.lut)
         choice = choose_cell_size([theme_labels[y:y + h, x:x + w] for (x, y), (*_, w, h)
                                    in zip(sample.places, sample.windows, strict=True)],
