@@ -68,9 +68,8 @@ def test_a_short_last_vertex_block_joins_the_one_before():
     assert sorted({t.cols for t in vertex_tiles((288, 16), (16, 16), 64, 0)})[-1] == (16, 19)
 
 
-def test_auto_cell_of_a_one_tile_photo_is_the_whole_image_conversions(tmp_path):
-    # Three flat regions (green left; sand above blue on the right), a little noise:
-    # any cell keeps the labels, so the choice is the largest candidate allowed.
+def _three_regions(tmp_path):
+    """Green left, sand above blue on the right, a little noise: (pixels, tiled TIFF path)."""
     rng = np.random.default_rng(1)
     img = np.empty((192, 256, 3), np.float64)
     img[:, :128] = (40, 120, 40)
@@ -79,6 +78,13 @@ def test_auto_cell_of_a_one_tile_photo_is_the_whole_image_conversions(tmp_path):
     img = np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
     path = tmp_path / "photo.tif"
     write_image(path, img, tile=64)
+    return img, path
+
+
+def test_auto_cell_of_a_one_tile_photo_is_the_whole_image_conversions(tmp_path):
+    # Three flat regions (green left; sand above blue on the right), a little noise:
+    # any cell keeps the labels, so the choice is the largest candidate allowed.
+    img, path = _three_regions(tmp_path)
     whole = convert_photo(img, ConvertOptions()).project
     tiled = convert_file_tiled(path, None, "auto", tile=1024)
     # The same candidates as convert's: the cell is capped at 16, as the whole image's.
@@ -95,14 +101,7 @@ def test_a_road_theme_keeps_cells_of_at_most_8_on_the_tiled_path(tmp_path):
     from terratheme.core.convert.cell_choice import ROAD_MAX_CELL
 
     # The three flat regions above take the largest cell, unless a theme is named road.
-    rng = np.random.default_rng(1)
-    img = np.empty((192, 256, 3), np.float64)
-    img[:, :128] = (40, 120, 40)
-    img[:96, 128:] = (225, 200, 140)
-    img[96:, 128:] = (40, 90, 200)
-    img = np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
-    path = tmp_path / "photo.tif"
-    write_image(path, img, tile=64)
+    _, path = _three_regions(tmp_path)
     plain = convert_file_tiled(path, None, "auto", tile=1024, names=["grass", "sand", "water"])
     road = convert_file_tiled(path, None, "auto", tile=1024, names=["grass", "road", "water"])
     assert "road" in road.library.names
