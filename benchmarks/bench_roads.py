@@ -50,6 +50,7 @@ from skimage.morphology import skeletonize
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
+from bench_classify import DATA, load  # noqa: E402
 from terratheme.core.classify import load_model  # noqa: E402
 from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
@@ -59,11 +60,9 @@ from terratheme.core.fidelity import (  # noqa: E402
     detail_ratio,
     texture_cost,
 )
-from terratheme.core.io.images import read_image  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
 from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
 
-DATA = REPO.parent / "shared" / "data"
 OUT = REPO / "benchmarks" / "results"
 ROAD = 3
 #: folder -> valid mask values (road is 3 in both)
@@ -110,14 +109,6 @@ class Replay:
 
     def predict(self, photo, progress=None):
         return self.result
-
-
-def load(folder: str, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(RGB uint8, mask uint8) of a shared photo."""
-    photo = read_image(DATA / folder / "images" / name)
-    mask = read_image(DATA / folder / "masks" / (Path(name).stem + ".png"))
-    mask = mask[:, :, 0] if mask.ndim == 3 else mask
-    return np.ascontiguousarray(photo[:, :, :3]), np.ascontiguousarray(mask)
 
 
 def road_scores(pred: np.ndarray, truth: np.ndarray, valid: np.ndarray,

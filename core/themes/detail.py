@@ -72,15 +72,10 @@ def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
     return float(np.sqrt((arr - acc) ** 2 + 4.0 * arc ** 2).sum() / trace)
 
 
-def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.ndarray, float]:
-    """((h, w, 3) float32, sigma): a theme's :func:`even_detail` and the sigma it was taken at.
-
-    A theme of oriented fragments (coherence above ``FRAGMENT_COHERENCE``: a town's road
-    pieces) keeps only detail finer than ``CALM_SIGMA``, its phases randomised (seeded):
-    the map's own streets then read through, not a kaleidoscope of pieces.
-    """
+def _detail(texture: np.ndarray, sigma: float) -> tuple[np.ndarray, float, bool]:
+    """:func:`theme_detail` and whether the theme is made of fragments."""
     if edge_coherence(texture, sigma) <= FRAGMENT_COHERENCE:
-        return even_detail(texture, sigma), sigma
+        return even_detail(texture, sigma), sigma, False
     sigma = min(sigma, CALM_SIGMA)
     rel = even_detail(texture, sigma)
     noise = np.random.default_rng(PHASE_SEED).standard_normal(rel.shape[:2])
@@ -88,7 +83,17 @@ def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.n
     phases[0, 0] = 1.0  # the mean stays
     phases = phases[:, :, None]
     out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases, axes=(0, 1)).real
-    return out.astype(np.float32), sigma
+    return out.astype(np.float32), sigma, True
+
+
+def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.ndarray, float]:
+    """((h, w, 3) float32, sigma): a theme's :func:`even_detail` and the sigma it was taken at.
+
+    A theme of oriented fragments (coherence above ``FRAGMENT_COHERENCE``: a town's road
+    pieces) keeps only detail finer than ``CALM_SIGMA``, its phases randomised (seeded):
+    the map's own streets then read through, not a kaleidoscope of pieces.
+    """
+    return _detail(texture, sigma)[:2]
 
 
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
@@ -121,7 +126,7 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     sums: dict[float, np.ndarray] = {}
     gains = []
     for k, theme in enumerate(library):
-        rel, s = theme_detail(theme.texture, sigma)
+        rel, s, fragment = _detail(theme.texture, sigma)
         own = float((rel.mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
@@ -130,7 +135,7 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
             sums[s] = np.bincount(labels, (_relative(y, s, wrap=False) ** 2).ravel(),
                                   minlength=len(library))
         gain = np.sqrt(sums[s][k] / counts[k] / own)
-        if edge_coherence(theme.texture, sigma) > FRAGMENT_COHERENCE:
+        if fragment:
             # Scrambled fragments match the photo's edges in energy only: at full contrast
             # they read as dark speckle over the map's streets.
             gain *= FRAGMENT_GAIN
