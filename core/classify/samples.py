@@ -94,7 +94,9 @@ def check_class_image(
         raise TerrathemeError(f"{what} has no pixels (shape {arr.shape})")
     if arr.dtype.kind not in "iub":
         raise TerrathemeError(f"{what}: values must be integers, not {arr.dtype}")
-    lo, hi = int(arr.min()), int(arr.max())
-    if lo < 0 or hi > 255:
-        raise TerrathemeError(f"{what}: class values must be 0..255, got {lo}..{hi}")
+    if arr.dtype.itemsize > 1 or arr.dtype.kind == "i":
+        # Only wider or signed integers can leave 0..255 (no pass over uint8 or bool pixels).
+        lo, hi = int(arr.min()), int(arr.max())
+        if lo < 0 or hi > 255:
+            raise TerrathemeError(f"{what}: class values must be 0..255, got {lo}..{hi}")
     return arr.astype(np.uint8, copy=False)
