@@ -166,3 +166,33 @@ def test_themes_by_name_errors():
         themes_by_name(photo, labels, ["water", "water"])
     with pytest.raises(TerrathemeError, match="do not match"):
         themes_from_photo(photo, labels[:4])
+
+
+def test_class_stats_are_each_class_statistics_taken_once():
+    from terratheme.core.themes.matching import class_appearances
+    from terratheme.core.themes.patch_search import class_stats, class_targets
+
+    photo = np.zeros((12, 16, 3), np.uint8)
+    photo[:, :8] = (10, 20, 30)
+    photo[:, 8:] = (200, 100, 0)
+    photo[0, 8] = (0, 0, 0)
+    labels = np.ones((12, 16), np.uint8)
+    labels[:, 8:] = 3
+    labels[0, 0] = 0
+    stats = class_stats(photo, labels)
+    assert stats.counts[[0, 1, 3]].tolist() == [1, 95, 96] and stats.counts.sum() == 192
+    np.testing.assert_allclose(stats.colour[1], (10, 20, 30))
+    np.testing.assert_allclose(stats.colour[3], (200 * 95 / 96, 100 * 95 / 96, 0))
+    # No data (0) is no class to cut a theme for.
+    assert sorted(stats.targets) == [1, 3]
+    texture = texture_stats(photo)
+    alone = class_targets(texture, labels, [1, 3])
+    for c in (1, 3):
+        assert stats.targets[c].energy == alone[c].energy
+        np.testing.assert_array_equal(stats.targets[c].spread, alone[c].spread)
+        np.testing.assert_array_equal(stats.targets[c].mean, alone[c].mean)
+    # Appearances from the statistics equal those measured on the labels (2: absent, grey).
+    for a, b in zip(class_appearances(stats, None, [1, 2, 3]),
+                    class_appearances(texture, labels, [1, 2, 3]), strict=True):
+        np.testing.assert_array_equal(a.lab, b.lab)
+        assert a.energy == b.energy

@@ -35,8 +35,7 @@ from terratheme.core.themes.patch_search import (
     PatchOptions,
     WindowStats,
     best_windows,
-    class_means,
-    class_targets,
+    class_stats,
     find_patch,
     texture_stats,
 )
@@ -135,17 +134,22 @@ def _lut_for(classes: Sequence[int], has_no_data: bool) -> np.ndarray:
     return lut
 
 
-def _present_classes(labels: np.ndarray, classes: Sequence[int] | None) -> list[int]:
-    found = [int(c) for c in np.flatnonzero(np.bincount(labels.ravel(), minlength=256)) if c]
+def _wanted(counts: np.ndarray, classes: Sequence[int] | None) -> list[int]:
+    """The classes given themes: those with pixels in (256,) ``counts``, and ``classes``."""
+    found = [int(c) for c in np.flatnonzero(counts) if c]
     if classes is None:
         return found
     return sorted({int(c) for c in classes if int(c) != 0} | set(found))
 
 
+def _present_classes(labels: np.ndarray, classes: Sequence[int] | None) -> list[int]:
+    return _wanted(np.bincount(labels.ravel(), minlength=256), classes)
+
+
 def photo_theme_lut(labels: np.ndarray, classes: Sequence[int] | None = None) -> np.ndarray:
     """(256,) uint8: :func:`themes_from_photo`'s class -> theme table, without cutting."""
-    labels = np.asarray(labels)
-    return _lut_for(_present_classes(labels, classes), bool((labels == 0).any()))
+    counts = np.bincount(np.asarray(labels).ravel(), minlength=256)
+    return _lut_for(_wanted(counts, classes), bool(counts[0]))
 
 
 def themes_from_photo(
@@ -163,23 +167,23 @@ def themes_from_photo(
     (a legend's) name themes, others take their closest shipped theme's name.
     """
     rgb, labels = _check(photo, labels)
-    wanted = _present_classes(labels, classes)
-    stats = texture_stats(rgb, options)
-    windows = WindowStats(stats)
+    # Every class's colour and texture statistics, taken once.
+    stats = class_stats(rgb, labels, options)
+    colours, counts = stats.colour, stats.counts
+    wanted = _wanted(counts, classes)
     names = {int(c): n for c, n in (names or {}).items()}
     unnamed = [c for c in wanted if c not in names]
     if unnamed:
         # Named after the closest shipped theme (water, sand, grass, ...), never "class 1".
         # A class takes the name of its nearest look: theme textures and aerial exemplars.
-        appearances = class_appearances(stats, labels, unnamed)
+        appearances = class_appearances(stats, None, unnamed)
         named = shipped_names(appearances, shipped_theme_library(), read_looks())
         names.update(zip(unnamed, named, strict=True))
     # Given names first, so a guessed name that repeats one takes the number.
     order = sorted(wanted, key=lambda c: c in unnamed)
     names = dict(zip(order, distinct_names(names[c] for c in order), strict=True))
-    # Every class's colour and texture statistics in one pass over the photo.
-    colours, counts = class_means(labels, rgb)
-    targets = class_targets(stats, labels, [c for c in wanted if counts[c]])
+    windows = WindowStats(stats.texture)
+    targets = {c: stats.targets[c] for c in wanted if counts[c]}
     # The classes' tiles on two threads (OpenCV, numpy and the seam kernels release the GIL).
     with ThreadPoolExecutor(max_workers=TILE_THREADS) as pool:
         tiles = dict(zip(targets, pool.map(
@@ -200,7 +204,7 @@ def themes_from_photo(
         else:
             theme = Theme(name, colour, found[0], source=found[1])
         themes.append(theme)
-    has_no_data = bool((labels == 0).any())
+    has_no_data = bool(counts[0])
     if has_no_data:
         # A class a legend calls "no data" keeps its name; the transparent pixels' is numbered.
         no_data = distinct_names([*names.values(), NO_DATA_NAME])[-1]

@@ -17,7 +17,12 @@ from functools import lru_cache
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes.library import ThemeLibrary, distinct_names
-from terratheme.core.themes.patch_search import TextureStats, class_means, texture_stats
+from terratheme.core.themes.patch_search import (
+    ClassStats,
+    TextureStats,
+    class_means,
+    texture_stats,
+)
 
 #: Lab units per unit of |log energy ratio|
 TEXTURE_WEIGHT = 6.0
@@ -31,18 +36,24 @@ class Appearance:
     energy: float
 
 
-def class_appearances(stats: TextureStats, labels: np.ndarray,
+def class_appearances(stats: TextureStats | ClassStats, labels: np.ndarray | None,
                       classes: Sequence[int]) -> list[Appearance]:
-    """Appearance of each class from the photo's :class:`TextureStats` and (H, W) labels.
+    """Appearance of each class from the photo's statistics and (H, W) labels.
 
-    A class absent from ``labels`` gets mid-grey.
+    ``stats``: the photo's :class:`TextureStats` with its ``labels``, or its
+    :class:`ClassStats` (``labels`` None: taken already). A class absent from the
+    labels gets mid-grey.
     """
-    means, counts = class_means(np.asarray(labels, np.uint8),
-                                np.concatenate([stats.lab, stats.band[:, :, None]], axis=2))
+    if isinstance(stats, ClassStats):
+        lab, band, counts = stats.lab, stats.band, stats.counts
+    else:
+        means, counts = class_means(np.asarray(labels, np.uint8),
+                                    np.concatenate([stats.lab, stats.band[:, :, None]], axis=2))
+        lab, band = means[:, :3], means[:, 3]
     out = []
     for c in (int(c) for c in classes):
         if counts[c]:
-            out.append(Appearance(means[c, :3], float(means[c, 3])))
+            out.append(Appearance(lab[c], float(band[c])))
         else:
             out.append(Appearance(np.array([53.4, 0.0, 0.0]), 0.0))
     return out

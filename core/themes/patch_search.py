@@ -14,7 +14,7 @@ class-independent per-pixel maps, area-averaged on large photos to bound the sea
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -122,6 +122,40 @@ def _label_sums(flat, cols, counts, sums):  # pragma: no cover
             sums[c, k] += cols[i, k]
 
 
+@dataclass(frozen=True)
+class ClassStats:
+    """Every class's statistics of a photo, taken once (:func:`class_stats`).
+
+    ``texture``: the photo's :class:`TextureStats`; ``counts``: (256,) int64 pixels per
+    class value; ``colour``, ``lab``: (256, 3) float64 mean RGB and Lab; ``band``: (256,)
+    mean band energy (0 where no pixel); ``targets``: :class:`ClassTarget` of each present class
+    but 0 (no data).
+    """
+
+    texture: TextureStats
+    counts: np.ndarray
+    colour: np.ndarray
+    lab: np.ndarray
+    band: np.ndarray
+    targets: Mapping[int, ClassTarget]
+
+
+def class_stats(rgb: np.ndarray, labels: np.ndarray,
+                options: PatchOptions = PatchOptions()) -> ClassStats:
+    """The :class:`ClassStats` of an (H, W, 3) uint8 photo's (H, W) uint8 class labels."""
+    texture = texture_stats(rgb, options)
+    colour, counts = class_means(labels, rgb)
+    whole, _ = class_means(labels, _stack(texture, lab=True))
+    targets = _targets(texture, labels, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
+    return ClassStats(texture, counts, colour, whole[:, :3], whole[:, 3], targets)
+
+
+def _stack(stats: TextureStats, lab: bool) -> np.ndarray:
+    """(H, W, 10 or 7): [Lab,] band, detail, detail^2, the columns of a class's statistics."""
+    return np.concatenate([*([stats.lab] if lab else []), stats.band[:, :, None], stats.detail,
+                           stats.detail ** 2], axis=2)
+
+
 def class_targets(stats: TextureStats, labels: np.ndarray,
                   classes: Sequence[int]) -> dict[int, ClassTarget]:
     """{class: ClassTarget}: the texture of the inside of every class region of (H, W) labels.
@@ -133,15 +167,19 @@ def class_targets(stats: TextureStats, labels: np.ndarray,
     present = np.bincount(labels.ravel(), minlength=256)
     if any(present[int(c)] == 0 for c in classes):
         raise TerrathemeError("the class has no pixel to take a patch's statistics from")
+    whole, _ = class_means(labels, _stack(stats, lab=True))
+    return _targets(stats, labels, whole, classes)
+
+
+def _targets(stats: TextureStats, labels: np.ndarray, whole: np.ndarray,
+             classes: Sequence[int]) -> dict[int, ClassTarget]:
+    """:func:`class_targets` from the classes' (256, 10) means of :func:`_stack` (with Lab)."""
     # Interior pixels: every label within the disc is their own (a min and a max filter).
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
     lo = cv2.erode(labels, kernel, borderType=cv2.BORDER_REPLICATE)
     hi = cv2.dilate(labels, kernel, borderType=cv2.BORDER_REPLICATE)
     inner = np.where((lo == labels) & (hi == labels), labels, 0).astype(np.uint8)
-    whole, _ = class_means(labels, np.concatenate(
-        [stats.lab, stats.band[:, :, None], stats.detail, stats.detail ** 2], axis=2))
-    inside, n_inside = class_means(inner, np.concatenate(
-        [stats.band[:, :, None], stats.detail, stats.detail ** 2], axis=2))
+    inside, n_inside = class_means(inner, _stack(stats, lab=False))
     out = {}
     for c in (int(c) for c in classes):
         # A class with no interior pixel is measured on all its pixels.
