@@ -196,7 +196,8 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     bits = {c: packed_bits_per_pixel(IndexGrid(vote_grid(labels, (c, c)), (c, c)), labels.size)
             for c in (4, 8, 16)}
     assert bits[4] > bits[8] > bits[16]
-    assert cell_within_budget(labels, choice, (4, 8, 16), bits[4]) is choice
+    kept = cell_within_budget(labels, choice, (4, 8, 16), bits[4])
+    assert kept == choice and kept.agreement == choice.agreement
     got = cell_within_budget(labels, choice, (4, 8, 16), (bits[8] + bits[16]) / 2)
     g16 = IndexGrid(vote_grid(labels, (16, 16)), (16, 16))
     assert got.cell == (16, 16) and got.agreement == pytest.approx(agreement(labels, g16))

@@ -8,7 +8,7 @@ conversion would use (:func:`vote_grid`, specks removed unless kept).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from terratheme.core.classify.samples import check_class_image
@@ -117,6 +117,10 @@ class CellChoice:
     target_met: bool
     #: the per-class IoU target the cell also had to meet (0: none)
     class_target: float = 0.0
+    #: the grid voted at ``cell`` (None when chosen on a list of windows)
+    grid: IndexGrid | None = field(default=None, compare=False, repr=False)
+    #: bytes of ``grid`` packed as ``convert`` ships it, when measured (:func:`cell_within_budget`)
+    packed_bytes: int | None = field(default=None, compare=False, repr=False)
 
     def as_dict(self) -> dict:
         """JSON-ready summary (for the project metadata and the benchmark)."""
@@ -168,6 +172,7 @@ def choose_cell_size(
     if not 0.0 <= float(class_target) <= 1.0:
         raise TerrathemeError(f"class target must be in [0, 1], got {class_target}")
     curve = []
+    grids: dict[int, IndexGrid] = {}
     for done, c in enumerate(sizes if full_curve else sizes[::-1], start=1):
         # Vote the grid, render its label view, count the pixels that keep their label.
         cm, vertices = np.zeros((1, 1), np.int64), 0
@@ -176,6 +181,8 @@ def choose_cell_size(
             share = None if sample_pixels is None else max(1, sample_pixels * piece.size // total)
             cm = _summed(cm, label_confusion(piece, grid, max_pixels=share))
             vertices += int(grid.indices.size)
+        if len(pieces) == 1:
+            grids[c] = grid
         ious = class_iou(cm, CLASS_MIN_SHARE)
         curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), vertices,
                                min(ious.values(), default=1.0)))
@@ -191,7 +198,7 @@ def choose_cell_size(
         best = max(curve, key=lambda p: (p.agreement, -p.cell))
     return CellChoice(
         (best.cell, best.cell), best.agreement, float(target_agreement), tuple(curve),
-        target_met=bool(meeting), class_target=float(class_target),
+        target_met=bool(meeting), class_target=float(class_target), grid=grids.get(best.cell),
     )
 
 
@@ -210,7 +217,12 @@ def _meets(point: CellPoint, target_agreement: float, class_target: float) -> bo
 
 def packed_bits_per_pixel(grid: IndexGrid, pixels: int) -> float:
     """Bits per photo pixel of a grid packed as ``convert`` ships it (``pack(curve="auto")``)."""
-    return len(pack(grid.indices, curve="auto").to_bytes()) * 8 / max(int(pixels), 1)
+    return packed_bytes(grid) * 8 / max(int(pixels), 1)
+
+
+def packed_bytes(grid: IndexGrid) -> int:
+    """Bytes of a grid packed as ``convert`` ships it (``pack(curve="auto")``)."""
+    return len(pack(grid.indices, curve="auto").to_bytes())
 
 
 def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Sequence[int],
@@ -219,16 +231,22 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
 
     Under a byte budget the map carries the structure and the grid only places detail;
     the largest candidate is kept even if it does not fit (``max_bits_per_pixel`` per
-    photo pixel; its curve unchanged).
+    photo pixel; its curve unchanged). ``choice.grid``, when set, is the grid of these
+    labels at its cell. The result carries its grid and packed size.
     """
     labels = check_class_image(labels, "label image")
     cell = choice.cell[0]
     larger = sorted(int(c) for c in candidates if int(c) > cell)
-    grid = None
+    grid = nbytes = None
     for nxt in [cell, *larger]:
-        grid = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
-        if packed_bits_per_pixel(grid, labels.size) <= max_bits_per_pixel:
+        if nxt == cell and choice.grid is not None:
+            grid = choice.grid
+        else:
+            grid = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
+        nbytes = packed_bytes(grid)
+        if nbytes * 8 / max(labels.size, 1) <= max_bits_per_pixel:
             break
     if grid.cell == choice.cell:
-        return choice
-    return replace(choice, cell=grid.cell, agreement=agreement(labels, grid, max_pixels=1 << 22))
+        return replace(choice, grid=grid, packed_bytes=nbytes)
+    return replace(choice, cell=grid.cell, agreement=agreement(labels, grid, max_pixels=1 << 22),
+                   grid=grid, packed_bytes=nbytes)
