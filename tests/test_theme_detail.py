@@ -83,6 +83,28 @@ def test_detail_library_keeps_names_and_colours():
     assert np.array_equal(out[0].texture, detail_texture(tex, gain=0.5))
 
 
+def test_detail_themes_is_the_library_at_the_photo_gains_in_one_pass():
+    from terratheme.core.themes.detail import detail_themes
+
+    xx = np.indices((32, 32))[1]
+    stripes = (xx // 4 % 2 * 2 - 1).astype(float)
+    rng = np.random.default_rng(3)
+    grain = rng.integers(60, 200, (32, 32, 3)).astype(np.uint8)
+    town = np.repeat((100 * (1 + 0.05 * stripes))[:, :, None], 3, axis=2).round()
+    lib = ThemeLibrary([Theme("town", (1, 2, 3), town.astype(np.uint8)),
+                        Theme("sand", (4, 5, 6), grain)])
+    photo = rng.integers(0, 255, (32, 32, 3)).astype(np.uint8)
+    labels = (np.indices((32, 32))[0] >= 16).astype(np.uint8)
+    made = detail_themes(photo, labels, lib)
+    gains = detail_gains(photo, labels, lib)
+    # A fragment theme (town) and a grain theme, each at its own gain.
+    assert gains[0] != gains[1]
+    for k, theme in enumerate(lib):
+        assert made[k].name == theme.name and made[k].colour == theme.colour
+        np.testing.assert_array_equal(made[k].texture,
+                                      detail_texture(theme.texture, gain=gains[k]))
+
+
 def test_even_detail_fills_a_flat_strip_of_a_tileable_texture():
     from terratheme.core.themes.detail import EVEN_RANGE, _relative, even_detail
 

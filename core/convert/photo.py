@@ -23,7 +23,6 @@ from terratheme.core.convert.cell_choice import (
     road_candidates,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
-from terratheme.core.convert.labels_to_grid import apply_lut
 from terratheme.core.convert.step import (
     classify_photo,
     detail_sigma,
@@ -146,17 +145,16 @@ def convert_photo(
     class_names : {class: name}, optional
         With ``themes`` "auto": the themes' names (a legend's), before the model's own.
     """
+    # Prepare: the 8-bit RGB every stage works on, the options checked.
     rgb, _ = prepare_photo(photo)
     h, w = rgb.shape[:2]
     if scribbles is not None:
         scribbles = check_class_image(scribbles, "scribble mask", (h, w))
     if options.cell != "auto" and (not isinstance(options.cell, int) or options.cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {options.cell!r}")
-    # Classify the photo (35% of the progress).
+    # Classify (35% of the progress): the alpha of ``photo`` marks no data.
     result, _ = classify_photo(photo, themes=options.themes, scribbles=scribbles, model=model,
                                progress=_stage(progress, 0, 35))
-    labels = result.labels
-    # Themes: cut from the photo and named, or shipped themes by name (15%).
     names = None
     if options.themes == "auto":
         names = {**(getattr(model, "class_names", None) or {}), **(class_names or {})} or None
@@ -164,24 +162,23 @@ def convert_photo(
     listed = (list(options.themes.values()) if isinstance(options.themes, Mapping) else
               list(options.themes) if isinstance(options.themes, (list, tuple)) else [])
     candidates = road_candidates(options.candidates, [*(names or {}).values(), *listed])
-    mapping, choice = themes_and_cell(
-        rgb, labels, result.classes, options.themes, cell=options.cell,
+    # Themes from each class's statistics, and the cell on their labels (15%).
+    themed = themes_and_cell(
+        rgb, result.labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=candidates, patch=options.patch, names=names,
         full_curve=options.full_curve, keep_specks=options.keep_specks,
         detail=detail_sigma(options.colour_map),
         grid_bpp=grid_budget(options.colour_map, h * w))
+    mapping = themed.mapping
     if progress is not None:
         progress(50, 100)
-    # Class values -> theme indices, the grid (35%), then the colour map (15%).
-    theme_labels = apply_lut(labels, mapping.lut)
-    made = grid_and_colour(rgb, theme_labels, mapping, cell=options.cell,
-                           target_agreement=options.target_agreement,
-                           class_target=options.class_target, candidates=candidates,
+    # The grid (the chosen cell's, or voted at a given cell), then the colour map.
+    made = grid_and_colour(rgb, themed.theme_labels, mapping, cell=options.cell,
                            colour_map=options.colour_map,
                            render=RenderOptions(boundary=options.boundary),
-                           progress=_stage(progress, 50, 35), choice=choice,
-                           full_curve=options.full_curve, keep_specks=options.keep_specks)
+                           progress=_stage(progress, 50, 35), choice=themed.choice,
+                           keep_specks=options.keep_specks)
     if progress is not None:
         progress(95, 100)
     meta = dict(metadata or {})
@@ -207,7 +204,7 @@ def convert_photo(
     )
     if progress is not None:
         progress(100, 100)
-    return ConvertResult(project, labels, result.confidence, mapping, made.choice,
+    return ConvertResult(project, result.labels, result.confidence, mapping, made.choice,
                          made.agreement, made.colour)
 
 

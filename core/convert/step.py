@@ -23,14 +23,14 @@ from terratheme.core.convert.cell_choice import (
     agreement,
     cell_within_budget,
     choose_cell_size,
+    packed_bytes,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
-from terratheme.core.packing import pack
 from terratheme.core.render.renderer import RenderOptions, render_cells
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_gains, detail_library
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -129,6 +129,19 @@ def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
     return DETAIL_SIGMA if colour_map is not None and colour_map.target is None else None
 
 
+@dataclass(frozen=True)
+class Themed:
+    """The themes of a classified photo and, with cell "auto", the cell chosen on them.
+
+    ``theme_labels``: (H, W) uint8 theme index per pixel; ``choice`` (None unless the cell
+    was chosen) carries the grid voted at its cell.
+    """
+
+    mapping: ThemeMapping
+    theme_labels: np.ndarray
+    choice: CellChoice | None
+
+
 def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     themes: ThemesSpec = "auto", *, cell: str | int = "auto",
                     target_agreement: float = 0.9, class_target: float = 0.0,
@@ -139,17 +152,15 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     keep_specks: bool = True,
                     detail: float | None = DETAIL_SIGMA,
                     grid_bpp: float | None = None,
-                    ) -> tuple[ThemeMapping, CellChoice | None]:
+                    ) -> Themed:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
     Themes cut from the photo have their class -> theme table before any is cut, so the
     cell is chosen on a second thread meanwhile (same result). ``detail``: cut themes keep
-    only detail finer than this sigma (:func:`detail_library`); None keeps them whole.
+    only detail finer than this sigma (:func:`detail_themes`); None keeps them whole.
     ``grid_bpp``: the packed grid's bits per photo pixel (:func:`cell_within_budget`).
-    The choice is None unless ``cell`` is "auto".
     """
-    def choose(lut: np.ndarray) -> CellChoice:
-        theme_labels = apply_lut(labels, lut)
+    def choose(theme_labels: np.ndarray) -> CellChoice:
         choice = choose_cell_size(theme_labels, target_agreement,
                                   candidates=candidates, class_target=class_target,
                                   full_curve=full_curve, keep_specks=keep_specks)
@@ -158,23 +169,20 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         return cell_within_budget(theme_labels, choice, candidates, grid_bpp,
                                   keep_specks=keep_specks)
 
-    def cut() -> ThemeMapping:
-        mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
-        if detail is None or not cuts_themes(themes):
-            return mapping
-        gains = detail_gains(rgb, apply_lut(labels, mapping.lut), mapping.library, detail)
-        return ThemeMapping(detail_library(mapping.library, detail, gains), mapping.lut,
-                            mapping.classes)
-
-    if cell != "auto":
-        return cut(), None
-    if not cuts_themes(themes):
-        mapping = cut()
-        return mapping, choose(mapping.lut)
+    cut = cuts_themes(themes)
+    # Cut themes: the table is known before any theme is cut.
+    theme_labels = apply_lut(labels, photo_theme_lut(labels, classes)) if cut else None
     with ThreadPoolExecutor(max_workers=1) as pool:
-        job = pool.submit(choose, photo_theme_lut(labels, classes))
-        mapping = cut()
-        return mapping, job.result()
+        job = pool.submit(choose, theme_labels) if cut and cell == "auto" else None
+        mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
+        if not cut:
+            theme_labels = apply_lut(labels, mapping.lut)
+        elif detail is not None:
+            mapping = ThemeMapping(detail_themes(rgb, theme_labels, mapping.library, detail),
+                                   mapping.lut, mapping.classes)
+        choice = job.result() if job is not None else (
+            choose(theme_labels) if cell == "auto" else None)
+    return Themed(mapping, theme_labels, choice)
 
 
 @dataclass(frozen=True)
@@ -212,7 +220,8 @@ def grid_and_colour(
     ``colour_map`` None: the paper's pure rule. ``render``: how the project will be
     rendered (the map is fitted to it). ``choice``: with ``cell`` "auto", a
     :func:`choose_cell_size` result already made on these labels (made with the same
-    ``keep_specks``). ``keep_specks`` False: lone vertices take their neighbours' theme.
+    ``keep_specks``), whose grid is taken when it carries one. ``keep_specks`` False:
+    lone vertices take their neighbours' theme.
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
@@ -224,7 +233,8 @@ def grid_and_colour(
                                       class_target=class_target, progress=progress,
                                       full_curve=full_curve, keep_specks=keep_specks)
         size = choice.cell
-    grid = IndexGrid(vote_grid(theme_labels, size, keep_specks=keep_specks), size)
+    grid = choice.grid if choice is not None and choice.grid is not None else IndexGrid(
+        vote_grid(theme_labels, size, keep_specks=keep_specks), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
                                                                   max_pixels=1 << 22)
     fitted = None
@@ -232,8 +242,10 @@ def grid_and_colour(
         # The colour map is fitted to the render it multiplies.
         plain = render_cells(grid, mapping.library.textures, options=render)
         # A byte budget covers the packed grid too.
-        reserved = len(pack(grid.indices, curve="auto").to_bytes()) if (
-            colour_map.target is None) else 0
+        reserved = 0
+        if colour_map.target is None:
+            known = choice.packed_bytes if choice is not None else None
+            reserved = packed_bytes(grid) if known is None else known
         fitted = choose_colour_map(rgb, plain, colour_map, reserved=reserved)
     return GridResult(grid, choice, score, fitted)
 

@@ -220,9 +220,9 @@ def convert_file_tiled(
     # The themes, and with cell "auto" the cell size, chosen once on the sample: the themes
     # on its windows side by side (a fixed cell: no choice there), the cell on each window
     # apart (the seams between them are no borders of the photo: they would favour small cells).
-    mapping, _ = themes_and_cell(rgb, sample.labels, model.classes, spec,
-                                 cell=1 if cell == "auto" else cell, names=class_names,
-                                 detail=detail_sigma(colour_map))
+    mapping = themes_and_cell(rgb, sample.labels, model.classes, spec,
+                              cell=1 if cell == "auto" else cell, names=class_names,
+                              detail=detail_sigma(colour_map)).mapping
     choice = None
     if cell == "auto":
         # A road theme keeps finer cells, as on the whole photo.

@@ -99,7 +99,11 @@ def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.n
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
                    gain: float = 1.0) -> np.ndarray:
     """(h, w, 3) uint8: ``128 (1 + gain theme_detail(t))`` of a tileable texture, clipped."""
-    out = NEUTRAL * (1.0 + gain * theme_detail(texture, sigma)[0])
+    return _detail_bytes(theme_detail(texture, sigma)[0], gain)
+
+
+def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
+    out = NEUTRAL * (1.0 + gain * rel)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
@@ -120,20 +124,25 @@ def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibr
     to ``GAIN_RANGE``; 1 for an unused or flat theme.
     ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel.
     """
+    return _gains(photo, theme_labels, [_detail(t.texture, sigma) for t in library])
+
+
+def _gains(photo: np.ndarray, theme_labels: np.ndarray,
+           details: Sequence[tuple[np.ndarray, float, bool]]) -> list[float]:
+    """:func:`detail_gains` of the themes' :func:`_detail`."""
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
-    counts = np.bincount(labels, minlength=len(library))
+    counts = np.bincount(labels, minlength=len(details))
     sums: dict[float, np.ndarray] = {}
     gains = []
-    for k, theme in enumerate(library):
-        rel, s, fragment = _detail(theme.texture, sigma)
+    for k, (rel, s, fragment) in enumerate(details):
         own = float((rel.mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
         if s not in sums:
             sums[s] = np.bincount(labels, (_relative(y, s, wrap=False) ** 2).ravel(),
-                                  minlength=len(library))
+                                  minlength=len(details))
         gain = np.sqrt(sums[s][k] / counts[k] / own)
         if fragment:
             # Scrambled fragments match the photo's edges in energy only: at full contrast
@@ -149,3 +158,12 @@ def detail_library(library: ThemeLibrary, sigma: float = DETAIL_SIGMA,
     gains = [1.0] * len(library) if gains is None else list(gains)
     return ThemeLibrary(t.with_(texture=detail_texture(t.texture, sigma, g))
                         for t, g in zip(library, gains, strict=True))
+
+
+def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
+                  sigma: float = DETAIL_SIGMA) -> ThemeLibrary:
+    """:func:`detail_library` with the :func:`detail_gains` of ``photo``, each detail made once."""
+    details = [_detail(t.texture, sigma) for t in library]
+    gains = _gains(photo, theme_labels, details)
+    return ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
+                        for t, (rel, _, _), g in zip(library, details, gains, strict=True))
