@@ -12,7 +12,13 @@ from terratheme.core.themes.from_photo import (
     themes_from_photo,
 )
 from terratheme.core.themes.library import shipped_theme_library
-from terratheme.core.themes.patch_search import PatchOptions, WindowStats, find_patch, texture_stats
+from terratheme.core.themes.patch_search import (
+    PatchOptions,
+    WindowStats,
+    class_windows,
+    find_patch,
+    texture_stats,
+)
 from terratheme.core.themes.tileable import SEAM_THRESHOLD, seam_score
 
 
@@ -31,20 +37,21 @@ def _two_regions(h=96, w=128, seed=0):
     return photo, labels
 
 
-def _windows(photo):
-    return WindowStats(texture_stats(photo))
+def _windows(photo, mask, options):
+    """The class region's scored windows (:func:`class_windows`)."""
+    return class_windows(WindowStats(texture_stats(photo)), mask, options)
 
 
 def test_find_patch_matches_the_class_texture_not_its_calmest_corner():
     photo, labels = _two_regions()
     # Class 2's texture is its noise (std 25): the window picked avoids the calm square.
-    x, y, s = find_patch(_windows(photo), labels == 2, PatchOptions(size=32, min_size=8))
+    x, y, s = find_patch(_windows(photo, labels == 2, PatchOptions(size=32, min_size=8)))
     assert s == 32 and x >= 64
     inside_calm = 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
     assert not inside_calm
     assert photo[y : y + s, x : x + s].std() > 15
     # Class 1's window stays inside the class (columns < 64).
-    x1, y1, s1 = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=8))
+    x1, y1, s1 = find_patch(_windows(photo, labels == 1, PatchOptions(size=32, min_size=8)))
     assert x1 + s1 <= 64
 
 
@@ -53,7 +60,7 @@ def test_find_patch_takes_the_calm_square_when_the_class_is_calm():
     calm = np.zeros(labels.shape, bool)
     calm[30:70, 80:120] = True
     calm[0:10, 64:74] = True  # a few noisy pixels of the class elsewhere
-    x, y, s = find_patch(_windows(photo), calm, PatchOptions(size=32, min_size=8, inside=1.0))
+    x, y, s = find_patch(_windows(photo, calm, PatchOptions(size=32, min_size=8, inside=1.0)))
     assert 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
 
 
@@ -61,16 +68,16 @@ def test_find_patch_shrinks_then_gives_up():
     photo = np.zeros((50, 50, 3), np.uint8)
     mask = np.zeros((50, 50), bool)
     mask[10:30, 10:30] = True  # 20 x 20 region: sizes 50, 37, 27 do not fit, 20 does
-    got = find_patch(_windows(photo), mask, PatchOptions(size=128, min_size=8, inside=1.0))
+    got = find_patch(_windows(photo, mask, PatchOptions(size=128, min_size=8, inside=1.0)))
     assert got == (10, 10, 20)
     opts = PatchOptions(size=128, min_size=24, inside=1.0)
-    assert find_patch(_windows(photo), mask, opts) is None
+    assert find_patch(_windows(photo, mask, opts)) is None
 
 
 def test_find_patch_skips_excluded_windows():
     photo, labels = _two_regions()
-    first = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=32))
-    second = find_patch(_windows(photo), labels == 1, PatchOptions(size=32, min_size=32),
+    first = find_patch(_windows(photo, labels == 1, PatchOptions(size=32, min_size=32)))
+    second = find_patch(_windows(photo, labels == 1, PatchOptions(size=32, min_size=32)),
                         exclude=[first])
     assert second is not None
     assert abs(second[0] - first[0]) > 16 or abs(second[1] - first[1]) > 16

@@ -7,7 +7,12 @@ import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes import PatchOptions, themes_from_photo
 from terratheme.core.themes.from_photo import REPEAT_LIMIT
-from terratheme.core.themes.patch_search import WindowStats, best_windows, texture_stats
+from terratheme.core.themes.patch_search import (
+    WindowStats,
+    best_windows,
+    class_windows,
+    texture_stats,
+)
 from terratheme.core.themes.quality import repeat_score
 from terratheme.core.themes.quilt import QuiltOptions, candidate_blocks, quilt_tileable
 from terratheme.core.themes.tileable import seam_score
@@ -48,8 +53,8 @@ def test_best_windows_keep_to_the_class_and_its_texture() -> None:
     photo[:, 120:] = (20, 40, 230)
     mask = np.zeros(photo.shape[:2], bool)
     mask[:, :120] = True
-    corners = best_windows(WindowStats(texture_stats(photo)), mask, 20, 50,
-                           PatchOptions(inside=1.0), spacing=4)
+    found = class_windows(WindowStats(texture_stats(photo)), mask, PatchOptions(inside=1.0))
+    corners = best_windows(found, 20, 50, spacing=4)
     assert len(corners) == 50
     assert (corners[:, 0] + 20 <= 120).all() and (corners % 4 == 0).all()
     quilt = quilt_tileable(photo, corners, QuiltOptions(size=80, block=20, overlap=5))

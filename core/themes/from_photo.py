@@ -36,6 +36,7 @@ from terratheme.core.themes.patch_search import (
     WindowStats,
     best_windows,
     class_stats,
+    class_windows,
     find_patch,
     texture_stats,
 )
@@ -92,10 +93,12 @@ def _tiles_unseen(tile: np.ndarray) -> bool:
 def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
                 options: PatchOptions) -> tuple[np.ndarray, str] | None:
     """The tileable patch of one class and where it came from, or None when none fits."""
+    # The class's windows scored once; each try skips those near the windows tried.
+    scored = class_windows(windows, mask, options, target)
     tried: list[tuple[int, int, int]] = []
     fallback = None
     for _ in range(PATCH_TRIES):
-        found = find_patch(windows, mask, options, exclude=tried, target=target)
+        found = find_patch(scored, exclude=tried)
         if found is None:
             break
         x, y, s = found
@@ -113,8 +116,8 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
     # when that repeats less.
     # The blocks: the class's windows whose texture statistics are closest to its own.
     quilting = QuiltOptions(size=options.size)
-    corners = best_windows(windows, mask, quilting.block, quilting.candidates, options,
-                           spacing=quilting.block // 6, target=target)
+    corners = best_windows(scored, quilting.block, quilting.candidates,
+                           spacing=quilting.block // 6)
     quilt = quilt_tileable(rgb, corners, quilting)
     if quilt is None:
         return fallback
@@ -169,6 +172,7 @@ def themes_from_photo(
     rgb, labels = _check(photo, labels)
     # Every class's colour and texture statistics, taken once.
     stats = class_stats(rgb, labels, options)
+    windows = WindowStats(stats.texture)
     colours, counts = stats.colour, stats.counts
     wanted = _wanted(counts, classes)
     names = {int(c): n for c, n in (names or {}).items()}
@@ -182,7 +186,6 @@ def themes_from_photo(
     # Given names first, so a guessed name that repeats one takes the number.
     order = sorted(wanted, key=lambda c: c in unnamed)
     names = dict(zip(order, distinct_names(names[c] for c in order), strict=True))
-    windows = WindowStats(stats.texture)
     targets = {c: stats.targets[c] for c in wanted if counts[c]}
     # The classes' tiles on two threads (OpenCV, numpy and the seam kernels release the GIL).
     with ThreadPoolExecutor(max_workers=TILE_THREADS) as pool:

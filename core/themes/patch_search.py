@@ -15,7 +15,7 @@ class-independent per-pixel maps, area-averaged on large photos to bound the sea
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numba
@@ -221,12 +221,6 @@ class WindowStats:
             axis=2), f)
         self._by_size: dict[int, np.ndarray] = {}
 
-    def cover(self, mask: np.ndarray, size: int) -> np.ndarray:
-        """(h, w) float32 share of class pixels in the window at every lattice position."""
-        m = _coarsen(mask.astype(np.float32), self.factor)
-        k = max(1, size // self.factor)
-        return cv2.boxFilter(m, -1, (k, k), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
-
     def at(self, size: int) -> np.ndarray:
         """(h, w, 10) float32: mean band, Lab mean (3), detail mean (3), detail^2 mean (3).
 
@@ -260,62 +254,93 @@ def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
     return score + options.size_weight * np.log2(options.size / size)
 
 
-def find_patch(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
-               *, exclude: list[tuple[int, int, int]] = (),
-               target: ClassTarget | None = None) -> tuple[int, int, int] | None:
-    """``(x, y, size)`` of the window closest to a class region, or None when none fits.
+@dataclass(frozen=True)
+class ClassWindows:
+    """One class region on a :class:`WindowStats` lattice, its windows scored once.
 
-    The window has at least ``options.inside`` of its pixels in ``mask`` (H, W bool);
-    windows overlapping an ``exclude`` one by more than half are skipped; ``target``: the
-    class's :func:`class_target` when the caller has it.
+    ``coarse``: the class mask area-averaged to the lattice; ``sides``: per side tried,
+    ``(size, at, score)``: flat lattice indices of the windows inside the photo with at
+    least ``options.inside`` of class pixels, and their :func:`patch_scores`. Every try
+    of :func:`find_patch` and :func:`best_windows` takes them from here.
     """
-    h, w = mask.shape
-    f = windows.factor
-    target = target or class_target(windows.stats, mask)
-    best: tuple[float, int, int, int] | None = None
-    for size in options.sizes(h, w):
-        cover = windows.cover(mask, size)
+
+    windows: WindowStats
+    shape: tuple[int, int]
+    target: ClassTarget
+    options: PatchOptions
+    coarse: np.ndarray
+    sides: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+
+    def admissible(self, size: int, step: int = 1) -> np.ndarray:
+        """Flat lattice indices of windows of side ``size`` mostly in the class, every ``step``."""
+        h, w = self.shape
+        f = self.windows.factor
+        k = max(1, size // f)
+        cover = cv2.boxFilter(self.coarse, -1, (k, k), anchor=(0, 0),
+                              borderType=cv2.BORDER_CONSTANT)
         # Only windows inside the photo whose pixels are mostly in the class.
         ok = np.zeros(cover.shape, bool)
-        ok[: (h - size) // f + 1, : (w - size) // f + 1] = True
-        ok &= cover >= options.inside - 1e-6
+        ok[: (h - size) // f + 1 : step, : (w - size) // f + 1 : step] = True
+        ok &= cover >= self.options.inside - 1e-6
+        return np.flatnonzero(ok)
+
+    def scores(self, size: int, at: np.ndarray) -> np.ndarray:
+        """:func:`patch_scores` of the windows of side ``size`` at lattice indices ``at``."""
+        return patch_scores(self.windows.at(size).reshape(-1, 10)[at], self.target, size,
+                            self.options)
+
+
+def class_windows(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
+                  target: ClassTarget | None = None) -> ClassWindows:
+    """The :class:`ClassWindows` of a class region ``mask`` ((H, W) bool).
+
+    ``target``: the class's :func:`class_target` when the caller has it.
+    """
+    target = target or class_target(windows.stats, mask)
+    found = ClassWindows(windows, mask.shape, target, options,
+                         _coarsen(mask.astype(np.float32), windows.factor), ())
+    sides = []
+    for size in options.sizes(*mask.shape):
+        at = found.admissible(size)
+        sides.append((size, at, found.scores(size, at)))
+    return replace(found, sides=tuple(sides))
+
+
+def find_patch(found: ClassWindows, *, exclude: Sequence[tuple[int, int, int]] = ()
+               ) -> tuple[int, int, int] | None:
+    """``(x, y, size)`` of the window closest to a class region, or None when none fits.
+
+    Windows overlapping an ``exclude`` one by more than half are skipped.
+    """
+    f = found.windows.factor
+    best: tuple[float, int, int, int] | None = None
+    for size, at, score in found.sides:
+        j, i = np.divmod(at, found.coarse.shape[1])
+        keep = np.ones(at.size, bool)
         for ex, ey, es in exclude:
             half = max(size, es) // 2
-            ok[max(0, (ey - half) // f): (ey + half) // f + 1,
-               max(0, (ex - half) // f): (ex + half) // f + 1] = False
-        at = np.flatnonzero(ok)
-        if at.size == 0:
+            keep &= ~((j >= max(0, (ey - half) // f)) & (j < (ey + half) // f + 1)
+                      & (i >= max(0, (ex - half) // f)) & (i < (ex + half) // f + 1))
+        if not keep.any():
             continue
-        # Scores of the admissible windows only.
-        score = patch_scores(windows.at(size).reshape(-1, 10)[at], target, size, options)
-        k = int(np.argmin(score))
-        if best is None or score[k] < best[0]:
-            j, i = divmod(int(at[k]), cover.shape[1])
-            best = (float(score[k]), i * f, j * f, max(1, size // f) * f)
+        kept = score[keep]
+        k = int(np.argmin(kept))
+        if best is None or kept[k] < best[0]:
+            best = (float(kept[k]), int(i[keep][k]) * f, int(j[keep][k]) * f,
+                    max(1, size // f) * f)
     return None if best is None else best[1:]
 
 
-def best_windows(windows: WindowStats, mask: np.ndarray, size: int, count: int,
-                 options: PatchOptions = PatchOptions(), *, spacing: int = 1,
-                 target: ClassTarget | None = None) -> np.ndarray:
+def best_windows(found: ClassWindows, size: int, count: int, *, spacing: int = 1) -> np.ndarray:
     """(n, 2) int64 ``(x, y)`` corners of the ``n <= count`` windows closest to the class.
 
     Best first; windows of side ``size`` on a lattice of step ``spacing`` (no near-copies),
-    at least ``options.inside`` in ``mask``; ``target`` as :func:`find_patch`.
+    at least ``options.inside`` in the class.
     """
-    h, w = mask.shape
-    f = windows.factor
-    target = target or class_target(windows.stats, mask)
-    cover = windows.cover(mask, size)
-    step = max(1, spacing // f)
-    ok = np.zeros(cover.shape, bool)
-    ok[: (h - size) // f + 1 : step, : (w - size) // f + 1 : step] = True
-    ok &= cover >= options.inside - 1e-6
-    at = np.flatnonzero(ok)
+    f = found.windows.factor
+    at = found.admissible(size, max(1, spacing // f))
     if at.size == 0:
         return np.zeros((0, 2), np.int64)
-    score = patch_scores(windows.at(size).reshape(-1, 10)[at], target, size, options)
-    best = at[np.argsort(score, kind="stable")[:count]]
-    j, i = np.divmod(best, cover.shape[1])
+    best = at[np.argsort(found.scores(size, at), kind="stable")[:count]]
+    j, i = np.divmod(best, found.coarse.shape[1])
     return np.stack([i * f, j * f], axis=1).astype(np.int64)
-
