@@ -35,6 +35,37 @@ def test_class_interior_reads_the_mask_beyond_the_window():
     assert not near[:, : 5 + INTERIOR - 6].any() and near[:, 5 + INTERIOR - 6 :].all()
 
 
+def test_interior_labels_keep_each_class_inside_its_own_border():
+    from terratheme.core.themes.patch_search import interior_labels
+
+    labels = np.ones((30, 40), np.uint8)
+    labels[:, 20:] = 2
+    labels[:3, :3] = 0
+    inner = interior_labels(labels)
+    # Within INTERIOR of the border at column 20 nothing is inside; the photo's edges are none.
+    assert (inner[:, 20 - INTERIOR : 20 + INTERIOR] == 0).all()
+    assert (inner[10:, : 20 - INTERIOR] == 1).all() and (inner[:, 20 + INTERIOR :] == 2).all()
+    # The class interior of a window is the same read from the whole photo's interior labels.
+    for c in (1, 2):
+        np.testing.assert_array_equal(class_interior(labels == c, 4, 6, 16),
+                                      inner[6:22, 4:20] == c)
+
+
+def test_cut_window_with_the_class_interior_given_cuts_the_same():
+    from terratheme.core.themes.cut_mask import cut_window
+    from terratheme.core.themes.patch_search import interior_labels
+
+    photo = _sand(80, 80, seed=2)
+    photo[:, 50:] = (40, 60, 70)
+    photo[30:33, 10:30] = (120, 110, 100)  # a faint lone mark in the sand
+    labels = np.ones((80, 80), np.uint8)
+    labels[:, 50:] = 2
+    mask = labels == 1
+    alone = cut_window(photo, mask, 10, 10, 40)
+    given = cut_window(photo, mask, 10, 10, 40, interior_labels(labels) == 1)
+    np.testing.assert_array_equal(alone, given)
+
+
 def test_a_rim_along_dark_water_is_a_lone_object_once_the_water_is_painted_over():
     window = _sand(96, 96, seed=1)
     window[:30] = (40, 60, 70)  # dark water, another class

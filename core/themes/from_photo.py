@@ -85,18 +85,19 @@ PATCH_TRIES = 3
 TILE_THREADS = 2
 
 
-def _tiles_unseen(tile: np.ndarray) -> bool:
-    """Whether a tile's repetition stays under both limits (repeat and landmark score)."""
-    return repeat_score(tile) <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT
+def _repeats(tile: np.ndarray) -> tuple[float, bool]:
+    """A tile's repeat score and whether it tiles unseen (under both limits, landmarks too)."""
+    repeat = repeat_score(tile)
+    return repeat, repeat <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT
 
 
-def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target: ClassTarget,
-                options: PatchOptions) -> tuple[np.ndarray, str] | None:
+def _class_tile(rgb: np.ndarray, mask: np.ndarray, interior: np.ndarray, windows: WindowStats,
+                target: ClassTarget, options: PatchOptions) -> tuple[np.ndarray, str] | None:
     """The tileable patch of one class and where it came from, or None when none fits."""
     # The class's windows scored once; each try skips those near the windows tried.
     scored = class_windows(windows, mask, options, target)
     tried: list[tuple[int, int, int]] = []
-    fallback = None
+    fallback, fallback_repeat = None, 0.0
     for _ in range(PATCH_TRIES):
         found = find_patch(scored, exclude=tried)
         if found is None:
@@ -104,12 +105,14 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
         x, y, s = found
         tried.append(found)
         # Other classes, the class's rim and lone objects filled from its own pixels.
-        cut = cut_window(rgb, mask, x, y, s)
+        cut = cut_window(rgb, mask, x, y, s, interior)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
-        if _tiles_unseen(tile):
+        repeat, unseen = _repeats(tile)
+        if unseen:
             return tile, source
-        fallback = fallback or (tile, source + " (repeats)")
+        if fallback is None:
+            fallback, fallback_repeat = (tile, source + " (repeats)"), repeat
     if fallback is None or not options.quilt:
         return fallback
     # No window tiles without repeating: quilt the theme from many small blocks instead,
@@ -123,7 +126,8 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, windows: WindowStats, target:
         return fallback
     tile = make_tileable(quilt)
     # The quilt unless it repeats more than the best window and fails a limit too.
-    if not _tiles_unseen(tile) and repeat_score(tile) >= repeat_score(fallback[0]):
+    repeat, unseen = _repeats(tile)
+    if not unseen and repeat >= fallback_repeat:
         return fallback
     return tile, f"quilted from {quilting.steps() ** 2} blocks of the class"
 
@@ -190,7 +194,8 @@ def themes_from_photo(
     # The classes' tiles on two threads (OpenCV, numpy and the seam kernels release the GIL).
     with ThreadPoolExecutor(max_workers=TILE_THREADS) as pool:
         tiles = dict(zip(targets, pool.map(
-            lambda c: _class_tile(rgb, labels == c, windows, targets[c], options), targets),
+            lambda c: _class_tile(rgb, labels == c, stats.interior == c, windows, targets[c],
+                                  options), targets),
             strict=True))
     themes = []
     for c in wanted:

@@ -128,8 +128,8 @@ class ClassStats:
 
     ``texture``: the photo's :class:`TextureStats`; ``counts``: (256,) int64 pixels per
     class value; ``colour``, ``lab``: (256, 3) float64 mean RGB and Lab; ``band``: (256,)
-    mean band energy (0 where no pixel); ``targets``: :class:`ClassTarget` of each present class
-    but 0 (no data).
+    mean band energy (0 where no pixel); ``interior``: the labels' :func:`interior_labels`;
+    ``targets``: :class:`ClassTarget` of each present class but 0 (no data).
     """
 
     texture: TextureStats
@@ -137,6 +137,7 @@ class ClassStats:
     colour: np.ndarray
     lab: np.ndarray
     band: np.ndarray
+    interior: np.ndarray
     targets: Mapping[int, ClassTarget]
 
 
@@ -146,8 +147,21 @@ def class_stats(rgb: np.ndarray, labels: np.ndarray,
     texture = texture_stats(rgb, options)
     colour, counts = class_means(labels, rgb)
     whole, _ = class_means(labels, _stack(texture, lab=True))
-    targets = _targets(texture, labels, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
-    return ClassStats(texture, counts, colour, whole[:, :3], whole[:, 3], targets)
+    inner = interior_labels(labels)
+    targets = _targets(texture, inner, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
+    return ClassStats(texture, counts, colour, whole[:, :3], whole[:, 3], inner, targets)
+
+
+def interior_labels(labels: np.ndarray) -> np.ndarray:
+    """(H, W) uint8: a pixel's class where all within ``INTERIOR`` px share it, else 0.
+
+    The labels go on beyond the image (replicated border): its edge is no class border.
+    """
+    # Every label within the disc is the pixel's own: a min and a max filter.
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
+    lo = cv2.erode(labels, kernel, borderType=cv2.BORDER_REPLICATE)
+    hi = cv2.dilate(labels, kernel, borderType=cv2.BORDER_REPLICATE)
+    return np.where((lo == labels) & (hi == labels), labels, 0).astype(np.uint8)
 
 
 def _stack(stats: TextureStats, lab: bool) -> np.ndarray:
@@ -168,17 +182,13 @@ def class_targets(stats: TextureStats, labels: np.ndarray,
     if any(present[int(c)] == 0 for c in classes):
         raise TerrathemeError("the class has no pixel to take a patch's statistics from")
     whole, _ = class_means(labels, _stack(stats, lab=True))
-    return _targets(stats, labels, whole, classes)
+    return _targets(stats, interior_labels(labels), whole, classes)
 
 
-def _targets(stats: TextureStats, labels: np.ndarray, whole: np.ndarray,
+def _targets(stats: TextureStats, inner: np.ndarray, whole: np.ndarray,
              classes: Sequence[int]) -> dict[int, ClassTarget]:
-    """:func:`class_targets` from the classes' (256, 10) means of :func:`_stack` (with Lab)."""
-    # Interior pixels: every label within the disc is their own (a min and a max filter).
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * INTERIOR + 1, 2 * INTERIOR + 1))
-    lo = cv2.erode(labels, kernel, borderType=cv2.BORDER_REPLICATE)
-    hi = cv2.dilate(labels, kernel, borderType=cv2.BORDER_REPLICATE)
-    inner = np.where((lo == labels) & (hi == labels), labels, 0).astype(np.uint8)
+    """:func:`class_targets` from the :func:`interior_labels` and the classes' (256, 10)
+    means of :func:`_stack` (with Lab)."""
     inside, n_inside = class_means(inner, _stack(stats, lab=False))
     out = {}
     for c in (int(c) for c in classes):
