@@ -101,9 +101,9 @@ def test_a_periodic_mosaic_gets_the_whole_photos_themes(tmp_path, monkeypatch):
     monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
     monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
     sample = region_sample(photo, lambda p: np.ones(p.shape[:2], np.uint8), 0)
-    assert len(sample.windows) == 9 and sample.rgb.shape == (144, 144, 3)
+    assert len(sample.windows) == 9 and sample.joined(sample.rgb).shape == (144, 144, 3)
     x, y, w, h = sample.windows[4]
-    assert (sample.rgb[48:96, 48:96] == img[y:y + h, x:x + w]).all()
+    assert (sample.pieces(sample.rgb)[4] == img[y:y + h, x:x + w]).all()
     whole = convert_photo(img, ConvertOptions(cell=8)).project
     tiled = convert_file_tiled(photo, None, 8, tile=64)
     assert sorted(tiled.library.names) == sorted(whole.library.names)

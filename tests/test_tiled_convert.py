@@ -106,3 +106,49 @@ def test_a_road_theme_keeps_cells_of_at_most_8_on_the_tiled_path(tmp_path):
     road = convert_file_tiled(path, None, "auto", tile=1024, names=["grass", "road", "water"])
     assert "road" in road.library.names
     assert plain.grid.cell[0] > ROAD_MAX_CELL >= road.grid.cell[0]
+
+
+class OneClass:
+    """A trained classifier's stand-in: every pixel is class 1."""
+
+    classes = (1,)
+    options = None
+
+    def predict(self, pixels, progress=None):
+        from terratheme.core.classify.result import Classification
+
+        ones = np.ones(pixels.shape[:2], np.uint8)
+        return Classification(ones, ones.astype(np.float32), self.classes)
+
+
+def _detail_energy(texture: np.ndarray) -> float:
+    """Mean square of a detail theme's relative contrast about its neutral 128."""
+    return float(((texture[..., :3].astype(np.float64).mean(axis=2) / 128.0 - 1.0) ** 2).mean())
+
+
+def test_the_region_sample_seams_do_not_reach_the_themes(tmp_path, monkeypatch):
+    import terratheme.core.convert.region_sample as rs
+
+    # Issue 34: one class, grey noise of a fixed relative contrast (6%) on a brightness that
+    # varies slowly over the photo (40..210). Its detail energy is the same everywhere, so
+    # the theme's (its detail scaled to the class's energy) is the same whether measured on
+    # the whole photo or on windows of it. Windows side by side without a gap add their
+    # seams, steps of up to 170 levels, to the class's detail and to the theme cut there.
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:384, 0:384] / 384.0
+    level = 125 + 85 * np.sin(2 * np.pi * 1.5 * xx) * np.sin(2 * np.pi * 1.5 * yy)
+    grey = level * (1 + 0.06 * rng.standard_normal(level.shape))
+    img = np.repeat(np.clip(np.rint(grey), 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+    path = tmp_path / "photo.tif"
+    write_image(path, img, tile=64)
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+    whole = convert_photo(img, ConvertOptions(cell=16), model=OneClass()).project
+    tiled = convert_file_tiled(path, OneClass(), 16, tile=128)
+    # No theme for the gaps between the sample's windows.
+    assert len(tiled.library) == len(whole.library) == 1
+    # Both are the class's energy, about 0.0035 (0.06^2 less the blur's share); the estimate
+    # from 9 x 48^2 sample pixels is within a few percent of the whole photo's (its relative
+    # error about sqrt(2 / 20736) = 1%; uint8 rounding adds 1/12 level^2, 0.03%).
+    ratio = _detail_energy(tiled.library[0].texture) / _detail_energy(whole.library[0].texture)
+    assert 0.9 < ratio < 1.1

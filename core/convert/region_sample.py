@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 from terratheme.core.classify.features import FeatureOptions, image_features, with_position
 from terratheme.core.classify.photo import prepare_photo
@@ -40,6 +41,9 @@ SAMPLE_PIECE = 384
 SAMPLE_GRID = 5
 #: window corners snap to multiples of this many pixels
 SAMPLE_ALIGN = 48
+#: no-data pixels between two windows of the sample (each window's reflection): a theme patch
+#: across them would hold more than ``1 - PatchOptions.inside`` (15%) of another class
+SAMPLE_GAP = 48
 
 
 @dataclass(frozen=True)
@@ -107,14 +111,31 @@ class RegionSample:
     """Windows of a photo, side by side as one image, and their classes.
 
     ``windows``: each piece's (x, y, w, h) in the photo; ``places``: its (x, y) in ``rgb``;
-    ``rgb``: (h, w, 3) uint8 pieces (the whole photo when it fits); ``labels``: (h, w) uint8
-    classes, classified with context around each piece as the tiles are.
+    ``rgb``: (h, w, 3) uint8 pieces (the whole photo when it fits), ``gap`` pixels apart;
+    ``labels``: (h, w) uint8 classes, classified with context around each piece as the
+    tiles are, 0 (no data) in the gaps, where ``rgb`` mirrors the pieces (a blur there
+    sees what it sees at the photo's edge); ``no_data``: whether a piece has label 0.
     """
 
     windows: list[tuple[int, int, int, int]]
     places: list[tuple[int, int]]
     rgb: np.ndarray
     labels: np.ndarray
+    gap: int = 0
+    no_data: bool = False
+
+    def pieces(self, image: np.ndarray) -> list[np.ndarray]:
+        """The windows' pieces of an image laid out as ``rgb`` (views)."""
+        return [image[y:y + h, x:x + w] for (x, y), (*_, w, h)
+                in zip(self.places, self.windows, strict=True)]
+
+    def joined(self, image: np.ndarray) -> np.ndarray:
+        """An image laid out as ``rgb`` with its pieces side by side, without the gaps."""
+        rows = len({y for _, y in self.places})
+        pieces = self.pieces(image)
+        per = len(pieces) // rows
+        return np.concatenate([np.concatenate(pieces[j * per:(j + 1) * per], axis=1)
+                               for j in range(rows)], axis=0)
 
 
 def sample_windows(size: tuple[int, int], piece: int | None = None, grid: int | None = None,
@@ -151,19 +172,24 @@ def sample_windows(size: tuple[int, int], piece: int | None = None, grid: int | 
 
 
 def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
-                  overlap: int, rows: list[list[tuple[int, int, int, int]]] | None = None
-                  ) -> RegionSample:
+                  overlap: int, rows: list[list[tuple[int, int, int, int]]] | None = None,
+                  gap: int | None = None) -> RegionSample:
     """Read and classify the :func:`sample_windows` of a photo (one window at a time).
 
     ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
-    window, then cropped.
+    window, then cropped; ``gap``: pixels between windows (default ``SAMPLE_GAP``; none for a
+    single window).
     """
     info = image_info(path)
     rows = rows or sample_windows((info.width, info.height))
     side_w, side_h = rows[0][0][2:]
-    rgb = np.zeros((len(rows) * side_h, len(rows[0]) * side_w, 3), np.uint8)
+    gap = SAMPLE_GAP if gap is None else int(gap)
+    half = gap // 2 if len(rows) * len(rows[0]) > 1 else 0
+    step_w, step_h = side_w + 2 * half, side_h + 2 * half
+    rgb = np.zeros((len(rows) * step_h, len(rows[0]) * step_w, 3), np.uint8)
     labels = np.zeros(rgb.shape[:2], np.uint8)
     windows, places = [], []
+    no_data = False
     for j, row in enumerate(rows):
         for i, (x, y, ww, hh) in enumerate(row):
             rx, ry = max(0, x - overlap), max(0, y - overlap)
@@ -171,18 +197,22 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
             pixels = read_region(path, rx, ry, rx1 - rx, ry1 - ry, bands=Bands.PHOTO)
             got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
             core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
-            px, py = i * side_w, j * side_h
-            rgb[py:py + hh, px:px + ww] = prepare_photo(pixels[core])[0]
+            px, py = i * step_w + half, j * step_h + half
+            piece = prepare_photo(pixels[core])[0]
+            if half:
+                piece = cv2.copyMakeBorder(piece, half, half, half, half, cv2.BORDER_REFLECT)
+            rgb[py - half:py + hh + half, px - half:px + ww + half] = piece
             labels[py:py + hh, px:px + ww] = got[core]
+            no_data |= bool((got[core] == 0).any())
             windows.append((x, y, ww, hh))
             places.append((px, py))
-    return RegionSample(windows, places, rgb, labels)
+    return RegionSample(windows, places, rgb, labels, 2 * half, no_data)
 
 
 def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],
                         render: RenderOptions, options: ColourMapOptions, reserved: int = 0
                         ) -> int:
-    """The colour map's scale chosen on the sample (:func:`choose_colour_map`).
+    """The colour map's scale chosen on the sample's windows (:func:`choose_colour_map`).
 
     Each window rendered from the region's ``grid`` (:func:`grid_window`); ``reserved``:
     the sample's share of the bytes spent already.
@@ -192,4 +222,5 @@ def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np
         origin, block = grid_window(grid, TileWindow(x, y, w, h, x, y, w, h))
         shown[py:py + h, px:px + w] = render_cells(block, textures, grid.cell, region=(x, y, w, h),
                                                    options=render, origin=origin)
-    return choose_colour_map(sample.rgb, shown, options, reserved=int(reserved)).colour_map.scale
+    return choose_colour_map(sample.joined(sample.rgb), sample.joined(shown), options,
+                             reserved=int(reserved)).colour_map.scale

@@ -26,6 +26,7 @@ from terratheme.core.convert.cell_choice import (
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
 from terratheme.core.convert.labels_to_grid import apply_lut, grid_shape_for
 from terratheme.core.convert.region_sample import (
+    RegionSample,
     fit_unsupervised_region,
     region_sample,
     sample_colour_scale,
@@ -49,6 +50,8 @@ from terratheme.core.model.project import ThematicTexture
 from terratheme.core.packing import pack
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.from_photo import ThemeMapping
+from terratheme.core.themes.library import ThemeLibrary
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -139,6 +142,19 @@ class WarmKernels:
         render_cells(np.zeros((3, 3), np.uint8), [pixels[:8, :8]], (8, 8), options=self.render)
 
 
+def _without_gap_theme(mapping: ThemeMapping, sample: RegionSample) -> ThemeMapping:
+    """``mapping`` without the no-data theme its themes were given for the sample's gaps alone.
+
+    The themes append it last, ``lut[0]`` its index, when label 0 is present; a photo
+    without no-data pixels maps 0 to theme 0, as the whole photo's themes do.
+    """
+    if not sample.gap or sample.no_data:
+        return mapping
+    lut = mapping.lut.copy()
+    lut[0] = 0
+    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
+
+
 def convert_file_tiled(
     path: str | os.PathLike,
     model,
@@ -223,20 +239,19 @@ def convert_file_tiled(
     mapping = themes_and_cell(rgb, sample.labels, model.classes, spec,
                               cell=1 if cell == "auto" else cell, names=class_names,
                               detail=detail_sigma(colour_map)).mapping
+    mapping = _without_gap_theme(mapping, sample)
     choice = None
     if cell == "auto":
         # A road theme keeps finer cells, as on the whole photo.
         candidates = road_candidates(candidates, mapping.library.names)
         theme_labels = apply_lut(sample.labels, mapping.lut)
-        choice = choose_cell_size([theme_labels[y:y + h, x:x + w] for (x, y), (*_, w, h)
-                                   in zip(sample.places, sample.windows, strict=True)],
-                                  target_agreement, candidates=candidates,
-                                  class_target=class_target, full_curve=False,
-                                  keep_specks=keep_specks)
+        choice = choose_cell_size(sample.pieces(theme_labels), target_agreement,
+                                  candidates=candidates, class_target=class_target,
+                                  full_curve=False, keep_specks=keep_specks)
         # Under a byte budget the packed grid takes at most its share, as on the whole photo.
         bits = grid_budget(colour_map, info.width * info.height)
         if bits is not None:
-            choice = cell_within_budget(theme_labels, choice, candidates, bits,
+            choice = cell_within_budget(sample.joined(theme_labels), choice, candidates, bits,
                                         keep_specks=keep_specks)
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
@@ -248,7 +263,8 @@ def convert_file_tiled(
         # budget covers the packed grid too, as on the whole photo.
         reserved = len(pack(grid.indices, curve="auto").to_bytes()) if (
             colour_map.target is None) else 0
-        share = min(1.0, rgb.shape[0] * rgb.shape[1] / (info.width * info.height))
+        seen = sum(w * h for *_, w, h in sample.windows)
+        share = min(1.0, seen / (info.width * info.height))
         scale = sample_colour_scale(sample, grid, mapping.library.textures, style, colour_map,
                                     reserved=int(round(reserved * share)))
         fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
