@@ -38,6 +38,7 @@ import os
 import random
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import cv2
@@ -255,6 +256,31 @@ def class_weights(pairs: list) -> torch.Tensor:
     return torch.tensor(w / w.mean(), dtype=torch.float32)
 
 
+def resume_run(path: Path, net: LightUNet, opt: torch.optim.Optimizer,
+               sched: torch.optim.lr_scheduler.LRScheduler, train: list, sizes: np.ndarray,
+               rng: np.random.Generator) -> int:
+    """Put a run back where its checkpoint ``path`` left it; returns the checkpoint's iteration.
+
+    Weights and optimiser moments come from the checkpoint; the schedule is stepped to the
+    same iteration and the crop generator is restored (or, for a checkpoint that lacks its
+    state, replayed batch by batch), so the run goes on exactly as if never stopped.
+    """
+    saved = torch.load(path, weights_only=False)
+    done = int(saved["it"])
+    net.load_state_dict(saved["net"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # stepping the schedule without optimiser steps
+        for _ in range(done):
+            sched.step()
+    opt.load_state_dict(saved["opt"])
+    if "rng" in saved:
+        rng.bit_generator.state = saved["rng"]
+    else:
+        for _ in range(done):
+            batch(train, sizes / sizes.sum(), rng)
+    return done
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--data", type=Path, default=HERE.parent.parent / "shared/data/dubai")
@@ -266,6 +292,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", type=Path, default=None,
                         help="start from this checkpoint's weights (new schedule)")
+    parser.add_argument("--continue", dest="continue_from", type=Path, default=None,
+                        help="go on with the run that wrote this checkpoint (same --iterations, "
+                             "--lr, --seed): the result is that of the uninterrupted run")
     parser.add_argument("--until", type=int, default=None,
                         help="stop after this iteration of the schedule (default: its end)")
     parser.add_argument("--checkpoints", type=Path, default=None,
@@ -291,16 +320,19 @@ def main(argv: list[str] | None = None) -> int:
     weights = class_weights(train)
     print(f"{len(train)} training photos, {len(held)} held out; class weights "
           f"{weights.numpy().round(2).tolist()}", flush=True)
+    first = 1
+    if args.continue_from:
+        first = resume_run(args.continue_from, net, opt, sched, train, sizes, rng) + 1
     start, running, scores = time.time(), 0.0, None
     last = min(args.iterations, args.until or args.iterations)
-    for it in range(1, last + 1):
+    for it in range(first, last + 1):
         x, y = batch(train, sizes / sizes.sum(), rng)
         loss = F.cross_entropy(net.logits(x), y, weight=weights, ignore_index=IGNORE)
         opt.zero_grad()
         loss.backward()
         opt.step()
         sched.step()
-        running = 0.98 * running + 0.02 * loss.item() if it > 1 else loss.item()
+        running = 0.98 * running + 0.02 * loss.item() if it > first else loss.item()
         if it % 25 == 0:
             print(f"it {it} loss {running:.4f} {time.time() - start:.0f}s", flush=True)
         if it % args.every == 0 or it == last:
@@ -309,7 +341,8 @@ def main(argv: list[str] | None = None) -> int:
             write_index(args.out, scores, args.holdout, it, args.iterations)
             if args.checkpoints:
                 args.checkpoints.mkdir(parents=True, exist_ok=True)
-                torch.save({"it": it, "net": net.state_dict(), "opt": opt.state_dict()},
+                torch.save({"it": it, "net": net.state_dict(), "opt": opt.state_dict(),
+                            "rng": rng.bit_generator.state},
                            args.checkpoints / f"aerial_{it:05d}.pt")
             print(f"checkpoint {it}: {json.dumps(scores)} {time.time() - start:.0f}s", flush=True)
     return 0
