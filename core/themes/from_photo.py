@@ -176,8 +176,7 @@ def themes_from_photo(
     rgb, labels = _check(photo, labels)
     # Every class's colour and texture statistics, taken once.
     stats = class_stats(rgb, labels, options)
-    windows = WindowStats(stats.texture)
-    colours, counts = stats.colour, stats.counts
+    windows, colours, counts = stats.windows, stats.colour, stats.counts
     wanted = _wanted(counts, classes)
     names = {int(c): n for c, n in (names or {}).items()}
     unnamed = [c for c in wanted if c not in names]

@@ -126,13 +126,15 @@ def _label_sums(flat, cols, counts, sums):  # pragma: no cover
 class ClassStats:
     """Every class's statistics of a photo, taken once (:func:`class_stats`).
 
-    ``texture``: the photo's :class:`TextureStats`; ``counts``: (256,) int64 pixels per
-    class value; ``colour``, ``lab``: (256, 3) float64 mean RGB and Lab; ``band``: (256,)
-    mean band energy (0 where no pixel); ``interior``: the labels' :func:`interior_labels`;
-    ``targets``: :class:`ClassTarget` of each present class but 0 (no data).
+    ``texture``: the photo's :class:`TextureStats` and ``windows`` its
+    :class:`WindowStats`; ``counts``: (256,) int64 pixels per class value; ``colour``,
+    ``lab``: (256, 3) float64 mean RGB and Lab; ``band``: (256,) mean band energy (0
+    where no pixel); ``interior``: the labels' :func:`interior_labels`; ``targets``:
+    :class:`ClassTarget` of each present class but 0 (no data).
     """
 
     texture: TextureStats
+    windows: WindowStats
     counts: np.ndarray
     colour: np.ndarray
     lab: np.ndarray
@@ -146,10 +148,13 @@ def class_stats(rgb: np.ndarray, labels: np.ndarray,
     """The :class:`ClassStats` of an (H, W, 3) uint8 photo's (H, W) uint8 class labels."""
     texture = texture_stats(rgb, options)
     colour, counts = class_means(labels, rgb)
-    whole, _ = class_means(labels, _stack(texture, lab=True))
+    # One stack of per-pixel statistics: the classes' means, their interiors', the windows'.
+    stack = _stack(texture)
+    whole, _ = class_means(labels, stack)
     inner = interior_labels(labels)
-    targets = _targets(texture, inner, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
-    return ClassStats(texture, counts, colour, whole[:, :3], whole[:, 3], inner, targets)
+    targets = _targets(stack, inner, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
+    return ClassStats(texture, WindowStats(texture, stack), counts, colour, whole[:, 1:4],
+                      whole[:, 0], inner, targets)
 
 
 def interior_labels(labels: np.ndarray) -> np.ndarray:
@@ -164,10 +169,10 @@ def interior_labels(labels: np.ndarray) -> np.ndarray:
     return np.where((lo == labels) & (hi == labels), labels, 0).astype(np.uint8)
 
 
-def _stack(stats: TextureStats, lab: bool) -> np.ndarray:
-    """(H, W, 10 or 7): [Lab,] band, detail, detail^2, the columns of a class's statistics."""
-    return np.concatenate([*([stats.lab] if lab else []), stats.band[:, :, None], stats.detail,
-                           stats.detail ** 2], axis=2)
+def _stack(stats: TextureStats) -> np.ndarray:
+    """(H, W, 10) float32: band, Lab (3), detail (3), detail^2 (3) (as :meth:`WindowStats.at`)."""
+    return np.concatenate([stats.band[:, :, None], stats.lab, stats.detail,
+                           stats.detail * stats.detail], axis=2)
 
 
 def class_targets(stats: TextureStats, labels: np.ndarray,
@@ -181,22 +186,23 @@ def class_targets(stats: TextureStats, labels: np.ndarray,
     present = np.bincount(labels.ravel(), minlength=256)
     if any(present[int(c)] == 0 for c in classes):
         raise TerrathemeError("the class has no pixel to take a patch's statistics from")
-    whole, _ = class_means(labels, _stack(stats, lab=True))
-    return _targets(stats, interior_labels(labels), whole, classes)
+    stack = _stack(stats)
+    whole, _ = class_means(labels, stack)
+    return _targets(stack, interior_labels(labels), whole, classes)
 
 
-def _targets(stats: TextureStats, inner: np.ndarray, whole: np.ndarray,
+def _targets(stack: np.ndarray, inner: np.ndarray, whole: np.ndarray,
              classes: Sequence[int]) -> dict[int, ClassTarget]:
-    """:func:`class_targets` from the :func:`interior_labels` and the classes' (256, 10)
-    means of :func:`_stack` (with Lab)."""
-    inside, n_inside = class_means(inner, _stack(stats, lab=False))
+    """:func:`class_targets` from the :func:`_stack`, the :func:`interior_labels` and the
+    classes' (256, 10) means of the stack."""
+    inside, n_inside = class_means(inner, stack)
     out = {}
     for c in (int(c) for c in classes):
         # A class with no interior pixel is measured on all its pixels.
-        band, det, sq = (inside[c, 0], inside[c, 1:4], inside[c, 4:7]) if n_inside[c] else (
-            whole[c, 3], whole[c, 4:7], whole[c, 7:10])
+        band, det, sq = (inside[c, 0], inside[c, 4:7], inside[c, 7:10]) if n_inside[c] else (
+            whole[c, 0], whole[c, 4:7], whole[c, 7:10])
         out[c] = ClassTarget(float(band), np.sqrt(np.maximum(sq - det * det, 0.0)),
-                             whole[c, 0:3])
+                             whole[c, 1:4])
     return out
 
 
@@ -221,14 +227,12 @@ class WindowStats:
     The lattice step ``factor`` grows so that at most ``SEARCH_POSITIONS`` are searched.
     """
 
-    def __init__(self, stats: TextureStats) -> None:
+    def __init__(self, stats: TextureStats, stack: np.ndarray | None = None) -> None:
         self.stats = stats
         h, w = stats.band.shape
         self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
-        f = self.factor
-        self._stack = _coarsen(np.concatenate(
-            [stats.band[:, :, None], stats.lab, stats.detail, stats.detail * stats.detail],
-            axis=2), f)
+        # ``stack``: the photo's _stack when the caller has it.
+        self._stack = _coarsen(_stack(stats) if stack is None else stack, self.factor)
         self._by_size: dict[int, np.ndarray] = {}
 
     def at(self, size: int) -> np.ndarray:
