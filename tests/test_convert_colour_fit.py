@@ -184,7 +184,7 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
         CellChoice,
         agreement,
         cell_within_budget,
-        packed_bits_per_pixel,
+        packed_bytes,
     )
     from terratheme.core.convert.labels_to_grid import vote_grid
     from terratheme.core.model.grid import IndexGrid
@@ -193,7 +193,7 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     # Random 16-pixel blocks of 3 themes: a cell-4 grid costs more than a cell-16 one.
     labels = np.kron(rng.integers(0, 3, (8, 8)), np.ones((16, 16), int)).astype(np.uint8)
     choice = CellChoice((4, 4), 1.0, 0.9, (), True)
-    bits = {c: packed_bits_per_pixel(IndexGrid(vote_grid(labels, (c, c)), (c, c)), labels.size)
+    bits = {c: packed_bytes(IndexGrid(vote_grid(labels, (c, c)), (c, c))) * 8 / labels.size
             for c in (4, 8, 16)}
     assert bits[4] > bits[8] > bits[16]
     kept = cell_within_budget(labels, choice, (4, 8, 16), bits[4])

@@ -215,11 +215,6 @@ def _meets(point: CellPoint, target_agreement: float, class_target: float) -> bo
     return point.agreement >= target_agreement and point.worst_class_iou >= class_target
 
 
-def packed_bits_per_pixel(grid: IndexGrid, pixels: int) -> float:
-    """Bits per photo pixel of a grid packed as ``convert`` ships it (``pack(curve="auto")``)."""
-    return packed_bytes(grid) * 8 / max(int(pixels), 1)
-
-
 def packed_bytes(grid: IndexGrid) -> int:
     """Bytes of a grid packed as ``convert`` ships it (``pack(curve="auto")``)."""
     return len(pack(grid.indices, curve="auto").to_bytes())
