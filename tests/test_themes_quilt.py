@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes import PatchOptions, themes_from_photo
-from terratheme.core.themes.from_photo import REPEAT_LIMIT
 from terratheme.core.themes.patch_search import (
     WindowStats,
     best_windows,
     class_windows,
     texture_stats,
 )
-from terratheme.core.themes.quality import repeat_score
+from terratheme.core.themes.quality import REPEAT_LIMIT, repeat_score
 from terratheme.core.themes.quilt import QuiltOptions, candidate_blocks, quilt_tileable
 from terratheme.core.themes.tileable import seam_score
 

@@ -103,3 +103,15 @@ def test_scores_errors() -> None:
             fn(np.zeros((3, 8, 3), np.uint8))
         with pytest.raises(TerrathemeError, match="empty"):
             fn(np.zeros((0, 8, 3), np.uint8))
+
+
+def test_tiles_unseen_rejects_a_tile_that_copies_itself():
+    from terratheme.core.themes.quality import REPEAT_LIMIT, tiles_unseen
+
+    rng = np.random.default_rng(4)
+    noise = rng.integers(100, 160, (64, 64, 3)).astype(np.uint8)
+    repeat, unseen = tiles_unseen(noise)
+    assert unseen and repeat < REPEAT_LIMIT
+    copies = np.tile(noise[:16, :16], (4, 4, 1))
+    repeat, unseen = tiles_unseen(copies)
+    assert not unseen and repeat > 0.9

@@ -40,10 +40,7 @@ from terratheme.core.themes.patch_search import (
     find_patch,
     texture_stats,
 )
-from terratheme.core.themes.quality import (
-    landmark_score,
-    repeat_score,
-)
+from terratheme.core.themes.quality import tiles_unseen
 from terratheme.core.themes.quilt import QuiltOptions, quilt_tileable
 from terratheme.core.themes.tileable import make_tileable
 
@@ -76,19 +73,10 @@ def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.ascontiguousarray(rgb[:, :, :3]), lab.astype(np.uint8, copy=False)
 
 
-#: a tile repeating more than this (repeat_score) or holding a larger landmark is replaced
-REPEAT_LIMIT = 0.3
-LANDMARK_LIMIT = 0.04
 #: windows tried per class before the best rejected one is kept
 PATCH_TRIES = 3
 #: classes whose tiles are cut at once (each tile depends on its class alone)
 TILE_THREADS = 2
-
-
-def _repeats(tile: np.ndarray) -> tuple[float, bool]:
-    """A tile's repeat score and whether it tiles unseen (under both limits, landmarks too)."""
-    repeat = repeat_score(tile)
-    return repeat, repeat <= REPEAT_LIMIT and landmark_score(tile) <= LANDMARK_LIMIT
 
 
 def _class_tile(rgb: np.ndarray, mask: np.ndarray, interior: np.ndarray, windows: WindowStats,
@@ -108,7 +96,7 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, interior: np.ndarray, windows
         cut = cut_window(rgb, mask, x, y, s, interior)
         tile = make_tileable(cut)
         source = f"photo patch x={x} y={y} size={s}"
-        repeat, unseen = _repeats(tile)
+        repeat, unseen = tiles_unseen(tile)
         if unseen:
             return tile, source
         if fallback is None:
@@ -126,7 +114,7 @@ def _class_tile(rgb: np.ndarray, mask: np.ndarray, interior: np.ndarray, windows
         return fallback
     tile = make_tileable(quilt)
     # The quilt unless it repeats more than the best window and fails a limit too.
-    repeat, unseen = _repeats(tile)
+    repeat, unseen = tiles_unseen(tile)
     if not unseen and repeat >= fallback_repeat:
         return fallback
     return tile, f"quilted from {quilting.steps() ** 2} blocks of the class"

@@ -114,3 +114,15 @@ def landmark_score(texture: np.ndarray, *, size: int = LANDMARK_SIZE,
         if n > 1:
             best = max(best, int(stats[1:, cv2.CC_STAT_AREA].max()))
     return best / mask.size
+
+
+#: a tile repeating more than this (:func:`repeat_score`) or holding a larger landmark
+#: (:func:`landmark_score`) shows its grid: a theme cut is replaced
+REPEAT_LIMIT = 0.3
+LANDMARK_LIMIT = 0.04
+
+
+def tiles_unseen(texture: np.ndarray) -> tuple[float, bool]:
+    """``(repeat_score, unseen)``: unseen when a tileable texture stays under both limits."""
+    repeat = repeat_score(texture)
+    return repeat, repeat <= REPEAT_LIMIT and landmark_score(texture) <= LANDMARK_LIMIT
