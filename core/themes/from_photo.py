@@ -137,10 +137,6 @@ def _wanted(counts: np.ndarray, classes: Sequence[int] | None) -> list[int]:
     return sorted({int(c) for c in classes if int(c) != 0} | set(found))
 
 
-def _present_classes(labels: np.ndarray, classes: Sequence[int] | None) -> list[int]:
-    return _wanted(np.bincount(labels.ravel(), minlength=256), classes)
-
-
 def photo_theme_lut(labels: np.ndarray, classes: Sequence[int] | None = None) -> np.ndarray:
     """(256,) uint8: :func:`themes_from_photo`'s class -> theme table, without cutting."""
     counts = np.bincount(np.asarray(labels).ravel(), minlength=256)
@@ -222,7 +218,7 @@ def themes_by_name(
 
     rgb, labels = _check(photo, labels)
     source = library if library is not None else shipped_theme_library()
-    classes = _present_classes(labels, None)
+    classes = _wanted(np.bincount(labels.ravel(), minlength=256), None)
     if isinstance(names, Mapping):
         chosen = {int(c): source[source.index_of(n)] for c, n in names.items()}
         missing = [c for c in classes if c not in chosen]
