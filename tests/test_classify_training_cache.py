@@ -266,3 +266,20 @@ def test_another_user_s_model_under_the_key_is_a_miss(tmp_path, trained, target)
     cache = DiskCache(tmp_path)
     assert_same_model(train_classifier(data, OPTS, cache=cache), fitted, target)
     assert cache.misses["model"] == 1
+
+
+def test_a_prepared_photo_trains_and_keys_as_its_pixels_and_mask(tmp_path):
+    """convert passes the photo prepared once (issue 37): training takes it as the photo."""
+    from terratheme.core.classify.photo import prepare_photo
+
+    (photo, mask), = pairs(1)
+    fo = SupervisedOptions().features
+    prepared = prepare_photo(photo)
+    rgba = np.dstack([photo, np.full(photo.shape[:2], 255, np.uint8)])
+    rgba[:4, :4, 3] = 0
+    keys = {tc.sample_key(p, mask, (1, 2, 3), fo, 2048, 0.0)
+            for p in (photo, prepared, prepare_photo(rgba))}
+    assert len(keys) == 2
+    a = train_classifier([(photo, mask)], OPTS)
+    b = train_classifier([(prepared, mask)], OPTS, cache=DiskCache(tmp_path))
+    assert_same_model(a, b, prepared)

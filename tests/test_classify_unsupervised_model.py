@@ -97,3 +97,43 @@ def test_no_pieces_is_refused():
         fit_unsupervised([])
     with pytest.raises(TerrathemeError, match="shape"):
         fit_unsupervised([np.zeros((4, 4, 3, 2), np.uint8)])
+
+
+def test_classify_unsupervised_computes_each_tiles_features_once(monkeypatch):
+    """The fit samples the features the prediction uses (issue 37): one pass per tile."""
+    import terratheme.core.classify.tiled as tiled
+
+    calls = []
+    real = tiled.image_features
+
+    def counting(rgb, options):
+        calls.append(rgb.shape)
+        return real(rgb, options)
+
+    monkeypatch.setattr(tiled, "image_features", counting)
+    img = three_bands()
+    result = classify_unsupervised(img, options=UnsupervisedOptions(tile=64))
+    windows = tiled.prediction_windows(96, 240, UnsupervisedOptions().features,
+                                       UnsupervisedOptions().regularisation, 64)
+    assert len(calls) == len(windows) > 1
+    assert result.classes == (1, 2, 3)
+
+
+def test_prepared_photo_keeps_its_transparent_pixels():
+    """A PreparedPhoto passed on classifies as its RGBA photo: no data stays label 0."""
+    from terratheme.core.classify.photo import prepare_photo
+
+    rgba = np.dstack([three_bands(), np.full((96, 240), 255, np.uint8)])
+    rgba[:20, :30, 3] = 0
+    prepared = prepare_photo(rgba)
+    assert prepare_photo(prepared) is prepared
+    a, b = classify_unsupervised(rgba), classify_unsupervised(prepared)
+    assert (a.labels[:20, :30] == 0).all() and (a.labels[20:] > 0).all()
+    np.testing.assert_array_equal(a.labels, b.labels)
+    np.testing.assert_array_equal(a.confidence, b.confidence)
+
+
+def test_tile_features_given_to_the_fit_must_be_of_one_photo():
+    img = three_bands()
+    with pytest.raises(TerrathemeError, match="single photo"):
+        fit_unsupervised([img, img], tiles={})

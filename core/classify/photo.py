@@ -8,17 +8,30 @@ photos with ``read_image(path, bands=Bands.PHOTO)``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 
 
-def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+class PreparedPhoto(NamedTuple):
+    """A photo as :func:`prepare_photo` leaves it: ``rgb`` (H, W, 3) uint8, C-contiguous,
+    and ``valid`` (H, W) bool or None (every pixel has data)."""
+
+    rgb: np.ndarray
+    valid: np.ndarray | None
+
+
+def prepare_photo(photo: np.ndarray | PreparedPhoto) -> PreparedPhoto:
     """Check a photo and convert it to 8-bit RGB plus a validity mask.
 
-    ``photo`` is (H, W[, 1|2|3|4]) uint8, uint16 or float in [0, 1]. Returns ``rgb``
-    (H, W, 3) uint8, transparent pixels given the nearest opaque colour, and ``valid``
-    (H, W) bool, False where alpha is 0, or None when every pixel has data.
+    ``photo`` is (H, W[, 1|2|3|4]) uint8, uint16 or float in [0, 1], or a
+    :class:`PreparedPhoto`, returned as it is (a conversion prepares once and passes it
+    on). Transparent pixels get the nearest opaque colour; ``valid`` is False where
+    alpha is 0.
     """
+    if isinstance(photo, PreparedPhoto):
+        return photo
     arr = np.asarray(photo)
     if arr.ndim == 2:
         arr = arr[:, :, None]
@@ -56,4 +69,4 @@ def prepare_photo(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
             img8 = img8[iy, ix]
     if img8.shape[2] == 1:
         img8 = np.repeat(img8, 3, axis=2)
-    return np.ascontiguousarray(img8), valid
+    return PreparedPhoto(np.ascontiguousarray(img8), valid)

@@ -18,7 +18,7 @@ from terratheme.core.classify.extra_trees import (
     forest_probabilities,
 )
 from terratheme.core.classify.model_file import ModelParts, read_model, write_model
-from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.photo import PreparedPhoto, prepare_photo
 from terratheme.core.classify.prior import (
     kept_weights,
     photo_probabilities,
@@ -92,7 +92,8 @@ def _training_plan(pairs, options) -> tuple[list[int], float]:
     if len(pairs) == 0:
         raise TerrathemeError("no training data: give at least one photo with a label mask")
     for i, (photo, mask) in enumerate(pairs):
-        check_class_image(mask, f"label mask {i}", np.asarray(photo).shape[:2])
+        rgb = photo.rgb if isinstance(photo, PreparedPhoto) else np.asarray(photo)
+        check_class_image(mask, f"label mask {i}", rgb.shape[:2])
     classes = _mask_classes(pairs, options.ignore_classes)
     if not classes:
         raise TerrathemeError(

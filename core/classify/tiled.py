@@ -24,6 +24,8 @@ from terratheme.core.io.tiles import TileWindow, tile_windows
 ProgressFn = Callable[[int, int], None]
 #: maps a coarse feature stack (h, w, F) float32 to class probabilities (h, w, C) float32
 ProbabilityFn = Callable[[np.ndarray], np.ndarray]
+#: a window's coarse Lab (h, w, 3), block lightness std (h, w) and features (h, w, F)
+TileArrays = tuple[np.ndarray, np.ndarray, np.ndarray]
 #: a window's coarse Lab (h, w, 3), block lightness std (h, w) and class probabilities (h, w, C)
 TileProbabilitiesFn = Callable[[TileWindow], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -42,9 +44,7 @@ def prediction_windows(height: int, width: int, features: FeatureOptions,
     return feature_windows(height, width, tile, features.scale, halo)
 
 
-def tile_arrays(
-    rgb: np.ndarray, win: TileWindow, options: FeatureOptions
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def tile_arrays(rgb: np.ndarray, win: TileWindow, options: FeatureOptions) -> TileArrays:
     """Coarse Lab (h, w, 3), block lightness std (h, w) and features (h, w, F), all
     float32, of a window's outer rectangle."""
     lab, block_std, feats = image_features(rgb[win.ry : win.ry1, win.rx : win.rx1], options)

@@ -18,6 +18,7 @@ import numpy as np
 from terratheme.core.classify.features import FeatureOptions
 from terratheme.core.classify.model_file import ModelParts, model_bytes, read_model_bytes
 from terratheme.core.classify.model_options import options_to_json
+from terratheme.core.classify.photo import PreparedPhoto
 from terratheme.core.classify.supervised_options import SupervisedOptions
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.disk_cache import Arrays, DiskCache
@@ -27,7 +28,7 @@ CACHE_VERSION = 2
 Samples = tuple[np.ndarray, np.ndarray]
 
 
-def sample_key(photo: np.ndarray, mask: np.ndarray, classes: Sequence[int],
+def sample_key(photo: np.ndarray | PreparedPhoto, mask: np.ndarray, classes: Sequence[int],
                features: FeatureOptions, tile: int, grow: float) -> str:
     """Hex SHA-256 of what a pair's samples depend on: pixels, classes sampled (over all
     pairs), feature options, tile and the label growing's colour threshold (0 = off)."""
@@ -35,7 +36,9 @@ def sample_key(photo: np.ndarray, mask: np.ndarray, classes: Sequence[int],
     options = {"version": CACHE_VERSION, "classes": [int(c) for c in classes],
                "features": _plain(asdict(features)), "tile": int(tile), "grow": float(grow)}
     h.update(json.dumps(options, sort_keys=True).encode())
-    for arr in (np.asarray(photo), np.asarray(mask)):
+    # A prepared photo: its pixels and its mask of pixels with data (what the samples see).
+    pixels = [a for a in photo if a is not None] if isinstance(photo, PreparedPhoto) else [photo]
+    for arr in (*map(np.asarray, pixels), np.asarray(mask)):
         h.update(f"{arr.shape}{arr.dtype.str}".encode())
         h.update(np.ascontiguousarray(arr).data)
     return h.hexdigest()

@@ -19,7 +19,8 @@ model and classifying with it: :mod:`core.classify.unsupervised_model`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -29,6 +30,7 @@ from terratheme.core.classify.mixture import fit_diagonal_mixture, isotropic_var
 from terratheme.core.classify.regularise import RegulariseOptions
 from terratheme.core.classify.tiled import iter_tile_features, sampling_stride, strided_pixels
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.tiles import TileWindow
 
 
 @dataclass(frozen=True)
@@ -90,23 +92,34 @@ def window_samples(feats: np.ndarray, win, valid: np.ndarray | None, width: int,
 
 
 def sample_features(
-    rgb: np.ndarray, valid: np.ndarray | None, options: UnsupervisedOptions
+    rgb: np.ndarray, valid: np.ndarray | None, options: UnsupervisedOptions,
+    tiles: Sequence[tuple[TileWindow, np.ndarray]] | None = None,
 ) -> np.ndarray:
-    """Weighted feature vectors (n, F) float32 of at most ``max_samples`` coarse pixels."""
+    """Weighted feature vectors (n, F) float32 of at most ``max_samples`` coarse pixels.
+
+    ``tiles``: ``(window, features)`` of a tiling already computed (halo at least
+    ``options.features.halo``), else the features are computed here.
+    """
     fo = options.features
     h, w = rgb.shape[:2]
-    stride = sampling_stride(h, w, fo.scale, options.max_samples)
-    chunks, order = [], []
-    for win, _lab, feats in iter_tile_features(rgb, fo, options.tile, fo.halo):
-        part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]
-        got, where = window_samples(feats, win, part, w, stride, options)
-        chunks.append(got)
-        order.append(where)
-    samples = np.concatenate(chunks).astype(np.float32)
-    if len(samples) == 0:
-        # The opaque pixels fall between the sampling grid's rows/columns: take them all.
-        n_coarse = (-(-h // fo.scale)) * (-(-w // fo.scale))
-        return sample_features(rgb, valid, replace(options, max_samples=n_coarse))
+
+    def each_tile() -> Iterable[tuple[TileWindow, np.ndarray]]:
+        if tiles is not None:
+            return tiles
+        return ((win, feats) for win, _lab, feats in
+                iter_tile_features(rgb, fo, options.tile, fo.halo))
+
+    # The opaque pixels may fall between the sampling grid's rows/columns: then take them all.
+    for stride in (sampling_stride(h, w, fo.scale, options.max_samples), 1):
+        chunks, order = [], []
+        for win, feats in each_tile():
+            part = None if valid is None else valid[win.y : win.y1, win.x : win.x1]
+            got, where = window_samples(feats, win, part, w, stride, options)
+            chunks.append(got)
+            order.append(where)
+        samples = np.concatenate(chunks).astype(np.float32)
+        if len(samples):
+            break
     # Row-major order of the photo, so k-means sees the same sequence for any tiling.
     return samples[np.argsort(np.concatenate(order), kind="stable")]
 

@@ -7,16 +7,21 @@ memory; :class:`UnsupervisedModel` then gives a colour the same theme in every t
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 from terratheme.core.classify.bands import relabel_bands
 from terratheme.core.classify.features import FeatureSet
 from terratheme.core.classify.mixture import posterior_fn
-from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.classify.photo import PreparedPhoto, prepare_photo
 from terratheme.core.classify.result import Classification
-from terratheme.core.classify.tiled import predict_tiled
+from terratheme.core.classify.tiled import (
+    TileArrays,
+    predict_tiled,
+    prediction_windows,
+    tile_arrays,
+)
 from terratheme.core.classify.unsupervised import (
     UnsupervisedOptions,
     choose_themes,
@@ -25,6 +30,7 @@ from terratheme.core.classify.unsupervised import (
     sample_features,
 )
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.tiles import TileWindow
 
 
 @dataclass(frozen=True)
@@ -76,18 +82,26 @@ class UnsupervisedModel:
         variances[:, 0] += local_std * local_std
         return means, variances
 
-    def predict(self, photo: np.ndarray,
-                progress: Callable[[int, int], None] | None = None) -> Classification:
+    def predict(self, photo: np.ndarray | PreparedPhoto,
+                progress: Callable[[int, int], None] | None = None,
+                tiles: Mapping[TileWindow, TileArrays] | None = None) -> Classification:
         """Themes 1..K of a (H, W, 3|4) uint8/uint16 photo or tile (0 where transparent).
 
         Confidence is the mixture posterior (a pixel relabelled in a border band keeps
-        it); ``progress(done, total)`` is called over the tiles.
+        it); ``progress(done, total)`` is called over the tiles; ``tiles``: the
+        :func:`.tiled.tile_arrays` of every :func:`.tiled.prediction_windows` window,
+        when already computed.
         """
         rgb, valid = prepare_photo(photo)
         opts = self.options
         fn = posterior_fn(self.centres, self.sizes, self.variances, feature_weights(opts.features))
+        tile_fn = None
+        if tiles is not None:
+            def tile_fn(win: TileWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                lab, block_std, feats = tiles[win]
+                return lab, block_std, fn(feats)
         result = predict_tiled(rgb, valid, fn, self.classes, opts.features,
-                               opts.regularisation, opts.tile, progress)
+                               opts.regularisation, opts.tile, progress, tile_fn)
         colours = self.pixel_colours()
         if colours is None or opts.bands.reach == 0:
             return result
@@ -106,44 +120,57 @@ def _check_themes(themes) -> None:
 
 
 def fit_unsupervised(
-    sample_photo: np.ndarray | Sequence[np.ndarray],
+    sample_photo: np.ndarray | PreparedPhoto | Sequence[np.ndarray],
     *,
     themes: str | int = "auto",
     options: UnsupervisedOptions | None = None,
+    tiles: Mapping[TileWindow, TileArrays] | None = None,
 ) -> UnsupervisedModel:
     """Fit themes to a (H, W, 3|4) photo, or to full-resolution pieces of one too large
     for memory (they share ``options.max_samples`` by area; no context across pieces).
 
     ``themes``: "auto" (K by the criterion of :mod:`core.classify.unsupervised`) or
-    at most that many. ``TerrathemeError`` for bad ``themes``, no piece, or a piece
-    that is not a photo.
+    at most that many; ``tiles``: a single photo's features as for
+    :meth:`UnsupervisedModel.predict`. ``TerrathemeError`` for bad ``themes``, no piece,
+    or a piece that is not a photo.
     """
     opts = options or UnsupervisedOptions()
     _check_themes(themes)
-    pieces = [sample_photo] if isinstance(sample_photo, np.ndarray) else list(sample_photo)
+    single = isinstance(sample_photo, np.ndarray | PreparedPhoto)
+    pieces = [sample_photo] if single else list(sample_photo)
     if not pieces:
         raise TerrathemeError("fit_unsupervised needs a photo or at least one piece of one")
+    if tiles is not None and not single:
+        raise TerrathemeError("fit_unsupervised takes tile features of a single photo only")
     prepared = [prepare_photo(p) for p in pieces]
     total = sum(rgb.shape[0] * rgb.shape[1] for rgb, _ in prepared)
     # Sample each piece's features, the budget shared by area, then fit k-means with K.
+    given = None if tiles is None else [(win, feats) for win, (_, _, feats) in tiles.items()]
     chunks = []
     for rgb, valid in prepared:
         share = rgb.shape[0] * rgb.shape[1] / total
         budget = max(1, int(round(opts.max_samples * share)))
-        chunks.append(sample_features(rgb, valid, replace(opts, max_samples=budget)))
+        chunks.append(sample_features(rgb, valid, replace(opts, max_samples=budget), given))
     samples = np.concatenate(chunks).astype(np.float32)
     centres, sizes, variances = choose_themes(samples, opts, themes)
     return UnsupervisedModel(centres, sizes, variances, opts)
 
 
 def classify_unsupervised(
-    photo: np.ndarray,
+    photo: np.ndarray | PreparedPhoto,
     *,
     themes: str | int = "auto",
     options: UnsupervisedOptions | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Classification:
     """Themes of a photo without training data: :func:`fit_unsupervised`, then
-    :meth:`UnsupervisedModel.predict` (1 = largest theme)."""
+    :meth:`UnsupervisedModel.predict` (1 = largest theme), the photo prepared and its
+    features computed once for both."""
     _check_themes(themes)
-    return fit_unsupervised(photo, themes=themes, options=options).predict(photo, progress)
+    opts = options or UnsupervisedOptions()
+    prepared = prepare_photo(photo)
+    rgb, fo = prepared.rgb, opts.features
+    windows = prediction_windows(*rgb.shape[:2], fo, opts.regularisation, opts.tile)
+    tiles = {win: tile_arrays(rgb, win, fo) for win in windows}
+    model = fit_unsupervised(prepared, themes=themes, options=opts, tiles=tiles)
+    return model.predict(prepared, progress, tiles)

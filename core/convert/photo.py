@@ -146,14 +146,14 @@ def convert_photo(
         With ``themes`` "auto": the themes' names (a legend's), before the model's own.
     """
     # Prepare: the 8-bit RGB every stage works on, the options checked.
-    rgb, _ = prepare_photo(photo)
+    rgb, _ = prepared = prepare_photo(photo)
     h, w = rgb.shape[:2]
     if scribbles is not None:
         scribbles = check_class_image(scribbles, "scribble mask", (h, w))
     if options.cell != "auto" and (not isinstance(options.cell, int) or options.cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {options.cell!r}")
     # Classify (35% of the progress): the alpha of ``photo`` marks no data.
-    result, _ = classify_photo(photo, themes=options.themes, scribbles=scribbles, model=model,
+    result, _ = classify_photo(prepared, themes=options.themes, scribbles=scribbles, model=model,
                                progress=_stage(progress, 0, 35))
     names = None
     if options.themes == "auto":
