@@ -164,3 +164,53 @@ def test_structure_similarity_sees_a_moved_road():
     moved = np.full_like(photo, 200)
     moved[:, 40:48] = 40
     assert structure_similarity(moved, photo, 4) < 0.5 < structure_similarity(photo, photo, 4)
+
+
+def _noise(seed: int, shape=(60, 70, 3)) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, shape, dtype=np.uint8)
+
+
+@pytest.mark.parametrize("factor", [4, 8, 3])
+@pytest.mark.parametrize("sigma", [8.0, 2.0])
+def test_a_reference_scores_exactly_as_its_photo(factor, sigma):
+    """Prepared once (issue 37), the photo's side gives the very same scores."""
+    from terratheme.core.fidelity import reference
+
+    photo, render = _noise(1), _noise(2)
+    ref = reference(photo, sigmas=(8.0,), factors=(4, 8))
+    assert structure_similarity(render, ref, factor) == structure_similarity(render, photo,
+                                                                             factor)
+    assert colour_error(render, ref, sigma=sigma) == colour_error(render, photo, sigma=sigma)
+    valid = np.zeros(photo.shape[:2], bool)
+    valid[5:20, 10:40] = True
+    assert (colour_error(render, ref, valid=valid)
+            == colour_error(render, photo, valid=valid))
+
+
+def test_a_reference_downscales_the_photo_once_for_many_renders(monkeypatch):
+    import terratheme.core.fidelity.metrics as metrics
+
+    photo = _noise(3)
+    ref = metrics.reference(photo)
+    sizes = []
+    real = metrics.cv2.resize
+
+    def counting(img, size, **kwargs):
+        sizes.append(img.shape)
+        return real(img, size, **kwargs)
+
+    monkeypatch.setattr(metrics.cv2, "resize", counting)
+    for seed in range(3):
+        structure_similarity(_noise(10 + seed), ref, 4)
+        structure_similarity(_noise(10 + seed), ref, 8)
+    assert len(sizes) == 6  # the renders only
+
+
+def test_a_reference_of_another_size_is_refused():
+    from terratheme.core.fidelity import reference
+
+    ref = reference(_noise(1))
+    with pytest.raises(TerrathemeError, match="render is 50 x 40"):
+        structure_similarity(_noise(2, (40, 50, 3)), ref)
+    with pytest.raises(TerrathemeError, match="render is 50 x 40"):
+        colour_error(_noise(2, (40, 50, 3)), ref)

@@ -6,12 +6,14 @@ from terratheme.core.fidelity.metrics import (
     COLOUR_SIGMA,
     DETAIL_SIGMAS,
     Fidelity,
+    Reference,
     class_iou_scores,
     colour_error,
     detail_energy,
     detail_ratio,
     fidelity,
     majority_classes,
+    reference,
     structure_similarity,
 )
 
@@ -25,6 +27,8 @@ __all__ = [
     "detail_ratio",
     "fidelity",
     "majority_classes",
+    "Reference",
+    "reference",
     "class_iou_scores",
     "structure_similarity",
     "texture_cost",

@@ -7,7 +7,7 @@ definitions in docs/design.md §5.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -31,8 +31,44 @@ def _rgb(image: np.ndarray, name: str) -> np.ndarray:
     return np.ascontiguousarray(arr[:, :, :3], dtype=np.float32) / np.float32(scale)
 
 
-def _pair(render: np.ndarray, photo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    r, p = _rgb(render, "render"), _rgb(photo, "photo")
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """A photo's side of :func:`colour_error` and :func:`structure_similarity`, computed
+    once to compare many renders against it (:func:`reference`).
+
+    ``rgb`` (H, W, 3) float32 in [0, 1]; ``lab``: {sigma: the photo blurred by sigma, in
+    CIELAB (H, W, 3)}; ``gray``: {factor: its luminance downscaled by factor}.
+    """
+
+    rgb: np.ndarray
+    lab: Mapping[float, np.ndarray]
+    gray: Mapping[int, np.ndarray]
+
+
+def reference(photo: np.ndarray, *, sigmas: Sequence[float] = (COLOUR_SIGMA,),
+              factors: Sequence[int] = (4, 8)) -> Reference:
+    """The photo prepared for :func:`colour_error` at each of ``sigmas`` and
+    :func:`structure_similarity` at each of ``factors`` (others are computed per call)."""
+    rgb = _rgb(photo, "photo")
+    return Reference(rgb, {float(s): _blurred_lab(rgb, s) for s in sigmas},
+                     {int(f): _small_gray(rgb, f) for f in factors})
+
+
+def _blurred_lab(rgb: np.ndarray, sigma: float) -> np.ndarray:
+    # Blur in sRGB (what the eye integrates at a distance), then CIELAB.
+    return rgb2lab(cv2.GaussianBlur(rgb, (0, 0), sigma, borderType=cv2.BORDER_REFLECT))
+
+
+def _small_gray(rgb: np.ndarray, factor: int) -> np.ndarray:
+    """Luminance after a ``factor`` x area downscaling, sides rounded down, at least 7."""
+    h, w = rgb.shape[:2]
+    size = (max(7, w // int(factor)), max(7, h // int(factor)))
+    return cv2.resize(rgb2gray(rgb).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+
+
+def _pair(render: np.ndarray, photo: np.ndarray | Reference) -> tuple[np.ndarray, np.ndarray]:
+    r = _rgb(render, "render")
+    p = photo.rgb if isinstance(photo, Reference) else _rgb(photo, "photo")
     if r.shape != p.shape:
         raise TerrathemeError(
             f"render is {r.shape[1]} x {r.shape[0]} but the photo is {p.shape[1]} x {p.shape[0]}"
@@ -51,20 +87,19 @@ def _mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None
     return v
 
 
-def colour_error(render: np.ndarray, photo: np.ndarray, *, sigma: float = COLOUR_SIGMA,
-                 valid: np.ndarray | None = None) -> float:
+def colour_error(render: np.ndarray, photo: np.ndarray | Reference, *,
+                 sigma: float = COLOUR_SIGMA, valid: np.ndarray | None = None) -> float:
     """Mean CIEDE2000 (``dE8``) between render and photo, both blurred by ``sigma`` px first.
 
-    ``render, photo`` (H, W, 3) sRGB, uint8/uint16 or float in [0, 1]; ``valid``
-    (H, W) bool picks the pixels averaged. About 1: barely visible; above 10:
-    clearly another colour.
+    ``render, photo`` (H, W, 3) sRGB, uint8/uint16 or float in [0, 1], or the photo's
+    :func:`reference`; ``valid`` (H, W) bool picks the pixels averaged. About 1: barely
+    visible; above 10: clearly another colour.
     """
     r, p = _pair(render, photo)
     v = _mask(valid, r.shape)
-    # Blur both in sRGB (what the eye integrates at a distance), then compare in CIELAB.
-    rb = cv2.GaussianBlur(r, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-    pb = cv2.GaussianBlur(p, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-    de = deltaE_ciede2000(rgb2lab(pb), rgb2lab(rb))
+    lab = photo.lab.get(float(sigma)) if isinstance(photo, Reference) else None
+    de = deltaE_ciede2000(_blurred_lab(p, sigma) if lab is None else lab,
+                          _blurred_lab(r, sigma))
     return float(de.mean() if v is None else de[v].mean())
 
 
@@ -89,18 +124,19 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
     return detail_energy(r, valid=valid) / ref
 
 
-def structure_similarity(render: np.ndarray, photo: np.ndarray, factor: int = 4) -> float:
-    """Mean SSIM of render and photo luminance after a ``factor`` x area downscaling.
+def structure_similarity(render: np.ndarray, photo: np.ndarray | Reference,
+                         factor: int = 4) -> float:
+    """Mean SSIM of render and photo (or its :func:`reference`) luminance after a
+    ``factor`` x area downscaling.
 
     ``cv2.INTER_AREA``, sizes rounded down, at least 7 pixels a side (SSIM's window);
     scikit-image's defaults, data range 1: 1 = the same picture.
     """
     r, p = _pair(render, photo)
-    h, w = r.shape[:2]
-    size = (max(7, w // int(factor)), max(7, h // int(factor)))
-    small = [cv2.resize(rgb2gray(a).astype(np.float32), size, interpolation=cv2.INTER_AREA)
-             for a in (r, p)]
-    return float(structural_similarity(small[0], small[1], data_range=1.0))
+    small = photo.gray.get(int(factor)) if isinstance(photo, Reference) else None
+    return float(structural_similarity(_small_gray(r, factor),
+                                       _small_gray(p, factor) if small is None else small,
+                                       data_range=1.0))
 
 
 @dataclass(frozen=True)
