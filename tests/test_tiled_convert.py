@@ -108,6 +108,20 @@ def test_a_road_theme_keeps_cells_of_at_most_8_on_the_tiled_path(tmp_path):
     assert plain.grid.cell[0] > ROAD_MAX_CELL >= road.grid.cell[0]
 
 
+def test_a_theme_the_cut_named_road_leaves_the_cell_as_the_whole_photos(tmp_path, monkeypatch):
+    import terratheme.core.themes.from_photo as from_photo
+
+    # Unnamed cut themes are named by appearance; when that gives "road" the whole photo's
+    # cell is not capped (only a caller's or a model's road is), so neither is the region's.
+    monkeypatch.setattr(from_photo, "shipped_names",
+                        lambda appearances, *_: ["road"] * len(appearances))
+    img, path = _three_regions(tmp_path)
+    whole = convert_photo(img, ConvertOptions()).project
+    tiled = convert_file_tiled(path, None, "auto", tile=1024)
+    assert "road" in tiled.library.names and tiled.library.names == whole.library.names
+    assert tiled.grid.cell == whole.grid.cell == (max(CONVERT_CELL_CANDIDATES),) * 2
+
+
 class OneClass:
     """A trained classifier's stand-in: every pixel is class 1."""
 
@@ -152,3 +166,22 @@ def test_the_region_sample_seams_do_not_reach_the_themes(tmp_path, monkeypatch):
     # error about sqrt(2 / 20736) = 1%; uint8 rounding adds 1/12 level^2, 0.03%).
     ratio = _detail_energy(tiled.library[0].texture) / _detail_energy(whole.library[0].texture)
     assert 0.9 < ratio < 1.1
+
+
+def test_transparent_pixels_keep_their_theme_and_the_gaps_bring_none(tmp_path, monkeypatch):
+    import terratheme.core.convert.region_sample as rs
+
+    # The sample's gaps are no data too: their theme is dropped unless a window holds
+    # transparent pixels of the photo (then the whole photo's themes have it as well).
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+    img, _ = _three_regions(tmp_path)
+    rgba = np.dstack([img, np.full(img.shape[:2], 255, np.uint8)])
+    rgba[:, :40, 3] = 0  # the left 40 columns: in every window at x = 0 (the first column's)
+    for name, pixels in (("opaque", img), ("holes", rgba)):
+        path = tmp_path / f"{name}.tif"
+        write_image(path, pixels, tile=64)
+        whole = convert_photo(pixels, ConvertOptions(cell=8)).project
+        tiled = convert_file_tiled(path, None, 8, tile=64)
+        assert tiled.library.names == whole.library.names
+        assert ("no data" in tiled.library.names) == (name == "holes")

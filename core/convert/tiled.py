@@ -242,8 +242,11 @@ def convert_file_tiled(
     mapping = _without_gap_theme(mapping, sample)
     choice = None
     if cell == "auto":
-        # A road theme keeps finer cells, as on the whole photo.
-        candidates = road_candidates(candidates, mapping.library.names)
+        # A theme named road, by the caller or the model, keeps finer cells, as on the whole
+        # photo (not one the cut themes' appearance named: the whole photo's cell ignores it).
+        given = names.values() if isinstance(names, dict) else names or (
+            getattr(model, "class_names", None) or {}).values()
+        candidates = road_candidates(candidates, given)
         theme_labels = apply_lut(sample.labels, mapping.lut)
         choice = choose_cell_size(sample.pieces(theme_labels), target_agreement,
                                   candidates=candidates, class_target=class_target,
