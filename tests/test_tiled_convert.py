@@ -129,9 +129,10 @@ class OneClass:
     options = None
 
     def predict(self, pixels, progress=None):
+        from terratheme.core.classify.photo import prepare_photo
         from terratheme.core.classify.result import Classification
 
-        ones = np.ones(pixels.shape[:2], np.uint8)
+        ones = np.ones(prepare_photo(pixels).rgb.shape[:2], np.uint8)
         return Classification(ones, ones.astype(np.float32), self.classes)
 
 

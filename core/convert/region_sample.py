@@ -37,8 +37,8 @@ if TYPE_CHECKING:
 #: side of one sample window (pixels): a multiple of every colour-map scale and cell tried
 #: (48), so the sample's map blocks and cells are the region's
 SAMPLE_PIECE = 384
-#: windows per side of the sample (SAMPLE_GRID^2 windows, 1920^2 pixels in all)
-SAMPLE_GRID = 5
+#: windows per side of the sample (SAMPLE_GRID^2 windows, 2688^2 pixels in all)
+SAMPLE_GRID = 7
 #: window corners snap to multiples of this many pixels
 SAMPLE_ALIGN = 48
 #: no-data pixels between two windows of the sample (each window's reflection): a theme patch
