@@ -186,3 +186,26 @@ def test_transparent_pixels_keep_their_theme_and_the_gaps_bring_none(tmp_path, m
         tiled = convert_file_tiled(path, None, 8, tile=64)
         assert tiled.library.names == whole.library.names
         assert ("no data" in tiled.library.names) == (name == "holes")
+
+
+def test_fully_transparent_tiles_are_no_data(tmp_path, monkeypatch):
+    import terratheme.core.convert.region_sample as rs
+
+    # A photo whose left half is transparent: its tiles and sample windows there hold no
+    # pixel to classify (the classifier refuses such a photo); the region path makes them
+    # no data, as the whole photo's transparent pixels are.
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+    img, _ = _three_regions(tmp_path)
+    rgba = np.dstack([np.concatenate([img, img], axis=1), np.full((192, 512), 255, np.uint8)])
+    rgba[:, :256, 3] = 0
+    path = tmp_path / "holes.tif"
+    write_image(path, rgba, tile=64)
+    whole = convert_photo(rgba, ConvertOptions(cell=8)).project
+    tiled = convert_file_tiled(path, None, 8, tile=64)
+    # (Names by appearance may differ: 48 px windows show the themes little of the photo.)
+    assert len(tiled.library) == len(whole.library) and "no data" in whole.library.names
+    no_data = tiled.library.names.index("no data")
+    # Every vertex left of the opaque half's first cell (x < 256 - 8) is no data.
+    assert (tiled.grid.indices[:, :256 // 8] == no_data).all()
+    assert (tiled.grid.indices[:, 256 // 8 + 1:] != no_data).all()

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 from terratheme.core.classify.photo import prepare_photo
+from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity.metrics import COLOUR_SIGMA, colour_error, structure_similarity
 from terratheme.core.io.cluster import map_ordered
@@ -267,6 +268,10 @@ class BlockGainJob:
 
     def __call__(self, win: TileWindow, pixels: np.ndarray,
                  part: tuple[tuple[int, int], np.ndarray]) -> np.ndarray:
+        if transparent(pixels):
+            # No data: no photo colour to fit; the map leaves the render as it is.
+            shape = (-(-win.h // self.scale), -(-win.w // self.scale), 3)
+            return np.full(shape, NEUTRAL, np.uint8)
         # Step 1 on this tile's map pixels: the photo's sums over the render's, quantised.
         rgb, _ = prepare_photo(pixels)
         origin, block = part

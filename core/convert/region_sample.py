@@ -25,6 +25,7 @@ from terratheme.core.classify.unsupervised import (
 )
 from terratheme.core.classify.unsupervised_model import UnsupervisedModel
 from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, grid_window
+from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import Bands, image_info, read_region
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
@@ -57,7 +58,10 @@ class FeatureSampleJob:
     size: tuple[int, int]
     stride: int
 
-    def __call__(self, win: TileWindow, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, win: TileWindow, pixels: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+        if transparent(pixels):
+            return None
         fo: FeatureOptions = self.options.features
         rgb, valid = prepare_photo(pixels)
         _, _, feats = image_features(rgb, fo)
@@ -89,13 +93,15 @@ def fit_unsupervised_region(
     chunks: list[np.ndarray] = []
     order: list[np.ndarray] = []
 
-    def sink(_win: TileWindow, got: tuple[np.ndarray, np.ndarray]) -> None:
+    def sink(_win: TileWindow, got: tuple[np.ndarray, np.ndarray] | None) -> None:
+        if got is None:
+            return  # a transparent window: no sample
         chunks.append(got[0])
         order.append(got[1])
 
     run_tiles(path, FeatureSampleJob(opts, (info.width, info.height), stride), sink,
               windows=windows, scheduler=scheduler, progress=progress, bands=Bands.PHOTO)
-    samples = np.concatenate(chunks).astype(np.float32)
+    samples = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros((0, 1))
     if len(samples) == 0:
         raise TerrathemeError(f"{path}: no opaque pixel on the sampling grid to fit themes on")
     # Row-major order of the photo, as the whole photo's sampling gives them to k-means.
@@ -198,7 +204,9 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
             got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
             core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
             px, py = i * step_w + half, j * step_h + half
-            piece = prepare_photo(pixels[core])[0]
+            # Transparent pixels take the nearest opaque colour in the read window.
+            piece = (np.zeros((hh, ww, 3), np.uint8) if transparent(pixels)
+                     else prepare_photo(pixels).rgb[core])
             if half:
                 piece = cv2.copyMakeBorder(piece, half, half, half, half, cv2.BORDER_REFLECT)
             rgb[py - half:py + hh + half, px - half:px + ww + half] = piece

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import TileWindow
@@ -60,13 +61,29 @@ def _blocks(count: int, size: int) -> list[tuple[int, int]]:
     return [(s, e) for s, e in zip(starts, [*starts[1:], count], strict=True)]
 
 
+def transparent(pixels: np.ndarray) -> bool:
+    """Whether an (h, w, C) tile has an alpha band and no opaque pixel (8 bits, as a photo's).
+
+    Such a tile is no data: a classifier has no pixel in it (:func:`prepare_photo` refuses it).
+    """
+    arr = np.asarray(pixels)
+    if arr.ndim != 3 or arr.shape[2] not in (2, 4):
+        return False
+    return not prepare_photo(arr[:, :, -1:]).rgb.any()
+
+
 @dataclass(frozen=True)
 class PredictLabels:
-    """A classifier as a tile classifier: ``model.predict(pixels).labels`` (it pickles)."""
+    """A classifier as a tile classifier: ``model.predict(pixels).labels`` (it pickles).
+
+    A :func:`transparent` tile is label 0 (no data) throughout, as transparent pixels are.
+    """
 
     model: object
 
     def __call__(self, pixels: np.ndarray) -> np.ndarray:
+        if transparent(pixels):
+            return np.zeros(np.shape(pixels)[:2], np.uint8)
         return self.model.predict(pixels).labels
 
 
