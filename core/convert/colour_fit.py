@@ -23,7 +23,13 @@ import numpy as np
 from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.fidelity.metrics import COLOUR_SIGMA, colour_error, structure_similarity
+from terratheme.core.fidelity.metrics import (
+    COLOUR_SIGMA,
+    Reference,
+    colour_error,
+    reference,
+    structure_similarity,
+)
 from terratheme.core.io.cluster import map_ordered
 from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
@@ -132,14 +138,24 @@ def _quantise(gain: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(gain * NEUTRAL), 0, 255).astype(np.uint8)
 
 
-def _quick_error(photo: np.ndarray, render: np.ndarray) -> float:
-    """dE8 at a quarter of the resolution (the blur scaled with it) for the scale choice."""
+def _quick_photo(photo: np.ndarray) -> tuple[int, Reference]:
+    """The photo's side of :func:`_quick_error`: its quarter-resolution reference."""
     f = 4 if min(photo.shape[:2]) >= 64 else 1
     if f == 1:
-        return colour_error(render, photo)
+        return 1, reference(photo, factors=())
     size = (max(1, photo.shape[1] // f), max(1, photo.shape[0] // f))
-    small = [cv2.resize(a, size, interpolation=cv2.INTER_AREA) for a in (photo, render)]
-    return colour_error(small[1], small[0], sigma=COLOUR_SIGMA / f)
+    small = cv2.resize(photo, size, interpolation=cv2.INTER_AREA)
+    return f, reference(small, sigmas=(COLOUR_SIGMA / f,), factors=())
+
+
+def _quick_error(quick: tuple[int, Reference], render: np.ndarray) -> float:
+    """dE8 at a quarter of the resolution (the blur scaled with it) for the scale choice."""
+    f, ref = quick
+    if f == 1:
+        return colour_error(render, ref)
+    h, w = ref.rgb.shape[:2]
+    small = cv2.resize(render, (w, h), interpolation=cv2.INTER_AREA)
+    return colour_error(small, ref, sigma=COLOUR_SIGMA / f)
 
 
 def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
@@ -161,11 +177,12 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
     return best
 
 
-def budget_score(photo: np.ndarray, shown: np.ndarray) -> tuple[float, float, float, float]:
+def budget_score(photo: Reference, quick: tuple[int, Reference], shown: np.ndarray
+                 ) -> tuple[float, float, float, float]:
     """``(score, s4, s8, dE8)``: ``score = (s4 + s8) / 2 - dE8 / 10``, higher better."""
     s4 = structure_similarity(shown, photo, 4)
     s8 = structure_similarity(shown, photo, 8)
-    err = _quick_error(photo, shown)
+    err = _quick_error(quick, shown)
     return (s4 + s8) / 2 - err / 10, s4, s8, err
 
 
@@ -177,6 +194,7 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
     curve: list[tuple[int, int, float]] = []
     best: tuple[float, ColourMap, float] | None = None
     coarsest = max(int(s) for s in options.budget_scales)
+    ref, quick = reference(photo, sigmas=(), factors=(4, 8)), _quick_photo(photo)
     for scale in sorted({int(s) for s in options.budget_scales}, reverse=True):
         # The block ratio alone: its refinement sharpens the map, which then codes worse.
         gain = _quantise(fit_gain(photo, render, scale, 0))
@@ -189,7 +207,7 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
             # Not even the coarsest map fits: it at the lowest quality, over the budget.
             cmap = ColourMap.encode(gain, scale, options.codec, 1)
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
-        score, _, _, err = budget_score(photo, shown)
+        score, _, _, err = budget_score(ref, quick, shown)
         curve.append((scale, cmap.nbytes, err))
         if best is None or score > best[0]:
             best = (score, cmap, err)
@@ -213,12 +231,13 @@ def choose_colour_map(photo: np.ndarray, render: np.ndarray,
         return _budget_map(photo, render, options, reserved)
     curve: list[tuple[int, int, float]] = []
     best: tuple[ColourMap, bytes, float] | None = None
+    quick = _quick_photo(photo)
     for scale in options.scales:
         gain = fit_gain(photo, render, int(scale), options.iterations)
         cmap = ColourMap.encode(_quantise(gain), int(scale), options.codec, options.quality)
         # The photo's extent of the render, as a renderer shows it with this map.
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
-        err = _quick_error(photo, shown)
+        err = _quick_error(quick, shown)
         curve.append((int(scale), cmap.nbytes, err))
         best = (cmap, cmap.data, err)
         if err <= options.target:
