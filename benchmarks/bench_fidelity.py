@@ -76,7 +76,7 @@ from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
 from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
-from terratheme.core.themes.detail import detail_gains, detail_library  # noqa: E402
+from terratheme.core.themes.detail import detail_themes  # noqa: E402
 from terratheme.core.themes.from_photo import ThemeMapping  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
@@ -353,8 +353,8 @@ def structure_variants(photo):
     result, _ = classify_photo(photo)
     whole = assign_themes(photo, result.labels, result.classes)
     theme_labels = apply_lut(result.labels, whole.lut)
-    detail = ThemeMapping(detail_library(whole.library, gains=detail_gains(
-        photo, theme_labels, whole.library)), whole.lut, whole.classes)
+    detail = ThemeMapping(detail_themes(photo, theme_labels, whole.library)[0], whole.lut,
+                          whole.classes)
     choice = choose_cell_size(theme_labels, DEFAULT.target_agreement,
                               candidates=DEFAULT.candidates, class_target=DEFAULT.class_target,
                               full_curve=False, keep_specks=False)

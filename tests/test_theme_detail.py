@@ -7,9 +7,8 @@ import pytest
 from terratheme.core.themes.detail import (
     NEUTRAL,
     detail_energy,
-    detail_gains,
-    detail_library,
     detail_texture,
+    detail_themes,
 )
 from terratheme.core.themes.library import Theme, ThemeLibrary
 
@@ -52,10 +51,11 @@ def test_detail_gain_brings_the_theme_to_the_photo_contrast():
     lib = ThemeLibrary([Theme("a", (1, 2, 3), theme.astype(np.uint8)),
                         Theme("b", (1, 2, 3), theme.astype(np.uint8))])
     labels = np.zeros((32, 32), np.uint8)  # every pixel takes theme 0
-    gains = detail_gains(photo.astype(np.uint8), labels, lib)
+    themes, gains = detail_themes(photo.astype(np.uint8), labels, lib)
     assert gains[0] == pytest.approx(2.0, rel=0.1)
     assert gains[1] == 1.0  # no pixel takes it
-    made = detail_texture(theme.astype(np.uint8), gain=gains[0])
+    made = themes[0].texture
+    assert np.array_equal(made, detail_texture(theme.astype(np.uint8), gain=gains[0]))
     assert detail_energy(made, wrap=True) == pytest.approx(
         detail_energy(photo.astype(np.uint8)), rel=0.2)
 
@@ -70,22 +70,11 @@ def test_a_fragment_theme_gets_half_the_photo_contrast():
     photo = np.repeat((200 * (1 + 0.10 * stripes))[:, :, None], 3, axis=2).round()
     assert edge_coherence(theme.astype(np.uint8)) > FRAGMENT_COHERENCE
     lib = ThemeLibrary([Theme("town", (1, 2, 3), theme.astype(np.uint8))])
-    gains = detail_gains(photo.astype(np.uint8), np.zeros((32, 32), np.uint8), lib)
+    gains = detail_themes(photo.astype(np.uint8), np.zeros((32, 32), np.uint8), lib)[1]
     assert gains[0] == pytest.approx(2.0 * FRAGMENT_GAIN, rel=0.1)
 
 
-def test_detail_library_keeps_names_and_colours():
-    tex = np.zeros((8, 8, 3), np.uint8)
-    tex[::2] = 200
-    lib = ThemeLibrary([Theme("sand", (200, 180, 150), tex)])
-    out = detail_library(lib, gains=[0.5])
-    assert out.names == ["sand"] and out[0].colour == (200, 180, 150)
-    assert np.array_equal(out[0].texture, detail_texture(tex, gain=0.5))
-
-
-def test_detail_themes_is_the_library_at_the_photo_gains_in_one_pass():
-    from terratheme.core.themes.detail import detail_themes
-
+def test_detail_themes_keep_names_and_colours_each_at_its_gain():
     xx = np.indices((32, 32))[1]
     stripes = (xx // 4 % 2 * 2 - 1).astype(float)
     rng = np.random.default_rng(3)
@@ -95,8 +84,7 @@ def test_detail_themes_is_the_library_at_the_photo_gains_in_one_pass():
                         Theme("sand", (4, 5, 6), grain)])
     photo = rng.integers(0, 255, (32, 32, 3)).astype(np.uint8)
     labels = (np.indices((32, 32))[0] >= 16).astype(np.uint8)
-    made = detail_themes(photo, labels, lib)
-    gains = detail_gains(photo, labels, lib)
+    made, gains = detail_themes(photo, labels, lib)
     # A fragment theme (town) and a grain theme, each at its own gain.
     assert gains[0] != gains[1]
     for k, theme in enumerate(lib):
@@ -162,7 +150,8 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
     )
 
     pieces = _road_pieces()
-    rel, sigma = theme_detail(pieces)
+    rel, sigma, fragment = theme_detail(pieces)
+    assert fragment
     assert sigma == CALM_SIGMA
     # Random phases keep the power spectrum (Parseval): the energy of even_detail at CALM_SIGMA.
     assert float((rel ** 2).mean()) == pytest.approx(
@@ -174,5 +163,5 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
                        atol=1e-5)
     # ... and an isotropic grain theme is left as it was.
     grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
-    same, s = theme_detail(grain)
-    assert s == 3.0 and np.array_equal(same, even_detail(grain))
+    same, s, fragment = theme_detail(grain)
+    assert s == 3.0 and not fragment and np.array_equal(same, even_detail(grain))

@@ -27,10 +27,9 @@ ROAD_MAX_CELL = 8
 
 
 def road_candidates(candidates: Sequence[int], names: Iterable[str] | None) -> tuple[int, ...]:
-    """``candidates`` up to :data:`ROAD_MAX_CELL` when one of ``names`` is ``road``.
+    """``candidates`` up to :data:`ROAD_MAX_CELL` (if any is) when a ``names`` is ``road``.
 
-    At the budget's coarser cells the texture kept 0.88x of the network's road IoU on
-    held-out Dubai photos, at 8 0.95x (docs/decisions.md). Unchanged if none is that small.
+    Coarser cells break the roads (docs/decisions.md).
     """
     if not any(str(n).strip().lower() == "road" for n in (names or ())):
         return tuple(candidates)

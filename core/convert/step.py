@@ -178,7 +178,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         if not cut:
             theme_labels = apply_lut(labels, mapping.lut)
         elif detail is not None:
-            mapping = ThemeMapping(detail_themes(rgb, theme_labels, mapping.library, detail),
+            mapping = ThemeMapping(detail_themes(rgb, theme_labels, mapping.library, detail)[0],
                                    mapping.lut, mapping.classes)
         choice = job.result() if job is not None else (
             choose(theme_labels) if cell == "auto" else None)

@@ -126,11 +126,9 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
 
 def structure_similarity(render: np.ndarray, photo: np.ndarray | Reference,
                          factor: int = 4) -> float:
-    """Mean SSIM of render and photo (or its :func:`reference`) luminance after a
-    ``factor`` x area downscaling.
+    """Mean SSIM (1: the same picture) of the luminance after ``factor`` x area downscaling.
 
-    ``cv2.INTER_AREA``, sizes rounded down, at least 7 pixels a side (SSIM's window);
-    scikit-image's defaults, data range 1: 1 = the same picture.
+    Sizes rounded down, at least 7 pixels a side; ``photo`` may be its :func:`reference`.
     """
     r, p = _pair(render, photo)
     small = photo.gray.get(int(factor)) if isinstance(photo, Reference) else None

@@ -2,12 +2,10 @@
 
 With a fine colour map (:mod:`core.convert.colour_fit`) the map carries everything above
 a few texels and a theme only the finer detail, ``NEUTRAL * t / blur(t)``, its contrast
-scaled to the photo's in its class (:func:`detail_gains`), as engines' detail textures are.
+scaled to the photo's in its class (:func:`detail_themes`), as engines' detail textures are.
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
@@ -18,7 +16,7 @@ from terratheme.core.themes.library import ThemeLibrary
 DETAIL_SIGMA = 3.0
 #: the value of a detail theme's mean (the colour map's neutral gain)
 NEUTRAL = 128
-#: range of the contrast gain of :func:`detail_gains`
+#: range of the contrast gain of :func:`detail_themes`
 GAIN_RANGE = (0.25, 4.0)
 #: Gaussian sigma (texels) of the local contrast strength :func:`even_detail` evens out
 EVEN_SIGMA = 4.0
@@ -28,7 +26,7 @@ EVEN_RANGE = (0.25, 4.0)
 FRAGMENT_COHERENCE = 0.55
 #: Gaussian sigma (texels) of a fragment theme's detail (:func:`theme_detail`)
 CALM_SIGMA = 2.5
-#: a fragment theme's contrast over the photo's in its class (:func:`detail_gains`)
+#: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
 FRAGMENT_GAIN = 0.5
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
@@ -72,8 +70,15 @@ def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
     return float(np.sqrt((arr - acc) ** 2 + 4.0 * arc ** 2).sum() / trace)
 
 
-def _detail(texture: np.ndarray, sigma: float) -> tuple[np.ndarray, float, bool]:
-    """:func:`theme_detail` and whether the theme is made of fragments."""
+def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
+                 ) -> tuple[np.ndarray, float, bool]:
+    """((h, w, 3) float32, sigma, fragment): a theme's :func:`even_detail`, the sigma it was
+    taken at, and whether the theme is made of oriented fragments.
+
+    A fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) keeps
+    only detail finer than ``CALM_SIGMA``, its phases randomised (seeded): the map's own
+    streets then read through, not a kaleidoscope of pieces.
+    """
     if edge_coherence(texture, sigma) <= FRAGMENT_COHERENCE:
         return even_detail(texture, sigma), sigma, False
     sigma = min(sigma, CALM_SIGMA)
@@ -84,16 +89,6 @@ def _detail(texture: np.ndarray, sigma: float) -> tuple[np.ndarray, float, bool]
     phases = phases[:, :, None]
     out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases, axes=(0, 1)).real
     return out.astype(np.float32), sigma, True
-
-
-def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> tuple[np.ndarray, float]:
-    """((h, w, 3) float32, sigma): a theme's :func:`even_detail` and the sigma it was taken at.
-
-    A theme of oriented fragments (coherence above ``FRAGMENT_COHERENCE``: a town's road
-    pieces) keeps only detail finer than ``CALM_SIGMA``, its phases randomised (seeded):
-    the map's own streets then read through, not a kaleidoscope of pieces.
-    """
-    return _detail(texture, sigma)[:2]
 
 
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
@@ -115,21 +110,16 @@ def detail_energy(image: np.ndarray, sigma: float = DETAIL_SIGMA, *, wrap: bool 
     return float(rel.mean() if valid is None else rel[valid].mean())
 
 
-def detail_gains(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
-                 sigma: float = DETAIL_SIGMA) -> list[float]:
-    """Per theme, the contrast gain that gives its detail the photo's in its class.
+def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
+                  sigma: float = DETAIL_SIGMA) -> tuple[ThemeLibrary, list[float]]:
+    """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
-    ``sqrt(photo energy over the theme's pixels / theme energy)`` at the sigma
-    :func:`theme_detail` used (times ``FRAGMENT_GAIN`` for a fragment theme), clipped
-    to ``GAIN_RANGE``; 1 for an unused or flat theme.
-    ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel.
+    Gain: ``sqrt(photo energy over the theme's pixels / theme energy)`` at the sigma of
+    :func:`theme_detail` (times ``FRAGMENT_GAIN`` for a fragment theme), clipped to
+    ``GAIN_RANGE``; 1 for an unused or flat theme. ``photo``: (H, W, 3) uint8;
+    ``theme_labels``: (H, W) uint8 theme per pixel. Names and colours are kept.
     """
-    return _gains(photo, theme_labels, [_detail(t.texture, sigma) for t in library])
-
-
-def _gains(photo: np.ndarray, theme_labels: np.ndarray,
-           details: Sequence[tuple[np.ndarray, float, bool]]) -> list[float]:
-    """:func:`detail_gains` of the themes' :func:`_detail`."""
+    details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
     counts = np.bincount(labels, minlength=len(details))
@@ -149,21 +139,6 @@ def _gains(photo: np.ndarray, theme_labels: np.ndarray,
             # they read as dark speckle over the map's streets.
             gain *= FRAGMENT_GAIN
         gains.append(float(np.clip(gain, *GAIN_RANGE)))
-    return gains
-
-
-def detail_library(library: ThemeLibrary, sigma: float = DETAIL_SIGMA,
-                   gains: Sequence[float] | None = None) -> ThemeLibrary:
-    """Every theme of ``library`` as its :func:`detail_texture` (names and colours kept)."""
-    gains = [1.0] * len(library) if gains is None else list(gains)
-    return ThemeLibrary(t.with_(texture=detail_texture(t.texture, sigma, g))
-                        for t, g in zip(library, gains, strict=True))
-
-
-def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
-                  sigma: float = DETAIL_SIGMA) -> ThemeLibrary:
-    """:func:`detail_library` with the :func:`detail_gains` of ``photo``, each detail made once."""
-    details = [_detail(t.texture, sigma) for t in library]
-    gains = _gains(photo, theme_labels, details)
-    return ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
-                        for t, (rel, _, _), g in zip(library, details, gains, strict=True))
+    themes = ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
+                          for t, (rel, _, _), g in zip(library, details, gains, strict=True))
+    return themes, gains
