@@ -6,12 +6,7 @@ import numpy as np
 import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes import PatchOptions, themes_from_photo
-from terratheme.core.themes.patch_search import (
-    WindowStats,
-    best_windows,
-    class_windows,
-    texture_stats,
-)
+from terratheme.core.themes.patch_search import best_windows, class_stats, class_windows
 from terratheme.core.themes.quality import REPEAT_LIMIT, repeat_score
 from terratheme.core.themes.quilt import QuiltOptions, candidate_blocks, quilt_tileable
 from terratheme.core.themes.tileable import seam_score
@@ -52,7 +47,9 @@ def test_best_windows_keep_to_the_class_and_its_texture() -> None:
     photo[:, 120:] = (20, 40, 230)
     mask = np.zeros(photo.shape[:2], bool)
     mask[:, :120] = True
-    found = class_windows(WindowStats(texture_stats(photo)), mask, PatchOptions(inside=1.0))
+    options = PatchOptions(inside=1.0)
+    stats = class_stats(photo, mask.astype(np.uint8), options)
+    found = class_windows(stats.windows, mask, options, stats.targets[1])
     corners = best_windows(found, 20, 50, spacing=4)
     assert len(corners) == 50
     assert (corners[:, 0] + 20 <= 120).all() and (corners % 4 == 0).all()

@@ -175,26 +175,14 @@ def _stack(stats: TextureStats) -> np.ndarray:
                            stats.detail * stats.detail], axis=2)
 
 
-def class_targets(stats: TextureStats, labels: np.ndarray,
-                  classes: Sequence[int]) -> dict[int, ClassTarget]:
-    """{class: ClassTarget}: the texture of the inside of every class region of (H, W) labels.
+def _targets(stack: np.ndarray, inner: np.ndarray, whole: np.ndarray,
+             classes: Sequence[int]) -> dict[int, ClassTarget]:
+    """{class: ClassTarget} from the :func:`_stack`, its :func:`interior_labels` and means.
 
     Energy and spread come from pixels ``INTERIOR`` px inside the border (all pixels when
     none): the render draws the border, a theme carrying it would double it. The colour is
     the whole class's mean.
     """
-    present = np.bincount(labels.ravel(), minlength=256)
-    if any(present[int(c)] == 0 for c in classes):
-        raise TerrathemeError("the class has no pixel to take a patch's statistics from")
-    stack = _stack(stats)
-    whole, _ = class_means(labels, stack)
-    return _targets(stack, interior_labels(labels), whole, classes)
-
-
-def _targets(stack: np.ndarray, inner: np.ndarray, whole: np.ndarray,
-             classes: Sequence[int]) -> dict[int, ClassTarget]:
-    """:func:`class_targets` from the :func:`_stack`, the :func:`interior_labels` and the
-    classes' (256, 10) means of the stack."""
     inside, n_inside = class_means(inner, stack)
     out = {}
     for c in (int(c) for c in classes):
@@ -204,13 +192,6 @@ def _targets(stack: np.ndarray, inner: np.ndarray, whole: np.ndarray,
         out[c] = ClassTarget(float(band), np.sqrt(np.maximum(sq - det * det, 0.0)),
                              whole[c, 1:4])
     return out
-
-
-def class_target(stats: TextureStats, mask: np.ndarray) -> ClassTarget:
-    """:func:`class_targets` of one class region (``mask``, (H, W) bool, not empty)."""
-    if not mask.any():
-        raise TerrathemeError("the class has no pixel to take a patch's statistics from")
-    return class_targets(stats, mask.astype(np.uint8), [1])[1]
 
 
 def _coarsen(arr: np.ndarray, f: int) -> np.ndarray:
@@ -227,12 +208,12 @@ class WindowStats:
     The lattice step ``factor`` grows so that at most ``SEARCH_POSITIONS`` are searched.
     """
 
-    def __init__(self, stats: TextureStats, stack: np.ndarray | None = None) -> None:
+    def __init__(self, stats: TextureStats, stack: np.ndarray) -> None:
         self.stats = stats
         h, w = stats.band.shape
         self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
-        # ``stack``: the photo's _stack when the caller has it.
-        self._stack = _coarsen(_stack(stats) if stack is None else stack, self.factor)
+        # ``stack``: the photo's :func:`_stack`.
+        self._stack = _coarsen(stack, self.factor)
         self._by_size: dict[int, np.ndarray] = {}
 
     def at(self, size: int) -> np.ndarray:
@@ -304,13 +285,9 @@ class ClassWindows:
                             self.options)
 
 
-def class_windows(windows: WindowStats, mask: np.ndarray, options: PatchOptions = PatchOptions(),
-                  target: ClassTarget | None = None) -> ClassWindows:
-    """The :class:`ClassWindows` of a class region ``mask`` ((H, W) bool).
-
-    ``target``: the class's :func:`class_target` when the caller has it.
-    """
-    target = target or class_target(windows.stats, mask)
+def class_windows(windows: WindowStats, mask: np.ndarray, options: PatchOptions,
+                  target: ClassTarget) -> ClassWindows:
+    """The :class:`ClassWindows` of a class region ``mask`` ((H, W) bool) of ``target``."""
     found = ClassWindows(windows, mask.shape, target, options,
                          _coarsen(mask.astype(np.float32), windows.factor), ())
     sides = []
