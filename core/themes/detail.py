@@ -102,14 +102,6 @@ def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def detail_energy(image: np.ndarray, sigma: float = DETAIL_SIGMA, *, wrap: bool = False,
-                  valid: np.ndarray | None = None) -> float:
-    """Mean square of ``Y / blur(Y) - 1``, ``Y`` the channel mean, over ``valid`` (or all)."""
-    y = np.asarray(image, np.float32).mean(axis=2)
-    rel = _relative(y, sigma, wrap) ** 2
-    return float(rel.mean() if valid is None else rel[valid].mean())
-
-
 def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
                   sigma: float = DETAIL_SIGMA) -> tuple[ThemeLibrary, list[float]]:
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
