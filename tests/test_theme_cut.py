@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from terratheme.core.themes.cut_mask import class_interior, lone_objects
+from terratheme.core.themes.cut_mask import lone_objects
 from terratheme.core.themes.from_photo import themes_from_photo
-from terratheme.core.themes.patch_search import INTERIOR, PatchOptions
+from terratheme.core.themes.patch_search import INTERIOR, PatchOptions, interior_labels
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -16,10 +16,15 @@ def _sand(h, w, seed=0, sd=3.0):
     return np.clip(sand, 0, 255).astype(np.uint8)
 
 
+def _interior(mask, x, y, s):
+    """The class's interior pixels of the ``s x s`` window at ``(x, y)``."""
+    return interior_labels(mask.astype(np.uint8))[y:y + s, x:x + s].astype(bool)
+
+
 def test_class_interior_drops_the_rim_along_the_class_border_only():
     mask = np.zeros((40, 60), bool)
     mask[10:, :] = True  # the class below row 10, running off the photo's left, right, bottom
-    inner = class_interior(mask, 0, 0, 40)
+    inner = _interior(mask, 0, 0, 40)
     # Rows within INTERIOR of the border at row 10 go; the photo's own edges are no border.
     assert not inner[: 10 + INTERIOR].any()
     assert inner[10 + INTERIOR :, :].all()
@@ -28,16 +33,14 @@ def test_class_interior_drops_the_rim_along_the_class_border_only():
 def test_class_interior_reads_the_mask_beyond_the_window():
     mask = np.ones((50, 50), bool)
     mask[:, :5] = False  # a border 5 pixels left of the window at x = 10
-    inner = class_interior(mask, 10, 10, 20)
+    inner = _interior(mask, 10, 10, 20)
     assert inner.shape == (20, 20)
     assert inner.all()  # 5 pixels from the border is more than INTERIOR
-    near = class_interior(mask, 6, 10, 20)
+    near = _interior(mask, 6, 10, 20)
     assert not near[:, : 5 + INTERIOR - 6].any() and near[:, 5 + INTERIOR - 6 :].all()
 
 
 def test_interior_labels_keep_each_class_inside_its_own_border():
-    from terratheme.core.themes.patch_search import interior_labels
-
     labels = np.ones((30, 40), np.uint8)
     labels[:, 20:] = 2
     labels[:3, :3] = 0
@@ -45,25 +48,9 @@ def test_interior_labels_keep_each_class_inside_its_own_border():
     # Within INTERIOR of the border at column 20 nothing is inside; the photo's edges are none.
     assert (inner[:, 20 - INTERIOR : 20 + INTERIOR] == 0).all()
     assert (inner[10:, : 20 - INTERIOR] == 1).all() and (inner[:, 20 + INTERIOR :] == 2).all()
-    # The class interior of a window is the same read from the whole photo's interior labels.
+    # A class's interior is the same read from its own mask.
     for c in (1, 2):
-        np.testing.assert_array_equal(class_interior(labels == c, 4, 6, 16),
-                                      inner[6:22, 4:20] == c)
-
-
-def test_cut_window_with_the_class_interior_given_cuts_the_same():
-    from terratheme.core.themes.cut_mask import cut_window
-    from terratheme.core.themes.patch_search import interior_labels
-
-    photo = _sand(80, 80, seed=2)
-    photo[:, 50:] = (40, 60, 70)
-    photo[30:33, 10:30] = (120, 110, 100)  # a faint lone mark in the sand
-    labels = np.ones((80, 80), np.uint8)
-    labels[:, 50:] = 2
-    mask = labels == 1
-    alone = cut_window(photo, mask, 10, 10, 40)
-    given = cut_window(photo, mask, 10, 10, 40, interior_labels(labels) == 1)
-    np.testing.assert_array_equal(alone, given)
+        np.testing.assert_array_equal(_interior(labels == c, 0, 0, 40), inner == c)
 
 
 def test_a_rim_along_dark_water_is_a_lone_object_once_the_water_is_painted_over():

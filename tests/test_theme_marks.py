@@ -11,6 +11,7 @@ from terratheme.core.themes.cut_mask import (
     lone_objects,
     match_surroundings,
 )
+from terratheme.core.themes.patch_search import interior_labels
 from terratheme.core.themes.quality import landmark_mask
 
 _LUMA = np.array([0.299, 0.587, 0.114])
@@ -113,7 +114,8 @@ def test_cut_window_fills_its_holes_from_the_class_around_it():
     mask = np.ones((200, 200), bool)
     mask[90:106, 90:106] = False  # another class inside the window at (64, 64), side 64
     photo[90:106, 90:106] = 0
-    cut = cut_window(photo, mask, 64, 64, 64).astype(int)
+    interior = interior_labels(mask.astype(np.uint8)).astype(bool)
+    cut = cut_window(photo, mask, 64, 64, 64, interior).astype(int)
     hole = cut[28:40, 28:40, 0]  # inside the hole (window coordinates), off its edge
     # The hole holds the checkerboard (a 2-row shift flips it), not a second copy of the stripes.
     assert np.abs(hole[2:] - hole[:-2]).mean() > 15

@@ -12,7 +12,6 @@ import numpy as np
 from scipy.fft import irfft2, next_fast_len, rfft2
 from scipy.ndimage import maximum
 from skimage.filters import apply_hysteresis_threshold
-from terratheme.core.themes.patch_search import INTERIOR, interior_labels
 from terratheme.core.themes.quality import LANDMARK_CONTRAST, LANDMARK_SIZE, landmark_mask
 
 #: Rec. 601 luma weights
@@ -167,28 +166,13 @@ def lone_objects(window: np.ndarray, inside: np.ndarray | None = None,
     return grown.astype(bool)
 
 
-def class_interior(mask: np.ndarray, x: int, y: int, s: int) -> np.ndarray:
-    """(s, s) bool: the class's pixels of a window ``INTERIOR`` px inside the region's border."""
-    return _interior_box(mask, x, y, x + s, y + s)
-
-
-def _interior_box(mask: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-    """:func:`class_interior` of the box ``[y0:y1, x0:x1]`` (inside the photo)."""
-    h, w = mask.shape
-    r = INTERIOR
-    bx0, by0, bx1, by1 = max(0, x0 - r), max(0, y0 - r), min(w, x1 + r), min(h, y1 + r)
-    # The box and the pixels within reach of its own (the photo's edge replicated).
-    inner = interior_labels(mask[by0:by1, bx0:bx1].astype(np.uint8))
-    return inner[y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0].astype(bool)
-
-
 def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int,
-               interior: np.ndarray | None = None) -> np.ndarray:
+               interior: np.ndarray) -> np.ndarray:
     """(s, s, 3) uint8: the window at ``(x, y)`` with all but the class's plain texture filled.
 
     Other classes, the border rim and lone objects are filled from the class's pixels
     within half a side around the window first (no second copy of the tile in itself).
-    ``interior``: the class's (H, W) bool :func:`interior_labels` when the caller has them.
+    ``interior``: (H, W) bool, the class's pixels in its :func:`interior_labels`.
     """
     h, w = mask.shape
     window = rgb[y : y + s, x : x + s]
@@ -196,8 +180,7 @@ def cut_window(rgb: np.ndarray, mask: np.ndarray, x: int, y: int, s: int,
     m = s // 2
     x0, y0, x1, y1 = max(0, x - m), max(0, y - m), min(w, x + s + m), min(h, y + s + m)
     around = rgb[y0:y1, x0:x1]
-    inner = _interior_box(mask, x0, y0, x1, y1) if interior is None else (
-        interior[y0:y1, x0:x1].copy())
+    inner = interior[y0:y1, x0:x1].copy()
     at = (slice(y - y0, y - y0 + s), slice(x - x0, x - x0 + s))
     if not inner[at].any():
         inner[at] = mask[y : y + s, x : x + s]
