@@ -144,23 +144,20 @@ class RegionSample:
                                for j in range(rows)], axis=0)
 
 
-def sample_windows(size: tuple[int, int], piece: int | None = None, grid: int | None = None,
-                   align: int = SAMPLE_ALIGN, seed: int = 0
-                   ) -> list[list[tuple[int, int, int, int]]]:
+def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int = SAMPLE_GRID,
+                   align: int = SAMPLE_ALIGN) -> list[list[tuple[int, int, int, int]]]:
     """Rows of about ``grid x grid`` (x, y, w, h) windows of ``piece`` pixels, or the whole photo.
 
     Each lies at a seeded random place in its cell of the photo (a periodic mosaic is not
     sampled at one phase), its corner on a multiple of ``align``.
     """
     w, h = size
-    piece = SAMPLE_PIECE if piece is None else int(piece)
-    grid = SAMPLE_GRID if grid is None else int(grid)
     if w * h <= (grid * piece) ** 2:
         return [[(0, 0, w, h)]]
     pw, ph = min(piece, w), min(piece, h)
     nx = int(np.clip(round(grid * np.sqrt(w / h)), 1, w // pw))
     ny = int(np.clip(grid * grid // nx, 1, h // ph))
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(0)
 
     def spot(g: int, n: int, side: int, length: int) -> int:
         lo, hi = g * side // n, (g + 1) * side // n
@@ -178,19 +175,16 @@ def sample_windows(size: tuple[int, int], piece: int | None = None, grid: int | 
 
 
 def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
-                  overlap: int, rows: list[list[tuple[int, int, int, int]]] | None = None,
-                  gap: int | None = None) -> RegionSample:
+                  overlap: int) -> RegionSample:
     """Read and classify the :func:`sample_windows` of a photo (one window at a time).
 
     ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
-    window, then cropped; ``gap``: pixels between windows (default ``SAMPLE_GAP``; none for a
-    single window).
+    window, then cropped. A single window has no ``SAMPLE_GAP`` around it.
     """
     info = image_info(path)
-    rows = rows or sample_windows((info.width, info.height))
+    rows = sample_windows((info.width, info.height), SAMPLE_PIECE, SAMPLE_GRID)
     side_w, side_h = rows[0][0][2:]
-    gap = SAMPLE_GAP if gap is None else int(gap)
-    half = gap // 2 if len(rows) * len(rows[0]) > 1 else 0
+    half = SAMPLE_GAP // 2 if len(rows) * len(rows[0]) > 1 else 0
     step_w, step_h = side_w + 2 * half, side_h + 2 * half
     rgb = np.zeros((len(rows) * step_h, len(rows[0]) * step_w, 3), np.uint8)
     labels = np.zeros(rgb.shape[:2], np.uint8)
