@@ -9,10 +9,10 @@ import zipfile
 import numpy as np
 import pytest
 from sklearn.ensemble import ExtraTreesClassifier
-from terratheme.core.classify import Classifier, train_classifier
+from terratheme.core.classify import Classifier, SupervisedOptions, train_classifier
 from terratheme.core.classify.extra_trees import (
     ExtraTreesForest,
-    fit_extra_trees,
+    build_forest,
     forest_scores,
     from_sklearn,
 )
@@ -62,7 +62,7 @@ def test_walk_is_the_float64_comparison_at_every_threshold() -> None:
     rng = np.random.default_rng(4)
     x = rng.normal(size=(600, 5)).astype(np.float32)
     y = (x[:, 0] > 0).astype(int) + 2 * (x[:, 2] > 0.5)
-    forest = fit_extra_trees(x, y, n_trees=7, max_depth=9, seed=2)
+    forest = build_forest(x, y, SupervisedOptions(n_trees=7, max_depth=9, min_samples=2, seed=2))
     inner = np.flatnonzero(forest.feature >= 0)
     pick = rng.choice(inner, 500)
     test = rng.normal(size=(3 * pick.size + 3, 5)).astype(np.float32)
@@ -85,8 +85,8 @@ def test_training_is_seeded_and_balanced() -> None:
     rng = np.random.default_rng(1)
     x = rng.normal(size=(200, 4))
     y = (x[:, 0] > 1.0).astype(int) + 1  # class 2 is rare
-    a = fit_extra_trees(x, y, n_trees=8, seed=3)
-    b = fit_extra_trees(x, y, n_trees=8, seed=3)
+    a = build_forest(x, y, SupervisedOptions(n_trees=8, min_samples=2, seed=3))
+    b = build_forest(x, y, SupervisedOptions(n_trees=8, min_samples=2, seed=3))
     for name in ("feature", "threshold", "left", "value"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     # Balanced weights lift the rare class's leaf shares above its sample share.

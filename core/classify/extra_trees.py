@@ -174,28 +174,6 @@ def _check_depth(roots: np.ndarray, left: np.ndarray, right: np.ndarray) -> None
                           f"{MAX_DEPTH} levels")
 
 
-def fit_extra_trees(x: np.ndarray, y: np.ndarray, *, n_trees: int = 50, max_depth: int = 12,
-                    min_samples_split: int = 2, balance: bool = True,
-                    seed: int = 0, n_jobs: int | None = None) -> ExtraTreesForest:
-    """Extra-Trees (scikit-learn's) on samples ``x`` (n, F) with class values ``y`` (n,).
-
-    ``balance``: classes weighed inversely to their counts. ``n_jobs``: fitting threads,
-    default one per core and tree (a small fit is faster with 1).
-    """
-    import sklearn
-    from sklearn.ensemble import ExtraTreesClassifier
-
-    model = ExtraTreesClassifier(n_estimators=n_trees, max_depth=max_depth,
-                                 min_samples_split=max(2, min_samples_split),
-                                 class_weight="balanced" if balance else None,
-                                 n_jobs=min(os.cpu_count() or 1, n_trees) if n_jobs is None
-                                 else n_jobs, random_state=seed)
-    # Skip scikit-learn's parameter validation per tree (SupervisedOptions checks them).
-    with sklearn.config_context(skip_parameter_validation=True):
-        model.fit(np.asarray(x, np.float32), np.asarray(y))
-    return from_sklearn(model)
-
-
 def from_sklearn(model) -> ExtraTreesForest:
     """Flatten a fitted scikit-learn tree ensemble (single output) into arrays."""
     offsets, parts = 0, {n: [] for n in ARRAY_NAMES[1:]}
@@ -230,10 +208,24 @@ class ForestOptions(Protocol):
 
 def build_forest(x: np.ndarray, y: np.ndarray, options: ForestOptions,
                  n_jobs: int | None = None) -> ExtraTreesForest:
-    """:func:`fit_extra_trees` of samples ``x`` (n, F), classes ``y`` (n,) with ``options``."""
-    return fit_extra_trees(x, y, n_trees=options.n_trees, max_depth=options.max_depth,
-                           min_samples_split=options.min_samples, balance=options.balance,
-                           seed=options.seed, n_jobs=n_jobs)
+    """Extra-Trees (scikit-learn's) on samples ``x`` (n, F) with class values ``y`` (n,).
+
+    ``options.balance``: classes weighed inversely to their counts. ``n_jobs``: fitting
+    threads, default one per core and tree (a small fit is faster with 1).
+    """
+    import sklearn
+    from sklearn.ensemble import ExtraTreesClassifier
+
+    n_trees = options.n_trees
+    model = ExtraTreesClassifier(n_estimators=n_trees, max_depth=options.max_depth,
+                                 min_samples_split=max(2, options.min_samples),
+                                 class_weight="balanced" if options.balance else None,
+                                 n_jobs=min(os.cpu_count() or 1, n_trees) if n_jobs is None
+                                 else n_jobs, random_state=options.seed)
+    # Skip scikit-learn's parameter validation per tree (SupervisedOptions checks them).
+    with sklearn.config_context(skip_parameter_validation=True):
+        model.fit(np.asarray(x, np.float32), np.asarray(y))
+    return from_sklearn(model)
 
 
 def forest_scores(forest: ExtraTreesForest, x: np.ndarray, classes: Sequence[int]) -> np.ndarray:
