@@ -105,14 +105,10 @@ def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands, *par
                *part)
 
 
-def _run_shared(win: TileWindow, shared: tuple) -> object:
-    """One tile on a cluster worker: ``shared`` is ``(path, job, dtype, bands)``."""
-    return _run_one(shared[0], win, shared[1], shared[2], shared[3])
-
-
-def _run_shared_part(item: tuple[TileWindow, object], shared: tuple) -> object:
-    """One tile and its part (``run_tiles(parts=...)``) on a cluster worker."""
-    return _run_one(shared[0], item[0], shared[1], shared[2], shared[3], item[1])
+def _run_shared(item: tuple[TileWindow, tuple], shared: tuple) -> object:
+    """One tile and its :func:`_part_of` on a cluster worker (``shared``: path, job, dtype,
+    bands)."""
+    return _run_one(shared[0], item[0], *shared[1:], *item[1])
 
 
 def _part_of(parts: TilePart | None, win: TileWindow) -> tuple:
@@ -165,9 +161,6 @@ def run_tiles(
     # Workers open the file by its absolute path and must run this code: checked first.
     path = os.path.abspath(path)
     check_workers(scheduler, path)
-    if parts is None:
-        return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
-                           in_flight=batch, progress=progress, describe=_describe)
-    return map_ordered(scheduler, _run_shared_part, wins, (path, job, dtype, bands), sink,
+    return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
                        in_flight=batch, progress=progress, describe=_describe,
-                       payload=parts)
+                       payload=lambda win: _part_of(parts, win))
