@@ -6,6 +6,8 @@ not load numba.
 
 from __future__ import annotations
 
+from importlib import import_module
+
 from terratheme.core.curves.square import MAX_SIDE, Curve, curve_order
 
 __all__ = [
@@ -17,14 +19,12 @@ __all__ = [
 ]
 
 
+#: the numba-backed functions and their modules
+_LAZY = {"fill_runs": "fill", "scan_runs": "scan"}
+
+
 def __getattr__(name: str) -> object:
     """The numba-backed functions, imported when first asked for (PEP 562)."""
-    if name == "scan_runs":
-        from terratheme.core.curves import scan
-
-        return getattr(scan, name)
-    if name == "fill_runs":
-        from terratheme.core.curves.fill import fill_runs
-
-        return fill_runs
-    raise AttributeError(f"module 'terratheme.core.curves' has no attribute {name!r}")
+    if name not in _LAZY:
+        raise AttributeError(f"module 'terratheme.core.curves' has no attribute {name!r}")
+    return getattr(import_module(f"terratheme.core.curves.{_LAZY[name]}"), name)
