@@ -209,9 +209,9 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
 def test_grid_budget_is_a_share_of_the_map_budget():
     from terratheme.core.convert.step import GRID_SHARE, grid_budget
 
-    assert grid_budget(ColourMapOptions(budget=0.08)) == pytest.approx(0.08 * GRID_SHARE)
-    assert grid_budget(ColourMapOptions(target=2.0)) is None
-    assert grid_budget(None) is None
+    assert grid_budget(ColourMapOptions(budget=0.08), 10**6) == pytest.approx(0.08 * GRID_SHARE)
+    assert grid_budget(ColourMapOptions(target=2.0), 10**6) is None
+    assert grid_budget(None, 10**6) is None
 
 
 def test_a_tiny_photo_gets_the_least_area_bytes():

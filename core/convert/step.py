@@ -110,17 +110,11 @@ def cuts_themes(themes: ThemesSpec) -> bool:
 GRID_SHARE = 0.125
 
 
-def grid_budget(colour_map: ColourMapOptions | None, pixels: int | None = None
-                ) -> float | None:
-    """The ``grid_bpp`` of :func:`themes_and_cell`: ``GRID_SHARE`` of a byte budget.
-
-    Of :meth:`ColourMapOptions.area_bytes` for ``pixels`` when given; None without a
-    budget.
-    """
+def grid_budget(colour_map: ColourMapOptions | None, pixels: int) -> float | None:
+    """The ``grid_bpp`` of :func:`themes_and_cell`: ``GRID_SHARE`` of the byte budget
+    (:meth:`ColourMapOptions.area_bytes`) of ``pixels``; None without a budget."""
     if colour_map is None or colour_map.target is not None:
         return None
-    if pixels is None:
-        return GRID_SHARE * colour_map.budget
     return GRID_SHARE * colour_map.area_bytes(pixels) * 8 / max(int(pixels), 1)
 
 
