@@ -21,6 +21,7 @@ from terratheme.core.convert.cell_choice import (
     CONVERT_CELL_CANDIDATES,
     cell_within_budget,
     choose_cell_size,
+    packed_bytes,
     road_candidates,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
@@ -47,7 +48,6 @@ from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, run_tiles
 from terratheme.core.model.grid import IndexGrid, validate_cell
 from terratheme.core.model.project import ThematicTexture
-from terratheme.core.packing import pack
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import RenderOptions, render_cells
 from terratheme.core.themes.from_photo import ThemeMapping
@@ -264,8 +264,7 @@ def convert_file_tiled(
     if colour_map is not None:
         # The map's scale chosen on the sample, then the map itself tile by tile; a byte
         # budget covers the packed grid too, as on the whole photo.
-        reserved = len(pack(grid.indices, curve="auto").to_bytes()) if (
-            colour_map.target is None) else 0
+        reserved = packed_bytes(grid) if colour_map.target is None else 0
         seen = sum(w * h for *_, w, h in sample.windows)
         share = min(1.0, seen / (info.width * info.height))
         scale = sample_colour_scale(sample, grid, mapping.library.textures, style, colour_map,
