@@ -153,7 +153,7 @@ def class_stats(rgb: np.ndarray, labels: np.ndarray,
     whole, _ = class_means(labels, stack)
     inner = interior_labels(labels)
     targets = _targets(stack, inner, whole, [int(c) for c in np.flatnonzero(counts[1:]) + 1])
-    return ClassStats(texture, WindowStats(texture, stack), counts, colour, whole[:, 1:4],
+    return ClassStats(texture, WindowStats(stack), counts, colour, whole[:, 1:4],
                       whole[:, 0], inner, targets)
 
 
@@ -208,11 +208,10 @@ class WindowStats:
     The lattice step ``factor`` grows so that at most ``SEARCH_POSITIONS`` are searched.
     """
 
-    def __init__(self, stats: TextureStats, stack: np.ndarray) -> None:
-        self.stats = stats
-        h, w = stats.band.shape
+    def __init__(self, stack: np.ndarray) -> None:
+        """``stack``: the photo's :func:`_stack`."""
+        h, w = stack.shape[:2]
         self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
-        # ``stack``: the photo's :func:`_stack`.
         self._stack = _coarsen(stack, self.factor)
         self._by_size: dict[int, np.ndarray] = {}
 
