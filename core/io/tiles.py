@@ -106,8 +106,7 @@ def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands, *par
 
 
 def _run_shared(item: tuple[TileWindow, tuple], shared: tuple) -> object:
-    """One tile and its :func:`_part_of` on a cluster worker (``shared``: path, job, dtype,
-    bands)."""
+    """A tile and its :func:`_part_of` on a cluster worker (``shared``: path, job, dtype, bands)."""
     return _run_one(shared[0], item[0], *shared[1:], *item[1])
 
 
