@@ -123,6 +123,8 @@ def main() -> int:
     parser.add_argument("--only", default="network,forest,forest-holdout",
                         help="rows to measure (comma-separated); the others are kept from "
                              "the results file")
+    parser.add_argument("--models", type=Path, default=None,
+                        help="folder of a candidate network's models.json (default: shipped)")
     args = parser.parse_args()
     only = set(args.only.split(","))
     if not (DATA / "dubai" / "images").is_dir():
@@ -140,7 +142,8 @@ def main() -> int:
         if name not in only:
             continue
         if name == "network":
-            model = load_model("aerial")
+            model = (load_model("aerial") if args.models is None
+                     else load_model("aerial", args.models))
             out["network_file"] = {"file": model.path.name,
                                    "bytes": model.path.stat().st_size}
         elif name == "forest":
