@@ -13,8 +13,8 @@ the mean (and worst) of
 * ``repeat``  -- :func:`core.themes.quality.repeat_score` (self-similarity of
   the detail at a non-trivial shift: ghosts and copied strips; the raw
   patch's own level is shown as ``raw``);
-* ``lowfreq`` -- :func:`lowfreq_score` (share of the contrast in waves of
-  <= 2 periods per tile: banding in a tiling);
+* ``lowfreq`` -- :func:`core.themes.quality.lowfreq_score` (share of the
+  contrast in waves of <= 2 periods per tile: banding in a tiling);
 * ``detail``  -- the std of the luminance minus its sigma-2 blur, over the
   raw patch's (fine texture kept: 1 = all of it);
 * ``time``    -- per patch, as a ratio to the default method.
@@ -35,7 +35,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from terratheme.core.io.images import read_image  # noqa: E402
-from terratheme.core.themes.quality import repeat_score  # noqa: E402
+from terratheme.core.themes.quality import lowfreq_score, repeat_score  # noqa: E402
 from terratheme.core.themes.tileable import (  # noqa: E402
     TileableOptions,
     make_tileable,
@@ -45,19 +45,6 @@ from tileable_peers import make_tileable_peer  # noqa: E402
 
 DEFAULT = TileableOptions()
 
-
-def lowfreq_score(texture: np.ndarray, cycles: float = 2.0) -> float:
-    """RMS of the luma waves of at most ``cycles`` per tile (radially) over the RMS of all of it.
-
-    In [0, 1]: 0 with no variation slower than ``cycles`` (or flat), 1 for one smooth gradient.
-    """
-    lum = texture[:, :, :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
-    spec = np.abs(np.fft.fft2(lum - lum.mean())) ** 2
-    h, w = lum.shape
-    ky, kx = np.fft.fftfreq(h)[:, None] * h, np.fft.fftfreq(w)[None, :] * w
-    low = (np.hypot(ky, kx) <= cycles) & ((ky != 0) | (kx != 0))
-    total = float(spec.sum())
-    return 0.0 if total <= 1e-9 else float(np.sqrt(spec[low].sum() / total))
 
 def _core(**kw):
     return lambda patch: make_tileable(patch, replace(DEFAULT, **kw))

@@ -1,4 +1,4 @@
-"""core.themes.quality: repetition (ghost) and landmark scores."""
+"""core.themes.quality: low-frequency banding, repetition (ghost) and landmark scores."""
 
 from __future__ import annotations
 
@@ -8,12 +8,29 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes.quality import (
     landmark_mask,
     landmark_score,
+    lowfreq_score,
     repeat_score,
 )
 
 
 def _grey(lum: np.ndarray) -> np.ndarray:
     return np.repeat(np.clip(np.rint(lum), 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+
+
+def test_lowfreq_score_by_hand() -> None:
+    x = np.arange(64)
+    # One period per tile: all the contrast is in the lowest wave -> 1.
+    one = _grey(np.broadcast_to(128 + 60 * np.cos(2 * np.pi * x / 64), (64, 64)))
+    assert lowfreq_score(one) == pytest.approx(1.0, abs=0.01)
+    # Sixteen periods per tile: none of it -> 0.
+    fast = _grey(np.broadcast_to(128 + 60 * np.cos(2 * np.pi * x / 4), (64, 64)))
+    assert lowfreq_score(fast) == pytest.approx(0.0, abs=0.01)
+    # Both, equal amplitude: half the power is slow -> sqrt(1/2).
+    both = np.broadcast_to(
+        128 + 50 * np.cos(2 * np.pi * x / 64) + 50 * np.cos(2 * np.pi * x / 4), (64, 64)
+    )
+    assert lowfreq_score(_grey(both)) == pytest.approx(np.sqrt(0.5), abs=0.02)
+    assert lowfreq_score(np.full((8, 8, 3), 50, np.uint8)) == 0.0
 
 
 def test_repeat_score_by_hand() -> None:
@@ -81,7 +98,7 @@ def test_landmark_score_by_hand() -> None:
 def test_scores_errors() -> None:
     with pytest.raises(TerrathemeError, match="odd and at least 3"):
         landmark_score(np.zeros((8, 8, 3), np.uint8), size=4)
-    for fn in (repeat_score, landmark_score):
+    for fn in (lowfreq_score, repeat_score, landmark_score):
         with pytest.raises(TerrathemeError, match="too small"):
             fn(np.zeros((3, 8, 3), np.uint8))
         with pytest.raises(TerrathemeError, match="empty"):

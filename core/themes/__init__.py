@@ -21,7 +21,7 @@ from terratheme.core.themes.library import (
     shipped_theme_library,
 )
 from terratheme.core.themes.looks import read_looks
-from terratheme.core.themes.quality import landmark_score, repeat_score
+from terratheme.core.themes.quality import landmark_score, lowfreq_score, repeat_score
 from terratheme.core.themes.tileable import (
     SEAM_THRESHOLD,
     TileableOptions,
@@ -39,6 +39,7 @@ __all__ = [
     "TileableOptions",
     "flat_theme",
     "landmark_score",
+    "lowfreq_score",
     "make_tileable",
     "read_looks",
     "read_theme_library",

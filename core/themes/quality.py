@@ -1,8 +1,9 @@
-"""How obviously a tileable texture repeats: ghosting and landmarks.
+"""How obviously a tileable texture repeats: banding, ghosting and landmarks.
 
-Measures on the luma of the texture as one period of a tiling, rating shipped files
-as well as cut patches: self-copies (:func:`repeat_score`) and lone features
-(:func:`landmark_score`), each of which the eye finds as a grid once the tile repeats.
+Three measures on the luma of the texture as one period of a tiling, rating shipped
+files as well as cut patches: slow waves (:func:`lowfreq_score`), self-copies
+(:func:`repeat_score`) and lone features (:func:`landmark_score`), each of which the
+eye finds as a grid once the tile repeats.
 """
 
 from __future__ import annotations
@@ -27,6 +28,20 @@ def _luma(texture: np.ndarray, name: str) -> np.ndarray:
 def _cycles(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     """(h, w) signed frequencies in cycles per tile along y and x."""
     return np.fft.fftfreq(h)[:, None] * h, np.fft.fftfreq(w)[None, :] * w
+
+
+def lowfreq_score(texture: np.ndarray, cycles: float = 2.0) -> float:
+    """RMS of the luma waves of at most ``cycles`` per tile over the RMS of all of it.
+
+    In [0, 1]: 0 with no variation slower than ``cycles`` (or flat), 1 for one smooth
+    gradient. ``cycles`` is a radial bound in periods per tile, along each side.
+    """
+    lum = _luma(texture, "texture")
+    spec = np.abs(np.fft.fft2(lum - lum.mean())) ** 2
+    ky, kx = _cycles(*lum.shape)
+    low = (np.hypot(ky, kx) <= cycles) & ((ky != 0) | (kx != 0))
+    total = float(spec.sum())
+    return 0.0 if total <= 1e-9 else float(np.sqrt(spec[low].sum() / total))
 
 
 def repeat_score(texture: np.ndarray, detail: float = 3.0, exclude: int = 4) -> float:
