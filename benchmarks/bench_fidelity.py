@@ -59,6 +59,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 from bench_classify import DATA, load, scribble_sets  # noqa: E402
+from classify_eval import class_iou_scores  # noqa: E402
 from fidelity_chart import chart  # noqa: E402
 from fidelity_peers import CODECS, PEER_MAKERS, best_peers, score_image, score_peers  # noqa: E402
 from terratheme.core.convert.cell_choice import cell_within_budget, choose_cell_size  # noqa: E402
@@ -71,7 +72,7 @@ from terratheme.core.convert.step import (  # noqa: E402
     grid_and_colour,
     grid_budget,
 )
-from terratheme.core.fidelity import class_iou_scores, colour_error, detail_ratio, texture_cost  # noqa: E402
+from terratheme.core.fidelity import colour_error, detail_ratio, texture_cost  # noqa: E402
 from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402

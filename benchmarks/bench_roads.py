@@ -51,11 +51,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 from bench_classify import DATA, load  # noqa: E402
+from classify_eval import class_iou_scores  # noqa: E402
 from terratheme.core.classify import load_model  # noqa: E402
 from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
 from terratheme.core.fidelity import (  # noqa: E402
-    class_iou_scores,
     colour_error,
     detail_ratio,
     texture_cost,

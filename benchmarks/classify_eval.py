@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import cv2
 import numpy as np
 
@@ -177,3 +179,51 @@ def draw_rows(reps, sets):
         "dubai_pooled": scores(sum(per[n] for per in reps for n in dubai), [1, 2, 3, 4, 5]),
         "dubai_pooled_miou_per_repeat": [round(p["miou"], 4) for p in pooled],
     }
+
+
+def majority_classes(labels: np.ndarray, truth: np.ndarray,
+                     classes: Sequence[int]) -> dict[int, int]:
+    """``{label: class}``: for every label, the ground-truth class among ``classes`` it covers most.
+
+    Truth values outside ``classes`` are ignored; labels covering no scored pixel
+    are left out.
+    """
+    lab = np.asarray(labels).ravel().astype(np.int64)
+    tru = np.asarray(truth).ravel().astype(np.int64)
+    lut = np.full(max(int(tru.max(initial=0)), max(classes, default=0)) + 1, -1, np.int64)
+    for i, k in enumerate(classes):
+        lut[k] = i
+    ti = lut[np.clip(tru, 0, lut.size - 1)]
+    keep = ti >= 0
+    nl = int(lab.max(initial=0)) + 1
+    counts = np.bincount(lab[keep] * len(classes) + ti[keep],
+                         minlength=nl * len(classes)).reshape(nl, len(classes))
+    return {int(t): int(classes[int(np.argmax(row))]) for t, row in enumerate(counts) if row.any()}
+
+
+def class_iou_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
+    """Per-class IoU of a label view against ground truth, each label mapped to its majority class.
+
+    Returns ``{"miou": float, "iou": {class: float or None}, "mapping": {label:
+    class}}``; truth values outside ``classes`` are ignored, and a class absent from
+    both truth and mapped labels has IoU None and does not count in the mean.
+    """
+    labels, truth = np.asarray(labels), np.asarray(truth)
+    if labels.shape != truth.shape or labels.ndim != 2:
+        raise ValueError(f"label view {labels.shape} and truth {truth.shape} differ")
+    if not classes:
+        raise ValueError("no classes to score")
+    mapping = majority_classes(labels, truth, classes)
+    lut = np.full(int(labels.max(initial=0)) + 1, -1, np.int64)
+    for t, k in mapping.items():
+        lut[t] = k
+    pred = lut[labels.astype(np.int64)]
+    scored = np.isin(truth, classes)
+    iou: dict[int, float | None] = {}
+    for k in classes:
+        t, p = (truth == k) & scored, (pred == k) & scored
+        union = int((t | p).sum())
+        iou[int(k)] = None if union == 0 else float((t & p).sum() / union)
+    present = [v for v in iou.values() if v is not None]
+    return {"miou": float(np.mean(present)) if present else float("nan"), "iou": iou,
+            "mapping": mapping}

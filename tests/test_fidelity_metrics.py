@@ -8,11 +8,9 @@ import numpy as np
 import pytest
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity import (
-    class_iou_scores,
     colour_error,
     detail_energy,
     detail_ratio,
-    majority_classes,
     structure_similarity,
 )
 
@@ -85,36 +83,6 @@ def test_uint8_and_float_agree():
     assert detail_ratio(a, b) == pytest.approx(detail_ratio(a / 255.0, b / 255.0), rel=1e-5)
 
 
-def test_structure_of_a_relabelled_truth_is_perfect():
-    truth = np.zeros((20, 30), np.uint8)
-    truth[:, 10:] = 2
-    truth[:, :10] = 1
-    truth[15:, :] = 3
-    labels = np.choose(truth, [9, 4, 7, 5]).astype(np.uint8)  # 1->4, 2->7, 3->5
-    got = class_iou_scores(labels, truth, [1, 2, 3])
-    assert got["miou"] == 1.0
-    assert got["mapping"] == {4: 1, 7: 2, 5: 3}
-
-
-def test_structure_of_one_label_over_two_halves():
-    truth = np.ones((10, 20), np.uint8)
-    truth[:, 10:] = 2
-    labels = np.zeros_like(truth)
-    got = class_iou_scores(labels, truth, [1, 2])
-    # Ties go to the first class: everything called class 1, half of it right.
-    assert got["iou"] == {1: 0.5, 2: 0.0}
-    assert got["miou"] == 0.25
-
-
-def test_structure_ignores_unscored_classes():
-    truth = np.ones((10, 10), np.uint8)
-    truth[:, 5:] = 6  # "unlabelled"
-    labels = np.zeros_like(truth)
-    labels[:, 5:] = 1
-    assert class_iou_scores(labels, truth, [1])["iou"] == {1: 1.0}
-    assert majority_classes(labels, truth, [1]) == {0: 1}
-
-
 def test_errors():
     with pytest.raises(TerrathemeError, match="render is 50 x 40 but the photo is 5 x 4"):
         colour_error(_flat(0.1), _flat(0.1, (4, 5)))
@@ -124,8 +92,6 @@ def test_errors():
         detail_ratio(_flat(0.2), _flat(0.2))
     with pytest.raises(TerrathemeError, match="selects no pixel"):
         colour_error(_flat(0.1), _flat(0.1), valid=np.zeros((40, 50), bool))
-    with pytest.raises(TerrathemeError, match="differ"):
-        class_iou_scores(np.zeros((2, 2)), np.zeros((2, 3)), [1])
 
 
 def test_fidelity_summary_line():

@@ -1,5 +1,5 @@
 """How much a thematic texture looks like its photo: ``metrics`` (dE8, detail ratio,
-structure similarity, class IoU) and ``cost`` (bytes per area and of the themes)."""
+structure similarity) and ``cost`` (bytes per area and of the themes)."""
 
 from terratheme.core.fidelity.cost import TextureCost, texture_cost
 from terratheme.core.fidelity.metrics import (
@@ -7,12 +7,10 @@ from terratheme.core.fidelity.metrics import (
     DETAIL_SIGMAS,
     Fidelity,
     Reference,
-    class_iou_scores,
     colour_error,
     detail_energy,
     detail_ratio,
     fidelity,
-    majority_classes,
     reference,
     structure_similarity,
 )
@@ -26,10 +24,8 @@ __all__ = [
     "detail_energy",
     "detail_ratio",
     "fidelity",
-    "majority_classes",
     "Reference",
     "reference",
-    "class_iou_scores",
     "structure_similarity",
     "texture_cost",
 ]

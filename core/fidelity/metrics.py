@@ -1,7 +1,7 @@
 """How much a thematic texture looks like its photo: colour layout, fine detail, structure.
 
 On whole images of the same size: :func:`colour_error` (``dE8``), :func:`detail_ratio`,
-:func:`class_iou_scores` and :func:`structure_similarity` (``structure 1/4``, ``1/8``);
+and :func:`structure_similarity` (``structure 1/4``, ``1/8``);
 definitions in docs/design.md §5.
 """
 
@@ -158,51 +158,3 @@ def fidelity(render: np.ndarray, photo: np.ndarray) -> Fidelity:
     except TerrathemeError:
         detail = float("nan")
     return Fidelity(colour_error(render, photo), detail)
-
-
-def majority_classes(labels: np.ndarray, truth: np.ndarray,
-                     classes: Sequence[int]) -> dict[int, int]:
-    """``{label: class}``: for every label, the ground-truth class among ``classes`` it covers most.
-
-    Truth values outside ``classes`` are ignored; labels covering no scored pixel
-    are left out.
-    """
-    lab = np.asarray(labels).ravel().astype(np.int64)
-    tru = np.asarray(truth).ravel().astype(np.int64)
-    lut = np.full(max(int(tru.max(initial=0)), max(classes, default=0)) + 1, -1, np.int64)
-    for i, k in enumerate(classes):
-        lut[k] = i
-    ti = lut[np.clip(tru, 0, lut.size - 1)]
-    keep = ti >= 0
-    nl = int(lab.max(initial=0)) + 1
-    counts = np.bincount(lab[keep] * len(classes) + ti[keep],
-                         minlength=nl * len(classes)).reshape(nl, len(classes))
-    return {int(t): int(classes[int(np.argmax(row))]) for t, row in enumerate(counts) if row.any()}
-
-
-def class_iou_scores(labels: np.ndarray, truth: np.ndarray, classes: Sequence[int]) -> dict:
-    """Per-class IoU of a label view against ground truth, each label mapped to its majority class.
-
-    Returns ``{"miou": float, "iou": {class: float or None}, "mapping": {label:
-    class}}``; truth values outside ``classes`` are ignored, and a class absent from
-    both truth and mapped labels has IoU None and does not count in the mean.
-    """
-    labels, truth = np.asarray(labels), np.asarray(truth)
-    if labels.shape != truth.shape or labels.ndim != 2:
-        raise TerrathemeError(f"label view {labels.shape} and truth {truth.shape} differ")
-    if not classes:
-        raise TerrathemeError("no classes to score")
-    mapping = majority_classes(labels, truth, classes)
-    lut = np.full(int(labels.max(initial=0)) + 1, -1, np.int64)
-    for t, k in mapping.items():
-        lut[t] = k
-    pred = lut[labels.astype(np.int64)]
-    scored = np.isin(truth, classes)
-    iou: dict[int, float | None] = {}
-    for k in classes:
-        t, p = (truth == k) & scored, (pred == k) & scored
-        union = int((t | p).sum())
-        iou[int(k)] = None if union == 0 else float((t & p).sum() / union)
-    present = [v for v in iou.values() if v is not None]
-    return {"miou": float(np.mean(present)) if present else float("nan"), "iou": iou,
-            "mapping": mapping}
