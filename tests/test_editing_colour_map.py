@@ -24,21 +24,42 @@ def _doc() -> EditDocument:
                                         colour_map=cmap))
 
 
-def test_painting_makes_the_map_neutral_under_the_painted_cells_only():
+def test_painting_a_theme_the_map_never_had_makes_it_neutral_nearest_the_vertex():
     doc = _doc()
-    doc.fill_rect((5, 4), (5, 4), 2)  # one vertex: it bounds cells 4..5 x 3..4
+    doc.fill_rect((5, 4), (5, 4), 2)  # one vertex, at texel (40, 32)
     px = doc.texture.colour_map.pixels
-    # Texels 32..48 x 24..40 -> map pixels 8..11 x 6..9 (4 texels each).
-    assert (px[6:10, 8:12] == NEUTRAL).all()
+    # Map pixels (4 texels) whose centre is nearest it: centres 38, 42 x 30, 34.
+    assert (px[7:9, 9:11] == NEUTRAL).all()
     untouched = np.ones(px.shape[:2], bool)
-    untouched[6:10, 8:12] = False
+    untouched[7:9, 9:11] = False
     assert (px[untouched] == 200).all()
     assert doc.texture.colour_map.data is None
     # One step: undo brings back both the grid and the map.
     doc.undo()
     assert not doc.indices.any() and (doc.texture.colour_map.pixels == 200).all()
     doc.redo()
-    assert (doc.texture.colour_map.pixels[6:10, 8:12] == NEUTRAL).all()
+    assert (doc.texture.colour_map.pixels[7:9, 9:11] == NEUTRAL).all()
+
+
+def test_a_painted_theme_takes_its_gain_from_where_the_map_has_it():
+    rng = np.random.default_rng(0)
+    lib = ThemeLibrary(Theme(n, (90, 90, 90), rng.integers(0, 256, (8, 8, 3), dtype=np.uint8))
+                       for n in ("sand", "water"))
+    grid = IndexGrid(np.zeros((9, 11), np.uint8), CELL)
+    grid.indices[:, :3] = 1  # water: vertex columns 0-2, nearest map columns 0-4
+    pixels = np.full((16, 20, 3), 200, np.uint8)
+    pixels[:, :5] = (60, 50, 40)
+    doc = EditDocument(ThematicTexture(grid, lib, {}, colour_map=ColourMap(pixels, 4)))
+    doc.fill_rect((8, 4), (8, 4), 1)  # water into the sand, at texel (64, 32)
+    px = doc.texture.colour_map.pixels
+    assert (px[7:9, 15:17] == (60, 50, 40)).all()
+    assert (px[:, 5:15] == 200).all() and (px[:7, 15:] == 200).all()
+    doc.fill_rect((1, 4), (1, 4), 0)  # sand into the water, at texel (8, 32)
+    assert (doc.texture.colour_map.pixels[7:9, 1:3] == 200).all()
+    assert (doc.texture.colour_map.pixels[:7, :5] == (60, 50, 40)).all()
+    doc.undo()
+    doc.undo()
+    assert np.array_equal(doc.texture.colour_map.pixels, pixels)
 
 
 def test_a_stroke_neutralises_the_map_as_one_step():

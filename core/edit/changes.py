@@ -21,7 +21,7 @@ from terratheme.core.edit.events import (
     ScribbleChange,
     ThemeChange,
 )
-from terratheme.core.edit.layers import DocumentData, Layer
+from terratheme.core.edit.layers import DocumentData, Layer, nearest_vertices
 from terratheme.core.edit.uncertainty import KeptPrior
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.colour_map import NEUTRAL, ColourMap
@@ -107,7 +107,7 @@ class SwapLayer:
 
 @dataclass(frozen=True, eq=False)
 class SetColourMap:
-    """The colour map replaced (made neutral under an edit, or dropped with the themes)."""
+    """The colour map replaced (repainted under an edit, or dropped with the themes)."""
 
     old: ColourMap | None
     new: ColourMap | None
@@ -127,27 +127,49 @@ class SetColourMap:
         return [ColourMapChange(self.region)]
 
 
-def neutral_under(data: DocumentData, rows: slice, cols: slice) -> SetColourMap | None:
-    """The colour map made neutral (gain 1) where it touches cells of vertices ``rows, cols``,
-    so a repainted theme shows its own colours, not the old theme's correction; None
-    without a colour map.
+def repaint_colour_map(data: DocumentData, atom: Atom) -> SetColourMap | None:
+    """The colour map under a repaint of the grid by ``atom`` (applied or not yet).
+
+    Map pixels nearest a repainted vertex take the new theme's mean gain in the map as
+    opened (:func:`~core.edit.layers.theme_gains`), so a painted theme looks as that
+    theme does elsewhere (detail themes carry no colour of their own); ``NEUTRAL`` for
+    a theme the map never had. None without a colour map or when nothing changes.
     """
     cmap = data.texture.colour_map
     if cmap is None:
         return None
-    grid = data.texture.grid
+    grid, s = data.texture.grid, cmap.scale
     n, m = grid.cell
-    s = cmap.scale
     mh, mw = cmap.pixels.shape[:2]
-    # Cells the vertices bound, then the map pixels whose texels meet those cells.
-    x0, x1 = max(cols.start - 1, 0) * n, min(cols.stop, grid.cells_shape[1]) * n
-    y0, y1 = max(rows.start - 1, 0) * m, min(rows.stop, grid.cells_shape[0]) * m
-    i0, i1 = x0 // s, min(mw, -(-x1 // s))
-    j0, j1 = y0 // s, min(mh, -(-y1 // s))
-    if i1 <= i0 or j1 <= j0 or (cmap.pixels[j0:j1, i0:i1] == NEUTRAL).all():
+    vh, vw = grid.indices.shape
+    # The atom's new theme per vertex of its box, and which vertices it changes.
+    r0, c0 = atom.rows.start, atom.cols.start
+    changed = np.zeros(atom.shape, bool)
+    new = np.zeros(atom.shape, np.uint8)
+    for part in atom_parts(atom):
+        sub = (slice(part.rows.start - r0, part.rows.stop - r0),
+               slice(part.cols.start - c0, part.cols.stop - c0))
+        changed[sub] |= part.mask
+        new[sub][part.mask] = part.new
+    # Map pixels whose nearest vertex lies in the box (a vertex reaches half a cell).
+    j0, j1 = max(0, (r0 * m - m) // s), min(mh, -(-(atom.rows.stop * m + m) // s))
+    i0, i1 = max(0, (c0 * n - n) // s), min(mw, -(-(atom.cols.stop * n + n) // s))
+    rows = nearest_vertices(mh, s, m, vh)[j0:j1] - r0
+    cols = nearest_vertices(mw, s, n, vw)[i0:i1] - c0
+    inside = ((rows >= 0) & (rows < atom.shape[0]))[:, None] & \
+        ((cols >= 0) & (cols < atom.shape[1]))[None, :]
+    rr, cc = np.clip(rows, 0, atom.shape[0] - 1), np.clip(cols, 0, atom.shape[1] - 1)
+    hit = inside & changed[rr[:, None], cc[None, :]]
+    if not hit.any():
         return None
+    # Each theme's gain as opened; NEUTRAL where the map never had it.
+    gains = data.theme_gains if data.theme_gains is not None else np.full((256, 3), np.nan)
+    table = np.where(np.isnan(gains), NEUTRAL, np.rint(gains)).astype(np.uint8)
     pixels = cmap.pixels.copy()
-    pixels[j0:j1, i0:i1] = NEUTRAL
+    block = pixels[j0:j1, i0:i1]
+    block[hit] = table[new[rr[:, None], cc[None, :]][hit]]
+    if np.array_equal(block, cmap.pixels[j0:j1, i0:i1]):
+        return None
     # A map pixel's gain reaches one pixel beyond its own texels (bilinear).
     tw, th = grid.texture_size
     rx0, ry0 = max(0, (i0 - 1) * s), max(0, (j0 - 1) * s)
@@ -245,7 +267,7 @@ def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
 
     ``n_themes`` is the library size the new grid will index (after any theme
     change); with ``neutral`` the colour map goes neutral where the grid
-    changed (:func:`neutral_under`).
+    changed (:func:`repaint_colour_map`).
     """
     new = np.asarray(indices)
     grid = data.texture.grid.indices
@@ -257,6 +279,6 @@ def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
     atom = replace_atoms(grid, new)
     if atom is None:
         return []
-    swap = neutral_under(data, atom.rows, atom.cols) if neutral else None
+    swap = repaint_colour_map(data, atom) if neutral else None
     return [Paint(Layer.GRID, atom), *([swap] if swap is not None else [])]
 

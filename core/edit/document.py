@@ -20,7 +20,7 @@ from terratheme.core.edit.changes import (
     Paint,
     SetTheme,
     grid_replacement,
-    neutral_under,
+    repaint_colour_map,
 )
 from terratheme.core.edit.classification import ClassificationUpdate, classification_changes
 from terratheme.core.edit.events import DocumentEvents, Event, HistoryChange
@@ -196,7 +196,7 @@ class EditDocument:
         atom = EditAtom.record(self.indices, fp, value)
         if atom is None:
             return None
-        neutral = neutral_under(self.data, atom.rows, atom.cols)
+        neutral = repaint_colour_map(self.data, atom)
         return self._commit(label, [Paint(Layer.GRID, atom),
                                     *([neutral] if neutral is not None else [])])
 

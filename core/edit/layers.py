@@ -18,6 +18,31 @@ from terratheme.core.model.project import ThematicTexture
 from terratheme.core.themes.library import ThemeLibrary
 
 
+def nearest_vertices(count: int, scale: int, cell: int, vertices: int) -> np.ndarray:
+    """(count,) int: the vertex nearest the centre of each of ``count`` map pixels of
+    ``scale`` texels along an axis of ``cell``-texel cells (clipped to ``vertices``)."""
+    centre = (np.arange(count) + 0.5) * scale
+    return np.clip(np.floor(centre / cell + 0.5).astype(np.int64), 0, vertices - 1)
+
+
+def theme_gains(grid: IndexGrid, pixels: np.ndarray, scale: int) -> np.ndarray:
+    """(256, 3) float32: the mean gain of a colour map's ``pixels`` (h, w, 3) uint8 over
+    the map pixels nearest each theme's vertices; NaN for a theme with none.
+
+    With detail themes (mid-grey ratios) it is the theme's colour as the photo has it.
+    """
+    mh, mw = pixels.shape[:2]
+    vh, vw = grid.indices.shape
+    rows = nearest_vertices(mh, scale, grid.cell[1], vh)
+    cols = nearest_vertices(mw, scale, grid.cell[0], vw)
+    themes = grid.indices[rows[:, None], cols[None, :]].ravel()
+    counts = np.bincount(themes, minlength=256).astype(np.float64)
+    sums = np.stack([np.bincount(themes, pixels[..., c].ravel().astype(np.float64),
+                                 minlength=256) for c in range(3)], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (sums / counts[:, None]).astype(np.float32)
+
+
 class Layer(Enum):
     """A layer of the document that an undoable change can paint or replace."""
 
@@ -93,9 +118,14 @@ class DocumentData:
     confidence: np.ndarray | None = None
     kept_prior: KeptPrior | None = None
     scribble_counts: np.ndarray = field(default_factory=lambda: np.zeros(256, np.int64))
+    #: (256, 3) float32 each theme's mean colour-map gain as opened (NaN: none; no map: None)
+    theme_gains: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.recount_scribbles()
+        cmap = self.texture.colour_map
+        if self.theme_gains is None and cmap is not None:
+            self.theme_gains = theme_gains(self.texture.grid, cmap.pixels, cmap.scale)
 
     def layer(self, which: Layer) -> np.ndarray | None:
         """The array of ``which`` (None when the document has no such layer)."""

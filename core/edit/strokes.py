@@ -14,7 +14,7 @@ from terratheme.core.edit.changes import (
     Paint,
     SwapLayer,
     drop_prior_without_classes,
-    neutral_under,
+    repaint_colour_map,
 )
 from terratheme.core.edit.events import Event
 from terratheme.core.edit.layers import DocumentData, Layer
@@ -78,8 +78,8 @@ class Stroke:
         # The parts are applied already; the step records them as one paint.
         prior = (drop_prior_without_classes(self.data, self.data.scribble_classes())
                  if self.layer is Layer.SCRIBBLES else [])
-        # A repainted grid shows its new themes' own colours (no stale colour-map gain).
-        neutral = (neutral_under(self.data, merged.rows, merged.cols)
+        # A repainted grid shows its new themes' colours (no stale colour-map gain).
+        neutral = (repaint_colour_map(self.data, merged)
                    if self.layer is Layer.GRID else None)
         after = [*prior, *([neutral] if neutral is not None else [])]
         events = [e for c in after for e in c.apply(self.data)]
