@@ -30,7 +30,6 @@ from terratheme.core.gpu import (
     Sampling,
     create_context,
     gl_context,
-    render_cells_gpu,
 )
 from terratheme.core.io.images import read_image
 from terratheme.core.model.colour_map import ColourMap
@@ -155,7 +154,7 @@ def test_tiles_change_nothing(odd, blend):
     _assert_same(ref[2:43, 3:53], tiled, blend)
 
 
-def test_index_grid_out_buffer_progress_and_one_shot(odd):
+def test_index_grid_out_buffer_and_progress(odd):
     grid = IndexGrid(np.array([[0, 1, 2], [3, 0, 1]], np.uint8), (5, 4))
     out = np.zeros((4, 10, 3), np.uint8)
     calls = []
@@ -164,7 +163,6 @@ def test_index_grid_out_buffer_progress_and_one_shot(odd):
     assert got is out
     assert calls == [(1, 3), (2, 3), (3, 3)]
     assert np.array_equal(out, render_cells(grid, ODD_THEMES))
-    assert np.array_equal(render_cells_gpu(grid, ODD_THEMES), out)
 
 
 def test_filtered_path_at_scale_one_is_within_one_level(even):

@@ -66,8 +66,6 @@ class NetworkClassifier:
         The photo is box-averaged by ``round(1 / scale)`` before the network.
     multiple : int
         The network's input sides must be multiples of this (its poolings).
-    class_names : mapping of int -> str, optional
-    options : NetworkOptions, optional
 
     Raises
     ------

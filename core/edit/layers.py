@@ -19,8 +19,7 @@ from terratheme.core.themes.library import ThemeLibrary
 
 
 def nearest_vertices(count: int, scale: int, cell: int, vertices: int) -> np.ndarray:
-    """(count,) int: the vertex nearest the centre of each of ``count`` map pixels of
-    ``scale`` texels along an axis of ``cell``-texel cells (clipped to ``vertices``)."""
+    """(count,) int: along an axis, the vertex nearest each ``scale``-texel map pixel."""
     centre = (np.arange(count) + 0.5) * scale
     return np.clip(np.floor(centre / cell + 0.5).astype(np.int64), 0, vertices - 1)
 

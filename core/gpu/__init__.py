@@ -1,6 +1,6 @@
 """The blend rule on the GPU: GLSL shaders and a headless renderer (docs/gpu.md).
 
-:class:`GpuRenderer` / :func:`render_cells_gpu` render a texture or a region (exact at
+:class:`GpuRenderer` renders a texture or a region (exact at
 scale 1, filtered below), from a dense grid or a packed layer (:class:`PackedGrid`);
 :class:`GroundView` / :func:`render_perspective_gpu` draw it on a ground plane in
 perspective (the fly-over).
@@ -15,7 +15,7 @@ from terratheme.core.gpu.options import (
     Sampling,
 )
 from terratheme.core.gpu.packed import PackedGrid
-from terratheme.core.gpu.renderer import GpuRenderer, render_cells_gpu
+from terratheme.core.gpu.renderer import GpuRenderer
 from terratheme.core.gpu.shaders import SHADER_DIR, shader_source
 
 __all__ = [
@@ -30,7 +30,6 @@ __all__ = [
     "Sampling",
     "create_context",
     "gl_context",
-    "render_cells_gpu",
     "render_perspective_gpu",
     "shader_source",
 ]

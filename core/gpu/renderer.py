@@ -214,23 +214,3 @@ class GpuRenderer:
             self._packed = None
         self.style.release()
         self.themes.release()
-
-
-def render_cells_gpu(
-    grid: object,
-    themes: Sequence[np.ndarray] | Sequence[Theme],
-    cell: tuple[int, int] | None = None,
-    region: tuple[int, int, int, int] | None = None,
-    *,
-    scale: float = 1.0,
-    options: GpuRenderOptions = GpuRenderOptions(),  # noqa: B008 (frozen)
-    colour_map: ColourMap | None = None,
-    progress: Progress | None = None,
-) -> np.ndarray:
-    """One GPU render (:meth:`GpuRenderer.render`; :class:`GpuRenderer` for repeated ones)."""
-    renderer = GpuRenderer(themes)
-    try:
-        return renderer.render(grid, cell, region, scale=scale, options=options,
-                               colour_map=colour_map, progress=progress)
-    finally:
-        renderer.release()
