@@ -17,11 +17,9 @@ draws and rows give the mean over them (per-draw figures kept).
 
 Methods, each the robustness piece of issue 17 on its own, then together:
 
-  plain            the library default without the adaptation (no relative
-                   lightness either; training samples capped per class by
-                   ``SupervisedOptions.samples_per_class``: 2000 for five photos);
-  +relative        plain + lightness relative to its context
-                   (``FeatureOptions.relative``);
+  plain            the library default without the adaptation (training samples
+                   capped per class by ``SupervisedOptions.samples_per_class``: 2000
+                   for five photos);
   +adapt           plain + test-time adaptation (core/classify/adapt.py);
   rf-default       the library default now;
   rf-nostructure   rf-default without the structure features (core/classify/texture.py);
@@ -60,8 +58,7 @@ ILASTIK_TRAIN_PIXELS = 20_000
 
 
 def _plain() -> SupervisedOptions:
-    return SupervisedOptions(ignore_classes=IGNORE, adapt=False,
-                             features=replace(SupervisedOptions().features, relative=False))
+    return SupervisedOptions(ignore_classes=IGNORE, adapt=False)
 
 
 def methods() -> dict[str, SupervisedOptions]:
@@ -71,7 +68,6 @@ def methods() -> dict[str, SupervisedOptions]:
     default = SupervisedOptions(ignore_classes=IGNORE)
     return {
         "plain": plain,
-        "+relative": replace(plain, features=replace(fo, relative=True)),
         "+adapt": replace(plain, adapt=True),
         "rf-default": default,
         "rf-nostructure": replace(default, features=replace(fo, structure=False)),

@@ -78,7 +78,7 @@ def test_the_sample_key_changes_with_anything_the_samples_depend_on():
         tc.sample_key(other_photo, mask, (1, 2, 3), fo, 2048, 0.0),
         tc.sample_key(photo, other_mask, (1, 2, 3), fo, 2048, 0.0),
         tc.sample_key(photo, mask, (1, 2), fo, 2048, 0.0),
-        tc.sample_key(photo, mask, (1, 2, 3), replace(fo, relative=not fo.relative), 2048, 0.0),
+        tc.sample_key(photo, mask, (1, 2, 3), replace(fo, hessian=not fo.hessian), 2048, 0.0),
         tc.sample_key(photo, mask, (1, 2, 3), fo, 1024, 0.0),
         tc.sample_key(photo, mask, (1, 2, 3), fo, 2048, 5.0),
         tc.sample_key(photo[:, :, :2].copy(), mask, (1, 2, 3), fo, 2048, 0.0),

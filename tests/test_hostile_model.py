@@ -145,6 +145,7 @@ def test_a_chain_deeper_than_the_limit_is_refused():
     (("features", "scale"), 10**9, r"options.features.scale must be a whole number in 1..64"),
     (("features", "scale"), 2.5, "options.features.scale must be a whole number"),
     (("features", "normalise"), "lab", "options.features.normalise 'lab' is no longer supported"),
+    (("features", "relative"), True, "options.features.relative True is no longer supported"),
     (("features", "feature_set"), "nope", "feature_set must be one of"),
     (("regularisation", "edge_sigma_spatial"), 1e9, "edge_sigma_spatial"),
     (("n_trees",), 10**6, "options.n_trees"),
@@ -321,3 +322,11 @@ def test_hostile_zip_directory_fields(budget, bounded, model_parts, tmp_path):
         bounded, "model", tmp_path / "dir.ttc",
         _directory_forged(model_parts, inner, member, fields)),
         inner=st.booleans(), member=st.integers(0, 8), fields=ZIP_DIRECTORY_FIELDS)
+
+
+def test_an_earlier_file_with_a_removed_option_at_its_off_value_still_loads():
+    from terratheme.core.classify.model_options import options_from_json, options_to_json
+
+    d = json.loads(json.dumps(options_to_json(SupervisedOptions())))
+    d["features"].update({"relative": False, "normalise": "none"})
+    assert options_from_json(d) == SupervisedOptions()

@@ -10,8 +10,7 @@ flat photo stays flat (design.md §3). Columns, in order:
               smoothed Lab, the local L std ``sqrt(G*L^2 - (G*L)^2)``, the gradient
               magnitude of the smoothed L and (``hessian``) its two Hessian eigenvalues
               times sigma^2; then, if set: fine ridges (``ridge_sigmas``,
-              :mod:`core.classify.ridges`), lightness over the widest context's
-              (``relative``), structure (:mod:`core.classify.texture`), and the
+              :mod:`core.classify.ridges`), structure (:mod:`core.classify.texture`), and the
               position (2, :mod:`core.classify.position`).
 """
 
@@ -37,16 +36,12 @@ class FeatureSet(enum.Enum):
     DEFAULT = "default"
 
 
-#: relative lightness: added to the context lightness (L units) so dark context stays finite
-RELATIVE_FLOOR = 5.0
-
-
 @dataclass(frozen=True)
 class FeatureOptions:
     """How features are computed (the columns: module docstring): ``scale`` photo pixels per
     coarse pixel, ``sigmas`` Gaussian scales in coarse pixels, ``ridge_sigmas`` fine ridge
     scales in photo pixels (two features each), and the optional groups ``hessian``,
-    ``relative``, ``structure``, ``position``.
+    ``structure``, ``position``.
     """
 
     feature_set: FeatureSet = FeatureSet.DEFAULT
@@ -55,7 +50,6 @@ class FeatureOptions:
     hessian: bool = False
     position: bool = False
     ridge_sigmas: tuple[float, ...] = ()
-    relative: bool = False
     structure: bool = False
 
     def __post_init__(self) -> None:
@@ -64,8 +58,6 @@ class FeatureOptions:
         if any(s <= 0 for s in (*self.sigmas, *self.ridge_sigmas)):
             raise TerrathemeError(f"feature sigmas must be positive, not {self.sigmas} / "
                                   f"{self.ridge_sigmas}")
-        if self.relative and not self.sigmas:
-            raise TerrathemeError("relative lightness needs at least one sigma (its context)")
 
     @property
     def n_features(self) -> int:
@@ -79,7 +71,7 @@ class FeatureOptions:
             return 3
         per_sigma = 7 if self.hessian else 5
         return (3 + (1 if self.scale > 1 else 0) + per_sigma * len(self.sigmas)
-                + 2 * len(self.ridge_sigmas) + (len(self.sigmas) if self.relative else 0)
+                + 2 * len(self.ridge_sigmas)
                 + texture_count(self.sigmas, self.structure))
 
     @property
@@ -116,12 +108,10 @@ def features_from_lab(
     lum = np.ascontiguousarray(lab[:, :, 0])
     # Second moment of the photo's lightness per block: block variance + block mean^2.
     lum_sq = block_std * block_std + lum * lum
-    smooth_lum = []
     for sigma in options.sigmas:
         # Context colour: Lab smoothed at this scale.
         smooth = context_blur(lab, sigma)
         out[:, :, i : i + 3] = smooth
-        smooth_lum.append(out[:, :, i])
         # Local lightness std of the photo pixels: sqrt(G*L^2 - (G*L)^2).
         mean_sq = context_blur(lum_sq, sigma)
         out[:, :, i + 3] = np.sqrt(np.maximum(mean_sq - smooth[:, :, 0] ** 2, 0.0))
@@ -144,12 +134,6 @@ def features_from_lab(
             raise TerrathemeError("ridge_sigmas needs the block_ridges of the same pixels")
         out[:, :, i : i + ridges.shape[2]] = ridges
         i += ridges.shape[2]
-    if options.relative:
-        # Lightness over the widest context's lightness: unchanged by the photo's exposure.
-        context = smooth_lum[-1] + np.float32(RELATIVE_FLOOR)
-        for j, near in enumerate([lum, *smooth_lum[:-1]]):
-            out[:, :, i + j] = near / context
-        i += len(options.sigmas)
     n_texture = texture_count(options.sigmas, options.structure)
     if n_texture:
         if texture is None or texture.shape != (h, w, n_texture):

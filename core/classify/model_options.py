@@ -74,7 +74,7 @@ def _choice(enum_type):
 _FEATURE_RULES = {
     "feature_set": _choice(FeatureSet), "scale": number_rule(1, 64, whole=True),
     "sigmas": _numbers(1e-3, 64), "hessian": _flag, "position": _flag,
-    "ridge_sigmas": _numbers(1e-3, 64), "relative": _flag, "structure": _flag,
+    "ridge_sigmas": _numbers(1e-3, 64), "structure": _flag,
 }
 _REGULARISE_RULES = {
     "method": _choice(Regularisation), "sigma": number_rule(1e-3, 64),
@@ -97,7 +97,7 @@ _OPTION_RULES = {
 _RETIRED = {
     "options": {"forest": ("extra-trees",), "active_vars": None, "target_prior_power": (0,)},
     "options.features": {"normalise": ("none",), "skimage_sigma_max": None,
-                         "profile_radii": ([],)},
+                         "profile_radii": ([],), "relative": (False,)},
     "options.regularisation": {"region_size": None, "ruler": None},
 }
 
