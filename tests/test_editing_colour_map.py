@@ -100,3 +100,37 @@ def test_without_a_map_an_edit_records_only_the_paint():
     doc.texture.colour_map = None
     step = doc.fill_rect((1, 1), (2, 2), 1)
     assert len(step.changes) == 1
+
+
+def test_a_new_project_over_a_photo_gets_detail_themes_under_a_fitted_map():
+    from terratheme.core.edit.classification import ClassifyMode, run_classification
+
+    # Two flat halves with a fine grain: green and blue.
+    rng = np.random.default_rng(1)
+    photo = (rng.integers(-12, 13, (64, 96, 3)) + 100).astype(np.uint8)
+    photo[:, :48] += np.array([0, 60, 0], np.uint8)
+    photo[:, 48:] += np.array([0, 0, 80], np.uint8)
+    doc = _doc()
+    doc.texture.colour_map = None
+    doc.data.theme_gains = None
+    update, _ = run_classification(ClassifyMode.UNSUPERVISED_NEW, photo, None, doc.library,
+                                   CELL, (9, 13), None, replace_themes=True)
+    # Detail themes are ratios around mid-grey; the colour is in the map.
+    for theme in update.new_themes:
+        assert abs(theme.texture.mean() - NEUTRAL) < 3
+    doc = EditDocument(ThematicTexture(IndexGrid(np.zeros((9, 13), np.uint8), CELL),
+                                       doc.library, {}, photo=photo))
+    doc.apply_classification(update)
+    shown = render_project(doc.texture).astype(float)[:64, :96]
+    # The render keeps each half's colour (green left, blue right), within the map's error.
+    assert np.abs(shown[:, :40].mean(axis=(0, 1)) - (100, 160, 100)).max() < 8
+    assert np.abs(shown[:, 56:].mean(axis=(0, 1)) - (100, 100, 180)).max() < 8
+    # One step: undo takes the map and the themes back.
+    doc.undo()
+    assert doc.texture.colour_map is None
+    # Painting the green theme into the blue half takes green's colour from the map.
+    doc.redo()
+    green = int(doc.indices[4, 1])
+    doc.fill_rect((10, 4), (10, 4), green)
+    shown = render_project(doc.texture).astype(float)
+    assert np.abs(shown[30:34, 78:82].mean(axis=(0, 1)) - (100, 160, 100)).max() < 12

@@ -231,15 +231,20 @@ def grid_and_colour(
         vote_grid(theme_labels, size, keep_specks=keep_specks), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
                                                                   max_pixels=1 << 22)
-    fitted = None
-    if colour_map is not None:
-        # The colour map is fitted to the render it multiplies.
-        plain = render_cells(grid, mapping.library.textures, options=render)
-        # A byte budget covers the packed grid too.
-        reserved = 0
-        if colour_map.target is None:
-            known = choice.packed_bytes if choice is not None else None
-            reserved = packed_bytes(grid) if known is None else known
-        fitted = choose_colour_map(rgb, plain, colour_map, reserved=reserved)
+    fitted = None if colour_map is None else fit_colour_map(
+        rgb, grid, mapping.library, colour_map, render,
+        packed=choice.packed_bytes if choice is not None else None)
     return GridResult(grid, choice, score, fitted)
+
+
+def fit_colour_map(rgb: np.ndarray, grid: IndexGrid, library: ThemeLibrary,
+                   colour_map: ColourMapOptions = ColourMapOptions(),
+                   render: RenderOptions = RenderOptions(), *,
+                   packed: int | None = None) -> FittedColourMap:
+    """The colour map fitted to the render it multiplies; a byte budget covers the packed
+    grid too (``packed``: its bytes, when known)."""
+    plain = render_cells(grid, library.textures, options=render)
+    reserved = 0 if colour_map.target is not None else (
+        packed_bytes(grid) if packed is None else packed)
+    return choose_colour_map(rgb, plain, colour_map, reserved=reserved)
 

@@ -119,11 +119,15 @@ class SetColourMap:
         return sum(c.pixels.nbytes for c in (self.old, self.new) if c is not None)
 
     def apply(self, data: DocumentData) -> list[Event]:
-        data.texture.colour_map = self.new
-        return [ColourMapChange(self.region)]
+        return self._swap(data, self.new)
 
     def revert(self, data: DocumentData) -> list[Event]:
-        data.texture.colour_map = self.old
+        return self._swap(data, self.old)
+
+    def _swap(self, data: DocumentData, cmap: ColourMap | None) -> list[Event]:
+        data.texture.colour_map = cmap
+        if self.region is None:
+            data.theme_gains = None  # a whole new map: its themes' gains taken afresh
         return [ColourMapChange(self.region)]
 
 
@@ -163,7 +167,7 @@ def repaint_colour_map(data: DocumentData, atom: Atom) -> SetColourMap | None:
     if not hit.any():
         return None
     # Each theme's gain as opened; NEUTRAL where the map never had it.
-    gains = data.theme_gains if data.theme_gains is not None else np.full((256, 3), np.nan)
+    gains = data.colour_gains()
     table = np.where(np.isnan(gains), NEUTRAL, np.rint(gains)).astype(np.uint8)
     pixels = cmap.pixels.copy()
     block = pixels[j0:j1, i0:i1]

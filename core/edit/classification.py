@@ -25,6 +25,7 @@ from terratheme.core.edit.changes import (
 from terratheme.core.edit.layers import DocumentData, Layer, validate_confidence
 from terratheme.core.edit.uncertainty import next_kept_prior, scribble_classes
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.themes.library import Theme, ThemeLibrary
 
 
@@ -37,6 +38,7 @@ class ClassificationUpdate:
     ``replace_themes``. ``confidence`` (H, W) float in [0, 1] replaces the old map
     (None clears it). ``scribble_classes``, ``class_weights``: scribble runs' classes
     and prior weights (:func:`~core.edit.uncertainty.next_kept_prior`); None: unchanged.
+    ``colour_map``: with ``replace_themes``, the map fitted to the new themes (None: none).
     """
 
     indices: np.ndarray
@@ -45,6 +47,7 @@ class ClassificationUpdate:
     confidence: np.ndarray | None = None
     scribble_classes: frozenset[int] | None = None
     class_weights: Mapping[int, float] | None = None
+    colour_map: ColourMap | None = None
 
 
 def classification_changes(data: DocumentData, update: ClassificationUpdate) -> list[Change]:
@@ -74,10 +77,10 @@ def classification_changes(data: DocumentData, update: ClassificationUpdate) -> 
         prior = next_kept_prior(data.kept_prior, frozenset(u.scribble_classes), u.class_weights)
         if prior != data.kept_prior:
             changes.append(SetPrior(data.kept_prior, prior))
-    # New themes of their own: the colour map fitted to the old ones goes.
+    # New themes of their own: the colour map fitted to the old ones goes (or theirs comes).
     grid = grid_replacement(data, u.indices, len(library), neutral=not u.replace_themes)
-    if u.replace_themes and data.texture.colour_map is not None:
-        changes.append(SetColourMap(data.texture.colour_map, None))
+    if u.replace_themes and data.texture.colour_map is not u.colour_map:
+        changes.append(SetColourMap(data.texture.colour_map, u.colour_map))
     # Themes first (the new grid refers to them), then the grid, then the rest.
     n_themes = sum(isinstance(c, SetLibrary | AppendTheme) for c in changes)
     changes[n_themes:n_themes] = grid
@@ -135,8 +138,9 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
     replace ``library`` (a new project), so their names need not differ from it.
     """
     from terratheme.core.classify import SupervisedOptions, load_model
-    from terratheme.core.convert.labels_to_grid import labels_to_grid
-    from terratheme.core.convert.step import assign_themes, classify_photo
+    from terratheme.core.convert.labels_to_grid import apply_lut, labels_to_grid
+    from terratheme.core.convert.step import assign_themes, classify_photo, fit_colour_map
+    from terratheme.core.themes.detail import detail_themes
 
     # New themes follow the library, or replace it (their names then need not differ).
     taken, offset = ([], 0) if replace_themes else (list(library.names), len(library))
@@ -178,6 +182,14 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         raise TerrathemeError(
             f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
             f"with cell {cell}; the project grid is {grid_shape}")
+    colour_map = None
+    if replace_themes and new_themes:
+        # A new project gets what convert makes: detail themes under a fitted colour map.
+        detail, _ = detail_themes(photo[..., :3], apply_lut(result.labels, lut.astype(np.uint8)),
+                                  ThemeLibrary(new_themes))
+        new_themes = list(detail)
+        colour_map = fit_colour_map(photo[..., :3], grid, detail).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,
-                                  np.asarray(result.confidence, np.float32), painted, weights)
+                                  np.asarray(result.confidence, np.float32), painted, weights,
+                                  colour_map)
     return update, len(result.classes)

@@ -117,14 +117,20 @@ class DocumentData:
     confidence: np.ndarray | None = None
     kept_prior: KeptPrior | None = None
     scribble_counts: np.ndarray = field(default_factory=lambda: np.zeros(256, np.int64))
-    #: (256, 3) float32 each theme's mean colour-map gain as opened (NaN: none; no map: None)
+    #: :meth:`colour_gains` once taken (None: not yet)
     theme_gains: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.recount_scribbles()
+        self.colour_gains()
+
+    def colour_gains(self) -> np.ndarray | None:
+        """(256, 3) float32 :func:`theme_gains` of the colour map as opened or last replaced
+        whole (taken then, kept through repaints); None without a map."""
         cmap = self.texture.colour_map
-        if self.theme_gains is None and cmap is not None:
+        if cmap is not None and self.theme_gains is None:
             self.theme_gains = theme_gains(self.texture.grid, cmap.pixels, cmap.scale)
+        return None if cmap is None else self.theme_gains
 
     def layer(self, which: Layer) -> np.ndarray | None:
         """The array of ``which`` (None when the document has no such layer)."""
