@@ -132,13 +132,10 @@ class SetColourMap:
 
 
 def repaint_colour_map(data: DocumentData, atom: Atom) -> SetColourMap | None:
-    """The colour map under a repaint of the grid by ``atom`` (applied or not yet).
-
-    Map pixels nearest a repainted vertex take the new theme's mean gain in the map as
-    opened (:func:`~core.edit.layers.theme_gains`), so a painted theme looks as that
-    theme does elsewhere (detail themes carry no colour of their own); ``NEUTRAL`` for
-    a theme the map never had. None without a colour map or when nothing changes.
-    """
+    """The colour map under a grid repaint by ``atom`` (applied or not yet): map pixels
+    nearest a repainted vertex take the new theme's gain (:meth:`DocumentData.colour_gains`,
+    ``NEUTRAL`` if the map never had it), so it looks as it does elsewhere. None without
+    a map or when nothing changes."""
     cmap = data.texture.colour_map
     if cmap is None:
         return None

@@ -24,24 +24,6 @@ def nearest_vertices(count: int, scale: int, cell: int, vertices: int) -> np.nda
     return np.clip(np.floor(centre / cell + 0.5).astype(np.int64), 0, vertices - 1)
 
 
-def theme_gains(grid: IndexGrid, pixels: np.ndarray, scale: int) -> np.ndarray:
-    """(256, 3) float32: the mean gain of a colour map's ``pixels`` (h, w, 3) uint8 over
-    the map pixels nearest each theme's vertices; NaN for a theme with none.
-
-    With detail themes (mid-grey ratios) it is the theme's colour as the photo has it.
-    """
-    mh, mw = pixels.shape[:2]
-    vh, vw = grid.indices.shape
-    rows = nearest_vertices(mh, scale, grid.cell[1], vh)
-    cols = nearest_vertices(mw, scale, grid.cell[0], vw)
-    themes = grid.indices[rows[:, None], cols[None, :]].ravel()
-    counts = np.bincount(themes, minlength=256).astype(np.float64)
-    sums = np.stack([np.bincount(themes, pixels[..., c].ravel().astype(np.float64),
-                                 minlength=256) for c in range(3)], axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (sums / counts[:, None]).astype(np.float32)
-
-
 class Layer(Enum):
     """A layer of the document that an undoable change can paint or replace."""
 
@@ -125,11 +107,20 @@ class DocumentData:
         self.colour_gains()
 
     def colour_gains(self) -> np.ndarray | None:
-        """(256, 3) float32 :func:`theme_gains` of the colour map as opened or last replaced
-        whole (taken then, kept through repaints); None without a map."""
-        cmap = self.texture.colour_map
+        """(256, 3) float32 mean colour-map gain over the map pixels nearest each theme's
+        vertices (NaN: none; with detail themes, the theme's colour in the photo), taken
+        from the map as opened or last replaced whole; None without a map."""
+        cmap, grid = self.texture.colour_map, self.texture.grid
         if cmap is not None and self.theme_gains is None:
-            self.theme_gains = theme_gains(self.texture.grid, cmap.pixels, cmap.scale)
+            (mh, mw), (vh, vw) = cmap.pixels.shape[:2], grid.indices.shape
+            rows = nearest_vertices(mh, cmap.scale, grid.cell[1], vh)
+            cols = nearest_vertices(mw, cmap.scale, grid.cell[0], vw)
+            themes = grid.indices[rows[:, None], cols[None, :]].ravel()
+            counts = np.bincount(themes, minlength=256)[:, None]
+            sums = np.stack([np.bincount(themes, cmap.pixels[..., c].ravel().astype(float),
+                                         minlength=256) for c in range(3)], axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                self.theme_gains = (sums / counts).astype(np.float32)
         return None if cmap is None else self.theme_gains
 
     def layer(self, which: Layer) -> np.ndarray | None:
