@@ -177,7 +177,8 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
             new_themes, lut = class_themes(photo, labels, classes, taken)
             lut = lut + offset
     # Lone specks removed, as convert does (core.convert.specks).
-    grid = labels_to_grid(result.labels, cell, lut=lut, keep_specks=False)
+    theme_labels = apply_lut(result.labels, lut)
+    grid = labels_to_grid(theme_labels, cell, keep_specks=False)
     if grid.indices.shape != grid_shape:
         raise TerrathemeError(
             f"the photo ({photo.shape[1]} x {photo.shape[0]}) gives a {grid.indices.shape} grid "
@@ -185,8 +186,7 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
     colour_map = None
     if replace_themes and new_themes:
         # A new project gets what convert makes: detail themes under a fitted colour map.
-        detail, _ = detail_themes(photo[..., :3], apply_lut(result.labels, lut.astype(np.uint8)),
-                                  ThemeLibrary(new_themes))
+        detail, _ = detail_themes(photo[..., :3], theme_labels, ThemeLibrary(new_themes))
         new_themes = list(detail)
         colour_map = fit_colour_map(photo[..., :3], grid, detail).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,
