@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from terratheme.core.themes.detail import (
+    DETAIL_CONTRAST,
     NEUTRAL,
     detail_texture,
     detail_themes,
@@ -51,15 +52,17 @@ def test_detail_gain_brings_the_theme_to_the_photo_contrast():
                         Theme("b", (1, 2, 3), theme.astype(np.uint8))])
     labels = np.zeros((32, 32), np.uint8)  # every pixel takes theme 0
     themes, gains = detail_themes(photo.astype(np.uint8), labels, lib)
-    assert gains[0] == pytest.approx(2.0, rel=0.1)
+    # The photo's checkerboard swings twice as far as the theme's, then DETAIL_CONTRAST more.
+    assert gains[0] == pytest.approx(2.0 * DETAIL_CONTRAST, rel=0.1)
     assert gains[1] == 1.0  # no pixel takes it
     made = themes[0].texture
     assert np.array_equal(made, detail_texture(theme.astype(np.uint8), gain=gains[0]))
-    # The made theme's checkerboard swings as far as the photo's: +-10% around its mean.
-    assert np.abs(made.astype(float) / NEUTRAL - 1).mean() == pytest.approx(0.1, rel=0.2)
+    # The made theme swings +-10% around its mean as the photo does, times DETAIL_CONTRAST.
+    assert np.abs(made.astype(float) / NEUTRAL - 1).mean() == pytest.approx(
+        0.1 * DETAIL_CONTRAST, rel=0.2)
 
 
-def test_a_fragment_theme_gets_half_the_photo_contrast():
+def test_a_fragment_theme_gets_a_fragment_gain_of_the_contrast():
     from terratheme.core.themes.detail import FRAGMENT_COHERENCE, FRAGMENT_GAIN, edge_coherence
 
     xx = np.indices((32, 32))[1]
@@ -70,7 +73,7 @@ def test_a_fragment_theme_gets_half_the_photo_contrast():
     assert edge_coherence(theme.astype(np.uint8)) > FRAGMENT_COHERENCE
     lib = ThemeLibrary([Theme("town", (1, 2, 3), theme.astype(np.uint8))])
     gains = detail_themes(photo.astype(np.uint8), np.zeros((32, 32), np.uint8), lib)[1]
-    assert gains[0] == pytest.approx(2.0 * FRAGMENT_GAIN, rel=0.1)
+    assert gains[0] == pytest.approx(2.0 * DETAIL_CONTRAST * FRAGMENT_GAIN, rel=0.1)
 
 
 def test_detail_themes_keep_names_and_colours_each_at_its_gain():
@@ -141,7 +144,7 @@ def test_edge_coherence_of_stripes_flat_and_grain():
 
 def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
     from terratheme.core.themes.detail import (
-        CALM_SIGMA,
+        DETAIL_SIGMA,
         FRAGMENT_COHERENCE,
         edge_coherence,
         even_detail,
@@ -149,12 +152,11 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
     )
 
     pieces = _road_pieces()
-    rel, sigma, fragment = theme_detail(pieces)
+    rel, fragment = theme_detail(pieces)
     assert fragment
-    assert sigma == CALM_SIGMA
-    # Random phases keep the power spectrum (Parseval): the energy of even_detail at CALM_SIGMA.
+    # Random phases keep the power spectrum (Parseval): the energy of even_detail.
     assert float((rel ** 2).mean()) == pytest.approx(
-        float((even_detail(pieces, CALM_SIGMA) ** 2).mean()), rel=1e-4)
+        float((even_detail(pieces, DETAIL_SIGMA) ** 2).mean()), rel=1e-4)
     # The pieces' edges are gone (the old detail texture kept them: coherence 0.64) ...
     assert edge_coherence(detail_texture(pieces)) < FRAGMENT_COHERENCE
     # ... the result still tiles (random phases commute with a shift) ...
@@ -162,5 +164,5 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
                        atol=1e-5)
     # ... and an isotropic grain theme is left as it was.
     grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
-    same, s, fragment = theme_detail(grain)
-    assert s == 3.0 and not fragment and np.array_equal(same, even_detail(grain))
+    same, fragment = theme_detail(grain)
+    assert not fragment and np.array_equal(same, even_detail(grain))

@@ -62,7 +62,7 @@ class ColourMapOptions:
     quality: int = 99
     iterations: int = 2
     budget: float = 0.04
-    budget_scales: tuple[int, ...] = (16, 12, 8, 6, 4)
+    budget_scales: tuple[int, ...] = (16, 12, 8, 6, 4, 3)
 
     def __post_init__(self) -> None:
         for name in ("scales", "budget_scales"):

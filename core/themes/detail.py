@@ -13,7 +13,9 @@ from skimage.feature import structure_tensor
 from terratheme.core.themes.library import ThemeLibrary
 
 #: Gaussian sigma (texels) above which a detail theme is flat
-DETAIL_SIGMA = 3.0
+DETAIL_SIGMA = 1.5
+#: a detail theme's contrast over the photo's at :data:`DETAIL_SIGMA` in its class
+DETAIL_CONTRAST = 1.5
 #: the value of a detail theme's mean (the colour map's neutral gain)
 NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_themes`
@@ -24,8 +26,8 @@ EVEN_SIGMA = 4.0
 EVEN_RANGE = (0.25, 4.0)
 #: :func:`edge_coherence` above which a theme's detail is made of fragments (:func:`theme_detail`)
 FRAGMENT_COHERENCE = 0.55
-#: Gaussian sigma (texels) of a fragment theme's detail (:func:`theme_detail`)
-CALM_SIGMA = 2.5
+#: Gaussian sigma (texels) at which :func:`theme_detail` measures :func:`edge_coherence`
+COHERENCE_SIGMA = 3.0
 #: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
 FRAGMENT_GAIN = 0.5
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
@@ -56,7 +58,7 @@ def even_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
     return rel * factor[:, :, None].astype(np.float32)
 
 
-def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
+def edge_coherence(texture: np.ndarray, sigma: float = COHERENCE_SIGMA) -> float:
     """Share of a tileable texture's fine contrast along oriented edges, 0..1.
 
     From the structure tensor of the luma's ``t / blur(t) - 1``:
@@ -71,24 +73,23 @@ def edge_coherence(texture: np.ndarray, sigma: float = DETAIL_SIGMA) -> float:
 
 
 def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
-                 ) -> tuple[np.ndarray, float, bool]:
-    """((h, w, 3) float32, sigma, fragment): a theme's :func:`even_detail`, the sigma it was
-    taken at, and whether the theme is made of oriented fragments.
+                 ) -> tuple[np.ndarray, bool]:
+    """((h, w, 3) float32, fragment): a theme's :func:`even_detail` and whether the theme
+    is made of oriented fragments.
 
-    A fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) keeps
-    only detail finer than ``CALM_SIGMA``, its phases randomised (seeded): the map's own
-    streets then read through, not a kaleidoscope of pieces.
+    A fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) has
+    its detail's phases randomised (seeded): the map's own streets then read through, not
+    a kaleidoscope of pieces.
     """
-    if edge_coherence(texture, sigma) <= FRAGMENT_COHERENCE:
-        return even_detail(texture, sigma), sigma, False
-    sigma = min(sigma, CALM_SIGMA)
     rel = even_detail(texture, sigma)
+    if edge_coherence(texture) <= FRAGMENT_COHERENCE:
+        return rel, False
     noise = np.random.default_rng(PHASE_SEED).standard_normal(rel.shape[:2])
     phases = np.exp(1j * np.angle(np.fft.fft2(noise)))
     phases[0, 0] = 1.0  # the mean stays
     phases = phases[:, :, None]
     out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases, axes=(0, 1)).real
-    return out.astype(np.float32), sigma, True
+    return out.astype(np.float32), True
 
 
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
@@ -106,31 +107,31 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
                   sigma: float = DETAIL_SIGMA) -> tuple[ThemeLibrary, list[float]]:
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
-    Gain: ``sqrt(photo energy over the theme's pixels / theme energy)`` at the sigma of
-    :func:`theme_detail` (times ``FRAGMENT_GAIN`` for a fragment theme), clipped to
-    ``GAIN_RANGE``; 1 for an unused or flat theme. ``photo``: (H, W, 3) uint8;
-    ``theme_labels``: (H, W) uint8 theme per pixel. Names and colours are kept.
+    Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
+    ``sigma`` (times ``FRAGMENT_GAIN`` for a fragment theme), clipped to ``GAIN_RANGE``; 1
+    for an unused or flat theme. The finest band alone, a little stronger than the photo's,
+    stands in for the photo's detail without putting texture where a 4x view sees blocks.
+    ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel. Names and
+    colours are kept.
     """
     details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
     counts = np.bincount(labels, minlength=len(details))
-    sums: dict[float, np.ndarray] = {}
+    sums = np.bincount(labels, (_relative(y, sigma, wrap=False) ** 2).ravel(),
+                       minlength=len(details))
     gains = []
-    for k, (rel, s, fragment) in enumerate(details):
+    for k, (rel, fragment) in enumerate(details):
         own = float((rel.mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
-        if s not in sums:
-            sums[s] = np.bincount(labels, (_relative(y, s, wrap=False) ** 2).ravel(),
-                                  minlength=len(details))
-        gain = np.sqrt(sums[s][k] / counts[k] / own)
+        gain = DETAIL_CONTRAST * np.sqrt(sums[k] / counts[k] / own)
         if fragment:
             # Scrambled fragments match the photo's edges in energy only: at full contrast
             # they read as dark speckle over the map's streets.
             gain *= FRAGMENT_GAIN
         gains.append(float(np.clip(gain, *GAIN_RANGE)))
     themes = ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
-                          for t, (rel, _, _), g in zip(library, details, gains, strict=True))
+                          for t, (rel, _), g in zip(library, details, gains, strict=True))
     return themes, gains
