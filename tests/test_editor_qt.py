@@ -396,3 +396,32 @@ def test_both_views_show_the_whole_map_when_the_window_opens(small_texture, qtbo
         assert 0 <= top_left.x() and bottom_right.x() <= canvas.width()
         assert 0 <= top_left.y() and bottom_right.y() <= canvas.height()
     win.wait_for_jobs()
+
+
+def test_palette_shows_a_detail_theme_in_the_colour_the_map_gives_it(open_window):
+    from PySide6.QtCore import QSize
+    from terratheme.app.editor.document import EditorDocument
+    from terratheme.app.editor.palette import THUMB
+    from terratheme.core.model.colour_map import ColourMap
+    from terratheme.core.model.grid import IndexGrid
+    from terratheme.core.model.project import ThematicTexture
+    from terratheme.core.themes.library import ThemeLibrary
+
+    grey = np.full((8, 8, 3), 128, np.uint8)  # a detail theme with no fine contrast
+    lib = ThemeLibrary([Theme("sand", (200, 180, 120), grey), Theme("water", (40, 80, 170), grey)])
+    grid = IndexGrid(np.zeros((9, 13), np.uint8), (8, 8))  # every vertex sand
+    pixels = np.empty((*ColourMap.shape_for(grid.texture_size, 4), 3), np.uint8)
+    pixels[...] = (200, 100, 50)
+    window = open_window(EditorDocument(ThematicTexture(grid, lib, {},
+                                                        colour_map=ColourMap(pixels, 4))))
+
+    def swatch(row):
+        icon = window.palette_widget.list.item(row).icon()
+        image = icon.pixmap(QSize(THUMB + 10, THUMB)).toImage()
+        c = image.pixelColor(10 + THUMB // 2, THUMB // 2)
+        return c.red(), c.green(), c.blue()
+
+    # Sand: grey 128 under a stored gain of (200, 100, 50) / 128 renders as that colour.
+    assert swatch(0) == pytest.approx((200, 100, 50), abs=2)
+    # Water has no vertex, so no gain: its texture as it is.
+    assert swatch(1) == pytest.approx((128, 128, 128), abs=2)

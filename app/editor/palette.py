@@ -19,14 +19,23 @@ from PySide6.QtWidgets import (
 from terratheme.app.editor.document import EditorDocument
 from terratheme.app.editor.imaging import qimage_view
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.model.colour_map import NEUTRAL
 from terratheme.core.themes.library import Theme
 
 THUMB = 44
 
 
-def theme_icon(theme: Theme) -> QIcon:
-    """A thumbnail of the theme's texture with its display colour as a side bar."""
-    tex = np.ascontiguousarray(theme.texture)
+def theme_icon(theme: Theme, gain: np.ndarray | None = None) -> QIcon:
+    """A thumbnail of the theme's texture with its display colour as a side bar.
+
+    ``gain``: (3,) the colour map's mean stored gain over the theme (NaN or None: no map
+    there); the thumbnail shows the texture under it, as the render does, so a detail
+    theme (mid-grey, its colour in the map) shows its colour.
+    """
+    tex = np.asarray(theme.texture)
+    if gain is not None and np.isfinite(gain).all():
+        tex = np.clip(tex * (np.asarray(gain, np.float32) / NEUTRAL), 0, 255).astype(np.uint8)
+    tex = np.ascontiguousarray(tex)
     img = qimage_view(tex).scaled(THUMB, THUMB, Qt.AspectRatioMode.IgnoreAspectRatio,
                                   Qt.TransformationMode.SmoothTransformation)
     pix = QPixmap(THUMB + 10, THUMB)
@@ -88,9 +97,10 @@ class ThemePalette(QWidget):
         row = self.list.currentRow()
         self.list.blockSignals(True)
         self.list.clear()
+        gains = self.doc.model.data.colour_gains()
         for k, theme in enumerate(self.doc.texture.library):
             label = f"{k + 1}  {theme.name}" if k < 9 else f"    {theme.name}"
-            item = QListWidgetItem(theme_icon(theme), label)
+            item = QListWidgetItem(theme_icon(theme, None if gains is None else gains[k]), label)
             item.setToolTip(f"{theme.name}: colour {theme.colour}, "
                             f"texture {theme.texture.shape[1]} x {theme.texture.shape[0]}"
                             f"{', ' + theme.source if theme.source else ''}")
