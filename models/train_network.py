@@ -227,6 +227,7 @@ def write_index(out: Path, scores: dict | None, holdout: int, done: int, total: 
     index_path = out / "models.json"
     index = json.loads(index_path.read_text()) if index_path.is_file() else {"models": {}}
     data = (out / FILE).read_bytes()
+    tiles = sorted(set(range(1, 7)) - {holdout})
     held = (f"scores on held-out tile {holdout} (never seen in training)" if holdout
             else "trained on every tile (no held-out scores)")
     index["models"][NAME] = {
@@ -234,10 +235,11 @@ def write_index(out: Path, scores: dict | None, holdout: int, done: int, total: 
         "classes": {str(k): v for k, v in CLASS_NAMES.items()},
         "description": ("aerial / satellite orthophotos: building, land, road, vegetation, "
                         f"water (light U-Net, run at {SCALE}x the photo's size; trained on "
-                        f"Dubai tiles {sorted(set(range(1, 7)) - {holdout})}, checkpoint {done} of "
+                        f"Dubai tiles {tiles}, checkpoint {done} of "
                         f"{total} iterations; {held})"),
         "trained_on": ("Humans in the Loop, 'Semantic segmentation of aerial imagery' "
                        "(Dubai, MBRSC), CC0 1.0"),
+        "tiles": tiles,
         "scale": SCALE,
         "multiple": MULTIPLE,
         "scores": scores or {},
