@@ -40,6 +40,7 @@ sys.path.insert(0, str(HERE.parent / "models"))
 from classify_aerial import COMMON, shared_scores  # noqa: E402
 from classify_eval import confusion, scores  # noqa: E402
 from terratheme.core.classify import load_model, train_classifier  # noqa: E402
+from terratheme.core.classify.shipped import SHIPPED_MODELS_DIR  # noqa: E402
 from terratheme.core.io.images import read_image  # noqa: E402
 
 DATA = HERE.parent.parent / "shared" / "data"
@@ -128,7 +129,7 @@ def main() -> int:
     parser.add_argument("--only", default="network,forest,forest-holdout",
                         help="rows to measure (comma-separated); the others are kept from "
                              "the results file")
-    parser.add_argument("--models", type=Path, default=None,
+    parser.add_argument("--models", type=Path, default=SHIPPED_MODELS_DIR,
                         help="folder of a candidate network's models.json (default: shipped)")
     args = parser.parse_args()
     only = set(args.only.split(","))
@@ -147,8 +148,7 @@ def main() -> int:
         if name not in only:
             continue
         if name == "network":
-            model = (load_model("aerial") if args.models is None
-                     else load_model("aerial", args.models))
+            model = load_model("aerial", args.models)
             out["network_file"] = {"file": model.path.name,
                                    "bytes": model.path.stat().st_size}
             index = json.loads((model.path.parent / "models.json").read_text())

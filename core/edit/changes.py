@@ -263,12 +263,12 @@ def drop_prior_without_classes(data: DocumentData, classes: frozenset[int]) -> l
 
 
 def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
-                     neutral: bool = True) -> list[Change]:
+                     repaint_map: bool = True) -> list[Change]:
     """The paint that turns the grid into ``indices`` (empty when equal), checked first.
 
     ``n_themes`` is the library size the new grid will index (after any theme
-    change); with ``neutral`` the colour map goes neutral where the grid
-    changed (:func:`repaint_colour_map`).
+    change); with ``repaint_map`` the colour map takes the new themes' gains where the
+    grid changed (:func:`repaint_colour_map`).
     """
     new = np.asarray(indices)
     grid = data.texture.grid.indices
@@ -280,6 +280,6 @@ def grid_replacement(data: DocumentData, indices: object, n_themes: int, *,
     atom = replace_atoms(grid, new)
     if atom is None:
         return []
-    swap = repaint_colour_map(data, atom) if neutral else None
+    swap = repaint_colour_map(data, atom) if repaint_map else None
     return [Paint(Layer.GRID, atom), *([swap] if swap is not None else [])]
 

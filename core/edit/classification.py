@@ -78,7 +78,7 @@ def classification_changes(data: DocumentData, update: ClassificationUpdate) -> 
         if prior != data.kept_prior:
             changes.append(SetPrior(data.kept_prior, prior))
     # New themes of their own: the colour map fitted to the old ones goes (or theirs comes).
-    grid = grid_replacement(data, u.indices, len(library), neutral=not u.replace_themes)
+    grid = grid_replacement(data, u.indices, len(library), repaint_map=not u.replace_themes)
     if u.replace_themes and data.texture.colour_map is not u.colour_map:
         changes.append(SetColourMap(data.texture.colour_map, u.colour_map))
     # Themes first (the new grid refers to them), then the grid, then the rest.

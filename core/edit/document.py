@@ -196,9 +196,9 @@ class EditDocument:
         atom = EditAtom.record(self.indices, fp, value)
         if atom is None:
             return None
-        neutral = repaint_colour_map(self.data, atom)
+        recolour = repaint_colour_map(self.data, atom)
         return self._commit(label, [Paint(Layer.GRID, atom),
-                                    *([neutral] if neutral is not None else [])])
+                                    *([recolour] if recolour is not None else [])])
 
     def fill_rect(self, p0: tuple[float, float], p1: tuple[float, float], value: int
                   ) -> Step | None:

@@ -79,8 +79,8 @@ class Stroke:
         prior = (drop_prior_without_classes(self.data, self.data.scribble_classes())
                  if self.layer is Layer.SCRIBBLES else [])
         # A repainted grid shows its new themes' colours (no stale colour-map gain).
-        neutral = (repaint_colour_map(self.data, merged)
-                   if self.layer is Layer.GRID else None)
-        after = [*prior, *([neutral] if neutral is not None else [])]
+        recolour = (repaint_colour_map(self.data, merged)
+                    if self.layer is Layer.GRID else None)
+        after = [*prior, *([recolour] if recolour is not None else [])]
         events = [e for c in after for e in c.apply(self.data)]
         return [*self.before, Paint(self.layer, merged), *after], events
