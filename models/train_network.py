@@ -19,6 +19,10 @@ runs on the photo resized by :data:`SCALE`; training crops are drawn around
 that scale with scale, rotation, flip, colour, exposure, blur, noise and JPEG
 augmentation so that it carries to other areas and sensors.
 
+``--channels`` sets the four levels' widths (default :data:`CHANNELS`); a checkpoint's widths
+are read from its weights, and ``--continue`` / ``--resume`` with other widths stop with a
+clear message.
+
 The shipped model: ``--holdout 0 --iterations 4500 --every 500`` (seed 0; all six tiles),
 about 30 minutes on a quiet 2-core machine; the recipe is validated with ``--holdout 1``,
 whose tile-1 scores the index keeps. A run stopped at a checkpoint (``--checkpoints C``)
@@ -78,6 +82,7 @@ class LightUNet(nn.Module):
     def __init__(self, channels: tuple[int, ...] = CHANNELS, n_classes: int = N_CLASSES):
         super().__init__()
         c1, c2, c3, c4 = channels
+        self.channels = tuple(channels)
         self.register_buffer("mean", torch.tensor(MEAN).view(1, 3, 1, 1))
         self.register_buffer("std", torch.tensor(STD).view(1, 3, 1, 1))
         self.enc1 = nn.Sequential(conv(3, c1), conv(c1, c1))
@@ -223,19 +228,22 @@ def export(net: LightUNet, path: Path) -> None:
     net.train()
 
 
-def write_index(out: Path, scores: dict | None, holdout: int, done: int, total: int) -> None:
-    """The model's entry in ``models.json`` (other entries kept)."""
+def write_index(out: Path, scores: dict | None, holdout: int, done: int, total: int,
+                channels: tuple[int, ...] = CHANNELS) -> None:
+    """The model's entry in ``models.json`` (other entries kept; widths named unless default)."""
     index_path = out / "models.json"
     index = json.loads(index_path.read_text()) if index_path.is_file() else {"models": {}}
     data = (out / FILE).read_bytes()
     tiles = sorted(set(range(1, 7)) - {holdout})
     held = (f"scores on held-out tile {holdout} (never seen in training)" if holdout
             else "trained on every tile (no held-out scores)")
+    net = "light U-Net" if tuple(channels) == CHANNELS else \
+        f"light U-Net, channels {'/'.join(map(str, channels))}"
     index["models"][NAME] = {
         "file": FILE,
         "classes": {str(k): v for k, v in CLASS_NAMES.items()},
         "description": ("aerial / satellite orthophotos: building, land, road, vegetation, "
-                        f"water (light U-Net, run at {SCALE}x the photo's size; trained on "
+                        f"water ({net}, run at {SCALE}x the photo's size; trained on "
                         f"Dubai tiles {tiles}, checkpoint {done} of "
                         f"{total} iterations; {held})"),
         "trained_on": ("Humans in the Loop, 'Semantic segmentation of aerial imagery' "
@@ -259,6 +267,21 @@ def class_weights(pairs: list) -> torch.Tensor:
     return torch.tensor(w / w.mean(), dtype=torch.float32)
 
 
+def checkpoint_channels(state: dict) -> tuple[int, ...]:
+    """The four level widths of a :class:`LightUNet` state dict (first conv of each level)."""
+    return tuple(int(state[f"enc{level}.0.0.weight"].shape[0]) for level in range(1, 5))
+
+
+def load_checkpoint(path: Path, channels: tuple[int, ...], weights_only: bool) -> dict:
+    """A checkpoint of a net with ``channels``; exits with one line if its widths differ."""
+    saved = torch.load(path, weights_only=weights_only)
+    found = checkpoint_channels(saved["net"])
+    if found != tuple(channels):
+        raise SystemExit(f"{path}: checkpoint has channels {' '.join(map(str, found))}, "
+                         f"this run --channels {' '.join(map(str, channels))}")
+    return saved
+
+
 def resume_run(path: Path, net: LightUNet, opt: torch.optim.Optimizer,
                sched: torch.optim.lr_scheduler.LRScheduler, train: list, sizes: np.ndarray,
                rng: np.random.Generator) -> int:
@@ -268,7 +291,7 @@ def resume_run(path: Path, net: LightUNet, opt: torch.optim.Optimizer,
     same iteration and the crop generator is restored (or, for a checkpoint that lacks its
     state, replayed batch by batch), so the run goes on exactly as if never stopped.
     """
-    saved = torch.load(path, weights_only=False)
+    saved = load_checkpoint(path, net.channels, weights_only=False)
     done = int(saved["it"])
     net.load_state_dict(saved["net"])
     with warnings.catch_warnings():
@@ -291,6 +314,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=480)
     parser.add_argument("--every", type=int, default=80)
     parser.add_argument("--holdout", type=int, default=1, help="tile left out (0: none)")
+    parser.add_argument("--channels", type=int, nargs=4, default=list(CHANNELS),
+                        metavar="C", help="widths of the four levels (default %(default)s)")
     parser.add_argument("--lr", type=float, default=4e-3)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", type=Path, default=None,
@@ -303,6 +328,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--checkpoints", type=Path, default=None,
                         help="folder for .pt checkpoints (default: none kept)")
     args = parser.parse_args(argv)
+    if min(args.channels) < 1:
+        parser.error("--channels must be positive")
 
     torch.set_num_threads(2)
     cv2.setNumThreads(1)
@@ -314,9 +341,9 @@ def main(argv: list[str] | None = None) -> int:
     train = load_pairs(args.data, set(range(1, 7)) - {args.holdout})
     held = load_pairs(args.data, {args.holdout}) if args.holdout else []
     sizes = np.array([lab.size for _, lab in train], float)
-    net = LightUNet()
+    net = LightUNet(tuple(args.channels))
     if args.resume:
-        net.load_state_dict(torch.load(args.resume, weights_only=True)["net"])
+        net.load_state_dict(load_checkpoint(args.resume, net.channels, weights_only=True)["net"])
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.iterations,
                                                 pct_start=0.1)
@@ -341,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
         if it % args.every == 0 or it == last:
             scores = score(net, held) if held else None
             export(net, args.out / FILE)
-            write_index(args.out, scores, args.holdout, it, args.iterations)
+            write_index(args.out, scores, args.holdout, it, args.iterations, net.channels)
             if args.checkpoints:
                 args.checkpoints.mkdir(parents=True, exist_ok=True)
                 torch.save({"it": it, "net": net.state_dict(), "opt": opt.state_dict(),
