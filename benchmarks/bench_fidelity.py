@@ -3,10 +3,11 @@
 Run: ``.venv/bin/python benchmarks/bench_fidelity.py [variants] [defaults54] [trials]
 [--quick] [--chart]`` (all parts by default; naming some reruns those and keeps
 the others from the last fidelity.json; ``--chart`` only redraws the chart).
-Writes ``benchmarks/results/fidelity.json`` and ``fidelity.png``, and the
-README pictures ``docs/fidelity/*.jpg`` (photo | texture, Dubai photos only:
-CC0). On 2 cores shared with other jobs (load average 5-9) the parts took
-about 17, 7, 10 and 7 minutes; ``--quick``: two photos, no pictures, to /tmp.
+Writes ``benchmarks/results/fidelity.json`` and ``fidelity.png``; part
+``structure`` also the README pictures ``docs/fidelity/*.jpg`` and ``*.png``
+(photo | texture at today's defaults, Dubai photos only: CC0). On 2 cores shared
+with other jobs (load average 5-9) the parts took about 17, 7, 10 and 7 minutes;
+``--quick``: two photos, no pictures, to /tmp.
 
 Photos (with masks, ``../shared/data``): parts ``variants`` and ``trials``
 run on the 16 photos of ``bench_classify.scribble_sets()``: Dubai parts 004
@@ -102,9 +103,9 @@ THIN = {"dubai": {3: "road", 5: "water"}, "loveda": {3: "road", 4: "water"},
         "potsdam": {1: "impervious", 5: "car"}, "deepglobe": {5: "water"}}
 #: bits per photo pixel of the peers' curves
 LADDER_BPP = (0.003, 0.01, 0.03, 0.1)
-#: README pictures: (picture name, Dubai photo) -- CC0, may ship; the sample is added
-PICTURES = (("dubai_lake", "image_part_005t1.jpg"), ("dubai_villas", "image_part_005t4.jpg"),
-            ("dubai_roads", "image_part_005t2.jpg"))
+#: README pictures of part ``structure``: (picture name, photo) -- CC0, may ship
+PICTURES = (("dubai_marina", SAMPLE.name), ("dubai_lake", "image_part_005t1.jpg"),
+            ("dubai_villas", "image_part_005t4.jpg"), ("dubai_roads", "image_part_005t2.jpg"))
 PICTURE_WIDTH = 1000
 #: option variants tried as convert's defaults (texture and peers at their own bytes)
 TRIALS = {
@@ -305,18 +306,13 @@ def side_by_side(photo, render, path):
 
 
 def run_variants(sets, quick, log):
-    rows, pictures = [], {}
-    wanted = dict(PICTURES)
+    rows = []
     for i, (folder, name, classes, crop) in enumerate(sets):
         row, photo, render = measure_photo(folder, name, classes, crop, VARIANTS, check=i == 0)
         rows.append(row)
         d = row["variants"]["default"]
         log(f"  {name}: dE8 {d['dE8']} detail {d['detail']} mIoU {d['miou_tex']}/"
             f"{row['miou_cls']} {d['area_bytes']} B {d['seconds']} s")
-        if not quick and name in wanted.values():
-            pic = next(k for k, v in wanted.items() if v == name)
-            side_by_side(photo, render, DOCS / f"{pic}.jpg")
-            pictures[pic] = name
     sample = None
     if not quick and SAMPLE.is_file():
         photo = np.ascontiguousarray(read_image(SAMPLE)[:, :, :3])
@@ -325,12 +321,10 @@ def run_variants(sets, quick, log):
         secs = time.perf_counter() - t
         h, w = photo.shape[:2]
         render = render_project(res.project, (0, 0, w, h))
-        side_by_side(photo, render, DOCS / "dubai_marina.jpg")
-        pictures["dubai_marina"] = SAMPLE.name
         sample = {"seconds": round(secs, 2), "dE8": round(colour_error(render, photo), 3),
                   "detail": round(detail_ratio(render, photo), 3),
                   **texture_cost(res.project).as_dict(), "cell": res.project.grid.cell[0]}
-    return {"photos": rows, "summary": summarise(rows), "pictures": pictures, "sample": sample}
+    return {"photos": rows, "summary": summarise(rows), "sample": sample}
 
 
 def run_defaults(sets, log, options=DEFAULT):
@@ -401,6 +395,7 @@ def crop_strip(parts, x, y, path):
 def run_structure(log):
     """Issue 34: every variant of :func:`structure_variants` and JPEG / AVIF at its bytes."""
     rows, keep = [], {}
+    pictures = {v: k for k, v in PICTURES}
     for folder, name in STRUCTURE_PHOTOS:
         photo = (np.ascontiguousarray(read_image(SAMPLE)[:, :, :3]) if folder == "sample"
                  else load(folder, name, None)[0])
@@ -430,6 +425,8 @@ def run_structure(log):
                     f"{k} {peers['avif'][k]}" for k in ("dE8", "s4", "s8", "detail")))
             if folder == "sample":
                 keep[vname] = (photo, render, peers)
+            if vname == f"budget {DEFAULT.colour_map.budget}" and name in pictures:
+                side_by_side(photo, render, DOCS / f"{pictures[name]}.jpg")
         rows.append(row)
     # 1:1 crops of the sample: photo | old default | texture | AVIF at the texture's bytes.
     photo, render, peers = keep["budget 0.04"]
@@ -437,7 +434,6 @@ def run_structure(log):
     old = keep["old default"][1]
     for crop, _, x, y in CROPS:
         crop_strip([photo, old, render, avif], x, y, DOCS / f"{crop}.png")
-    side_by_side(photo, render, DOCS / "dubai_marina.jpg")
     return {"photos": rows, "summary": summarise_structure(rows),
             "crops": "photo | old default | texture (budget 0.04) | AVIF at the texture's bytes"}
 
