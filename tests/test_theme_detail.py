@@ -36,11 +36,14 @@ def test_detail_drops_a_slow_ramp_and_keeps_a_checkerboard_as_a_ratio():
 
 
 def test_detail_texture_stays_tileable():
+    from terratheme.core.themes.detail import MIP_FLAT
+
     rng = np.random.default_rng(0)
     tex = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
-    # Rolling then filtering equals filtering then rolling: the blur wraps around.
-    assert np.array_equal(detail_texture(np.roll(tex, 5, axis=1)),
-                          np.roll(detail_texture(tex), 5, axis=1))
+    # Rolling by whole blocks then filtering equals filtering then rolling: the blur and
+    # the block field wrap around.
+    assert np.array_equal(detail_texture(np.roll(tex, 2 * MIP_FLAT, axis=1)),
+                          np.roll(detail_texture(tex), 2 * MIP_FLAT, axis=1))
 
 
 def test_detail_gain_brings_the_theme_to_the_photo_contrast():
@@ -67,7 +70,8 @@ def test_a_fragment_theme_gets_a_fragment_gain_of_the_contrast():
 
     xx = np.indices((32, 32))[1]
     # Vertical stripes: one orientation only, a fragment theme; the photo's are twice as strong.
-    stripes = (xx // 4 % 2 * 2 - 1).astype(float)
+    # Two texels wide, so a 4-texel block holds both signs: nothing at the map's scale.
+    stripes = (xx // 2 % 2 * 2 - 1).astype(float)
     theme = np.repeat((100 * (1 + 0.05 * stripes))[:, :, None], 3, axis=2).round()
     photo = np.repeat((200 * (1 + 0.10 * stripes))[:, :, None], 3, axis=2).round()
     assert edge_coherence(theme.astype(np.uint8)) > FRAGMENT_COHERENCE
@@ -146,23 +150,62 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
     from terratheme.core.themes.detail import (
         DETAIL_SIGMA,
         FRAGMENT_COHERENCE,
+        _random_phases,
         edge_coherence,
         even_detail,
+        mip_flat,
         theme_detail,
     )
 
     pieces = _road_pieces()
     rel, fragment = theme_detail(pieces)
     assert fragment
-    # Random phases keep the power spectrum (Parseval): the energy of even_detail.
-    assert float((rel ** 2).mean()) == pytest.approx(
-        float((even_detail(pieces, DETAIL_SIGMA) ** 2).mean()), rel=1e-4)
+    # Random phases keep the power spectrum (Parseval): the energy of even_detail ...
+    fine = even_detail(pieces, DETAIL_SIGMA)
+    assert float((_random_phases(fine) ** 2).mean()) == pytest.approx(
+        float((fine ** 2).mean()), rel=1e-4)
+    # ... and the theme's detail is that, flat at the map's scale.
+    np.testing.assert_allclose(rel, mip_flat(_random_phases(fine)), atol=1e-6)
     # The pieces' edges are gone (the old detail texture kept them: coherence 0.64) ...
     assert edge_coherence(detail_texture(pieces)) < FRAGMENT_COHERENCE
     # ... the result still tiles (random phases commute with a shift) ...
-    assert np.allclose(theme_detail(np.roll(pieces, 7, axis=0))[0], np.roll(rel, 7, axis=0),
+    assert np.allclose(theme_detail(np.roll(pieces, 8, axis=0))[0], np.roll(rel, 8, axis=0),
                        atol=1e-5)
-    # ... and an isotropic grain theme is left as it was.
+    # ... and an isotropic grain theme keeps its phases.
     grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
     same, fragment = theme_detail(grain)
-    assert not fragment and np.array_equal(same, even_detail(grain))
+    assert not fragment and np.array_equal(same, mip_flat(even_detail(grain)))
+
+
+def test_mip_flat_blocks_average_to_zero_and_finer_content_stays():
+    from terratheme.core.themes.detail import mip_flat
+
+    yy, xx = np.indices((16, 16))
+    # A 1-texel checkerboard averages to 0 over every 4 x 4 block: nothing to take off.
+    board = np.repeat(((xx + yy) % 2 * 2 - 1.0)[:, :, None], 3, axis=2) * 0.1
+    np.testing.assert_allclose(mip_flat(board), board, atol=1e-7)
+    # A block-scale cosine (period 16) is the map's scale: taken off all but nothing
+    # (the smooth field is bilinear, so a cosine's residue is second order).
+    wave = np.repeat((0.2 * np.cos(2 * np.pi * xx / 16))[:, :, None], 3, axis=2)
+    flat = mip_flat(wave + board)
+    means = flat.reshape(4, 4, 4, 4, 3).mean(axis=(1, 3))
+    assert np.abs(means).max() < 1e-6
+    assert np.abs(flat - board).max() < 0.2 * 0.25
+
+
+@pytest.mark.parametrize("shape, want", [((30, 45, 3), (32, 44, 3)), ((3, 5, 3), (4, 4, 3)),
+                                         ((32, 40, 3), (32, 40, 3))])
+def test_mip_flat_resamples_to_whole_blocks_and_stays_tileable(shape, want):
+    from scipy.ndimage import gaussian_filter
+    from terratheme.core.themes.detail import mip_flat
+
+    rng = np.random.default_rng(1)
+    rel = gaussian_filter(rng.standard_normal(shape), (1.0, 1.0, 0), mode="wrap")
+    out = mip_flat(rel)
+    assert out.shape == want and out.dtype == np.float32
+    means = out.reshape(want[0] // 4, 4, want[1] // 4, 4, 3).mean(axis=(1, 3))
+    assert np.abs(means).max() < 1e-6
+    # Rolled by whole blocks, the same result rolled: the field wraps around.
+    if shape[:2] == want[:2]:
+        np.testing.assert_allclose(mip_flat(np.roll(rel, 4, axis=1)), np.roll(out, 4, axis=1),
+                                   atol=1e-6)

@@ -3,19 +3,22 @@
 With a fine colour map (:mod:`core.convert.colour_fit`) the map carries everything above
 a few texels and a theme only the finer detail, ``NEUTRAL * t / blur(t)``, its contrast
 scaled to the photo's in its class (:func:`detail_themes`), as engines' detail textures are.
+Its aligned ``MIP_FLAT`` x ``MIP_FLAT`` blocks average to neutral (:func:`mip_flat`): from
+that mip level up a theme is flat, so seen from afar the terrain is its colour map alone.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
+from scipy.ndimage import gaussian_filter, zoom
+from scipy.signal import resample
 from skimage.feature import structure_tensor
 from terratheme.core.themes.library import ThemeLibrary
 
 #: Gaussian sigma (texels) above which a detail theme is flat
 DETAIL_SIGMA = 1.5
 #: a detail theme's contrast over the photo's at :data:`DETAIL_SIGMA` in its class
-DETAIL_CONTRAST = 1.5
+DETAIL_CONTRAST = 1.75
 #: the value of a detail theme's mean (the colour map's neutral gain)
 NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_themes`
@@ -32,6 +35,8 @@ COHERENCE_SIGMA = 3.0
 FRAGMENT_GAIN = 0.5
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
+#: side (texels) of the aligned blocks a detail theme averages to neutral over (:func:`mip_flat`)
+MIP_FLAT = 4
 
 
 def _relative(image: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
@@ -72,10 +77,42 @@ def edge_coherence(texture: np.ndarray, sigma: float = COHERENCE_SIGMA) -> float
     return float(np.sqrt((arr - acc) ** 2 + 4.0 * arc ** 2).sum() / trace)
 
 
+def mip_flat(rel: np.ndarray, block: int = MIP_FLAT) -> np.ndarray:
+    """(H, W, 3) float32: a tileable ``t / blur(t) - 1`` (h, w, 3) whose aligned ``block``
+    x ``block`` means are 0, ``H``, ``W`` the nearest multiples of ``block``.
+
+    Resampled in Fourier space (so it stays tileable) to those sides, then the smooth field
+    (bilinear, wrapping) whose block means are ``rel``'s is taken off, solved exactly on
+    the block lattice: no block edges. Its mip level ``log2(block)`` is flat, and a view at
+    ``1 / block`` or coarser sees only the colour map.
+    """
+    h, w = rel.shape[:2]
+    size = (max(block, round(h / block) * block), max(block, round(w / block) * block))
+    for axis, n in enumerate(size):
+        if rel.shape[axis] != n:
+            rel = resample(rel, n, axis=axis)
+    rel = np.asarray(rel, np.float64)
+    hb, wb = size[0] // block, size[1] // block
+
+    def means(a: np.ndarray) -> np.ndarray:
+        return a.reshape(hb, block, wb, block, -1).mean(axis=(1, 3))
+
+    def smooth(c: np.ndarray) -> np.ndarray:
+        return zoom(c, (block, block, 1), order=1, mode="grid-wrap", grid_mode=True)
+
+    # Step 1: the lattice's transfer function of smooth-then-mean, from one impulse.
+    impulse = np.zeros((hb, wb, 1))
+    impulse[0, 0] = 1.0
+    transfer = np.fft.fft2(means(smooth(impulse)), axes=(0, 1))
+    # Step 2: the block field whose smooth version has the texture's block means.
+    field = np.fft.ifft2(np.fft.fft2(means(rel), axes=(0, 1)) / transfer, axes=(0, 1)).real
+    return (rel - smooth(field)).astype(np.float32)
+
+
 def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
                  ) -> tuple[np.ndarray, bool]:
-    """((h, w, 3) float32, fragment): a theme's :func:`even_detail` and whether the theme
-    is made of oriented fragments.
+    """((H, W, 3) float32, fragment): a theme's :func:`even_detail`, :func:`mip_flat`, and
+    whether the theme is made of oriented fragments.
 
     A fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) has
     its detail's phases randomised (seeded): the map's own streets then read through, not
@@ -83,18 +120,22 @@ def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
     """
     rel = even_detail(texture, sigma)
     if edge_coherence(texture) <= FRAGMENT_COHERENCE:
-        return rel, False
+        return mip_flat(rel), False
+    return mip_flat(_random_phases(rel)), True
+
+
+def _random_phases(rel: np.ndarray) -> np.ndarray:
+    """(h, w, 3) float32: ``rel`` with seeded random Fourier phases, its power spectrum kept."""
     noise = np.random.default_rng(PHASE_SEED).standard_normal(rel.shape[:2])
     phases = np.exp(1j * np.angle(np.fft.fft2(noise)))
     phases[0, 0] = 1.0  # the mean stays
-    phases = phases[:, :, None]
-    out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases, axes=(0, 1)).real
-    return out.astype(np.float32), True
+    out = np.fft.ifft2(np.fft.fft2(rel, axes=(0, 1)) * phases[:, :, None], axes=(0, 1)).real
+    return out.astype(np.float32)
 
 
 def detail_texture(texture: np.ndarray, sigma: float = DETAIL_SIGMA,
                    gain: float = 1.0) -> np.ndarray:
-    """(h, w, 3) uint8: ``128 (1 + gain theme_detail(t))`` of a tileable texture, clipped."""
+    """(H, W, 3) uint8: ``128 (1 + gain theme_detail(t))`` of a tileable texture, clipped."""
     return _detail_bytes(theme_detail(texture, sigma)[0], gain)
 
 
