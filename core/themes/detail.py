@@ -2,9 +2,8 @@
 
 With a fine colour map (:mod:`core.convert.colour_fit`) the map carries everything above
 a few texels and a theme only the finer detail, ``NEUTRAL * t / blur(t)``, its contrast
-scaled to the photo's in its class (:func:`detail_themes`), as engines' detail textures are.
-Its aligned ``MIP_FLAT`` x ``MIP_FLAT`` blocks average to neutral (:func:`mip_flat`): from
-that mip level up a theme is flat, so seen from afar the terrain is its colour map alone.
+scaled to the photo's in its class (:func:`detail_themes`), as engines' detail textures are,
+and flat from its mip level 2 up (:func:`mip_flat`).
 """
 
 from __future__ import annotations
@@ -19,8 +18,6 @@ from terratheme.core.themes.library import ThemeLibrary
 DETAIL_SIGMA = 1.5
 #: a detail theme's contrast over the photo's at :data:`DETAIL_SIGMA` in its class
 DETAIL_CONTRAST = 1.75
-#: the value of a detail theme's mean (the colour map's neutral gain)
-NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_themes`
 GAIN_RANGE = (0.25, 4.0)
 #: Gaussian sigma (texels) of the local contrast strength :func:`even_detail` evens out
@@ -33,6 +30,8 @@ FRAGMENT_COHERENCE = 0.55
 COHERENCE_SIGMA = 3.0
 #: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
 FRAGMENT_GAIN = 0.5
+#: the value of a detail theme's mean (the colour map's neutral gain)
+NEUTRAL = 128
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: side (texels) of the aligned blocks a detail theme averages to neutral over (:func:`mip_flat`)
@@ -78,21 +77,14 @@ def edge_coherence(texture: np.ndarray, sigma: float = COHERENCE_SIGMA) -> float
 
 
 def mip_flat(rel: np.ndarray, block: int = MIP_FLAT) -> np.ndarray:
-    """(H, W, 3) float32: a tileable ``t / blur(t) - 1`` (h, w, 3) whose aligned ``block``
-    x ``block`` means are 0, ``H``, ``W`` the nearest multiples of ``block``.
-
-    Resampled in Fourier space (so it stays tileable) to those sides, then the smooth field
-    (bilinear, wrapping) whose block means are ``rel``'s is taken off, solved exactly on
-    the block lattice: no block edges. Its mip level ``log2(block)`` is flat, and a view at
-    ``1 / block`` or coarser sees only the colour map.
+    """(H, W, 3) float32: a tileable (h, w, 3) ``rel``, Fourier-resampled to sides of whole
+    ``block``s, minus the smooth (bilinear, wrapping) field of its block means: its aligned
+    blocks average to 0 with no edges, so a view at ``1 / block`` sees the colour map alone.
     """
-    h, w = rel.shape[:2]
-    size = (max(block, round(h / block) * block), max(block, round(w / block) * block))
+    size = [max(block, round(n / block) * block) for n in rel.shape[:2]]
     for axis, n in enumerate(size):
-        if rel.shape[axis] != n:
-            rel = resample(rel, n, axis=axis)
-    rel = np.asarray(rel, np.float64)
-    hb, wb = size[0] // block, size[1] // block
+        rel = rel if rel.shape[axis] == n else resample(rel, n, axis=axis)
+    rel, (hb, wb) = np.asarray(rel, np.float64), (size[0] // block, size[1] // block)
 
     def means(a: np.ndarray) -> np.ndarray:
         return a.reshape(hb, block, wb, block, -1).mean(axis=(1, 3))
@@ -111,13 +103,9 @@ def mip_flat(rel: np.ndarray, block: int = MIP_FLAT) -> np.ndarray:
 
 def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
                  ) -> tuple[np.ndarray, bool]:
-    """((H, W, 3) float32, fragment): a theme's :func:`even_detail`, :func:`mip_flat`, and
-    whether the theme is made of oriented fragments.
-
-    A fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) has
-    its detail's phases randomised (seeded): the map's own streets then read through, not
-    a kaleidoscope of pieces.
-    """
+    """((H, W, 3) float32, fragment): a theme's :func:`mip_flat` :func:`even_detail`; a
+    fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) with its
+    phases randomised, so the map's streets read through, not a kaleidoscope of pieces."""
     rel = even_detail(texture, sigma)
     if edge_coherence(texture) <= FRAGMENT_COHERENCE:
         return mip_flat(rel), False
@@ -150,10 +138,8 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
 
     Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
     ``sigma`` (times ``FRAGMENT_GAIN`` for a fragment theme), clipped to ``GAIN_RANGE``; 1
-    for an unused or flat theme. The finest band alone, a little stronger than the photo's,
-    stands in for the photo's detail without putting texture where a 4x view sees blocks.
-    ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per pixel. Names and
-    colours are kept.
+    for an unused or flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W)
+    uint8 theme per pixel. Names and colours are kept.
     """
     details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
