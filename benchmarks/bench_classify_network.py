@@ -40,7 +40,7 @@ sys.path.insert(0, str(HERE.parent / "models"))
 from classify_aerial import COMMON, shared_scores  # noqa: E402
 from classify_eval import confusion, scores  # noqa: E402
 from terratheme.core.classify import load_model, train_classifier  # noqa: E402
-from terratheme.core.classify.shipped import SHIPPED_MODELS_DIR  # noqa: E402
+from terratheme.core.classify.shipped import MODELS_INDEX, SHIPPED_MODELS_DIR  # noqa: E402
 from terratheme.core.io.images import read_image  # noqa: E402
 
 DATA = HERE.parent.parent / "shared" / "data"
@@ -151,7 +151,7 @@ def main() -> int:
             model = load_model("aerial", args.models)
             out["network_file"] = {"file": model.path.name,
                                    "bytes": model.path.stat().st_size}
-            index = json.loads((model.path.parent / "models.json").read_text())
+            index = json.loads((args.models / MODELS_INDEX).read_text())
             seen = HOLDOUT in index["models"]["aerial"].get("tiles", [])
         elif name == "forest":
             model = load_model("aerial-forest")

@@ -18,6 +18,8 @@ from terratheme.core.themes.library import ThemeLibrary
 DETAIL_SIGMA = 1.5
 #: a detail theme's contrast over the photo's at :data:`DETAIL_SIGMA` in its class
 DETAIL_CONTRAST = 1.75
+#: the value of a detail theme's mean (the colour map's neutral gain)
+NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_themes`
 GAIN_RANGE = (0.25, 4.0)
 #: Gaussian sigma (texels) of the local contrast strength :func:`even_detail` evens out
@@ -30,8 +32,6 @@ FRAGMENT_COHERENCE = 0.55
 COHERENCE_SIGMA = 3.0
 #: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
 FRAGMENT_GAIN = 0.5
-#: the value of a detail theme's mean (the colour map's neutral gain)
-NEUTRAL = 128
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: side (texels) of the aligned blocks a detail theme averages to neutral over (:func:`mip_flat`)
