@@ -108,11 +108,34 @@ def test_a_periodic_mosaic_gets_the_whole_photos_themes(tmp_path, monkeypatch):
     tiled = convert_file_tiled(photo, None, 8, tile=64)
     assert sorted(tiled.library.names) == sorted(whole.library.names)
     assert len(whole.library) == 2
+    # The whole photo, larger than its sample, cuts its themes where the tiles do.
+    by_name = {t.name: t.texture for t in tiled.library}
+    assert all(np.array_equal(t.texture, by_name[t.name]) for t in whole.library)
     # The same theme at (almost) every vertex.
     named_whole = np.array(whole.library.names)[whole.grid.indices]
     named_tiled = np.array(tiled.library.names)[tiled.grid.indices]
     assert (named_whole == named_tiled).mean() > 0.98
     assert tiled.metadata["created_by"] == "terratheme convert (tiled)"
+
+
+def test_a_photo_in_memory_has_its_files_region_sample(tmp_path, monkeypatch):
+    img = periodic()
+    path = tmp_path / "mosaic.tif"
+    write_image(path, img, tile=32)
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+
+    def classify(p):
+        return np.where(p[:, :, 2] > 150, 2, 1).astype(np.uint8)
+
+    from_file = region_sample(path, classify, 0)
+    in_memory = rs.photo_sample(img, classify(img))
+    assert in_memory.windows == from_file.windows and in_memory.places == from_file.places
+    assert np.array_equal(in_memory.rgb, from_file.rgb)
+    assert np.array_equal(in_memory.labels, from_file.labels)
+    assert set(np.unique(in_memory.labels)) == {0, 1, 2} and in_memory.gap == 48
+    # A photo no larger than the sample is its own sample.
+    assert rs.photo_sample(img[:144, :144], classify(img[:144, :144])) is None
 
 
 def test_fixed_theme_count_and_names(tmp_path):

@@ -23,6 +23,7 @@ from terratheme.core.convert.cell_choice import (
     road_candidates,
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
+from terratheme.core.convert.region_sample import photo_sample
 from terratheme.core.convert.step import (
     classify_photo,
     detail_sigma,
@@ -162,14 +163,16 @@ def convert_photo(
     listed = (list(options.themes.values()) if isinstance(options.themes, Mapping) else
               list(options.themes) if isinstance(options.themes, (list, tuple)) else [])
     candidates = road_candidates(options.candidates, [*(names or {}).values(), *listed])
-    # Themes from each class's statistics, and the cell on their labels (15%).
+    # Themes from each class's statistics, and the cell on their labels (15%); a photo
+    # larger than a region's sample takes its themes from the sample, as its tiles would.
     themed = themes_and_cell(
         rgb, result.labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
         candidates=candidates, patch=options.patch, names=names,
         full_curve=options.full_curve, keep_specks=options.keep_specks,
         detail=detail_sigma(options.colour_map),
-        grid_bpp=grid_budget(options.colour_map, h * w))
+        grid_bpp=grid_budget(options.colour_map, h * w),
+        sample=photo_sample(rgb, result.labels))
     mapping = themed.mapping
     if progress is not None:
         progress(50, 100)

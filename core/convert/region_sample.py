@@ -31,6 +31,8 @@ from terratheme.core.io.images import Bands, image_info, read_region
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.from_photo import ThemeMapping
+from terratheme.core.themes.library import ThemeLibrary
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -174,15 +176,12 @@ def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int =
     return rows
 
 
-def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
-                  overlap: int) -> RegionSample:
-    """Read and classify the :func:`sample_windows` of a photo (one window at a time).
-
-    ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
-    window, then cropped. A single window has no ``SAMPLE_GAP`` around it.
-    """
-    info = image_info(path)
-    rows = sample_windows((info.width, info.height), SAMPLE_PIECE, SAMPLE_GRID)
+def _lay_out(size: tuple[int, int],
+             piece_of: Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]
+             ) -> RegionSample:
+    """The :func:`sample_windows` of a (W, H) photo side by side, ``piece_of(x, y, w, h)``
+    giving each window's (rgb, labels)."""
+    rows = sample_windows(size, SAMPLE_PIECE, SAMPLE_GRID)
     side_w, side_h = rows[0][0][2:]
     half = SAMPLE_GAP // 2 if len(rows) * len(rows[0]) > 1 else 0
     step_w, step_h = side_w + 2 * half, side_h + 2 * half
@@ -192,23 +191,65 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
     no_data = False
     for j, row in enumerate(rows):
         for i, (x, y, ww, hh) in enumerate(row):
-            rx, ry = max(0, x - overlap), max(0, y - overlap)
-            rx1, ry1 = min(info.width, x + ww + overlap), min(info.height, y + hh + overlap)
-            pixels = read_region(path, rx, ry, rx1 - rx, ry1 - ry, bands=Bands.PHOTO)
-            got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
-            core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
+            piece, got = piece_of(x, y, ww, hh)
             px, py = i * step_w + half, j * step_h + half
-            # Transparent pixels take the nearest opaque colour in the read window.
-            piece = (np.zeros((hh, ww, 3), np.uint8) if transparent(pixels)
-                     else prepare_photo(pixels).rgb[core])
             if half:
                 piece = cv2.copyMakeBorder(piece, half, half, half, half, cv2.BORDER_REFLECT)
             rgb[py - half:py + hh + half, px - half:px + ww + half] = piece
-            labels[py:py + hh, px:px + ww] = got[core]
-            no_data |= bool((got[core] == 0).any())
+            labels[py:py + hh, px:px + ww] = got
+            no_data |= bool((got == 0).any())
             windows.append((x, y, ww, hh))
             places.append((px, py))
     return RegionSample(windows, places, rgb, labels, 2 * half, no_data)
+
+
+def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
+                  overlap: int) -> RegionSample:
+    """Read and classify the :func:`sample_windows` of a photo (one window at a time).
+
+    ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
+    window, then cropped. A single window has no ``SAMPLE_GAP`` around it.
+    """
+    info = image_info(path)
+
+    def piece_of(x: int, y: int, ww: int, hh: int) -> tuple[np.ndarray, np.ndarray]:
+        rx, ry = max(0, x - overlap), max(0, y - overlap)
+        rx1, ry1 = min(info.width, x + ww + overlap), min(info.height, y + hh + overlap)
+        pixels = read_region(path, rx, ry, rx1 - rx, ry1 - ry, bands=Bands.PHOTO)
+        got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
+        core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
+        # Transparent pixels take the nearest opaque colour in the read window.
+        piece = (np.zeros((hh, ww, 3), np.uint8) if transparent(pixels)
+                 else prepare_photo(pixels).rgb[core])
+        return piece, got[core]
+
+    return _lay_out((info.width, info.height), piece_of)
+
+
+def photo_sample(rgb: np.ndarray, labels: np.ndarray) -> RegionSample | None:
+    """The region sample of a classified photo in memory, or None where the photo is its
+    own sample: its themes are then cut where a tiled conversion of its file cuts them.
+
+    ``rgb``: (H, W, 3) uint8; ``labels``: (H, W) uint8 classes.
+    """
+    h, w = labels.shape
+    if sample_windows((w, h), SAMPLE_PIECE, SAMPLE_GRID) == [[(0, 0, w, h)]]:
+        return None
+    return _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
+                                                   labels[y:y + hh, x:x + ww]))
+
+
+def themes_without_gap(mapping: ThemeMapping, sample: RegionSample) -> ThemeMapping:
+    """``mapping`` without the no-data theme its themes were given for the sample's gaps alone.
+
+    The themes append it last, ``lut[0]`` its index, when label 0 is present; a photo
+    without no-data pixels maps 0 to theme 0, as the whole photo's themes do.
+    """
+    if not sample.gap or sample.no_data:
+        return mapping
+    lut = mapping.lut.copy()
+    lut[0] = 0
+    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
 
 
 def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],

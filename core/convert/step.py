@@ -27,6 +27,7 @@ from terratheme.core.convert.cell_choice import (
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
+from terratheme.core.convert.region_sample import RegionSample, themes_without_gap
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -146,6 +147,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     keep_specks: bool = True,
                     detail: float | None = DETAIL_SIGMA,
                     grid_bpp: float | None = None,
+                    sample: RegionSample | None = None,
                     ) -> Themed:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -153,6 +155,8 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     cell is chosen on a second thread meanwhile (same result). ``detail``: cut themes keep
     only detail finer than this sigma (:func:`detail_themes`); None keeps them whole.
     ``grid_bpp``: the packed grid's bits per photo pixel (:func:`cell_within_budget`).
+    ``sample``: the photo's region sample (:func:`.region_sample.photo_sample`): the themes
+    are those of :func:`sample_themes`, as a tiled conversion's; the cell still the photo's.
     """
     def choose(theme_labels: np.ndarray) -> CellChoice:
         choice = choose_cell_size(theme_labels, target_agreement,
@@ -163,6 +167,10 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         return cell_within_budget(theme_labels, choice, candidates, grid_bpp,
                                   keep_specks=keep_specks)
 
+    if sample is not None:
+        mapping = sample_themes(sample, classes, themes, patch=patch, names=names, detail=detail)
+        theme_labels = apply_lut(labels, mapping.lut)
+        return Themed(mapping, theme_labels, choose(theme_labels) if cell == "auto" else None)
     cut = cuts_themes(themes)
     # Cut themes: the table is known before any theme is cut.
     theme_labels = apply_lut(labels, photo_theme_lut(labels, classes)) if cut else None
@@ -177,6 +185,20 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         choice = job.result() if job is not None else (
             choose(theme_labels) if cell == "auto" else None)
     return Themed(mapping, theme_labels, choice)
+
+
+def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",
+                  *, patch: PatchOptions = PatchOptions(),
+                  names: Mapping[int, str] | None = None,
+                  detail: float | None = DETAIL_SIGMA) -> ThemeMapping:
+    """The themes of a region, chosen on its sample's windows side by side (issue 34).
+
+    A tiled conversion and the whole photo in memory both take them, so a region gets one
+    theme set however it is converted; the no-data theme of the gaps alone is dropped.
+    """
+    mapping = themes_and_cell(sample.rgb, sample.labels, classes, themes, cell=1, patch=patch,
+                              names=names, detail=detail).mapping
+    return themes_without_gap(mapping, sample)
 
 
 @dataclass(frozen=True)

@@ -27,13 +27,12 @@ from terratheme.core.convert.cell_choice import (
 from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
 from terratheme.core.convert.labels_to_grid import apply_lut, grid_shape_for
 from terratheme.core.convert.region_sample import (
-    RegionSample,
     fit_unsupervised_region,
     region_sample,
     sample_colour_scale,
 )
 from terratheme.core.convert.specks import SpeckStream
-from terratheme.core.convert.step import detail_sigma, grid_budget, themes_and_cell
+from terratheme.core.convert.step import detail_sigma, grid_budget, sample_themes
 from terratheme.core.convert.tile_vote import (
     ClassifyFn,
     PredictLabels,
@@ -50,8 +49,6 @@ from terratheme.core.model.grid import IndexGrid, validate_cell
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import RenderOptions, render_cells
-from terratheme.core.themes.from_photo import ThemeMapping
-from terratheme.core.themes.library import ThemeLibrary
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -142,19 +139,6 @@ class WarmKernels:
         render_cells(np.zeros((3, 3), np.uint8), [pixels[:8, :8]], (8, 8), options=self.render)
 
 
-def _without_gap_theme(mapping: ThemeMapping, sample: RegionSample) -> ThemeMapping:
-    """``mapping`` without the no-data theme its themes were given for the sample's gaps alone.
-
-    The themes append it last, ``lut[0]`` its index, when label 0 is present; a photo
-    without no-data pixels maps 0 to theme 0, as the whole photo's themes do.
-    """
-    if not sample.gap or sample.no_data:
-        return mapping
-    lut = mapping.lut.copy()
-    lut[0] = 0
-    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
-
-
 def convert_file_tiled(
     path: str | os.PathLike,
     model,
@@ -214,7 +198,6 @@ def convert_file_tiled(
     # (an unsupervised model says how much context gives the whole photo's labels).
     context = getattr(model, "context_pixels", overlap)
     sample = region_sample(path, PredictLabels(model), min(overlap, context))
-    rgb = sample.rgb
     unsupervised = isinstance(model, UnsupervisedModel)
     if names and unsupervised:
         # Names are assigned to the unsupervised themes by appearance.
@@ -236,10 +219,8 @@ def convert_file_tiled(
     # The themes, and with cell "auto" the cell size, chosen once on the sample: the themes
     # on its windows side by side (a fixed cell: no choice there), the cell on each window
     # apart (the seams between them are no borders of the photo: they would favour small cells).
-    mapping = themes_and_cell(rgb, sample.labels, model.classes, spec,
-                              cell=1 if cell == "auto" else cell, names=class_names,
-                              detail=detail_sigma(colour_map)).mapping
-    mapping = _without_gap_theme(mapping, sample)
+    mapping = sample_themes(sample, model.classes, spec, names=class_names,
+                            detail=detail_sigma(colour_map))
     choice = None
     if cell == "auto":
         # A theme named road, by the caller or the model, keeps finer cells, as on the whole
