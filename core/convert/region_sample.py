@@ -31,8 +31,6 @@ from terratheme.core.io.images import Bands, image_info, read_region
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
-from terratheme.core.themes.from_photo import ThemeMapping
-from terratheme.core.themes.library import ThemeLibrary
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -237,19 +235,6 @@ def photo_sample(rgb: np.ndarray, labels: np.ndarray) -> RegionSample | None:
         return None
     return _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
                                                    labels[y:y + hh, x:x + ww]))
-
-
-def themes_without_gap(mapping: ThemeMapping, sample: RegionSample) -> ThemeMapping:
-    """``mapping`` without the no-data theme its themes were given for the sample's gaps alone.
-
-    The themes append it last, ``lut[0]`` its index, when label 0 is present; a photo
-    without no-data pixels maps 0 to theme 0, as the whole photo's themes do.
-    """
-    if not sample.gap or sample.no_data:
-        return mapping
-    lut = mapping.lut.copy()
-    lut[0] = 0
-    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
 
 
 def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],

@@ -27,7 +27,7 @@ from terratheme.core.convert.cell_choice import (
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
-from terratheme.core.convert.region_sample import RegionSample, themes_without_gap
+from terratheme.core.convert.region_sample import RegionSample
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -191,14 +191,17 @@ def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSp
                   *, patch: PatchOptions = PatchOptions(),
                   names: Mapping[int, str] | None = None,
                   detail: float | None = DETAIL_SIGMA) -> ThemeMapping:
-    """The themes of a region, chosen on its sample's windows side by side (issue 34).
-
-    A tiled conversion and the whole photo in memory both take them, so a region gets one
-    theme set however it is converted; the no-data theme of the gaps alone is dropped.
-    """
+    """The themes of a region cut on its sample's windows side by side, as a tiled
+    conversion and a whole photo in memory both take them (issue 34)."""
     mapping = themes_and_cell(sample.rgb, sample.labels, classes, themes, cell=1, patch=patch,
                               names=names, detail=detail).mapping
-    return themes_without_gap(mapping, sample)
+    if not sample.gap or sample.no_data:
+        return mapping
+    # The no-data theme (appended last) was for the gaps alone: label 0 maps to theme 0, as
+    # on a photo without no-data pixels.
+    lut = mapping.lut.copy()
+    lut[0] = 0
+    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
 
 
 @dataclass(frozen=True)
