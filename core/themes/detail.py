@@ -27,7 +27,7 @@ EVEN_SIGMA = 4.0
 #: range of :func:`even_detail`'s factor
 EVEN_RANGE = (0.25, 4.0)
 #: :func:`edge_coherence` above which a theme's detail is made of fragments (:func:`theme_detail`)
-FRAGMENT_COHERENCE = 0.55
+FRAGMENT_COHERENCE = 0.5
 #: Gaussian sigma (texels) at which :func:`theme_detail` measures :func:`edge_coherence`
 COHERENCE_SIGMA = 3.0
 #: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
