@@ -92,14 +92,21 @@ def periodic(repeat=4, side=64, seed=2):
     return np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
 
 
-def test_a_periodic_mosaic_gets_the_whole_photos_themes(tmp_path, monkeypatch):
-    # Issue 34: windows at the centres of a 4 x 4 division of a 4 x 4 mosaic all saw the
-    # same place of the repeated photo (water only), so the region got other themes.
+@pytest.fixture
+def mosaic_file(tmp_path, monkeypatch):
+    """(photo, its tiled TIFF) of :func:`periodic`, with a sample of 3 x 3 windows of 48 px."""
     img = periodic()
     photo = tmp_path / "mosaic.tif"
     write_image(photo, img, tile=32)
     monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
     monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+    return img, photo
+
+
+def test_a_periodic_mosaic_gets_the_whole_photos_themes(mosaic_file):
+    # Issue 34: windows at the centres of a 4 x 4 division of a 4 x 4 mosaic all saw the
+    # same place of the repeated photo (water only), so the region got other themes.
+    img, photo = mosaic_file
     sample = region_sample(photo, lambda p: np.ones(p.shape[:2], np.uint8), 0)
     assert len(sample.windows) == 9 and sample.joined(sample.rgb).shape == (144, 144, 3)
     x, y, w, h = sample.windows[4]
@@ -118,12 +125,8 @@ def test_a_periodic_mosaic_gets_the_whole_photos_themes(tmp_path, monkeypatch):
     assert tiled.metadata["created_by"] == "terratheme convert (tiled)"
 
 
-def test_a_photo_in_memory_has_its_files_region_sample(tmp_path, monkeypatch):
-    img = periodic()
-    path = tmp_path / "mosaic.tif"
-    write_image(path, img, tile=32)
-    monkeypatch.setattr(rs, "SAMPLE_PIECE", 48)
-    monkeypatch.setattr(rs, "SAMPLE_GRID", 3)
+def test_a_photo_in_memory_has_its_files_region_sample(mosaic_file):
+    img, path = mosaic_file
 
     def classify(p):
         return np.where(p[:, :, 2] > 150, 2, 1).astype(np.uint8)
