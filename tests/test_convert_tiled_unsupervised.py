@@ -141,6 +141,20 @@ def test_a_photo_in_memory_has_its_files_region_sample(mosaic_file):
     assert rs.photo_sample(img[:144, :144], classify(img[:144, :144])) is None
 
 
+def test_the_editors_new_themes_are_converts_on_a_photo_larger_than_its_sample(mosaic_file):
+    from terratheme.core.edit.classification import ClassifyMode, run_classification
+    from terratheme.core.themes.library import ThemeLibrary
+
+    img, _ = mosaic_file
+    converted = convert_photo(img, ConvertOptions(cell=8, colour_map=None)).project.library
+    update, _ = run_classification(ClassifyMode.UNSUPERVISED_NEW, img, None, ThemeLibrary([]),
+                                   (8, 8), (33, 33), None)
+    assert len(update.new_themes) == len(converted) == 2
+    # The same patches, cut on the same sample windows (the editor renames and recolours).
+    assert sorted(t.texture.tobytes() for t in update.new_themes) == \
+        sorted(t.texture.tobytes() for t in converted)
+
+
 def test_fixed_theme_count_and_names(tmp_path):
     photo = tmp_path / "big.tif"
     write_image(photo, quadrants(), tile=32)

@@ -105,15 +105,20 @@ class ClassifyMode(Enum):
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
                  taken: list[str], names: Mapping[int, str] | None = None
                  ) -> tuple[list[Theme], np.ndarray]:
-    """Themes cut from the photo for every class (``core.convert.step.assign_themes``).
+    """Themes cut from the photo for every class, where ``convert`` cuts them
+    (``core.convert.step.assign_themes``, or ``sample_themes`` on a photo larger than a
+    region's sample).
 
     Returns the themes (renamed where a name is taken, and given distinct
     display colours so the index map reads well; the texture keeps the
     photo's look) and the class -> position-in-that-list table.
     """
-    from terratheme.core.convert.step import assign_themes
+    from terratheme.core.convert.region_sample import photo_sample
+    from terratheme.core.convert.step import assign_themes, sample_themes
 
-    mapping = assign_themes(photo[..., :3], labels, classes, names=names)
+    sample = photo_sample(photo[..., :3], labels)
+    mapping = (assign_themes(photo[..., :3], labels, classes, names=names) if sample is None
+               else sample_themes(sample, classes, names=names, detail=None))
     out = []
     for i, theme in enumerate(mapping.library):
         name = theme.name
