@@ -141,6 +141,44 @@ def test_a_photo_in_memory_has_its_files_region_sample(mosaic_file):
     assert rs.photo_sample(img[:144, :144], classify(img[:144, :144])) is None
 
 
+def _outside_the_sample(img):
+    """(y, x) of a 4 x 4 block no sample window of ``img`` covers."""
+    covered = np.zeros(img.shape[:2], bool)
+    for row in rs.sample_windows(img.shape[1::-1], rs.SAMPLE_PIECE, rs.SAMPLE_GRID):
+        for x, y, w, h in row:
+            covered[y:y + h, x:x + w] = True
+    free = ~covered[:-3, :-3] & ~covered[3:, 3:] & ~covered[:-3, 3:] & ~covered[3:, :-3]
+    ys, xs = np.nonzero(free)
+    return int(ys[0]), int(xs[0])
+
+
+def test_a_sample_keeps_the_photos_no_data_and_every_class(mosaic_file):
+    from terratheme.core.convert.step import sample_themes
+    from terratheme.core.themes.library import Theme, ThemeLibrary
+
+    img, _ = mosaic_file
+    labels = np.where(img[:, :, 2] > 150, 2, 1).astype(np.uint8)
+    y, x = _outside_the_sample(img)
+    # Transparent pixels the windows miss still map to the no-data theme.
+    with_gap = labels.copy()
+    with_gap[y:y + 4, x:x + 4] = 0
+    sample = rs.photo_sample(img, with_gap)
+    assert sample.no_data and not (sample.joined(sample.labels) == 0).any()
+    mapping = sample_themes(sample, (1, 2))
+    assert mapping.library[int(mapping.lut[0])].name == "no data"
+    assert len(mapping.library) == 3
+    # Without them, the gaps' no-data theme is dropped; a given library loses nothing.
+    assert len(sample_themes(rs.photo_sample(img, labels), (1, 2)).library) == 2
+    library = ThemeLibrary(Theme(n, (60 * i, 90, 90), np.full((8, 8, 3), 90 + i, np.uint8))
+                           for i, n in enumerate(("sand", "water", "road")))
+    kept = sample_themes(rs.photo_sample(img, labels), (1, 2), library)
+    assert kept.library.names == ["sand", "water", "road"] and max(kept.lut[[1, 2]]) <= 2
+    # A class the windows miss would get no theme cut from it: the whole photo is cut.
+    other = labels.copy()
+    other[y:y + 4, x:x + 4] = 3
+    assert rs.photo_sample(img, other) is None
+
+
 def test_the_editors_new_themes_are_converts_on_a_photo_larger_than_its_sample(mosaic_file):
     from terratheme.core.edit.classification import ClassifyMode, run_classification
     from terratheme.core.themes.library import ThemeLibrary

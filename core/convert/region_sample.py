@@ -1,16 +1,17 @@
-"""What a region's conversion chooses once, for the whole photo, read from its file (issue 34).
+"""What a region's conversion chooses once, for the whole photo (issue 34).
 
 :func:`fit_unsupervised_region`: the whole photo's unsupervised model from its k-means
-samples, drawn tile by tile (the same samples, so the same themes). :func:`region_sample`:
-jittered full-resolution windows over the photo, side by side as one image, on which
-the themes, the cell and the colour map's scale are chosen.
+samples, drawn tile by tile from its file (the same samples, so the same themes).
+:func:`region_sample`: jittered full-resolution windows over the photo, side by side as
+one image, on which the themes, the cell and the colour map's scale are chosen;
+:func:`photo_sample`: the same windows of a photo in memory, for the same themes.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -120,7 +121,8 @@ class RegionSample:
     ``rgb``: (h, w, 3) uint8 pieces (the whole photo when it fits), ``gap`` pixels apart;
     ``labels``: (h, w) uint8 classes, classified with context around each piece as the
     tiles are, 0 (no data) in the gaps, where ``rgb`` mirrors the pieces (a blur there
-    sees what it sees at the photo's edge); ``no_data``: whether a piece has label 0.
+    sees what it sees at the photo's edge); ``no_data``: whether a piece (in memory: the
+    photo) has label 0.
     """
 
     windows: list[tuple[int, int, int, int]]
@@ -225,16 +227,22 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
 
 
 def photo_sample(rgb: np.ndarray, labels: np.ndarray) -> RegionSample | None:
-    """The region sample of a classified photo in memory, or None where the photo is its
-    own sample: its themes are then cut where a tiled conversion of its file cuts them.
+    """The region sample of a classified photo in memory, so that its themes are cut where
+    a tiled conversion of its file cuts them; None where the photo is its own sample or a
+    class of it lies outside the windows (it would get no theme cut from it).
 
-    ``rgb``: (H, W, 3) uint8; ``labels``: (H, W) uint8 classes.
+    ``rgb``: (H, W, 3) uint8; ``labels``: (H, W) uint8 classes. ``no_data`` is the whole
+    photo's: transparent pixels outside the windows keep their theme.
     """
     h, w = labels.shape
-    if sample_windows((w, h), SAMPLE_PIECE, SAMPLE_GRID) == [[(0, 0, w, h)]]:
+    if w * h <= (SAMPLE_GRID * SAMPLE_PIECE) ** 2:
         return None
-    return _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
-                                                   labels[y:y + hh, x:x + ww]))
+    sample = _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
+                                                     labels[y:y + hh, x:x + ww]))
+    present = np.bincount(labels.ravel(), minlength=256) > 0
+    if (present[1:] & ~(np.bincount(sample.labels.ravel(), minlength=256) > 0)[1:]).any():
+        return None
+    return replace(sample, no_data=bool(present[0]))
 
 
 def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from terratheme.core.classify import (
@@ -27,7 +28,6 @@ from terratheme.core.convert.cell_choice import (
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
-from terratheme.core.convert.region_sample import RegionSample
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -41,6 +41,9 @@ from terratheme.core.themes.from_photo import (
 from terratheme.core.themes.library import ThemeLibrary
 from terratheme.core.themes.matching import class_appearances, match_classes, theme_appearances
 from terratheme.core.themes.patch_search import PatchOptions, texture_stats
+
+if TYPE_CHECKING:
+    from terratheme.core.convert.region_sample import RegionSample
 
 ProgressFn = Callable[[int, int], None]
 #: what the themes of a conversion are: "auto"/K (cut from the photo), names, {class: name},
@@ -195,10 +198,11 @@ def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSp
     conversion and a whole photo in memory both take them (issue 34)."""
     mapping = themes_and_cell(sample.rgb, sample.labels, classes, themes, cell=1, patch=patch,
                               names=names, detail=detail).mapping
-    if not sample.gap or sample.no_data:
+    last = len(mapping.library) - 1
+    if not sample.gap or sample.no_data or last == 0 or int(mapping.lut[0]) != last:
         return mapping
-    # The no-data theme (appended last) was for the gaps alone: label 0 maps to theme 0, as
-    # on a photo without no-data pixels.
+    # The no-data theme (appended last; a library has none) was for the gaps alone: label 0
+    # maps to theme 0, as on a photo without no-data pixels.
     lut = mapping.lut.copy()
     lut[0] = 0
     return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)

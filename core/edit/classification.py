@@ -105,9 +105,9 @@ class ClassifyMode(Enum):
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
                  taken: list[str], names: Mapping[int, str] | None = None
                  ) -> tuple[list[Theme], np.ndarray]:
-    """Themes cut from the photo for every class, where ``convert`` cuts them
-    (``core.convert.step.assign_themes``, or ``sample_themes`` on a photo larger than a
-    region's sample).
+    """Themes cut from the photo for every class, their patches where ``convert`` cuts
+    them (``core.convert.step.assign_themes``, or ``sample_themes`` on a photo larger than
+    a region's sample).
 
     Returns the themes (renamed where a name is taken, and given distinct
     display colours so the index map reads well; the texture keeps the
