@@ -141,14 +141,15 @@ def test_a_photo_in_memory_has_its_files_region_sample(mosaic_file):
     assert rs.photo_sample(img[:144, :144], classify(img[:144, :144])) is None
 
 
-def _outside_the_sample(img):
-    """(y, x) of a 4 x 4 block no sample window of ``img`` covers."""
-    covered = np.zeros(img.shape[:2], bool)
+def _outside_the_sample(img, side=4):
+    """(y, x) of a ``side`` x ``side`` block no sample window of ``img`` covers."""
+    covered = np.zeros(img.shape[:2], np.int64)
     for row in rs.sample_windows(img.shape[1::-1], rs.SAMPLE_PIECE, rs.SAMPLE_GRID):
         for x, y, w, h in row:
-            covered[y:y + h, x:x + w] = True
-    free = ~covered[:-3, :-3] & ~covered[3:, 3:] & ~covered[:-3, 3:] & ~covered[3:, :-3]
-    ys, xs = np.nonzero(free)
+            covered[y:y + h, x:x + w] = 1
+    sums = np.pad(covered, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+    inside = sums[side:, side:] - sums[:-side, side:] - sums[side:, :-side] + sums[:-side, :-side]
+    ys, xs = np.nonzero(inside == 0)
     return int(ys[0]), int(xs[0])
 
 
@@ -177,6 +178,21 @@ def test_a_sample_keeps_the_photos_no_data_and_every_class(mosaic_file):
     other = labels.copy()
     other[y:y + 4, x:x + 4] = 3
     assert rs.photo_sample(img, other) is None
+
+
+def test_transparent_pixels_the_windows_miss_are_no_data_tiled_and_whole(mosaic_file, tmp_path):
+    img, _ = mosaic_file
+    y, x = _outside_the_sample(img, 24)
+    rgba = np.dstack([img, np.full(img.shape[:2], 255, np.uint8)])
+    rgba[y:y + 24, x:x + 24, 3] = 0
+    path = tmp_path / "collar.tif"
+    write_image(path, rgba, tile=32)
+    tiled = convert_file_tiled(path, None, 8, tile=64)
+    whole = convert_photo(rgba, ConvertOptions(cell=8)).project
+    for project in (tiled, whole):
+        # The vertex at the block's middle (its cell's corners all inside the block).
+        vy, vx = -(-(y + 8) // 8), -(-(x + 8) // 8)
+        assert project.library[int(project.grid.indices[vy, vx])].name == "no data"
 
 
 def test_the_editors_new_themes_are_converts_on_a_photo_larger_than_its_sample(mosaic_file):

@@ -121,8 +121,9 @@ class RegionSample:
     ``rgb``: (h, w, 3) uint8 pieces (the whole photo when it fits), ``gap`` pixels apart;
     ``labels``: (h, w) uint8 classes, classified with context around each piece as the
     tiles are, 0 (no data) in the gaps, where ``rgb`` mirrors the pieces (a blur there
-    sees what it sees at the photo's edge); ``no_data``: whether a piece (in memory: the
-    photo) has label 0.
+    sees what it sees at the photo's edge); ``no_data``: whether the photo may have label 0
+    (:func:`region_sample`: a piece has, or the file has alpha; :func:`photo_sample`: the
+    photo has).
     """
 
     windows: list[tuple[int, int, int, int]]
@@ -208,7 +209,8 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
     """Read and classify the :func:`sample_windows` of a photo (one window at a time).
 
     ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
-    window, then cropped. A single window has no ``SAMPLE_GAP`` around it.
+    window, then cropped. A single window has no ``SAMPLE_GAP`` around it. ``no_data``:
+    also when the file has an alpha channel.
     """
     info = image_info(path)
 
@@ -223,7 +225,9 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
                  else prepare_photo(pixels).rgb[core])
         return piece, got[core]
 
-    return _lay_out((info.width, info.height), piece_of)
+    sample = _lay_out((info.width, info.height), piece_of)
+    # A file with alpha may hold transparent pixels the windows miss: they keep their theme.
+    return replace(sample, no_data=sample.no_data or info.alpha_channel >= 0)
 
 
 def photo_sample(rgb: np.ndarray, labels: np.ndarray) -> RegionSample | None:
