@@ -125,12 +125,14 @@ def test_a_periodic_mosaic_gets_the_whole_photos_themes(mosaic_file):
     assert tiled.metadata["created_by"] == "terratheme convert (tiled)"
 
 
+def _blue_or_not(pixels):
+    """Labels of :func:`periodic`'s photo: 2 where blue, 1 elsewhere."""
+    return np.where(pixels[:, :, 2] > 150, 2, 1).astype(np.uint8)
+
+
 def test_a_photo_in_memory_has_its_files_region_sample(mosaic_file):
     img, path = mosaic_file
-
-    def classify(p):
-        return np.where(p[:, :, 2] > 150, 2, 1).astype(np.uint8)
-
+    classify = _blue_or_not
     from_file = region_sample(path, classify, 0)
     in_memory = rs.photo_sample(img, classify(img))
     assert in_memory.windows == from_file.windows and in_memory.places == from_file.places
@@ -158,7 +160,7 @@ def test_a_sample_keeps_the_photos_no_data_and_every_class(mosaic_file):
     from terratheme.core.themes.library import Theme, ThemeLibrary
 
     img, _ = mosaic_file
-    labels = np.where(img[:, :, 2] > 150, 2, 1).astype(np.uint8)
+    labels = _blue_or_not(img)
     y, x = _outside_the_sample(img)
     # Transparent pixels the windows miss still map to the no-data theme.
     with_gap = labels.copy()

@@ -217,8 +217,8 @@ def convert_file_tiled(
         # Themes cut from the photo, named by a shipped model's classes where it has them.
         spec, class_names = "auto", getattr(model, "class_names", None)
     # The themes, and with cell "auto" the cell size, chosen once on the sample: the themes
-    # on its windows side by side (a fixed cell: no choice there), the cell on each window
-    # apart (the seams between them are no borders of the photo: they would favour small cells).
+    # on its windows side by side, the cell on each window apart (the seams between them
+    # are no borders of the photo: they would favour small cells).
     mapping = sample_themes(sample, model.classes, spec, names=class_names,
                             detail=detail_sigma(colour_map))
     choice = None

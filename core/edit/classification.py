@@ -116,8 +116,9 @@ def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...]
     from terratheme.core.convert.region_sample import photo_sample
     from terratheme.core.convert.step import assign_themes, sample_themes
 
-    sample = photo_sample(photo[..., :3], labels)
-    mapping = (assign_themes(photo[..., :3], labels, classes, names=names) if sample is None
+    rgb = photo[..., :3]
+    sample = photo_sample(rgb, labels)
+    mapping = (assign_themes(rgb, labels, classes, names=names) if sample is None
                else sample_themes(sample, classes, names=names, detail=None))
     out = []
     for i, theme in enumerate(mapping.library):
