@@ -176,10 +176,90 @@ def test_a_sample_keeps_the_photos_no_data_and_every_class(mosaic_file):
                            for i, n in enumerate(("sand", "water", "road")))
     kept = sample_themes(rs.photo_sample(img, labels), (1, 2), library)
     assert kept.library.names == ["sand", "water", "road"] and max(kept.lut[[1, 2]]) <= 2
-    # A class the windows miss would get no theme cut from it: the whole photo is cut.
-    other = labels.copy()
-    other[y:y + 4, x:x + 4] = 3
-    assert rs.photo_sample(img, other) is None
+    # Windows moved to cover a pixel hold it; the others stay where they were.
+    moved = rs.photo_sample(img, labels, covering=[(x, y)])
+    assert sum(wx <= x < wx + w and wy <= y < wy + h for wx, wy, w, h in moved.windows) == 1
+    assert sum(a != b for a, b in zip(moved.windows, sample.windows, strict=True)) == 1
+
+
+def test_sample_windows_move_onto_each_pixel_they_must_cover():
+    rows = sample_windows((1000, 700), piece=96, grid=3, align=8)
+    windows = [w for row in rows for w in row]
+    # A pixel a window holds moves nothing.
+    x, y, *_ = windows[4]
+    assert sample_windows((1000, 700), piece=96, grid=3, align=8, covering=[(x, y)]) == rows
+    # Two pixels in the same cell no window holds: its window moves onto the first, the
+    # nearest other window onto the second; each pixel in a window, corners aligned.
+    spots = [(p, q) for p in range(0, 1000, 7) for q in range(0, 700, 7)
+             if not any(wx <= p < wx + 96 and wy <= q < wy + 96 for wx, wy, *_ in windows)]
+    first = spots[0]
+    second = next(p for p in spots if abs(p[0] - first[0]) + abs(p[1] - first[1]) > 200
+                  and p[0] * 3 // 1000 == first[0] * 3 // 1000
+                  and p[1] * 3 // 700 == first[1] * 3 // 700)
+    moved = [w for row in sample_windows((1000, 700), piece=96, grid=3, align=8,
+                                         covering=[first, second]) for w in row]
+    assert sum(a != b for a, b in zip(moved, windows, strict=True)) == 2
+    for px, py in (first, second):
+        assert any(wx <= px < wx + 96 and wy <= py < wy + 96 for wx, wy, *_ in moved)
+    assert all(wx % 8 == 0 and wy % 8 == 0 and wx + 96 <= 1000 and wy + 96 <= 700
+               for wx, wy, *_ in moved)
+
+
+def test_class_spots_is_the_middle_of_a_missing_classes_densest_window(monkeypatch):
+    from terratheme.core.convert.region_sample import RegionSample, class_spots
+
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 3)
+    labels = np.ones((4, 4), np.uint8)
+    sample = RegionSample([(0, 0, 4, 4)], [(0, 0)], np.zeros((4, 4, 3), np.uint8), labels)
+    lut = np.arange(256, dtype=np.uint8)
+    # Theme 2 (class 2, absent from the sample) at three points, two of them side by side.
+    themes = np.ones((6, 8), np.uint8)
+    themes[0, 7] = themes[4, 2] = themes[4, 3] = 2
+    # Step (2, 2): a box of 1 x 1 vertices, all three tie: the first in raster order, row 0
+    # column 7, is pixel (14, 0).
+    assert class_spots(sample, (1, 2), lut, themes, (2, 2), (16, 12)) == [(14, 0)]
+    # Step 1: a 3 x 3 box holds both of the pair from rows 3-5, columns 2-3: first (2, 3).
+    assert class_spots(sample, (1, 2), lut, themes, (1, 1), (8, 6)) == [(2, 3)]
+    # A class the sample holds, or no theme shows, needs no window.
+    assert class_spots(sample, (1, 3), lut, themes, (1, 1), (8, 6)) == []
+
+
+class _BlueRedOrNot:
+    """A trained classifier's stand-in: 2 where blue, 3 where red, 1 elsewhere."""
+
+    classes = (1, 2, 3)
+    options = None
+
+    def predict(self, pixels, progress=None):
+        from terratheme.core.classify.photo import prepare_photo
+        from terratheme.core.classify.result import Classification
+
+        rgb = prepare_photo(pixels).rgb
+        labels = _blue_or_not(rgb)
+        labels[(rgb[..., 0] > 150) & (rgb[..., 1] < 80)] = 3
+        return Classification(labels, np.ones(labels.shape, np.float32), self.classes)
+
+
+def test_a_class_only_between_the_windows_gets_its_own_theme_tiled_and_whole(mosaic_file,
+                                                                            tmp_path):
+    # A red block outside every sample window: its class had a flat grey placeholder theme.
+    # Once the grid shows the class, a window moves onto it, tiled and whole alike.
+    img, _ = mosaic_file
+    y, x = _outside_the_sample(img, 24)
+    red = img.copy()
+    red[y:y + 24, x:x + 24] = (200, 40, 40)
+    path = tmp_path / "red.tif"
+    write_image(path, red, tile=32)
+    model = _BlueRedOrNot()
+    tiled = convert_file_tiled(path, model, 8, tile=64, colour_map=None)
+    whole = convert_photo(red, ConvertOptions(cell=8, colour_map=None), model=model).project
+    for project in (tiled, whole):
+        theme = project.library[int(project.grid.indices[-(-(y + 8) // 8), -(-(x + 8) // 8)])]
+        assert theme.source != "class absent from photo"
+        r, g, b = theme.texture[..., :3].reshape(-1, 3).mean(axis=0)
+        assert r > 150 and g < 80 and b < 80
+    assert [t.texture.tobytes() for t in tiled.library] == \
+        [t.texture.tobytes() for t in whole.library]
 
 
 def test_transparent_pixels_the_windows_miss_are_no_data_tiled_and_whole(mosaic_file, tmp_path):

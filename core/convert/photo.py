@@ -11,7 +11,7 @@ import os
 import stat
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,9 @@ from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.region_sample import photo_sample
 from terratheme.core.convert.step import (
     classify_photo,
+    cover_classes,
     detail_sigma,
+    fit_colour_map,
     grid_and_colour,
     grid_budget,
     themes_and_cell,
@@ -165,6 +167,7 @@ def convert_photo(
     candidates = road_candidates(options.candidates, [*(names or {}).values(), *listed])
     # Themes from each class's statistics, and the cell on their labels (15%); a photo
     # larger than a region's sample takes its themes from the sample, as its tiles would.
+    sample = photo_sample(rgb, result.labels)
     themed = themes_and_cell(
         rgb, result.labels, result.classes, options.themes, cell=options.cell,
         target_agreement=options.target_agreement, class_target=options.class_target,
@@ -172,16 +175,29 @@ def convert_photo(
         full_curve=options.full_curve, keep_specks=options.keep_specks,
         detail=detail_sigma(options.colour_map),
         grid_bpp=grid_budget(options.colour_map, h * w),
-        sample=photo_sample(rgb, result.labels))
+        sample=sample)
     mapping = themed.mapping
     if progress is not None:
         progress(50, 100)
-    # The grid (the chosen cell's, or voted at a given cell), then the colour map.
+    # The grid (the chosen cell's, or voted at a given cell).
+    render = RenderOptions(boundary=options.boundary)
     made = grid_and_colour(rgb, themed.theme_labels, mapping, cell=options.cell,
-                           colour_map=options.colour_map,
-                           render=RenderOptions(boundary=options.boundary),
+                           colour_map=None, render=render,
                            progress=_stage(progress, 50, 35), choice=themed.choice,
                            keep_specks=options.keep_specks)
+    if sample is not None:
+        # A class the grid shows that the sample's windows missed: windows moved onto it,
+        # as a tiled conversion moves them.
+        sample, mapping = cover_classes(
+            sample, result.classes, mapping, made.grid, (w, h),
+            lambda covering: photo_sample(rgb, result.labels, covering=covering),
+            options.themes, patch=options.patch, names=names,
+            detail=detail_sigma(options.colour_map))
+    # The colour map, fitted to the render of the final themes.
+    if options.colour_map is not None:
+        made = replace(made, colour=fit_colour_map(
+            rgb, made.grid, mapping.library, options.colour_map, render,
+            packed=made.choice.packed_bytes if made.choice is not None else None))
     if progress is not None:
         progress(95, 100)
     meta = dict(metadata or {})

@@ -148,11 +148,14 @@ class RegionSample:
 
 
 def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int = SAMPLE_GRID,
-                   align: int = SAMPLE_ALIGN) -> list[list[tuple[int, int, int, int]]]:
+                   align: int = SAMPLE_ALIGN, *, covering: Sequence[tuple[int, int]] = ()
+                   ) -> list[list[tuple[int, int, int, int]]]:
     """Rows of about ``grid x grid`` (x, y, w, h) windows of ``piece`` pixels, or the whole photo.
 
     Each lies at a seeded random place in its cell of the photo (a periodic mosaic is not
-    sampled at one phase), its corner on a multiple of ``align``.
+    sampled at one phase), its corner on a multiple of ``align``. ``covering``: (x, y)
+    pixels a window must hold; for each one no window holds, the window of its cell (or of
+    the nearest cell whose window has not moved) moves onto it.
     """
     w, h = size
     if w * h <= (grid * piece) ** 2:
@@ -174,15 +177,81 @@ def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int =
             x = spot(gx, nx, w, pw)
             row.append((x, spot(gy, ny, h, ph), pw, ph))
         rows.append(row)
+    moved: set[tuple[int, int]] = set()
+    for sx, sy in covering:
+        if any(x <= sx < x + pw and y <= sy < y + ph for row in rows for x, y, *_ in row):
+            continue
+        # The pixel's own cell, else the nearest cell whose window is still where it was.
+        cx, cy = min(nx - 1, sx * nx // w), min(ny - 1, sy * ny // h)
+        free = [(gx, gy) for gy in range(ny) for gx in range(nx) if (gx, gy) not in moved]
+        if not free:
+            break
+        gx, gy = min(free, key=lambda g: ((g[0] - cx) ** 2 + (g[1] - cy) ** 2, g[1], g[0]))
+        moved.add((gx, gy))
+        rows[gy][gx] = (_around(sx, pw, align, w), _around(sy, ph, align, h), pw, ph)
     return rows
 
 
+def _around(at: int, length: int, align: int, side: int) -> int:
+    """The aligned start of a ``length`` span about centred on ``at`` that holds it."""
+    start = (at - length // 2) // align * align
+    while start + length <= at:
+        start += align
+    return min(side - length, max(0, start))
+
+
+def class_spots(sample: RegionSample, classes: Sequence[int], lut: np.ndarray,
+                themes: np.ndarray, step: tuple[int, int], size: tuple[int, int]
+                ) -> list[tuple[int, int]]:
+    """The (x, y) pixels the sample's windows must hold so that every class the region
+    shows has pixels in the sample (a class it misses would get a flat placeholder theme).
+
+    ``classes``, ``lut``: the classes and their class -> theme table; ``themes``: (h, w)
+    theme indices every ``step`` (x, y) pixels over the (W, H) photo ``size`` (a grid's
+    vertices, or theme labels at step 1). A missing class with a theme in ``themes`` gets
+    the centre of the ``SAMPLE_PIECE`` square holding most of it (first in raster order).
+    """
+    seen = np.bincount(sample.labels.ravel(), minlength=256) > 0
+    box = (max(1, SAMPLE_PIECE // step[0]), max(1, SAMPLE_PIECE // step[1]))
+    spots = []
+    for c in classes:
+        if c == 0 or seen[c]:
+            continue
+        mask = themes == lut[c]
+        if not mask.any():
+            continue
+        # Counts of the class in a window-sized box around each point (exact in float32).
+        counts = cv2.boxFilter(mask.astype(np.float32), -1, box, normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        vy, vx = np.unravel_index(int(np.argmax(counts)), counts.shape)
+        spots.append((min(size[0] - 1, int(vx) * step[0]), min(size[1] - 1, int(vy) * step[1])))
+    return spots
+
+
+def covering_sample(sample: RegionSample, classes: Sequence[int], lut: np.ndarray,
+                    themes: np.ndarray, step: tuple[int, int], size: tuple[int, int],
+                    read: Callable[[list[tuple[int, int]]], RegionSample]) -> RegionSample:
+    """The sample with windows moved (:func:`class_spots`) until every class ``themes``
+    holds has pixels in it; ``read(covering)`` lays out the windows that hold those pixels.
+    The same sample when no class is missing."""
+    spots: list[tuple[int, int]] = []
+    for _ in range(len(classes)):
+        # A moved window may have held the only pixels of another class: looked at again.
+        new = [p for p in class_spots(sample, classes, lut, themes, step, size)
+               if p not in spots]
+        if not new:
+            break
+        spots += new
+        sample = read(spots)
+    return sample
+
+
 def _lay_out(size: tuple[int, int],
-             piece_of: Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]
-             ) -> RegionSample:
+             piece_of: Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]],
+             covering: Sequence[tuple[int, int]] = ()) -> RegionSample:
     """The :func:`sample_windows` of a (W, H) photo side by side, ``piece_of(x, y, w, h)``
     giving each window's (rgb, labels)."""
-    rows = sample_windows(size, SAMPLE_PIECE, SAMPLE_GRID)
+    rows = sample_windows(size, SAMPLE_PIECE, SAMPLE_GRID, covering=covering)
     side_w, side_h = rows[0][0][2:]
     half = SAMPLE_GAP // 2 if len(rows) * len(rows[0]) > 1 else 0
     step_w, step_h = side_w + 2 * half, side_h + 2 * half
@@ -205,12 +274,12 @@ def _lay_out(size: tuple[int, int],
 
 
 def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
-                  overlap: int) -> RegionSample:
+                  overlap: int, *, covering: Sequence[tuple[int, int]] = ()) -> RegionSample:
     """Read and classify the :func:`sample_windows` of a photo (one window at a time).
 
     ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
-    window, then cropped. A single window has no ``SAMPLE_GAP`` around it. ``no_data``:
-    also when the file has an alpha channel.
+    window, then cropped; ``covering``: as :func:`sample_windows`. A single window has no
+    ``SAMPLE_GAP`` around it. ``no_data``: also when the file has an alpha channel.
     """
     info = image_info(path)
 
@@ -225,28 +294,26 @@ def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.n
                  else prepare_photo(pixels).rgb[core])
         return piece, got[core]
 
-    sample = _lay_out((info.width, info.height), piece_of)
+    sample = _lay_out((info.width, info.height), piece_of, covering)
     # A file with alpha may hold transparent pixels the windows miss: they keep their theme.
     return replace(sample, no_data=sample.no_data or info.alpha_channel >= 0)
 
 
-def photo_sample(rgb: np.ndarray, labels: np.ndarray) -> RegionSample | None:
+def photo_sample(rgb: np.ndarray, labels: np.ndarray, *,
+                 covering: Sequence[tuple[int, int]] = ()) -> RegionSample | None:
     """The region sample of a classified photo in memory, so that its themes are cut where
-    a tiled conversion of its file cuts them; None where the photo is its own sample or a
-    class of it lies outside the windows (it would get no theme cut from it).
+    a tiled conversion of its file cuts them; None where the photo is its own sample.
 
-    ``rgb``: (H, W, 3) uint8; ``labels``: (H, W) uint8 classes. ``no_data`` is the whole
-    photo's: transparent pixels outside the windows keep their theme.
+    ``rgb``: (H, W, 3) uint8; ``labels``: (H, W) uint8 classes; ``covering``: as
+    :func:`sample_windows`. ``no_data`` is the whole photo's: transparent pixels outside
+    the windows keep their theme.
     """
     h, w = labels.shape
     if w * h <= (SAMPLE_GRID * SAMPLE_PIECE) ** 2:
         return None
     sample = _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
-                                                     labels[y:y + hh, x:x + ww]))
-    present = np.bincount(labels.ravel(), minlength=256) > 0
-    if (present[1:] & ~(np.bincount(sample.labels.ravel(), minlength=256) > 0)[1:]).any():
-        return None
-    return replace(sample, no_data=bool(present[0]))
+                                                     labels[y:y + hh, x:x + ww]), covering)
+    return replace(sample, no_data=bool((labels == 0).any()))
 
 
 def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],

@@ -9,7 +9,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from terratheme.core.classify import (
@@ -28,6 +27,7 @@ from terratheme.core.convert.cell_choice import (
 )
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
+from terratheme.core.convert.region_sample import RegionSample, covering_sample
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -41,9 +41,6 @@ from terratheme.core.themes.from_photo import (
 from terratheme.core.themes.library import ThemeLibrary
 from terratheme.core.themes.matching import class_appearances, match_classes, theme_appearances
 from terratheme.core.themes.patch_search import PatchOptions, texture_stats
-
-if TYPE_CHECKING:
-    from terratheme.core.convert.region_sample import RegionSample
 
 ProgressFn = Callable[[int, int], None]
 #: what the themes of a conversion are: "auto"/K (cut from the photo), names, {class: name},
@@ -206,6 +203,25 @@ def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSp
     lut = mapping.lut.copy()
     lut[0] = 0
     return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
+
+
+def cover_classes(sample: RegionSample, classes: Sequence[int], mapping: ThemeMapping,
+                  grid: IndexGrid, size: tuple[int, int],
+                  read: Callable[[list[tuple[int, int]]], RegionSample],
+                  themes: ThemesSpec = "auto", *, patch: PatchOptions = PatchOptions(),
+                  names: Mapping[int, str] | None = None,
+                  detail: float | None = DETAIL_SIGMA) -> tuple[RegionSample, ThemeMapping]:
+    """The region's sample and themes once its grid is known: a class the grid shows but
+    the sample's windows missed had a flat placeholder theme, so windows move onto it
+    (:func:`.region_sample.covering_sample`; ``read(covering)`` lays them out) and the
+    themes are cut again, with the same class -> theme table. Unchanged otherwise."""
+    if not cuts_themes(themes):
+        return sample, mapping
+    covered = covering_sample(sample, classes, mapping.lut, grid.indices, grid.cell, size, read)
+    if covered is sample:
+        return sample, mapping
+    return covered, sample_themes(covered, classes, themes, patch=patch, names=names,
+                                  detail=detail)
 
 
 @dataclass(frozen=True)

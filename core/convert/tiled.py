@@ -32,7 +32,12 @@ from terratheme.core.convert.region_sample import (
     sample_colour_scale,
 )
 from terratheme.core.convert.specks import SpeckStream
-from terratheme.core.convert.step import detail_sigma, grid_budget, sample_themes
+from terratheme.core.convert.step import (
+    cover_classes,
+    detail_sigma,
+    grid_budget,
+    sample_themes,
+)
 from terratheme.core.convert.tile_vote import (
     ClassifyFn,
     PredictLabels,
@@ -241,6 +246,12 @@ def convert_file_tiled(
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
                           keep_specks=keep_specks)
+    # A class the grid shows that the sample's windows missed: windows moved onto it.
+    sample, mapping = cover_classes(
+        sample, model.classes, mapping, grid, (info.width, info.height),
+        lambda covering: region_sample(path, PredictLabels(model), min(overlap, context),
+                                       covering=covering),
+        spec, names=class_names, detail=detail_sigma(colour_map))
     fitted = None
     if colour_map is not None:
         # The map's scale chosen on the sample, then the map itself tile by tile; a byte

@@ -103,23 +103,31 @@ class ClassifyMode(Enum):
 
 
 def class_themes(photo: np.ndarray, labels: np.ndarray, classes: tuple[int, ...],
-                 taken: list[str], names: Mapping[int, str] | None = None
-                 ) -> tuple[list[Theme], np.ndarray]:
+                 taken: list[str], cell: tuple[int, int],
+                 names: Mapping[int, str] | None = None) -> tuple[list[Theme], np.ndarray]:
     """Themes cut from the photo for every class, their patches where ``convert`` cuts
     them (``core.convert.step.assign_themes``, or ``sample_themes`` on a photo larger than
-    a region's sample).
+    a region's sample, its windows moved onto classes a ``cell`` grid shows and they miss).
 
     Returns the themes (renamed where a name is taken, and given distinct
     display colours so the index map reads well; the texture keeps the
     photo's look) and the class -> position-in-that-list table.
     """
+    from terratheme.core.convert.labels_to_grid import apply_lut, labels_to_grid
     from terratheme.core.convert.region_sample import photo_sample
-    from terratheme.core.convert.step import assign_themes, sample_themes
+    from terratheme.core.convert.step import assign_themes, cover_classes, sample_themes
 
     rgb = photo[..., :3]
     sample = photo_sample(rgb, labels)
-    mapping = (assign_themes(rgb, labels, classes, names=names) if sample is None
-               else sample_themes(sample, classes, names=names, detail=None))
+    if sample is None:
+        mapping = assign_themes(rgb, labels, classes, names=names)
+    else:
+        mapping = sample_themes(sample, classes, names=names, detail=None)
+        grid = labels_to_grid(apply_lut(labels, mapping.lut), cell, keep_specks=False)
+        _, mapping = cover_classes(
+            sample, classes, mapping, grid, labels.shape[::-1],
+            lambda covering: photo_sample(rgb, labels, covering=covering),
+            names=names, detail=None)
     out = []
     for i, theme in enumerate(mapping.library):
         name = theme.name
@@ -168,7 +176,7 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         weights, painted = None, None
         model = load_model("aerial")
         result, _ = classify_photo(photo, model=model, progress=progress)
-        new_themes, lut = class_themes(photo, result.labels, result.classes, taken,
+        new_themes, lut = class_themes(photo, result.labels, result.classes, taken, cell,
                                        names=model.class_names)
         lut = lut + offset
     else:
@@ -180,7 +188,7 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
             lut = assign_themes(photo[..., :3], labels, classes, library).lut.astype(np.int64)
             new_themes = []
         else:
-            new_themes, lut = class_themes(photo, labels, classes, taken)
+            new_themes, lut = class_themes(photo, labels, classes, taken, cell)
             lut = lut + offset
     # Lone specks removed, as convert does (core.convert.specks).
     theme_labels = apply_lut(result.labels, lut)
