@@ -12,6 +12,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import special_file
 
 
 def _resolved(path: Path) -> Path:
@@ -51,9 +52,9 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
     """Check the files a command will write and make their folders; returns the non-None
     ``outputs``.
 
-    TerrathemeError when an output is a folder, an input (after links, or by inode), named
-    twice, under a symlinked subfolder of ``folder`` (an export's), a symlink loop, or in a
-    folder that cannot be made or written. None entries are skipped.
+    TerrathemeError when an output is a folder, a pipe or device, an input (after links,
+    or by inode), named twice, under a symlinked subfolder of ``folder`` (an export's), a
+    symlink loop, or in a folder that cannot be made or written. None entries are skipped.
     """
     outs = [Path(p) for p in outputs if p is not None]
     ins = [(Path(p), _resolved(Path(p)), _file_id(Path(p))) for p in inputs if p is not None]
@@ -62,6 +63,9 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
         real = _resolved(out)
         if out.is_dir():
             raise TerrathemeError(f"{out}: is a folder, not an output file")
+        kind = special_file(out)
+        if kind is not None:
+            raise TerrathemeError(f"{out}: is {kind}, not an output file")
         ident = _file_id(out)
         for src, src_real, src_id in ins:
             if real == src_real or (ident is not None and ident == src_id):

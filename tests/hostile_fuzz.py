@@ -171,12 +171,16 @@ def hidden_files(folder: Path) -> list[str]:
 
 def patch_tiff_size(path, width: int, height: int) -> None:
     """Set a little-endian TIFF's first image width and height tags (its strips unchanged)."""
+    patch_tiff_tags(path, {256: width, 257: height})
+
+
+def patch_tiff_tags(path, values: dict[int, int]) -> None:
+    """Set integer tags of a little-endian TIFF's first image (its data unchanged)."""
     data = bytearray(path.read_bytes())
     ifd = struct.unpack_from("<I", data, 4)[0]
     for e in range(struct.unpack_from("<H", data, ifd)[0]):
         at = ifd + 2 + 12 * e
         tag, kind = struct.unpack_from("<HH", data, at)
-        if tag in (256, 257):
-            value = width if tag == 256 else height
-            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, value)
+        if tag in values:
+            struct.pack_into("<I" if kind == 4 else "<H", data, at + 8, values[tag])
     path.write_bytes(bytes(data))

@@ -90,6 +90,28 @@ def test_fully_transparent_photo_is_a_clear_error():
         classify_unsupervised(rgba)
 
 
+def test_float_pixels_out_of_range_clip_without_warnings():
+    import warnings
+
+    from terratheme.core.classify.photo import prepare_photo
+
+    arr = np.array([[[np.inf, -np.inf, np.nan], [0.5, 2.0, -1.0]]], np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rgb = prepare_photo(arr).rgb
+    assert rgb.tolist() == [[[255, 0, 0], [128, 255, 0]]]
+
+
+def test_fully_transparent_photo_is_a_clear_error_tile_by_tile(tmp_path):
+    from terratheme.core.classify import load_model
+    from terratheme.core.convert.tiled import convert_file_tiled
+
+    path = tmp_path / "clear.png"
+    write_image(path, np.zeros((64, 96, 4), np.uint8))
+    with pytest.raises(TerrathemeError, match="clear.png: photo is fully transparent"):
+        convert_file_tiled(path, load_model("aerial"), 8, tile=32)
+
+
 def test_16_bit_tiff_matches_the_8_bit_photo(tmp_path):
     img, truth = field_and_road()
     path = tmp_path / "photo16.tif"

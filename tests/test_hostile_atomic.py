@@ -375,3 +375,38 @@ def test_concurrent_sets_to_one_folder_end_whole(tmp_path):
     assert [p.wait(timeout=120) for p in procs] == [0] * 6 and seen
     contents = _contents(paths)
     assert contents[0] == contents[1] == contents[2] and _hidden(tmp_path) == []
+
+
+def test_a_full_disk_while_writing_names_the_output_not_its_temporary(tmp_path):
+    # A writer's OSError often names no file (zipfile) or the temporary: the output is named.
+    with pytest.raises(OSError) as err, atomic_path(tmp_path / "out.bin"):
+        raise OSError(28, "No space left on device")
+    assert err.value.filename == str(tmp_path / "out.bin")
+    with pytest.raises(OSError) as err, file_set([tmp_path / "a.bin", tmp_path / "b.bin"]) as fs:
+        # A writer that makes its own temporary of the set's (as save_project does).
+        with atomic_path(fs.temporary(tmp_path / "b.bin")) as inner:
+            raise OSError(28, "No space left on device", str(inner))
+    assert err.value.filename == str(tmp_path / "b.bin")
+    # Another file's error keeps its own name.
+    with pytest.raises(OSError) as err, atomic_path(tmp_path / "out.bin"):
+        raise OSError(2, "No such file or directory", "/elsewhere/input.png")
+    assert err.value.filename == "/elsewhere/input.png"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_pipe_or_a_device_is_never_replaced_by_an_output(tmp_path):
+    from terratheme.app.outputs import check_outputs
+
+    fifo = tmp_path / "preview.png"
+    os.mkfifo(fifo)
+    with pytest.raises(TerrathemeError, match="preview.png: is a pipe, not a file to write"):
+        write_bytes_atomic(fifo, b"png")
+    with pytest.raises(TerrathemeError, match="preview.png: is a pipe, not an output file"):
+        check_outputs([fifo])
+    with pytest.raises(TerrathemeError, match=f"{os.devnull}: is a device, not an output file"):
+        check_outputs([os.devnull])
+    assert fifo.is_fifo() and [p.name for p in tmp_path.iterdir()] == ["preview.png"]
+    # A link to a device is the link replaced, never the device.
+    link = tmp_path / "link.png"
+    link.symlink_to(os.devnull)
+    assert check_outputs([link]) == [link]

@@ -19,6 +19,7 @@ from hostile_fuzz import (
     EDITS,
     campaign,
     patch_tiff_size,
+    patch_tiff_tags,
     run_bytes,
     run_edited,
     run_truncations,
@@ -178,6 +179,25 @@ def test_a_tiff_declaring_more_pixels_than_its_bytes_can_hold_is_refused(tmp_pat
     with pytest.raises(CorruptFileError, match=r"forged.tif: header declares 30000 x 30000 x 1 "
                                                r"pixels \(858 MiB\) from a \d+-byte file"):
         read_image(path)
+
+
+def test_a_tiff_declaring_a_tile_larger_than_its_bytes_can_hold_is_refused(tmp_path):
+    # A 32 x 32 image whose one tile would be decoded whole: 3 GiB from a tiny file.
+    path = tmp_path / "tile.tif"
+    tifffile.imwrite(path, np.zeros((32, 32, 3), np.uint8), tile=(16, 16), compression="zlib")
+    patch_tiff_tags(path, {322: 32768, 323: 32768})
+    for read in (read_image, lambda p: read_region(p, 0, 0, 8, 8)):
+        with pytest.raises(CorruptFileError, match=r"tile.tif: header declares 32768 x 32768 x 3"):
+            read(path)
+
+
+def test_a_truncated_jpeg_read_by_window_is_refused(tmp_path):
+    # libjpeg fills the rows it lacks with grey and sets an error: a window must not take them.
+    path = tmp_path / "photo.jpg"
+    write_image(path, np.random.default_rng(0).integers(0, 255, (256, 256, 3), np.uint8))
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(CorruptFileError, match="photo.jpg: damaged or truncated image"):
+        read_region(path, 0, 200, 64, 56)
 
 
 def test_palette_pngs_hold_class_numbers_and_show_colours(tmp_path):

@@ -47,7 +47,8 @@ def prepare_photo(photo: np.ndarray | PreparedPhoto) -> PreparedPhoto:
     elif arr.dtype == np.uint16:
         img8 = ((arr.astype(np.uint32) + 128) // 257).astype(np.uint8)
     elif np.issubdtype(arr.dtype, np.floating):
-        img8 = np.clip(np.nan_to_num(arr) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        unit = np.clip(np.nan_to_num(arr, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        img8 = (unit * 255.0 + 0.5).astype(np.uint8)
     else:
         raise TerrathemeError(f"photo pixel type {arr.dtype} is not supported (uint8, uint16)")
     # Split off alpha (grey + alpha has 2 channels, RGB + alpha 4).

@@ -246,6 +246,11 @@ def convert_file_tiled(
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
                           keep_specks=keep_specks)
+    # A transparent photo has nothing to convert (as the whole photo's classifier says).
+    no_data = int(mapping.lut[0])
+    if no_data not in {int(mapping.lut[c]) for c in model.classes} and (
+            grid.indices == no_data).all():
+        raise TerrathemeError(f"{path}: photo is fully transparent: no pixel to classify")
     # A class the grid shows that the sample's windows missed: windows moved onto it.
     sample, mapping = cover_classes(
         sample, model.classes, mapping, grid, (info.width, info.height),

@@ -13,8 +13,9 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import stat
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
@@ -39,10 +40,26 @@ def _key(path: Path) -> Path:
         return Path(os.path.abspath(path))
 
 
+def special_file(path: str | os.PathLike) -> str | None:
+    """What ``path`` is when it is neither a regular file, a link nor absent (a pipe, a
+    device, a socket): the rename would replace it, so no output goes there."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISLNK(mode) or stat.S_ISDIR(mode):
+        return None
+    return ("a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "a device")
+
+
 def _new_temporary(final: Path, suffix: str | None) -> Path:
     folder = final.parent
     if not folder.is_dir():
         raise TerrathemeError(f"cannot write {final}: folder {folder} does not exist")
+    kind = special_file(final)
+    if kind is not None:
+        raise TerrathemeError(f"{final}: is {kind}, not a file to write")
     suffix = final.suffix if suffix is None else suffix
     suffix = suffix if suffix[1:].isalnum() and len(suffix) <= 17 else ""
     while True:
@@ -125,7 +142,8 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
         return
     tmp = _new_temporary(final, suffix)
     try:
-        yield tmp
+        with _naming(lambda: {"": final, str(tmp): final}):
+            yield tmp
         if rename:
             _fsync(tmp, final)
             os.replace(tmp, final)
@@ -134,6 +152,19 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
     finally:
         if tmp in _LIVE:
             _drop(tmp)
+
+
+@contextlib.contextmanager
+def _naming(finals: Callable[[], dict[str, Path]]) -> Iterator[None]:
+    """An OSError naming no file or a temporary (a writer's full disk) names the output:
+    ``finals()`` maps temporaries (as str; "" for no name) to their final paths."""
+    try:
+        yield
+    except OSError as exc:
+        final = finals().get("" if exc.filename is None else str(exc.filename))
+        if exc.errno is None or final is None:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), str(final)) from exc
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
@@ -234,7 +265,8 @@ def file_set(paths: Sequence[str | os.PathLike], *,
             raise TerrathemeError("a file is already being written by another set")
         _OPEN.update(dict.fromkeys(keys, files))
     try:
-        yield files
+        with _naming(lambda: {str(t): f for f, t in files._temps.items()}):
+            yield files
         files.commit([Path(p) for p in remove])
     finally:
         with _LOCK:

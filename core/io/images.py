@@ -113,6 +113,11 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
         raise TerrathemeError(f"{p}: deep images are not supported")
     try:
         _check_declared(p, spec.width, spec.height, spec.nchannels, int(spec.image_bytes()))
+        if spec.tile_width > 0:
+            # One tile is decoded whole: its declared size is bounded as the image's.
+            tile = spec.tile_width * spec.tile_height * max(1, spec.tile_depth)
+            _check_declared(p, spec.tile_width, spec.tile_height, spec.nchannels,
+                            tile * int(spec.pixel_bytes()))
     except CorruptFileError:
         inp.close()
         raise
@@ -275,16 +280,16 @@ def read_region(
             x1 = min(-(-(x + w) // tw) * tw, spec.width)
             y1 = min(-(-(y + h) // th) * th, spec.height)
             block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
-            if block is None:
+            if block is None or inp.has_error:
                 raise CorruptFileError(
-                    f"{path}: damaged tiles ({error_line(inp)})")
+                    f"{path}: damaged tiles ({error_line(inp) or 'no reason given'})")
             block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
             out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
         else:
             rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
-            if rows is None:
-                raise CorruptFileError(
-                    f"{path}: damaged scanlines ({error_line(inp)})")
+            if rows is None or inp.has_error:
+                raise CorruptFileError(f"{path}: damaged or truncated image "
+                                       f"({error_line(inp) or 'no reason given'})")
             out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
     finally:
         inp.close()
