@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import atomic_path, write_bytes_atomic
-from terratheme.core.io.images import image_info, read_image, read_region, write_image
+from terratheme.core.io.images import (
+    image_info,
+    read_image,
+    read_region,
+    read_windows,
+    write_image,
+)
 
 
 @pytest.mark.parametrize("shape", [(8, 8), (4, 6), (6, 4), (1, 1), (1, 9), (9, 1)])
@@ -63,6 +69,26 @@ def test_read_region_equals_crop_of_whole_image(tmp_path, tile):
     for x, y, w, h in [(0, 0, 70, 50), (13, 5, 20, 33), (69, 49, 1, 1), (16, 16, 16, 16)]:
         np.testing.assert_array_equal(read_region(tmp_path / "a.tif", x, y, w, h),
                                       img[y : y + h, x : x + w])
+
+
+@pytest.mark.parametrize(("name", "tile"), [("a.jpg", None), ("a.png", None), ("a.tif", None),
+                                           ("t.tif", 16)])
+def test_read_windows_are_the_whole_images_crops_in_any_order(tmp_path, monkeypatch, name, tile):
+    import terratheme.core.io.images as images
+
+    rng = np.random.default_rng(4)
+    write_image(tmp_path / name, rng.integers(0, 255, (90, 70, 3), dtype=np.uint8), tile=tile)
+    whole = read_image(tmp_path / name)
+    opened = []
+    real_open = images._open_input
+    monkeypatch.setattr(images, "_open_input", lambda p: opened.append(p) or real_open(p))
+    # Top rows in order (a row of tiles, then the next, overlapping), then two going up.
+    boxes = [(0, 0, 30, 40), (25, 0, 45, 40), (0, 30, 70, 20), (10, 35, 5, 55), (3, 89, 1, 1),
+             (0, 10, 70, 30), (69, 0, 1, 90)]
+    for (x, y, w, h), got in zip(boxes, read_windows(tmp_path / name, boxes), strict=True):
+        np.testing.assert_array_equal(got, whole[y:y + h, x:x + w])
+    # One opening, and one more for each window above the rows a scanline file kept.
+    assert len(opened) == (1 if tile else 3)
 
 
 def test_read_region_outside_image_is_an_error(tmp_path):

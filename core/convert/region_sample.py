@@ -9,6 +9,7 @@ one image, on which the themes, the cell and the colour map's scale are chosen;
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -28,7 +29,7 @@ from terratheme.core.classify.unsupervised_model import UnsupervisedModel
 from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, grid_window
 from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.images import Bands, image_info, read_region
+from terratheme.core.io.images import Bands, image_info, read_windows
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -246,12 +247,11 @@ def covering_sample(sample: RegionSample, classes: Sequence[int], lut: np.ndarra
     return sample
 
 
-def _lay_out(size: tuple[int, int],
-             piece_of: Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]],
-             covering: Sequence[tuple[int, int]] = ()) -> RegionSample:
-    """The :func:`sample_windows` of a (W, H) photo side by side, ``piece_of(x, y, w, h)``
-    giving each window's (rgb, labels)."""
-    rows = sample_windows(size, SAMPLE_PIECE, SAMPLE_GRID, covering=covering)
+def _lay_out(rows: list[list[tuple[int, int, int, int]]],
+             piece_of: Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]
+             ) -> RegionSample:
+    """Rows of :func:`sample_windows` side by side, ``piece_of(x, y, w, h)`` giving each
+    window's (rgb, labels)."""
     side_w, side_h = rows[0][0][2:]
     half = SAMPLE_GAP // 2 if len(rows) * len(rows[0]) > 1 else 0
     step_w, step_h = side_w + 2 * half, side_h + 2 * half
@@ -275,26 +275,32 @@ def _lay_out(size: tuple[int, int],
 
 def region_sample(path: str | os.PathLike, classify: Callable[[np.ndarray], np.ndarray],
                   overlap: int, *, covering: Sequence[tuple[int, int]] = ()) -> RegionSample:
-    """Read and classify the :func:`sample_windows` of a photo (one window at a time).
+    """Read and classify the :func:`sample_windows` of a photo (one opening, top to bottom).
 
     ``classify``: (h, w, C) -> (h, w) labels; ``overlap``: context pixels read around each
     window, then cropped; ``covering``: as :func:`sample_windows`. A single window has no
     ``SAMPLE_GAP`` around it. ``no_data``: also when the file has an alpha channel.
     """
     info = image_info(path)
-
-    def piece_of(x: int, y: int, ww: int, hh: int) -> tuple[np.ndarray, np.ndarray]:
-        rx, ry = max(0, x - overlap), max(0, y - overlap)
-        rx1, ry1 = min(info.width, x + ww + overlap), min(info.height, y + hh + overlap)
-        pixels = read_region(path, rx, ry, rx1 - rx, ry1 - ry, bands=Bands.PHOTO)
-        got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
-        core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
-        # Transparent pixels take the nearest opaque colour in the read window.
-        piece = (np.zeros((hh, ww, 3), np.uint8) if transparent(pixels)
-                 else prepare_photo(pixels).rgb[core])
-        return piece, got[core]
-
-    sample = _lay_out((info.width, info.height), piece_of, covering)
+    rows = sample_windows((info.width, info.height), SAMPLE_PIECE, SAMPLE_GRID,
+                          covering=covering)
+    # Each window with its context, read in order of their top rows (one decode of a JPEG).
+    wins = sorted({win for row in rows for win in row}, key=lambda win: (win[1], win[0]))
+    reads = [(max(0, x - overlap), max(0, y - overlap),
+              min(info.width, x + ww + overlap), min(info.height, y + hh + overlap))
+             for x, y, ww, hh in wins]
+    pieces = {}
+    with contextlib.closing(read_windows(path, [(rx, ry, rx1 - rx, ry1 - ry)
+                                                for rx, ry, rx1, ry1 in reads],
+                                         bands=Bands.PHOTO)) as got_pixels:
+        for (x, y, ww, hh), (rx, ry, _, _), pixels in zip(wins, reads, got_pixels, strict=True):
+            got = np.asarray(classify(pixels)).reshape(pixels.shape[:2])
+            core = (slice(y - ry, y - ry + hh), slice(x - rx, x - rx + ww))
+            # Transparent pixels take the nearest opaque colour in the read window.
+            piece = (np.zeros((hh, ww, 3), np.uint8) if transparent(pixels)
+                     else prepare_photo(pixels).rgb[core])
+            pieces[(x, y, ww, hh)] = (piece, got[core])
+    sample = _lay_out(rows, lambda x, y, ww, hh: pieces[(x, y, ww, hh)])
     # A file with alpha may hold transparent pixels the windows miss: they keep their theme.
     return replace(sample, no_data=sample.no_data or info.alpha_channel >= 0)
 
@@ -311,8 +317,9 @@ def photo_sample(rgb: np.ndarray, labels: np.ndarray, *,
     h, w = labels.shape
     if w * h <= (SAMPLE_GRID * SAMPLE_PIECE) ** 2:
         return None
-    sample = _lay_out((w, h), lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
-                                                     labels[y:y + hh, x:x + ww]), covering)
+    rows = sample_windows((w, h), SAMPLE_PIECE, SAMPLE_GRID, covering=covering)
+    sample = _lay_out(rows, lambda x, y, ww, hh: (rgb[y:y + hh, x:x + ww],
+                                                  labels[y:y + hh, x:x + ww]))
     return replace(sample, no_data=bool((labels == 0).any()))
 
 

@@ -11,9 +11,10 @@ leaves no half-written image; ``palette=`` makes an 8-bit label image a palette 
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import os
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -261,40 +262,70 @@ def read_region(
     Tiled files are read tile by tile and scanline files line by line, so memory is
     bounded by the window. ``bands`` as :func:`read_image`.
     """
+    with contextlib.closing(read_windows(path, [(x, y, w, h)], dtype=dtype, bands=bands)) as got:
+        return next(got)
+
+
+def read_windows(
+    path: str | os.PathLike, windows: Iterable[tuple[int, int, int, int]], *,
+    dtype: np.dtype | str | None = None, bands: Bands = Bands.ALL,
+) -> Iterator[np.ndarray]:
+    """The (h, w, C) pixels of each (x, y, w, h) window in turn, from one opening of the file.
+
+    Tiled files are read tile by tile. Scanline files are read top to bottom, the rows a
+    later window shares kept: windows in order of their top row decode a JPEG or PNG (no
+    random access: a window at row y costs the y rows above it) once, not once per
+    window; a window above the rows kept reopens the file. Memory: the full-width rows of
+    one window. ``bands`` as :func:`read_image`.
+    """
     inp = _open_input(path)
     try:
         spec = inp.spec()
         info = _info(inp)
-        if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > spec.width or y + h > spec.height:
-            raise TerrathemeError(
-                f"{path}: window x={x} y={y} w={w} h={h} is outside the "
-                f"{spec.width} x {spec.height} image"
-            )
         keep = info.band_indices(bands)
         first, last = min(keep), max(keep) + 1
         want = np.dtype(dtype) if dtype is not None else info.dtype
         fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
-        if spec.tile_width > 0:
-            tw, th = spec.tile_width, spec.tile_height
-            x0, y0 = (x // tw) * tw, (y // th) * th
-            x1 = min(-(-(x + w) // tw) * tw, spec.width)
-            y1 = min(-(-(y + h) // th) * th, spec.height)
-            block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
-            if block is None or inp.has_error:
-                raise CorruptFileError(
-                    f"{path}: damaged tiles ({error_line(inp) or 'no reason given'})")
-            block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
-            out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
-        else:
-            rows = inp.read_scanlines(0, 0, y, y + h, 0, first, last, fmt)
-            if rows is None or inp.has_error:
-                raise CorruptFileError(f"{path}: damaged or truncated image "
-                                       f"({error_line(inp) or 'no reason given'})")
-            out = np.asarray(rows).reshape(h, spec.width, last - first)[:, x : x + w]
+        kept, top = None, 0  # scanline files: full-width rows from row ``top``
+        for x, y, w, h in windows:
+            if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > spec.width or y + h > spec.height:
+                raise TerrathemeError(
+                    f"{path}: window x={x} y={y} w={w} h={h} is outside the "
+                    f"{spec.width} x {spec.height} image"
+                )
+            if spec.tile_width > 0:
+                tw, th = spec.tile_width, spec.tile_height
+                x0, y0 = (x // tw) * tw, (y // th) * th
+                x1 = min(-(-(x + w) // tw) * tw, spec.width)
+                y1 = min(-(-(y + h) // th) * th, spec.height)
+                block = inp.read_tiles(0, 0, x0, x1, y0, y1, 0, 1, first, last, fmt)
+                if block is None or inp.has_error:
+                    raise CorruptFileError(
+                        f"{path}: damaged tiles ({error_line(inp) or 'no reason given'})")
+                block = np.asarray(block).reshape(y1 - y0, x1 - x0, last - first)
+                out = block[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
+            else:
+                if kept is not None and y < top:
+                    # Above the rows kept: the decoder starts again from the top.
+                    inp.close()
+                    inp, kept = _open_input(path), None
+                end = top + (0 if kept is None else len(kept))
+                # Rows above the window dropped; the rows below the kept ones read on.
+                kept = kept[y - top:] if kept is not None and y < end else None
+                start = y if kept is None else end
+                top = y
+                if y + h > start:
+                    rows = inp.read_scanlines(0, 0, start, y + h, 0, first, last, fmt)
+                    if rows is None or inp.has_error:
+                        raise CorruptFileError(f"{path}: damaged or truncated image "
+                                               f"({error_line(inp) or 'no reason given'})")
+                    rows = np.asarray(rows).reshape(y + h - start, spec.width, last - first)
+                    kept = rows if kept is None else np.concatenate([kept, rows])
+                out = kept[:h, x : x + w]
+            out = np.ascontiguousarray(out).astype(want, copy=False)
+            yield np.ascontiguousarray(_select(out, info, bands, first))
     finally:
         inp.close()
-    out = np.ascontiguousarray(out).astype(want, copy=False)
-    return np.ascontiguousarray(_select(out, info, bands, first))
 
 
 def read_labels(path: str | os.PathLike) -> np.ndarray:

@@ -7,6 +7,7 @@ memory follows the tile size, not the image. Jobs run serially or on a dask clus
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import os
 from collections.abc import Callable
@@ -15,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.images import Bands, image_info, read_region
+from terratheme.core.io.images import Bands, image_info, read_region, read_windows
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -150,10 +151,13 @@ def run_tiles(
     if progress is not None:
         progress(0, total)
     if scheduler is Scheduler.SERIAL:
-        for done, win in enumerate(wins, start=1):
-            sink(win, _run_one(path, win, job, dtype, bands, *_part_of(parts, win)))
-            if progress is not None:
-                progress(done, total)
+        # One opening of the file: a JPEG or PNG is decoded once, top to bottom.
+        boxes = [(w.rx, w.ry, w.rw, w.rh) for w in wins]
+        with contextlib.closing(read_windows(path, boxes, dtype=dtype, bands=bands)) as tiles:
+            for done, (win, pixels) in enumerate(zip(wins, tiles, strict=True), start=1):
+                sink(win, job(win, pixels, *_part_of(parts, win)))
+                if progress is not None:
+                    progress(done, total)
         return total
     from terratheme.core.io.cluster import check_workers, map_ordered
 
