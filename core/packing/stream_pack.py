@@ -14,7 +14,7 @@ import numpy as np
 from terratheme.core.curves.plan import curve_squares
 from terratheme.core.curves.scan import join_runs, scan_square
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.images import image_info, read_region
+from terratheme.core.io.images import image_info, read_bands, read_region
 from terratheme.core.io.png import palette_indices, png_palette
 from terratheme.core.packing.layer import PackedLayer
 from terratheme.core.packing.packer import CurveChoice, ProgressFn, TilePalette, tile_from_runs
@@ -90,8 +90,7 @@ def _largest(path: str, info) -> int:
     if info.dtype == np.uint8:
         return 0
     top = 0
-    for y in range(0, info.height, BAND_ROWS):
-        band = read_region(path, 0, y, info.width, min(BAND_ROWS, info.height - y))
+    for _, band in read_bands(path, BAND_ROWS):
         top = max(top, int(band.max()))
     return top
 
