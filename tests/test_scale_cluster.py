@@ -111,8 +111,10 @@ def _same_project(a, b) -> None:
         pack(b.grid.indices, curve="auto").to_bytes()
 
 
-def test_cluster_grid_equals_serial_grid(tmp_path, cluster):
-    path = tmp_path / "photo.tif"
+@pytest.mark.parametrize("name", ["photo.tif", "photo.png"])
+def test_cluster_grid_equals_serial_grid(tmp_path, cluster, name):
+    # A tiled TIFF is read by the workers; a PNG (no random access) here, its tiles sent.
+    path = tmp_path / name
     _photo(path)
     serial = grid_from_file(path, (8, 6), brightest, tile=48, overlap=5)
     seen = []
@@ -126,9 +128,11 @@ def test_cluster_grid_equals_serial_grid(tmp_path, cluster):
 
 
 @pytest.mark.slow
-def test_cluster_conversion_equals_serial(tmp_path, cluster):
-    path = tmp_path / "photo.tif"
-    write_image(path, read_image(SAMPLE)[:320, :384, :3], tile=64)
+@pytest.mark.parametrize("name", ["photo.tif", "photo.png"])
+def test_cluster_conversion_equals_serial(tmp_path, cluster, name):
+    path = tmp_path / name
+    write_image(path, read_image(SAMPLE)[:320, :384, :3],
+                **({"tile": 64} if name.endswith(".tif") else {}))
     serial = convert_file_tiled(path, None, 16, tile=128)
     on_cluster = convert_file_tiled(path, None, 16, tile=128, scheduler=cluster)
     assert serial.colour_map is not None

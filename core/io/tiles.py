@@ -111,6 +111,12 @@ def _run_shared(item: tuple[TileWindow, tuple], shared: tuple) -> object:
     return _run_one(shared[0], item[0], *shared[1:], *item[1])
 
 
+def _run_given(item: tuple[TileWindow, tuple], job: TileJob) -> object:
+    """A tile whose pixels came with it (and its :func:`_part_of`) on a cluster worker."""
+    win, (pixels, *part) = item
+    return job(win, pixels, *part)
+
+
 def _part_of(parts: TilePart | None, win: TileWindow) -> tuple:
     return () if parts is None else (parts(win),)
 
@@ -164,6 +170,14 @@ def run_tiles(
     # Workers open the file by its absolute path and must run this code: checked first.
     path = os.path.abspath(path)
     check_workers(scheduler, path)
+    if not info.tiled:
+        # A scanline file (JPEG, PNG: no random access) is read here once, top to bottom,
+        # each tile's pixels sent with its task (tasks are submitted in tile order).
+        boxes = [(w.rx, w.ry, w.rw, w.rh) for w in wins]
+        with contextlib.closing(read_windows(path, boxes, dtype=dtype, bands=bands)) as tiles:
+            return map_ordered(scheduler, _run_given, wins, job, sink, in_flight=batch,
+                               progress=progress, describe=_describe,
+                               payload=lambda win: (next(tiles), *_part_of(parts, win)))
     return map_ordered(scheduler, _run_shared, wins, (path, job, dtype, bands), sink,
                        in_flight=batch, progress=progress, describe=_describe,
                        payload=lambda win: _part_of(parts, win))
