@@ -225,32 +225,15 @@ def read_bands(path: str | os.PathLike, rows: int, *, dtype: np.dtype | str | No
     """``(y, band)`` pairs of a whole image, top to bottom, from one opening of the file.
 
     Memory is one band of ``rows`` rows (the last may be shorter), shape
-    ``(h, W, C)``; a PNG is decoded once, not once per band as :func:`read_region`
-    calls would.
+    ``(h, W, C)``; a PNG is decoded once (:func:`read_windows`), not once per band as
+    :func:`read_region` calls would.
     """
-    inp = _open_input(path)
-    try:
-        spec, info = inp.spec(), _info(inp)
-        want = np.dtype(dtype) if dtype is not None else info.dtype
-        fmt = OIIO_PIXEL_TYPES.get(want, oiio.FLOAT)
-        step, th = max(1, int(rows)), max(1, spec.tile_height)
-        for y in range(0, spec.height, step):
-            h = min(step, spec.height - y)
-            # A tiled file: the rows of tiles covering the band.
-            y0, y1 = (y // th * th, min(-(-(y + h) // th) * th, spec.height)) if (
-                spec.tile_width > 0) else (y, y + h)
-            if spec.tile_width > 0:
-                block = inp.read_tiles(0, 0, 0, spec.width, y0, y1, 0, 1, 0,
-                                       spec.nchannels, fmt)
-            else:
-                block = inp.read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels, fmt)
-            if block is None or inp.has_error:
-                raise CorruptFileError(f"{path}: damaged or truncated image "
-                                       f"({error_line(inp) or 'no reason given'})")
-            band = np.asarray(block).reshape(y1 - y0, spec.width, spec.nchannels)
-            yield y, np.ascontiguousarray(band[y - y0:y - y0 + h]).astype(want, copy=False)
-    finally:
-        inp.close()
+    info = image_info(path)
+    step = max(1, int(rows))
+    tops = range(0, info.height, step)
+    boxes = [(0, y, info.width, min(step, info.height - y)) for y in tops]
+    with contextlib.closing(read_windows(path, boxes, dtype=dtype)) as bands:
+        yield from zip(tops, bands, strict=True)
 
 
 def read_region(
