@@ -185,9 +185,10 @@ def test_a_sample_keeps_the_photos_no_data_and_every_class(mosaic_file):
 def test_sample_windows_move_onto_each_pixel_they_must_cover():
     rows = sample_windows((1000, 700), piece=96, grid=3, align=8)
     windows = [w for row in rows for w in row]
-    # A pixel a window holds moves nothing.
+    # A pixel a window is centred on moves nothing.
     x, y, *_ = windows[4]
-    assert sample_windows((1000, 700), piece=96, grid=3, align=8, covering=[(x, y)]) == rows
+    assert sample_windows((1000, 700), piece=96, grid=3, align=8,
+                          covering=[(x + 48, y + 48)]) == rows
     # Two pixels in the same cell no window holds: its window moves onto the first, the
     # nearest other window onto the second; each pixel in a window, corners aligned.
     spots = [(p, q) for p in range(0, 1000, 7) for q in range(0, 700, 7)
@@ -203,6 +204,35 @@ def test_sample_windows_move_onto_each_pixel_they_must_cover():
         assert any(wx <= px < wx + 96 and wy <= py < wy + 96 for wx, wy, *_ in moved)
     assert all(wx % 8 == 0 and wy % 8 == 0 and wx + 96 <= 1000 and wy + 96 <= 700
                for wx, wy, *_ in moved)
+
+
+def test_a_window_moved_off_a_class_it_alone_held_is_made_up_for():
+    from terratheme.core.convert.region_sample import covering_sample
+
+    # Review: class 3 lies only in the first window's far corner; class 2 only outside every
+    # window of the same cell. That window moves onto class 2 and loses class 3, whose spot
+    # the moved window then holds at its edge: a window must still move onto class 3.
+    size = 4000
+    rows = sample_windows((size, size))
+    windows = [w for row in rows for w in row]
+    x0, y0, pw, ph = rows[0][0]
+    labels = np.ones((size, size), np.uint8)
+    labels[y0 + ph - 10:y0 + ph, x0 + pw - 10:x0 + pw] = 3
+
+    def held(x, y):
+        return any(a <= x < a + pw and b <= y < b + ph for a, b, *_ in windows)
+
+    cell = size // len(rows)
+    x2, y2 = next((x, y) for y in range(0, cell, 8) for x in range(0, cell, 8)
+                  if not held(x, y) and not held(x + 15, y + 15) and abs(x - x0) > 200)
+    labels[y2:y2 + 16, x2:x2 + 16] = 2
+    rgb = np.zeros((size, size, 3), np.uint8)
+    sample = rs.photo_sample(rgb, labels)
+    assert set(np.unique(sample.labels)) == {0, 1, 3}
+    lut = np.arange(256, dtype=np.uint8)
+    covered = covering_sample(sample, (1, 2, 3), lut, labels, (1, 1), (size, size),
+                              lambda covering: rs.photo_sample(rgb, labels, covering=covering))
+    assert set(np.unique(covered.labels)) == {0, 1, 2, 3}
 
 
 def test_class_spots_is_the_middle_of_a_missing_classes_densest_window(monkeypatch):
@@ -260,6 +290,11 @@ def test_a_class_only_between_the_windows_gets_its_own_theme_tiled_and_whole(mos
         assert r > 150 and g < 80 and b < 80
     assert [t.texture.tobytes() for t in tiled.library] == \
         [t.texture.tobytes() for t in whole.library]
+    # The cell is chosen on the first sample's windows, before any moved: so says the project.
+    first = [list(w) for row in rs.sample_windows(red.shape[1::-1], rs.SAMPLE_PIECE,
+                                                  rs.SAMPLE_GRID) for w in row]
+    auto = convert_file_tiled(path, model, "auto", tile=64, colour_map=None)
+    assert auto.metadata["cell_choice"]["measured_on"] == first
 
 
 def test_transparent_pixels_the_windows_miss_are_no_data_tiled_and_whole(mosaic_file, tmp_path):

@@ -387,10 +387,13 @@ def test_a_full_disk_while_writing_names_the_output_not_its_temporary(tmp_path):
         with atomic_path(fs.temporary(tmp_path / "b.bin")) as inner:
             raise OSError(28, "No space left on device", str(inner))
     assert err.value.filename == str(tmp_path / "b.bin")
-    # Another file's error keeps its own name.
+    # Another file's error keeps its own name, and a read error naming none stays unnamed.
     with pytest.raises(OSError) as err, atomic_path(tmp_path / "out.bin"):
         raise OSError(2, "No such file or directory", "/elsewhere/input.png")
     assert err.value.filename == "/elsewhere/input.png"
+    with pytest.raises(OSError) as err, atomic_path(tmp_path / "out.bin"):
+        raise OSError(5, "Input/output error")
+    assert err.value.filename is None
     assert list(tmp_path.iterdir()) == []
 
 

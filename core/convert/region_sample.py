@@ -155,8 +155,8 @@ def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int =
 
     Each lies at a seeded random place in its cell of the photo (a periodic mosaic is not
     sampled at one phase), its corner on a multiple of ``align``. ``covering``: (x, y)
-    pixels a window must hold; for each one no window holds, the window of its cell (or of
-    the nearest cell whose window has not moved) moves onto it.
+    pixels a window must be centred on (as near as the alignment allows); for each, the
+    window of its cell (or of the nearest cell whose window has not moved) moves there.
     """
     w, h = size
     if w * h <= (grid * piece) ** 2:
@@ -180,7 +180,9 @@ def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int =
         rows.append(row)
     moved: set[tuple[int, int]] = set()
     for sx, sy in covering:
-        if any(x <= sx < x + pw and y <= sy < y + ph for row in rows for x, y, *_ in row):
+        # Centred on the pixel: one holding it at its edge may miss the class around it.
+        place = (_around(sx, pw, align, w), _around(sy, ph, align, h), pw, ph)
+        if any(win == place for row in rows for win in row):
             continue
         # The pixel's own cell, else the nearest cell whose window is still where it was.
         cx, cy = min(nx - 1, sx * nx // w), min(ny - 1, sy * ny // h)
@@ -189,7 +191,7 @@ def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int =
             break
         gx, gy = min(free, key=lambda g: ((g[0] - cx) ** 2 + (g[1] - cy) ** 2, g[1], g[0]))
         moved.add((gx, gy))
-        rows[gy][gx] = (_around(sx, pw, align, w), _around(sy, ph, align, h), pw, ph)
+        rows[gy][gx] = place
     return rows
 
 
@@ -232,19 +234,24 @@ def class_spots(sample: RegionSample, classes: Sequence[int], lut: np.ndarray,
 def covering_sample(sample: RegionSample, classes: Sequence[int], lut: np.ndarray,
                     themes: np.ndarray, step: tuple[int, int], size: tuple[int, int],
                     read: Callable[[list[tuple[int, int]]], RegionSample]) -> RegionSample:
-    """The sample with windows moved (:func:`class_spots`) until every class ``themes``
-    holds has pixels in it; ``read(covering)`` lays out the windows that hold those pixels.
-    The same sample when no class is missing."""
+    """The sample with windows moved onto (:func:`class_spots`) the classes ``themes``
+    holds that it misses; ``read(covering)`` lays out windows centred on those pixels.
+    The same sample when no class is missing; of the samples tried, the one missing
+    fewest classes."""
+    missing = class_spots(sample, classes, lut, themes, step, size)
+    best, fewest = sample, len(missing)
     spots: list[tuple[int, int]] = []
     for _ in range(len(classes)):
         # A moved window may have held the only pixels of another class: looked at again.
-        new = [p for p in class_spots(sample, classes, lut, themes, step, size)
-               if p not in spots]
+        new = [p for p in missing if p not in spots]
         if not new:
             break
         spots += new
         sample = read(spots)
-    return sample
+        missing = class_spots(sample, classes, lut, themes, step, size)
+        if len(missing) < fewest:
+            best, fewest = sample, len(missing)
+    return best
 
 
 def _lay_out(rows: list[list[tuple[int, int, int, int]]],

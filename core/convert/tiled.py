@@ -246,6 +246,7 @@ def convert_file_tiled(
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
                           keep_specks=keep_specks)
+    cell_windows = [list(w) for w in sample.windows]
     # A transparent photo has nothing to convert (as the whole photo's classifier says).
     no_data = int(mapping.lut[0])
     if no_data not in {int(mapping.lut[c]) for c in model.classes} and (
@@ -275,8 +276,7 @@ def convert_file_tiled(
         "classes": {str(c): mapping.library[int(mapping.lut[c])].name for c in mapping.classes},
     }
     if choice is not None:
-        meta["cell_choice"] = {**choice.as_dict(),
-                               "measured_on": [list(w) for w in sample.windows]}
+        meta["cell_choice"] = {**choice.as_dict(), "measured_on": cell_windows}
     if boundary is not None:
         meta["render"] = {"boundary": asdict(boundary)}
     if fitted is not None:

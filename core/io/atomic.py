@@ -11,6 +11,7 @@ repairs or removes what it finds in a folder.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import stat
@@ -154,13 +155,19 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
             _drop(tmp)
 
 
+#: what only a write raises: such an error naming no file is the output's
+_WRITE_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
 @contextlib.contextmanager
 def _naming(finals: Callable[[], dict[str, Path]]) -> Iterator[None]:
-    """An OSError naming no file or a temporary (a writer's full disk) names the output:
-    ``finals()`` maps temporaries (as str; "" for no name) to their final paths."""
+    """An OSError naming a temporary, or a full disk naming no file (zipfile's), names the
+    output: ``finals()`` maps temporaries (as str; "" for no name) to their final paths."""
     try:
         yield
     except OSError as exc:
+        if exc.filename is None and exc.errno not in _WRITE_ERRORS:
+            raise
         final = finals().get("" if exc.filename is None else str(exc.filename))
         if exc.errno is None or final is None:
             raise
