@@ -26,6 +26,7 @@ from terratheme.core.io.images import (
     read_image,
     read_labels,
     read_region,
+    read_windows,
     write_image,
 )
 from terratheme.core.io.memory import available_memory, check_fits
@@ -58,6 +59,7 @@ __all__ = [
     "read_image",
     "read_labels",
     "read_region",
+    "read_windows",
     "remove_temporaries",
     "run_tiles",
     "scale_georeference",

@@ -304,8 +304,9 @@ def read_windows(
                                                f"({error_line(inp) or 'no reason given'})")
                     rows = np.asarray(rows).reshape(y + h - start, spec.width, last - first)
                     kept = rows if kept is None else np.concatenate([kept, rows])
-                out = kept[:h, x : x + w].copy()  # never a view of rows kept for later
-            out = np.ascontiguousarray(out).astype(want, copy=False)
+                out = kept[:h, x : x + w]
+            # A compact copy: never a view of rows kept for a later window.
+            out = out.astype(want, order="C")
             yield np.ascontiguousarray(_select(out, info, bands, first))
     finally:
         inp.close()

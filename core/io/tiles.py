@@ -101,14 +101,11 @@ TileSink = Callable[[TileWindow, object], None]
 TilePart = Callable[[TileWindow], object]
 
 
-def _run_one(path: str, win: TileWindow, job: TileJob, dtype, bands: Bands, *part) -> object:
-    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands),
-               *part)
-
-
 def _run_shared(item: tuple[TileWindow, tuple], shared: tuple) -> object:
     """A tile and its :func:`_part_of` on a cluster worker (``shared``: path, job, dtype, bands)."""
-    return _run_one(shared[0], item[0], *shared[1:], *item[1])
+    (win, part), (path, job, dtype, bands) = item, shared
+    return job(win, read_region(path, win.rx, win.ry, win.rw, win.rh, dtype=dtype, bands=bands),
+               *part)
 
 
 def _run_given(item: tuple[TileWindow, tuple], job: TileJob) -> object:
@@ -156,9 +153,9 @@ def run_tiles(
     path = str(path)
     if progress is not None:
         progress(0, total)
+    boxes = [(w.rx, w.ry, w.rw, w.rh) for w in wins]
     if scheduler is Scheduler.SERIAL:
         # One opening of the file: a JPEG or PNG is decoded once, top to bottom.
-        boxes = [(w.rx, w.ry, w.rw, w.rh) for w in wins]
         with contextlib.closing(read_windows(path, boxes, dtype=dtype, bands=bands)) as tiles:
             for done, (win, pixels) in enumerate(zip(wins, tiles, strict=True), start=1):
                 sink(win, job(win, pixels, *_part_of(parts, win)))
@@ -173,7 +170,6 @@ def run_tiles(
     if not info.tiled:
         # A scanline file (JPEG, PNG: no random access) is read here once, top to bottom,
         # each tile's pixels sent with its task (tasks are submitted in tile order).
-        boxes = [(w.rx, w.ry, w.rw, w.rh) for w in wins]
         with contextlib.closing(read_windows(path, boxes, dtype=dtype, bands=bands)) as tiles:
             return map_ordered(scheduler, _run_given, wins, job, sink, in_flight=batch,
                                progress=progress, describe=_describe,
