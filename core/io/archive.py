@@ -2,6 +2,8 @@
 bounded by the file: each member is checked before it is read.
 
 * stored and deflated members only (no encryption, bzip2, lzma);
+* members do not overlap: each one's data ends before the next local header (so one
+  small deflate stream cannot be read once per member: an "overlapping" ZIP bomb);
 * the declared size is under the caller's ceiling and one the compressed bytes can
   hold (deflate expands at most :data:`MAX_DEFLATE_RATIO` times, RFC 1951);
   decompression stops there and the CRC-32 is checked;
@@ -18,6 +20,7 @@ import io
 import json
 import math
 import os
+import struct
 import zipfile
 import zlib
 from collections.abc import Collection, Iterator
@@ -70,7 +73,41 @@ def open_archive(source: str | os.PathLike | bytes, label: str, *, kind: str,
         zf.close()
         dup = next(n for n in names if names.count(n) > 1)
         raise CorruptFileError(f"{label}: the entry {dup!r} appears twice")
+    try:
+        _check_disjoint(zf, infos, label)
+    except BaseException:
+        zf.close()
+        raise
     return zf
+
+
+_LOCAL_HEADER = struct.Struct("<4s22xHH")
+
+
+def _check_disjoint(zf: zipfile.ZipFile, infos: list[zipfile.ZipInfo], label: str) -> None:
+    """Refuse members whose data overlaps another member's or the central directory.
+
+    Each local header is read (30 bytes) for its name and extra lengths, which place
+    the data; the data must end before the next header by offset. One read a member.
+    """
+    ordered = sorted(infos, key=lambda i: i.header_offset)
+    ends = [i.header_offset for i in ordered[1:]] + [zf.start_dir]
+    for info, end in zip(ordered, ends, strict=True):
+        try:
+            zf.fp.seek(info.header_offset)
+            head = zf.fp.read(_LOCAL_HEADER.size)
+        except (OSError, ValueError) as exc:
+            raise CorruptFileError(f"{_where(label, info.filename)} cannot be read "
+                                   f"({_one_line(exc)})") from None
+        if len(head) < _LOCAL_HEADER.size or head[:4] != b"PK\x03\x04":
+            raise CorruptFileError(f"{_where(label, info.filename)} has no local header "
+                                   "where the directory says")
+        _, name_length, extra_length = _LOCAL_HEADER.unpack(head)
+        data_end = (info.header_offset + _LOCAL_HEADER.size + name_length + extra_length
+                    + info.compress_size)
+        if data_end > end:
+            raise CorruptFileError(f"{_where(label, info.filename)} overlaps the next entry "
+                                   "(a ZIP bomb or a damaged archive)")
 
 
 def _printable(name: str) -> str:

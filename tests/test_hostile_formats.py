@@ -1,0 +1,103 @@
+"""Hostile copies of terratheme's own formats (projects, packed layers, theme
+libraries, classifier files, exports read back): each ends in one line naming the
+problem, with work bounded by the file, and leaves the input as it was.
+
+One regression test a failure the fuzz campaign of these readers found; the
+broader fuzzing lives in the ``test_hostile_*`` files of each format.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from hostile_fuzz import check_refused, run_cli
+from terratheme.core.errors import CorruptFileError
+from terratheme.core.io.archive import open_archive
+from terratheme.core.model.project import load_project
+
+
+def _npy(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr)
+    return buf.getvalue()
+
+
+def _deflate(data: bytes) -> bytes:
+    co = zlib.compressobj(9, zlib.DEFLATED, -15)
+    return co.compress(data) + co.flush()
+
+
+def _local(name: bytes, crc: int, stored: int, size: int, extra: int) -> bytes:
+    return struct.pack("<IHHHHHIIIHH", 0x04034B50, 20, 0, 8, 0, 0, crc, stored, size,
+                       len(name), extra) + name
+
+
+def _shared_zip(plain: dict[str, bytes], shared: list[str], data: bytes) -> bytes:
+    """A ZIP whose ``plain`` members are honest and whose ``shared`` members' local
+    headers all skip (by their extra-field length) onto one deflate stream of ``data``:
+    the file holds that stream once, a reader that allows it decodes it once a member."""
+    body, entries = bytearray(), []
+    for name, raw in plain.items():
+        stored, crc = _deflate(raw), zlib.crc32(raw)
+        entries.append((name.encode(), crc, len(stored), len(raw), len(body)))
+        body += _local(name.encode(), crc, len(stored), len(raw), 0) + stored
+    stored, crc = _deflate(data), zlib.crc32(data)
+    start = len(body) + sum(30 + len(n.encode()) for n in shared)
+    for name in shared:
+        head = len(body) + 30 + len(name.encode())
+        entries.append((name.encode(), crc, len(stored), len(data), len(body)))
+        body += _local(name.encode(), crc, len(stored), len(data), start - head)
+    body += stored
+    central = b"".join(
+        struct.pack("<IHHHHHHIIIHHHHHII", 0x02014B50, 20, 20, 0, 8, 0, 0, crc, n_stored,
+                    size, len(name), 0, 0, 0, 0, 0, offset) + name
+        for name, crc, n_stored, size, offset in entries)
+    end = struct.pack("<IHHHHIIH", 0x06054B50, 0, 0, len(entries), len(entries),
+                      len(central), len(body), 0)
+    return bytes(body + central + end)
+
+
+def _shared_texture_project(n_themes: int, side: int) -> bytes:
+    names = [f"themes/{k:03d}.npy" for k in range(n_themes)]
+    manifest = {"format": "terratheme-project", "version": 1, "cell": [1, 1],
+                "grid_shape": [2, 2], "metadata": {}, "layers": [],
+                "themes": [{"name": f"t{k}", "colour": [k, 0, 0], "texture": name}
+                           for k, name in enumerate(names)]}
+    plain = {"manifest.json": json.dumps(manifest).encode(),
+             "grid.npy": _npy(np.zeros((2, 2), np.uint8))}
+    return _shared_zip(plain, names, _npy(np.zeros((side, side, 3), np.uint8)))
+
+
+# -- ZIP members sharing one deflate stream (projects, classifier files) ------
+# Was: 256 theme textures of 4096² over one 76 KB stream, a 78 KB project, were each
+# decoded (12 GiB asked; 2.1 GB resident and 6 s before "not enough memory" under a
+# 3 GB ulimit, far past deflate's 1032:1 bound). Now the directory is refused.
+
+def test_members_sharing_one_stream_are_refused(tmp_path):
+    path = tmp_path / "shared.ttproj"
+    path.write_bytes(_shared_texture_project(3, 8))
+    with pytest.raises(CorruptFileError, match="overlaps the next entry"):
+        load_project(path)
+
+
+def test_member_whose_data_runs_into_the_next_is_refused():
+    inner = _npy(np.zeros((4, 4), np.uint8))
+    archive = bytearray(_shared_zip({"a.npy": inner, "b.npy": inner}, [], b""))
+    # a.npy's stored size now reaches over b.npy's local header (a "quoted" overlap)
+    central = archive.index(b"PK\x01\x02")
+    struct.pack_into("<I", archive, central + 20, 120)
+    with pytest.raises(CorruptFileError, match="a.npy overlaps the next entry"):
+        open_archive(bytes(archive), "x.zip", kind="test archive", max_members=4)
+
+
+def test_shared_stream_project_is_one_line_through_the_cli(tmp_path):
+    path = tmp_path / "shared.ttproj"
+    data = _shared_texture_project(256, 64)
+    path.write_bytes(data)
+    check_refused(run_cli("info", path), "shared.ttproj", "overlaps the next entry")
+    assert path.read_bytes() == data
