@@ -19,6 +19,8 @@ from hostile_fuzz import check_refused, run_cli
 from terratheme.core.errors import CorruptFileError
 from terratheme.core.io.archive import open_archive
 from terratheme.core.model.project import load_project
+from terratheme.core.packing import TiledLayer, pack
+from terratheme.core.packing import tiled_format as tiled
 
 
 def _npy(arr: np.ndarray) -> bytes:
@@ -101,3 +103,38 @@ def test_shared_stream_project_is_one_line_through_the_cli(tmp_path):
     path.write_bytes(data)
     check_refused(run_cli("info", path), "shared.ttproj", "overlaps the next entry")
     assert path.read_bytes() == data
+
+
+# -- tiled packed layers: a tile index whose sum wraps 2^64 -------------------
+# Was: lengths 2^63-1, 2^63-1, 40, T-38 (offsets running on modulo 2^64) passed the
+# "end to end" check in int64 arithmetic; info and unpack then asked read() for 2^63
+# bytes: an OverflowError traceback, exit 1. Now the index is refused.
+
+def _wrapped_index_container() -> bytes:
+    img = (np.arange(128 * 128).reshape(128, 128) // 300 % 4).astype(np.uint8)
+    data = bytearray(pack(img, tile_bits=6).to_bytes())
+    head = tiled.read_tiled_header(bytes(data), name="t", file_bytes=len(data))
+    assert head.tiles == 4
+    lengths = [2**63 - 1, 2**63 - 1, 40, head.tile_bytes - 38]
+    offset = 0
+    for i, n in enumerate(lengths):
+        struct.pack_into("<QQ", data, head.index_at + 16 * i, offset, n)
+        offset = (offset + n) % 2**64
+    assert offset == head.tile_bytes  # the lengths do add up, modulo 2^64
+    struct.pack_into("<I", data, head.tiles_at - 4, zlib.crc32(data[:head.tiles_at - 4]))
+    return bytes(data)
+
+
+def test_tile_index_wrapping_2_64_is_refused():
+    with pytest.raises(CorruptFileError, match="tile index does not run end to end"):
+        TiledLayer.from_bytes(_wrapped_index_container(), name="t")
+
+
+@pytest.mark.parametrize("command", ["info", "unpack"])
+def test_tile_index_wrapping_2_64_is_one_line(tmp_path, command):
+    path, out = tmp_path / "w.ttpack", tmp_path / "w.png"
+    data = _wrapped_index_container()
+    path.write_bytes(data)
+    args = [command, path] + ([out] if command == "unpack" else [])
+    check_refused(run_cli(*args), "w.ttpack", "tile index does not run end to end")
+    assert path.read_bytes() == data and sorted(tmp_path.iterdir()) == [path]

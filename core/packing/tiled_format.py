@@ -133,12 +133,15 @@ def read_index(data: bytes, head: TiledHeader, *, name: str) -> tuple[np.ndarray
     if zlib.crc32(memoryview(data)[: head.tiles_at - 4]) != stored:
         raise CorruptFileError(f"{name}: checksum mismatch in the tiled-layer header or index")
     index = np.frombuffer(data, "<u8", count=2 * head.tiles, offset=head.index_at)
-    offsets, lengths = index[0::2].astype(np.int64), index[1::2].astype(np.int64)
+    offsets, lengths = index[0::2].astype(np.uint64), index[1::2].astype(np.uint64)
+    # Each length at most the tiles' bytes, and the ends rising: a sum that wraps 2^64
+    # (lengths near 2^63 adding up to the file) would otherwise pass as end to end.
     ends = np.cumsum(lengths)
-    if (lengths.min() < 40 or ends[-1] != head.tile_bytes
+    if (lengths.min() < 40 or lengths.max() > head.tile_bytes
+            or np.any(ends[1:] <= ends[:-1]) or ends[-1] != head.tile_bytes
             or not np.array_equal(offsets, ends - lengths)):
         raise CorruptFileError(f"{name}: tile index does not run end to end over the tiles")
-    return offsets + head.tiles_at, lengths
+    return offsets.astype(np.int64) + head.tiles_at, lengths.astype(np.int64)
 
 
 def layer_file_kind(path: str | os.PathLike) -> tuple[str, bool]:
