@@ -18,9 +18,11 @@ import pytest
 from hostile_fuzz import check_refused, run_cli
 from terratheme.core.errors import CorruptFileError
 from terratheme.core.io.archive import open_archive
-from terratheme.core.model.project import load_project
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.project import ThematicTexture, load_project, save_project
 from terratheme.core.packing import TiledLayer, pack
 from terratheme.core.packing import tiled_format as tiled
+from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
 def _npy(arr: np.ndarray) -> bytes:
@@ -138,3 +140,32 @@ def test_tile_index_wrapping_2_64_is_one_line(tmp_path, command):
     args = [command, path] + ([out] if command == "unpack" else [])
     check_refused(run_cli(*args), "w.ttpack", "tile index does not run end to end")
     assert path.read_bytes() == data and sorted(tmp_path.iterdir()) == [path]
+
+
+# -- an export read back: the output is the project the export carries --------
+# Was: `new --from export EXP EXP/terratheme_project.ttproj` (or a link to it) replaced
+# the carried project, an input, with a re-saved copy and exited 0: only the manifest
+# was checked against the output. Now the carried project is an input too.
+
+@pytest.fixture(scope="module")
+def export_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("export")
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (4, 4)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 4),
+                                            flat_theme("sand", (220, 200, 140), 4)]))
+    save_project(folder / "p.ttproj", project)
+    proc = run_cli("export", folder / "p.ttproj", folder / "exp", "--engine", "unity")
+    assert proc.returncode == 0, proc.stderr
+    return folder / "exp"
+
+
+@pytest.mark.parametrize("output", ["terratheme_project.ttproj", "link.ttproj"])
+def test_new_from_export_never_writes_over_the_carried_project(export_folder, output):
+    carried = export_folder / "terratheme_project.ttproj"
+    before = carried.read_bytes()
+    link = export_folder / "link.ttproj"
+    if not link.exists():
+        link.symlink_to(carried.name)
+    check_refused(run_cli("new", "--from", "export", export_folder, export_folder / output),
+                  "is also an input")
+    assert carried.read_bytes() == before

@@ -58,7 +58,11 @@ def _from_export(args: argparse.Namespace) -> int:
     """The project an export carries, saved as PROJECT."""
     from terratheme.app.outputs import check_outputs
     from terratheme.core.errors import TerrathemeError
-    from terratheme.core.exchange.carried import export_manifest, project_from_export
+    from terratheme.core.exchange.carried import (
+        carried_project_path,
+        export_manifest,
+        project_from_export,
+    )
     from terratheme.core.model.project import save_project
 
     if len(args.inputs) != 1:
@@ -68,7 +72,7 @@ def _from_export(args: argparse.Namespace) -> int:
         raise TerrathemeError("an export brings its own themes and grid: --themes and --step "
                               "are for index images and engine maps")
     manifest = export_manifest(args.inputs[0])
-    check_outputs([args.project], inputs=[manifest])
+    check_outputs([args.project], inputs=[manifest, carried_project_path(manifest)])
     project = project_from_export(manifest)
     project.metadata.update({"created_by": "terratheme new", "source_export": str(manifest)})
     save_project(args.project, project)

@@ -35,9 +35,14 @@ def export_manifest(path: str | os.PathLike) -> Path:
     return p
 
 
-def project_from_export(path: str | os.PathLike) -> ThematicTexture:
-    """The project an export carries (its folder or manifest at ``path``); TerrathemeError
-    when there is none or its grid or cell is not the manifest's."""
+def carried_project_path(path: str | os.PathLike) -> Path:
+    """The project file an export (its folder or manifest at ``path``) names, not read:
+    an input, which an output must not replace; TerrathemeError when it names none."""
+    return _carried(path)[2]
+
+
+def _carried(path: str | os.PathLike) -> tuple[Path, dict, Path]:
+    """The manifest's path, its checked JSON and the carried project's path."""
     manifest = export_manifest(path)
     data = parse_json(read_bounded(manifest, MAX_MANIFEST_BYTES, str(manifest)), str(manifest))
     if not isinstance(data, dict) or not str(data.get("format", "")).startswith("terratheme-"):
@@ -50,7 +55,14 @@ def project_from_export(path: str | os.PathLike) -> ThematicTexture:
     if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
         raise TerrathemeError(f"{manifest}: 'project' must be a file name beside the "
                               f"manifest, not {name!r}")
-    project = load_project(manifest.parent / name)
+    return manifest, data, manifest.parent / name
+
+
+def project_from_export(path: str | os.PathLike) -> ThematicTexture:
+    """The project an export carries (its folder or manifest at ``path``); TerrathemeError
+    when there is none or its grid or cell is not the manifest's."""
+    manifest, data, project_path = _carried(path)
+    project = load_project(project_path)
     shape, cell = list(project.grid.indices.shape), list(project.grid.cell)
     if data.get("grid_shape") != shape or data.get("cell") != cell:
         raise TerrathemeError(
