@@ -16,7 +16,8 @@ import zlib
 import numpy as np
 import pytest
 from hostile_fuzz import check_refused, run_cli
-from terratheme.core.errors import CorruptFileError
+from terratheme.core.errors import CorruptFileError, TerrathemeError
+from terratheme.core.exchange.layout import world_frame
 from terratheme.core.io.archive import open_archive
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture, load_project, save_project
@@ -169,3 +170,46 @@ def test_new_from_export_never_writes_over_the_carried_project(export_folder, ou
     check_refused(run_cli("new", "--from", "export", export_folder, export_folder / output),
                   "is also an input")
     assert carried.read_bytes() == before
+
+
+# -- a project's georeference beyond floating point, exported -----------------
+# Was: a geographic georeference (GeoKey 1024 = 2) whose centre latitude overflows
+# gave "ValueError: math domain error" from math.cos, a traceback, exit 1; pixel sizes
+# of 1e308 (or 1e306, times Unreal's 100 cm and a texture's side) wrote "Infinity" and
+# "NaN" into the manifest, which no JSON reader (ours included) loads, exit 0. Now the
+# frame is checked finite, the manifest is written with finite numbers only, and the
+# export is one line with no file written.
+
+_GEOGRAPHIC = {"ModelPixelScale": [1e308, 1e308, 0], "ModelTiepoint": [0, 0, 0, 1e308, 1e308, 0],
+               "GeoKeyDirectory": [1, 1, 0, 1, 1024, 0, 1, 2]}
+
+
+def _huge(v: float) -> dict:
+    return {"ModelPixelScale": [v, v, 0], "ModelTiepoint": [0, 0, 0, v, -v, 0]}
+
+
+@pytest.mark.parametrize("georeference, match", [
+    (_GEOGRAPHIC, "beyond the poles"),
+    ({**_GEOGRAPHIC, "ModelPixelScale": [1e-3, 1e-3, 0], "ModelTiepoint": [0, 0, 0, 0, 95, 0]},
+     "beyond the poles"),
+    (_huge(1e308), "beyond the range of floating-point numbers"),
+])
+def test_world_frame_beyond_floating_point_is_refused(georeference, match):
+    with pytest.raises(TerrathemeError, match=match):
+        world_frame(georeference, (24, 8))
+
+
+@pytest.mark.parametrize("georeference, match", [
+    (_GEOGRAPHIC, "beyond the poles"), (_huge(1e308), "floating-point"),
+    (_huge(1e306), "not JSON-serialisable")])
+def test_export_of_a_georeference_beyond_floating_point_is_one_line(tmp_path, georeference,
+                                                                     match):
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 4),
+                                            flat_theme("sand", (220, 200, 140), 4)]),
+                              {"georeference": georeference})
+    save_project(tmp_path / "g.ttproj", project)
+    out = tmp_path / "exp"
+    out.mkdir()
+    check_refused(run_cli("export", tmp_path / "g.ttproj", out, "--engine", "unreal"), match)
+    assert list(out.iterdir()) == []

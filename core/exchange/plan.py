@@ -106,12 +106,13 @@ def piece_weights(project: ThematicTexture, plan: ExportPlan,
 
 
 def write_manifest(path: Path, manifest: dict) -> None:
-    """Write an export's JSON manifest atomically."""
+    """Write an export's JSON manifest atomically; TerrathemeError for a number JSON
+    cannot hold (an infinity from a huge georeference), which no reader could load."""
     try:
-        text = json.dumps(manifest, indent=1)
+        text = json.dumps(manifest, indent=1, allow_nan=False)
     except (TypeError, ValueError) as exc:
-        raise TerrathemeError(f"{path}: export description is not JSON-serialisable ({exc})"
-                              ) from exc
+        raise TerrathemeError(f"{path}: export description is not JSON-serialisable ({exc}; "
+                              "a georeference too large for the engine's units?)") from None
     write_bytes_atomic(path, (text + "\n").encode())
 
 
