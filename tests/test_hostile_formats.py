@@ -23,6 +23,7 @@ from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture, load_project, save_project
 from terratheme.core.packing import TiledLayer, pack
 from terratheme.core.packing import tiled_format as tiled
+from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.themes.library import ThemeLibrary, flat_theme
 
 
@@ -213,3 +214,26 @@ def test_export_of_a_georeference_beyond_floating_point_is_one_line(tmp_path, ge
     out.mkdir()
     check_refused(run_cli("export", tmp_path / "g.ttproj", out, "--engine", "unreal"), match)
     assert list(out.iterdir()) == []
+
+
+# -- a project's render style: noise features per cell near zero --------------
+# Was: metadata {"render": {"boundary": {"features": 5e-324}}} gave "OverflowError:
+# cannot convert float infinity to integer" and 1e-300 a numba typing error (a 300-digit
+# lattice), both tracebacks with exit 1, from render, export and the editor's preview.
+# Now the lattice stops at 2^31 texels (the noise is one value across any texture).
+
+@pytest.mark.parametrize("features", [5e-324, 1e-300, 1e-9])
+def test_a_vanishing_noise_feature_count_gives_a_bounded_lattice(features):
+    params = BoundaryOptions(features=features).parameters(16, 16)
+    assert 2 <= params.lattice <= 2**31
+
+
+def test_a_project_asking_for_a_vanishing_feature_count_renders(tmp_path):
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 4),
+                                            flat_theme("sand", (220, 200, 140), 4)]),
+                              {"render": {"boundary": {"features": 1e-300}}})
+    save_project(tmp_path / "b.ttproj", project)
+    proc = run_cli("render", tmp_path / "b.ttproj", tmp_path / "b.png")
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert (tmp_path / "b.png").stat().st_size > 0

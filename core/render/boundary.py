@@ -27,6 +27,8 @@ from terratheme.core.render.theme_pack import pack_themes
 _M32 = np.uint64(0xFFFFFFFF)
 #: widest border, in 1/1024 of a weight
 MAX_WIDTH = 409
+#: widest noise lattice, in texels (beyond a texture's side the noise is one value anyway)
+MAX_LATTICE = 1 << 31
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,7 @@ class BoundaryOptions:
         if noise + height > budget:
             f = budget / (noise + height)
             noise, height = int(noise * f), int(height * f)
-        lattice = max(2, int(round(half_cell / self.features)))
+        lattice = max(2, int(round(min(half_cell / self.features, MAX_LATTICE))))
         return BoundaryParams(w1024, noise, height, lattice, self.seed)
 
 
