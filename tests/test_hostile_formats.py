@@ -177,7 +177,8 @@ def test_new_from_export_never_writes_over_the_carried_project(export_folder, ou
 # Was: a geographic georeference (GeoKey 1024 = 2) whose centre latitude overflows
 # gave "ValueError: math domain error" from math.cos, a traceback, exit 1; pixel sizes
 # of 1e308 (or 1e306, times Unreal's 100 cm and a texture's side) wrote "Infinity" and
-# "NaN" into the manifest, which no JSON reader (ours included) loads, exit 0. Now the
+# "NaN" into the manifest, which no JSON reader (ours included) loads, exit 0; a
+# subnormal pixel size (5e-324) gave a ZeroDivisionError traceback in Unreal's. Now the
 # frame is checked finite, the manifest is written with finite numbers only, and the
 # export is one line with no file written.
 
@@ -194,6 +195,7 @@ def _huge(v: float) -> dict:
     ({**_GEOGRAPHIC, "ModelPixelScale": [1e-3, 1e-3, 0], "ModelTiepoint": [0, 0, 0, 0, 95, 0]},
      "beyond the poles"),
     (_huge(1e308), "beyond the range of floating-point numbers"),
+    ({**_huge(1.0), "ModelPixelScale": [5e-324, 1, 0]}, "beyond the range of floating-point"),
 ])
 def test_world_frame_beyond_floating_point_is_refused(georeference, match):
     with pytest.raises(TerrathemeError, match=match):
@@ -202,7 +204,8 @@ def test_world_frame_beyond_floating_point_is_refused(georeference, match):
 
 @pytest.mark.parametrize("georeference, match", [
     (_GEOGRAPHIC, "beyond the poles"), (_huge(1e308), "floating-point"),
-    (_huge(1e306), "not JSON-serialisable")])
+    (_huge(1e306), "not JSON-serialisable"),
+    ({**_huge(1.0), "ModelPixelScale": [5e-324, 1, 0]}, "floating-point")])
 def test_export_of_a_georeference_beyond_floating_point_is_one_line(tmp_path, georeference,
                                                                      match):
     project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),

@@ -10,6 +10,7 @@ Tiles of ``T`` pixels share their border row and column (tile ``t`` starts at pi
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,8 +130,9 @@ class WorldFrame:
 def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> WorldFrame:
     """The :class:`WorldFrame` of a project's ``metadata["georeference"]`` (``{}`` or None:
     texels); ``texture_size`` gives a geographic CRS's centre latitude. TerrathemeError
-    when the texture's corners or size in the world are not finite numbers (or a
-    geographic centre latitude is beyond the poles): an export must write real numbers."""
+    when the texture's corners or size in the world are not finite numbers, a texel
+    size is subnormal, or a geographic centre latitude is beyond the poles: an export
+    must write real numbers."""
     world = world_file_lines(georeference) if georeference else None
     if world is None:
         return WorldFrame()
@@ -140,7 +142,8 @@ def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> Wor
     # the farthest corner from 0 along each axis (x = A col + B row + C, y = D col + E row + F)
     corner = (abs(world[4]) + abs(world[0] * w) + abs(world[2] * h),
               abs(world[5]) + abs(world[1] * w) + abs(world[3] * h))
-    if not all(math.isfinite(v) for v in (*frame.texel_size, *frame.origin, *extent, *corner)):
+    if not all(math.isfinite(v) for v in (*frame.texel_size, *frame.origin, *extent, *corner)) \
+            or min(frame.texel_size) < sys.float_info.min:  # subnormal: spacings round to 0
         raise TerrathemeError(f"the project's georeference {world} places a {w} x {h} texture "
                               "beyond the range of floating-point numbers")
     return frame
