@@ -240,3 +240,40 @@ def test_a_project_asking_for_a_vanishing_feature_count_renders(tmp_path):
     proc = run_cli("render", tmp_path / "b.ttproj", tmp_path / "b.png")
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert (tmp_path / "b.png").stat().st_size > 0
+
+
+# -- text from a file reaching the terminal ------------------------------------
+# Was: a project whose theme name held "\x1b]0;pwned\x07...\x1b[2K\rFAKE: success\n"
+# loaded; `new --from export` printed the carried project's theme names raw, so the
+# file set the terminal's title, erased the line and printed lines of its own; `info`
+# printed metadata["source_photo"] raw the same way. Now a theme name must be
+# printable text (as themes.json and legends already require) and `info` shows text
+# with control characters as a quoted literal.
+
+_ESCAPES = "wa\x1b]0;pwned\x07ter\x1b[2K\rFAKE: success\nsecond line"
+
+
+def _crafted_project(name: str, metadata: dict) -> bytes:
+    manifest = {"format": "terratheme-project", "version": 1, "cell": [4, 4],
+                "grid_shape": [2, 2], "metadata": metadata, "layers": [],
+                "themes": [{"name": name, "colour": [1, 2, 3], "texture": "themes/000.npy"}]}
+    return _shared_zip({"manifest.json": json.dumps(manifest).encode(),
+                        "grid.npy": _npy(np.zeros((2, 2), np.uint8)),
+                        "themes/000.npy": _npy(np.zeros((4, 4, 3), np.uint8))}, [], b"")
+
+
+def test_a_theme_name_with_control_characters_is_refused(tmp_path):
+    path = tmp_path / "esc.ttproj"
+    path.write_bytes(_crafted_project(_ESCAPES, {}))
+    with pytest.raises(CorruptFileError, match="is not one line of printable text"):
+        load_project(path)
+    path.write_bytes(_crafted_project("water", {}))
+    assert load_project(path).library.names == ["water"]
+
+
+def test_info_never_prints_a_control_character_from_the_file(tmp_path):
+    path = tmp_path / "meta.ttproj"
+    path.write_bytes(_crafted_project("water", {"source_photo": "x\x1b[2J.jpg"}))
+    proc = run_cli("info", path)
+    assert proc.returncode == 0, proc.stderr
+    assert "\x1b" not in proc.stdout and "source_photo: 'x\\x1b[2J.jpg'" in proc.stdout

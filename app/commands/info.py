@@ -34,6 +34,8 @@ def run(args: argparse.Namespace) -> int:
     for key, value in info.items():
         if isinstance(value, list) and len(value) > 16:
             value = f"{value[:16]} ... ({len(value)} entries)"
+        elif isinstance(value, str) and not value.isprintable():
+            value = repr(value)  # text from the file: no control characters to the terminal
         print(f"{key}: {value}")
     return 0
 

@@ -92,6 +92,10 @@ class Theme:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
             raise TerrathemeError(f"theme name must be a non-empty string, got {self.name!r}")
+        if not self.name.isprintable():
+            # Names are printed: a control character would drive the user's terminal.
+            raise TerrathemeError(f"theme name {self.name[:40]!r} is not one line of "
+                                  "printable text")
         object.__setattr__(self, "colour", _validate_colour(self.colour, self.name))
         tex = validate_texture(self.texture, name=self.name)
         if tex.flags.writeable or not tex.flags.owndata:
