@@ -15,7 +15,8 @@ import zlib
 
 import numpy as np
 import pytest
-from hostile_fuzz import check_refused, run_cli
+from hostile_fuzz import REPO, check_refused, run_cli
+from terratheme.core.classify.model_file import read_model_bytes
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.exchange.layout import world_frame
 from terratheme.core.io.archive import open_archive
@@ -277,3 +278,34 @@ def test_info_never_prints_a_control_character_from_the_file(tmp_path):
     proc = run_cli("info", path)
     assert proc.returncode == 0, proc.stderr
     assert "\x1b" not in proc.stdout and "source_photo: 'x\\x1b[2J.jpg'" in proc.stdout
+
+
+# -- a classifier file: a ZIP inside a ZIP -------------------------------------
+# Was: a 4.7 KB model file whose forest.npz (2 MB, deflated again to 4 KB) holds a
+# value.npy of 2 GiB of zeros read it whole before the forest's shapes were checked:
+# 13 s and 2.3 GB resident (32 GiB allowed by the per-array ceiling), two deflate
+# ratios multiplied. Now the arrays may declare at most 1032 x the model file's size.
+
+def _nested_model(value_rows: int) -> bytes:
+    """A model file (meta.json of the shipped aerial.model) whose forest.npz holds tiny
+    arrays and a ``(value_rows, 2)`` float64 value.npy of zeros, deflated twice."""
+    import zipfile
+
+    with zipfile.ZipFile(REPO / "models" / "aerial.model") as zf:
+        meta = zf.read("meta.json")
+    arrays = {"classes": np.array([1, 2]), "roots": np.array([0]), "feature": np.array([-1]),
+              "threshold": np.zeros(1), "left": np.array([-1]), "right": np.array([-1]),
+              "value": np.zeros((value_rows, 2))}
+    npz = _shared_zip({f"{k}.npy": _npy(v) for k, v in arrays.items()}, [], b"")
+    return _shared_zip({"meta.json": meta, "forest.npz": npz}, [], b"")
+
+
+def test_forest_arrays_beyond_one_deflate_of_the_file_are_refused_unread():
+    data = _nested_model(1 << 22)  # 64 MiB of value from a file of a few KB
+    assert len(data) < 64 << 10
+    with pytest.raises(CorruptFileError, match="arrays declare .* more than 1032 times"):
+        read_model_bytes(data, "m.model")
+
+
+def test_the_shipped_model_is_within_the_forest_budget():
+    assert read_model_bytes((REPO / "models" / "aerial.model").read_bytes(), "aerial.model")

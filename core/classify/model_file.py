@@ -26,7 +26,14 @@ from terratheme.core.classify.extra_trees import (
 from terratheme.core.classify.model_options import number_rule, options_from_json, options_to_json
 from terratheme.core.classify.supervised_options import SupervisedOptions
 from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
-from terratheme.core.io.archive import open_archive, read_json_member, read_member, read_npy_member
+from terratheme.core.io.archive import (
+    DEFLATE_SLACK,
+    MAX_DEFLATE_RATIO,
+    open_archive,
+    read_json_member,
+    read_member,
+    read_npy_member,
+)
 from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.io.legend import parse_legend
 
@@ -121,12 +128,24 @@ def _classes(value: object) -> list[int]:
     return classes
 
 
-def _read_extra_trees(data: bytes, label: str, n_features: int) -> ExtraTreesForest:
-    """The Extra-Trees arrays of ``forest.npz`` (itself a ZIP of ``.npy`` members)."""
+def _read_extra_trees(data: bytes, label: str, n_features: int,
+                      file_bytes: int) -> ExtraTreesForest:
+    """The Extra-Trees arrays of ``forest.npz`` (itself a ZIP of ``.npy`` members).
+
+    The arrays may declare at most what one deflate could pack into the model file's
+    ``file_bytes``: a ZIP inside a ZIP would otherwise multiply the ratios (a 5 KB file
+    declaring gigabytes).
+    """
     arrays = {}
+    budget = MAX_DEFLATE_RATIO * file_bytes + DEFLATE_SLACK
     try:
         with open_archive(data, FOREST_NPZ, kind="forest array archive",
                           max_members=len(ARRAY_NAMES) + 4) as npz:
+            declared = sum(info.file_size for info in npz.infolist())
+            if declared > budget:
+                raise CorruptFileError(f"its arrays declare {declared:,} bytes, more than "
+                                       f"{MAX_DEFLATE_RATIO} times the {file_bytes:,}-byte "
+                                       "model file can hold")
             for name in ARRAY_NAMES:
                 floats = name in ("threshold", "value")
                 arrays[name] = read_npy_member(
@@ -185,7 +204,8 @@ def read_model_bytes(source: str | os.PathLike | bytes, label: str) -> ModelPart
     n_features = options.features.n_features
     forest: ExtraTreesForest | None = None
     if forest_npz is not None:
-        forest = _read_extra_trees(forest_npz, label, n_features)
+        file_bytes = len(source) if isinstance(source, bytes) else os.path.getsize(source)
+        forest = _read_extra_trees(forest_npz, label, n_features, file_bytes)
         if [int(c) for c in forest.classes] != sorted(classes):
             raise CorruptFileError(f"{label}: classes {classes} do not match the stored forest")
     if (forest is None) != (len(classes) == 1):
