@@ -19,6 +19,7 @@ from hostile_fuzz import REPO, check_refused, run_cli
 from terratheme.core.classify.model_file import read_model_bytes
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.exchange.layout import world_frame
+from terratheme.core.exchange.plan import safe_name
 from terratheme.core.io.archive import open_archive
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture, load_project, save_project
@@ -309,3 +310,26 @@ def test_forest_arrays_beyond_one_deflate_of_the_file_are_refused_unread():
 
 def test_the_shipped_model_is_within_the_forest_budget():
     assert read_model_bytes((REPO / "models" / "aerial.model").read_bytes(), "aerial.model")
+
+
+# -- a long theme name in an export's file names -------------------------------
+# Was: a project may name a theme with up to 4096 characters, and every export but the
+# GIS one put the whole name into a file name: "theme_00_aaa...a.png: File name too long"
+# (exit 2) for a project that loads and renders. Now the name in a file is cut to 64.
+
+def test_safe_names_fit_a_file_name():
+    assert safe_name("a" * 4096) == "a" * 64
+    assert safe_name("rock" + "!" * 100 + "x" * 100) == "rock_" + "x" * 59
+    assert safe_name("a" * 63 + " b") == "a" * 63  # no trailing "_" left by the cut
+
+
+@pytest.mark.parametrize("engine", ["unity", "unreal"])
+def test_a_theme_with_a_long_name_exports(tmp_path, engine):
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme("w" * 300, (0, 0, 200), 4),
+                                            flat_theme("sand", (220, 200, 140), 4)]))
+    save_project(tmp_path / "long.ttproj", project)
+    proc = run_cli("export", tmp_path / "long.ttproj", tmp_path / "exp", "--engine", engine)
+    assert proc.returncode == 0, proc.stderr[-500:]
+    names = [p.name for p in (tmp_path / "exp").iterdir()]
+    assert any(("w" * 64) in n for n in names) and max(map(len, names)) < 100

@@ -66,9 +66,16 @@ def write_carried_project(project: ThematicTexture, folder: Path) -> None:
     save_project(folder / CARRIED, replace(project, photo=None, scribbles=None))
 
 
+#: longest theme name in an export's file names (a project's may be 4096 characters; a
+#: file name is at most 255 bytes)
+MAX_SAFE_NAME = 64
+
+
 def safe_name(name: str) -> str:
-    """A theme name as a file- and engine-safe identifier (letters, digits, ``_``)."""
-    return re.sub(r"[^A-Za-z0-9_]+", "_", name.strip()).strip("_") or "theme"
+    """A theme name as a file- and engine-safe identifier (letters, digits, ``_``; at most
+    :data:`MAX_SAFE_NAME` characters)."""
+    safe = re.sub(r"[^A-Za-z0-9_]+", "_", name.strip()).strip("_")[:MAX_SAFE_NAME]
+    return safe.rstrip("_") or "theme"
 
 
 def theme_files(project: ThematicTexture) -> list[str]:
