@@ -333,3 +333,66 @@ def test_a_theme_with_a_long_name_exports(tmp_path, engine):
     assert proc.returncode == 0, proc.stderr[-500:]
     names = [p.name for p in (tmp_path / "exp").iterdir()]
     assert any(("w" * 64) in n for n in names) and max(map(len, names)) < 100
+
+
+# -- a full disk while a format's writer runs ---------------------------------
+# Already handled (no fix): each writer writes a temporary and renames it, so a write
+# that fails with ENOSPC leaves the old file byte for byte and no temporary, and the
+# error names the output. Simulated by failing every write after the first 64 bytes.
+
+def _full_disk_after(monkeypatch, allowed: int) -> None:
+    import builtins
+    import errno
+
+    real_open = builtins.open
+
+    class Filling:
+        def __init__(self, fh):
+            self._fh, self._left = fh, allowed
+
+        def write(self, data):
+            if len(data) > self._left:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            self._left -= len(data)
+            return self._fh.write(data)
+
+        def __getattr__(self, name):
+            return getattr(self._fh, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return self._fh.__exit__(*exc)
+
+    def opening(file, mode="r", *args, **kwargs):
+        fh = real_open(file, mode, *args, **kwargs)
+        return Filling(fh) if "w" in mode and ".tt-" in str(file) else fh
+
+    monkeypatch.setattr(builtins, "open", opening)
+    monkeypatch.setattr("io.open", opening)
+
+
+def _writers(tmp_path):
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 16),
+                                            flat_theme("sand", (220, 200, 140), 16)]))
+    img = (np.arange(128 * 128).reshape(128, 128) // 300 % 4).astype(np.uint8)
+    return {"project": (tmp_path / "p.ttproj", lambda p: save_project(p, project)),
+            "layer": (tmp_path / "l.ttpack", lambda p: pack(img).save(p)),
+            "tiled": (tmp_path / "t.ttpack", lambda p: pack(img, tile_bits=6).save(p))}
+
+
+@pytest.mark.parametrize("kind", ["project", "layer", "tiled"])
+def test_a_full_disk_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkeypatch, kind):
+    path, write = _writers(tmp_path)[kind]
+    path.write_bytes(b"the old file")
+    with monkeypatch.context() as patch:
+        _full_disk_after(patch, 64)
+        with pytest.raises(OSError, match="No space left") as info:
+            write(path)
+    assert info.value.filename == str(path)
+    assert path.read_bytes() == b"the old file"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    write(path)  # with room again, the same writer succeeds
+    assert path.stat().st_size > 64
