@@ -396,3 +396,23 @@ def test_a_full_disk_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkey
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
     write(path)  # with room again, the same writer succeeds
     assert path.stat().st_size > 64
+
+
+# -- theme names that one engine layer name stands for ------------------------
+# Was: "rock!" and "rock?" (or two long names sharing their first 64 characters) were
+# both exported as the layer "rock": Unity's importer creates "rock.terrainlayer" once
+# per layer, so the second replaced the first, and Unreal got one layer name twice.
+# Now a name already taken gets its theme's index appended.
+
+@pytest.mark.parametrize("engine", ["unity", "unreal"])
+def test_engine_layer_names_are_distinct(tmp_path, engine):
+    names = ["rock!", "rock?", "rock_02", "rock"]
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 2], [3, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme(n, (k, 0, 0), 4)
+                                            for k, n in enumerate(names)]))
+    save_project(tmp_path / "n.ttproj", project)
+    proc = run_cli("export", tmp_path / "n.ttproj", tmp_path / "exp", "--engine", engine)
+    assert proc.returncode == 0, proc.stderr[-500:]
+    manifest = json.loads((tmp_path / "exp" / f"terratheme_{engine}.json").read_text())
+    layers = [layer["name"] for layer in manifest["layers"]]
+    assert layers == ["rock", "rock_01", "rock_02", "rock_03"]

@@ -78,6 +78,18 @@ def safe_name(name: str) -> str:
     return safe.rstrip("_") or "theme"
 
 
+def layer_names(project: ThematicTexture) -> list[str]:
+    """Each theme's :func:`safe_name`, made distinct (an engine names one asset per layer):
+    a name already taken gets its theme's index, ``_KK``, appended."""
+    names: list[str] = []
+    for k, theme in enumerate(project.library):
+        name = safe_name(theme.name)
+        while name in names:
+            name += f"_{k:02d}"
+        names.append(name)
+    return names
+
+
 def theme_files(project: ThematicTexture) -> list[str]:
     """``theme_KK_name.png``: one texture file per theme, in index order."""
     return [f"theme_{k:02d}_{safe_name(t.name)}.png" for k, t in enumerate(project.library)]

@@ -20,10 +20,10 @@ from terratheme.core.exchange.plan import (
     STORED_ALPHA,
     ExportPlan,
     common_manifest,
+    layer_names,
     map_plan,
     piece_weights,
     pixel_spacing,
-    safe_name,
     theme_files,
     write_manifest,
     write_shared_files,
@@ -133,11 +133,12 @@ def write(project: ThematicTexture, plan: ExportPlan, folder: Path,
         write_bytes_atomic(folder / name, (_SCRIPTS / source).read_bytes())
     sx, sy = plan.world.texel_size
     layers = []
-    for theme, texture in zip(project.library, theme_files(project), strict=True):
+    for theme, name, texture in zip(project.library, layer_names(project), theme_files(project),
+                                    strict=True):
         th, tw = theme.texture.shape[:2]
         size = [tw * sx, th * sy]
         # Unity's v runs up from the tile's south edge; rows of the theme run down from its north.
-        layers.append({"name": safe_name(theme.name), "texture": texture, "tile_size": size,
+        layers.append({"name": name, "texture": texture, "tile_size": size,
                        "tile_offset": [0.0, float(-tile_world[1] % size[1])]})
     manifest = common_manifest(project, plan, COLOUR_MAP)
     manifest.update({

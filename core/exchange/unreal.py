@@ -108,12 +108,13 @@ def write(project: ThematicTexture, plan: export_plan.ExportPlan, folder: Path,
     spacing = export_plan.pixel_spacing(project, plan)
     sx, sy = plan.world.texel_size
     # LandscapeLayerCoords' Mapping Scale: landscape quads per repeat of the theme.
-    layers = [{"name": export_plan.safe_name(t.name), "weightmap": weight_file(project, j),
+    layers = [{"name": name, "weightmap": weight_file(project, j),
                "texture": tex, "texture_world_size_cm": [t.texture.shape[1] * sx * 100,
                                                          t.texture.shape[0] * sy * 100],
                "mapping_scale": t.texture.shape[1] * sx / spacing[0]}
-              for j, (t, tex) in enumerate(zip(project.library, export_plan.theme_files(project),
-                                               strict=True))]
+              for j, (t, name, tex) in enumerate(zip(
+                  project.library, export_plan.layer_names(project),
+                  export_plan.theme_files(project), strict=True))]
     quads = UNREAL_SIZES.get(layout.tile or layout.size[0])
     manifest = export_plan.common_manifest(project, plan, COLOUR_MAP)
     if project.colour_map is not None:
