@@ -7,9 +7,10 @@ the codecs are imported when a payload is coded, so :func:`read_header` loads no
 
 from __future__ import annotations
 
+import os
 import struct
 import zlib
-from typing import NamedTuple
+from typing import BinaryIO, NamedTuple
 
 import numpy as np
 from terratheme.core.errors import CorruptFileError, TerrathemeError, UnsupportedVersionError
@@ -239,14 +240,28 @@ def read_header(data: bytes, *, name: str) -> LayerHeader:
     return LayerHeader(version, encoding, curve, values, width, height, runs, payload)
 
 
+def _check_length(size: int, head: LayerHeader, name: str) -> None:
+    expected = head.file_bytes
+    if size < expected:
+        raise CorruptFileError(f"{name}: truncated: {size} bytes, header says {expected}")
+    if size > expected:
+        raise CorruptFileError(f"{name}: {size - expected} unexpected bytes after the data")
+
+
+def read_layer_file(fh: BinaryIO, *, name: str) -> bytes:
+    """The bytes of an open layer file, read only once its header is checked and its
+    size is the header's (a large file that is no layer is refused unread)."""
+    start = fh.read(HEADER.size + 4)
+    head = read_header(start, name=name)
+    _check_length(os.fstat(fh.fileno()).st_size, head, name)
+    return start + fh.read(head.file_bytes - len(start))
+
+
 def check_file(data: bytes, *, name: str) -> LayerHeader:
     """:func:`read_header`, then the file length and the checksum."""
     head = read_header(data, name=name)
     expected = head.file_bytes
-    if len(data) < expected:
-        raise CorruptFileError(f"{name}: truncated: {len(data)} bytes, header says {expected}")
-    if len(data) > expected:
-        raise CorruptFileError(f"{name}: {len(data) - expected} unexpected bytes after the data")
+    _check_length(len(data), head, name)
     (stored,) = struct.unpack_from("<I", data, expected - 4)
     if zlib.crc32(memoryview(data)[: expected - 4]) != stored:
         raise CorruptFileError(f"{name}: checksum mismatch: the file is damaged")

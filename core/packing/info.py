@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from terratheme.core.curves.square import Curve, curve_order
 from terratheme.core.packing import tiled_format
-from terratheme.core.packing.container import check_file, read_palette
+from terratheme.core.packing.container import check_file, read_layer_file, read_palette
 from terratheme.core.packing.layout import table_words_max
 
 
@@ -46,7 +46,7 @@ def layer_info(path: str | os.PathLike) -> LayerInfo:
     with open(p, "rb") as fh:
         if tiled:
             return _tiled_info(fh, p)
-        data = fh.read()
+        data = read_layer_file(fh, name=p)
     head = check_file(data, name=p)
     n = curve_order(head.width, head.height)
     return LayerInfo(

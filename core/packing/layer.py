@@ -20,7 +20,12 @@ from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.packing.batch import lookup_batch
-from terratheme.core.packing.container import LayerFields, decode_layer, encode_layer
+from terratheme.core.packing.container import (
+    LayerFields,
+    decode_layer,
+    encode_layer,
+    read_layer_file,
+)
 from terratheme.core.packing.layout import W_COUNT, W_GRID_BITS, W_LEVELS
 from terratheme.core.packing.lookup import build_table, scalar_lookup_function, table_runs
 from terratheme.core.packing.palette import (
@@ -292,7 +297,8 @@ class PackedLayer:
         """Read a layer file; CorruptFileError if damaged, UnsupportedVersionError if newer."""
         p = os.fspath(check_input_file(path, "a packed layer"))
         with open(p, "rb") as fh:
-            return cls.from_bytes(fh.read(), name=p)
+            data = read_layer_file(fh, name=p)
+        return cls.from_bytes(data, name=p)
 
     @classmethod
     def from_bytes(cls, data: bytes, *, name: str = "<bytes>") -> PackedLayer:
