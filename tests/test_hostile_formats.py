@@ -21,6 +21,7 @@ from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.exchange.layout import world_frame
 from terratheme.core.exchange.plan import safe_name
 from terratheme.core.io.archive import open_archive
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.model.project import ThematicTexture, load_project, save_project
 from terratheme.core.packing import PackedLayer, TiledLayer, layer_info, pack
@@ -443,3 +444,21 @@ def test_a_large_file_is_refused_from_its_header(tmp_path, head, reader):
     finally:
         tracemalloc.stop()
     assert peak < 16 << 20, peak
+
+
+# -- a saved project with many themes and a tiled colour map -------------------
+# Was: the reader took at most MAX_THEMES + 64 = 320 members, but a tiled colour map
+# adds one member a tile: 250 themes and a 286720 x 1 WebP map (70 tiles) saved fine
+# and then would not load ("322 entries, more than a terratheme project has"). Now a
+# project holds up to 65536 tiles more, and saving refuses a map beyond that.
+
+def test_a_saved_project_with_many_themes_and_map_tiles_loads(tmp_path):
+    grid = IndexGrid(np.zeros((2, 71), np.uint8), (4096, 1))
+    w, h = grid.texture_size
+    cmap = ColourMap.encode(np.full((h, w, 3), 128, np.uint8), 1, "webp", 90)
+    assert len(cmap.tiles) == 70
+    project = ThematicTexture(grid, ThemeLibrary([flat_theme(f"t{k}", (k, 0, 0), 4)
+                                                  for k in range(250)]), colour_map=cmap)
+    save_project(tmp_path / "many.ttproj", project)
+    back = load_project(tmp_path / "many.ttproj")
+    assert len(back.library) == 250 and back.colour_map.tiles == cmap.tiles

@@ -51,7 +51,10 @@ MAX_GRID_VERTICES = 1 << 27
 MAX_THEME_SIDE = 4096
 #: largest manifest (metadata included)
 MAX_MANIFEST_BYTES = 4 << 20
-_MAX_MEMBERS = MAX_THEMES + 64
+#: most tiles of a tiled colour map (65536 tiles of 4096^2: a 3 TB map)
+MAX_COLOUR_MAP_TILES = 1 << 16
+#: members: manifest, grid, layers, themes, then the colour map's tiles
+_MAX_MEMBERS = MAX_THEMES + 64 + MAX_COLOUR_MAP_TILES
 
 
 @dataclass(eq=False)
@@ -134,6 +137,10 @@ def _check_savable(project: ThematicTexture) -> None:
                                   f"{MAX_TEXT} characters")
     if "georeference" in project.metadata:
         validate_georeference(project.metadata["georeference"])
+    cmap = project.colour_map
+    if cmap is not None and cmap.tiles is not None and len(cmap.tiles) > MAX_COLOUR_MAP_TILES:
+        raise TerrathemeError(f"colour map of {len(cmap.tiles):,} tiles is over the limit of "
+                              f"{MAX_COLOUR_MAP_TILES:,} a project file holds")
 
 
 def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
