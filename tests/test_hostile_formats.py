@@ -28,6 +28,7 @@ from terratheme.core.packing import PackedLayer, TiledLayer, layer_info, pack
 from terratheme.core.packing import tiled_format as tiled
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.themes.library import ThemeLibrary, flat_theme
+from test_hostile_harness import ZipMember, check_bounded, craft_zip, shared_reader
 
 
 def _npy(arr: np.ndarray) -> bytes:
@@ -462,3 +463,15 @@ def test_a_saved_project_with_many_themes_and_map_tiles_loads(tmp_path):
     save_project(tmp_path / "many.ttproj", project)
     back = load_project(tmp_path / "many.ttproj")
     assert len(back.library) == 250 and back.colour_map.tiles == cmap.tiles
+
+
+
+def test_a_name_twice_among_60000_entries_is_found_in_linear_time(tmp_path):
+    # With room for a tiled map's members, the duplicate finder must not be quadratic
+    # (names.count per name: 52 s of CPU for 60001 names, past the 2 s bound).
+    path = tmp_path / "dup.ttproj"
+    names = [f"m{k:05d}" for k in range(60000)] + ["m59999"]
+    path.write_bytes(craft_zip([ZipMember.of(n, b"") for n in names]))
+    outcome = shared_reader().run("project", path)
+    check_bounded(outcome, path)
+    assert "'m59999' appears twice" in outcome.message

@@ -69,10 +69,11 @@ def open_archive(source: str | os.PathLike | bytes, label: str, *, kind: str,
         zf.close()
         raise CorruptFileError(f"{label}: {len(infos)} entries, more than a {kind} has "
                                f"({max_members})")
-    if len(set(names)) != len(names):
+    seen: set[str] = set()
+    dup = next((n for n in names if n in seen or seen.add(n)), None)  # linear, not n^2
+    if dup is not None:
         zf.close()
-        dup = next(n for n in names if names.count(n) > 1)
-        raise CorruptFileError(f"{label}: the entry {dup!r} appears twice")
+        raise CorruptFileError(f"{label}: the entry {dup[:80]!r} appears twice")
     try:
         _check_disjoint(zf, infos, label)
     except BaseException:
