@@ -417,7 +417,8 @@ def run_structure(log):
             row["variants"][vname] = {
                 **score_image(render, photo), **cost.as_dict(),
                 "bpp": round(cost.area_bytes * 8 / (w * h), 4), "seconds": round(secs, 2),
-                "map_scale": project.colour_map.scale, "cell": project.grid.cell[0],
+                "map_scale": project.colour_map.coded_scale,
+                "map_upsample": project.colour_map.upsample, "cell": project.grid.cell[0],
                 "peers": peers}
             v = row["variants"][vname]
             log(f"  {name} {vname}: dE8 {v['dE8']} s4 {v['s4']} s8 {v['s8']} detail "

@@ -117,7 +117,7 @@ def _scores(project, photo: np.ndarray, offset: int = 0) -> dict:
         "detail": round(detail_ratio(shown, part), 3),
         "themes": list(project.library.names),
         "cell": list(project.grid.cell),
-        "colour_map_scale": None if cmap is None else int(cmap.scale),
+        "colour_map_scale": None if cmap is None else int(cmap.coded_scale),
         "colour_map_bytes": None if cmap is None else int(cmap.nbytes),
     }
 

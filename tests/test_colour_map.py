@@ -150,3 +150,114 @@ def test_a_map_that_does_not_cover_the_texture_is_refused():
 def test_bad_colour_maps(pixels, scale, match):
     with pytest.raises(TerrathemeError, match=match):
         ColourMap(pixels, scale)
+
+
+def _upsampled_map(scale=16, seed=5, codec="png"):
+    """A map coded at ``scale`` over the 96 x 50 texture of :func:`_project`, drawn 2x finer."""
+    rng = np.random.default_rng(seed)
+    coarse = rng.integers(40, 250, (-(-50 // scale), -(-96 // scale), 3), dtype=np.uint8)
+    return coarse, ColourMap.encode(coarse, scale, codec, 90, upsample=2, texture_size=(96, 50))
+
+
+def test_an_upsampled_map_draws_the_bicubic_enlargement_of_its_coded_image():
+    import cv2
+
+    coarse, cmap = _upsampled_map()
+    assert (cmap.scale, cmap.coded_scale, cmap.upsample) == (8, 16, 2)
+    # 50 texels at 8 a pixel need 7 rows, not the enlargement's 8: the last is cut.
+    assert cmap.coded_shape == coarse.shape[:2] and cmap.pixels.shape == (7, 12, 3)
+    # PNG is lossless: the drawn pixels are OpenCV's bicubic 2x of the stored gains.
+    want = cv2.resize(coarse, (12, 8), interpolation=cv2.INTER_CUBIC)[:7]
+    assert np.array_equal(cmap.pixels, want)
+    # A flat map stays flat, and a sharp step is sharper than bilinear's ramp.
+    flat = ColourMap.encode(np.full((3, 4, 3), 77, np.uint8), 4, "png", 90, upsample=2,
+                            texture_size=(16, 12))
+    assert np.all(flat.pixels == 77) and flat.pixels.shape == (6, 8, 3)
+    step = np.zeros((1, 4, 3), np.uint8)
+    step[:, 2:] = 200
+    row = ColourMap.encode(step, 2, "png", 90, upsample=2,
+                           texture_size=(8, 2)).pixels[0, :, 0].astype(int)
+    assert row[:3].max() <= 0 + 5 and row[5:].min() >= 200 - 5  # within a pixel of the step
+    assert row[3] < 100 < row[4]
+
+
+def test_an_upsampled_map_renders_as_a_plain_map_of_its_pixels():
+    _, cmap = _upsampled_map()
+    proj = _project(cmap)
+    plain = ColourMap(cmap.pixels, cmap.scale)
+    a = render_cells(proj.grid, proj.library.textures, colour_map=cmap)
+    b = render_cells(proj.grid, proj.library.textures, colour_map=plain)
+    assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("codec", ["png", "avif"])
+def test_project_round_trip_keeps_an_upsampled_map_as_version_3(tmp_path, codec):
+    import json
+    import zipfile
+
+    _, cmap = _upsampled_map(codec=codec)
+    proj = _project(cmap)
+    save_project(tmp_path / "p.ttproj", proj)
+    with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
+        manifest = json.loads(zf.read("manifest.json"))
+    assert manifest["version"] == 3
+    assert manifest["colour_map"]["scale"] == 16 and manifest["colour_map"]["upsample"] == 2
+    back = load_project(tmp_path / "p.ttproj")
+    assert back == proj and back.colour_map.upsample == 2
+    assert back.colour_map.data == cmap.data
+
+
+def test_a_plain_map_is_still_written_without_upsample(tmp_path):
+    import json
+    import zipfile
+
+    save_project(tmp_path / "p.ttproj", _project(_map()))
+    with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
+        manifest = json.loads(zf.read("manifest.json"))
+    assert manifest["version"] == 1 and "upsample" not in manifest["colour_map"]
+
+
+@pytest.mark.parametrize("upsample, scale, match", [
+    (3, 16, "upsample"), (0, 16, "upsample"), (True, 16, "upsample"), ("2", 16, "upsample"),
+    (2, 15, "upsample"),
+])
+def test_bad_upsamples_are_refused(upsample, scale, match):
+    with pytest.raises(TerrathemeError, match=match):
+        ColourMap.encode(np.full((2, 2, 3), 128, np.uint8), scale, "png", 90, upsample=upsample,
+                         texture_size=(32, 32))
+
+
+def test_an_upsampled_map_needs_its_texture_size():
+    with pytest.raises(TerrathemeError, match="size of its texture"):
+        ColourMap.encode(np.full((2, 2, 3), 128, np.uint8), 16, "png", 90, upsample=2)
+
+
+def test_a_raw_map_cannot_claim_an_upsample():
+    with pytest.raises(TerrathemeError, match="only for a coded map"):
+        ColourMap(np.full((2, 2, 3), 128, np.uint8), 8, upsample=2)
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"upsample": 3}, "upsample must be one of"),
+    ({"upsample": True}, "upsample must be one of"),
+    ({"upsample": 2, "scale": 15}, "upsample must be one of"),
+    ({"upsample": 2, "codec": None, "member": "colour_map.npy"}, "upsample must be one of"),
+])
+def test_a_damaged_upsample_entry_is_one_line(tmp_path, change, match):
+    import json
+    import zipfile
+
+    from terratheme.core.errors import CorruptFileError
+
+    _, cmap = _upsampled_map()
+    save_project(tmp_path / "p.ttproj", _project(cmap))
+    with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    manifest = json.loads(members["manifest.json"])
+    manifest["colour_map"].update(change)
+    members["manifest.json"] = json.dumps(manifest).encode()
+    with zipfile.ZipFile(tmp_path / "bad.ttproj", "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    with pytest.raises(CorruptFileError, match=match):
+        load_project(tmp_path / "bad.ttproj")

@@ -93,6 +93,25 @@ def test_project_round_trip_of_a_tiled_map_is_version_2(small_limit, tmp_path):
                           render_cells(grid, themes, colour_map=cmap))
 
 
+def test_an_upsampled_tiled_map_is_enlarged_whole_and_round_trips(small_limit, tmp_path):
+    import cv2
+
+    gains = _gains((25, 63), seed=2)
+    # A 1000 x 392 texture: at 8 texels a pixel it needs 125 x 49, one less than 2 x 63 / 2 x 25.
+    cmap = ColourMap.encode(gains, 16, "png", 100, upsample=2, texture_size=(1000, 392))
+    assert cmap.tiles is not None and cmap.pixels.shape == (49, 125, 3)
+    # The tiles are enlarged as one map (no seams where tiles meet): PNG is lossless.
+    want = cv2.resize(gains, (126, 50), interpolation=cv2.INTER_CUBIC)[:49, :125]
+    assert np.array_equal(cmap.pixels, want)
+    project = _project(cmap, (1000, 392))
+    save_project(tmp_path / "u.ttproj", project)
+    with zipfile.ZipFile(tmp_path / "u.ttproj") as zf:
+        manifest = json.loads(zf.read("manifest.json"))
+    assert manifest["version"] == 3 and manifest["colour_map"]["upsample"] == 2
+    back = load_project(tmp_path / "u.ttproj")
+    assert back.colour_map == cmap and back.colour_map.tiles == cmap.tiles
+
+
 def test_a_project_whose_map_fits_stays_version_1(tmp_path):
     cmap = ColourMap.encode(_gains((12, 14)), 8, "jpegxl", 99)
     save_project(tmp_path / "s.ttproj", _project(cmap, (14 * 8, 12 * 8)))

@@ -110,6 +110,7 @@ def test_shipped_names_name_classes_and_number_repeats():
 
 def test_tile_by_tile_map_equals_the_whole_photo_block_gain(tmp_path):
     from terratheme.core.convert.colour_fit import colour_map_from_file
+    from terratheme.core.io.codec import decode_image
     from terratheme.core.io.images import write_image
     from terratheme.core.model.grid import IndexGrid
     from terratheme.core.render.renderer import render_cells
@@ -124,9 +125,13 @@ def test_tile_by_tile_map_equals_the_whole_photo_block_gain(tmp_path):
     whole = fit_gain(photo, render_cells(grid, themes), 16, iterations=0)
     want = np.clip(np.rint(whole * 128), 0, 255).astype(np.uint8)
     # Map pixels inside the photo: the same block ratio (to rounding of the sums).
-    inside = tiled.colour_map.pixels[:6, :8].astype(int) - want[:6, :8]
+    coded = decode_image(tiled.colour_map.data, codec="png")
+    inside = coded[:6, :8].astype(int) - want[:6, :8]
     assert np.abs(inside).max() <= 1
-    assert tiled.colour_map.pixels.shape == (7, 9, 3)
+    assert coded.shape == (7, 9, 3) and tiled.colour_map.coded_scale == 16
+    # A budget map at an even scale draws its 2x bicubic enlargement, as the whole photo's.
+    assert tiled.colour_map.upsample == 2 and tiled.colour_map.scale == 8
+    assert tiled.colour_map.pixels.shape == (14, 18, 3)
 
 
 def test_fit_quality_takes_the_highest_quality_that_fits():
@@ -155,7 +160,9 @@ def test_budget_map_spends_no_more_than_its_budget_and_beats_a_coarse_map_on_str
     opts = ColourMapOptions(budget=2.0, budget_scales=(32, 4))
     fitted = choose_colour_map(photo, render, opts, reserved=100)
     assert fitted.colour_map.nbytes <= opts.map_bytes(128 * 128, 100)
-    assert fitted.colour_map.scale == 4
+    # Coded at 1/4, drawn through its 2x bicubic enlargement at 1/2.
+    assert fitted.colour_map.coded_scale == 4 and fitted.colour_map.upsample == 2
+    assert fitted.colour_map.scale == 2
     shown = apply_colour_map(render.copy(), fitted.colour_map, (0, 0, 128, 128))
     assert structure_similarity(shown, photo, 4) > 0.8
 

@@ -128,6 +128,7 @@ def test_block_job_gives_each_block_the_photo_over_the_render(tile):
 def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
     from scipy import ndimage
     from terratheme.core.convert.colour_fit import ColourMapOptions, colour_map_from_file
+    from terratheme.core.io.codec import decode_image
     from terratheme.core.io.images import write_image
 
     rng = np.random.default_rng(6)
@@ -138,7 +139,7 @@ def test_map_pixels_past_the_photo_take_the_nearest_covered_gain(tmp_path):
     grid = IndexGrid(rng.integers(0, 3, (13, 17)).astype(np.uint8), (16, 16))
     fitted = colour_map_from_file(tmp_path / "p.png", grid, _themes(rng), 8,
                                   options=ColourMapOptions(codec="png"), tile=64)
-    got = fitted.colour_map.pixels
+    got = decode_image(fitted.colour_map.data, codec="png")  # the map as coded, at 8
     assert got.shape == (24, 32, 3)
     covered = np.zeros(got.shape[:2], bool)
     covered[:18, :26] = True

@@ -271,8 +271,11 @@ def run(args: argparse.Namespace) -> int:
     k = len(result.project.library)
     cost = texture_cost(result.project)
     fitted = result.colour
-    colour = ("no colour map" if fitted is None else
-              f"colour map 1/{fitted.colour_map.scale} (dE8 {fitted.colour_error:.1f})")
+    cmap = None if fitted is None else fitted.colour_map
+    colour = ("no colour map" if cmap is None else
+              f"colour map 1/{cmap.coded_scale}"
+              + (f" drawn at 1/{cmap.scale}" if cmap.upsample > 1 else "")
+              + f" (dE8 {fitted.colour_error:.1f})")
     print(f"{project}: {k} theme{'s' if k != 1 else ''} ({names}); cell {grid.cell[0]} x "
           f"{grid.cell[1]} -> {gw + 1} x {gh + 1} vertices for the {w} x {h} photo; "
           f"label agreement {result.agreement:.1%}; {colour}; {cost.area_bytes:,} bytes per "

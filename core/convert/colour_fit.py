@@ -3,7 +3,8 @@
 A class carries one texture, so the photo's slow colour changes are lost; the map
 (:mod:`core.model.colour_map`) restores them (issues 13, 34). Default (``target`` None):
 the area has a byte budget; for each of ``budget_scales`` the block gain ``photo /
-render`` is coded at the highest quality that fits (:func:`fit_quality`) and the scale
+render`` is coded at the highest quality that fits (:func:`fit_quality`), rendered
+through its 2x bicubic enlargement at even scales (:func:`budget_upsample`), and the scale
 whose render scores best (:func:`budget_score`) is kept. With a ``target``: the gain is
 refined against its own bilinear upsampling and the coarsest of ``scales`` whose render
 keeps dE8 under ``target`` is kept. Either way the map passes through its codec, so the
@@ -158,16 +159,27 @@ def _quick_error(quick: tuple[int, Reference], render: np.ndarray) -> float:
     return colour_error(small, ref, sigma=COLOUR_SIGMA / f)
 
 
-def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int
-                ) -> tuple[int, ColourMap] | None:
-    """``(quality, map)``: the (mh, mw, 3) uint8 stored gain at the best quality fitting ``budget``.
+def budget_upsample(scale: int) -> int:
+    """The enlargement a budget map coded at ``scale`` ships with: 2 at even scales, else 1.
+
+    The bicubic 2x decode renders the map's edges (roads, shores, shadows) sharper than
+    the renderers' bilinear alone, at no bytes (docs/decisions.md).
+    """
+    return 2 if int(scale) % 2 == 0 else 1
+
+
+def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsample: int = 1,
+                texture_size: tuple[int, int] | None = None) -> tuple[int, ColourMap] | None:
+    """``(quality, map)``: the (mh, mw, 3) uint8 stored gain at the best quality fitting ``budget``
+    (drawn ``upsample`` times finer over a ``texture_size`` texture).
 
     Bisection on quality 1..99; ``png`` has one size. None when not even quality 1 fits.
     """
     lo, hi, best = 1, 99, None
     while lo <= hi:
         q = (lo + hi) // 2
-        cmap = ColourMap.encode(gain, int(scale), codec, q)
+        cmap = ColourMap.encode(gain, int(scale), codec, q, upsample=upsample,
+                                texture_size=texture_size)
         if cmap.nbytes <= budget:
             best, lo = (q, cmap), q + 1
         else:
@@ -190,6 +202,7 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
                 reserved: int) -> FittedColourMap:
     """The byte budget's search of :func:`choose_colour_map` (module docstring)."""
     h, w = photo.shape[:2]
+    size = (render.shape[1], render.shape[0])
     budget = options.map_bytes(h * w, reserved)
     curve: list[tuple[int, int, float]] = []
     best: tuple[float, ColourMap, float] | None = None
@@ -198,14 +211,17 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
     for scale in sorted({int(s) for s in options.budget_scales}, reverse=True):
         # The block ratio alone: its refinement sharpens the map, which then codes worse.
         gain = _quantise(fit_gain(photo, render, scale, 0))
-        fitted = fit_quality(gain, scale, options.codec, budget)
+        upsample = budget_upsample(scale)
+        fitted = fit_quality(gain, scale, options.codec, budget, upsample=upsample,
+                             texture_size=size)
         if fitted is not None:
             cmap = fitted[1]
         elif scale != coarsest or best is not None:
             continue
         else:
             # Not even the coarsest map fits: it at the lowest quality, over the budget.
-            cmap = ColourMap.encode(gain, scale, options.codec, 1)
+            cmap = ColourMap.encode(gain, scale, options.codec, 1, upsample=upsample,
+                                    texture_size=size)
         shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
         score, _, _, err = budget_score(ref, quick, shown)
         curve.append((scale, cmap.nbytes, err))
@@ -371,11 +387,13 @@ def colour_map_from_file(
     # One image of the codec, or tiles when the map is beyond its single-image limit, encoded
     # on the workers on a cluster.
     run = None if isinstance(scheduler, Scheduler) else ClusterTiles(scheduler)
-    quality = options.quality
+    quality, upsample = options.quality, 1
     if options.target is None:
         quality = budget_quality(stored, int(scale), options.codec,
                                  options.map_bytes(info.width * info.height, reserved))
-    cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run)
+        upsample = budget_upsample(scale)
+    cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run,
+                            upsample=upsample, texture_size=(tw, th))
     return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())
 
 

@@ -344,4 +344,4 @@ def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np
         shown[py:py + h, px:px + w] = render_cells(block, textures, grid.cell, region=(x, y, w, h),
                                                    options=render, origin=origin)
     return choose_colour_map(sample.joined(sample.rgb), sample.joined(shown), options,
-                             reserved=int(reserved)).colour_map.scale
+                             reserved=int(reserved)).colour_map.coded_scale

@@ -4,6 +4,9 @@ A class alone carries one texture and one colour; the colour map (a terrain engi
 *macro variation* map) keeps the photo's slow colour changes inside a class. Gain
 ``value / 128`` per channel, bilinear at ``(X + 0.5) / scale - 0.5`` in exact integers
 (:mod:`core.render.colour_map`); layout, codecs and tiles: docs/formats.md, the colour map.
+A map coded at an even scale may ship ``upsample = 2``: its decoded image is enlarged 2x
+by bicubic interpolation and renders at half the coded scale (sharper than bilinear from
+the coded pixels, for no bytes; docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.codec import decode_image, encode_image
@@ -31,6 +35,8 @@ ONE_IMAGE_LIMITS = {
 }
 #: map pixels a side of the tiles of a map beyond its codec's single-image limit
 MAP_TILE = 4096
+#: the decoded image's enlargements a map may ship with (1: none)
+UPSAMPLES = (1, 2)
 
 #: a map tile's place: ``(rows, cols)`` slices of the map
 TileBox = tuple[slice, slice]
@@ -87,9 +93,13 @@ def check_tile_members(shape: tuple[int, int], tile: object, names: object) -> N
 class ColourMap:
     """A per-channel colour gain over the texture (docs/formats.md, the colour map).
 
-    ``pixels`` (mh, mw, 3) uint8: gain x 128 (read-only copy); ``scale``: texels per map
-    pixel, 1..4096; ``codec`` and ``data``: the map as it ships (:mod:`core.io.codec`), which
-    ``pixels`` decode; ``tiles``: instead of ``data``, ``tile x tile`` pieces row by row.
+    ``pixels`` (mh, mw, 3) uint8: gain x 128 (read-only copy), as every renderer applies it;
+    ``scale``: texels per map pixel, 1..4096; ``codec`` and ``data``: the map as it ships
+    (:mod:`core.io.codec`), which ``pixels`` decode; ``tiles``: instead of ``data``,
+    ``tile x tile`` pieces row by row. ``upsample``: the shipped image is at
+    ``coded_scale = scale * upsample`` and ``pixels`` are its decode enlarged ``upsample``
+    times (:func:`upsampled`) and cut to the ``(W, H)`` ``texture_size`` the constructors
+    then need; they take the shipped image's scale.
     """
 
     pixels: np.ndarray
@@ -98,6 +108,7 @@ class ColourMap:
     data: bytes | None = None
     tiles: tuple[bytes, ...] | None = None
     tile: int | None = None
+    upsample: int = 1
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.pixels)
@@ -109,6 +120,10 @@ class ColourMap:
                 1 <= int(self.scale) <= MAX_SCALE):
             raise TerrathemeError(f"colour map scale must be an integer 1..{MAX_SCALE}, "
                                   f"got {self.scale!r}")
+        if (isinstance(self.upsample, bool) or self.upsample not in UPSAMPLES
+                or (self.upsample > 1 and self.codec is None)):
+            raise TerrathemeError(f"colour map upsample must be one of {UPSAMPLES} (above 1 "
+                                  f"only for a coded map), got {self.upsample!r}")
         frozen = np.array(arr, dtype=np.uint8, order="C")
         frozen.setflags(write=False)
         object.__setattr__(self, "pixels", frozen)
@@ -116,22 +131,37 @@ class ColourMap:
         if self.tiles is not None:
             if self.data is not None or self.codec is None:
                 raise TerrathemeError("a tiled colour map has a codec and no single image")
-            rows, cols = self.tile_counts(frozen.shape[:2], self.tile)
+            rows, cols = self.tile_counts(self.coded_shape, self.tile)
             if len(self.tiles) != rows * cols:
                 raise TerrathemeError(f"a {frozen.shape[1]} x {frozen.shape[0]} colour map in "
                                       f"tiles of {self.tile} has {rows * cols} tiles, "
                                       f"not {len(self.tiles)}")
             object.__setattr__(self, "tiles", tuple(bytes(t) for t in self.tiles))
 
+    @property
+    def coded_scale(self) -> int:
+        """Texels per pixel of the image as it ships."""
+        return self.scale * self.upsample
+
+    @property
+    def coded_shape(self) -> tuple[int, int]:
+        """``(mh, mw)`` of the image as it ships."""
+        k = self.upsample
+        return -(-self.pixels.shape[0] // k), -(-self.pixels.shape[1] // k)
+
     @classmethod
     def from_bytes(cls, data: bytes, codec: str, scale: int,
-                   shape: tuple[int, int] | None = None) -> ColourMap:
-        """The map shipped as ``data`` in ``codec`` (``shape`` = expected ``(mh, mw)``)."""
+                   shape: tuple[int, int] | None = None, *, upsample: int = 1,
+                   texture_size: tuple[int, int] | None = None) -> ColourMap:
+        """The map shipped as ``data`` in ``codec`` at ``scale`` (``shape`` = expected
+        ``(mh, mw)`` of that image), rendered ``upsample`` times finer."""
+        drawn = _drawn_shape(scale, upsample, texture_size)
         pixels = decode_image(data, codec=codec, shape=shape)
         if pixels.shape[2] < 3:
             raise TerrathemeError(f"colour map must be RGB, the {codec} image has "
                                   f"{pixels.shape[2]} channel(s)")
-        return cls(pixels[:, :, :3], scale, codec, bytes(data))
+        return cls(upsampled(pixels[:, :, :3], upsample, drawn), scale // upsample, codec,
+                   bytes(data), upsample=upsample)
 
     @staticmethod
     def tile_counts(shape: tuple[int, int], tile: object) -> tuple[int, int]:
@@ -148,16 +178,20 @@ class ColourMap:
 
     @classmethod
     def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int, *,
-               run: TileRunner | None = None) -> ColourMap:
-        """The map of stored gains ``pixels`` ``(mh, mw, 3) uint8`` as it ships in ``codec``.
+               run: TileRunner | None = None, upsample: int = 1,
+               texture_size: tuple[int, int] | None = None) -> ColourMap:
+        """The map of stored gains ``pixels`` ``(mh, mw, 3) uint8`` at ``scale`` as it ships
+        in ``codec``, rendered ``upsample`` times finer.
 
         One image when it fits the codec's single-image limit, else tiles of
         :data:`MAP_TILE`, each encoded by a :class:`TileEncoder`: one after the other
         here, or by ``run`` (e.g. in parallel; every runner gives the same map).
         """
+        drawn = _drawn_shape(scale, upsample, texture_size)
         arr = np.ascontiguousarray(pixels)
         if cls.fits_one_image(arr.shape[:2], codec):
-            return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale)
+            return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale,
+                                  upsample=upsample, texture_size=texture_size)
         t = MAP_TILE
         boxes = tile_boxes(arr.shape[:2], t)
         shown = np.empty_like(arr)
@@ -177,15 +211,19 @@ class ColourMap:
         if len(tiles) != len(boxes):
             raise TerrathemeError(f"{len(tiles)} of the colour map's {len(boxes)} tiles came "
                                   "back encoded")
-        return cls(shown, scale, codec, None, tuple(tiles), t)
+        return cls(upsampled(shown, upsample, drawn), scale // upsample, codec, None,
+                   tuple(tiles), t, upsample)
 
     @classmethod
     def from_tiles(cls, tiles: Sequence[bytes], codec: str, scale: int,
-                   shape: tuple[int, int], tile: int) -> ColourMap:
-        """The map shipped as ``tile``-pixel tiles in ``codec``, row by row; ``shape`` ``(mh, mw)``.
+                   shape: tuple[int, int], tile: int, *, upsample: int = 1,
+                   texture_size: tuple[int, int] | None = None) -> ColourMap:
+        """The map shipped as ``tile``-pixel tiles in ``codec``, row by row; ``shape`` ``(mh, mw)``
+        and ``scale`` of the shipped image, rendered ``upsample`` times finer.
 
         Each tile's size is checked on its header before it is decoded.
         """
+        drawn = _drawn_shape(scale, upsample, texture_size)
         rows, cols = cls.tile_counts(shape, tile)
         if len(tiles) != rows * cols:
             raise TerrathemeError(f"a {shape[1]} x {shape[0]} colour map in tiles of {tile} "
@@ -200,7 +238,8 @@ class ColourMap:
                 raise TerrathemeError(f"colour map must be RGB, tile {k} has "
                                       f"{piece.shape[2]} channel(s)")
             pixels[y:y + want[0], x:x + want[1]] = piece[:, :, :3]
-        return cls(pixels, scale, codec, None, tuple(tiles), int(tile))
+        return cls(upsampled(pixels, upsample, drawn), scale // upsample, codec, None,
+                   tuple(tiles), int(tile), upsample)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ColourMap):
@@ -229,3 +268,37 @@ class ColourMap:
         if self.tiles is not None:
             return sum(len(t) for t in self.tiles)
         return len(self.data) if self.data is not None else int(self.pixels.nbytes)
+
+
+def _drawn_shape(scale: int, upsample: int, texture_size: tuple[int, int] | None
+                 ) -> tuple[int, int] | None:
+    """``(mh, mw)`` of the drawn map of a ``texture_size`` texture (None: no upsampling)."""
+    if isinstance(upsample, bool) or upsample not in UPSAMPLES or int(scale) % upsample:
+        raise TerrathemeError(f"a colour map at scale {scale} cannot be upsampled {upsample!r}x "
+                              f"(one of {UPSAMPLES}, dividing the scale)")
+    if upsample == 1:
+        return None
+    if texture_size is None:
+        raise TerrathemeError("an upsampled colour map needs the size of its texture")
+    return ColourMap.shape_for(texture_size, int(scale) // upsample)
+
+
+def upsampled(pixels: np.ndarray, upsample: int, shape: tuple[int, int] | None = None
+              ) -> np.ndarray:
+    """``(mh, mw, 3)`` uint8 map pixels enlarged ``upsample`` times and cut to ``shape``
+    (at most ``(k*mh, k*mw)``; None: all of it).
+
+    OpenCV's bicubic (a = -0.75, edge pixels replicated, 8-bit fixed point): new pixel ``j``
+    sits at ``(j + 0.5) / k - 0.5`` of the old ones, the place of its texels' centre.
+    """
+    if upsample == 1:
+        return pixels
+    h, w = pixels.shape[:2]
+    big = cv2.resize(np.ascontiguousarray(pixels), (w * upsample, h * upsample),
+                     interpolation=cv2.INTER_CUBIC)
+    if shape is None:
+        return big
+    if shape[0] > big.shape[0] or shape[1] > big.shape[1]:
+        raise TerrathemeError(f"a {w} x {h} colour map enlarged {upsample}x cannot cover "
+                              f"{shape[1]} x {shape[0]} pixels")
+    return np.ascontiguousarray(big[:shape[0], :shape[1]])

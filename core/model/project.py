@@ -30,16 +30,17 @@ from terratheme.core.io.archive import (
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import validate_georeference
-from terratheme.core.model.colour_map import ColourMap, check_tile_members
+from terratheme.core.model.colour_map import UPSAMPLES, ColourMap, check_tile_members
 from terratheme.core.model.grid import MAX_THEMES, IndexGrid, validate_indices
 from terratheme.core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
 from terratheme.core.model.manifest import (
     BASE_VERSION,
     FORMAT_NAME,
-    FORMAT_VERSION,
     GRID_MEMBER,
     MANIFEST,
     MAX_TEXT,
+    TILED_MAP_VERSION,
+    UPSAMPLED_MAP_VERSION,
     check_manifest,
 )
 from terratheme.core.themes.library import Theme, ThemeLibrary
@@ -154,10 +155,15 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     scale, codec = entry.get("scale"), entry.get("codec")
     if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
         raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
+    upsample = entry.get("upsample", 1)
+    if (isinstance(upsample, bool) or upsample not in UPSAMPLES or scale % upsample
+            or (upsample > 1 and codec is None)):
+        raise CorruptFileError(f"{path}: colour map upsample must be one of {UPSAMPLES}, "
+                               "dividing the scale of a coded map")
     shape = ColourMap.shape_for(grid.texture_size, scale)
     label = str(path)
     if tiled:
-        return _load_tiled_colour_map(zf, entry, shape, label)
+        return _load_tiled_colour_map(zf, entry, shape, label, upsample, grid.texture_size)
     if codec is None:
         pixels = read_npy_member(zf, entry["member"], label, dtypes=[np.uint8], ndims=[3],
                                  max_bytes=shape[0] * shape[1] * 3)
@@ -167,13 +173,15 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     # The codec's bytes: at most the raw map's size (a compressed map is smaller).
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
     try:
-        return ColourMap.from_bytes(data, codec, scale, shape)
+        return ColourMap.from_bytes(data, codec, scale, shape, upsample=upsample,
+                                    texture_size=grid.texture_size)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{path}: {entry['member']}: {exc}") from None
 
 
 def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, int],
-                           label: str) -> ColourMap:
+                           label: str, upsample: int, texture_size: tuple[int, int]
+                           ) -> ColourMap:
     """A colour map shipped in tiles, every field checked before a tile is read."""
     tile, codec, names = entry.get("tile"), entry.get("codec"), entry.get("members")
     if not isinstance(codec, str) or codec not in CODECS:
@@ -186,7 +194,8 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
     limit = min(tile, shape[0]) * min(tile, shape[1]) * 3 + 4096
     tiles = [read_member(zf, name, label, max_bytes=limit) for name in names]
     try:
-        return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile)
+        return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile,
+                                    upsample=upsample, texture_size=texture_size)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{label}: colour map tiles: {exc}") from None
 
@@ -214,13 +223,15 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
             layers.append(spec.name)
     extra = {}
     cmap = project.colour_map
+    version = BASE_VERSION
     if cmap is not None and cmap.tiles is not None:
-        rows, cols = ColourMap.tile_counts(cmap.pixels.shape[:2], cmap.tile)
+        rows, cols = ColourMap.tile_counts(cmap.coded_shape, cmap.tile)
         names = [f"colour_map/{k // cols:03d}_{k % cols:03d}{CODECS[cmap.codec][0]}"
                  for k in range(rows * cols)]
         members.update(zip(names, cmap.tiles, strict=True))
-        extra["colour_map"] = {"scale": cmap.scale, "codec": cmap.codec, "tile": cmap.tile,
-                               "members": names}
+        extra["colour_map"] = {"scale": cmap.coded_scale, "codec": cmap.codec,
+                               "tile": cmap.tile, "members": names}
+        version = TILED_MAP_VERSION
     elif cmap is not None:
         if cmap.data is not None:
             member = "colour_map" + CODECS[cmap.codec][0]
@@ -228,10 +239,13 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
         else:
             member = "colour_map.npy"
             members[member] = _npy_bytes(cmap.pixels)
-        extra["colour_map"] = {"scale": cmap.scale, "codec": cmap.codec, "member": member}
+        extra["colour_map"] = {"scale": cmap.coded_scale, "codec": cmap.codec, "member": member}
+    if cmap is not None and cmap.upsample > 1:
+        extra["colour_map"]["upsample"] = cmap.upsample
+        version = UPSAMPLED_MAP_VERSION
     manifest = {
         "format": FORMAT_NAME,
-        "version": FORMAT_VERSION if "tile" in extra.get("colour_map", {}) else BASE_VERSION,
+        "version": version,
         "cell": list(project.grid.cell),
         "grid_shape": list(project.grid.indices.shape),
         "themes": themes,
