@@ -27,7 +27,7 @@ from terratheme.core.model.project import ThematicTexture, load_project, save_pr
 from terratheme.core.packing import PackedLayer, TiledLayer, layer_info, pack
 from terratheme.core.packing import tiled_format as tiled
 from terratheme.core.render.boundary import BoundaryOptions
-from terratheme.core.themes.library import ThemeLibrary, flat_theme
+from terratheme.core.themes.library import ThemeLibrary, flat_theme, read_theme_library
 from test_hostile_harness import ZipMember, check_bounded, craft_zip, shared_reader
 
 
@@ -475,3 +475,16 @@ def test_a_name_twice_among_60000_entries_is_found_in_linear_time(tmp_path):
     outcome = shared_reader().run("project", path)
     check_bounded(outcome, path)
     assert "'m59999' appears twice" in outcome.message
+
+
+# -- a theme folder whose list names a file with a NUL -------------------------
+# Was: themes.json naming "a\u0000b.png" passed the "a file name in the folder" check
+# and os.stat raised "ValueError: embedded null byte" (not the library's error, so a
+# traceback for any caller). Now the name must be printable text, as models.json's.
+
+@pytest.mark.parametrize("file", ["a\u0000b.png", "a\nb.png", "../grass.png", "/etc/passwd"])
+def test_a_theme_file_name_that_is_no_plain_name_is_refused(tmp_path, file):
+    (tmp_path / "themes.json").write_text(json.dumps(
+        {"version": 1, "themes": [{"name": "g", "colour": [1, 2, 3], "file": file}]}))
+    with pytest.raises(CorruptFileError, match="must be a file name in the theme folder"):
+        read_theme_library(tmp_path)

@@ -252,7 +252,8 @@ def _entry_file(entry: object, where: str) -> str:
         raise CorruptFileError(f"{where}: name must be one printable line of 1.."
                                f"{MAX_THEME_NAME} characters, got {str(name)[:40]!r}")
     file = entry.get("file")
-    if not isinstance(file, str) or file in ("", ".", "..") or Path(file).name != file:
+    if (not isinstance(file, str) or file in ("", ".", "..") or Path(file).name != file
+            or not file.isprintable()):  # a NUL would reach os.stat as a ValueError
         raise CorruptFileError(f"{where}: file must be a file name in the theme folder, "
                                f"not {str(file)[:60]!r}")
     return file
