@@ -488,3 +488,16 @@ def test_a_theme_file_name_that_is_no_plain_name_is_refused(tmp_path, file):
         {"version": 1, "themes": [{"name": "g", "colour": [1, 2, 3], "file": file}]}))
     with pytest.raises(CorruptFileError, match="must be a file name in the theme folder"):
         read_theme_library(tmp_path)
+
+
+
+@pytest.mark.parametrize("name", ["a\u0000b.ttproj", "../p.ttproj", "/tmp/p.ttproj"])
+def test_an_export_naming_no_plain_project_file_is_one_line(export_folder, tmp_path, name):
+    # A NUL in the manifest's "project" reached Path.resolve: "ValueError: embedded null
+    # byte", a traceback (once the carried project is checked against the output).
+    folder = tmp_path / "exp"
+    folder.mkdir()
+    manifest = json.loads((export_folder / "terratheme_unity.json").read_text())
+    (folder / "terratheme_unity.json").write_text(json.dumps({**manifest, "project": name}))
+    check_refused(run_cli("new", "--from", "export", folder, tmp_path / "back.ttproj"),
+                  "'project' must be a file name beside the manifest")

@@ -52,7 +52,8 @@ def _carried(path: str | os.PathLike) -> tuple[Path, dict, Path]:
         raise TerrathemeError(f"{manifest}: the export carries no project (written before "
                               "exports carried it): export again, or read its maps with "
                               "--from splatmap, weights or terrain3d")
-    if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
+    if (not isinstance(name, str) or Path(name).name != name or name in ("", ".", "..")
+            or not name.isprintable()):  # a NUL would reach the file system as a ValueError
         raise TerrathemeError(f"{manifest}: 'project' must be a file name beside the "
                               f"manifest, not {name!r}")
     return manifest, data, manifest.parent / name
