@@ -2,8 +2,9 @@
 libraries, classifier files, exports read back): each ends in one line naming the
 problem, with work bounded by the file, and leaves the input as it was.
 
-One regression test a failure the fuzz campaign of these readers found; the
-broader fuzzing lives in the ``test_hostile_*`` files of each format.
+Each section is the regression test of one failure a fuzz campaign of these readers
+found (what it was, in the comment above it), plus a full-disk check that was already
+handled; the broader fuzzing lives in the ``test_hostile_*`` files of each format.
 """
 
 from __future__ import annotations
