@@ -138,9 +138,13 @@ def augment_colour(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     x = img.astype(np.float32) / 255.0
     x = x ** rng.uniform(0.7, 1.4)                                 # exposure curve
     x = x * rng.uniform(0.75, 1.25) + rng.uniform(-0.1, 0.1)       # gain, offset
-    x = x * rng.uniform(0.85, 1.15, size=3)                        # white balance
+    x = x * rng.uniform(0.75, 1.25, size=3)                        # white balance
+    x = np.clip(x, 0.0, 1.0).astype(np.float32)
+    hsv = cv2.cvtColor(x, cv2.COLOR_RGB2HSV)
+    hsv[:, :, 0] = (hsv[:, :, 0] + rng.uniform(-15.0, 15.0)) % 360.0  # hue
+    x = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
     grey = x.mean(axis=2, keepdims=True)
-    x = grey + (x - grey) * rng.uniform(0.5, 1.4)                  # saturation
+    x = grey + (x - grey) * (0.0 if rng.random() < 0.1 else rng.uniform(0.3, 1.6))  # saturation
     mean = x.mean()
     x = mean + (x - mean) * rng.uniform(0.7, 1.3)                  # contrast
     if rng.random() < 0.3:
