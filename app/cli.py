@@ -139,8 +139,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{name}: error: {_one_line(_error_text(exc))}", file=sys.stderr)
     except ImportError as exc:
         # A library that cannot be mapped (out of memory) or is missing from the install.
+        extra = ("; the editor is the 'app' extra: pip install 'terratheme[app]'"
+                 if (exc.name or "").startswith("PySide6") else "")
         print(f"{name}: error: cannot load {exc.name or 'a library'} "
-              f"({_one_line(str(exc))[:160]})", file=sys.stderr)
+              f"({_one_line(str(exc))[:160]}){extra}", file=sys.stderr)
     except (MemoryError, RuntimeError, cv2_error()) as exc:
         if not isinstance(exc, MemoryError) and not out_of_memory(exc):
             raise

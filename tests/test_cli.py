@@ -133,3 +133,15 @@ def test_a_library_that_cannot_load_is_one_line(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert err == ("terratheme themes: error: cannot load foo (libfoo.so: failed to map "
                    "segment from shared object)\n")
+
+
+def test_a_missing_editor_names_its_extra(monkeypatch, capsys):
+    import terratheme.app.commands.themes
+
+    def fail(args):
+        raise ImportError("No module named 'PySide6'", name="PySide6")
+
+    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
+    assert main(["themes"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'terratheme[app]'" in err
