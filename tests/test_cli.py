@@ -122,26 +122,20 @@ def test_below_the_address_space_a_command_needs_is_one_line(tmp_path):
     assert not (tmp_path / "p.ttproj").exists()
 
 
-def test_a_library_that_cannot_load_is_one_line(monkeypatch, capsys):
+@pytest.mark.parametrize(("message", "name", "want"), [
+    ("libfoo.so: failed to map segment from shared object", "foo",
+     "cannot load foo (libfoo.so: failed to map segment from shared object)\n"),
+    # The editor is an extra of the wheel: its absence says how to install it.
+    ("No module named 'PySide6'", "PySide6",
+     "cannot load PySide6 (No module named 'PySide6'); the editor is the 'app' extra: "
+     "pip install 'terratheme[app]'\n"),
+])
+def test_a_library_that_cannot_load_is_one_line(monkeypatch, capsys, message, name, want):
     import terratheme.app.commands.themes
 
     def fail(args):
-        raise ImportError("libfoo.so: failed to map segment from shared object", name="foo")
+        raise ImportError(message, name=name)
 
     monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
     assert main(["themes"]) == 2
-    err = capsys.readouterr().err
-    assert err == ("terratheme themes: error: cannot load foo (libfoo.so: failed to map "
-                   "segment from shared object)\n")
-
-
-def test_a_missing_editor_names_its_extra(monkeypatch, capsys):
-    import terratheme.app.commands.themes
-
-    def fail(args):
-        raise ImportError("No module named 'PySide6'", name="PySide6")
-
-    monkeypatch.setattr(terratheme.app.commands.themes, "run", fail)
-    assert main(["themes"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "pip install 'terratheme[app]'" in err
+    assert capsys.readouterr().err == "terratheme themes: error: " + want
