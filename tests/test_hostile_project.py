@@ -278,3 +278,9 @@ def test_a_round_trip_of_every_layer_still_works(tmp_path):
 def test_version_bumps_are_named(tmp_path, version, error, match):
     with pytest.raises(error, match=match):
         load_project(_write(tmp_path, _members(_manifest(version=version))))
+
+
+def test_a_version_of_4000_digits_is_a_short_line(tmp_path):
+    with pytest.raises(UnsupportedVersionError, match="newer") as caught:
+        load_project(_write(tmp_path, _members(_manifest(version=10**3999))))
+    assert len(str(caught.value)) < 300

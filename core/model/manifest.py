@@ -52,7 +52,7 @@ def check_manifest(manifest: object) -> dict:
         raise CorruptFileError(f"bad format version {_show(version)}")
     if version > FORMAT_VERSION:
         raise UnsupportedVersionError(
-            f"written by a newer terratheme (project format {version}; "
+            f"written by a newer terratheme (project format {_show(version)}; "
             f"this version reads up to {FORMAT_VERSION})")
     for key in ("cell", "grid_shape", "themes"):
         if key not in manifest:
