@@ -120,10 +120,7 @@ class ColourMap:
                 1 <= int(self.scale) <= MAX_SCALE):
             raise TerrathemeError(f"colour map scale must be an integer 1..{MAX_SCALE}, "
                                   f"got {self.scale!r}")
-        if (isinstance(self.upsample, bool) or self.upsample not in UPSAMPLES
-                or (self.upsample > 1 and self.codec is None)):
-            raise TerrathemeError(f"colour map upsample must be one of {UPSAMPLES} (above 1 "
-                                  f"only for a coded map), got {self.upsample!r}")
+        check_upsample(self.upsample, coded=self.codec is not None)
         frozen = np.array(arr, dtype=np.uint8, order="C")
         frozen.setflags(write=False)
         object.__setattr__(self, "pixels", frozen)
@@ -270,12 +267,20 @@ class ColourMap:
         return len(self.data) if self.data is not None else int(self.pixels.nbytes)
 
 
+def check_upsample(upsample: object, *, scale: int | None = None, coded: bool = True) -> None:
+    """Raise unless ``upsample`` is one of :data:`UPSAMPLES`, divides the shipped image's
+    ``scale`` (when given) and is above 1 only for a ``coded`` map."""
+    if (isinstance(upsample, bool) or upsample not in UPSAMPLES
+            or (scale is not None and int(scale) % upsample) or (upsample > 1 and not coded)):
+        at = "" if scale is None else f" at scale {scale}"
+        raise TerrathemeError(f"colour map upsample must be one of {UPSAMPLES}, dividing the "
+                              f"scale (above 1 only for a coded map), got {upsample!r}{at}")
+
+
 def _drawn_shape(scale: int, upsample: int, texture_size: tuple[int, int] | None
                  ) -> tuple[int, int] | None:
     """``(mh, mw)`` of the drawn map of a ``texture_size`` texture (None: no upsampling)."""
-    if isinstance(upsample, bool) or upsample not in UPSAMPLES or int(scale) % upsample:
-        raise TerrathemeError(f"a colour map at scale {scale} cannot be upsampled {upsample!r}x "
-                              f"(one of {UPSAMPLES}, dividing the scale)")
+    check_upsample(upsample, scale=scale)
     if upsample == 1:
         return None
     if texture_size is None:

@@ -30,7 +30,7 @@ from terratheme.core.io.archive import (
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import validate_georeference
-from terratheme.core.model.colour_map import UPSAMPLES, ColourMap, check_tile_members
+from terratheme.core.model.colour_map import ColourMap, check_tile_members, check_upsample
 from terratheme.core.model.grid import MAX_THEMES, IndexGrid, validate_indices
 from terratheme.core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
 from terratheme.core.model.manifest import (
@@ -156,10 +156,10 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
         raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
     upsample = entry.get("upsample", 1)
-    if (isinstance(upsample, bool) or upsample not in UPSAMPLES or scale % upsample
-            or (upsample > 1 and codec is None)):
-        raise CorruptFileError(f"{path}: colour map upsample must be one of {UPSAMPLES}, "
-                               "dividing the scale of a coded map")
+    try:
+        check_upsample(upsample, scale=scale, coded=codec is not None)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{path}: {exc}") from None
     shape = ColourMap.shape_for(grid.texture_size, scale)
     label = str(path)
     if tiled:
