@@ -124,6 +124,16 @@ def test_structure_similarity_ignores_detail_inside_the_downscaled_pixel():
     assert structure_similarity(shifted, photo, 1) < 0.0
 
 
+def test_structure_similarity_averages_whole_blocks_on_sides_off_the_factor():
+    # Stripes of period 4 (two columns at 200, two at 0) average to one grey in every
+    # aligned 4 x 4 block; a width of 66 (not a multiple of 4) must not make the blocks
+    # straddle the period, which would read as coarse stripes.
+    stripes = np.where(np.arange(66) % 4 < 2, 200, 0)
+    photo = np.repeat(np.broadcast_to(stripes, (66, 66))[:, :, None], 3, axis=2).astype(np.uint8)
+    grey = np.full_like(photo, 100)
+    assert structure_similarity(photo, grey, 4) == pytest.approx(1.0, abs=1e-6)
+
+
 def test_structure_similarity_sees_a_moved_road():
     photo = np.full((64, 64, 3), 200, np.uint8)
     photo[:, 24:32] = 40

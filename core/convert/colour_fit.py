@@ -191,11 +191,11 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsamp
 
 def budget_score(photo: Reference, quick: tuple[int, Reference], shown: np.ndarray
                  ) -> tuple[float, float, float, float]:
-    """``(score, s4, s8, dE8)``: ``score = (s4 + s8) / 2 - dE8 / 10``, higher better."""
+    """``(score, s4, s8, dE8)``: ``score = (s4 + s8) / 2 - dE8 / 20``, higher better."""
     s4 = structure_similarity(shown, photo, 4)
     s8 = structure_similarity(shown, photo, 8)
     err = _quick_error(quick, shown)
-    return (s4 + s8) / 2 - err / 10, s4, s8, err
+    return (s4 + s8) / 2 - err / 20, s4, s8, err
 
 
 def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions,

@@ -60,10 +60,17 @@ def _blurred_lab(rgb: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def _small_gray(rgb: np.ndarray, factor: int) -> np.ndarray:
-    """Luminance after a ``factor`` x area downscaling, sides rounded down, at least 7."""
+    """Luminance after a ``factor`` x area downscaling: the means of whole ``factor`` x
+    ``factor`` blocks from the top-left, the last part-blocks left out (a texture's mip level
+    sees the same blocks; a fractional ratio would straddle them). Sides of fewer than 7
+    blocks are resized to 7."""
+    f = int(factor)
     h, w = rgb.shape[:2]
-    size = (max(7, w // int(factor)), max(7, h // int(factor)))
-    return cv2.resize(rgb2gray(rgb).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    gray = rgb2gray(rgb).astype(np.float32)
+    if w // f >= 7 and h // f >= 7:
+        gray = gray[: h // f * f, : w // f * f]
+    size = (max(7, w // f), max(7, h // f))
+    return cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
 
 
 def _pair(render: np.ndarray, photo: np.ndarray | Reference) -> tuple[np.ndarray, np.ndarray]:
@@ -128,7 +135,8 @@ def structure_similarity(render: np.ndarray, photo: np.ndarray | Reference,
                          factor: int = 4) -> float:
     """Mean SSIM (1: the same picture) of the luminance after ``factor`` x area downscaling.
 
-    Sizes rounded down, at least 7 pixels a side; ``photo`` may be its :func:`reference`.
+    Whole blocks from the top-left (sides rounded down), at least 7 pixels a side;
+    ``photo`` may be its :func:`reference`.
     """
     r, p = _pair(render, photo)
     small = photo.gray.get(int(factor)) if isinstance(photo, Reference) else None
