@@ -401,6 +401,34 @@ def test_a_full_disk_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkey
     assert path.stat().st_size > 64
 
 
+# -- a full disk while an export writes ---------------------------------------
+# Was: the files were taken back, but the export folder (and its missing parents and the
+# engine's subfolders) stayed behind, empty. Now only folders that were there before stay.
+
+@pytest.mark.parametrize("engine", ["unity", "unreal", "godot", "geotiff"])
+def test_a_failed_export_leaves_no_folder_it_made(tmp_path, monkeypatch, engine):
+    from terratheme.core.exchange import Engine, ExportOptions, plan_export, write_export
+
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 8)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 16),
+                                            flat_theme("sand", (220, 200, 140), 16)]))
+    plan = plan_export(project, ExportOptions(engine=Engine(engine)))
+    kept = tmp_path / "kept"
+    (kept / "old").mkdir(parents=True)
+    (kept / "old" / "notes.txt").write_text("mine")
+    for folder in (tmp_path / "new" / "deeper" / "exp", kept):
+        with monkeypatch.context() as patch:
+            _full_disk_after(patch, 64)
+            with pytest.raises(OSError, match="No space left"):
+                write_export(project, plan, folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept"]
+    assert sorted(str(p.relative_to(kept)) for p in kept.rglob("*")) == ["old", "old/notes.txt"]
+    assert (kept / "old" / "notes.txt").read_text() == "mine"
+    # With room again the same export is written whole.
+    written = write_export(project, plan, tmp_path / "new" / "deeper" / "exp")
+    assert written and all(p.is_file() for p in written)
+
+
 # -- theme names that one engine layer name stands for ------------------------
 # Was: "rock!" and "rock?" (or two long names sharing their first 64 characters) were
 # both exported as the layer "rock": Unity's importer creates "rock.terrainlayer" once
