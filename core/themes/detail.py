@@ -15,9 +15,9 @@ from skimage.feature import structure_tensor
 from terratheme.core.themes.library import ThemeLibrary
 
 #: Gaussian sigma (texels) above which a detail theme is flat
-DETAIL_SIGMA = 1.5
+DETAIL_SIGMA = 3.0
 #: a detail theme's contrast over the photo's at :data:`DETAIL_SIGMA` in its class
-DETAIL_CONTRAST = 1.75
+DETAIL_CONTRAST = 1.5
 #: the value of a detail theme's mean (the colour map's neutral gain)
 NEUTRAL = 128
 #: range of the contrast gain of :func:`detail_themes`
@@ -30,8 +30,8 @@ EVEN_RANGE = (0.25, 4.0)
 FRAGMENT_COHERENCE = 0.5
 #: Gaussian sigma (texels) at which :func:`theme_detail` measures :func:`edge_coherence`
 COHERENCE_SIGMA = 3.0
-#: a fragment theme's contrast over the photo's in its class (:func:`detail_themes`)
-FRAGMENT_GAIN = 0.5
+#: a fragment theme's factor on :data:`DETAIL_CONTRAST` (:func:`detail_themes`)
+FRAGMENT_GAIN = 0.3
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: side (texels) of the aligned blocks a detail theme averages to neutral over (:func:`mip_flat`)
