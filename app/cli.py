@@ -18,6 +18,7 @@ import sys
 from collections.abc import Sequence
 
 import terratheme.app.commands
+from terratheme.app.outputs import folders_made_for_outputs
 from terratheme.core import __version__
 from terratheme.core.errors import OptionError, TerrathemeError
 
@@ -134,7 +135,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{name}: error: {shortfall}", file=sys.stderr)
         return 2
     try:
-        return int(args._run(args) or 0)
+        with folders_made_for_outputs() as made:
+            status = int(args._run(args) or 0)
+            if status:
+                made.remove_empty()
+            return status
     except TerrathemeError as exc:
         print(f"{name}: error: {_one_line(_error_text(exc))}", file=sys.stderr)
     except ImportError as exc:

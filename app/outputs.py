@@ -1,18 +1,55 @@
 """Output paths, checked before a command starts its work.
 
 Every command calls :func:`check_outputs` with every file it may write (sidecars
-included) right after reading its arguments, so a bad output path costs no work.
+included) right after reading its arguments, so a bad output path costs no work. The
+folders it makes for them are taken away again, when still empty, if the command then
+fails (:func:`folders_made_for_outputs`, around each command in ``app.cli``).
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import errno
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import special_file
+
+#: the folders :func:`check_outputs` made for the running command, oldest first
+_MADE: contextvars.ContextVar[list[Path] | None] = contextvars.ContextVar("made", default=None)
+
+
+class MadeFolders:
+    """The folders made for a command's outputs (:func:`folders_made_for_outputs`)."""
+
+    def __init__(self) -> None:
+        self.paths: list[Path] = []
+
+    def remove_empty(self) -> None:
+        """Remove them, newest first, where nothing has been put in them."""
+        for folder in reversed(self.paths):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        self.paths.clear()
+
+
+@contextlib.contextmanager
+def folders_made_for_outputs() -> Iterator[MadeFolders]:
+    """Record the folders :func:`check_outputs` makes; on an exception remove the empty
+    ones (a failed command leaves no new folder behind). The caller may also call
+    :meth:`MadeFolders.remove_empty` itself for a command that failed without one."""
+    made = MadeFolders()
+    token = _MADE.set(made.paths)
+    try:
+        yield made
+    except BaseException:
+        made.remove_empty()
+        raise
+    finally:
+        _MADE.reset(token)
 
 
 def _resolved(path: Path) -> Path:
@@ -77,11 +114,15 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
         if folder is not None:
             _check_subfolders(out, Path(folder))
         parent = out.parent if str(out.parent) else Path(".")
+        missing = [d for d in (parent, *parent.parents) if not os.path.lexists(d)]
         try:
             parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise TerrathemeError(f"{out}: cannot make the folder {parent} ({exc.strerror})"
                                   ) from None
+        made = _MADE.get()
+        if made is not None:
+            made.extend(reversed(missing))
         if not os.access(parent, os.W_OK | os.X_OK):
             raise TerrathemeError(f"{out}: the folder {parent} is not writable")
     return outs

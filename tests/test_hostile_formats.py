@@ -429,6 +429,27 @@ def test_a_failed_export_leaves_no_folder_it_made(tmp_path, monkeypatch, engine)
     assert written and all(p.is_file() for p in written)
 
 
+def test_a_full_disk_in_export_names_the_file_and_leaves_no_folder(tmp_path, monkeypatch,
+                                                                   capsys):
+    # Was: "error: No space left on device" (no file named), and the folders the command
+    # made for its outputs (the export folder, its new parents, Unity's Editor/ and
+    # Shaders/) stayed behind, empty.
+    from terratheme.app.cli import main
+
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 8)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 16),
+                                            flat_theme("sand", (220, 200, 140), 16)]))
+    save_project(tmp_path / "p.ttproj", project)
+    out = tmp_path / "new" / "exp"
+    with monkeypatch.context() as patch:
+        _full_disk_after(patch, 64)
+        status = main(["export", str(tmp_path / "p.ttproj"), str(out), "--engine", "unity"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1
+    assert str(out) in lines[0] and "No space left" in lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.ttproj"]
+
+
 # -- theme names that one engine layer name stands for ------------------------
 # Was: "rock!" and "rock?" (or two long names sharing their first 64 characters) were
 # both exported as the layer "rock": Unity's importer creates "rock.terrainlayer" once

@@ -272,7 +272,9 @@ def file_set(paths: Sequence[str | os.PathLike], *,
             raise TerrathemeError("a file is already being written by another set")
         _OPEN.update(dict.fromkeys(keys, files))
     try:
-        with _naming(lambda: {str(t): f for f, t in files._temps.items()}):
+        # A full disk naming no file is the file being written: the newest temporary's.
+        with _naming(lambda: {str(t): f for f, t in files._temps.items()}
+                     | ({"": next(reversed(files._temps))} if files._temps else {})):
             yield files
         files.commit([Path(p) for p in remove])
     finally:
