@@ -65,6 +65,22 @@ def test_find_patch_takes_the_calm_square_when_the_class_is_calm():
     assert 80 <= x and x + s <= 120 and 30 <= y and y + s <= 70
 
 
+def test_find_patch_keeps_to_one_texture_of_a_class_of_two():
+    # One class of a strong grain (left) and a grain a third as strong (right): a window
+    # across both matches the class's mean energy best, but tiles into bands of the two.
+    rng = np.random.default_rng(4)
+    h, w = 64, 192
+    amplitude = np.where(np.arange(w) < w // 2, 36.0, 12.0)
+    photo = np.clip(120 + rng.normal(0, 1, (h, w, 3)) * amplitude[None, :, None], 0, 255)
+    photo = photo.astype(np.uint8)
+    mask = np.ones((h, w), bool)
+    x, _, s = find_patch(_windows(photo, mask, PatchOptions(size=64, min_size=64, inside=1.0)))
+    assert x + s <= w // 2 or x >= w // 2
+    straddles = find_patch(_windows(photo, mask, PatchOptions(size=64, min_size=64, inside=1.0,
+                                                                even_weight=0.0)))
+    assert straddles[0] < w // 2 < straddles[0] + straddles[2]
+
+
 def test_find_patch_shrinks_then_gives_up():
     photo = np.zeros((50, 50, 3), np.uint8)
     mask = np.zeros((50, 50), bool)

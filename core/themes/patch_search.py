@@ -28,6 +28,8 @@ BAND_SIGMAS = (0.7, 3.0)
 INTERIOR = 4
 #: window positions searched at most (the lattice is coarsened above this)
 SEARCH_POSITIONS = 1 << 18
+#: strips a side whose band energies a window's evenness compares (:meth:`ClassWindows.scores`)
+EVEN_STRIPS = 8
 
 
 @dataclass(frozen=True)
@@ -38,7 +40,8 @@ class PatchOptions:
     theme; ``inside``: share of the patch that must carry the class (the rest is filled);
     ``size_weight``: score per halving of the side; ``colour_weight``: the mean-colour term's
     weight; ``highpass_sigma``: the local mean the Lab spread is measured about (pixels);
-    ``quilt``: quilt from small blocks (:mod:`.quilt`) when no window tiles unseen.
+    ``quilt``: quilt from small blocks (:mod:`.quilt`) when no window tiles unseen;
+    ``even_weight``: the weight of a window's unevenness (:meth:`ClassWindows.scores`).
     """
 
     size: int = 256
@@ -48,6 +51,7 @@ class PatchOptions:
     colour_weight: float = 0.25
     highpass_sigma: float = 16.0
     quilt: bool = True
+    even_weight: float = 2.0
 
     def __post_init__(self) -> None:
         if not 4 <= self.min_size <= self.size:
@@ -213,7 +217,7 @@ class WindowStats:
         h, w = stack.shape[:2]
         self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
         self._stack = _coarsen(stack, self.factor)
-        self._by_size: dict[int, np.ndarray] = {}
+        self._by_size: dict = {}
 
     def at(self, size: int) -> np.ndarray:
         """(h, w, 10) float32: mean band, Lab mean (3), detail mean (3), detail^2 mean (3).
@@ -225,6 +229,20 @@ class WindowStats:
             self._by_size[size] = cv2.boxFilter(self._stack, -1, (k, k), anchor=(0, 0),
                                                 borderType=cv2.BORDER_CONSTANT)
         return self._by_size[size]
+
+    def strips(self, size: int) -> tuple[np.ndarray, np.ndarray, int]:
+        """Mean band energy of the column strips and of the row strips of windows of side
+        ``size`` (``EVEN_STRIPS`` a side; lattice arrays as :meth:`at`), and the strips'
+        width on the lattice."""
+        if ("strips", size) not in self._by_size:
+            k = max(1, size // self.factor)
+            w = max(1, k // EVEN_STRIPS)
+            band = np.ascontiguousarray(self._stack[:, :, 0])
+            self._by_size["strips", size] = (
+                cv2.boxFilter(band, -1, (w, k), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT),
+                cv2.boxFilter(band, -1, (k, w), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT),
+                w)
+        return self._by_size["strips", size]
 
 
 def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
@@ -279,9 +297,23 @@ class ClassWindows:
         return np.flatnonzero(ok)
 
     def scores(self, size: int, at: np.ndarray) -> np.ndarray:
-        """:func:`patch_scores` of the windows of side ``size`` at lattice indices ``at``."""
-        return patch_scores(self.windows.at(size).reshape(-1, 10)[at], self.target, size,
-                            self.options)
+        """:func:`patch_scores` of the windows of side ``size`` at lattice indices ``at``,
+        plus ``options.even_weight`` times the variances of the log band energy over their
+        ``EVEN_STRIPS`` column strips and over their row strips: a window partly of
+        another texture tiles into bands of it (a sea's black, JPEG-blocked deep beside
+        its lit ripples; a calm strip along one edge)."""
+        score = patch_scores(self.windows.at(size).reshape(-1, 10)[at], self.target, size,
+                             self.options)
+        if self.options.even_weight <= 0.0:
+            return score
+        cols, rows, step = self.windows.strips(size)
+        j, i = np.divmod(at, cols.shape[1])
+        offsets = np.arange(EVEN_STRIPS) * step
+        by_col = np.log(cols[j[:, None], np.minimum(i[:, None] + offsets, cols.shape[1] - 1)]
+                        + 1e-6)
+        by_row = np.log(rows[np.minimum(j[:, None] + offsets, rows.shape[0] - 1), i[:, None]]
+                        + 1e-6)
+        return score + self.options.even_weight * (by_col.var(axis=1) + by_row.var(axis=1))
 
 
 def class_windows(windows: WindowStats, mask: np.ndarray, options: PatchOptions,
