@@ -66,11 +66,11 @@ def test_find_patch_takes_the_calm_square_when_the_class_is_calm():
 
 
 def test_find_patch_keeps_to_one_texture_of_a_class_of_two():
-    # One class of a strong grain (left) and a grain a third as strong (right): a window
+    # One class of a strong grain (left) and a grain a sixth as strong (right): a window
     # across both matches the class's mean energy best, but tiles into bands of the two.
     rng = np.random.default_rng(4)
     h, w = 64, 192
-    amplitude = np.where(np.arange(w) < w // 2, 36.0, 12.0)
+    amplitude = np.where(np.arange(w) < w // 2, 36.0, 6.0)
     photo = np.clip(120 + rng.normal(0, 1, (h, w, 3)) * amplitude[None, :, None], 0, 255)
     photo = photo.astype(np.uint8)
     mask = np.ones((h, w), bool)
