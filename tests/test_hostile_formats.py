@@ -247,6 +247,27 @@ def test_a_project_asking_for_a_vanishing_feature_count_renders(tmp_path):
     assert (tmp_path / "b.png").stat().st_size > 0
 
 
+# Was: a render style's {"seed": 1.5}, {"noise": 90.5} or {"height": true} rendered
+# (the fractions and the boolean taken as they came), and {"width": "3"} gave a Python
+# comparison message. Now each names the field and what it must be, and the CLI stops.
+
+@pytest.mark.parametrize("field, value, must", [("seed", 1.5, "a whole number"),
+                                                ("noise", 90.5, "a whole number"),
+                                                ("height", True, "a whole number"),
+                                                ("width", "3", "a number")])
+def test_a_render_style_field_of_the_wrong_type_is_one_line(tmp_path, field, value, must):
+    project = ThematicTexture(IndexGrid(np.array([[0, 1, 1], [1, 0, 0]], np.uint8), (8, 4)),
+                              ThemeLibrary([flat_theme("water", (0, 0, 200), 4),
+                                            flat_theme("sand", (220, 200, 140), 4)]),
+                              {"render": {"boundary": {field: value}}})
+    save_project(tmp_path / "b.ttproj", project)
+    proc = run_cli("render", tmp_path / "b.ttproj", tmp_path / "b.png")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr[-2000:]
+    assert f"boundary {field} must be {must}" in lines[0]
+    assert not (tmp_path / "b.png").exists()
+
+
 # -- text from a file reaching the terminal ------------------------------------
 # Was: a project whose theme name held "\x1b]0;pwned\x07...\x1b[2K\rFAKE: success\n"
 # loaded; `new --from export` printed the carried project's theme names raw, so the

@@ -48,6 +48,16 @@ class BoundaryOptions:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        for name in ("noise", "height", "seed"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
+                raise TerrathemeError(f"boundary {name} must be a whole number, got "
+                                      f"{str(value)[:40]!r}")
+        for name in ("width", "features"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                raise TerrathemeError(f"boundary {name} must be a number, got "
+                                      f"{str(value)[:40]!r}")
         if not 0.0 <= self.width <= 4096:
             raise TerrathemeError(f"boundary width must be in 0..4096 texels, got {self.width}")
         if not (0 <= self.noise <= 255 and 0 <= self.height <= 255):
