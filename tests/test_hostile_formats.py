@@ -268,6 +268,21 @@ def test_a_render_style_field_of_the_wrong_type_is_one_line(tmp_path, field, val
     assert not (tmp_path / "b.png").exists()
 
 
+# Was: `new --from export` given a pipe named like a manifest said "no such export folder
+# or manifest", though the path is there. Now it says what the path is.
+
+def test_an_export_manifest_that_is_a_pipe_is_named_so(tmp_path):
+    import os
+
+    fifo = tmp_path / "terratheme_unity.json"
+    os.mkfifo(fifo)
+    proc = run_cli("new", "--from", "export", fifo, tmp_path / "p.ttproj")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr[-2000:]
+    assert "is a pipe, not an export manifest" in lines[0]
+    assert not (tmp_path / "p.ttproj").exists()
+
+
 # -- text from a file reaching the terminal ------------------------------------
 # Was: a project whose theme name held "\x1b]0;pwned\x07...\x1b[2K\rFAKE: success\n"
 # loaded; `new --from export` printed the carried project's theme names raw, so the

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.archive import parse_json, read_bounded
+from terratheme.core.io.atomic import special_file
 from terratheme.core.model.project import ThematicTexture, load_project
 
 #: a manifest is a few kB (a tiled Unreal export lists every tile): far below this
@@ -31,7 +32,9 @@ def export_manifest(path: str | os.PathLike) -> Path:
                                   "folder; name the manifest")
         return found[0]
     if not p.is_file():
-        raise TerrathemeError(f"{p}: no such export folder or manifest")
+        kind = special_file(p)
+        raise TerrathemeError(f"{p}: is {kind}, not an export manifest" if kind else
+                              f"{p}: no such export folder or manifest")
     return p
 
 
