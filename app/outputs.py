@@ -16,7 +16,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
-from terratheme.core.io.atomic import special_file
+from terratheme.core.io.atomic import missing_folders, remove_empty_folders, special_file
 
 #: the folders :func:`check_outputs` made for the running command, oldest first
 _MADE: contextvars.ContextVar[list[Path] | None] = contextvars.ContextVar("made", default=None)
@@ -30,9 +30,7 @@ class MadeFolders:
 
     def remove_empty(self) -> None:
         """Remove them, newest first, where nothing has been put in them."""
-        for folder in reversed(self.paths):
-            with contextlib.suppress(OSError):
-                folder.rmdir()
+        remove_empty_folders(reversed(self.paths))
         self.paths.clear()
 
 
@@ -114,7 +112,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
         if folder is not None:
             _check_subfolders(out, Path(folder))
         parent = out.parent if str(out.parent) else Path(".")
-        missing = [d for d in (parent, *parent.parents) if not os.path.lexists(d)]
+        missing = missing_folders([out])
         try:
             parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -122,7 +120,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
                                   ) from None
         made = _MADE.get()
         if made is not None:
-            made.extend(reversed(missing))
+            made.extend(reversed(missing))  # oldest first
         if not os.access(parent, os.W_OK | os.X_OK):
             raise TerrathemeError(f"{out}: the folder {parent} is not writable")
     return outs

@@ -10,7 +10,7 @@ from terratheme.core.exchange import geotiff, terrain3d, unity, unreal
 from terratheme.core.exchange.options import Engine, ExportOptions
 from terratheme.core.exchange.plan import ExportPlan, write_carried_project
 from terratheme.core.exchange.style import export_boundary
-from terratheme.core.io.atomic import file_set
+from terratheme.core.io.atomic import file_set, missing_folders, remove_empty_folders
 from terratheme.core.model.project import ThematicTexture
 
 Progress = Callable[[int, int], None]
@@ -32,26 +32,14 @@ def write_export(project: ThematicTexture, plan: ExportPlan, folder: str | os.Pa
     A failed export leaves no file, and no folder it made (empty ones only are removed).
     """
     out = Path(folder)
-    made = [d for d in (out, *out.parents) if not os.path.lexists(d)]
-    had = _folders(out)
+    paths = plan.paths(out)
+    made = missing_folders(paths)
     out.mkdir(parents=True, exist_ok=True)
     try:
-        with file_set(plan.paths(out)):
+        with file_set(paths):
             write_carried_project(project, out)
             _ENGINES[plan.options.engine].write(project, plan, out, progress)
     except BaseException:
-        # Deepest first: the engine's subfolders, then the export folder and its parents.
-        for d in sorted(_folders(out) - had, key=lambda p: len(p.parts), reverse=True) + made:
-            try:
-                d.rmdir()
-            except OSError:
-                pass
+        remove_empty_folders(made)
         raise
-    return plan.paths(out)
-
-
-def _folders(root: Path) -> set[Path]:
-    """The folders under ``root`` (itself included; links not followed), none if it is none."""
-    if not root.is_dir() or root.is_symlink():
-        return set()
-    return {root, *(Path(top) / d for top, dirs, _ in os.walk(root) for d in dirs)}
+    return paths

@@ -16,7 +16,7 @@ import os
 import secrets
 import stat
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 from terratheme.core.errors import TerrathemeError
@@ -52,6 +52,19 @@ def special_file(path: str | os.PathLike) -> str | None:
         return None
     return ("a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
             else "a device")
+
+
+def missing_folders(paths: Iterable[str | os.PathLike]) -> list[Path]:
+    """The folders that writing ``paths`` would have to make (absent now), deepest first."""
+    missing = {d for p in paths for d in Path(p).parents if not os.path.lexists(d)}
+    return sorted(missing, key=lambda d: len(d.parts), reverse=True)
+
+
+def remove_empty_folders(folders: Iterable[Path]) -> None:
+    """Remove each of ``folders`` (give them deepest first) that nothing has been put in."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 def _new_temporary(final: Path, suffix: str | None) -> Path:
