@@ -209,8 +209,32 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     g16 = IndexGrid(vote_grid(labels, (16, 16)), (16, 16))
     assert got.cell == (16, 16) and got.agreement == pytest.approx(agreement(labels, g16))
     assert got.curve == choice.curve
-    # Nothing fits: the largest candidate.
-    assert cell_within_budget(labels, choice, (4, 8, 16), 0.0).cell == (16, 16)
+    # Nothing fits: the largest cell (candidates reaching 16 go on to 32).
+    assert cell_within_budget(labels, choice, (4, 8, 16), 0.0).cell == (32, 32)
+    assert cell_within_budget(labels, choice, (4, 8), 0.0).cell == (8, 8)
+
+
+
+def test_cell_within_budget_goes_past_the_automatic_cap_unless_capped_lower():
+    from terratheme.core.convert.cell_choice import (
+        CONVERT_CELL_CANDIDATES,
+        CellChoice,
+        cell_within_budget,
+        road_candidates,
+    )
+
+    rng = np.random.default_rng(6)
+    # Random 8-pixel blocks: a cell-16 grid of them overflows a budget of no bytes.
+    labels = np.kron(rng.integers(0, 3, (24, 24)), np.ones((8, 8), int)).astype(np.uint8)
+    choice = CellChoice((16, 16), 0.5, 0.9, (), True)
+    # convert's candidates reach 16: the grid goes on to 24 and 32 (192 = 6 cells of 32).
+    assert cell_within_budget(labels, choice, CONVERT_CELL_CANDIDATES, 0.0).cell == (32, 32)
+    got = cell_within_budget(labels, choice, CONVERT_CELL_CANDIDATES, 1e9)
+    assert got.cell == (16, 16)
+    # A road theme's candidates stop at 8, and so does the grid.
+    road = road_candidates(CONVERT_CELL_CANDIDATES, ["road"])
+    small = CellChoice((4, 4), 0.5, 0.9, (), True)
+    assert cell_within_budget(labels, small, road, 0.0).cell == (8, 8)
 
 
 def test_grid_budget_is_a_share_of_the_map_budget():

@@ -24,6 +24,9 @@ DEFAULT_CELL_CANDIDATES = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 19
 CONVERT_CELL_CANDIDATES = tuple(c for c in DEFAULT_CELL_CANDIDATES if c <= 16)
 #: the largest automatic cell when a theme is a road (thin lines keep their course)
 ROAD_MAX_CELL = 8
+#: cells past ``CONVERT_CELL_CANDIDATES`` a byte budget may grow the grid to
+#: (:func:`cell_within_budget`)
+BUDGET_CELLS = (24, 32)
 
 
 def road_candidates(candidates: Sequence[int], names: Iterable[str] | None) -> tuple[int, ...]:
@@ -223,14 +226,19 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
                        max_bits_per_pixel: float, *, keep_specks: bool = True) -> CellChoice:
     """``choice``, or the next larger candidate cell until the packed grid fits its budget.
 
-    Under a byte budget the map carries the structure and the grid only places detail;
-    the largest candidate is kept even if it does not fit (``max_bits_per_pixel`` per
-    photo pixel; its curve unchanged). ``choice.grid``, when set, is the grid of these
-    labels at its cell. The result carries its grid and packed size.
+    Under a byte budget the map carries the structure and the grid only places detail, so
+    candidates reaching ``convert``'s largest automatic cell go on to :data:`BUDGET_CELLS`
+    (a list capped lower, a road theme's, stays). The largest is kept even if it does not
+    fit (``max_bits_per_pixel`` per photo pixel; its curve unchanged). ``choice.grid``,
+    when set, is the grid of these labels at its cell. The result carries its grid and
+    packed size.
     """
     labels = check_class_image(labels, "label image")
     cell = choice.cell[0]
-    larger = sorted(int(c) for c in candidates if int(c) > cell)
+    ladder = {int(c) for c in candidates}
+    if max(ladder) >= max(CONVERT_CELL_CANDIDATES):
+        ladder |= set(BUDGET_CELLS)
+    larger = sorted(c for c in ladder if c > cell)
     grid = nbytes = None
     for nxt in [cell, *larger]:
         if nxt == cell and choice.grid is not None:

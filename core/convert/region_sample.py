@@ -38,11 +38,12 @@ if TYPE_CHECKING:
     from distributed import Client
 
 #: side of one sample window (pixels): a multiple of every colour-map scale and cell tried
-#: (48), so the sample's map blocks and cells are the region's
+#: (48, and a byte budget's cells of 32), so the sample's map blocks and cells are the region's
 SAMPLE_PIECE = 384
 #: windows per side of the sample (SAMPLE_GRID^2 windows, 2688^2 pixels in all)
 SAMPLE_GRID = 7
-#: window corners snap to multiples of this many pixels
+#: window corners snap to multiples of this many pixels (a byte budget's cells of 32, which
+#: only count the grid's packed bytes there, may sit half a cell off the region's)
 SAMPLE_ALIGN = 48
 #: no-data pixels between two windows of the sample (each window's reflection): a theme patch
 #: across them would hold more than ``1 - PatchOptions.inside`` (15%) of another class
