@@ -103,7 +103,7 @@ def test_even_detail_fills_a_flat_strip_of_a_tileable_texture():
     from terratheme.core.themes.detail import EVEN_RANGE, _relative, even_detail
 
     rng = np.random.default_rng(1)
-    tex = rng.integers(80, 180, (64, 64, 3)).astype(np.uint8)
+    tex = rng.integers(80, 180, (128, 128, 3)).astype(np.uint8)
     tex[:, 24:40] = 128 + (tex[:, 24:40].astype(int) - 128) // 10  # a strip of a tenth the contrast
 
     def strip_share(rel):
@@ -172,10 +172,30 @@ def test_a_fragment_theme_keeps_its_fine_energy_but_not_its_edges():
     assert np.allclose(theme_detail(np.roll(pieces, 8, axis=0))[0], np.roll(rel, 8, axis=0),
                        atol=1e-5)
     # ... and an isotropic grain theme keeps its phases.
-    grain = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    grain = np.random.default_rng(0).integers(0, 256, (128, 128, 3), dtype=np.uint8)
     same, fragment = theme_detail(grain)
     assert not fragment and np.array_equal(same, mip_flat(even_detail(grain)))
 
+
+def test_a_small_theme_has_its_phases_randomised_at_its_own_contrast():
+    from terratheme.core.themes.detail import LATTICE_SIDE, even_detail, mip_flat, theme_detail
+
+    def grain(side: int) -> np.ndarray:
+        return np.random.default_rng(3).integers(0, 256, (side, side, 3), dtype=np.uint8)
+
+    def corr(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.corrcoef(a.ravel(), b.ravel())[0, 1])
+
+    assert 64 < LATTICE_SIDE <= 128
+    # A 64-texel theme repeats 4 times in 256: its texels are reshuffled in phase (no lattice
+    # of its features), not a fragment (its gain stays), with its energy.
+    small, fragment = theme_detail(grain(64))
+    kept = mip_flat(even_detail(grain(64)))
+    assert not fragment and abs(corr(small, kept)) < 0.1
+    assert float((small ** 2).mean()) == pytest.approx(float((kept ** 2).mean()), rel=0.1)
+    # A 128-texel one keeps its texels.
+    large, fragment = theme_detail(grain(128))
+    assert not fragment and np.array_equal(large, mip_flat(even_detail(grain(128))))
 
 def test_mip_flat_blocks_average_to_zero_and_finer_content_stays():
     from terratheme.core.themes.detail import mip_flat

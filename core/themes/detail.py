@@ -34,6 +34,8 @@ COHERENCE_SIGMA = 3.0
 FRAGMENT_GAIN = 0.3
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
+#: a theme with a side under this many texels has its phases randomised (:func:`theme_detail`)
+LATTICE_SIDE = 128
 #: side (texels) of the aligned blocks a detail theme averages to neutral over (:func:`mip_flat`)
 MIP_FLAT = 4
 
@@ -105,11 +107,17 @@ def theme_detail(texture: np.ndarray, sigma: float = DETAIL_SIGMA
                  ) -> tuple[np.ndarray, bool]:
     """((H, W, 3) float32, fragment): a theme's :func:`mip_flat` :func:`even_detail`; a
     fragment theme (coherence above ``FRAGMENT_COHERENCE``: a town's road pieces) with its
-    phases randomised, so the map's streets read through, not a kaleidoscope of pieces."""
+    phases randomised, so the map's streets read through, not a kaleidoscope of pieces.
+
+    A theme with a side under ``LATTICE_SIDE`` has its phases randomised too (it stays no
+    fragment): repeated every few dozen texels, its one roundabout or roof would show as a
+    lattice of rings or dots.
+    """
     rel = even_detail(texture, sigma)
-    if edge_coherence(texture) <= FRAGMENT_COHERENCE:
-        return mip_flat(rel), False
-    return mip_flat(_random_phases(rel)), True
+    fragment = edge_coherence(texture) > FRAGMENT_COHERENCE
+    if fragment or min(np.shape(texture)[:2]) < LATTICE_SIDE:
+        rel = _random_phases(rel)
+    return mip_flat(rel), fragment
 
 
 def _random_phases(rel: np.ndarray) -> np.ndarray:
