@@ -96,7 +96,7 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
     with _scratch(ext) as (fd, path):
         spec = oiio.ImageSpec(arr.shape[1], arr.shape[0], arr.shape[2], "uint8")
         spec.attribute("Compression", attr.format(q=int(quality)))
-        write_oiio("image" + ext, path, spec, arr)
+        write_oiio("image" + ext, path, spec, arr, read_back=False)
         return _read_all(fd)
 
 

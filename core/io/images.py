@@ -402,11 +402,13 @@ def _error_text(out: oiio.ImageOutput) -> str:
 
 
 def write_oiio(path: str | os.PathLike, tmp: str | os.PathLike, spec: oiio.ImageSpec,
-               pixels: np.ndarray) -> None:
+               pixels: np.ndarray, *, read_back: bool = True) -> None:
     """Write ``(H, W, C)`` ``pixels`` to ``tmp`` in ``path``'s format, every step checked.
 
     A failed write (a full disk) is a False from ``write_image`` or ``close``,
-    or for some writers only a short-write error on the writer: any raises.
+    or for some writers only a short-write error on the writer: any raises; so does a
+    file that does not read back on a nearly full disk (:func:`check_written`; not for a
+    ``tmp`` named without ``path``'s suffix: ``read_back=False``).
     """
     out = oiio.ImageOutput.create(str(path))
     if out is None:
@@ -421,3 +423,33 @@ def write_oiio(path: str | os.PathLike, tmp: str | os.PathLike, spec: oiio.Image
     if not ok or any(s in errors.lower() for s in _SHORT_WRITE):
         why = first_line(errors) or error_line() or "the file could not be finished"
         raise TerrathemeError(f"cannot write {path}: {why}")
+    if read_back:
+        check_written(path, tmp)
+
+
+#: free bytes on its disk (or two of its blocks, if more) below which a written image is
+#: read back: OpenImageIO's file layer drops the error of its last buffered write (at
+#: fclose, one block at most), so a full disk can cut the file's end (a small EXR, PNG,
+#: BMP to 0 bytes) with every call reporting success
+READ_BACK_BELOW = 64 << 10
+#: most bytes of pixels held at once while reading back
+_READ_BACK_BAND = 16 << 20
+
+
+def check_written(path: str | os.PathLike, tmp: str | os.PathLike) -> None:
+    """Refuse ``tmp`` (``path``'s image, just written by OpenImageIO) that does not read
+    back whole, when its disk is nearly full (:data:`READ_BACK_BELOW`); memory one band."""
+    try:
+        st = os.statvfs(tmp)
+    except OSError:
+        return
+    if st.f_bavail * st.f_frsize >= max(READ_BACK_BELOW, 2 * st.f_bsize):
+        return
+    try:
+        info = image_info(tmp)
+        row = info.width * info.channels * info.dtype.itemsize
+        for _ in read_bands(tmp, max(1, _READ_BACK_BAND // row)):
+            pass
+    except TerrathemeError:
+        raise TerrathemeError(f"cannot write {path}: its disk is full (the file written does "
+                              "not read back whole)") from None

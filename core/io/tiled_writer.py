@@ -10,7 +10,7 @@ import OpenImageIO as oiio
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.image_format import error_line
-from terratheme.core.io.images import OIIO_PIXEL_TYPES
+from terratheme.core.io.images import OIIO_PIXEL_TYPES, check_written
 
 
 class TiledImageWriter:
@@ -52,6 +52,7 @@ class TiledImageWriter:
             self.spec.attribute(key, value)
         self._ctx = None
         self._out = None
+        self._tmp: Path | None = None
         # rows of full-width bands not yet written: one strip of tile height
         self._strip: np.ndarray | None = None
         self._strip_y = 0
@@ -59,7 +60,7 @@ class TiledImageWriter:
 
     def __enter__(self) -> TiledImageWriter:
         self._ctx = atomic_path(self.path)
-        tmp = self._ctx.__enter__()
+        self._tmp = tmp = self._ctx.__enter__()
         out = oiio.ImageOutput.create(str(self.path))
         if out is None or not out.supports("tiles"):
             self._ctx.__exit__(TerrathemeError, None, None)
@@ -132,5 +133,11 @@ class TiledImageWriter:
             err = TerrathemeError(f"cannot finish {self.path}: {why}")
             self._ctx.__exit__(TerrathemeError, err, None)
             raise err
+        if exc_type is None:
+            try:
+                check_written(self.path, self._tmp)
+            except TerrathemeError as err:
+                self._ctx.__exit__(TerrathemeError, err, None)
+                raise
         # On success the temporary file is renamed; on an exception it is removed.
         self._ctx.__exit__(exc_type, exc, tb)

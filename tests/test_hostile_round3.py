@@ -1,0 +1,71 @@
+"""Issue 33, round three: what the earlier hostile-input rounds missed, through the CLI.
+
+Each case runs the CLI in a subprocess (:func:`test_hostile_round2.run`) and checks what
+a user sees: exit status 2 and one error line, no input or unnamed file changed, no
+half-written output. Cases that need root (a tmpfs that fills up) skip without it.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from terratheme.core.io.images import write_image
+from test_hostile_round2 import refused, run
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory) -> Path:
+    """A folder with idx.png (a 9 x 9 index image of 3 themes), its project p.ttproj and
+    its packed layer l.ttpack."""
+    folder = tmp_path_factory.mktemp("small")
+    idx = np.zeros((9, 9), np.uint8)
+    idx[4:], idx[:, 6:] = 1, 2
+    write_image(folder / "idx.png", idx)
+    for args in (["new", folder / "idx.png", folder / "p.ttproj", "--themes", "water,sand,grass"],
+                 ["pack", folder / "idx.png", folder / "l.ttpack"]):
+        proc = run(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    return folder
+
+
+# -- a full disk that swallows a small image whole --------------------------------------
+
+@pytest.fixture
+def no_space(tmp_path):
+    """A 64 KiB tmpfs with no byte free, holding old.exr (b'old')."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        (disk / "old.exr").write_bytes(b"old")
+        free = os.statvfs(disk).f_bavail * os.statvfs(disk).f_frsize
+        (disk / "filler").write_bytes(bytes(free))
+        yield disk
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], capture_output=True)
+
+
+@pytest.mark.parametrize("command", [
+    ["unpack", "{l}", "{d}/old.exr"],                  # the tiled writer
+    ["unpack", "{l}", "{d}/u.exr"],
+    ["render", "{p}", "{d}/r.png", "--scale", "0.05"],  # write_image
+    ["render", "{p}", "{d}/r.bmp", "--scale", "0.05"],
+    ["perspective", "{p}", "{d}/q.exr", "--size", "8x8", "--no-cache"],
+], ids=lambda c: "-".join(c[:1] + c[2:3])[:40].replace("{d}/", ""))
+def test_a_small_image_lost_to_a_full_disk_is_one_line(small, no_space, command):
+    """OpenImageIO's file layer drops the error of the last buffered write: a small EXR or
+    PNG on a full disk came out as 0 bytes with exit 0 (and replaced old.exr)."""
+    args = [a.format(p=small / "p.ttproj", l=small / "l.ttpack", d=no_space)
+            for a in command]
+    refused(run(*args), "disk is full")
+    assert (no_space / "old.exr").read_bytes() == b"old"
+    files = {p.name for p in no_space.rglob("*") if p.is_file()}
+    assert files == {"old.exr", "filler"}, files
