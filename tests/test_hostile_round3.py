@@ -19,12 +19,15 @@ from test_hostile_round2 import refused, run
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory) -> Path:
-    """A folder with idx.png (a 9 x 9 index image of 3 themes), its project p.ttproj and
-    its packed layer l.ttpack."""
+    """A folder with idx.png (a 9 x 9 index image of 3 themes), its project p.ttproj, its
+    packed layer l.ttpack and photo.png (24 x 24, three colours)."""
     folder = tmp_path_factory.mktemp("small")
     idx = np.zeros((9, 9), np.uint8)
     idx[4:], idx[:, 6:] = 1, 2
     write_image(folder / "idx.png", idx)
+    photo = np.zeros((24, 24, 3), np.uint8)
+    photo[:12], photo[12:, :12], photo[12:, 12:] = (30, 80, 200), (40, 140, 40), (200, 190, 120)
+    write_image(folder / "photo.png", photo)
     for args in (["new", folder / "idx.png", folder / "p.ttproj", "--themes", "water,sand,grass"],
                  ["pack", folder / "idx.png", folder / "l.ttpack"]):
         proc = run(*args)
@@ -69,3 +72,13 @@ def test_a_small_image_lost_to_a_full_disk_is_one_line(small, no_space, command)
     assert (no_space / "old.exr").read_bytes() == b"old"
     files = {p.name for p in no_space.rglob("*") if p.is_file()}
     assert files == {"old.exr", "filler"}, files
+
+
+@pytest.mark.parametrize("flag", ["-o", "--confidence"])
+def test_classify_names_its_output_not_a_temporary_of_a_temporary(small, no_space, flag):
+    """classify wrote each member of its set to a temporary of the set's temporary: a full
+    disk was reported as 'cannot write .../.c.tif.tt-....tmp.tif'."""
+    out = no_space / "c.tif"
+    args = ["-o", out] if flag == "-o" else ["-o", no_space.parent / "l.png", flag, out]
+    refused(run("classify", small / "photo.png", *args), f"cannot write {out}: ")
+    assert {p.name for p in no_space.iterdir()} == {"old.exr", "filler"}

@@ -250,9 +250,9 @@ def run(args: argparse.Namespace) -> int:
         writers.append((args.confidence, lambda p: write_image(p, conf[:, :, None])))
     if args.model_out:
         writers.append((args.model_out, model.save))
-    with file_set([path for path, _ in writers]) as files:
+    with file_set([path for path, _ in writers]):
         for path, write in writers:
-            write(files.temporary(path))
+            write(path)  # to the set's temporary (atomic_path), its errors naming path
     counts = np.bincount(result.labels.ravel(), minlength=256)
     names = (model.class_names if model is not None else None) or {}
     shown = ", ".join(f"{k}{' ' + names[k] if k in names else ''}: "
