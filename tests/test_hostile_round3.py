@@ -82,3 +82,17 @@ def test_classify_names_its_output_not_a_temporary_of_a_temporary(small, no_spac
     args = ["-o", out] if flag == "-o" else ["-o", no_space.parent / "l.png", flag, out]
     refused(run("classify", small / "photo.png", *args), f"cannot write {out}: ")
     assert {p.name for p in no_space.iterdir()} == {"old.exr", "filler"}
+
+
+# -- numbers at their extremes ------------------------------------------------------------
+
+@pytest.mark.parametrize("mapping", ["1e308,1e308,1e308,1e308,1e308,1e308,1e-308,1e-308,1e-308",
+                                     "1e300,0,0,0,1e300,0,1e-300,0,1e-300"])
+def test_a_finite_mapping_that_overflows_prints_no_warning(small, tmp_path, mapping):
+    """Finite --mapping coefficients whose U, V overflow to inf rendered, with numpy's
+    RuntimeWarnings (file, line and source) on stderr."""
+    proc = run("perspective", small / "photo.png", tmp_path / "q.png", "--size", "8x8",
+               "--no-cache", f"--mapping={mapping}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Warning" not in proc.stderr, proc.stderr[-2000:]
+    assert (tmp_path / "q.png").is_file()

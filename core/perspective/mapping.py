@@ -82,11 +82,14 @@ class PlaneMapping:
 
     def evaluate(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
         """Eq. 1 at screen points ``x, y`` (centre ``px + 0.5``): U, V (NaN where z <= 0), z."""
-        z = self.Az * x + self.Bz * y + self.Cz
-        ok = z > 0
-        zs = np.where(ok, z, 1.0)
-        u = np.where(ok, (self.Au * x + self.Bu * y + self.Cu) / zs, np.nan)
-        v = np.where(ok, (self.Av * x + self.Bv * y + self.Cv) / zs, np.nan)
+        # Finite coefficients far apart (1e308, 1e-308) overflow to inf: a point far off
+        # the texture, not a warning on stderr.
+        with np.errstate(over="ignore", invalid="ignore"):
+            z = self.Az * x + self.Bz * y + self.Cz
+            ok = z > 0
+            zs = np.where(ok, z, 1.0)
+            u = np.where(ok, (self.Au * x + self.Bu * y + self.Cu) / zs, np.nan)
+            v = np.where(ok, (self.Av * x + self.Bv * y + self.Cv) / zs, np.nan)
         return u, v, z
 
     def derivatives(
@@ -100,10 +103,11 @@ class PlaneMapping:
         uu = np.where(ok, u, 0.0)
         vv = np.where(ok, v, 0.0)
         out = []
-        for num in (self.Au - self.Az * uu, self.Av - self.Az * vv,
-                    self.Bu - self.Bz * uu, self.Bv - self.Bz * vv):
-            d = np.where(ok, num / zs, 0.0)
-            out.append(np.clip(np.nan_to_num(d, nan=0.0), -MAX_DERIVATIVE, MAX_DERIVATIVE))
+        with np.errstate(over="ignore", invalid="ignore"):  # inf U, V (evaluate)
+            for num in (self.Au - self.Az * uu, self.Av - self.Az * vv,
+                        self.Bu - self.Bz * uu, self.Bv - self.Bz * vv):
+                d = np.where(ok, num / zs, 0.0)
+                out.append(np.clip(np.nan_to_num(d, nan=0.0), -MAX_DERIVATIVE, MAX_DERIVATIVE))
         return out[0], out[1], out[2], out[3]
 
     def pixel_grid(self, size: tuple[int, int]) -> tuple[np.ndarray, ...]:
