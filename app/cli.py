@@ -96,8 +96,10 @@ def out_of_memory(exc: BaseException) -> bool:
 
 
 def _one_line(text: str) -> str:
-    """A message as one line (readers' messages may quote multi-line library errors)."""
-    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+    """A message as one line (readers' messages may quote multi-line library errors), its
+    control characters escaped (a file name holding ESC [2J must not clear the terminal)."""
+    line = "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in line)
 
 
 def flag_of(field: str) -> str:

@@ -96,3 +96,19 @@ def test_a_finite_mapping_that_overflows_prints_no_warning(small, tmp_path, mapp
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "Warning" not in proc.stderr, proc.stderr[-2000:]
     assert (tmp_path / "q.png").is_file()
+
+
+# -- names that reach the terminal ------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["e\x1b[2Jx.png", "t\x1b]0;title\x07.png", "r\u202egnp.png"])
+def test_control_characters_of_a_file_name_are_escaped_in_the_error_line(small, tmp_path,
+                                                                          name):
+    """A file name from a folder (a shell glob) holding ESC [2J cleared the terminal when
+    the error line quoted it; BEL, OSC and bidi overrides went out raw too."""
+    bad = tmp_path / name
+    bad.write_bytes(b"junk")
+    for args in (["pack", bad, tmp_path / "o.ttpack"], ["render", tmp_path / ("m" + name),
+                                                         tmp_path / "o.png"]):
+        line = refused(run(*args))
+        assert line.isprintable(), repr(line)
+        assert repr(name[1])[1:-1] in line, line
