@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from terratheme.core.convert.cell_choice import (
+    CONVERT_CELL_CANDIDATES,
+    CellChoice,
+    agreement,
+    cell_within_budget,
+    packed_bytes,
+    road_candidates,
+)
 from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, fit_gain
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity import colour_error
@@ -187,12 +195,6 @@ def test_detail_themes_only_with_a_budget_map():
 
 
 def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit():
-    from terratheme.core.convert.cell_choice import (
-        CellChoice,
-        agreement,
-        cell_within_budget,
-        packed_bytes,
-    )
     from terratheme.core.convert.labels_to_grid import vote_grid
     from terratheme.core.model.grid import IndexGrid
 
@@ -214,15 +216,7 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     assert cell_within_budget(labels, choice, (4, 8), 0.0).cell == (8, 8)
 
 
-
 def test_cell_within_budget_goes_past_the_automatic_cap_unless_capped_lower():
-    from terratheme.core.convert.cell_choice import (
-        CONVERT_CELL_CANDIDATES,
-        CellChoice,
-        cell_within_budget,
-        road_candidates,
-    )
-
     rng = np.random.default_rng(6)
     # Random 8-pixel blocks: a cell-16 grid of them overflows a budget of no bytes.
     labels = np.kron(rng.integers(0, 3, (24, 24)), np.ones((8, 8), int)).astype(np.uint8)
