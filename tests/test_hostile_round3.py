@@ -112,3 +112,25 @@ def test_control_characters_of_a_file_name_are_escaped_in_the_error_line(small, 
         line = refused(run(*args))
         assert line.isprintable(), repr(line)
         assert repr(name[1])[1:-1] in line, line
+
+
+# -- georeferences no export can use ------------------------------------------------------
+
+@pytest.mark.parametrize("tags, needle", [
+    ({33550: [0.0, 0.0, 0.0], 33922: [0, 0, 0, 5e5, 4e6, 0]}, "degenerate pixel size"),
+    ({34264: [0.0] * 16}, "degenerate pixel size"),
+    ({33550: [1e-320, 1e-320, 0.0], 33922: [0.0] * 6}, "beyond the range of floating-point"),
+])
+def test_convert_refuses_a_georeference_no_export_could_use_before_work(small, tmp_path,
+                                                                         tags, needle):
+    """A GeoTIFF photo with a zero pixel size (or a singular transformation, or a
+    subnormal one) was converted; every export of the project then failed on it."""
+    import tifffile
+    from terratheme.core.io.images import read_image
+
+    photo = tmp_path / "geo.tif"
+    tifffile.imwrite(photo, read_image(small / "photo.png"), photometric="rgb",
+                     extratags=[(code, "d", len(v), v, False) for code, v in tags.items()])
+    out = tmp_path / "c.ttproj"
+    refused(run("convert", photo, out, "--cell", "8", "--themes", "3"), f"{photo}: ", needle)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["geo.tif"]

@@ -229,6 +229,7 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.photo, args.scribbles, args.model, args.legend, *tls])
     check_image_outputs([preview])
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
+    _check_georeference(args.photo)
     legend = _read_legend(args, themes)
     if args.tile is not None:
         return _run_tiled(args, project, preview, packed, themes, legend)
@@ -283,6 +284,21 @@ def run(args: argparse.Namespace) -> int:
           f"{cost.theme_bytes:,} of themes")
     _print_written(written)
     return 0
+
+
+def _check_georeference(photo: str) -> None:
+    """Refuse, before any work, a photo whose georeference no export could use (a zero or
+    non-finite pixel size, corners beyond floating point): the project would carry it."""
+    from terratheme.core.exchange.layout import world_frame
+    from terratheme.core.io.georef import read_georeference
+    from terratheme.core.io.images import image_info
+
+    info, georeference = image_info(photo), read_georeference(photo)
+    try:
+        world_frame(georeference, (info.width, info.height))
+    except TerrathemeError as exc:
+        raise TerrathemeError(f"{photo}: {str(exc).replace('the project', 'the photo')}"
+                              ) from None
 
 
 def _style(args: argparse.Namespace) -> tuple:
