@@ -134,3 +134,20 @@ def test_convert_refuses_a_georeference_no_export_could_use_before_work(small, t
     out = tmp_path / "c.ttproj"
     refused(run("convert", photo, out, "--cell", "8", "--themes", "3"), f"{photo}: ", needle)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["geo.tif"]
+
+
+# -- outputs that changed the values they promise -----------------------------------------
+
+def test_unpack_to_exr_keeps_every_index_value(tmp_path):
+    """EXR has no 8- or 16-bit integers: unpack wrote them as half floats scaled to 0..1,
+    which merged 60000 and 60001 of a uint16 layer and read back as no label image."""
+    from terratheme.core.io.images import read_labels
+
+    index = np.full((16, 16), 1000, np.uint16)
+    index[8:], index[:, 8:], index[:4, :4] = 60000, 60001, 65535
+    write_image(tmp_path / "i.png", index)
+    for args in (["pack", tmp_path / "i.png", tmp_path / "i.ttpack"],
+                 ["unpack", tmp_path / "i.ttpack", tmp_path / "i.exr"]):
+        proc = run(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    np.testing.assert_array_equal(read_labels(tmp_path / "i.exr"), index)

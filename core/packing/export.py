@@ -83,8 +83,11 @@ def write_layer_image(
         return "palette PNG"
     if suffix in TILED_SUFFIXES:
         big = texels * layer.channels * layer.palette.dtype.itemsize > (1 << 31)
+        # EXR has no 8- or 16-bit integers: OpenImageIO stored them as half floats scaled
+        # to 0..1, which merged uint16 values (60000 and 60001); its 32-bit UINT keeps them.
+        dtype = np.uint32 if suffix == ".exr" else layer.palette.dtype
         with TiledImageWriter(path, layer.width, layer.height, layer.channels,
-                              layer.palette.dtype, tile=rows, bigtiff=big) as out:
+                              dtype, tile=rows, bigtiff=big) as out:
             for y, band in layer.bands(rows):
                 out.write(0, y, layer.values_of(band))
                 _report(progress, y + band.shape[0], layer.height)
