@@ -65,19 +65,31 @@ def test_detail_gain_brings_the_theme_to_the_photo_contrast():
         0.1 * DETAIL_CONTRAST, rel=0.2)
 
 
-def test_a_fragment_theme_gets_a_fragment_gain_of_the_contrast():
-    from terratheme.core.themes.detail import FRAGMENT_COHERENCE, FRAGMENT_GAIN, edge_coherence
+def test_a_fragment_theme_reaches_at_most_the_fragment_contrast():
+    from terratheme.core.themes.detail import (
+        FRAGMENT_COHERENCE,
+        FRAGMENT_CONTRAST,
+        edge_coherence,
+    )
 
     xx = np.indices((32, 32))[1]
-    # Vertical stripes: one orientation only, a fragment theme; the photo's are twice as strong.
+    # Vertical stripes: one orientation only, a fragment theme of relative RMS 0.05.
     # Two texels wide, so a 4-texel block holds both signs: nothing at the map's scale.
     stripes = (xx // 2 % 2 * 2 - 1).astype(float)
     theme = np.repeat((100 * (1 + 0.05 * stripes))[:, :, None], 3, axis=2).round()
-    photo = np.repeat((200 * (1 + 0.10 * stripes))[:, :, None], 3, axis=2).round()
     assert edge_coherence(theme.astype(np.uint8)) > FRAGMENT_COHERENCE
     lib = ThemeLibrary([Theme("town", (1, 2, 3), theme.astype(np.uint8))])
-    gains = detail_themes(photo.astype(np.uint8), np.zeros((32, 32), np.uint8), lib)[1]
-    assert gains[0] == pytest.approx(2.0 * DETAIL_CONTRAST * FRAGMENT_GAIN, rel=0.1)
+    labels = np.zeros((32, 32), np.uint8)
+
+    def gain(contrast: float) -> float:
+        photo = np.repeat((200 * (1 + contrast * stripes))[:, :, None], 3, axis=2).round()
+        return detail_themes(photo.astype(np.uint8), labels, lib)[1][0]
+
+    # A calm photo (RMS 0.02): the class's contrast, 1.5 x 0.02 = 0.03, under the cap ...
+    assert gain(0.02) == pytest.approx(DETAIL_CONTRAST * 0.02 / 0.05, rel=0.1)
+    # ... a town's (0.4): the theme's 0.05 brought to the cap, not to 0.6.
+    assert 0.02 * DETAIL_CONTRAST < FRAGMENT_CONTRAST < 0.4 * DETAIL_CONTRAST
+    assert gain(0.4) == pytest.approx(FRAGMENT_CONTRAST / 0.05, rel=0.1)
 
 
 def test_detail_themes_keep_names_and_colours_each_at_its_gain():

@@ -30,8 +30,8 @@ EVEN_RANGE = (0.25, 4.0)
 FRAGMENT_COHERENCE = 0.5
 #: Gaussian sigma (texels) at which :func:`theme_detail` measures :func:`edge_coherence`
 COHERENCE_SIGMA = 3.0
-#: a fragment theme's factor on :data:`DETAIL_CONTRAST` (:func:`detail_themes`)
-FRAGMENT_GAIN = 0.3
+#: the most relative RMS contrast a fragment theme's detail reaches (:func:`detail_themes`)
+FRAGMENT_CONTRAST = 0.12
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: a theme with a side under this many texels has its phases randomised (:func:`theme_detail`)
@@ -145,9 +145,9 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
     Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
-    ``sigma`` (times ``FRAGMENT_GAIN`` for a fragment theme), clipped to ``GAIN_RANGE``; 1
-    for an unused or flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W)
-    uint8 theme per pixel. Names and colours are kept.
+    ``sigma`` (a fragment theme's at most ``FRAGMENT_CONTRAST / its RMS``), clipped to
+    ``GAIN_RANGE``; 1 for an unused or flat theme. ``photo``: (H, W, 3) uint8;
+    ``theme_labels``: (H, W) uint8 theme per pixel. Names and colours are kept.
     """
     details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
@@ -163,9 +163,9 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
             continue
         gain = DETAIL_CONTRAST * np.sqrt(sums[k] / counts[k] / own)
         if fragment:
-            # Scrambled fragments match the photo's edges in energy only: at full contrast
-            # they read as dark speckle over the map's streets.
-            gain *= FRAGMENT_GAIN
+            # Scrambled fragments match the photo's edges in energy only: at a town's full
+            # contrast they read as dark speckle over the map's streets.
+            gain = min(gain, FRAGMENT_CONTRAST / np.sqrt(own))
         gains.append(float(np.clip(gain, *GAIN_RANGE)))
     themes = ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
                           for t, (rel, _), g in zip(library, details, gains, strict=True))
