@@ -151,3 +151,19 @@ def test_unpack_to_exr_keeps_every_index_value(tmp_path):
         proc = run(*args)
         assert proc.returncode == 0, proc.stderr[-2000:]
     np.testing.assert_array_equal(read_labels(tmp_path / "i.exr"), index)
+
+
+def test_classify_labels_keep_their_class_numbers_or_are_refused(small, tmp_path):
+    """classify -o l.jpg wrote the labels lossy (classes 0 and 6 appeared beside 1..5 on a
+    real photo) and -o l.exr as half floats scaled to 0..1 (no label image any more)."""
+    from terratheme.core.io.images import read_labels
+
+    photo = small / "photo.png"
+    refused(run("classify", photo, "-o", tmp_path / "l.jpg"), "lossy", "l.jpg")
+    assert not any(tmp_path.iterdir())
+    for name in ("l.png", "l.exr"):
+        proc = run("classify", photo, "-o", tmp_path / name, "--themes", "3")
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    labels = read_labels(tmp_path / "l.png")
+    assert set(np.unique(labels)) == {1, 2, 3}
+    np.testing.assert_array_equal(read_labels(tmp_path / "l.exr"), labels)

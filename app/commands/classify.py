@@ -169,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.io.images import Bands, image_info, read_image, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
+    from terratheme.core.packing.export import LOSSY_SUFFIXES
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -192,6 +193,10 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
     check_image_outputs([args.output, args.confidence])
+    label_suffix = Path(args.output).suffix.lower()
+    if label_suffix in LOSSY_SUFFIXES:
+        raise TerrathemeError(f"{args.output}: {label_suffix} images are lossy and would change "
+                              "the class numbers; write the labels as .png, .tif or .exr")
     # Masks of the wrong size are refused from the headers, before any pixel is read.
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     check_mask_sizes([tuple(pair) for pair in args.train])
@@ -240,8 +245,9 @@ def run(args: argparse.Namespace) -> int:
     # Labels as a palette PNG (values stay the class numbers) or a grey image; the outputs
     # as one set (all replaced or none).
     palette = label_palette() if args.output.lower().endswith(".png") else None
-    writers = [(args.output, lambda p: write_image(p, result.labels[:, :, None],
-                                                   palette=palette))]
+    # EXR has no 8-bit integers (OpenImageIO would scale them to 0..1 halves): 32-bit UINT.
+    labels = result.labels[:, :, None].astype(np.uint32 if label_suffix == ".exr" else np.uint8)
+    writers = [(args.output, lambda p: write_image(p, labels, palette=palette))]
     if args.confidence:
         if args.confidence.lower().endswith((".tif", ".tiff", ".exr")):
             conf = result.confidence
