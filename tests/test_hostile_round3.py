@@ -167,3 +167,10 @@ def test_classify_labels_keep_their_class_numbers_or_are_refused(small, tmp_path
     labels = read_labels(tmp_path / "l.png")
     assert set(np.unique(labels)) == {1, 2, 3}
     np.testing.assert_array_equal(read_labels(tmp_path / "l.exr"), labels)
+
+
+def test_unpack_to_a_full_disk_names_the_png(small, no_space):
+    """The palette PNG writer's last flush (at close) failed outside its atomic write: the
+    error named no file ('No space left on device')."""
+    refused(run("unpack", small / "l.ttpack", no_space / "u.png"), f"{no_space}/u.png: ")
+    assert {p.name for p in no_space.iterdir()} == {"old.exr", "filler"}

@@ -9,6 +9,7 @@ PLTE (:mod:`core.io.png`).
 from __future__ import annotations
 
 import colorsys
+import contextlib
 import os
 import struct
 import zlib
@@ -113,11 +114,12 @@ class PalettePngWriter:
                 self._pending.append(self._zip.flush())
                 self._flush_idat()
                 self._fh.write(_chunk(b"IEND", b""))
+            self._fh.close()  # its last flush fails on a full disk: named as the output's
         except BaseException as err:
-            self._fh.close()
+            with contextlib.suppress(OSError):
+                self._fh.close()
             self._ctx.__exit__(type(err), err, err.__traceback__)
             raise
-        self._fh.close()
         self._ctx.__exit__(exc_type, exc, tb)
 
 
