@@ -174,3 +174,20 @@ def test_unpack_to_a_full_disk_names_the_png(small, no_space):
     error named no file ('No space left on device')."""
     refused(run("unpack", small / "l.ttpack", no_space / "u.png"), f"{no_space}/u.png: ")
     assert {p.name for p in no_space.iterdir()} == {"old.exr", "filler"}
+
+
+# -- work bounded by what the input can ask for -------------------------------------------
+
+def test_a_render_larger_than_memory_is_refused_before_work(small, tmp_path):
+    """A 300 KiB project of 4096-texel cells renders to 258048 x 258048: render held the
+    whole image with no check, so it allocated until memory ran out (under a limit, the
+    MemoryError line; without one, the kernel's OOM killer)."""
+    idx = (np.arange(64 * 64).reshape(64, 64) % 3).astype(np.uint8)
+    write_image(tmp_path / "i.png", idx)
+    proc = run("new", tmp_path / "i.png", tmp_path / "h.ttproj", "--themes", "water,sand,grass",
+               "--cell", "4096")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    limit = "import resource\nresource.setrlimit(resource.RLIMIT_AS, (2560 << 20, -1))"
+    refused(run("render", tmp_path / "h.ttproj", tmp_path / "r.png", "--region",
+                "0,0,20000,20000", prefix=limit), "20000 x 20000", "--region")
+    assert not (tmp_path / "r.png").exists()

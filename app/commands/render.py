@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from terratheme.app.arg_types import int_tuple, unit_fraction
 
@@ -49,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_image_outputs, check_outputs
     from terratheme.app.progress import progress_bar
     from terratheme.core.io.georef import world_file_name, write_georeferenced
+    from terratheme.core.io.memory import RENDER_BYTES_PER_PIXEL, check_fits
     from terratheme.core.render.boundary import BoundaryOptions
     from terratheme.core.render.inputs import validate_region
     from terratheme.core.render.project import (
@@ -78,6 +80,12 @@ def run(args: argparse.Namespace) -> int:
                              project.grid.texture_size)
     if _streamed(args, region):
         return _render_tiled(args, project, region, options, style)
+    # The whole image is held: refused at once when it cannot fit (a small project with
+    # large cells renders to any size).
+    check_fits(args.project, max(1, math.ceil(region[2] * args.scale)),
+               max(1, math.ceil(region[3] * args.scale)), RENDER_BYTES_PER_PIXEL,
+               remedy="render it in regions (--region), scaled down (--scale) or to a .tif "
+               "(--tiled, streamed)")
     gpu = _gpu_renderer(project) if args.gpu else None
     with progress_bar("render", unit="tile" if gpu else "band") as progress:
         if gpu is not None:

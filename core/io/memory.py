@@ -21,6 +21,8 @@ except ImportError:  # pragma: no cover - Windows
 CONVERT_BYTES_PER_PIXEL = 60
 #: bytes per photo pixel counted for classify
 CLASSIFY_BYTES_PER_PIXEL = 12
+#: bytes per output pixel counted for render's whole-image (not streamed) path
+RENDER_BYTES_PER_PIXEL = 8
 
 
 def system_available() -> int:
