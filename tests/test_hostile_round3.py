@@ -191,3 +191,12 @@ def test_a_render_larger_than_memory_is_refused_before_work(small, tmp_path):
     refused(run("render", tmp_path / "h.ttproj", tmp_path / "r.png", "--region",
                 "0,0,20000,20000", prefix=limit), "20000 x 20000", "--region")
     assert not (tmp_path / "r.png").exists()
+
+
+def test_a_perspective_frame_larger_than_memory_is_refused_before_work(small, tmp_path):
+    """The CPU filters hold about 141 bytes per frame pixel: --size 16384x16384, which the
+    size check allows, would hold 38 GB; it was tried until memory ran out."""
+    limit = "import resource\nresource.setrlimit(resource.RLIMIT_AS, (2560 << 20, -1))"
+    refused(run("perspective", small / "p.ttproj", tmp_path / "q.png", "--size", "4096x4096",
+                "--no-cache", prefix=limit), "4096 x 4096", "--size")
+    assert not any(tmp_path.iterdir())

@@ -153,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.app.progress import progress_bar
     from terratheme.core.errors import TerrathemeError
     from terratheme.core.io.images import read_image, write_image
+    from terratheme.core.io.memory import PERSPECTIVE_BYTES_PER_PIXEL, check_fits
     from terratheme.core.perspective import (
         Camera,
         FilterOptions,
@@ -168,6 +169,9 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([args.out], inputs=[args.input])
     check_image_outputs([args.out])
     check_size(args.size)  # before the warm-up and the camera's mapping
+    if not args.gpu:  # the CPU filters hold per-pixel arrays of the whole frame
+        check_fits("the frame", *args.size, PERSPECTIVE_BYTES_PER_PIXEL,
+                   remedy="choose a smaller --size (or --gpu for a project)")
     cache = _family_cache(args)
     if args.max_texture < 1:
         raise TerrathemeError(f"--max-texture must be at least 1, got {args.max_texture}")

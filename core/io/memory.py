@@ -23,6 +23,8 @@ CONVERT_BYTES_PER_PIXEL = 60
 CLASSIFY_BYTES_PER_PIXEL = 12
 #: bytes per output pixel counted for render's whole-image (not streamed) path
 RENDER_BYTES_PER_PIXEL = 8
+#: bytes per frame pixel counted for perspective's CPU filters
+PERSPECTIVE_BYTES_PER_PIXEL = 128
 
 
 def system_available() -> int:
