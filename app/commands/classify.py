@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.io.images import Bands, image_info, read_image, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
-    from terratheme.core.packing.export import LOSSY_SUFFIXES
+    from terratheme.core.packing.export import check_layer_image_path
 
     supervised = bool(args.scribbles or args.train)
     if args.model and supervised:
@@ -193,10 +193,8 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
     check_image_outputs([args.output, args.confidence])
+    check_layer_image_path(args.output, "the class numbers")
     label_suffix = Path(args.output).suffix.lower()
-    if label_suffix in LOSSY_SUFFIXES:
-        raise TerrathemeError(f"{args.output}: {label_suffix} images are lossy and would change "
-                              "the class numbers; write the labels as .png, .tif or .exr")
     # Masks of the wrong size are refused from the headers, before any pixel is read.
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     check_mask_sizes([tuple(pair) for pair in args.train])

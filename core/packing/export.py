@@ -48,12 +48,22 @@ LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".heic", 
                             ".avif", ".jxr"})
 
 
-def check_layer_image_path(path: str | os.PathLike) -> None:
-    """Refuse (TerrathemeError) a lossy output format, :data:`LOSSY_SUFFIXES`, before any work."""
+#: Image formats OpenImageIO does not give back as written (its RLA changes the last column).
+INEXACT_SUFFIXES = frozenset({".rla"})
+
+
+def check_layer_image_path(path: str | os.PathLike, what: str = "the layer's values") -> None:
+    """Refuse (TerrathemeError) a lossy output format, :data:`LOSSY_SUFFIXES`, or one that
+    does not read back as written, :data:`INEXACT_SUFFIXES`, before any work; ``what`` the
+    message says would change."""
     suffix = Path(path).suffix.lower()
     if suffix in LOSSY_SUFFIXES:
-        raise TerrathemeError(f"{path}: {suffix} images are lossy and would change the layer's "
-                              "values; write .png, .tif or .exr")
+        raise TerrathemeError(f"{path}: {suffix} images are lossy and would change {what}; "
+                              "write .png, .tif or .exr")
+    if suffix in INEXACT_SUFFIXES:
+        raise TerrathemeError(f"{path}: {suffix} images do not read back as written (OpenImageIO"
+                              f" changes their last column), which would change {what}; write "
+                              ".png, .tif or .exr")
 
 
 def write_layer_image(
