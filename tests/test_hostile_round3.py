@@ -203,7 +203,7 @@ def test_a_perspective_frame_larger_than_memory_is_refused_before_work(small, tm
 
 
 def test_index_and_label_outputs_refuse_a_format_that_does_not_read_back(small, tmp_path):
-    """OpenImageIO's RLA changes the last column of an image (60 of 360000 indices of a
+    """OpenImageIO's RLA changes the last column of an image (about 50 of 360000 indices of a
     600^2 layer): unpack and classify wrote such files with exit 0."""
     refused(run("unpack", small / "l.ttpack", tmp_path / "u.rla"), "u.rla", "read back")
     refused(run("classify", small / "photo.png", "-o", tmp_path / "l.rla"), "l.rla",
