@@ -209,3 +209,15 @@ def test_index_and_label_outputs_refuse_a_format_that_does_not_read_back(small, 
     refused(run("classify", small / "photo.png", "-o", tmp_path / "l.rla"), "l.rla",
             "class numbers")
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("suffix", [".bmp", ".tga", ".fits"])
+def test_unpack_refuses_a_format_that_cannot_keep_16_bit_values(tmp_path, suffix):
+    """OpenImageIO writes a uint16 layer's values to BMP and TGA scaled to 8 bits (60000 ->
+    233) and to FITS halved into int16: unpack wrote them with exit 0."""
+    index = np.full((8, 8), 1000, np.uint16)
+    index[4:] = 60000
+    write_image(tmp_path / "i.png", index)
+    assert run("pack", tmp_path / "i.png", tmp_path / "i.ttpack").returncode == 0
+    refused(run("unpack", tmp_path / "i.ttpack", tmp_path / f"u{suffix}"), "uint16")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["i.png", "i.ttpack"]

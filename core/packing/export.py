@@ -52,6 +52,12 @@ LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".heic", 
 INEXACT_SUFFIXES = frozenset({".rla"})
 
 
+#: Image formats that keep 16-bit values (OpenImageIO scales them to 8 bits in BMP and TGA,
+#: halves them into signed 16 bits in FITS).
+WIDE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".exr", ".dpx", ".jxl", ".sgi", ".pgm",
+                           ".ppm", ".pnm", ".tx"})
+
+
 def check_layer_image_path(path: str | os.PathLike, what: str = "the layer's values") -> None:
     """Refuse (TerrathemeError) a lossy output format, :data:`LOSSY_SUFFIXES`, or one that
     does not read back as written, :data:`INEXACT_SUFFIXES`, before any work; ``what`` the
@@ -78,6 +84,9 @@ def write_layer_image(
     """
     check_layer_image_path(path)
     suffix = Path(path).suffix.lower()
+    if layer.palette.dtype.itemsize > 1 and suffix not in WIDE_SUFFIXES:
+        raise TerrathemeError(f"{path}: {suffix} images do not keep the layer's "
+                              f"{layer.palette.dtype} values; write .png, .tif or .exr")
     texels = layer.width * layer.height
     rows = BAND_ROWS if layer.width <= 65536 else BAND_ROWS // 4
     palette_png = suffix == ".png" and layer.identity and layer.palette.dtype == np.uint8
