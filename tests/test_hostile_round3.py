@@ -221,3 +221,18 @@ def test_unpack_refuses_a_format_that_cannot_keep_16_bit_values(tmp_path, suffix
     assert run("pack", tmp_path / "i.png", tmp_path / "i.ttpack").returncode == 0
     refused(run("unpack", tmp_path / "i.ttpack", tmp_path / f"u{suffix}"), "uint16")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["i.png", "i.ttpack"]
+
+
+@pytest.mark.parametrize("name", ["r.null", "r.term"])
+def test_an_output_openimageio_writes_to_no_file_is_refused(small, tmp_path, name):
+    """'.null' and '.term' are OpenImageIO writers that make no file: render left a 0-byte
+    image and exit 0 ('.term' drew the render on stdout with escape sequences)."""
+    proc = run("render", small / "p.ttproj", tmp_path / name)
+    refused(proc, "writes no file")
+    assert proc.stdout == "" and not any(tmp_path.iterdir())
+
+
+def test_unpack_refuses_a_depth_format_for_indices(small, tmp_path):
+    """A .zfile holds depths as floats: unpack wrote the indices scaled to 0..1."""
+    refused(run("unpack", small / "l.ttpack", tmp_path / "u.zfile"), "u.zfile", "read back")
+    assert not any(tmp_path.iterdir())

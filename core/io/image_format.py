@@ -18,6 +18,9 @@ from terratheme.core.errors import TerrathemeError
 
 #: what the message on an unknown output extension suggests
 KNOWN_OUTPUTS = ".png, .tif, .exr, .jpg"
+#: OpenImageIO writers that make no image file (an empty file is left; "term" draws the
+#: image on the terminal with escape sequences)
+NO_FILE_WRITERS = frozenset({"null", "term"})
 
 
 def first_line(text: str) -> str:
@@ -37,13 +40,16 @@ def error_line(source: object = oiio) -> str:
 
 
 def check_writable_format(path: str | os.PathLike) -> None:
-    """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension."""
+    """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension, or
+    the one that does writes no file (:data:`NO_FILE_WRITERS`)."""
     out = oiio.ImageOutput.create(str(path))
-    if out is not None:
+    if out is not None and out.format_name() not in NO_FILE_WRITERS:
         return
     error_line()  # clear the library's pending error
     suffix = Path(path).suffix
     what = f"no image format is written as {suffix!r}" if suffix else "has no extension"
+    if out is not None:
+        what = f"{suffix!r} is OpenImageIO's {out.format_name()} output, which writes no file"
     raise TerrathemeError(f"{path}: {what}; name the image {KNOWN_OUTPUTS}, ...")
 
 

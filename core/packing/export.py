@@ -48,8 +48,9 @@ LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".heic", 
                             ".avif", ".jxr"})
 
 
-#: Image formats OpenImageIO does not give back as written (its RLA changes the last column).
-INEXACT_SUFFIXES = frozenset({".rla"})
+#: Image formats OpenImageIO does not give back as written, and why.
+INEXACT_SUFFIXES = {".rla": "OpenImageIO changes their last column",
+                    ".zfile": "they hold depths, as floats scaled to 0..1"}
 
 
 #: Image formats that keep 16-bit values (OpenImageIO scales them to 8 bits in BMP and TGA,
@@ -67,8 +68,8 @@ def check_layer_image_path(path: str | os.PathLike, what: str = "the layer's val
         raise TerrathemeError(f"{path}: {suffix} images are lossy and would change {what}; "
                               "write .png, .tif or .exr")
     if suffix in INEXACT_SUFFIXES:
-        raise TerrathemeError(f"{path}: {suffix} images do not read back as written (OpenImageIO"
-                              f" changes their last column), which would change {what}; write "
+        raise TerrathemeError(f"{path}: {suffix} images do not read back as written "
+                              f"({INEXACT_SUFFIXES[suffix]}), which would change {what}; write "
                               ".png, .tif or .exr")
 
 
