@@ -236,3 +236,13 @@ def test_unpack_refuses_a_depth_format_for_indices(small, tmp_path):
     """A .zfile holds depths as floats: unpack wrote the indices scaled to 0..1."""
     refused(run("unpack", small / "l.ttpack", tmp_path / "u.zfile"), "u.zfile", "read back")
     assert not any(tmp_path.iterdir())
+
+
+def test_an_empty_file_named_for_the_null_reader_is_no_image(tmp_path):
+    """OpenImageIO's null reader makes pixels from the name: an empty file called
+    'x.null?RES=64x64&TYPE=uint8' was classified and packed as a 64 x 64 image."""
+    fake = tmp_path / "x.null?RES=64x64&TYPE=uint8&VALUE=0.5"
+    fake.write_bytes(b"")
+    refused(run("pack", fake, tmp_path / "o.ttpack"), "not an image file")
+    refused(run("classify", fake, "-o", tmp_path / "o.png"), "not an image file")
+    assert [p.name for p in tmp_path.iterdir()] == [fake.name]

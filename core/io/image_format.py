@@ -18,9 +18,9 @@ from terratheme.core.errors import TerrathemeError
 
 #: what the message on an unknown output extension suggests
 KNOWN_OUTPUTS = ".png, .tif, .exr, .jpg"
-#: OpenImageIO writers that make no image file (an empty file is left; "term" draws the
-#: image on the terminal with escape sequences)
-NO_FILE_WRITERS = frozenset({"null", "term"})
+#: OpenImageIO formats of no image file: their writers leave an empty file ("term" draws
+#: the image on the terminal in escape sequences), the null reader makes pixels from the name
+NO_FILE_FORMATS = frozenset({"null", "term"})
 
 
 def first_line(text: str) -> str:
@@ -41,9 +41,9 @@ def error_line(source: object = oiio) -> str:
 
 def check_writable_format(path: str | os.PathLike) -> None:
     """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension, or
-    the one that does writes no file (:data:`NO_FILE_WRITERS`)."""
+    the one that does writes no file (:data:`NO_FILE_FORMATS`)."""
     out = oiio.ImageOutput.create(str(path))
-    if out is not None and out.format_name() not in NO_FILE_WRITERS:
+    if out is not None and out.format_name() not in NO_FILE_FORMATS:
         return
     error_line()  # clear the library's pending error
     suffix = Path(path).suffix

@@ -22,7 +22,12 @@ import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.image_format import error_line, first_line, jpegxl_file_size
+from terratheme.core.io.image_format import (
+    NO_FILE_FORMATS,
+    error_line,
+    first_line,
+    jpegxl_file_size,
+)
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.io.png import (
     check_palette,
@@ -105,6 +110,12 @@ def _open_input(path: str | os.PathLike) -> oiio.ImageInput:
     if inp is None:
         why = error_line() or "unknown format"
         raise CorruptFileError(f"{p}: cannot read as an image ({why})")
+    if inp.format_name() in NO_FILE_FORMATS:
+        # OpenImageIO's null reader makes pixels from the name ('x.null?RES=64x64'), not
+        # from the file's bytes.
+        inp.close()
+        raise CorruptFileError(f"{p}: not an image file (OpenImageIO's "
+                               f"{inp.format_name()} format takes its pixels from the name)")
     spec = inp.spec()
     if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
         inp.close()
