@@ -147,10 +147,29 @@ def test_unpack_to_exr_keeps_every_index_value(tmp_path):
     index[8:], index[:, 8:], index[:4, :4] = 60000, 60001, 65535
     write_image(tmp_path / "i.png", index)
     for args in (["pack", tmp_path / "i.png", tmp_path / "i.ttpack"],
-                 ["unpack", tmp_path / "i.ttpack", tmp_path / "i.exr"]):
+                 ["unpack", tmp_path / "i.ttpack", tmp_path / "i.exr"],
+                 ["pack", tmp_path / "i.exr", tmp_path / "back.ttpack"]):
         proc = run(*args)
         assert proc.returncode == 0, proc.stderr[-2000:]
     np.testing.assert_array_equal(read_labels(tmp_path / "i.exr"), index)
+    # ... and the EXR packs back to the same layer (pack refused its 32-bit integers), in
+    # memory and band by band (a large file's path).
+    assert (tmp_path / "back.ttpack").read_bytes() == (tmp_path / "i.ttpack").read_bytes()
+    from terratheme.core.packing import pack, pack_file
+
+    assert pack_file(tmp_path / "i.exr").to_bytes() == pack(index[:, :, None]).to_bytes()
+
+
+def test_pack_refuses_an_exr_index_beyond_16_bits(tmp_path):
+    from terratheme.core.io.tiled_writer import TiledImageWriter
+
+    # 32-bit UINT, as unpack writes an EXR index.
+    index = np.full((8, 8, 1), 7, np.uint32)
+    index[0, 0] = 70000
+    with TiledImageWriter(tmp_path / "big.exr", 8, 8, 1, np.uint32, tile=8) as out:
+        out.write(0, 0, index)
+    refused(run("pack", tmp_path / "big.exr", tmp_path / "big.ttpack"), "70000", "16 bits")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.exr"]
 
 
 def test_classify_labels_keep_their_class_numbers_or_are_refused(small, tmp_path):

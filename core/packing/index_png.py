@@ -125,9 +125,16 @@ class PalettePngWriter:
 
 def read_index_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
     """An image file to pack: a palette PNG as (H, W) uint8 indices and (K, 3|4) colours,
-    any other as :func:`core.io.images.read_image` gives it, and None."""
+    any other as :func:`core.io.images.read_image` gives it, and None; a one-channel
+    uint32 image (unpack's EXR: EXR has no 16-bit integers) as uint16 when its values fit."""
     image = read_image(path)
     colours = png_palette(path)
     if colours is None:
+        if image.dtype == np.uint32 and image.shape[2] == 1:
+            top = int(image.max())
+            if top > np.iinfo(np.uint16).max:
+                raise TerrathemeError(f"{path}: index value {top} does not fit an index "
+                                      "layer's 16 bits")
+            image = image.astype(np.uint16)
         return image, None
     return palette_indices(image, colours, os.fspath(path)), colours

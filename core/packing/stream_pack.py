@@ -46,15 +46,22 @@ def pack_file(
     choice = CurveChoice.parse(curve)
     info = image_info(p)
     w, h, c = info.width, info.height, info.channels
-    if info.dtype not in SUPPORTED_DTYPES or not 1 <= c <= 4:
+    dtype = info.dtype
+    top = _largest(p, info) if c == 1 and dtype != np.uint8 else 0
+    if c == 1 and dtype == np.uint32:
+        # An EXR index (unpack writes 32-bit UINT, EXR has no 16-bit integers): exact in 16.
+        if top > np.iinfo(np.uint16).max:
+            raise TerrathemeError(f"{p}: index value {top} does not fit an index layer's 16 bits")
+        dtype = np.dtype(np.uint16)
+    if dtype not in SUPPORTED_DTYPES or not 1 <= c <= 4:
         raise TerrathemeError(f"{p}: {c} channels of {info.dtype} cannot be packed: index "
                               "layers are 1, 3 or 4 channels of uint8 or uint16")
     if w > MAX_TILED_SIDE or h > MAX_TILED_SIDE:
         raise TerrathemeError(f"{p}: {w} x {h} texels exceeds the tiled layer's "
                               f"{MAX_TILED_SIDE} a side")
     colours = png_palette(p)
-    identity = colours is not None or (c == 1 and _largest(p, info) < MAX_COLOURS)
-    palette = TilePalette(identity, c, np.uint8 if colours is not None else info.dtype)
+    identity = colours is not None or (c == 1 and top < MAX_COLOURS)
+    palette = TilePalette(identity, c, np.uint8 if colours is not None else dtype)
     tiled = tile_bits is not None or needs_tiles(w, h)
     side = 1 << (DEFAULT_TILE_BITS if tile_bits is None else int(tile_bits)) if tiled else max(w, h)
     rects = [(x, y, min(side, w - x), min(side, h - y))
@@ -66,6 +73,7 @@ def pack_file(
         # Palette PNG: its indices; index image: the values; else packed colours.
         if colours is not None:
             return palette_indices(pixels, colours, p)
+        pixels = pixels.astype(dtype, copy=False)
         return pixels[:, :, 0] if identity else colour_keys(pixels)
 
     tiles = []
@@ -86,9 +94,7 @@ def pack_file(
 
 
 def _largest(path: str, info) -> int:
-    """Largest value of a single-channel file (one pass, uint16 only; uint8 is below 256)."""
-    if info.dtype == np.uint8:
-        return 0
+    """Largest value of a single-channel file (one pass)."""
     top = 0
     for _, band in read_bands(path, BAND_ROWS):
         top = max(top, int(band.max()))
