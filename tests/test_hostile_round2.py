@@ -9,6 +9,7 @@ that fills up) skip without it.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -137,23 +138,31 @@ def test_convert_does_not_overwrite_its_photo(made, tmp_path, layout):
 
 # -- full disk (root: a tmpfs) --------------------------------------------------------
 
-@pytest.fixture
-def full_disk(tmp_path):
-    """A 300 KiB tmpfs with 4 KiB free, holding old.png (b'old')."""
+@contextlib.contextmanager
+def small_disk(tmp_path: Path, size: str, left: int, old: str):
+    """A tmpfs of ``size`` (mount's -o size=) at tmp_path/disk holding ``old`` (b'old'), filled
+    up to ``left`` free bytes; skips without root or tmpfs."""
     if os.geteuid() != 0:
         pytest.skip("mounting a tmpfs needs root")
     disk = tmp_path / "disk"
     disk.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(disk)],
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(disk)],
                       capture_output=True).returncode != 0:
         pytest.skip("cannot mount a tmpfs here")
     try:
-        (disk / "old.png").write_bytes(b"old")
+        (disk / old).write_bytes(b"old")
         free = os.statvfs(disk).f_bavail * os.statvfs(disk).f_frsize
-        (disk / "filler").write_bytes(bytes(max(0, free - 4096)))
+        (disk / "filler").write_bytes(bytes(max(0, free - left)))
         yield disk
     finally:
         subprocess.run(["umount", "-l", str(disk)], capture_output=True)
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 300 KiB tmpfs with 4 KiB free, holding old.png (b'old')."""
+    with small_disk(tmp_path, "300k", 4096, "old.png") as disk:
+        yield disk
 
 
 @pytest.mark.parametrize("command", [

@@ -7,14 +7,12 @@ half-written output. Cases that need root (a tmpfs that fills up) skip without i
 
 from __future__ import annotations
 
-import os
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 from terratheme.core.io.images import write_image
-from test_hostile_round2 import refused, run
+from test_hostile_round2 import refused, run, small_disk
 
 
 @pytest.fixture(scope="module")
@@ -40,20 +38,8 @@ def small(tmp_path_factory) -> Path:
 @pytest.fixture
 def no_space(tmp_path):
     """A 64 KiB tmpfs with no byte free, holding old.exr (b'old')."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a tmpfs needs root")
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
-                      capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
-        (disk / "old.exr").write_bytes(b"old")
-        free = os.statvfs(disk).f_bavail * os.statvfs(disk).f_frsize
-        (disk / "filler").write_bytes(bytes(free))
+    with small_disk(tmp_path, "64k", 0, "old.exr") as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], capture_output=True)
 
 
 @pytest.mark.parametrize("command", [
