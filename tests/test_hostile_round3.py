@@ -144,6 +144,15 @@ def test_unpack_to_exr_keeps_every_index_value(tmp_path):
     from terratheme.core.packing import pack, pack_file
 
     assert pack_file(tmp_path / "i.exr").to_bytes() == pack(index[:, :, None]).to_bytes()
+    # A uint8 layer (theme indices) comes back as uint8: the same bytes.
+    small = (np.arange(16 * 16) % 7).astype(np.uint8).reshape(16, 16)
+    write_image(tmp_path / "s.png", small)
+    for args in (["pack", tmp_path / "s.png", tmp_path / "s.ttpack"],
+                 ["unpack", tmp_path / "s.ttpack", tmp_path / "s.exr"],
+                 ["pack", tmp_path / "s.exr", tmp_path / "s2.ttpack"]):
+        proc = run(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "s2.ttpack").read_bytes() == (tmp_path / "s.ttpack").read_bytes()
 
 
 def test_pack_refuses_an_exr_index_beyond_16_bits(tmp_path):

@@ -123,18 +123,23 @@ class PalettePngWriter:
         self._ctx.__exit__(exc_type, exc, tb)
 
 
+def index_dtype(top: int, path: str | os.PathLike) -> np.dtype:
+    """uint8 for a one-channel 32-bit index whose largest value ``top`` is under 256, else
+    uint16; a value past 65535 does not fit an index layer (TerrathemeError)."""
+    if top > np.iinfo(np.uint16).max:
+        raise TerrathemeError(f"{path}: index value {top} does not fit an index layer's 16 bits")
+    return np.dtype(np.uint8 if top <= np.iinfo(np.uint8).max else np.uint16)
+
+
 def read_index_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
     """An image file to pack: a palette PNG as (H, W) uint8 indices and (K, 3|4) colours,
     any other as :func:`core.io.images.read_image` gives it, and None; a one-channel
-    uint32 image (unpack's EXR: EXR has no 16-bit integers) as uint16 when its values fit."""
+    uint32 image (unpack's EXR: EXR has no 8- or 16-bit integers) in the narrowest of
+    uint8 and uint16 its values fit (:func:`index_dtype`)."""
     image = read_image(path)
     colours = png_palette(path)
     if colours is None:
         if image.dtype == np.uint32 and image.shape[2] == 1:
-            top = int(image.max())
-            if top > np.iinfo(np.uint16).max:
-                raise TerrathemeError(f"{path}: index value {top} does not fit an index "
-                                      "layer's 16 bits")
-            image = image.astype(np.uint16)
+            image = image.astype(index_dtype(int(image.max()), path))
         return image, None
     return palette_indices(image, colours, os.fspath(path)), colours

@@ -16,6 +16,7 @@ from terratheme.core.curves.scan import join_runs, scan_square
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import image_info, read_bands, read_region
 from terratheme.core.io.png import palette_indices, png_palette
+from terratheme.core.packing.index_png import index_dtype
 from terratheme.core.packing.layer import PackedLayer
 from terratheme.core.packing.packer import CurveChoice, ProgressFn, TilePalette, tile_from_runs
 from terratheme.core.packing.palette import MAX_COLOURS, SUPPORTED_DTYPES, colour_keys
@@ -49,10 +50,8 @@ def pack_file(
     dtype = info.dtype
     top = _largest(p, info) if c == 1 and dtype != np.uint8 else 0
     if c == 1 and dtype == np.uint32:
-        # An EXR index (unpack writes 32-bit UINT, EXR has no 16-bit integers): exact in 16.
-        if top > np.iinfo(np.uint16).max:
-            raise TerrathemeError(f"{p}: index value {top} does not fit an index layer's 16 bits")
-        dtype = np.dtype(np.uint16)
+        # An EXR index (unpack writes 32-bit UINT, EXR has no 8- or 16-bit integers).
+        dtype = index_dtype(top, p)
     if dtype not in SUPPORTED_DTYPES or not 1 <= c <= 4:
         raise TerrathemeError(f"{p}: {c} channels of {info.dtype} cannot be packed: index "
                               "layers are 1, 3 or 4 channels of uint8 or uint16")
