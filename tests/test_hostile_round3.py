@@ -124,35 +124,33 @@ def test_convert_refuses_a_georeference_no_export_could_use_before_work(small, t
 
 # -- outputs that changed the values they promise -----------------------------------------
 
+def _exr_round_trip(folder: Path, index: np.ndarray, stem: str) -> None:
+    """pack a PNG of ``index``, unpack it to EXR, pack the EXR: every step exit 0."""
+    write_image(folder / f"{stem}.png", index)
+    for args in (["pack", folder / f"{stem}.png", folder / f"{stem}.ttpack"],
+                 ["unpack", folder / f"{stem}.ttpack", folder / f"{stem}.exr"],
+                 ["pack", folder / f"{stem}.exr", folder / f"{stem}_back.ttpack"]):
+        proc = run(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+
+
 def test_unpack_to_exr_keeps_every_index_value(tmp_path):
     """EXR has no 8- or 16-bit integers: unpack wrote them as half floats scaled to 0..1,
     which merged 60000 and 60001 of a uint16 layer and read back as no label image."""
     from terratheme.core.io.images import read_labels
+    from terratheme.core.packing import pack, pack_file
 
     index = np.full((16, 16), 1000, np.uint16)
     index[8:], index[:, 8:], index[:4, :4] = 60000, 60001, 65535
-    write_image(tmp_path / "i.png", index)
-    for args in (["pack", tmp_path / "i.png", tmp_path / "i.ttpack"],
-                 ["unpack", tmp_path / "i.ttpack", tmp_path / "i.exr"],
-                 ["pack", tmp_path / "i.exr", tmp_path / "back.ttpack"]):
-        proc = run(*args)
-        assert proc.returncode == 0, proc.stderr[-2000:]
+    _exr_round_trip(tmp_path, index, "i")
     np.testing.assert_array_equal(read_labels(tmp_path / "i.exr"), index)
     # ... and the EXR packs back to the same layer (pack refused its 32-bit integers), in
     # memory and band by band (a large file's path).
-    assert (tmp_path / "back.ttpack").read_bytes() == (tmp_path / "i.ttpack").read_bytes()
-    from terratheme.core.packing import pack, pack_file
-
+    assert (tmp_path / "i_back.ttpack").read_bytes() == (tmp_path / "i.ttpack").read_bytes()
     assert pack_file(tmp_path / "i.exr").to_bytes() == pack(index[:, :, None]).to_bytes()
     # A uint8 layer (theme indices) comes back as uint8: the same bytes.
-    small = (np.arange(16 * 16) % 7).astype(np.uint8).reshape(16, 16)
-    write_image(tmp_path / "s.png", small)
-    for args in (["pack", tmp_path / "s.png", tmp_path / "s.ttpack"],
-                 ["unpack", tmp_path / "s.ttpack", tmp_path / "s.exr"],
-                 ["pack", tmp_path / "s.exr", tmp_path / "s2.ttpack"]):
-        proc = run(*args)
-        assert proc.returncode == 0, proc.stderr[-2000:]
-    assert (tmp_path / "s2.ttpack").read_bytes() == (tmp_path / "s.ttpack").read_bytes()
+    _exr_round_trip(tmp_path, (np.arange(16 * 16) % 7).astype(np.uint8).reshape(16, 16), "s")
+    assert (tmp_path / "s_back.ttpack").read_bytes() == (tmp_path / "s.ttpack").read_bytes()
 
 
 def test_pack_refuses_an_exr_index_beyond_16_bits(tmp_path):
