@@ -92,6 +92,34 @@ def test_a_fragment_theme_reaches_at_most_the_fragment_contrast():
     assert gain(0.4) == pytest.approx(FRAGMENT_CONTRAST / 0.05, rel=0.1)
 
 
+def test_a_heavy_tailed_class_sets_its_grain_by_its_robust_amplitude():
+    from terratheme.core.themes.detail import TAIL_CAP
+
+    yy, xx = np.indices((70, 70))
+    stripes = (xx // 2 % 2 * 2 - 1).astype(float)
+    # A stripe theme of relative RMS 0.05 (its gain is linear in the class's contrast).
+    theme = np.repeat((100 * (1 + 0.05 * stripes[:32, :32]))[:, :, None], 3, axis=2)
+    lib = ThemeLibrary([Theme("road", (1, 2, 3), theme.round().astype(np.uint8))])
+    labels = np.zeros((70, 70), np.uint8)
+    # A calm class, +-2% ...
+    calm = 100 * (1 + 0.02 * stripes)
+    # ... and the same with one texel in 49 at +-50% (cars on a road): RMS 0.073.
+    spiky = calm.copy()
+    cars = (xx % 7 == 0) & (yy % 7 == 0)
+    spiky[cars] = 100 * (1 + 0.5 * np.where((xx // 7 + yy // 7) % 2 == 0, 1, -1)[cars])
+
+    def gain(photo: np.ndarray) -> float:
+        rgb = np.repeat(photo[:, :, None], 3, axis=2).round().astype(np.uint8)
+        return detail_themes(rgb, labels, lib)[1][0]
+
+    assert gain(calm) == pytest.approx(DETAIL_CONTRAST * 0.02 / 0.05, rel=0.05)
+    # Robust amplitude 1.4826 x 0.02 (the median |relative|), at most TAIL_CAP times it:
+    # 1.33, not the RMS's 2.2.
+    capped = DETAIL_CONTRAST * TAIL_CAP * 1.4826 * 0.02 / 0.05
+    assert gain(spiky) == pytest.approx(capped, rel=0.05)
+    assert capped < DETAIL_CONTRAST * 0.07 / 0.05
+
+
 def test_detail_themes_keep_names_and_colours_each_at_its_gain():
     xx = np.indices((32, 32))[1]
     stripes = (xx // 4 % 2 * 2 - 1).astype(float)

@@ -32,6 +32,9 @@ FRAGMENT_COHERENCE = 0.5
 COHERENCE_SIGMA = 3.0
 #: the most relative RMS contrast a fragment theme's detail reaches (:func:`detail_themes`)
 FRAGMENT_CONTRAST = 0.12
+#: a class's contrast counts at most this many times its robust amplitude, 1.4826 x the
+#: median |relative| (:func:`detail_themes`)
+TAIL_CAP = 1.5
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: a theme with a side under this many texels has its phases randomised (:func:`theme_detail`)
@@ -145,23 +148,28 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
     Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
-    ``sigma`` (a fragment theme's at most ``FRAGMENT_CONTRAST / its RMS``), clipped to
-    ``GAIN_RANGE``; 1 for an unused or flat theme. ``photo``: (H, W, 3) uint8;
-    ``theme_labels``: (H, W) uint8 theme per pixel. Names and colours are kept.
+    ``sigma``, the photo's energy at most ``(TAIL_CAP x its robust amplitude)^2`` (a road
+    class's cars and marks do not set the grain of its whole theme; a fragment theme's at
+    most ``FRAGMENT_CONTRAST / its RMS``), clipped to ``GAIN_RANGE``; 1 for an unused or
+    flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per
+    pixel. Names and colours are kept.
     """
     details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
+    relative = _relative(y, sigma, wrap=False).ravel()
     counts = np.bincount(labels, minlength=len(details))
-    sums = np.bincount(labels, (_relative(y, sigma, wrap=False) ** 2).ravel(),
-                       minlength=len(details))
+    sums = np.bincount(labels, relative ** 2, minlength=len(details))
     gains = []
     for k, (rel, fragment) in enumerate(details):
         own = float((rel.mean(axis=2) ** 2).mean())
         if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
-        gain = DETAIL_CONTRAST * np.sqrt(sums[k] / counts[k] / own)
+        # The class's energy, its heavy tail cut at TAIL_CAP x its robust amplitude.
+        robust = 1.4826 * float(np.median(np.abs(relative[labels == k])))
+        energy = min(float(sums[k] / counts[k]), (TAIL_CAP * robust) ** 2)
+        gain = DETAIL_CONTRAST * np.sqrt(energy / own)
         if fragment:
             # Scrambled fragments match the photo's edges in energy only: at a town's full
             # contrast they read as dark speckle over the map's streets.
