@@ -242,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
 
     # Labels as a palette PNG (values stay the class numbers) or a grey image; the outputs
     # as one set (all replaced or none).
-    palette = label_palette() if args.output.lower().endswith(".png") else None
+    palette = label_palette() if label_suffix == ".png" else None
     # EXR has no 8-bit integers (OpenImageIO would scale them to 0..1 halves): 32-bit UINT.
     labels = result.labels[:, :, None].astype(np.uint32 if label_suffix == ".exr" else np.uint8)
     writers = [(args.output, lambda p: write_image(p, labels, palette=palette))]

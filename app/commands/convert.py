@@ -295,10 +295,9 @@ def _check_georeference(photo: str) -> None:
 
     info, georeference = image_info(photo), read_georeference(photo)
     try:
-        world_frame(georeference, (info.width, info.height))
+        world_frame(georeference, (info.width, info.height), owner="photo")
     except TerrathemeError as exc:
-        raise TerrathemeError(f"{photo}: {str(exc).replace('the project', 'the photo')}"
-                              ) from None
+        raise TerrathemeError(f"{photo}: {exc}") from None
 
 
 def _style(args: argparse.Namespace) -> tuple:

@@ -127,16 +127,17 @@ class WorldFrame:
     crs_units: str = "texel"
 
 
-def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> WorldFrame:
+def world_frame(georeference: dict | None, texture_size: tuple[int, int], *,
+                owner: str = "project") -> WorldFrame:
     """The :class:`WorldFrame` of a project's ``metadata["georeference"]`` (``{}`` or None:
     texels); ``texture_size`` gives a geographic CRS's centre latitude. TerrathemeError
     when the texture's corners or size in the world are not finite numbers, a texel
     size is subnormal, or a geographic centre latitude is beyond the poles: an export
-    must write real numbers."""
+    must write real numbers. ``owner`` names the georeference's holder in the message."""
     world = world_file_lines(georeference) if georeference else None
     if world is None:
         return WorldFrame()
-    frame = _frame(world, georeference, texture_size)
+    frame = _frame(world, georeference, texture_size, owner)
     w, h = texture_size
     extent = (frame.texel_size[0] * w, frame.texel_size[1] * h)
     # the farthest corner from 0 along each axis (x = A col + B row + C, y = D col + E row + F)
@@ -144,24 +145,24 @@ def world_frame(georeference: dict | None, texture_size: tuple[int, int]) -> Wor
               abs(world[5]) + abs(world[1] * w) + abs(world[3] * h))
     if not all(math.isfinite(v) for v in (*frame.texel_size, *frame.origin, *extent, *corner)) \
             or min(frame.texel_size) < sys.float_info.min:  # subnormal: spacings round to 0
-        raise TerrathemeError(f"the project's georeference {world} places a {w} x {h} texture "
+        raise TerrathemeError(f"the {owner}'s georeference {world} places a {w} x {h} texture "
                               "beyond the range of floating-point numbers")
     return frame
 
 
 def _frame(world: list[float], georeference: dict,
-           texture_size: tuple[int, int]) -> WorldFrame:
+           texture_size: tuple[int, int], owner: str) -> WorldFrame:
     a, d, b, e, c, f = (float(v) for v in world)
     sx, sy = math.hypot(a, d), math.hypot(b, e)
     if sx <= 0 or sy <= 0 or not all(math.isfinite(v) for v in world):
-        raise TerrathemeError(f"the project's georeference has a degenerate pixel size {world}")
+        raise TerrathemeError(f"the {owner}'s georeference has a degenerate pixel size {world}")
     keys = _geo_keys(georeference)
     rotation = math.degrees(math.atan2(d, a))
     if keys.get(_MODEL_TYPE_KEY) == 2:
         # Geographic CRS: degrees to metres at the centre latitude (spherical approximation).
         centre = f + e * texture_size[1] / 2
         if not abs(centre) <= 90:
-            raise TerrathemeError(f"the project's georeference is geographic but its centre "
+            raise TerrathemeError(f"the {owner}'s georeference is geographic but its centre "
                                   f"latitude {centre:.6g} is beyond the poles")
         lat = math.radians(centre)
         scale = (_METRES_PER_DEGREE * math.cos(lat), _METRES_PER_DEGREE)

@@ -217,7 +217,8 @@ class WindowStats:
         h, w = stack.shape[:2]
         self.factor = max(1, int(np.ceil(np.sqrt(h * w / SEARCH_POSITIONS))))
         self._stack = _coarsen(stack, self.factor)
-        self._by_size: dict = {}
+        self._by_size: dict[int, np.ndarray] = {}
+        self._strips: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}
 
     def at(self, size: int) -> np.ndarray:
         """(h, w, 10) float32: mean band, Lab mean (3), detail mean (3), detail^2 mean (3).
@@ -234,15 +235,15 @@ class WindowStats:
         """Mean band energy of the column strips and of the row strips of windows of side
         ``size`` (``EVEN_STRIPS`` a side; lattice arrays as :meth:`at`), and the strips'
         width on the lattice."""
-        if ("strips", size) not in self._by_size:
+        if size not in self._strips:
             k = max(1, size // self.factor)
             w = max(1, k // EVEN_STRIPS)
             band = np.ascontiguousarray(self._stack[:, :, 0])
-            self._by_size["strips", size] = (
+            self._strips[size] = (
                 cv2.boxFilter(band, -1, (w, k), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT),
                 cv2.boxFilter(band, -1, (k, w), anchor=(0, 0), borderType=cv2.BORDER_CONSTANT),
                 w)
-        return self._by_size["strips", size]
+        return self._strips[size]
 
 
 def patch_scores(window: np.ndarray, target: ClassTarget, size: int,
