@@ -126,14 +126,15 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
     return outs
 
 
-def check_image_outputs(paths: Iterable[str | os.PathLike | None]) -> None:
-    """Refuse, before any work, an image output whose extension no image writer takes
-    (None entries are skipped): :func:`core.io.image_format.check_writable_format`."""
+def check_image_outputs(paths: Iterable[str | os.PathLike | None], *, channels: int) -> None:
+    """Refuse, before any work, an image output whose extension no image writer takes or
+    whose writer refuses ``channels`` channels (None entries are skipped):
+    :func:`core.io.image_format.check_writable_format`."""
     from terratheme.core.io.image_format import check_writable_format
 
     for path in paths:
         if path is not None:
-            check_writable_format(path)
+            check_writable_format(path, channels=channels)
 
 
 def check_mask_sizes(pairs: Iterable[tuple[str | os.PathLike, str | os.PathLike]],

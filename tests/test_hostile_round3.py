@@ -258,3 +258,27 @@ def test_an_empty_file_named_for_the_null_reader_is_no_image(tmp_path):
     refused(run("pack", fake, tmp_path / "o.ttpack"), "not an image file")
     refused(run("classify", fake, "-o", tmp_path / "o.png"), "not an image file")
     assert [p.name for p in tmp_path.iterdir()] == [fake.name]
+
+
+# -- outputs that failed only after the work ---------------------------------------------
+
+def test_an_image_format_that_refuses_one_channel_is_refused_before_work(small, tmp_path):
+    """GIF takes no one-channel image: classify --confidence c.gif classified the whole
+    photo, then failed to write (and unpack u.gif read the layer first)."""
+    proc = run("classify", small / "photo.png", "-o", tmp_path / "l.png", "--confidence",
+               tmp_path / "c.gif")
+    refused(proc, "c.gif", "1-channel")
+    assert not proc.stderr.startswith("classify:")  # no stage ran
+    refused(run("unpack", small / "l.ttpack", tmp_path / "u.gif"), "u.gif", "1-channel")
+    assert not any(tmp_path.iterdir())
+
+
+def test_the_cell_curve_chart_is_written_in_the_format_its_name_says(small, tmp_path):
+    """convert --curve c.jpg wrote PNG bytes under the .jpg name."""
+    refused(run("convert", small / "photo.png", tmp_path / "p.ttproj", "--curve",
+                tmp_path / "c.jpg"), "c.jpg", ".svg")
+    assert not any(tmp_path.iterdir())
+    proc = run("convert", small / "photo.png", tmp_path / "p.ttproj", "--curve",
+               tmp_path / "c.svg")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert b"<svg" in (tmp_path / "c.svg").read_bytes()[:2000]

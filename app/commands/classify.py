@@ -192,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([args.output, args.confidence, args.model_out],
                   inputs=[args.photo, args.scribbles, args.model, args.legend,
                           *(p for pair in args.train for p in pair)])
-    check_image_outputs([args.output, args.confidence])
+    check_image_outputs([args.output, args.confidence], channels=1)
     check_layer_image_path(args.output, "the class numbers")
     label_suffix = Path(args.output).suffix.lower()
     # Masks of the wrong size are refused from the headers, before any pixel is read.

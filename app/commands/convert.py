@@ -133,7 +133,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "processes (one thread each; TLS with credentials made for the run, "
                              "no dashboard); same result as without")
     parser.add_argument("--curve", metavar="PNG",
-                        help="also write the agreement / bytes vs cell size chart (cell auto)")
+                        help="also write the agreement / bytes vs cell size chart (cell auto; "
+                             ".png, .svg or .pdf)")
     parser.add_argument("--class-target", type=_share, default=0.5, metavar="T",
                         help="with --cell auto, every class of at least 0.5%% of the photo keeps "
                              "this IoU with its label view, so thin classes such as roads do "
@@ -163,7 +164,13 @@ def _read_mask(path: str):
     return mask.astype(np.uint8)
 
 
+#: the chart formats of ``--curve`` (matplotlib's, chosen by the name's suffix)
+CHART_SUFFIXES = (".png", ".svg", ".pdf")
+
+
 def _curve_chart(choice, path: str) -> None:
+    from pathlib import Path
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -185,7 +192,7 @@ def _curve_chart(choice, path: str) -> None:
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+        fig.savefig(tmp, format=Path(path).suffix.lower()[1:])
     plt.close(fig)
 
 
@@ -215,6 +222,9 @@ def run(args: argparse.Namespace) -> int:
     _check_theme_names(themes)
     if args.curve and args.cell != "auto":
         raise TerrathemeError("--curve charts the automatic cell choice: it needs --cell auto")
+    if args.curve and Path(args.curve).suffix.lower() not in CHART_SUFFIXES:
+        raise TerrathemeError(f"{args.curve}: the chart is written as "
+                              f"{', '.join(CHART_SUFFIXES)}; name it so")
     if (args.scheduler or args.workers) and args.tile is None:
         raise TerrathemeError("--scheduler and --workers run the tiled path: give --tile N")
     if args.scheduler and args.workers:
@@ -227,7 +237,7 @@ def run(args: argparse.Namespace) -> int:
     # Output paths checked (and their folders made) before any work.
     check_outputs([*output_files(project, preview_path=preview, packed_path=packed), args.curve],
                   inputs=[args.photo, args.scribbles, args.model, args.legend, *tls])
-    check_image_outputs([preview])
+    check_image_outputs([preview], channels=3)
     check_mask_sizes([(args.photo, args.scribbles)] if args.scribbles else [], "scribble mask")
     _check_georeference(args.photo)
     legend = _read_legend(args, themes)

@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.perspective.texture import stored_texture
 
     check_outputs([args.out], inputs=[args.input])
-    check_image_outputs([args.out])
+    check_image_outputs([args.out], channels=3)
     check_size(args.size)  # before the warm-up and the camera's mapping
     if not args.gpu:  # the CPU filters hold per-pixel arrays of the whole frame
         check_fits("the frame", *args.size, PERSPECTIVE_BYTES_PER_PIXEL,

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     packed = _packed_path(args)
     check_outputs([args.out, world_file_name(args.out)],  # the world file a render may get
                   inputs=[args.project] + ([packed] if packed else []))
-    check_image_outputs([args.out])
+    check_image_outputs([args.out], channels=3)
     project = load_checked_project(args.project)
     grid = _packed_grid(packed, project) if packed else project.grid
     if args.blend is None:

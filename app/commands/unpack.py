@@ -23,9 +23,9 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.packing.export import check_layer_image_path
 
     check_outputs([args.output], inputs=[args.input])
-    check_image_outputs([args.output])
     check_layer_image_path(args.output)
     layer = load_layer(args.input)
+    check_image_outputs([args.output], channels=layer.channels)
     kind = write_layer_image(layer, args.output)
     print(f"{args.output}: {layer.width} x {layer.height}, {layer.channels} channel(s), {kind}")
     return 0

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import os
 import struct
+import tempfile
 from pathlib import Path
 
+import numpy as np
 import OpenImageIO as oiio
 from terratheme.core.errors import TerrathemeError
 
@@ -39,18 +41,31 @@ def error_line(source: object = oiio) -> str:
     return first_line(text)
 
 
-def check_writable_format(path: str | os.PathLike) -> None:
+def check_writable_format(path: str | os.PathLike, *, channels: int | None = None) -> None:
     """Refuse ``path`` as an image output if no OpenImageIO writer takes its extension, or
-    the one that does writes no file (:data:`NO_FILE_FORMATS`)."""
+    the one that does writes no file (:data:`NO_FILE_FORMATS`); with ``channels``, also if
+    that writer refuses an image of so many channels (GIF takes no one-channel image), found
+    by opening it on a 1 x 1 image in a temporary folder of its own."""
     out = oiio.ImageOutput.create(str(path))
-    if out is not None and out.format_name() not in NO_FILE_FORMATS:
-        return
-    error_line()  # clear the library's pending error
     suffix = Path(path).suffix
-    what = f"no image format is written as {suffix!r}" if suffix else "has no extension"
-    if out is not None:
-        what = f"{suffix!r} is OpenImageIO's {out.format_name()} output, which writes no file"
-    raise TerrathemeError(f"{path}: {what}; name the image {KNOWN_OUTPUTS}, ...")
+    if out is None or out.format_name() in NO_FILE_FORMATS:
+        error_line()  # clear the library's pending error
+        what = f"no image format is written as {suffix!r}" if suffix else "has no extension"
+        if out is not None:
+            what = f"{suffix!r} is OpenImageIO's {out.format_name()} output, which writes no file"
+        raise TerrathemeError(f"{path}: {what}; name the image {KNOWN_OUTPUTS}, ...")
+    if channels is None:
+        return
+    with tempfile.TemporaryDirectory(prefix="terratheme-probe-") as folder:
+        opened = out.open(str(Path(folder) / f"probe{suffix}"),
+                          oiio.ImageSpec(1, 1, channels, "uint8"))
+        why = "" if opened else error_line(out)
+        if opened:  # a pixel written, so that no writer complains of an empty image
+            out.write_image(np.zeros((1, 1, channels), np.uint8))
+            out.close()
+    if not opened:
+        raise TerrathemeError(f"{path}: {out.format_name()} cannot hold this {channels}-channel "
+                              f"image ({why}); name the image {KNOWN_OUTPUTS}, ...")
 
 
 #: the bare JPEG XL codestream's signature, and the ISO BMFF container's first box
