@@ -126,6 +126,8 @@ BUDGETS = (0.02, 0.04, 0.08)
 CROPS = (("crop_town_block", SAMPLE.name, 620, 250), ("crop_road_junction", SAMPLE.name, 640, 480),
          ("crop_shore", SAMPLE.name, 330, 380))
 CROP_SIDE = 320
+#: the scores of part "structure" (``fidelity_peers.score_image``)
+AXES = ("dE8", "s4", "s8", "detail", "placement")
 GOALS = {"mean_dE8": 3.0, "detail": (0.8, 1.25), "miou_ratio": 0.9, "dE8_over_peer": 1.0,
          "convert_seconds": 5.0}
 
@@ -422,8 +424,8 @@ def run_structure(log):
                 "peers": peers}
             v = row["variants"][vname]
             log(f"  {name} {vname}: dE8 {v['dE8']} s4 {v['s4']} s8 {v['s8']} detail "
-                f"{v['detail']} {v['area_bytes']} B | avif " + " ".join(
-                    f"{k} {peers['avif'][k]}" for k in ("dE8", "s4", "s8", "detail")))
+                f"{v['detail']} placement {v['placement']} {v['area_bytes']} B | avif " +
+                " ".join(f"{k} {peers['avif'][k]}" for k in AXES))
             if folder == "sample":
                 keep[vname] = (photo, render, peers)
             if vname == f"budget {DEFAULT.colour_map.budget}" and name in pictures:
@@ -444,10 +446,9 @@ def summarise_structure(rows):
     out = {}
     for v in rows[0]["variants"]:
         vs = [r["variants"][v] for r in rows]
-        m = {k: _mean([x[k] for x in vs]) for k in ("dE8", "s4", "s8", "detail", "bpp",
-                                                      "area_bytes")}
+        m = {k: _mean([x[k] for x in vs]) for k in (*AXES, "bpp", "area_bytes")}
         m["peers"] = {c: {k: _mean([x["peers"][c][k] for x in vs if x["peers"][c]])
-                          for k in ("dE8", "s4", "s8", "detail")} for c in PEER_MAKERS}
+                          for k in AXES} for c in PEER_MAKERS}
         lo, hi = GOALS["detail"]
         m["photos_meeting_goal"] = sum(
             all(x[k] >= max(p[k] for p in x["peers"].values() if p) for k in ("s4", "s8"))

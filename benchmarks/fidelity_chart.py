@@ -8,7 +8,7 @@ ladder of budgets, and plus markers at the defaults' bytes), the goals dotted.
 
 Issue 34 (part ``structure``, :func:`structure_chart`, drawn as ``fidelity.png``
 when present; the chart above then goes to ``fidelity_variants.png``): dE8,
-structure 1/4, structure 1/8 and detail against bits per pixel, the texture
+structure 1/4, structure 1/8, detail and placement against bits per pixel, the texture
 at the three budgets and the old default, JPEG and AVIF at their best
 operating point at the same bytes.
 """
@@ -108,9 +108,11 @@ def structure_chart(part, path, goals):
     summ = part["summary"]
     budgets = sorted((v for v in summ if v.startswith("budget ") and "," not in v),
                      key=lambda v: summ[v]["bpp"])
-    fig, axes = plt.subplots(1, 4, figsize=(22, 6))
     panels = (("dE8", "dE8 (lower is better)"), ("s4", "structure 1/4: SSIM of luminance"),
-              ("s8", "structure 1/8: SSIM of luminance"), ("detail", "detail (goal 0.8-1.25)"))
+              ("s8", "structure 1/8: SSIM of luminance"), ("detail", "detail (goal 0.8-1.25)"),
+              ("placement", "placement: RMS log2 detail ratio of 32 px blocks (lower is better)"))
+    panels = tuple(p for p in panels if p[0] in summ[budgets[0]])  # older results had no placement
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 6))
     for ax, (key, label) in zip(axes, panels, strict=True):
         xs = [summ[v]["bpp"] for v in budgets]
         ax.plot(xs, [summ[v][key] for v in budgets], "o-", color="crimson", ms=6,

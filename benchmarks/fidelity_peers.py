@@ -16,7 +16,7 @@ point for the budget, a scale x quality search: for every quality of
 :data:`QUALITY_LADDER` the largest width that fits, scored with the two
 structure scores too (:func:`core.fidelity.structure_similarity` at 1/4 and
 1/8); the peer's figure on each axis is its best over the qualities (lowest
-dE8, highest structure; detail at the point of highest structure 1/4), so the
+dE8, highest structure; detail and placement at the point of highest structure 1/4), so the
 texture is held to the strictest codec.
 """
 
@@ -28,7 +28,12 @@ from dataclasses import dataclass
 import cv2
 import imagecodecs
 import numpy as np
-from terratheme.core.fidelity import colour_error, detail_ratio, structure_similarity
+from terratheme.core.fidelity import (
+    colour_error,
+    detail_placement,
+    detail_ratio,
+    structure_similarity,
+)
 from terratheme.core.io.codec import decode_image, encode_image
 
 #: the narrowest photo a peer may be downscaled to, pixels
@@ -142,9 +147,12 @@ def score_peers(photo: np.ndarray, budget: int) -> dict[str, dict | None]:
 
 
 def score_image(decoded: np.ndarray, photo: np.ndarray) -> dict[str, float]:
-    """dE8, detail and structure at 1/4 and 1/8 of a decoded image against its photo."""
+    """dE8, detail, placement (the RMS of :func:`core.fidelity.detail_placement` over its
+    blocks) and structure at 1/4 and 1/8 of a decoded image against its photo."""
+    placement = detail_placement(decoded, photo)
     return {"dE8": round(colour_error(decoded, photo), 3),
             "detail": round(detail_ratio(decoded, photo), 3),
+            "placement": round(float(np.sqrt(np.mean(placement ** 2))), 3),
             "s4": round(structure_similarity(decoded, photo, 4), 4),
             "s8": round(structure_similarity(decoded, photo, 8), 4)}
 
@@ -172,5 +180,6 @@ def best_peers(photo: np.ndarray, budget: int) -> dict[str, dict | None]:
         top = max(points, key=lambda p: p["s4"])
         out[name] = {"dE8": min(p["dE8"] for p in points), "s4": top["s4"],
                      "s8": max(p["s8"] for p in points), "detail": top["detail"],
+                     "placement": top["placement"],
                      "points": points}
     return out

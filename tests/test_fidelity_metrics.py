@@ -10,6 +10,7 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity import (
     colour_error,
     detail_energy,
+    detail_placement,
     detail_ratio,
     structure_similarity,
 )
@@ -65,6 +66,34 @@ def test_detail_of_flat_is_zero_and_contrast_scales_it_squared():
     boosted = 0.5 + 2.0 * (photo - 0.5)
     assert detail_ratio(boosted, (photo - 0.5) + 0.5) == pytest.approx(4.0, rel=1e-4)
     assert detail_ratio(_flat(0.5, (64, 64)), photo) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_detail_placement_is_the_log2_energy_ratio_of_each_block():
+    rng = np.random.default_rng(0)
+    grain = (0.2 * (rng.random((64, 96, 3)) - 0.5)).astype(np.float32)
+    # Twice the contrast: the band-pass is linear, each block's energy x4 (no floor).
+    ratios = detail_placement(0.5 + 2.0 * grain, 0.5 + grain, floor=0.0)
+    assert ratios.shape == (2, 3) and ratios.dtype == np.float32
+    np.testing.assert_allclose(ratios, 2.0, atol=1e-4)
+    # Grain on the left third only: flat blocks compare equal, the floor lowers the rest.
+    photo = _flat(0.5, (64, 96))
+    photo[:, :32] += grain[:, :32]
+    ratios = detail_placement(0.5 + 2.0 * (photo - 0.5), photo)
+    assert ((ratios[:, 0] > 1.8) & (ratios[:, 0] < 2.0)).all()
+    np.testing.assert_allclose(ratios[:, 2], 0.0, atol=1e-6)  # the next holds the band's spill
+    # The same grain in the wrong place: the whole-image ratio stays 1, the blocks do not.
+    moved = _flat(0.5, (64, 96))
+    moved[:, 64:] = photo[:, :32]
+    assert detail_ratio(moved, photo) == pytest.approx(1.0, rel=0.05)
+    ratios = detail_placement(moved, photo)
+    assert ratios[:, 0].max() < -3 and ratios[:, 2].min() > 3
+
+
+def test_detail_placement_counts_whole_blocks_and_refuses_smaller_images():
+    assert detail_placement(_flat(0.5, (70, 100)), _flat(0.5, (70, 100))).shape == (2, 3)
+    assert detail_placement(_flat(0.5, (20, 20)), _flat(0.5, (20, 20)), block=8).shape == (2, 2)
+    with pytest.raises(TerrathemeError, match="smaller than one 32 x 32 block"):
+        detail_placement(_flat(0.5, (31, 100)), _flat(0.5, (31, 100)))
 
 
 def test_detail_band_excludes_coarse_structure():

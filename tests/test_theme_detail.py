@@ -113,8 +113,8 @@ def test_a_heavy_tailed_class_sets_its_grain_by_its_robust_amplitude():
         return detail_themes(rgb, labels, lib)[1][0]
 
     assert gain(calm) == pytest.approx(DETAIL_CONTRAST * 0.02 / 0.05, rel=0.05)
-    # Robust amplitude 1.4826 x 0.02 (the median |relative|), at most TAIL_CAP times it:
-    # 1.33, not the RMS's 2.2.
+    # Robust amplitude 1.4826 x 0.02 (the median |relative|), at most TAIL_CAP times it
+    # (0.89 at 1.0), not the RMS's 2.2.
     capped = DETAIL_CONTRAST * TAIL_CAP * 1.4826 * 0.02 / 0.05
     assert gain(spiky) == pytest.approx(capped, rel=0.05)
     assert capped < DETAIL_CONTRAST * 0.07 / 0.05

@@ -1,7 +1,8 @@
 """How much a thematic texture looks like its photo: colour layout, fine detail, structure.
 
 On whole images of the same size: :func:`colour_error` (``dE8``), :func:`detail_ratio`,
-and :func:`structure_similarity` (``structure 1/4``, ``1/8``);
+:func:`detail_placement` (per block) and :func:`structure_similarity` (``structure 1/4``,
+``1/8``);
 definitions in docs/design.md §5.
 """
 
@@ -20,6 +21,11 @@ from terratheme.core.errors import TerrathemeError
 COLOUR_SIGMA = 8.0
 #: the detail band: Gaussian sigmas (pixels) whose difference is the band-pass
 DETAIL_SIGMAS = (0.7, 3.0)
+#: side (pixels) of the blocks :func:`detail_placement` compares
+PLACEMENT_BLOCK = 32
+#: detail energy added to each block's by :func:`detail_placement` (luminance in [0, 1]:
+#: a band-pass RMS of about 1.1 grey levels of 255)
+PLACEMENT_FLOOR = 2e-5
 
 
 def _rgb(image: np.ndarray, name: str) -> np.ndarray:
@@ -110,14 +116,18 @@ def colour_error(render: np.ndarray, photo: np.ndarray | Reference, *,
     return float(de.mean() if v is None else de[v].mean())
 
 
+def _band(rgb: np.ndarray, sigmas: tuple[float, float] = DETAIL_SIGMAS) -> np.ndarray:
+    """(H, W) float32: the luminance band-pass ``G(sigma0) - G(sigma1)`` of (H, W, 3) RGB."""
+    y = rgb2gray(rgb).astype(np.float32)
+    fine = cv2.GaussianBlur(y, (0, 0), sigmas[0], borderType=cv2.BORDER_REFLECT)
+    return fine - cv2.GaussianBlur(y, (0, 0), sigmas[1], borderType=cv2.BORDER_REFLECT)
+
+
 def detail_energy(image: np.ndarray, *, sigmas: tuple[float, float] = DETAIL_SIGMAS,
                   valid: np.ndarray | None = None) -> float:
     """Mean square of the luminance band-pass ``G(sigma0) - G(sigma1)``, luminance in [0, 1]."""
-    y = rgb2gray(_rgb(image, "image")).astype(np.float32)
-    fine = cv2.GaussianBlur(y, (0, 0), sigmas[0], borderType=cv2.BORDER_REFLECT)
-    coarse = cv2.GaussianBlur(y, (0, 0), sigmas[1], borderType=cv2.BORDER_REFLECT)
-    band = (fine - coarse) ** 2
-    v = _mask(valid, y.shape)
+    band = _band(_rgb(image, "image"), sigmas) ** 2
+    v = _mask(valid, band.shape)
     return float(band.mean() if v is None else band[v].mean())
 
 
@@ -129,6 +139,30 @@ def detail_ratio(render: np.ndarray, photo: np.ndarray, *,
     if ref <= 1e-12:
         raise TerrathemeError("the photo has no detail (flat): the detail ratio is undefined")
     return detail_energy(r, valid=valid) / ref
+
+
+def detail_placement(render: np.ndarray, photo: np.ndarray, *, block: int = PLACEMENT_BLOCK,
+                     floor: float = PLACEMENT_FLOOR) -> np.ndarray:
+    """(H // block, W // block) float32: log2 of the render's detail energy over the photo's
+    in each whole ``block`` x ``block`` block from the top-left (0: the photo's fine texture
+    there, at its strength; +1: twice its energy).
+
+    The energy is :func:`detail_energy`'s band, each block's mean plus ``floor`` (a flat
+    block's ratio is 1, not noise over nothing). What a close view sees where
+    :func:`detail_ratio` sums the whole image: a calm shore carrying a town's grain and a
+    town carrying none can average to 1 there, but not here.
+    """
+    r, p = _pair(render, photo)
+    b = int(block)
+    h, w = r.shape[0] // b * b, r.shape[1] // b * b
+    if h == 0 or w == 0:
+        raise TerrathemeError(f"the images are smaller than one {b} x {b} block")
+
+    def energies(rgb: np.ndarray) -> np.ndarray:
+        band = _band(rgb[:h, :w]) ** 2
+        return band.reshape(h // b, b, w // b, b).mean(axis=(1, 3)) + np.float32(floor)
+
+    return np.log2(energies(r) / energies(p)).astype(np.float32)
 
 
 def structure_similarity(render: np.ndarray, photo: np.ndarray | Reference,

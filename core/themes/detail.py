@@ -34,7 +34,7 @@ COHERENCE_SIGMA = 3.0
 FRAGMENT_CONTRAST = 0.12
 #: a class's contrast counts at most this many times its robust amplitude, 1.4826 x the
 #: median |relative| (:func:`detail_themes`)
-TAIL_CAP = 1.5
+TAIL_CAP = 1.0
 #: the seed of :func:`theme_detail`'s random phases (the same themes every run)
 PHASE_SEED = 0
 #: a theme with a side under this many texels has its phases randomised (:func:`theme_detail`)
