@@ -282,3 +282,29 @@ def test_the_cell_curve_chart_is_written_in_the_format_its_name_says(small, tmp_
                tmp_path / "c.svg")
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert b"<svg" in (tmp_path / "c.svg").read_bytes()[:2000]
+
+
+def test_the_channel_probe_refuses_only_what_the_writer_says(tmp_path, monkeypatch):
+    """The probe writes a 1 x 1 image in a temporary folder: one that cannot be made (a
+    full /tmp) or where no image opens is no reason to refuse the output."""
+    import tempfile
+
+    from terratheme.core.errors import TerrathemeError
+    from terratheme.core.io.image_format import check_writable_format
+
+    check_writable_format(tmp_path / "c.png", channels=1)
+    with pytest.raises(TerrathemeError, match="gif cannot hold this 1-channel image"):
+        check_writable_format(tmp_path / "c.gif", channels=1)
+    check_writable_format(tmp_path / "c.gif", channels=3)
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(tempfile, "TemporaryDirectory", full)
+    check_writable_format(tmp_path / "c.gif", channels=1)
+    monkeypatch.undo()
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.setattr(tempfile, "mkdtemp", lambda *a, **kw: str(gone / "missing"))
+    check_writable_format(tmp_path / "c.gif", channels=1)  # no image opens there at all
+    assert not any(tmp_path.glob("c.*"))

@@ -56,16 +56,28 @@ def check_writable_format(path: str | os.PathLike, *, channels: int | None = Non
         raise TerrathemeError(f"{path}: {what}; name the image {KNOWN_OUTPUTS}, ...")
     if channels is None:
         return
-    with tempfile.TemporaryDirectory(prefix="terratheme-probe-") as folder:
-        opened = out.open(str(Path(folder) / f"probe{suffix}"),
-                          oiio.ImageSpec(1, 1, channels, "uint8"))
-        why = "" if opened else error_line(out)
-        if opened:  # a pixel written, so that no writer complains of an empty image
-            out.write_image(np.zeros((1, 1, channels), np.uint8))
-            out.close()
-    if not opened:
-        raise TerrathemeError(f"{path}: {out.format_name()} cannot hold this {channels}-channel "
-                              f"image ({why}); name the image {KNOWN_OUTPUTS}, ...")
+    try:
+        with tempfile.TemporaryDirectory(prefix="terratheme-probe-") as folder:
+            probe = str(Path(folder) / f"probe{suffix}")
+            why = _open_error(out, probe, channels)
+            # A writer that takes no RGB image either says nothing of channels (the
+            # temporary folder may be full): the output's own write will tell.
+            if why is None or _open_error(out, probe, 3) is not None:
+                return
+    except OSError:
+        return
+    raise TerrathemeError(f"{path}: {out.format_name()} cannot hold this {channels}-channel "
+                          f"image ({why}); name the image {KNOWN_OUTPUTS}, ...")
+
+
+def _open_error(out: oiio.ImageOutput, probe: str, channels: int) -> str | None:
+    """None if ``out`` writes a 1 x 1 uint8 image of ``channels`` channels to ``probe``,
+    else its error line."""
+    if not out.open(probe, oiio.ImageSpec(1, 1, channels, "uint8")):
+        return error_line(out)
+    out.write_image(np.zeros((1, 1, channels), np.uint8))  # no writer complains of no pixels
+    out.close()
+    return None
 
 
 #: the bare JPEG XL codestream's signature, and the ISO BMFF container's first box
