@@ -7,8 +7,10 @@ import pytest
 import tifffile
 from terratheme.app.cli import main
 from terratheme.app.commands.convert import parse_themes
+from terratheme.core.convert.colour_fit import MIN_AREA_BYTES
 from terratheme.core.convert.photo import ConvertOptions, convert_photo
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.fidelity import texture_cost
 from terratheme.core.io.georef import read_georeference, tiff_extratags, write_georeferenced
 from terratheme.core.io.images import read_image, write_image
 from terratheme.core.model.project import load_project
@@ -285,7 +287,38 @@ def test_cli_colour_map_and_boundary_options(tmp_path):
     assert not (tmp_path / "b_colour.avif").exists()
 
 
+def test_cli_budget_buys_a_finer_colour_map_on_both_paths(tmp_path):
+    """--budget sets the bits per photo pixel of grid + map; more bytes, less colour error,
+    on the whole photo and tile by tile, never over the budget."""
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(3)
+    field = gaussian_filter(rng.normal(0, 1, (320, 384, 3)), (6, 6, 0))
+    img = np.clip(128 + 900 * field + rng.normal(0, 8, field.shape), 0, 255).astype(np.uint8)
+    img[:, :192] //= 2  # two themes
+    photo = tmp_path / "f.png"
+    write_image(photo, img)
+    for extra in ([], ["--tile", "128"]):
+        got = []
+        for budget in ("0.04", "0.12", "0.4"):
+            proj = tmp_path / f"b{budget}{len(extra)}.ttproj"
+            assert _run([photo, proj, "--budget", budget, *extra]) == 0
+            meta = load_project(proj).metadata["colour_map"]
+            assert meta["budget_bpp"] == float(budget)
+            area = texture_cost(load_project(proj)).area_bytes
+            assert area <= max(MIN_AREA_BYTES, float(budget) * 320 * 384 / 8)
+            got.append((area, meta.get("colour_error")))
+        areas = [a for a, _ in got]
+        assert areas == sorted(areas) and areas[2] > 4 * areas[0], got
+        if not extra:  # the whole photo's map records its colour error (dE8)
+            errors = [e for _, e in got]
+            assert errors == sorted(errors, reverse=True) and errors[2] < errors[0], got
+
+
 @pytest.mark.parametrize("args, match", [
+    (["--budget", "0.1", "--colour-map", "off"], "does not go with --colour-map off"),
+    (["--budget", "0.1", "--colour-map", "2"], "does not go with --colour-map 2"),
+    (["--budget", "0"], "--budget must be in (0, 1]"),
     (["--themes", "water,lava"], "unknown theme 'lava'"),
     (["--cell", "16", "--curve", "c.png"], "needs --cell auto"),
     (["--colour-map", "blue"], "not auto or off or a number"),

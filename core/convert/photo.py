@@ -25,6 +25,7 @@ from terratheme.core.convert.cell_choice import (
 from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap
 from terratheme.core.convert.region_sample import photo_sample
 from terratheme.core.convert.step import (
+    budget_entry,
     classify_photo,
     cover_classes,
     detail_sigma,
@@ -213,6 +214,7 @@ def convert_photo(
         meta["render"] = {"boundary": asdict(options.boundary)}
     if made.colour is not None:
         meta["colour_map"] = {"codec": made.colour.codec, "bytes": len(made.colour.data),
+                              **budget_entry(options.colour_map),
                               "colour_error": made.colour.colour_error,
                               "curve": [list(p) for p in made.colour.curve]}
     project = ThematicTexture(

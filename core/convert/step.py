@@ -119,6 +119,14 @@ def grid_budget(colour_map: ColourMapOptions | None, pixels: int) -> float | Non
     return GRID_SHARE * colour_map.area_bytes(pixels) * 8 / max(int(pixels), 1)
 
 
+def budget_entry(colour_map: ColourMapOptions | None) -> dict[str, float]:
+    """``{"budget_bpp": bits per photo pixel}`` for a project's colour-map metadata under
+    a byte budget; ``{}`` for a dE8 target or no map."""
+    if colour_map is None or colour_map.target is not None:
+        return {}
+    return {"budget_bpp": colour_map.budget}
+
+
 def detail_sigma(colour_map: ColourMapOptions | None) -> float | None:
     """The ``detail`` of :func:`themes_and_cell`: detail themes need a budget map."""
     return DETAIL_SIGMA if colour_map is not None and colour_map.target is None else None

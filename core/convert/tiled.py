@@ -33,6 +33,7 @@ from terratheme.core.convert.region_sample import (
 )
 from terratheme.core.convert.specks import SpeckStream
 from terratheme.core.convert.step import (
+    budget_entry,
     cover_classes,
     detail_sigma,
     grid_budget,
@@ -281,6 +282,7 @@ def convert_file_tiled(
         meta["render"] = {"boundary": asdict(boundary)}
     if fitted is not None:
         meta["colour_map"] = {"codec": fitted.codec, "bytes": fitted.colour_map.nbytes,
+                              **budget_entry(colour_map),
                               "scale_measured_on": [list(w) for w in sample.windows]}
     geo = read_georeference(path)
     if geo:
