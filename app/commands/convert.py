@@ -147,9 +147,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "T, whole themes; off: the paper's pure rule")
     parser.add_argument("--budget", type=_budget, metavar="BPP",
                         help="with --colour-map auto: bits per photo pixel for the packed grid "
-                             "and the colour map together (default 0.04); more gives a sharper "
-                             "map and finer cells up close (the map stops growing at 1/3 of "
-                             "the photo's resolution)")
+                             "and the colour map together (default 0.04); more gives truer "
+                             "colours and edges up close (the map itself stays at 1/6-1/3 of "
+                             "the photo's resolution, drawn up to twice as fine)")
     parser.add_argument("--boundary", choices=["shaped", "linear"], default="shaped",
                         help="shaped (default): borders of a few texels shaped by the themes and "
                              "noise; linear: the paper's ramp across the cell")
