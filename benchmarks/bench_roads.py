@@ -29,8 +29,8 @@ scores it, is kept as ``road_iou_majority``):
   skeleton_cover  share of the mask's road skeleton (``skeletonize``) predicted road:
                   how much of the network's centre lines survives;
   bytes           ``texture_cost`` (area = packed grid + colour map; themes apart);
-  dE8, detail     as ``bench_fidelity``: under the default byte budget the colour map takes
-                  what the grid leaves, so a finer grid costs colour, not bytes.
+  dE8, detail,    as ``bench_fidelity``: under the default byte budget the colour map takes
+  placement       what the grid leaves, so a finer grid costs colour, not bytes.
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
 from terratheme.core.fidelity import (  # noqa: E402
     colour_error,
+    detail_placement,
     detail_ratio,
     texture_cost,
 )
@@ -172,6 +173,8 @@ def measure_photo(model, folder: str, name: str, variants: dict, log) -> dict:
                    else round(tex["road_iou"] / cls["road_iou"], 4),
                    dE8=round(colour_error(render, photo), 3),
                    detail=round(detail_ratio(render, photo), 3),
+                   placement=round(float(np.sqrt(np.mean(detail_placement(render, photo) ** 2))),
+                                   3),
                    cell=int(res.project.grid.cell[0]), **texture_cost(res.project).as_dict(),
                    bpp=round(texture_cost(res.project).area_bytes * 8 / (w * h), 4),
                    seconds=round(secs, 2), mpx_per_s=round(mpx / secs, 3))
@@ -180,7 +183,7 @@ def measure_photo(model, folder: str, name: str, variants: dict, log) -> dict:
             f"ratio {tex['ratio']} cell {tex['cell']} comps {cls['components_100px']}/"
             f"{tex['components_100px']} (mask {row['mask_components_100px']}) skel "
             f"{cls['skeleton_cover']}/{tex['skeleton_cover']} {tex['area_bytes']} B "
-            f"dE8 {tex['dE8']} detail {tex['detail']} {secs:.1f} s")
+            f"dE8 {tex['dE8']} detail {tex['detail']} placement {tex['placement']} {secs:.1f} s")
     return row
 
 
@@ -215,8 +218,8 @@ def summarise(rows: list[dict]) -> dict:
         pooled = _pooled(vs)
         m = {k: _mean([x[k] for x in vs]) for k in
              ("road_iou", "road_iou_majority", "road_kept", "ratio", "components",
-              "components_100px", "skeleton_cover", "dE8", "detail", "cell", "area_bytes",
-              "grid_bytes", "colour_map_bytes", "theme_bytes", "bpp")}
+              "components_100px", "skeleton_cover", "dE8", "detail", "placement", "cell",
+              "area_bytes", "grid_bytes", "colour_map_bytes", "theme_bytes", "bpp")}
         m.update(road_iou_pooled=pooled,
                  ratio_pooled=None if not pooled else round(
                      pooled / out["classification"]["road_iou_pooled"], 4),
