@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.fidelity import (
     colour_error,
@@ -87,6 +89,17 @@ def test_detail_placement_is_the_log2_energy_ratio_of_each_block():
     assert detail_ratio(moved, photo) == pytest.approx(1.0, rel=0.05)
     ratios = detail_placement(moved, photo)
     assert ratios[:, 0].max() < -3 and ratios[:, 2].min() > 3
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(32, 80), st.integers(32, 80))
+@settings(max_examples=25, deadline=None)
+def test_detail_placement_is_zero_on_itself_and_antisymmetric(seed, h, w):
+    rng = np.random.default_rng(seed)
+    a = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    b = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    b[: h // 2] = b[: h // 2] // 8 + 100  # calmer top half
+    assert not detail_placement(a, a).any()
+    np.testing.assert_allclose(detail_placement(a, b), -detail_placement(b, a), atol=1e-6)
 
 
 def test_detail_placement_counts_whole_blocks_and_refuses_smaller_images():
