@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.inputs import check_input_file
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -130,6 +131,10 @@ def _security(address: str, tls: TlsFiles | None):
         # dask's own configuration (distributed.comm.tls.*), if any.
         security = Security()
     else:
+        # OpenSSL opens the files with no check: a FIFO would block it for ever.
+        for path in (tls.ca_file, tls.cert, tls.key):
+            if path is not None:
+                check_input_file(path, "a PEM certificate file")
         security = Security(tls_ca_file=str(tls.ca_file), tls_client_cert=str(tls.cert),
                             tls_client_key=None if tls.key is None else str(tls.key),
                             require_encryption=True)
