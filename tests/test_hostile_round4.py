@@ -3,7 +3,7 @@
 Each case runs the CLI in a subprocess (:func:`test_hostile_round2.run`) and checks what
 a user sees: exit status 2 and one error line, no input or unnamed file changed, no
 stale or half-written output. This round covers the inputs of the tiled path's cluster
-(TLS certificate files).
+(TLS certificate files) and the side files of a render or a conversion (world files).
 """
 
 from __future__ import annotations
@@ -44,4 +44,51 @@ def test_a_tls_file_that_is_a_fifo_is_one_line_not_a_hang(small, tmp_path, which
                "--tls-cert", files["cert"], "--tls-key", files["key"], timeout=60)
     refused(proc, f"{files[which]}: ", "named pipe")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ca.pem", "cert.pem", "key.pem"]
+
+
+# -- side files left from an earlier output ------------------------------------------------
+
+def _georeferenced_photo(folder: Path) -> Path:
+    """photo.png of ``folder`` as a GeoTIFF with 0.5 m pixels at (500000, 4000000)."""
+    import tifffile
+    from terratheme.core.io.images import read_image
+
+    photo = folder / "geo.tif"
+    tifffile.imwrite(photo, read_image(folder / "photo.png"), photometric="rgb",
+                     extratags=[(33550, "d", 3, [0.5, 0.5, 0.0], False),
+                                (33922, "d", 6, [0, 0, 0, 5e5, 4e6, 0], False)])
+    return photo
+
+
+def test_a_render_without_georeference_leaves_no_world_file_of_the_old_one(small, tmp_path):
+    """render r.png of a project without a georeference, over a render of a georeferenced
+    one, kept the old r.pgw: GIS placed the new image where the old one was."""
+    photo = _georeferenced_photo(small)
+    for src, name in ((photo, "g.ttproj"), (small / "photo.png", "p.ttproj")):
+        proc = run("convert", src, tmp_path / name, "--cell", "8", "--themes", "3")
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    out = tmp_path / "out"
+    out.mkdir()
+    assert run("render", tmp_path / "g.ttproj", out / "r.png").returncode == 0
+    assert (out / "r.pgw").read_text().split()[4:] == ["500000.25", "3999999.75"]
+    (out / "mine.pgw").write_text("the user's own\n")  # a world file of no image rendered
+    for name in ("r.png", "mine.png"):
+        proc = run("render", tmp_path / "p.ttproj", out / name)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(p.name for p in out.iterdir()) == ["mine.pgw", "mine.png", "r.png"]
+    assert (out / "mine.pgw").read_text() == "the user's own\n"
+
+
+def test_a_conversion_without_georeference_leaves_no_world_file_of_the_old_preview(
+        small, tmp_path):
+    """convert of a photo without a georeference onto a project converted from a GeoTIFF
+    kept the old p_preview.pgw beside the new preview."""
+    photo = _georeferenced_photo(small)
+    for src in (photo, small / "photo.png"):
+        proc = run("convert", src, tmp_path / "p.ttproj", "--cell", "8", "--themes", "3")
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        if src == photo:
+            assert (tmp_path / "p_preview.pgw").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "p.ttpack", "p.ttproj", "p_colour.avif", "p_preview.png"]
 

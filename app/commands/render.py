@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 
 from terratheme.app.arg_types import int_tuple, unit_fraction
@@ -49,7 +50,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from terratheme.app.outputs import check_image_outputs, check_outputs
     from terratheme.app.progress import progress_bar
-    from terratheme.core.io.georef import world_file_name, write_georeferenced
+    from terratheme.core.io.georef import (
+        stale_world_file,
+        world_file_name,
+        write_georeferenced,
+    )
     from terratheme.core.io.memory import RENDER_BYTES_PER_PIXEL, check_fits
     from terratheme.core.render.boundary import BoundaryOptions
     from terratheme.core.render.inputs import validate_region
@@ -94,7 +99,12 @@ def run(args: argparse.Namespace) -> int:
             image = render_project(project, region, args.scale, options=options,
                                    progress=progress)
     h, w = image.shape[:2]
-    made = write_georeferenced(args.out, image, render_georeference(project, region, (w, h)))
+    georeference = render_georeference(project, region, (w, h))
+    stale = stale_world_file(args.out, georeference)
+    made = write_georeferenced(args.out, image, georeference)
+    if stale is not None:  # it placed the image just replaced; this one has no georeference
+        with contextlib.suppress(FileNotFoundError):
+            stale.unlink()
     geo = " with its georeference" if made else ""
     how = ", GPU from the packed layer" if packed else ", GPU" if gpu else ""
     print(f"{args.out}: {w} x {h} texels ({style} blend{how}){geo}")

@@ -39,6 +39,7 @@ from terratheme.core.io.atomic import file_set, write_bytes_atomic
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import (
     read_georeference,
+    stale_world_file,
     world_file_for,
     world_file_name,
     write_georeference,
@@ -337,6 +338,8 @@ def write_outputs(
 
     finals = [path for _, path in plan]
     remove = _old_colour_maps(Path(project_path), packed_path, finals)
+    if preview_path is not None and (stale := stale_world_file(preview_path, geo)):
+        remove.append(stale)  # it placed the old preview; the new one has no georeference
     with file_set(finals, remove=remove) as files, ThreadPoolExecutor(max_workers=1) as pool:
         where = {key: files.temporary(path) for key, path in plan}
         # The preview PNG is encoded on a second thread while the rest is written

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 import struct
 from pathlib import Path
 
@@ -184,6 +185,20 @@ def world_file_name(path: str | os.PathLike) -> Path | None:
         return None
     return p.with_suffix({".png": ".pgw", ".jpg": ".jgw", ".jpeg": ".jgw"}.get(
         p.suffix.lower(), ".wld"))
+
+
+def stale_world_file(path: str | os.PathLike, georef: dict) -> Path | None:
+    """The world file beside the image ``path`` that writing it anew with ``georef`` leaves
+    describing the old image (the new one carries none), or None: to be removed with the
+    old image, else GIS places the new image by it. Only a regular file beside an existing
+    image is stale; a TIFF has no world file."""
+    world = world_file_name(path)
+    if world is None or world_file_for(path, georef) is not None or not Path(path).exists():
+        return None
+    try:
+        return world if stat.S_ISREG(world.lstat().st_mode) else None
+    except OSError:
+        return None
 
 
 def write_georeferenced(path: str | os.PathLike, image: np.ndarray, georef: dict, *,
