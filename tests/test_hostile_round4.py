@@ -3,7 +3,9 @@
 Each case runs the CLI in a subprocess (:func:`test_hostile_round2.run`) and checks what
 a user sees: exit status 2 and one error line, no input or unnamed file changed, no
 stale or half-written output. This round covers the inputs of the tiled path's cluster
-(TLS certificate files) and the side files of a render or a conversion (world files).
+(TLS certificate files), the side files of a render or a conversion (world files), photos
+and model paths the classifier took wrongly, an option the tiled path dropped, and
+georeferences no output can carry.
 """
 
 from __future__ import annotations
@@ -92,3 +94,31 @@ def test_a_conversion_without_georeference_leaves_no_world_file_of_the_old_previ
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "p.ttpack", "p.ttproj", "p_colour.avif", "p_preview.png"]
 
+
+# -- photos of other pixel types -------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", ["int32", "uint32"])
+def test_classify_reads_a_32_bit_photo_as_convert_does(small, tmp_path, dtype):
+    """A 32-bit integer photo converts, but classify refused it after reading it with
+    'photo pixel type int32 is not supported', naming no file (with --train: which one?)."""
+    import tifffile
+    from terratheme.core.io.images import read_image, read_labels
+
+    rgb = read_image(small / "photo.png")
+    top = np.iinfo(dtype).max
+    photo = tmp_path / "p32.tif"  # the same colours at 32 bits (255 -> the type's top)
+    tifffile.imwrite(photo, (rgb.astype(np.int64) * top // 255).astype(dtype),
+                     photometric="rgb")
+    proc = run("classify", photo, "-o", tmp_path / "l.png", "--themes", "3")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    labels = read_labels(tmp_path / "l.png")
+    # the insides of the photo's three colour blocks (the classifier smooths their borders)
+    blocks = [labels[2:10, 2:22], labels[14:22, 2:10], labels[14:22, 14:22]]
+    assert all(np.unique(b).size == 1 for b in blocks)
+    assert len({int(b[0, 0]) for b in blocks}) == 3
+    scribbles = np.zeros((24, 24), np.uint8)
+    scribbles[2:5, 2:5], scribbles[15:18, 2:5], scribbles[15:18, 15:18] = 1, 2, 3
+    write_image(tmp_path / "s.png", scribbles)
+    proc = run("classify", small / "photo.png", "-o", tmp_path / "t.png", "--scribbles",
+               tmp_path / "s.png", "--train", photo, tmp_path / "s.png")
+    assert proc.returncode == 0, proc.stderr[-2000:]

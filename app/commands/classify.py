@@ -101,6 +101,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "default 2G): the least recently used entries are removed first")
 
 
+def _read_photo(path: str):
+    """A photo as convert and the editor read it: 8- and 16-bit and float pixels as they
+    are, other integer types (32-bit, signed) converted to 8 bits on reading."""
+    import numpy as np
+    from terratheme.core.io.images import Bands, read_image
+
+    photo = read_image(path, bands=Bands.PHOTO)
+    if photo.dtype.kind in "iu" and photo.dtype not in (np.uint8, np.uint16):
+        photo = read_image(path, dtype=np.uint8, bands=Bands.PHOTO)
+    return photo
+
+
 def _read_mask(path: str):
     import numpy as np
     from terratheme.core.errors import TerrathemeError
@@ -166,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from terratheme.core.errors import TerrathemeError
     from terratheme.core.io.atomic import file_set
-    from terratheme.core.io.images import Bands, image_info, read_image, write_image
+    from terratheme.core.io.images import image_info, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
     from terratheme.core.packing.export import check_layer_image_path
@@ -203,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
 
     info = image_info(args.photo)
     check_fits(args.photo, info.width, info.height, CLASSIFY_BYTES_PER_PIXEL)  # before reading
-    photo = read_image(args.photo, bands=Bands.PHOTO)
+    photo = _read_photo(args.photo)
     # Read and train first, so input errors come before any progress bar is drawn.
     if args.model:
         model = load_model(args.model)
@@ -212,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
         if args.scribbles:
             pairs.append((photo, _read_mask(args.scribbles)))
         for train_photo, train_mask in args.train:
-            pairs.append((read_image(train_photo, bands=Bands.PHOTO), _read_mask(train_mask)))
+            pairs.append((_read_photo(train_photo), _read_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
         model = train_classifier(pairs, options.with_positions(args.position), cache=cache)
         if cache is not None and cache.hits["model"]:
