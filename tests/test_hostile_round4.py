@@ -122,3 +122,20 @@ def test_classify_reads_a_32_bit_photo_as_convert_does(small, tmp_path, dtype):
     proc = run("classify", small / "photo.png", "-o", tmp_path / "t.png", "--scribbles",
                tmp_path / "s.png", "--train", photo, tmp_path / "s.png")
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+@pytest.mark.parametrize("command", ["classify", "convert"])
+def test_a_model_that_is_no_file_is_named_for_what_it_is(small, tmp_path, kind, command):
+    """--model PIPE or --model FOLDER said 'no such model file, nor a shipped model' of a
+    path that is there."""
+    model = tmp_path / "m.ttmodel"
+    if kind == "fifo":
+        os.mkfifo(model)
+    else:
+        model.mkdir()
+    out = ["-o", tmp_path / "l.png"] if command == "classify" else [tmp_path / "o.ttproj"]
+    line = refused(run(command, small / "photo.png", *out, "--model", model, timeout=60),
+                   f"{model}: ")
+    assert ("named pipe" if kind == "fifo" else "is a folder") in line, line
+    assert [p.name for p in tmp_path.iterdir()] == ["m.ttmodel"]

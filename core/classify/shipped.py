@@ -15,6 +15,7 @@ from terratheme.core.classify.network import NetworkClassifier
 from terratheme.core.classify.supervised import Classifier
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.archive import parse_json, read_bounded
+from terratheme.core.io.inputs import check_input_file
 
 SHIPPED_MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 MODELS_INDEX = "models.json"
@@ -122,6 +123,8 @@ def resolve_model(name_or_path: str | os.PathLike,
     models = shipped_models(folder)
     entry = models.get(str(name_or_path))
     if entry is None:
+        if os.path.exists(path):  # a folder or a pipe: say what it is
+            check_input_file(path, "a model file")
         known = ", ".join(sorted(models)) or "none"
         raise TerrathemeError(f"{name_or_path}: no such model file, nor a shipped model "
                               f"(shipped: {known})")
