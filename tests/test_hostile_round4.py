@@ -139,3 +139,32 @@ def test_a_model_that_is_no_file_is_named_for_what_it_is(small, tmp_path, kind, 
                    f"{model}: ")
     assert ("named pipe" if kind == "fifo" else "is a folder") in line, line
     assert [p.name for p in tmp_path.iterdir()] == ["m.ttmodel"]
+
+
+
+# -- georeferences no output can carry ------------------------------------------------------
+
+@pytest.mark.parametrize("out", ["r.png", "r.tif"])
+def test_render_refuses_a_georeference_no_gis_can_use_before_work(small, tmp_path, out):
+    """A project whose georeference has a zero pixel size (hand-edited, or converted before
+    round 3) rendered with exit 0: a world file or GeoTIFF tags of zero pixel size, which no
+    GIS can place; every export of it refused."""
+    import json
+    import zipfile
+
+    proc = run("convert", _georeferenced_photo(small), tmp_path / "g.ttproj", "--cell", "8",
+               "--themes", "3")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    bad = tmp_path / "bad.ttproj"
+    with zipfile.ZipFile(tmp_path / "g.ttproj") as zin, zipfile.ZipFile(bad, "w") as zout:
+        for name in zin.namelist():
+            data = zin.read(name)
+            if name == "manifest.json":
+                manifest = json.loads(data)
+                manifest["metadata"]["georeference"]["ModelPixelScale"] = [0.0, 0.5, 0.0]
+                data = json.dumps(manifest).encode()
+            zout.writestr(name, data)
+    folder = tmp_path / "out"
+    folder.mkdir()
+    refused(run("render", bad, folder / out), f"{bad}: ", "degenerate pixel size")
+    assert not any(folder.iterdir())

@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
                   inputs=[args.project] + ([packed] if packed else []))
     check_image_outputs([args.out], channels=3)
     project = load_checked_project(args.project)
+    _check_world_frame(args.project, project)
     grid = _packed_grid(packed, project) if packed else project.grid
     if args.blend is None:
         options = project_style(project)
@@ -112,6 +113,18 @@ def run(args: argparse.Namespace) -> int:
         if str(extra) != str(args.out):
             print(f"  world file: {extra}")
     return 0
+
+
+def _check_world_frame(path: str, project) -> None:
+    """Refuse, before the work, a georeference no GIS could place the render by (a zero
+    pixel size, corners beyond floating point), as export does: the render would carry it."""
+    from terratheme.core.errors import CorruptFileError, TerrathemeError
+    from terratheme.core.exchange.layout import world_frame
+
+    try:
+        world_frame(project.metadata.get("georeference"), project.grid.texture_size)
+    except TerrathemeError as exc:
+        raise CorruptFileError(f"{path}: {exc}") from None
 
 
 def _gpu_renderer(project):
