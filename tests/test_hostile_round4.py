@@ -142,6 +142,18 @@ def test_a_model_that_is_no_file_is_named_for_what_it_is(small, tmp_path, kind, 
 
 
 
+# -- options that could not be honoured ----------------------------------------------------
+
+def test_convert_tile_refuses_the_curve_it_would_not_write(small, tmp_path):
+    """convert --tile 16 --curve c.svg converted the photo tile by tile and exited 0 with
+    no chart: the tiled path makes none and ignored the option."""
+    proc = run("convert", small / "photo.png", tmp_path / "p.ttproj", "--tile", "16",
+               "--curve", tmp_path / "c.svg")
+    refused(proc, "--curve", "--tile")
+    assert not proc.stderr.startswith("convert")  # no stage ran
+    assert not any(tmp_path.iterdir())
+
+
 # -- georeferences no output can carry ------------------------------------------------------
 
 @pytest.mark.parametrize("out", ["r.png", "r.tif"])

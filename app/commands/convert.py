@@ -378,6 +378,9 @@ def _run_tiled(args, project, preview, packed, themes, legend) -> int:
                               "both for unsupervised themes")
     if args.tile < 16:
         raise TerrathemeError(f"--tile: N must be >= 16, not {args.tile}")
+    if args.curve:
+        raise TerrathemeError("--curve charts the cell choice over the whole photo; --tile "
+                              "makes no such chart: drop one of them")
     if args.model and isinstance(themes, int):
         raise TerrathemeError("--themes K is for unsupervised classification; with --model "
                               "the classes are given (use auto or 1=name,2=name)")
