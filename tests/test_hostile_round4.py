@@ -4,8 +4,8 @@ Each case runs the CLI in a subprocess (:func:`test_hostile_round2.run`) and che
 a user sees: exit status 2 and one error line, no input or unnamed file changed, no
 stale or half-written output. This round covers the inputs of the tiled path's cluster
 (TLS certificate files), the side files of a render or a conversion (world files), photos
-and model paths the classifier took wrongly, an option the tiled path dropped, and
-georeferences no output can carry.
+and model paths the classifier took wrongly, an option the tiled path dropped,
+georeferences no output can carry and the editor's screenshot on a full disk.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from terratheme.core.io.images import write_image
-from test_hostile_round2 import refused, run
+from test_hostile_round2 import refused, run, small_disk
 
 
 @pytest.fixture(scope="module")
@@ -180,3 +180,22 @@ def test_render_refuses_a_georeference_no_gis_can_use_before_work(small, tmp_pat
     folder.mkdir()
     refused(run("render", bad, folder / out), f"{bad}: ", "degenerate pixel size")
     assert not any(folder.iterdir())
+
+
+# -- the editor's screenshot on a full disk --------------------------------------------------
+
+@pytest.mark.parametrize("name", ["old.png", "s.png"])
+def test_a_screenshot_lost_to_a_full_disk_keeps_the_old_file(small, tmp_path, name):
+    """app --screenshot was saved by Qt straight onto its path: on a full disk it left a
+    truncated 4 KiB PNG (old.png's bytes lost) and libpng's 'Write Error' line on stderr."""
+    idx = np.zeros((9, 9), np.uint8)
+    idx[4:] = 1
+    write_image(tmp_path / "idx.png", idx)
+    proc = run("new", tmp_path / "idx.png", tmp_path / "p.ttproj", "--themes", "water,sand")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with small_disk(tmp_path, "300k", 4096, "old.png") as disk:
+        proc = run("app", tmp_path / "p.ttproj", "--screenshot", disk / name,
+                   env={"QT_QPA_PLATFORM": "offscreen"}, timeout=120)
+        refused(proc, f"{disk / name}: ", "No space left")
+        assert (disk / "old.png").read_bytes() == b"old"
+        assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from terratheme.app.editor.display import prepare_display
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.io.atomic import write_bytes_atomic
 from terratheme.core.model.project import PROJECT_SUFFIX
 
 
@@ -43,7 +44,14 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
 
     # A missing or unreachable display is one line, not Qt's abort (:mod:`.display`).
     prepare_display(screenshot=screenshot is not None)
-    from PySide6.QtCore import QElapsedTimer, QEventLoop, qInstallMessageHandler
+    from PySide6.QtCore import (
+        QBuffer,
+        QByteArray,
+        QElapsedTimer,
+        QEventLoop,
+        QIODevice,
+        qInstallMessageHandler,
+    )
     from PySide6.QtWidgets import QApplication
     from terratheme.app.editor.window import MainWindow
     from terratheme.core.edit.classification import ClassifyMode as Mode
@@ -88,8 +96,15 @@ def run_editor(target: str | None, *, screenshot: str | None = None, classify: b
         win.wait_for_jobs()
         win.doc.model.history.mark_saved()
         win.close()
-    if not image.save(str(screenshot)):
+    # Coded in memory, then written whole (a full disk keeps the old file, and libpng
+    # says nothing on stderr).
+    data = QByteArray()
+    buffer = QBuffer(data)
+    buffer.open(QIODevice.OpenModeFlag.WriteOnly)
+    if not image.save(buffer, Path(screenshot).suffix.lstrip(".").lower() or None):
         raise TerrathemeError(f"cannot write the screenshot {screenshot}")
+    buffer.close()
+    write_bytes_atomic(screenshot, bytes(data))
     return 0
 
 
