@@ -4,8 +4,9 @@ Each case runs the CLI in a subprocess (:func:`test_hostile_round2.run`) and che
 a user sees: exit status 2 and one error line, no input or unnamed file changed, no
 stale or half-written output. This round covers the inputs of the tiled path's cluster
 (TLS certificate files), the side files of a render or a conversion (world files), photos
-and model paths the classifier took wrongly, an option the tiled path dropped,
-georeferences no output can carry and the editor's screenshot on a full disk.
+and model paths the classifier took wrongly, options that could not be honoured,
+georeferences no output can carry, and outputs written by other libraries (matplotlib,
+Qt, libtiff) on a full disk.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ def small(tmp_path_factory) -> Path:
     return folder
 
 
-# -- certificate files that are no files -------------------------------------------------
+# -- certificate files that are no files ---------------------------------------------------
 
 @pytest.mark.parametrize("which", ["ca", "cert", "key"])
 def test_a_tls_file_that_is_a_fifo_is_one_line_not_a_hang(small, tmp_path, which):
@@ -95,7 +96,7 @@ def test_a_conversion_without_georeference_leaves_no_world_file_of_the_old_previ
         "p.ttpack", "p.ttproj", "p_colour.avif", "p_preview.png"]
 
 
-# -- photos of other pixel types -------------------------------------------------------------
+# -- photos of other pixel types -----------------------------------------------------------
 
 @pytest.mark.parametrize("dtype", ["int32", "uint32"])
 def test_classify_reads_a_32_bit_photo_as_convert_does(small, tmp_path, dtype):
@@ -141,7 +142,6 @@ def test_a_model_that_is_no_file_is_named_for_what_it_is(small, tmp_path, kind, 
     assert [p.name for p in tmp_path.iterdir()] == ["m.ttmodel"]
 
 
-
 # -- options that could not be honoured ----------------------------------------------------
 
 def test_convert_tile_refuses_the_curve_it_would_not_write(small, tmp_path):
@@ -154,7 +154,7 @@ def test_convert_tile_refuses_the_curve_it_would_not_write(small, tmp_path):
     assert not any(tmp_path.iterdir())
 
 
-# -- georeferences no output can carry ------------------------------------------------------
+# -- georeferences no output can carry -----------------------------------------------------
 
 @pytest.mark.parametrize("out", ["r.png", "r.tif"])
 def test_render_refuses_a_georeference_no_gis_can_use_before_work(small, tmp_path, out):
@@ -182,7 +182,18 @@ def test_render_refuses_a_georeference_no_gis_can_use_before_work(small, tmp_pat
     assert not any(folder.iterdir())
 
 
-# -- the editor's screenshot on a full disk --------------------------------------------------
+# -- outputs lost to a full disk -----------------------------------------------------------
+
+@pytest.mark.parametrize("suffix", [".pdf", ".svg"])
+def test_the_curve_chart_lost_to_a_full_disk_is_one_line(small, tmp_path, suffix):
+    """matplotlib's PDF writer, failing on a full disk, raised an AttributeError of its own
+    ('Stream' object has no attribute 'pos'): convert --curve c.pdf was a traceback, exit 1."""
+    with small_disk(tmp_path, "300k", 4096, "old.png") as disk:
+        chart = disk / f"c{suffix}"
+        refused(run("convert", small / "photo.png", tmp_path / "p.ttproj", "--curve", chart),
+                f"{chart}: ", "No space left")
+        assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]
+
 
 @pytest.mark.parametrize("name", ["old.png", "s.png"])
 def test_a_screenshot_lost_to_a_full_disk_keeps_the_old_file(small, tmp_path, name):

@@ -175,13 +175,14 @@ CHART_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def _curve_chart(choice, path: str) -> None:
+    import io
     from pathlib import Path
 
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from terratheme.core.io.atomic import atomic_path
+    from terratheme.core.io.atomic import write_bytes_atomic
 
     cells = [p.cell for p in choice.curve]
     fig, ax = plt.subplots(figsize=(6, 3.6), dpi=110)
@@ -197,9 +198,12 @@ def _curve_chart(choice, path: str) -> None:
     ax2.set_ylabel("grid bytes (1 per vertex)")
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format=Path(path).suffix.lower()[1:])
+    # Drawn in memory, then written whole: matplotlib's PDF writer, failing on a full
+    # disk, raised an AttributeError of its own in place of the OSError.
+    chart = io.BytesIO()
+    fig.savefig(chart, format=Path(path).suffix.lower()[1:])
     plt.close(fig)
+    write_bytes_atomic(path, chart.getvalue())
 
 
 def run(args: argparse.Namespace) -> int:
