@@ -210,3 +210,27 @@ def test_a_screenshot_lost_to_a_full_disk_keeps_the_old_file(small, tmp_path, na
         refused(proc, f"{disk / name}: ", "No space left")
         assert (disk / "old.png").read_bytes() == b"old"
         assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]
+
+
+@pytest.mark.parametrize("command", [
+    ["classify", "{photo}", "-o", "{t}/l.png", "--confidence", "{d}/c.tif"],
+    ["unpack", "{l}", "{d}/u.tif"],
+    ["render", "{p}", "{d}/r.tif", "--scale", "0.5"],
+], ids=lambda c: c[0])
+def test_a_tiff_lost_to_a_full_disk_names_the_disk_not_a_temporary(small, tmp_path, command):
+    """libtiff reports a header it cannot write as 'Could not open': a TIFF output on a full
+    disk was 'cannot write d/c.tif: Could not open "d/.c.tif.tt-0123456789ab.tmp.tif"'."""
+    idx = np.zeros((9, 9), np.uint8)
+    idx[4:] = 1
+    write_image(tmp_path / "idx.png", idx)
+    for args in (["pack", tmp_path / "idx.png", tmp_path / "l.ttpack"],
+                 ["new", tmp_path / "idx.png", tmp_path / "p.ttproj", "--themes", "water,sand"]):
+        proc = run(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    with small_disk(tmp_path, "64k", 0, "old.png") as disk:
+        args = [a.format(photo=small / "photo.png", t=tmp_path, d=disk, l=tmp_path / "l.ttpack",
+                         p=tmp_path / "p.ttproj") for a in command]
+        out = next(a for a in args if a.startswith(str(disk)))
+        line = refused(run(*args), f"cannot write {out}: ", "disk is full")
+        assert ".tt-" not in line, line
+        assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]

@@ -426,7 +426,7 @@ def write_oiio(path: str | os.PathLike, tmp: str | os.PathLike, spec: oiio.Image
         raise TerrathemeError(f"cannot write {path}: {error_line() or 'unknown format'}")
     _check_space(path, Path(tmp), out.format_name(), pixels.nbytes)
     if not out.open(str(tmp), spec):
-        raise TerrathemeError(f"cannot write {path}: {error_line(out) or error_line()}")
+        raise TerrathemeError(f"cannot write {path}: {open_failure(path, tmp, out)}")
     ok = out.write_image(pixels)
     errors = _error_text(out)
     ok = out.close() and ok
@@ -445,6 +445,21 @@ def write_oiio(path: str | os.PathLike, tmp: str | os.PathLike, spec: oiio.Image
 READ_BACK_BELOW = 64 << 10
 #: most bytes of pixels held at once while reading back
 _READ_BACK_BAND = 16 << 20
+
+
+def open_failure(path: str | os.PathLike, tmp: str | os.PathLike,
+                 out: oiio.ImageOutput) -> str:
+    """Why ``out`` could not open ``tmp`` (``path``'s temporary): its disk is full (libtiff
+    says 'Could not open' of a header it cannot write), or OpenImageIO's text, the
+    temporary named as ``path``."""
+    why = (error_line(out) or error_line()).replace(str(tmp), str(path))
+    try:
+        st = os.statvfs(Path(tmp).parent)
+    except OSError:
+        return why
+    if st.f_bavail * st.f_frsize < max(READ_BACK_BELOW, 2 * st.f_bsize):
+        return f"its disk is full ({st.f_bavail * st.f_frsize:,} bytes free)"
+    return why
 
 
 def check_written(path: str | os.PathLike, tmp: str | os.PathLike) -> None:

@@ -10,7 +10,7 @@ import OpenImageIO as oiio
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.image_format import error_line
-from terratheme.core.io.images import OIIO_PIXEL_TYPES, check_written
+from terratheme.core.io.images import OIIO_PIXEL_TYPES, check_written, open_failure
 
 
 class TiledImageWriter:
@@ -66,7 +66,7 @@ class TiledImageWriter:
             self._ctx.__exit__(TerrathemeError, None, None)
             raise TerrathemeError(f"cannot write {self.path} tiled: format has no tiles")
         if not out.open(str(tmp), self.spec):
-            err = error_line(out)
+            err = open_failure(self.path, tmp, out)
             self._ctx.__exit__(TerrathemeError, None, None)
             raise TerrathemeError(f"cannot write {self.path}: {err}")
         self._out = out
