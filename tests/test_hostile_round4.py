@@ -154,6 +154,16 @@ def test_convert_tile_refuses_the_curve_it_would_not_write(small, tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("name", ["s.xyz", "s"])
+def test_a_screenshot_name_qt_cannot_write_is_refused_before_qt_starts(small, tmp_path, name):
+    """app --screenshot s.xyz loaded the project, laid out the window and grabbed it, then
+    said 'cannot write the screenshot s.xyz'."""
+    proc = run("app", small / "photo.png", "--screenshot", tmp_path / "sub" / name,
+               env={"QT_QPA_PLATFORM": "offscreen"}, timeout=120)
+    refused(proc, f"{tmp_path / 'sub' / name}: ", ".png")
+    assert not any(tmp_path.iterdir())
+
+
 # -- georeferences no output can carry -----------------------------------------------------
 
 @pytest.mark.parametrize("out", ["r.png", "r.tif"])

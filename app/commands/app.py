@@ -39,7 +39,24 @@ def run(args: argparse.Namespace) -> int:
         raise TerrathemeError(f"--size {w}x{h}: each side must be {MIN_SIDE}..{MAX_SIDE} pixels")
     # The screenshot's path is checked before Qt starts (and its folder made).
     check_outputs([args.screenshot], inputs=[args.target])
+    if args.screenshot is not None:
+        _check_screenshot_format(args.screenshot)
     from terratheme.app.editor.launch import run_editor
 
     return run_editor(args.target, screenshot=args.screenshot,
                       classify=not args.no_classify, size=(w, h))
+
+
+def _check_screenshot_format(path: str) -> None:
+    """Refuse, before the window is laid out, a screenshot name no Qt image writer takes."""
+    from pathlib import Path
+
+    from PySide6.QtGui import QImageWriter
+    from terratheme.core.errors import TerrathemeError
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    known = sorted(bytes(f).decode() for f in QImageWriter.supportedImageFormats())
+    if suffix not in known:
+        what = f"no image format is written as '.{suffix}'" if suffix else "has no extension"
+        raise TerrathemeError(f"{path}: {what}; name the screenshot .png, .jpg, ... "
+                              f"({', '.join(known)})")
