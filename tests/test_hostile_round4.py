@@ -5,8 +5,8 @@ a user sees: exit status 2 and one error line, no input or unnamed file changed,
 stale or half-written output. This round covers the inputs of the tiled path's cluster
 (TLS certificate files), the side files of a render or a conversion (world files), photos
 and model paths the classifier took wrongly, options that could not be honoured,
-georeferences no output can carry, and outputs written by other libraries (matplotlib,
-Qt, libtiff) on a full disk.
+georeferences no output can carry, and outputs on a full disk (written by matplotlib, Qt
+or libtiff, or as a member of convert's set).
 """
 
 from __future__ import annotations
@@ -244,3 +244,16 @@ def test_a_tiff_lost_to_a_full_disk_names_the_disk_not_a_temporary(small, tmp_pa
         line = refused(run(*args), f"cannot write {out}: ", "disk is full")
         assert ".tt-" not in line, line
         assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".webp"])
+def test_a_preview_lost_to_a_full_disk_names_the_preview(small, tmp_path, suffix):
+    """convert wrote the preview to a temporary of its set's temporary: a full disk was
+    'cannot write d/.p.jpg.tt-0123456789ab.tmp.jpg: 0 bytes free on its disk ...'."""
+    with small_disk(tmp_path, "64k", 0, "old.png") as disk:
+        preview = disk / f"p{suffix}"
+        line = refused(run("convert", small / "photo.png", tmp_path / "p.ttproj", "--preview",
+                           preview), f"cannot write {preview}: ")
+        assert ".tt-" not in line, line
+        assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk"]  # no member of the set

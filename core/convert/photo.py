@@ -340,15 +340,17 @@ def write_outputs(
     remove = _old_colour_maps(Path(project_path), packed_path, finals)
     if preview_path is not None and (stale := stale_world_file(preview_path, geo)):
         remove.append(stale)  # it placed the old preview; the new one has no georeference
-    with file_set(finals, remove=remove) as files, ThreadPoolExecutor(max_workers=1) as pool:
-        where = {key: files.temporary(path) for key, path in plan}
+    with file_set(finals, remove=remove), ThreadPoolExecutor(max_workers=1) as pool:
+        # Each member written through its own path: the writers' atomic_path yields the
+        # set's temporary, and their errors (a full disk) name the output, not a temporary.
+        where = dict(plan)
         # The preview PNG is encoded on a second thread while the rest is written
         # (zlib in both releases the GIL); all are written before the set is renamed.
         beside = pool.submit(write, "preview", where["preview"], where) \
             if "preview" in where else None
-        for key, tmp in where.items():
+        for key, target in where.items():
             if key != "preview":
-                write(key, tmp, where)
+                write(key, target, where)
         if beside is not None:
             beside.result()
     return dict(plan)
