@@ -31,6 +31,13 @@ def test_every_legend_shape_reads_the_same(text: str) -> None:
     assert parse_legend(text.encode(), "legend") == {1: "Building", 5: "Water"}
 
 
+def test_csv_fields_are_quoted_as_rfc_4180_and_later_columns_not_read() -> None:
+    """'1,"wa,ter"' kept its quotes and split the name; '1,water,0,0,255' (a colour
+    column) named the class 'water,0,0,255'."""
+    text = '1,"wa,ter"\n2, "sand ""dry"""\n3,water,0,0,255\n'
+    assert parse_legend(text.encode(), "l.csv") == {1: "wa,ter", 2: 'sand "dry"', 3: "water"}
+
+
 def test_names_are_trimmed_and_may_repeat() -> None:
     names = parse_legend(b'{"2": "Land  (unpaved\\tarea)", "3": "Tree", "4": "tree"}', "l")
     assert names == {2: "Land (unpaved area)", 3: "Tree", 4: "tree"}

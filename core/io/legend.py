@@ -3,12 +3,14 @@
 Shapes: ``{"classes": {"1": "Building"}}`` or the bare mapping; ``{"classes":
 [{"id": 1, "name": "Building"}]}`` or the bare list (``value``/``class`` name the
 number, ``label`` the name); CSV or text lines ``1,Building`` (header and ``#``
-lines skipped). Names become theme names, so each is trimmed, printable and at
-most :data:`MAX_NAME` characters; the file is read up to :data:`MAX_LEGEND_BYTES`.
+lines skipped; quoted fields as RFC 4180, columns after the name not read). Names
+become theme names, so each is trimmed, printable and at most :data:`MAX_NAME`
+characters; the file is read up to :data:`MAX_LEGEND_BYTES`.
 """
 
 from __future__ import annotations
 
+import csv
 import os
 import re
 from pathlib import Path
@@ -71,13 +73,17 @@ def _entries_of(data: object, label: str) -> list[tuple[object, object]]:
 
 
 def _csv_entries(text: str) -> list[tuple[object, object]]:
+    """(value, name) of each CSV row ``value,name[,...]`` (quoted as RFC 4180; columns
+    after the name, such as a colour, are not read) or text line ``value name``."""
     pairs = []
     for n, line in enumerate(text.splitlines()):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
-        value, sep, name = line.partition(",")
-        if not sep:
+        row = next(csv.reader([line], skipinitialspace=True))
+        if len(row) > 1:
+            value, name = row[0], row[1]
+        else:
             value, _, name = line.partition(" ")
         if n == 0 and not any(ch.isdigit() for ch in value):
             continue  # a header line (words; '١' or '1_0' is a value, refused as such)
