@@ -81,17 +81,28 @@ def _check_subfolders(out: Path, folder: Path) -> None:
                                   "must be real folders (remove the link)")
 
 
+def check_file_names(paths: Iterable[str | os.PathLike | None]) -> None:
+    """Refuse an output file name that ends in '/' (a folder's; ``Path`` drops the slash,
+    so ``x.ttproj/`` would be written as the file ``x.ttproj``). None entries are skipped."""
+    for raw in paths:
+        if raw is not None and os.fspath(raw).endswith(("/", os.sep)):
+            raise TerrathemeError(f"{os.fspath(raw)}: ends in '/', so it names a folder; "
+                                  "name the output file")
+
+
 def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
                   inputs: Iterable[str | os.PathLike | None] = (),
                   folder: str | os.PathLike | None = None) -> list[Path]:
     """Check the files a command will write and make their folders; returns the non-None
     ``outputs``.
 
-    TerrathemeError when an output is a folder, a pipe or device, an input (after links,
+    TerrathemeError when an output is or names a folder, a pipe or device, an input (after links,
     or by inode), named twice, under a symlinked subfolder of ``folder`` (an export's), a
     symlink loop, or in a folder that cannot be made or written. None entries are skipped.
     """
-    outs = [Path(p) for p in outputs if p is not None]
+    outputs = [p for p in outputs if p is not None]
+    check_file_names(outputs)
+    outs = [Path(p) for p in outputs]
     ins = [(Path(p), _resolved(Path(p)), _file_id(Path(p))) for p in inputs if p is not None]
     seen: dict[Path, Path] = {}
     for out in outs:

@@ -257,3 +257,19 @@ def test_a_preview_lost_to_a_full_disk_names_the_preview(small, tmp_path, suffix
         assert ".tt-" not in line, line
         assert sorted(p.name for p in disk.iterdir()) == ["filler", "old.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["disk"]  # no member of the set
+
+
+# -- output names that end in '/' ------------------------------------------------------------
+
+@pytest.mark.parametrize("command", [
+    ["convert", "{photo}", "{d}/x.ttproj/"],
+    ["convert", "{photo}", "{d}/x.ttproj", "--preview", "{d}/p.png/"],
+    ["convert", "{photo}", "{d}/x.ttproj", "--curve", "{d}/c.svg/"],
+    ["classify", "{photo}", "-o", "{d}/l.png/"],
+], ids=["project", "preview", "curve", "labels"])
+def test_an_output_name_ending_in_a_slash_is_refused(small, tmp_path, command):
+    """convert x.ttproj/ wrote the file x.ttproj (Path drops the slash); render r.png/
+    said no format is written as '.png'."""
+    args = [a.format(photo=small / "photo.png", d=tmp_path) for a in command]
+    refused(run(*args), "ends in '/'")
+    assert not any(tmp_path.iterdir())

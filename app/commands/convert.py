@@ -210,7 +210,12 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; returns the exit status."""
     from pathlib import Path
 
-    from terratheme.app.outputs import check_image_outputs, check_mask_sizes, check_outputs
+    from terratheme.app.outputs import (
+        check_file_names,
+        check_image_outputs,
+        check_mask_sizes,
+        check_outputs,
+    )
     from terratheme.app.progress import StageBar
     from terratheme.core.convert.photo import (
         ConvertOptions,
@@ -223,6 +228,7 @@ def run(args: argparse.Namespace) -> int:
     from terratheme.core.io.images import image_info
     from terratheme.core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
 
+    check_file_names([args.project, args.preview, args.packed])  # before Path drops a '/'
     project = Path(args.project)
     if project.suffix.lower() != ".ttproj":
         raise TerrathemeError(f"{project}: the project file must end in .ttproj")
