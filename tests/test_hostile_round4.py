@@ -273,3 +273,25 @@ def test_an_output_name_ending_in_a_slash_is_refused(small, tmp_path, command):
     args = [a.format(photo=small / "photo.png", d=tmp_path) for a in command]
     refused(run(*args), "ends in '/'")
     assert not any(tmp_path.iterdir())
+
+
+def test_an_image_and_its_world_file_are_replaced_together(tmp_path, monkeypatch):
+    """render wrote the image, then its world file: a world file that could not be written
+    (a full disk) left the new image placed by the old world file."""
+    import terratheme.core.io.georef as georef_mod
+    from terratheme.core.io.georef import write_georeferenced
+
+    geo = {"ModelPixelScale": [1.0, 1.0, 0.0], "ModelTiepoint": [0, 0, 0, 100.0, 200.0, 0]}
+    old = np.zeros((8, 8, 3), np.uint8)
+    made = write_georeferenced(tmp_path / "r.png", old, geo)
+    assert made == [tmp_path / "r.pgw"]
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def full(path, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(georef_mod, "write_bytes_atomic", full)
+    moved = {**geo, "ModelTiepoint": [0, 0, 0, 500.0, 600.0, 0]}
+    with pytest.raises(OSError):
+        write_georeferenced(tmp_path / "r.png", np.full((8, 8, 3), 255, np.uint8), moved)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

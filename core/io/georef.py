@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import tifffile
 from terratheme.core.errors import CorruptFileError, TerrathemeError
-from terratheme.core.io.atomic import atomic_path, write_bytes_atomic
+from terratheme.core.io.atomic import atomic_path, file_set, write_bytes_atomic
 from terratheme.core.io.images import image_attributes, image_info, write_image
 
 #: GeoTIFF / GDAL tags kept: code -> (name, tifffile type: d double, H short, s text)
@@ -211,8 +211,16 @@ def write_georeferenced(path: str | os.PathLike, image: np.ndarray, georef: dict
     """
     p = Path(path)
     if not georef or p.suffix.lower() not in _TIFF_SUFFIXES:
-        write_image(p, image, attributes=attributes)
-        return write_georeference(p, georef)
+        world = world_file_for(p, georef) if georef else None
+        if world is None:
+            write_image(p, image, attributes=attributes)
+            return []
+        # The image and its world file as a set: a world file that cannot be written
+        # leaves the old image (and its old world file) in place, not a new image placed
+        # by the old one.
+        with file_set([world, p]):
+            write_image(p, image, attributes=attributes)
+            return write_georeference(p, georef)
     tags = tiff_extratags(validate_georeference(georef))
     arr = np.asarray(image)
     if arr.ndim not in (2, 3) or 0 in arr.shape:
