@@ -295,3 +295,15 @@ def test_an_image_and_its_world_file_are_replaced_together(tmp_path, monkeypatch
     with pytest.raises(OSError):
         write_georeferenced(tmp_path / "r.png", np.full((8, 8, 3), 255, np.uint8), moved)
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_export_to_a_pipe_names_it_a_pipe(tmp_path):
+    """export p FIFO said 'is a file, not an output folder'."""
+    idx = np.zeros((5, 5), np.uint8)
+    idx[2:] = 1
+    write_image(tmp_path / "i.png", idx)
+    proc = run("new", tmp_path / "i.png", tmp_path / "p.ttproj", "--themes", "water,sand")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    os.mkfifo(tmp_path / "out")
+    refused(run("export", tmp_path / "p.ttproj", tmp_path / "out", "--engine", "godot"),
+            "is a pipe, not an output folder")

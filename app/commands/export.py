@@ -49,11 +49,13 @@ def run(args: argparse.Namespace) -> int:
         plan_export,
         write_export,
     )
+    from terratheme.core.io.atomic import special_file
     from terratheme.core.render.project import load_checked_project
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():
-        raise TerrathemeError(f"{outdir}: is a file, not an output folder")
+        kind = special_file(outdir) or "a file"
+        raise TerrathemeError(f"{outdir}: is {kind}, not an output folder")
     project = load_checked_project(args.project)
     options = ExportOptions(Engine(args.engine), args.size, args.tile,
                             style=WeightStyle(args.style))
