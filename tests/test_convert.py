@@ -289,7 +289,8 @@ def test_cli_colour_map_and_boundary_options(tmp_path):
 
 def test_cli_budget_buys_a_finer_colour_map_on_both_paths(tmp_path):
     """--budget sets the bits per photo pixel of grid + map; more bytes, less colour error,
-    on the whole photo and tile by tile, never over the budget."""
+    on the whole photo and tile by tile, within the budget (a grid kept at its label
+    agreement may overrun a budget too small for it and the coarsest map)."""
     from scipy.ndimage import gaussian_filter
 
     rng = np.random.default_rng(3)
@@ -300,7 +301,7 @@ def test_cli_budget_buys_a_finer_colour_map_on_both_paths(tmp_path):
     write_image(photo, img)
     for extra in ([], ["--tile", "128"]):
         got = []
-        for budget in ("0.04", "0.12", "0.4"):
+        for budget in ("0.08", "0.2", "0.5"):
             proj = tmp_path / f"b{budget}{len(extra)}.ttproj"
             assert _run([photo, proj, "--budget", budget, *extra]) == 0
             meta = load_project(proj).metadata["colour_map"]

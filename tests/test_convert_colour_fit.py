@@ -201,7 +201,7 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     rng = np.random.default_rng(5)
     # Random 16-pixel blocks of 3 themes: a cell-4 grid costs more than a cell-16 one.
     labels = np.kron(rng.integers(0, 3, (8, 8)), np.ones((16, 16), int)).astype(np.uint8)
-    choice = CellChoice((4, 4), 1.0, 0.9, (), True)
+    choice = CellChoice((4, 4), 1.0, 0.0, (), True)  # no agreement target: bytes decide
     bits = {c: packed_bytes(IndexGrid(vote_grid(labels, (c, c)), (c, c))) * 8 / labels.size
             for c in (4, 8, 16)}
     assert bits[4] > bits[8] > bits[16]
@@ -216,18 +216,41 @@ def test_cell_within_budget_takes_a_larger_cell_only_when_the_grid_does_not_fit(
     assert cell_within_budget(labels, choice, (4, 8), 0.0).cell == (8, 8)
 
 
+def test_cell_within_budget_gives_up_at_most_its_share_of_label_agreement():
+    """Under a budget of no bytes the grid grows only while its agreement stays within
+    BUDGET_AGREEMENT_LOSS of the choice's target (005t2 at cell 24 kept 0.76x of its
+    classification's mIoU, against 0.96x at 16)."""
+    from dataclasses import replace
+
+    from terratheme.core.convert.cell_choice import BUDGET_AGREEMENT_LOSS
+    from terratheme.core.convert.labels_to_grid import vote_grid
+    from terratheme.core.model.grid import IndexGrid
+
+    # Stripes 32 px wide: the label view keeps over 0.9 of them up to cell 12, 0.79 at 16.
+    labels = np.kron(np.arange(12) % 2, np.ones(32, int))[None].repeat(96, 0).astype(np.uint8)
+    ladder = (4, 6, 8, 12, 16)
+    scores = {c: agreement(labels, IndexGrid(vote_grid(labels, (c, c)), (c, c)))
+              for c in ladder}
+    assert min(scores[c] for c in (4, 6, 8, 12)) >= 0.9 > 0.9 - BUDGET_AGREEMENT_LOSS > scores[16]
+    choice = CellChoice((4, 4), 1.0, 0.9, (), True)
+    got = cell_within_budget(labels, choice, ladder, 0.0)
+    assert got.cell == (12, 12) and got.agreement == pytest.approx(scores[12])
+    # A target of 0.5 lets it go on to the largest (a ladder reaching 16 goes on to 32).
+    assert cell_within_budget(labels, replace(choice, target=0.5), ladder, 0.0).cell == (32, 32)
+
+
 def test_cell_within_budget_goes_past_the_automatic_cap_unless_capped_lower():
     rng = np.random.default_rng(6)
     # Random 8-pixel blocks: a cell-16 grid of them overflows a budget of no bytes.
     labels = np.kron(rng.integers(0, 3, (24, 24)), np.ones((8, 8), int)).astype(np.uint8)
-    choice = CellChoice((16, 16), 0.5, 0.9, (), True)
+    choice = CellChoice((16, 16), 0.5, 0.0, (), True)  # no agreement target: bytes decide
     # convert's candidates reach 16: the grid goes on to 24 and 32 (192 = 6 cells of 32).
     assert cell_within_budget(labels, choice, CONVERT_CELL_CANDIDATES, 0.0).cell == (32, 32)
     got = cell_within_budget(labels, choice, CONVERT_CELL_CANDIDATES, 1e9)
     assert got.cell == (16, 16)
     # A road theme's candidates stop at 8, and so does the grid.
     road = road_candidates(CONVERT_CELL_CANDIDATES, ["road"])
-    small = CellChoice((4, 4), 0.5, 0.9, (), True)
+    small = CellChoice((4, 4), 0.5, 0.0, (), True)
     assert cell_within_budget(labels, small, road, 0.0).cell == (8, 8)
 
 

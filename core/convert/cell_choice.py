@@ -27,6 +27,9 @@ ROAD_MAX_CELL = 8
 #: cells past ``CONVERT_CELL_CANDIDATES`` a byte budget may grow the grid to
 #: (:func:`cell_within_budget`)
 BUDGET_CELLS = (24, 32)
+#: label agreement under its target that a byte budget's larger cell may give up
+#: (:func:`cell_within_budget`)
+BUDGET_AGREEMENT_LOSS = 0.05
 
 
 def road_candidates(candidates: Sequence[int], names: Iterable[str] | None) -> tuple[int, ...]:
@@ -224,7 +227,9 @@ def packed_bytes(grid: IndexGrid) -> int:
 
 def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Sequence[int],
                        max_bits_per_pixel: float, *, keep_specks: bool = True) -> CellChoice:
-    """``choice``, or the next larger candidate cell until the packed grid fits its budget.
+    """``choice``, or the next larger candidate cell until the packed grid fits its budget,
+    while its label agreement stays within :data:`BUDGET_AGREEMENT_LOSS` of the choice's
+    target.
 
     Under a byte budget the map carries the structure and the grid only places detail, so
     candidates reaching ``convert``'s largest automatic cell go on to :data:`BUDGET_CELLS`
@@ -239,16 +244,20 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
     if max(ladder) >= max(CONVERT_CELL_CANDIDATES):
         ladder |= set(BUDGET_CELLS)
     larger = sorted(c for c in ladder if c > cell)
-    grid = nbytes = None
-    for nxt in [cell, *larger]:
-        if nxt == cell and choice.grid is not None:
-            grid = choice.grid
-        else:
-            grid = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
-        nbytes = packed_bytes(grid)
+    grid = choice.grid if choice.grid is not None else IndexGrid(
+        vote_grid(labels, choice.cell, keep_specks=keep_specks), choice.cell)
+    nbytes, score = packed_bytes(grid), choice.agreement
+    floor = choice.target - BUDGET_AGREEMENT_LOSS
+    for nxt in larger:
         if nbytes * 8 / max(labels.size, 1) <= max_bits_per_pixel:
             break
+        # A larger cell while the grid is over its share, unless it gives up more label
+        # agreement than the budget may take (the texture's classes stay the photo's).
+        bigger = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
+        kept = agreement(labels, bigger, max_pixels=1 << 22)
+        if kept < floor:
+            break
+        grid, nbytes, score = bigger, packed_bytes(bigger), kept
     if grid.cell == choice.cell:
         return replace(choice, grid=grid, packed_bytes=nbytes)
-    return replace(choice, cell=grid.cell, agreement=agreement(labels, grid, max_pixels=1 << 22),
-                   grid=grid, packed_bytes=nbytes)
+    return replace(choice, cell=grid.cell, agreement=score, grid=grid, packed_bytes=nbytes)
