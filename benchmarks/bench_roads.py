@@ -52,12 +52,12 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 
 from bench_classify import DATA, load  # noqa: E402
 from classify_eval import class_iou_scores  # noqa: E402
+from fidelity_peers import placement_score  # noqa: E402
 from terratheme.core.classify import load_model  # noqa: E402
 from terratheme.core.convert.colour_fit import ColourMapOptions  # noqa: E402
 from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa: E402
 from terratheme.core.fidelity import (  # noqa: E402
     colour_error,
-    detail_placement,
     detail_ratio,
     texture_cost,
 )
@@ -173,8 +173,7 @@ def measure_photo(model, folder: str, name: str, variants: dict, log) -> dict:
                    else round(tex["road_iou"] / cls["road_iou"], 4),
                    dE8=round(colour_error(render, photo), 3),
                    detail=round(detail_ratio(render, photo), 3),
-                   placement=round(float(np.sqrt(np.mean(detail_placement(render, photo) ** 2))),
-                                   3),
+                   placement=placement_score(render, photo),
                    cell=int(res.project.grid.cell[0]), **texture_cost(res.project).as_dict(),
                    bpp=round(texture_cost(res.project).area_bytes * 8 / (w * h), 4),
                    seconds=round(secs, 2), mpx_per_s=round(mpx / secs, 3))

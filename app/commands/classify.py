@@ -102,8 +102,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _read_photo(path: str):
-    """A photo as convert and the editor read it: 8- and 16-bit and float pixels as they
-    are, other integer types (32-bit, signed) converted to 8 bits on reading."""
+    """A photo for the classifier: 8- and 16-bit and float pixels as they are, other
+    integer types (32-bit, signed) converted to 8 bits on reading, as convert's
+    ``read_photo`` does (which converts floats too)."""
     import numpy as np
     from terratheme.core.io.images import Bands, read_image
 

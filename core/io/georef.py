@@ -211,7 +211,7 @@ def write_georeferenced(path: str | os.PathLike, image: np.ndarray, georef: dict
     """
     p = Path(path)
     if not georef or p.suffix.lower() not in _TIFF_SUFFIXES:
-        world = world_file_for(p, georef) if georef else None
+        world = world_file_for(p, georef)
         if world is None:
             write_image(p, image, attributes=attributes)
             return []

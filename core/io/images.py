@@ -447,29 +447,31 @@ READ_BACK_BELOW = 64 << 10
 _READ_BACK_BAND = 16 << 20
 
 
+def _nearly_full(path: str | os.PathLike) -> int | None:
+    """The free bytes of ``path``'s disk when under :data:`READ_BACK_BELOW` (or two of its
+    blocks, if more), else None (None too when the disk cannot be asked)."""
+    try:
+        st = os.statvfs(path)
+    except OSError:
+        return None
+    free = st.f_bavail * st.f_frsize
+    return free if free < max(READ_BACK_BELOW, 2 * st.f_bsize) else None
+
+
 def open_failure(path: str | os.PathLike, tmp: str | os.PathLike,
                  out: oiio.ImageOutput) -> str:
     """Why ``out`` could not open ``tmp`` (``path``'s temporary): its disk is full (libtiff
     says 'Could not open' of a header it cannot write), or OpenImageIO's text, the
     temporary named as ``path``."""
-    why = (error_line(out) or error_line()).replace(str(tmp), str(path))
-    try:
-        st = os.statvfs(Path(tmp).parent)
-    except OSError:
-        return why
-    if st.f_bavail * st.f_frsize < max(READ_BACK_BELOW, 2 * st.f_bsize):
-        return f"its disk is full ({st.f_bavail * st.f_frsize:,} bytes free)"
-    return why
+    why = (error_line(out) or error_line()).replace(str(tmp), str(path))  # read: cleared
+    free = _nearly_full(Path(tmp).parent)
+    return why if free is None else f"its disk is full ({free:,} bytes free)"
 
 
 def check_written(path: str | os.PathLike, tmp: str | os.PathLike) -> None:
     """Refuse ``tmp`` (``path``'s image, just written by OpenImageIO) that does not read
     back whole, when its disk is nearly full (:data:`READ_BACK_BELOW`); memory one band."""
-    try:
-        st = os.statvfs(tmp)
-    except OSError:
-        return
-    if st.f_bavail * st.f_frsize >= max(READ_BACK_BELOW, 2 * st.f_bsize):
+    if _nearly_full(tmp) is None:
         return
     try:
         info = image_info(tmp)
