@@ -70,6 +70,7 @@ from terratheme.core.convert.photo import ConvertOptions, convert_photo  # noqa:
 from terratheme.core.convert.step import (  # noqa: E402
     assign_themes,
     classify_photo,
+    detail_mapping,
     grid_and_colour,
     grid_budget,
 )
@@ -78,8 +79,7 @@ from terratheme.core.io.images import read_image, write_image  # noqa: E402
 from terratheme.core.model.project import ThematicTexture  # noqa: E402
 from terratheme.core.render.project import render_project  # noqa: E402
 from terratheme.core.render.renderer import RenderOptions, render_labels  # noqa: E402
-from terratheme.core.themes.detail import detail_themes  # noqa: E402
-from terratheme.core.themes.from_photo import ThemeMapping  # noqa: E402
+from terratheme.core.themes.calm import twin_parents  # noqa: E402
 
 OUT = REPO / "benchmarks" / "results"
 DOCS = REPO / "docs" / "fidelity"
@@ -166,11 +166,13 @@ def variant_project(rgb, res, opts, cell):
                            colour_map=None if made.colour is None else made.colour.colour_map)
 
 
-def score_texture(photo, mask, classes, thin, project, boundary):
-    """dE8, detail, structure and bytes of one texture; also returns its render."""
+def score_texture(photo, mask, classes, thin, project, boundary, calm=()):
+    """dE8, detail, structure and bytes of one texture; also returns its render. ``calm``:
+    the conversion's calm twins, scored as the classes they split."""
     h, w = photo.shape[:2]
     render = render_project(project, (0, 0, w, h), options=RenderOptions(boundary=boundary))
-    view = render_labels(project.grid, region=(0, 0, w, h))
+    view = twin_parents(len(project.library), calm)[
+        render_labels(project.grid, region=(0, 0, w, h))]
     s = class_iou_scores(view, mask, classes)
     cost = texture_cost(project)
     return {"cell": project.grid.cell[0], "themes": len(project.library),
@@ -218,7 +220,7 @@ def measure_photo(folder, name, classes, crop, variants, check, base=DEFAULT):
             if not (np.array_equal(again.grid.indices, project.grid.indices) and same_map):
                 raise SystemExit("variant composition differs from convert_photo: fix the bench")
         scores, renders[vname] = score_texture(photo, mask, classes, thin, project,
-                                               opts.boundary)
+                                               opts.boundary, res.mapping.calm)
         scores.update(seconds=round(seconds, 2), mpx_per_s=round(mpx / seconds, 3),
                       miou_ratio=round(scores["miou_tex"] / max(row["miou_cls"], 1e-9), 4))
         row["variants"][vname] = scores
@@ -350,8 +352,7 @@ def structure_variants(photo):
     result, _ = classify_photo(photo)
     whole = assign_themes(photo, result.labels, result.classes)
     theme_labels = apply_lut(result.labels, whole.lut)
-    detail = ThemeMapping(detail_themes(photo, theme_labels, whole.library)[0], whole.lut,
-                          whole.classes)
+    detail = detail_mapping(photo, theme_labels, whole)
     choice = choose_cell_size(theme_labels, DEFAULT.target_agreement,
                               candidates=DEFAULT.candidates, class_target=DEFAULT.class_target,
                               full_curve=False, keep_specks=False)

@@ -134,6 +134,8 @@ def texture_view(result, project, w: int, h: int) -> np.ndarray:
     back = np.zeros(max(int(view.max()), int(result.mapping.lut.max())) + 1, np.uint8)
     for c in result.mapping.classes:
         back[int(result.mapping.lut[c])] = c
+    for twin in result.mapping.calm:
+        back[twin.twin] = back[twin.theme]
     return back[view], view
 
 

@@ -26,12 +26,19 @@ def crop(tmp_path_factory) -> Path:
     return path
 
 
+def assert_named_after_the_classes(names):
+    """The classes' themes are named after the model's classes, their calm twins
+    (core.themes.calm) after those."""
+    names = set(names) - {"no data"}
+    classes = {n for n in names if not n.endswith(" calm")}
+    assert classes and classes <= set(shipped_models()["aerial"].class_names.values())
+    assert {n.removesuffix(" calm") for n in names} <= classes
+
+
 def test_convert_names_the_themes_after_the_models_classes(crop, tmp_path, capsys):
     project = tmp_path / "aerial.ttproj"
     assert main(["convert", str(crop), str(project), "--model", "aerial", "--cell", "16"]) == 0
-    names = set(load_project(project).library.names) - {"no data"}
-    legend = set(shipped_models()["aerial"].class_names.values())
-    assert names and names <= legend
+    assert_named_after_the_classes(load_project(project).library.names)
     assert "class " not in capsys.readouterr().out
 
 
@@ -68,5 +75,4 @@ def test_the_tiled_path_names_the_themes_after_the_models_classes_too(crop, tmp_
     project = tmp_path / "tiled.ttproj"
     assert main(["convert", str(crop), str(project), "--model", "aerial", "--cell", "16",
                  "--tile", "128"]) == 0
-    names = set(load_project(project).library.names) - {"no data"}
-    assert names and names <= set(shipped_models()["aerial"].class_names.values())
+    assert_named_after_the_classes(load_project(project).library.names)

@@ -186,7 +186,9 @@ def convert_photo(
     made = grid_and_colour(rgb, themed.theme_labels, mapping, cell=options.cell,
                            colour_map=None, render=render,
                            progress=_stage(progress, 50, 35), choice=themed.choice,
-                           keep_specks=options.keep_specks)
+                           keep_specks=options.keep_specks,
+                           grid_bpp=grid_budget(options.colour_map, h * w))
+    mapping = made.mapping
     if sample is not None:
         # A class the grid shows that the sample's windows missed: windows moved onto it,
         # as a tiled conversion moves them.

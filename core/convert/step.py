@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from terratheme.core.classify import (
@@ -31,7 +31,15 @@ from terratheme.core.convert.region_sample import RegionSample, covering_sample
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes
+from terratheme.core.themes.calm import (
+    CalmTwin,
+    fit_calm_twins,
+    split_calm,
+    twin_parents,
+    twin_vertices,
+    with_twins,
+)
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_texture, detail_themes
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -156,6 +164,7 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
                     detail: float | None = DETAIL_SIGMA,
                     grid_bpp: float | None = None,
                     sample: RegionSample | None = None,
+                    calm: Sequence[CalmTwin] | None = None,
                     ) -> Themed:
     """:func:`assign_themes`, and with ``cell`` "auto" the cell choice on its theme labels.
 
@@ -165,6 +174,8 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     ``grid_bpp``: the packed grid's bits per photo pixel (:func:`cell_within_budget`).
     ``sample``: the photo's region sample (:func:`.region_sample.photo_sample`): the themes
     are those of :func:`sample_themes`, as a tiled conversion's; the cell still the photo's.
+    Detail themes cut from the photo get calm twins (:mod:`core.themes.calm`): ``calm``
+    None fits them on this photo, else these are taken.
     """
     def choose(theme_labels: np.ndarray) -> CellChoice:
         choice = choose_cell_size(theme_labels, target_agreement,
@@ -188,29 +199,60 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
         if not cut:
             theme_labels = apply_lut(labels, mapping.lut)
         elif detail is not None:
-            mapping = ThemeMapping(detail_themes(rgb, theme_labels, mapping.library, detail)[0],
-                                   mapping.lut, mapping.classes)
+            mapping = detail_mapping(rgb, theme_labels, mapping, detail, calm=calm)
         choice = job.result() if job is not None else (
             choose(theme_labels) if cell == "auto" else None)
     return Themed(mapping, theme_labels, choice)
 
 
+def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapping,
+                   detail: float = DETAIL_SIGMA, *,
+                   calm: Sequence[CalmTwin] | None = None) -> ThemeMapping:
+    """``mapping``'s themes as detail themes (:func:`detail_themes`) with their calm twins
+    (:mod:`core.themes.calm`; ``calm`` None fits them on this photo, else these are taken,
+    renumbered after the themes), each at the photo's contrast on its own pixels.
+
+    ``rgb``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 through ``mapping.lut``.
+    """
+    n_themes = len(mapping.library)
+    if calm is None:
+        class_themes = sorted({int(mapping.lut[c]) for c in mapping.classes if c})
+        twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
+    else:
+        twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(calm))
+    themes, gains = detail_themes(rgb, theme_labels, mapping.library, detail)
+    if not twins:
+        return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
+    # A class keeps its gain; its calm twin takes its calm pixels' own, never more.
+    library = with_twins(mapping.library, twins)
+    calm_gains = detail_themes(rgb, split_calm(rgb, theme_labels, twins), library, detail)[1]
+    made = [library[t.twin].with_(texture=detail_texture(
+        library[t.twin].texture, detail, min(calm_gains[t.twin], gains[t.theme])))
+        for t in twins]
+    return ThemeMapping(ThemeLibrary([*themes, *made]), mapping.lut, mapping.classes, twins)
+
+
 def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",
                   *, patch: PatchOptions = PatchOptions(),
                   names: Mapping[int, str] | None = None,
-                  detail: float | None = DETAIL_SIGMA) -> ThemeMapping:
+                  detail: float | None = DETAIL_SIGMA,
+                  calm: Sequence[CalmTwin] | None = None) -> ThemeMapping:
     """The themes of a region cut on its sample's windows side by side, as a tiled
-    conversion and a whole photo in memory both take them (issue 34)."""
+    conversion and a whole photo in memory both take them (issue 34). ``calm``: as
+    :func:`themes_and_cell`'s."""
     mapping = themes_and_cell(sample.rgb, sample.labels, classes, themes, cell=1, patch=patch,
-                              names=names, detail=detail).mapping
-    last = len(mapping.library) - 1
-    if not sample.gap or sample.no_data or last == 0 or int(mapping.lut[0]) != last:
+                              names=names, detail=detail, calm=calm).mapping
+    no_data = len(mapping.library) - 1 - len(mapping.calm)
+    if not sample.gap or sample.no_data or no_data == 0 or int(mapping.lut[0]) != no_data:
         return mapping
-    # The no-data theme (appended last; a library has none) was for the gaps alone: label 0
-    # maps to theme 0, as on a photo without no-data pixels.
+    # The no-data theme (after the classes' themes; a library has none) was for the gaps
+    # alone: label 0 maps to theme 0, as on a photo without no-data pixels, and the twins
+    # after it move up one.
     lut = mapping.lut.copy()
     lut[0] = 0
-    return ThemeMapping(ThemeLibrary(list(mapping.library)[:-1]), lut, mapping.classes)
+    themes_left = [t for k, t in enumerate(mapping.library) if k != no_data]
+    twins = tuple(CalmTwin(t.theme, t.twin - 1, t.threshold) for t in mapping.calm)
+    return ThemeMapping(ThemeLibrary(themes_left), lut, mapping.classes, twins)
 
 
 def cover_classes(sample: RegionSample, classes: Sequence[int], mapping: ThemeMapping,
@@ -229,7 +271,7 @@ def cover_classes(sample: RegionSample, classes: Sequence[int], mapping: ThemeMa
     if covered is sample:
         return sample, mapping
     return covered, sample_themes(covered, classes, themes, patch=patch, names=names,
-                                  detail=detail)
+                                  detail=detail, calm=mapping.calm)
 
 
 @dataclass(frozen=True)
@@ -237,13 +279,16 @@ class GridResult:
     """The vertex grid of a conversion and how well it keeps the labels.
 
     ``choice``: the agreement curve when the cell was chosen; ``agreement``: share of
-    pixels whose theme the label view keeps; ``colour``: the colour map, if asked for.
+    pixels whose theme the label view keeps; ``colour``: the colour map, if asked for;
+    ``mapping``: the themes the grid indexes (the given ones, their calm twins dropped
+    when the grid had no bytes for them).
     """
 
     grid: IndexGrid
     choice: CellChoice | None
     agreement: float
     colour: FittedColourMap | None
+    mapping: ThemeMapping
 
 
 def grid_and_colour(
@@ -261,6 +306,7 @@ def grid_and_colour(
     choice: CellChoice | None = None,
     full_curve: bool = True,
     keep_specks: bool = True,
+    grid_bpp: float | None = None,
 ) -> GridResult:
     """Vote the (H, W) uint8 theme labels to a grid and fit the colour map to its render.
 
@@ -268,7 +314,9 @@ def grid_and_colour(
     rendered (the map is fitted to it). ``choice``: with ``cell`` "auto", a
     :func:`choose_cell_size` result already made on these labels (made with the same
     ``keep_specks``), whose grid is taken when it carries one. ``keep_specks`` False:
-    lone vertices take their neighbours' theme.
+    lone vertices take their neighbours' theme. ``grid_bpp``: the grid's share of a byte
+    budget (:func:`grid_budget`; None: ``colour_map``'s), which ``mapping``'s calm twins
+    must fit in (:func:`keep_calm`).
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
@@ -284,10 +332,45 @@ def grid_and_colour(
         vote_grid(theme_labels, size, keep_specks=keep_specks), size)
     score = choice.agreement if choice is not None else agreement(theme_labels, grid,
                                                                   max_pixels=1 << 22)
+    if mapping.calm:
+        # The class grid's vertices take their calm twins, if the grid's bytes allow them
+        # (the choice then carries the grid).
+        bits = grid_budget(colour_map, theme_labels.size) if grid_bpp is None else grid_bpp
+        grid, mapping = keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm), mapping,
+                                  bits, theme_labels.size)
+        if choice is not None:
+            choice = replace(choice, grid=grid, packed_bytes=packed_bytes(grid))
     fitted = None if colour_map is None else fit_colour_map(
         rgb, grid, mapping.library, colour_map, render,
         packed=choice.packed_bytes if choice is not None else None)
-    return GridResult(grid, choice, score, fitted)
+    return GridResult(grid, choice, score, fitted, mapping)
+
+
+def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
+              pixels: int) -> tuple[IndexGrid, ThemeMapping]:
+    """``(grid, mapping)``, or both without the calm twins when the packed grid with them
+    is over its share of a byte budget (``grid_bpp`` bits per photo pixel; None: no
+    budget): the bytes the twins cost would come out of the colour map."""
+    if not mapping.calm or grid_bpp is None or (
+            packed_bytes(grid) * 8 <= grid_bpp * max(int(pixels), 1)):
+        return grid, mapping
+    n_themes = len(mapping.library) - len(mapping.calm)
+    parents = twin_parents(len(mapping.library), mapping.calm).astype(np.uint8)
+    return (IndexGrid(parents[grid.indices], grid.cell),
+            ThemeMapping(ThemeLibrary(list(mapping.library)[:n_themes]), mapping.lut,
+                         mapping.classes))
+
+
+def calm_grid(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
+              twins: Sequence[CalmTwin]) -> IndexGrid:
+    """``grid`` (voted from the (H, W) uint8 ``theme_labels``) with its vertices' calm twins
+    (:func:`.calm.twin_vertices`), from a plain vote of the twin-split labels at its cell,
+    as each tile of a tiled conversion votes them."""
+    if not twins:
+        return grid
+    split = split_calm(rgb, theme_labels, twins)
+    votes = vote_grid(split, grid.cell, keep_specks=True)
+    return IndexGrid(twin_vertices(grid.indices, votes, twins), grid.cell)
 
 
 def fit_colour_map(rgb: np.ndarray, grid: IndexGrid, library: ThemeLibrary,

@@ -13,6 +13,7 @@ from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import TileWindow
+from terratheme.core.themes.calm import CalmTwin, split_calm
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 
@@ -92,15 +93,19 @@ class VoteJob:
     """The tile job of :func:`grid_from_file`: classify with context, map, crop, vote.
 
     ``classify``: (h, w, C) -> (h, w) labels; ``table``: (256,) uint8 class -> theme or
-    None; ``size``: (W, H) photo; ``cell``: (N, M).
+    None; ``size``: (W, H) photo; ``cell``: (N, M). ``calm``: the table's calm twins; the
+    job then returns the vertices voted from its themes and from its twin-split themes
+    (split by the tile's pixels; its context must reach ``core.themes.calm.ENERGY_REACH``).
     """
 
     classify: ClassifyFn
     table: np.ndarray | None
     size: tuple[int, int]
     cell: tuple[int, int]
+    calm: tuple[CalmTwin, ...] = ()
 
-    def __call__(self, win: VertexTile, pixels: np.ndarray) -> np.ndarray:
+    def __call__(self, win: VertexTile,
+                 pixels: np.ndarray) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         # Classify with context, map to themes, crop to the vote window, vote.
         labels = np.asarray(self.classify(pixels))
         if labels.shape[:2] != pixels.shape[:2]:
@@ -110,5 +115,11 @@ class VoteJob:
         labels = labels.reshape(pixels.shape[:2]).astype(np.uint8)
         if self.table is not None:
             labels = self.table[labels]
-        core = labels[win.core_in_read]
+        votes = self._vote(labels[win.core_in_read], win)
+        if not self.calm or transparent(pixels):
+            return (votes, votes) if self.calm else votes
+        split = split_calm(prepare_photo(pixels).rgb, labels, self.calm)
+        return votes, self._vote(split[win.core_in_read], win)
+
+    def _vote(self, core: np.ndarray, win: VertexTile) -> np.ndarray:
         return vote_vertices(core, (win.x, win.y), self.size, self.cell, win.rows, win.cols)

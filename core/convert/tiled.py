@@ -37,6 +37,7 @@ from terratheme.core.convert.step import (
     cover_classes,
     detail_sigma,
     grid_budget,
+    keep_calm,
     sample_themes,
 )
 from terratheme.core.convert.tile_vote import (
@@ -55,6 +56,7 @@ from terratheme.core.model.grid import IndexGrid, validate_cell
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.render.boundary import BoundaryOptions
 from terratheme.core.render.renderer import RenderOptions, render_cells
+from terratheme.core.themes.calm import ENERGY_REACH, CalmTwin, twin_vertices
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -75,6 +77,7 @@ def grid_from_file(
     progress: Callable[[int, int], None] | None = None,
     rows_final: Callable[[IndexGrid, int], None] | None = None,
     keep_specks: bool = True,
+    calm: Sequence[CalmTwin] = (),
 ) -> IndexGrid:
     """The vertex grid of an image file, classified and voted tile by tile.
 
@@ -82,7 +85,9 @@ def grid_from_file(
     ``lut`` (256,) maps class values to theme indices (default identity). ``tile`` is rounded
     to whole cells and read with ``overlap`` context pixels; every ``scheduler`` gives the same
     grid. ``rows_final(grid, n)`` is told after each tile how many first rows are final;
-    ``keep_specks`` False makes lone vertices take their neighbours' theme.
+    ``keep_specks`` False makes lone vertices take their neighbours' theme; ``calm``: the
+    table's calm twins, split off by each tile's pixels (``overlap`` is then at least
+    their ``ENERGY_REACH``).
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else tuple(cell)
     n, m = validate_cell(cell)
@@ -96,26 +101,43 @@ def grid_from_file(
         if table.shape != (256,):
             raise TerrathemeError(f"class-to-theme table must be 256 integers, got {table.shape}")
         table = table.astype(np.uint8)
+    if calm:
+        overlap = max(int(overlap), ENERGY_REACH)
     tiles = vertex_tiles(size, (n, m), tile, overlap)
     rows, cols = grid_shape_for(info.width, info.height, (n, m))
     so_far = IndexGrid(np.zeros((rows, cols), np.uint8), (n, m))
-    grid = so_far.indices
+    # With calm twins, the class grid and the twin-split vote beside it, joined into the
+    # result as its rows finish (the class grid cleaned as on the whole photo).
+    grid = so_far.indices if not calm else np.zeros_like(so_far.indices)
+    split = np.zeros_like(grid) if calm else None
     specks = None if keep_specks else SpeckStream(grid)
+    joined = 0
 
-    def sink(win: VertexTile, block: np.ndarray) -> None:
+    def join(final: int) -> None:
+        nonlocal joined
+        if split is not None and final > joined:
+            so_far.indices[joined:final] = twin_vertices(grid[joined:final],
+                                                         split[joined:final], calm)
+            joined = final
+
+    def sink(win: VertexTile, block) -> None:
         (r0, r1), (c0, c1) = win.rows, win.cols
+        if split is not None:
+            block, split[r0:r1, c0:c1] = block
         grid[r0:r1, c0:c1] = block
         # The last tile of a band of rows finishes them (cleaned: all but the last).
         final = r1 if c1 == cols else r0
         if specks is not None:
             final = specks.advance(final)
+        join(final)
         if rows_final is not None and final < rows:
             rows_final(so_far, final)
 
-    run_tiles(path, VoteJob(classify, table, size, (n, m)), sink, windows=tiles,
+    run_tiles(path, VoteJob(classify, table, size, (n, m), tuple(calm)), sink, windows=tiles,
               scheduler=scheduler, progress=progress, bands=Bands.PHOTO)
     if specks is not None:
         specks.finish()
+    join(rows)
     if rows_final is not None:
         rows_final(so_far, rows)
     return so_far
@@ -246,7 +268,9 @@ def convert_file_tiled(
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
-                          keep_specks=keep_specks)
+                          keep_specks=keep_specks, calm=mapping.calm)
+    grid, mapping = keep_calm(grid, mapping, grid_budget(colour_map, info.width * info.height),
+                              info.width * info.height)
     cell_windows = [list(w) for w in sample.windows]
     # A transparent photo has nothing to convert (as the whole photo's classifier says).
     no_data = int(mapping.lut[0])

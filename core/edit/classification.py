@@ -152,9 +152,18 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
     replace ``library`` (a new project), so their names need not differ from it.
     """
     from terratheme.core.classify import SupervisedOptions, load_model
+    from terratheme.core.convert.colour_fit import ColourMapOptions
     from terratheme.core.convert.labels_to_grid import apply_lut, labels_to_grid
-    from terratheme.core.convert.step import assign_themes, classify_photo, fit_colour_map
-    from terratheme.core.themes.detail import detail_themes
+    from terratheme.core.convert.step import (
+        assign_themes,
+        calm_grid,
+        classify_photo,
+        detail_mapping,
+        fit_colour_map,
+        grid_budget,
+        keep_calm,
+    )
+    from terratheme.core.themes.from_photo import ThemeMapping
 
     # New themes follow the library, or replace it (their names then need not differ).
     taken, offset = ([], 0) if replace_themes else (list(library.names), len(library))
@@ -199,10 +208,16 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
             f"with cell {cell}; the project grid is {grid_shape}")
     colour_map = None
     if replace_themes and new_themes:
-        # A new project gets what convert makes: detail themes under a fitted colour map.
-        detail, _ = detail_themes(photo[..., :3], theme_labels, ThemeLibrary(new_themes))
-        new_themes = list(detail)
-        colour_map = fit_colour_map(photo[..., :3], grid, detail).colour_map
+        # A new project gets what convert makes: detail themes with their calm twins under
+        # a fitted colour map.
+        rgb = photo[..., :3]
+        detail = detail_mapping(rgb, theme_labels, ThemeMapping(
+            ThemeLibrary(new_themes), lut.astype(np.uint8), tuple(result.classes)))
+        options = ColourMapOptions()
+        grid, detail = keep_calm(calm_grid(rgb, theme_labels, grid, detail.calm), detail,
+                                 grid_budget(options, theme_labels.size), theme_labels.size)
+        new_themes = list(detail.library)
+        colour_map = fit_colour_map(rgb, grid, detail.library, options).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,
                                   np.asarray(result.confidence, np.float32), painted, weights,
                                   colour_map)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from terratheme.core.errors import TerrathemeError
+from terratheme.core.themes.calm import CalmTwin
 from terratheme.core.themes.cut_mask import cut_window
 from terratheme.core.themes.library import (
     Theme,
@@ -53,11 +54,13 @@ class ThemeMapping:
     """A theme library for a classification and the class -> theme index table.
 
     ``lut``: (256,) uint8, ``lut[class_value]`` the theme index; ``classes``: the class
-    values mapped, in theme order.
+    values mapped, in theme order; ``calm``: the calm twins that split the table's themes
+    by the photo's local detail (:mod:`.calm`), appended after them in ``library``.
     """
     library: ThemeLibrary
     lut: np.ndarray
     classes: tuple[int, ...]
+    calm: tuple[CalmTwin, ...] = ()
 
 
 def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

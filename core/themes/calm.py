@@ -1,0 +1,149 @@
+"""Calm twins: the calm part of a class as a second theme of the same texture (issue 34).
+
+A detail theme's gain fits its class on the whole (:func:`.detail.detail_themes`). A class
+that holds calm shallow water and textured weed, or a town's empty lots and its
+buildings, then gets the same grain everywhere: too much where the photo is calm, too
+little where it is busy. Where the photo's local detail energy within a class is bimodal,
+its calm part becomes a twin theme: the same texture, with its own gain.
+
+The energy is measured inside the class alone (normalised convolutions over its own
+pixels), so the step at its border with another class does not count; it reaches
+:data:`ENERGY_REACH` pixels, the context a tile needs to split as the whole photo does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.ndimage import gaussian_filter
+from skimage.filters import threshold_otsu
+from terratheme.core.themes.detail import DETAIL_SIGMA
+from terratheme.core.themes.library import ThemeLibrary, distinct_names
+
+#: Gaussian sigma (pixels) over which a pixel's detail energy is averaged
+ENERGY_SIGMA = 32.0
+#: a class splits only where its calm and busy parts' mean log2 energies are this far apart
+TWIN_SEPARATION = 1.5
+#: each part holds at least this share of its class's pixels
+TWIN_SHARE = 0.1
+#: and at least this many pixels (a 64 px square: narrower parts are edges, not areas)
+TWIN_MIN_PIXELS = 4096
+#: pixels within this distance of a class's border weigh little in its energy
+BORDER_PIXELS = 3
+#: border pixels' weight
+BORDER_WEIGHT = 1e-4
+#: pixels of context the energy reaches (scipy's Gaussians stop at 4 sigma)
+ENERGY_REACH = BORDER_PIXELS + int(np.ceil(4 * DETAIL_SIGMA + 4 * ENERGY_SIGMA)) + 1
+#: a twin's name: its theme's, then this
+TWIN_SUFFIX = " calm"
+
+
+@dataclass(frozen=True)
+class CalmTwin:
+    """Pixels of theme ``theme`` whose :func:`log_energy` is under ``threshold`` are
+    theme ``twin`` instead."""
+
+    theme: int
+    twin: int
+    threshold: float
+
+
+def log_energy(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(H, W) float32: log2 of the local detail energy inside ``mask``, as the detail themes
+    measure contrast (``y / blur(y) - 1`` at ``DETAIL_SIGMA``), both blurs over the
+    mask's own pixels, those within ``BORDER_PIXELS`` of its border weighing
+    ``BORDER_WEIGHT`` (a classifier's border pixels are often the neighbour's colour).
+    ``photo``: (H, W, 3) uint8; ``mask``: (H, W) bool. Outside the mask the values mean
+    nothing.
+    """
+    y = np.asarray(photo, np.float32)[..., :3].mean(axis=2)
+    inner = cv2.erode(np.asarray(mask, np.uint8), np.ones((2 * BORDER_PIXELS + 1,) * 2, np.uint8))
+    m = np.where(inner > 0, np.float32(1.0), np.float32(BORDER_WEIGHT) * np.asarray(mask))
+    m = m.astype(np.float32)
+
+    def inside(values: np.ndarray, sigma: float) -> np.ndarray:
+        # A normalised convolution: the mean of the mask's own pixels around each pixel.
+        weight = gaussian_filter(m, sigma, mode="reflect")
+        return gaussian_filter(values * m, sigma, mode="reflect") / np.maximum(weight, 1e-12)
+
+    # Relative contrast against the class's own local mean, then its local energy.
+    relative = y / np.maximum(inside(y, DETAIL_SIGMA), 1.0) - 1.0
+    return np.log2(inside(relative * relative, ENERGY_SIGMA) + 1e-6).astype(np.float32)
+
+
+def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
+                   themes: Sequence[int], first_twin: int) -> tuple[CalmTwin, ...]:
+    """The twins of ``themes`` whose pixels' :func:`log_energy` is bimodal.
+
+    Otsu's threshold splits each theme's energies; a split is kept when both parts hold
+    ``TWIN_SHARE`` of the theme and ``TWIN_MIN_PIXELS``, and their means are
+    ``TWIN_SEPARATION`` apart. Twins are
+    numbered from ``first_twin`` in theme order. ``theme_labels``: (H, W) uint8.
+    """
+    labels = np.asarray(theme_labels)
+    twins: list[CalmTwin] = []
+    for k in themes:
+        mask = labels == k
+        least = max(TWIN_MIN_PIXELS, TWIN_SHARE * int(mask.sum()))
+        if int(mask.sum()) < 2 * least:
+            continue
+        values = log_energy(photo, mask)[mask]
+        if float(values.max()) - float(values.min()) < TWIN_SEPARATION:
+            continue
+        threshold = float(threshold_otsu(values))
+        calm, busy = values[values < threshold], values[values >= threshold]
+        if min(calm.size, busy.size) < least:
+            continue
+        if float(busy.mean()) - float(calm.mean()) < TWIN_SEPARATION:
+            continue
+        twins.append(CalmTwin(int(k), first_twin + len(twins), threshold))
+    return tuple(twins)
+
+
+def split_calm(photo: np.ndarray, theme_labels: np.ndarray,
+               twins: Sequence[CalmTwin]) -> np.ndarray:
+    """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it."""
+    labels = np.asarray(theme_labels)
+    out = labels.copy()
+    for twin in twins:
+        mask = labels == twin.theme
+        if mask.any():
+            out[mask & (log_energy(photo, mask) < twin.threshold)] = twin.twin
+    return out
+
+
+def twin_vertices(indices: np.ndarray, split_indices: np.ndarray,
+                  twins: Sequence[CalmTwin]) -> np.ndarray:
+    """(rows, cols) uint8: a grid voted from theme labels, each vertex of a twinned theme
+    taking its twin where the vote of the :func:`split_calm` labels chose the twin.
+
+    The class grid (its cell, agreement and cleaning) stays as it was; only which of a
+    class's two themes a vertex shows is added.
+    """
+    out = np.array(indices, np.uint8, copy=True)
+    for twin in twins:
+        out[(indices == twin.theme) & (split_indices == twin.twin)] = twin.twin
+    return out
+
+
+def with_twins(library: ThemeLibrary, twins: Sequence[CalmTwin]) -> ThemeLibrary:
+    """``library`` with each twin appended: its theme's texture and colour, named
+    "<theme> calm" (distinct)."""
+    if not twins:
+        return library
+    names = distinct_names([*library.names, *(library[t.theme].name + TWIN_SUFFIX
+                                              for t in twins)])
+    return ThemeLibrary([*library, *(library[t.theme].with_(name=name)
+                                     for t, name in zip(twins, names[len(library):],
+                                                        strict=True))])
+
+
+def twin_parents(n_themes: int, twins: Sequence[CalmTwin]) -> np.ndarray:
+    """(n_themes,) int64: each theme's class theme (a twin's is the theme it splits)."""
+    parents = np.arange(n_themes)
+    for twin in twins:
+        parents[twin.twin] = twin.theme
+    return parents

@@ -1,0 +1,218 @@
+"""Calm twins (core.themes.calm): a class's calm part as a second theme, on every path."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import terratheme.core.convert.region_sample as rs
+from terratheme.core.convert.cell_choice import packed_bytes
+from terratheme.core.convert.colour_fit import ColourMapOptions
+from terratheme.core.convert.labels_to_grid import vote_grid
+from terratheme.core.convert.photo import ConvertOptions, convert_photo
+from terratheme.core.convert.step import calm_grid, detail_mapping, keep_calm
+from terratheme.core.convert.tiled import convert_file_tiled, grid_from_file
+from terratheme.core.io.images import write_image
+from terratheme.core.io.tiles import Scheduler
+from terratheme.core.model.grid import IndexGrid
+from terratheme.core.themes.calm import (
+    ENERGY_REACH,
+    CalmTwin,
+    fit_calm_twins,
+    log_energy,
+    split_calm,
+    twin_parents,
+    twin_vertices,
+    with_twins,
+)
+from terratheme.core.themes.from_photo import ThemeMapping
+from terratheme.core.themes.library import Theme, ThemeLibrary, flat_theme
+
+
+def _grain(shape, sigma, seed, mean=128.0):
+    """(h, w, 3) uint8 grey of ``mean`` with per-pixel noise of ``sigma`` (same on each band)."""
+    noise = np.random.default_rng(seed).normal(0.0, sigma, shape)
+    return np.repeat(np.clip(mean + noise, 0, 255)[:, :, None], 3, axis=2).astype(np.uint8)
+
+
+def _calm_and_busy(h=128, w=512):
+    """One class: its left half calm (noise 1), its right half busy (noise 24)."""
+    photo = np.concatenate([_grain((h, w // 2), 1.0, 1), _grain((h, w // 2), 24.0, 2)], axis=1)
+    return photo, np.zeros((h, w), np.uint8)
+
+
+def test_a_class_of_a_calm_and_a_busy_half_gets_a_twin_for_the_calm_half():
+    photo, labels = _calm_and_busy()
+    twins = fit_calm_twins(photo, labels, [0], 1)
+    assert len(twins) == 1 and (twins[0].theme, twins[0].twin) == (0, 1)
+    # Relative RMS 1/128 against 24/128: log2 energies near -14 and -4.8.
+    assert -13.0 < twins[0].threshold < -6.0
+    split = split_calm(photo, labels, twins)
+    # Four of the energy's sigmas (32 px) away from the middle, each half is one theme.
+    assert (split[:, :128] == 1).all() and (split[:, -128:] == 0).all()
+
+
+def test_one_grain_everywhere_or_a_small_class_gets_no_twin():
+    photo = _grain((128, 256), 12.0, 3)
+    assert fit_calm_twins(photo, np.zeros((128, 256), np.uint8), [0], 1) == ()
+    # Halves of 48 x 48 are under TWIN_MIN_PIXELS (4096): edges, not areas.
+    small, labels = _calm_and_busy(48, 96)
+    assert fit_calm_twins(small, labels, [0], 1) == ()
+
+
+def test_the_step_to_a_neighbour_class_and_its_border_pixels_do_not_count():
+    # Two classes of one grain each, dark and bright; the classifier's border is 2 px off
+    # the photo's, so the bright class holds a strip of the dark one's pixels.
+    h, w = 128, 256
+    photo = _grain((h, w), 3.0, 4, mean=200.0)
+    photo[:, :128] = _grain((h, 128), 1.5, 5, mean=60.0)
+    labels = np.zeros((h, w), np.uint8)
+    labels[:, 126:] = 1
+    energy = log_energy(photo, labels == 1)[labels == 1]
+    # Noise of 3 over 200: log2 of (0.015)^2 is -12.1; the strip and the step are left out.
+    assert energy.max() - energy.min() < 1.0
+    assert fit_calm_twins(photo, labels, [0, 1], 2) == ()
+    # A plain blur over the whole photo would have raised the border to a busy rim.
+    y = photo.mean(axis=2)
+    plain = np.abs(y[:, 120:136] / y[:, 120:136].mean() - 1).max()
+    assert plain > 0.5
+
+
+def test_twin_vertices_take_the_twin_only_where_the_class_is_the_same():
+    grid = np.array([[0, 0, 1], [0, 1, 1]], np.uint8)
+    votes = np.array([[2, 0, 2], [1, 3, 0]], np.uint8)  # twins: 0 -> 2, 1 -> 3
+    twins = (CalmTwin(0, 2, -8.0), CalmTwin(1, 3, -9.0))
+    assert twin_vertices(grid, votes, twins).tolist() == [[2, 0, 1], [0, 3, 1]]
+    assert twin_parents(4, twins).tolist() == [0, 1, 0, 1]
+
+
+def test_twins_are_their_themes_renamed_distinctly():
+    library = ThemeLibrary([flat_theme("sand", (200, 190, 150)),
+                            flat_theme("sand calm", (10, 10, 10))])
+    out = with_twins(library, (CalmTwin(0, 2, -8.0),))
+    assert out.names == ["sand", "sand calm", "sand calm 2"]
+    assert np.array_equal(out[2].texture, library[0].texture)
+    assert out[2].colour == library[0].colour
+    assert with_twins(library, ()) is library
+
+
+def _classes(pixels: np.ndarray) -> np.ndarray:
+    """A per-pixel classifier: dark (1) or bright (2)."""
+    return np.where(pixels[..., :3].mean(axis=2) < 100, 1, 2).astype(np.uint8)
+
+
+@pytest.mark.parametrize(("cell", "tile", "keep_specks"), [(8, 64, False), (5, 48, True)])
+def test_the_tiled_grid_takes_the_whole_photos_twins(tmp_path, cell, tile, keep_specks):
+    # Bright land calm on the left, busy on the right, and a dark lake with the same split.
+    rng = np.random.default_rng(8)
+    # Larger than a tile and its context (ENERGY_REACH), so tiles see parts of it.
+    h, w = 400, 520
+    photo = _grain((h, w), 1.0, 9, mean=190.0)
+    photo[:, 260:] = _grain((h, w - 260), 28.0, 10, mean=190.0)
+    lake = _grain((h, w), 1.0, 11, mean=50.0)
+    lake[:, 260:] = _grain((h, w - 260), 10.0, 12, mean=50.0)
+    yy, xx = np.mgrid[:h, :w]
+    inside = (yy - 200) ** 2 / 140 ** 2 + (xx - 260) ** 2 / 180 ** 2 < 1
+    photo[inside] = lake[inside]
+    photo[rng.random((h, w)) < 0.002] = 0  # a few dark specks in the land
+    path = tmp_path / "photo.tif"
+    write_image(path, photo, tile=32)
+    assert tile + 2 * ENERGY_REACH < w
+    lut = np.zeros(256, np.uint8)
+    lut[1], lut[2] = 0, 1
+    theme_labels = lut[_classes(photo)]
+    twins = fit_calm_twins(photo, theme_labels, [0, 1], 2)
+    assert {t.theme for t in twins} == {0, 1}
+    whole = IndexGrid(vote_grid(theme_labels, (cell, cell), keep_specks=keep_specks), (cell, cell))
+    want = calm_grid(photo, theme_labels, whole, twins)
+    assert set(np.unique(want.indices)) == {0, 1, 2, 3}
+    for sched in Scheduler:
+        got = grid_from_file(path, cell, _classes, lut=lut, tile=tile, overlap=8,
+                             scheduler=sched, keep_specks=keep_specks, calm=twins)
+        assert np.array_equal(got.indices, want.indices), sched
+    # The class grid itself is the one without twins.
+    plain = grid_from_file(path, cell, _classes, lut=lut, tile=tile, keep_specks=keep_specks)
+    assert np.array_equal(twin_parents(4, twins)[got.indices], plain.indices)
+
+
+def test_twins_over_the_grids_share_of_the_budget_are_dropped():
+    library = ThemeLibrary([flat_theme("sand", (200, 190, 150)), flat_theme("water", (0, 0, 90)),
+                            flat_theme("sand calm", (200, 190, 150))])
+    twins = (CalmTwin(0, 2, -8.0),)
+    mapping = ThemeMapping(library, np.array([0, 0, 1] + [0] * 253, np.uint8), (1, 2), twins)
+    rng = np.random.default_rng(0)
+    grid = IndexGrid(rng.choice([0, 1, 2], (33, 33)).astype(np.uint8), (8, 8))
+    size = packed_bytes(grid) * 8
+    # Within the share (bits per photo pixel x pixels): kept as they are.
+    assert keep_calm(grid, mapping, size / 1000, 1000) == (grid, mapping)
+    assert keep_calm(grid, mapping, None, 1000) == (grid, mapping)
+    # Over it: the twins' vertices are their classes' again and the twin themes go.
+    got, plain = keep_calm(grid, mapping, (size - 8) / 1000, 1000)
+    assert plain.library.names == ["sand", "water"] and plain.calm == ()
+    assert np.array_equal(got.indices, np.where(grid.indices == 2, 0, grid.indices))
+    assert got.cell == grid.cell and np.array_equal(plain.lut, mapping.lut)
+
+
+def test_a_calm_twin_carries_less_grain_than_its_class():
+    # A quarter calm, so the class's robust contrast is its busy part's.
+    h, w = 128, 512
+    photo = np.concatenate([_grain((h, 128), 1.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
+    labels = np.zeros((h, w), np.uint8)
+    texture = _grain((64, 64), 20.0, 6)
+    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150), texture)]),
+                           np.zeros(256, np.uint8), (1,))
+    made = detail_mapping(photo, labels, mapping)
+    assert len(made.calm) == 1 and made.library.names == ["sand", "sand calm"]
+    whole = detail_mapping(photo, labels, mapping, calm=())
+    assert whole.library.names == ["sand"]
+    # The class keeps the grain it has without a twin; its calm part's is far weaker.
+    assert np.array_equal(made.library[0].texture, whole.library[0].texture)
+    grain = [float(np.abs(t.texture.astype(float) - 128).mean()) for t in made.library]
+    assert grain[1] < 0.5 * grain[0]
+
+
+@pytest.fixture
+def halves_region(tmp_path, monkeypatch):
+    """(photo, its tiled TIFF): sand calm on the left and busy on the right around a lake,
+    larger than its region sample (2 x 2 windows of 192 px)."""
+    h, w = 448, 640
+    photo = _grain((h, w), 1.0, 20, mean=200.0)
+    photo[:, w // 2:] = _grain((h, w - w // 2), 26.0, 21, mean=200.0)
+    yy, xx = np.mgrid[:h, :w]
+    lake = (yy - h // 2) ** 2 + (xx - w // 2) ** 2 < 110 ** 2
+    photo[lake] = _grain((h, w), 3.0, 22, mean=50.0)[lake]
+    path = tmp_path / "halves.tif"
+    write_image(path, photo, tile=64)
+    monkeypatch.setattr(rs, "SAMPLE_PIECE", 192)
+    monkeypatch.setattr(rs, "SAMPLE_GRID", 2)
+    return photo, path
+
+
+def test_a_region_gets_the_whole_photos_twins_tile_by_tile(halves_region):
+    photo, path = halves_region
+    options = ConvertOptions(cell=8, themes=2, colour_map=ColourMapOptions(budget=0.3))
+    whole = convert_photo(photo, options).project
+    tiled = convert_file_tiled(path, None, 8, themes=2, tile=128,
+                               colour_map=ColourMapOptions(budget=0.3))
+    assert whole.library.names == tiled.library.names
+    assert len(whole.library) == 3 and whole.library.names[2].endswith(" calm")
+    assert all(np.array_equal(a.texture, b.texture) for a, b in zip(whole.library,
+                                                                    tiled.library, strict=True))
+    assert np.array_equal(whole.grid.indices, tiled.grid.indices)
+    # The calm twin holds the calm half's vertices (away from the lake), the class the busy.
+    twin = whole.library.names.index(whole.library.names[2])
+    sand = whole.library.names.index(whole.library.names[2].removesuffix(" calm"))
+    assert (whole.grid.indices[:, :12] == twin).all()
+    assert (whole.grid.indices[:, -12:] == sand).all()
+
+
+def test_the_editors_new_project_gets_converts_twins(halves_region):
+    from terratheme.core.edit.classification import ClassifyMode, run_classification
+
+    photo, _ = halves_region
+    update, _ = run_classification(ClassifyMode.UNSUPERVISED_NEW, photo, None,
+                                   ThemeLibrary([]), (8, 8), (57, 81), None,
+                                   replace_themes=True)
+    names = [t.name for t in update.new_themes]
+    assert len(names) == 3 and names[2].removesuffix(" calm") in names[:2]
+    assert (update.indices[:, :12] == 2).all()
+    assert update.colour_map is not None
