@@ -39,7 +39,7 @@ from terratheme.core.themes.calm import (
     twin_vertices,
     with_twins,
 )
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_texture, detail_themes
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -220,16 +220,11 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
     else:
         twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(calm))
-    themes, gains = detail_themes(rgb, theme_labels, mapping.library, detail)
-    if not twins:
-        return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
     # A class keeps its gain; its calm twin takes its calm pixels' own, never more.
-    library = with_twins(mapping.library, twins)
-    calm_gains = detail_themes(rgb, split_calm(rgb, theme_labels, twins), library, detail)[1]
-    made = [library[t.twin].with_(texture=detail_texture(
-        library[t.twin].texture, detail, min(calm_gains[t.twin], gains[t.theme])))
-        for t in twins]
-    return ThemeMapping(ThemeLibrary([*themes, *made]), mapping.lut, mapping.classes, twins)
+    themes = detail_themes(rgb, split_calm(rgb, theme_labels, twins),
+                           with_twins(mapping.library, twins), detail,
+                           twins={t.twin: t.theme for t in twins})[0]
+    return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
 
 
 def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",
@@ -336,8 +331,10 @@ def grid_and_colour(
         # The class grid's vertices take their calm twins, if the grid's bytes allow them
         # (the choice then carries the grid).
         bits = grid_budget(colour_map, theme_labels.size) if grid_bpp is None else grid_bpp
-        grid, mapping = keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm), mapping,
-                                  bits, theme_labels.size)
+        grid, mapping = keep_calm(grid, mapping, bits, theme_labels.size)
+        if mapping.calm:
+            grid, mapping = keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm),
+                                      mapping, bits, theme_labels.size)
         if choice is not None:
             choice = replace(choice, grid=grid, packed_bytes=packed_bytes(grid))
     fitted = None if colour_map is None else fit_colour_map(
@@ -348,17 +345,20 @@ def grid_and_colour(
 
 def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
               pixels: int) -> tuple[IndexGrid, ThemeMapping]:
-    """``(grid, mapping)``, or both without the calm twins when the packed grid with them
-    is over its share of a byte budget (``grid_bpp`` bits per photo pixel; None: no
-    budget): the bytes the twins cost would come out of the colour map."""
-    if not mapping.calm or grid_bpp is None or (
-            packed_bytes(grid) * 8 <= grid_bpp * max(int(pixels), 1)):
+    """``(grid, mapping)``, or both without the calm twins when the packed grid, with
+    them or without, is over its share of a byte budget (``grid_bpp`` bits per photo
+    pixel; None: no budget): the bytes the twins cost would come out of the colour map.
+    ``grid`` may be the class grid alone (:func:`calm_grid` not yet run)."""
+    if not mapping.calm or grid_bpp is None:
+        return grid, mapping
+    parents = IndexGrid(twin_parents(len(mapping.library), mapping.calm).astype(np.uint8)[
+        grid.indices], grid.cell)
+    share = grid_bpp * max(int(pixels), 1)
+    if packed_bytes(parents) * 8 <= share and packed_bytes(grid) * 8 <= share:
         return grid, mapping
     n_themes = len(mapping.library) - len(mapping.calm)
-    parents = twin_parents(len(mapping.library), mapping.calm).astype(np.uint8)
-    return (IndexGrid(parents[grid.indices], grid.cell),
-            ThemeMapping(ThemeLibrary(list(mapping.library)[:n_themes]), mapping.lut,
-                         mapping.classes))
+    return parents, ThemeMapping(ThemeLibrary(list(mapping.library)[:n_themes]), mapping.lut,
+                                 mapping.classes)
 
 
 def calm_grid(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,

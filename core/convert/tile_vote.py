@@ -95,7 +95,8 @@ class VoteJob:
     ``classify``: (h, w, C) -> (h, w) labels; ``table``: (256,) uint8 class -> theme or
     None; ``size``: (W, H) photo; ``cell``: (N, M). ``calm``: the table's calm twins; the
     job then returns the vertices voted from its themes and from its twin-split themes
-    (split by the tile's pixels; its context must reach ``core.themes.calm.ENERGY_REACH``).
+    (split by the tile's pixels; its context must reach ``core.themes.calm.ENERGY_REACH``
+    past the classifier's own).
     """
 
     classify: ClassifyFn
@@ -118,7 +119,7 @@ class VoteJob:
         votes = self._vote(labels[win.core_in_read], win)
         if not self.calm or transparent(pixels):
             return (votes, votes) if self.calm else votes
-        split = split_calm(prepare_photo(pixels).rgb, labels, self.calm)
+        split = split_calm(prepare_photo(pixels).rgb, labels, self.calm, (win.rx, win.ry))
         return votes, self._vote(split[win.core_in_read], win)
 
     def _vote(self, core: np.ndarray, win: VertexTile) -> np.ndarray:

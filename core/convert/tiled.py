@@ -86,8 +86,8 @@ def grid_from_file(
     to whole cells and read with ``overlap`` context pixels; every ``scheduler`` gives the same
     grid. ``rows_final(grid, n)`` is told after each tile how many first rows are final;
     ``keep_specks`` False makes lone vertices take their neighbours' theme; ``calm``: the
-    table's calm twins, split off by each tile's pixels (``overlap`` is then at least
-    their ``ENERGY_REACH``).
+    table's calm twins, split off by each tile's pixels (``overlap`` then grows by their
+    ``ENERGY_REACH``).
     """
     cell = (cell, cell) if isinstance(cell, int | np.integer) else tuple(cell)
     n, m = validate_cell(cell)
@@ -102,7 +102,9 @@ def grid_from_file(
             raise TerrathemeError(f"class-to-theme table must be 256 integers, got {table.shape}")
         table = table.astype(np.uint8)
     if calm:
-        overlap = max(int(overlap), ENERGY_REACH)
+        # The energy at a core pixel reaches the labels ENERGY_REACH away, and those need
+        # the classifier's context (``overlap``) beyond them.
+        overlap = int(overlap) + ENERGY_REACH
     tiles = vertex_tiles(size, (n, m), tile, overlap)
     rows, cols = grid_shape_for(info.width, info.height, (n, m))
     so_far = IndexGrid(np.zeros((rows, cols), np.uint8), (n, m))

@@ -214,8 +214,10 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         detail = detail_mapping(rgb, theme_labels, ThemeMapping(
             ThemeLibrary(new_themes), lut.astype(np.uint8), tuple(result.classes)))
         options = ColourMapOptions()
+        bits = grid_budget(options, theme_labels.size)
+        grid, detail = keep_calm(grid, detail, bits, theme_labels.size)
         grid, detail = keep_calm(calm_grid(rgb, theme_labels, grid, detail.calm), detail,
-                                 grid_budget(options, theme_labels.size), theme_labels.size)
+                                 bits, theme_labels.size)
         new_themes = list(detail.library)
         colour_map = fit_colour_map(rgb, grid, detail.library, options).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,

@@ -25,6 +25,9 @@ from terratheme.core.themes.library import ThemeLibrary, distinct_names
 
 #: Gaussian sigma (pixels) over which a pixel's detail energy is averaged
 ENERGY_SIGMA = 32.0
+#: the energy is averaged on blocks of this many pixels a side, aligned to the photo's
+#: origin, so a tile has the whole photo's blocks
+ENERGY_BLOCK = 4
 #: a class splits only where its calm and busy parts' mean log2 energies are this far apart
 TWIN_SEPARATION = 1.5
 #: each part holds at least this share of its class's pixels
@@ -36,7 +39,7 @@ BORDER_PIXELS = 3
 #: border pixels' weight
 BORDER_WEIGHT = 1e-4
 #: pixels of context the energy reaches (scipy's Gaussians stop at 4 sigma)
-ENERGY_REACH = BORDER_PIXELS + int(np.ceil(4 * DETAIL_SIGMA + 4 * ENERGY_SIGMA)) + 1
+ENERGY_REACH = BORDER_PIXELS + int(np.ceil(4 * DETAIL_SIGMA + 4 * ENERGY_SIGMA)) + 2 * ENERGY_BLOCK
 #: a twin's name: its theme's, then this
 TWIN_SUFFIX = " calm"
 
@@ -51,11 +54,15 @@ class CalmTwin:
     threshold: float
 
 
-def log_energy(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
+def log_energy(photo: np.ndarray, mask: np.ndarray,
+               origin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """(H, W) float32: log2 of the local detail energy inside ``mask``, as the detail themes
     measure contrast (``y / blur(y) - 1`` at ``DETAIL_SIGMA``), both blurs over the
     mask's own pixels, those within ``BORDER_PIXELS`` of its border weighing
     ``BORDER_WEIGHT`` (a classifier's border pixels are often the neighbour's colour).
+
+    The energy's wide blur runs on ``ENERGY_BLOCK`` blocks aligned to the photo's pixel
+    (0, 0); ``origin``: the (x, y) of ``photo``'s first pixel in the photo (a tile's).
     ``photo``: (H, W, 3) uint8; ``mask``: (H, W) bool. Outside the mask the values mean
     nothing.
     """
@@ -63,15 +70,25 @@ def log_energy(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
     inner = cv2.erode(np.asarray(mask, np.uint8), np.ones((2 * BORDER_PIXELS + 1,) * 2, np.uint8))
     m = np.where(inner > 0, np.float32(1.0), np.float32(BORDER_WEIGHT) * np.asarray(mask))
     m = m.astype(np.float32)
+    # Relative contrast against the class's own local mean (a normalised convolution).
+    local = gaussian_filter(y * m, DETAIL_SIGMA, mode="reflect") / np.maximum(
+        gaussian_filter(m, DETAIL_SIGMA, mode="reflect"), 1e-12)
+    relative = y / np.maximum(local, 1.0) - 1.0
+    # Its local mean energy over the class's pixels, on blocks aligned to the photo.
+    b = ENERGY_BLOCK
+    (h, w), (top, left) = y.shape, (origin[1] % b, origin[0] % b)
+    shape = (-(-(h + top) // b) * b, -(-(w + left) // b) * b)
 
-    def inside(values: np.ndarray, sigma: float) -> np.ndarray:
-        # A normalised convolution: the mean of the mask's own pixels around each pixel.
-        weight = gaussian_filter(m, sigma, mode="reflect")
-        return gaussian_filter(values * m, sigma, mode="reflect") / np.maximum(weight, 1e-12)
+    def blocks(values: np.ndarray) -> np.ndarray:
+        padded = np.zeros(shape, np.float32)
+        padded[top:top + h, left:left + w] = values
+        return padded.reshape(shape[0] // b, b, shape[1] // b, b).sum(axis=(1, 3))
 
-    # Relative contrast against the class's own local mean, then its local energy.
-    relative = y / np.maximum(inside(y, DETAIL_SIGMA), 1.0) - 1.0
-    return np.log2(inside(relative * relative, ENERGY_SIGMA) + 1e-6).astype(np.float32)
+    sigma = ENERGY_SIGMA / b
+    energy = gaussian_filter(blocks(relative * relative * m), sigma, mode="reflect") / np.maximum(
+        gaussian_filter(blocks(m), sigma, mode="reflect"), 1e-12)
+    full = np.repeat(np.repeat(np.log2(energy + 1e-6), b, axis=0), b, axis=1)
+    return full[top:top + h, left:left + w].astype(np.float32)
 
 
 def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
@@ -103,15 +120,16 @@ def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
     return tuple(twins)
 
 
-def split_calm(photo: np.ndarray, theme_labels: np.ndarray,
-               twins: Sequence[CalmTwin]) -> np.ndarray:
-    """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it."""
+def split_calm(photo: np.ndarray, theme_labels: np.ndarray, twins: Sequence[CalmTwin],
+               origin: tuple[int, int] = (0, 0)) -> np.ndarray:
+    """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it; ``origin``
+    as :func:`log_energy`'s."""
     labels = np.asarray(theme_labels)
     out = labels.copy()
     for twin in twins:
         mask = labels == twin.theme
         if mask.any():
-            out[mask & (log_energy(photo, mask) < twin.threshold)] = twin.twin
+            out[mask & (log_energy(photo, mask, origin) < twin.threshold)] = twin.twin
     return out
 
 
