@@ -176,6 +176,9 @@ def test_packed_grid_errors(renderer):
         renderer.render(pack(np.zeros((1, 9), np.uint8)), (2, 2))
     with pytest.raises(TerrathemeError, match="colour layer"):
         renderer.render(pack(np.zeros((3, 3, 3), np.uint8)), (2, 2))
+    # A one-channel layer of 16-bit values (a grey image), not theme indices.
+    with pytest.raises(TerrathemeError, match="uint16 values through a palette"):
+        renderer.render(pack(np.full((3, 3), 300, np.uint16)), (2, 2))
     with pytest.raises(TerrathemeError, match="outside"):
         renderer.render(layer, (4, 4), region=(0, 0, 50, 4))
     with pytest.raises(TerrathemeError, match="tiled packed layer"):

@@ -29,9 +29,13 @@ def check_grid_layer(layer: PackedLayer | TiledLayer, themes: int) -> None:
     if isinstance(layer, TiledLayer):
         raise TerrathemeError("a tiled packed layer: the GPU reads single packed layers "
                               "(up to 65536 vertices a side)")
-    if not layer.identity or layer.channels != 1:
+    if layer.channels != 1:
         raise TerrathemeError("a packed index grid must be an index layer (one channel, the "
                               "texel value its palette index), not a colour layer")
+    if not layer.identity:
+        raise TerrathemeError(f"a packed index grid must be an index layer (the texel value "
+                              f"its palette index); this one holds {layer.palette.dtype} "
+                              f"values through a palette, as a grey image does")
     if layer.width < 2 or layer.height < 2:
         raise TerrathemeError(f"a packed index grid needs at least 2 x 2 vertices, got "
                               f"{layer.width} x {layer.height}")
