@@ -283,6 +283,21 @@ def test_an_export_manifest_that_is_a_pipe_is_named_so(tmp_path):
     assert not (tmp_path / "p.ttproj").exists()
 
 
+# Was: a folder named like a manifest said "no export manifests (terratheme_*.json) in the
+# folder", and an export folder holding one counted it as its manifest.
+
+def test_an_export_manifest_that_is_a_folder_is_named_so(tmp_path):
+    folder = tmp_path / "export" / "terratheme_unity.json"
+    folder.mkdir(parents=True)
+    proc = run_cli("new", "--from", "export", folder, tmp_path / "p.ttproj")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr[-2000:]
+    assert "terratheme_unity.json: is a folder, not an export manifest" in lines[0]
+    proc = run_cli("new", "--from", "export", folder.parent, tmp_path / "p.ttproj")
+    assert proc.returncode == 2 and "no export manifests" in proc.stderr
+    assert not (tmp_path / "p.ttproj").exists()
+
+
 # -- text from a file reaching the terminal ------------------------------------
 # Was: a project whose theme name held "\x1b]0;pwned\x07...\x1b[2K\rFAKE: success\n"
 # loaded; `new --from export` printed the carried project's theme names raw, so the

@@ -24,8 +24,10 @@ def export_manifest(path: str | os.PathLike) -> Path:
     """The manifest of an export given as its folder or its manifest file (TerrathemeError
     for none or several)."""
     p = Path(path)
+    if p.is_dir() and p.match(MANIFEST_GLOB):
+        raise TerrathemeError(f"{p}: is a folder, not an export manifest")
     if p.is_dir():
-        found = sorted(p.glob(MANIFEST_GLOB))
+        found = sorted(f for f in p.glob(MANIFEST_GLOB) if not f.is_dir())
         if len(found) != 1:
             what = "no" if not found else f"{len(found)}"
             raise TerrathemeError(f"{p}: {what} export manifests ({MANIFEST_GLOB}) in the "
