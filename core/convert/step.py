@@ -220,10 +220,9 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
     else:
         twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(calm))
-    # A class keeps its gain; its calm twin takes its calm pixels' own, never more.
+    # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
     themes = detail_themes(rgb, split_calm(rgb, theme_labels, twins),
-                           with_twins(mapping.library, twins), detail,
-                           twins={t.twin: t.theme for t in twins})[0]
+                           with_twins(mapping.library, twins), detail)[0]
     return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
 
 

@@ -8,8 +8,6 @@ and flat from its mip level 2 up (:func:`mip_flat`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
 from scipy.ndimage import gaussian_filter, zoom
 from scipy.signal import resample
@@ -146,8 +144,7 @@ def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
 
 
 def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
-                  sigma: float = DETAIL_SIGMA, *,
-                  twins: Mapping[int, int] | None = None) -> tuple[ThemeLibrary, list[float]]:
+                  sigma: float = DETAIL_SIGMA) -> tuple[ThemeLibrary, list[float]]:
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
     Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
@@ -155,40 +152,29 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
     class's cars and marks do not set the grain of its whole theme; a fragment theme's at
     most ``FRAGMENT_CONTRAST / its RMS``), clipped to ``GAIN_RANGE``; 1 for an unused or
     flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per
-    pixel. ``twins``: {calm twin: the theme it splits} (:mod:`.calm`): a theme's pixels
-    are its twin's too, and a twin's gain is at most its theme's. Names and colours are
-    kept.
+    pixel. Names and colours are kept.
     """
     details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
     relative = _relative(y, sigma, wrap=False).ravel()
-    twins = dict(twins or {})
-    # Each theme's pixels: its own, and its calm twin's.
-    members = {k: [k] for k in range(len(details))}
-    for twin, theme in twins.items():
-        members[theme].append(twin)
     counts = np.bincount(labels, minlength=len(details))
     sums = np.bincount(labels, relative ** 2, minlength=len(details))
     gains = []
     for k, (rel, fragment) in enumerate(details):
         own = float((rel.mean(axis=2) ** 2).mean())
-        count = int(counts[members[k]].sum())
-        if count == 0 or own <= 1e-12:
+        if counts[k] == 0 or own <= 1e-12:
             gains.append(1.0)
             continue
         # The class's energy, its heavy tail cut at TAIL_CAP x its robust amplitude.
-        pixels = np.isin(labels, members[k]) if len(members[k]) > 1 else labels == k
-        robust = 1.4826 * float(np.median(np.abs(relative[pixels])))
-        energy = min(float(sums[members[k]].sum() / count), (TAIL_CAP * robust) ** 2)
+        robust = 1.4826 * float(np.median(np.abs(relative[labels == k])))
+        energy = min(float(sums[k] / counts[k]), (TAIL_CAP * robust) ** 2)
         gain = DETAIL_CONTRAST * np.sqrt(energy / own)
         if fragment:
             # Scrambled fragments match the photo's edges in energy only: at a town's full
             # contrast they read as dark speckle over the map's streets.
             gain = min(gain, FRAGMENT_CONTRAST / np.sqrt(own))
         gains.append(float(np.clip(gain, *GAIN_RANGE)))
-    for twin, theme in twins.items():
-        gains[twin] = min(gains[twin], gains[theme])
     themes = ThemeLibrary(t.with_(texture=_detail_bytes(rel, g))
                           for t, (rel, _), g in zip(library, details, gains, strict=True))
     return themes, gains
