@@ -16,6 +16,8 @@ from terratheme.core.io.tiles import TileWindow
 from terratheme.core.themes.calm import CalmTwin, split_calm
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
+#: a tile's read window starts at a multiple of this many pixels (see :func:`vertex_tiles`)
+READ_ALIGN = 32
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,9 @@ def vertex_tiles(
     """Tile windows row by row, each with the vertex block it owns.
 
     ``size``: (W, H) photo; ``cell``: (N, M); ``tile``: about this many pixels a side
-    (whole cells); ``overlap``: context pixels read around each vote window.
+    (whole cells); ``overlap``: context pixels read around each vote window, at least
+    (the read window starts on the ``READ_ALIGN`` lattice: a classifier's coarse blocks
+    then fall where they fall on the whole photo; a cell of 12 starts its windows off it).
     """
     w, h = size
     n, m = cell
@@ -45,7 +49,10 @@ def vertex_tiles(
     for vr in _blocks(rows, max(1, int(tile) // m)):
         for vc in _blocks(cols, max(1, int(tile) // n)):
             x, y, ww, hh = vertex_window(vr, vc, (n, m), (w, h))
-            rx, ry = max(0, x - overlap), max(0, y - overlap)
+            # The read window starts on the photo's READ_ALIGN lattice, where a classifier's
+            # coarse blocks (8 px features) start on the whole photo too.
+            rx = max(0, (x - overlap) // READ_ALIGN * READ_ALIGN)
+            ry = max(0, (y - overlap) // READ_ALIGN * READ_ALIGN)
             rx1, ry1 = min(w, x + ww + overlap), min(h, y + hh + overlap)
             out.append(VertexTile(x, y, ww, hh, rx, ry, rx1 - rx, ry1 - ry, vr, vc))
     return out
