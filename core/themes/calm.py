@@ -148,15 +148,19 @@ def twin_vertices(indices: np.ndarray, split_indices: np.ndarray,
 
 
 def with_twins(library: ThemeLibrary, twins: Sequence[CalmTwin]) -> ThemeLibrary:
-    """``library`` with each twin appended: its theme's texture and colour, named
-    "<theme> calm" (distinct)."""
+    """``library`` with each twin appended: its theme's texture, named "<theme> calm"
+    (distinct), its display colour halfway to white (the index map tells them apart)."""
     if not twins:
         return library
     names = distinct_names([*library.names, *(library[t.theme].name + TWIN_SUFFIX
                                               for t in twins)])
-    return ThemeLibrary([*library, *(library[t.theme].with_(name=name)
-                                     for t, name in zip(twins, names[len(library):],
-                                                        strict=True))])
+
+    def twin(theme: CalmTwin, name: str):
+        parent = library[theme.theme]
+        return parent.with_(name=name, colour=tuple(c + (255 - c) // 2 for c in parent.colour))
+
+    return ThemeLibrary([*library, *(twin(t, name) for t, name in
+                                     zip(twins, names[len(library):], strict=True))])
 
 
 def twin_parents(n_themes: int, twins: Sequence[CalmTwin]) -> np.ndarray:
