@@ -330,10 +330,7 @@ def grid_and_colour(
         # The class grid's vertices take their calm twins, if the grid's bytes allow them
         # (the choice then carries the grid).
         bits = grid_budget(colour_map, theme_labels.size) if grid_bpp is None else grid_bpp
-        grid, mapping = keep_calm(grid, mapping, bits, theme_labels.size)
-        if mapping.calm:
-            grid, mapping = keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm),
-                                      mapping, bits, theme_labels.size)
+        grid, mapping = calm_vertices(rgb, theme_labels, grid, mapping, bits)
         if choice is not None:
             choice = replace(choice, grid=grid, packed_bytes=packed_bytes(grid))
     fitted = None if colour_map is None else fit_colour_map(
@@ -360,13 +357,25 @@ def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
                                  mapping.classes)
 
 
+def calm_vertices(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
+                  mapping: ThemeMapping, grid_bpp: float | None
+                  ) -> tuple[IndexGrid, ThemeMapping]:
+    """The class ``grid`` (voted from the (H, W) uint8 ``theme_labels``) with ``mapping``'s
+    calm twins at its vertices (:func:`calm_grid`) where :func:`keep_calm` keeps them, and
+    ``mapping`` with them; both without them otherwise. The class grid is checked first,
+    so no twin is voted for a grid already over its share."""
+    grid, mapping = keep_calm(grid, mapping, grid_bpp, theme_labels.size)
+    if not mapping.calm:
+        return grid, mapping
+    return keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm), mapping, grid_bpp,
+                     theme_labels.size)
+
+
 def calm_grid(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
               twins: Sequence[CalmTwin]) -> IndexGrid:
     """``grid`` (voted from the (H, W) uint8 ``theme_labels``) with its vertices' calm twins
     (:func:`.calm.twin_vertices`), from a plain vote of the twin-split labels at its cell,
     as each tile of a tiled conversion votes them."""
-    if not twins:
-        return grid
     split = split_calm(rgb, theme_labels, twins)
     votes = vote_grid(split, grid.cell, keep_specks=True)
     return IndexGrid(twin_vertices(grid.indices, votes, twins), grid.cell)

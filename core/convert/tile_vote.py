@@ -124,8 +124,10 @@ class VoteJob:
         if self.table is not None:
             labels = self.table[labels]
         votes = self._vote(labels[win.core_in_read], win)
-        if not self.calm or transparent(pixels):
-            return (votes, votes) if self.calm else votes
+        if not self.calm:
+            return votes
+        if transparent(pixels):  # no data: nothing to split
+            return votes, votes
         split = split_calm(prepare_photo(pixels).rgb, labels, self.calm, (win.rx, win.ry))
         return votes, self._vote(split[win.core_in_read], win)
 

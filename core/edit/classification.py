@@ -156,12 +156,11 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
     from terratheme.core.convert.labels_to_grid import apply_lut, labels_to_grid
     from terratheme.core.convert.step import (
         assign_themes,
-        calm_grid,
+        calm_vertices,
         classify_photo,
         detail_mapping,
         fit_colour_map,
         grid_budget,
-        keep_calm,
     )
     from terratheme.core.themes.from_photo import ThemeMapping
 
@@ -214,10 +213,8 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         detail = detail_mapping(rgb, theme_labels, ThemeMapping(
             ThemeLibrary(new_themes), lut.astype(np.uint8), tuple(result.classes)))
         options = ColourMapOptions()
-        bits = grid_budget(options, theme_labels.size)
-        grid, detail = keep_calm(grid, detail, bits, theme_labels.size)
-        grid, detail = keep_calm(calm_grid(rgb, theme_labels, grid, detail.calm), detail,
-                                 bits, theme_labels.size)
+        grid, detail = calm_vertices(rgb, theme_labels, grid, detail,
+                                     grid_budget(options, theme_labels.size))
         new_themes = list(detail.library)
         colour_map = fit_colour_map(rgb, grid, detail.library, options).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,

@@ -68,8 +68,7 @@ def log_energy(photo: np.ndarray, mask: np.ndarray,
     """
     y = np.asarray(photo, np.float32)[..., :3].mean(axis=2)
     inner = cv2.erode(np.asarray(mask, np.uint8), np.ones((2 * BORDER_PIXELS + 1,) * 2, np.uint8))
-    m = np.where(inner > 0, np.float32(1.0), np.float32(BORDER_WEIGHT) * np.asarray(mask))
-    m = m.astype(np.float32)
+    m = np.where(inner > 0, 1.0, BORDER_WEIGHT * np.asarray(mask)).astype(np.float32)
     # Relative contrast against the class's own local mean (a normalised convolution).
     local = gaussian_filter(y * m, DETAIL_SIGMA, mode="reflect") / np.maximum(
         gaussian_filter(m, DETAIL_SIGMA, mode="reflect"), 1e-12)
@@ -97,15 +96,16 @@ def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
 
     Otsu's threshold splits each theme's energies; a split is kept when both parts hold
     ``TWIN_SHARE`` of the theme and ``TWIN_MIN_PIXELS``, and their means are
-    ``TWIN_SEPARATION`` apart. Twins are
-    numbered from ``first_twin`` in theme order. ``theme_labels``: (H, W) uint8.
+    ``TWIN_SEPARATION`` apart. Twins are numbered from ``first_twin`` in theme order.
+    ``theme_labels``: (H, W) uint8.
     """
     labels = np.asarray(theme_labels)
     twins: list[CalmTwin] = []
     for k in themes:
         mask = labels == k
-        least = max(TWIN_MIN_PIXELS, TWIN_SHARE * int(mask.sum()))
-        if int(mask.sum()) < 2 * least:
+        count = int(mask.sum())
+        least = max(TWIN_MIN_PIXELS, TWIN_SHARE * count)
+        if count < 2 * least:
             continue
         values = log_energy(photo, mask)[mask]
         if float(values.max()) - float(values.min()) < TWIN_SEPARATION:
