@@ -153,7 +153,8 @@ class Stopwatch:
 
 
 def variant_project(rgb, res, opts, cell):
-    """The project ``convert_photo(rgb, opts)`` makes, from ``res``'s classification and themes."""
+    """The project ``convert_photo(rgb, opts)`` makes, from ``res``'s classification and
+    themes; and its calm twins (those ``res`` has, unless the variant's grid drops them)."""
     theme_labels = apply_lut(res.labels, res.mapping.lut)
     made = grid_and_colour(rgb, theme_labels, res.mapping, cell=cell,
                            target_agreement=opts.target_agreement,
@@ -162,8 +163,9 @@ def variant_project(rgb, res, opts, cell):
                            render=RenderOptions(boundary=opts.boundary),
                            keep_specks=opts.keep_specks)
     h, w = rgb.shape[:2]
-    return ThematicTexture(made.grid, res.mapping.library, {"photo_size": [w, h]},
-                           colour_map=None if made.colour is None else made.colour.colour_map)
+    return ThematicTexture(made.grid, made.mapping.library, {"photo_size": [w, h]},
+                           colour_map=None if made.colour is None else made.colour.colour_map
+                           ), made.mapping.calm
 
 
 def score_texture(photo, mask, classes, thin, project, boundary, calm=()):
@@ -205,22 +207,22 @@ def measure_photo(folder, name, classes, crop, variants, check, base=DEFAULT):
     for vname, opts in variants.items():
         t = time.perf_counter()
         if vname == "default":
-            project, seconds = res.project, secs
+            (project, calm), seconds = (res.project, res.mapping.calm), secs
         else:
             # The defaults' cell choice, unless the variant's grids differ (keep_specks).
             reuse = opts.cell == "auto" and opts.keep_specks == base.keep_specks
             cell = res.choice.cell[0] if reuse else opts.cell
-            project = variant_project(photo, res, opts, cell)
+            project, calm = variant_project(photo, res, opts, cell)
             seconds = time.perf_counter() - t + shared + (choice if reuse else 0.0)
         if check and vname == "default":
-            again = variant_project(photo, res, opts, res.choice.cell[0])
+            again, _ = variant_project(photo, res, opts, res.choice.cell[0])
             same_map = (again.colour_map is None) == (project.colour_map is None) and (
                 again.colour_map is None
                 or np.array_equal(again.colour_map.pixels, project.colour_map.pixels))
             if not (np.array_equal(again.grid.indices, project.grid.indices) and same_map):
                 raise SystemExit("variant composition differs from convert_photo: fix the bench")
         scores, renders[vname] = score_texture(photo, mask, classes, thin, project,
-                                               opts.boundary, res.mapping.calm)
+                                               opts.boundary, calm)
         scores.update(seconds=round(seconds, 2), mpx_per_s=round(mpx / seconds, 3),
                       miou_ratio=round(scores["miou_tex"] / max(row["miou_cls"], 1e-9), 4))
         row["variants"][vname] = scores
