@@ -261,3 +261,100 @@ def test_a_damaged_upsample_entry_is_one_line(tmp_path, change, match):
             zf.writestr(name, data)
     with pytest.raises(CorruptFileError, match=match):
         load_project(tmp_path / "bad.ttproj")
+
+
+def test_sharpened_is_the_unsharp_mask_of_a_step_worked_by_hand():
+    from terratheme.core.model.colour_map import sharpened
+
+    # A vertical step 0 | 100: the binomial blur's row weights are 1 4 6 4 1 (edges
+    # replicated), so with amount 1 (q = 4) pixel 3 is 100 + (100 - 1100/16) = 131.25,
+    # pixel 4 100 + (100 - 1500/16) = 106.25, and the dark side falls below 0 (clipped).
+    step = np.zeros((4, 6, 3), np.uint8)
+    step[:, 3:] = 100
+    got = sharpened(step, 4)
+    assert got[:, :, 0].tolist() == [[0, 0, 0, 131, 106, 100]] * 4
+    assert np.array_equal(got[..., 0], got[..., 2])
+    # Amount 1/2 (q = 2): 100 + 31.25 / 2 = 115.6 and 100 + 6.25 / 2 = 103.1.
+    assert sharpened(step, 2)[0, :, 1].tolist() == [0, 0, 0, 116, 103, 100]
+    assert sharpened(step, 0) is step
+    # A flat map is left as it is at every amount.
+    flat = np.full((5, 7, 3), 77, np.uint8)
+    for q in range(9):
+        assert np.array_equal(sharpened(flat, q), flat)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 12), st.integers(1, 8), st.integers(0, 2**31 - 1))
+def test_sharpened_in_bands_is_the_whole_map_sharpened(rows, cols, q, seed):
+    import terratheme.core.model.colour_map as cm
+
+    pixels = np.random.default_rng(seed).integers(0, 256, (rows, cols, 3), dtype=np.uint8)
+    whole = cm.sharpened(pixels, q)
+    saved = cm.SHARPEN_ROWS
+    try:
+        cm.SHARPEN_ROWS = 3
+        assert np.array_equal(cm.sharpened(pixels, q), whole)
+    finally:
+        cm.SHARPEN_ROWS = saved
+
+
+def test_a_sharpened_map_draws_its_enlargement_sharpened_and_round_trips_as_version_4(tmp_path):
+    import json
+    import zipfile
+
+    import cv2
+    from terratheme.core.model.colour_map import sharpened
+
+    coarse, plain = _upsampled_map()
+    cmap = plain.redrawn(4, (96, 50))
+    assert (cmap.sharpen, cmap.upsample, cmap.scale, cmap.data) == (4, 2, 8, plain.data)
+    # Enlarged, sharpened whole, then cut to the texture's 7 rows.
+    want = sharpened(cv2.resize(coarse, (12, 8), interpolation=cv2.INTER_CUBIC), 4)[:7]
+    assert np.array_equal(cmap.pixels, want) and not np.array_equal(cmap.pixels, plain.pixels)
+    proj = _project(cmap)
+    save_project(tmp_path / "p.ttproj", proj)
+    with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
+        manifest = json.loads(zf.read("manifest.json"))
+    assert manifest["version"] == 4 and manifest["colour_map"]["sharpen"] == 4
+    back = load_project(tmp_path / "p.ttproj")
+    assert back == proj and back.colour_map.sharpen == 4
+    assert np.array_equal(back.colour_map.pixels, cmap.pixels)
+    # Unsharpened maps keep their older versions.
+    save_project(tmp_path / "q.ttproj", _project(plain))
+    with zipfile.ZipFile(tmp_path / "q.ttproj") as zf:
+        manifest = json.loads(zf.read("manifest.json"))
+    assert manifest["version"] == 3 and "sharpen" not in manifest["colour_map"]
+
+
+@pytest.mark.parametrize("sharpen", [9, -1, True, "2", 2.5, None])
+def test_bad_sharpens_are_refused(sharpen):
+    with pytest.raises(TerrathemeError, match="sharpen must be"):
+        ColourMap.encode(np.full((2, 2, 3), 128, np.uint8), 16, "png", 90, upsample=2,
+                         sharpen=sharpen, texture_size=(32, 32))
+    with pytest.raises(TerrathemeError, match="sharpen must be"):
+        ColourMap(np.full((2, 2, 3), 128, np.uint8), 8, sharpen=4)
+
+
+@pytest.mark.parametrize("change", [
+    {"sharpen": 9}, {"sharpen": -2}, {"sharpen": True}, {"sharpen": "4"}, {"sharpen": 1.5},
+    {"sharpen": 4, "upsample": 1, "codec": None, "member": "colour_map.npy"},
+])
+def test_a_damaged_sharpen_entry_is_one_line(tmp_path, change):
+    import json
+    import zipfile
+
+    from terratheme.core.errors import CorruptFileError
+
+    _, cmap = _upsampled_map()
+    save_project(tmp_path / "p.ttproj", _project(cmap.redrawn(2, (96, 50))))
+    with zipfile.ZipFile(tmp_path / "p.ttproj") as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    manifest = json.loads(members["manifest.json"])
+    manifest["colour_map"].update(change)
+    members["manifest.json"] = json.dumps(manifest).encode()
+    with zipfile.ZipFile(tmp_path / "bad.ttproj", "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    with pytest.raises(CorruptFileError, match="sharpen must be") as err:
+        load_project(tmp_path / "bad.ttproj")
+    assert "\n" not in str(err.value)

@@ -272,3 +272,56 @@ def test_a_tiny_photo_gets_the_least_area_bytes():
     assert grid_budget(opts, 128 * 96) == pytest.approx(
         GRID_SHARE * MIN_AREA_BYTES * 8 / (128 * 96))
     assert grid_budget(opts, 1000 * 1000) == pytest.approx(GRID_SHARE * 0.04)
+
+
+def test_a_budget_map_is_drawn_at_the_unsharp_mask_that_scores_best():
+    from terratheme.core.fidelity import structure_similarity
+    from terratheme.core.render.colour_map import apply_colour_map
+
+    # 4-texel streets every 32 rows and columns: the block means and the codec soften them.
+    photo = np.full((128, 128, 3), 200, np.uint8)
+    for k in range(4):
+        photo[32 * k + 12:32 * k + 16] = 60
+        photo[:, 32 * k + 12:32 * k + 16] = 60
+    render = np.full((128, 128, 3), 128, np.uint8)
+    opts = ColourMapOptions(budget=1.0, budget_scales=(8,))
+    sharp = choose_colour_map(photo, render, opts).colour_map
+    assert sharp.sharpen in opts.budget_sharpens and sharp.sharpen > 0
+    plain = sharp.redrawn(0, (128, 128))
+    assert plain.data == sharp.data
+
+    def s4(cmap):
+        return structure_similarity(apply_colour_map(render.copy(), cmap, (0, 0, 128, 128)),
+                                    photo, 4)
+
+    assert s4(sharp) > s4(plain)
+    # Only the amounts offered are tried.
+    none = choose_colour_map(photo, render, ColourMapOptions(budget=1.0, budget_scales=(8,),
+                                                             budget_sharpens=(0,)))
+    assert none.colour_map.sharpen == 0 and none.colour_map.data == sharp.data
+    with pytest.raises(TerrathemeError, match="budget_sharpens"):
+        ColourMapOptions(budget_sharpens=(9,))
+
+
+def test_a_map_made_tile_by_tile_takes_the_unsharp_mask_it_is_given(tmp_path):
+    from terratheme.core.convert.colour_fit import colour_map_from_file
+    from terratheme.core.io.images import write_image
+    from terratheme.core.model.grid import IndexGrid
+
+    rng = np.random.default_rng(3)
+    photo = rng.integers(30, 220, (100, 140, 3), dtype=np.uint8)
+    write_image(tmp_path / "p.png", photo)
+    grid = IndexGrid(rng.integers(0, 2, (8, 10)).astype(np.uint8), (16, 16))
+    themes = [np.full((8, 8, 3), 90, np.uint8), np.full((8, 8, 3), 160, np.uint8)]
+    plain = colour_map_from_file(tmp_path / "p.png", grid, themes, 16,
+                                 options=ColourMapOptions(codec="png"), tile=48).colour_map
+    sharp = colour_map_from_file(tmp_path / "p.png", grid, themes, 16,
+                                 options=ColourMapOptions(codec="png"), tile=48,
+                                 sharpen=4).colour_map
+    assert sharp.sharpen == 4 and sharp.data == plain.data
+    assert np.array_equal(sharp.pixels, plain.redrawn(4, grid.texture_size).pixels)
+    # A map to a dE8 target is never sharpened.
+    target = colour_map_from_file(tmp_path / "p.png", grid, themes, 16,
+                                  options=ColourMapOptions(codec="png", target=2.0), tile=48,
+                                  sharpen=4).colour_map
+    assert target.sharpen == 0

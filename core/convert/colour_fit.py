@@ -5,7 +5,9 @@ A class carries one texture, so the photo's slow colour changes are lost; the ma
 the area has a byte budget; for each of ``budget_scales`` the block gain ``photo /
 render`` is coded at the highest quality that fits (:func:`fit_quality`), rendered
 through its 2x bicubic enlargement at even scales (:func:`budget_upsample`), and the scale
-whose render scores best (:func:`budget_score`) is kept. With a ``target``: the gain is
+whose render scores best (:func:`budget_score`) is kept, then drawn at the unsharp mask of
+``budget_sharpens`` that scores best (the block means and the codec soften its edges;
+the mask costs no bytes). With a ``target``: the gain is
 refined against its own bilinear upsampling and the coarsest of ``scales`` whose render
 keeps dE8 under ``target`` is kept. Either way the map passes through its codec, so the
 project renders what the packed output holds.
@@ -34,7 +36,13 @@ from terratheme.core.fidelity.metrics import (
 from terratheme.core.io.cluster import map_ordered
 from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
-from terratheme.core.model.colour_map import NEUTRAL, ColourMap, TileBox, TileEncoder
+from terratheme.core.model.colour_map import (
+    NEUTRAL,
+    SHARPENS,
+    ColourMap,
+    TileBox,
+    TileEncoder,
+)
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.colour_map import apply_colour_map, gain_image
 from terratheme.core.render.renderer import RenderOptions, render_cells
@@ -54,7 +62,8 @@ class ColourMapOptions:
     ``target``: dE8 (mean CIEDE2000 after a sigma-8 blur) to reach at the coarsest of
     ``scales`` (texels per map pixel, coarsest first), refining the block gain ``iterations``
     times at codec ``quality``; None: the area (packed grid and map) gets ``budget`` bits per
-    photo pixel and the best of ``budget_scales``. ``codec``: see ``core.io.codec``.
+    photo pixel and the best of ``budget_scales``, drawn at the best of ``budget_sharpens``
+    (:func:`core.model.colour_map.sharpened`). ``codec``: see ``core.io.codec``.
     """
 
     target: float | None = None
@@ -64,12 +73,16 @@ class ColourMapOptions:
     iterations: int = 2
     budget: float = 0.04
     budget_scales: tuple[int, ...] = (16, 12, 8, 6, 4, 3)
+    budget_sharpens: tuple[int, ...] = (0, 2, 4, 6)
 
     def __post_init__(self) -> None:
         for name in ("scales", "budget_scales"):
             got = getattr(self, name)
             if not got or any(int(s) < 1 for s in got):
                 raise TerrathemeError(f"colour map {name} must be positive, got {got}")
+        if not self.budget_sharpens or any(q not in SHARPENS for q in self.budget_sharpens):
+            raise TerrathemeError(f"colour map budget_sharpens must be in {SHARPENS}, "
+                                  f"got {self.budget_sharpens}")
         if self.target is not None and not self.target > 0:
             raise TerrathemeError(f"colour map target must be > 0, got {self.target}")
         if not self.budget > 0:
@@ -227,7 +240,16 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
         curve.append((scale, cmap.nbytes, err))
         if best is None or score > best[0]:
             best = (score, cmap, err)
-    _, cmap, err = best  # type: ignore[misc]  (the coarsest scale always gives a map)
+    score, cmap, err = best  # type: ignore[misc]  (the coarsest scale always gives a map)
+    # The chosen map drawn at each unsharp mask: the one that scores best ships (no bytes).
+    for sharpen in options.budget_sharpens:
+        if sharpen != cmap.sharpen:
+            drawn = cmap.redrawn(sharpen, size)
+            shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), drawn,
+                                     (0, 0, w, h))
+            got, _, _, got_err = budget_score(ref, quick, shown)
+            if got > score:
+                score, cmap, err = got, drawn, got_err
     return FittedColourMap(cmap, cmap.data, options.codec, err, tuple(curve))
 
 
@@ -351,8 +373,10 @@ def colour_map_from_file(
     scheduler: Scheduler | Client = Scheduler.SERIAL,
     progress: Callable[[int, int], None] | None = None,
     reserved: int = 0,
+    sharpen: int = 0,
 ) -> FittedColourMap:
-    """The colour map of a photo larger than memory, tile by tile (the block gain only).
+    """The colour map of a photo larger than memory, tile by tile (the block gain only),
+    drawn at unsharp mask ``sharpen`` (a budget map's; chosen on a sample).
 
     Each tile of whole map pixels returns their stored gain (:class:`BlockGainJob`), so
     memory is set by the tile and the map; pixels past the photo take the nearest one's
@@ -393,7 +417,8 @@ def colour_map_from_file(
                                  options.map_bytes(info.width * info.height, reserved))
         upsample = budget_upsample(scale)
     cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run,
-                            upsample=upsample, texture_size=(tw, th))
+                            upsample=upsample, sharpen=sharpen if options.target is None else 0,
+                            texture_size=(tw, th))
     return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())
 
 

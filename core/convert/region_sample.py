@@ -31,6 +31,7 @@ from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import Bands, image_info, read_windows
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
+from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
 
@@ -331,10 +332,11 @@ def photo_sample(rgb: np.ndarray, labels: np.ndarray, *,
     return replace(sample, no_data=bool((labels == 0).any()))
 
 
-def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],
-                        render: RenderOptions, options: ColourMapOptions, reserved: int = 0
-                        ) -> int:
-    """The colour map's scale chosen on the sample's windows (:func:`choose_colour_map`).
+def sample_colour_map(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],
+                      render: RenderOptions, options: ColourMapOptions, reserved: int = 0
+                      ) -> ColourMap:
+    """The colour map :func:`choose_colour_map` makes of the sample's windows: the region's
+    map takes its scale and its unsharp mask.
 
     Each window rendered from the region's ``grid`` (:func:`grid_window`); ``reserved``:
     the sample's share of the bytes spent already.
@@ -345,4 +347,4 @@ def sample_colour_scale(sample: RegionSample, grid: IndexGrid, textures: list[np
         shown[py:py + h, px:px + w] = render_cells(block, textures, grid.cell, region=(x, y, w, h),
                                                    options=render, origin=origin)
     return choose_colour_map(sample.joined(sample.rgb), sample.joined(shown), options,
-                             reserved=int(reserved)).colour_map.coded_scale
+                             reserved=int(reserved)).colour_map

@@ -29,7 +29,7 @@ from terratheme.core.convert.labels_to_grid import apply_lut, grid_shape_for
 from terratheme.core.convert.region_sample import (
     fit_unsupervised_region,
     region_sample,
-    sample_colour_scale,
+    sample_colour_map,
 )
 from terratheme.core.convert.specks import SpeckStream
 from terratheme.core.convert.step import (
@@ -287,16 +287,17 @@ def convert_file_tiled(
         spec, names=class_names, detail=detail_sigma(colour_map))
     fitted = None
     if colour_map is not None:
-        # The map's scale chosen on the sample, then the map itself tile by tile; a byte
-        # budget covers the packed grid too, as on the whole photo.
+        # The map's scale and unsharp mask chosen on the sample, then the map itself tile by
+        # tile; a byte budget covers the packed grid too, as on the whole photo.
         reserved = packed_bytes(grid) if colour_map.target is None else 0
         seen = sum(w * h for *_, w, h in sample.windows)
         share = min(1.0, seen / (info.width * info.height))
-        scale = sample_colour_scale(sample, grid, mapping.library.textures, style, colour_map,
-                                    reserved=int(round(reserved * share)))
-        fitted = colour_map_from_file(path, grid, mapping.library.textures, scale, render=style,
-                                      options=colour_map, tile=tile, scheduler=scheduler,
-                                      progress=progress, reserved=reserved)
+        chosen = sample_colour_map(sample, grid, mapping.library.textures, style, colour_map,
+                                   reserved=int(round(reserved * share)))
+        fitted = colour_map_from_file(path, grid, mapping.library.textures, chosen.coded_scale,
+                                      render=style, options=colour_map, tile=tile,
+                                      scheduler=scheduler, progress=progress, reserved=reserved,
+                                      sharpen=chosen.sharpen)
     meta = {
         "source_photo": str(path), "created_by": "terratheme convert (tiled)",
         "photo_size": [info.width, info.height],

@@ -6,7 +6,9 @@ A class alone carries one texture and one colour; the colour map (a terrain engi
 (:mod:`core.render.colour_map`); layout, codecs and tiles: docs/formats.md, the colour map.
 A map coded at an even scale may ship ``upsample = 2``: its decoded image is enlarged 2x
 by bicubic interpolation and renders at half the coded scale (sharper than bilinear from
-the coded pixels, for no bytes; docs/decisions.md).
+the coded pixels, for no bytes; docs/decisions.md). A coded map may also ship
+``sharpen = q``: its drawn image then passes an exact unsharp mask of amount ``q / 4``
+(:func:`sharpened`), which gives back the edges the block means and the codec soften.
 """
 
 from __future__ import annotations
@@ -37,6 +39,10 @@ ONE_IMAGE_LIMITS = {
 MAP_TILE = 4096
 #: the decoded image's enlargements a map may ship with (1: none)
 UPSAMPLES = (1, 2)
+#: the unsharp mask amounts (in quarters) a coded map may ship with (:func:`sharpened`)
+SHARPENS = tuple(range(9))
+#: rows of a drawn map :func:`sharpened` filters at a time (bounded memory on huge maps)
+SHARPEN_ROWS = 1024
 
 #: a map tile's place: ``(rows, cols)`` slices of the map
 TileBox = tuple[slice, slice]
@@ -98,8 +104,8 @@ class ColourMap:
     (:mod:`core.io.codec`), which ``pixels`` decode; ``tiles``: instead of ``data``,
     ``tile x tile`` pieces row by row. ``upsample``: the shipped image is at
     ``coded_scale = scale * upsample`` and ``pixels`` are its decode enlarged ``upsample``
-    times (:func:`upsampled`) and cut to the ``(W, H)`` ``texture_size`` the constructors
-    then need; they take the shipped image's scale.
+    times and sharpened by ``sharpen`` quarters (:func:`drawn_pixels`), cut to the ``(W, H)``
+    ``texture_size`` the constructors then need; they take the shipped image's scale.
     """
 
     pixels: np.ndarray
@@ -109,6 +115,7 @@ class ColourMap:
     tiles: tuple[bytes, ...] | None = None
     tile: int | None = None
     upsample: int = 1
+    sharpen: int = 0
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.pixels)
@@ -121,6 +128,7 @@ class ColourMap:
             raise TerrathemeError(f"colour map scale must be an integer 1..{MAX_SCALE}, "
                                   f"got {self.scale!r}")
         check_upsample(self.upsample, coded=self.codec is not None)
+        check_sharpen(self.sharpen, coded=self.codec is not None)
         frozen = np.array(arr, dtype=np.uint8, order="C")
         frozen.setflags(write=False)
         object.__setattr__(self, "pixels", frozen)
@@ -149,16 +157,18 @@ class ColourMap:
     @classmethod
     def from_bytes(cls, data: bytes, codec: str, scale: int,
                    shape: tuple[int, int] | None = None, *, upsample: int = 1,
-                   texture_size: tuple[int, int] | None = None) -> ColourMap:
+                   sharpen: int = 0, texture_size: tuple[int, int] | None = None
+                   ) -> ColourMap:
         """The map shipped as ``data`` in ``codec`` at ``scale`` (``shape`` = expected
-        ``(mh, mw)`` of that image), rendered ``upsample`` times finer."""
+        ``(mh, mw)`` of that image), rendered ``upsample`` times finer, ``sharpen``ed."""
         drawn = _drawn_shape(scale, upsample, texture_size)
+        check_sharpen(sharpen)
         pixels = decode_image(data, codec=codec, shape=shape)
         if pixels.shape[2] < 3:
             raise TerrathemeError(f"colour map must be RGB, the {codec} image has "
                                   f"{pixels.shape[2]} channel(s)")
-        return cls(upsampled(pixels[:, :, :3], upsample, drawn), scale // upsample, codec,
-                   bytes(data), upsample=upsample)
+        return cls(drawn_pixels(pixels[:, :, :3], upsample, sharpen, drawn), scale // upsample,
+                   codec, bytes(data), upsample=upsample, sharpen=sharpen)
 
     @staticmethod
     def tile_counts(shape: tuple[int, int], tile: object) -> tuple[int, int]:
@@ -175,20 +185,21 @@ class ColourMap:
 
     @classmethod
     def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int, *,
-               run: TileRunner | None = None, upsample: int = 1,
+               run: TileRunner | None = None, upsample: int = 1, sharpen: int = 0,
                texture_size: tuple[int, int] | None = None) -> ColourMap:
         """The map of stored gains ``pixels`` ``(mh, mw, 3) uint8`` at ``scale`` as it ships
-        in ``codec``, rendered ``upsample`` times finer.
+        in ``codec``, rendered ``upsample`` times finer, ``sharpen``ed.
 
         One image when it fits the codec's single-image limit, else tiles of
         :data:`MAP_TILE`, each encoded by a :class:`TileEncoder`: one after the other
         here, or by ``run`` (e.g. in parallel; every runner gives the same map).
         """
         drawn = _drawn_shape(scale, upsample, texture_size)
+        check_sharpen(sharpen)
         arr = np.ascontiguousarray(pixels)
         if cls.fits_one_image(arr.shape[:2], codec):
             return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale,
-                                  upsample=upsample, texture_size=texture_size)
+                                  upsample=upsample, sharpen=sharpen, texture_size=texture_size)
         t = MAP_TILE
         boxes = tile_boxes(arr.shape[:2], t)
         shown = np.empty_like(arr)
@@ -208,19 +219,20 @@ class ColourMap:
         if len(tiles) != len(boxes):
             raise TerrathemeError(f"{len(tiles)} of the colour map's {len(boxes)} tiles came "
                                   "back encoded")
-        return cls(upsampled(shown, upsample, drawn), scale // upsample, codec, None,
-                   tuple(tiles), t, upsample)
+        return cls(drawn_pixels(shown, upsample, sharpen, drawn), scale // upsample, codec,
+                   None, tuple(tiles), t, upsample, sharpen)
 
     @classmethod
     def from_tiles(cls, tiles: Sequence[bytes], codec: str, scale: int,
-                   shape: tuple[int, int], tile: int, *, upsample: int = 1,
+                   shape: tuple[int, int], tile: int, *, upsample: int = 1, sharpen: int = 0,
                    texture_size: tuple[int, int] | None = None) -> ColourMap:
         """The map shipped as ``tile``-pixel tiles in ``codec``, row by row; ``shape`` ``(mh, mw)``
-        and ``scale`` of the shipped image, rendered ``upsample`` times finer.
+        and ``scale`` of the shipped image, rendered ``upsample`` times finer, ``sharpen``ed.
 
         Each tile's size is checked on its header before it is decoded.
         """
         drawn = _drawn_shape(scale, upsample, texture_size)
+        check_sharpen(sharpen)
         rows, cols = cls.tile_counts(shape, tile)
         if len(tiles) != rows * cols:
             raise TerrathemeError(f"a {shape[1]} x {shape[0]} colour map in tiles of {tile} "
@@ -235,8 +247,21 @@ class ColourMap:
                 raise TerrathemeError(f"colour map must be RGB, tile {k} has "
                                       f"{piece.shape[2]} channel(s)")
             pixels[y:y + want[0], x:x + want[1]] = piece[:, :, :3]
-        return cls(upsampled(pixels, upsample, drawn), scale // upsample, codec, None,
-                   tuple(tiles), int(tile), upsample)
+        return cls(drawn_pixels(pixels, upsample, sharpen, drawn), scale // upsample, codec,
+                   None, tuple(tiles), int(tile), upsample, sharpen)
+
+    def redrawn(self, sharpen: int, texture_size: tuple[int, int]) -> ColourMap:
+        """This shipped map (its bytes decoded again) drawn at another ``sharpen`` over a
+        ``(W, H)`` ``texture_size`` texture."""
+        if self.tiles is not None:
+            return ColourMap.from_tiles(self.tiles, self.codec, self.coded_scale,
+                                        self.coded_shape, self.tile, upsample=self.upsample,
+                                        sharpen=sharpen, texture_size=texture_size)
+        if self.data is None:
+            raise TerrathemeError("a raw colour map has no shipped image to draw again")
+        return ColourMap.from_bytes(self.data, self.codec, self.coded_scale,
+                                    upsample=self.upsample, sharpen=sharpen,
+                                    texture_size=texture_size)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ColourMap):
@@ -277,6 +302,14 @@ def check_upsample(upsample: object, *, scale: int | None = None, coded: bool = 
                               f"scale (above 1 only for a coded map), got {upsample!r}{at}")
 
 
+def check_sharpen(sharpen: object, *, coded: bool = True) -> None:
+    """Raise unless ``sharpen`` is one of :data:`SHARPENS`, above 0 only for a ``coded`` map."""
+    if (isinstance(sharpen, bool) or not isinstance(sharpen, int | np.integer)
+            or sharpen not in SHARPENS or (sharpen and not coded)):
+        raise TerrathemeError(f"colour map sharpen must be an integer {SHARPENS[0]}.."
+                              f"{SHARPENS[-1]} (above 0 only for a coded map), got {sharpen!r}")
+
+
 def _drawn_shape(scale: int, upsample: int, texture_size: tuple[int, int] | None
                  ) -> tuple[int, int] | None:
     """``(mh, mw)`` of the drawn map of a ``texture_size`` texture (None: no upsampling)."""
@@ -288,22 +321,49 @@ def _drawn_shape(scale: int, upsample: int, texture_size: tuple[int, int] | None
     return ColourMap.shape_for(texture_size, int(scale) // upsample)
 
 
-def upsampled(pixels: np.ndarray, upsample: int, shape: tuple[int, int] | None = None
-              ) -> np.ndarray:
-    """``(mh, mw, 3)`` uint8 map pixels enlarged ``upsample`` times and cut to ``shape``
-    (at most ``(k*mh, k*mw)``; None: all of it).
+def drawn_pixels(pixels: np.ndarray, upsample: int, sharpen: int = 0,
+                 shape: tuple[int, int] | None = None) -> np.ndarray:
+    """``(mh, mw, 3)`` uint8 decoded map pixels as they render: enlarged ``upsample`` times,
+    :func:`sharpened` by ``sharpen`` quarters, cut to ``shape`` (at most ``(k*mh, k*mw)``;
+    None: all of it).
 
     OpenCV's bicubic (a = -0.75, edge pixels replicated, 8-bit fixed point): new pixel ``j``
     sits at ``(j + 0.5) / k - 0.5`` of the old ones, the place of its texels' centre.
     """
-    if upsample == 1:
-        return pixels
     h, w = pixels.shape[:2]
-    big = cv2.resize(np.ascontiguousarray(pixels), (w * upsample, h * upsample),
-                     interpolation=cv2.INTER_CUBIC)
+    big = pixels if upsample == 1 else cv2.resize(
+        np.ascontiguousarray(pixels), (w * upsample, h * upsample), interpolation=cv2.INTER_CUBIC)
+    big = sharpened(big, sharpen)
     if shape is None:
         return big
     if shape[0] > big.shape[0] or shape[1] > big.shape[1]:
         raise TerrathemeError(f"a {w} x {h} colour map enlarged {upsample}x cannot cover "
                               f"{shape[1]} x {shape[0]} pixels")
     return np.ascontiguousarray(big[:shape[0], :shape[1]])
+
+
+#: the unsharp mask's blur: the binomial [1 4 6 4 1] / 16 on both axes (Gaussian sigma 1)
+_BINOMIAL = np.array([1, 4, 6, 4, 1], np.float32)
+
+
+def sharpened(pixels: np.ndarray, sharpen: int) -> np.ndarray:
+    """(h, w, 3) uint8: ``p + (sharpen / 4) (p - B p)``, rounded half up and clipped to 0..255,
+    with ``B`` the 5-tap binomial blur (edge pixels replicated).
+
+    Exact: ``B p`` times 256 is an integer under 2^24, which float32 holds, so every machine
+    draws the same map. ``sharpen`` 0 returns ``pixels``.
+    """
+    if not sharpen:
+        return pixels
+    h = pixels.shape[0]
+    out = np.empty_like(pixels)
+    for y0 in range(0, h, SHARPEN_ROWS):
+        # Rows y0 .. y1 with two rows of context each side (the blur's reach).
+        y1 = min(h, y0 + SHARPEN_ROWS)
+        a, b = max(0, y0 - 2), min(h, y1 + 2)
+        p = pixels[a:b].astype(np.float32)
+        blur = cv2.sepFilter2D(p, cv2.CV_32F, _BINOMIAL, _BINOMIAL,
+                               borderType=cv2.BORDER_REPLICATE)
+        value = np.floor((1024.0 * p + sharpen * (256.0 * p - blur) + 512.0) / 1024.0)
+        out[y0:y1] = np.clip(value, 0, 255)[y0 - a:y0 - a + (y1 - y0)].astype(np.uint8)
+    return out

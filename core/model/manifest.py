@@ -14,13 +14,15 @@ from terratheme.core.model.grid import MAX_THEMES, validate_cell
 from terratheme.core.model.layers import LAYER_BY_NAME
 
 FORMAT_NAME = "terratheme-project"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: the version a project is written in without a tiled colour map (readable by older readers)
 BASE_VERSION = 1
 #: the version a tiled colour map needs
 TILED_MAP_VERSION = 2
 #: the version an upsampled colour map needs (docs/formats.md, the colour map)
 UPSAMPLED_MAP_VERSION = 3
+#: the version a sharpened colour map needs (docs/formats.md, the colour map)
+SHARPENED_MAP_VERSION = 4
 MANIFEST = "manifest.json"
 GRID_MEMBER = "grid.npy"
 #: longest theme name / source string kept

@@ -30,7 +30,12 @@ from terratheme.core.io.archive import (
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import validate_georeference
-from terratheme.core.model.colour_map import ColourMap, check_tile_members, check_upsample
+from terratheme.core.model.colour_map import (
+    ColourMap,
+    check_sharpen,
+    check_tile_members,
+    check_upsample,
+)
 from terratheme.core.model.grid import MAX_THEMES, IndexGrid, validate_indices
 from terratheme.core.model.layers import LAYER_BY_NAME, LAYERS, MAX_LAYER_PIXELS, check_layer
 from terratheme.core.model.manifest import (
@@ -39,6 +44,7 @@ from terratheme.core.model.manifest import (
     GRID_MEMBER,
     MANIFEST,
     MAX_TEXT,
+    SHARPENED_MAP_VERSION,
     TILED_MAP_VERSION,
     UPSAMPLED_MAP_VERSION,
     check_manifest,
@@ -155,15 +161,17 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     scale, codec = entry.get("scale"), entry.get("codec")
     if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 4096:
         raise CorruptFileError(f"{path}: colour map scale must be an integer 1..4096")
-    upsample = entry.get("upsample", 1)
+    upsample, sharpen = entry.get("upsample", 1), entry.get("sharpen", 0)
     try:
         check_upsample(upsample, scale=scale, coded=codec is not None)
+        check_sharpen(sharpen, coded=codec is not None)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{path}: {exc}") from None
     shape = ColourMap.shape_for(grid.texture_size, scale)
     label = str(path)
     if tiled:
-        return _load_tiled_colour_map(zf, entry, shape, label, upsample, grid.texture_size)
+        return _load_tiled_colour_map(zf, entry, shape, label, (upsample, sharpen),
+                                      grid.texture_size)
     if codec is None:
         pixels = read_npy_member(zf, entry["member"], label, dtypes=[np.uint8], ndims=[3],
                                  max_bytes=shape[0] * shape[1] * 3)
@@ -174,15 +182,16 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
     try:
         return ColourMap.from_bytes(data, codec, scale, shape, upsample=upsample,
-                                    texture_size=grid.texture_size)
+                                    sharpen=sharpen, texture_size=grid.texture_size)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{path}: {entry['member']}: {exc}") from None
 
 
 def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, int],
-                           label: str, upsample: int, texture_size: tuple[int, int]
-                           ) -> ColourMap:
-    """A colour map shipped in tiles, every field checked before a tile is read."""
+                           label: str, drawing: tuple[int, int],
+                           texture_size: tuple[int, int]) -> ColourMap:
+    """A colour map shipped in tiles, every field checked before a tile is read;
+    ``drawing``: its ``(upsample, sharpen)``."""
     tile, codec, names = entry.get("tile"), entry.get("codec"), entry.get("members")
     if not isinstance(codec, str) or codec not in CODECS:
         raise CorruptFileError(f"{label}: unknown colour map codec {codec!r}")
@@ -195,7 +204,8 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
     tiles = [read_member(zf, name, label, max_bytes=limit) for name in names]
     try:
         return ColourMap.from_tiles(tiles, codec, entry["scale"], shape, tile,
-                                    upsample=upsample, texture_size=texture_size)
+                                    upsample=drawing[0], sharpen=drawing[1],
+                                    texture_size=texture_size)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{label}: colour map tiles: {exc}") from None
 
@@ -243,6 +253,9 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
     if cmap is not None and cmap.upsample > 1:
         extra["colour_map"]["upsample"] = cmap.upsample
         version = UPSAMPLED_MAP_VERSION
+    if cmap is not None and cmap.sharpen:
+        extra["colour_map"]["sharpen"] = cmap.sharpen
+        version = SHARPENED_MAP_VERSION
     manifest = {
         "format": FORMAT_NAME,
         "version": version,
