@@ -31,7 +31,7 @@ FRAGMENT_COHERENCE = 0.5
 #: Gaussian sigma (texels) at which :func:`theme_detail` measures :func:`edge_coherence`
 COHERENCE_SIGMA = 3.0
 #: the most relative RMS contrast a fragment theme's detail reaches (:func:`detail_themes`)
-FRAGMENT_CONTRAST = 0.2
+FRAGMENT_CONTRAST = 0.12
 #: a class's contrast counts at most this many times its robust amplitude, 1.4826 x the
 #: median |relative| (:func:`detail_themes`)
 TAIL_CAP = 1.0
