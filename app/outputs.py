@@ -127,6 +127,12 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None], *,
         try:
             parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
+            # A folder on the way that is a link to nothing: name it, not "File exists".
+            dangling = next((p for p in (parent, *parent.parents)
+                             if p.is_symlink() and not p.exists()), None)
+            if dangling is not None:
+                raise TerrathemeError(f"{out}: the folder {dangling} is a symlink to "
+                                      f"{os.readlink(dangling)}, which does not exist") from None
             raise TerrathemeError(f"{out}: cannot make the folder {parent} ({exc.strerror})"
                                   ) from None
         made = _MADE.get()

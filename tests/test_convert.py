@@ -182,8 +182,12 @@ def test_parse_themes():
     assert parse_themes("4") == 4
     assert parse_themes("water, sand") == ["water", "sand"]
     assert parse_themes("1=water,3=town") == {1: "water", 3: "town"}
+    assert parse_themes("0003=sand") == {3: "sand"}
+    big = "1" * 5000  # past Python's 4300-digit int() limit
     for bad, msg in [("", "empty"), ("0", "1..255"), ("1=water,sand", "mix"),
-                     ("x=water", "number")]:
+                     ("x=water", "number"), (big, "1..255"), (f"{big}=water", "number"),
+                     (f"1=water,{big}=town", "number"), ("\u00b2", "1..255"),
+                     ("\u0661=water", "number"), ("256=town", "number")]:
         with pytest.raises(TerrathemeError, match=msg):
             parse_themes(bad)
 

@@ -702,6 +702,9 @@ def test_export_does_not_write_through_a_symlinked_editor_folder(made, tmp_path)
     # A first CSV line with a digit is a value, not a header to skip (it was dropped).
     "\u0661,Building\n2,Road\n", "1_0,Building\n2,Road\n", "\uff11,Building\n2,Road\n",
     "-1,Building\n2,Road\n",
+    # Past Python's 4300-digit int() limit: one line, not its ValueError.
+    '{"' + "1" * 5000 + '": "Building"}', "1" * 5000 + ",Building\n2,Road\n",
+    "0" * 4990 + "256,Building\n",
 ])
 def test_legend_class_values_are_ascii_numbers(text):
     with pytest.raises(CorruptFileError, match="class value"):

@@ -105,6 +105,9 @@ def test_control_characters_of_a_file_name_are_escaped_in_the_error_line(small, 
 @pytest.mark.parametrize("tags, needle", [
     ({33550: [0.0, 0.0, 0.0], 33922: [0, 0, 0, 5e5, 4e6, 0]}, "degenerate pixel size"),
     ({34264: [0.0] * 16}, "degenerate pixel size"),
+    # Both pixel axes along (1, 1): a singular frame, not a zero one.
+    ({34264: [1.0, 1.0, 0, 0, 1.0, 1.0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1.0]},
+     "degenerate pixel size"),
     ({33550: [1e-320, 1e-320, 0.0], 33922: [0.0] * 6}, "beyond the range of floating-point"),
 ])
 def test_convert_refuses_a_georeference_no_export_could_use_before_work(small, tmp_path,

@@ -307,3 +307,17 @@ def test_export_to_a_pipe_names_it_a_pipe(tmp_path):
     os.mkfifo(tmp_path / "out")
     refused(run("export", tmp_path / "p.ttproj", tmp_path / "out", "--engine", "godot"),
             "is a pipe, not an output folder")
+
+
+@pytest.mark.parametrize("engine", ["godot", "unity"])
+def test_an_export_folder_linked_to_nothing_is_named_so(tmp_path, engine):
+    """export p DANGLING said 'cannot make the folder DANGLING (File exists)'."""
+    idx = np.zeros((5, 5), np.uint8)
+    idx[2:] = 1
+    write_image(tmp_path / "i.png", idx)
+    proc = run("new", tmp_path / "i.png", tmp_path / "p.ttproj", "--themes", "water,sand")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (tmp_path / "out").symlink_to(tmp_path / "gone" / "away")
+    refused(run("export", tmp_path / "p.ttproj", tmp_path / "out", "--engine", engine),
+            "is a symlink to", "which does not exist")
+    assert not (tmp_path / "gone").exists()

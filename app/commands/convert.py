@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import re
 
 from terratheme.app.arg_types import add_legend_option
 from terratheme.core.errors import TerrathemeError
@@ -46,6 +47,15 @@ _colour_map = _number(float, 0.0, 100.0, "--colour-map target", words=("auto", "
 _budget = _number(float, 0.0, 1.0, "--budget", open_low=True)
 
 
+def _class_number(text: str) -> int | None:
+    """``text`` as a class number 1..255 in ASCII digits, else None (no int() of a
+    thousand digits, nor of other scripts' digits)."""
+    if not re.fullmatch(r"[0-9]{1,6}", text, re.ASCII):
+        return None
+    number = int(text)
+    return number if 1 <= number <= 255 else None
+
+
 def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
     """Parse ``--themes``: ``auto``, ``K``, ``name,name,...`` or ``1=name,2=name``."""
     text = text.strip()
@@ -54,20 +64,21 @@ def parse_themes(text: str) -> str | int | list[str] | dict[int, str]:
     if text.lower() == "auto":
         return "auto"
     if text.isdigit():
-        k = int(text)
-        if not 1 <= k <= 255:
-            raise TerrathemeError(f"--themes {k}: the number of themes must be 1..255")
+        k = _class_number(text)
+        if k is None:
+            raise TerrathemeError(f"--themes {text[:20]!r}: the number of themes must be 1..255")
         return k
     parts = [p.strip() for p in text.split(",") if p.strip()]
     if all("=" in p for p in parts):
         out: dict[int, str] = {}
         for p in parts:
             key, name = (s.strip() for s in p.split("=", 1))
-            if not key.isdigit() or not 1 <= int(key) <= 255:
-                raise TerrathemeError(f"--themes {p!r}: class must be a number 1..255")
-            if int(key) in out:
-                raise TerrathemeError(f"--themes {text!r}: class {int(key)} is named twice")
-            out[int(key)] = name
+            number = _class_number(key)
+            if number is None:
+                raise TerrathemeError(f"--themes {p[:40]!r}: class must be a number 1..255")
+            if number in out:
+                raise TerrathemeError(f"--themes {text[:80]!r}: class {number} is named twice")
+            out[number] = name
         return out
     if any("=" in p for p in parts):
         raise TerrathemeError(f"--themes {text!r}: mix of names and class=name pairs")

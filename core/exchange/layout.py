@@ -154,7 +154,9 @@ def _frame(world: list[float], georeference: dict,
            texture_size: tuple[int, int], owner: str) -> WorldFrame:
     a, d, b, e, c, f = (float(v) for v in world)
     sx, sy = math.hypot(a, d), math.hypot(b, e)
-    if sx <= 0 or sy <= 0 or not all(math.isfinite(v) for v in world):
+    # Zero-length or parallel pixel axes (a singular frame) place no image.
+    if (sx <= 0 or sy <= 0 or not all(math.isfinite(v) for v in world)
+            or not abs((a / sx) * (e / sy) - (b / sy) * (d / sx)) > 1e-9):
         raise TerrathemeError(f"the {owner}'s georeference has a degenerate pixel size {world}")
     keys = _geo_keys(georeference)
     rotation = math.degrees(math.atan2(d, a))

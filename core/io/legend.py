@@ -35,7 +35,12 @@ def _value(raw: object, label: str) -> int:
     if not isinstance(raw, int) and not re.fullmatch(r"[+-]?[0-9]+", text, re.ASCII):
         raise CorruptFileError(
             f"{label}: class value {text[:20]!r} is not a whole number 0..255")
-    value = int(raw) if isinstance(raw, int) else int(text)
+    digits = text.lstrip("+-").lstrip("0") or "0"
+    if not isinstance(raw, int) and len(digits) > 3:
+        # Past 255 by its length alone (int() refuses numbers of over 4300 digits).
+        raise CorruptFileError(f"{label}: class value {text[:20]!r}... is outside 0..255")
+    value = int(raw) if isinstance(raw, int) else int(text[0] + digits if text[0] in "+-"
+                                                       else digits)
     if not 0 <= value <= 255:
         raise CorruptFileError(f"{label}: class value {value} is outside 0..255")
     return value
