@@ -171,6 +171,22 @@ def test_a_calm_twin_carries_less_grain_than_its_class():
     assert grain[1] < 0.5 * grain[0]
 
 
+def test_a_twin_whose_detail_comes_out_as_its_themes_is_dropped():
+    # A nearly flat texture: the calm quarter's gain and the busy part's both reach the top
+    # of the gain range, so the twin's texture would be the theme's, byte for byte.
+    h, w = 128, 512
+    photo = np.concatenate([_grain((h, 128), 2.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
+    labels = np.zeros((h, w), np.uint8)
+    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150),
+                                               _grain((64, 64), 0.3, 6))]),
+                           np.zeros(256, np.uint8), (1,))
+    assert len(fit_calm_twins(photo, labels, [0], 1)) == 1
+    made = detail_mapping(photo, labels, mapping)
+    assert made.calm == () and made.library.names == ["sand"]
+    assert np.array_equal(made.library[0].texture,
+                          detail_mapping(photo, labels, mapping, calm=()).library[0].texture)
+
+
 @pytest.fixture
 def halves_region(tmp_path, monkeypatch):
     """(photo, its tiled TIFF): sand calm on the left and busy on the right around a lake,

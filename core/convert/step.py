@@ -212,6 +212,8 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
     (:mod:`core.themes.calm`; ``calm`` None fits them on this photo, else these are taken,
     renumbered after the themes), each at the photo's contrast on its own pixels.
 
+    A twin whose detail texture comes out identical to its theme's (the fragment cap or
+    the gain range holding both parts) is dropped: it would cost grid bytes for nothing.
     ``rgb``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 through ``mapping.lut``.
     """
     n_themes = len(mapping.library)
@@ -220,9 +222,19 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
     else:
         twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(calm))
-    # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
-    themes = detail_themes(rgb, split_calm(rgb, theme_labels, twins),
-                           with_twins(mapping.library, twins), detail)[0]
+
+    def made(twins: tuple[CalmTwin, ...]) -> ThemeLibrary:
+        # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
+        return detail_themes(rgb, split_calm(rgb, theme_labels, twins),
+                             with_twins(mapping.library, twins), detail)[0]
+
+    themes = made(twins)
+    # A twin whose detail came out as its theme's (both parts at a cap) is no twin.
+    kept = [t for t in twins
+            if not np.array_equal(themes[t.twin].texture, themes[t.theme].texture)]
+    if len(kept) < len(twins):
+        twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(kept))
+        themes = made(twins)
     return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
 
 
