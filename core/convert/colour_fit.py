@@ -240,16 +240,20 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
         curve.append((scale, cmap.nbytes, err))
         if best is None or score > best[0]:
             best = (score, cmap, err)
-    score, cmap, err = best  # type: ignore[misc]  (the coarsest scale always gives a map)
+    plain_score, plain, plain_err = best  # type: ignore[misc]  (the coarsest scale gives one)
     # The chosen map drawn at each unsharp mask: the one that scores best ships (no bytes).
+    shipped: tuple[float, ColourMap, float] | None = None
     for sharpen in options.budget_sharpens:
-        if sharpen != cmap.sharpen:
-            drawn = cmap.redrawn(sharpen, size)
+        if sharpen == plain.sharpen:
+            drawn, got, got_err = plain, plain_score, plain_err
+        else:
+            drawn = plain.redrawn(sharpen, size)
             shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), drawn,
                                      (0, 0, w, h))
             got, _, _, got_err = budget_score(ref, quick, shown)
-            if got > score:
-                score, cmap, err = got, drawn, got_err
+        if shipped is None or got > shipped[0]:
+            shipped = (got, drawn, got_err)
+    _, cmap, err = shipped  # type: ignore[misc]  (budget_sharpens is never empty)
     return FittedColourMap(cmap, cmap.data, options.codec, err, tuple(curve))
 
 

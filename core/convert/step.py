@@ -34,6 +34,7 @@ from terratheme.core.render.renderer import RenderOptions, render_cells
 from terratheme.core.themes.calm import (
     CalmTwin,
     fit_calm_twins,
+    renumbered,
     split_calm,
     twin_parents,
     twin_vertices,
@@ -221,20 +222,21 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         class_themes = sorted({int(mapping.lut[c]) for c in mapping.classes if c})
         twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
     else:
-        twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(calm))
-
-    def made(twins: tuple[CalmTwin, ...]) -> ThemeLibrary:
-        # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
-        return detail_themes(rgb, split_calm(rgb, theme_labels, twins),
-                             with_twins(mapping.library, twins), detail)[0]
-
-    themes = made(twins)
-    # A twin whose detail came out as its theme's (both parts at a cap) is no twin.
+        twins = renumbered(calm, n_themes)
+    # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
+    split = split_calm(rgb, theme_labels, twins)
+    themes = detail_themes(rgb, split, with_twins(mapping.library, twins), detail)[0]
+    # A twin whose detail came out as its theme's (both parts at a cap) is no twin: its
+    # pixels go back to its theme and the twins kept move up.
     kept = [t for t in twins
             if not np.array_equal(themes[t.twin].texture, themes[t.theme].texture)]
     if len(kept) < len(twins):
-        twins = tuple(CalmTwin(t.theme, n_themes + i, t.threshold) for i, t in enumerate(kept))
-        themes = made(twins)
+        moved = np.arange(256, dtype=np.uint8)
+        moved[[t.twin for t in twins]] = [t.theme for t in twins]
+        twins = renumbered(kept, n_themes)
+        moved[[t.twin for t in kept]] = [t.twin for t in twins]
+        split = moved[split]
+        themes = detail_themes(rgb, split, with_twins(mapping.library, twins), detail)[0]
     return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
 
 
@@ -257,8 +259,8 @@ def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSp
     lut = mapping.lut.copy()
     lut[0] = 0
     themes_left = [t for k, t in enumerate(mapping.library) if k != no_data]
-    twins = tuple(CalmTwin(t.theme, t.twin - 1, t.threshold) for t in mapping.calm)
-    return ThemeMapping(ThemeLibrary(themes_left), lut, mapping.classes, twins)
+    return ThemeMapping(ThemeLibrary(themes_left), lut, mapping.classes,
+                        renumbered(mapping.calm, no_data))
 
 
 def cover_classes(sample: RegionSample, classes: Sequence[int], mapping: ThemeMapping,

@@ -39,8 +39,8 @@ def _value(raw: object, label: str) -> int:
     if not isinstance(raw, int) and len(digits) > 3:
         # Past 255 by its length alone (int() refuses numbers of over 4300 digits).
         raise CorruptFileError(f"{label}: class value {text[:20]!r}... is outside 0..255")
-    value = int(raw) if isinstance(raw, int) else int(text[0] + digits if text[0] in "+-"
-                                                       else digits)
+    sign = -1 if text.startswith("-") else 1
+    value = int(raw) if isinstance(raw, int) else sign * int(digits)
     if not 0 <= value <= 255:
         raise CorruptFileError(f"{label}: class value {value} is outside 0..255")
     return value

@@ -120,6 +120,12 @@ def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
     return tuple(twins)
 
 
+def renumbered(twins: Sequence[CalmTwin], first_twin: int) -> tuple[CalmTwin, ...]:
+    """``twins`` numbered from ``first_twin`` in their order (their themes and thresholds
+    kept): the twins of a library whose themes before them changed in number."""
+    return tuple(CalmTwin(t.theme, first_twin + i, t.threshold) for i, t in enumerate(twins))
+
+
 def split_calm(photo: np.ndarray, theme_labels: np.ndarray, twins: Sequence[CalmTwin],
                origin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it; ``origin``
