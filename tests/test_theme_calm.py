@@ -17,6 +17,7 @@ from terratheme.core.model.grid import IndexGrid
 from terratheme.core.themes.calm import (
     ENERGY_REACH,
     CalmTwin,
+    calm_threshold,
     fit_calm_twins,
     log_energy,
     split_calm,
@@ -57,6 +58,43 @@ def test_one_grain_everywhere_or_a_small_class_gets_no_twin():
     # Halves of 48 x 48 are under TWIN_MIN_PIXELS (4096): edges, not areas.
     small, labels = _calm_and_busy(48, 96)
     assert fit_calm_twins(small, labels, [0], 1) == ()
+
+
+def _busy_class_with_a_calm_island(calm_width):
+    """Class 0 busy (noise 24) on 768 columns and calm (noise 1) on ``calm_width`` columns,
+    128 px of class 1 between them (4 of the energy's sigmas: neither part reaches the
+    other)."""
+    h, w = 128, 896 + calm_width
+    photo = _grain((h, w), 24.0, 30)
+    photo[:, 896:] = _grain((h, calm_width), 1.0, 31)
+    labels = np.zeros((h, w), np.uint8)
+    labels[:, 768:896] = 1
+    return photo, labels
+
+
+def test_a_calm_area_too_small_for_a_bimodal_split_still_gets_a_twin():
+    # 128 x 64 calm pixels: 7.7% of the class, under TWIN_SHARE, over TWIN_MIN_PIXELS.
+    photo, labels = _busy_class_with_a_calm_island(64)
+    twins = fit_calm_twins(photo, labels, [0], 2)
+    assert len(twins) == 1 and (twins[0].theme, twins[0].twin) == (0, 2)
+    # Relative RMS 24/128: log2 energy near -4.8, the tail TWIN_SEPARATION under it.
+    assert -7.0 < twins[0].threshold < -6.0
+    split = split_calm(photo, labels, twins)
+    assert (split[:, 896:] == 2).all() and (split[:, :700] == 0).all()
+    assert (split[:, 768:896] == 1).all()
+    # 128 x 24 calm pixels are under TWIN_MIN_PIXELS: an edge, not an area.
+    photo, labels = _busy_class_with_a_calm_island(24)
+    assert fit_calm_twins(photo, labels, [0], 2) == ()
+
+
+def test_calm_threshold_splits_bimodal_energies_else_cuts_a_calm_tail():
+    two = np.array([0.0] * 9000 + [-2.0] * 5000)
+    assert -2.0 < calm_threshold(two) < 0.0  # Otsu's, between the modes
+    # 5% calm: under TWIN_SHARE, so the tail TWIN_SEPARATION under the median.
+    assert calm_threshold(np.array([0.0] * 95000 + [-2.0] * 5000)) == -1.5
+    # A tail under TWIN_MIN_PIXELS, or not that far under the median: no twin.
+    assert calm_threshold(np.array([0.0] * 95000 + [-2.0] * 4000)) is None
+    assert calm_threshold(np.array([0.0] * 95000 + [-1.0] * 5000)) is None
 
 
 def test_the_step_to_a_neighbour_class_and_its_border_pixels_do_not_count():

@@ -4,7 +4,9 @@ A detail theme's gain fits its class on the whole (:func:`.detail.detail_themes`
 that holds calm shallow water and textured weed, or a town's empty lots and its
 buildings, then gets the same grain everywhere: too much where the photo is calm, too
 little where it is busy. Where the photo's local detail energy within a class is bimodal,
-its calm part becomes a twin theme: the same texture, with its own gain.
+its calm part becomes a twin theme: the same texture, with its own gain. So does a calm
+area far under the class's typical energy that is too small to make it bimodal (still
+shallows in a sea of waves): without a twin it shows as a patch of the sea's grain.
 
 The energy is measured inside the class alone (normalised convolutions over its own
 pixels), so the step at its border with another class does not count; it reaches
@@ -28,9 +30,10 @@ ENERGY_SIGMA = 32.0
 #: the energy is averaged on blocks of this many pixels a side, aligned to the photo's
 #: origin, so a tile has the whole photo's blocks
 ENERGY_BLOCK = 4
-#: a class splits only where its calm and busy parts' mean log2 energies are this far apart
+#: a class splits only where its calm and busy parts' mean log2 energies are this far
+#: apart, or its calm tail this far under its median (:func:`calm_threshold`)
 TWIN_SEPARATION = 1.5
-#: each part holds at least this share of its class's pixels
+#: each part of a bimodal split holds at least this share of its class's pixels
 TWIN_SHARE = 0.1
 #: and at least this many pixels (a 64 px square: narrower parts are edges, not areas)
 TWIN_MIN_PIXELS = 4096
@@ -92,32 +95,42 @@ def log_energy(photo: np.ndarray, mask: np.ndarray,
 
 def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
                    themes: Sequence[int], first_twin: int) -> tuple[CalmTwin, ...]:
-    """The twins of ``themes`` whose pixels' :func:`log_energy` is bimodal.
-
-    Otsu's threshold splits each theme's energies; a split is kept when both parts hold
-    ``TWIN_SHARE`` of the theme and ``TWIN_MIN_PIXELS``, and their means are
-    ``TWIN_SEPARATION`` apart. Twins are numbered from ``first_twin`` in theme order.
+    """The twins of ``themes`` whose pixels' :func:`log_energy` is bimodal or has a calm tail
+    (:func:`calm_threshold`). Twins are numbered from ``first_twin`` in theme order.
     ``theme_labels``: (H, W) uint8.
     """
     labels = np.asarray(theme_labels)
     twins: list[CalmTwin] = []
     for k in themes:
         mask = labels == k
-        count = int(mask.sum())
-        least = max(TWIN_MIN_PIXELS, TWIN_SHARE * count)
-        if count < 2 * least:
+        if int(mask.sum()) < 2 * TWIN_MIN_PIXELS:
             continue
-        values = log_energy(photo, mask)[mask]
-        if float(values.max()) - float(values.min()) < TWIN_SEPARATION:
-            continue
+        threshold = calm_threshold(log_energy(photo, mask)[mask])
+        if threshold is not None:
+            twins.append(CalmTwin(int(k), first_twin + len(twins), threshold))
+    return tuple(twins)
+
+
+def calm_threshold(values: np.ndarray) -> float | None:
+    """The log2 energy under which a class's pixels are its calm twin's, or None.
+
+    Otsu's threshold when it splits ``values`` (a class's :func:`log_energy`) into parts
+    holding ``TWIN_SHARE`` of them and ``TWIN_MIN_PIXELS`` each, whose means are
+    ``TWIN_SEPARATION`` apart; else ``TWIN_SEPARATION`` under their median when at least
+    ``TWIN_MIN_PIXELS`` lie there (a calm area too small for the split).
+    """
+    values = np.asarray(values, np.float32).ravel()
+    least = max(TWIN_MIN_PIXELS, TWIN_SHARE * values.size)
+    if values.size >= 2 * least and float(values.max() - values.min()) >= TWIN_SEPARATION:
         threshold = float(threshold_otsu(values))
         calm, busy = values[values < threshold], values[values >= threshold]
-        if min(calm.size, busy.size) < least:
-            continue
-        if float(busy.mean()) - float(calm.mean()) < TWIN_SEPARATION:
-            continue
-        twins.append(CalmTwin(int(k), first_twin + len(twins), threshold))
-    return tuple(twins)
+        if (min(calm.size, busy.size) >= least
+                and float(busy.mean()) - float(calm.mean()) >= TWIN_SEPARATION):
+            return threshold
+    tail = float(np.median(values)) - TWIN_SEPARATION
+    if int(np.count_nonzero(values < tail)) >= TWIN_MIN_PIXELS:
+        return tail
+    return None
 
 
 def renumbered(twins: Sequence[CalmTwin], first_twin: int) -> tuple[CalmTwin, ...]:
