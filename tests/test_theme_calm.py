@@ -209,6 +209,27 @@ def test_a_calm_twin_carries_less_grain_than_its_class():
     assert grain[1] < 0.5 * grain[0]
 
 
+def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain():
+    # A quarter calm: with its twin the theme carries the busy part's grain.
+    h, w = 128, 512
+    photo = np.concatenate([_grain((h, 128), 1.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
+    labels = np.zeros((h, w), np.uint8)
+    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150),
+                                               _grain((64, 64), 20.0, 6))]),
+                           np.zeros(256, np.uint8), (1,))
+    made = detail_mapping(photo, labels, mapping)
+    whole = detail_mapping(photo, labels, mapping, calm=())
+    assert len(made.calm) == 1 and made.plain is not None and whole.plain is None
+    assert not np.array_equal(made.library[0].texture, whole.library[0].texture)
+    grid = calm_grid(photo, labels, IndexGrid(vote_grid(labels, (16, 16)), (16, 16)), made.calm)
+    assert set(np.unique(grid.indices)) == {0, 1}
+    # No bits for the twins: the grid is the class's, its theme the one made without twins.
+    got, plain = keep_calm(grid, made, 1e-6, h * w)
+    assert plain.calm == () and plain.library.names == ["sand"]
+    assert np.array_equal(plain.library[0].texture, whole.library[0].texture)
+    assert (got.indices == 0).all()
+
+
 def test_a_twin_whose_detail_comes_out_as_its_themes_is_dropped():
     # A nearly flat texture: the calm quarter's gain and the busy part's both reach the top
     # of the gain range, so the twin's texture would be the theme's, byte for byte.

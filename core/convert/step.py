@@ -215,6 +215,8 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
 
     A twin whose detail texture comes out identical to its theme's (the fragment cap or
     the gain range holding both parts) is dropped: it would cost grid bytes for nothing.
+    With twins, the themes made without them are kept too (``plain``: :func:`keep_calm`
+    ships them when the grid cannot afford the twins).
     ``rgb``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 through ``mapping.lut``.
     """
     n_themes = len(mapping.library)
@@ -237,7 +239,11 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         moved[[t.twin for t in kept]] = [t.twin for t in twins]
         split = moved[split]
         themes = detail_themes(rgb, split, with_twins(mapping.library, twins), detail)[0]
-    return ThemeMapping(themes, mapping.lut, mapping.classes, twins)
+    if not twins:
+        return ThemeMapping(themes, mapping.lut, mapping.classes)
+    # Each theme at its whole class's gain, for a grid over its share with the twins.
+    plain = detail_themes(rgb, theme_labels, mapping.library, detail)[0]
+    return ThemeMapping(themes, mapping.lut, mapping.classes, twins, plain)
 
 
 def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",
@@ -259,8 +265,10 @@ def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSp
     lut = mapping.lut.copy()
     lut[0] = 0
     themes_left = [t for k, t in enumerate(mapping.library) if k != no_data]
+    plain_left = None if mapping.plain is None else ThemeLibrary(
+        t for k, t in enumerate(mapping.plain) if k != no_data)
     return ThemeMapping(ThemeLibrary(themes_left), lut, mapping.classes,
-                        renumbered(mapping.calm, no_data))
+                        renumbered(mapping.calm, no_data), plain_left)
 
 
 def cover_classes(sample: RegionSample, classes: Sequence[int], mapping: ThemeMapping,
@@ -358,6 +366,7 @@ def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
     """``(grid, mapping)``, or both without the calm twins when the packed grid, with
     them or without, is over its share of a byte budget (``grid_bpp`` bits per photo
     pixel; None: no budget): the bytes the twins cost would come out of the colour map.
+    Without them the themes are ``mapping.plain`` (each at its whole class's gain).
     ``grid`` may be the class grid alone (:func:`calm_grid` not yet run)."""
     if not mapping.calm or grid_bpp is None:
         return grid, mapping
@@ -367,8 +376,9 @@ def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
     if packed_bytes(parents) * 8 <= share and packed_bytes(grid) * 8 <= share:
         return grid, mapping
     n_themes = len(mapping.library) - len(mapping.calm)
-    return parents, ThemeMapping(ThemeLibrary(list(mapping.library)[:n_themes]), mapping.lut,
-                                 mapping.classes)
+    plain = mapping.plain if mapping.plain is not None else ThemeLibrary(
+        list(mapping.library)[:n_themes])
+    return parents, ThemeMapping(plain, mapping.lut, mapping.classes)
 
 
 def calm_vertices(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,

@@ -55,12 +55,15 @@ class ThemeMapping:
 
     ``lut``: (256,) uint8, ``lut[class_value]`` the theme index; ``classes``: the class
     values mapped, in theme order; ``calm``: the calm twins that split the table's themes
-    by the photo's local detail (:mod:`.calm`), appended after them in ``library``.
+    by the photo's local detail (:mod:`.calm`), appended after them in ``library``;
+    ``plain``: with twins, the table's themes as made without them (a detail theme at its
+    whole class's gain, not its busy part's), for a grid that cannot afford the twins.
     """
     library: ThemeLibrary
     lut: np.ndarray
     classes: tuple[int, ...]
     calm: tuple[CalmTwin, ...] = ()
+    plain: ThemeLibrary | None = None
 
 
 def _check(photo: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
