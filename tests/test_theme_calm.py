@@ -190,14 +190,20 @@ def test_twins_over_the_grids_share_of_the_budget_are_dropped():
     assert got.cell == grid.cell and np.array_equal(plain.lut, mapping.lut)
 
 
-def test_a_calm_twin_carries_less_grain_than_its_class():
-    # A quarter calm.
+def _quarter_calm(calm_noise=1.0, texture_noise=20.0):
+    """(photo, labels, mapping): one class calm on its left quarter (noise ``calm_noise``)
+    and busy on the rest (noise 24), themed by a grey texture of noise ``texture_noise``."""
     h, w = 128, 512
-    photo = np.concatenate([_grain((h, 128), 1.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
-    labels = np.zeros((h, w), np.uint8)
-    texture = _grain((64, 64), 20.0, 6)
-    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150), texture)]),
+    photo = np.concatenate([_grain((h, 128), calm_noise, 1), _grain((h, w - 128), 24.0, 2)],
+                           axis=1)
+    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150),
+                                               _grain((64, 64), texture_noise, 6))]),
                            np.zeros(256, np.uint8), (1,))
+    return photo, np.zeros((h, w), np.uint8), mapping
+
+
+def test_a_calm_twin_carries_less_grain_than_its_class():
+    photo, labels, mapping = _quarter_calm()
     made = detail_mapping(photo, labels, mapping)
     assert len(made.calm) == 1 and made.library.names == ["sand", "sand calm"]
     whole = detail_mapping(photo, labels, mapping, calm=())
@@ -210,13 +216,8 @@ def test_a_calm_twin_carries_less_grain_than_its_class():
 
 
 def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain():
-    # A quarter calm: with its twin the theme carries the busy part's grain.
-    h, w = 128, 512
-    photo = np.concatenate([_grain((h, 128), 1.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
-    labels = np.zeros((h, w), np.uint8)
-    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150),
-                                               _grain((64, 64), 20.0, 6))]),
-                           np.zeros(256, np.uint8), (1,))
+    # With its twin the theme carries the busy part's grain.
+    photo, labels, mapping = _quarter_calm()
     made = detail_mapping(photo, labels, mapping)
     whole = detail_mapping(photo, labels, mapping, calm=())
     assert len(made.calm) == 1 and made.plain is not None and whole.plain is None
@@ -224,7 +225,7 @@ def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain
     grid = calm_grid(photo, labels, IndexGrid(vote_grid(labels, (16, 16)), (16, 16)), made.calm)
     assert set(np.unique(grid.indices)) == {0, 1}
     # No bits for the twins: the grid is the class's, its theme the one made without twins.
-    got, plain = keep_calm(grid, made, 1e-6, h * w)
+    got, plain = keep_calm(grid, made, 1e-6, labels.size)
     assert plain.calm == () and plain.library.names == ["sand"]
     assert np.array_equal(plain.library[0].texture, whole.library[0].texture)
     assert (got.indices == 0).all()
@@ -233,12 +234,7 @@ def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain
 def test_a_twin_whose_detail_comes_out_as_its_themes_is_dropped():
     # A nearly flat texture: the calm quarter's gain and the busy part's both reach the top
     # of the gain range, so the twin's texture would be the theme's, byte for byte.
-    h, w = 128, 512
-    photo = np.concatenate([_grain((h, 128), 2.0, 1), _grain((h, w - 128), 24.0, 2)], axis=1)
-    labels = np.zeros((h, w), np.uint8)
-    mapping = ThemeMapping(ThemeLibrary([Theme("sand", (200, 190, 150),
-                                               _grain((64, 64), 0.3, 6))]),
-                           np.zeros(256, np.uint8), (1,))
+    photo, labels, mapping = _quarter_calm(calm_noise=2.0, texture_noise=0.3)
     assert len(fit_calm_twins(photo, labels, [0], 1)) == 1
     made = detail_mapping(photo, labels, mapping)
     assert made.calm == () and made.library.names == ["sand"]
