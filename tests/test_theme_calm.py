@@ -288,3 +288,23 @@ def test_the_editors_new_project_gets_converts_twins(halves_region):
     assert len(names) == 3 and names[2].removesuffix(" calm") in names[:2]
     assert (update.indices[:, :12] == 2).all()
     assert update.colour_map is not None
+
+
+def test_a_region_whose_grid_cannot_afford_twins_gets_the_plain_themes_tile_by_tile(
+        halves_region, monkeypatch):
+    import terratheme.core.convert.step as step
+
+    photo, path = halves_region
+    # The grid's share of the least area budget (512 bytes) holds the class grid, not twins.
+    monkeypatch.setattr(step, "GRID_SHARE", 0.03)
+    options = ConvertOptions(cell=8, themes=2, colour_map=ColourMapOptions(budget=0.001))
+    whole = convert_photo(photo, options).project
+    tiled = convert_file_tiled(path, None, 8, themes=2, tile=128,
+                               colour_map=ColourMapOptions(budget=0.001))
+    assert len(whole.library) == 2 and whole.library.names == tiled.library.names
+    # Each theme as a conversion with no twins makes it, on both paths.
+    monkeypatch.setattr(step, "fit_calm_twins", lambda *args: ())
+    plain = convert_photo(photo, options).project
+    for got in (whole, tiled):
+        assert all(np.array_equal(a.texture, b.texture)
+                   for a, b in zip(got.library, plain.library, strict=True))
