@@ -40,7 +40,7 @@ from terratheme.core.themes.calm import (
     twin_vertices,
     with_twins,
 )
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes
+from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes, theme_detail
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -225,9 +225,16 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
     else:
         twins = renumbered(calm, n_themes)
+    # Each theme's detail once; a twin's is its theme's.
+    details = [theme_detail(t.texture, detail) for t in mapping.library]
+
+    def made(labels: np.ndarray, twins: Sequence[CalmTwin]) -> ThemeLibrary:
+        return detail_themes(rgb, labels, with_twins(mapping.library, twins), detail,
+                             details=[*details, *(details[t.theme] for t in twins)])[0]
+
     # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
     split = split_calm(rgb, theme_labels, twins)
-    themes = detail_themes(rgb, split, with_twins(mapping.library, twins), detail)[0]
+    themes = made(split, twins)
     # A twin whose detail came out as its theme's (both parts at a cap) is no twin: its
     # pixels go back to its theme and the twins kept move up.
     kept = [t for t in twins
@@ -238,12 +245,11 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         twins = renumbered(kept, n_themes)
         moved[[t.twin for t in kept]] = [t.twin for t in twins]
         split = moved[split]
-        themes = detail_themes(rgb, split, with_twins(mapping.library, twins), detail)[0]
+        themes = made(split, twins)
     if not twins:
         return ThemeMapping(themes, mapping.lut, mapping.classes)
     # Each theme at its whole class's gain, for a grid over its share with the twins.
-    plain = detail_themes(rgb, theme_labels, mapping.library, detail)[0]
-    return ThemeMapping(themes, mapping.lut, mapping.classes, twins, plain)
+    return ThemeMapping(themes, mapping.lut, mapping.classes, twins, made(theme_labels, ()))
 
 
 def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",

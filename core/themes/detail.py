@@ -8,6 +8,8 @@ and flat from its mip level 2 up (:func:`mip_flat`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.ndimage import gaussian_filter, zoom
 from scipy.signal import resample
@@ -144,7 +146,9 @@ def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
 
 
 def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
-                  sigma: float = DETAIL_SIGMA) -> tuple[ThemeLibrary, list[float]]:
+                  sigma: float = DETAIL_SIGMA, *,
+                  details: Sequence[tuple[np.ndarray, bool]] | None = None
+                  ) -> tuple[ThemeLibrary, list[float]]:
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
     Gain: ``DETAIL_CONTRAST sqrt(photo energy over the theme's pixels / theme energy)`` at
@@ -152,9 +156,11 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
     class's cars and marks do not set the grain of its whole theme; a fragment theme's at
     most ``FRAGMENT_CONTRAST / its RMS``), clipped to ``GAIN_RANGE``; 1 for an unused or
     flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per
-    pixel. Names and colours are kept.
+    pixel. Names and colours are kept. ``details``: each theme's :func:`theme_detail` at
+    ``sigma``, when the caller has them already (one per theme of ``library``).
     """
-    details = [theme_detail(t.texture, sigma) for t in library]
+    if details is None:
+        details = [theme_detail(t.texture, sigma) for t in library]
     y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
     relative = _relative(y, sigma, wrap=False).ravel()
