@@ -354,7 +354,7 @@ def structure_variants(photo):
     result, _ = classify_photo(photo)
     whole = assign_themes(photo, result.labels, result.classes)
     theme_labels = apply_lut(result.labels, whole.lut)
-    detail = detail_mapping(photo, theme_labels, whole)
+    detail, twin_labels = detail_mapping(photo, theme_labels, whole)
     choice = choose_cell_size(theme_labels, DEFAULT.target_agreement,
                               candidates=DEFAULT.candidates, class_target=DEFAULT.class_target,
                               full_curve=False, keep_specks=False)
@@ -371,8 +371,9 @@ def structure_variants(photo):
             theme_labels, choice, DEFAULT.candidates, cap, keep_specks=False)
         made = grid_and_colour(photo, theme_labels, mapping, cell="auto", choice=cell,
                                colour_map=cmap, render=RenderOptions(boundary=DEFAULT.boundary),
-                               keep_specks=False)
-        project = ThematicTexture(made.grid, mapping.library, {"photo_size": [w, h]},
+                               keep_specks=False,
+                               twin_labels=twin_labels if mapping is detail else None)
+        project = ThematicTexture(made.grid, made.mapping.library, {"photo_size": [w, h]},
                                   colour_map=made.colour.colour_map)
         out[name] = (project, shared + time.perf_counter() - t)
     return out
@@ -408,11 +409,14 @@ def run_structure(log):
         row = {"photo": name, "size": [w, h], "variants": {}}
         made = structure_variants(photo)
         if folder == "sample":
-            # The composition is convert_photo's: the same grid and colour map.
+            # The composition is convert_photo's: the same grid, themes and colour map.
             direct = convert_photo(photo).project
             ours = made[f"budget {DEFAULT.colour_map.budget}"][0]
             if not (np.array_equal(direct.grid.indices, ours.grid.indices) and np.array_equal(
-                    direct.colour_map.pixels, ours.colour_map.pixels)):
+                    direct.colour_map.pixels, ours.colour_map.pixels)
+                    and len(direct.library) == len(ours.library) and all(
+                    np.array_equal(a.texture, b.texture)
+                    for a, b in zip(direct.library, ours.library, strict=False))):
                 raise SystemExit("structure variants differ from convert_photo: fix the bench")
         for vname, (project, secs) in made.items():
             render = render_project(project, (0, 0, w, h),

@@ -18,6 +18,7 @@ from terratheme.core.themes.calm import (
     ENERGY_REACH,
     CalmTwin,
     calm_threshold,
+    class_log_energy,
     fit_calm_twins,
     log_energy,
     split_calm,
@@ -35,6 +36,16 @@ def _grain(shape, sigma, seed, mean=128.0):
     return np.repeat(np.clip(mean + noise, 0, 255)[:, :, None], 3, axis=2).astype(np.uint8)
 
 
+def _fit(photo, labels, themes, first_twin):
+    """:func:`fit_calm_twins` on the photo's class energies, as a conversion fits them."""
+    return fit_calm_twins(class_log_energy(photo, labels, themes), labels, themes, first_twin)
+
+
+def _split(photo, labels, twins):
+    """:func:`split_calm` of ``labels`` by the photo's energies in the twins' themes."""
+    return split_calm(labels, twins, class_log_energy(photo, labels, [t.theme for t in twins]))
+
+
 def _calm_and_busy(h=128, w=512):
     """One class: its left half calm (noise 1), its right half busy (noise 24)."""
     photo = np.concatenate([_grain((h, w // 2), 1.0, 1), _grain((h, w // 2), 24.0, 2)], axis=1)
@@ -43,21 +54,21 @@ def _calm_and_busy(h=128, w=512):
 
 def test_a_class_of_a_calm_and_a_busy_half_gets_a_twin_for_the_calm_half():
     photo, labels = _calm_and_busy()
-    twins = fit_calm_twins(photo, labels, [0], 1)
+    twins = _fit(photo, labels, [0], 1)
     assert len(twins) == 1 and (twins[0].theme, twins[0].twin) == (0, 1)
     # Relative RMS 1/128 against 24/128: log2 energies near -14 and -4.8.
     assert -13.0 < twins[0].threshold < -6.0
-    split = split_calm(photo, labels, twins)
+    split = _split(photo, labels, twins)
     # Four of the energy's sigmas (32 px) away from the middle, each half is one theme.
     assert (split[:, :128] == 1).all() and (split[:, -128:] == 0).all()
 
 
 def test_one_grain_everywhere_or_a_small_class_gets_no_twin():
     photo = _grain((128, 256), 12.0, 3)
-    assert fit_calm_twins(photo, np.zeros((128, 256), np.uint8), [0], 1) == ()
+    assert _fit(photo, np.zeros((128, 256), np.uint8), [0], 1) == ()
     # Halves of 48 x 48 are under TWIN_MIN_PIXELS (4096): edges, not areas.
     small, labels = _calm_and_busy(48, 96)
-    assert fit_calm_twins(small, labels, [0], 1) == ()
+    assert _fit(small, labels, [0], 1) == ()
 
 
 def _busy_class_with_a_calm_island(calm_width):
@@ -75,16 +86,16 @@ def _busy_class_with_a_calm_island(calm_width):
 def test_a_calm_area_too_small_for_a_bimodal_split_still_gets_a_twin():
     # 128 x 64 calm pixels: 7.7% of the class, under TWIN_SHARE, over TWIN_MIN_PIXELS.
     photo, labels = _busy_class_with_a_calm_island(64)
-    twins = fit_calm_twins(photo, labels, [0], 2)
+    twins = _fit(photo, labels, [0], 2)
     assert len(twins) == 1 and (twins[0].theme, twins[0].twin) == (0, 2)
     # Relative RMS 24/128: log2 energy near -4.8, the tail TWIN_SEPARATION under it.
     assert -7.0 < twins[0].threshold < -6.0
-    split = split_calm(photo, labels, twins)
+    split = _split(photo, labels, twins)
     assert (split[:, 896:] == 2).all() and (split[:, :700] == 0).all()
     assert (split[:, 768:896] == 1).all()
     # 128 x 24 calm pixels are under TWIN_MIN_PIXELS: an edge, not an area.
     photo, labels = _busy_class_with_a_calm_island(24)
-    assert fit_calm_twins(photo, labels, [0], 2) == ()
+    assert _fit(photo, labels, [0], 2) == ()
 
 
 def test_calm_threshold_splits_bimodal_energies_else_cuts_a_calm_tail():
@@ -108,7 +119,7 @@ def test_the_step_to_a_neighbour_class_and_its_border_pixels_do_not_count():
     energy = log_energy(photo, labels == 1)[labels == 1]
     # Noise of 3 over 200: log2 of (0.015)^2 is -12.1; the strip and the step are left out.
     assert energy.max() - energy.min() < 1.0
-    assert fit_calm_twins(photo, labels, [0, 1], 2) == ()
+    assert _fit(photo, labels, [0, 1], 2) == ()
     # A plain blur over the whole photo would have raised the border to a busy rim.
     y = photo.mean(axis=2)
     plain = np.abs(y[:, 120:136] / y[:, 120:136].mean() - 1).max()
@@ -158,10 +169,10 @@ def test_the_tiled_grid_takes_the_whole_photos_twins(tmp_path, cell, tile, keep_
     lut = np.zeros(256, np.uint8)
     lut[1], lut[2] = 0, 1
     theme_labels = lut[_classes(photo)]
-    twins = fit_calm_twins(photo, theme_labels, [0, 1], 2)
+    twins = _fit(photo, theme_labels, [0, 1], 2)
     assert {t.theme for t in twins} == {0, 1}
     whole = IndexGrid(vote_grid(theme_labels, (cell, cell), keep_specks=keep_specks), (cell, cell))
-    want = calm_grid(photo, theme_labels, whole, twins)
+    want = calm_grid(_split(photo, theme_labels, twins), whole, twins)
     assert set(np.unique(want.indices)) == {0, 1, 2, 3}
     for sched in Scheduler:
         got = grid_from_file(path, cell, _classes, lut=lut, tile=tile, overlap=8,
@@ -204,9 +215,9 @@ def _quarter_calm(calm_noise=1.0, texture_noise=20.0):
 
 def test_a_calm_twin_carries_less_grain_than_its_class():
     photo, labels, mapping = _quarter_calm()
-    made = detail_mapping(photo, labels, mapping)
+    made = detail_mapping(photo, labels, mapping)[0]
     assert len(made.calm) == 1 and made.library.names == ["sand", "sand calm"]
-    whole = detail_mapping(photo, labels, mapping, calm=())
+    whole = detail_mapping(photo, labels, mapping, calm=())[0]
     assert whole.library.names == ["sand"]
     # Each part at its own pixels' gain: the busy part more grain than the whole class
     # had, the calm part far less.
@@ -218,11 +229,12 @@ def test_a_calm_twin_carries_less_grain_than_its_class():
 def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain():
     # With its twin the theme carries the busy part's grain.
     photo, labels, mapping = _quarter_calm()
-    made = detail_mapping(photo, labels, mapping)
-    whole = detail_mapping(photo, labels, mapping, calm=())
+    made = detail_mapping(photo, labels, mapping)[0]
+    whole = detail_mapping(photo, labels, mapping, calm=())[0]
     assert len(made.calm) == 1 and made.plain is not None and whole.plain is None
     assert not np.array_equal(made.library[0].texture, whole.library[0].texture)
-    grid = calm_grid(photo, labels, IndexGrid(vote_grid(labels, (16, 16)), (16, 16)), made.calm)
+    classes = IndexGrid(vote_grid(labels, (16, 16)), (16, 16))
+    grid = calm_grid(_split(photo, labels, made.calm), classes, made.calm)
     assert set(np.unique(grid.indices)) == {0, 1}
     # No bits for the twins: the grid is the class's, its theme the one made without twins.
     got, plain = keep_calm(grid, made, 1e-6, labels.size)
@@ -235,11 +247,11 @@ def test_a_twin_whose_detail_comes_out_as_its_themes_is_dropped():
     # A nearly flat texture: the calm quarter's gain and the busy part's both reach the top
     # of the gain range, so the twin's texture would be the theme's, byte for byte.
     photo, labels, mapping = _quarter_calm(calm_noise=2.0, texture_noise=0.3)
-    assert len(fit_calm_twins(photo, labels, [0], 1)) == 1
-    made = detail_mapping(photo, labels, mapping)
+    assert len(_fit(photo, labels, [0], 1)) == 1
+    made = detail_mapping(photo, labels, mapping)[0]
     assert made.calm == () and made.library.names == ["sand"]
     assert np.array_equal(made.library[0].texture,
-                          detail_mapping(photo, labels, mapping, calm=()).library[0].texture)
+                          detail_mapping(photo, labels, mapping, calm=())[0].library[0].texture)
 
 
 @pytest.fixture
@@ -308,3 +320,24 @@ def test_a_region_whose_grid_cannot_afford_twins_gets_the_plain_themes_tile_by_t
     for got in (whole, tiled):
         assert all(np.array_equal(a.texture, b.texture)
                    for a, b in zip(got.library, plain.library, strict=True))
+
+
+def test_detail_mappings_twin_labels_are_its_kept_twins_split():
+    photo, labels, mapping = _quarter_calm()
+    made, split = detail_mapping(photo, labels, mapping)
+    assert len(made.calm) == 1
+    assert np.array_equal(split, _split(photo, labels, made.calm))
+    assert (split[:, :48] == 1).all() and (split[:, -128:] == 0).all()
+    # A twin dropped (its detail its theme's): its pixels are its theme's again.
+    photo, labels, mapping = _quarter_calm(calm_noise=2.0, texture_noise=0.3)
+    made, split = detail_mapping(photo, labels, mapping)
+    assert made.calm == () and (split == 0).all()
+
+
+def test_class_energies_leave_other_and_small_themes_unmeasured():
+    photo, labels = _calm_and_busy()
+    labels[:, :8] = 1  # 1,024 pixels of theme 1
+    energy = class_log_energy(photo, labels, [0, 1], min_pixels=2048)
+    assert np.isnan(energy[:, :8]).all() and not np.isnan(energy[:, 8:]).any()
+    assert np.array_equal(energy[labels == 0], log_energy(photo, labels == 0)[labels == 0])
+    assert np.isnan(class_log_energy(photo, labels, [1])[:, 8:]).all()

@@ -187,7 +187,8 @@ def convert_photo(
                            colour_map=None, render=render,
                            progress=_stage(progress, 50, 35), choice=themed.choice,
                            keep_specks=options.keep_specks,
-                           grid_bpp=grid_budget(options.colour_map, h * w))
+                           grid_bpp=grid_budget(options.colour_map, h * w),
+                           twin_labels=themed.twin_labels)
     mapping = made.mapping
     if sample is not None:
         # A class the grid shows that the sample's windows missed: windows moved onto it,

@@ -32,7 +32,9 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
 from terratheme.core.render.renderer import RenderOptions, render_cells
 from terratheme.core.themes.calm import (
+    TWIN_MIN_PIXELS,
     CalmTwin,
+    class_log_energy,
     fit_calm_twins,
     renumbered,
     split_calm,
@@ -146,12 +148,14 @@ class Themed:
     """The themes of a classified photo and, with cell "auto", the cell chosen on them.
 
     ``theme_labels``: (H, W) uint8 theme index per pixel; ``choice`` (None unless the cell
-    was chosen) carries the grid voted at its cell.
+    was chosen) carries the grid voted at its cell; ``twin_labels``: ``theme_labels`` split
+    by ``mapping``'s calm twins when they were fitted on this photo (not a sample), else None.
     """
 
     mapping: ThemeMapping
     theme_labels: np.ndarray
     choice: CellChoice | None
+    twin_labels: np.ndarray | None = None
 
 
 def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
@@ -194,24 +198,27 @@ def themes_and_cell(rgb: np.ndarray, labels: np.ndarray, classes: Sequence[int],
     cut = cuts_themes(themes)
     # Cut themes: the table is known before any theme is cut.
     theme_labels = apply_lut(labels, photo_theme_lut(labels, classes)) if cut else None
+    twin_labels = None
     with ThreadPoolExecutor(max_workers=1) as pool:
         job = pool.submit(choose, theme_labels) if cut and cell == "auto" else None
         mapping = assign_themes(rgb, labels, classes, themes, patch=patch, names=names)
         if not cut:
             theme_labels = apply_lut(labels, mapping.lut)
         elif detail is not None:
-            mapping = detail_mapping(rgb, theme_labels, mapping, detail, calm=calm)
+            mapping, twin_labels = detail_mapping(rgb, theme_labels, mapping, detail, calm=calm)
         choice = job.result() if job is not None else (
             choose(theme_labels) if cell == "auto" else None)
-    return Themed(mapping, theme_labels, choice)
+    return Themed(mapping, theme_labels, choice, twin_labels)
 
 
 def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapping,
                    detail: float = DETAIL_SIGMA, *,
-                   calm: Sequence[CalmTwin] | None = None) -> ThemeMapping:
+                   calm: Sequence[CalmTwin] | None = None) -> tuple[ThemeMapping, np.ndarray]:
     """``mapping``'s themes as detail themes (:func:`detail_themes`) with their calm twins
     (:mod:`core.themes.calm`; ``calm`` None fits them on this photo, else these are taken,
-    renumbered after the themes), each at the photo's contrast on its own pixels.
+    renumbered after the themes), each at the photo's contrast on its own pixels; and the
+    (H, W) uint8 theme labels split by the twins kept (:func:`split_calm`), for
+    :func:`calm_vertices`.
 
     A twin whose detail texture comes out identical to its theme's (the fragment cap or
     the gain range holding both parts) is dropped: it would cost grid bytes for nothing.
@@ -222,9 +229,11 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
     n_themes = len(mapping.library)
     if calm is None:
         class_themes = sorted({int(mapping.lut[c]) for c in mapping.classes if c})
-        twins = fit_calm_twins(rgb, theme_labels, class_themes, n_themes)
+        energy = class_log_energy(rgb, theme_labels, class_themes, min_pixels=2 * TWIN_MIN_PIXELS)
+        twins = fit_calm_twins(energy, theme_labels, class_themes, n_themes)
     else:
         twins = renumbered(calm, n_themes)
+        energy = class_log_energy(rgb, theme_labels, [t.theme for t in twins])
     # Each theme's detail once; a twin's is its theme's.
     details = [theme_detail(t.texture, detail) for t in mapping.library]
 
@@ -233,7 +242,7 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
                              details=[*details, *(details[t.theme] for t in twins)])[0]
 
     # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
-    split = split_calm(rgb, theme_labels, twins)
+    split = split_calm(theme_labels, twins, energy)
     themes = made(split, twins)
     # A twin whose detail came out as its theme's (both parts at a cap) is no twin: its
     # pixels go back to its theme and the twins kept move up.
@@ -247,9 +256,10 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
         split = moved[split]
         themes = made(split, twins)
     if not twins:
-        return ThemeMapping(themes, mapping.lut, mapping.classes)
+        return ThemeMapping(themes, mapping.lut, mapping.classes), split
     # Each theme at its whole class's gain, for a grid over its share with the twins.
-    return ThemeMapping(themes, mapping.lut, mapping.classes, twins, made(theme_labels, ()))
+    return ThemeMapping(themes, mapping.lut, mapping.classes, twins,
+                        made(theme_labels, ())), split
 
 
 def sample_themes(sample: RegionSample, classes: Sequence[int], themes: ThemesSpec = "auto",
@@ -329,6 +339,7 @@ def grid_and_colour(
     full_curve: bool = True,
     keep_specks: bool = True,
     grid_bpp: float | None = None,
+    twin_labels: np.ndarray | None = None,
 ) -> GridResult:
     """Vote the (H, W) uint8 theme labels to a grid and fit the colour map to its render.
 
@@ -338,7 +349,8 @@ def grid_and_colour(
     ``keep_specks``), whose grid is taken when it carries one. ``keep_specks`` False:
     lone vertices take their neighbours' theme. ``grid_bpp``: the grid's share of a byte
     budget (:func:`grid_budget`; None: ``colour_map``'s), which ``mapping``'s calm twins
-    must fit in (:func:`keep_calm`).
+    must fit in (:func:`keep_calm`). ``twin_labels``: ``theme_labels`` split by
+    ``mapping``'s twins (:attr:`Themed.twin_labels`), when known.
     """
     if cell != "auto" and (not isinstance(cell, int) or cell < 1):
         raise TerrathemeError(f"cell must be 'auto' or a positive integer, got {cell!r}")
@@ -358,7 +370,8 @@ def grid_and_colour(
         # The class grid's vertices take their calm twins, if the grid's bytes allow them
         # (the choice then carries the grid).
         bits = grid_budget(colour_map, theme_labels.size) if grid_bpp is None else grid_bpp
-        grid, mapping = calm_vertices(rgb, theme_labels, grid, mapping, bits)
+        grid, mapping = calm_vertices(rgb, theme_labels, grid, mapping, bits,
+                                      twin_labels=twin_labels)
         if choice is not None:
             choice = replace(choice, grid=grid, packed_bytes=packed_bytes(grid))
     fitted = None if colour_map is None else fit_colour_map(
@@ -388,26 +401,29 @@ def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
 
 
 def calm_vertices(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
-                  mapping: ThemeMapping, grid_bpp: float | None
-                  ) -> tuple[IndexGrid, ThemeMapping]:
+                  mapping: ThemeMapping, grid_bpp: float | None, *,
+                  twin_labels: np.ndarray | None = None) -> tuple[IndexGrid, ThemeMapping]:
     """The class ``grid`` (voted from the (H, W) uint8 ``theme_labels``) with ``mapping``'s
     calm twins at its vertices (:func:`calm_grid`) where :func:`keep_calm` keeps them, and
     ``mapping`` with them; both without them otherwise. The class grid is checked first,
-    so no twin is voted for a grid already over its share."""
+    so no twin is voted for a grid already over its share. ``twin_labels``: the labels
+    split by the twins (:func:`detail_mapping`'s), else split here from ``rgb``."""
     grid, mapping = keep_calm(grid, mapping, grid_bpp, theme_labels.size)
     if not mapping.calm:
         return grid, mapping
-    return keep_calm(calm_grid(rgb, theme_labels, grid, mapping.calm), mapping, grid_bpp,
+    if twin_labels is None:
+        twin_labels = split_calm(theme_labels, mapping.calm, class_log_energy(
+            rgb, theme_labels, [t.theme for t in mapping.calm]))
+    return keep_calm(calm_grid(twin_labels, grid, mapping.calm), mapping, grid_bpp,
                      theme_labels.size)
 
 
-def calm_grid(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
-              twins: Sequence[CalmTwin]) -> IndexGrid:
-    """``grid`` (voted from the (H, W) uint8 ``theme_labels``) with its vertices' calm twins
-    (:func:`.calm.twin_vertices`), from a plain vote of the twin-split labels at its cell,
-    as each tile of a tiled conversion votes them."""
-    split = split_calm(rgb, theme_labels, twins)
-    votes = vote_grid(split, grid.cell, keep_specks=True)
+def calm_grid(twin_labels: np.ndarray, grid: IndexGrid, twins: Sequence[CalmTwin]) -> IndexGrid:
+    """``grid`` (voted from theme labels) with its vertices' calm twins
+    (:func:`.calm.twin_vertices`), from a plain vote of the (H, W) uint8 ``twin_labels``
+    (the labels split by ``twins``, :func:`split_calm`) at its cell, as each tile of a
+    tiled conversion votes them."""
+    votes = vote_grid(twin_labels, grid.cell, keep_specks=True)
     return IndexGrid(twin_vertices(grid.indices, votes, twins), grid.cell)
 
 

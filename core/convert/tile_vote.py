@@ -13,7 +13,7 @@ from terratheme.core.classify.photo import prepare_photo
 from terratheme.core.convert.labels_to_grid import grid_shape_for, vertex_window, vote_vertices
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.tiles import TileWindow
-from terratheme.core.themes.calm import CalmTwin, split_calm
+from terratheme.core.themes.calm import CalmTwin, class_log_energy, split_calm
 
 ClassifyFn = Callable[[np.ndarray], np.ndarray]
 #: a tile's read window starts at a multiple of this many pixels (see :func:`vertex_tiles`)
@@ -128,7 +128,9 @@ class VoteJob:
             return votes
         if transparent(pixels):  # no data: nothing to split
             return votes, votes
-        split = split_calm(prepare_photo(pixels).rgb, labels, self.calm, (win.rx, win.ry))
+        energy = class_log_energy(prepare_photo(pixels).rgb, labels,
+                                  [t.theme for t in self.calm], (win.rx, win.ry))
+        split = split_calm(labels, self.calm, energy)
         return votes, self._vote(split[win.core_in_read], win)
 
     def _vote(self, core: np.ndarray, win: VertexTile) -> np.ndarray:

@@ -210,11 +210,12 @@ def run_classification(mode: ClassifyMode, photo: np.ndarray, scribbles: np.ndar
         # A new project gets what convert makes: detail themes with their calm twins under
         # a fitted colour map.
         rgb = photo[..., :3]
-        detail = detail_mapping(rgb, theme_labels, ThemeMapping(
+        detail, twin_labels = detail_mapping(rgb, theme_labels, ThemeMapping(
             ThemeLibrary(new_themes), lut.astype(np.uint8), tuple(result.classes)))
         options = ColourMapOptions()
         grid, detail = calm_vertices(rgb, theme_labels, grid, detail,
-                                     grid_budget(options, theme_labels.size))
+                                     grid_budget(options, theme_labels.size),
+                                     twin_labels=twin_labels)
         new_themes = list(detail.library)
         colour_map = fit_colour_map(rgb, grid, detail.library, options).colour_map
     update = ClassificationUpdate(grid.indices, new_themes, replace_themes,

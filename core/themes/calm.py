@@ -93,19 +93,38 @@ def log_energy(photo: np.ndarray, mask: np.ndarray,
     return full[top:top + h, left:left + w].astype(np.float32)
 
 
-def fit_calm_twins(photo: np.ndarray, theme_labels: np.ndarray,
+def class_log_energy(photo: np.ndarray, theme_labels: np.ndarray, themes: Sequence[int],
+                     origin: tuple[int, int] = (0, 0), *, min_pixels: int = 1) -> np.ndarray:
+    """(H, W) float32: each pixel of one of ``themes`` its :func:`log_energy` inside its
+    theme's pixels, NaN at the others and at themes of fewer than ``min_pixels`` pixels.
+
+    Measured once per photo (or tile) for both :func:`fit_calm_twins` and
+    :func:`split_calm`. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8;
+    ``origin`` as :func:`log_energy`'s.
+    """
+    labels = np.asarray(theme_labels)
+    out = np.full(labels.shape, np.nan, np.float32)
+    for k in sorted({int(t) for t in themes}):
+        mask = labels == k
+        if int(np.count_nonzero(mask)) >= max(min_pixels, 1):
+            out[mask] = log_energy(photo, mask, origin)[mask]
+    return out
+
+
+def fit_calm_twins(energy: np.ndarray, theme_labels: np.ndarray,
                    themes: Sequence[int], first_twin: int) -> tuple[CalmTwin, ...]:
     """The twins of ``themes`` whose pixels' :func:`log_energy` is bimodal or has a calm tail
     (:func:`calm_threshold`). Twins are numbered from ``first_twin`` in theme order.
-    ``theme_labels``: (H, W) uint8.
+    ``energy``: (H, W) float32 :func:`class_log_energy` of ``themes``; ``theme_labels``:
+    (H, W) uint8.
     """
     labels = np.asarray(theme_labels)
     twins: list[CalmTwin] = []
     for k in themes:
-        mask = labels == k
-        if int(mask.sum()) < 2 * TWIN_MIN_PIXELS:
+        values = energy[labels == k]
+        if values.size < 2 * TWIN_MIN_PIXELS or np.isnan(values).any():
             continue
-        threshold = calm_threshold(log_energy(photo, mask)[mask])
+        threshold = calm_threshold(values)
         if threshold is not None:
             twins.append(CalmTwin(int(k), first_twin + len(twins), threshold))
     return tuple(twins)
@@ -139,16 +158,14 @@ def renumbered(twins: Sequence[CalmTwin], first_twin: int) -> tuple[CalmTwin, ..
     return tuple(CalmTwin(t.theme, first_twin + i, t.threshold) for i, t in enumerate(twins))
 
 
-def split_calm(photo: np.ndarray, theme_labels: np.ndarray, twins: Sequence[CalmTwin],
-               origin: tuple[int, int] = (0, 0)) -> np.ndarray:
-    """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it; ``origin``
-    as :func:`log_energy`'s."""
+def split_calm(theme_labels: np.ndarray, twins: Sequence[CalmTwin],
+               energy: np.ndarray) -> np.ndarray:
+    """(H, W) uint8: ``theme_labels`` with each twin's calm pixels moved to it; ``energy``:
+    the (H, W) :func:`class_log_energy` of (at least) the twins' themes."""
     labels = np.asarray(theme_labels)
     out = labels.copy()
     for twin in twins:
-        mask = labels == twin.theme
-        if mask.any():
-            out[mask & (log_energy(photo, mask, origin) < twin.threshold)] = twin.twin
+        out[(labels == twin.theme) & (energy < twin.threshold)] = twin.twin
     return out
 
 
