@@ -201,6 +201,27 @@ def test_twins_over_the_grids_share_of_the_budget_are_dropped():
     assert got.cell == grid.cell and np.array_equal(plain.lut, mapping.lut)
 
 
+def test_a_class_grid_over_its_share_still_takes_twins_that_add_little_to_it():
+    library = ThemeLibrary([flat_theme("sand", (200, 190, 150)), flat_theme("water", (0, 0, 90)),
+                            flat_theme("sand calm", (200, 190, 150))])
+    mapping = ThemeMapping(library, np.array([0, 0, 1] + [0] * 253, np.uint8), (1, 2),
+                           (CalmTwin(0, 2, -8.0),))
+    # A class grid of random sand and water, a block of sand at its middle calm.
+    classes = np.random.default_rng(1).choice([0, 1], (33, 33)).astype(np.uint8)
+    classes[12:20, 12:20] = 0
+    twinned = classes.copy()
+    twinned[14:18, 14:18] = 2
+    grid = IndexGrid(twinned, (8, 8))
+    assert packed_bytes(grid) > packed_bytes(IndexGrid(classes, (8, 8)))
+    # Over the share by far, the class grid too: the twins' few bytes are within
+    # TWIN_GRID_EXTRA of the class grid's own.
+    assert keep_calm(grid, mapping, 8 / 1000, 1000) == (grid, mapping)
+    # Twins on a third of the vertices at random cost more than that: dropped.
+    noisy = IndexGrid(np.random.default_rng(0).choice([0, 1, 2], (33, 33)).astype(np.uint8),
+                      (8, 8))
+    assert keep_calm(noisy, mapping, 8 / 1000, 1000)[1].calm == ()
+
+
 def _quarter_calm(calm_noise=1.0, texture_noise=20.0):
     """(photo, labels, mapping): one class calm on its left quarter (noise ``calm_noise``)
     and busy on the rest (noise 24), themed by a grey texture of noise ``texture_noise``."""
@@ -226,7 +247,11 @@ def test_a_calm_twin_carries_less_grain_than_its_class():
     assert grain[1] < 0.5 * grain[0]
 
 
-def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain():
+def test_twins_dropped_over_the_budget_leave_each_theme_at_its_whole_classs_gain(monkeypatch):
+    import terratheme.core.convert.step as step
+
+    # Twins on no more than the budget's share: a grid over it drops them.
+    monkeypatch.setattr(step, "TWIN_GRID_EXTRA", 0.0)
     # With its twin the theme carries the busy part's grain.
     photo, labels, mapping = _quarter_calm()
     made = detail_mapping(photo, labels, mapping)[0]
@@ -307,8 +332,10 @@ def test_a_region_whose_grid_cannot_afford_twins_gets_the_plain_themes_tile_by_t
     import terratheme.core.convert.step as step
 
     photo, path = halves_region
-    # The grid's share of the least area budget (512 bytes) holds the class grid, not twins.
+    # The grid's share of the least area budget (512 bytes) holds the class grid, not twins,
+    # and twins get no bytes over it.
     monkeypatch.setattr(step, "GRID_SHARE", 0.03)
+    monkeypatch.setattr(step, "TWIN_GRID_EXTRA", 0.0)
     options = ConvertOptions(cell=8, themes=2, colour_map=ColourMapOptions(budget=0.001))
     whole = convert_photo(photo, options).project
     tiled = convert_file_tiled(path, None, 8, themes=2, tile=128,

@@ -120,6 +120,9 @@ def cuts_themes(themes: ThemesSpec) -> bool:
 
 #: share of a byte budget the packed grid may take (:func:`grid_budget`)
 GRID_SHARE = 0.125
+#: calm twins may add this share of the class grid's own bytes to a grid over its share
+#: (:func:`keep_calm`)
+TWIN_GRID_EXTRA = 0.25
 
 
 def grid_budget(colour_map: ColourMapOptions | None, pixels: int) -> float | None:
@@ -382,17 +385,20 @@ def grid_and_colour(
 
 def keep_calm(grid: IndexGrid, mapping: ThemeMapping, grid_bpp: float | None,
               pixels: int) -> tuple[IndexGrid, ThemeMapping]:
-    """``(grid, mapping)``, or both without the calm twins when the packed grid, with
-    them or without, is over its share of a byte budget (``grid_bpp`` bits per photo
-    pixel; None: no budget): the bytes the twins cost would come out of the colour map.
+    """``(grid, mapping)``, or both without the calm twins when the packed grid with them
+    is over its share of a byte budget (``grid_bpp`` bits per photo pixel; None: no
+    budget), or over the class grid's own bytes and ``TWIN_GRID_EXTRA`` of them where the
+    class grid alone is over the share (small cells forced by the agreement floor): the
+    bytes the twins cost come out of the colour map.
     Without them the themes are ``mapping.plain`` (each at its whole class's gain).
     ``grid`` may be the class grid alone (:func:`calm_grid` not yet run)."""
     if not mapping.calm or grid_bpp is None:
         return grid, mapping
     parents = IndexGrid(twin_parents(len(mapping.library), mapping.calm).astype(np.uint8)[
         grid.indices], grid.cell)
-    share = grid_bpp * max(int(pixels), 1)
-    if packed_bytes(parents) * 8 <= share and packed_bytes(grid) * 8 <= share:
+    share = max(grid_bpp * max(int(pixels), 1),
+                packed_bytes(parents) * 8 * (1 + TWIN_GRID_EXTRA))
+    if packed_bytes(grid) * 8 <= share:
         return grid, mapping
     n_themes = len(mapping.library) - len(mapping.calm)
     plain = mapping.plain if mapping.plain is not None else ThemeLibrary(
@@ -405,10 +411,8 @@ def calm_vertices(rgb: np.ndarray, theme_labels: np.ndarray, grid: IndexGrid,
                   twin_labels: np.ndarray | None = None) -> tuple[IndexGrid, ThemeMapping]:
     """The class ``grid`` (voted from the (H, W) uint8 ``theme_labels``) with ``mapping``'s
     calm twins at its vertices (:func:`calm_grid`) where :func:`keep_calm` keeps them, and
-    ``mapping`` with them; both without them otherwise. The class grid is checked first,
-    so no twin is voted for a grid already over its share. ``twin_labels``: the labels
-    split by the twins (:func:`detail_mapping`'s), else split here from ``rgb``."""
-    grid, mapping = keep_calm(grid, mapping, grid_bpp, theme_labels.size)
+    ``mapping`` with them; both without them otherwise. ``twin_labels``: the labels split
+    by the twins (:func:`detail_mapping`'s), else split here from ``rgb``."""
     if not mapping.calm:
         return grid, mapping
     if twin_labels is None:
