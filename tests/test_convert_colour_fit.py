@@ -157,6 +157,38 @@ def test_fit_quality_takes_the_highest_quality_that_fits():
     assert fit_quality(gain, 8, "webp", 10) is None
 
 
+@pytest.mark.parametrize("curve", ["exponential", "steps"])
+def test_fit_quality_from_any_guess_finds_what_a_scan_finds(monkeypatch, curve):
+    from types import SimpleNamespace
+
+    import terratheme.core.convert.colour_fit as cf
+
+    # Bytes that grow with quality: smoothly, or in plateaus with jumps.
+    def size(q):
+        return int(200 * 2 ** (q / 15)) if curve == "exponential" else 1000 + 700 * (q // 9)
+
+    calls = []
+
+    class Stub:
+        @staticmethod
+        def encode(gain, scale, codec, quality, **kwargs):
+            calls.append(quality)
+            return SimpleNamespace(nbytes=size(quality), quality=quality)
+
+    monkeypatch.setattr(cf, "ColourMap", Stub)
+    for budget in (size(1) - 1, size(1), 999, 1500, 4321, 8000, size(99), 10 ** 9):
+        fitting = [q for q in range(1, 100) if size(q) <= budget]
+        for guess in (1, 17, 50, 83, 99):
+            calls.clear()
+            got = cf.fit_quality(np.zeros((4, 4, 3), np.uint8), 8, "avif", budget, guess=guess)
+            if not fitting:
+                assert got is None
+            else:
+                assert got[0] == max(fitting) and got[1].quality == max(fitting)
+            # The guided steps, then a bisection of what is left.
+            assert len(calls) <= cf.FIT_GUIDED_STEPS + 7, (budget, guess, calls)
+
+
 def test_budget_map_spends_no_more_than_its_budget_and_beats_a_coarse_map_on_structure():
     from terratheme.core.fidelity import structure_similarity
     from terratheme.core.render.colour_map import apply_colour_map

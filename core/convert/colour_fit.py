@@ -181,25 +181,65 @@ def budget_upsample(scale: int) -> int:
     return 2 if int(scale) % 2 == 0 else 1
 
 
+#: qualities a doubling of a map's bytes takes, about (AVIF and WebP of gain maps), for the
+#: first steps of :func:`fit_quality`'s search
+QUALITY_PER_DOUBLING = 17
+#: encodes :func:`fit_quality` guides by the bytes before it bisects what is left
+FIT_GUIDED_STEPS = 4
+
+
 def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsample: int = 1,
-                texture_size: tuple[int, int] | None = None) -> tuple[int, ColourMap] | None:
+                texture_size: tuple[int, int] | None = None, guess: int = 50
+                ) -> tuple[int, ColourMap] | None:
     """``(quality, map)``: the (mh, mw, 3) uint8 stored gain at the best quality fitting ``budget``
     (drawn ``upsample`` times finer over a ``texture_size`` texture).
 
-    Bisection on quality 1..99; ``png`` has one size. None when not even quality 1 fits.
+    The highest quality 1..99 that fits, bytes taken to grow with quality: from ``guess``
+    (where the caller expects it), each step encodes the quality where the log of the bytes,
+    interpolated between the nearest qualities tried on either side of the budget (or
+    stepped ``QUALITY_PER_DOUBLING`` per doubling from one), meets the budget, inside the
+    bracket those qualities leave, until the fitting and the failing quality are
+    neighbours (bisecting after ``FIT_GUIDED_STEPS``): a few encodes a scale, where a
+    bisection of 1..99 takes seven. ``png`` has one size.
+    None when not even quality 1 fits.
     """
-    lo, hi, best = 1, 99, None
-    while lo <= hi:
-        q = (lo + hi) // 2
-        cmap = ColourMap.encode(gain, int(scale), codec, q, upsample=upsample,
+    def encode(q: int) -> ColourMap:
+        return ColourMap.encode(gain, int(scale), codec, q, upsample=upsample,
                                 texture_size=texture_size)
+
+    if codec == "png":
+        cmap = encode(50)
+        return (50, cmap) if cmap.nbytes <= budget else None
+    # fits: the highest quality known to fit and its map; fails: the lowest known not to.
+    fits: tuple[int, ColourMap] | None = None
+    fails: tuple[int, int] | None = None  # (quality, bytes)
+    q = int(np.clip(guess, 1, 99))
+    for step in range(1, 100):
+        cmap = encode(q)
         if cmap.nbytes <= budget:
-            best, lo = (q, cmap), q + 1
+            fits = (q, cmap)
         else:
-            hi = q - 1
-        if codec == "png":
-            break
-    return best
+            fails = (q, cmap.nbytes)
+        lo = fits[0] + 1 if fits is not None else 1
+        hi = fails[0] - 1 if fails is not None else 99
+        if lo > hi:
+            return fits
+        # The next quality: where log bytes reach the budget, between the two sides when
+        # both are known, else a step by the usual slope; kept inside [lo, hi].
+        target = np.log2(max(budget, 1))
+        if fits is not None and fails is not None:
+            f_bytes = np.log2(max(fits[1].nbytes, 1))
+            span = np.log2(fails[1]) - f_bytes
+            t = (target - f_bytes) / span if span > 0 else 0.5
+            q = fits[0] + t * (fails[0] - fits[0])
+        else:
+            q, size = (fits[0], fits[1].nbytes) if fits is not None else fails  # type: ignore[misc]
+            q = q + QUALITY_PER_DOUBLING * (target - np.log2(max(size, 1)))
+        q = int(np.clip(np.rint(q), lo, hi))
+        if step >= FIT_GUIDED_STEPS:
+            # Past the guided steps, bisection: the bracket halves at each encode.
+            q = (lo + hi) // 2
+    return fits
 
 
 def budget_score(photo: Reference, quick: tuple[int, Reference], shown: np.ndarray
@@ -221,13 +261,20 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
     best: tuple[float, ColourMap, float] | None = None
     coarsest = max(int(s) for s in options.budget_scales)
     ref, quick = reference(photo, sigmas=(), factors=(4, 8)), _quick_photo(photo)
+    # The quality to try first at each scale: the coarser scale's, less the bytes its map's
+    # (s_prev / s)^2 times the pixels would take.
+    guess = 50
+    previous: tuple[int, int] | None = None
     for scale in sorted({int(s) for s in options.budget_scales}, reverse=True):
         # The block ratio alone: its refinement sharpens the map, which then codes worse.
         gain = _quantise(fit_gain(photo, render, scale, 0))
         upsample = budget_upsample(scale)
+        if previous is not None:
+            guess = round(previous[1] - 2 * QUALITY_PER_DOUBLING * np.log2(previous[0] / scale))
         fitted = fit_quality(gain, scale, options.codec, budget, upsample=upsample,
-                             texture_size=size)
+                             texture_size=size, guess=guess)
         if fitted is not None:
+            previous = (scale, fitted[0])
             cmap = fitted[1]
         elif scale != coarsest or best is not None:
             continue
