@@ -213,6 +213,7 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsamp
     # fits: the highest quality known to fit and its map; fails: the lowest known not to.
     fits: tuple[int, ColourMap] | None = None
     fails: tuple[int, int] | None = None  # (quality, bytes)
+    target = np.log2(max(budget, 1))
     q = int(np.clip(guess, 1, 99))
     for step in range(1, 100):
         cmap = encode(q)
@@ -226,7 +227,6 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsamp
             return fits
         # The next quality: where log bytes reach the budget, between the two sides when
         # both are known, else a step by the usual slope; kept inside [lo, hi].
-        target = np.log2(max(budget, 1))
         if fits is not None and fails is not None:
             f_bytes = np.log2(max(fits[1].nbytes, 1))
             span = np.log2(fails[1]) - f_bytes

@@ -42,7 +42,12 @@ from terratheme.core.themes.calm import (
     twin_vertices,
     with_twins,
 )
-from terratheme.core.themes.detail import DETAIL_SIGMA, detail_themes, theme_detail
+from terratheme.core.themes.detail import (
+    DETAIL_SIGMA,
+    detail_themes,
+    photo_contrast,
+    theme_detail,
+)
 from terratheme.core.themes.from_photo import (
     ThemeMapping,
     photo_theme_lut,
@@ -237,12 +242,14 @@ def detail_mapping(rgb: np.ndarray, theme_labels: np.ndarray, mapping: ThemeMapp
     else:
         twins = renumbered(calm, n_themes)
         energy = class_log_energy(rgb, theme_labels, [t.theme for t in twins])
-    # Each theme's detail once; a twin's is its theme's.
+    # Each theme's detail and the photo's contrast once; a twin's detail is its theme's.
     details = [theme_detail(t.texture, detail) for t in mapping.library]
+    contrast = photo_contrast(rgb, detail)
 
     def made(labels: np.ndarray, twins: Sequence[CalmTwin]) -> ThemeLibrary:
         return detail_themes(rgb, labels, with_twins(mapping.library, twins), detail,
-                             details=[*details, *(details[t.theme] for t in twins)])[0]
+                             details=[*details, *(details[t.theme] for t in twins)],
+                             contrast=contrast)[0]
 
     # Each theme's gain on its own pixels: a class's busy part and its calm twin apart.
     split = split_calm(theme_labels, twins, energy)

@@ -69,7 +69,16 @@ def log_energy(photo: np.ndarray, mask: np.ndarray,
     ``photo``: (H, W, 3) uint8; ``mask``: (H, W) bool. Outside the mask the values mean
     nothing.
     """
-    y = np.asarray(photo, np.float32)[..., :3].mean(axis=2)
+    return _log_energy(_luminance(photo), mask, origin)
+
+
+def _luminance(photo: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the mean of an (H, W, 3+) photo's first three bands."""
+    return np.asarray(photo, np.float32)[..., :3].mean(axis=2)
+
+
+def _log_energy(y: np.ndarray, mask: np.ndarray, origin: tuple[int, int]) -> np.ndarray:
+    """:func:`log_energy` of the photo's (H, W) float32 :func:`_luminance` ``y``."""
     inner = cv2.erode(np.asarray(mask, np.uint8), np.ones((2 * BORDER_PIXELS + 1,) * 2, np.uint8))
     m = np.where(inner > 0, 1.0, BORDER_WEIGHT * np.asarray(mask)).astype(np.float32)
     # Relative contrast against the class's own local mean (a normalised convolution).
@@ -104,10 +113,13 @@ def class_log_energy(photo: np.ndarray, theme_labels: np.ndarray, themes: Sequen
     """
     labels = np.asarray(theme_labels)
     out = np.full(labels.shape, np.nan, np.float32)
+    y = None
     for k in sorted({int(t) for t in themes}):
         mask = labels == k
         if int(np.count_nonzero(mask)) >= max(min_pixels, 1):
-            out[mask] = log_energy(photo, mask, origin)[mask]
+            # The photo's luminance once for all its classes.
+            y = _luminance(photo) if y is None else y
+            out[mask] = _log_energy(y, mask, origin)[mask]
     return out
 
 

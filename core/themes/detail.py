@@ -145,9 +145,16 @@ def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
+def photo_contrast(photo: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
+    """(H, W) float32: the (H, W, 3) photo's relative luminance contrast ``y / blur(y) - 1``
+    at ``sigma`` (reflecting at its edges), which :func:`detail_themes` matches."""
+    return _relative(np.asarray(photo, np.float32).mean(axis=2), sigma, wrap=False)
+
+
 def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
                   sigma: float = DETAIL_SIGMA, *,
-                  details: Sequence[tuple[np.ndarray, bool]] | None = None
+                  details: Sequence[tuple[np.ndarray, bool]] | None = None,
+                  contrast: np.ndarray | None = None
                   ) -> tuple[ThemeLibrary, list[float]]:
     """Every theme as its detail texture at the photo's contrast in its class; and the gains.
 
@@ -157,13 +164,13 @@ def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLib
     most ``FRAGMENT_CONTRAST / its RMS``), clipped to ``GAIN_RANGE``; 1 for an unused or
     flat theme. ``photo``: (H, W, 3) uint8; ``theme_labels``: (H, W) uint8 theme per
     pixel. Names and colours are kept. ``details``: each theme's :func:`theme_detail` at
-    ``sigma``, when the caller has them already (one per theme of ``library``).
+    ``sigma``, when the caller has them already (one per theme of ``library``);
+    ``contrast``: the photo's :func:`photo_contrast` at ``sigma``, likewise.
     """
     if details is None:
         details = [theme_detail(t.texture, sigma) for t in library]
-    y = np.asarray(photo, np.float32).mean(axis=2)
     labels = np.asarray(theme_labels).ravel()
-    relative = _relative(y, sigma, wrap=False).ravel()
+    relative = (photo_contrast(photo, sigma) if contrast is None else contrast).ravel()
     counts = np.bincount(labels, minlength=len(details))
     sums = np.bincount(labels, relative ** 2, minlength=len(details))
     gains = []
