@@ -120,8 +120,10 @@ def test_overview_applies_the_gain_at_pixel_centres():
     plain = render_overview(proj.grid.indices, proj.library.textures, proj.grid.cell, scale=0.5)
     assert np.abs(half.astype(int) - plain.astype(int) / 2).max() <= 1
     g = gain_image(_map(), (0, 0, 96, 50), (96, 50))
-    ref = _reference_gain(_map().pixels, 16, 40, 20)
-    assert g[20, 40].tolist() == pytest.approx([float(v) for v in ref], abs=1e-5)
+    # Inside, and at the edges and corners, where the map's first and last pixels hold.
+    for y, x in ((20, 40), (0, 0), (0, 95), (49, 0), (49, 95), (3, 7), (25, 90)):
+        ref = _reference_gain(_map().pixels, 16, x, y)
+        assert g[y, x].tolist() == pytest.approx([float(v) for v in ref], abs=1e-5)
 
 
 def test_project_round_trip_keeps_the_colour_map(tmp_path):

@@ -124,6 +124,18 @@ def test_huge_denominators_are_rounded_not_overflowed():
     assert (slots.weights.sum(axis=0) == slots.denominator).all()
 
 
+def test_huge_denominators_round_local_coordinates_half_up():
+    # Left column theme 0, right column theme 1: theme 1's weight is the local x, whichever
+    # way the cell splits. Pixel 20482 of a 40961-wide map over one cell lies at
+    # 20482 / 40960 of it: 8192.8 / 16384 once rounded to 1/16384 (the exact denominator
+    # 40960 * 30720 > 2**28), so 8193, not 8192.
+    grid = np.array([[0, 1], [0, 1]], np.uint8)
+    slots = sample_corners(grid, (40961, 30721), (20482, 15361, 1, 1))
+    assert slots.denominator == (1 << 14) ** 2
+    right = int(slots.weights[:, 0, 0][slots.ids[:, 0, 0] == 1].sum())
+    assert right == 8193 * (1 << 14)
+
+
 def test_strongest_two_and_their_share():
     # Centre of a MAIN-split cell 0 1 / 2 0: theme 0 alone on the diagonal; a quarter of the way
     # along the top edge: 0 (3/4) and 1 (1/4).

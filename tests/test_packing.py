@@ -191,6 +191,24 @@ def test_too_many_colours_refused_then_reduced():
     assert report.max_error == pytest.approx(err.max(), abs=1e-6)
     assert report.mean_error == pytest.approx(err.mean(), abs=1e-6)
     assert 0 < report.mean_error <= report.max_error
+    # Each texel takes its nearest palette entry.
+    pal = layer.palette.reshape(-1, 3).astype(float)
+    nearest = np.linalg.norm(img.astype(float)[:, :, None, :] - pal, axis=3).min(axis=2)
+    assert np.allclose(err, nearest)
+
+
+def test_a_reduced_palette_keeps_clustered_colours_within_their_cluster():
+    # Three colours, each spread +-3 per channel: up to 3 x 343 distinct colours, more than
+    # 256, but every texel lies within 6 sqrt(3) of any palette entry in its own cube.
+    rng = np.random.default_rng(5)
+    base = np.array([(40, 80, 200), (200, 190, 60), (120, 30, 90)])
+    which = rng.integers(0, 3, (60, 60))
+    img = (base[which] + rng.integers(-3, 4, (60, 60, 3))).astype(np.uint8)
+    assert np.unique(img.reshape(-1, 3), axis=0).shape[0] > 256
+    layer = pack(img, reduce_palette=True)
+    reduced = layer.unpack().astype(float)
+    assert np.abs(reduced - base[which]).max() <= 3
+    assert layer.report.max_error <= 6 * np.sqrt(3)
 
 
 def test_unsupported_inputs():

@@ -55,6 +55,17 @@ def test_alpha_goes_to_trns_and_reads_back(tmp_path):
     assert np.array_equal(back, idx) and np.array_equal(colours, rgba)
 
 
+def test_one_fully_transparent_entry_reads_back(tmp_path):
+    # A tRNS of one 0 among 255s: Pillow gives it as that entry's index, not the bytes.
+    rgba = np.concatenate([COLOURS, np.array([[255], [0], [255], [255]], np.uint8)], axis=1)
+    path = tmp_path / "a.png"
+    with PalettePngWriter(path, 4, 1, rgba) as out:
+        out.write_rows(np.array([[0, 1, 2, 3]], np.uint8))
+    assert dict(_chunks(path.read_bytes()))[b"tRNS"] == bytes([255, 0, 255, 255])
+    assert png_palette(path)[:, 3].tolist() == [255, 0, 255, 255]
+    assert np.array_equal(png_palette(path)[:, :3], COLOURS)
+
+
 def test_writer_refuses_bad_bands_and_leaves_no_file(tmp_path):
     path = tmp_path / "a.png"
     with pytest.raises(TerrathemeError, match="band of shape"), \

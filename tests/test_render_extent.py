@@ -49,6 +49,32 @@ def test_region_georeference_moves_the_tie_point_and_scales():
     assert world_file_lines(both)[4:] == [508.0, 886.0]
 
 
+def test_world_file_of_pixel_is_point_and_pixel_is_area():
+    # GTRasterTypeGeoKey (1025) 2: the tie point is pixel (0, 0)'s centre; 1 (or absent): its
+    # top-left corner, so the centre lies half a pixel (1 unit) right and down.
+    point = {**GEO, "GeoKeyDirectory": [1, 1, 0, 2, 1024, 0, 1, 1, 1025, 0, 1, 2]}
+    area = {**GEO, "GeoKeyDirectory": [1, 1, 0, 2, 1024, 0, 1, 1, 1025, 0, 1, 1]}
+    assert world_file_lines(point) == [2.0, 0.0, 0.0, -2.0, 500.0, 900.0]
+    assert world_file_lines(area) == [2.0, 0.0, 0.0, -2.0, 501.0, 899.0]
+    assert world_file_lines(GEO) == world_file_lines(area)
+
+
+def test_world_file_of_a_rotated_transformation():
+    # 2-unit pixels turned 30 degrees: x = 1.732 i + 1 j + 500, y = 1 i - 1.732 j + 900.
+    c, s = 2 * np.sqrt(3) / 2, 1.0
+    turned = {"ModelTransformation": [c, s, 0, 500.0, s, -c, 0, 900.0, 0, 0, 0, 0, 0, 0, 0, 1]}
+    # A, D, B, E, then pixel (0, 0)'s centre (i = j = 1/2): 500 + (1.732 + 1) / 2,
+    # 900 + (1 - 1.732) / 2.
+    assert world_file_lines(turned) == pytest.approx(
+        [1.7320508, 1.0, 1.0, -1.7320508, 501.3660254, 899.6339746])
+    from terratheme.core.exchange import world_frame
+
+    frame = world_frame(turned, (10, 10))
+    assert frame.rotation_deg == pytest.approx(30.0)
+    assert frame.texel_size == pytest.approx((2.0, 2.0))
+    assert frame.origin == pytest.approx((501.3660254, 899.6339746))
+
+
 def test_transformation_georeference_offset_matches_the_tie_point_form():
     affine = {"ModelTransformation": [2.0, 0, 0, 500.0, 0, -2.0, 0, 900.0, 0, 0, 0, 0, 0, 0, 0, 1]}
     a = world_file_lines(scale_georeference(affine, 2.0, 2.0, offset=(3, 5)))
