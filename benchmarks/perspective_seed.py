@@ -8,7 +8,13 @@ import math
 
 import numpy as np
 from numba import njit, prange
-from terratheme.core.perspective import Camera, FilterOptions, PlaneMapping, PreparedTexture
+from terratheme.core.perspective import (
+    Camera,
+    FilterOptions,
+    PlaneMapping,
+    PreparedTexture,
+    view_mapping,
+)
 from terratheme.core.perspective.footprint import TOWARD_U, footprint_sides
 from terratheme.core.perspective.lookup import log2_int, skew_choice
 from terratheme.core.perspective.render import RenderResult, sky_vector
@@ -124,7 +130,7 @@ def render_seed(pt: PreparedTexture, view: PlaneMapping | Camera, size: tuple[in
                 options: FilterOptions | None = None) -> RenderResult:
     """``pt.render`` with the seed's lookup on ``options``' family (default: ``pt``'s)."""
     opt = options if options is not None else pt.options
-    mapping = pt.mapping_for(view, size)
+    mapping = view_mapping(view, size, pt.texture_size)
     w, h = size
     xx, yy = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
     u, v, z = mapping.scaled(pt.su, pt.sv).evaluate(xx.ravel(), yy.ravel())

@@ -144,3 +144,18 @@ def test_core_sets_no_signal_handlers():
                           or isinstance(node, ast.ImportFrom) and node.module == "signal"
                           for node in ast.walk(ast.parse(path.read_text()))))
     assert users == []
+
+
+def test_each_package_imports_only_those_before_it_in_the_documented_order():
+    import re
+
+    doc = ast.get_docstring(ast.parse((CORE / "__init__.py").read_text()))
+    listed = re.search(r"One package per part \(([^)]*)\)", " ".join(doc.split())).group(1)
+    order = [f"core.{p.strip()}" for p in listed.split(",")]
+    packages = {_package(n) for n in MODULES if n != "core"}
+    assert sorted(order) == sorted(packages)  # every package listed, once
+    rank = {p: i for i, p in enumerate(order)}
+    late = sorted({(_package(src), _package(dst)) for src, deps in GRAPH.items()
+                   for dst, _ in deps if src != "core" and dst != "core"
+                   and rank[_package(dst)] > rank[_package(src)]})
+    assert late == []

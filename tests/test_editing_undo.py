@@ -144,7 +144,7 @@ class UndoMachine(RuleBasedStateMachine):
             pass
         now = snapshot(self.doc)
         if self._top() is not before:
-            assert not self.doc.history.can_redo
+            assert self.doc.history.redo_label is None
             self.states[self.pos + 1:] = [now]
             self.pos += 1
         assert same(now, self.states[self.pos])

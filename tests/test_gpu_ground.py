@@ -195,7 +195,7 @@ def test_bad_views_and_options_are_refused(gl_ctx):
         camera = Camera(height=10.0, pitch=20.0)
         with pytest.raises(TerrathemeError, match="frame size"):
             view.render(camera, (0, 10))
-        with pytest.raises(TerrathemeError, match="Camera or a PlaneMapping"):
+        with pytest.raises(TerrathemeError, match="PlaneMapping or a Camera"):
             view.render("north", (10, 10))
         view.set_height_map(np.zeros((4, 4)), 1.0)
         with pytest.raises(TerrathemeError, match="height map needs a Camera"):

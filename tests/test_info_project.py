@@ -46,7 +46,8 @@ def test_bytes_are_the_packed_grid_plus_the_colour_map(tmp_path, capsys):
     project = _project(ColourMap(np.full((2, 6, 3), 128, np.uint8), 16))
     info = _info(tmp_path, capsys, project)
     assert info["colour_map"]["scale"] == 16 and info["colour_map"]["size"] == [6, 2]
-    assert info["colour_map_bytes"] > 0
+    # A raw map ships as its pixels (colour_map.npy): 2 x 6 x 3 bytes.
+    assert info["colour_map_bytes"] == 36
     assert info["area_bytes"] == info["grid_bytes"] + info["colour_map_bytes"]
     # The grid's bytes are those of the layer file `terratheme pack` writes of it.
     grid_png, packed = tmp_path / "grid.png", tmp_path / "grid.ttpack"

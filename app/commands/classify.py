@@ -114,17 +114,6 @@ def _read_photo(path: str):
     return photo
 
 
-def _read_mask(path: str):
-    import numpy as np
-    from terratheme.core.errors import TerrathemeError
-    from terratheme.core.io.images import read_labels
-
-    mask = read_labels(path)
-    if mask.size and int(mask.max()) > 255:
-        raise TerrathemeError(f"{path}: label mask values must be whole numbers 0..255")
-    return mask.astype(np.uint8)
-
-
 def label_palette():
     """(256, 3) uint8 colours for label images, all distinct (so values read back exactly).
 
@@ -179,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from terratheme.core.errors import TerrathemeError
     from terratheme.core.io.atomic import file_set
-    from terratheme.core.io.images import image_info, write_image
+    from terratheme.core.io.images import image_info, read_class_mask, write_image
     from terratheme.core.io.legend import read_legend
     from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
     from terratheme.core.packing.export import check_layer_image_path
@@ -223,9 +212,9 @@ def run(args: argparse.Namespace) -> int:
     elif supervised:
         pairs = []
         if args.scribbles:
-            pairs.append((photo, _read_mask(args.scribbles)))
+            pairs.append((photo, read_class_mask(args.scribbles)))
         for train_photo, train_mask in args.train:
-            pairs.append((_read_photo(train_photo), _read_mask(train_mask)))
+            pairs.append((_read_photo(train_photo), read_class_mask(train_mask)))
         options = SupervisedOptions(ignore_classes=tuple(args.ignore))
         model = train_classifier(pairs, options.with_positions(args.position), cache=cache)
         if cache is not None and cache.hits["model"]:

@@ -170,17 +170,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "as it is")
 
 
-def _read_mask(path: str):
-    """Scribble class values (a grey PNG, or classify's palette PNG) as (H, W) uint8."""
-    import numpy as np
-    from terratheme.core.io.images import read_labels
-
-    mask = read_labels(path)
-    if mask.size and (int(mask.max()) > 255 or int(mask.min()) < 0):
-        raise TerrathemeError(f"{path}: scribble mask values must be 0..255")
-    return mask.astype(np.uint8)
-
-
 #: the chart formats of ``--curve`` (matplotlib's, chosen by the name's suffix)
 CHART_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -236,7 +225,7 @@ def run(args: argparse.Namespace) -> int:
         write_outputs,
     )
     from terratheme.core.fidelity import texture_cost
-    from terratheme.core.io.images import image_info
+    from terratheme.core.io.images import image_info, read_class_mask
     from terratheme.core.io.memory import CONVERT_BYTES_PER_PIXEL, check_fits
 
     check_file_names([args.project, args.preview, args.packed])  # before Path drops a '/'
@@ -282,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
     check_fits(args.photo, info.width, info.height, CONVERT_BYTES_PER_PIXEL,  # before reading
                remedy="convert it tile by tile (--tile 2048)")
     photo, meta = read_photo(args.photo)
-    scribbles = _read_mask(args.scribbles) if args.scribbles else None
+    scribbles = read_class_mask(args.scribbles) if args.scribbles else None
     if (scribbles is not None or model is not None) and isinstance(themes, int):
         raise TerrathemeError("--themes K is for unsupervised classification; with --scribbles "
                               "or --model the classes are given (use auto or 1=name,2=name)")

@@ -33,7 +33,6 @@ from PySide6.QtWidgets import (
     QSplitter,
     QTabWidget,
     QToolBar,
-    QWidget,
 )
 from terratheme.app.editor.canvas import MapCanvas, ViewState
 from terratheme.app.editor.classify_job import ClassifyJob, keep_alive
@@ -713,7 +712,3 @@ class MainWindow(QMainWindow):
     def _paint_uncertainty(self, p: QPainter, visible: QRectF, scale: float) -> None:
         if self.show_uncertainty and self.uncertainty_pyramid is not None:
             self.uncertainty_pyramid.draw(p, visible, scale, 1.0, smooth=False)
-
-
-def make_window(doc: EditorDocument) -> QWidget:
-    return MainWindow(doc)

@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from terratheme.core.classify.photo import prepare_photo
-from terratheme.core.classify.result import Classification
+from terratheme.core.classify.result import Classification, merged_class_names
 from terratheme.core.errors import CorruptFileError, TerrathemeError
 from terratheme.core.io.archive import read_bounded
 
@@ -131,8 +131,7 @@ class NetworkClassifier:
 
     def name_classes(self, names: Mapping[int, str]) -> None:
         """Name the classes after a legend; values the network does not give are skipped."""
-        given = {int(c): str(n) for c, n in names.items() if int(c) in self.classes}
-        self.class_names = {**(self.class_names or {}), **given} or None
+        self.class_names = merged_class_names(self.classes, self.class_names, names)
 
     def save(self, path: str | os.PathLike) -> None:
         """Refused: a shipped network is kept as its ``.onnx`` file, not a model file."""

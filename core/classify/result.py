@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,3 +30,12 @@ class Classification:
     def shape(self) -> tuple[int, int]:
         """``(H, W)`` of the photo."""
         return self.labels.shape  # type: ignore[return-value]
+
+
+def merged_class_names(classes: Iterable[int], own: Mapping[int, str] | None,
+                       names: Mapping[int, str]) -> dict[int, str] | None:
+    """A classifier's class names after a legend: ``names`` over ``own``, for the values in
+    ``classes`` only (others skipped); None when there are none."""
+    values = {int(c) for c in classes}
+    given = {int(c): str(n) for c, n in names.items() if int(c) in values}
+    return {**(own or {}), **given} or None

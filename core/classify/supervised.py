@@ -26,7 +26,7 @@ from terratheme.core.classify.prior import (
     prior_power_for,
     prior_weights,
 )
-from terratheme.core.classify.result import Classification
+from terratheme.core.classify.result import Classification, merged_class_names
 from terratheme.core.classify.samples import (
     GROW_COLOUR,
     check_class_image,
@@ -218,8 +218,7 @@ class Classifier:
 
     def name_classes(self, names: Mapping[int, str]) -> None:
         """Name the classes after a legend, over the model's own names (others skipped)."""
-        given = {int(c): str(n) for c, n in names.items() if int(c) in self.classes}
-        self.class_names = {**(self.class_names or {}), **given} or None
+        self.class_names = merged_class_names(self.classes, self.class_names, names)
 
 
 def train_classifier(

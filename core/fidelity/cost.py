@@ -14,15 +14,12 @@ from terratheme.core.io.codec import encode_image
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.packing import pack
 
-#: how a colour map is counted (and shipped)
-COLOUR_MAP_CODEC = "jpegxl"
-COLOUR_MAP_QUALITY = 99
-
 
 @dataclass(frozen=True)
 class TextureCost:
     """Bytes of a thematic texture: ``grid_bytes`` (compact packed layer),
-    ``colour_map_bytes`` (in :data:`COLOUR_MAP_CODEC`, 0 without one) and
+    ``colour_map_bytes`` (as it ships: its codec's bytes, a raw map's pixels; 0 without
+    one) and
     ``theme_bytes`` (the library as PNG files)."""
 
     grid_bytes: int
@@ -43,12 +40,6 @@ class TextureCost:
 def texture_cost(project: ThematicTexture) -> TextureCost:
     """The bytes of a project's texture (see the module docstring)."""
     grid = len(pack(project.grid.indices, curve="auto").to_bytes())
-    cmap = 0
-    if project.colour_map is not None:
-        # As it ships (its codec bytes), else as convert would ship it.
-        shipped = project.colour_map
-        cmap = (shipped.nbytes if shipped.data is not None or shipped.tiles is not None else
-                len(encode_image(shipped.pixels, codec=COLOUR_MAP_CODEC,
-                                 quality=COLOUR_MAP_QUALITY)))
+    cmap = 0 if project.colour_map is None else project.colour_map.nbytes
     themes = sum(len(encode_image(t.texture, codec="png")) for t in project.library)
     return TextureCost(grid, cmap, themes)

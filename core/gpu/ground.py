@@ -30,7 +30,7 @@ from terratheme.core.gpu.style import StyleTextures, gpu_style
 from terratheme.core.gpu.textures import ThemeTextures
 from terratheme.core.model.colour_map import ColourMap
 from terratheme.core.model.project import ThematicTexture
-from terratheme.core.perspective import Camera, PlaneMapping, camera_mapping, check_size
+from terratheme.core.perspective import Camera, PlaneMapping, check_size, view_mapping
 from terratheme.core.perspective.flight import clip_matrix
 from terratheme.core.render.inputs import prepare_grid, theme_textures
 from terratheme.core.render.project import project_style
@@ -185,15 +185,6 @@ class GroundView:
         return 0.0 if self.heights is None else self.heights.height_at(x, y, self.texture_size)
 
     # -- drawing -----------------------------------------------------------------
-    def mapping(self, view: Camera | PlaneMapping, size: tuple[int, int]) -> PlaneMapping:
-        """Eq. 1 of ``view`` for a ``size = (w, h)`` frame (positions in texels of the texture)."""
-        if isinstance(view, PlaneMapping):
-            return view
-        if isinstance(view, Camera):
-            return camera_mapping(view, size, self.texture_size)
-        raise TerrathemeError(f"view must be a Camera or a PlaneMapping, got "
-                              f"{type(view).__name__}")
-
     def draw(self, view: Camera | PlaneMapping, size: tuple[int, int], *,
              framebuffer: moderngl.Framebuffer | None = None, flip_y: bool = False,
              scale: float = 1.0) -> None:
@@ -218,7 +209,7 @@ class GroundView:
             return
         if self.heights is not None and not isinstance(view, Camera):
             raise TerrathemeError("a height map needs a Camera view (eq. 1 maps a flat plane)")
-        mapping = self.mapping(view, (w, h))
+        mapping = view_mapping(view, (w, h), self.texture_size)
         self._flush()
         fbo = framebuffer if framebuffer is not None else self._framebuffer(w, h)
         fbo.use()

@@ -342,6 +342,15 @@ def read_labels(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(image[:, :, 0])
 
 
+def read_class_mask(path: str | os.PathLike) -> np.ndarray:
+    """:func:`read_labels` of a class mask (scribbles, training labels): ``(H, W)`` uint8,
+    values 0..255 (0 unlabelled), else TerrathemeError."""
+    mask = read_labels(path)
+    if mask.size and (int(mask.max()) > 255 or int(mask.min()) < 0):
+        raise TerrathemeError(f"{path}: class mask values must be whole numbers 0..255")
+    return mask.astype(np.uint8)
+
+
 def write_image(
     path: str | os.PathLike,
     image: np.ndarray,

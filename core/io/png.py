@@ -28,7 +28,8 @@ _GREY_ONLY_CHUNKS = {b"bKGD", b"sBIT", b"tRNS", b"hIST"}
 _READ = 1 << 20
 
 
-def _chunk(kind: bytes, data: bytes) -> bytes:
+def png_chunk(kind: bytes, data: bytes) -> bytes:
+    """One PNG chunk: length, ``kind``, ``data``, CRC."""
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
@@ -171,7 +172,7 @@ def relabel_grey_png_as_palette(path: Path, palette: np.ndarray) -> None:
     if length != 13 or ihdr[8] != 8 or ihdr[9] != _COLOUR_TYPE_GREY:
         raise TerrathemeError(f"cannot write {path}: a palette needs an 8-bit grey image")
     ihdr[9] = _COLOUR_TYPE_PALETTE
-    out = [SIGNATURE, _chunk(b"IHDR", bytes(ihdr)), _chunk(b"PLTE", palette.tobytes())]
+    out = [SIGNATURE, png_chunk(b"IHDR", bytes(ihdr)), png_chunk(b"PLTE", palette.tobytes())]
     # Copy the other chunks, leaving out those whose layout is colour-type specific.
     pos = 16 + length + 4
     while pos + 8 <= len(data):

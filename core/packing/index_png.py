@@ -19,17 +19,12 @@ import numpy as np
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.images import read_image
-from terratheme.core.io.png import palette_indices, png_palette
+from terratheme.core.io.png import SIGNATURE, palette_indices, png_chunk, png_palette
 
-SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Bytes of compressed data gathered before an IDAT chunk is written.
 IDAT_BYTES = 1 << 16
 #: Largest side a PNG states (the format's 2^31 - 1).
 MAX_PNG_SIDE = (1 << 31) - 1
-
-
-def _chunk(kind: bytes, data: bytes) -> bytes:
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
 def display_colours(k: int) -> np.ndarray:
@@ -73,11 +68,11 @@ class PalettePngWriter:
         self._fh = open(tmp, "wb")
         # Signature, header (8-bit indices, colour type 3), palette and transparency.
         self._fh.write(SIGNATURE)
-        self._fh.write(_chunk(b"IHDR", struct.pack(">IIBBBBB", self.width, self.height,
+        self._fh.write(png_chunk(b"IHDR", struct.pack(">IIBBBBB", self.width, self.height,
                                                    8, 3, 0, 0, 0)))
-        self._fh.write(_chunk(b"PLTE", self.colours[:, :3].tobytes()))
+        self._fh.write(png_chunk(b"PLTE", self.colours[:, :3].tobytes()))
         if self.colours.shape[1] == 4:
-            self._fh.write(_chunk(b"tRNS", self.colours[:, 3].tobytes()))
+            self._fh.write(png_chunk(b"tRNS", self.colours[:, 3].tobytes()))
         return self
 
     def write_rows(self, rows: np.ndarray) -> None:
@@ -102,7 +97,7 @@ class PalettePngWriter:
     def _flush_idat(self) -> None:
         data = b"".join(self._pending)
         if data:
-            self._fh.write(_chunk(b"IDAT", data))
+            self._fh.write(png_chunk(b"IDAT", data))
         self._pending, self._pending_bytes = [], 0
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -113,7 +108,7 @@ class PalettePngWriter:
                         f"{self.path}: {self.rows_written} of {self.height} rows written")
                 self._pending.append(self._zip.flush())
                 self._flush_idat()
-                self._fh.write(_chunk(b"IEND", b""))
+                self._fh.write(png_chunk(b"IEND", b""))
             self._fh.close()  # its last flush fails on a full disk: named as the output's
         except BaseException as err:
             with contextlib.suppress(OSError):

@@ -17,6 +17,7 @@ from terratheme.core.perspective.mapping import (
     PlaneMapping,
     camera_mapping,
     check_size,
+    view_mapping,
 )
 from terratheme.core.perspective.options import FilterOptions, Method
 from terratheme.core.perspective.render import (
@@ -38,6 +39,7 @@ __all__ = [
     "PreparedTexture",
     "RenderResult",
     "camera_mapping",
+    "view_mapping",
     "check_size",
     "clip_matrix",
     "family_key",

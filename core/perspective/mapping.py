@@ -198,6 +198,17 @@ def camera_mapping(
     return PlaneMapping(au * s, bu * s, cu * s, av * s, bv * s, cv * s, az * s, bz * s, cz * s)
 
 
+def view_mapping(view: Camera | PlaneMapping, size: tuple[int, int],
+                 texture_size: tuple[int, int]) -> PlaneMapping:
+    """Eq. 1 of ``view`` for a ``size = (w, h)`` frame: a mapping as given, a camera's
+    through :func:`camera_mapping` over a ``texture_size`` texture."""
+    if isinstance(view, PlaneMapping):
+        return view
+    if isinstance(view, Camera):
+        return camera_mapping(view, size, texture_size)
+    raise TerrathemeError(f"view must be a PlaneMapping or a Camera, got {type(view).__name__}")
+
+
 def overview_camera(texture_size: tuple[int, int]) -> Camera:
     """A low-angle view of the whole ``texture_size`` texture, the default view.
 

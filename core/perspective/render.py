@@ -24,7 +24,7 @@ from terratheme.core.perspective.family import (
     family_layout,
 )
 from terratheme.core.perspective.lookup import coverage_kernel
-from terratheme.core.perspective.mapping import Camera, PlaneMapping, camera_mapping, check_size
+from terratheme.core.perspective.mapping import Camera, PlaneMapping, check_size, view_mapping
 from terratheme.core.perspective.options import PYRAMID_METHODS, FilterOptions, Method
 from terratheme.core.perspective.reference import reference_kernel
 from terratheme.core.perspective.texture import (
@@ -172,14 +172,6 @@ class PreparedTexture:
         elif opt.method in PYRAMID_METHODS:
             _ = self.pyramid
 
-    def mapping_for(self, view: PlaneMapping | Camera, size: tuple[int, int]) -> PlaneMapping:
-        """Eq. 1 coefficients for a mapping or a camera and a frame size."""
-        if isinstance(view, PlaneMapping):
-            return view
-        if isinstance(view, Camera):
-            return camera_mapping(view, size, self.texture_size)
-        raise TerrathemeError(f"view must be a PlaneMapping or a Camera, got {type(view).__name__}")
-
     def render(self, view: PlaneMapping | Camera, size: tuple[int, int],
                options: FilterOptions | None = None,
                progress: Progress | None = None) -> RenderResult:
@@ -190,7 +182,7 @@ class PreparedTexture:
         """
         opt = options if options is not None else self.options
         w, h = check_size(size)
-        mapping = self.mapping_for(view, (w, h))
+        mapping = view_mapping(view, (w, h), self.texture_size)
         self._ensure(opt)
         sky = sky_vector(opt.sky, self.channels)
         image = np.empty((h, w, self.channels), np.float32)

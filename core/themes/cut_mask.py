@@ -12,10 +12,10 @@ import numpy as np
 from scipy.fft import irfft2, next_fast_len, rfft2
 from scipy.ndimage import maximum
 from skimage.filters import apply_hysteresis_threshold
-from terratheme.core.themes.quality import LANDMARK_CONTRAST, LANDMARK_SIZE, landmark_mask
+from terratheme.core.themes.quality import LANDMARK_CONTRAST, LANDMARK_SIZE, LUMA, landmark_mask
 
 #: Rec. 601 luma weights
-_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+_LUMA = LUMA.astype(np.float32)
 
 
 #: a filled hole copies the class's pixels whose low-pass luma lies within this many

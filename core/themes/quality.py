@@ -14,7 +14,7 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.themes.library import validate_texture
 
 #: Rec. 601 luma weights
-_LUMA = np.array([0.299, 0.587, 0.114], np.float64)
+LUMA = np.array([0.299, 0.587, 0.114], np.float64)
 
 
 def _luma(texture: np.ndarray, name: str) -> np.ndarray:
@@ -22,7 +22,7 @@ def _luma(texture: np.ndarray, name: str) -> np.ndarray:
     h, w = img.shape[:2]
     if h < 4 or w < 4:
         raise TerrathemeError(f"{name} {w} x {h} is too small to rate (need 4 x 4)")
-    return img.astype(np.float64) @ _LUMA
+    return img.astype(np.float64) @ LUMA
 
 
 def _cycles(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
