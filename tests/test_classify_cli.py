@@ -42,6 +42,24 @@ def test_unsupervised_writes_a_palette_label_image(photo, capsys):
     assert "2 classes" in capsys.readouterr().out
 
 
+def test_running_out_of_memory_at_the_summary_writes_nothing(photo, capsys, monkeypatch):
+    # The class shares were counted after the outputs were committed: an error there left
+    # them written under an "error" exit.
+    d, _ = photo
+    real = np.bincount
+
+    def short(values, *args, **kwargs):
+        if np.asarray(values).size == 64 * 96:
+            raise MemoryError
+        return real(values, *args, **kwargs)
+
+    monkeypatch.setattr(np, "bincount", short)
+    assert main(["classify", str(d / "photo.png"), "-o", str(d / "labels.png"),
+                 "--confidence", str(d / "conf.png")]) == 2
+    assert "not enough memory" in capsys.readouterr().err
+    assert not (d / "labels.png").exists() and not (d / "conf.png").exists()
+
+
 def test_themes_option(photo):
     d, _ = photo
     assert main(["classify", str(d / "photo.png"), "-o", str(d / "l.png"), "--themes", "1"]) == 0

@@ -97,6 +97,12 @@ def test_errors_are_one_line_and_write_nothing(tmp_path, project, capsys):
     _error(capsys, ["export", str(path), str(path), "--engine", "unity"], "is a file")
     _error(capsys, ["export", str(tmp_path / "none.ttproj"), str(tmp_path / "y"), "--engine",
                     "godot"], "no such project file")
+    loop = tmp_path / "loop.ttproj"
+    loop.symlink_to(loop)
+    _error(capsys, ["export", str(loop), str(tmp_path / "y"), "--engine", "godot"],
+           "loop.ttproj: cannot be read (a symlink loop)")
+    assert main(["info", str(loop)]) == 2
+    assert "cannot be read (a symlink loop)" in capsys.readouterr().err
     # An export must not overwrite its own input, even one named like an output.
     gis = tmp_path / "gis"
     gis.mkdir()

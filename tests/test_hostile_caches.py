@@ -144,6 +144,15 @@ def test_a_fifo_entry_is_a_miss_not_a_hang(tmp_path, fresh):
     assert path.is_file()                             # the entry written over the FIFO
 
 
+def test_a_folder_at_an_entry_s_name_is_a_miss(tmp_path, fresh):
+    # It was opened as a file first: "3: Is a directory" failed the run.
+    path = _entry_path(tmp_path)
+    path.mkdir()
+    (path / "inside").write_bytes(b"kept")
+    _prepared_again(tmp_path, fresh)
+    assert (path / "inside").read_bytes() == b"kept"   # left alone
+
+
 def test_a_symlinked_entry_is_not_followed(tmp_path, fresh):
     outside = tmp_path / "outside"
     outside.mkdir()

@@ -256,10 +256,14 @@ def run(args: argparse.Namespace) -> int:
         writers.append((args.confidence, lambda p: write_image(p, conf[:, :, None])))
     if args.model_out:
         writers.append((args.model_out, model.save))
+    # The summary's class shares before anything is written (a band of rows at a time: a
+    # failure after the set is committed would report an error over written files).
+    rows = max(1, (1 << 22) // max(1, result.labels.shape[1]))
+    counts = sum((np.bincount(result.labels[y: y + rows].ravel(), minlength=256)
+                  for y in range(0, result.labels.shape[0], rows)), np.zeros(256, np.int64))
     with file_set([path for path, _ in writers]):
         for path, write in writers:
             write(path)  # to the set's temporary (atomic_path), its errors naming path
-    counts = np.bincount(result.labels.ravel(), minlength=256)
     names = (model.class_names if model is not None else None) or {}
     shown = ", ".join(f"{k}{' ' + names[k] if k in names else ''}: "
                       f"{counts[k] / result.labels.size:.1%}" for k in result.classes)

@@ -206,10 +206,11 @@ def _read(path: Path, key: str, kind: str, max_bytes: int) -> Arrays | None:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
         return None                 # absent, a symlink, unreadable
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid():
+        os.close(fd)
+        return None                 # a FIFO, a device, a folder; another user's file
     with os.fdopen(fd, "rb") as f:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid():
-            return None             # a FIFO, a device, a folder; another user's file
         if st.st_size > max_bytes:
             raise _Damaged
         try:

@@ -30,6 +30,7 @@ from terratheme.core.io.archive import (
 from terratheme.core.io.atomic import atomic_path
 from terratheme.core.io.codec import CODECS
 from terratheme.core.io.georef import validate_georeference
+from terratheme.core.io.inputs import check_input_file
 from terratheme.core.model.colour_map import (
     ColourMap,
     check_sharpen,
@@ -310,6 +311,8 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
     """
     path = Path(path)
     if not path.exists():
+        if path.is_symlink():
+            check_input_file(path, "a project file")  # a symlink loop or a dangling link
         raise TerrathemeError(f"{path}: no such project file")
     label = str(path)
     zf = open_archive(path, label, kind="terratheme project", max_members=_MAX_MEMBERS)
