@@ -14,6 +14,8 @@ from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import write_image
 from terratheme.core.io.memory import (
     CLASSIFY_BYTES_PER_PIXEL,
+    CLASSIFY_FOREST_BYTES_PER_PIXEL,
+    CLASSIFY_NETWORK_BYTES_PER_PIXEL,
     CONVERT_BYTES_PER_PIXEL,
     check_fits,
 )
@@ -47,16 +49,25 @@ def test_available_memory_is_positive_or_unknown():
 @pytest.mark.parametrize(("argv", "per_pixel", "remedy"), [
     (["convert", "{d}/photo.png", "{d}/p.ttproj"], CONVERT_BYTES_PER_PIXEL, "--tile 2048"),
     (["classify", "{d}/photo.png", "-o", "{d}/l.png"], CLASSIFY_BYTES_PER_PIXEL, ""),
+    (["classify", "{d}/photo.png", "-o", "{d}/l.png", "--scribbles", "{d}/scribbles.png"],
+     CLASSIFY_FOREST_BYTES_PER_PIXEL, ""),
+    (["classify", "{d}/photo.png", "-o", "{d}/l.png", "--model", "aerial"],
+     CLASSIFY_NETWORK_BYTES_PER_PIXEL, ""),
 ])
 def test_a_photo_that_cannot_fit_is_refused_before_reading(tmp_path, monkeypatch, capfd,
                                                            argv, per_pixel, remedy):
-    write_image(tmp_path / "photo.png", np.full((32, 32, 3), 120, np.uint8))
+    photo = np.full((32, 32, 3), 120, np.uint8)
+    photo[:, 16:] = (30, 90, 40)
+    write_image(tmp_path / "photo.png", photo)
+    scribbles = np.zeros((32, 32), np.uint8)
+    scribbles[10, 2:12], scribbles[10, 20:30] = 1, 2
+    write_image(tmp_path / "scribbles.png", scribbles)
     monkeypatch.setattr(memory, "available_memory", lambda: 32 * 32 * per_pixel - 1)
     assert main([a.format(d=tmp_path) for a in argv]) == 2
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and "photo.png: 32 x 32 pixels need" in err, err
     assert remedy in err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png", "scribbles.png"]
     # with the memory it needs, the same command runs
     monkeypatch.setattr(memory, "available_memory", lambda: 32 * 32 * per_pixel)
     assert main([a.format(d=tmp_path) for a in argv]) == 0

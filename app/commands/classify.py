@@ -164,13 +164,19 @@ def run(args: argparse.Namespace) -> int:
         SupervisedOptions,
         classify_unsupervised,
         load_model,
+        resolve_model,
         train_classifier,
     )
     from terratheme.core.errors import TerrathemeError
     from terratheme.core.io.atomic import file_set
     from terratheme.core.io.images import image_info, read_class_mask, write_image
     from terratheme.core.io.legend import read_legend
-    from terratheme.core.io.memory import CLASSIFY_BYTES_PER_PIXEL, check_fits
+    from terratheme.core.io.memory import (
+        CLASSIFY_BYTES_PER_PIXEL,
+        CLASSIFY_FOREST_BYTES_PER_PIXEL,
+        CLASSIFY_NETWORK_BYTES_PER_PIXEL,
+        check_fits,
+    )
     from terratheme.core.packing.export import check_layer_image_path
 
     supervised = bool(args.scribbles or args.train)
@@ -204,7 +210,12 @@ def run(args: argparse.Namespace) -> int:
     cache = _training_cache(args.cache_dir, args.cache_size)
 
     info = image_info(args.photo)
-    check_fits(args.photo, info.width, info.height, CLASSIFY_BYTES_PER_PIXEL)  # before reading
+    if args.model:
+        network = resolve_model(args.model)[0].suffix.lower() == ".onnx"
+        per_pixel = CLASSIFY_NETWORK_BYTES_PER_PIXEL if network else CLASSIFY_FOREST_BYTES_PER_PIXEL
+    else:
+        per_pixel = CLASSIFY_FOREST_BYTES_PER_PIXEL if supervised else CLASSIFY_BYTES_PER_PIXEL
+    check_fits(args.photo, info.width, info.height, per_pixel)  # before reading
     photo = _read_photo(args.photo)
     # Read and train first, so input errors come before any progress bar is drawn.
     if args.model:

@@ -19,8 +19,11 @@ except ImportError:  # pragma: no cover - Windows
 
 #: bytes per photo pixel counted for convert's whole-photo path
 CONVERT_BYTES_PER_PIXEL = 60
-#: bytes per photo pixel counted for classify
-CLASSIFY_BYTES_PER_PIXEL = 12
+#: bytes per photo pixel counted for classify: unsupervised, with a forest (scribbles,
+#: training pairs or a saved model), with the shipped network
+CLASSIFY_BYTES_PER_PIXEL = 24
+CLASSIFY_FOREST_BYTES_PER_PIXEL = 13
+CLASSIFY_NETWORK_BYTES_PER_PIXEL = 10
 #: bytes per output pixel counted for render's whole-image (not streamed) path
 RENDER_BYTES_PER_PIXEL = 8
 #: bytes per frame pixel counted for perspective's CPU filters
