@@ -164,9 +164,9 @@ def run(args: argparse.Namespace) -> int:
         SupervisedOptions,
         classify_unsupervised,
         load_model,
-        resolve_model,
         train_classifier,
     )
+    from terratheme.core.classify.network import NetworkClassifier
     from terratheme.core.errors import TerrathemeError
     from terratheme.core.io.atomic import file_set
     from terratheme.core.io.images import image_info, read_class_mask, write_image
@@ -210,17 +210,18 @@ def run(args: argparse.Namespace) -> int:
     cache = _training_cache(args.cache_dir, args.cache_size)
 
     info = image_info(args.photo)
-    if args.model:
-        network = resolve_model(args.model)[0].suffix.lower() == ".onnx"
-        per_pixel = CLASSIFY_NETWORK_BYTES_PER_PIXEL if network else CLASSIFY_FOREST_BYTES_PER_PIXEL
+    # A saved model first (a small file): its kind sets the memory the photo needs.
+    model = load_model(args.model) if args.model else None
+    if isinstance(model, NetworkClassifier):
+        per_pixel = CLASSIFY_NETWORK_BYTES_PER_PIXEL
+    elif model is not None or supervised:
+        per_pixel = CLASSIFY_FOREST_BYTES_PER_PIXEL
     else:
-        per_pixel = CLASSIFY_FOREST_BYTES_PER_PIXEL if supervised else CLASSIFY_BYTES_PER_PIXEL
+        per_pixel = CLASSIFY_BYTES_PER_PIXEL
     check_fits(args.photo, info.width, info.height, per_pixel)  # before reading
     photo = _read_photo(args.photo)
     # Read and train first, so input errors come before any progress bar is drawn.
-    if args.model:
-        model = load_model(args.model)
-    elif supervised:
+    if supervised:
         pairs = []
         if args.scribbles:
             pairs.append((photo, read_class_mask(args.scribbles)))
@@ -230,8 +231,6 @@ def run(args: argparse.Namespace) -> int:
         model = train_classifier(pairs, options.with_positions(args.position), cache=cache)
         if cache is not None and cache.hits["model"]:
             print(f"model from the cache {args.cache_dir}")
-    else:
-        model = None
     if model is not None and legend:
         model.name_classes(legend)
 

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter
 from skimage.filters import threshold_otsu
-from terratheme.core.themes.detail import DETAIL_SIGMA
+from terratheme.core.themes.detail import DETAIL_SIGMA, luminance
 from terratheme.core.themes.library import ThemeLibrary, distinct_names
 
 #: Gaussian sigma (pixels) over which a pixel's detail energy is averaged
@@ -69,16 +69,11 @@ def log_energy(photo: np.ndarray, mask: np.ndarray,
     ``photo``: (H, W, 3) uint8; ``mask``: (H, W) bool. Outside the mask the values mean
     nothing.
     """
-    return _log_energy(_luminance(photo), mask, origin)
-
-
-def _luminance(photo: np.ndarray) -> np.ndarray:
-    """(H, W) float32: the mean of an (H, W, 3+) photo's first three bands."""
-    return np.asarray(photo, np.float32)[..., :3].mean(axis=2)
+    return _log_energy(luminance(photo), mask, origin)
 
 
 def _log_energy(y: np.ndarray, mask: np.ndarray, origin: tuple[int, int]) -> np.ndarray:
-    """:func:`log_energy` of the photo's (H, W) float32 :func:`_luminance` ``y``."""
+    """:func:`log_energy` of the photo's (H, W) float32 :func:`.detail.luminance` ``y``."""
     inner = cv2.erode(np.asarray(mask, np.uint8), np.ones((2 * BORDER_PIXELS + 1,) * 2, np.uint8))
     m = np.where(inner > 0, 1.0, BORDER_WEIGHT * np.asarray(mask)).astype(np.float32)
     # Relative contrast against the class's own local mean (a normalised convolution).
@@ -118,7 +113,7 @@ def class_log_energy(photo: np.ndarray, theme_labels: np.ndarray, themes: Sequen
         mask = labels == k
         if int(np.count_nonzero(mask)) >= max(min_pixels, 1):
             # The photo's luminance once for all its classes.
-            y = _luminance(photo) if y is None else y
+            y = luminance(photo) if y is None else y
             out[mask] = _log_energy(y, mask, origin)[mask]
     return out
 

@@ -145,10 +145,16 @@ def _detail_bytes(rel: np.ndarray, gain: float) -> np.ndarray:
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
+def luminance(photo: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the mean of an (H, W, 3+) photo's first three bands."""
+    return np.asarray(photo, np.float32)[..., :3].mean(axis=2)
+
+
 def photo_contrast(photo: np.ndarray, sigma: float = DETAIL_SIGMA) -> np.ndarray:
-    """(H, W) float32: the (H, W, 3) photo's relative luminance contrast ``y / blur(y) - 1``
-    at ``sigma`` (reflecting at its edges), which :func:`detail_themes` matches."""
-    return _relative(np.asarray(photo, np.float32).mean(axis=2), sigma, wrap=False)
+    """(H, W) float32: the (H, W, 3) photo's relative :func:`luminance` contrast
+    ``y / blur(y) - 1`` at ``sigma`` (reflecting at its edges), which :func:`detail_themes`
+    matches."""
+    return _relative(luminance(photo), sigma, wrap=False)
 
 
 def detail_themes(photo: np.ndarray, theme_labels: np.ndarray, library: ThemeLibrary,
