@@ -488,21 +488,17 @@ def main():
     # Numba kernels compile on first use: warm them on a crop, not part of the timings.
     photo, _ = load("dubai", "image_part_004t5.jpg")
     convert_photo(photo[:128, :128], ConvertOptions(cell=8))
-    if parts == ["structure"]:
-        t = time.perf_counter()
-        result["structure"] = run_structure(lambda m: print(m, flush=True))
-        result["structure"]["run"] = {"seconds": round(time.perf_counter() - t, 1)}
-        path.write_text(json.dumps(result, indent=1, default=str))
-        chart(result, path.with_suffix(".png"), GOALS)
-        print(json.dumps(result["structure"]["summary"], indent=1))
-        return
-
     def log(msg):
         print(msg, flush=True)
 
     for part in parts:
         t = time.perf_counter()
         load0 = os.getloadavg()[0]
+        if part == "structure":
+            result["structure"] = run_structure(log)
+            result["structure"]["run"] = {"seconds": round(time.perf_counter() - t, 1)}
+            log(json.dumps(result["structure"]["summary"], indent=1))
+            continue
         if part == "variants":
             sets = scribble_sets()[:2] if args.quick else scribble_sets()
             result["variants"] = run_variants(sets, args.quick, log)
@@ -526,7 +522,7 @@ def main():
             log(json.dumps(summary["goals"]))
     out = Path(tempfile.gettempdir()) / "fidelity_quick.json" if args.quick else path
     out.write_text(json.dumps(result, indent=1, default=str))
-    if "variants" in result:
+    if "variants" in result or "structure" in result:
         chart(result, out.with_suffix(".png"), GOALS)
     log(f"wrote {out}")
 

@@ -357,3 +357,68 @@ def test_a_map_made_tile_by_tile_takes_the_unsharp_mask_it_is_given(tmp_path):
                                   options=ColourMapOptions(codec="png", target=2.0), tile=48,
                                   sharpen=4).colour_map
     assert target.sharpen == 0
+
+
+def _two_class_scene(seed=11):
+    """A photo of two flat-coloured classes in blobs (with grain), its grid at cell 8 (the
+    class of each vertex's texel) and neutral themes: the grid predicts the photo's colours."""
+    from terratheme.core.model.grid import IndexGrid
+
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:128, 0:160]
+    blobs = (np.sin(xx / 9.0) + np.cos(yy / 7.0) + 0.5 * np.sin((xx + yy) / 5.0)) > 0.3
+    colours = np.array([[70, 90, 40], [210, 195, 170]], np.float64)
+    photo = colours[blobs.astype(int)] + rng.normal(0, 5, (128, 160, 3))
+    photo = np.clip(photo, 0, 255).astype(np.uint8)
+    grid = IndexGrid(blobs[::8, ::8].astype(np.uint8)[:17, :21].copy(), (8, 8))
+    grid = IndexGrid(np.pad(grid.indices, ((0, 17 - grid.indices.shape[0]),
+                                           (0, 21 - grid.indices.shape[1])), mode="edge"),
+                     (8, 8))
+    library = ThemeLibrary([flat_theme("dark", (128, 128, 128)),
+                            flat_theme("light", (128, 128, 128))])
+    return photo, grid, library
+
+
+def test_a_budget_map_is_coded_over_the_grids_prediction_where_that_scores_better():
+    from terratheme.core.convert.colour_fit import budget_score, reference
+    from terratheme.core.convert.step import fit_colour_map
+    from terratheme.core.model.map_prediction import class_prediction
+    from terratheme.core.render.renderer import render_cells
+
+    photo, grid, library = _two_class_scene()
+    opts = ColourMapOptions(budget=0.02)
+    with_grid = fit_colour_map(photo, grid, library, opts, packed=60)
+    render = render_cells(grid, library.textures)
+    without = choose_colour_map(photo, render, opts, reserved=60)
+    cmap = with_grid.colour_map
+    assert cmap.colours is not None and without.colour_map.colours is None
+    assert cmap.nbytes <= opts.map_bytes(photo.shape[0] * photo.shape[1], 60)
+    # The prediction is the grid's, from the colours the map ships.
+    assert np.array_equal(cmap.prediction, class_prediction(
+        grid.indices, grid.cell, np.asarray(cmap.colours, np.uint8), cmap.coded_scale,
+        cmap.coded_shape))
+    # Never worse by the search's own score than the map made without the grid.
+    ref = reference(photo, sigmas=(), factors=(4, 8))
+    from terratheme.core.convert.colour_fit import _quick_photo
+    quick = _quick_photo(photo)
+    h, w = photo.shape[:2]
+
+    def score(c):
+        return budget_score(ref, quick, apply_colour_map(render[:h, :w].copy(), c,
+                                                         (0, 0, w, h)))[0]
+
+    assert score(cmap) > score(without.colour_map)
+
+
+def test_a_map_made_tile_by_tile_is_not_predicted(tmp_path):
+    # The tiled path has no render of the whole region to score a predicted map by, and a
+    # closer fit of the gains alone chose maps that scored worse: it codes plain maps.
+    from terratheme.core.convert.colour_fit import colour_map_from_file
+    from terratheme.core.io.images import write_image
+
+    photo, grid, library = _two_class_scene(12)
+    write_image(tmp_path / "p.png", photo)
+    fitted = colour_map_from_file(tmp_path / "p.png", grid, library.textures, 4,
+                                  options=ColourMapOptions(budget=0.02), tile=48,
+                                  reserved=60).colour_map
+    assert fitted.colours is None and fitted.coded_scale == 4

@@ -272,7 +272,7 @@ def test_a_round_trip_of_every_layer_still_works(tmp_path):
 
 
 @pytest.mark.parametrize(("version", "error", "match"), [
-    (5, UnsupportedVersionError, "newer"), (2**63, UnsupportedVersionError, "newer"),
+    (6, UnsupportedVersionError, "newer"), (2**63, UnsupportedVersionError, "newer"),
     (0, CorruptFileError, "bad format version"), ("1", CorruptFileError, "bad format version"),
 ])
 def test_version_bumps_are_named(tmp_path, version, error, match):

@@ -57,6 +57,23 @@ def test_bytes_are_the_packed_grid_plus_the_colour_map(tmp_path, capsys):
     assert info["theme_bytes"] > 0
 
 
+def test_a_predicted_map_is_named_and_counted_as_it_ships(tmp_path, capsys):
+    from terratheme.core.model.map_prediction import class_colours, class_prediction
+
+    plain = _project()
+    stored = np.full((2, 6, 3), 90, np.uint8)
+    stored[:, 4:] = 170
+    grid = plain.grid
+    colours = class_colours(stored, grid.indices, grid.cell, 16, 2)
+    prediction = class_prediction(grid.indices, grid.cell, colours, 16, (2, 6))
+    cmap = ColourMap.encode(stored, 16, "avif", 80, colours=colours, prediction=prediction)
+    info = _info(tmp_path, capsys, _project(cmap))
+    assert info["colour_map"]["predicted"] is True and info["colour_map"]["codec"] == "avif"
+    assert info["colour_map_bytes"] == len(cmap.data)
+    plain_info = _info(tmp_path, capsys, _project(ColourMap(stored, 16)))
+    assert plain_info["colour_map"]["predicted"] is False
+
+
 def test_plain_text_lists_the_same_fields(tmp_path, capsys):
     path = tmp_path / "p.ttproj"
     save_project(path, _project())

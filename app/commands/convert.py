@@ -306,6 +306,7 @@ def run(args: argparse.Namespace) -> int:
               f"colour map 1/{cmap.coded_scale}"
               + (f" drawn at 1/{cmap.scale}" if cmap.upsample > 1 else "")
               + (f" sharpened {cmap.sharpen / 4:g}" if cmap.sharpen else "")
+              + (" over the grid's colours" if cmap.colours is not None else "")
               + f" (dE8 {fitted.colour_error:.1f})")
     print(f"{project}: {k} theme{'s' if k != 1 else ''} ({names}); cell {grid.cell[0]} x "
           f"{grid.cell[1]} -> {gw + 1} x {gh + 1} vertices for the {w} x {h} photo; "

@@ -84,7 +84,7 @@ def _project_info(args: argparse.Namespace) -> dict:
         "colour_map": None if colour_map is None else {
             "scale": colour_map.scale, "size": list(colour_map.pixels.shape[1::-1]),
             "codec": colour_map.codec, "upsample": colour_map.upsample,
-            "sharpen": colour_map.sharpen},
+            "sharpen": colour_map.sharpen, "predicted": colour_map.colours is not None},
         "georeference": project.metadata.get("georeference"),
         "source_photo": project.metadata.get("source_photo"),
         "layers": [name for name in ("photo", "scribbles") if getattr(project, name) is not None],

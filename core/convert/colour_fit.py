@@ -3,7 +3,8 @@
 A class carries one texture, so the photo's slow colour changes are lost; the map
 (:mod:`core.model.colour_map`) restores them (issues 13, 34). Default (``target`` None):
 the area has a byte budget; for each of ``budget_scales`` the block gain ``photo /
-render`` is coded at the highest quality that fits (:func:`fit_quality`), rendered
+render`` is coded at the highest quality that fits (:func:`fit_quality`), plain and, given
+the render's grid, over the grid's prediction (:func:`grid_prediction`), rendered
 through its 2x bicubic enlargement at even scales (:func:`budget_upsample`), and the scale
 whose render scores best (:func:`budget_score`) is kept, then drawn at the unsharp mask of
 ``budget_sharpens`` that scores best (the block means and the codec soften its edges;
@@ -34,6 +35,7 @@ from terratheme.core.fidelity.metrics import (
     structure_similarity,
 )
 from terratheme.core.io.cluster import map_ordered
+from terratheme.core.io.codec import HEADER_SIZED
 from terratheme.core.io.images import Bands, image_info
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
 from terratheme.core.model.colour_map import (
@@ -44,6 +46,7 @@ from terratheme.core.model.colour_map import (
     TileEncoder,
 )
 from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.map_prediction import class_colours, class_prediction
 from terratheme.core.render.colour_map import apply_colour_map, gain_image
 from terratheme.core.render.renderer import RenderOptions, render_cells
 
@@ -53,6 +56,22 @@ if TYPE_CHECKING:
 
 #: the least bytes a byte budget gives an area
 MIN_AREA_BYTES = 512
+
+#: a predicted map's ``ColourMap.encode`` keywords: ``{"colours": (K, 3) uint8,
+#: "prediction": (mh, mw, 3) uint8}`` (:mod:`core.model.map_prediction`)
+Prediction = dict[str, np.ndarray]
+
+
+def grid_prediction(stored: np.ndarray, grid: IndexGrid, n_themes: int, scale: int,
+                    codec: str) -> Prediction | None:
+    """The prediction a map of stored gains at ``scale`` may be coded over: each of the
+    ``n_themes`` themes' mean gain drawn over ``grid`` (None where the map could not ship
+    predicted: a codec whose header does not give the size, or a map beyond one image)."""
+    if codec not in HEADER_SIZED or not ColourMap.fits_one_image(stored.shape[:2], codec):
+        return None
+    colours = class_colours(stored, grid.indices, grid.cell, scale, n_themes)
+    return {"colours": colours, "prediction": class_prediction(
+        grid.indices, grid.cell, colours, scale, stored.shape[:2])}
 
 
 @dataclass(frozen=True)
@@ -189,10 +208,11 @@ FIT_GUIDED_STEPS = 4
 
 
 def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsample: int = 1,
-                texture_size: tuple[int, int] | None = None, guess: int = 50
-                ) -> tuple[int, ColourMap] | None:
+                texture_size: tuple[int, int] | None = None, guess: int = 50,
+                predicted: Prediction | None = None) -> tuple[int, ColourMap] | None:
     """``(quality, map)``: the (mh, mw, 3) uint8 stored gain at the best quality fitting ``budget``
-    (drawn ``upsample`` times finer over a ``texture_size`` texture).
+    (drawn ``upsample`` times finer over a ``texture_size`` texture; coded over the
+    ``predicted`` colours and prediction when given).
 
     The highest quality 1..99 that fits, bytes taken to grow with quality: from ``guess``
     (where the caller expects it), each step encodes the quality where the log of the bytes,
@@ -205,7 +225,7 @@ def fit_quality(gain: np.ndarray, scale: int, codec: str, budget: int, *, upsamp
     """
     def encode(q: int) -> ColourMap:
         return ColourMap.encode(gain, int(scale), codec, q, upsample=upsample,
-                                texture_size=texture_size)
+                                texture_size=texture_size, **(predicted or {}))
 
     if codec == "png":
         cmap = encode(50)
@@ -252,7 +272,7 @@ def budget_score(photo: Reference, quick: tuple[int, Reference], shown: np.ndarr
 
 
 def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions,
-                reserved: int) -> FittedColourMap:
+                reserved: int, grid: tuple[IndexGrid, int] | None) -> FittedColourMap:
     """The byte budget's search of :func:`choose_colour_map` (module docstring)."""
     h, w = photo.shape[:2]
     size = (render.shape[1], render.shape[0])
@@ -275,18 +295,28 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
                              texture_size=size, guess=guess)
         if fitted is not None:
             previous = (scale, fitted[0])
-            cmap = fitted[1]
+            cmaps = [fitted[1]]
         elif scale != coarsest or best is not None:
             continue
         else:
             # Not even the coarsest map fits: it at the lowest quality, over the budget.
-            cmap = ColourMap.encode(gain, scale, options.codec, 1, upsample=upsample,
-                                    texture_size=size)
-        shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap, (0, 0, w, h))
-        score, _, _, err = budget_score(ref, quick, shown)
-        curve.append((scale, cmap.nbytes, err))
-        if best is None or score > best[0]:
-            best = (score, cmap, err)
+            cmaps = [ColourMap.encode(gain, scale, options.codec, 1, upsample=upsample,
+                                      texture_size=size)]
+        # The same gain coded over the grid's prediction, when there is a grid.
+        predicted = None if grid is None else grid_prediction(gain, grid[0], grid[1], scale,
+                                                               options.codec)
+        if predicted is not None:
+            over = fit_quality(gain, scale, options.codec, budget, upsample=upsample,
+                               texture_size=size, guess=previous[1] if previous else guess,
+                               predicted=predicted)
+            cmaps += [] if over is None else [over[1]]
+        for cmap in cmaps:
+            shown = apply_colour_map(np.ascontiguousarray(render[:h, :w]).copy(), cmap,
+                                     (0, 0, w, h))
+            score, _, _, err = budget_score(ref, quick, shown)
+            curve.append((scale, cmap.nbytes, err))
+            if best is None or score > best[0]:
+                best = (score, cmap, err)
     plain_score, plain, plain_err = best  # type: ignore[misc]  (the coarsest scale gives one)
     # The chosen map drawn at each unsharp mask: the one that scores best ships (no bytes).
     shipped: tuple[float, ColourMap, float] | None = None
@@ -306,18 +336,21 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
 
 def choose_colour_map(photo: np.ndarray, render: np.ndarray,
                       options: ColourMapOptions = ColourMapOptions(), *,
-                      reserved: int = 0) -> FittedColourMap:
+                      reserved: int = 0, grid: tuple[IndexGrid, int] | None = None
+                      ) -> FittedColourMap:
     """The colour map of a conversion (module docstring).
 
     ``photo``: (h, w, 3) uint8; ``render``: (H, W, 3) uint8, the full texture without a
-    map (H >= h, W >= w); ``reserved``: budget bytes already spent (the packed grid).
+    map (H >= h, W >= w); ``reserved``: budget bytes already spent (the packed grid);
+    ``grid``: the render's grid and its number of themes, so a budget map may be coded
+    over the grid's prediction (:func:`grid_prediction`) where that scores better.
     """
     h, w = photo.shape[:2]
     if render.shape[0] < h or render.shape[1] < w:
         raise TerrathemeError(f"render {render.shape[1]} x {render.shape[0]} is smaller than "
                               f"the {w} x {h} photo")
     if options.target is None:
-        return _budget_map(photo, render, options, reserved)
+        return _budget_map(photo, render, options, reserved, grid)
     curve: list[tuple[int, int, float]] = []
     best: tuple[ColourMap, bytes, float] | None = None
     quick = _quick_photo(photo)

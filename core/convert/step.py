@@ -447,5 +447,6 @@ def fit_colour_map(rgb: np.ndarray, grid: IndexGrid, library: ThemeLibrary,
     plain = render_cells(grid, library.textures, options=render)
     reserved = 0 if colour_map.target is not None else (
         packed_bytes(grid) if packed is None else packed)
-    return choose_colour_map(rgb, plain, colour_map, reserved=reserved)
+    return choose_colour_map(rgb, plain, colour_map, reserved=reserved,
+                             grid=(grid, len(library)))
 

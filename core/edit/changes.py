@@ -21,10 +21,11 @@ from terratheme.core.edit.events import (
     ScribbleChange,
     ThemeChange,
 )
-from terratheme.core.edit.layers import DocumentData, Layer, nearest_vertices
+from terratheme.core.edit.layers import DocumentData, Layer
 from terratheme.core.edit.uncertainty import KeptPrior
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.colour_map import NEUTRAL, ColourMap
+from terratheme.core.model.map_prediction import nearest_vertices
 from terratheme.core.themes.library import Theme, ThemeLibrary
 
 

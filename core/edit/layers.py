@@ -14,14 +14,9 @@ import numpy as np
 from terratheme.core.edit.uncertainty import KeptPrior
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.map_prediction import nearest_vertices
 from terratheme.core.model.project import ThematicTexture
 from terratheme.core.themes.library import ThemeLibrary
-
-
-def nearest_vertices(count: int, scale: int, cell: int, vertices: int) -> np.ndarray:
-    """(count,) int: along an axis, the vertex nearest each ``scale``-texel map pixel."""
-    centre = (np.arange(count) + 0.5) * scale
-    return np.clip(np.floor(centre / cell + 0.5).astype(np.int64), 0, vertices - 1)
 
 
 class Layer(Enum):

@@ -100,6 +100,19 @@ def encode_image(pixels: np.ndarray, *, codec: str = "webp", quality: int = 80) 
         return _read_all(fd)
 
 
+#: codecs whose image size :func:`check_header_shape` reads from the header alone
+HEADER_SIZED = ("jpegxl", "avif")
+
+
+def check_header_shape(data: bytes, codec: str, shape: tuple[int, int]) -> None:
+    """Raise CorruptFileError unless a :data:`HEADER_SIZED` image's header says it is
+    ``(h, w)`` = ``shape`` (nothing decoded)."""
+    size = (jpegxl_size if codec == "jpegxl" else avif_size)(bytes(data[:1 << 14]))
+    if size is None or (size[1], size[0]) != tuple(shape):
+        found = "no size header" if size is None else f"{size[0]} x {size[1]}"
+        raise CorruptFileError(f"{codec} image is {found}, expected {shape[1]} x {shape[0]}")
+
+
 def decode_image(data: bytes, *, codec: str = "webp",
                  shape: tuple[int, int] | None = None) -> np.ndarray:
     """Pixels ``(h, w, C)`` uint8 of bytes written by :func:`encode_image`.
@@ -108,12 +121,9 @@ def decode_image(data: bytes, *, codec: str = "webp",
     any pixel is decoded (a forged header cannot make it allocate more).
     """
     ext, _ = _codec(codec)
-    if codec in ("jpegxl", "avif") and shape is not None:
+    if codec in HEADER_SIZED and shape is not None:
         # Both decode at once: check the header's size first.
-        size = (jpegxl_size if codec == "jpegxl" else avif_size)(bytes(data[:1 << 14]))
-        if size is None or (size[1], size[0]) != tuple(shape):
-            found = "no size header" if size is None else f"{size[0]} x {size[1]}"
-            raise CorruptFileError(f"{codec} image is {found}, expected {shape[1]} x {shape[0]}")
+        check_header_shape(data, codec, shape)
     if codec == "avif":
         try:
             pixels = imagecodecs.avif_decode(bytes(data))

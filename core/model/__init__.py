@@ -1,7 +1,8 @@
 """The thematic texture as data: the index grid, the project (grid + themes + layers) and its file.
 
 Modules: ``grid``, ``project`` (and its ``.ttproj`` file), ``manifest``, ``layers``
-(optional per-pixel layers), ``colour_map``, ``index_image`` (grids as pictures).
+(optional per-pixel layers), ``colour_map``, ``map_prediction`` (what the grid predicts
+of a colour map), ``index_image`` (grids as pictures).
 """
 
 from terratheme.core.model.colour_map import ColourMap

@@ -9,12 +9,14 @@ by bicubic interpolation and renders at half the coded scale (sharper than bilin
 the coded pixels, for no bytes; docs/decisions.md). A coded map may also ship
 ``sharpen = q``: its drawn image then passes an exact unsharp mask of amount ``q / 4``
 (:func:`sharpened`), which gives back the edges the block means and the codec soften.
+A coded map may be *predicted*: its image holds the map less what the index grid predicts
+(:mod:`core.model.map_prediction`), and ``pixels`` add the prediction back.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -46,6 +48,32 @@ SHARPEN_ROWS = 1024
 
 #: a map tile's place: ``(rows, cols)`` slices of the map
 TileBox = tuple[slice, slice]
+
+
+def _offset(image: np.ndarray, prediction: np.ndarray, sign: int) -> np.ndarray:
+    """``clip(image + sign (prediction - 128), 0, 255)`` as uint8, ``SHARPEN_ROWS`` rows at
+    a time (no whole-map int16 copy)."""
+    if prediction.shape != image.shape:
+        raise TerrathemeError(f"colour map prediction {prediction.shape[1]} x "
+                              f"{prediction.shape[0]} for a {image.shape[1]} x "
+                              f"{image.shape[0]} image")
+    out = np.empty(image.shape, np.uint8)
+    for r in range(0, image.shape[0], SHARPEN_ROWS):
+        band = slice(r, r + SHARPEN_ROWS)
+        offset = prediction[band].astype(np.int16) - NEUTRAL
+        out[band] = np.clip(image[band] + sign * offset, 0, 255)
+    return out
+
+
+def residual(stored: np.ndarray, prediction: np.ndarray) -> np.ndarray:
+    """``(mh, mw, 3)`` uint8 image a predicted map codes: ``stored - prediction + 128``."""
+    return _offset(stored, prediction, -1)
+
+
+def restored(decoded: np.ndarray, prediction: np.ndarray | None) -> np.ndarray:
+    """``(mh, mw, 3)`` uint8 map of a decoded image: ``decoded + prediction - 128`` (the
+    decoded image itself without a prediction)."""
+    return decoded if prediction is None else _offset(decoded, prediction, 1)
 
 
 @dataclass(frozen=True)
@@ -106,6 +134,8 @@ class ColourMap:
     ``coded_scale = scale * upsample`` and ``pixels`` are its decode enlarged ``upsample``
     times and sharpened by ``sharpen`` quarters (:func:`drawn_pixels`), cut to the ``(W, H)``
     ``texture_size`` the constructors then need; they take the shipped image's scale.
+    ``colours`` (K, 3) per theme and ``prediction`` (the ``coded_shape`` map they predict
+    from the grid, uint8): a predicted map, whose image holds :func:`residual`.
     """
 
     pixels: np.ndarray
@@ -116,6 +146,8 @@ class ColourMap:
     tile: int | None = None
     upsample: int = 1
     sharpen: int = 0
+    colours: tuple[tuple[int, int, int], ...] | None = None
+    prediction: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.pixels)
@@ -142,6 +174,17 @@ class ColourMap:
                                       f"tiles of {self.tile} has {rows * cols} tiles, "
                                       f"not {len(self.tiles)}")
             object.__setattr__(self, "tiles", tuple(bytes(t) for t in self.tiles))
+        if (self.colours is None) != (self.prediction is None) or (
+                self.colours is not None and (self.codec is None or self.tiles is not None)):
+            raise TerrathemeError("a predicted colour map is coded in one image and has both "
+                                  "its colours and its prediction")
+        if self.colours is not None:
+            object.__setattr__(self, "colours", _colour_rows(self.colours))
+            prediction = np.array(self.prediction, dtype=np.uint8, order="C")
+            if prediction.shape != (*self.coded_shape, 3):
+                raise TerrathemeError("colour map prediction does not match its image")
+            prediction.setflags(write=False)
+            object.__setattr__(self, "prediction", prediction)
 
     @property
     def coded_scale(self) -> int:
@@ -157,18 +200,22 @@ class ColourMap:
     @classmethod
     def from_bytes(cls, data: bytes, codec: str, scale: int,
                    shape: tuple[int, int] | None = None, *, upsample: int = 1,
-                   sharpen: int = 0, texture_size: tuple[int, int] | None = None
-                   ) -> ColourMap:
+                   sharpen: int = 0, texture_size: tuple[int, int] | None = None,
+                   colours: Sequence[Sequence[int]] | None = None,
+                   prediction: np.ndarray | None = None) -> ColourMap:
         """The map shipped as ``data`` in ``codec`` at ``scale`` (``shape`` = expected
-        ``(mh, mw)`` of that image), rendered ``upsample`` times finer, ``sharpen``ed."""
+        ``(mh, mw)`` of that image), rendered ``upsample`` times finer, ``sharpen``ed;
+        with ``colours`` and their ``prediction``, a predicted map."""
         drawn = _drawn_shape(scale, upsample, texture_size)
         check_sharpen(sharpen)
         pixels = decode_image(data, codec=codec, shape=shape)
         if pixels.shape[2] < 3:
             raise TerrathemeError(f"colour map must be RGB, the {codec} image has "
                                   f"{pixels.shape[2]} channel(s)")
-        return cls(drawn_pixels(pixels[:, :, :3], upsample, sharpen, drawn), scale // upsample,
-                   codec, bytes(data), upsample=upsample, sharpen=sharpen)
+        coded = restored(np.ascontiguousarray(pixels[:, :, :3]), prediction)
+        return cls(drawn_pixels(coded, upsample, sharpen, drawn), scale // upsample,
+                   codec, bytes(data), upsample=upsample, sharpen=sharpen, colours=colours,
+                   prediction=prediction)
 
     @staticmethod
     def tile_counts(shape: tuple[int, int], tile: object) -> tuple[int, int]:
@@ -186,9 +233,13 @@ class ColourMap:
     @classmethod
     def encode(cls, pixels: np.ndarray, scale: int, codec: str, quality: int, *,
                run: TileRunner | None = None, upsample: int = 1, sharpen: int = 0,
-               texture_size: tuple[int, int] | None = None) -> ColourMap:
+               texture_size: tuple[int, int] | None = None,
+               colours: Sequence[Sequence[int]] | None = None,
+               prediction: np.ndarray | None = None) -> ColourMap:
         """The map of stored gains ``pixels`` ``(mh, mw, 3) uint8`` at ``scale`` as it ships
-        in ``codec``, rendered ``upsample`` times finer, ``sharpen``ed.
+        in ``codec``, rendered ``upsample`` times finer, ``sharpen``ed; with ``colours``
+        and their ``prediction`` (``pixels``' shape), coded as their :func:`residual`
+        (in one image only).
 
         One image when it fits the codec's single-image limit, else tiles of
         :data:`MAP_TILE`, each encoded by a :class:`TileEncoder`: one after the other
@@ -197,9 +248,16 @@ class ColourMap:
         drawn = _drawn_shape(scale, upsample, texture_size)
         check_sharpen(sharpen)
         arr = np.ascontiguousarray(pixels)
+        if prediction is not None:
+            if prediction.shape != arr.shape:
+                raise TerrathemeError("colour map prediction does not match its pixels")
+            if not cls.fits_one_image(arr.shape[:2], codec):
+                raise TerrathemeError("a predicted colour map ships in one image")
+            arr = residual(arr, prediction)
         if cls.fits_one_image(arr.shape[:2], codec):
             return cls.from_bytes(encode_image(arr, codec=codec, quality=quality), codec, scale,
-                                  upsample=upsample, sharpen=sharpen, texture_size=texture_size)
+                                  upsample=upsample, sharpen=sharpen, texture_size=texture_size,
+                                  colours=colours, prediction=prediction)
         t = MAP_TILE
         boxes = tile_boxes(arr.shape[:2], t)
         shown = np.empty_like(arr)
@@ -261,7 +319,8 @@ class ColourMap:
             raise TerrathemeError("a raw colour map has no shipped image to draw again")
         return ColourMap.from_bytes(self.data, self.codec, self.coded_scale,
                                     upsample=self.upsample, sharpen=sharpen,
-                                    texture_size=texture_size)
+                                    texture_size=texture_size, colours=self.colours,
+                                    prediction=self.prediction)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ColourMap):
@@ -290,6 +349,14 @@ class ColourMap:
         if self.tiles is not None:
             return sum(len(t) for t in self.tiles)
         return len(self.data) if self.data is not None else int(self.pixels.nbytes)
+
+
+def _colour_rows(colours: Sequence[Sequence[int]] | None
+                 ) -> tuple[tuple[int, int, int], ...] | None:
+    """A predicted map's theme colours as ``(r, g, b)`` tuples (None: not predicted)."""
+    if colours is None:
+        return None
+    return tuple((int(r), int(g), int(b)) for r, g, b in np.asarray(colours).tolist())
 
 
 def check_upsample(upsample: object, *, scale: int | None = None, coded: bool = True) -> None:

@@ -14,7 +14,7 @@ from terratheme.core.model.grid import MAX_THEMES, validate_cell
 from terratheme.core.model.layers import LAYER_BY_NAME
 
 FORMAT_NAME = "terratheme-project"
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 #: the version a project is written in without a tiled colour map (readable by older readers)
 BASE_VERSION = 1
 #: the version a tiled colour map needs
@@ -23,6 +23,8 @@ TILED_MAP_VERSION = 2
 UPSAMPLED_MAP_VERSION = 3
 #: the version a sharpened colour map needs (docs/formats.md, the colour map)
 SHARPENED_MAP_VERSION = 4
+#: the version a predicted colour map needs (docs/formats.md, the colour map)
+PREDICTED_MAP_VERSION = 5
 MANIFEST = "manifest.json"
 GRID_MEMBER = "grid.npy"
 #: longest theme name / source string kept

@@ -28,7 +28,7 @@ from terratheme.core.io.archive import (
     read_npy_member,
 )
 from terratheme.core.io.atomic import atomic_path
-from terratheme.core.io.codec import CODECS
+from terratheme.core.io.codec import CODECS, HEADER_SIZED, check_header_shape
 from terratheme.core.io.georef import validate_georeference
 from terratheme.core.io.inputs import check_input_file
 from terratheme.core.model.colour_map import (
@@ -45,11 +45,13 @@ from terratheme.core.model.manifest import (
     GRID_MEMBER,
     MANIFEST,
     MAX_TEXT,
+    PREDICTED_MAP_VERSION,
     SHARPENED_MAP_VERSION,
     TILED_MAP_VERSION,
     UPSAMPLED_MAP_VERSION,
     check_manifest,
 )
+from terratheme.core.model.map_prediction import class_prediction
 from terratheme.core.themes.library import Theme, ThemeLibrary
 
 PROJECT_SUFFIX = ".ttproj"
@@ -151,8 +153,27 @@ def _check_savable(project: ThematicTexture) -> None:
                               f"{MAX_COLOUR_MAP_TILES:,} a project file holds")
 
 
+def _map_colours(colours: object, codec: object, tiled: bool, n_themes: int, label: str
+                 ) -> np.ndarray | None:
+    """A predicted map's theme colours ``(n_themes, 3)`` uint8 from its manifest entry
+    (None: not predicted), refused unless one ``[r, g, b]`` of integers 0..255 per theme
+    on a map in one image of a codec whose header gives its size (so the prediction is
+    made only for an image of the texture's map size)."""
+    if colours is None:
+        return None
+    if (codec not in HEADER_SIZED or tiled or not isinstance(colours, list)
+            or len(colours) != n_themes
+            or not all(isinstance(c, list) and len(c) == 3
+                       and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255
+                               for v in c) for c in colours)):
+        raise CorruptFileError(f"{label}: colour map colours must be one [r, g, b] of "
+                               f"integers 0..255 for each of the {n_themes} themes, on a "
+                               f"map in one {' or '.join(HEADER_SIZED)} image")
+    return np.asarray(colours, np.uint8).reshape(n_themes, 3)
+
+
 def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
-                     path: Path) -> ColourMap | None:
+                     path: Path, n_themes: int) -> ColourMap | None:
     """The colour map the manifest names, checked against the grid before decoding."""
     if entry is None:
         return None
@@ -170,6 +191,7 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
         raise CorruptFileError(f"{path}: {exc}") from None
     shape = ColourMap.shape_for(grid.texture_size, scale)
     label = str(path)
+    colours = _map_colours(entry.get("colours"), codec, tiled, n_themes, label)
     if tiled:
         return _load_tiled_colour_map(zf, entry, shape, label, (upsample, sharpen),
                                       grid.texture_size)
@@ -182,8 +204,16 @@ def _load_colour_map(zf: zipfile.ZipFile, entry: object, grid: IndexGrid,
     # The codec's bytes: at most the raw map's size (a compressed map is smaller).
     data = read_member(zf, entry["member"], label, max_bytes=shape[0] * shape[1] * 3 + 4096)
     try:
+        predicted = {}
+        if colours is not None:
+            # The image's size first: the prediction is as large as the map it claims.
+            check_header_shape(data, codec, shape)
+            validate_indices(grid.indices, n_themes=n_themes)
+            predicted = {"colours": colours, "prediction": class_prediction(
+                grid.indices, grid.cell, colours, scale, shape)}
         return ColourMap.from_bytes(data, codec, scale, shape, upsample=upsample,
-                                    sharpen=sharpen, texture_size=grid.texture_size)
+                                    sharpen=sharpen, texture_size=grid.texture_size,
+                                    **predicted)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{path}: {entry['member']}: {exc}") from None
 
@@ -209,6 +239,17 @@ def _load_tiled_colour_map(zf: zipfile.ZipFile, entry: dict, shape: tuple[int, i
                                     texture_size=texture_size)
     except TerrathemeError as exc:
         raise CorruptFileError(f"{label}: colour map tiles: {exc}") from None
+
+
+def _predicts(cmap: ColourMap, project: ThematicTexture) -> bool:
+    """Whether the project's grid and themes predict what its predicted map was coded over
+    (a reader makes the prediction from the grid it reads, one colour per theme)."""
+    grid = project.grid
+    if len(cmap.colours) != len(project.library) or grid.indices.max() >= len(cmap.colours):
+        return False
+    made = class_prediction(grid.indices, grid.cell, np.asarray(cmap.colours, np.uint8),
+                            cmap.coded_scale, cmap.coded_shape)
+    return np.array_equal(made, cmap.prediction)
 
 
 def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
@@ -244,6 +285,9 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
                                "tile": cmap.tile, "members": names}
         version = TILED_MAP_VERSION
     elif cmap is not None:
+        if cmap.colours is not None and not _predicts(cmap, project):
+            # The grid changed under a predicted map: it ships as the pixels shown.
+            cmap = ColourMap(cmap.pixels, cmap.scale)
         if cmap.data is not None:
             member = "colour_map" + CODECS[cmap.codec][0]
             members[member] = cmap.data
@@ -257,6 +301,9 @@ def save_project(path: str | os.PathLike, project: ThematicTexture) -> None:
     if cmap is not None and cmap.sharpen:
         extra["colour_map"]["sharpen"] = cmap.sharpen
         version = SHARPENED_MAP_VERSION
+    if cmap is not None and cmap.colours is not None:
+        extra["colour_map"]["colours"] = [list(c) for c in cmap.colours]
+        version = PREDICTED_MAP_VERSION
     manifest = {
         "format": FORMAT_NAME,
         "version": version,
@@ -348,7 +395,8 @@ def load_project(path: str | os.PathLike) -> ThematicTexture:
         }
         try:
             grid = IndexGrid(indices, tuple(manifest["cell"]))
-            colour_map = _load_colour_map(zf, manifest.get("colour_map"), grid, path)
+            colour_map = _load_colour_map(zf, manifest.get("colour_map"), grid, path,
+                                          len(manifest["themes"]))
         except CorruptFileError:
             raise
         except TerrathemeError as exc:
