@@ -410,15 +410,27 @@ def test_a_budget_map_is_coded_over_the_grids_prediction_where_that_scores_bette
     assert score(cmap) > score(without.colour_map)
 
 
-def test_a_map_made_tile_by_tile_is_not_predicted(tmp_path):
-    # The tiled path has no render of the whole region to score a predicted map by, and a
-    # closer fit of the gains alone chose maps that scored worse: it codes plain maps.
-    from terratheme.core.convert.colour_fit import colour_map_from_file
+def test_a_map_made_tile_by_tile_is_coded_over_the_prediction_when_asked(tmp_path):
+    from terratheme.core.convert.colour_fit import colour_map_from_file, grid_prediction
     from terratheme.core.io.images import write_image
+    from terratheme.core.model.project import ThematicTexture, load_project, save_project
+    from terratheme.core.render.renderer import render_cells
 
     photo, grid, library = _two_class_scene(12)
     write_image(tmp_path / "p.png", photo)
+    opts = ColourMapOptions(budget=0.02)
+    kwargs = {"options": opts, "tile": 48, "reserved": 60}
     fitted = colour_map_from_file(tmp_path / "p.png", grid, library.textures, 4,
-                                  options=ColourMapOptions(budget=0.02), tile=48,
-                                  reserved=60).colour_map
-    assert fitted.colours is None and fitted.coded_scale == 4
+                                  predicted=True, **kwargs).colour_map
+    plain = colour_map_from_file(tmp_path / "p.png", grid, library.textures, 4,
+                                 **kwargs).colour_map
+    assert fitted.colours is not None and plain.colours is None
+    assert fitted.nbytes <= opts.map_bytes(photo.shape[0] * photo.shape[1], 60)
+    # Its colours and prediction are the whole map's (the tiles' gains are the block ratio).
+    stored = np.clip(np.rint(fit_gain(photo, render_cells(grid, library.textures), 4, 0)
+                             * 128), 0, 255).astype(np.uint8)
+    want = grid_prediction(stored, grid, len(library), 4, "avif")
+    assert np.abs(np.asarray(fitted.colours, int) - want["colours"]).max() <= 1
+    # What the project file gives back is the map the tiles made.
+    save_project(tmp_path / "m.ttproj", ThematicTexture(grid, library, {}, colour_map=fitted))
+    assert np.array_equal(load_project(tmp_path / "m.ttproj").colour_map.pixels, fitted.pixels)

@@ -241,3 +241,39 @@ def test_bands_give_the_whole_maps_prediction_colours_and_residual(monkeypatch):
     # By hand, one pixel: the image less the prediction's offset from neutral.
     assert int(res[3, 4, 1]) == int(np.clip(int(stored[3, 4, 1]) - int(whole[0][3, 4, 1]) + 128,
                                             0, 255))
+
+
+def test_a_samples_prediction_is_the_regions_at_each_window():
+    from terratheme.core.convert.region_sample import SamplePrediction
+
+    rng = np.random.default_rng(4)
+    indices = rng.integers(0, 3, (31, 41)).astype(np.uint8)
+    grid = IndexGrid(indices, (16, 16))  # 640 x 480 texels
+    # Two rows of two 96-pixel windows, side by side in a 192 x 192 joined image.
+    wins = [(0, 0, 96, 96), (288, 48, 96, 96), (96, 240, 96, 96), (528, 384, 96, 96)]
+    places = [(0, 0), (96, 0), (0, 96), (96, 96)]
+    predict = SamplePrediction(grid, 3, "avif", tuple(zip(wins, places, strict=True)))
+    scale = 4
+    stored = rng.integers(40, 220, (48, 48, 3)).astype(np.uint8)
+    got = predict(stored, scale)
+    colours = got["colours"]
+    whole = class_prediction(indices, grid.cell, colours, scale,
+                             ColourMap.shape_for(grid.texture_size, scale))
+    for (x, y, w, h), (jx, jy) in zip(wins, places, strict=True):
+        assert np.array_equal(got["prediction"][jy // 4:(jy + h) // 4, jx // 4:(jx + w) // 4],
+                              whole[y // 4:(y + h) // 4, x // 4:(x + w) // 4])
+    # The colours are the themes' means over the windows' own map pixels.
+    counts = np.zeros(3, int)
+    sums = np.zeros((3, 3))
+    from terratheme.core.model.map_prediction import nearest_vertices
+    rows = nearest_vertices(120, scale, 16, 31)
+    cols = nearest_vertices(160, scale, 16, 41)
+    for (x, y, w, h), (jx, jy) in zip(wins, places, strict=True):
+        for i in range(h // 4):
+            for j in range(w // 4):
+                t = indices[rows[y // 4 + i], cols[x // 4 + j]]
+                counts[t] += 1
+                sums[t] += stored[jy // 4 + i, jx // 4 + j]
+    assert np.array_equal(colours, np.rint(sums / counts[:, None]).astype(np.uint8))
+    # A codec whose header does not give the size: no prediction.
+    assert SamplePrediction(grid, 3, "png", predict.blocks)(stored, scale) is None

@@ -60,14 +60,23 @@ MIN_AREA_BYTES = 512
 #: a predicted map's ``ColourMap.encode`` keywords: ``{"colours": (K, 3) uint8,
 #: "prediction": (mh, mw, 3) uint8}`` (:mod:`core.model.map_prediction`)
 Prediction = dict[str, np.ndarray]
+#: ``predict(stored, scale)``: the prediction a map of stored gains at ``scale`` texels a
+#: pixel may be coded over, or None
+Predictor = Callable[[np.ndarray, int], "Prediction | None"]
+
+
+def can_predict(shape: tuple[int, int], codec: str) -> bool:
+    """Whether an ``(mh, mw)`` map in ``codec`` may ship predicted: one image of a codec
+    whose header gives its size (docs/formats.md, predicted maps)."""
+    return codec in HEADER_SIZED and ColourMap.fits_one_image(shape, codec)
 
 
 def grid_prediction(stored: np.ndarray, grid: IndexGrid, n_themes: int, scale: int,
                     codec: str) -> Prediction | None:
     """The prediction a map of stored gains at ``scale`` may be coded over: each of the
-    ``n_themes`` themes' mean gain drawn over ``grid`` (None where the map could not ship
-    predicted: a codec whose header does not give the size, or a map beyond one image)."""
-    if codec not in HEADER_SIZED or not ColourMap.fits_one_image(stored.shape[:2], codec):
+    ``n_themes`` themes' mean gain drawn over ``grid`` (None where it may not ship
+    predicted, :func:`can_predict`)."""
+    if not can_predict(stored.shape[:2], codec):
         return None
     colours = class_colours(stored, grid.indices, grid.cell, scale, n_themes)
     return {"colours": colours, "prediction": class_prediction(
@@ -272,7 +281,7 @@ def budget_score(photo: Reference, quick: tuple[int, Reference], shown: np.ndarr
 
 
 def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions,
-                reserved: int, grid: tuple[IndexGrid, int] | None) -> FittedColourMap:
+                reserved: int, predict: Predictor | None) -> FittedColourMap:
     """The byte budget's search of :func:`choose_colour_map` (module docstring)."""
     h, w = photo.shape[:2]
     size = (render.shape[1], render.shape[0])
@@ -302,9 +311,8 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
             # Not even the coarsest map fits: it at the lowest quality, over the budget.
             cmaps = [ColourMap.encode(gain, scale, options.codec, 1, upsample=upsample,
                                       texture_size=size)]
-        # The same gain coded over the grid's prediction, when there is a grid.
-        predicted = None if grid is None else grid_prediction(gain, grid[0], grid[1], scale,
-                                                               options.codec)
+        # The same gain coded over the grid's prediction, when there is one.
+        predicted = None if predict is None else predict(gain, scale)
         if predicted is not None:
             over = fit_quality(gain, scale, options.codec, budget, upsample=upsample,
                                texture_size=size, guess=previous[1] if previous else guess,
@@ -336,21 +344,21 @@ def _budget_map(photo: np.ndarray, render: np.ndarray, options: ColourMapOptions
 
 def choose_colour_map(photo: np.ndarray, render: np.ndarray,
                       options: ColourMapOptions = ColourMapOptions(), *,
-                      reserved: int = 0, grid: tuple[IndexGrid, int] | None = None
+                      reserved: int = 0, predict: Predictor | None = None
                       ) -> FittedColourMap:
     """The colour map of a conversion (module docstring).
 
     ``photo``: (h, w, 3) uint8; ``render``: (H, W, 3) uint8, the full texture without a
     map (H >= h, W >= w); ``reserved``: budget bytes already spent (the packed grid);
-    ``grid``: the render's grid and its number of themes, so a budget map may be coded
-    over the grid's prediction (:func:`grid_prediction`) where that scores better.
+    ``predict``: what the render's grid predicts of a map (:func:`grid_prediction`), so a
+    budget map may be coded over it where that scores better.
     """
     h, w = photo.shape[:2]
     if render.shape[0] < h or render.shape[1] < w:
         raise TerrathemeError(f"render {render.shape[1]} x {render.shape[0]} is smaller than "
                               f"the {w} x {h} photo")
     if options.target is None:
-        return _budget_map(photo, render, options, reserved, grid)
+        return _budget_map(photo, render, options, reserved, predict)
     curve: list[tuple[int, int, float]] = []
     best: tuple[ColourMap, bytes, float] | None = None
     quick = _quick_photo(photo)
@@ -458,9 +466,11 @@ def colour_map_from_file(
     progress: Callable[[int, int], None] | None = None,
     reserved: int = 0,
     sharpen: int = 0,
+    predicted: bool = False,
 ) -> FittedColourMap:
     """The colour map of a photo larger than memory, tile by tile (the block gain only),
-    drawn at unsharp mask ``sharpen`` (a budget map's; chosen on a sample).
+    drawn at unsharp mask ``sharpen`` and, when ``predicted``, coded over the grid's
+    prediction where it can be (a budget map's choices, made on a sample).
 
     Each tile of whole map pixels returns their stored gain (:class:`BlockGainJob`), so
     memory is set by the tile and the map; pixels past the photo take the nearest one's
@@ -495,14 +505,16 @@ def colour_map_from_file(
     # One image of the codec, or tiles when the map is beyond its single-image limit, encoded
     # on the workers on a cluster.
     run = None if isinstance(scheduler, Scheduler) else ClusterTiles(scheduler)
-    quality, upsample = options.quality, 1
+    quality, upsample, over = options.quality, 1, None
     if options.target is None:
+        if predicted:
+            over = grid_prediction(stored, grid, len(textures), int(scale), options.codec)
         quality = budget_quality(stored, int(scale), options.codec,
-                                 options.map_bytes(info.width * info.height, reserved))
+                                 options.map_bytes(info.width * info.height, reserved), over)
         upsample = budget_upsample(scale)
     cmap = ColourMap.encode(stored, int(scale), options.codec, quality, run=run,
                             upsample=upsample, sharpen=sharpen if options.target is None else 0,
-                            texture_size=(tw, th))
+                            texture_size=(tw, th), **(over or {}))
     return FittedColourMap(cmap, cmap.data, options.codec, float("nan"), ())
 
 
@@ -510,16 +522,22 @@ def colour_map_from_file(
 QUALITY_PIECE = 1024
 
 
-def budget_quality(stored: np.ndarray, scale: int, codec: str, budget: int) -> int:
-    """The quality at which a whole map of stored gains fits ``budget`` bytes (at least 1).
+def budget_quality(stored: np.ndarray, scale: int, codec: str, budget: int,
+                   predicted: Prediction | None = None) -> int:
+    """The quality at which a whole map of stored gains fits ``budget`` bytes (at least 1;
+    coded over ``predicted`` when given).
 
     On a larger map, chosen on its centre ``QUALITY_PIECE`` piece with the budget scaled.
     """
     mh, mw = stored.shape[:2]
-    piece, share = stored, 1.0
+    box = (slice(0, mh), slice(0, mw))
     if max(mh, mw) > QUALITY_PIECE:
         y, x = max(0, (mh - QUALITY_PIECE) // 2), max(0, (mw - QUALITY_PIECE) // 2)
-        piece = np.ascontiguousarray(stored[y:y + QUALITY_PIECE, x:x + QUALITY_PIECE])
-        share = piece.shape[0] * piece.shape[1] / (mh * mw)
-    fitted = fit_quality(piece, scale, codec, int(budget * share))
+        box = (slice(y, y + QUALITY_PIECE), slice(x, x + QUALITY_PIECE))
+    piece = np.ascontiguousarray(stored[box])
+    share = piece.shape[0] * piece.shape[1] / (mh * mw)
+    part = None if predicted is None else {
+        "colours": predicted["colours"],
+        "prediction": np.ascontiguousarray(predicted["prediction"][box])}
+    fitted = fit_quality(piece, scale, codec, int(budget * share), predicted=part)
     return 1 if fitted is None else fitted[0]

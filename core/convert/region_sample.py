@@ -26,13 +26,20 @@ from terratheme.core.classify.unsupervised import (
     window_samples,
 )
 from terratheme.core.classify.unsupervised_model import UnsupervisedModel
-from terratheme.core.convert.colour_fit import ColourMapOptions, choose_colour_map, grid_window
+from terratheme.core.convert.colour_fit import (
+    ColourMapOptions,
+    Prediction,
+    can_predict,
+    choose_colour_map,
+    grid_window,
+)
 from terratheme.core.convert.tile_vote import transparent
 from terratheme.core.errors import TerrathemeError
 from terratheme.core.io.images import Bands, image_info, read_windows
 from terratheme.core.io.tiles import Scheduler, TileWindow, run_tiles
-from terratheme.core.model.colour_map import ColourMap
+from terratheme.core.model.colour_map import NEUTRAL, ColourMap
 from terratheme.core.model.grid import IndexGrid
+from terratheme.core.model.map_prediction import class_prediction, class_sums, mean_colours
 from terratheme.core.render.renderer import RenderOptions, render_cells
 
 if TYPE_CHECKING:
@@ -332,11 +339,53 @@ def photo_sample(rgb: np.ndarray, labels: np.ndarray, *,
     return replace(sample, no_data=bool((labels == 0).any()))
 
 
+@dataclass(frozen=True)
+class SamplePrediction:
+    """What the region's grid predicts of a map of the sample's joined windows
+    (:data:`core.convert.colour_fit.Predictor`): each window's map pixels take the
+    region map's prediction there, the theme colours from the sample's own stored gains.
+
+    ``blocks``: each window's ``(x, y, w, h)`` in the region and its ``(x, y)`` in the
+    joined image, on multiples of every map scale (:data:`SAMPLE_ALIGN`).
+    """
+
+    grid: IndexGrid
+    n_themes: int
+    codec: str
+    blocks: tuple[tuple[tuple[int, int, int, int], tuple[int, int]], ...]
+
+    def __call__(self, stored: np.ndarray, scale: int) -> Prediction | None:
+        if not can_predict(stored.shape[:2], self.codec):
+            return None
+        grid, mh, mw = self.grid, *stored.shape[:2]
+        shape = ColourMap.shape_for(grid.texture_size, scale)
+        # Each window's map pixels: in the joined map, and where they lie in the region's.
+        parts = []
+        for (x, y, w, h), (jx, jy) in self.blocks:
+            rows = min(-(-h // scale), mh - jy // scale, shape[0] - y // scale)
+            cols = min(-(-w // scale), mw - jx // scale, shape[1] - x // scale)
+            parts.append(((jy // scale, jx // scale), (y // scale, x // scale), rows, cols))
+        # The theme colours over every window, then the prediction window by window.
+        counts = np.zeros(self.n_themes, np.int64)
+        sums = np.zeros((self.n_themes, 3), np.float64)
+        for (jr, jc), origin, rows, cols in parts:
+            got = class_sums(stored[jr:jr + rows, jc:jc + cols], grid.indices, grid.cell,
+                             scale, self.n_themes, origin)
+            counts, sums = counts + got[0], sums + got[1]
+        colours = mean_colours(counts, sums)
+        prediction = np.full((mh, mw, 3), NEUTRAL, np.uint8)
+        for (jr, jc), (r0, c0), rows, cols in parts:
+            prediction[jr:jr + rows, jc:jc + cols] = class_prediction(
+                grid.indices, grid.cell, colours, scale, shape, (r0, r0 + rows, c0, c0 + cols))
+        return {"colours": colours, "prediction": prediction}
+
+
 def sample_colour_map(sample: RegionSample, grid: IndexGrid, textures: list[np.ndarray],
                       render: RenderOptions, options: ColourMapOptions, reserved: int = 0
                       ) -> ColourMap:
     """The colour map :func:`choose_colour_map` makes of the sample's windows: the region's
-    map takes its scale and its unsharp mask.
+    map takes its scale, its unsharp mask and whether it is coded over the grid's
+    prediction (:class:`SamplePrediction`).
 
     Each window rendered from the region's ``grid`` (:func:`grid_window`); ``reserved``:
     the sample's share of the bytes spent already.
@@ -346,5 +395,14 @@ def sample_colour_map(sample: RegionSample, grid: IndexGrid, textures: list[np.n
         origin, block = grid_window(grid, TileWindow(x, y, w, h, x, y, w, h))
         shown[py:py + h, px:px + w] = render_cells(block, textures, grid.cell, region=(x, y, w, h),
                                                    options=render, origin=origin)
+    # Where each window lies in the joined image (its rows of pieces, side by side).
+    per = len(sample.windows) // len({y for _, y in sample.places})
+    joined = []
+    for k, win in enumerate(sample.windows):
+        row = k // per
+        jx = sum(sample.windows[row * per + i][2] for i in range(k - row * per))
+        jy = sum(sample.windows[r * per][3] for r in range(row))
+        joined.append((win, (jx, jy)))
+    predict = SamplePrediction(grid, len(textures), options.codec, tuple(joined))
     return choose_colour_map(sample.joined(sample.rgb), sample.joined(shown), options,
-                             reserved=int(reserved)).colour_map
+                             reserved=int(reserved), predict=predict).colour_map

@@ -25,7 +25,13 @@ from terratheme.core.convert.cell_choice import (
     choose_cell_size,
     packed_bytes,
 )
-from terratheme.core.convert.colour_fit import ColourMapOptions, FittedColourMap, choose_colour_map
+from terratheme.core.convert.colour_fit import (
+    ColourMapOptions,
+    FittedColourMap,
+    Prediction,
+    choose_colour_map,
+    grid_prediction,
+)
 from terratheme.core.convert.labels_to_grid import apply_lut, vote_grid
 from terratheme.core.convert.region_sample import RegionSample, covering_sample
 from terratheme.core.errors import TerrathemeError
@@ -447,6 +453,8 @@ def fit_colour_map(rgb: np.ndarray, grid: IndexGrid, library: ThemeLibrary,
     plain = render_cells(grid, library.textures, options=render)
     reserved = 0 if colour_map.target is not None else (
         packed_bytes(grid) if packed is None else packed)
-    return choose_colour_map(rgb, plain, colour_map, reserved=reserved,
-                             grid=(grid, len(library)))
+    def predict(stored: np.ndarray, scale: int) -> Prediction | None:
+        return grid_prediction(stored, grid, len(library), scale, colour_map.codec)
+
+    return choose_colour_map(rgb, plain, colour_map, reserved=reserved, predict=predict)
 

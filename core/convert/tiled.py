@@ -297,7 +297,8 @@ def convert_file_tiled(
         fitted = colour_map_from_file(path, grid, mapping.library.textures, chosen.coded_scale,
                                       render=style, options=colour_map, tile=tile,
                                       scheduler=scheduler, progress=progress, reserved=reserved,
-                                      sharpen=chosen.sharpen)
+                                      sharpen=chosen.sharpen,
+                                      predicted=chosen.colours is not None)
     meta = {
         "source_photo": str(path), "created_by": "terratheme convert (tiled)",
         "photo_size": [info.width, info.height],

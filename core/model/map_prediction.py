@@ -29,18 +29,16 @@ def nearest_vertices(count: int, scale: int, cell: int, vertices: int) -> np.nda
     return np.clip(np.floor(centre / cell + 0.5).astype(np.int64), 0, vertices - 1)
 
 
-def class_colours(stored: np.ndarray, indices: np.ndarray, cell: tuple[int, int],
-                  scale: int, n_themes: int) -> np.ndarray:
-    """``(n_themes, 3)`` uint8: each theme's mean stored gain over the map pixels nearest
-    its vertices (:data:`NEUTRAL` for a theme with none).
-
-    ``stored`` (mh, mw, 3) uint8: a map at ``scale`` texels per pixel; ``indices``
-    (vh, vw) uint8: the grid's vertices, ``cell`` ``(N, M)`` texels a cell.
-    """
+def class_sums(stored: np.ndarray, indices: np.ndarray, cell: tuple[int, int], scale: int,
+               n_themes: int, origin: tuple[int, int] = (0, 0)
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``(counts (n_themes,) int64, sums (n_themes, 3) float64)``: per theme, the map
+    pixels nearest its vertices and their stored gains, over ``stored``, the block of a
+    map at ``scale`` whose first pixel is map pixel ``origin`` ``(row, col)``."""
     mh, mw = stored.shape[:2]
     vh, vw = indices.shape
-    rows = nearest_vertices(mh, scale, cell[1], vh)
-    cols = nearest_vertices(mw, scale, cell[0], vw)
+    rows = nearest_vertices(origin[0] + mh, scale, cell[1], vh)[origin[0]:]
+    cols = nearest_vertices(origin[1] + mw, scale, cell[0], vw)[origin[1]:]
     counts = np.zeros(n_themes, np.int64)
     sums = np.zeros((n_themes, 3), np.float64)
     for r0 in range(0, mh, BAND_ROWS):
@@ -51,10 +49,26 @@ def class_colours(stored: np.ndarray, indices: np.ndarray, cell: tuple[int, int]
         for c in range(3):
             sums[:, c] += np.bincount(theme, weights=stored[band, :, c].ravel(),
                                       minlength=n_themes)[:n_themes]
-    colours = np.full((n_themes, 3), NEUTRAL, np.uint8)
+    return counts, sums
+
+
+def mean_colours(counts: np.ndarray, sums: np.ndarray) -> np.ndarray:
+    """``(K, 3)`` uint8 means of :func:`class_sums` (:data:`NEUTRAL` for a theme with none)."""
+    colours = np.full((len(counts), 3), NEUTRAL, np.uint8)
     seen = counts > 0
     colours[seen] = np.clip(np.rint(sums[seen] / counts[seen, None]), 0, 255)
     return colours
+
+
+def class_colours(stored: np.ndarray, indices: np.ndarray, cell: tuple[int, int],
+                  scale: int, n_themes: int) -> np.ndarray:
+    """``(n_themes, 3)`` uint8: each theme's mean stored gain over the map pixels nearest
+    its vertices (:data:`NEUTRAL` for a theme with none).
+
+    ``stored`` (mh, mw, 3) uint8: a map at ``scale`` texels per pixel; ``indices``
+    (vh, vw) uint8: the grid's vertices, ``cell`` ``(N, M)`` texels a cell.
+    """
+    return mean_colours(*class_sums(stored, indices, cell, scale, n_themes))
 
 
 def _axis_weights(count: int, scale: int, cell: int, vertices: int
@@ -67,8 +81,20 @@ def _axis_weights(count: int, scale: int, cell: int, vertices: int
     return low, high, at - low
 
 
+def _reach(sigma: float) -> int:
+    """Map pixels the blur of ``sigma`` reads on each side (scipy's radius; 0: no blur)."""
+    return int(TRUNCATE * sigma + 0.5) if sigma >= 0.5 else 0
+
+
+def _blurred(plane: np.ndarray, sigma: float, axis: int) -> np.ndarray:
+    if sigma < 0.5:
+        return plane
+    return gaussian_filter1d(plane, sigma, axis=axis, mode="nearest", truncate=TRUNCATE)
+
+
 def class_prediction(indices: np.ndarray, cell: tuple[int, int], colours: np.ndarray,
-                     scale: int, shape: tuple[int, int]) -> np.ndarray:
+                     scale: int, shape: tuple[int, int],
+                     window: tuple[int, int, int, int] | None = None) -> np.ndarray:
     """``(mh, mw, 3)`` uint8: the map a grid predicts at ``scale`` texels a map pixel.
 
     ``indices`` (vh, vw) uint8 theme per vertex (vertex ``(r, c)`` at texel ``(c N, r M)``
@@ -77,30 +103,30 @@ def class_prediction(indices: np.ndarray, cell: tuple[int, int], colours: np.nda
     scale, (i + 0.5) scale)``, then a Gaussian of sigma :data:`BLUR_CELLS` cells
     (edge pixels replicated, an axis under 0.5 map pixels not blurred), rounded. Made
     :data:`BAND_ROWS` rows at a time with the blur's reach around them: the same pixels.
+    ``window`` ``(r0, r1, c0, c1)``: only those map rows and columns (the same values).
     """
     mh, mw = int(shape[0]), int(shape[1])
+    r_start, r_stop, c0, c1 = window if window is not None else (0, mh, 0, mw)
     vh, vw = indices.shape
-    y0, y1, fy = _axis_weights(mh, scale, cell[1], vh)
-    x0, x1, fx = _axis_weights(mw, scale, cell[0], vw)
     sigma_y, sigma_x = BLUR_CELLS * cell[1] / scale, BLUR_CELLS * cell[0] / scale
-    # Rows beyond a band the vertical blur reads (scipy's radius for these taps).
-    reach = int(TRUNCATE * sigma_y + 0.5) if sigma_y >= 0.5 else 0
+    reach_y, reach_x = _reach(sigma_y), _reach(sigma_x)
+    y0, y1, fy = _axis_weights(mh, scale, cell[1], vh)
+    # The window's columns and the blur's reach, the map's edge columns repeated beyond.
+    cols = np.clip(np.arange(c0 - reach_x, c1 + reach_x), 0, mw - 1)
+    x0, x1, fx = (a[cols] for a in _axis_weights(mw, scale, cell[0], vw))
     vertex = np.asarray(colours, np.float64)[indices]  # (vh, vw, 3)
-    out = np.empty((mh, mw, 3), np.uint8)
-    for r0 in range(0, mh, BAND_ROWS):
-        r1 = min(r0 + BAND_ROWS, mh)
+    out = np.empty((r_stop - r_start, c1 - c0, 3), np.uint8)
+    for r0 in range(r_start, r_stop, BAND_ROWS):
+        r1 = min(r0 + BAND_ROWS, r_stop)
         # The band and its reach, the map's edge rows repeated beyond it.
-        rows = np.clip(np.arange(r0 - reach, r1 + reach), 0, mh - 1)
+        rows = np.clip(np.arange(r0 - reach_y, r1 + reach_y), 0, mh - 1)
         # Step 1: the vertex colours, bilinear at every map pixel (rows, then columns).
         along = (vertex[y0[rows]] * (1.0 - fy[rows])[:, None, None]
                  + vertex[y1[rows]] * fy[rows][:, None, None])
         plane = (along[:, x0] * (1.0 - fx)[None, :, None]
                  + along[:, x1] * fx[None, :, None])
-        # Step 2: blurred by half a cell on each axis.
-        if reach:
-            plane = gaussian_filter1d(plane, sigma_y, axis=0, mode="nearest",
-                                      truncate=TRUNCATE)[reach:reach + r1 - r0]
-        if sigma_x >= 0.5:
-            plane = gaussian_filter1d(plane, sigma_x, axis=1, mode="nearest", truncate=TRUNCATE)
-        out[r0:r1] = np.clip(np.rint(plane), 0, 255)
+        # Step 2: blurred by half a cell on each axis, the reach cut off again.
+        plane = _blurred(plane, sigma_y, 0)[reach_y:reach_y + r1 - r0]
+        plane = _blurred(plane, sigma_x, 1)[:, reach_x:reach_x + c1 - c0]
+        out[r0 - r_start:r1 - r_start] = np.clip(np.rint(plane), 0, 255)
     return out
