@@ -148,13 +148,22 @@ class RegionSample:
         return [image[y:y + h, x:x + w] for (x, y), (*_, w, h)
                 in zip(self.places, self.windows, strict=True)]
 
+    def _per_row(self) -> int:
+        """Pieces in each row of the layout."""
+        return len(self.windows) // len({y for _, y in self.places})
+
     def joined(self, image: np.ndarray) -> np.ndarray:
         """An image laid out as ``rgb`` with its pieces side by side, without the gaps."""
-        rows = len({y for _, y in self.places})
-        pieces = self.pieces(image)
-        per = len(pieces) // rows
-        return np.concatenate([np.concatenate(pieces[j * per:(j + 1) * per], axis=1)
-                               for j in range(rows)], axis=0)
+        pieces, per = self.pieces(image), self._per_row()
+        return np.concatenate([np.concatenate(pieces[j:j + per], axis=1)
+                               for j in range(0, len(pieces), per)], axis=0)
+
+    def joined_places(self) -> list[tuple[int, int]]:
+        """Each piece's (x, y) in :meth:`joined`'s image."""
+        per = self._per_row()
+        return [(sum(w for *_, w, _ in self.windows[k - k % per:k]),
+                 sum(self.windows[r][3] for r in range(0, k - k % per, per)))
+                for k in range(len(self.windows))]
 
 
 def sample_windows(size: tuple[int, int], piece: int = SAMPLE_PIECE, grid: int = SAMPLE_GRID,
@@ -395,14 +404,7 @@ def sample_colour_map(sample: RegionSample, grid: IndexGrid, textures: list[np.n
         origin, block = grid_window(grid, TileWindow(x, y, w, h, x, y, w, h))
         shown[py:py + h, px:px + w] = render_cells(block, textures, grid.cell, region=(x, y, w, h),
                                                    options=render, origin=origin)
-    # Where each window lies in the joined image (its rows of pieces, side by side).
-    per = len(sample.windows) // len({y for _, y in sample.places})
-    joined = []
-    for k, win in enumerate(sample.windows):
-        row = k // per
-        jx = sum(sample.windows[row * per + i][2] for i in range(k - row * per))
-        jy = sum(sample.windows[r * per][3] for r in range(row))
-        joined.append((win, (jx, jy)))
-    predict = SamplePrediction(grid, len(textures), options.codec, tuple(joined))
+    predict = SamplePrediction(grid, len(textures), options.codec,
+                               tuple(zip(sample.windows, sample.joined_places(), strict=True)))
     return choose_colour_map(sample.joined(sample.rgb), sample.joined(shown), options,
                              reserved=int(reserved), predict=predict).colour_map

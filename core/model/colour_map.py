@@ -249,8 +249,6 @@ class ColourMap:
         check_sharpen(sharpen)
         arr = np.ascontiguousarray(pixels)
         if prediction is not None:
-            if prediction.shape != arr.shape:
-                raise TerrathemeError("colour map prediction does not match its pixels")
             if not cls.fits_one_image(arr.shape[:2], codec):
                 raise TerrathemeError("a predicted colour map ships in one image")
             arr = residual(arr, prediction)

@@ -114,15 +114,18 @@ def class_prediction(indices: np.ndarray, cell: tuple[int, int], colours: np.nda
     # The window's columns and the blur's reach, the map's edge columns repeated beyond.
     cols = np.clip(np.arange(c0 - reach_x, c1 + reach_x), 0, mw - 1)
     x0, x1, fx = (a[cols] for a in _axis_weights(mw, scale, cell[0], vw))
-    vertex = np.asarray(colours, np.float64)[indices]  # (vh, vw, 3)
+    # The vertex colours of the columns the window reads only (a window of a large grid).
+    left, right = int(x0.min()), int(x1.max()) + 1
+    x0, x1 = x0 - left, x1 - left
+    palette = np.asarray(colours, np.float64)
     out = np.empty((r_stop - r_start, c1 - c0, 3), np.uint8)
     for r0 in range(r_start, r_stop, BAND_ROWS):
         r1 = min(r0 + BAND_ROWS, r_stop)
         # The band and its reach, the map's edge rows repeated beyond it.
         rows = np.clip(np.arange(r0 - reach_y, r1 + reach_y), 0, mh - 1)
         # Step 1: the vertex colours, bilinear at every map pixel (rows, then columns).
-        along = (vertex[y0[rows]] * (1.0 - fy[rows])[:, None, None]
-                 + vertex[y1[rows]] * fy[rows][:, None, None])
+        along = (palette[indices[y0[rows], left:right]] * (1.0 - fy[rows])[:, None, None]
+                 + palette[indices[y1[rows], left:right]] * fy[rows][:, None, None])
         plane = (along[:, x0] * (1.0 - fx)[None, :, None]
                  + along[:, x1] * fx[None, :, None])
         # Step 2: blurred by half a cell on each axis, the reach cut off again.
