@@ -168,7 +168,6 @@ def choose_cell_size(
     if not 0.0 < float(target_agreement) <= 1.0:
         raise TerrathemeError(f"target agreement must be in (0, 1], got {target_agreement}")
     h, w = max(p.shape[0] for p in pieces), max(p.shape[1] for p in pieces)
-    total = sum(p.size for p in pieces)
     sizes = sorted({int(c) for c in candidates if 1 <= int(c) <= max(w, h)})
     if not sizes:
         raise TerrathemeError(
@@ -180,12 +179,7 @@ def choose_cell_size(
     grids: dict[int, IndexGrid] = {}
     for done, c in enumerate(sizes if full_curve else sizes[::-1], start=1):
         # Vote the grid, render its label view, count the pixels that keep their label.
-        cm, vertices = np.zeros((1, 1), np.int64), 0
-        for piece in pieces:
-            grid = IndexGrid(vote_grid(piece, (c, c), keep_specks=keep_specks), (c, c))
-            share = None if sample_pixels is None else max(1, sample_pixels * piece.size // total)
-            cm = _summed(cm, label_confusion(piece, grid, max_pixels=share))
-            vertices += int(grid.indices.size)
+        cm, vertices, grid = windows_confusion(pieces, c, sample_pixels, keep_specks=keep_specks)
         if len(pieces) == 1:
             grids[c] = grid
         ious = class_iou(cm, CLASS_MIN_SHARE)
@@ -207,6 +201,23 @@ def choose_cell_size(
     )
 
 
+def windows_confusion(pieces: Sequence[np.ndarray], cell: int, max_pixels: int | None = None,
+                      *, keep_specks: bool = True) -> tuple[np.ndarray, int, IndexGrid]:
+    """``(confusion, vertices, grid)``: :func:`label_confusion` of windows of one photo, each
+    voted apart at square ``cell`` and the counts summed; their vertex count; the last's grid.
+
+    ``max_pixels``: about that many pixels counted in all, shared by size (None: all).
+    """
+    total = sum(p.size for p in pieces)
+    cm, vertices = np.zeros((1, 1), np.int64), 0
+    for piece in pieces:
+        grid = IndexGrid(vote_grid(piece, (cell, cell), keep_specks=keep_specks), (cell, cell))
+        share = None if max_pixels is None else max(1, max_pixels * piece.size // total)
+        cm = _summed(cm, label_confusion(piece, grid, max_pixels=share))
+        vertices += int(grid.indices.size)
+    return cm, vertices, grid
+
+
 def _summed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Two confusion matrices of different sizes added (the larger's shape)."""
     k = max(a.shape[0], b.shape[0])
@@ -226,7 +237,8 @@ def packed_bytes(grid: IndexGrid) -> int:
 
 
 def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Sequence[int],
-                       max_bits_per_pixel: float, *, keep_specks: bool = True) -> CellChoice:
+                       max_bits_per_pixel: float, *, keep_specks: bool = True,
+                       windows: Sequence[np.ndarray] | None = None) -> CellChoice:
     """``choice``, or the next larger candidate cell until the packed grid fits its budget,
     while its label agreement stays within :data:`BUDGET_AGREEMENT_LOSS` of the choice's
     target.
@@ -237,6 +249,11 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
     fit (``max_bits_per_pixel`` per photo pixel; its curve unchanged). ``choice.grid``,
     when set, is the grid of these labels at its cell. The result carries its grid and
     packed size.
+
+    ``windows``: when ``labels`` are a region sample's windows side by side, the same
+    windows apart, on which the agreement is measured (as :func:`choose_cell_size` on a
+    list: the seams between them are no borders of the photo, and would favour small cells);
+    the bytes stay those of the grid of ``labels``.
     """
     labels = check_class_image(labels, "label image")
     cell = choice.cell[0]
@@ -254,7 +271,11 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
         # A larger cell while the grid is over its share, unless it gives up more label
         # agreement than the budget may take (the texture's classes stay the photo's).
         bigger = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
-        kept = agreement(labels, bigger, max_pixels=1 << 22)
+        if windows is None:
+            kept = agreement(labels, bigger, max_pixels=1 << 22)
+        else:
+            cm = windows_confusion(windows, nxt, 1 << 22, keep_specks=keep_specks)[0]
+            kept = float(np.trace(cm) / max(cm.sum(), 1))
         if kept < floor:
             break
         grid, nbytes, score = bigger, packed_bytes(bigger), kept

@@ -266,7 +266,8 @@ def convert_file_tiled(
         bits = grid_budget(colour_map, info.width * info.height)
         if bits is not None:
             choice = cell_within_budget(sample.joined(theme_labels), choice, candidates, bits,
-                                        keep_specks=keep_specks)
+                                        keep_specks=keep_specks,
+                                        windows=sample.pieces(theme_labels))
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
