@@ -177,16 +177,28 @@ def _on_terminate(signum: int, frame: object) -> None:
     os.kill(os.getpid(), signum)
 
 
+def _on_interrupt(signum: int, frame: object) -> None:
+    """Ctrl-C: Python's KeyboardInterrupt, and no output committed after it even if a
+    library swallows that exception (:func:`core.io.atomic.refuse_commits`)."""
+    atomic = sys.modules.get("terratheme.core.io.atomic")
+    if atomic is not None:
+        atomic.refuse_commits()
+    raise KeyboardInterrupt
+
+
 def console_main() -> None:
     """The ``terratheme`` console script: :func:`main`, then exit with its status.
 
     SIGTERM and SIGHUP (when not ignored) remove this process's temporary files first.
-    After Ctrl-C the process ends at once (the temporaries are gone already), so a pool
-    thread interrupted while starting cannot hold the interpreter's exit.
+    After Ctrl-C no output is committed (:func:`_on_interrupt`) and the process ends at
+    once (the temporaries are gone already), so a pool thread interrupted while starting
+    cannot hold the interpreter's exit.
     """
     for signum in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, _on_terminate)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_interrupt)
     code = main()
     if code == 130:
         with contextlib.suppress(OSError, ValueError):

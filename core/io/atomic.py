@@ -31,6 +31,8 @@ _LOCK = threading.RLock()  # re-entrant: a signal handler may run while it is he
 _LIVE: set[Path] = set()
 #: open file sets by the final paths they hold
 _OPEN: dict[Path, FileSet] = {}
+#: set by :func:`refuse_commits`: no output is renamed into place after it
+_REFUSED = threading.Event()
 
 
 def _key(path: Path) -> Path:
@@ -97,6 +99,21 @@ def _new_temporary(final: Path, suffix: str | None) -> Path:
         return tmp
 
 
+def refuse_commits() -> None:
+    """Make every later commit raise KeyboardInterrupt, its temporaries removed.
+
+    For a Ctrl-C handler: a library may swallow the KeyboardInterrupt the handler raises
+    (imagecodecs' input check under tifffile's zlib tiles does), and the run would then
+    finish and replace the outputs the user meant to keep.
+    """
+    _REFUSED.set()
+
+
+def _check_refused() -> None:
+    if _REFUSED.is_set():
+        raise KeyboardInterrupt
+
+
 def _forget(tmp: Path) -> None:
     with _LOCK:
         _LIVE.discard(tmp)
@@ -160,6 +177,7 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None,
             yield tmp
         if rename:
             _fsync(tmp, final)
+            _check_refused()
             os.replace(tmp, final)
             _forget(tmp)
             _fsync_folder(final.parent)
@@ -227,6 +245,7 @@ class FileSet:
                                   "they were")
         for final, tmp in self._temps.items():
             _fsync(tmp, final)
+        _check_refused()
         members = [f for f in self.finals[:-1] if f in self._temps]
         folders = sorted({os.path.realpath(f.parent) for f in self.finals})
         with contextlib.ExitStack() as locks:
