@@ -186,19 +186,25 @@ def _on_interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def install_interrupt_handler(command: str | None) -> None:
+    """:func:`_on_interrupt` for Ctrl-C (when Python's own handler is set), except for the
+    editor (``app``): it goes on after a Ctrl-C and saves what its user asks for."""
+    if command != "app" and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_interrupt)
+
+
 def console_main() -> None:
     """The ``terratheme`` console script: :func:`main`, then exit with its status.
 
     SIGTERM and SIGHUP (when not ignored) remove this process's temporary files first.
-    After Ctrl-C no output is committed (:func:`_on_interrupt`) and the process ends at
-    once (the temporaries are gone already), so a pool thread interrupted while starting
-    cannot hold the interpreter's exit.
+    After Ctrl-C no output is committed (:func:`install_interrupt_handler`) and the
+    process ends at once (the temporaries are gone already), so a pool thread interrupted
+    while starting cannot hold the interpreter's exit.
     """
     for signum in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, _on_terminate)
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, _on_interrupt)
+    install_interrupt_handler(sys.argv[1] if len(sys.argv) > 1 else None)
     code = main()
     if code == 130:
         with contextlib.suppress(OSError, ValueError):

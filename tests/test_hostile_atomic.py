@@ -172,6 +172,18 @@ def test_after_ctrl_c_a_swallowed_interrupt_commits_nothing(tmp_path, kind):
     assert target.read_bytes() == b"old" and _hidden(tmp_path) == []
 
 
+def test_the_cli_refuses_commits_after_ctrl_c_except_in_the_editor():
+    done = _child("""
+        import signal
+        from terratheme.app import cli
+        cli.install_interrupt_handler("app")
+        print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+        cli.install_interrupt_handler("render")
+        print(signal.getsignal(signal.SIGINT) is cli._on_interrupt)
+        """)
+    assert done.stdout.split() == ["True", "True"], done.stderr
+
+
 def test_without_the_cli_s_handler_commits_go_on(tmp_path):
     """Only the console script's Ctrl-C refuses commits: core installs no policy."""
     done = _child(f"""
