@@ -10,7 +10,10 @@ Photos (tiled TIFFs in a temporary folder):
   4 x 4 (4504 x 4232, issue 34's "4500 x 4200 mosaic of the sample");
 * ``dubai_mosaic``: a 3072 x 3072 mosaic of random 512-pixel crops of the
   shared Dubai photos (``../shared/data/dubai/images``, when present;
-  ``benchmarks/mosaic.py``).
+  ``benchmarks/mosaic.py``);
+* ``villas_3x3``: the villa photo ``image_part_005t4.jpg`` of those repeated 3 x 3
+  (3297 x 2538), whose grid is over its byte share: the byte budget's cell growth is
+  decided on the region's sample.
 
 Each photo is converted with ``convert``'s defaults three times, each in a
 fresh child process (peak RSS from ``ru_maxrss``; forked from a small server
@@ -153,10 +156,11 @@ def measure(name: str, photo_path: Path, folder: Path, tile: int) -> dict:
     return result
 
 
-def _sample_mosaic(path: Path, repeat: int) -> None:
+def _repeated(path: Path, photo: Path, repeat: int) -> None:
+    """``photo`` repeated ``repeat`` x ``repeat`` times, as a tiled TIFF at ``path``."""
     from terratheme.core.io.images import read_image, write_image
 
-    img = read_image(SAMPLE, dtype=np.uint8)[..., :3]
+    img = read_image(photo, dtype=np.uint8)[..., :3]
     write_image(path, np.tile(img, (repeat, repeat, 1)), tile=256)
 
 
@@ -200,7 +204,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--tile", type=int, default=512)
     parser.add_argument("--name", default="region")
-    parser.add_argument("--only", help="run only this photo (sample_4x4 or dubai_mosaic)")
+    parser.add_argument("--only", help="run only this photo (sample_4x4, dubai_mosaic or "
+                        "villas_3x3)")
     args = parser.parse_args()
     sys.path.insert(0, str(REPO / "benchmarks"))
     from mosaic import crop_sources, write_mosaic
@@ -213,9 +218,10 @@ def main() -> None:
         pool.submit(os.getpid).result()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        photos = {"sample_4x4": lambda p: _sample_mosaic(p, 2 if args.quick else 4)}
+        photos = {"sample_4x4": lambda p: _repeated(p, SAMPLE, 2 if args.quick else 4)}
         if SHARED.is_dir() and not args.quick:
             photos["dubai_mosaic"] = lambda p: write_mosaic(p, 3072, crop_sources(SHARED), 0)
+            photos["villas_3x3"] = lambda p: _repeated(p, SHARED / "image_part_005t4.jpg", 3)
         for name, make in photos.items():
             if args.only and name != args.only:
                 continue
