@@ -85,8 +85,12 @@ def label_confusion(labels: np.ndarray, grid: IndexGrid, *,
 
 def agreement(labels: np.ndarray, grid: IndexGrid, *, max_pixels: int | None = None) -> float:
     """Share of pixels whose label equals the grid's label view (as :func:`label_confusion`)."""
-    cm = label_confusion(labels, grid, max_pixels=max_pixels)
-    return float(np.trace(cm) / max(cm.sum(), 1))
+    return confusion_agreement(label_confusion(labels, grid, max_pixels=max_pixels))
+
+
+def confusion_agreement(confusion: np.ndarray) -> float:
+    """The share of a (label, label view) confusion matrix's counts on its diagonal."""
+    return float(np.trace(confusion) / max(confusion.sum(), 1))
 
 
 def class_iou(confusion: np.ndarray, min_share: float = 0.0) -> dict[int, float]:
@@ -183,7 +187,7 @@ def choose_cell_size(
         if len(pieces) == 1:
             grids[c] = grid
         ious = class_iou(cm, CLASS_MIN_SHARE)
-        curve.append(CellPoint(c, float(np.trace(cm) / max(cm.sum(), 1)), vertices,
+        curve.append(CellPoint(c, confusion_agreement(cm), vertices,
                                min(ious.values(), default=1.0)))
         if progress is not None:
             progress(done, len(sizes))
@@ -271,11 +275,9 @@ def cell_within_budget(labels: np.ndarray, choice: CellChoice, candidates: Seque
         # A larger cell while the grid is over its share, unless it gives up more label
         # agreement than the budget may take (the texture's classes stay the photo's).
         bigger = IndexGrid(vote_grid(labels, (nxt, nxt), keep_specks=keep_specks), (nxt, nxt))
-        if windows is None:
-            kept = agreement(labels, bigger, max_pixels=1 << 22)
-        else:
-            cm = windows_confusion(windows, nxt, 1 << 22, keep_specks=keep_specks)[0]
-            kept = float(np.trace(cm) / max(cm.sum(), 1))
+        kept = (agreement(labels, bigger, max_pixels=1 << 22) if windows is None else
+                confusion_agreement(windows_confusion(windows, nxt, 1 << 22,
+                                                      keep_specks=keep_specks)[0]))
         if kept < floor:
             break
         grid, nbytes, score = bigger, packed_bytes(bigger), kept

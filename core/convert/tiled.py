@@ -259,15 +259,15 @@ def convert_file_tiled(
             getattr(model, "class_names", None) or {}).values()
         candidates = road_candidates(candidates, given)
         theme_labels = apply_lut(sample.labels, mapping.lut)
-        choice = choose_cell_size(sample.pieces(theme_labels), target_agreement,
+        windows = sample.pieces(theme_labels)
+        choice = choose_cell_size(windows, target_agreement,
                                   candidates=candidates, class_target=class_target,
                                   full_curve=False, keep_specks=keep_specks)
         # Under a byte budget the packed grid takes at most its share, as on the whole photo.
         bits = grid_budget(colour_map, info.width * info.height)
         if bits is not None:
             choice = cell_within_budget(sample.joined(theme_labels), choice, candidates, bits,
-                                        keep_specks=keep_specks,
-                                        windows=sample.pieces(theme_labels))
+                                        keep_specks=keep_specks, windows=windows)
         cell = choice.cell[0]
     grid = grid_from_file(path, int(cell), PredictLabels(model), lut=mapping.lut,
                           tile=tile, overlap=overlap, scheduler=scheduler, progress=progress,
